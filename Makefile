@@ -1,0 +1,119 @@
+# wrt: Wavelet Radiance Transport. `make` builds build/wrt-bake, build/wrt-play and the
+# tools; `make demo` installs what is missing, builds, bakes and renders the default scene;
+# `make test` installs what is missing, builds and runs the test suite.
+# Knobs: config=release|debug|sanitize, CC, CXX, JOBS.
+
+config ?= release
+CC ?= gcc
+CXX ?= g++
+BUILD ?= build
+SHELL := /bin/bash
+
+WARN := -Wall -Wextra -Wshadow -Wpointer-arith -Wstrict-prototypes -Wmissing-prototypes \
+        -Wno-unused-parameter -Wvla -Wformat=2
+CWARN := $(WARN) -Werror=implicit-function-declaration
+CPPFLAGS += -MMD -MP -I. -D_GNU_SOURCE
+CFLAGS_release := -O2 -g -march=x86-64-v2
+CFLAGS_debug := -O0 -g3
+CFLAGS_sanitize := -O1 -g -fsanitize=address,undefined -fno-omit-frame-pointer
+LDFLAGS_sanitize := -fsanitize=address,undefined
+CFLAGS += -std=c11 $(CWARN) $(CFLAGS_$(config)) -pthread
+CXXFLAGS += -std=c++17 -Wall -Wextra -Wno-unused-parameter $(CFLAGS_$(config)) -pthread \
+            -I/usr/include/stb -w
+LDFLAGS += $(LDFLAGS_$(config)) -pthread
+
+ifneq ($(config),release)
+BUILD := build/$(config)
+endif
+
+LIBS_CORE := -lembree3 -lm
+LIBS_IMG := -lOpenImageIO -lOpenImageIO_Util
+LIBS_GL := -lglfw -lEGL -lGL
+
+# Sources: every .c/.cpp in a part's folder, except its programs' main files.
+CORE_SRC := $(wildcard common/*.c) $(wildcard formats/*.c) $(wildcard formats/*.cpp)
+BAKE_SRC := $(filter-out precompute/main.c,$(wildcard precompute/*.c))
+PLAY_SRC := $(filter-out player/main.c,$(wildcard player/*.c) $(wildcard player/*.cpp))
+REF_SRC := $(filter-out tools/ref_main.c tools/scenegen.c tools/fuzz_%.c,$(wildcard tools/*.c))
+
+obj = $(patsubst %.cpp,$(BUILD)/obj/%.o,$(patsubst %.c,$(BUILD)/obj/%.o,$(1)))
+CORE_OBJ := $(call obj,$(CORE_SRC))
+BAKE_OBJ := $(call obj,$(BAKE_SRC))
+PLAY_OBJ := $(call obj,$(PLAY_SRC))
+REF_OBJ := $(call obj,$(REF_SRC))
+ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(REF_OBJ) $(CORE_OBJ)
+
+PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-scenegen
+TEST_SRC := $(wildcard tests/test_*.c)
+TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
+
+.PHONY: all deps demo test tests stress study fuzz clean assets bench
+all: $(PROGRAMS) $(TESTS)
+
+deps:
+	@bash tools/install-deps.sh
+
+$(BUILD)/obj/%.o: %.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
+
+$(BUILD)/obj/%.o: %.cpp
+	@mkdir -p $(dir $@)
+	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
+
+$(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(CORE_OBJ)
+	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE) $(LIBS_IMG)
+
+$(BUILD)/wrt-play: $(call obj,player/main.c) $(PLAY_OBJ) $(CORE_OBJ)
+	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
+
+$(BUILD)/wrt-ref: $(call obj,tools/ref_main.c) $(REF_OBJ) $(CORE_OBJ)
+	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
+
+$(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c) $(CORE_OBJ)
+	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
+
+$(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(ALL_LIB_OBJ)
+	@mkdir -p $(dir $@)
+	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
+
+# The loader's fuzz target (libFuzzer, clang). Runs FUZZ_SECONDS (default 60).
+FUZZ_SECONDS ?= 60
+fuzz:
+	@mkdir -p build/fuzz build/fuzz/corpus
+	clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -I. -I/usr/include/stb -w -D_GNU_SOURCE \
+	  -x c tools/fuzz_scene.c -x c common/wrt_common.c -x c formats/scene.c -x c++ formats/gltf_shim.cpp \
+	  -o build/fuzz/fuzz_scene -lm
+	cp -n assets/*.gltf build/fuzz/corpus/ 2>/dev/null || true
+	build/fuzz/fuzz_scene -max_total_time=$(FUZZ_SECONDS) -max_len=65536 build/fuzz/corpus 2>&1 | tail -n 5
+
+assets: $(BUILD)/wrt-scenegen
+	$(BUILD)/wrt-scenegen --all assets
+
+test: deps
+	@$(MAKE) --no-print-directory all
+	@bash tests/run.sh $(BUILD)
+
+stress: deps
+	@$(MAKE) --no-print-directory all
+	@WRT_STRESS_FULL=1 bash tests/run.sh $(BUILD) stress
+
+DEMO_SCENE ?= assets/cornell.gltf
+demo: deps
+	@$(MAKE) --no-print-directory all
+	$(BUILD)/wrt-bake --scan $(DEMO_SCENE)
+	$(BUILD)/wrt-bake $(DEMO_SCENE) -o $(BUILD)/demo.gto
+	$(BUILD)/wrt-play $(BUILD)/demo.gto --headless --out $(BUILD)/demo.png
+	@echo "demo: wrote $(BUILD)/demo.gto and $(BUILD)/demo.png"
+
+study: deps
+	@$(MAKE) --no-print-directory all
+	bash tools/study.sh
+
+bench: all
+	bash tools/bench.sh
+
+clean:
+	rm -rf build
+
+-include $(shell find build -name '*.d' 2>/dev/null)

@@ -1,0 +1,94 @@
+/* wrt_common.c: status text, thread-local last error, logging sink, checked
+ * allocation, clock and hash. See wrt_common.h. */
+#define _POSIX_C_SOURCE 200809L
+#include "wrt_common.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+static const char *const status_text[WRT_STATUS_COUNT] = {
+    "ok", "i/o error", "not a wrt file", "corrupt file", "unsupported version or feature",
+    "malformed input", "bad geometry", "invalid argument", "out of memory", "cancelled",
+    "accuracy not met", "graphics error",
+};
+
+const char *wrt_status_str(wrt_status s) {
+    return (s >= 0 && s < WRT_STATUS_COUNT) ? status_text[s] : "unknown status";
+}
+
+static _Thread_local char last_error[1024];
+
+wrt_status wrt_fail(wrt_status s, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(last_error, sizeof last_error, fmt, ap);
+    va_end(ap);
+    return s;
+}
+
+const char *wrt_last_error(void) { return last_error; }
+void wrt_clear_error(void) { last_error[0] = 0; }
+
+static wrt_log_sink log_sink;
+static void *log_user;
+static int log_verbosity = WRT_LOG_WARN;
+
+void wrt_log_set_sink(wrt_log_sink sink, void *user) { log_sink = sink; log_user = user; }
+void wrt_log_set_verbosity(int level) { log_verbosity = level; }
+
+void wrt_log(int level, const char *fmt, ...) {
+    char buf[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    if (log_sink) {
+        log_sink(level, buf, log_user);
+        return;
+    }
+    if (level > log_verbosity) return;
+    static const char *const names[] = {"error", "warning", "info", "debug"};
+    fprintf(stderr, "wrt: %s: %s\n", names[level < 0 ? 0 : level > 3 ? 3 : level], buf);
+}
+
+static void oom(size_t n) {
+    fprintf(stderr, "wrt: error: out of memory allocating %zu bytes\n", n);
+    abort();
+}
+
+void *wrt_xmalloc(size_t n) {
+    void *p = malloc(n ? n : 1);
+    if (!p) oom(n);
+    return p;
+}
+
+void *wrt_xcalloc(size_t count, size_t size) {
+    void *p = calloc(count ? count : 1, size ? size : 1);
+    if (!p) oom(count * size);
+    return p;
+}
+
+void *wrt_xrealloc(void *p, size_t n) {
+    void *q = realloc(p, n ? n : 1);
+    if (!q) oom(n);
+    return q;
+}
+
+double wrt_now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+uint64_t wrt_hash64(const void *data, size_t n, uint64_t seed) {
+    const unsigned char *p = data;
+    uint64_t h = seed;
+    for (size_t i = 0; i < n; i++) {
+        h ^= p[i];
+        h *= 0x100000001b3ULL;
+    }
+    return h;
+}

@@ -1,0 +1,86 @@
+/* wrt_common.h: status codes, error reporting, logging, small vector math and
+ * allocation helpers shared by every part of wrt (bake, player, tools, tests).
+ * Depends on the C standard library only. Thread-safety: the last-error buffer
+ * is thread-local; the log sink is global and must be set before threads start. */
+#ifndef WRT_COMMON_H
+#define WRT_COMMON_H
+
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#define WRT_VERSION_STRING "0.1.0"
+#define WRT_PI 3.14159265358979323846
+
+/* Every fallible function returns one of these; details go to wrt_last_error(). */
+typedef enum wrt_status {
+    WRT_OK = 0,
+    WRT_ERR_IO,          /* could not open, read or write a file */
+    WRT_ERR_NOT_OURS,    /* not our kind of file (foreign magic) */
+    WRT_ERR_CORRUPT,     /* our kind of file, but broken: truncated, bad offsets, checksum */
+    WRT_ERR_UNSUPPORTED, /* valid, but a version or feature we do not support */
+    WRT_ERR_PARSE,       /* malformed input (glTF JSON, buffers, accessors) */
+    WRT_ERR_GEOMETRY,    /* geometry we refuse: unpaired triangles, non-planar/degenerate quads, NaN */
+    WRT_ERR_INVALID_ARG, /* absurd option or argument */
+    WRT_ERR_NOMEM,
+    WRT_ERR_CANCELLED,   /* a progress callback asked to stop */
+    WRT_ERR_ACCURACY,    /* a required accuracy was not met */
+    WRT_ERR_GL,          /* OpenGL / EGL / window system failure */
+    WRT_STATUS_COUNT
+} wrt_status;
+
+/* Short constant text for a status ("ok", "i/o error", ...). */
+const char *wrt_status_str(wrt_status s);
+
+/* Sets the calling thread's last error message (printf-style) and returns `s`,
+ * so that `return wrt_fail(WRT_ERR_PARSE, "x: %d", n);` reads naturally. */
+wrt_status wrt_fail(wrt_status s, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+/* The calling thread's last error message ("" if none). Valid until the next wrt_fail. */
+const char *wrt_last_error(void);
+void wrt_clear_error(void);
+
+/* Logging. Levels: 0 error, 1 warning, 2 info, 3 debug. Default sink writes
+ * "wrt: warning: ..." to stderr for levels <= the verbosity (default 1). */
+typedef void (*wrt_log_sink)(int level, const char *msg, void *user);
+void wrt_log_set_sink(wrt_log_sink sink, void *user); /* NULL restores the default */
+void wrt_log_set_verbosity(int level);
+void wrt_log(int level, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+#define WRT_LOG_ERROR 0
+#define WRT_LOG_WARN 1
+#define WRT_LOG_INFO 2
+#define WRT_LOG_DEBUG 3
+
+/* Allocation that never returns NULL for n > 0 (aborts with a message on
+ * exhaustion: out-of-memory is not a recoverable condition in this program). */
+void *wrt_xmalloc(size_t n);
+void *wrt_xcalloc(size_t count, size_t size);
+void *wrt_xrealloc(void *p, size_t n);
+
+/* Monotonic wall-clock seconds. */
+double wrt_now(void);
+
+/* ---- 3-vectors in double precision (geometry is computed in double) ---- */
+typedef struct wrt_v3 { double x, y, z; } wrt_v3;
+
+static inline wrt_v3 v3(double x, double y, double z) { wrt_v3 r = {x, y, z}; return r; }
+static inline wrt_v3 v3_add(wrt_v3 a, wrt_v3 b) { return v3(a.x + b.x, a.y + b.y, a.z + b.z); }
+static inline wrt_v3 v3_sub(wrt_v3 a, wrt_v3 b) { return v3(a.x - b.x, a.y - b.y, a.z - b.z); }
+static inline wrt_v3 v3_scale(wrt_v3 a, double s) { return v3(a.x * s, a.y * s, a.z * s); }
+static inline wrt_v3 v3_mad(wrt_v3 a, wrt_v3 b, double s) { return v3(a.x + b.x * s, a.y + b.y * s, a.z + b.z * s); }
+static inline double v3_dot(wrt_v3 a, wrt_v3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static inline wrt_v3 v3_cross(wrt_v3 a, wrt_v3 b) {
+    return v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+static inline double v3_len(wrt_v3 a) { return sqrt(v3_dot(a, a)); }
+static inline wrt_v3 v3_norm(wrt_v3 a) {
+    double l = v3_len(a);
+    return l > 0 ? v3_scale(a, 1.0 / l) : a;
+}
+static inline int v3_finite(wrt_v3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
+
+/* FNV-1a 64-bit over bytes, for provenance hashes and checksums. */
+uint64_t wrt_hash64(const void *data, size_t n, uint64_t seed);
+#define WRT_HASH_SEED 0xcbf29ce484222325ULL
+
+#endif

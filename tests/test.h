@@ -1,0 +1,59 @@
+/* test.h: the test harness. Each tests/test_*.c is one program named after the module
+ * it tests; it calls its cases through TEST_RUN and ends with TEST_END, which prints
+ * "<program>: N passed, N failed" and returns non-zero on any failure. Checks stay on
+ * in every build. A capturing log sink lets a test assert which error fired. */
+#ifndef WRT_TEST_H
+#define WRT_TEST_H
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "common/wrt_common.h"
+
+static int test_passed, test_failed, test_case_failed;
+static const char *test_current = "";
+
+#define CHECK(cond, ...) do { \
+    if (cond) { test_passed++; } else { \
+        test_failed++; test_case_failed = 1; \
+        fprintf(stderr, "FAIL %s (%s:%d): %s: ", test_current, __FILE__, __LINE__, #cond); \
+        fprintf(stderr, __VA_ARGS__); fputc('\n', stderr); \
+    } } while (0)
+
+#define CHECK_NEAR(a, b, tol, ...) do { \
+    double check_a_ = (a), check_b_ = (b), check_t_ = (tol); \
+    if (fabs(check_a_ - check_b_) <= check_t_) { test_passed++; } else { \
+        test_failed++; test_case_failed = 1; \
+        fprintf(stderr, "FAIL %s (%s:%d): %s = %.6g, expected %.6g +- %.3g: ", test_current, \
+                __FILE__, __LINE__, #a, check_a_, check_b_, check_t_); \
+        fprintf(stderr, __VA_ARGS__); fputc('\n', stderr); \
+    } } while (0)
+
+/* Runs a case if argv selects it (no argument: all cases). */
+#define TEST_RUN(fn) do { \
+    if (test_selected(argc, argv, #fn)) { \
+        test_current = #fn; test_case_failed = 0; double t0_ = wrt_now(); fn(); \
+        fprintf(stderr, "%s %s (%.2f s)\n", test_case_failed ? "not ok" : "ok", #fn, wrt_now() - t0_); \
+    } } while (0)
+
+#define TEST_END() do { \
+    printf("%s: %d passed, %d failed\n", argv[0], test_passed, test_failed); \
+    return test_failed ? 1 : 0; } while (0)
+
+static inline int test_selected(int argc, char **argv, const char *name) {
+    if (argc < 2) return 1;
+    for (int i = 1; i < argc; i++) if (strcmp(argv[i], name) == 0) return 1;
+    return 0;
+}
+
+/* Capturing logger: collects every message logged since test_capture_begin(). */
+static char test_log[16384];
+static inline void test_log_sink(int level, const char *msg, void *user) {
+    (void)level; (void)user;
+    size_t n = strlen(test_log);
+    snprintf(test_log + n, sizeof test_log - n, "%s\n", msg);
+}
+static inline void test_capture_begin(void) { test_log[0] = 0; wrt_log_set_sink(test_log_sink, NULL); }
+static inline void test_capture_end(void) { wrt_log_set_sink(NULL, NULL); }
+
+#endif
