@@ -777,7 +777,19 @@ static void json_v3(FILE *f, wrt_v3 v) {
     fputc(']', f);
 }
 
-static void json_f3(FILE *f, const float *v) { json_v3(f, v3(v[0], v[1], v[2])); }
+/* Single-precision fields print with the digits a float holds (0.8, not 0.800000012). */
+static void json_numf(FILE *f, float x) {
+    if (isfinite(x)) fprintf(f, "%.7g", (double)x);
+    else fputs("null", f);
+}
+
+static void json_f3(FILE *f, const float *v) {
+    fputc('[', f);
+    json_numf(f, v[0]); fputc(',', f);
+    json_numf(f, v[1]); fputc(',', f);
+    json_numf(f, v[2]);
+    fputc(']', f);
+}
 
 void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
     if (!s || !f) return;
@@ -804,9 +816,9 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
             fputs(",\"base_color\":", f);
             json_f3(f, m->base_color);
             fputs(",\"metallic\":", f);
-            json_num(f, m->metallic);
+            json_numf(f, m->metallic);
             fputs(",\"roughness\":", f);
-            json_num(f, m->roughness);
+            json_numf(f, m->roughness);
             fputs(",\"emissive\":", f);
             json_f3(f, m->emissive);
             fprintf(f, ",\"lambertian\":%s,\"textured\":%s,\"quads\":%d}", m->lambertian ? "true" : "false",
@@ -824,13 +836,13 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
             fputs(",\"color\":", f);
             json_f3(f, l->color);
             fputs(",\"intensity\":", f);
-            json_num(f, l->intensity);
+            json_numf(f, l->intensity);
             fputs(",\"range\":", f);
-            json_num(f, l->range);
+            json_numf(f, l->range);
             fputs(",\"inner_cone\":", f);
-            json_num(f, l->inner_cone);
+            json_numf(f, l->inner_cone);
             fputs(",\"outer_cone\":", f);
-            json_num(f, l->outer_cone);
+            json_numf(f, l->outer_cone);
             fputc('}', f);
         }
         fputs("],\"camera\":{\"position\":", f);
