@@ -526,6 +526,79 @@ void check_glb(const unsigned char *b, size_t size, const char *label) {
     }
 }
 
+/* References tinygltf checks with terse messages ("primitive indices accessor out of
+ * bounds") are checked here first on the raw JSON, so the error says which mesh,
+ * primitive or accessor. Malformed JSON is left to tinygltf's parser error. */
+void check_references(const char *text, size_t len, const char *label) {
+    nlohmann::json j = nlohmann::json::parse(text, text + len, nullptr, false);
+    if (j.is_discarded() || !j.is_object()) return;
+    auto count = [&](const char *k) -> size_t {
+        auto it = j.find(k);
+        return it != j.end() && it->is_array() ? it->size() : 0;
+    };
+    size_t nacc = count("accessors"), nbv = count("bufferViews"), nbuf = count("buffers"),
+           nmat = count("materials");
+    auto bad = [](const nlohmann::json &v, size_t n) {
+        if (!v.is_number()) return false; /* wrong types are tinygltf's to report */
+        double d = v.get<double>();
+        return !(d >= 0 && d < double(n));
+    };
+    auto num = [](const nlohmann::json &v) { return v.get<double>(); };
+    auto meshes = j.find("meshes");
+    if (meshes != j.end() && meshes->is_array())
+        for (size_t mi = 0; mi < meshes->size(); mi++) {
+            const nlohmann::json &m = (*meshes)[mi];
+            if (!m.is_object()) continue;
+            auto prims = m.find("primitives");
+            if (prims == m.end() || !prims->is_array()) continue;
+            for (size_t pi = 0; pi < prims->size(); pi++) {
+                const nlohmann::json &p = (*prims)[pi];
+                if (!p.is_object()) continue;
+                auto ind = p.find("indices");
+                if (ind != p.end() && bad(*ind, nacc))
+                    throw make_error(WRT_ERR_PARSE,
+                                     "%s: mesh %zu primitive %zu: indices accessor %.0f does not exist "
+                                     "(the file has %zu accessors)",
+                                     label, mi, pi, num(*ind), nacc);
+                auto mat = p.find("material");
+                if (mat != p.end() && bad(*mat, nmat))
+                    throw make_error(WRT_ERR_PARSE,
+                                     "%s: mesh %zu primitive %zu: material %.0f does not exist (%zu "
+                                     "materials)",
+                                     label, mi, pi, num(*mat), nmat);
+                auto attrs = p.find("attributes");
+                if (attrs == p.end() || !attrs->is_object()) continue;
+                for (auto it = attrs->begin(); it != attrs->end(); ++it)
+                    if (bad(it.value(), nacc))
+                        throw make_error(WRT_ERR_PARSE,
+                                         "%s: mesh %zu primitive %zu: %.40s accessor %.0f does not exist "
+                                         "(the file has %zu accessors)",
+                                         label, mi, pi, it.key().c_str(), num(it.value()), nacc);
+            }
+        }
+    auto accs = j.find("accessors");
+    if (accs != j.end() && accs->is_array())
+        for (size_t ai = 0; ai < accs->size(); ai++) {
+            const nlohmann::json &a = (*accs)[ai];
+            if (!a.is_object()) continue;
+            auto bv = a.find("bufferView");
+            if (bv != a.end() && bad(*bv, nbv))
+                throw make_error(WRT_ERR_PARSE,
+                                 "%s: accessor %zu: bufferView %.0f does not exist (%zu bufferViews)",
+                                 label, ai, num(*bv), nbv);
+        }
+    auto bvs = j.find("bufferViews");
+    if (bvs != j.end() && bvs->is_array())
+        for (size_t vi = 0; vi < bvs->size(); vi++) {
+            const nlohmann::json &v = (*bvs)[vi];
+            if (!v.is_object()) continue;
+            auto b = v.find("buffer");
+            if (b != v.end() && bad(*b, nbuf))
+                throw make_error(WRT_ERR_PARSE, "%s: bufferView %zu: buffer %.0f does not exist (%zu buffers)",
+                                 label, vi, num(*b), nbuf);
+        }
+}
+
 void fill(const tinygltf::Model &model, const char *label, wrt_gltf_data *out, reader &rd) {
     /* materials */
     size_t nm = model.materials.size();
@@ -577,7 +650,14 @@ wrt_status read_impl(const void *data, size_t size, const char *base_dir, const 
     if (size > 0xFFFFFFF0u) throw make_error(WRT_ERR_UNSUPPORTED, "%s: larger than 4 GiB", label);
     const unsigned char *b = static_cast<const unsigned char *>(data);
     bool glb = size >= 4 && memcmp(b, "glTF", 4) == 0;
-    if (glb) check_glb(b, size, label);
+    if (glb) {
+        check_glb(b, size, label);
+        uint32_t len0;
+        memcpy(&len0, b + 12, 4);
+        check_references(reinterpret_cast<const char *>(b + 20), len0, label);
+    } else {
+        check_references(reinterpret_cast<const char *>(b), size, label);
+    }
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(decode_image, nullptr);
     tinygltf::Model model;

@@ -613,7 +613,7 @@ static void bad_json(void) {
 static void bad_accessors(void) {
     spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
     char *t = replace(gltf_text(&sp), "\"indices\":1", "\"indices\":7");
-    expect_fail("accessor out of range", t, WRT_ERR_PARSE, "indices accessor out of bounds", NULL);
+    expect_fail("accessor out of range", t, WRT_ERR_PARSE, "mesh 0 primitive 0: indices accessor 7 does not exist", NULL);
     free(t);
     t = replace(gltf_text(&sp), "\"count\":4,", "\"count\":2147483648,");
     expect_fail("absurd count", t, WRT_ERR_PARSE, "count 2147483648", "POSITION accessor 0");
@@ -634,7 +634,10 @@ static void bad_accessors(void) {
     expect_fail("VEC2 positions", t, WRT_ERR_PARSE, "expected VEC3", NULL);
     free(t);
     t = replace(gltf_text(&sp), "\"bufferView\":1,", "\"bufferView\":9,");
-    expect_fail("bufferView out of range", t, WRT_ERR_PARSE, "accessor[1] invalid bufferView", NULL);
+    expect_fail("bufferView out of range", t, WRT_ERR_PARSE, "accessor 1: bufferView 9 does not exist", NULL);
+    free(t);
+    t = replace(gltf_text(&sp), "\"POSITION\":0", "\"POSITION\":-1");
+    expect_fail("negative accessor", t, WRT_ERR_PARSE, "POSITION accessor -1 does not exist", NULL);
     free(t);
     /* truncated data URI: the buffer holds fewer bytes than byteLength */
     t = gltf_text(&sp);
