@@ -272,6 +272,41 @@ static void grid_pairing(void) {
     wrt_scene_free(&s);
 }
 
+static void grid_uniform_shuffled(void) {
+    /* 5x4 cells of 2 x 1 rectangles, all split along the same diagonal, triangles in a
+     * shuffled order, every cell's triangles with their own vertices */
+    enum { NX = 5, NY = 4, NT = NX * NY * 2 };
+    float pos[NT * 9];
+    uint32_t idx[NT * 3];
+    int order[NT];
+    for (int i = 0; i < NT; i++) order[i] = i;
+    unsigned r = 12345;
+    for (int i = NT - 1; i > 0; i--) {
+        r = r * 1103515245u + 12345u;
+        int j = (int)((r >> 8) % (unsigned)(i + 1)), t = order[i];
+        order[i] = order[j];
+        order[j] = t;
+    }
+    for (int c = 0; c < NX * NY; c++) {
+        float x = (float)(2 * (c % NX)), y = (float)(c / NX);
+        float tri[2][9] = {{x, y, 0, x + 2, y, 0, x + 2, y + 1, 0}, {x, y, 0, x + 2, y + 1, 0, x, y + 1, 0}};
+        for (int k = 0; k < 2; k++) memcpy(&pos[9 * order[2 * c + k]], tri[k], sizeof tri[k]);
+    }
+    for (int i = 0; i < NT * 3; i++) idx[i] = (uint32_t)i;
+    spec sp = {.pos = pos, .nv = NT * 3, .idx = idx, .ni = NT * 3};
+    wrt_scene s;
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.nquads == NX * NY, "nquads %d", s.nquads);
+    for (int i = 0; i < s.nquads; i++) {
+        const wrt_quad *q = &s.quads[i];
+        double minx = fmin(fmin(q->p[0].x, q->p[1].x), fmin(q->p[2].x, q->p[3].x));
+        double miny = fmin(fmin(q->p[0].y, q->p[1].y), fmin(q->p[2].y, q->p[3].y));
+        CHECK_NEAR(q->area, 2.0, 1e-12, "quad %d is a cell", i);
+        CHECK(has_corner(q, minx + 2, miny + 1, 0, 0) && has_corner(q, minx, miny, 0, 0), "quad %d is a rectangle cell", i);
+    }
+    wrt_scene_free(&s);
+}
+
 static void nested_transforms(void) {
     /* parent: T(1,2,3) R(90 deg about z) S(2); child: matrix translating by (1,0,0), with
      * the mesh; grandchild: a spot light rotated 90 deg about x (its -z becomes +y) */
@@ -791,6 +826,7 @@ int main(int argc, char **argv) {
     TEST_RUN(quad_reversed_order);
     TEST_RUN(trapezoid);
     TEST_RUN(grid_pairing);
+    TEST_RUN(grid_uniform_shuffled);
     TEST_RUN(nested_transforms);
     TEST_RUN(scene_choice);
     TEST_RUN(materials);
