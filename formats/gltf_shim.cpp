@@ -673,6 +673,11 @@ wrt_status read_impl(const void *data, size_t size, const char *base_dir, const 
         if (err.empty()) err = "tinygltf refused the file";
         throw make_error(WRT_ERR_PARSE, "%s: %.600s", label, err.c_str());
     }
+    for (const std::string &ext : model.extensionsRequired)
+        if (ext != "KHR_lights_punctual" && ext != "KHR_mesh_quantization" &&
+            ext != "KHR_texture_transform" && ext != "KHR_materials_emissive_strength")
+            throw make_error(WRT_ERR_UNSUPPORTED, "%s: required extension %.80s is not supported", label,
+                             ext.c_str());
     reader rd(model, label);
     rd.run();
     fill(model, label, out, rd);

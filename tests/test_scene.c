@@ -695,6 +695,9 @@ static void bad_accessors(void) {
     t = replace(gltf_text(&sp), "\"indices\":1", "\"indices\":1,\"material\":3");
     expect_fail("material out of range", t, WRT_ERR_PARSE, "material 3 does not exist", NULL);
     free(t);
+    t = replace(gltf_text(&sp), "\"scene\":0,", "\"extensionsRequired\":[\"KHR_draco_mesh_compression\"],\"scene\":0,");
+    expect_fail("required extension", t, WRT_ERR_UNSUPPORTED, "required extension KHR_draco_mesh_compression", NULL);
+    free(t);
     t = replace(gltf_text(&sp), "[{\"mesh\":0}]", "[{\"mesh\":0,\"extensions\":{\"KHR_lights_punctual\":{\"light\":5}}}]");
     expect_fail("light out of range", t, WRT_ERR_PARSE, "light 5 does not exist", NULL);
     free(t);
