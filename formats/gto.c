@@ -689,7 +689,9 @@ void wrt_gto_close(wrt_gto *g) {
  * Writer
  * ---------------------------------------------------------------------------------- */
 
-/* Temporaries being written, for the signal handler: state 0 free, 1 claimed, 2 armed. */
+/* Temporaries being written, for the signal handler: state 0 free, 1 claimed, 2 armed.
+ * Lock-free atomics, so the handler may read them. */
+_Static_assert(ATOMIC_INT_LOCK_FREE == 2, "the signal handler needs lock-free atomics");
 #define TMP_SLOTS 8
 static struct { atomic_int state; char path[PATH_MAX]; } tmp_slots[TMP_SLOTS];
 static wrt_gto_write_hook write_hook;
@@ -713,10 +715,16 @@ static void tmp_disarm(int slot) {
     if (slot >= 0) atomic_store(&tmp_slots[slot].state, 0);
 }
 
-static void cleanup_handler(int sig) {
+void wrt_gto_remove_temporaries(void) {
     int saved = errno;
     for (int i = 0; i < TMP_SLOTS; i++)
         if (atomic_load(&tmp_slots[i].state) == 2) unlink(tmp_slots[i].path);
+    errno = saved;
+}
+
+static void cleanup_handler(int sig) {
+    int saved = errno;
+    wrt_gto_remove_temporaries();
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = SIG_DFL;
@@ -1060,6 +1068,15 @@ static void put_jstr(FILE *f, const char *s, size_t n) {
     fputc('"', f);
 }
 
+/* "512 B", "3.4 kB", "12.5 MB", "1.20 GB". */
+static const char *human_bytes(uint64_t n, char buf[32]) {
+    if (n < 1000) snprintf(buf, 32, "%" PRIu64 " B", n);
+    else if (n < 1000000) snprintf(buf, 32, "%.1f kB", n / 1e3);
+    else if (n < 1000000000) snprintf(buf, 32, "%.1f MB", n / 1e6);
+    else snprintf(buf, 32, "%.2f GB", n / 1e9);
+    return buf;
+}
+
 static const char *op_kind_name(uint32_t k) {
     return k == WRT_GTO_OP_INDIRECT ? "indirect" : k == WRT_GTO_OP_GATHERED ? "gathered" : "unknown";
 }
@@ -1067,6 +1084,7 @@ static const char *op_kind_name(uint32_t k) {
 wrt_status wrt_gto_print_info(const char *path, int json, FILE *f) {
     void *map; size_t len;
     wrt_status st = map_file(path, &map, &len);
+    int map_ok = st == WRT_OK;
     static const uint64_t empty = 0;
     const uint8_t *b = map ? map : (const uint8_t *)&empty;
     gto_layout L;
@@ -1172,8 +1190,10 @@ wrt_status wrt_gto_print_info(const char *path, int json, FILE *f) {
         if (ok) {
             fprintf(f, "scene:      %u quads, %u materials, %u lights, %u names\n", g.nquads,
                     g.nmaterials, g.nlights, g.nnames);
+            char hb[32];
             fprintf(f, "operator:   %u functions (%" PRIu64 " with angular detail), %" PRIu64
-                    " entries, %.2f MB, density %.3g\n", g.nfuncs, nangular, g.nnz, op_bytes / 1e6, density);
+                    " entries, %s, density %.3g\n", g.nfuncs, nangular, g.nnz, human_bytes(op_bytes, hb),
+                    density);
             fprintf(f, "            entries per column: mean %.1f, max %u; functions per quad: max %u; "
                     "deepest level: spatial %u, angular %u\n",
                     g.nfuncs ? (double)g.nnz / g.nfuncs : 0.0, max_col, max_fpq, max_sl, max_al);
@@ -1185,13 +1205,13 @@ wrt_status wrt_gto_print_info(const char *path, int json, FILE *f) {
             fprintf(f, "            rays: %" PRIu64 " traced, %" PRIu64 " skipped; bounces %" PRIu64
                     "; energy left %.3g\n", S->rays_traced, S->rays_skipped, S->bounces, S->energy_left);
             fprintf(f, "provenance: %.*s\n", (int)g.provenance_len, g.provenance);
-            fprintf(f, "integrity:  ok (checksums and indices verified: %.2f MB in %.2f ms, %.0f MB/s)\n",
-                    len / 1e6, dt * 1e3, mbs);
+            fprintf(f, "integrity:  ok (checksums and indices verified: %s in %.2f ms, %.0f MB/s)\n",
+                    human_bytes(len, hb), dt * 1e3, mbs);
         } else {
             fprintf(f, "integrity:  FAILED (%s): %s\n", wrt_status_str(st), err);
         }
     }
     if (map) munmap(map, len);
-    if (!ok) wrt_fail(st, "%s", err);
+    if (!ok && map_ok) wrt_fail(st, "%s: %s", path, err);
     return st;
 }

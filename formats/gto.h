@@ -152,6 +152,9 @@ wrt_status wrt_gto_write(const char *path, const wrt_gto_contents *c);
  * temporary file of a wrt_gto_write in progress, then re-raise the signal with its
  * default action. Call once from main(), before threads start. Idempotent. */
 void wrt_gto_install_signal_cleanup(void);
+/* What that handler does, for a program with its own signal handler: removes the
+ * temporaries of the writes in progress. Async-signal-safe. */
+void wrt_gto_remove_temporaries(void);
 
 /* For tests: called by wrt_gto_write once the temporary exists, before any payload
  * is written (NULL: none). Not thread-safe; set it before writing. */

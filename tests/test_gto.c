@@ -845,6 +845,25 @@ static void test_print_info(void) {
     CHECK(strstr(text, "\"rays_traced\": 1000000007"), "json stats");
     free(text);
 
+    /* Provenance that is not a JSON object is embedded as a string. */
+    wrt_gto_contents c = contents;
+    c.provenance = "built by hand\n\"v2\"";
+    if (wrt_gto_write(tpath("info_text.gto"), &c) == WRT_OK) {
+        f = open_memstream(&text, &tn);
+        wrt_gto_print_info(tpath("info_text.gto"), 1, f);
+        fclose(f);
+        CHECK(strstr(text, "\"provenance\": \"built by hand\\n\\\"v2\\\"\""), "escaped provenance: %s", text);
+        free(text);
+    }
+    c.provenance = "{\"a\": [1, 2,]}";
+    if (wrt_gto_write(tpath("info_text.gto"), &c) == WRT_OK) {
+        f = open_memstream(&text, &tn);
+        wrt_gto_print_info(tpath("info_text.gto"), 1, f);
+        fclose(f);
+        CHECK(strstr(text, "\"provenance\": \"{\\\"a\\\": [1, 2,]}\""), "malformed JSON quoted: %s", text);
+        free(text);
+    }
+
     /* A damaged file: the header and table still print, and the failure. */
     size_t n;
     uint8_t *b = read_all(p, &n);
