@@ -246,6 +246,38 @@ static void test_render_pixel(void) {
     wrt_ref_destroy(r);
 }
 
+/* The renderer's indirect radiance at a Lambertian point is rho/pi times the indirect
+ * irradiance there (two independent estimators of the same quantity). */
+static void test_render_matches_irradiance(void) {
+    wrt_quad quads[6];
+    make_cube(quads);
+    double rho = 0.6;
+    wrt_material mats[1] = {diffuse(rho)};
+    wrt_scene s = make_scene(quads, 6, mats, 1);
+    wrt_ref *r = wrt_ref_create(&s);
+    CHECK(r != NULL, "create: %s", wrt_last_error());
+    if (!r) return;
+    wrt_light l = point_light(v3(0.7, 0.3, 0.8), 1);
+    wrt_v3 x = v3(0.4, 0.45, 0);
+    int q = 0;
+    double dir[3], ind[3], se[3];
+    wrt_ref_irradiance(r, &l, 1, &x, &q, 1, 40000, 0, 2, 21, dir, ind, se);
+    wrt_camera cam;
+    memset(&cam, 0, sizeof cam);
+    cam.pos = v3(0.4, 0.45, 0.5); cam.dir = v3(0, 0, -1); cam.up = v3(0, 1, 0);
+    cam.yfov = 1e-7;
+    float d[3], ri[3], both[3], rse[3];
+    wrt_ref_render(r, &l, 1, &cam, 1, 1, 40000, 0, 2, 22, d, ri, both, rse);
+    double k = rho / WRT_PI;
+    CHECK_NEAR(d[0], k * dir[0], 1e-5 * k * dir[0], "direct radiance = rho/pi E_dir");
+    double tol = 4 * sqrt(rse[0] * rse[0] + k * k * se[0] * se[0]);
+    CHECK_NEAR(ri[0], k * ind[0], tol, "indirect radiance = rho/pi E_ind (se %.3g, %.3g)",
+               rse[0], k * se[0]);
+    fprintf(stderr, "  render vs irradiance: %.5g vs %.5g (%.2f combined se)\n", ri[0], k * ind[0],
+            (ri[0] - k * ind[0]) / (tol / 4));
+    wrt_ref_destroy(r);
+}
+
 /* Same seed, 1 or 2 threads: bit-identical results. */
 static void test_thread_independence(void) {
     wrt_quad quads[6];
@@ -304,6 +336,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_furnace);
     TEST_RUN(test_two_squares);
     TEST_RUN(test_render_pixel);
+    TEST_RUN(test_render_matches_irradiance);
     TEST_RUN(test_thread_independence);
     TEST_RUN(test_bad_arguments);
     TEST_END();
