@@ -2,11 +2,20 @@
  * (tools/reference.h). Loads a quad-based glTF scene (formats/scene.h), optionally
  * replaces its lights by one given on the command line, and renders direct, indirect
  * and combined images of the radiance toward the camera plus the standard error of the
- * indirect part (PFM files), and/or irradiance at surface points listed in a file, or
+ * indirect part (OpenEXR through formats/image.h when the tree has it, plus a PNG of
+ * the combined image; otherwise, or with --pfm, PFM files), and/or irradiance at surface points listed in a file, or
  * cell averages over a quad. Prints the figures (time, samples, rays, mean standard
  * error) as text or one JSON object. The reference for the comparisons of the paper's
  * section 6 (Kontkanen et al. 2006). */
 #include "tools/reference.h"
+
+/* The OpenImageIO shim is optional at build time so that this tool stands alone. */
+#if defined(__has_include)
+#if __has_include("formats/image.h")
+#include "formats/image.h"
+#define WRT_REF_HAVE_IMAGE 1
+#endif
+#endif
 
 #include <errno.h>
 #include <stdio.h>
@@ -25,8 +34,10 @@ static void usage(FILE *f) {
             "  --spp N                 samples per pixel (default 64)\n"
             "  --width W --height H    image size (default 256 x 256)\n"
             "  --no-image              do not render an image\n"
-            "  --out PREFIX            image files PREFIX_{direct,indirect,both,stderr}.pfm\n"
-            "                          (default ref)\n"
+            "  --out PREFIX            image files PREFIX_{direct,indirect,both,stderr}.exr\n"
+            "                          and PREFIX_both.png (default ref)\n"
+            "  --pfm                   write .pfm files instead (always, without OpenImageIO)\n"
+            "  --exposure E            scale before the PNG's sRGB encoding (default 1)\n"
             "  --points FILE           irradiance at points, one 'QUAD U V' per line\n"
             "  --cells QUAD,N          mean irradiance over an N x N (u,v) grid on a quad\n"
             "  --samples N             paths per point / per cell (default 1024)\n"
@@ -128,6 +139,43 @@ static void print_json_str(const char *s) {
     putchar('"');
 }
 
+/* sRGB encoding of a linear value in [0, 1]. */
+static double srgb_encode(double v) {
+    v = v < 0 ? 0 : v > 1 ? 1 : v;
+    return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1 / 2.4) - 0.055;
+}
+
+/* Writes one image: EXR when the OpenImageIO shim is built in and pfm is 0, else PFM. */
+static wrt_status write_image(const char *prefix, const char *name, int pfm, const float *rgb,
+                              int w, int h, char *path, size_t pathsize) {
+#ifdef WRT_REF_HAVE_IMAGE
+    if (!pfm) {
+        snprintf(path, pathsize, "%s_%s.exr", prefix, name);
+        return wrt_image_write_exr(path, rgb, w, h);
+    }
+#endif
+    (void)pfm;
+    snprintf(path, pathsize, "%s_%s.pfm", prefix, name);
+    return write_pfm(path, rgb, w, h);
+}
+
+static wrt_status write_png(const char *prefix, const float *rgb, int w, int h, double exposure,
+                            char *path, size_t pathsize) {
+#ifdef WRT_REF_HAVE_IMAGE
+    size_t n = (size_t)w * h * 3;
+    uint8_t *px = wrt_xmalloc(n);
+    for (size_t i = 0; i < n; i++) px[i] = (uint8_t)(255 * srgb_encode(rgb[i] * exposure) + 0.5);
+    snprintf(path, pathsize, "%s_both.png", prefix);
+    wrt_status st = wrt_image_write_rgb8(path, px, w, h);
+    free(px);
+    return st;
+#else
+    (void)prefix; (void)rgb; (void)w; (void)h; (void)exposure; (void)srgb_encode;
+    path[0] = 0;
+    return WRT_OK;
+#endif
+}
+
 static double mean_of(const double *v, size_t n) {
     double s = 0;
     for (size_t i = 0; i < n; i++) s += v[i];
@@ -142,6 +190,8 @@ static double mean_of_f(const float *v, size_t n) {
 int main(int argc, char **argv) {
     const char *scene_path = NULL, *out_prefix = "ref", *points_path = NULL;
     double lpos[3], ldir[3], lcolor[3] = {1, 1, 1}, lint = -1, cone_in = 0, cone_out = WRT_PI / 4;
+    double exposure = 1;
+    int pfm = 0;
     int have_pos = 0, have_dir = 0, spp = 64, width = 256, height = 256, image = 1;
     int samples = 1024, max_bounces = 0, threads = 0, json = 0, cell_quad = -1, cell_n = 0;
     long long seed = 1;
@@ -151,12 +201,14 @@ int main(int argc, char **argv) {
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
         else if (!strcmp(a, "--json")) { json = 1; takes = 0; }
         else if (!strcmp(a, "--no-image")) { image = 0; takes = 0; }
+        else if (!strcmp(a, "--pfm")) { pfm = 1; takes = 0; }
         else if (a[0] == '-' && a[1] == '-' && !v) ok = 0;
         else if (!strcmp(a, "--light-pos")) { ok = parse3(v, lpos); have_pos = 1; }
         else if (!strcmp(a, "--light-dir")) { ok = parse3(v, ldir); have_dir = 1; }
         else if (!strcmp(a, "--light-color")) ok = parse3(v, lcolor);
         else if (!strcmp(a, "--light-intensity")) { char *e; lint = strtod(v, &e); ok = *e == 0 && lint >= 0 && isfinite(lint); }
         else if (!strcmp(a, "--light-cone")) ok = sscanf(v, "%lf,%lf", &cone_in, &cone_out) == 2 && cone_in >= 0 && cone_out > cone_in && cone_out <= WRT_PI / 2;
+        else if (!strcmp(a, "--exposure")) { char *e; exposure = strtod(v, &e); ok = *e == 0 && exposure > 0 && isfinite(exposure); }
         else if (!strcmp(a, "--spp")) ok = parse_int(v, 1, 1 << 24, &spp);
         else if (!strcmp(a, "--width")) ok = parse_int(v, 1, 16384, &width);
         else if (!strcmp(a, "--height")) ok = parse_int(v, 1, 16384, &height);
@@ -222,7 +274,7 @@ int main(int argc, char **argv) {
     double img_se = 0, img_ind = 0, img_dir = 0;
     double pt_se = 0, pt_ind = 0, cell_se = 0, cell_ind = 0;
     int npoints = 0;
-    char written[4][4200];
+    char written[5][4200];
     int nwritten = 0;
 
     if (image) {
@@ -238,9 +290,14 @@ int main(int argc, char **argv) {
             const char *names[4] = {"direct", "indirect", "both", "stderr"};
             const float *imgs[4] = {d, ind, both, se};
             for (int k = 0; k < 4 && st == WRT_OK; k++) {
-                snprintf(written[k], sizeof written[k], "%s_%s.pfm", out_prefix, names[k]);
-                st = write_pfm(written[k], imgs[k], width, height);
+                st = write_image(out_prefix, names[k], pfm, imgs[k], width, height, written[k],
+                                 sizeof written[k]);
                 if (st == WRT_OK) nwritten++;
+            }
+            if (st == WRT_OK && !pfm) {
+                st = write_png(out_prefix, both, width, height, exposure, written[4],
+                               sizeof written[4]);
+                if (st == WRT_OK && written[4][0]) nwritten++;
             }
         }
         free(d); free(ind); free(both); free(se);
