@@ -38,6 +38,7 @@
 #define NANG 256             /* angular functions over node levels 0..3: 4^ANG_LEVELS */
 #define BETA_RES 16          /* beta table: 16 x 16 outgoing directions */
 #define BETA_QUAD 64         /* quadrature: 64 x 64 incident directions */
+#define FN_INVALID 255       /* fn_slevel of a key that is not a basis function */
 #define PRUNE_REL 1e-3       /* glossy synthesis: skip |beta_g| < PRUNE_REL beta_root */
 
 /* Index of a 2D Haar function in a quadtree pyramid: 0 the root scaling function, then
@@ -133,6 +134,7 @@ struct wrt_relight {
     const wrt_gto *g;
     wrt_relight_options opt;
     int nthreads, max_tex_level;
+    int8_t *qlevel;                 /* projection level per quad for the light in progress */
     quad_info *qi;
     wrt_material *mats;
     float **beta;                   /* per material: [BETA_RES^2][NANG][3], NULL if unused */
@@ -150,6 +152,7 @@ struct wrt_relight {
     int e_dirty, eye_dirty, have_eye;
     double eye[3];
     float *E, *X, *Xprev; double *Xd;
+    uint32_t *cols;                 /* non-zero columns of E */
     float *tex; uint8_t *tex_nonzero, *x_nonzero, *resynth;
     out_rec *recs;
     worker *workers;
@@ -172,12 +175,18 @@ static void *job_run(void *p) {
     return NULL;
 }
 
-/* Runs fn over items 0..n-1 on up to nthreads threads. Results must not depend on which
- * worker ran an item (callers write per item, or merge per item in item order). */
-static void parallel_for(wrt_relight *r, int n, job_fn fn, void *ctx) {
+/* Below this much work (about one shadow ray, BRDF evaluation or operator entry per
+ * unit) a loop runs on the calling thread: starting threads would cost more. */
+#define PARALLEL_MIN_WORK 50000.0
+
+/* Runs fn over items 0..n-1 on up to nthreads threads (one if `work` is small). Results
+ * must not depend on which worker ran an item (callers write per item, or merge per
+ * item in item order). */
+static void parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ctx) {
     if (n <= 0) return;
     job j = {r, fn, ctx, 0, n};
     int nt = r->nthreads < n ? r->nthreads : n;
+    if (work < PARALLEL_MIN_WORK) nt = 1;
     pthread_t th[64];
     job_arg args[64];
     int started = 0;
@@ -303,9 +312,9 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     if (gq->func_count == 0 || l->intensity == 0) return;
     /* A light on or behind the quad's plane lights nothing (exactly zero). */
     if (v3_dot(v3_sub(l->pos, q->p[0]), q->n) <= 0) return;
-    double dmin = quad_dist(q, l->pos);
-    if (l->range > 0 && dmin >= l->range) return;
-    int L = projection_level(r, q, dmin), n = 1 << L;
+    int L = r->qlevel[qidx];
+    if (L < 0) return; /* beyond the light's range */
+    int n = 1 << L;
     size_t ncell = (size_t)n * n;
     /* Angular slots: the root, plus the quad's angular functions when it has any. */
     int nslot = q->nang > 0 ? q->nang : 1;
@@ -392,7 +401,15 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
 static void project_light(wrt_relight *r, light_state *ls) {
     for (int t = 0; t < r->nthreads; t++) r->workers[t].on = 0;
     proj_ctx ctx = {&ls->light, ls->root};
-    parallel_for(r, (int)r->g->nquads, project_quad, &ctx);
+    /* Levels first (cheap), so that the loop knows its work. */
+    double work = 0;
+    for (uint32_t q = 0; q < r->g->nquads; q++) {
+        double dmin = quad_dist(&r->qi[q], ls->light.pos);
+        int L = ls->light.range > 0 && dmin >= ls->light.range ? -1 : projection_level(r, &r->qi[q], dmin);
+        r->qlevel[q] = (int8_t)L;
+        if (L >= 0) work += ldexp(4.0, 2 * L);
+    }
+    parallel_for(r, (int)r->g->nquads, work, project_quad, &ctx);
     size_t total = 0;
     for (uint32_t q = 0; q < r->g->nquads; q++) total += r->recs[q].count;
     if (total > ls->cap) {
@@ -597,6 +614,43 @@ static void synth_item(wrt_relight *r, worker *w, int item, void *vctx) {
     else synth_diffuse(r, w, q);
 }
 
+/* -------------------------------------------------------------- multiply ---- */
+
+#define MUL_MAX_CHUNKS 256
+
+typedef struct mul_ctx { const uint32_t *cols; uint32_t ncols; int nchunk; } mul_ctx;
+
+/* Rows [lo, hi) of X = Op E: each chunk scans every non-zero column and takes the
+ * entries of its rows (rows ascend within a column), so each X entry sums its terms in
+ * column order whatever the thread count. */
+static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
+    (void)w;
+    const mul_ctx *mc = vctx;
+    const wrt_gto *g = r->g;
+    uint32_t nf = g->nfuncs;
+    uint32_t lo = (uint32_t)((uint64_t)nf * item / mc->nchunk), hi = (uint32_t)((uint64_t)nf * (item + 1) / mc->nchunk);
+    if (lo >= hi) return;
+    memset(r->Xd + (size_t)lo * 3, 0, (size_t)(hi - lo) * 3 * sizeof(double));
+    for (uint32_t k = 0; k < mc->ncols; k++) {
+        uint32_t s = mc->cols[k];
+        uint64_t a = g->col_start[s], b = g->col_start[s + 1];
+        if (a == b || g->rows[b - 1] < lo || g->rows[a] >= hi) continue;
+        while (a < b) { /* first entry with row >= lo */
+            uint64_t m = a + (b - a) / 2;
+            if (g->rows[m] < lo) a = m + 1; else b = m;
+        }
+        const float *e = r->E + (size_t)s * 3;
+        double e0 = e[0], e1 = e[1], e2 = e[2];
+        for (uint64_t i = a, end = g->col_start[s + 1]; i < end && g->rows[i] < hi; i++) {
+            double *x = r->Xd + (size_t)g->rows[i] * 3;
+            const float *v = g->vals + i * 3;
+            x[0] += e0 * v[0];
+            x[1] += e1 * v[1];
+            x[2] += e2 * v[2];
+        }
+    }
+}
+
 /* ---------------------------------------------------------------- create ---- */
 
 static int material_used_glossy(const wrt_relight *r, uint32_t m) {
@@ -645,14 +699,23 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->fn_slevel = wrt_xcalloc(nf ? nf : 1, 1);
     r->fn_ang = wrt_xcalloc(nf ? nf : 1, 1);
     r->fn_spidx = wrt_xcalloc(nf ? nf : 1, sizeof(uint32_t));
+    uint32_t nbad = 0;
     for (uint32_t f = 0; f < nf; f++) {
         wrt_fkey k = g->fkeys[f];
         wrt_node s = wrt_fkey_snode(k), a = wrt_fkey_anode(k);
         int st = wrt_fkey_stype(k), at = wrt_fkey_atype(k);
+        int ok = s.x < (1u << s.level) && s.y < (1u << s.level) && (st != 0 || s.level == 0) &&
+                 a.x < (1u << a.level) && a.y < (1u << a.level) && (at != 0 || a.level == 0);
+        if (!ok) { /* not a basis function: never read nor written */
+            r->fn_slevel[f] = FN_INVALID; r->fn_spidx[f] = UINT32_MAX; r->fn_ang[f] = 0;
+            nbad++;
+            continue;
+        }
         r->fn_slevel[f] = s.level;
         r->fn_spidx[f] = haar_index(s.level, s.x, s.y, st);
         r->fn_ang[f] = (uint8_t)haar_index(a.level, a.x, a.y, at);
     }
+    if (nbad) wrt_log(WRT_LOG_WARN, "relight: %u function keys are not basis functions; ignored", nbad);
     /* Per quad. */
     r->qi = wrt_xcalloc(nq ? nq : 1, sizeof(quad_info));
     wrt_v3 bmin = v3(INFINITY, INFINITY, INFINITY), bmax = v3(-INFINITY, -INFINITY, -INFINITY);
@@ -680,7 +743,7 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
         qi->glossy = !r->mats[gq->material].lambertian;
         int sl = 0;
         for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++)
-            if (r->fn_slevel[f] > sl) sl = r->fn_slevel[f];
+            if (r->fn_slevel[f] > sl && r->fn_slevel[f] != FN_INVALID) sl = r->fn_slevel[f];
         qi->slevel = sl;
         qi->tex_level = sl + 1 < r->max_tex_level ? sl + 1 : r->max_tex_level;
         qi->tex_off = tex_total;
@@ -756,18 +819,20 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->X = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
     r->Xprev = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
     r->Xd = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(double));
+    r->cols = wrt_xcalloc((size_t)nf + 1, sizeof(uint32_t));
     r->tex = wrt_xcalloc(tex_total + 1, sizeof(float));
     r->tex_nonzero = wrt_xcalloc(nq + 1, 1);
     r->x_nonzero = wrt_xcalloc(nq + 1, 1);
     r->resynth = wrt_xcalloc(nq + 1, 1);
     r->recs = wrt_xcalloc(nq + 1, sizeof(out_rec));
+    r->qlevel = wrt_xcalloc(nq + 1, sizeof(int8_t));
     /* BRDF tables of the materials glossy quads use. */
     r->beta = wrt_xcalloc(g->nmaterials + 1, sizeof(float *));
     for (uint32_t m = 0; m < g->nmaterials; m++) {
         if (!material_used_glossy(r, m)) continue;
         r->beta[m] = wrt_xmalloc((size_t)BETA_RES * BETA_RES * NANG * 3 * sizeof(float));
         beta_ctx bc = {(int)m};
-        parallel_for(r, BETA_RES * BETA_RES, beta_cell, &bc);
+        parallel_for(r, BETA_RES * BETA_RES, 1e9, beta_cell, &bc);
     }
     *out = r;
     return WRT_OK;
@@ -789,8 +854,8 @@ void wrt_relight_destroy(wrt_relight *r) {
     free(r->beta);
     free(r->mats); free(r->fn_slevel); free(r->fn_ang); free(r->fn_spidx); free(r->qi);
     free(r->ang_list); free(r->ang_start); free(r->ang_perm);
-    free(r->E); free(r->X); free(r->Xprev); free(r->Xd); free(r->tex); free(r->tex_nonzero); free(r->x_nonzero);
-    free(r->resynth); free(r->recs);
+    free(r->E); free(r->X); free(r->Xprev); free(r->Xd); free(r->cols); free(r->tex); free(r->tex_nonzero); free(r->x_nonzero);
+    free(r->resynth); free(r->recs); free(r->qlevel);
     free(r);
 }
 
@@ -861,19 +926,20 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
             for (size_t k = 0; k < ls->n; k++)
                 for (int c = 0; c < 3; c++) r->E[(size_t)ls->idx[k] * 3 + c] += ls->scale * ls->val[k * 3 + c];
         }
-        /* X = Op E, column by column over the non-zero sources, in index order. */
-        memset(r->Xd, 0, (size_t)nf * 3 * sizeof(double));
-        for (uint32_t s = 0; s < nf; s++) {
-            const float *e = r->E + (size_t)s * 3;
+        /* X = Op E over the non-zero sources only, in column order for every row. */
+        uint32_t ncols = 0;
+        double entries = 0;
+        for (uint32_t c = 0; c < nf; c++) {
+            const float *e = r->E + (size_t)c * 3;
             if (e[0] == 0 && e[1] == 0 && e[2] == 0) continue;
-            for (uint64_t i = g->col_start[s]; i < g->col_start[s + 1]; i++) {
-                double *x = r->Xd + (size_t)g->rows[i] * 3;
-                const float *v = g->vals + i * 3;
-                x[0] += (double)e[0] * v[0];
-                x[1] += (double)e[1] * v[1];
-                x[2] += (double)e[2] * v[2];
-            }
+            r->cols[ncols++] = c;
+            entries += (double)(g->col_start[c + 1] - g->col_start[c]);
         }
+        mul_ctx mc = {r->cols, ncols, 0};
+        int nchunk = r->nthreads;
+        if (nchunk > MUL_MAX_CHUNKS) nchunk = MUL_MAX_CHUNKS;
+        mc.nchunk = nchunk;
+        parallel_for(r, nchunk, entries + nf, mul_chunk, &mc);
         memcpy(r->Xprev, r->X, (size_t)nf * 3 * sizeof(float)); /* X keeps its address */
         for (size_t k = 0; k < (size_t)nf * 3; k++) r->X[k] = (float)r->Xd[k];
         for (uint32_t q = 0; q < nq; q++) {
@@ -911,7 +977,12 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     for (int tt = 0; tt < r->nthreads; tt++) r->workers[tt].brdf_time = 0;
     synth_ctx sc = {list};
     double t3 = wrt_now();
-    parallel_for(r, nsynth, synth_item, &sc);
+    double work = 0;
+    for (int k = 0; k < nsynth; k++) {
+        const quad_info *qi = &r->qi[list[k]];
+        work += ldexp(qi->glossy ? 3.0 * qi->nang : 1.0, 2 * qi->tex_level);
+    }
+    parallel_for(r, nsynth, work, synth_item, &sc);
     double t4 = wrt_now(), bt = 0;
     for (int tt = 0; tt < r->nthreads; tt++) bt += r->workers[tt].brdf_time;
     int used = r->nthreads < nsynth ? r->nthreads : (nsynth ? nsynth : 1);

@@ -644,8 +644,10 @@ static void test_glossy_beta(void) {
 static void test_bench(void) {
     ts_scene s;
     build_room(&s, 7, 2, 40);
+    for (int threads = 1; threads <= 2; threads++) {
     wrt_relight *r;
-    CHECK(wrt_relight_create(&s.g, NULL, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_relight_options o = {.threads = threads};
+    CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
     double eye[3] = {0.5, 0.5, 0.95};
     wrt_relight_set_eye(r, eye);
     wrt_light l = point_light(0.5, 0.8, 0.5, 1);
@@ -657,11 +659,12 @@ static void test_bench(void) {
     wrt_relight_timings tm;
     double ms = wrt_relight_bench(r, 20, &tm);
     CHECK(ms > 0, "bench ran");
-    fprintf(stderr, "  bench: %u quads, %u functions, %llu entries: first update %.1f ms, then %.2f ms/update "
+    fprintf(stderr, "  bench (%d threads): %u quads, %u functions, %llu entries: first update %.1f ms, then %.2f ms/update "
             "(projection %.2f, multiply %.2f, brdf %.2f, synthesis %.2f; %d quads re-synthesized)\n",
-            s.g.nquads, s.g.nfuncs, (unsigned long long)s.g.nnz, first, ms, tm.projection, tm.multiply, tm.brdf,
+            threads, s.g.nquads, s.g.nfuncs, (unsigned long long)s.g.nnz, first, ms, tm.projection, tm.multiply, tm.brdf,
             tm.synthesis, tm.quads_resynthesized);
     wrt_relight_destroy(r);
+    }
     ts_free(&s);
 }
 
