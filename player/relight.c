@@ -12,7 +12,10 @@
  * min(slevel + 1, 6) (slevel + 1 resolves every function the file holds on q); a
  * positive options.proj_level replaces the rule (same cap). L depends on geometry only,
  * never on intensity or on other lights, so each light's E is linear in that light.
- * Each cell takes 4 samples at fixed rotated-grid positions (deterministic).
+ * If the samples at that level find a shadow edge on the quad (some lit, some occluded),
+ * the quad is sampled again at the cap (a property of the light and the geometry only,
+ * so linearity holds). Each cell takes 4 samples at fixed rotated-grid positions
+ * (deterministic).
  *
  * Departures from the paper, by design: direct light on a glossy quad is projected onto
  * the angular functions too (the light direction evaluated in the angular Haar basis),
@@ -175,8 +178,8 @@ static void *job_run(void *p) {
     return NULL;
 }
 
-/* Below this much work (about one shadow ray, BRDF evaluation or operator entry per
- * unit) a loop runs on the calling thread: starting threads would cost more. */
+/* Below this much work (units of about one shadow ray, ~0.2 us) a loop runs on the
+ * calling thread: starting threads, and waiting for the slowest, would cost more. */
 #define PARALLEL_MIN_WORK 50000.0
 
 /* Runs fn over items 0..n-1 on up to nthreads threads (one if `work` is small). Results
@@ -254,6 +257,13 @@ static double quad_dist(const quad_info *q, wrt_v3 p) {
 /* Fixed rotated-grid sample positions within a cell (4 samples). */
 static const double cell_samples[4][2] = {{0.375, 0.125}, {0.875, 0.375}, {0.625, 0.875}, {0.125, 0.625}};
 
+static int projection_cap(const wrt_relight *r, const quad_info *q) {
+    int cap = q->slevel + 1;
+    if (cap > PROJ_MAX_LEVEL) cap = PROJ_MAX_LEVEL;
+    if (r->opt.proj_level > 0 && r->opt.proj_level < cap) cap = r->opt.proj_level;
+    return cap;
+}
+
 static int projection_level(const wrt_relight *r, const quad_info *q, double d) {
     int cap = q->slevel + 1;
     if (cap > PROJ_MAX_LEVEL) cap = PROJ_MAX_LEVEL;
@@ -297,38 +307,22 @@ static double light_irradiance(const wrt_light *l, wrt_v3 x, wrt_v3 n, wrt_v3 *w
     return e;
 }
 
-typedef struct proj_ctx { const wrt_light *light; double *root; } proj_ctx;
+#define VIS_LIT 1
+#define VIS_SHADOWED 2
 
-static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
-    proj_ctx *ctx = vctx;
-    const wrt_light *l = ctx->light;
-    const quad_info *q = &r->qi[qidx];
-    const wrt_gto_quad *gq = &r->g->quads[qidx];
-    out_rec *rec = &r->recs[qidx];
-    rec->worker = (int)(w - r->workers);
-    rec->start = w->on;
-    rec->count = 0;
-    for (int c = 0; c < 3; c++) ctx->root[qidx * 3 + c] = 0;
-    if (gq->func_count == 0 || l->intensity == 0) return;
-    /* A light on or behind the quad's plane lights nothing (exactly zero). */
-    if (v3_dot(v3_sub(l->pos, q->p[0]), q->n) <= 0) return;
-    int L = r->qlevel[qidx];
-    if (L < 0) return; /* beyond the light's range */
+/* Fills w->grid with the level-L scaling coefficients (cell average x 2^-L) of
+ * E_dir V g sqrt(J/pi) for each angular slot. Returns VIS_LIT if any sample is lit,
+ * VIS_SHADOWED if any sample facing the light is occluded. */
+static int sample_grid(wrt_relight *r, worker *w, const quad_info *q, const wrt_light *l, int L, int nslot,
+                       const int16_t *slot_of) {
     int n = 1 << L;
     size_t ncell = (size_t)n * n;
-    /* Angular slots: the root, plus the quad's angular functions when it has any. */
-    int nslot = q->nang > 0 ? q->nang : 1;
-    const uint16_t *alist = r->ang_list + q->ang_first;
-    int16_t slot_of[NANG];
-    for (int a = 0; a < NANG; a++) slot_of[a] = -1;
-    if (q->nang > 0) for (int s = 0; s < q->nang; s++) slot_of[alist[s]] = (int16_t)s;
-    else slot_of[0] = 0;
     int angular = nslot > 1;
     w->grid = grow(w->grid, &w->grid_cap, ncell * nslot, sizeof(double));
     w->pyr = grow(w->pyr, &w->pyr_cap, ncell * nslot, sizeof(double));
     memset(w->grid, 0, ncell * nslot * sizeof(double));
     double inv_pi = 1.0 / WRT_PI, cellw = 1.0 / n;
-    int any = 0;
+    int vis = 0;
     for (int j = 0; j < n; j++)
         for (int i = 0; i < n; i++) {
             for (int s = 0; s < 4; s++) {
@@ -349,11 +343,11 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
                     struct RTCIntersectContext ic;
                     rtcInitIntersectContext(&ic);
                     rtcOccluded1(r->scene, &ic, &ray);
-                    if (ray.tfar < 0) continue; /* occluded: tfar = -inf */
+                    if (ray.tfar < 0) { vis |= VIS_SHADOWED; continue; } /* occluded: tfar = -inf */
                 }
                 double val = e * sqrt(quad_jacobian(q, u, v) * inv_pi) * 0.25 * cellw; /* 2^-L x average */
                 size_t cell = (size_t)j * n + i;
-                any = 1;
+                vis |= VIS_LIT;
                 w->grid[cell * nslot + slot_of[0]] += val;
                 if (!angular) continue;
                 double loc[3] = {v3_dot(dir, q->t), v3_dot(dir, q->b), v3_dot(dir, q->n)}, a, b;
@@ -373,7 +367,41 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
                 }
             }
         }
-    if (!any) return;
+    return vis;
+}
+
+typedef struct proj_ctx { const wrt_light *light; double *root; } proj_ctx;
+
+static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
+    proj_ctx *ctx = vctx;
+    const wrt_light *l = ctx->light;
+    const quad_info *q = &r->qi[qidx];
+    const wrt_gto_quad *gq = &r->g->quads[qidx];
+    out_rec *rec = &r->recs[qidx];
+    rec->worker = (int)(w - r->workers);
+    rec->start = w->on;
+    rec->count = 0;
+    for (int c = 0; c < 3; c++) ctx->root[qidx * 3 + c] = 0;
+    if (gq->func_count == 0 || l->intensity == 0) return;
+    /* A light on or behind the quad's plane lights nothing (exactly zero). */
+    if (v3_dot(v3_sub(l->pos, q->p[0]), q->n) <= 0) return;
+    int L = r->qlevel[qidx];
+    if (L < 0) return; /* beyond the light's range */
+    /* Angular slots: the root, plus the quad's angular functions when it has any. */
+    int nslot = q->nang > 0 ? q->nang : 1;
+    const uint16_t *alist = r->ang_list + q->ang_first;
+    int16_t slot_of[NANG];
+    for (int a = 0; a < NANG; a++) slot_of[a] = -1;
+    if (q->nang > 0) for (int s = 0; s < q->nang; s++) slot_of[alist[s]] = (int16_t)s;
+    else slot_of[0] = 0;
+    int vis = sample_grid(r, w, q, l, L, nslot, slot_of);
+    /* A shadow edge crosses the quad: resolve it as finely as the file can hold. */
+    int cap = projection_cap(r, q);
+    if (vis == (VIS_LIT | VIS_SHADOWED) && L < cap) {
+        L = cap;
+        vis = sample_grid(r, w, q, l, L, nslot, slot_of);
+    }
+    if (!(vis & VIS_LIT)) return;
     haar_analyse(w->grid, L, nslot, w->pyr);
     const float *col = l->color;
     double I0 = w->pyr[slot_of[0]];
@@ -939,7 +967,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
         int nchunk = r->nthreads;
         if (nchunk > MUL_MAX_CHUNKS) nchunk = MUL_MAX_CHUNKS;
         mc.nchunk = nchunk;
-        parallel_for(r, nchunk, entries + nf, mul_chunk, &mc);
+        parallel_for(r, nchunk, (entries + nf) / 50, mul_chunk, &mc); /* ~4 ns an entry */
         memcpy(r->Xprev, r->X, (size_t)nf * 3 * sizeof(float)); /* X keeps its address */
         for (size_t k = 0; k < (size_t)nf * 3; k++) r->X[k] = (float)r->Xd[k];
         for (uint32_t q = 0; q < nq; q++) {
@@ -980,7 +1008,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     double work = 0;
     for (int k = 0; k < nsynth; k++) {
         const quad_info *qi = &r->qi[list[k]];
-        work += ldexp(qi->glossy ? 3.0 * qi->nang : 1.0, 2 * qi->tex_level);
+        work += ldexp(qi->glossy ? 0.3 * qi->nang : 0.1, 2 * qi->tex_level); /* ~20 ns a texel */
     }
     parallel_for(r, nsynth, work, synth_item, &sc);
     double t4 = wrt_now(), bt = 0;

@@ -352,6 +352,37 @@ static void test_shadow(void) {
     ts_free(&s);
 }
 
+/* The level rule picks 16 x 16 cells for this light; a shadow edge crossing the quad
+ * makes the projection go to the file's finest level (32 x 32): the texel column just
+ * inside the shadow edge (u = 0.53) is dark, the next one lit. */
+static void test_shadow_refine(void) {
+    ts_scene s;
+    ts_init(&s);
+    ts_quad(&s, unit_quad, 0, 4, 0);
+    const double occ[4][3] = {{0, 0, 0.5}, {0, 1, 0.5}, {0.515, 1, 0.5}, {0.515, 0, 0.5}};
+    ts_quad(&s, occ, 0, 0, 0);
+    ts_identity(&s, 1);
+    ts_finish(&s);
+    wrt_relight *r;
+    CHECK(wrt_relight_create(&s.g, NULL, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_light l = point_light(0.5, 0.5, 1.0, 10);
+    wrt_relight_set_lights(r, &l, NULL, 1);
+    wrt_relight_update(r, NULL);
+    const float *tex = wrt_relight_tex(r, 0);
+    int res = wrt_relight_tex_res(r, 0);
+    CHECK(res == 32, "res %d", res);
+    for (int j = 4; j < res - 4; j += 9) {
+        double lo, hi, v = (j + 0.5) / res;
+        CHECK(fabs(tex[((size_t)j * res + 16) * 3]) < 1e-5, "texel (16, %d) in the shadow: %g", j, tex[((size_t)j * res + 16) * 3]);
+        cell_range(&l, &s.quads[0], 17.0 / res, (double)j / res, 1.0 / res, &lo, &hi);
+        double want = s.mats[0].base_color[0] / WRT_PI * analytic_E(&l, v3(17.5 / res, v, 0), v3(0, 0, 1));
+        CHECK_NEAR(tex[((size_t)j * res + 17) * 3], want, s.mats[0].base_color[0] / WRT_PI * (hi - lo) + 1e-3 * want,
+                   "texel (17, %d) lit", j);
+    }
+    wrt_relight_destroy(r);
+    ts_free(&s);
+}
+
 /* A small room of quads with a pseudo-random operator. */
 static void build_room(ts_scene *s, int div, int slevel, int per_col) {
     ts_init(s);
@@ -673,6 +704,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_cell_irradiance);
     TEST_RUN(test_round_trip);
     TEST_RUN(test_shadow);
+    TEST_RUN(test_shadow_refine);
     TEST_RUN(test_linearity);
     TEST_RUN(test_exact_zeros);
     TEST_RUN(test_glossy_beta);
