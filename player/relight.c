@@ -180,7 +180,7 @@ static void *job_run(void *p) {
 
 /* Below this much work (units of about one shadow ray, ~0.2 us) a loop runs on the
  * calling thread: starting threads, and waiting for the slowest, would cost more. */
-#define PARALLEL_MIN_WORK 50000.0
+#define PARALLEL_MIN_WORK 10000.0
 
 /* Runs fn over items 0..n-1 on up to nthreads threads (one if `work` is small). Results
  * must not depend on which worker ran an item (callers write per item, or merge per

@@ -52,7 +52,11 @@ void wrt_relight_quad_irradiance(const wrt_relight *r, int q, double direct[3], 
 const float *wrt_relight_E(const wrt_relight *r);
 const float *wrt_relight_X(const wrt_relight *r);
 
-/* ---- Additions beyond the fixed interface (tests, --bench) ---- */
+/* ---- Additions beyond the fixed interface (tests, --bench) ----
+ * Notes on the calls above: glossy (non-Lambertian) quads are synthesized only once
+ * wrt_relight_set_eye has been called; wrt_relight_X and wrt_relight_E keep their
+ * address for the relighter's lifetime; the first update after create projects every
+ * light (create itself tabulates the BRDF of each glossy material: ~0.1 s each). */
 
 /* Index of the angular Haar function (node level 0..3, node x, y, type 0..3) in the
  * angular tables: 0 for the root scaling function, then level by level, node by node,
