@@ -283,8 +283,9 @@ static uint64_t rng_next(uint64_t *st) {
  * carved by a depth-first search from a fixed seed. The layout is a grid of
  * (2N+1)^2 blocks: odd/odd are corridor cells, even/even pillars, the rest walls that
  * stand or were carved. Only the boundary between solid and open blocks is emitted
- * (wall faces, tops of solid blocks, floor tiles of open blocks), so no quad is
- * hidden or overlapping and the whole surface is one consistently oriented sheet.
+ * (wall faces, tops of solid blocks, floor tiles of open blocks) plus the outside
+ * of the boundary wall, so no quad is hidden or overlapping and the whole surface
+ * is one consistently oriented sheet, open only along the bottom of its outside.
  * Lit from above by three spotlights. */
 static void scene_maze(sg_scene *s) {
     const double cw = 1.0, tw = 0.2, h = 1.0;
@@ -351,6 +352,13 @@ static void scene_maze(sg_scene *s) {
                 if (k == 3) add_rect(s, mesh, 2, z1, x0, x1, 0, h, -1);
             }
         }
+    /* the outside of the boundary wall, so the maze looks solid from the camera */
+    for (int k = 0; k < g; k++) {
+        add_rect(s, walls[0], 0, -half, 0, h, line[k], line[k + 1], -1);
+        add_rect(s, walls[0], 0, half, 0, h, line[k], line[k + 1], +1);
+        add_rect(s, walls[0], 2, -half, line[k], line[k + 1], 0, h, -1);
+        add_rect(s, walls[0], 2, half, line[k], line[k + 1], 0, h, +1);
+    }
     double f = half / 3.7; /* light layout designed for the 6 x 6 maze */
     add_light(s, "spot_warm", LIGHT_SPOT, v3(-2.0 * f, 3.0, -2.0 * f), v3(-1.5 * f, 0, -1.2 * f),
               30, 1.0, 0.9, 0.75, 30, 40);
