@@ -510,6 +510,11 @@ static void sb_num(sbuf *b, double x) {
     float f = (float)x;
     if (f == 0) f = 0; /* no "-0" */
     char t[40];
+    if (f == floorf(f) && fabsf(f) < 1e9f) {
+        snprintf(t, sizeof t, "%.0f", (double)f);
+        sb_put(b, t, strlen(t));
+        return;
+    }
     for (int prec = 1; prec <= 9; prec++) {
         snprintf(t, sizeof t, "%.*g", prec, (double)f);
         if (strtof(t, NULL) == f) break;
@@ -782,7 +787,7 @@ static void usage(FILE *f) {
             "usage: wrt-scenegen SCENE [options] --out FILE\n"
             "       wrt-scenegen --all DIR [options]   (test scenes go to DIR/test/)\n"
             "options:\n"
-            "  --res N          subdivide every quad into N x N (default 1)\n"
+            "  --res N          subdivide every quad into N x N, 1..128 (default 1)\n"
             "  --albedo R       albedo of the white/grey surfaces (default 0.75)\n"
             "  --scale S        scale the scene; light intensities scale by S^2 (default 1)\n"
             "  --offset X,Y,Z   translate everything, lights and camera included\n"
@@ -838,7 +843,7 @@ int main(int argc, char **argv) {
         int ok = 1;
         if (!strcmp(a, "--out")) out = v;
         else if (!strcmp(a, "--all")) all = v;
-        else if (!strcmp(a, "--res")) { ok = parse_num(v, 1, 256, &x) && x == floor(x); opt.res = (int)x; }
+        else if (!strcmp(a, "--res")) { ok = parse_num(v, 1, 128, &x) && x == floor(x); opt.res = (int)x; }
         else if (!strcmp(a, "--albedo")) ok = parse_num(v, 0, 1, &opt.albedo);
         else if (!strcmp(a, "--scale")) ok = parse_num(v, 1e-6, 1e6, &opt.scale);
         else if (!strcmp(a, "--dist")) ok = parse_num(v, 1e-6, 1e6, &opt.dist);
