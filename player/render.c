@@ -1,6 +1,6 @@
 /* render.c: the OpenGL 4.5 core renderer of render.h. Three passes: (1) for each
  * enabled light whose position changed, six faces of a cube shadow map (one layer of a
- * cube-map-array depth texture per light) holding the distance to the light; (2) the
+ * cube-map-array depth texture per light) holding the nearest depth seen from the light; (2) the
  * scene into a float framebuffer object: per pixel, direct light from every enabled
  * light (KHR_lights_punctual: I color / d^2 cos, spot cone and range windows, the glTF
  * metallic-roughness BRDF as in common/brdf.c, shadow test) plus the indirect outgoing
@@ -39,7 +39,8 @@ static const char *scene_vs =
  * and exactly base/pi for a Lambertian material. */
 static const char *scene_fs =
     "#version 450 core\n"
-    "#define MAXL " "16" "\n"
+    "#define MAXL 16\n"
+    "#define SHADOW_NEAR 1e-3\n"
     "in vec3 v_pos; in vec2 v_uv;\n"
     "flat in vec3 v_nrm; flat in vec4 v_base; flat in vec2 v_rough; flat in vec4 v_rect;\n"
     "uniform int u_nlights;\n"
@@ -47,7 +48,7 @@ static const char *scene_fs =
     "uniform vec4 u_lcol[MAXL];\n"  /* colour * intensity * scale, type (0 point, 1 spot) */
     "uniform vec4 u_ldir[MAXL];\n"  /* spot axis, range (0 infinite) */
     "uniform vec4 u_lcone[MAXL];\n" /* cos outer, cos inner, shadow layer, enabled */
-    "uniform samplerCubeArray u_shadow;\n"
+    "uniform samplerCubeArrayShadow u_shadow;\n"
     "uniform sampler2D u_atlas;\n"
     "uniform vec2 u_atlas_size;\n"
     "uniform vec3 u_eye;\n"
@@ -73,13 +74,16 @@ static const char *scene_fs =
     "float lit(int i, vec3 p, vec3 n) {\n"
     "  vec3 d = p - u_lpos[i].xyz;\n"
     "  float dist = length(d);\n"
-    /* normal offset of about one shadow texel, plus a slope term */
+    /* normal offset of about one shadow texel, then a slope-scaled bias along the ray */
     "  float cosl = max(dot(n, -d / dist), 0.05);\n"
-    "  vec3 q = p + n * (dist * u_shadow_texel * 1.5);\n"
-    "  vec3 dq = q - u_lpos[i].xyz;\n"
-    "  float stored = texture(u_shadow, vec4(dq, u_lcone[i].z)).r * u_lpos[i].w;\n"
-    "  float bias = dist * u_shadow_texel * (0.5 + 1.0 / cosl) * 0.5;\n"
-    "  return length(dq) - bias <= stored ? 1.0 : 0.0;\n"
+    "  vec3 q = d + n * (dist * u_shadow_texel * 1.5);\n"
+    "  vec3 aq = abs(q);\n"
+    "  float ma = max(aq.x, max(aq.y, aq.z));\n"
+    "  ma -= ma * u_shadow_texel * (0.5 + 0.5 / cosl);\n"
+    /* the depth the cube face's projection gave the occluder at that major-axis distance */
+    "  float f = u_lpos[i].w, nr = f * SHADOW_NEAR;\n"
+    "  float ref = 0.5 * ((f + nr) / (f - nr) - 2.0 * f * nr / ((f - nr) * max(ma, nr))) + 0.5;\n"
+    "  return texture(u_shadow, vec4(q, u_lcone[i].z), ref);\n"
     "}\n"
     "void main() {\n"
     "  vec3 n = v_nrm;\n"
@@ -122,14 +126,11 @@ static const char *shadow_vs =
     "#version 450 core\n"
     "layout(location=0) in vec3 a_pos;\n"
     "uniform mat4 u_vp;\n"
-    "out vec3 v_pos;\n"
-    "void main() { v_pos = a_pos; gl_Position = u_vp * vec4(a_pos, 1.0); }\n";
+    "void main() { gl_Position = u_vp * vec4(a_pos, 1.0); }\n";
 
 static const char *shadow_fs =
     "#version 450 core\n"
-    "in vec3 v_pos;\n"
-    "uniform vec4 u_light;\n" /* position, far */
-    "void main() { gl_FragDepth = clamp(length(v_pos - u_light.xyz) / u_light.w, 0.0, 1.0); }\n";
+    "void main() {}\n";
 
 static const char *present_vs =
     "#version 450 core\n"
@@ -153,6 +154,8 @@ static const char *present_fs =
     "}\n";
 
 /* ---------------------------------------------------------------- state */
+
+#define SHADOW_NEAR 1e-3 /* near plane of the shadow cube faces, relative to their far plane */
 
 typedef struct slot { int x, y, res; } slot; /* atlas position of the quad's inner texels */
 
@@ -416,8 +419,11 @@ static void make_shadow_maps(wrt_render *r, int layers) {
     glCreateTextures(GL_TEXTURE_CUBE_MAP_ARRAY, 1, &r->shadow_tex);
     glTextureStorage3D(r->shadow_tex, 1, GL_DEPTH_COMPONENT32F, r->shadow_res, r->shadow_res,
                        6 * r->shadow_layers);
-    glTextureParameteri(r->shadow_tex, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTextureParameteri(r->shadow_tex, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    /* hardware depth comparison with bilinear filtering: 2 x 2 percentage-closer filtering */
+    glTextureParameteri(r->shadow_tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTextureParameteri(r->shadow_tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTextureParameteri(r->shadow_tex, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
+    glTextureParameteri(r->shadow_tex, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
     glTextureParameteri(r->shadow_tex, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
     glTextureParameteri(r->shadow_tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
     for (int i = 0; i < WRT_RENDER_MAX_LIGHTS; i++) r->shadow_dirty[i] = 1;
@@ -549,11 +555,10 @@ static void draw_shadow_maps(wrt_render *r) {
         if (!r->shadow_dirty[i] || r->scales[i] == 0) continue;
         const wrt_light *l = &r->lights[i];
         double p[3] = {l->pos.x - r->origin[0], l->pos.y - r->origin[1], l->pos.z - r->origin[2]};
-        double zf = light_far(r, l), zn = zf * 1e-4;
+        double zf = light_far(r, l), zn = zf * SHADOW_NEAR; /* as in the scene shader */
         double proj[16], view[16], vp[16];
         float vpf[16];
         mat_perspective(WRT_PI / 2, 1.0, zn, zf, proj);
-        glUniform4f(loc(r->prog_shadow, "u_light"), (float)p[0], (float)p[1], (float)p[2], (float)zf);
         for (int f = 0; f < 6; f++) {
             double at[3] = {p[0] + dirs[f][0], p[1] + dirs[f][1], p[2] + dirs[f][2]};
             mat_look_at(p, at, ups[f], view);
