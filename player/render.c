@@ -35,8 +35,9 @@ static const char *scene_vs =
     "  gl_Position = u_vp * vec4(a_pos, 1.0);\n"
     "}\n";
 
-/* The BRDF is common/brdf.c's: glTF 2.0 Appendix B with a height-correlated Smith term,
- * and exactly base/pi for a Lambertian material. */
+/* The BRDF is common/brdf.c's, formula for formula: glTF 2.0 Appendix B, alpha =
+ * max(roughness^2, 1e-3), height-correlated Smith visibility, exactly base/pi for a
+ * Lambertian material. */
 static const char *scene_fs =
     "#version 450 core\n"
     "#define MAXL 16\n"
@@ -61,10 +62,11 @@ static const char *scene_fs =
     "  if (nl <= 0.0 || nv <= 0.0) return vec3(0.0);\n"
     "  vec3 base = v_base.rgb;\n"
     "  if (v_rough.y > 0.5) return base / PI;\n"
-    "  float metal = v_base.a, a = max(v_rough.x * v_rough.x, 1e-4), a2 = a * a;\n"
+    "  float metal = clamp(v_base.a, 0.0, 1.0), r = clamp(v_rough.x, 0.0, 1.0);\n"
+    "  float a = max(r * r, 1e-3), a2 = a * a;\n"
     "  vec3 cdiff = mix(base, vec3(0.0), metal), f0 = mix(vec3(0.04), base, metal);\n"
     "  vec3 h = normalize(l + v);\n"
-    "  float nh = max(dot(n, h), 0.0), vh = abs(dot(v, h));\n"
+    "  float nh = clamp(dot(n, h), 0.0, 1.0), vh = clamp(dot(v, h), 0.0, 1.0);\n"
     "  vec3 F = f0 + (1.0 - f0) * pow(1.0 - vh, 5.0);\n"
     "  float dd = nh * nh * (a2 - 1.0) + 1.0;\n"
     "  float D = a2 / (PI * dd * dd);\n"
