@@ -52,4 +52,27 @@ void wrt_relight_quad_irradiance(const wrt_relight *r, int q, double direct[3], 
 const float *wrt_relight_E(const wrt_relight *r);
 const float *wrt_relight_X(const wrt_relight *r);
 
+/* ---- Additions beyond the fixed interface (tests, --bench) ----
+ * Notes on the calls above: glossy (non-Lambertian) quads are synthesized only once
+ * wrt_relight_set_eye has been called; wrt_relight_X and wrt_relight_E keep their
+ * address for the relighter's lifetime; the first update after create projects every
+ * light (create itself tabulates the BRDF of each glossy material: ~0.1 s each). */
+
+/* Index of the angular Haar function (node level 0..3, node x, y, type 0..3) in the
+ * angular tables: 0 for the root scaling function, then level by level, node by node,
+ * three wavelets each (256 in all). */
+int wrt_relight_angular_index(int level, int x, int y, int type);
+
+/* BRDF weight of material m for angular function `ang` and an outgoing direction given
+ * by its concentric coordinates (a_o, b_o) in the quad's frame:
+ * beta_g(w_o) = pi * integral over [0,1]^2 of f_r(M(a,b), w_o) g(a,b) da db, from the
+ * 16 x 16 table (bilinear). Returns 0 (out = 0) if m has no table (Lambertian or unused
+ * by any quad). For g = the root, beta is the directional albedo. */
+int wrt_relight_beta(const wrt_relight *r, int m, double a_o, double b_o, int ang, double out[3]);
+
+/* Micro-benchmark: moves light 0 around a small circle (2% of the scene diagonal) for
+ * `updates` updates, restores it, and returns the mean milliseconds per update (mean
+ * timings in *mean if not NULL); -1 if no light is set. */
+double wrt_relight_bench(wrt_relight *r, int updates, wrt_relight_timings *mean);
+
 #endif
