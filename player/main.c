@@ -62,7 +62,7 @@ static void usage(FILE *f) {
         "  --lights-off I[,J..]  switch lights off (1-based)\n"
         "  --threads N           relighting threads (0 = all cores)\n"
         "  --max-tex-res N       cap on a quad's texture resolution (default 64)\n"
-        "  --shadow-res N        shadow cube map face size (default 1024)\n"
+        "  --shadow-res N        shadow cube map face size (default 512)\n"
         "  --version, --help\n"
         "\n"
         "Script: one keyframe per line, '#' starts a comment. A line is a time t in seconds\n"

@@ -444,7 +444,7 @@ wrt_status wrt_render_create(const wrt_gto *g, const wrt_render_options *opt, wr
     r->g = g;
     r->width = w;
     r->height = h;
-    r->shadow_res = opt && opt->shadow_res > 0 ? opt->shadow_res : 1024;
+    r->shadow_res = opt && opt->shadow_res > 0 ? opt->shadow_res : 512;
     double lo[3], hi[3], d2 = 0;
     wrt_render_scene_bounds(g, lo, hi);
     for (int k = 0; k < 3; k++) {

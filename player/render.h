@@ -32,7 +32,7 @@ typedef struct wrt_view {
 
 typedef struct wrt_render_options {
     int width, height;  /* size of the picture (framebuffer object) */
-    int shadow_res;     /* cube shadow map face size; 0 = 1024 */
+    int shadow_res;     /* cube shadow map face size; 0 = 512 */
 } wrt_render_options;
 
 typedef struct wrt_render wrt_render;

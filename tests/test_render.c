@@ -1,13 +1,15 @@
 /* test_render.c: tests of the player's renderer (player/render.c) in a headless EGL
  * context, on scenes built in memory, against values computed here by hand: the
  * direct radiance of a Lambertian floor under a point light (rho/pi I cos / d^2) and a
- * spot light (cone falloff), a shadow, the indirect atlas read back exactly (no bleeding
+ * spot light (cone falloff), a glossy floor against common/brdf.c, a shadow, the
+ * indirect atlas read back exactly (no bleeding
  * between neighbouring quads, bilinear between texels), both = direct + indirect, the
  * same picture for a scene moved 10^6 away from the origin, and the tone curve. */
 #include "tests/test.h"
 #include "player/render.h"
 #include "player/platform.h"
 #include "formats/image.h"
+#include "common/brdf.h"
 
 #include <stdlib.h>
 
@@ -126,6 +128,47 @@ static void test_point_light_lambert(void) {
     CHECK(n > 50, "samples %d", n);
     CHECK(worst < 2e-3, "worst relative error of the direct radiance %.3g", worst);
     CHECK_NEAR(px(img, 0, 0, 0), 0.0, 0.0, "outside the floor: background");
+}
+
+/* A glossy floor: the shader's BRDF against common/brdf.c's wrt_brdf_eval. */
+static void test_glossy_brdf(void) {
+    build(0);
+    const float base[3] = {0.9f, 0.6f, 0.3f};
+    memcpy(mats[0].base_color, base, sizeof base);
+    mats[0].metallic = 0.5f;
+    mats[0].roughness = 0.4f;
+    mats[0].lambertian = 0;
+    wrt_material m;
+    memset(&m, 0, sizeof m);
+    memcpy(m.base_color, base, sizeof base);
+    m.metallic = 0.5f;
+    m.roughness = 0.4f;
+    wrt_light l = point_light(10);
+    l.pos = v3(0.4, 1, 0.2); /* off the view axis: the highlight is not at the centre */
+    render(WRT_MODE_DIRECT, &l, 1, img);
+    double worst = 0, peak = 0;
+    int n = 0;
+    for (int r = 1; r < H; r += 3)
+        for (int c = 1; c < W; c += 3) {
+            double x, z;
+            pixel_to_floor(c, r, &x, &z);
+            if (fabs(x) > 0.98 || fabs(z) > 0.98 || fabs(x) < 0.02) continue;
+            wrt_v3 p = v3(x, 0, z), nn = v3(0, 1, 0);
+            wrt_v3 tl = v3_sub(l.pos, p), wi = v3_norm(tl), wo = v3_norm(v3_sub(v3(0, 3, 0), p));
+            double f[3], d2 = v3_dot(tl, tl);
+            wrt_brdf_eval(&m, nn, wi, wo, f);
+            for (int k = 0; k < 3; k++) {
+                double want = f[k] * 10 * wi.y / d2, got = px(img, c, r, k);
+                double e = fabs(got - want) / (want + 1e-3);
+                if (e > worst) worst = e;
+                if (want > peak) peak = want;
+            }
+            n++;
+        }
+    CHECK(n > 400, "samples %d", n);
+    CHECK(peak > 2, "a highlight was sampled: peak %g", peak);
+    CHECK(worst < 2e-3, "worst relative error against wrt_brdf_eval %.3g", worst);
+    build(0);
 }
 
 static void test_shadow(void) {
@@ -305,6 +348,7 @@ int main(int argc, char **argv) {
     }
     fprintf(stderr, "%s\n", wrt_render_gl_info());
     TEST_RUN(test_point_light_lambert);
+    TEST_RUN(test_glossy_brdf);
     TEST_RUN(test_shadow);
     TEST_RUN(test_spot);
     TEST_RUN(test_atlas);
