@@ -113,5 +113,5 @@ if [ -f "$gto" ]; then
     if [ $rc -eq 2 ] || [ $rc -eq 0 ]; then ok "flipped byte: exit $rc, no crash"; else ko "flipped byte: exit $rc"; fi
 fi
 
-echo "$pass passed, $fail failed"
+echo "play: $pass passed, $fail failed"
 [ "$fail" -eq 0 ]

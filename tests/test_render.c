@@ -2,9 +2,8 @@
  * context, on scenes built in memory, against values computed here by hand: the
  * direct radiance of a Lambertian floor under a point light (rho/pi I cos / d^2) and a
  * spot light (cone falloff), a glossy floor against common/brdf.c, a shadow, the
- * indirect atlas read back exactly (no bleeding
- * between neighbouring quads, bilinear between texels), both = direct + indirect, the
- * same picture for a scene moved 10^6 away from the origin, and the tone curve. */
+ * indirect atlas read back exactly (no bleeding between neighbouring quads, bilinear
+ * between texels), both = direct + indirect, the same picture for a scene moved 10^6 away from the origin, and the tone curve. */
 #include "tests/test.h"
 #include "player/render.h"
 #include "player/platform.h"
