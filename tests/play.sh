@@ -5,7 +5,7 @@
 # radiance, that the window opens under Xvfb and its screenshot is not blank, that the
 # statistics, benchmark and script outputs are well formed, and that missing, truncated
 # and foreign files and bad options give the documented exit codes with a message.
-# Usage: tests/play.sh BUILD. Prints "N passed, N failed"; non-zero exit on a failure.
+# Usage: tests/play.sh BUILD. Prints "play: N passed, N failed"; non-zero exit on a failure.
 set -u
 build=${1:-build}
 cd "$(dirname "$0")/.."
@@ -28,7 +28,7 @@ expect_exit() {
 
 if [ ! -x "$play" ] || [ ! -x "$img" ]; then
     echo "FAIL $play or $img not built"
-    echo "0 passed, 1 failed"
+    echo "play: 0 passed, 1 failed"
     exit 1
 fi
 
