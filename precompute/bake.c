@@ -228,7 +228,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         return wrt_fail(WRT_ERR_GEOMETRY, "scene has no extent (bounding box diagonal %g)", b.scene_size);
     b.ray_eps = 1e-6 * b.scene_size;
     b.plane_eps = 1e-7 * b.scene_size;
-    b.entry_floor = 1e-12;
+    b.entry_floor = 0.1 * b.opt.eps_compress; /* far below what the series keeps */
     b.quads = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * sizeof *b.quads);
     b.rho = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * sizeof *b.rho);
     int nglossy = 0;
