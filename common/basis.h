@@ -120,7 +120,8 @@ static inline void wrt_concentric_inv(const double d[3], double *a, double *b) {
     else if (phi < 5 * M_PI / 4) { sx = -r; sy = -r * (phi - M_PI) / (M_PI / 4); }
     else { sy = -r; sx = -r * (3 * M_PI / 2 - phi) / (M_PI / 4); }
     *a = 0.5 * (sx + 1); *b = 0.5 * (sy + 1);
-    if (*a < 0) *a = 0; if (*a > 1) *a = 1; if (*b < 0) *b = 0; if (*b > 1) *b = 1;
+    *a = *a < 0 ? 0 : *a > 1 ? 1 : *a;
+    *b = *b < 0 ? 0 : *b > 1 ? 1 : *b;
 }
 
 #endif

@@ -9,7 +9,23 @@
 #include "../common/wrt_common.h"
 #include "scene.h"
 
+#include <stdio.h>
+
+/* Format version. The major version (WRT_GTO_VERSION) changes when an older reader
+ * would misread a newer file; the minor version when a newer file only adds what an
+ * older reader may skip (a new section id, a field in a reserved slot whose zero
+ * means "as before"). A reader accepts every minor of its own major and refuses any
+ * other major with WRT_ERR_UNSUPPORTED.
+ * Checklist for a bump (GTO_FORMAT.md, "Changing the format", says the same):
+ *   1. Decide major or minor by the rule above; a struct size or field meaning that
+ *      changes is a major bump; a new section or a used reserved slot is a minor bump.
+ *   2. Bump WRT_GTO_VERSION (and reset WRT_GTO_VERSION_MINOR to 0) or bump the minor.
+ *   3. Update the static asserts in gto.c and the tables in GTO_FORMAT.md.
+ *   4. Keep tests/data/gto/v1_small.gto: a major bump makes the test expect
+ *      WRT_ERR_UNSUPPORTED for it (or add a converter); a minor bump must still open it.
+ *   5. Regenerate the golden file of the new version (test_gto --regen) and commit it. */
 #define WRT_GTO_VERSION 1
+#define WRT_GTO_VERSION_MINOR 0
 
 /* On-disk records (all little-endian, naturally aligned, sizes fixed). */
 typedef struct wrt_gto_quad {
@@ -17,14 +33,14 @@ typedef struct wrt_gto_quad {
     float n[3], t[3], b[3];
     float area;
     uint32_t material;
-    uint32_t name;       /* index into the names table */
+    uint32_t name;       /* index into the names table, WRT_GTO_NO_NAME if none */
     uint32_t func_first; /* this quad's basis functions: fkeys[func_first .. +func_count) */
     uint32_t func_count;
     uint32_t flags;      /* bit 0: parallelogram */
     uint32_t slevel;     /* deepest spatial level among its functions */
     uint32_t alevel;     /* deepest angular level among its functions (0: diffuse only) */
     uint32_t reserved;
-} wrt_gto_quad; /* 160 bytes */
+} wrt_gto_quad; /* 168 bytes */
 
 typedef struct wrt_gto_material {
     char name[64];
@@ -48,6 +64,8 @@ typedef struct wrt_gto_camera {
     double yfov, aspect, znear, zfar;
 } wrt_gto_camera; /* 104 bytes */
 
+#define WRT_GTO_NO_NAME 0xFFFFFFFFu
+
 /* Figures of the bake, stored in the file and printed by `wrt-bake --info`. */
 typedef struct wrt_gto_stats {
     double t_dto, t_gto, t_write, t_total;  /* seconds */
@@ -57,7 +75,7 @@ typedef struct wrt_gto_stats {
     uint64_t bounces;
     double energy_left;                     /* relative norm of the last term dropped */
     uint64_t reserved[6];
-} wrt_gto_stats; /* 144 bytes */
+} wrt_gto_stats; /* 152 bytes */
 
 /* What the operator in the file is. */
 enum {
@@ -82,14 +100,34 @@ typedef struct wrt_gto {
     const float *vals;         /* nnz x 3 RGB values */
     const wrt_gto_stats *stats;
     const char *provenance; size_t provenance_len; /* JSON text, not NUL-terminated */
+    uint32_t version_minor;
+    int owns_map;              /* 1: close unmaps (wrt_gto_open); 0: caller's memory */
 } wrt_gto;
 
 /* Maps and validates `path`: magic, version, byte order, every section's offset and
  * size against the file length, checksums, and the operator's index ranges.
  * Errors: WRT_ERR_IO (cannot open), WRT_ERR_NOT_OURS (foreign), WRT_ERR_CORRUPT
  * (truncated, bad offsets, checksum), WRT_ERR_UNSUPPORTED (newer version). */
+/* Reads each byte once (the checksum pass, with the index checks on the data while it
+ * is in cache). On failure *out is zeroed and wrt_last_error() names the check that
+ * failed (and the section). Thread-safe; the result is read-only and may be shared. */
 wrt_status wrt_gto_open(const char *path, wrt_gto *out);
+/* Same checks on a file image in memory (`data` must stay valid and unchanged while
+ * `out` is used, and be 8-byte aligned; used by tests and fuzzing). */
+wrt_status wrt_gto_open_memory(const void *data, size_t size, wrt_gto *out);
+/* Unmaps (if wrt_gto_open mapped it) and zeroes *g. NULL or a zeroed g: no-op. */
 void wrt_gto_close(wrt_gto *g);
+
+/* Prints what a file holds: header, section table (bytes per section), counts, the
+ * bake's statistics, provenance, and the integrity check result; one JSON object if
+ * `json`. Returns the result of the integrity check (WRT_OK if the file is sound);
+ * prints as much as could be read even if it is not. `wrt-bake --info FILE.gto`. */
+wrt_status wrt_gto_print_info(const char *path, int json, FILE *f);
+
+/* The section checksum (GTO_FORMAT.md, "Checksums"): a 64-bit hash reading 8 bytes
+ * at a time in 4 independent lanes. Any change confined to one aligned 8-byte word
+ * always changes it. Not cryptographic. */
+uint64_t wrt_gto_checksum(const void *data, size_t n);
 
 /* Everything the writer needs, in memory. */
 typedef struct wrt_gto_contents {
@@ -102,8 +140,25 @@ typedef struct wrt_gto_contents {
     const char *provenance;          /* JSON text */
 } wrt_gto_contents;
 
-/* Writes atomically: PATH.tmp.XXXXXX, fsync, rename over `path`. On any failure the
- * temporary is removed and `path` is untouched. */
+/* Writes atomically: PATH.tmp.XXXXXX, fsync, rename over `path`, fsync the directory.
+ * On any failure the temporary is removed and `path` is untouched. Checks the
+ * contents first as the reader would (WRT_ERR_INVALID_ARG naming what is wrong): fkeys
+ * strictly ascending with quads < nquads, col_start monotone from 0, rows < nfuncs and
+ * ascending within a column, vals finite, material and name indices in range.
+ * `c->provenance` may be NULL (empty). Same contents give the same bytes. */
 wrt_status wrt_gto_write(const char *path, const wrt_gto_contents *c);
+
+/* Installs SIGINT/SIGTERM/SIGHUP handlers (where not ignored) that remove the
+ * temporary file of a wrt_gto_write in progress, then re-raise the signal with its
+ * default action. Call once from main(), before threads start. Idempotent. */
+void wrt_gto_install_signal_cleanup(void);
+/* What that handler does, for a program with its own signal handler: removes the
+ * temporaries of the writes in progress. Async-signal-safe. */
+void wrt_gto_remove_temporaries(void);
+
+/* For tests: called by wrt_gto_write once the temporary exists, before any payload
+ * is written (NULL: none). Not thread-safe; set it before writing. */
+typedef void (*wrt_gto_write_hook)(const char *tmp_path);
+void wrt_gto_set_write_hook(wrt_gto_write_hook hook);
 
 #endif

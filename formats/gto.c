@@ -1,0 +1,1217 @@
+/* gto.c: writes, maps and validates the .gto file, the baked light transport operator
+ * (the sparse gathered or indirect GTO of Kontkanen et al. 2006, section 4.4, with the
+ * quads, materials, lights and camera the run-time of section 5 needs). The layout is
+ * specified in GTO_FORMAT.md; the on-disk records are the structs of gto.h, checked by
+ * the static asserts below. The reader validates the header and every section's place
+ * before it touches a byte of payload, then reads each payload byte once: a section's
+ * checksum and its index checks run together, chunk by chunk, while the chunk is in
+ * cache. The writer checks its input with the same code, writes a temporary file,
+ * syncs it and renames it over the target. Depends on wrt_common, scene.h, basis.h and
+ * POSIX (mmap, mkstemp, fsync, rename, sigaction). */
+#include "gto.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <limits.h>
+#include <signal.h>
+#include <stdalign.h>
+#include <stdarg.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "../common/basis.h"
+
+#if !defined(__BYTE_ORDER__) || __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
+#error "the .gto file is little-endian and is used in place: a big-endian port needs a converting reader"
+#endif
+
+/* ------------------------------------------------------------------------------------
+ * Layout: header, section table, sections. See GTO_FORMAT.md.
+ * ---------------------------------------------------------------------------------- */
+
+#define GTO_MAGIC "\x89WRT\r\n\x1a\n"
+#define GTO_MAGIC_LEN 8
+#define GTO_BOM 0x01020304u         /* written natively: bytes 04 03 02 01 */
+#define GTO_BOM_SWAPPED 0x04030201u
+#define GTO_ALIGN 64u
+#define GTO_MAX_SECTIONS 64u
+
+typedef struct gto_header {
+    uint8_t magic[8];
+    uint32_t byte_order;
+    uint16_t version_major, version_minor;
+    uint64_t file_size;
+    uint32_t header_size;   /* 64 + 48 * nsections */
+    uint32_t nsections;
+    uint32_t op_kind;
+    uint32_t flags;         /* 0 in version 1.0 */
+    uint64_t header_checksum;
+    uint8_t reserved[16];
+} gto_header;
+
+typedef struct gto_section {
+    uint32_t id, elem_size;
+    uint64_t offset, size, count, checksum;
+    uint32_t flags, reserved; /* 0 in version 1.0 */
+} gto_section;
+
+_Static_assert(sizeof(gto_header) == 64, "header is 64 bytes");
+_Static_assert(offsetof(gto_header, byte_order) == 8, "layout");
+_Static_assert(offsetof(gto_header, version_major) == 12, "layout");
+_Static_assert(offsetof(gto_header, version_minor) == 14, "layout");
+_Static_assert(offsetof(gto_header, file_size) == 16, "layout");
+_Static_assert(offsetof(gto_header, header_size) == 24, "layout");
+_Static_assert(offsetof(gto_header, nsections) == 28, "layout");
+_Static_assert(offsetof(gto_header, op_kind) == 32, "layout");
+_Static_assert(offsetof(gto_header, header_checksum) == 40, "layout");
+_Static_assert(sizeof(gto_section) == 48, "section entry is 48 bytes");
+_Static_assert(offsetof(gto_section, offset) == 8, "layout");
+_Static_assert(offsetof(gto_section, size) == 16, "layout");
+_Static_assert(offsetof(gto_section, count) == 24, "layout");
+_Static_assert(offsetof(gto_section, checksum) == 32, "layout");
+
+_Static_assert(sizeof(wrt_gto_quad) == 168, "quad record");
+_Static_assert(offsetof(wrt_gto_quad, n) == 96, "layout");
+_Static_assert(offsetof(wrt_gto_quad, area) == 132, "layout");
+_Static_assert(offsetof(wrt_gto_quad, material) == 136, "layout");
+_Static_assert(offsetof(wrt_gto_quad, func_first) == 144, "layout");
+_Static_assert(offsetof(wrt_gto_quad, func_count) == 148, "layout");
+_Static_assert(offsetof(wrt_gto_quad, flags) == 152, "layout");
+_Static_assert(offsetof(wrt_gto_quad, slevel) == 156, "layout");
+_Static_assert(offsetof(wrt_gto_quad, reserved) == 164, "layout");
+_Static_assert(sizeof(wrt_gto_material) == 104, "material record");
+_Static_assert(offsetof(wrt_gto_material, base_color) == 64, "layout");
+_Static_assert(offsetof(wrt_gto_material, emissive) == 84, "layout");
+_Static_assert(offsetof(wrt_gto_material, lambertian) == 96, "layout");
+_Static_assert(offsetof(wrt_gto_material, alevel) == 100, "layout");
+_Static_assert(sizeof(wrt_gto_light) == 144, "light record");
+_Static_assert(offsetof(wrt_gto_light, type) == 64, "layout");
+_Static_assert(offsetof(wrt_gto_light, pos) == 80, "layout");
+_Static_assert(offsetof(wrt_gto_light, dir) == 104, "layout");
+_Static_assert(offsetof(wrt_gto_light, intensity) == 128, "layout");
+_Static_assert(offsetof(wrt_gto_light, outer_cone) == 140, "layout");
+_Static_assert(sizeof(wrt_gto_camera) == 104, "camera record");
+_Static_assert(offsetof(wrt_gto_camera, yfov) == 72, "layout");
+_Static_assert(offsetof(wrt_gto_camera, zfar) == 96, "layout");
+_Static_assert(sizeof(wrt_gto_stats) == 152, "stats record");
+_Static_assert(offsetof(wrt_gto_stats, links_dto) == 32, "layout");
+_Static_assert(offsetof(wrt_gto_stats, entries_dto) == 56, "layout");
+_Static_assert(offsetof(wrt_gto_stats, rays_traced) == 72, "layout");
+_Static_assert(offsetof(wrt_gto_stats, bounces) == 88, "layout");
+_Static_assert(offsetof(wrt_gto_stats, energy_left) == 96, "layout");
+_Static_assert(offsetof(wrt_gto_stats, reserved) == 104, "layout");
+_Static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE 754 binary32/binary64");
+
+enum {
+    SEC_QUADS = 1, SEC_MATERIALS, SEC_LIGHTS, SEC_CAMERA, SEC_NAMES, SEC_FKEYS,
+    SEC_COL_START, SEC_ROWS, SEC_VALS, SEC_STATS, SEC_PROVENANCE,
+    SEC_KNOWN_END
+};
+#define SEC_KNOWN (SEC_KNOWN_END - 1)
+
+static const struct { const char *name; uint32_t elem_size; } sec_info[SEC_KNOWN_END] = {
+    [SEC_QUADS] = {"quads", sizeof(wrt_gto_quad)},
+    [SEC_MATERIALS] = {"materials", sizeof(wrt_gto_material)},
+    [SEC_LIGHTS] = {"lights", sizeof(wrt_gto_light)},
+    [SEC_CAMERA] = {"camera", sizeof(wrt_gto_camera)},
+    [SEC_NAMES] = {"names", 64},
+    [SEC_FKEYS] = {"fkeys", 8},
+    [SEC_COL_START] = {"col_start", 8},
+    [SEC_ROWS] = {"rows", 4},
+    [SEC_VALS] = {"vals", 12},
+    [SEC_STATS] = {"stats", sizeof(wrt_gto_stats)},
+    [SEC_PROVENANCE] = {"provenance", 1},
+};
+
+static const char *sec_name(uint32_t id) {
+    return (id >= 1 && id <= SEC_KNOWN) ? sec_info[id].name : "unknown";
+}
+
+static uint64_t align_up(uint64_t x) { return (x + GTO_ALIGN - 1) & ~(uint64_t)(GTO_ALIGN - 1); }
+
+/* ------------------------------------------------------------------------------------
+ * Checksum: 4 lanes, each absorbing one 64-bit little-endian word per 32-byte stripe by
+ * v = (v ^ w) * K1; v ^= v >> 32. For a fixed v the step is a bijection of w and for a
+ * fixed w a bijection of v (odd multiplier, xorshift), so a change confined to one
+ * word always changes that lane and, through the bijective final mix, the result. The
+ * tail is zero-padded to a stripe and the length enters the final mix.
+ * ---------------------------------------------------------------------------------- */
+
+#define H_K1 0x9E3779B97F4A7C15ull
+#define H_K2 0xC2B2AE3D27D4EB4Full
+#define H_K3 0x165667B19E3779F9ull
+
+typedef struct hstate { uint64_t v[4]; } hstate;
+
+static void h_init(hstate *s) {
+    for (int i = 0; i < 4; i++) s->v[i] = H_K2 * (uint64_t)(i + 1);
+}
+
+static inline uint64_t h_ld64(const uint8_t *p) { uint64_t w; memcpy(&w, p, 8); return w; }
+static inline uint64_t h_step(uint64_t v, uint64_t w) { v = (v ^ w) * H_K1; return v ^ (v >> 32); }
+
+/* n must be a multiple of 32. */
+static void h_blocks(hstate *s, const uint8_t *p, size_t n) {
+    uint64_t a = s->v[0], b = s->v[1], c = s->v[2], d = s->v[3];
+    for (; n >= 32; n -= 32, p += 32) {
+        a = h_step(a, h_ld64(p));
+        b = h_step(b, h_ld64(p + 8));
+        c = h_step(c, h_ld64(p + 16));
+        d = h_step(d, h_ld64(p + 24));
+    }
+    s->v[0] = a; s->v[1] = b; s->v[2] = c; s->v[3] = d;
+}
+
+static uint64_t h_final(hstate *s, const uint8_t *tail, size_t ntail, uint64_t total) {
+    if (ntail) {
+        uint8_t buf[32] = {0};
+        memcpy(buf, tail, ntail);
+        h_blocks(s, buf, 32);
+    }
+    uint64_t h = total ^ H_K3;
+    for (int i = 0; i < 4; i++) h = h_step(h, s->v[i]);
+    h ^= h >> 33; h *= H_K2; h ^= h >> 29; h *= H_K3; h ^= h >> 32;
+    return h;
+}
+
+uint64_t wrt_gto_checksum(const void *data, size_t n) {
+    hstate s;
+    h_init(&s);
+    size_t full = n & ~(size_t)31;
+    h_blocks(&s, data, full);
+    return h_final(&s, (const uint8_t *)data + full, n - full, n);
+}
+
+/* ------------------------------------------------------------------------------------
+ * Content checks, shared by the reader (on the mapping) and the writer (on its input).
+ * A chunk checker records the first problem in the context and keeps quiet after it;
+ * the caller reports it only once the section's checksum is known to be right, so a
+ * flipped byte reads as a checksum error, not as the index error it may cause.
+ * ---------------------------------------------------------------------------------- */
+
+typedef struct vctx {
+    const wrt_gto *g;   /* counts and pointers of the sections checked so far */
+    int bad;
+    char err[256];
+    uint64_t col;       /* rows: current column */
+} vctx;
+
+static void vbad(vctx *v, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void vbad(vctx *v, const char *fmt, ...) {
+    if (v->bad) return;
+    v->bad = 1;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(v->err, sizeof v->err, fmt, ap);
+    va_end(ap);
+}
+
+/* Checks elements [first, first + n) of a section whose payload starts at `base`. */
+typedef void (*chunk_check)(vctx *v, const uint8_t *base, uint64_t first, uint64_t n);
+
+static int has_nul64(const char *s) { return memchr(s, 0, 64) != NULL; }
+
+static void check_quads_local(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const wrt_gto_quad *q = (const wrt_gto_quad *)base;
+    for (uint64_t i = first; i < first + n; i++) {
+        if (q[i].material >= v->g->nmaterials)
+            return vbad(v, "quad %" PRIu64 ": material %u out of range (%u materials)", i,
+                        q[i].material, v->g->nmaterials);
+        if (q[i].name != WRT_GTO_NO_NAME && q[i].name >= v->g->nnames)
+            return vbad(v, "quad %" PRIu64 ": name %u out of range (%u names)", i, q[i].name,
+                        v->g->nnames);
+        for (int k = 0; k < 4; k++)
+            for (int j = 0; j < 3; j++)
+                if (!isfinite(q[i].p[k][j]))
+                    return vbad(v, "quad %" PRIu64 ": corner %d is not finite", i, k);
+    }
+}
+
+static void check_materials(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const wrt_gto_material *m = (const wrt_gto_material *)base;
+    for (uint64_t i = first; i < first + n; i++)
+        if (!has_nul64(m[i].name)) return vbad(v, "material %" PRIu64 ": name not terminated", i);
+}
+
+static void check_lights(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const wrt_gto_light *l = (const wrt_gto_light *)base;
+    for (uint64_t i = first; i < first + n; i++) {
+        if (!has_nul64(l[i].name)) return vbad(v, "light %" PRIu64 ": name not terminated", i);
+        if (l[i].type > WRT_LIGHT_SPOT)
+            return vbad(v, "light %" PRIu64 ": unknown type %u", i, l[i].type);
+    }
+}
+
+static void check_names(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    for (uint64_t i = first; i < first + n; i++)
+        if (!has_nul64((const char *)base + 64 * i))
+            return vbad(v, "name %" PRIu64 ": not terminated", i);
+}
+
+/* Branch-free scans, in blocks of 16 so that the compiler vectorizes them at -O2 (its
+ * cheap cost model wants a known trip count); the slow loops that follow a hit only
+ * run to name the first bad element. */
+#define SCAN_BLOCK 16
+
+static uint32_t scan_not_ascending_u64(const uint64_t *k, size_t n) { /* any k[i] <= k[i-1] */
+    uint32_t bad = 0;
+    size_t i = 1;
+    for (; i + SCAN_BLOCK <= n; i += SCAN_BLOCK) {
+        uint32_t b = 0;
+        for (int j = 0; j < SCAN_BLOCK; j++) b |= k[i + j] <= k[i + j - 1];
+        bad |= b;
+    }
+    for (; i < n; i++) bad |= k[i] <= k[i - 1];
+    return bad;
+}
+
+static uint32_t scan_decreasing_u64(const uint64_t *k, size_t n) { /* any k[i] < k[i-1] */
+    uint32_t bad = 0;
+    size_t i = 1;
+    for (; i + SCAN_BLOCK <= n; i += SCAN_BLOCK) {
+        uint32_t b = 0;
+        for (int j = 0; j < SCAN_BLOCK; j++) b |= k[i + j] < k[i + j - 1];
+        bad |= b;
+    }
+    for (; i < n; i++) bad |= k[i] < k[i - 1];
+    return bad;
+}
+
+/* Entries of one column: any r >= nf, or not strictly ascending. */
+static uint32_t scan_column(const uint32_t *r, size_t n, uint32_t nf) {
+    uint32_t mx = r[0], bad = 0;
+    size_t i = 1;
+    for (; i + SCAN_BLOCK <= n; i += SCAN_BLOCK) {
+        uint32_t m = mx, b = 0;
+        for (int j = 0; j < SCAN_BLOCK; j++) {
+            uint32_t x = r[i + j];
+            m = x > m ? x : m;
+            b |= x <= r[i + j - 1];
+        }
+        mx = m;
+        bad |= b;
+    }
+    for (; i < n; i++) {
+        mx = r[i] > mx ? r[i] : mx;
+        bad |= r[i] <= r[i - 1];
+    }
+    return bad | (mx >= nf);
+}
+
+/* Any float (as bits) with an all-ones exponent (NaN or infinity): adding one to the
+ * exponent field carries into the sign bit exactly then. */
+static uint32_t scan_nonfinite(const uint32_t *u, size_t n) {
+    uint32_t acc = 0;
+    size_t i = 0;
+    for (; i + SCAN_BLOCK <= n; i += SCAN_BLOCK) {
+        uint32_t a = 0;
+        for (int j = 0; j < SCAN_BLOCK; j++) a |= (u[i + j] & 0x7f800000u) + 0x00800000u;
+        acc |= a;
+    }
+    for (; i < n; i++) acc |= (u[i] & 0x7f800000u) + 0x00800000u;
+    return acc >> 31;
+}
+
+static void check_fkeys(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const uint64_t *k = (const uint64_t *)base;
+    uint64_t i = first ? first - 1 : 0; /* include the last key of the previous chunk */
+    if (scan_not_ascending_u64(k + i, (size_t)(first + n - i))) {
+        for (i++; i < first + n; i++)
+            if (k[i] <= k[i - 1])
+                return vbad(v, "fkeys not strictly ascending at index %" PRIu64
+                            " (0x%016" PRIx64 " after 0x%016" PRIx64 ")", i, k[i], k[i - 1]);
+    }
+    /* Sorted so far: the last key has the largest quad. */
+    uint32_t q = wrt_fkey_quad(k[first + n - 1]);
+    if (q >= v->g->nquads)
+        return vbad(v, "fkeys[%" PRIu64 "] names quad %u, but there are %u quads", first + n - 1,
+                    q, v->g->nquads);
+}
+
+static void check_col_start(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const uint64_t *c = (const uint64_t *)base;
+    if (first == 0 && c[0] != 0) return vbad(v, "col_start[0] is %" PRIu64 ", not 0", c[0]);
+    uint64_t i = first ? first - 1 : 0;
+    if (scan_decreasing_u64(c + i, (size_t)(first + n - i))) {
+        for (i++; i < first + n; i++)
+            if (c[i] < c[i - 1])
+                return vbad(v, "col_start not monotone at column %" PRIu64 " (%" PRIu64
+                            " after %" PRIu64 ")", i, c[i], c[i - 1]);
+    }
+    if (first + n == (uint64_t)v->g->nfuncs + 1 && c[v->g->nfuncs] != v->g->nnz)
+        return vbad(v, "col_start[%u] is %" PRIu64 ", but there are %" PRIu64 " entries",
+                    v->g->nfuncs, c[v->g->nfuncs], v->g->nnz);
+}
+
+/* rows: each < nfuncs and strictly ascending within its column. col_start is valid. */
+static void check_rows(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const uint32_t *r = (const uint32_t *)base;
+    const uint64_t *cs = v->g->col_start;
+    uint32_t nf = v->g->nfuncs;
+    uint64_t e = first, end = first + n, col = v->col;
+    while (e < end) {
+        while (cs[col + 1] <= e) col++;  /* e < nnz = cs[nf], so col < nf */
+        uint64_t cend = cs[col + 1] < end ? cs[col + 1] : end;
+        /* A column cut by the chunk boundary continues from its previous entry. */
+        uint64_t from = e > cs[col] ? e - 1 : e;
+        if (scan_column(r + from, (size_t)(cend - from), nf)) {
+            for (; e < cend; e++) {
+                if (r[e] >= nf)
+                    return vbad(v, "rows[%" PRIu64 "] = %u out of range (%u functions) in column %"
+                                PRIu64, e, r[e], nf, col);
+                if (e > cs[col] && r[e] <= r[e - 1])
+                    return vbad(v, "rows not strictly ascending in column %" PRIu64
+                                " at entry %" PRIu64, col, e);
+            }
+        }
+        e = cend;
+    }
+    v->col = col;
+}
+
+static void check_vals(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const uint32_t *u = (const uint32_t *)base + 3 * first;
+    if (scan_nonfinite(u, (size_t)(3 * n))) {
+        for (uint64_t j = 0; j < 3 * n; j++)
+            if ((u[j] & 0x7f800000u) == 0x7f800000u)
+                return vbad(v, "vals[%" PRIu64 "] channel %d is %s", first + j / 3, (int)(j % 3),
+                            (u[j] & 0x007fffffu) ? "NaN" : "infinite");
+    }
+}
+
+/* What needs a later section: each quad's function range against fkeys. */
+static void check_quad_ranges(vctx *v) {
+    const wrt_gto *g = v->g;
+    uint64_t next = 0;
+    for (uint32_t q = 0; q < g->nquads; q++) {
+        const wrt_gto_quad *r = &g->quads[q];
+        if (r->func_first > g->nfuncs || r->func_count > g->nfuncs - r->func_first)
+            return vbad(v, "quad %u: functions [%u, +%u) beyond the %u functions", q,
+                        r->func_first, r->func_count, g->nfuncs);
+        if (r->func_first != next)
+            return vbad(v, "quad %u: functions start at %u, expected %" PRIu64
+                        " (ranges must follow each other)", q, r->func_first, next);
+        if (r->func_count && (wrt_fkey_quad(g->fkeys[r->func_first]) != q ||
+                              wrt_fkey_quad(g->fkeys[r->func_first + r->func_count - 1]) != q))
+            return vbad(v, "quad %u: its function range holds keys of another quad", q);
+        next += r->func_count;
+    }
+    if (next != g->nfuncs)
+        return vbad(v, "quads cover %" PRIu64 " functions, but there are %u", next, g->nfuncs);
+}
+
+static chunk_check sec_checker(uint32_t id) {
+    switch (id) {
+    case SEC_QUADS: return check_quads_local;
+    case SEC_MATERIALS: return check_materials;
+    case SEC_LIGHTS: return check_lights;
+    case SEC_NAMES: return check_names;
+    case SEC_FKEYS: return check_fkeys;
+    case SEC_COL_START: return check_col_start;
+    case SEC_ROWS: return check_rows;
+    case SEC_VALS: return check_vals;
+    default: return NULL;
+    }
+}
+
+/* One pass over a section: checksum and checks, 8192 elements at a time. Returns the
+ * checksum; v->bad tells whether a check failed. */
+static uint64_t scan_section(const uint8_t *p, uint64_t count, uint32_t elem, chunk_check fn,
+                             vctx *v) {
+    hstate s;
+    h_init(&s);
+    const uint64_t chunk = 8192; /* elements; chunk * elem is a multiple of 32 */
+    uint64_t done = 0, size = count * elem;
+    while (count - done > chunk) {
+        h_blocks(&s, p + done * elem, chunk * elem);
+        if (fn && !v->bad) fn(v, p, done, chunk);
+        done += chunk;
+    }
+    uint64_t rest = size - done * elem, full = rest & ~(uint64_t)31;
+    h_blocks(&s, p + done * elem, full);
+    uint64_t sum = h_final(&s, p + done * elem + full, rest - full, size);
+    if (fn && !v->bad && count > done) fn(v, p, done, count - done);
+    return sum;
+}
+
+/* ------------------------------------------------------------------------------------
+ * Reader
+ * ---------------------------------------------------------------------------------- */
+
+/* Where each section is, once the table has been checked (0 if absent). */
+typedef struct gto_layout {
+    gto_header h;
+    const gto_section *table;
+    const gto_section *sec[SEC_KNOWN_END];
+} gto_layout;
+
+/* Stage 1: the header and the section table, no payload byte read. */
+static wrt_status parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
+    memset(L, 0, sizeof *L);
+    if (len == 0) return wrt_fail(WRT_ERR_CORRUPT, "empty file (0 bytes)");
+    size_t m = len < GTO_MAGIC_LEN ? len : GTO_MAGIC_LEN;
+    if (memcmp(b, GTO_MAGIC, m) != 0) return wrt_fail(WRT_ERR_NOT_OURS, "not a .gto file (bad magic)");
+    if (len < sizeof(gto_header))
+        return wrt_fail(WRT_ERR_CORRUPT, "truncated: expected at least %zu bytes of header, found %zu",
+                        sizeof(gto_header), len);
+    memcpy(&L->h, b, sizeof L->h);
+    const gto_header *h = &L->h;
+    if (h->byte_order == GTO_BOM_SWAPPED)
+        return wrt_fail(WRT_ERR_UNSUPPORTED, "big-endian file; this reader reads little-endian only");
+    if (h->byte_order != GTO_BOM)
+        return wrt_fail(WRT_ERR_CORRUPT, "bad byte-order mark 0x%08x", h->byte_order);
+    if (h->version_major > WRT_GTO_VERSION)
+        return wrt_fail(WRT_ERR_UNSUPPORTED,
+                        "file version %u.%u is newer than this reader's version %d.%d",
+                        h->version_major, h->version_minor, WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR);
+    if (h->version_major < WRT_GTO_VERSION)
+        return wrt_fail(WRT_ERR_UNSUPPORTED,
+                        "file version %u.%u is older than this reader's version %d.%d",
+                        h->version_major, h->version_minor, WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR);
+    if (h->file_size > len)
+        return wrt_fail(WRT_ERR_CORRUPT, "truncated: expected %" PRIu64 " bytes, found %zu",
+                        h->file_size, len);
+    if (h->file_size < len)
+        return wrt_fail(WRT_ERR_CORRUPT, "trailing data: expected %" PRIu64 " bytes, found %zu",
+                        h->file_size, len);
+    if (h->nsections == 0 || h->nsections > GTO_MAX_SECTIONS)
+        return wrt_fail(WRT_ERR_CORRUPT, "bad section count %u", h->nsections);
+    if (h->header_size != sizeof(gto_header) + sizeof(gto_section) * h->nsections)
+        return wrt_fail(WRT_ERR_CORRUPT, "header size %u does not match %u sections",
+                        h->header_size, h->nsections);
+    if (h->header_size > len)
+        return wrt_fail(WRT_ERR_CORRUPT, "section table (%u bytes) beyond end of file (%zu bytes)",
+                        h->header_size, len);
+    {
+        alignas(8) uint8_t buf[sizeof(gto_header) + sizeof(gto_section) * GTO_MAX_SECTIONS];
+        memcpy(buf, b, h->header_size);
+        memset(buf + offsetof(gto_header, header_checksum), 0, 8);
+        uint64_t sum = wrt_gto_checksum(buf, h->header_size);
+        if (sum != h->header_checksum)
+            return wrt_fail(WRT_ERR_CORRUPT, "header checksum mismatch (stored 0x%016" PRIx64
+                            ", computed 0x%016" PRIx64 ")", h->header_checksum, sum);
+    }
+    L->table = (const gto_section *)(b + sizeof(gto_header));
+    if (h->op_kind > WRT_GTO_OP_GATHERED)
+        return wrt_fail(WRT_ERR_UNSUPPORTED, "unknown operator kind %u", h->op_kind);
+    uint64_t prev_end = h->header_size;
+    uint32_t prev_id = 0;
+    for (uint32_t i = 0; i < h->nsections; i++) {
+        const gto_section *s = &L->table[i];
+        const char *nm = sec_name(s->id);
+        if (s->id <= prev_id)
+            return wrt_fail(WRT_ERR_CORRUPT, "section table entry %u (id %u, %s) out of order or repeated",
+                            i, s->id, nm);
+        prev_id = s->id;
+        if (s->offset > len || s->size > len - s->offset)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 " + size %" PRIu64
+                            " beyond end of file (%zu bytes)", nm, s->offset, s->size, len);
+        if (s->offset % GTO_ALIGN)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 " not %u-byte aligned",
+                            nm, s->offset, GTO_ALIGN);
+        if (s->offset != align_up(prev_end))
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 ", expected %" PRIu64
+                            " (sections follow each other)", nm, s->offset, align_up(prev_end));
+        if (s->id <= SEC_KNOWN && s->elem_size != sec_info[s->id].elem_size)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: element size %u, expected %u", nm,
+                            s->elem_size, sec_info[s->id].elem_size);
+        if (s->elem_size == 0 || s->count > s->size / s->elem_size ||
+            s->count * s->elem_size != s->size)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: size %" PRIu64 " is not %" PRIu64
+                            " elements of %u bytes", nm, s->size, s->count, s->elem_size);
+        if (s->id <= SEC_KNOWN) L->sec[s->id] = s;
+        prev_end = s->offset + s->size;
+    }
+    if (prev_end != len)
+        return wrt_fail(WRT_ERR_CORRUPT, "last section ends at %" PRIu64 ", file has %zu bytes",
+                        prev_end, len);
+    for (uint32_t id = 1; id <= SEC_KNOWN; id++)
+        if (!L->sec[id]) return wrt_fail(WRT_ERR_CORRUPT, "missing section %s", sec_name(id));
+    return WRT_OK;
+}
+
+/* Stage 2: counts that must agree across sections, and zero padding. */
+static wrt_status check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
+    const gto_section *const *S = L->sec;
+    static const uint32_t u32_counted[] = {SEC_QUADS, SEC_MATERIALS, SEC_LIGHTS, SEC_NAMES, SEC_FKEYS};
+    for (size_t i = 0; i < sizeof u32_counted / sizeof *u32_counted; i++)
+        if (S[u32_counted[i]]->count > UINT32_MAX - 1)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: %" PRIu64 " elements, too many",
+                            sec_name(u32_counted[i]), S[u32_counted[i]]->count);
+    if (S[SEC_CAMERA]->count != 1)
+        return wrt_fail(WRT_ERR_CORRUPT, "section camera: %" PRIu64 " records, expected 1",
+                        S[SEC_CAMERA]->count);
+    if (S[SEC_STATS]->count != 1)
+        return wrt_fail(WRT_ERR_CORRUPT, "section stats: %" PRIu64 " records, expected 1",
+                        S[SEC_STATS]->count);
+    if (S[SEC_COL_START]->count != S[SEC_FKEYS]->count + 1)
+        return wrt_fail(WRT_ERR_CORRUPT, "section col_start: %" PRIu64 " entries, expected %" PRIu64
+                        " (functions + 1)", S[SEC_COL_START]->count, S[SEC_FKEYS]->count + 1);
+    if (S[SEC_VALS]->count != S[SEC_ROWS]->count)
+        return wrt_fail(WRT_ERR_CORRUPT, "section vals: %" PRIu64 " entries, rows has %" PRIu64,
+                        S[SEC_VALS]->count, S[SEC_ROWS]->count);
+    /* Every byte outside the sections is header, table or zero padding. */
+    uint64_t prev_end = L->h.header_size;
+    for (uint32_t i = 0; i < L->h.nsections; i++) {
+        const gto_section *s = &L->table[i];
+        for (uint64_t o = prev_end; o < s->offset; o++)
+            if (b[o])
+                return wrt_fail(WRT_ERR_CORRUPT, "non-zero padding byte at %" PRIu64 " before section %s",
+                                o, sec_name(s->id));
+        prev_end = s->offset + s->size;
+    }
+    g->version = L->h.version_major;
+    g->version_minor = L->h.version_minor;
+    g->op_kind = L->h.op_kind;
+    g->nquads = (uint32_t)S[SEC_QUADS]->count;
+    g->nmaterials = (uint32_t)S[SEC_MATERIALS]->count;
+    g->nlights = (uint32_t)S[SEC_LIGHTS]->count;
+    g->nnames = (uint32_t)S[SEC_NAMES]->count;
+    g->nfuncs = (uint32_t)S[SEC_FKEYS]->count;
+    g->nnz = S[SEC_ROWS]->count;
+#define SECPTR(id) ((const void *)(b + S[id]->offset))
+    g->quads = SECPTR(SEC_QUADS);
+    g->materials = SECPTR(SEC_MATERIALS);
+    g->lights = SECPTR(SEC_LIGHTS);
+    g->camera = SECPTR(SEC_CAMERA);
+    g->names = SECPTR(SEC_NAMES);
+    g->fkeys = SECPTR(SEC_FKEYS);
+    g->col_start = SECPTR(SEC_COL_START);
+    g->rows = SECPTR(SEC_ROWS);
+    g->vals = SECPTR(SEC_VALS);
+    g->stats = SECPTR(SEC_STATS);
+    g->provenance = SECPTR(SEC_PROVENANCE);
+    g->provenance_len = (size_t)S[SEC_PROVENANCE]->size;
+#undef SECPTR
+    return WRT_OK;
+}
+
+/* Stage 3: the single pass over the payload. */
+static wrt_status check_payload(const uint8_t *b, const gto_layout *L, const wrt_gto *g) {
+    vctx v;
+    memset(&v, 0, sizeof v);
+    v.g = g;
+    for (uint32_t i = 0; i < L->h.nsections; i++) {
+        const gto_section *s = &L->table[i];
+        uint64_t sum = scan_section(b + s->offset, s->count, s->elem_size, sec_checker(s->id), &v);
+        if (sum != s->checksum)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: checksum mismatch (stored 0x%016" PRIx64
+                            ", computed 0x%016" PRIx64 ")", sec_name(s->id), s->checksum, sum);
+        if (v.bad) return wrt_fail(WRT_ERR_CORRUPT, "section %s: %s", sec_name(s->id), v.err);
+    }
+    check_quad_ranges(&v);
+    if (v.bad) return wrt_fail(WRT_ERR_CORRUPT, "section quads: %s", v.err);
+    return WRT_OK;
+}
+
+static wrt_status validate(const uint8_t *b, size_t len, wrt_gto *out) {
+    gto_layout L;
+    wrt_status st = parse_layout(b, len, &L);
+    if (st == WRT_OK) st = check_counts(b, &L, out);
+    if (st == WRT_OK) st = check_payload(b, &L, out);
+    return st;
+}
+
+wrt_status wrt_gto_open_memory(const void *data, size_t size, wrt_gto *out) {
+    memset(out, 0, sizeof *out);
+    if (!data && size) return wrt_fail(WRT_ERR_INVALID_ARG, "no data");
+    if ((uintptr_t)data % 8) return wrt_fail(WRT_ERR_INVALID_ARG, ".gto image not 8-byte aligned");
+    wrt_status st = validate(data, size, out);
+    if (st != WRT_OK) { memset(out, 0, sizeof *out); return st; }
+    out->map = (void *)data;
+    out->size = size;
+    out->owns_map = 0;
+    return WRT_OK;
+}
+
+/* Maps a whole file read-only. *map is NULL for an empty file. */
+static wrt_status map_file(const char *path, void **map, size_t *len) {
+    *map = NULL; *len = 0;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    struct stat st;
+    if (fstat(fd, &st) != 0) {
+        int e = errno; close(fd);
+        return wrt_fail(WRT_ERR_IO, "%s: cannot stat: %s", path, strerror(e));
+    }
+    if (!S_ISREG(st.st_mode)) { close(fd); return wrt_fail(WRT_ERR_IO, "%s: not a regular file", path); }
+    if ((uint64_t)st.st_size > SIZE_MAX) { close(fd); return wrt_fail(WRT_ERR_IO, "%s: too large", path); }
+    *len = (size_t)st.st_size;
+    if (*len) {
+        void *p = mmap(NULL, *len, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+        if (p == MAP_FAILED) {
+            int e = errno; close(fd);
+            return wrt_fail(WRT_ERR_IO, "%s: cannot map: %s", path, strerror(e));
+        }
+        *map = p;
+    }
+    close(fd);
+    return WRT_OK;
+}
+
+static wrt_status prefix_error(const char *path, wrt_status st) {
+    char msg[1024];
+    snprintf(msg, sizeof msg, "%s", wrt_last_error());
+    return wrt_fail(st, "%s: %s", path, msg);
+}
+
+wrt_status wrt_gto_open(const char *path, wrt_gto *out) {
+    memset(out, 0, sizeof *out);
+    void *map; size_t len;
+    wrt_status st = map_file(path, &map, &len);
+    if (st != WRT_OK) return st;
+    static const uint64_t empty = 0;
+    st = validate(map ? map : (const void *)&empty, len, out);
+    if (st != WRT_OK) {
+        if (map) munmap(map, len);
+        memset(out, 0, sizeof *out);
+        return prefix_error(path, st);
+    }
+    out->map = map;
+    out->size = len;
+    out->owns_map = 1;
+    return WRT_OK;
+}
+
+void wrt_gto_close(wrt_gto *g) {
+    if (!g) return;
+    if (g->owns_map && g->map) munmap(g->map, g->size);
+    memset(g, 0, sizeof *g);
+}
+
+/* ------------------------------------------------------------------------------------
+ * Writer
+ * ---------------------------------------------------------------------------------- */
+
+/* Temporaries being written, for the signal handler: state 0 free, 1 claimed, 2 armed.
+ * Lock-free atomics, so the handler may read them. */
+_Static_assert(ATOMIC_INT_LOCK_FREE == 2, "the signal handler needs lock-free atomics");
+#define TMP_SLOTS 8
+static struct { atomic_int state; char path[PATH_MAX]; } tmp_slots[TMP_SLOTS];
+static wrt_gto_write_hook write_hook;
+
+void wrt_gto_set_write_hook(wrt_gto_write_hook hook) { write_hook = hook; }
+
+static int tmp_arm(const char *path) {
+    if (strlen(path) >= PATH_MAX) return -1;
+    for (int i = 0; i < TMP_SLOTS; i++) {
+        int expect = 0;
+        if (atomic_compare_exchange_strong(&tmp_slots[i].state, &expect, 1)) {
+            strcpy(tmp_slots[i].path, path);
+            atomic_store(&tmp_slots[i].state, 2);
+            return i;
+        }
+    }
+    return -1; /* more concurrent writes than slots: this one is not cleaned on a signal */
+}
+
+static void tmp_disarm(int slot) {
+    if (slot >= 0) atomic_store(&tmp_slots[slot].state, 0);
+}
+
+void wrt_gto_remove_temporaries(void) {
+    int saved = errno;
+    for (int i = 0; i < TMP_SLOTS; i++)
+        if (atomic_load(&tmp_slots[i].state) == 2) unlink(tmp_slots[i].path);
+    errno = saved;
+}
+
+static void cleanup_handler(int sig) {
+    int saved = errno;
+    wrt_gto_remove_temporaries();
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = SIG_DFL;
+    sigemptyset(&sa.sa_mask);
+    sigaction(sig, &sa, NULL);
+    raise(sig); /* blocked until the handler returns, then kills with the default action */
+    errno = saved;
+}
+
+void wrt_gto_install_signal_cleanup(void) {
+    static const int sigs[] = {SIGINT, SIGTERM, SIGHUP};
+    for (size_t i = 0; i < sizeof sigs / sizeof *sigs; i++) {
+        struct sigaction old, sa;
+        if (sigaction(sigs[i], NULL, &old) != 0) continue;
+        if (old.sa_handler == SIG_IGN || old.sa_handler == cleanup_handler) continue;
+        memset(&sa, 0, sizeof sa);
+        sa.sa_handler = cleanup_handler;
+        sigemptyset(&sa.sa_mask);
+        sigaction(sigs[i], &sa, NULL);
+    }
+}
+
+static int write_all(int fd, const void *data, uint64_t n) {
+    const uint8_t *p = data;
+    while (n) {
+        size_t part = n > (1u << 30) ? (1u << 30) : (size_t)n;
+        ssize_t w = write(fd, p, part);
+        if (w < 0) {
+            if (errno == EINTR) continue;
+            return -1;
+        }
+        if (w == 0) { errno = EIO; return -1; }
+        p += w;
+        n -= (uint64_t)w;
+    }
+    return 0;
+}
+
+static void copy_name(char dst[64], const char *src) {
+    memset(dst, 0, 64);
+    if (src) memcpy(dst, src, strnlen(src, 63));
+}
+
+typedef struct wsec { uint32_t id; uint64_t count; const void *data; } wsec;
+
+wrt_status wrt_gto_write(const char *path, const wrt_gto_contents *c) {
+    if (!path || !c || !c->scene) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_gto_write: no path or contents");
+    const wrt_scene *sc = c->scene;
+    uint32_t nf = c->nfuncs;
+    if (sc->nquads < 0 || sc->nmaterials < 0 || sc->nlights < 0 || sc->nnames < 0)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: negative scene counts", path);
+    if (nf && (!c->fkeys || !c->col_start))
+        return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: %u functions but no keys or columns",
+                        path, nf);
+    static const uint64_t zero_col = 0;
+    const uint64_t *col_start = c->col_start ? c->col_start : &zero_col;
+    uint64_t nnz = col_start[nf];
+    if (nnz && (!c->rows || !c->vals))
+        return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: %" PRIu64 " entries but no rows or vals",
+                        path, nnz);
+    if (c->op_kind > WRT_GTO_OP_GATHERED)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: unknown operator kind %u", path, c->op_kind);
+    uint32_t nq = (uint32_t)sc->nquads;
+
+    /* The records. */
+    wrt_gto_quad *quads = wrt_xcalloc(nq ? nq : 1, sizeof *quads);
+    for (uint32_t i = 0; i < nf; i++) {
+        uint32_t q = wrt_fkey_quad(c->fkeys[i]);
+        if (q >= nq) {
+            free(quads);
+            return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: fkeys[%u] names quad %u, but there are %u quads",
+                            path, i, q, nq);
+        }
+        wrt_gto_quad *r = &quads[q];
+        if (r->func_count == 0) r->func_first = i;
+        r->func_count++;
+        uint32_t sl = wrt_fkey_snode(c->fkeys[i]).level, al = wrt_fkey_anode(c->fkeys[i]).level;
+        if (sl > r->slevel) r->slevel = sl;
+        if (al > r->alevel) r->alevel = al;
+    }
+    uint32_t next = 0;
+    for (uint32_t q = 0; q < nq; q++) {
+        const wrt_quad *s = &sc->quads[q];
+        wrt_gto_quad *r = &quads[q];
+        if (r->func_count == 0) r->func_first = next;
+        next = r->func_first + r->func_count;
+        for (int k = 0; k < 4; k++) { r->p[k][0] = s->p[k].x; r->p[k][1] = s->p[k].y; r->p[k][2] = s->p[k].z; }
+        r->n[0] = (float)s->n.x; r->n[1] = (float)s->n.y; r->n[2] = (float)s->n.z;
+        r->t[0] = (float)s->t.x; r->t[1] = (float)s->t.y; r->t[2] = (float)s->t.z;
+        r->b[0] = (float)s->b.x; r->b[1] = (float)s->b.y; r->b[2] = (float)s->b.z;
+        r->area = (float)s->area;
+        r->material = (uint32_t)s->material; /* negative -> huge -> refused by the check */
+        r->name = (s->name < 0) ? WRT_GTO_NO_NAME : (uint32_t)s->name;
+        r->flags = s->parallelogram ? 1u : 0u;
+    }
+    uint32_t nm = (uint32_t)sc->nmaterials;
+    wrt_gto_material *mats = wrt_xcalloc(nm ? nm : 1, sizeof *mats);
+    for (uint32_t i = 0; i < nm; i++) {
+        const wrt_material *s = &sc->materials[i];
+        copy_name(mats[i].name, s->name);
+        memcpy(mats[i].base_color, s->base_color, sizeof mats[i].base_color);
+        mats[i].metallic = s->metallic;
+        mats[i].roughness = s->roughness;
+        memcpy(mats[i].emissive, s->emissive, sizeof mats[i].emissive);
+        mats[i].lambertian = s->lambertian ? 1u : 0u;
+        mats[i].alevel = c->material_alevel ? c->material_alevel[i] : 0u;
+    }
+    uint32_t nl = (uint32_t)sc->nlights;
+    wrt_gto_light *lights = wrt_xcalloc(nl ? nl : 1, sizeof *lights);
+    for (uint32_t i = 0; i < nl; i++) {
+        const wrt_light *s = &sc->lights[i];
+        copy_name(lights[i].name, s->name);
+        lights[i].type = (uint32_t)s->type;
+        memcpy(lights[i].color, s->color, sizeof lights[i].color);
+        lights[i].pos[0] = s->pos.x; lights[i].pos[1] = s->pos.y; lights[i].pos[2] = s->pos.z;
+        lights[i].dir[0] = s->dir.x; lights[i].dir[1] = s->dir.y; lights[i].dir[2] = s->dir.z;
+        lights[i].intensity = s->intensity;
+        lights[i].range = s->range;
+        lights[i].inner_cone = s->inner_cone;
+        lights[i].outer_cone = s->outer_cone;
+    }
+    uint32_t nn = (uint32_t)sc->nnames;
+    char (*names)[64] = wrt_xcalloc(nn ? nn : 1, 64);
+    for (uint32_t i = 0; i < nn; i++) copy_name(names[i], sc->names[i]);
+    wrt_gto_camera cam;
+    memset(&cam, 0, sizeof cam);
+    const wrt_camera *sca = &sc->camera;
+    cam.pos[0] = sca->pos.x; cam.pos[1] = sca->pos.y; cam.pos[2] = sca->pos.z;
+    cam.dir[0] = sca->dir.x; cam.dir[1] = sca->dir.y; cam.dir[2] = sca->dir.z;
+    cam.up[0] = sca->up.x; cam.up[1] = sca->up.y; cam.up[2] = sca->up.z;
+    cam.yfov = sca->yfov; cam.aspect = sca->aspect; cam.znear = sca->znear; cam.zfar = sca->zfar;
+    wrt_gto_stats stats = c->stats;
+    const char *prov = c->provenance ? c->provenance : "";
+
+    wsec secs[SEC_KNOWN] = {
+        {SEC_QUADS, nq, quads}, {SEC_MATERIALS, nm, mats}, {SEC_LIGHTS, nl, lights},
+        {SEC_CAMERA, 1, &cam}, {SEC_NAMES, nn, names}, {SEC_FKEYS, nf, c->fkeys},
+        {SEC_COL_START, (uint64_t)nf + 1, col_start}, {SEC_ROWS, nnz, c->rows},
+        {SEC_VALS, nnz, c->vals}, {SEC_STATS, 1, &stats}, {SEC_PROVENANCE, strlen(prov), prov},
+    };
+
+    static const uint64_t nothing = 0;
+    for (int i = 0; i < SEC_KNOWN; i++)
+        if (!secs[i].data) secs[i].data = &nothing; /* only for empty sections */
+
+    /* Header, table, and the checks the reader will make, on our own input. */
+    alignas(8) uint8_t head[sizeof(gto_header) + sizeof(gto_section) * SEC_KNOWN];
+    memset(head, 0, sizeof head);
+    gto_header *h = (gto_header *)head;
+    gto_section *tab = (gto_section *)(head + sizeof(gto_header));
+    memcpy(h->magic, GTO_MAGIC, GTO_MAGIC_LEN);
+    h->byte_order = GTO_BOM;
+    h->version_major = WRT_GTO_VERSION;
+    h->version_minor = WRT_GTO_VERSION_MINOR;
+    h->nsections = SEC_KNOWN;
+    h->header_size = (uint32_t)sizeof head;
+    h->op_kind = c->op_kind;
+
+    wrt_gto view;
+    memset(&view, 0, sizeof view);
+    view.nquads = nq; view.nmaterials = nm; view.nlights = nl; view.nnames = nn; view.nfuncs = nf;
+    view.nnz = nnz; view.quads = quads; view.fkeys = c->fkeys; view.col_start = col_start;
+    vctx v;
+    memset(&v, 0, sizeof v);
+    v.g = &view;
+    uint64_t off = sizeof head;
+    wrt_status st = WRT_OK;
+    for (int i = 0; i < SEC_KNOWN && st == WRT_OK; i++) {
+        uint32_t es = sec_info[secs[i].id].elem_size;
+        tab[i].id = secs[i].id;
+        tab[i].elem_size = es;
+        tab[i].offset = align_up(off);
+        tab[i].count = secs[i].count;
+        tab[i].size = secs[i].count * es;
+        tab[i].checksum = scan_section(secs[i].data, secs[i].count, es, sec_checker(secs[i].id), &v);
+        off = tab[i].offset + tab[i].size;
+        if (v.bad)
+            st = wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: %s: %s", path,
+                          sec_name(secs[i].id), v.err);
+    }
+    if (st == WRT_OK) {
+        check_quad_ranges(&v);
+        if (v.bad) st = wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: quads: %s", path, v.err);
+    }
+    h->file_size = off;
+    h->header_checksum = wrt_gto_checksum(head, sizeof head);
+
+    /* The temporary, armed for the signal handler before anything can interrupt us. */
+    char *tmp = NULL;
+    int fd = -1, slot = -1;
+    if (st == WRT_OK) {
+        size_t pl = strlen(path);
+        tmp = wrt_xmalloc(pl + 12);
+        memcpy(tmp, path, pl);
+        memcpy(tmp + pl, ".tmp.XXXXXX", 12);
+        sigset_t all, old;
+        sigfillset(&all);
+        pthread_sigmask(SIG_BLOCK, &all, &old);
+        fd = mkostemp(tmp, O_CLOEXEC);
+        int e = errno;
+        if (fd >= 0) slot = tmp_arm(tmp);
+        pthread_sigmask(SIG_SETMASK, &old, NULL);
+        if (fd < 0)
+            st = wrt_fail(WRT_ERR_IO, "cannot create a temporary file for %s: %s", path, strerror(e));
+    }
+    if (st == WRT_OK) {
+        if (write_hook) write_hook(tmp);
+        mode_t um = umask(0);
+        umask(um);
+        static const uint8_t zeros[GTO_ALIGN];
+        int bad = fchmod(fd, 0666 & ~um) != 0 || write_all(fd, head, sizeof head) != 0;
+        uint64_t at = sizeof head;
+        for (int i = 0; i < SEC_KNOWN && !bad; i++) {
+            bad = write_all(fd, zeros, tab[i].offset - at) != 0 ||
+                  write_all(fd, secs[i].data, tab[i].size) != 0;
+            at = tab[i].offset + tab[i].size;
+        }
+        if (!bad) bad = fsync(fd) != 0;
+        int e = errno;
+        if (close(fd) != 0 && !bad) { bad = 1; e = errno; }
+        fd = -1;
+        if (!bad && rename(tmp, path) != 0) { bad = 1; e = errno; }
+        if (bad) {
+            unlink(tmp);
+            st = wrt_fail(WRT_ERR_IO, "cannot write %s: %s", path, strerror(e));
+        }
+    }
+    tmp_disarm(slot);
+    if (st == WRT_OK) {
+        /* Make the rename durable. */
+        char *dir = wrt_xmalloc(strlen(path) + 2);
+        strcpy(dir, path);
+        char *slash = strrchr(dir, '/');
+        if (!slash) strcpy(dir, ".");
+        else if (slash == dir) dir[1] = 0;
+        else *slash = 0;
+        int dfd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+        if (dfd < 0 || fsync(dfd) != 0)
+            wrt_log(WRT_LOG_WARN, "wrote %s but could not sync its directory: %s", path, strerror(errno));
+        if (dfd >= 0) close(dfd);
+        free(dir);
+    }
+    free(tmp);
+    free(quads); free(mats); free(lights); free(names);
+    return st;
+}
+
+/* ------------------------------------------------------------------------------------
+ * Inspection
+ * ---------------------------------------------------------------------------------- */
+
+/* Minimal JSON syntax check (so --info --json can embed the provenance as is). */
+static const char *js_ws(const char *p, const char *e) {
+    while (p < e && (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r')) p++;
+    return p;
+}
+static const char *js_value(const char *p, const char *e, int depth);
+static const char *js_string(const char *p, const char *e) {
+    if (p >= e || *p != '"') return NULL;
+    for (p++; p < e; p++) {
+        unsigned char ch = (unsigned char)*p;
+        if (ch == '"') return p + 1;
+        if (ch < 0x20) return NULL;
+        if (ch == '\\') {
+            if (++p >= e) return NULL;
+            if (*p == 'u') {
+                for (int i = 0; i < 4; i++)
+                    if (++p >= e || !strchr("0123456789abcdefABCDEF", *p) || !*p) return NULL;
+            } else if (!strchr("\"\\/bfnrt", *p) || !*p) return NULL;
+        }
+    }
+    return NULL;
+}
+static const char *js_value(const char *p, const char *e, int depth) {
+    if (depth > 64) return NULL;
+    p = js_ws(p, e);
+    if (p >= e) return NULL;
+    if (*p == '"') return js_string(p, e);
+    if (*p == '{' || *p == '[') {
+        char close = *p == '{' ? '}' : ']';
+        int obj = *p == '{';
+        p = js_ws(p + 1, e);
+        if (p < e && *p == close) return p + 1;
+        for (;;) {
+            if (obj) {
+                p = js_string(js_ws(p, e), e);
+                if (!p) return NULL;
+                p = js_ws(p, e);
+                if (p >= e || *p != ':') return NULL;
+                p++;
+            }
+            p = js_value(p, e, depth + 1);
+            if (!p) return NULL;
+            p = js_ws(p, e);
+            if (p < e && *p == ',') { p++; continue; }
+            if (p < e && *p == close) return p + 1;
+            return NULL;
+        }
+    }
+    static const char *const lits[] = {"true", "false", "null"};
+    for (int i = 0; i < 3; i++) {
+        size_t n = strlen(lits[i]);
+        if ((size_t)(e - p) >= n && memcmp(p, lits[i], n) == 0) return p + n;
+    }
+    /* number: -?(0|[1-9][0-9]*)(.[0-9]+)?([eE][+-]?[0-9]+)? */
+    const char *q = p;
+    if (q < e && *q == '-') q++;
+    if (q >= e || *q < '0' || *q > '9') return NULL;
+    if (*q == '0') q++;
+    else while (q < e && *q >= '0' && *q <= '9') q++;
+    if (q < e && *q == '.') {
+        if (++q >= e || *q < '0' || *q > '9') return NULL;
+        while (q < e && *q >= '0' && *q <= '9') q++;
+    }
+    if (q < e && (*q == 'e' || *q == 'E')) {
+        q++;
+        if (q < e && (*q == '+' || *q == '-')) q++;
+        if (q >= e || *q < '0' || *q > '9') return NULL;
+        while (q < e && *q >= '0' && *q <= '9') q++;
+    }
+    return q;
+}
+
+static int is_json_object(const char *s, size_t n) {
+    const char *e = s + n, *p = js_ws(s, e);
+    if (p >= e || *p != '{') return 0;
+    p = js_value(p, e, 0);
+    return p && js_ws(p, e) == e;
+}
+
+static void put_jstr(FILE *f, const char *s, size_t n) {
+    fputc('"', f);
+    for (size_t i = 0; i < n; i++) {
+        unsigned char ch = (unsigned char)s[i];
+        if (ch == '"' || ch == '\\') fprintf(f, "\\%c", ch);
+        else if (ch == '\n') fputs("\\n", f);
+        else if (ch == '\t') fputs("\\t", f);
+        else if (ch < 0x20 || ch == 0x7f) fprintf(f, "\\u%04x", ch);
+        else fputc(ch, f);
+    }
+    fputc('"', f);
+}
+
+/* "512 B", "3.4 kB", "12.5 MB", "1.20 GB". */
+static const char *human_bytes(uint64_t n, char buf[32]) {
+    if (n < 1000) snprintf(buf, 32, "%" PRIu64 " B", n);
+    else if (n < 1000000) snprintf(buf, 32, "%.1f kB", n / 1e3);
+    else if (n < 1000000000) snprintf(buf, 32, "%.1f MB", n / 1e6);
+    else snprintf(buf, 32, "%.2f GB", n / 1e9);
+    return buf;
+}
+
+static const char *op_kind_name(uint32_t k) {
+    return k == WRT_GTO_OP_INDIRECT ? "indirect" : k == WRT_GTO_OP_GATHERED ? "gathered" : "unknown";
+}
+
+wrt_status wrt_gto_print_info(const char *path, int json, FILE *f) {
+    void *map; size_t len;
+    wrt_status st = map_file(path, &map, &len);
+    int map_ok = st == WRT_OK;
+    static const uint64_t empty = 0;
+    const uint8_t *b = map ? map : (const uint8_t *)&empty;
+    gto_layout L;
+    memset(&L, 0, sizeof L);
+    wrt_gto g;
+    memset(&g, 0, sizeof g);
+    int have_header = 0, have_layout = 0, ok = 0;
+    double dt = 0;
+    if (st == WRT_OK) {
+        have_header = len >= sizeof(gto_header) && memcmp(b, GTO_MAGIC, GTO_MAGIC_LEN) == 0;
+        if (have_header) memcpy(&L.h, b, sizeof L.h);
+        double t0 = wrt_now();
+        st = parse_layout(b, len, &L);
+        have_layout = st == WRT_OK;
+        if (st == WRT_OK) st = check_counts(b, &L, &g);
+        if (st == WRT_OK) st = check_payload(b, &L, &g);
+        dt = wrt_now() - t0;
+        ok = st == WRT_OK;
+    }
+    char err[1024] = "";
+    if (!ok) snprintf(err, sizeof err, "%s", wrt_last_error());
+    double mbs = dt > 0 ? (double)len / dt / 1e6 : 0;
+
+    /* Figures of the operator. */
+    uint32_t max_sl = 0, max_al = 0, max_fpq = 0, max_col = 0;
+    uint64_t op_bytes = 0, nangular = 0;
+    if (ok) {
+        for (uint32_t q = 0; q < g.nquads; q++) {
+            if (g.quads[q].slevel > max_sl) max_sl = g.quads[q].slevel;
+            if (g.quads[q].alevel > max_al) max_al = g.quads[q].alevel;
+            if (g.quads[q].func_count > max_fpq) max_fpq = g.quads[q].func_count;
+        }
+        for (uint32_t s = 0; s < g.nfuncs; s++) {
+            uint64_t n = g.col_start[s + 1] - g.col_start[s];
+            if (n > max_col) max_col = (uint32_t)n;
+            if (!wrt_fkey_angular_root(g.fkeys[s])) nangular++;
+        }
+        op_bytes = L.sec[SEC_FKEYS]->size + L.sec[SEC_COL_START]->size + L.sec[SEC_ROWS]->size +
+                   L.sec[SEC_VALS]->size;
+    }
+    double density = g.nfuncs ? (double)g.nnz / ((double)g.nfuncs * g.nfuncs) : 0;
+    const wrt_gto_stats *S = g.stats;
+
+    if (json) {
+        fputs("{\"file\": ", f);
+        put_jstr(f, path, strlen(path));
+        fprintf(f, ", \"bytes\": %zu, \"ok\": %s, \"status\": \"%s\", \"error\": ", len,
+                ok ? "true" : "false", wrt_status_str(st));
+        put_jstr(f, err, strlen(err));
+        if (have_header)
+            fprintf(f, ", \"version\": \"%u.%u\", \"op_kind\": \"%s\", \"recorded_bytes\": %" PRIu64,
+                    L.h.version_major, L.h.version_minor, op_kind_name(L.h.op_kind), L.h.file_size);
+        if (have_layout) {
+            fputs(", \"sections\": [", f);
+            for (uint32_t i = 0; i < L.h.nsections; i++) {
+                const gto_section *s = &L.table[i];
+                fprintf(f, "%s{\"id\": %u, \"name\": \"%s\", \"offset\": %" PRIu64 ", \"bytes\": %" PRIu64
+                        ", \"count\": %" PRIu64 ", \"elem_size\": %u, \"checksum\": \"0x%016" PRIx64 "\"}",
+                        i ? ", " : "", s->id, sec_name(s->id), s->offset, s->size, s->count,
+                        s->elem_size, s->checksum);
+            }
+            fputs("]", f);
+        }
+        if (ok) {
+            fprintf(f, ", \"counts\": {\"quads\": %u, \"materials\": %u, \"lights\": %u, \"names\": %u, "
+                    "\"functions\": %u, \"entries\": %" PRIu64 "}", g.nquads, g.nmaterials, g.nlights,
+                    g.nnames, g.nfuncs, g.nnz);
+            fprintf(f, ", \"operator\": {\"bytes\": %" PRIu64 ", \"density\": %.6g, "
+                    "\"mean_entries_per_column\": %.3f, \"max_entries_per_column\": %u, "
+                    "\"max_functions_per_quad\": %u, \"angular_functions\": %" PRIu64 ", "
+                    "\"max_spatial_level\": %u, \"max_angular_level\": %u}",
+                    op_bytes, density, g.nfuncs ? (double)g.nnz / g.nfuncs : 0.0, max_col, max_fpq,
+                    nangular, max_sl, max_al);
+            fprintf(f, ", \"stats\": {\"t_dto\": %.6g, \"t_gto\": %.6g, \"t_write\": %.6g, \"t_total\": %.6g, "
+                    "\"links_dto\": %" PRIu64 ", \"links_gto\": %" PRIu64 ", \"links_gathered\": %" PRIu64 ", "
+                    "\"entries_dto\": %" PRIu64 ", \"entries_op\": %" PRIu64 ", \"rays_traced\": %" PRIu64 ", "
+                    "\"rays_skipped\": %" PRIu64 ", \"bounces\": %" PRIu64 ", \"energy_left\": %.6g}",
+                    S->t_dto, S->t_gto, S->t_write, S->t_total, S->links_dto, S->links_gto,
+                    S->links_gathered, S->entries_dto, S->entries_op, S->rays_traced, S->rays_skipped,
+                    S->bounces, S->energy_left);
+            fputs(", \"provenance\": ", f);
+            if (g.provenance_len == 0) fputs("null", f);
+            else if (is_json_object(g.provenance, g.provenance_len)) fwrite(g.provenance, 1, g.provenance_len, f);
+            else put_jstr(f, g.provenance, g.provenance_len);
+            fprintf(f, ", \"check_seconds\": %.6f, \"check_mb_per_s\": %.1f", dt, mbs);
+        }
+        fputs("}\n", f);
+    } else {
+        fprintf(f, "file:       %s (%zu bytes)\n", path, len);
+        if (have_header)
+            fprintf(f, "format:     .gto version %u.%u (this reader: %d.%d), little-endian, operator %s\n",
+                    L.h.version_major, L.h.version_minor, WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR,
+                    L.h.op_kind == WRT_GTO_OP_INDIRECT ? "indirect (G - I)"
+                    : L.h.op_kind == WRT_GTO_OP_GATHERED ? "gathered (T_fine G)" : "unknown");
+        if (have_layout) {
+            fprintf(f, "sections:   %-11s %10s %12s %12s  %s\n", "name", "offset", "bytes", "count", "checksum");
+            for (uint32_t i = 0; i < L.h.nsections; i++) {
+                const gto_section *s = &L.table[i];
+                fprintf(f, "            %-11s %10" PRIu64 " %12" PRIu64 " %12" PRIu64 "  %016" PRIx64 "\n",
+                        sec_name(s->id), s->offset, s->size, s->count, s->checksum);
+            }
+        }
+        if (ok) {
+            fprintf(f, "scene:      %u quads, %u materials, %u lights, %u names\n", g.nquads,
+                    g.nmaterials, g.nlights, g.nnames);
+            char hb[32];
+            fprintf(f, "operator:   %u functions (%" PRIu64 " with angular detail), %" PRIu64
+                    " entries, %s, density %.3g\n", g.nfuncs, nangular, g.nnz, human_bytes(op_bytes, hb),
+                    density);
+            fprintf(f, "            entries per column: mean %.1f, max %u; functions per quad: max %u; "
+                    "deepest level: spatial %u, angular %u\n",
+                    g.nfuncs ? (double)g.nnz / g.nfuncs : 0.0, max_col, max_fpq, max_sl, max_al);
+            fprintf(f, "bake:       DTO %.2f s, GTO %.2f s, write %.2f s, total %.2f s\n",
+                    S->t_dto, S->t_gto, S->t_write, S->t_total);
+            fprintf(f, "            links: DTO %" PRIu64 ", GTO %" PRIu64 ", gathered %" PRIu64
+                    "; entries: DTO %" PRIu64 ", operator %" PRIu64 "\n", S->links_dto, S->links_gto,
+                    S->links_gathered, S->entries_dto, S->entries_op);
+            fprintf(f, "            rays: %" PRIu64 " traced, %" PRIu64 " skipped; bounces %" PRIu64
+                    "; energy left %.3g\n", S->rays_traced, S->rays_skipped, S->bounces, S->energy_left);
+            fprintf(f, "provenance: %.*s\n", (int)g.provenance_len, g.provenance);
+            fprintf(f, "integrity:  ok (checksums and indices verified: %s in %.2f ms, %.0f MB/s)\n",
+                    human_bytes(len, hb), dt * 1e3, mbs);
+        } else {
+            fprintf(f, "integrity:  FAILED (%s): %s\n", wrt_status_str(st), err);
+        }
+    }
+    if (map) munmap(map, len);
+    if (!ok && map_ok) wrt_fail(st, "%s: %s", path, err);
+    return st;
+}

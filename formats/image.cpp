@@ -1,0 +1,118 @@
+/* image.cpp: the OpenImageIO shim behind image.h. Every entry point catches all
+ * exceptions and turns them, like OpenImageIO's own error strings, into a wrt_status
+ * with a message. Writes go to a temporary file beside the target, which is renamed
+ * over it only once complete. Depends on OpenImageIO 2.4 and wrt_common. */
+#include <cmath>
+#include <cstdarg>
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+
+/* wrt_common.h is a C header without linkage braces: give it C linkage here. */
+extern "C" {
+#include "image.h"
+}
+
+#include <OpenImageIO/imageio.h>
+
+#include <memory>
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <strings.h>
+#include <unistd.h>
+#include <vector>
+
+using namespace OIIO;
+
+static std::string ext_of(const char *path) {
+    const char *dot = strrchr(path, '.');
+    const char *slash = strrchr(path, '/');
+    if (!dot || (slash && dot < slash)) return "";
+    return dot;
+}
+
+static wrt_status write_any(const char *path, const void *px, TypeDesc type, int w, int h) {
+    if (!path || !px || w <= 0 || h <= 0 || (int64_t)w * h > (int64_t)1 << 28)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "image %s: bad size %dx%d", path ? path : "(null)", w, h);
+    std::string tmp;
+    try {
+        tmp = std::string(path) + ".tmp" + std::to_string((long)getpid()) + ext_of(path);
+        std::unique_ptr<ImageOutput> out = ImageOutput::create(path);
+        if (!out) {
+            std::string e = geterror();
+            return wrt_fail(WRT_ERR_IO, "%s: no writer for this file type: %s", path, e.c_str());
+        }
+        ImageSpec spec(w, h, 3, type);
+        if (type == TypeDesc::FLOAT) spec.attribute("compression", "zip");
+        if (!out->open(tmp, spec))
+            return wrt_fail(WRT_ERR_IO, "%s: cannot open for writing: %s", tmp.c_str(), out->geterror().c_str());
+        bool ok = out->write_image(type, px);
+        ok = out->close() && ok;
+        if (!ok) {
+            std::string e = out->geterror();
+            unlink(tmp.c_str());
+            return wrt_fail(WRT_ERR_IO, "%s: write failed: %s", path, e.c_str());
+        }
+        if (rename(tmp.c_str(), path) != 0) {
+            unlink(tmp.c_str());
+            return wrt_fail(WRT_ERR_IO, "%s: cannot rename the temporary file over it", path);
+        }
+        return WRT_OK;
+    } catch (const std::exception &e) {
+        if (!tmp.empty()) unlink(tmp.c_str());
+        return wrt_fail(WRT_ERR_IO, "%s: %s", path, e.what());
+    } catch (...) {
+        if (!tmp.empty()) unlink(tmp.c_str());
+        return wrt_fail(WRT_ERR_IO, "%s: unknown error while writing", path);
+    }
+}
+
+extern "C" wrt_status wrt_image_write_exr(const char *path, const float *rgb, int width, int height) {
+    return write_any(path, rgb, TypeDesc::FLOAT, width, height);
+}
+
+extern "C" wrt_status wrt_image_write_rgb8(const char *path, const uint8_t *rgb, int width, int height) {
+    return write_any(path, rgb, TypeDesc::UINT8, width, height);
+}
+
+extern "C" wrt_status wrt_image_read(const char *path, float **rgb, int *width, int *height) {
+    *rgb = nullptr;
+    *width = *height = 0;
+    try {
+        std::unique_ptr<ImageInput> in = ImageInput::open(path);
+        if (!in) {
+            std::string e = geterror();
+            return wrt_fail(WRT_ERR_IO, "%s: cannot read: %s", path, e.c_str());
+        }
+        const ImageSpec &spec = in->spec();
+        int w = spec.width, h = spec.height, c = spec.nchannels;
+        if (w <= 0 || h <= 0 || c <= 0 || (int64_t)w * h > (int64_t)1 << 28)
+            return wrt_fail(WRT_ERR_CORRUPT, "%s: bad image size %dx%dx%d", path, w, h, c);
+        std::vector<float> all((size_t)w * h * c);
+        if (!in->read_image(0, 0, 0, c, TypeDesc::FLOAT, all.data())) {
+            std::string e = in->geterror();
+            return wrt_fail(WRT_ERR_CORRUPT, "%s: read failed: %s", path, e.c_str());
+        }
+        in->close();
+        float *o = (float *)malloc((size_t)w * h * 3 * sizeof(float));
+        if (!o) return wrt_fail(WRT_ERR_NOMEM, "%s: out of memory", path);
+        for (size_t i = 0; i < (size_t)w * h; i++)
+            for (int k = 0; k < 3; k++) o[3 * i + k] = all[i * c + (k < c ? k : 0)];
+        *rgb = o;
+        *width = w;
+        *height = h;
+        return WRT_OK;
+    } catch (const std::exception &e) {
+        return wrt_fail(WRT_ERR_IO, "%s: %s", path, e.what());
+    } catch (...) {
+        return wrt_fail(WRT_ERR_IO, "%s: unknown error while reading", path);
+    }
+}
+
+extern "C" int wrt_image_is_exr(const char *path) {
+    std::string e = path ? ext_of(path) : "";
+    return strcasecmp(e.c_str(), ".exr") == 0;
+}

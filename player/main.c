@@ -1,0 +1,783 @@
+/* main.c: wrt-play, the run-time of Wavelet Radiance Transport (paper section 5). Maps
+ * a .gto file, relights it with player/relight.c each time a light moves (direct light
+ * projected on the wavelet basis, the baked indirect operator applied, outgoing
+ * radiance synthesized into per-quad textures) and shows it with player/render.c
+ * (direct light with shadow maps + the indirect textures), in a GLFW window or headless
+ * (EGL) into image files, a scripted sequence of frames, per-quad statistics or a
+ * benchmark. Command line and exit codes: see usage() below. The only file that exits.
+ * Depends on formats/gto.h, formats/image.h, player/relight.h, player/render.h,
+ * player/platform.h. */
+#include <ctype.h>
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "../formats/gto.h"
+#include "../formats/image.h"
+#include "platform.h"
+#include "relight.h"
+#include "render.h"
+
+enum {
+    EXIT_USAGE = 1,   /* bad command line */
+    EXIT_INPUT = 2,   /* the .gto (or script) cannot be read: missing, truncated, corrupt, foreign, newer */
+    EXIT_GL = 3,      /* no OpenGL 4.5 context, no window, shader or framebuffer failure */
+    EXIT_OUTPUT = 4,  /* an output file cannot be written */
+    EXIT_RUNTIME = 5  /* the relighting core failed */
+};
+
+static void usage(FILE *f) {
+    fprintf(f,
+        "usage: wrt-play FILE.gto [options]\n"
+        "Relights a scene baked by wrt-bake (Wavelet Radiance Transport) in real time.\n"
+        "Without --headless: a window. Mouse (left button held) looks around, W A S D move,\n"
+        "Q E down/up, arrows or I J K L move light 1 horizontally, U O lower/raise it,\n"
+        "Shift moves faster, 1-9 switch lights on and off, T cycles both/direct/indirect,\n"
+        "P prints the camera and light as --camera-pos/--light-pos options, Esc quits.\n"
+        "The title bar shows the milliseconds of each stage.\n"
+        "\n"
+        "Output:\n"
+        "  --headless            no window (EGL surfaceless); needs --out, --script, --stats-json or --bench\n"
+        "  --out IMG             write the picture: .exr = linear radiance (float RGB),\n"
+        "                        anything else (.png) = tone mapped 8-bit sRGB\n"
+        "  --width W --height H  picture or window size (default 640 x 480)\n"
+        "  --exposure EV         exposure in stops before the tone curve (default 0): x 2^EV,\n"
+        "                        then Reinhard x/(1+x), then sRGB\n"
+        "  --direct-only | --indirect-only   show one part (default: both)\n"
+        "  --stats-json FILE     per quad: area, centroid, normal, mesh name, mean direct and\n"
+        "                        indirect incident irradiance (RGB) for the current lights\n"
+        "  --bench N             move light 1 along a fixed circle for N frames; print one JSON\n"
+        "                        object with the median milliseconds of each stage and the fps\n"
+        "  --frames N            window: quit after N frames; --screenshot IMG saves the last one\n"
+        "  --script FILE --out-pattern PATTERN   render one frame per keyframe (see below) to\n"
+        "                        PATTERN with one %%d or %%0Nd, e.g. frame_%%04d.png\n"
+        "  --script-fps F        instead, sample the keyframes (linear interpolation in t) at F frames/s\n"
+        "\n"
+        "Camera and lights (default: from the file; light 1 is the one overridden):\n"
+        "  --camera-pos X,Y,Z --camera-target X,Y,Z --fov DEG (vertical)\n"
+        "  --light-pos X,Y,Z --light-dir X,Y,Z --light-intensity I (candela)\n"
+        "  --light-scale I=S     multiply light I (1-based) by S (repeatable)\n"
+        "  --lights-off I[,J..]  switch lights off (1-based)\n"
+        "  --threads N           relighting threads (0 = all cores)\n"
+        "  --max-tex-res N       cap on a quad's texture resolution (default 64)\n"
+        "  --shadow-res N        shadow cube map face size (default 512)\n"
+        "  --version, --help\n"
+        "\n"
+        "Script: one keyframe per line, '#' starts a comment. A line is a time t in seconds\n"
+        "followed by any of the keys below with their values; a key left out keeps its\n"
+        "previous value:\n"
+        "  t light_pos X Y Z light_dir X Y Z light_intensity I camera_pos X Y Z camera_target X Y Z\n"
+        "e.g.  0.0 light_pos 0 1.9 0 camera_pos 0 1 3.5 camera_target 0 1 0\n"
+        "      1.0 light_pos 0.5 1.9 0\n"
+        "\n"
+        "Exit codes: 0 success, 1 bad command line, 2 the .gto or script cannot be read\n"
+        "(missing, truncated, corrupted, not a .gto, newer version), 3 OpenGL/window failure,\n"
+        "4 an output cannot be written, 5 the relighting failed.\n");
+}
+
+/* ---------------------------------------------------------------- options */
+
+typedef struct options {
+    const char *file, *out, *script, *pattern, *stats, *screenshot;
+    int headless, width, height, bench, frames, threads, max_tex_res, shadow_res;
+    wrt_render_mode mode;
+    float exposure;
+    double script_fps;
+    int has_light_pos, has_light_dir, has_light_int, has_cam_pos, has_cam_target, has_fov;
+    double light_pos[3], light_dir[3], light_int, cam_pos[3], cam_target[3], fov;
+    float scales[WRT_RENDER_MAX_LIGHTS];
+} options;
+
+static int parse_vec(const char *s, double v[3]) {
+    char *end;
+    for (int k = 0; k < 3; k++) {
+        errno = 0;
+        v[k] = strtod(s, &end);
+        if (end == s || errno || !isfinite(v[k])) return 0;
+        s = end;
+        if (k < 2) {
+            if (*s != ',') return 0;
+            s++;
+        }
+    }
+    return *s == 0;
+}
+
+static int parse_num(const char *s, double lo, double hi, double *out) {
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || *end || errno || !(v >= lo && v <= hi)) return 0;
+    *out = v;
+    return 1;
+}
+
+static int bad(const char *opt, const char *val) {
+    fprintf(stderr, "wrt-play: bad value for %s: '%s' (see --help)\n", opt, val ? val : "");
+    return 0;
+}
+
+static int parse_args(int argc, char **argv, options *o) {
+    memset(o, 0, sizeof *o);
+    o->width = 640;
+    o->height = 480;
+    o->max_tex_res = 64;
+    for (int i = 0; i < WRT_RENDER_MAX_LIGHTS; i++) o->scales[i] = 1;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+        double x;
+#define NEED() do { if (!v) { fprintf(stderr, "wrt-play: %s needs a value\n", a); return 0; } i++; } while (0)
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) { usage(stdout); exit(0); }
+        else if (!strcmp(a, "--version")) {
+            printf("wrt-play %s (.gto version %d)\n", WRT_VERSION_STRING, WRT_GTO_VERSION);
+            exit(0);
+        }
+        else if (!strcmp(a, "--headless")) o->headless = 1;
+        else if (!strcmp(a, "--direct-only")) o->mode = WRT_MODE_DIRECT;
+        else if (!strcmp(a, "--indirect-only")) o->mode = WRT_MODE_INDIRECT;
+        else if (!strcmp(a, "--out")) { NEED(); o->out = v; }
+        else if (!strcmp(a, "--script")) { NEED(); o->script = v; }
+        else if (!strcmp(a, "--out-pattern")) { NEED(); o->pattern = v; }
+        else if (!strcmp(a, "--stats-json")) { NEED(); o->stats = v; }
+        else if (!strcmp(a, "--screenshot")) { NEED(); o->screenshot = v; }
+        else if (!strcmp(a, "--width")) { NEED(); if (!parse_num(v, 1, 16384, &x) || x != floor(x)) return bad(a, v); o->width = (int)x; }
+        else if (!strcmp(a, "--height")) { NEED(); if (!parse_num(v, 1, 16384, &x) || x != floor(x)) return bad(a, v); o->height = (int)x; }
+        else if (!strcmp(a, "--bench")) { NEED(); if (!parse_num(v, 1, 1e6, &x) || x != floor(x)) return bad(a, v); o->bench = (int)x; }
+        else if (!strcmp(a, "--frames")) { NEED(); if (!parse_num(v, 1, 1e9, &x) || x != floor(x)) return bad(a, v); o->frames = (int)x; }
+        else if (!strcmp(a, "--threads")) { NEED(); if (!parse_num(v, 0, 1024, &x) || x != floor(x)) return bad(a, v); o->threads = (int)x; }
+        else if (!strcmp(a, "--max-tex-res")) { NEED(); if (!parse_num(v, 1, 1024, &x) || x != floor(x)) return bad(a, v); o->max_tex_res = (int)x; }
+        else if (!strcmp(a, "--shadow-res")) { NEED(); if (!parse_num(v, 16, 8192, &x) || x != floor(x)) return bad(a, v); o->shadow_res = (int)x; }
+        else if (!strcmp(a, "--exposure")) { NEED(); if (!parse_num(v, -64, 64, &x)) return bad(a, v); o->exposure = (float)x; }
+        else if (!strcmp(a, "--script-fps")) { NEED(); if (!parse_num(v, 1e-3, 1e4, &x)) return bad(a, v); o->script_fps = x; }
+        else if (!strcmp(a, "--fov")) { NEED(); if (!parse_num(v, 1, 179, &x)) return bad(a, v); o->fov = x; o->has_fov = 1; }
+        else if (!strcmp(a, "--light-intensity")) { NEED(); if (!parse_num(v, 0, 1e30, &x)) return bad(a, v); o->light_int = x; o->has_light_int = 1; }
+        else if (!strcmp(a, "--light-pos")) { NEED(); if (!parse_vec(v, o->light_pos)) return bad(a, v); o->has_light_pos = 1; }
+        else if (!strcmp(a, "--light-dir")) { NEED(); if (!parse_vec(v, o->light_dir) || v3_len(v3(o->light_dir[0], o->light_dir[1], o->light_dir[2])) == 0) return bad(a, v); o->has_light_dir = 1; }
+        else if (!strcmp(a, "--camera-pos")) { NEED(); if (!parse_vec(v, o->cam_pos)) return bad(a, v); o->has_cam_pos = 1; }
+        else if (!strcmp(a, "--camera-target")) { NEED(); if (!parse_vec(v, o->cam_target)) return bad(a, v); o->has_cam_target = 1; }
+        else if (!strcmp(a, "--light-scale")) {
+            NEED();
+            char *end;
+            long li = strtol(v, &end, 10);
+            if (end == v || *end != '=' || li < 1 || li > WRT_RENDER_MAX_LIGHTS || !parse_num(end + 1, 0, 1e30, &x))
+                return bad(a, v);
+            o->scales[li - 1] = (float)x;
+        } else if (!strcmp(a, "--lights-off")) {
+            NEED();
+            const char *s = v;
+            for (;;) {
+                char *end;
+                long li = strtol(s, &end, 10);
+                if (end == s || li < 1 || li > WRT_RENDER_MAX_LIGHTS) return bad(a, v);
+                o->scales[li - 1] = 0;
+                if (*end == 0) break;
+                if (*end != ',') return bad(a, v);
+                s = end + 1;
+            }
+        } else if (a[0] == '-' && a[1]) {
+            fprintf(stderr, "wrt-play: unknown option %s (see --help)\n", a);
+            return 0;
+        } else if (!o->file) o->file = a;
+        else {
+            fprintf(stderr, "wrt-play: more than one input file ('%s', '%s')\n", o->file, a);
+            return 0;
+        }
+#undef NEED
+    }
+    if (!o->file) { fprintf(stderr, "wrt-play: no input file (see --help)\n"); return 0; }
+    if (o->script && !o->pattern) { fprintf(stderr, "wrt-play: --script needs --out-pattern\n"); return 0; }
+    if (o->headless && !o->out && !o->script && !o->stats && !o->bench) {
+        fprintf(stderr, "wrt-play: --headless needs --out, --script, --stats-json or --bench\n");
+        return 0;
+    }
+    return 1;
+}
+
+/* Expands a pattern with one %d / %0Nd (and %% for a percent sign); 0 if malformed. */
+static int format_frame(const char *pat, int frame, char *out, size_t n) {
+    size_t o = 0;
+    int used = 0;
+    for (const char *p = pat; *p; p++) {
+        char piece[32];
+        if (*p != '%') { piece[0] = *p; piece[1] = 0; }
+        else if (p[1] == '%') { strcpy(piece, "%"); p++; }
+        else {
+            p++;
+            int zero = 0, width = 0;
+            if (*p == '0') { zero = 1; p++; }
+            while (isdigit((unsigned char)*p) && width < 100) width = width * 10 + (*p++ - '0');
+            if (*p != 'd' || used || width > 20) return 0;
+            used = 1;
+            snprintf(piece, sizeof piece, zero ? "%0*d" : "%*d", width, frame);
+        }
+        size_t l = strlen(piece);
+        if (o + l + 1 > n) return 0;
+        memcpy(out + o, piece, l);
+        o += l;
+    }
+    out[o] = 0;
+    return used;
+}
+
+/* ---------------------------------------------------------------- the application */
+
+typedef struct stage_ms { double projection, multiply, brdf, synthesis, upload, draw, frame; } stage_ms;
+
+typedef struct app {
+    options *o;
+    wrt_gto g;
+    wrt_platform *plat;
+    wrt_relight *rl;
+    wrt_render *rd;
+    wrt_light *lights;
+    int nlights;
+    float scales[WRT_RENDER_MAX_LIGHTS];
+    wrt_view view;
+    wrt_render_mode mode;
+    int relit_once;
+} app;
+
+static void quad_centroid(const wrt_gto_quad *q, double c[3]) {
+    for (int k = 0; k < 3; k++) c[k] = 0.25 * (q->p[0][k] + q->p[1][k] + q->p[2][k] + q->p[3][k]);
+}
+
+/* One frame: relight what changed, upload the textures that changed, draw. */
+static int run_frame(app *a, stage_ms *t) {
+    memset(t, 0, sizeof *t);
+    double t0 = wrt_now();
+    int n = a->nlights < WRT_RENDER_MAX_LIGHTS ? a->nlights : WRT_RENDER_MAX_LIGHTS;
+    wrt_render_set_lights(a->rd, a->lights, a->scales, n);
+    /* direct-only pictures need no relighting; everything else does */
+    if (a->mode != WRT_MODE_DIRECT || a->o->stats) {
+        wrt_relight_timings rt;
+        memset(&rt, 0, sizeof rt);
+        wrt_relight_set_lights(a->rl, a->lights, a->scales, n);
+        wrt_relight_set_eye(a->rl, a->view.eye);
+        int changed = wrt_relight_update(a->rl, &rt);
+        t->projection = rt.projection;
+        t->multiply = rt.multiply;
+        t->brdf = rt.brdf;
+        t->synthesis = rt.synthesis;
+        double t1 = wrt_now();
+        if (changed > 0 || !a->relit_once) {
+            for (uint32_t q = 0; q < a->g.nquads; q++) {
+                const float *tex = wrt_relight_tex(a->rl, (int)q);
+                int res = wrt_relight_tex_res(a->rl, (int)q);
+                if (tex && res > 0) wrt_render_set_quad_tex(a->rd, (int)q, res, tex);
+            }
+            if (wrt_render_upload(a->rd) < 0) return EXIT_GL;
+            wrt_render_finish();
+        }
+        a->relit_once = 1;
+        t->upload = (wrt_now() - t1) * 1e3;
+    }
+    double t2 = wrt_now();
+    wrt_render_draw(a->rd, &a->view, a->mode);
+    wrt_render_finish();
+    t->draw = (wrt_now() - t2) * 1e3;
+    t->frame = (wrt_now() - t0) * 1e3;
+    return 0;
+}
+
+static int save_picture(app *a, const char *path) {
+    int w = a->o->width, h = a->o->height;
+    float *lin = wrt_xmalloc((size_t)w * h * 3 * sizeof(float));
+    wrt_render_read_linear(a->rd, lin);
+    wrt_status s;
+    if (wrt_image_is_exr(path)) {
+        s = wrt_image_write_exr(path, lin, w, h);
+    } else {
+        uint8_t *b = wrt_xmalloc((size_t)w * h * 3);
+        wrt_render_tonemap(lin, (size_t)w * h, a->o->exposure, b);
+        s = wrt_image_write_rgb8(path, b, w, h);
+        free(b);
+    }
+    free(lin);
+    if (s) {
+        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        return EXIT_OUTPUT;
+    }
+    return 0;
+}
+
+static void json_str(FILE *f, const char *s, size_t max) {
+    fputc('"', f);
+    for (size_t i = 0; i < max && s[i]; i++) {
+        unsigned char c = (unsigned char)s[i];
+        if (c == '"' || c == '\\') fprintf(f, "\\%c", c);
+        else if (c < 0x20) fprintf(f, "\\u%04x", c);
+        else fputc(c, f);
+    }
+    fputc('"', f);
+}
+
+static int write_stats(app *a, const char *path) {
+    char tmp[4096];
+    snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid());
+    FILE *f = fopen(tmp, "w");
+    if (!f) {
+        fprintf(stderr, "wrt-play: cannot write %s: %s\n", tmp, strerror(errno));
+        return EXIT_OUTPUT;
+    }
+    fprintf(f, "{\n  \"file\": ");
+    json_str(f, a->o->file, 4096);
+    fprintf(f, ",\n  \"nquads\": %u,\n  \"lights\": [", a->g.nquads);
+    for (int i = 0; i < a->nlights; i++) {
+        const wrt_light *l = &a->lights[i];
+        fprintf(f, "%s\n    {\"name\": ", i ? "," : "");
+        json_str(f, l->name, sizeof l->name);
+        fprintf(f, ", \"type\": \"%s\", \"pos\": [%.17g, %.17g, %.17g], \"dir\": [%.9g, %.9g, %.9g], "
+                   "\"intensity\": %.9g, \"scale\": %.9g}",
+                l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->pos.x, l->pos.y, l->pos.z,
+                l->dir.x, l->dir.y, l->dir.z, l->intensity,
+                i < WRT_RENDER_MAX_LIGHTS ? a->scales[i] : 0.0f);
+    }
+    fprintf(f, "\n  ],\n  \"quads\": [");
+    for (uint32_t q = 0; q < a->g.nquads; q++) {
+        const wrt_gto_quad *Q = &a->g.quads[q];
+        double c[3], dir[3], ind[3];
+        quad_centroid(Q, c);
+        wrt_relight_quad_irradiance(a->rl, (int)q, dir, ind);
+        fprintf(f, "%s\n    {\"quad\": %u, \"mesh\": ", q ? "," : "", q);
+        json_str(f, Q->name < a->g.nnames ? a->g.names[Q->name] : "", 64);
+        fprintf(f, ", \"material\": %u, \"area\": %.9g, \"centroid\": [%.17g, %.17g, %.17g], "
+                   "\"normal\": [%.9g, %.9g, %.9g], \"direct\": [%.9g, %.9g, %.9g], "
+                   "\"indirect\": [%.9g, %.9g, %.9g]}",
+                Q->material, Q->area, c[0], c[1], c[2], Q->n[0], Q->n[1], Q->n[2],
+                dir[0], dir[1], dir[2], ind[0], ind[1], ind[2]);
+    }
+    fprintf(f, "\n  ]\n}\n");
+    int bad_write = ferror(f);
+    bad_write |= fflush(f) != 0;
+    bad_write |= fsync(fileno(f)) != 0;
+    bad_write |= fclose(f) != 0;
+    if (bad_write || rename(tmp, path) != 0) {
+        fprintf(stderr, "wrt-play: cannot write %s\n", path);
+        unlink(tmp);
+        return EXIT_OUTPUT;
+    }
+    return 0;
+}
+
+/* ---------------------------------------------------------------- lights and view */
+
+static void scene_up(const app *a, wrt_v3 *up) {
+    *up = v3_norm(v3(a->view.up[0], a->view.up[1], a->view.up[2]));
+    if (!(v3_len(*up) > 0.5)) *up = v3(0, 1, 0);
+}
+
+static void setup_lights(app *a) {
+    const options *o = a->o;
+    a->nlights = (int)a->g.nlights;
+    int need_default = a->nlights == 0;
+    a->lights = wrt_xcalloc((size_t)(a->nlights ? a->nlights : 1), sizeof *a->lights);
+    for (int i = 0; i < a->nlights; i++) wrt_render_light_from_gto(&a->g.lights[i], &a->lights[i]);
+    if (need_default) {
+        /* no light in the file: one point light above the centre of the scene */
+        double lo[3], hi[3];
+        wrt_render_scene_bounds(&a->g, lo, hi);
+        wrt_v3 up;
+        scene_up(a, &up);
+        wrt_v3 c = v3(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2]));
+        double r = 0.5 * v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
+        wrt_light *l = &a->lights[0];
+        l->type = WRT_LIGHT_POINT;
+        snprintf(l->name, sizeof l->name, "default");
+        l->pos = v3_mad(c, up, 0.4 * r);
+        l->dir = v3_scale(up, -1);
+        l->color[0] = l->color[1] = l->color[2] = 1;
+        l->intensity = (float)(r * r);
+        l->outer_cone = (float)(WRT_PI / 4);
+        a->nlights = 1;
+        wrt_log(WRT_LOG_WARN, "the file has no light: using a point light at (%g, %g, %g)", l->pos.x, l->pos.y, l->pos.z);
+    }
+    wrt_light *l = &a->lights[0];
+    if (o->has_light_pos) l->pos = v3(o->light_pos[0], o->light_pos[1], o->light_pos[2]);
+    if (o->has_light_dir) l->dir = v3_norm(v3(o->light_dir[0], o->light_dir[1], o->light_dir[2]));
+    if (o->has_light_int) l->intensity = (float)o->light_int;
+    memcpy(a->scales, o->scales, sizeof a->scales);
+}
+
+static void setup_view(app *a) {
+    wrt_render_default_view(&a->g, &a->view);
+    const options *o = a->o;
+    if (o->has_cam_pos) {
+        double d[3];
+        for (int k = 0; k < 3; k++) d[k] = a->view.target[k] - a->view.eye[k];
+        for (int k = 0; k < 3; k++) {
+            a->view.eye[k] = o->cam_pos[k];
+            if (!o->has_cam_target) a->view.target[k] = o->cam_pos[k] + d[k];
+        }
+    }
+    if (o->has_cam_target) memcpy(a->view.target, o->cam_target, sizeof a->view.target);
+    if (o->has_fov) a->view.yfov = o->fov * WRT_PI / 180;
+}
+
+/* ---------------------------------------------------------------- script */
+
+typedef struct keyframe {
+    double t;
+    double lpos[3], ldir[3], lint, cpos[3], ctarget[3];
+} keyframe;
+
+static int read_script(app *a, const char *path, keyframe **out, int *count) {
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        fprintf(stderr, "wrt-play: cannot read the script %s: %s\n", path, strerror(errno));
+        return EXIT_INPUT;
+    }
+    keyframe cur;
+    memset(&cur, 0, sizeof cur);
+    for (int k = 0; k < 3; k++) {
+        cur.lpos[k] = (&a->lights[0].pos.x)[k];
+        cur.ldir[k] = (&a->lights[0].dir.x)[k];
+        cur.cpos[k] = a->view.eye[k];
+        cur.ctarget[k] = a->view.target[k];
+    }
+    cur.lint = a->lights[0].intensity;
+    keyframe *kf = NULL;
+    int n = 0, cap = 0, lineno = 0;
+    char line[4096];
+    while (fgets(line, sizeof line, f)) {
+        lineno++;
+        char *hash = strchr(line, '#');
+        if (hash) *hash = 0;
+        char *save = NULL, *tok = strtok_r(line, " \t\r\n", &save);
+        if (!tok) continue;
+        double t;
+        if (!parse_num(tok, -1e12, 1e12, &t)) goto bad_line;
+        if (n > 0 && t < kf[n - 1].t) {
+            fprintf(stderr, "wrt-play: %s:%d: times must not decrease\n", path, lineno);
+            goto fail;
+        }
+        cur.t = t;
+        while ((tok = strtok_r(NULL, " \t\r\n", &save))) {
+            double *dst = NULL;
+            int nv = 3;
+            if (!strcmp(tok, "light_pos")) dst = cur.lpos;
+            else if (!strcmp(tok, "light_dir")) dst = cur.ldir;
+            else if (!strcmp(tok, "camera_pos")) dst = cur.cpos;
+            else if (!strcmp(tok, "camera_target")) dst = cur.ctarget;
+            else if (!strcmp(tok, "light_intensity")) { dst = &cur.lint; nv = 1; }
+            else {
+                fprintf(stderr, "wrt-play: %s:%d: unknown key '%s'\n", path, lineno, tok);
+                goto fail;
+            }
+            for (int k = 0; k < nv; k++) {
+                tok = strtok_r(NULL, " \t\r\n", &save);
+                if (!tok || !parse_num(tok, -1e300, 1e300, &dst[k])) goto bad_line;
+            }
+        }
+        if (n == cap) {
+            cap = cap ? 2 * cap : 16;
+            kf = wrt_xrealloc(kf, (size_t)cap * sizeof *kf);
+        }
+        kf[n++] = cur;
+        continue;
+    bad_line:
+        fprintf(stderr, "wrt-play: %s:%d: expected 't key values...' (see --help)\n", path, lineno);
+        goto fail;
+    }
+    fclose(f);
+    if (n == 0) {
+        fprintf(stderr, "wrt-play: %s: no keyframes\n", path);
+        free(kf);
+        return EXIT_INPUT;
+    }
+    *out = kf;
+    *count = n;
+    return 0;
+fail:
+    fclose(f);
+    free(kf);
+    return EXIT_INPUT;
+}
+
+static void apply_keyframe(app *a, const keyframe *k0, const keyframe *k1, double s) {
+    wrt_light *l = &a->lights[0];
+    double lp[3], ld[3];
+    for (int k = 0; k < 3; k++) {
+        lp[k] = k0->lpos[k] + (k1->lpos[k] - k0->lpos[k]) * s;
+        ld[k] = k0->ldir[k] + (k1->ldir[k] - k0->ldir[k]) * s;
+        a->view.eye[k] = k0->cpos[k] + (k1->cpos[k] - k0->cpos[k]) * s;
+        a->view.target[k] = k0->ctarget[k] + (k1->ctarget[k] - k0->ctarget[k]) * s;
+    }
+    l->pos = v3(lp[0], lp[1], lp[2]);
+    wrt_v3 d = v3_norm(v3(ld[0], ld[1], ld[2]));
+    if (v3_len(d) > 0.5) l->dir = d;
+    l->intensity = (float)(k0->lint + (k1->lint - k0->lint) * s);
+}
+
+static int run_script(app *a) {
+    keyframe *kf = NULL;
+    int n = 0, rc = read_script(a, a->o->script, &kf, &n);
+    if (rc) return rc;
+    int frames = n;
+    double fps = a->o->script_fps;
+    if (fps > 0) frames = (int)floor((kf[n - 1].t - kf[0].t) * fps + 1e-9) + 1;
+    char path[4096];
+    if (!format_frame(a->o->pattern, 0, path, sizeof path)) {
+        fprintf(stderr, "wrt-play: --out-pattern '%s' needs exactly one %%d or %%0Nd\n", a->o->pattern);
+        free(kf);
+        return EXIT_USAGE;
+    }
+    for (int i = 0; i < frames && !rc; i++) {
+        if (fps > 0) {
+            double t = kf[0].t + i / fps;
+            int j = 0;
+            while (j + 1 < n && kf[j + 1].t <= t) j++;
+            if (j + 1 < n && kf[j + 1].t > kf[j].t) apply_keyframe(a, &kf[j], &kf[j + 1], (t - kf[j].t) / (kf[j + 1].t - kf[j].t));
+            else apply_keyframe(a, &kf[j], &kf[j], 0);
+        } else {
+            apply_keyframe(a, &kf[i], &kf[i], 0);
+        }
+        stage_ms t;
+        if ((rc = run_frame(a, &t))) break;
+        format_frame(a->o->pattern, i, path, sizeof path);
+        rc = save_picture(a, path);
+    }
+    if (!rc) fprintf(stderr, "wrt-play: wrote %d frames\n", frames);
+    free(kf);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- bench */
+
+static int cmp_double(const void *x, const void *y) {
+    double a = *(const double *)x, b = *(const double *)y;
+    return a < b ? -1 : a > b;
+}
+
+static double median(double *v, int n) {
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+static int run_bench(app *a) {
+    int n = a->o->bench;
+    double *col[7];
+    for (int k = 0; k < 7; k++) col[k] = wrt_xmalloc((size_t)n * sizeof(double));
+    wrt_light *l = &a->lights[0];
+    wrt_v3 c = l->pos, up, e1, e2;
+    scene_up(a, &up);
+    e1 = v3_norm(v3_cross(up, fabs(up.x) < 0.9 ? v3(1, 0, 0) : v3(0, 0, 1)));
+    e2 = v3_cross(up, e1);
+    double lo[3], hi[3];
+    wrt_render_scene_bounds(&a->g, lo, hi);
+    double radius = 0.05 * v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
+    /* one warm-up frame: the first relight projects every light and uploads every quad */
+    stage_ms t;
+    int rc = run_frame(a, &t);
+    double first = t.frame;
+    double t0 = wrt_now();
+    for (int i = 0; i < n && !rc; i++) {
+        double ang = 2 * WRT_PI * (i + 1) / (n < 8 ? 8 : n);
+        l->pos = v3_add(c, v3_add(v3_scale(e1, radius * cos(ang) - radius), v3_scale(e2, radius * sin(ang))));
+        rc = run_frame(a, &t);
+        col[0][i] = t.projection;
+        col[1][i] = t.multiply;
+        col[2][i] = t.brdf;
+        col[3][i] = t.synthesis;
+        col[4][i] = t.upload;
+        col[5][i] = t.draw;
+        col[6][i] = t.frame;
+    }
+    double total = wrt_now() - t0;
+    if (!rc) {
+        const char *names[7] = {"projection", "multiply", "brdf", "synthesis", "upload", "draw", "frame"};
+        printf("{\"frames\": %d, \"width\": %d, \"height\": %d, \"mode\": \"%s\", \"quads\": %u, "
+               "\"funcs\": %u, \"nnz\": %llu, \"threads\": %d, \"first_frame_ms\": %.3f, \"median_ms\": {",
+               n, a->o->width, a->o->height, wrt_render_mode_name(a->mode), a->g.nquads, a->g.nfuncs,
+               (unsigned long long)a->g.nnz, a->o->threads, first);
+        double med_frame = 0;
+        for (int k = 0; k < 7; k++) {
+            double m = median(col[k], n);
+            if (k == 6) med_frame = m;
+            printf("%s\"%s\": %.3f", k ? ", " : "", names[k], m);
+        }
+        printf("}, \"fps\": %.2f, \"fps_mean\": %.2f, \"renderer\": \"%s\"}\n",
+               med_frame > 0 ? 1e3 / med_frame : 0.0, n / total, wrt_render_gl_info());
+    }
+    for (int k = 0; k < 7; k++) free(col[k]);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- window */
+
+static int run_window(app *a) {
+    wrt_platform *p = a->plat;
+    double lo[3], hi[3];
+    wrt_render_scene_bounds(&a->g, lo, hi);
+    double size = v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
+    wrt_v3 up;
+    scene_up(a, &up);
+    double last = wrt_now(), title_at = 0;
+    int frame = 0, rc = 0;
+    stage_ms t;
+    memset(&t, 0, sizeof t);
+    for (;;) {
+        wrt_input in;
+        p->poll(p, &in);
+        if (in.close_requested || in.down[WRT_KEY_ESCAPE]) break;
+        double now = wrt_now(), dt = fmin(now - last, 0.1);
+        last = now;
+        double speed = size * 0.3 * dt * (in.down[WRT_KEY_SHIFT] ? 4 : 1);
+        /* camera: mouse look, WASD QE */
+        wrt_v3 eye = v3(a->view.eye[0], a->view.eye[1], a->view.eye[2]);
+        wrt_v3 fwd = v3_norm(v3_sub(v3(a->view.target[0], a->view.target[1], a->view.target[2]), eye));
+        if (in.mouse_dx != 0 || in.mouse_dy != 0) {
+            double yaw = -in.mouse_dx * 0.004, pitch = -in.mouse_dy * 0.004;
+            wrt_v3 right = v3_norm(v3_cross(fwd, up));
+            /* rotate about up (yaw), then about right (pitch), keeping away from the poles */
+            wrt_v3 f1 = v3_add(v3_scale(fwd, cos(yaw)), v3_scale(v3_cross(up, fwd), sin(yaw)));
+            f1 = v3_add(f1, v3_scale(up, v3_dot(up, fwd) * (1 - cos(yaw))));
+            wrt_v3 right1 = v3_norm(v3_cross(f1, up));
+            wrt_v3 f2 = v3_norm(v3_add(v3_scale(f1, cos(pitch)), v3_scale(v3_cross(right1, f1), sin(pitch))));
+            if (fabs(v3_dot(f2, up)) < 0.98) fwd = f2; else fwd = v3_norm(f1);
+            (void)right;
+        }
+        wrt_v3 right = v3_norm(v3_cross(fwd, up));
+        wrt_v3 move = v3(0, 0, 0);
+        if (in.down[WRT_KEY_W]) move = v3_add(move, fwd);
+        if (in.down[WRT_KEY_S]) move = v3_sub(move, fwd);
+        if (in.down[WRT_KEY_D]) move = v3_add(move, right);
+        if (in.down[WRT_KEY_A]) move = v3_sub(move, right);
+        if (in.down[WRT_KEY_E]) move = v3_add(move, up);
+        if (in.down[WRT_KEY_Q]) move = v3_sub(move, up);
+        eye = v3_mad(eye, move, speed);
+        wrt_v3 target = v3_add(eye, fwd);
+        a->view.eye[0] = eye.x; a->view.eye[1] = eye.y; a->view.eye[2] = eye.z;
+        a->view.target[0] = target.x; a->view.target[1] = target.y; a->view.target[2] = target.z;
+        /* light 1: arrows / IJKL horizontally (relative to the view), U O vertically */
+        wrt_v3 hf = v3_norm(v3_sub(fwd, v3_scale(up, v3_dot(fwd, up))));
+        wrt_v3 lm = v3(0, 0, 0);
+        if (in.down[WRT_KEY_UP] || in.down[WRT_KEY_I]) lm = v3_add(lm, hf);
+        if (in.down[WRT_KEY_DOWN] || in.down[WRT_KEY_K]) lm = v3_sub(lm, hf);
+        if (in.down[WRT_KEY_RIGHT] || in.down[WRT_KEY_L]) lm = v3_add(lm, right);
+        if (in.down[WRT_KEY_LEFT] || in.down[WRT_KEY_J]) lm = v3_sub(lm, right);
+        if (in.down[WRT_KEY_O]) lm = v3_add(lm, up);
+        if (in.down[WRT_KEY_U]) lm = v3_sub(lm, up);
+        a->lights[0].pos = v3_mad(a->lights[0].pos, lm, speed * 0.5);
+        for (int i = 0; i < 9; i++)
+            if (in.pressed[WRT_KEY_1 + i] && i < a->nlights && i < WRT_RENDER_MAX_LIGHTS)
+                a->scales[i] = a->scales[i] != 0 ? 0.0f : (a->o->scales[i] != 0 ? a->o->scales[i] : 1.0f);
+        if (in.pressed[WRT_KEY_T]) a->mode = (wrt_render_mode)((a->mode + 1) % WRT_MODE_COUNT);
+        if (in.pressed[WRT_KEY_P]) {
+            const wrt_light *l = &a->lights[0];
+            printf("--camera-pos %.6g,%.6g,%.6g --camera-target %.6g,%.6g,%.6g --light-pos %.6g,%.6g,%.6g\n",
+                   eye.x, eye.y, eye.z, target.x, target.y, target.z, l->pos.x, l->pos.y, l->pos.z);
+            fflush(stdout);
+        }
+        if (p->fb_width > 0 && p->fb_height > 0 &&
+            (p->fb_width != a->o->width || p->fb_height != a->o->height)) {
+            if (wrt_render_resize(a->rd, p->fb_width, p->fb_height) == WRT_OK) {
+                a->o->width = p->fb_width;
+                a->o->height = p->fb_height;
+            }
+        }
+        if ((rc = run_frame(a, &t))) break;
+        wrt_render_present(a->rd, a->o->width, a->o->height, a->o->exposure);
+        frame++;
+        int last_frame = a->o->frames > 0 && frame >= a->o->frames;
+        if (last_frame && a->o->screenshot) {
+            uint8_t *b = wrt_xmalloc((size_t)a->o->width * a->o->height * 3);
+            wrt_render_read_window(a->o->width, a->o->height, b);
+            wrt_status s = wrt_image_write_rgb8(a->o->screenshot, b, a->o->width, a->o->height);
+            free(b);
+            if (s) {
+                fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+                rc = EXIT_OUTPUT;
+            }
+        }
+        p->swap(p);
+        if (now - title_at > 0.25 || last_frame) {
+            char title[512];
+            snprintf(title, sizeof title,
+                     "wrt-play [%s] %.1f ms/frame: proj %.2f mul %.2f brdf %.2f synth %.2f upload %.2f draw %.2f",
+                     wrt_render_mode_name(a->mode), t.frame, t.projection, t.multiply, t.brdf, t.synthesis,
+                     t.upload, t.draw);
+            p->set_title(p, title);
+            title_at = now;
+        }
+        if (last_frame || rc) break;
+    }
+    return rc;
+}
+
+/* ---------------------------------------------------------------- main */
+
+int main(int argc, char **argv) {
+    options o;
+    if (!parse_args(argc, argv, &o)) return EXIT_USAGE;
+    app a;
+    memset(&a, 0, sizeof a);
+    a.o = &o;
+    a.mode = o.mode;
+    wrt_status s = wrt_gto_open(o.file, &a.g);
+    if (s) {
+        fprintf(stderr, "wrt-play: %s: %s: %s\n", o.file, wrt_status_str(s), wrt_last_error());
+        return EXIT_INPUT;
+    }
+    int rc = 0;
+    if (o.headless) s = wrt_platform_egl_create(&a.plat);
+    else s = wrt_platform_glfw_create(o.width, o.height, "wrt-play", &a.plat);
+    if (s) {
+        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        wrt_gto_close(&a.g);
+        return EXIT_GL;
+    }
+    if (a.plat->has_window && a.plat->fb_width > 0) {
+        o.width = a.plat->fb_width;
+        o.height = a.plat->fb_height;
+    }
+    wrt_relight_options ro = {0, o.max_tex_res, o.threads};
+    if ((s = wrt_relight_create(&a.g, &ro, &a.rl))) {
+        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        rc = EXIT_RUNTIME;
+        goto done;
+    }
+    wrt_render_options rdo = {o.width, o.height, o.shadow_res};
+    if ((s = wrt_render_create(&a.g, &rdo, &a.rd))) {
+        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        rc = s == WRT_ERR_GL ? EXIT_GL : EXIT_USAGE;
+        goto done;
+    }
+    setup_view(&a);
+    setup_lights(&a);
+    if (a.nlights > WRT_RENDER_MAX_LIGHTS)
+        wrt_log(WRT_LOG_WARN, "%d lights: only the first %d are used", a.nlights, WRT_RENDER_MAX_LIGHTS);
+
+    if (!o.headless) {
+        rc = run_window(&a);
+        goto done;
+    }
+    if (o.bench) {
+        rc = run_bench(&a);
+        if (rc) goto done;
+    }
+    if (o.script) {
+        rc = run_script(&a);
+        if (rc) goto done;
+    }
+    if (o.out || o.stats) {
+        if (o.bench || o.script) { /* back to the command line's camera and lights */
+            setup_view(&a);
+            free(a.lights);
+            setup_lights(&a);
+        }
+        stage_ms t;
+        if ((rc = run_frame(&a, &t))) goto done;
+        if (o.out && (rc = save_picture(&a, o.out))) goto done;
+        if (o.stats && (rc = write_stats(&a, o.stats))) goto done;
+    }
+done:
+    wrt_render_destroy(a.rd);
+    wrt_relight_destroy(a.rl);
+    free(a.lights);
+    wrt_platform_destroy(a.plat);
+    wrt_gto_close(&a.g);
+    return rc;
+}

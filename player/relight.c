@@ -1,0 +1,1086 @@
+/* relight.c: the player's run-time core (Kontkanen et al. 2006, section 5): projects
+ * point and spot lights onto the 4D Haar basis of common/basis.h (5.1), multiplies by
+ * the baked indirect operator touching only non-zero sources (5.2), applies each
+ * quad's BRDF (5.3) and synthesizes one texture of outgoing indirect radiance per quad
+ * (5.4). Depends on formats/gto.h (the mapped operator), common/basis.h, common/brdf.h
+ * and Embree 3 (shadow rays of the projection); pthreads for the parallel loops.
+ *
+ * Projection level rule. For light l and quad q, with d the distance from the light to
+ * the closest point of the quad and D the quad's longer diagonal, the spatial grid has
+ * 2^L x 2^L cells, L = ceil(log2(8 D / d)): a cell is at most d/8 wide, so 1/d^2 and the
+ * cosine change by at most ~1/8 across a cell. L is clamped to [min(2, cap), cap], cap =
+ * min(slevel + 1, 6) (slevel + 1 resolves every function the file holds on q); a
+ * positive options.proj_level replaces the rule (same cap). L depends on geometry only,
+ * never on intensity or on other lights, so each light's E is linear in that light.
+ * If the samples at that level find a shadow edge on the quad (some lit, some occluded),
+ * the quad is sampled again at the cap (a property of the light and the geometry only,
+ * so linearity holds). Each cell takes 4 samples at fixed rotated-grid positions
+ * (deterministic).
+ *
+ * Departures from the paper, by design: direct light on a glossy quad is projected onto
+ * the angular functions too (the light direction evaluated in the angular Haar basis),
+ * so it bounces glossily; a quad's texture has 2^(slevel+1) texels a side (capped), so
+ * the finest stored wavelet is represented exactly as a texel average; glossy pruning
+ * (Figure 5) is done per angular function: one whose BRDF weight beta is below 1e-3 of
+ * the root's over every direction the quad sends toward the eye is skipped. */
+#include "relight.h"
+
+#include <embree3/rtcore.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "../common/basis.h"
+#include "../common/brdf.h"
+
+#define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
+#define PROJ_CELL_K 8.0      /* cells at most d / PROJ_CELL_K wide */
+#define ANG_LEVELS 4         /* angular node levels 0..3 (basis.h: 2 bits of level) */
+#define NANG 256             /* angular functions over node levels 0..3: 4^ANG_LEVELS */
+#define BETA_RES 16          /* beta table: 16 x 16 outgoing directions */
+#define BETA_QUAD 64         /* quadrature: 64 x 64 incident directions */
+#define FN_INVALID 255       /* fn_slevel of a key that is not a basis function */
+#define PRUNE_REL 1e-3       /* glossy synthesis: skip |beta_g| < PRUNE_REL beta_root */
+
+/* Index of a 2D Haar function in a quadtree pyramid: 0 the root scaling function, then
+ * level by level, node by node (row-major), the three wavelets. Levels < L use 4^L slots. */
+static inline uint32_t haar_index(int level, int x, int y, int type) {
+    if (type == 0) return 0;
+    uint32_t before = ((1u << (2 * level)) - 1) / 3;
+    return 1 + 3 * (before + (uint32_t)y * (1u << level) + (uint32_t)x) + (uint32_t)(type - 1);
+}
+
+int wrt_relight_angular_index(int level, int x, int y, int type) {
+    if (level < 0 || level >= ANG_LEVELS || x < 0 || y < 0 || x >= (1 << level) || y >= (1 << level) || type < 0 || type > 3)
+        return -1;
+    if (type == 0 && level != 0) return -1;
+    return (int)haar_index(level, x, y, type);
+}
+
+/* Haar analysis in place: `v` holds 4^L scaling coefficients of level L (row-major,
+ * nc channels interleaved); on return pyr[haar_index * nc + c] holds the root scaling
+ * and every wavelet of levels < L. `v` is used as scratch. */
+static void haar_analyse(double *v, int L, int nc, double *pyr) {
+    for (int l = L - 1; l >= 0; l--) {
+        int n = 1 << l, n2 = 2 * n;
+        for (int y = 0; y < n; y++)
+            for (int x = 0; x < n; x++)
+                for (int c = 0; c < nc; c++) {
+                    double a = v[((2 * y) * n2 + 2 * x) * nc + c];
+                    double b = v[((2 * y) * n2 + 2 * x + 1) * nc + c];
+                    double d = v[((2 * y + 1) * n2 + 2 * x) * nc + c];
+                    double e = v[((2 * y + 1) * n2 + 2 * x + 1) * nc + c];
+                    uint32_t k = haar_index(l, x, y, 1);
+                    pyr[k * nc + c] = (a - b + d - e) * 0.5;            /* type 1: sign by cx */
+                    pyr[(k + 1) * nc + c] = (a + b - d - e) * 0.5;      /* type 2: sign by cy */
+                    pyr[(k + 2) * nc + c] = (a - b - d + e) * 0.5;      /* type 3 */
+                    v[(y * n + x) * nc + c] = (a + b + d + e) * 0.5;
+                }
+    }
+    for (int c = 0; c < nc; c++) pyr[c] = v[c];
+}
+
+/* Inverse of haar_analyse: from the pyramid (levels < L) to 4^L level-L scaling
+ * coefficients in `v` (row-major, nc channels). */
+static void haar_synthesize(const double *pyr, int L, int nc, double *v) {
+    for (int c = 0; c < nc; c++) v[c] = pyr[c];
+    for (int l = 0; l < L; l++) {
+        int n = 1 << l, n2 = 2 * n;
+        for (int y = n - 1; y >= 0; y--)
+            for (int x = n - 1; x >= 0; x--)
+                for (int c = 0; c < nc; c++) {
+                    uint32_t k = haar_index(l, x, y, 1);
+                    double p = v[(y * n + x) * nc + c];
+                    double w1 = pyr[k * nc + c], w2 = pyr[(k + 1) * nc + c], w3 = pyr[(k + 2) * nc + c];
+                    v[((2 * y) * n2 + 2 * x) * nc + c] = 0.5 * (p + w1 + w2 + w3);
+                    v[((2 * y) * n2 + 2 * x + 1) * nc + c] = 0.5 * (p - w1 + w2 - w3);
+                    v[((2 * y + 1) * n2 + 2 * x) * nc + c] = 0.5 * (p + w1 - w2 - w3);
+                    v[((2 * y + 1) * n2 + 2 * x + 1) * nc + c] = 0.5 * (p - w1 - w2 + w3);
+                }
+    }
+}
+
+typedef struct quad_info {
+    wrt_v3 p[4], n, t, b;
+    double area, diam, mean_factor; /* mean_factor: mean irradiance per root coefficient */
+    int parallelogram, slevel, material, glossy;
+    int tex_level;                  /* texture is 2^tex_level a side */
+    size_t tex_off;                 /* offset of its texels (x3 floats) */
+    int root_func;                  /* index of (spatial root, angular root), -1 if absent */
+    int nang;                       /* angular functions present */
+    uint32_t ang_first;             /* into relight.ang_list / ang_start */
+} quad_info;
+
+typedef struct light_state {
+    wrt_light light;
+    float scale;
+    int projected;                  /* E below is the projection of `light` */
+    uint32_t *idx; float *val;      /* sparse E at scale 1: function index, RGB */
+    size_t n, cap;
+    double *root;                   /* nquads x 3: projected (root, root) coefficient */
+} light_state;
+
+typedef struct worker {
+    double *grid; size_t grid_cap;  /* projection grids / synthesis cells */
+    double *pyr; size_t pyr_cap;
+    double *acc; size_t acc_cap;    /* glossy texel accumulator */
+    float *wts; int *cells; size_t view_cap; /* glossy per-texel bilinear lookups */
+    uint32_t *oidx; float *oval; size_t on, ocap; /* projection output */
+    double brdf_time;
+} worker;
+
+typedef struct out_rec { int worker; size_t start, count; } out_rec;
+
+struct wrt_relight {
+    const wrt_gto *g;
+    wrt_relight_options opt;
+    int nthreads, max_tex_level;
+    int8_t *qlevel;                 /* projection level per quad for the light in progress */
+    quad_info *qi;
+    wrt_material *mats;
+    float **beta;                   /* per material: [BETA_RES^2][NANG][3], NULL if unused */
+    /* per function */
+    uint8_t *fn_slevel, *fn_ang;
+    uint32_t *fn_spidx;
+    uint32_t *ang_perm;             /* functions of each quad grouped by angular index */
+    uint16_t *ang_list;             /* present angular indices per quad (qi.ang_first) */
+    uint32_t *ang_start;            /* for each (quad, present angular): range in ang_perm, +1 */
+    /* Embree */
+    RTCDevice dev; RTCScene scene;
+    wrt_v3 origin; double eps, scene_diag;
+    /* state */
+    light_state *lights; int nlights, lights_cap;
+    int e_dirty, eye_dirty, have_eye;
+    double eye[3];
+    float *E, *X, *Xprev; double *Xd;
+    uint32_t *cols;                 /* non-zero columns of E */
+    float *tex; uint8_t *tex_nonzero, *x_nonzero, *resynth;
+    out_rec *recs;
+    worker *workers;
+};
+
+/* ---------------------------------------------------------------- threads ---- */
+
+typedef void (*job_fn)(wrt_relight *r, worker *w, int item, void *ctx);
+typedef struct job { wrt_relight *r; job_fn fn; void *ctx; atomic_int next; int n; } job;
+typedef struct job_arg { job *j; int wid; } job_arg;
+
+static void *job_run(void *p) {
+    job_arg *a = p;
+    job *j = a->j;
+    for (;;) {
+        int i = atomic_fetch_add(&j->next, 1);
+        if (i >= j->n) break;
+        j->fn(j->r, &j->r->workers[a->wid], i, j->ctx);
+    }
+    return NULL;
+}
+
+/* Below this much work (units of about one shadow ray, ~0.2 us) a loop runs on the
+ * calling thread: starting threads, and waiting for the slowest, would cost more. */
+#define PARALLEL_MIN_WORK 10000.0
+
+/* Runs fn over items 0..n-1 on up to nthreads threads (one if `work` is small). Results
+ * must not depend on which worker ran an item (callers write per item, or merge per
+ * item in item order). */
+static void parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ctx) {
+    if (n <= 0) return;
+    job j = {r, fn, ctx, 0, n};
+    int nt = r->nthreads < n ? r->nthreads : n;
+    if (work < PARALLEL_MIN_WORK) nt = 1;
+    pthread_t th[64];
+    job_arg args[64];
+    int started = 0;
+    for (int t = 1; t < nt; t++) {
+        args[t].j = &j; args[t].wid = t;
+        if (pthread_create(&th[t], NULL, job_run, &args[t]) != 0) break;
+        started = t;
+    }
+    args[0].j = &j; args[0].wid = 0;
+    job_run(&args[0]);
+    for (int t = 1; t <= started; t++) pthread_join(th[t], NULL);
+}
+
+static void *grow(void *p, size_t *cap, size_t need, size_t elem) {
+    if (need <= *cap) return p;
+    size_t c = *cap ? *cap : 64;
+    while (c < need) c *= 2;
+    *cap = c;
+    return wrt_xrealloc(p, c * elem);
+}
+
+/* -------------------------------------------------------------- geometry ---- */
+
+static wrt_v3 quad_point(const quad_info *q, double u, double v) {
+    double w0 = (1 - u) * (1 - v), w1 = u * (1 - v), w2 = u * v, w3 = (1 - u) * v;
+    return v3(w0 * q->p[0].x + w1 * q->p[1].x + w2 * q->p[2].x + w3 * q->p[3].x,
+              w0 * q->p[0].y + w1 * q->p[1].y + w2 * q->p[2].y + w3 * q->p[3].y,
+              w0 * q->p[0].z + w1 * q->p[1].z + w2 * q->p[2].z + w3 * q->p[3].z);
+}
+
+static double quad_jacobian(const quad_info *q, double u, double v) {
+    if (q->parallelogram) return q->area;
+    wrt_v3 du = v3_add(v3_scale(v3_sub(q->p[1], q->p[0]), 1 - v), v3_scale(v3_sub(q->p[2], q->p[3]), v));
+    wrt_v3 dv = v3_add(v3_scale(v3_sub(q->p[3], q->p[0]), 1 - u), v3_scale(v3_sub(q->p[2], q->p[1]), u));
+    return v3_len(v3_cross(du, dv));
+}
+
+static double seg_dist(wrt_v3 p, wrt_v3 a, wrt_v3 b) {
+    wrt_v3 ab = v3_sub(b, a);
+    double l2 = v3_dot(ab, ab), t = l2 > 0 ? v3_dot(v3_sub(p, a), ab) / l2 : 0;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    return v3_len(v3_sub(p, v3_mad(a, ab, t)));
+}
+
+/* Distance from p to the (planar convex) quad. */
+static double quad_dist(const quad_info *q, wrt_v3 p) {
+    double h = v3_dot(v3_sub(p, q->p[0]), q->n);
+    wrt_v3 f = v3_mad(p, q->n, -h); /* foot in the plane */
+    int inside = 1;
+    for (int k = 0; k < 4; k++) {
+        wrt_v3 e = v3_sub(q->p[(k + 1) & 3], q->p[k]);
+        if (v3_dot(v3_cross(e, v3_sub(f, q->p[k])), q->n) < 0) inside = 0;
+    }
+    if (inside) return fabs(h);
+    double d = INFINITY;
+    for (int k = 0; k < 4; k++) {
+        double s = seg_dist(p, q->p[k], q->p[(k + 1) & 3]);
+        if (s < d) d = s;
+    }
+    return d;
+}
+
+/* ----------------------------------------------------------- projection ---- */
+
+/* Fixed rotated-grid sample positions within a cell (4 samples). */
+static const double cell_samples[4][2] = {{0.375, 0.125}, {0.875, 0.375}, {0.625, 0.875}, {0.125, 0.625}};
+
+static int projection_cap(const wrt_relight *r, const quad_info *q) {
+    int cap = q->slevel + 1;
+    if (cap > PROJ_MAX_LEVEL) cap = PROJ_MAX_LEVEL;
+    if (r->opt.proj_level > 0 && r->opt.proj_level < cap) cap = r->opt.proj_level;
+    return cap;
+}
+
+static int projection_level(const wrt_relight *r, const quad_info *q, double d) {
+    int cap = q->slevel + 1;
+    if (cap > PROJ_MAX_LEVEL) cap = PROJ_MAX_LEVEL;
+    int L;
+    if (r->opt.proj_level > 0) L = r->opt.proj_level;
+    else {
+        double ratio = PROJ_CELL_K * q->diam / (d > 1e-300 ? d : 1e-300);
+        L = ratio <= 1 ? 0 : (int)ceil(log2(ratio));
+        int lo = cap < 2 ? cap : 2;
+        if (L < lo) L = lo;
+    }
+    return L > cap ? cap : L;
+}
+
+/* Direct irradiance (without colour) from light l at x with unit normal n, and the
+ * unit direction toward the light; 0 if none arrives (visibility excluded). */
+static double light_irradiance(const wrt_light *l, wrt_v3 x, wrt_v3 n, wrt_v3 *w, double *dist) {
+    wrt_v3 dl = v3_sub(l->pos, x);
+    double d2 = v3_dot(dl, dl);
+    if (!(d2 > 0)) return 0;
+    double d = sqrt(d2);
+    *w = v3_scale(dl, 1.0 / d);
+    *dist = d;
+    double cosx = v3_dot(*w, n);
+    if (cosx <= 0) return 0;
+    double e = l->intensity * cosx / d2;
+    if (l->type == WRT_LIGHT_SPOT) {
+        double cd = -v3_dot(*w, l->dir); /* angle between the axis and light -> x */
+        double co = cos(l->outer_cone), ci = cos(l->inner_cone);
+        double den = ci - co > 1e-3 ? ci - co : 1e-3;
+        double s = (cd - co) / den;
+        s = s < 0 ? 0 : s > 1 ? 1 : s;
+        e *= s * s;
+    }
+    if (l->range > 0) {
+        double t = d / l->range, t4 = t * t * t * t;
+        double win = 1 - t4;
+        win = win < 0 ? 0 : win;
+        e *= win * win;
+    }
+    return e;
+}
+
+#define VIS_LIT 1
+#define VIS_SHADOWED 2
+
+/* Fills w->grid with the level-L scaling coefficients (cell average x 2^-L) of
+ * E_dir V g sqrt(J/pi) for each angular slot. Returns VIS_LIT if any sample is lit,
+ * VIS_SHADOWED if any sample facing the light is occluded. */
+static int sample_grid(wrt_relight *r, worker *w, const quad_info *q, const wrt_light *l, int L, int nslot,
+                       const int16_t *slot_of) {
+    int n = 1 << L;
+    size_t ncell = (size_t)n * n;
+    int angular = nslot > 1;
+    w->grid = grow(w->grid, &w->grid_cap, ncell * nslot, sizeof(double));
+    w->pyr = grow(w->pyr, &w->pyr_cap, ncell * nslot, sizeof(double));
+    memset(w->grid, 0, ncell * nslot * sizeof(double));
+    double inv_pi = 1.0 / WRT_PI, cellw = 1.0 / n;
+    int vis = 0;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) {
+            for (int s = 0; s < 4; s++) {
+                double u = (i + cell_samples[s][0]) * cellw, v = (j + cell_samples[s][1]) * cellw;
+                wrt_v3 x = quad_point(q, u, v), dir;
+                double d = 0;
+                double e = light_irradiance(l, x, q->n, &dir, &d);
+                if (e == 0) continue;
+                /* Shadow ray from just above the surface toward the light. */
+                wrt_v3 o = v3_sub(v3_mad(x, q->n, r->eps), r->origin);
+                struct RTCRay ray;
+                ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
+                ray.dir_x = (float)dir.x; ray.dir_y = (float)dir.y; ray.dir_z = (float)dir.z;
+                ray.tnear = 0;
+                ray.tfar = (float)(d - 2 * r->eps);
+                ray.time = 0; ray.mask = 0xFFFFFFFFu; ray.id = 0; ray.flags = 0;
+                if (ray.tfar > 0) {
+                    struct RTCIntersectContext ic;
+                    rtcInitIntersectContext(&ic);
+                    rtcOccluded1(r->scene, &ic, &ray);
+                    if (ray.tfar < 0) { vis |= VIS_SHADOWED; continue; } /* occluded: tfar = -inf */
+                }
+                double val = e * sqrt(quad_jacobian(q, u, v) * inv_pi) * 0.25 * cellw; /* 2^-L x average */
+                size_t cell = (size_t)j * n + i;
+                vis |= VIS_LIT;
+                w->grid[cell * nslot + slot_of[0]] += val;
+                if (!angular) continue;
+                double loc[3] = {v3_dot(dir, q->t), v3_dot(dir, q->b), v3_dot(dir, q->n)}, a, b;
+                wrt_concentric_inv(loc, &a, &b);
+                for (int al = 0; al < ANG_LEVELS; al++) {
+                    int an = 1 << al;
+                    int ax = (int)(a * an), ay = (int)(b * an);
+                    if (ax > an - 1) ax = an - 1;
+                    if (ay > an - 1) ay = an - 1;
+                    double su = a * an - ax < 0.5 ? 1.0 : -1.0, sv = b * an - ay < 0.5 ? 1.0 : -1.0;
+                    uint32_t k = haar_index(al, ax, ay, 1);
+                    double gv[3] = {an * su, an * sv, an * su * sv};
+                    for (int t = 0; t < 3; t++) {
+                        int sl = slot_of[k + t];
+                        if (sl >= 0) w->grid[cell * nslot + sl] += val * gv[t];
+                    }
+                }
+            }
+        }
+    return vis;
+}
+
+typedef struct proj_ctx { const wrt_light *light; double *root; } proj_ctx;
+
+static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
+    proj_ctx *ctx = vctx;
+    const wrt_light *l = ctx->light;
+    const quad_info *q = &r->qi[qidx];
+    const wrt_gto_quad *gq = &r->g->quads[qidx];
+    out_rec *rec = &r->recs[qidx];
+    rec->worker = (int)(w - r->workers);
+    rec->start = w->on;
+    rec->count = 0;
+    for (int c = 0; c < 3; c++) ctx->root[qidx * 3 + c] = 0;
+    if (gq->func_count == 0 || l->intensity == 0) return;
+    /* A light on or behind the quad's plane lights nothing (exactly zero). */
+    if (v3_dot(v3_sub(l->pos, q->p[0]), q->n) <= 0) return;
+    int L = r->qlevel[qidx];
+    if (L < 0) return; /* beyond the light's range */
+    /* Angular slots: the root, plus the quad's angular functions when it has any. */
+    int nslot = q->nang > 0 ? q->nang : 1;
+    const uint16_t *alist = r->ang_list + q->ang_first;
+    int16_t slot_of[NANG];
+    for (int a = 0; a < NANG; a++) slot_of[a] = -1;
+    if (q->nang > 0) for (int s = 0; s < q->nang; s++) slot_of[alist[s]] = (int16_t)s;
+    else slot_of[0] = 0;
+    int vis = sample_grid(r, w, q, l, L, nslot, slot_of);
+    /* A shadow edge crosses the quad: resolve it as finely as the file can hold. */
+    int cap = projection_cap(r, q);
+    if (vis == (VIS_LIT | VIS_SHADOWED) && L < cap) {
+        L = cap;
+        vis = sample_grid(r, w, q, l, L, nslot, slot_of);
+    }
+    if (!(vis & VIS_LIT)) return;
+    haar_analyse(w->grid, L, nslot, w->pyr);
+    const float *col = l->color;
+    double I0 = w->pyr[slot_of[0]];
+    for (int c = 0; c < 3; c++) ctx->root[qidx * 3 + c] = I0 * col[c];
+    /* Keep the coefficients whose function exists on the quad. */
+    size_t f0 = gq->func_first, fc = gq->func_count;
+    for (size_t f = f0; f < f0 + fc; f++) {
+        if (r->fn_slevel[f] >= L && r->fn_spidx[f] != 0) continue; /* finer than the grid */
+        int sl = slot_of[r->fn_ang[f]];
+        if (sl < 0) continue;
+        double cv = w->pyr[(size_t)r->fn_spidx[f] * nslot + sl];
+        if (cv == 0) continue;
+        if (w->on == w->ocap) {
+            w->ocap = w->ocap ? 2 * w->ocap : 1024;
+            w->oidx = wrt_xrealloc(w->oidx, w->ocap * sizeof(uint32_t));
+            w->oval = wrt_xrealloc(w->oval, w->ocap * 3 * sizeof(float));
+        }
+        w->oidx[w->on] = (uint32_t)f;
+        for (int c = 0; c < 3; c++) w->oval[w->on * 3 + c] = (float)(cv * col[c]);
+        w->on++;
+        rec->count++;
+    }
+}
+
+static void project_light(wrt_relight *r, light_state *ls) {
+    for (int t = 0; t < r->nthreads; t++) r->workers[t].on = 0;
+    proj_ctx ctx = {&ls->light, ls->root};
+    /* Levels first (cheap), so that the loop knows its work. */
+    double work = 0;
+    for (uint32_t q = 0; q < r->g->nquads; q++) {
+        double dmin = quad_dist(&r->qi[q], ls->light.pos);
+        int L = ls->light.range > 0 && dmin >= ls->light.range ? -1 : projection_level(r, &r->qi[q], dmin);
+        r->qlevel[q] = (int8_t)L;
+        if (L >= 0) work += ldexp(4.0, 2 * L);
+    }
+    parallel_for(r, (int)r->g->nquads, work, project_quad, &ctx);
+    size_t total = 0;
+    for (uint32_t q = 0; q < r->g->nquads; q++) total += r->recs[q].count;
+    if (total > ls->cap) {
+        ls->cap = total;
+        ls->idx = wrt_xrealloc(ls->idx, total * sizeof(uint32_t));
+        ls->val = wrt_xrealloc(ls->val, total * 3 * sizeof(float));
+    }
+    size_t k = 0;
+    for (uint32_t q = 0; q < r->g->nquads; q++) {
+        const out_rec *rec = &r->recs[q];
+        if (!rec->count) continue;
+        const worker *w = &r->workers[rec->worker];
+        memcpy(ls->idx + k, w->oidx + rec->start, rec->count * sizeof(uint32_t));
+        memcpy(ls->val + 3 * k, w->oval + 3 * rec->start, rec->count * 3 * sizeof(float));
+        k += rec->count;
+    }
+    ls->n = total;
+    ls->projected = 1;
+}
+
+/* ------------------------------------------------------------ BRDF table ---- */
+
+typedef struct beta_ctx { int mat; } beta_ctx;
+
+/* One outgoing direction (item = cell of the 16 x 16 table) of material ctx->mat:
+ * beta_g(w_o) = pi * integral over [0,1]^2 of f_r(M(a,b), w_o) g(a,b) da db for every
+ * angular function g of node levels 0..3, by the midpoint rule on 64 x 64 points. */
+static void beta_cell(wrt_relight *r, worker *w, int item, void *vctx) {
+    beta_ctx *ctx = vctx;
+    const wrt_material *m = &r->mats[ctx->mat];
+    int oi = item % BETA_RES, oj = item / BETA_RES;
+    double wo[3];
+    wrt_concentric_dir((oi + 0.5) / BETA_RES, (oj + 0.5) / BETA_RES, wo);
+    int Lc = ANG_LEVELS, nc = 1 << Lc, per = BETA_QUAD / nc;
+    w->grid = grow(w->grid, &w->grid_cap, (size_t)nc * nc * 3, sizeof(double));
+    w->pyr = grow(w->pyr, &w->pyr_cap, (size_t)nc * nc * 3, sizeof(double));
+    memset(w->grid, 0, (size_t)nc * nc * 3 * sizeof(double));
+    wrt_v3 n = v3(0, 0, 1), vo = v3(wo[0], wo[1], wo[2]);
+    double scale = 1.0 / (per * per) / nc; /* cell average x 2^-Lc */
+    for (int j = 0; j < BETA_QUAD; j++)
+        for (int i = 0; i < BETA_QUAD; i++) {
+            double wi[3], f[3];
+            wrt_concentric_dir((i + 0.5) / BETA_QUAD, (j + 0.5) / BETA_QUAD, wi);
+            wrt_brdf_eval(m, n, v3(wi[0], wi[1], wi[2]), vo, f);
+            size_t cell = (size_t)(j / per) * nc + (size_t)(i / per);
+            for (int c = 0; c < 3; c++) w->grid[cell * 3 + c] += f[c] * scale;
+        }
+    haar_analyse(w->grid, Lc, 3, w->pyr);
+    float *out = r->beta[ctx->mat] + (size_t)item * NANG * 3;
+    for (int k = 0; k < NANG * 3; k++) out[k] = (float)(WRT_PI * w->pyr[k]);
+}
+
+int wrt_relight_beta(const wrt_relight *r, int material, double a_o, double b_o, int ang, double out[3]) {
+    out[0] = out[1] = out[2] = 0;
+    if (material < 0 || material >= (int)r->g->nmaterials || !r->beta[material] || ang < 0 || ang >= NANG) return 0;
+    double fx = a_o * BETA_RES - 0.5, fy = b_o * BETA_RES - 0.5;
+    int x0 = (int)floor(fx), y0 = (int)floor(fy);
+    double tx = fx - x0, ty = fy - y0;
+    for (int k = 0; k < 4; k++) {
+        int cx = x0 + (k & 1), cy = y0 + (k >> 1);
+        double wgt = ((k & 1) ? tx : 1 - tx) * ((k >> 1) ? ty : 1 - ty);
+        cx = cx < 0 ? 0 : cx >= BETA_RES ? BETA_RES - 1 : cx;
+        cy = cy < 0 ? 0 : cy >= BETA_RES ? BETA_RES - 1 : cy;
+        const float *b = r->beta[material] + ((size_t)(cy * BETA_RES + cx) * NANG + ang) * 3;
+        for (int c = 0; c < 3; c++) out[c] += wgt * b[c];
+    }
+    return 1;
+}
+
+/* ------------------------------------------------------------- synthesis ---- */
+
+/* Outgoing radiance of a Lambertian quad: base/pi x irradiance, texel averages. */
+static void synth_diffuse(wrt_relight *r, worker *w, int qidx) {
+    const quad_info *q = &r->qi[qidx];
+    const wrt_gto_quad *gq = &r->g->quads[qidx];
+    int Lt = q->tex_level, res = 1 << Lt;
+    size_t ncell = (size_t)res * res;
+    w->grid = grow(w->grid, &w->grid_cap, ncell * 3, sizeof(double));
+    w->pyr = grow(w->pyr, &w->pyr_cap, ncell * 3, sizeof(double));
+    memset(w->pyr, 0, ncell * 3 * sizeof(double));
+    for (size_t f = gq->func_first; f < (size_t)gq->func_first + gq->func_count; f++) {
+        if (r->fn_ang[f] != 0) continue;
+        if (r->fn_slevel[f] >= Lt && r->fn_spidx[f] != 0) continue; /* averages to 0 per texel */
+        for (int c = 0; c < 3; c++) w->pyr[(size_t)r->fn_spidx[f] * 3 + c] = r->X[f * 3 + c];
+    }
+    haar_synthesize(w->pyr, Lt, 3, w->grid);
+    const float *base = r->mats[q->material].base_color;
+    float *tex = r->tex + q->tex_off;
+    double lev = ldexp(1.0, Lt);
+    for (int j = 0; j < res; j++)
+        for (int i = 0; i < res; i++) {
+            double J = quad_jacobian(q, (i + 0.5) / res, (j + 0.5) / res);
+            double k = lev * sqrt(WRT_PI / J) / WRT_PI; /* h value x sqrt(pi/J) x 1/pi */
+            size_t t = (size_t)j * res + i;
+            for (int c = 0; c < 3; c++) tex[t * 3 + c] = (float)(w->grid[t * 3 + c] * k * base[c]);
+        }
+}
+
+/* Outgoing radiance toward the eye of a glossy quad:
+ * L_o(x) = sum_f X_f h_f(u,v) / sqrt(pi J) beta_{g_f}(w_o(x)). */
+static void synth_glossy(wrt_relight *r, worker *w, int qidx) {
+    const quad_info *q = &r->qi[qidx];
+    int Lt = q->tex_level, res = 1 << Lt;
+    size_t ncell = (size_t)res * res;
+    float *tex = r->tex + q->tex_off;
+    const float *beta = r->beta[q->material];
+    double t0 = wrt_now();
+    w->acc = grow(w->acc, &w->acc_cap, ncell * 3, sizeof(double));
+    if (ncell * 4 > w->view_cap) {
+        w->view_cap = ncell * 4;
+        w->cells = wrt_xrealloc(w->cells, w->view_cap * sizeof(int));
+        w->wts = wrt_xrealloc(w->wts, w->view_cap * sizeof(float));
+    }
+    memset(w->acc, 0, ncell * 3 * sizeof(double));
+    /* Per texel: the outgoing direction's bilinear cells in the beta table, weights
+     * folded with 2^Lt / sqrt(pi J); and the box of table cells the quad looks through. */
+    int bx0 = BETA_RES, bx1 = -1, by0 = BETA_RES, by1 = -1;
+    wrt_v3 eye = v3(r->eye[0], r->eye[1], r->eye[2]);
+    double lev = ldexp(1.0, Lt);
+    for (int j = 0; j < res; j++)
+        for (int i = 0; i < res; i++) {
+            double u = (i + 0.5) / res, v = (j + 0.5) / res;
+            size_t t = (size_t)j * res + i;
+            wrt_v3 x = quad_point(q, u, v), wo = v3_norm(v3_sub(eye, x));
+            double loc[3] = {v3_dot(wo, q->t), v3_dot(wo, q->b), v3_dot(wo, q->n)}, a, b;
+            if (loc[2] <= 0) { for (int k = 0; k < 4; k++) { w->cells[t * 4 + k] = 0; w->wts[t * 4 + k] = 0; } continue; }
+            wrt_concentric_inv(loc, &a, &b);
+            double k0 = lev / sqrt(WRT_PI * quad_jacobian(q, u, v));
+            double fx = a * BETA_RES - 0.5, fy = b * BETA_RES - 0.5;
+            int x0 = (int)floor(fx), y0 = (int)floor(fy);
+            double tx = fx - x0, ty = fy - y0;
+            for (int k = 0; k < 4; k++) {
+                int cx = x0 + (k & 1), cy = y0 + (k >> 1);
+                cx = cx < 0 ? 0 : cx >= BETA_RES ? BETA_RES - 1 : cx;
+                cy = cy < 0 ? 0 : cy >= BETA_RES ? BETA_RES - 1 : cy;
+                if (cx < bx0) bx0 = cx;
+                if (cx > bx1) bx1 = cx;
+                if (cy < by0) by0 = cy;
+                if (cy > by1) by1 = cy;
+                w->cells[t * 4 + k] = cy * BETA_RES + cx;
+                w->wts[t * 4 + k] = (float)(k0 * ((k & 1) ? tx : 1 - tx) * ((k >> 1) ? ty : 1 - ty));
+            }
+        }
+    /* Root's beta over the box, for the pruning threshold. */
+    double root_max = 0;
+    for (int cy = by0; cy <= by1; cy++)
+        for (int cx = bx0; cx <= bx1; cx++)
+            for (int c = 0; c < 3; c++) {
+                double bv = fabs(beta[((size_t)(cy * BETA_RES + cx) * NANG) * 3 + c]);
+                if (bv > root_max) root_max = bv;
+            }
+    w->brdf_time += wrt_now() - t0;
+    if (bx1 < 0) { memset(tex, 0, ncell * 3 * sizeof(float)); return; }
+    w->grid = grow(w->grid, &w->grid_cap, ncell * 3, sizeof(double));
+    w->pyr = grow(w->pyr, &w->pyr_cap, ncell * 3, sizeof(double));
+    const uint16_t *alist = r->ang_list + q->ang_first;
+    const uint32_t *astart = r->ang_start + q->ang_first + qidx; /* nang + 1 entries */
+    for (int s = 0; s < q->nang; s++) {
+        int g = alist[s];
+        if (g != 0) { /* Figure 5 pruning: negligible for every direction toward the eye */
+            double mx = 0;
+            for (int cy = by0; cy <= by1; cy++)
+                for (int cx = bx0; cx <= bx1; cx++)
+                    for (int c = 0; c < 3; c++) {
+                        double bv = fabs(beta[((size_t)(cy * BETA_RES + cx) * NANG + g) * 3 + c]);
+                        if (bv > mx) mx = bv;
+                    }
+            if (mx <= PRUNE_REL * root_max) continue;
+        }
+        memset(w->pyr, 0, ncell * 3 * sizeof(double));
+        int nz = 0;
+        for (uint32_t p = astart[s]; p < astart[s + 1]; p++) {
+            uint32_t f = r->ang_perm[p];
+            if (r->fn_slevel[f] >= Lt && r->fn_spidx[f] != 0) continue;
+            for (int c = 0; c < 3; c++) {
+                float xv = r->X[(size_t)f * 3 + c];
+                w->pyr[(size_t)r->fn_spidx[f] * 3 + c] = xv;
+                nz |= xv != 0;
+            }
+        }
+        if (!nz) continue;
+        haar_synthesize(w->pyr, Lt, 3, w->grid);
+        for (size_t t = 0; t < ncell; t++) {
+            double bsum[3] = {0, 0, 0};
+            for (int k = 0; k < 4; k++) {
+                const float *b = beta + ((size_t)w->cells[t * 4 + k] * NANG + g) * 3;
+                double wk = w->wts[t * 4 + k];
+                for (int c = 0; c < 3; c++) bsum[c] += wk * b[c];
+            }
+            for (int c = 0; c < 3; c++) w->acc[t * 3 + c] += w->grid[t * 3 + c] * bsum[c];
+        }
+    }
+    for (size_t t = 0; t < ncell * 3; t++) tex[t] = (float)w->acc[t];
+}
+
+typedef struct synth_ctx { const int *list; } synth_ctx;
+
+static void synth_item(wrt_relight *r, worker *w, int item, void *vctx) {
+    synth_ctx *ctx = vctx;
+    int q = ctx->list[item];
+    if (r->qi[q].glossy) synth_glossy(r, w, q);
+    else synth_diffuse(r, w, q);
+}
+
+/* -------------------------------------------------------------- multiply ---- */
+
+#define MUL_MAX_CHUNKS 256
+
+typedef struct mul_ctx { const uint32_t *cols; uint32_t ncols; int nchunk; } mul_ctx;
+
+/* Rows [lo, hi) of X = Op E: each chunk scans every non-zero column and takes the
+ * entries of its rows (rows ascend within a column), so each X entry sums its terms in
+ * column order whatever the thread count. */
+static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
+    (void)w;
+    const mul_ctx *mc = vctx;
+    const wrt_gto *g = r->g;
+    uint32_t nf = g->nfuncs;
+    uint32_t lo = (uint32_t)((uint64_t)nf * item / mc->nchunk), hi = (uint32_t)((uint64_t)nf * (item + 1) / mc->nchunk);
+    if (lo >= hi) return;
+    memset(r->Xd + (size_t)lo * 3, 0, (size_t)(hi - lo) * 3 * sizeof(double));
+    for (uint32_t k = 0; k < mc->ncols; k++) {
+        uint32_t s = mc->cols[k];
+        uint64_t a = g->col_start[s], b = g->col_start[s + 1];
+        if (a == b || g->rows[b - 1] < lo || g->rows[a] >= hi) continue;
+        while (a < b) { /* first entry with row >= lo */
+            uint64_t m = a + (b - a) / 2;
+            if (g->rows[m] < lo) a = m + 1; else b = m;
+        }
+        const float *e = r->E + (size_t)s * 3;
+        double e0 = e[0], e1 = e[1], e2 = e[2];
+        for (uint64_t i = a, end = g->col_start[s + 1]; i < end && g->rows[i] < hi; i++) {
+            double *x = r->Xd + (size_t)g->rows[i] * 3;
+            const float *v = g->vals + i * 3;
+            x[0] += e0 * v[0];
+            x[1] += e1 * v[1];
+            x[2] += e2 * v[2];
+        }
+    }
+}
+
+/* ---------------------------------------------------------------- create ---- */
+
+static int material_used_glossy(const wrt_relight *r, uint32_t m) {
+    for (uint32_t q = 0; q < r->g->nquads; q++) if (r->qi[q].glossy && (uint32_t)r->qi[q].material == m) return 1;
+    return 0;
+}
+
+static const uint8_t *sort_ang; /* qsort has no context argument; create is not re-entrant here */
+static int cmp_by_ang(const void *a, const void *b) {
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    if (sort_ang[x] != sort_ang[y]) return sort_ang[x] < sort_ang[y] ? -1 : 1;
+    return x < y ? -1 : x > y;
+}
+
+wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out) {
+    *out = NULL;
+    if (!g) return wrt_fail(WRT_ERR_INVALID_ARG, "relight: no operator");
+    wrt_relight *r = wrt_xcalloc(1, sizeof *r);
+    r->g = g;
+    if (opt) r->opt = *opt;
+    if (r->opt.proj_level < 0 || r->opt.proj_level > PROJ_MAX_LEVEL) {
+        free(r);
+        return wrt_fail(WRT_ERR_INVALID_ARG, "relight: projection level %d outside 0..%d", opt->proj_level, PROJ_MAX_LEVEL);
+    }
+    int mt = r->opt.max_tex_res > 0 ? r->opt.max_tex_res : 64;
+    r->max_tex_level = 0;
+    while ((2 << r->max_tex_level) <= mt && r->max_tex_level < 12) r->max_tex_level++;
+    long nc = sysconf(_SC_NPROCESSORS_ONLN);
+    r->nthreads = r->opt.threads > 0 ? r->opt.threads : (int)(nc > 0 ? nc : 1);
+    if (r->nthreads > 64) r->nthreads = 64;
+    r->workers = wrt_xcalloc((size_t)r->nthreads, sizeof(worker));
+
+    uint32_t nq = g->nquads, nf = g->nfuncs;
+    r->mats = wrt_xcalloc(g->nmaterials ? g->nmaterials : 1, sizeof(wrt_material));
+    for (uint32_t m = 0; m < g->nmaterials; m++) {
+        const wrt_gto_material *gm = &g->materials[m];
+        wrt_material *mm = &r->mats[m];
+        memcpy(mm->name, gm->name, sizeof mm->name);
+        mm->name[sizeof mm->name - 1] = 0;
+        for (int c = 0; c < 3; c++) { mm->base_color[c] = gm->base_color[c]; mm->emissive[c] = gm->emissive[c]; }
+        mm->metallic = gm->metallic;
+        mm->roughness = gm->roughness;
+        mm->lambertian = gm->lambertian != 0;
+    }
+    /* Per function: spatial level and pyramid slot, angular index. */
+    r->fn_slevel = wrt_xcalloc(nf ? nf : 1, 1);
+    r->fn_ang = wrt_xcalloc(nf ? nf : 1, 1);
+    r->fn_spidx = wrt_xcalloc(nf ? nf : 1, sizeof(uint32_t));
+    uint32_t nbad = 0;
+    for (uint32_t f = 0; f < nf; f++) {
+        wrt_fkey k = g->fkeys[f];
+        wrt_node s = wrt_fkey_snode(k), a = wrt_fkey_anode(k);
+        int st = wrt_fkey_stype(k), at = wrt_fkey_atype(k);
+        int ok = s.x < (1u << s.level) && s.y < (1u << s.level) && (st != 0 || s.level == 0) &&
+                 a.x < (1u << a.level) && a.y < (1u << a.level) && (at != 0 || a.level == 0);
+        if (!ok) { /* not a basis function: never read nor written */
+            r->fn_slevel[f] = FN_INVALID; r->fn_spidx[f] = UINT32_MAX; r->fn_ang[f] = 0;
+            nbad++;
+            continue;
+        }
+        r->fn_slevel[f] = s.level;
+        r->fn_spidx[f] = haar_index(s.level, s.x, s.y, st);
+        r->fn_ang[f] = (uint8_t)haar_index(a.level, a.x, a.y, at);
+    }
+    if (nbad) wrt_log(WRT_LOG_WARN, "relight: %u function keys are not basis functions; ignored", nbad);
+    /* Per quad. */
+    r->qi = wrt_xcalloc(nq ? nq : 1, sizeof(quad_info));
+    wrt_v3 bmin = v3(INFINITY, INFINITY, INFINITY), bmax = v3(-INFINITY, -INFINITY, -INFINITY);
+    size_t tex_total = 0, ang_total = 0;
+    for (uint32_t q = 0; q < nq; q++) {
+        const wrt_gto_quad *gq = &g->quads[q];
+        quad_info *qi = &r->qi[q];
+        if ((uint64_t)gq->func_first + gq->func_count > nf || gq->material >= g->nmaterials) {
+            wrt_relight_destroy(r);
+            return wrt_fail(WRT_ERR_CORRUPT, "relight: quad %u: functions or material out of range", q);
+        }
+        for (int k = 0; k < 4; k++) {
+            qi->p[k] = v3(gq->p[k][0], gq->p[k][1], gq->p[k][2]);
+            bmin = v3(fmin(bmin.x, qi->p[k].x), fmin(bmin.y, qi->p[k].y), fmin(bmin.z, qi->p[k].z));
+            bmax = v3(fmax(bmax.x, qi->p[k].x), fmax(bmax.y, qi->p[k].y), fmax(bmax.z, qi->p[k].z));
+        }
+        qi->n = v3_norm(v3(gq->n[0], gq->n[1], gq->n[2]));
+        qi->t = v3_norm(v3(gq->t[0], gq->t[1], gq->t[2]));
+        qi->b = v3_norm(v3(gq->b[0], gq->b[1], gq->b[2]));
+        qi->parallelogram = gq->flags & 1;
+        qi->area = v3_len(v3_cross(v3_sub(qi->p[1], qi->p[0]), v3_sub(qi->p[3], qi->p[0])));
+        if (!qi->parallelogram) qi->area = gq->area;
+        qi->diam = fmax(v3_len(v3_sub(qi->p[2], qi->p[0])), v3_len(v3_sub(qi->p[3], qi->p[1])));
+        qi->material = (int)gq->material;
+        qi->glossy = !r->mats[gq->material].lambertian;
+        int sl = 0;
+        for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++)
+            if (r->fn_slevel[f] > sl && r->fn_slevel[f] != FN_INVALID) sl = r->fn_slevel[f];
+        qi->slevel = sl;
+        qi->tex_level = sl + 1 < r->max_tex_level ? sl + 1 : r->max_tex_level;
+        qi->tex_off = tex_total;
+        tex_total += ((size_t)1 << (2 * qi->tex_level)) * 3;
+        /* Mean of sqrt(pi / J) weighted by J: sqrt(pi) integral sqrt(J) du dv / area. */
+        double sj = 0;
+        for (int j = 0; j < 8; j++)
+            for (int i = 0; i < 8; i++) sj += sqrt(quad_jacobian(qi, (i + 0.5) / 8, (j + 0.5) / 8));
+        qi->mean_factor = sqrt(WRT_PI) * sj / 64 / qi->area;
+        qi->root_func = -1;
+        if (gq->func_count && g->fkeys[gq->func_first] == wrt_fkey_make(q, wrt_node_root(), 0, wrt_node_root(), 0))
+            qi->root_func = (int)gq->func_first;
+        /* Present angular functions. */
+        uint8_t seen[NANG] = {0};
+        int na = 0;
+        for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++)
+            if (!seen[r->fn_ang[f]]) { seen[r->fn_ang[f]] = 1; na++; }
+        qi->nang = na;
+        qi->ang_first = (uint32_t)ang_total;
+        ang_total += (size_t)na;
+    }
+    r->ang_list = wrt_xcalloc(ang_total ? ang_total : 1, sizeof(uint16_t));
+    r->ang_start = wrt_xcalloc(ang_total + nq + 1, sizeof(uint32_t));
+    r->ang_perm = wrt_xcalloc(nf ? nf : 1, sizeof(uint32_t));
+    sort_ang = r->fn_ang;
+    for (uint32_t q = 0; q < nq; q++) {
+        const wrt_gto_quad *gq = &g->quads[q];
+        quad_info *qi = &r->qi[q];
+        uint32_t *perm = r->ang_perm + gq->func_first;
+        for (uint32_t k = 0; k < gq->func_count; k++) perm[k] = gq->func_first + k;
+        qsort(perm, gq->func_count, sizeof(uint32_t), cmp_by_ang);
+        uint16_t *al = r->ang_list + qi->ang_first;
+        uint32_t *as = r->ang_start + qi->ang_first + q;
+        int s = -1;
+        for (uint32_t k = 0; k < gq->func_count; k++) {
+            int a = r->fn_ang[perm[k]];
+            if (s < 0 || al[s] != a) { s++; al[s] = (uint16_t)a; as[s] = gq->func_first + k; }
+        }
+        as[qi->nang] = gq->func_first + gq->func_count;
+    }
+    /* Embree scene of every quad, in a frame centred on the scene (float precision). */
+    r->origin = nq ? v3_scale(v3_add(bmin, bmax), 0.5) : v3(0, 0, 0);
+    r->scene_diag = nq ? v3_len(v3_sub(bmax, bmin)) : 1;
+    if (!(r->scene_diag > 0)) r->scene_diag = 1;
+    r->eps = 1e-5 * r->scene_diag;
+    r->dev = rtcNewDevice(NULL);
+    if (!r->dev) { wrt_relight_destroy(r); return wrt_fail(WRT_ERR_UNSUPPORTED, "relight: cannot create an Embree device"); }
+    r->scene = rtcNewScene(r->dev);
+    if (nq) {
+        RTCGeometry geo = rtcNewGeometry(r->dev, RTC_GEOMETRY_TYPE_QUAD);
+        float *vb = rtcSetNewGeometryBuffer(geo, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), (size_t)nq * 4);
+        unsigned *ib = rtcSetNewGeometryBuffer(geo, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned), nq);
+        if (!vb || !ib) { rtcReleaseGeometry(geo); wrt_relight_destroy(r); return wrt_fail(WRT_ERR_NOMEM, "relight: Embree buffers"); }
+        for (uint32_t q = 0; q < nq; q++)
+            for (int k = 0; k < 4; k++) {
+                wrt_v3 p = v3_sub(r->qi[q].p[k], r->origin);
+                vb[(q * 4 + k) * 3 + 0] = (float)p.x;
+                vb[(q * 4 + k) * 3 + 1] = (float)p.y;
+                vb[(q * 4 + k) * 3 + 2] = (float)p.z;
+                ib[q * 4 + k] = q * 4 + (unsigned)k;
+            }
+        rtcCommitGeometry(geo);
+        rtcAttachGeometry(r->scene, geo);
+        rtcReleaseGeometry(geo);
+    }
+    rtcCommitScene(r->scene);
+    if (rtcGetDeviceError(r->dev) != RTC_ERROR_NONE) {
+        wrt_relight_destroy(r);
+        return wrt_fail(WRT_ERR_UNSUPPORTED, "relight: Embree scene build failed");
+    }
+    /* State. */
+    r->E = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
+    r->X = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
+    r->Xprev = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
+    r->Xd = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(double));
+    r->cols = wrt_xcalloc((size_t)nf + 1, sizeof(uint32_t));
+    r->tex = wrt_xcalloc(tex_total + 1, sizeof(float));
+    r->tex_nonzero = wrt_xcalloc(nq + 1, 1);
+    r->x_nonzero = wrt_xcalloc(nq + 1, 1);
+    r->resynth = wrt_xcalloc(nq + 1, 1);
+    r->recs = wrt_xcalloc(nq + 1, sizeof(out_rec));
+    r->qlevel = wrt_xcalloc(nq + 1, sizeof(int8_t));
+    /* BRDF tables of the materials glossy quads use. */
+    r->beta = wrt_xcalloc(g->nmaterials + 1, sizeof(float *));
+    for (uint32_t m = 0; m < g->nmaterials; m++) {
+        if (!material_used_glossy(r, m)) continue;
+        r->beta[m] = wrt_xmalloc((size_t)BETA_RES * BETA_RES * NANG * 3 * sizeof(float));
+        beta_ctx bc = {(int)m};
+        parallel_for(r, BETA_RES * BETA_RES, 1e9, beta_cell, &bc);
+    }
+    *out = r;
+    return WRT_OK;
+}
+
+void wrt_relight_destroy(wrt_relight *r) {
+    if (!r) return;
+    if (r->scene) rtcReleaseScene(r->scene);
+    if (r->dev) rtcReleaseDevice(r->dev);
+    for (int i = 0; i < r->lights_cap; i++) { free(r->lights[i].idx); free(r->lights[i].val); free(r->lights[i].root); }
+    free(r->lights);
+    if (r->workers)
+        for (int t = 0; t < r->nthreads; t++) {
+            worker *w = &r->workers[t];
+            free(w->grid); free(w->pyr); free(w->acc); free(w->wts); free(w->cells); free(w->oidx); free(w->oval);
+        }
+    free(r->workers);
+    if (r->beta) for (uint32_t m = 0; m < r->g->nmaterials; m++) free(r->beta[m]);
+    free(r->beta);
+    free(r->mats); free(r->fn_slevel); free(r->fn_ang); free(r->fn_spidx); free(r->qi);
+    free(r->ang_list); free(r->ang_start); free(r->ang_perm);
+    free(r->E); free(r->X); free(r->Xprev); free(r->Xd); free(r->cols); free(r->tex); free(r->tex_nonzero); free(r->x_nonzero);
+    free(r->resynth); free(r->recs); free(r->qlevel);
+    free(r);
+}
+
+/* ----------------------------------------------------------------- update ---- */
+
+static int same_light(const wrt_light *a, const wrt_light *b) {
+    return a->type == b->type && a->pos.x == b->pos.x && a->pos.y == b->pos.y && a->pos.z == b->pos.z &&
+           a->dir.x == b->dir.x && a->dir.y == b->dir.y && a->dir.z == b->dir.z &&
+           a->color[0] == b->color[0] && a->color[1] == b->color[1] && a->color[2] == b->color[2] &&
+           a->intensity == b->intensity && a->range == b->range && a->inner_cone == b->inner_cone &&
+           a->outer_cone == b->outer_cone;
+}
+
+void wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const float *scales, int n) {
+    if (n < 0) n = 0;
+    if (n > r->lights_cap) {
+        r->lights = wrt_xrealloc(r->lights, (size_t)n * sizeof(light_state));
+        for (int i = r->lights_cap; i < n; i++) {
+            memset(&r->lights[i], 0, sizeof(light_state));
+            r->lights[i].root = wrt_xcalloc((size_t)r->g->nquads * 3 + 1, sizeof(double));
+        }
+        r->lights_cap = n;
+    }
+    if (n != r->nlights) r->e_dirty = 1;
+    for (int i = 0; i < n; i++) {
+        light_state *ls = &r->lights[i];
+        float s = scales ? scales[i] : 1.0f;
+        if (i >= r->nlights || !ls->projected || !same_light(&ls->light, &lights[i])) {
+            ls->light = lights[i];
+            ls->projected = 0;
+            r->e_dirty = 1;
+        }
+        if (i >= r->nlights || ls->scale != s) { ls->scale = s; r->e_dirty = 1; }
+    }
+    r->nlights = n;
+}
+
+void wrt_relight_set_eye(wrt_relight *r, const double eye[3]) {
+    if (!r->have_eye || eye[0] != r->eye[0] || eye[1] != r->eye[1] || eye[2] != r->eye[2]) {
+        r->eye[0] = eye[0]; r->eye[1] = eye[1]; r->eye[2] = eye[2];
+        r->have_eye = 1;
+        r->eye_dirty = 1;
+    }
+}
+
+int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
+    wrt_relight_timings t = {0};
+    const wrt_gto *g = r->g;
+    uint32_t nq = g->nquads, nf = g->nfuncs;
+    int nchanged = 0;
+    double t0 = wrt_now();
+    for (int i = 0; i < r->nlights; i++) {
+        light_state *ls = &r->lights[i];
+        if (ls->projected || ls->scale == 0) continue;
+        project_light(r, ls);
+        t.lights_changed++;
+    }
+    double t1 = wrt_now();
+    t.projection = (t1 - t0) * 1e3;
+    memset(r->resynth, 0, nq);
+    if (r->e_dirty) {
+        r->e_dirty = 0;
+        /* E = sum of scaled per-light projections, in light order. */
+        memset(r->E, 0, (size_t)nf * 3 * sizeof(float));
+        for (int i = 0; i < r->nlights; i++) {
+            const light_state *ls = &r->lights[i];
+            if (ls->scale == 0 || !ls->projected) continue;
+            for (size_t k = 0; k < ls->n; k++)
+                for (int c = 0; c < 3; c++) r->E[(size_t)ls->idx[k] * 3 + c] += ls->scale * ls->val[k * 3 + c];
+        }
+        /* X = Op E over the non-zero sources only, in column order for every row. */
+        uint32_t ncols = 0;
+        double entries = 0;
+        for (uint32_t c = 0; c < nf; c++) {
+            const float *e = r->E + (size_t)c * 3;
+            if (e[0] == 0 && e[1] == 0 && e[2] == 0) continue;
+            r->cols[ncols++] = c;
+            entries += (double)(g->col_start[c + 1] - g->col_start[c]);
+        }
+        mul_ctx mc = {r->cols, ncols, 0};
+        int nchunk = r->nthreads;
+        if (nchunk > MUL_MAX_CHUNKS) nchunk = MUL_MAX_CHUNKS;
+        mc.nchunk = nchunk;
+        parallel_for(r, nchunk, (entries + nf) / 50, mul_chunk, &mc); /* ~4 ns an entry */
+        memcpy(r->Xprev, r->X, (size_t)nf * 3 * sizeof(float)); /* X keeps its address */
+        for (size_t k = 0; k < (size_t)nf * 3; k++) r->X[k] = (float)r->Xd[k];
+        for (uint32_t q = 0; q < nq; q++) {
+            const wrt_gto_quad *gq = &g->quads[q];
+            size_t a = (size_t)gq->func_first * 3, n = (size_t)gq->func_count * 3;
+            if (memcmp(r->X + a, r->Xprev + a, n * sizeof(float)) != 0) r->resynth[q] = 1;
+            int nz = 0;
+            for (size_t k = a; k < a + n && !nz; k++) nz = r->X[k] != 0;
+            r->x_nonzero[q] = (uint8_t)nz;
+        }
+    }
+    double t2 = wrt_now();
+    t.multiply = (t2 - t1) * 1e3;
+    if (r->eye_dirty) {
+        r->eye_dirty = 0;
+        for (uint32_t q = 0; q < nq; q++)
+            if (r->qi[q].glossy && r->x_nonzero[q]) r->resynth[q] = 1;
+    }
+    int *list = wrt_xmalloc((nq + 1) * sizeof(int));
+    int nsynth = 0, ncleared = 0;
+    for (uint32_t q = 0; q < nq; q++) {
+        if (!r->resynth[q]) continue;
+        if (!r->x_nonzero[q]) { /* all dark: clear once */
+            if (r->tex_nonzero[q]) {
+                memset(r->tex + r->qi[q].tex_off, 0, ((size_t)1 << (2 * r->qi[q].tex_level)) * 3 * sizeof(float));
+                r->tex_nonzero[q] = 0;
+                ncleared++;
+            }
+            continue;
+        }
+        if (r->qi[q].glossy && !r->have_eye) continue; /* no view yet: waits for set_eye */
+        r->tex_nonzero[q] = 1;
+        list[nsynth++] = (int)q;
+    }
+    for (int tt = 0; tt < r->nthreads; tt++) r->workers[tt].brdf_time = 0;
+    synth_ctx sc = {list};
+    double t3 = wrt_now();
+    double work = 0;
+    for (int k = 0; k < nsynth; k++) {
+        const quad_info *qi = &r->qi[list[k]];
+        work += ldexp(qi->glossy ? 0.3 * qi->nang : 0.1, 2 * qi->tex_level); /* ~20 ns a texel */
+    }
+    parallel_for(r, nsynth, work, synth_item, &sc);
+    double t4 = wrt_now(), bt = 0;
+    for (int tt = 0; tt < r->nthreads; tt++) bt += r->workers[tt].brdf_time;
+    int used = r->nthreads < nsynth ? r->nthreads : (nsynth ? nsynth : 1);
+    t.brdf = bt / used * 1e3;
+    t.synthesis = (t4 - t3) * 1e3 - t.brdf;
+    if (t.synthesis < 0) t.synthesis = 0;
+    nchanged = nsynth + ncleared;
+    t.quads_resynthesized = nchanged;
+    free(list);
+    if (tm) *tm = t;
+    return nchanged;
+}
+
+/* ------------------------------------------------------------- accessors ---- */
+
+int wrt_relight_tex_res(const wrt_relight *r, int q) {
+    if (q < 0 || q >= (int)r->g->nquads) return 0;
+    return 1 << r->qi[q].tex_level;
+}
+
+const float *wrt_relight_tex(const wrt_relight *r, int q) {
+    if (q < 0 || q >= (int)r->g->nquads) return NULL;
+    return r->tex + r->qi[q].tex_off;
+}
+
+void wrt_relight_quad_irradiance(const wrt_relight *r, int q, double direct[3], double indirect[3]) {
+    for (int c = 0; c < 3; c++) direct[c] = indirect[c] = 0;
+    if (q < 0 || q >= (int)r->g->nquads) return;
+    const quad_info *qi = &r->qi[q];
+    for (int i = 0; i < r->nlights; i++) {
+        const light_state *ls = &r->lights[i];
+        if (!ls->projected || ls->scale == 0) continue;
+        for (int c = 0; c < 3; c++) direct[c] += ls->scale * ls->root[q * 3 + c] * qi->mean_factor;
+    }
+    if (qi->root_func >= 0)
+        for (int c = 0; c < 3; c++) indirect[c] = r->X[(size_t)qi->root_func * 3 + c] * qi->mean_factor;
+}
+
+const float *wrt_relight_E(const wrt_relight *r) { return r->E; }
+const float *wrt_relight_X(const wrt_relight *r) { return r->X; }
+
+double wrt_relight_bench(wrt_relight *r, int updates, wrt_relight_timings *mean) {
+    wrt_relight_timings sum = {0};
+    if (mean) *mean = sum;
+    if (r->nlights == 0 || updates <= 0) return -1;
+    wrt_light *ls = wrt_xmalloc((size_t)r->nlights * sizeof(wrt_light));
+    float *sc = wrt_xmalloc((size_t)r->nlights * sizeof(float));
+    for (int i = 0; i < r->nlights; i++) { ls[i] = r->lights[i].light; sc[i] = r->lights[i].scale; }
+    wrt_v3 p0 = ls[0].pos;
+    double rad = 0.02 * r->scene_diag, t0 = wrt_now();
+    for (int k = 0; k < updates; k++) {
+        double a = 2 * WRT_PI * (k + 1) / updates;
+        ls[0].pos = v3(p0.x + rad * cos(a), p0.y, p0.z + rad * sin(a));
+        wrt_relight_set_lights(r, ls, sc, r->nlights);
+        wrt_relight_timings t;
+        wrt_relight_update(r, &t);
+        sum.projection += t.projection; sum.multiply += t.multiply;
+        sum.brdf += t.brdf; sum.synthesis += t.synthesis;
+        sum.quads_resynthesized += t.quads_resynthesized; sum.lights_changed += t.lights_changed;
+    }
+    double ms = (wrt_now() - t0) * 1e3 / updates;
+    ls[0].pos = p0;
+    wrt_relight_set_lights(r, ls, sc, r->nlights);
+    wrt_relight_update(r, NULL);
+    if (mean) {
+        mean->projection = sum.projection / updates; mean->multiply = sum.multiply / updates;
+        mean->brdf = sum.brdf / updates; mean->synthesis = sum.synthesis / updates;
+        mean->quads_resynthesized = sum.quads_resynthesized / updates;
+        mean->lights_changed = sum.lights_changed / updates;
+    }
+    free(ls); free(sc);
+    return ms;
+}

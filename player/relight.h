@@ -1,0 +1,78 @@
+/* relight.h: the player's run-time core (paper section 5): each time a light moves,
+ * project the direct light onto the wavelet basis (E), apply the baked indirect
+ * operator (X = Op E, Op = G - I or the gathered T_fine G, both indirect only), turn
+ * incident into outgoing radiance with each quad's BRDF, and synthesize one texture of
+ * outgoing indirect radiance per quad. Independent of OpenGL: the display (render.c)
+ * only uploads the textures. Depends on formats/gto.h, common/basis.h, common/brdf.h,
+ * Embree 3 (shadow rays for the projection). Not thread-safe: one caller at a time. */
+#ifndef WRT_RELIGHT_H
+#define WRT_RELIGHT_H
+
+#include "../formats/gto.h"
+
+typedef struct wrt_relight wrt_relight;
+
+typedef struct wrt_relight_options {
+    int proj_level;      /* spatial projection level; 0 = chosen per quad from the light (default) */
+    int max_tex_res;     /* cap on a quad's texture resolution (0 = 64) */
+    int threads;         /* 0 = all cores */
+} wrt_relight_options;
+
+typedef struct wrt_relight_timings { /* milliseconds of the last update */
+    double projection, multiply, brdf, synthesis;
+    int quads_resynthesized;
+    int lights_changed;
+} wrt_relight_timings;
+
+/* `g` must outlive the relighter (it points into the mapping). */
+wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out);
+void wrt_relight_destroy(wrt_relight *r); /* NULL is a no-op */
+
+/* Sets the lights (copied). scales[i] multiplies light i (0 switches it off); scales may
+ * be NULL (all 1). Only lights that changed are re-projected at the next update. */
+void wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const float *scales, int n);
+/* Sets the eye position; only glossy quads depend on it. */
+void wrt_relight_set_eye(wrt_relight *r, const double eye[3]);
+
+/* Recomputes what changed since the last call. Returns the number of quads whose
+ * texture changed (0: nothing to upload). `t` may be NULL. */
+int wrt_relight_update(wrt_relight *r, wrt_relight_timings *t);
+
+/* Quad q's texture of outgoing indirect radiance (linear RGB floats, res x res texels,
+ * texel (i, j) covers u in [i/res, (i+1)/res), v in [j/res, (j+1)/res), stored row j
+ * after row j-1). Valid until the next update. */
+int wrt_relight_tex_res(const wrt_relight *r, int q);
+const float *wrt_relight_tex(const wrt_relight *r, int q);
+
+/* Mean incident irradiance over quad q (RGB), direct (from the projection) and indirect
+ * (from X), for --stats-json and the tests. */
+void wrt_relight_quad_irradiance(const wrt_relight *r, int q, double direct[3], double indirect[3]);
+
+/* The coefficient vectors themselves (length g->nfuncs, RGB interleaved), for tests. */
+const float *wrt_relight_E(const wrt_relight *r);
+const float *wrt_relight_X(const wrt_relight *r);
+
+/* ---- Additions beyond the fixed interface (tests, --bench) ----
+ * Notes on the calls above: glossy (non-Lambertian) quads are synthesized only once
+ * wrt_relight_set_eye has been called; wrt_relight_X and wrt_relight_E keep their
+ * address for the relighter's lifetime; the first update after create projects every
+ * light (create itself tabulates the BRDF of each glossy material: ~0.1 s each). */
+
+/* Index of the angular Haar function (node level 0..3, node x, y, type 0..3) in the
+ * angular tables: 0 for the root scaling function, then level by level, node by node,
+ * three wavelets each (256 in all). */
+int wrt_relight_angular_index(int level, int x, int y, int type);
+
+/* BRDF weight of material m for angular function `ang` and an outgoing direction given
+ * by its concentric coordinates (a_o, b_o) in the quad's frame:
+ * beta_g(w_o) = pi * integral over [0,1]^2 of f_r(M(a,b), w_o) g(a,b) da db, from the
+ * 16 x 16 table (bilinear). Returns 0 (out = 0) if m has no table (Lambertian or unused
+ * by any quad). For g = the root, beta is the directional albedo. */
+int wrt_relight_beta(const wrt_relight *r, int m, double a_o, double b_o, int ang, double out[3]);
+
+/* Micro-benchmark: moves light 0 around a small circle (2% of the scene diagonal) for
+ * `updates` updates, restores it, and returns the mean milliseconds per update (mean
+ * timings in *mean if not NULL); -1 if no light is set. */
+double wrt_relight_bench(wrt_relight *r, int updates, wrt_relight_timings *mean);
+
+#endif

@@ -1,0 +1,403 @@
+/* bake.c: orchestration of the bake: the scene moved to a local frame (precision far
+ * from the origin), Embree's scene for visibility, the list of quad pairs that can
+ * exchange light (and whether an occluder can lie between them), the DTO computed pair
+ * by pair on all cores with results merged in pair order (identical output whatever the
+ * thread count), the basis functions indexed, then the series (series.c).
+ * Depends on Embree 3, dto.c, series.c, sparse.c. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../common/basis.h"
+#include "../common/threads.h"
+#include "../common/brdf.h"
+#include "bake_internal.h"
+
+void wrt_bake_defaults(wrt_bake_options *o) {
+    if (o->quality <= 0) o->quality = 5;
+    if (o->quality > 9) o->quality = 9;
+    int q = o->quality;
+    double f = pow(0.5, q - 1);
+    if (o->eps_receiver <= 0) o->eps_receiver = 0.16 * f;
+    if (o->eps_sender <= 0) o->eps_sender = 0.32 * f;
+    if (o->eps_compress <= 0) o->eps_compress = 2e-3 * f;
+    if (o->max_slevel <= 0) o->max_slevel = 2 + (q + 1) / 2;
+    if (o->max_slevel > WRT_MAX_SLEVEL) o->max_slevel = WRT_MAX_SLEVEL;
+    if (o->min_slevel < 0) o->min_slevel = 0;
+    if (o->receiver_samples <= 0) o->receiver_samples = 16;
+    if (o->max_bounces <= 0) o->max_bounces = 2000;
+    if (o->max_alevel <= 0) o->max_alevel = q <= 3 ? 1 : q <= 6 ? 2 : 3;
+    if (o->max_alevel > WRT_MAX_ALEVEL) o->max_alevel = WRT_MAX_ALEVEL;
+}
+
+/* Angular function values at (a, b), 4^L of them (dense). */
+static void angular_dense(int L, double a, double b, double *val) {
+    int n = 1 << (2 * L);
+    for (int i = 0; i < n; i++) {
+        wrt_node nd;
+        int t;
+        wrt_angular_func(i, &nd, &t);
+        val[i] = wrt_haar2(nd, t, a, b);
+    }
+}
+
+/* btilde_g(w_o) = integral f(w, w_o) g(M^-1 w) cos dw, estimated by importance sampling the
+ * BRDF (f cos / pdf weights) with a fixed stratified sequence, on a BT_RES^2 grid of w_o. */
+void wrt_bake_btilde_build(bake_ctx *b) {
+    const wrt_scene *sc = b->scene;
+    b->btilde = wrt_xcalloc((size_t)(sc->nmaterials ? sc->nmaterials : 1), sizeof *b->btilde);
+    enum { NS = 1024 };
+    for (int m = 0; m < sc->nmaterials; m++) {
+        int L = b->alevel[m];
+        if (!L) continue;
+        int na = 1 << (2 * L);
+        float *tab = wrt_xcalloc((size_t)WRT_BT_RES * WRT_BT_RES * na * 3, sizeof *tab);
+        double *acc = wrt_xmalloc((size_t)na * 3 * sizeof *acc), *g = wrt_xmalloc((size_t)na * sizeof *g);
+        wrt_v3 n = v3(0, 0, 1);
+        for (int cell = 0; cell < WRT_BT_RES * WRT_BT_RES; cell++) {
+            double ao = ((cell % WRT_BT_RES) + 0.5) / WRT_BT_RES, bo = ((cell / WRT_BT_RES) + 0.5) / WRT_BT_RES, d[3];
+            wrt_concentric_dir(ao, bo, d);
+            wrt_v3 wo = v3(d[0], d[1], d[2]);
+            memset(acc, 0, (size_t)na * 3 * sizeof *acc);
+            for (int i = 0; i < NS; i++) {
+                double u1 = (i + 0.5) / NS, u2 = fmod(0.5 + i * 0.7548776662466927, 1.0),
+                       u3 = fmod(0.5 + i * 0.5698402909980532, 1.0), w[3];
+                wrt_v3 wi = wrt_brdf_sample(&sc->materials[m], n, wo, u1, u2, u3, w);
+                if (!(w[0] > 0 || w[1] > 0 || w[2] > 0) || !(wi.z > 0)) continue;
+                double loc[3] = {wi.x, wi.y, wi.z}, a, bb;
+                wrt_concentric_inv(loc, &a, &bb);
+                angular_dense(L, a, bb, g);
+                for (int k = 0; k < na; k++)
+                    for (int c = 0; c < 3; c++) acc[3 * k + c] += w[c] * g[k];
+            }
+            for (int k = 0; k < 3 * na; k++) tab[(size_t)cell * na * 3 + k] = (float)(acc[k] / NS);
+        }
+        free(acc); free(g);
+        b->btilde[m] = tab;
+    }
+}
+
+void wrt_bake_btilde(const bake_ctx *b, int m, double a, double bb, double *out) {
+    int L = b->alevel[m], na = 1 << (2 * L);
+    const float *tab = b->btilde[m];
+    double x = a * WRT_BT_RES - 0.5, y = bb * WRT_BT_RES - 0.5;
+    int x0 = (int)floor(x), y0 = (int)floor(y);
+    double fx = x - x0, fy = y - y0;
+    int xs[2] = {x0 < 0 ? 0 : x0 > WRT_BT_RES - 1 ? WRT_BT_RES - 1 : x0, x0 + 1 > WRT_BT_RES - 1 ? WRT_BT_RES - 1 : x0 + 1 < 0 ? 0 : x0 + 1};
+    int ys[2] = {y0 < 0 ? 0 : y0 > WRT_BT_RES - 1 ? WRT_BT_RES - 1 : y0, y0 + 1 > WRT_BT_RES - 1 ? WRT_BT_RES - 1 : y0 + 1 < 0 ? 0 : y0 + 1};
+    double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+    for (int k = 0; k < 3 * na; k++) out[k] = 0;
+    for (int c = 0; c < 4; c++) {
+        const float *t = &tab[((size_t)ys[c >> 1] * WRT_BT_RES + xs[c & 1]) * na * 3];
+        for (int k = 0; k < 3 * na; k++) out[k] += w[c] * t[k];
+    }
+}
+
+static double signed_dist(const wrt_quad *q, wrt_v3 p) { return v3_dot(v3_sub(p, q->p[0]), q->n); }
+
+/* Can light leave s and reach r: some of s in front of r and some of r in front of s. */
+static int can_exchange(const bake_ctx *b, const wrt_quad *r, const wrt_quad *s) {
+    int a = 0, c = 0;
+    for (int i = 0; i < 4; i++) {
+        if (signed_dist(r, s->p[i]) > b->plane_eps) a = 1;
+        if (signed_dist(s, r->p[i]) > b->plane_eps) c = 1;
+    }
+    return a && c;
+}
+
+/* Clips a polygon to the half-space signed_dist(q, p) >= eps. */
+static int clip_front(const wrt_quad *q, double eps, const wrt_v3 *in, int n, wrt_v3 *out) {
+    int m = 0;
+    for (int i = 0; i < n; i++) {
+        wrt_v3 a = in[i], c = in[(i + 1) % n];
+        double da = signed_dist(q, a) - eps, dc = signed_dist(q, c) - eps;
+        if (da >= 0) out[m++] = a;
+        if ((da >= 0) != (dc >= 0)) out[m++] = v3_add(a, v3_scale(v3_sub(c, a), da / (da - dc)));
+    }
+    return m;
+}
+
+/* Can quad o lie between r and s? Conservative: its part strictly in front of both
+ * planes must overlap the (slightly shrunk) bounding box of r and s. */
+static int may_occlude(const bake_ctx *b, const wrt_quad *r, const wrt_quad *s, const wrt_quad *o) {
+    wrt_v3 p1[12], p2[16];
+    int n1 = clip_front(r, b->plane_eps, o->p, 4, p1);
+    if (n1 < 3) return 0;
+    int n2 = clip_front(s, b->plane_eps, p1, n1, p2);
+    if (n2 < 3) return 0;
+    wrt_v3 lo = r->p[0], hi = r->p[0];
+    for (int i = 0; i < 8; i++) {
+        wrt_v3 p = i < 4 ? r->p[i] : s->p[i - 4];
+        lo = v3(fmin(lo.x, p.x), fmin(lo.y, p.y), fmin(lo.z, p.z));
+        hi = v3(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
+    }
+    wrt_v3 olo = p2[0], ohi = p2[0];
+    for (int i = 1; i < n2; i++) {
+        olo = v3(fmin(olo.x, p2[i].x), fmin(olo.y, p2[i].y), fmin(olo.z, p2[i].z));
+        ohi = v3(fmax(ohi.x, p2[i].x), fmax(ohi.y, p2[i].y), fmax(ohi.z, p2[i].z));
+    }
+    double e = b->plane_eps;
+    return olo.x < hi.x - e && ohi.x > lo.x + e && olo.y < hi.y - e && ohi.y > lo.y + e &&
+           olo.z < hi.z - e && ohi.z > lo.z + e;
+}
+
+typedef struct dto_job {
+    const bake_ctx *b;
+    const int *pr, *ps;
+    const uint8_t *occl;
+    pair_out *out;
+    bake_thread_counters *tc;
+    atomic_size_t done;
+    size_t total;
+} dto_job;
+
+static void dto_one(size_t i, int th, void *user) {
+    dto_job *j = user;
+    wrt_dto_pair(j->b, j->pr[i], j->ps[i], j->occl[i], &j->tc[th], &j->out[i]);
+    atomic_fetch_add(&j->done, 1);
+}
+
+int64_t wrt_fkey_find(const uint64_t *fkeys, uint32_t n, uint64_t key) {
+    uint32_t lo = 0, hi = n;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (fkeys[mid] < key) lo = mid + 1;
+        else hi = mid;
+    }
+    return (lo < n && fkeys[lo] == key) ? (int64_t)lo : -1;
+}
+
+static int cmp_u64(const void *pa, const void *pb) {
+    uint64_t a = *(const uint64_t *)pa, b = *(const uint64_t *)pb;
+    return a < b ? -1 : a > b;
+}
+
+/* The link of a function: its key without the wavelet types. */
+static uint64_t support_of(uint64_t k) { return k & ~((3ULL << 16) | (3ULL << 6)); }
+
+typedef struct link_pair { uint64_t r, s; } link_pair;
+static int cmp_lp(const void *pa, const void *pb) {
+    const link_pair *a = pa, *b = pb;
+    if (a->r != b->r) return a->r < b->r ? -1 : 1;
+    return a->s < b->s ? -1 : a->s > b->s;
+}
+
+uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys) {
+    if (!m->nnz) return 0;
+    link_pair *lp = wrt_xmalloc(m->nnz * sizeof *lp);
+    uint64_t k = 0;
+    for (uint32_t j = 0; j < m->n; j++)
+        for (uint64_t i = m->col[j]; i < m->col[j + 1]; i++)
+            lp[k++] = (link_pair){support_of(fkeys[m->row[i]]), support_of(fkeys[j])};
+    qsort(lp, k, sizeof *lp, cmp_lp);
+    uint64_t links = 0;
+    for (uint64_t i = 0; i < k; i++)
+        if (i == 0 || lp[i].r != lp[i - 1].r || lp[i].s != lp[i - 1].s) links++;
+    free(lp);
+    return links;
+}
+
+static void material_rho(const wrt_material *m, double rho[3]) {
+    for (int c = 0; c < 3; c++) {
+        double base = m->base_color[c];
+        /* non-Lambertian materials: diffuse part of the glTF model plus the
+         * normal-incidence specular reflectance, as a diffuse albedo */
+        if (!m->lambertian) base = (1 - m->metallic) * base * 0.96 + (0.04 * (1 - m->metallic) + m->metallic * base);
+        rho[c] = base < 0 ? 0 : base > 1 ? 1 : base;
+    }
+}
+
+wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, wrt_bake_result *res) {
+    memset(res, 0, sizeof *res);
+    bake_ctx b = {.scene = scene, .nq = scene->nquads};
+    b.opt = opt_in ? *opt_in : (wrt_bake_options){0};
+    wrt_bake_defaults(&b.opt);
+    if (b.opt.receiver_samples % 4 || b.opt.receiver_samples > 64)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "receiver samples must be a multiple of 4, at most 64 (got %d)",
+                        b.opt.receiver_samples);
+    atomic_int cancel;
+    atomic_init(&cancel, 0);
+    b.cancel = &cancel;
+    wrt_bake_counters *C = &res->c;
+    double t0 = wrt_now();
+
+    /* local frame: translate to the bounding box centre */
+    wrt_v3 centre = v3_scale(v3_add(scene->bbox_min, scene->bbox_max), 0.5);
+    b.scene_size = v3_len(v3_sub(scene->bbox_max, scene->bbox_min));
+    if (!(b.scene_size > 0) || !isfinite(b.scene_size))
+        return wrt_fail(WRT_ERR_GEOMETRY, "scene has no extent (bounding box diagonal %g)", b.scene_size);
+    b.ray_eps = 1e-6 * b.scene_size;
+    b.plane_eps = 1e-7 * b.scene_size;
+    b.entry_floor = 0.1 * b.opt.eps_compress; /* far below what the series keeps */
+    b.quads = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * sizeof *b.quads);
+    b.rho = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * sizeof *b.rho);
+    int nglossy = 0;
+    for (int i = 0; i < b.nq; i++) {
+        b.quads[i] = scene->quads[i];
+        for (int k = 0; k < 4; k++) b.quads[i].p[k] = v3_sub(scene->quads[i].p[k], centre);
+        const wrt_material *m = &scene->materials[scene->quads[i].material];
+        material_rho(m, b.rho[i]);
+        nglossy += !m->lambertian;
+    }
+    (void)nglossy;
+    res->material_alevel = wrt_xcalloc((size_t)(scene->nmaterials ? scene->nmaterials : 1), 1);
+    b.alevel = res->material_alevel;
+    for (int m = 0; m < scene->nmaterials; m++) {
+        int l = wrt_brdf_angular_level(&scene->materials[m]);
+        b.alevel[m] = (uint8_t)(l > b.opt.max_alevel ? b.opt.max_alevel : l);
+    }
+    wrt_bake_btilde_build(&b);
+
+    /* Embree */
+    b.dev = rtcNewDevice("threads=1");
+    if (!b.dev) { free(b.quads); free(b.rho); return wrt_fail(WRT_ERR_NOMEM, "Embree device creation failed"); }
+    b.rtc = rtcNewScene(b.dev);
+    rtcSetSceneFlags(b.rtc, RTC_SCENE_FLAG_ROBUST);
+    RTCGeometry geom = rtcNewGeometry(b.dev, RTC_GEOMETRY_TYPE_QUAD);
+    float *vb = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                        (size_t)(b.nq ? b.nq : 1) * 4);
+    unsigned *ib = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned),
+                                           (size_t)(b.nq ? b.nq : 1));
+    for (int i = 0; i < b.nq; i++) {
+        for (int k = 0; k < 4; k++) {
+            vb[12 * i + 3 * k] = (float)b.quads[i].p[k].x;
+            vb[12 * i + 3 * k + 1] = (float)b.quads[i].p[k].y;
+            vb[12 * i + 3 * k + 2] = (float)b.quads[i].p[k].z;
+            ib[4 * i + k] = (unsigned)(4 * i + k);
+        }
+    }
+    rtcCommitGeometry(geom);
+    rtcAttachGeometry(b.rtc, geom);
+    rtcReleaseGeometry(geom);
+    rtcCommitScene(b.rtc);
+
+    /* pairs */
+    size_t cap = 64, np = 0;
+    int *pr = wrt_xmalloc(cap * sizeof *pr), *ps = wrt_xmalloc(cap * sizeof *ps);
+    uint8_t *occl = wrt_xmalloc(cap);
+    for (int r = 0; r < b.nq; r++) {
+        for (int s = 0; s < b.nq; s++) {
+            if (r == s) continue;
+            C->pairs_total++;
+            if (!can_exchange(&b, &b.quads[r], &b.quads[s])) { C->pairs_skipped_facing++; continue; }
+            int oc = 0;
+            for (int o = 0; o < b.nq && !oc; o++)
+                if (o != r && o != s && may_occlude(&b, &b.quads[r], &b.quads[s], &b.quads[o])) oc = 1;
+            if (np == cap) {
+                cap *= 2;
+                pr = wrt_xrealloc(pr, cap * sizeof *pr); ps = wrt_xrealloc(ps, cap * sizeof *ps);
+                occl = wrt_xrealloc(occl, cap);
+            }
+            pr[np] = r; ps[np] = s; occl[np] = (uint8_t)oc; np++;
+            C->pairs_exchange++;
+            C->pairs_unoccluded += !oc;
+        }
+    }
+
+    /* DTO, pair by pair, in parallel; pairs in order of decreasing expected cost
+     * would balance better, but the order does not change the result */
+    int nt = wrt_threads_resolve(b.opt.threads);
+    dto_job job = {.b = &b, .pr = pr, .ps = ps, .occl = occl, .total = np};
+    atomic_init(&job.done, 0);
+    job.out = wrt_xcalloc(np ? np : 1, sizeof *job.out);
+    job.tc = wrt_xcalloc((size_t)nt, sizeof *job.tc);
+    /* run in chunks so the progress callback can be called between them */
+    size_t chunk = np / 50 + 1;
+    for (size_t start = 0; start < np; start += chunk) {
+        size_t n = np - start < chunk ? np - start : chunk;
+        dto_job sub = job;
+        sub.pr = pr + start; sub.ps = ps + start; sub.occl = occl + start; sub.out = job.out + start;
+        wrt_parallel_for(n, nt, dto_one, &sub);
+        if (b.opt.progress && !b.opt.progress("dto", (double)(start + n) / (double)np, b.opt.progress_user))
+            atomic_store(&cancel, 1);
+        if (atomic_load(&cancel)) break;
+    }
+    for (int t = 0; t < nt; t++) {
+        C->samples += job.tc[t].samples;
+        C->rays_traced += job.tc[t].rays_traced;
+        C->rays_skipped_facing += job.tc[t].rays_skipped_facing;
+        C->rays_skipped_unoccluded += job.tc[t].rays_skipped_unoccluded;
+        C->links_refined += job.tc[t].links_refined;
+        C->links_leaf += job.tc[t].links_leaf;
+        C->links_invisible += job.tc[t].links_invisible;
+        C->t_rays += job.tc[t].t_rays;
+    }
+    wrt_status st = WRT_OK;
+    if (atomic_load(&cancel)) st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
+
+    /* index the basis functions: every key used, plus each quad's root */
+    uint64_t nent = 0;
+    for (size_t i = 0; i < np; i++) {
+        nent += job.out[i].count;
+        C->links_dto += job.out[i].links;
+        C->entries_angular += job.out[i].angular;
+        if (job.out[i].glossy) C->links_dto_glossy += job.out[i].links;
+        else C->links_dto_diffuse += job.out[i].links;
+    }
+    if (st == WRT_OK) {
+        uint64_t *keys = wrt_xmalloc((2 * nent + (size_t)b.nq + 1) * sizeof *keys);
+        uint64_t nk = 0;
+        for (int q = 0; q < b.nq; q++) keys[nk++] = wrt_fkey_make((uint32_t)q, wrt_node_root(), 0, wrt_node_root(), 0);
+        for (size_t i = 0; i < np; i++)
+            for (size_t k = 0; k < job.out[i].count; k++) {
+                keys[nk++] = job.out[i].e[k].r;
+                keys[nk++] = job.out[i].e[k].s;
+            }
+        qsort(keys, nk, sizeof *keys, cmp_u64);
+        uint64_t nu = 0;
+        for (uint64_t i = 0; i < nk; i++)
+            if (nu == 0 || keys[nu - 1] != keys[i]) keys[nu++] = keys[i];
+        if (nu > UINT32_MAX - 1) {
+            st = wrt_fail(WRT_ERR_INVALID_ARG, "too many basis functions (%llu)", (unsigned long long)nu);
+            free(keys);
+        } else {
+            res->nfuncs = (uint32_t)nu;
+            res->fkeys = keys;
+            wrt_triplet *tr = wrt_xmalloc((nent ? nent : 1) * sizeof *tr);
+            uint64_t t = 0;
+            for (size_t i = 0; i < np; i++)
+                for (size_t k = 0; k < job.out[i].count; k++) {
+                    const pair_entry *e = &job.out[i].e[k];
+                    tr[t].row = (uint32_t)wrt_fkey_find(keys, res->nfuncs, e->r);
+                    tr[t].col = (uint32_t)wrt_fkey_find(keys, res->nfuncs, e->s);
+                    memcpy(tr[t].v, e->v, sizeof e->v);
+                    t++;
+                }
+            res->dto = wrt_csc_from_triplets(res->nfuncs, tr, t);
+            free(tr);
+            C->entries_dto = res->dto.nnz;
+            C->entries_spatial = res->dto.nnz - C->entries_angular;
+            C->nfuncs = res->nfuncs;
+            for (uint32_t f = 0; f < res->nfuncs; f++) C->nfuncs_angular += !wrt_fkey_angular_root(res->fkeys[f]);
+        }
+    }
+    for (size_t i = 0; i < np; i++) free(job.out[i].e);
+    free(job.out); free(job.tc); free(pr); free(ps); free(occl);
+    C->t_dto = wrt_now() - t0;
+
+    if (st == WRT_OK) {
+        double t1 = wrt_now();
+        st = wrt_series_run(&b, res);
+        C->t_gto = wrt_now() - t1;
+    }
+    rtcReleaseScene(b.rtc);
+    rtcReleaseDevice(b.dev);
+    free(b.quads); free(b.rho);
+    for (int m = 0; m < scene->nmaterials; m++) free(b.btilde[m]);
+    free(b.btilde);
+    if (st != WRT_OK) {
+        char msg[1024];
+        snprintf(msg, sizeof msg, "%s", wrt_last_error());
+        wrt_bake_result_free(res);
+        return wrt_fail(st, "%s", msg);
+    }
+    return WRT_OK;
+}
+
+void wrt_bake_result_free(wrt_bake_result *res) {
+    free(res->fkeys);
+    wrt_csc_free(&res->dto);
+    wrt_csc_free(&res->op);
+    free(res->material_alevel);
+    memset(res, 0, sizeof *res);
+}

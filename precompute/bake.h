@@ -1,0 +1,91 @@
+/* bake.h: wrt-bake's computation as a library: the Direct Transport Operator by
+ * hierarchical refinement in the 4D Haar basis (paper 4.3; dto.c), then the Global
+ * Transport Operator by a Neumann series with non-linear compression (paper 4.4;
+ * series.c). The command line (main.c) only parses options, draws progress and writes
+ * the file. Depends on formats/scene.h, common/basis.h, common/brdf.h, Embree 3. */
+#ifndef WRT_BAKE_H
+#define WRT_BAKE_H
+
+#include "../formats/scene.h"
+#include "sparse.h"
+
+/* Progress: phase name and fraction done; return 0 to cancel. */
+typedef int (*wrt_progress_fn)(const char *phase, double done, void *user);
+
+/* Zero means "default" for every field; wrt_bake_defaults() shows the defaults. */
+typedef struct wrt_bake_options {
+    int quality;           /* 1 (coarse, fast) .. 9 (fine, slow); sets the thresholds below */
+    double eps_sender;     /* refine the sender when the kernel's variation over it exceeds this */
+    double eps_receiver;   /* same for the receiver */
+    double eps_compress;   /* drop operator entries below this (max over RGB) after each product */
+    int max_slevel;        /* deepest spatial level of refinement (cells 2^-l of a quad) */
+    int min_slevel;        /* refine every link at least to this level (default 0) */
+    int max_alevel;        /* cap on the angular level of glossy materials (1..3) */
+    int receiver_samples;  /* receiver samples per link, a multiple of 4 (default 16) */
+    int threads;           /* 0 = all cores */
+    int gathered;          /* 1: store T_fine G instead of G - I */
+    int max_bounces;       /* cap on the Neumann series (default 2000) */
+    int no_tail;           /* 1: do not add the geometric estimate of the series' tail */
+    wrt_progress_fn progress;
+    void *progress_user;
+} wrt_bake_options;
+
+/* Resolves the zero fields of *o from o->quality (or the default quality 5). */
+void wrt_bake_defaults(wrt_bake_options *o);
+
+/* What the bake simulated and what it skipped. */
+typedef struct wrt_bake_counters {
+    uint64_t pairs_total;          /* ordered pairs of distinct quads */
+    uint64_t pairs_exchange;       /* pairs that can exchange light */
+    uint64_t pairs_skipped_facing; /* back-facing, coplanar or outside each other's hemisphere */
+    uint64_t pairs_unoccluded;     /* exchanging pairs with no possible occluder: no rays */
+    uint64_t links_refined;        /* links the oracle split */
+    uint64_t links_leaf;           /* links integrated */
+    uint64_t links_invisible;      /* leaves found mutually invisible */
+    uint64_t links_dto;            /* links holding entries after analysis */
+    uint64_t links_dto_diffuse, links_dto_glossy;
+    uint64_t entries_dto;          /* stored RGB entries of T */
+    uint64_t entries_spatial;      /* entries whose both angular factors are roots */
+    uint64_t entries_angular;      /* entries with an angular wavelet on either side */
+    uint64_t rays_traced;
+    uint64_t rays_skipped_unoccluded; /* visibility known: no occluder can lie between */
+    uint64_t rays_skipped_facing;     /* sample pair back-facing: no transfer */
+    uint64_t samples;                 /* kernel samples (receiver point x sender cell) */
+    uint64_t bounces;              /* terms of the series computed */
+    double energy_left;            /* norm of the last term kept / norm of the sum */
+    double tail_fraction;          /* norm of the tail estimate added / norm of the sum */
+    double series_ratio;           /* norm(T^n) / norm(T^(n-1)) at the stop */
+    uint64_t links_gto, entries_gto;
+    uint64_t links_gathered, entries_gathered;
+    uint32_t nfuncs, nfuncs_angular;
+    double t_dto, t_gto;           /* seconds */
+    double t_rays;                 /* thread-seconds spent in visibility rays */
+} wrt_bake_counters;
+
+typedef struct wrt_bake_result {
+    uint32_t nfuncs;
+    uint64_t *fkeys;       /* sorted basis function keys; index = matrix row/column */
+    wrt_csc dto;           /* T */
+    wrt_csc op;            /* what is stored: G - I, or T G if gathered */
+    int op_kind;           /* WRT_GTO_OP_* */
+    uint8_t *material_alevel;
+    wrt_bake_counters c;
+} wrt_bake_result;
+
+/* Runs the bake. The scene is not modified. On failure (cancel) returns a status and
+ * leaves *res empty. */
+wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt, wrt_bake_result *res);
+void wrt_bake_result_free(wrt_bake_result *res);
+
+/* Counts links (groups of entries sharing the four supports) of a matrix over fkeys. */
+uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys);
+
+/* Index of a key in the sorted fkeys, or -1. */
+int64_t wrt_fkey_find(const uint64_t *fkeys, uint32_t n, uint64_t key);
+
+/* Unoccluded form factor from a point x with unit normal n to a planar polygon
+ * (vertices in order), clipped to the half-space in front of x: 
+ * integral of cos cos / (pi d^2) dA. Closed form (Lambert). */
+double wrt_ff_point_polygon(wrt_v3 x, wrt_v3 n, const wrt_v3 *poly, int count);
+
+#endif

@@ -1,0 +1,225 @@
+/* sparse.c: CSC matrices of RGB entries: construction, Gustavson products with a
+ * dense accumulator per thread, sums and thresholding. See sparse.h. */
+#include "sparse.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../common/threads.h"
+#include "../common/wrt_common.h"
+
+static int cmp_triplet(const void *pa, const void *pb) {
+    const wrt_triplet *a = pa, *b = pb;
+    if (a->col != b->col) return a->col < b->col ? -1 : 1;
+    if (a->row != b->row) return a->row < b->row ? -1 : 1;
+    return 0;
+}
+
+wrt_csc wrt_csc_from_triplets(uint32_t n, wrt_triplet *t, uint64_t count) {
+    qsort(t, count, sizeof *t, cmp_triplet);
+    wrt_csc m = {.n = n};
+    m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
+    m.row = wrt_xmalloc((count ? count : 1) * sizeof *m.row);
+    m.val = wrt_xmalloc((count ? count : 1) * 3 * sizeof *m.val);
+    uint64_t k = 0;
+    for (uint64_t i = 0; i < count; i++) {
+        if (k > 0 && i > 0 && t[i - 1].col == t[i].col && m.row[k - 1] == t[i].row) {
+            for (int c = 0; c < 3; c++) m.val[3 * (k - 1) + c] += t[i].v[c];
+            continue;
+        }
+        m.row[k] = t[i].row;
+        memcpy(&m.val[3 * k], t[i].v, sizeof t[i].v);
+        m.col[t[i].col + 1]++;
+        k++;
+    }
+    for (uint32_t j = 0; j < n; j++) m.col[j + 1] += m.col[j];
+    m.nnz = k;
+    return m;
+}
+
+void wrt_csc_free(wrt_csc *m) {
+    free(m->col); free(m->row); free(m->val);
+    memset(m, 0, sizeof *m);
+}
+
+wrt_csc wrt_csc_copy(const wrt_csc *m) {
+    wrt_csc c = *m;
+    c.col = wrt_xmalloc(((size_t)m->n + 1) * sizeof *c.col);
+    c.row = wrt_xmalloc((m->nnz ? m->nnz : 1) * sizeof *c.row);
+    c.val = wrt_xmalloc((m->nnz ? m->nnz : 1) * 3 * sizeof *c.val);
+    memcpy(c.col, m->col, ((size_t)m->n + 1) * sizeof *c.col);
+    memcpy(c.row, m->row, m->nnz * sizeof *c.row);
+    memcpy(c.val, m->val, m->nnz * 3 * sizeof *c.val);
+    return c;
+}
+
+/* Per-column results of a product, merged in column order afterwards. */
+typedef struct col_out { uint32_t *row; float *val; uint32_t count; } col_out;
+typedef struct mul_ctx {
+    const wrt_csc *a, *b;
+    double drop;
+    col_out *out;
+    double **acc;       /* per thread: 3n doubles */
+    uint32_t **mark;    /* per thread: n markers (column index + 1) */
+    uint32_t **list;    /* per thread: touched rows */
+} mul_ctx;
+
+static int cmp_u32(const void *pa, const void *pb) {
+    uint32_t a = *(const uint32_t *)pa, b = *(const uint32_t *)pb;
+    return a < b ? -1 : a > b;
+}
+
+static void mul_column(size_t j, int th, void *user) {
+    mul_ctx *c = user;
+    const wrt_csc *a = c->a, *b = c->b;
+    double *acc = c->acc[th];
+    uint32_t *mark = c->mark[th], *list = c->list[th];
+    uint32_t nl = 0;
+    for (uint64_t kb = b->col[j]; kb < b->col[j + 1]; kb++) {
+        uint32_t k = b->row[kb];
+        const float *bv = &b->val[3 * kb];
+        for (uint64_t ka = a->col[k]; ka < a->col[k + 1]; ka++) {
+            uint32_t i = a->row[ka];
+            const float *av = &a->val[3 * ka];
+            if (mark[i] != j + 1) {
+                mark[i] = (uint32_t)(j + 1);
+                list[nl++] = i;
+                acc[3 * i] = acc[3 * i + 1] = acc[3 * i + 2] = 0;
+            }
+            acc[3 * i] += (double)av[0] * bv[0];
+            acc[3 * i + 1] += (double)av[1] * bv[1];
+            acc[3 * i + 2] += (double)av[2] * bv[2];
+        }
+    }
+    qsort(list, nl, sizeof *list, cmp_u32);
+    uint32_t kept = 0;
+    for (uint32_t t = 0; t < nl; t++) {
+        uint32_t i = list[t];
+        double m = fmax(fabs(acc[3 * i]), fmax(fabs(acc[3 * i + 1]), fabs(acc[3 * i + 2])));
+        if (m >= c->drop && m > 0) list[kept++] = i;
+    }
+    col_out *o = &c->out[j];
+    o->count = kept;
+    o->row = kept ? wrt_xmalloc(kept * sizeof *o->row) : NULL;
+    o->val = kept ? wrt_xmalloc(kept * 3 * sizeof *o->val) : NULL;
+    for (uint32_t t = 0; t < kept; t++) {
+        uint32_t i = list[t];
+        o->row[t] = i;
+        for (int ch = 0; ch < 3; ch++) o->val[3 * t + ch] = (float)acc[3 * i + ch];
+    }
+}
+
+static wrt_csc gather_columns(uint32_t n, col_out *out) {
+    wrt_csc m = {.n = n};
+    m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
+    for (uint32_t j = 0; j < n; j++) m.col[j + 1] = m.col[j] + out[j].count;
+    m.nnz = m.col[n];
+    m.row = wrt_xmalloc((m.nnz ? m.nnz : 1) * sizeof *m.row);
+    m.val = wrt_xmalloc((m.nnz ? m.nnz : 1) * 3 * sizeof *m.val);
+    for (uint32_t j = 0; j < n; j++) {
+        if (out[j].count) {
+            memcpy(&m.row[m.col[j]], out[j].row, out[j].count * sizeof *m.row);
+            memcpy(&m.val[3 * m.col[j]], out[j].val, out[j].count * 3 * sizeof *m.val);
+        }
+        free(out[j].row); free(out[j].val);
+    }
+    return m;
+}
+
+wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, int threads) {
+    uint32_t n = a->n;
+    int t = wrt_threads_resolve(threads);
+    mul_ctx c = {.a = a, .b = b, .drop = drop};
+    c.out = wrt_xcalloc(n ? n : 1, sizeof *c.out);
+    c.acc = wrt_xcalloc((size_t)t, sizeof *c.acc);
+    c.mark = wrt_xcalloc((size_t)t, sizeof *c.mark);
+    c.list = wrt_xcalloc((size_t)t, sizeof *c.list);
+    for (int i = 0; i < t; i++) {
+        c.acc[i] = wrt_xmalloc(((size_t)n * 3 + 1) * sizeof(double));
+        c.mark[i] = wrt_xcalloc((size_t)n + 1, sizeof(uint32_t));
+        c.list[i] = wrt_xmalloc(((size_t)n + 1) * sizeof(uint32_t));
+    }
+    wrt_parallel_for(n, t, mul_column, &c);
+    for (int i = 0; i < t; i++) { free(c.acc[i]); free(c.mark[i]); free(c.list[i]); }
+    free(c.acc); free(c.mark); free(c.list);
+    wrt_csc m = gather_columns(n, c.out);
+    free(c.out);
+    return m;
+}
+
+wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s) {
+    uint32_t n = a->n;
+    wrt_csc m = {.n = n};
+    uint64_t cap = a->nnz + b->nnz;
+    m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
+    m.row = wrt_xmalloc((cap ? cap : 1) * sizeof *m.row);
+    m.val = wrt_xmalloc((cap ? cap : 1) * 3 * sizeof *m.val);
+    uint64_t k = 0;
+    for (uint32_t j = 0; j < n; j++) {
+        uint64_t ia = a->col[j], ea = a->col[j + 1], ib = b->col[j], eb = b->col[j + 1];
+        while (ia < ea || ib < eb) {
+            uint32_t ra = ia < ea ? a->row[ia] : UINT32_MAX, rb = ib < eb ? b->row[ib] : UINT32_MAX;
+            if (ra <= rb) {
+                m.row[k] = ra;
+                for (int c = 0; c < 3; c++) m.val[3 * k + c] = a->val[3 * ia + c];
+                if (rb == ra) {
+                    for (int c = 0; c < 3; c++)
+                        m.val[3 * k + c] = (float)((double)m.val[3 * k + c] + s * b->val[3 * ib + c]);
+                    ib++;
+                }
+                ia++;
+            } else {
+                m.row[k] = rb;
+                for (int c = 0; c < 3; c++) m.val[3 * k + c] = (float)(s * b->val[3 * ib + c]);
+                ib++;
+            }
+            k++;
+        }
+        m.col[j + 1] = k;
+    }
+    m.nnz = k;
+    return m;
+}
+
+void wrt_csc_compress(wrt_csc *m, double drop) {
+    uint64_t k = 0, start = 0;
+    for (uint32_t j = 0; j < m->n; j++) {
+        uint64_t end = m->col[j + 1];
+        for (uint64_t i = start; i < end; i++) {
+            const float *v = &m->val[3 * i];
+            double mx = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
+            if (mx >= drop && mx > 0) {
+                m->row[k] = m->row[i];
+                memmove(&m->val[3 * k], v, 3 * sizeof *v);
+                k++;
+            }
+        }
+        start = end;
+        m->col[j + 1] = k;
+    }
+    m->nnz = k;
+}
+
+double wrt_csc_norm(const wrt_csc *m) {
+    double s = 0;
+    for (uint64_t i = 0; i < 3 * m->nnz; i++) s += (double)m->val[i] * m->val[i];
+    return sqrt(s);
+}
+
+double wrt_csc_max(const wrt_csc *m) {
+    double mx = 0;
+    for (uint64_t i = 0; i < 3 * m->nnz; i++) mx = fmax(mx, fabs(m->val[i]));
+    return mx;
+}
+
+void wrt_csc_apply(const wrt_csc *m, const double *x, double *y) {
+    for (uint32_t j = 0; j < m->n; j++) {
+        const double *xj = &x[3 * j];
+        if (xj[0] == 0 && xj[1] == 0 && xj[2] == 0) continue;
+        for (uint64_t k = m->col[j]; k < m->col[j + 1]; k++) {
+            uint32_t i = m->row[k];
+            for (int c = 0; c < 3; c++) y[3 * i + c] += (double)m->val[3 * k + c] * xj[c];
+        }
+    }
+}

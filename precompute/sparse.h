@@ -1,0 +1,39 @@
+/* sparse.h: square sparse matrices of RGB entries in compressed sparse column form
+ * (column = sender basis function, as the .gto stores them), and the products, sums
+ * and non-linear compression the Neumann series needs (paper section 4.4).
+ * Values are float RGB; products accumulate in double. Thread-safe on distinct data. */
+#ifndef WRT_SPARSE_H
+#define WRT_SPARSE_H
+
+#include <stdint.h>
+
+typedef struct wrt_csc {
+    uint32_t n;      /* n x n */
+    uint64_t nnz;
+    uint64_t *col;   /* n + 1 */
+    uint32_t *row;   /* nnz, ascending within a column */
+    float *val;      /* nnz x 3 */
+} wrt_csc;
+
+typedef struct wrt_triplet { uint32_t row, col; float v[3]; } wrt_triplet;
+
+/* Builds from triplets (sorted in place; duplicates are summed). */
+wrt_csc wrt_csc_from_triplets(uint32_t n, wrt_triplet *t, uint64_t count);
+void wrt_csc_free(wrt_csc *m);
+wrt_csc wrt_csc_copy(const wrt_csc *m);
+
+/* C = A B, entries whose largest channel magnitude is below `drop` removed.
+ * Deterministic whatever `threads`. */
+wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, int threads);
+/* C = A + s B. */
+wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s);
+/* Removes entries whose largest channel magnitude is below `drop`. */
+void wrt_csc_compress(wrt_csc *m, double drop);
+/* Frobenius norm over all channels. */
+double wrt_csc_norm(const wrt_csc *m);
+/* Largest channel magnitude of any entry. */
+double wrt_csc_max(const wrt_csc *m);
+/* y += M x for RGB vectors (x, y of length 3n). */
+void wrt_csc_apply(const wrt_csc *m, const double *x, double *y);
+
+#endif

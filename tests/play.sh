@@ -1,0 +1,117 @@
+#!/usr/bin/env bash
+# play.sh: end-to-end tests of wrt-play. Bakes a small scene with wrt-bake, renders it
+# headless to PNG and EXR and checks the pictures are not blank (read back through
+# formats/image.h by build/tests/test_image), that direct + indirect = both in linear
+# radiance, that the window opens under Xvfb and its screenshot is not blank, that the
+# statistics, benchmark and script outputs are well formed, and that missing, truncated
+# and foreign files and bad options give the documented exit codes with a message.
+# Usage: tests/play.sh BUILD. Prints "play: N passed, N failed"; non-zero exit on a failure.
+set -u
+build=${1:-build}
+cd "$(dirname "$0")/.."
+play=$build/wrt-play
+bake=$build/wrt-bake
+img=$build/tests/test_image
+pass=0; fail=0
+tmp=$(mktemp -d /tmp/wrt_play_XXXXXX)
+trap 'rm -rf "$tmp"' EXIT
+
+ok() { pass=$((pass + 1)); echo "ok $1"; }
+ko() { fail=$((fail + 1)); echo "FAIL $1"; [ -s "$tmp/err" ] && sed 's/^/    /' "$tmp/err" | head -n 5; }
+check() { local name=$1; shift; if "$@" >"$tmp/out" 2>"$tmp/err"; then ok "$name"; else ko "$name"; fi; }
+# expect_exit NAME CODE MESSAGE_REGEX CMD...: exit code CODE and stderr matching the regex
+expect_exit() {
+    local name=$1 code=$2 re=$3; shift 3
+    "$@" >"$tmp/out" 2>"$tmp/err"; local rc=$?
+    if [ $rc -eq "$code" ] && grep -Eqi -- "$re" "$tmp/err"; then ok "$name"; else echo "    exit $rc"; ko "$name"; fi
+}
+
+if [ ! -x "$play" ] || [ ! -x "$img" ]; then
+    echo "FAIL $play or $img not built"
+    echo "play: 0 passed, 1 failed"
+    exit 1
+fi
+
+# Options and errors that need no scene.
+check "--help exits 0" "$play" --help
+check "--version exits 0" "$play" --version
+expect_exit "missing file: exit 2" 2 "no such file|cannot open|i/o" "$play" "$tmp/nope.gto" --headless --out "$tmp/x.png"
+printf 'this is not a gto file, just text\n%.0s' {1..50} >"$tmp/foreign.gto"
+expect_exit "foreign file: exit 2" 2 "not|foreign|magic" "$play" "$tmp/foreign.gto" --headless --out "$tmp/x.png"
+expect_exit "unknown option: exit 1" 1 "unknown option" "$play" x.gto --frobnicate
+expect_exit "bad vector: exit 1" 1 "bad value" "$play" x.gto --light-pos 1,2
+expect_exit "headless without output: exit 1" 1 "needs --out" "$play" x.gto --headless
+
+# A small baked scene.
+scene=""
+for s in assets/cornell.gltf assets/*.gltf; do [ -f "$s" ] && { scene=$s; break; }; done
+if [ -z "$scene" ] && [ -x "$build/wrt-scenegen" ]; then
+    "$build/wrt-scenegen" --all "$tmp/assets" >/dev/null 2>&1
+    for s in "$tmp"/assets/cornell.gltf "$tmp"/assets/*.gltf; do [ -f "$s" ] && { scene=$s; break; }; done
+fi
+gto=$tmp/scene.gto
+if [ -n "$scene" ] && [ -x "$bake" ]; then
+    check "bake $scene" "$bake" "$scene" -o "$gto"
+elif [ -x "$build/tests/test_play" ]; then
+    # no bake: the room test_play builds in C, with a stand-in operator
+    check "write the test room (no wrt-bake)" "$build/tests/test_play" --write-gto "$gto"
+else
+    echo "FAIL no scene and wrt-bake, nor tests/test_play, to make a .gto"
+    fail=$((fail + 1))
+fi
+
+if [ -f "$gto" ]; then
+    W=(--width 200 --height 150)
+    check "headless PNG" "$play" "$gto" --headless "${W[@]}" --out "$tmp/both.png"
+    check "PNG not blank" "$img" --nonblank "$tmp/both.png"
+    check "headless EXR" "$play" "$gto" --headless "${W[@]}" --out "$tmp/both.exr"
+    check "EXR not blank" "$img" --nonblank "$tmp/both.exr"
+    check "direct-only EXR" "$play" "$gto" --headless "${W[@]}" --direct-only --out "$tmp/direct.exr"
+    check "indirect-only EXR" "$play" "$gto" --headless "${W[@]}" --indirect-only --out "$tmp/indirect.exr"
+    check "indirect-only not blank" "$img" --nonblank "$tmp/indirect.exr"
+    check "both = direct + indirect (1e-3)" "$img" --sum "$tmp/both.exr" "$tmp/direct.exr" "$tmp/indirect.exr" 1e-3
+    cat "$tmp/out"
+
+    # lights switched off: only what the other lights give (one light: black)
+    nl=$("$play" "$gto" --headless --stats-json "$tmp/stats.json" >/dev/null 2>&1; jq '.lights | length' "$tmp/stats.json" 2>/dev/null)
+    check "stats JSON parses with one entry per quad" \
+        jq -e '(.quads | length) == .nquads and (.quads[0] | has("area") and has("centroid") and has("normal") and has("mesh") and has("direct") and has("indirect"))' "$tmp/stats.json"
+    check "stats: some quad receives direct and indirect light" \
+        jq -e '([.quads[].direct[0]] | max) > 0 and ([.quads[].indirect[0]] | max) > 0' "$tmp/stats.json"
+    if [ "${nl:-0}" -eq 1 ]; then
+        "$play" "$gto" --headless "${W[@]}" --lights-off 1 --out "$tmp/off.exr" 2>"$tmp/err"
+        "$img" --stats "$tmp/off.exr" >"$tmp/out" 2>>"$tmp/err"
+        if grep -q "max 0 " "$tmp/out"; then ok "--lights-off 1: black"; else cat "$tmp/out"; ko "--lights-off 1: black"; fi
+    fi
+
+    check "--bench prints JSON" "$play" "$gto" --headless "${W[@]}" --bench 5
+    check "bench JSON has the stages and fps" jq -e '.median_ms | has("projection") and has("multiply") and has("brdf") and has("synthesis") and has("upload") and has("draw")' "$tmp/out"
+
+    printf '# t key values\n0 light_pos 0 1.5 0\n1 light_intensity 20\n2\n' >"$tmp/script.txt"
+    c=$(jq -r '.lights[0].pos | map(tostring) | join(" ")' "$tmp/stats.json" 2>/dev/null)
+    [ -n "$c" ] && printf '0 light_pos %s\n1\n2.5\n' "$c" >"$tmp/script.txt"
+    check "script renders" "$play" "$gto" --headless "${W[@]}" --script "$tmp/script.txt" --out-pattern "$tmp/frame_%03d.png"
+    if [ -f "$tmp/frame_000.png" ] && [ -f "$tmp/frame_002.png" ] && [ ! -f "$tmp/frame_003.png" ]; then ok "script: 3 frames"; else ko "script: 3 frames"; fi
+    check "script --script-fps 2: 6 frames" "$play" "$gto" --headless "${W[@]}" --script "$tmp/script.txt" --script-fps 2 --out-pattern "$tmp/f2_%d.png"
+    [ -f "$tmp/f2_5.png" ] && [ ! -f "$tmp/f2_6.png" ] && ok "6 frames written" || ko "6 frames written"
+
+    if command -v xvfb-run >/dev/null; then
+        check "window under Xvfb" timeout 60 xvfb-run -a -s "-screen 0 800x600x24" "$play" "$gto" "${W[@]}" --frames 3 --screenshot "$tmp/shot.png"
+        check "window screenshot not blank" "$img" --nonblank "$tmp/shot.png"
+    fi
+
+    # truncated copies: a clear message and exit 2, never a crash
+    size=$(stat -c %s "$gto")
+    for cut in 0 7 64 $((size / 2)) $((size - 1)); do
+        head -c "$cut" "$gto" >"$tmp/cut.gto"
+        expect_exit "truncated to $cut bytes: exit 2" 2 "trunc|corrupt|short|small|not" "$play" "$tmp/cut.gto" --headless --out "$tmp/x.png"
+    done
+    # one flipped byte in the middle: corrupt (checksums)
+    cp "$gto" "$tmp/flip.gto"
+    printf '\xff' | dd of="$tmp/flip.gto" bs=1 seek=$((size / 2)) conv=notrunc status=none
+    "$play" "$tmp/flip.gto" --headless --out "$tmp/x.png" >/dev/null 2>"$tmp/err"; rc=$?
+    if [ $rc -eq 2 ] || [ $rc -eq 0 ]; then ok "flipped byte: exit $rc, no crash"; else ko "flipped byte: exit $rc"; fi
+fi
+
+echo "play: $pass passed, $fail failed"
+[ "$fail" -eq 0 ]

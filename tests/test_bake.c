@@ -1,0 +1,412 @@
+/* test_bake.c: the bake (precompute/) against truths that do not depend on it: closed-form
+ * form factors, reciprocity, the per-cell distribution of light from one small cell
+ * (closed-form rectangle-to-rectangle form factors), the furnace, the effect counters, and
+ * identical output whatever the thread count. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/basis.h"
+#include "common/brdf.h"
+#include "ff_closed.h"
+#include "precompute/bake.h"
+#include "scene_build.h"
+#include "test.h"
+
+static wrt_v3 P(double x, double y, double z) { return v3(x, y, z); }
+
+static wrt_bake_options opts(int q, int minl, int maxl) {
+    wrt_bake_options o = {0};
+    o.quality = q; o.min_slevel = minl; o.max_slevel = maxl;
+    o.threads = 2;
+    return o;
+}
+
+static double entry(const wrt_bake_result *r, const wrt_csc *m, uint64_t rk, uint64_t sk) {
+    int64_t i = wrt_fkey_find(r->fkeys, r->nfuncs, rk), j = wrt_fkey_find(r->fkeys, r->nfuncs, sk);
+    if (i < 0 || j < 0) return 0;
+    for (uint64_t k = m->col[j]; k < m->col[j + 1]; k++)
+        if (m->row[k] == (uint32_t)i) return m->val[3 * k];
+    return 0;
+}
+
+static uint64_t root_key(int q) { return wrt_fkey_make((uint32_t)q, wrt_node_root(), 0, wrt_node_root(), 0); }
+
+/* Coefficients (channel 0 = 1 = 2) of a uniform irradiance E0 over cell (level, cx, cy)
+ * of quad q (a parallelogram of area A): E0 sqrt(A/pi) * integral over the cell of h. */
+static void inject_cell(const wrt_bake_result *r, int q, double area, int level, int cx, int cy, double E0, double *x) {
+    double sz = ldexp(1.0, -level), cu = (cx + 0.5) * sz, cv = (cy + 0.5) * sz;
+    for (uint32_t f = 0; f < r->nfuncs; f++) {
+        uint64_t k = r->fkeys[f];
+        if (wrt_fkey_quad(k) != (uint32_t)q || !wrt_fkey_angular_root(k)) continue;
+        wrt_node n = wrt_fkey_snode(k);
+        if (n.level >= level) continue; /* finer functions integrate to zero over the cell */
+        double v = E0 * sqrt(area / M_PI) * sz * sz * wrt_haar2(n, wrt_fkey_stype(k), cu, cv);
+        for (int c = 0; c < 3; c++) x[3 * f + c] += v;
+    }
+}
+
+/* Mean irradiance over cell (level, cx, cy) of quad q from coefficients y. */
+static double cell_irradiance(const wrt_bake_result *r, int q, double area, int level, int cx, int cy, const double *y) {
+    double sz = ldexp(1.0, -level), cu = (cx + 0.5) * sz, cv = (cy + 0.5) * sz, e = 0;
+    for (uint32_t f = 0; f < r->nfuncs; f++) {
+        uint64_t k = r->fkeys[f];
+        if (wrt_fkey_quad(k) != (uint32_t)q || !wrt_fkey_angular_root(k)) continue;
+        wrt_node n = wrt_fkey_snode(k);
+        if (n.level >= level) continue;
+        e += y[3 * f] * wrt_haar2(n, wrt_fkey_stype(k), cu, cv);
+    }
+    return e * sqrt(M_PI / area);
+}
+
+static void test_closed_forms_themselves(void) {
+    CHECK_NEAR(ffc_parallel(0, 1, 0, 1, 0, 1, 0, 1, 1), 0.19982, 5e-5, "facing unit squares");
+    CHECK_NEAR(ffc_perpendicular(0, 1, 0, 1, 0, 1, 0, 1), 0.20004, 5e-5, "perpendicular unit squares");
+}
+
+static void test_point_polygon(void) {
+    /* point under the centre of a unit square at height 1: 4 corner rectangles 0.5 x 0.5 */
+    double A = 0.5, B = 0.5, a1 = sqrt(1 + A * A), b1 = sqrt(1 + B * B);
+    double corner = (A / a1 * atan(B / a1) + B / b1 * atan(A / b1)) / (2 * M_PI);
+    wrt_v3 sq[4] = {P(-.5, -.5, 1), P(.5, -.5, 1), P(.5, .5, 1), P(-.5, .5, 1)};
+    double f = wrt_ff_point_polygon(P(0, 0, 0), P(0, 0, 1), sq, 4);
+    CHECK_NEAR(f, 4 * corner, 1e-12, "point to square");
+    /* half of the square behind the point's tangent plane is clipped away */
+    wrt_v3 wall[4] = {P(1, -.5, -1), P(1, .5, -1), P(1, .5, 1), P(1, -.5, 1)};
+    double fw = wrt_ff_point_polygon(P(0, 0, 0), P(0, 0, 1), wall, 4);
+    wrt_v3 upper[4] = {P(1, -.5, 0), P(1, .5, 0), P(1, .5, 1), P(1, -.5, 1)};
+    CHECK_NEAR(fw, wrt_ff_point_polygon(P(0, 0, 0), P(0, 0, 1), upper, 4), 1e-12, "clipping");
+}
+
+static void facing_scene(wrt_scene *s, double rho) {
+    tsb_init(s);
+    int m = tsb_material(s, rho, rho, rho);
+    tsb_quad(s, P(0, 0, 0), P(1, 0, 0), P(1, 1, 0), P(0, 1, 0), m);   /* floor, +z */
+    tsb_quad(s, P(0, 0, 1), P(0, 1, 1), P(1, 1, 1), P(1, 0, 1), m);   /* ceiling, -z */
+}
+
+static void perpendicular_scene(wrt_scene *s, double rho) {
+    tsb_init(s);
+    int m = tsb_material(s, rho, rho, rho);
+    tsb_quad(s, P(0, 0, 0), P(1, 0, 0), P(1, 1, 0), P(0, 1, 0), m);   /* floor, +z */
+    tsb_quad(s, P(0, 0, 0), P(0, 1, 0), P(0, 1, 1), P(0, 0, 1), m);   /* wall x = 0, +x */
+}
+
+static void test_form_factors(void) {
+    wrt_scene s;
+    wrt_bake_result r;
+    wrt_bake_options o = opts(5, 0, 0);
+    facing_scene(&s, 1.0);
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    double f = entry(&r, &r.dto, root_key(0), root_key(1));
+    CHECK(fabs(f / 0.19982 - 1) < 0.01, "facing unit squares: F = %.5f, closed form 0.19982", f);
+    printf("facing F = %.5f (closed form 0.19982, error %.3f%%), rays %llu\n", f, 100 * (f / 0.19982 - 1),
+           (unsigned long long)r.c.rays_traced);
+    CHECK(r.c.rays_traced == 0 && r.c.rays_skipped_unoccluded > 0, "no occluder possible: no rays (%llu)",
+          (unsigned long long)r.c.rays_traced);
+    CHECK(r.c.entries_angular == 0, "diffuse: no angular entries");
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+
+    perpendicular_scene(&s, 1.0);
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    f = entry(&r, &r.dto, root_key(0), root_key(1));
+    CHECK(fabs(f / 0.20004 - 1) < 0.01, "perpendicular unit squares: F = %.5f, closed form 0.20004", f);
+    printf("perpendicular F = %.5f (closed form 0.20004, error %.3f%%), leaves %llu\n", f, 100 * (f / 0.20004 - 1),
+           (unsigned long long)r.c.links_leaf);
+    double g = entry(&r, &r.dto, root_key(1), root_key(0));
+    CHECK(fabs(g / f - 1) < 0.01, "reciprocity with equal areas: %.5f vs %.5f", g, f);
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+}
+
+static void test_reciprocity(void) {
+    /* a 2 x 1 floor and a 0.5 x 0.7 tilted-free wall: A_i F_ij = A_j F_ji, and with rho = 1
+     * T[r][s] = F_rs sqrt(A_r/A_s) is then symmetric */
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, 1, 1, 1);
+    tsb_quad(&s, P(0, 0, 0), P(2, 0, 0), P(2, 1, 0), P(0, 1, 0), m);
+    tsb_quad(&s, P(0.3, 0.2, 0.4), P(0.3, 0.9, 0.4), P(0.3, 0.9, 0.9), P(0.3, 0.2, 0.9), m);
+    wrt_bake_result r;
+    wrt_bake_options o = opts(6, 0, 0);
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    double a = entry(&r, &r.dto, root_key(0), root_key(1)), b = entry(&r, &r.dto, root_key(1), root_key(0));
+    double A0 = 2, A1 = 0.35;
+    double F01 = a / sqrt(A0 / A1), F10 = b / sqrt(A1 / A0);
+    CHECK(fabs(A0 * F01 / (A1 * F10) - 1) < 0.01, "A0 F01 = %.5f, A1 F10 = %.5f", A0 * F01, A1 * F10);
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+}
+
+/* Light one level-2 cell of the sender, compare the 16 receiver cells with closed forms. */
+static void distribution_case(int perpendicular, int ex, int ey, double *worst_out) {
+    wrt_scene s;
+    if (perpendicular) perpendicular_scene(&s, 1.0);
+    else facing_scene(&s, 1.0);
+    wrt_bake_result r;
+    wrt_bake_options o = opts(7, 2, 5);
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    double *x = calloc(3 * r.nfuncs, sizeof *x), *y = calloc(3 * r.nfuncs, sizeof *y);
+    inject_cell(&r, 1, 1.0, 2, ex, ey, 1.0, x);
+    wrt_csc_apply(&r.dto, x, y);
+    /* sender cell (ex, ey): u along p1 - p0, v along p3 - p0 of quad 1 */
+    double u0 = ex / 4.0, u1 = u0 + 0.25, v0 = ey / 4.0, v1 = v0 + 0.25;
+    double emax = 0, worst = 0;
+    double truth[16], got[16];
+    for (int j = 0; j < 16; j++) {
+        int cx = j % 4, cy = j / 4;
+        double x1 = cx / 4.0, x2 = x1 + 0.25, y1 = cy / 4.0, y2 = y1 + 0.25;
+        /* facing: quad 1 u runs along y, v along x; perpendicular: u along y, v along z */
+        truth[j] = perpendicular ? ffc_perpendicular(x1, x2, y1, y2, v0, v1, u0, u1)
+                                 : ffc_parallel(x1, x2, y1, y2, v0, v1, u0, u1, 1.0);
+        got[j] = cell_irradiance(&r, 0, 1.0, 2, cx, cy, y);
+        emax = fmax(emax, truth[j]);
+    }
+    for (int j = 0; j < 16; j++) {
+        double err = fabs(got[j] - truth[j]) / fmax(truth[j], 0.1 * emax);
+        worst = fmax(worst, err);
+        CHECK(err < 0.02, "%s: cell %d: %.5f vs closed form %.5f", perpendicular ? "perpendicular" : "parallel", j,
+              got[j], truth[j]);
+    }
+    *worst_out = worst;
+    free(x); free(y);
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+}
+
+static void test_distribution(void) {
+    double w1, w2, w3;
+    distribution_case(0, 1, 2, &w1);
+    distribution_case(1, 0, 1, &w2);
+    distribution_case(1, 2, 3, &w3);
+    printf("distribution: worst per-cell error parallel %.2f%%, perpendicular %.2f%% / %.2f%%\n", 100 * w1,
+           100 * w2, 100 * w3);
+}
+
+static double furnace(double rho, int n, int quality, wrt_bake_result *out) {
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, rho, rho, rho);
+    tsb_box_inward(&s, P(0, 0, 0), P(1, 1, 1), n, m);
+    wrt_bake_result r;
+    wrt_bake_options o = opts(quality, 0, 0);
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    double *x = calloc(3 * r.nfuncs, sizeof *x), *y = calloc(3 * r.nfuncs, sizeof *y);
+    double flux_in = 0;
+    for (int q = 0; q < s.nquads; q++) {
+        int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(q));
+        for (int c = 0; c < 3; c++) x[3 * f + c] = sqrt(s.quads[q].area / M_PI);
+        flux_in += s.quads[q].area;
+    }
+    wrt_csc_apply(&r.op, x, y);
+    double flux = 0, worst = 0, expect = rho / (1 - rho);
+    for (int q = 0; q < s.nquads; q++) {
+        int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(q));
+        double e = y[3 * f] * sqrt(M_PI / s.quads[q].area);
+        flux += e * s.quads[q].area;
+        worst = fmax(worst, fabs(e / expect - 1));
+    }
+    free(x); free(y);
+    tsb_free(&s);
+    if (out) *out = r;
+    else wrt_bake_result_free(&r);
+    (void)worst;
+    return flux / flux_in / expect;
+}
+
+static void test_furnace(void) {
+    double rhos[2] = {0.5, 0.9};
+    for (int i = 0; i < 2; i++) {
+        wrt_bake_result r;
+        double ratio = furnace(rhos[i], 2, 5, &r);
+        CHECK(fabs(ratio - 1) < 0.02, "furnace rho %.2f: indirect / truth = %.4f", rhos[i], ratio);
+        printf("furnace: %u funcs, dto %llu entries %llu links, gto %llu entries, t_dto %.2f s t_gto %.2f s, leaves %llu\n",
+               r.nfuncs, (unsigned long long)r.dto.nnz, (unsigned long long)r.c.links_dto,
+               (unsigned long long)r.op.nnz, r.c.t_dto, r.c.t_gto, (unsigned long long)r.c.links_leaf);
+        printf("furnace rho %.2f: indirect flux / (direct rho/(1-rho)) = %.4f, bounces %llu, energy left %.2e, "
+               "tail %.2e\n", rhos[i], ratio, (unsigned long long)r.c.bounces, r.c.energy_left, r.c.tail_fraction);
+        wrt_bake_result_free(&r);
+    }
+}
+
+static void test_coplanar_and_backfacing(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, 0.8, 0.8, 0.8);
+    tsb_quad(&s, P(0, 0, 0), P(1, 0, 0), P(1, 1, 0), P(0, 1, 0), m);
+    tsb_quad(&s, P(1, 0, 0), P(2, 0, 0), P(2, 1, 0), P(1, 1, 0), m);      /* coplanar neighbour */
+    tsb_quad(&s, P(0, 0, -1), P(1, 0, -1), P(1, 1, -1), P(0, 1, -1), m);  /* below, facing away (+z, behind) */
+    wrt_bake_result r;
+    wrt_bake_options o = opts(5, 0, 0);
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    CHECK(r.c.pairs_exchange == 0, "no pair can exchange light (%llu)", (unsigned long long)r.c.pairs_exchange);
+    CHECK(r.c.pairs_skipped_facing == 6, "6 ordered pairs skipped (%llu)", (unsigned long long)r.c.pairs_skipped_facing);
+    CHECK(r.c.rays_traced == 0 && r.dto.nnz == 0 && r.op.nnz == 0, "no rays, no entries");
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+}
+
+static void test_threads_identical(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, 0.7, 0.5, 0.3);
+    tsb_box_inward(&s, P(0, 0, 0), P(2, 1, 1.5), 1, m);
+    /* an occluder inside */
+    tsb_quad(&s, P(0.8, 0.2, 0.5), P(1.2, 0.2, 0.5), P(1.2, 0.6, 0.5), P(0.8, 0.6, 0.5), m);
+    tsb_quad(&s, P(0.8, 0.2, 0.5), P(0.8, 0.6, 0.5), P(1.2, 0.6, 0.5), P(1.2, 0.2, 0.5), m);
+    wrt_bake_result a, b;
+    wrt_bake_options o1 = opts(4, 0, 0), o2 = opts(4, 0, 0);
+    o1.threads = 1; o2.threads = 2;
+    CHECK(wrt_bake_run(&s, &o1, &a) == WRT_OK, "%s", wrt_last_error());
+    CHECK(wrt_bake_run(&s, &o2, &b) == WRT_OK, "%s", wrt_last_error());
+    CHECK(a.nfuncs == b.nfuncs && a.op.nnz == b.op.nnz, "same sizes");
+    if (a.nfuncs == b.nfuncs && a.op.nnz == b.op.nnz) {
+        CHECK(memcmp(a.fkeys, b.fkeys, a.nfuncs * 8) == 0, "same functions");
+        CHECK(memcmp(a.op.row, b.op.row, a.op.nnz * 4) == 0 && memcmp(a.op.val, b.op.val, a.op.nnz * 12) == 0,
+              "same operator bytes");
+    }
+    CHECK(a.c.rays_traced > 0, "occluded pairs trace rays (%llu)", (unsigned long long)a.c.rays_traced);
+    wrt_bake_result_free(&a);
+    wrt_bake_result_free(&b);
+    tsb_free(&s);
+}
+
+/* Glossy sender (rough dielectric, roughness 0.4) lit by isotropic incident radiance
+ * E/pi (angular root only): the irradiance it sends to a diffuse receiver cell is
+ * integral over S of a(y->x) E/pi cos cos / d^2, a the directional albedo; brute force
+ * with wrt_brdf_eval only. */
+static double albedo(const wrt_material *m, wrt_v3 n, wrt_v3 wo) {
+    /* cosine-weighted quadrature over the concentric square, 48 x 48 */
+    double s = 0;
+    int N = 24;
+    wrt_v3 t = fabs(n.x) < 0.9 ? v3_norm(v3_cross(n, v3(1, 0, 0))) : v3_norm(v3_cross(n, v3(0, 1, 0)));
+    wrt_v3 b = v3_cross(n, t);
+    for (int i = 0; i < N; i++) for (int j = 0; j < N; j++) {
+        double d[3], f[3];
+        wrt_concentric_dir((i + 0.5) / N, (j + 0.5) / N, d);
+        wrt_v3 wi = v3_add(v3_add(v3_scale(t, d[0]), v3_scale(b, d[1])), v3_scale(n, d[2]));
+        wrt_brdf_eval(m, n, wi, wo, f);
+        s += f[1] * M_PI;
+    }
+    return s / (N * N);
+}
+
+static void test_glossy_sender(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int md = tsb_material(&s, 0.8, 0.8, 0.8);
+    int mg = tsb_material(&s, 0.7, 0.7, 0.7);
+    s.materials[mg].lambertian = 0; s.materials[mg].roughness = 0.4f; s.materials[mg].metallic = 0;
+    tsb_quad(&s, P(0, 0, 0), P(1, 0, 0), P(1, 1, 0), P(0, 1, 0), md);      /* receiver floor */
+    tsb_quad(&s, P(0, 0, 0), P(0, 1, 0), P(0, 1, 1), P(0, 0, 1), mg);      /* glossy wall x = 0 */
+    wrt_bake_result r;
+    wrt_bake_options o = opts(5, 1, 5);
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    CHECK(r.c.entries_angular > 0 && r.c.links_dto_glossy > 0, "glossy links carry angular entries (%llu)",
+          (unsigned long long)r.c.entries_angular);
+    CHECK(r.c.links_dto_diffuse == 0, "every pair here touches the glossy wall");
+    double *x = calloc(3 * r.nfuncs, sizeof *x), *y = calloc(3 * r.nfuncs, sizeof *y);
+    int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(1));
+    for (int c = 0; c < 3; c++) x[3 * f + c] = sqrt(1.0 / M_PI); /* E = 1 uniform, isotropic */
+    wrt_csc_apply(&r.dto, x, y);
+    double worst = 0;
+    for (int cell = 0; cell < 4; cell++) {
+        int cx = cell & 1, cy = cell >> 1;
+        double got = cell_irradiance(&r, 0, 1.0, 1, cx, cy, y);
+        /* brute force: receiver cell points x 20 x 20, sender 40 x 40 */
+        double truth = 0;
+        int NR = 6, NS = 24;
+        for (int a = 0; a < NR * NR; a++) {
+            wrt_v3 xp = P((cx + (a % NR + 0.5) / NR) * 0.5, (cy + (a / NR + 0.5) / NR) * 0.5, 0);
+            for (int k = 0; k < NS * NS; k++) {
+                wrt_v3 yp = P(0, (k % NS + 0.5) / NS, (k / NS + 0.5) / NS);
+                wrt_v3 d = v3_sub(xp, yp);
+                double d2 = v3_dot(d, d), dl = sqrt(d2);
+                wrt_v3 wo = v3_scale(d, 1 / dl);
+                double cy_ = wo.x, cx_ = -wo.z;
+                if (cy_ <= 0 || cx_ <= 0) continue;
+                truth += albedo(&s.materials[mg], P(1, 0, 0), wo) / M_PI * cx_ * cy_ / d2;
+            }
+        }
+        truth /= (double)NR * NR * NS * NS;
+        double err = fabs(got / truth - 1);
+        worst = fmax(worst, err);
+        CHECK(err < 0.03, "glossy sender cell %d: %.5f vs brute force %.5f", cell, got, truth);
+    }
+    printf("glossy sender: %llu angular entries, %u angular functions, worst cell error %.2f%%, dto %.2f s gto %.2f s\n",
+           (unsigned long long)r.c.entries_angular, r.c.nfuncs_angular, 100 * worst, r.c.t_dto, r.c.t_gto);
+    free(x); free(y);
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+}
+
+/* Glossy receiver under a diffuse wall of uniform radiosity: the incident radiance it
+ * stores, averaged over one spatial cell and one angular cell, against ray casting. */
+static void test_glossy_receiver(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int md = tsb_material(&s, 1.0, 1.0, 1.0);
+    int mg = tsb_material(&s, 0.5, 0.5, 0.5);
+    s.materials[mg].lambertian = 0; s.materials[mg].roughness = 0.3f; s.materials[mg].metallic = 1;
+    tsb_quad(&s, P(0, 0, 0), P(1, 0, 0), P(1, 1, 0), P(0, 1, 0), mg);      /* glossy floor */
+    tsb_quad(&s, P(0, 0, 0), P(0, 1, 0), P(0, 1, 1), P(0, 0, 1), md);      /* diffuse wall */
+    wrt_bake_result r;
+    wrt_bake_options o = opts(5, 1, 5);
+    o.max_alevel = 2;
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    double *x = calloc(3 * r.nfuncs, sizeof *x), *y = calloc(3 * r.nfuncs, sizeof *y);
+    int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(1));
+    for (int c = 0; c < 3; c++) x[3 * f + c] = sqrt(1.0 / M_PI); /* wall irradiance 1: radiosity 1, L = 1/pi */
+    wrt_csc_apply(&r.dto, x, y);
+    /* floor frame: t = +x, b = +y, n = +z; spatial cell (level 1, 0, 0), angular cells level 2 */
+    double emax = 0, worst = 0, got[16], truth[16];
+    for (int ac = 0; ac < 16; ac++) {
+        int ax = ac % 4, ay = ac / 4;
+        double acu = (ax + 0.5) / 4, acv = (ay + 0.5) / 4, g = 0;
+        for (uint32_t k = 0; k < r.nfuncs; k++) {
+            uint64_t key = r.fkeys[k];
+            if (wrt_fkey_quad(key) != 0) continue;
+            wrt_node sn = wrt_fkey_snode(key), an = wrt_fkey_anode(key);
+            if (sn.level >= 1 || an.level >= 2) continue;
+            g += y[3 * k] * wrt_haar2(sn, wrt_fkey_stype(key), 0.25, 0.25) *
+                 wrt_haar2(an, wrt_fkey_atype(key), acu, acv);
+        }
+        got[ac] = g / sqrt(M_PI * 1.0);
+        /* truth: mean of L_in over the cell x angular cell by ray casting to the wall */
+        int N = 24, hit = 0, tot = 0;
+        for (int i = 0; i < N * N; i++) for (int j = 0; j < 64; j++) {
+            double px = (i % N + 0.5) / N * 0.5, py = (i / N + 0.5) / N * 0.5, d[3];
+            double a = (ax + (j % 8 + 0.5) / 8) / 4, b = (ay + (j / 8 + 0.5) / 8) / 4;
+            wrt_concentric_dir(a, b, d);
+            tot++;
+            if (d[0] >= 0) continue;
+            double t = -px / d[0], hy = py + t * d[1], hz = t * d[2];
+            if (hy >= 0 && hy <= 1 && hz >= 0 && hz <= 1) hit++;
+        }
+        truth[ac] = (double)hit / tot / M_PI;
+        emax = fmax(emax, truth[ac]);
+    }
+    for (int ac = 0; ac < 16; ac++) {
+        double err = fabs(got[ac] - truth[ac]) / emax;
+        worst = fmax(worst, err);
+        CHECK(err < 0.15, "angular cell %d: L_in %.4f vs ray cast %.4f", ac, got[ac], truth[ac]);
+    }
+    printf("glossy receiver: worst angular-cell error %.1f%% of the peak\n", 100 * worst);
+    free(x); free(y);
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+}
+
+int main(int argc, char **argv) {
+    TEST_RUN(test_glossy_sender);
+    TEST_RUN(test_glossy_receiver);
+    TEST_RUN(test_closed_forms_themselves);
+    TEST_RUN(test_point_polygon);
+    TEST_RUN(test_form_factors);
+    TEST_RUN(test_reciprocity);
+    TEST_RUN(test_distribution);
+    TEST_RUN(test_furnace);
+    TEST_RUN(test_coplanar_and_backfacing);
+    TEST_RUN(test_threads_identical);
+    TEST_END();
+}

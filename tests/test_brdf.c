@@ -1,0 +1,215 @@
+/* test_brdf.c: checks of common/brdf.c against properties any physical BRDF must
+ * have and against brute-force integration that does not use the code's sampler:
+ * the Lambertian value, reciprocity, energy conservation (white furnace), the
+ * importance sampler's mean weight = directional albedo, finiteness at roughness 0
+ * and grazing angles, and the angular level rule. */
+#include "test.h"
+#include "common/brdf.h"
+#include "common/basis.h"
+
+static uint64_t rng_state = 0x9e3779b97f4a7c15ULL;
+static double rnd(void) {
+    uint64_t z = (rng_state += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    z ^= z >> 31;
+    return (double)(z >> 11) * 0x1.0p-53;
+}
+
+static wrt_material make_mat(double r, double g, double b, double metallic, double roughness) {
+    wrt_material m;
+    memset(&m, 0, sizeof m);
+    m.base_color[0] = (float)r; m.base_color[1] = (float)g; m.base_color[2] = (float)b;
+    m.metallic = (float)metallic; m.roughness = (float)roughness;
+    m.lambertian = metallic == 0 && roughness == 1;
+    return m;
+}
+
+/* Uniform direction on the hemisphere around +z from (u1, u2): pdf 1 / (2 pi). */
+static wrt_v3 uniform_hemi(double u1, double u2) {
+    double z = u1, s = sqrt(fmax(0, 1 - z * z)), phi = 2 * WRT_PI * u2;
+    return v3(s * cos(phi), s * sin(phi), z);
+}
+
+static wrt_v3 dir_at(double theta) { return v3(sin(theta), 0, cos(theta)); }
+
+/* Directional albedo for viewer wo (normal +z) by stratified uniform-hemisphere
+ * integration: k x k strata, one jittered sample each. Returns per channel; *se gets
+ * a conservative standard-error estimate of the mean channel. */
+static void albedo_brute(const wrt_material *m, wrt_v3 wo, int k, double out[3], double *se) {
+    double s[3] = {0, 0, 0}, s2 = 0;
+    wrt_v3 n = v3(0, 0, 1);
+    for (int i = 0; i < k; i++)
+        for (int j = 0; j < k; j++) {
+            wrt_v3 wi = uniform_hemi((i + rnd()) / k, (j + rnd()) / k);
+            double f[3];
+            wrt_brdf_eval(m, n, wi, wo, f);
+            double c = wi.z * 2 * WRT_PI;
+            for (int ch = 0; ch < 3; ch++) s[ch] += f[ch] * c;
+            double mm = (f[0] + f[1] + f[2]) / 3 * c;
+            s2 += mm * mm;
+        }
+    double N = (double)k * k;
+    for (int ch = 0; ch < 3; ch++) out[ch] = s[ch] / N;
+    double mean = (out[0] + out[1] + out[2]) / 3;
+    *se = sqrt(fmax(0, s2 / N - mean * mean) / N); /* stratification only lowers it */
+}
+
+static void test_lambertian_value(void) {
+    wrt_material m = make_mat(0.2, 0.5, 0.9, 0, 1);
+    CHECK(m.lambertian, "material should be Lambertian");
+    wrt_v3 n = v3_norm(v3(0.3, -0.2, 0.9));
+    for (int i = 0; i < 100; i++) {
+        wrt_v3 a = v3_norm(v3(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5));
+        wrt_v3 b = v3_norm(v3(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5));
+        double f[3];
+        wrt_brdf_eval(&m, n, a, b, f);
+        int above = v3_dot(n, a) > 0 && v3_dot(n, b) > 0;
+        for (int c = 0; c < 3; c++) {
+            double want = above ? m.base_color[c] / WRT_PI : 0;
+            CHECK(f[c] == want, "f[%d] = %.17g, want %.17g", c, f[c], want);
+        }
+    }
+}
+
+static void test_reciprocity(void) {
+    wrt_material mats[4] = {make_mat(0.9, 0.6, 0.3, 0, 0.5), make_mat(0.9, 0.6, 0.3, 1, 0.2),
+                            make_mat(0.5, 0.5, 0.5, 0.5, 0.05), make_mat(0.8, 0.8, 0.8, 0, 0)};
+    wrt_v3 n = v3_norm(v3(-0.1, 0.4, 0.8));
+    double worst = 0;
+    for (int k = 0; k < 4; k++)
+        for (int i = 0; i < 2000; i++) {
+            wrt_v3 a = v3_norm(v3(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5));
+            wrt_v3 b = v3_norm(v3(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5));
+            double f1[3], f2[3];
+            wrt_brdf_eval(&mats[k], n, a, b, f1);
+            wrt_brdf_eval(&mats[k], n, b, a, f2);
+            for (int c = 0; c < 3; c++) {
+                double d = fabs(f1[c] - f2[c]) / fmax(1e-300, fmax(fabs(f1[c]), fabs(f2[c])));
+                if (f1[c] != f2[c] && d > worst) worst = d;
+            }
+        }
+    CHECK(worst < 1e-12, "reciprocity: worst relative difference %.3g", worst);
+}
+
+static void test_white_furnace(void) {
+    double rough[5] = {0.3, 0.5, 0.7, 0.85, 1.0};
+    double thetas[4] = {0.0, 0.6, 1.1, 1.45};
+    for (int i = 0; i < 5; i++) {
+        wrt_material m = make_mat(1, 1, 1, 1, rough[i]);
+        for (int j = 0; j < 4; j++) {
+            double a[3], se;
+            albedo_brute(&m, dir_at(thetas[j]), 400, a, &se);
+            CHECK(a[0] <= 1 + 3 * se, "roughness %.2f theta %.2f: albedo %.5f > 1 (se %.2g)",
+                  rough[i], thetas[j], a[0], se);
+            CHECK(a[0] > 0.25, "roughness %.2f theta %.2f: albedo %.5f implausibly low",
+                  rough[i], thetas[j], a[0]);
+        }
+    }
+    /* Closed form: white metal, alpha = 1, normal incidence: D = 1/pi, V = 1/(2(1 + mu)),
+     * albedo = int_0^1 mu / (1 + mu) dmu = 1 - ln 2 (single scattering loses ~70%). */
+    wrt_material rough1 = make_mat(1, 1, 1, 1, 1);
+    double a1[3], se1;
+    albedo_brute(&rough1, dir_at(0), 600, a1, &se1);
+    CHECK_NEAR(a1[0], 1 - log(2.0), 4 * se1, "alpha = 1 normal-incidence albedo");
+    wrt_material lam = make_mat(0.7, 0.7, 0.7, 0, 1);
+    for (int j = 0; j < 4; j++) {
+        double a[3], se;
+        albedo_brute(&lam, dir_at(thetas[j]), 400, a, &se);
+        CHECK_NEAR(a[0], 0.7, 4 * se + 1e-9, "Lambertian albedo at theta %.2f", thetas[j]);
+        double w[3];
+        wrt_brdf_sample(&lam, v3(0, 0, 1), dir_at(thetas[j]), rnd(), rnd(), rnd(), w);
+        CHECK(w[0] == (double)lam.base_color[0], "Lambertian sample weight %.17g", w[0]);
+    }
+}
+
+static void test_sampler_matches_albedo(void) {
+    wrt_material mats[5] = {make_mat(1, 1, 1, 1, 0.3), make_mat(0.9, 0.6, 0.3, 0, 0.5),
+                            make_mat(0.5, 0.8, 0.5, 0.5, 0.4), make_mat(0.8, 0.8, 0.8, 0, 0.8),
+                            make_mat(0.95, 0.9, 0.8, 1, 0.7)};
+    double thetas[3] = {0.2, 0.9, 1.35};
+    wrt_v3 n = v3(0, 0, 1);
+    for (int k = 0; k < 5; k++)
+        for (int j = 0; j < 3; j++) {
+            wrt_v3 wo = dir_at(thetas[j]);
+            double ab[3], seb;
+            albedo_brute(&mats[k], wo, 500, ab, &seb);
+            int N = 200000;
+            double s[3] = {0, 0, 0}, s2 = 0;
+            for (int i = 0; i < N; i++) {
+                double w[3];
+                wrt_v3 wi = wrt_brdf_sample(&mats[k], n, wo, rnd(), rnd(), rnd(), w);
+                (void)wi;
+                for (int c = 0; c < 3; c++) s[c] += w[c];
+                double mm = (w[0] + w[1] + w[2]) / 3;
+                s2 += mm * mm;
+            }
+            double mean = (s[0] + s[1] + s[2]) / 3 / N;
+            double ses = sqrt(fmax(0, s2 / N - mean * mean) / N);
+            double brute = (ab[0] + ab[1] + ab[2]) / 3;
+            double tol = 4 * sqrt(ses * ses + seb * seb) + 1e-4;
+            CHECK_NEAR(mean, brute, tol, "material %d theta %.2f: sampler mean vs brute force "
+                       "(se %.2g, %.2g)", k, thetas[j], ses, seb);
+            for (int c = 0; c < 3; c++)
+                CHECK_NEAR(s[c] / N, ab[c], 4 * sqrt(ses * ses + seb * seb) * 3 + 2e-3,
+                           "material %d theta %.2f channel %d", k, thetas[j], c);
+        }
+}
+
+static void test_no_nan(void) {
+    wrt_material mats[3] = {make_mat(1, 1, 1, 1, 0), make_mat(0.5, 0.5, 0.5, 0, 0),
+                            make_mat(0.5, 0.5, 0.5, 0.3, 0.01)};
+    wrt_v3 n = v3(0, 0, 1);
+    int bad = 0;
+    double grazing[4] = {1e-12, 1e-6, 1e-3, 0.5};
+    for (int k = 0; k < 3; k++)
+        for (int g = 0; g < 4; g++) {
+            wrt_v3 wo = v3_norm(v3(1, 0, grazing[g]));
+            wrt_v3 mirror = v3(-wo.x, -wo.y, wo.z);
+            double f[3];
+            wrt_brdf_eval(&mats[k], n, mirror, wo, f);
+            for (int c = 0; c < 3; c++) bad += !isfinite(f[c]) || f[c] < 0;
+            wrt_brdf_eval(&mats[k], n, wo, wo, f);
+            for (int c = 0; c < 3; c++) bad += !isfinite(f[c]) || f[c] < 0;
+            for (int i = 0; i < 2000; i++) {
+                double w[3];
+                wrt_v3 wi = wrt_brdf_sample(&mats[k], n, wo, rnd(), rnd(), rnd(), w);
+                bad += !v3_finite(wi);
+                for (int c = 0; c < 3; c++) bad += !isfinite(w[c]) || w[c] < 0;
+            }
+        }
+    CHECK(bad == 0, "%d non-finite or negative values", bad);
+    /* A mirror reflects (nearly) everything into the mirror direction: the sampled
+     * weight equals Fresnel there, so the mean weight of a white metal is ~1. */
+    double sum = 0;
+    for (int i = 0; i < 10000; i++) {
+        double w[3];
+        wrt_brdf_sample(&mats[0], n, dir_at(0.5), rnd(), rnd(), rnd(), w);
+        sum += w[0];
+    }
+    CHECK_NEAR(sum / 10000, 1.0, 0.01, "white mirror albedo");
+}
+
+static void test_angular_level(void) {
+    wrt_material lam = make_mat(0.5, 0.5, 0.5, 0, 1);
+    CHECK(wrt_brdf_angular_level(&lam) == 0, "Lambertian level");
+    struct { double rough; int level; } cases[] = {
+        {1.0, 1}, {0.7, 1}, {0.5, 1}, {0.4, 2}, {0.3, 3}, {0.1, 3}, {0.0, 3}};
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        wrt_material m = make_mat(0.5, 0.5, 0.5, 1, cases[i].rough);
+        int l = wrt_brdf_angular_level(&m);
+        CHECK(l == cases[i].level, "roughness %.2f: level %d, want %d", cases[i].rough, l,
+              cases[i].level);
+        CHECK(l >= 0 && l <= WRT_MAX_ALEVEL, "level in range");
+    }
+}
+
+int main(int argc, char **argv) {
+    TEST_RUN(test_lambertian_value);
+    TEST_RUN(test_reciprocity);
+    TEST_RUN(test_white_furnace);
+    TEST_RUN(test_sampler_matches_albedo);
+    TEST_RUN(test_no_nan);
+    TEST_RUN(test_angular_level);
+    TEST_END();
+}

@@ -1,0 +1,713 @@
+/* test_relight.c: tests of the run-time core (player/relight.c, paper section 5) on
+ * operators built in memory: projection against the analytic irradiance I cos / d^2,
+ * a projection -> identity operator -> synthesis round trip, linearity in the lights,
+ * exact zeros (light behind, spot away), the glossy BRDF table against an independent
+ * albedo quadrature, and a 300-quad micro-benchmark. Depends on relight.h, basis.h,
+ * brdf.h and the test harness. */
+#include "test.h"
+
+#include <stdlib.h>
+
+#include "common/basis.h"
+#include "common/brdf.h"
+#include "player/relight.h"
+
+/* ------------------------------------------------------------ test scene ---- */
+
+#define TS_MAX_QUADS 400
+
+typedef struct ts_scene {
+    wrt_gto g;
+    wrt_gto_quad quads[TS_MAX_QUADS];
+    wrt_gto_material mats[4];
+    uint64_t *fkeys; uint32_t nf, fcap;
+    uint64_t *col; uint32_t *rows; float *vals;
+} ts_scene;
+
+static int cmp_u64(const void *a, const void *b) {
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static void ts_init(ts_scene *s) {
+    memset(s, 0, sizeof *s);
+    for (int m = 0; m < 4; m++) {
+        snprintf(s->mats[m].name, sizeof s->mats[m].name, "m%d", m);
+        s->mats[m].base_color[0] = 0.8f; s->mats[m].base_color[1] = 0.5f; s->mats[m].base_color[2] = 0.25f;
+        s->mats[m].metallic = 0; s->mats[m].roughness = 1; s->mats[m].lambertian = 1;
+    }
+    /* material 1: glTF non-Lambertian but rough dielectric (nearly diffuse) */
+    s->mats[1].lambertian = 0;
+    s->mats[1].alevel = 2;
+    s->g.materials = s->mats;
+    s->g.nmaterials = 4;
+}
+
+static void ts_push(ts_scene *s, uint64_t k) {
+    if (s->nf == s->fcap) {
+        s->fcap = s->fcap ? 2 * s->fcap : 1024;
+        s->fkeys = realloc(s->fkeys, s->fcap * sizeof(uint64_t));
+    }
+    s->fkeys[s->nf++] = k;
+}
+
+/* Adds a planar quad with corners c (counter-clockwise seen from its front), every
+ * spatial function of node levels 0..slevel, and angular functions of node levels
+ * < alevel (alevel 0: angular root only). */
+static int ts_quad(ts_scene *s, const double c[4][3], int material, int slevel, int alevel) {
+    int q = (int)s->g.nquads++;
+    wrt_gto_quad *gq = &s->quads[q];
+    memset(gq, 0, sizeof *gq);
+    memcpy(gq->p, c, sizeof gq->p);
+    wrt_v3 p0 = v3(c[0][0], c[0][1], c[0][2]), p1 = v3(c[1][0], c[1][1], c[1][2]);
+    wrt_v3 p2 = v3(c[2][0], c[2][1], c[2][2]), p3 = v3(c[3][0], c[3][1], c[3][2]);
+    wrt_v3 n = v3_norm(v3_cross(v3_sub(p1, p0), v3_sub(p3, p0))), t = v3_norm(v3_sub(p1, p0)), b = v3_cross(n, t);
+    gq->n[0] = (float)n.x; gq->n[1] = (float)n.y; gq->n[2] = (float)n.z;
+    gq->t[0] = (float)t.x; gq->t[1] = (float)t.y; gq->t[2] = (float)t.z;
+    gq->b[0] = (float)b.x; gq->b[1] = (float)b.y; gq->b[2] = (float)b.z;
+    gq->area = (float)(0.5 * v3_len(v3_cross(v3_sub(p2, p0), v3_sub(p3, p1))));
+    wrt_v3 d = v3_sub(v3_add(p1, p3), v3_add(p0, p2));
+    gq->flags = v3_len(d) < 1e-12 ? 1 : 0;
+    gq->material = (uint32_t)material;
+    gq->slevel = (uint32_t)slevel;
+    gq->alevel = (uint32_t)alevel;
+    gq->func_first = s->nf;
+    /* spatial list */
+    for (int sl = -1; sl <= slevel; sl++) {
+        int nn = sl < 0 ? 1 : 1 << sl;
+        for (int y = 0; y < nn; y++)
+            for (int x = 0; x < nn; x++)
+                for (int st = sl < 0 ? 0 : 1; st <= (sl < 0 ? 0 : 3); st++) {
+                    wrt_node sn = {(uint8_t)(sl < 0 ? 0 : sl), (uint16_t)x, (uint16_t)y};
+                    for (int al = -1; al < alevel; al++) {
+                        int an = al < 0 ? 1 : 1 << al;
+                        for (int ay = 0; ay < an; ay++)
+                            for (int ax = 0; ax < an; ax++)
+                                for (int at = al < 0 ? 0 : 1; at <= (al < 0 ? 0 : 3); at++) {
+                                    wrt_node anode = {(uint8_t)(al < 0 ? 0 : al), (uint16_t)ax, (uint16_t)ay};
+                                    ts_push(s, wrt_fkey_make((uint32_t)q, sn, st, anode, at));
+                                }
+                    }
+                }
+    }
+    gq->func_count = s->nf - gq->func_first;
+    qsort(s->fkeys + gq->func_first, gq->func_count, sizeof(uint64_t), cmp_u64);
+    return q;
+}
+
+/* Operator: identity (scale * I). */
+static void ts_identity(ts_scene *s, float scale) {
+    s->col = calloc(s->nf + 1, sizeof(uint64_t));
+    s->rows = calloc(s->nf + 1, sizeof(uint32_t));
+    s->vals = calloc((size_t)s->nf * 3 + 1, sizeof(float));
+    for (uint32_t f = 0; f < s->nf; f++) {
+        s->col[f] = f; s->rows[f] = f;
+        s->vals[3 * f] = s->vals[3 * f + 1] = s->vals[3 * f + 2] = scale;
+    }
+    s->col[s->nf] = s->nf;
+}
+
+static uint64_t lcg_state = 12345;
+static double lcg(void) {
+    lcg_state = lcg_state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return (double)(lcg_state >> 11) / 9007199254740992.0;
+}
+
+/* Operator: per column, `per` entries into pseudo-random rows (ascending, distinct). */
+static void ts_random(ts_scene *s, int per) {
+    size_t nnz = (size_t)s->nf * per;
+    s->col = calloc(s->nf + 1, sizeof(uint64_t));
+    s->rows = calloc(nnz + 1, sizeof(uint32_t));
+    s->vals = calloc(nnz * 3 + 1, sizeof(float));
+    size_t k = 0;
+    for (uint32_t f = 0; f < s->nf; f++) {
+        s->col[f] = k;
+        uint32_t step = s->nf / per, r0 = (uint32_t)(lcg() * step);
+        for (int e = 0; e < per; e++) {
+            uint32_t row = r0 + (uint32_t)e * step;
+            if (row >= s->nf) break;
+            s->rows[k] = row;
+            for (int c = 0; c < 3; c++) s->vals[k * 3 + c] = (float)(0.01 * (lcg() - 0.3));
+            k++;
+        }
+    }
+    s->col[s->nf] = k;
+    s->g.nnz = k;
+}
+
+static void ts_finish(ts_scene *s) {
+    s->g.quads = s->quads;
+    s->g.nfuncs = s->nf;
+    s->g.fkeys = s->fkeys;
+    s->g.col_start = s->col;
+    s->g.rows = s->rows;
+    s->g.vals = s->vals;
+    if (!s->g.nnz) s->g.nnz = s->col[s->nf];
+}
+
+static void ts_free(ts_scene *s) { free(s->fkeys); free(s->col); free(s->rows); free(s->vals); }
+
+static wrt_light point_light(double x, double y, double z, float intensity) {
+    wrt_light l;
+    memset(&l, 0, sizeof l);
+    l.type = WRT_LIGHT_POINT;
+    l.pos = v3(x, y, z);
+    l.dir = v3(0, 0, -1);
+    l.color[0] = l.color[1] = l.color[2] = 1;
+    l.intensity = intensity;
+    l.outer_cone = (float)(WRT_PI / 4);
+    return l;
+}
+
+/* Analytic irradiance of a point light (no occluder) at x with normal n. */
+static double analytic_E(const wrt_light *l, wrt_v3 x, wrt_v3 n) {
+    wrt_v3 d = v3_sub(l->pos, x);
+    double d2 = v3_dot(d, d), c = v3_dot(d, n) / sqrt(d2);
+    return c > 0 ? l->intensity * c / d2 : 0;
+}
+
+static wrt_v3 bilerp(const wrt_gto_quad *q, double u, double v) {
+    double w[4] = {(1 - u) * (1 - v), u * (1 - v), u * v, (1 - u) * v};
+    wrt_v3 p = v3(0, 0, 0);
+    for (int k = 0; k < 4; k++) p = v3_add(p, v3_scale(v3(q->p[k][0], q->p[k][1], q->p[k][2]), w[k]));
+    return p;
+}
+
+static double jac(const wrt_gto_quad *q, double u, double v) {
+    wrt_v3 p[4];
+    for (int k = 0; k < 4; k++) p[k] = v3(q->p[k][0], q->p[k][1], q->p[k][2]);
+    wrt_v3 du = v3_add(v3_scale(v3_sub(p[1], p[0]), 1 - v), v3_scale(v3_sub(p[2], p[3]), v));
+    wrt_v3 dv = v3_add(v3_scale(v3_sub(p[3], p[0]), 1 - u), v3_scale(v3_sub(p[2], p[1]), u));
+    return v3_len(v3_cross(du, dv));
+}
+
+/* Irradiance at (u,v) reconstructed from E's angular-root coefficients of quad q with
+ * basis.h's formula E = sqrt(pi/J) sum c h(u,v), independently of relight's synthesis. */
+static double reconstruct_E(const ts_scene *s, const float *E, int q, double u, double v, int ch) {
+    const wrt_gto_quad *gq = &s->quads[q];
+    double sum = 0;
+    for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++) {
+        wrt_fkey k = s->fkeys[f];
+        if (!wrt_fkey_angular_root(k)) continue;
+        sum += E[f * 3 + ch] * wrt_haar2(wrt_fkey_snode(k), wrt_fkey_stype(k), u, v);
+    }
+    return sqrt(WRT_PI / jac(gq, u, v)) * sum;
+}
+
+/* Min and max of the analytic irradiance over a cell (5 x 5 points). */
+static void cell_range(const wrt_light *l, const wrt_gto_quad *q, double u0, double v0, double h, double *lo, double *hi) {
+    wrt_v3 n = v3(q->n[0], q->n[1], q->n[2]);
+    *lo = INFINITY; *hi = -INFINITY;
+    for (int j = 0; j <= 4; j++)
+        for (int i = 0; i <= 4; i++) {
+            double e = analytic_E(l, bilerp(q, u0 + h * i / 4, v0 + h * j / 4), n);
+            if (e < *lo) *lo = e;
+            if (e > *hi) *hi = e;
+        }
+}
+
+static const double unit_quad[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+
+/* ------------------------------------------------------------------ cases ---- */
+
+static void test_far_light_root(void) {
+    ts_scene s;
+    ts_init(&s);
+    const double c[4][3] = {{0, 0, 0}, {0.1, 0, 0}, {0.1, 0.1, 0}, {0, 0.1, 0}};
+    ts_quad(&s, c, 0, 1, 0);
+    ts_identity(&s, 1);
+    ts_finish(&s);
+    wrt_relight *r;
+    CHECK(wrt_relight_create(&s.g, NULL, &r) == WRT_OK, "%s", wrt_last_error());
+    /* light 10 above the centre, 30 degrees off the normal: E0 = I cos / d^2 */
+    double d = 10, th = WRT_PI / 6;
+    wrt_light l = point_light(0.05 + d * sin(th), 0.05, d * cos(th), 400);
+    double E0 = 400 * cos(th) / (d * d), A = 0.01;
+    wrt_relight_set_lights(r, &l, NULL, 1);
+    CHECK(wrt_relight_update(r, NULL) > 0, "first update changes textures");
+    const float *E = wrt_relight_E(r);
+    for (int ch = 0; ch < 3; ch++) CHECK_NEAR(E[ch], E0 * sqrt(A / WRT_PI), 0.01 * E0 * sqrt(A / WRT_PI), "root coefficient, channel %d", ch);
+    double dir[3], ind[3];
+    wrt_relight_quad_irradiance(r, 0, dir, ind);
+    CHECK_NEAR(dir[0], E0, 0.01 * E0, "mean direct irradiance");
+    /* identity operator: X = E, so the indirect mean is the same */
+    CHECK_NEAR(ind[1], E0, 0.01 * E0, "mean indirect irradiance through the identity");
+    wrt_relight_destroy(r);
+    ts_free(&s);
+}
+
+/* Per-cell irradiance reconstructed from E matches I cos / d^2 at the cell centres,
+ * within the analytic variation over the cell, for a parallelogram and a trapezoid. */
+static void check_cells(const double c[4][3]) {
+    ts_scene s;
+    ts_init(&s);
+    ts_quad(&s, c, 0, 3, 0);
+    ts_identity(&s, 1);
+    ts_finish(&s);
+    wrt_relight_options o = {.proj_level = 3};
+    wrt_relight *r;
+    CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_light l = point_light(0.3, 0.6, 0.5, 10);
+    wrt_relight_set_lights(r, &l, NULL, 1);
+    wrt_relight_update(r, NULL);
+    const float *E = wrt_relight_E(r);
+    wrt_v3 n = v3(s.quads[0].n[0], s.quads[0].n[1], s.quads[0].n[2]);
+    int bad = 0;
+    double worst = 0;
+    for (int j = 0; j < 8; j++)
+        for (int i = 0; i < 8; i++) {
+            double u = (i + 0.5) / 8, v = (j + 0.5) / 8, lo, hi;
+            double got = reconstruct_E(&s, E, 0, u, v, 0);
+            double want = analytic_E(&l, bilerp(&s.quads[0], u, v), n);
+            cell_range(&l, &s.quads[0], i / 8.0, j / 8.0, 1.0 / 8, &lo, &hi);
+            double tol = (hi - lo) + 1e-3 * want;
+            if (fabs(got - want) > tol) bad++;
+            if (fabs(got - want) / want > worst) worst = fabs(got - want) / want;
+        }
+    CHECK(bad == 0, "%d of 64 cells outside the cell's variation (worst relative %.3g)", bad, worst);
+    fprintf(stderr, "  cells: worst relative error %.4f\n", worst);
+    wrt_relight_destroy(r);
+    ts_free(&s);
+}
+
+static void test_cell_irradiance(void) {
+    check_cells(unit_quad);
+    const double trap[4][3] = {{0, 0, 0}, {1, 0, 0}, {0.8, 1, 0}, {0.2, 1, 0}};
+    check_cells(trap);
+}
+
+/* Round trip: projection -> identity operator -> synthesis reproduces base/pi times the
+ * analytic irradiance at texel centres (8 x 8 texels = the projection grid). */
+static void test_round_trip(void) {
+    const double trap[4][3] = {{0, 0, 0}, {1, 0, 0}, {0.8, 1, 0}, {0.2, 1, 0}};
+    for (int shape = 0; shape < 2; shape++) {
+        ts_scene s;
+        ts_init(&s);
+        ts_quad(&s, shape ? trap : unit_quad, 0, 2, 0);
+        ts_identity(&s, 1);
+        ts_finish(&s);
+        wrt_relight *r;
+        wrt_relight_options o = {.proj_level = 3};
+        CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
+        CHECK(wrt_relight_tex_res(r, 0) == 8, "texture res %d (slevel 2 -> 2^3)", wrt_relight_tex_res(r, 0));
+        wrt_light l = point_light(0.3, 0.6, 0.5, 10);
+        wrt_relight_set_lights(r, &l, NULL, 1);
+        CHECK(wrt_relight_update(r, NULL) == 1, "one quad synthesized");
+        const float *tex = wrt_relight_tex(r, 0);
+        int res = wrt_relight_tex_res(r, 0), bad = 0;
+        double worst = 0;
+        for (int j = 0; j < res; j++)
+            for (int i = 0; i < res; i++) {
+                double u = (i + 0.5) / res, v = (j + 0.5) / res, lo, hi;
+                double E = analytic_E(&l, bilerp(&s.quads[0], u, v), v3(0, 0, 1));
+                cell_range(&l, &s.quads[0], (double)i / res, (double)j / res, 1.0 / res, &lo, &hi);
+                for (int c = 0; c < 3; c++) {
+                    double want = s.mats[0].base_color[c] / WRT_PI * E;
+                    double tol = s.mats[0].base_color[c] / WRT_PI * ((hi - lo) + 1e-3 * E);
+                    double got = tex[((size_t)j * res + i) * 3 + c];
+                    if (fabs(got - want) > tol) bad++;
+                    if (fabs(got - want) / want > worst) worst = fabs(got - want) / want;
+                }
+            }
+        CHECK(bad == 0, "shape %d: %d texel channels off (worst relative %.3g)", shape, bad, worst);
+        fprintf(stderr, "  round trip shape %d: worst relative error %.4f\n", shape, worst);
+        wrt_relight_destroy(r);
+        ts_free(&s);
+    }
+}
+
+/* A square occluder between light and receiver: texels well inside its shadow are 0,
+ * texels well outside it match the unoccluded irradiance. */
+static void test_shadow(void) {
+    ts_scene s;
+    ts_init(&s);
+    ts_quad(&s, unit_quad, 0, 3, 0);
+    /* occluder at z = 0.5 covering [0, 0.5] x [0, 1], facing down (toward the receiver) */
+    const double occ[4][3] = {{0, 0, 0.5}, {0, 1, 0.5}, {0.5, 1, 0.5}, {0.5, 0, 0.5}};
+    ts_quad(&s, occ, 0, 0, 0);
+    ts_identity(&s, 1);
+    ts_finish(&s);
+    wrt_relight *r;
+    wrt_relight_options o = {.proj_level = 4};
+    CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_light l = point_light(0.5, 0.5, 1.0, 10); /* shadow edge at u = 0.5 on the receiver */
+    wrt_relight_set_lights(r, &l, NULL, 1);
+    wrt_relight_update(r, NULL);
+    const float *tex = wrt_relight_tex(r, 0);
+    int res = wrt_relight_tex_res(r, 0), bad_in = 0, bad_out = 0;
+    for (int j = 0; j < res; j++)
+        for (int i = 0; i < res; i++) {
+            double u = (i + 0.5) / res, v = (j + 0.5) / res, lo, hi;
+            double got = tex[((size_t)j * res + i) * 3];
+            if (u < 0.4) { if (fabs(got) > 1e-5) bad_in++; }
+            else if (u > 0.6) {
+                cell_range(&l, &s.quads[0], (double)i / res, (double)j / res, 1.0 / res, &lo, &hi);
+                double want = s.mats[0].base_color[0] / WRT_PI * analytic_E(&l, bilerp(&s.quads[0], u, v), v3(0, 0, 1));
+                if (fabs(got - want) > s.mats[0].base_color[0] / WRT_PI * (hi - lo) + 1e-3 * want) bad_out++;
+            }
+        }
+    CHECK(bad_in == 0, "%d shadowed texels lit", bad_in);
+    CHECK(bad_out == 0, "%d unshadowed texels wrong", bad_out);
+    wrt_relight_destroy(r);
+    ts_free(&s);
+}
+
+/* The level rule picks 16 x 16 cells for this light; a shadow edge crossing the quad
+ * makes the projection go to the file's finest level (32 x 32): the texel column just
+ * inside the shadow edge (u = 0.53) is dark, the next one lit. */
+static void test_shadow_refine(void) {
+    ts_scene s;
+    ts_init(&s);
+    ts_quad(&s, unit_quad, 0, 4, 0);
+    const double occ[4][3] = {{0, 0, 0.5}, {0, 1, 0.5}, {0.515, 1, 0.5}, {0.515, 0, 0.5}};
+    ts_quad(&s, occ, 0, 0, 0);
+    ts_identity(&s, 1);
+    ts_finish(&s);
+    wrt_relight *r;
+    CHECK(wrt_relight_create(&s.g, NULL, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_light l = point_light(0.5, 0.5, 1.0, 10);
+    wrt_relight_set_lights(r, &l, NULL, 1);
+    wrt_relight_update(r, NULL);
+    const float *tex = wrt_relight_tex(r, 0);
+    int res = wrt_relight_tex_res(r, 0);
+    CHECK(res == 32, "res %d", res);
+    for (int j = 4; j < res - 4; j += 9) {
+        double lo, hi, v = (j + 0.5) / res;
+        CHECK(fabs(tex[((size_t)j * res + 16) * 3]) < 1e-5, "texel (16, %d) in the shadow: %g", j, tex[((size_t)j * res + 16) * 3]);
+        cell_range(&l, &s.quads[0], 17.0 / res, (double)j / res, 1.0 / res, &lo, &hi);
+        double want = s.mats[0].base_color[0] / WRT_PI * analytic_E(&l, v3(17.5 / res, v, 0), v3(0, 0, 1));
+        CHECK_NEAR(tex[((size_t)j * res + 17) * 3], want, s.mats[0].base_color[0] / WRT_PI * (hi - lo) + 1e-3 * want,
+                   "texel (17, %d) lit", j);
+    }
+    wrt_relight_destroy(r);
+    ts_free(&s);
+}
+
+/* A small room of quads with a pseudo-random operator. */
+static void build_room(ts_scene *s, int div, int slevel, int per_col) {
+    ts_init(s);
+    /* box [0,1]^3, walls facing inward (e1 x e2 = inward normal), each divided div x div */
+    static const double org[6][3] = {{0, 0, 0}, {1, 0, 0}, {0, 0, 0}, {0, 1, 0}, {0, 0, 0}, {0, 0, 1}};
+    static const double e1[6][3] = {{0, 1, 0}, {0, 0, 1}, {0, 0, 1}, {1, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    static const double e2[6][3] = {{0, 0, 1}, {0, 1, 0}, {1, 0, 0}, {0, 0, 1}, {0, 1, 0}, {1, 0, 0}};
+    for (int w = 0; w < 6; w++)
+        for (int j = 0; j < div; j++)
+            for (int i = 0; i < div; i++) {
+                double a0 = (double)i / div, a1 = (double)(i + 1) / div, b0 = (double)j / div, b1 = (double)(j + 1) / div;
+                double uv[4][2] = {{a0, b0}, {a1, b0}, {a1, b1}, {a0, b1}};
+                double c[4][3];
+                for (int k = 0; k < 4; k++)
+                    for (int x = 0; x < 3; x++) c[k][x] = org[w][x] + uv[k][0] * e1[w][x] + uv[k][1] * e2[w][x];
+                int glossy = w == 0 && i == 0;
+                ts_quad(s, (const double(*)[3])c, glossy ? 1 : 0, slevel, glossy ? 2 : 0);
+            }
+    if (per_col > 0) ts_random(s, per_col);
+    else ts_identity(s, 1);
+    ts_finish(s);
+}
+
+static double max_abs(const float *a, size_t n) {
+    double m = 0;
+    for (size_t i = 0; i < n; i++) if (fabs(a[i]) > m) m = fabs(a[i]);
+    return m;
+}
+
+static void test_linearity(void) {
+    ts_scene s;
+    build_room(&s, 3, 2, 40);
+    size_t n3 = (size_t)s.nf * 3;
+    /* the normals point inward: check one */
+    CHECK(s.quads[0].n[0] > 0.99f, "wall x=0 faces +x (n = %g %g %g)", s.quads[0].n[0], s.quads[0].n[1], s.quads[0].n[2]);
+    CHECK(s.quads[9].n[0] < -0.99f, "wall x=1 faces -x (n = %g %g %g)", s.quads[9].n[0], s.quads[9].n[1], s.quads[9].n[2]);
+    wrt_relight *r;
+    CHECK(wrt_relight_create(&s.g, NULL, &r) == WRT_OK, "%s", wrt_last_error());
+    double eye[3] = {0.5, 0.5, 0.9};
+    wrt_relight_set_eye(r, eye);
+    wrt_light L[2] = {point_light(0.3, 0.7, 0.6, 2), point_light(0.8, 0.2, 0.3, 1)};
+    L[1].type = WRT_LIGHT_SPOT;
+    L[1].dir = v3_norm(v3(-1, 0.5, -0.2));
+    L[1].inner_cone = 0.3f; L[1].outer_cone = 0.7f;
+    L[1].color[1] = 0.5f;
+    float *XA = malloc(n3 * sizeof(float)), *XB = malloc(n3 * sizeof(float)), *EA = malloc(n3 * sizeof(float));
+    float *EB = malloc(n3 * sizeof(float));
+    float sc[2] = {1, 0};
+    wrt_relight_set_lights(r, L, sc, 2);
+    wrt_relight_update(r, NULL);
+    memcpy(XA, wrt_relight_X(r), n3 * sizeof(float));
+    memcpy(EA, wrt_relight_E(r), n3 * sizeof(float));
+    sc[0] = 0; sc[1] = 1;
+    wrt_relight_set_lights(r, L, sc, 2);
+    wrt_relight_timings t;
+    wrt_relight_update(r, &t);
+    CHECK(t.lights_changed == 1, "only the newly switched-on light is projected (%d)", t.lights_changed);
+    memcpy(XB, wrt_relight_X(r), n3 * sizeof(float));
+    memcpy(EB, wrt_relight_E(r), n3 * sizeof(float));
+    sc[0] = 1; sc[1] = 1;
+    wrt_relight_set_lights(r, L, sc, 2);
+    wrt_relight_update(r, &t);
+    CHECK(t.lights_changed == 0, "scales alone re-project nothing (%d)", t.lights_changed);
+    const float *X = wrt_relight_X(r), *E = wrt_relight_E(r);
+    double xm = max_abs(X, n3), em = max_abs(E, n3), xerr = 0, eerr = 0;
+    CHECK(xm > 0 && max_abs(XA, n3) > 0 && max_abs(XB, n3) > 0, "both lights reach the operator");
+    for (size_t k = 0; k < n3; k++) {
+        if (fabs(X[k] - XA[k] - XB[k]) > xerr) xerr = fabs(X[k] - XA[k] - XB[k]);
+        if (fabs(E[k] - EA[k] - EB[k]) > eerr) eerr = fabs(E[k] - EA[k] - EB[k]);
+    }
+    CHECK(xerr <= 1e-4 * xm, "X(A+B) - X(A) - X(B) = %g of %g", xerr, xm);
+    CHECK(eerr <= 1e-4 * em, "E(A+B) - E(A) - E(B) = %g of %g", eerr, em);
+    /* scale 2 doubles X */
+    sc[0] = 2; sc[1] = 0;
+    wrt_relight_set_lights(r, L, sc, 2);
+    wrt_relight_update(r, NULL);
+    double derr = 0;
+    for (size_t k = 0; k < n3; k++) if (fabs(X[k] - 2 * XA[k]) > derr) derr = fabs(X[k] - 2 * XA[k]);
+    CHECK(derr <= 1e-6 * max_abs(XA, n3), "2 x light gives 2 X (off by %g)", derr);
+    /* intensity x 2 (re-projected) doubles X too */
+    wrt_light L2[2] = {L[0], L[1]};
+    L2[0].intensity *= 2;
+    sc[0] = 1;
+    wrt_relight_set_lights(r, L2, sc, 2);
+    wrt_relight_update(r, NULL);
+    derr = 0;
+    for (size_t k = 0; k < n3; k++) if (fabs(X[k] - 2 * XA[k]) > derr) derr = fabs(X[k] - 2 * XA[k]);
+    CHECK(derr <= 1e-5 * max_abs(XA, n3), "intensity x 2 gives 2 X (off by %g)", derr);
+    /* nothing changed: nothing to do */
+    CHECK(wrt_relight_update(r, &t) == 0, "an update with nothing changed returns 0");
+    CHECK(t.lights_changed == 0 && t.quads_resynthesized == 0, "and does no work");
+    wrt_relight_set_lights(r, L2, sc, 2);
+    CHECK(wrt_relight_update(r, NULL) == 0, "setting the same lights again changes nothing");
+    wrt_relight_set_eye(r, eye);
+    CHECK(wrt_relight_update(r, NULL) == 0, "setting the same eye again changes nothing");
+    /* the eye moves: only the glossy quads (material 1) are re-synthesized */
+    int nglossy = 0;
+    for (uint32_t q = 0; q < s.g.nquads; q++) nglossy += s.quads[q].material == 1;
+    double eye2[3] = {0.6, 0.4, 0.8};
+    wrt_relight_set_eye(r, eye2);
+    int nre = wrt_relight_update(r, NULL);
+    CHECK(nre > 0 && nre <= nglossy, "eye move re-synthesizes %d quads (glossy: %d)", nre, nglossy);
+    /* move a light and move it back: identical textures */
+    size_t texn = 0;
+    for (uint32_t q = 0; q < s.g.nquads; q++) texn += (size_t)wrt_relight_tex_res(r, q) * wrt_relight_tex_res(r, q) * 3;
+    float *before = malloc(texn * sizeof(float));
+    size_t off = 0;
+    for (uint32_t q = 0; q < s.g.nquads; q++) {
+        size_t m = (size_t)wrt_relight_tex_res(r, q) * wrt_relight_tex_res(r, q) * 3;
+        memcpy(before + off, wrt_relight_tex(r, q), m * sizeof(float));
+        off += m;
+    }
+    wrt_light L3[2] = {L2[0], L2[1]};
+    L3[0].pos = v3(0.4, 0.5, 0.5);
+    wrt_relight_set_lights(r, L3, sc, 2);
+    CHECK(wrt_relight_update(r, NULL) > 0, "moved light changes textures");
+    wrt_relight_set_lights(r, L2, sc, 2);
+    CHECK(wrt_relight_update(r, NULL) > 0, "moved back");
+    off = 0;
+    int same = 1;
+    for (uint32_t q = 0; q < s.g.nquads; q++) {
+        size_t m = (size_t)wrt_relight_tex_res(r, q) * wrt_relight_tex_res(r, q) * 3;
+        if (memcmp(before + off, wrt_relight_tex(r, q), m * sizeof(float)) != 0) same = 0;
+        off += m;
+    }
+    CHECK(same, "textures after moving a light and back are bit-identical");
+    /* thread count does not change the result */
+    wrt_relight *r1;
+    wrt_relight_options o1 = {.threads = 1};
+    CHECK(wrt_relight_create(&s.g, &o1, &r1) == WRT_OK, "%s", wrt_last_error());
+    wrt_relight_set_eye(r1, eye2);
+    wrt_relight_set_lights(r1, L2, sc, 2);
+    wrt_relight_update(r1, NULL);
+    CHECK(memcmp(wrt_relight_X(r1), X, n3 * sizeof(float)) == 0, "X identical with 1 thread");
+    off = 0;
+    same = 1;
+    for (uint32_t q = 0; q < s.g.nquads; q++) {
+        size_t m = (size_t)wrt_relight_tex_res(r, q) * wrt_relight_tex_res(r, q) * 3;
+        if (memcmp(before + off, wrt_relight_tex(r1, q), m * sizeof(float)) != 0) same = 0;
+        off += m;
+    }
+    CHECK(same, "textures identical with 1 thread");
+    wrt_relight_destroy(r1);
+    free(before); free(XA); free(XB); free(EA); free(EB);
+    wrt_relight_destroy(r);
+    ts_free(&s);
+}
+
+static void test_exact_zeros(void) {
+    ts_scene s;
+    ts_init(&s);
+    ts_quad(&s, unit_quad, 0, 2, 0);
+    ts_identity(&s, 1);
+    ts_finish(&s);
+    size_t n3 = (size_t)s.nf * 3;
+    wrt_relight *r;
+    CHECK(wrt_relight_create(&s.g, NULL, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_light behind = point_light(0.5, 0.5, -0.5, 10);
+    wrt_relight_set_lights(r, &behind, NULL, 1);
+    wrt_relight_update(r, NULL);
+    CHECK(max_abs(wrt_relight_E(r), n3) == 0, "light behind the quad: E exactly zero");
+    wrt_light inplane = point_light(2, 0.5, 0, 10);
+    wrt_relight_set_lights(r, &inplane, NULL, 1);
+    wrt_relight_update(r, NULL);
+    CHECK(max_abs(wrt_relight_E(r), n3) == 0, "light in the quad's plane: E exactly zero");
+    wrt_light spot = point_light(0.5, 0.5, 1, 10);
+    spot.type = WRT_LIGHT_SPOT;
+    spot.dir = v3(0, 0, 1); /* pointing away */
+    spot.inner_cone = 0.2f; spot.outer_cone = 0.5f;
+    wrt_relight_set_lights(r, &spot, NULL, 1);
+    wrt_relight_update(r, NULL);
+    CHECK(max_abs(wrt_relight_E(r), n3) == 0, "spot pointing away: E exactly zero");
+    spot.dir = v3(0, 0, -1); /* toward the quad: the centre inside the inner cone */
+    wrt_relight_set_lights(r, &spot, NULL, 1);
+    wrt_relight_update(r, NULL);
+    CHECK(max_abs(wrt_relight_E(r), n3) > 0, "spot pointing at the quad lights it");
+    /* texel under the axis: full intensity I / d^2 (inside the inner cone) */
+    const float *tex = wrt_relight_tex(r, 0);
+    int res = wrt_relight_tex_res(r, 0);
+    double want = s.mats[0].base_color[0] / WRT_PI * 10;
+    CHECK_NEAR(tex[((size_t)(res / 2) * res + res / 2) * 3], want, 0.03 * want, "texel under the spot axis");
+    wrt_light ranged = point_light(0.5, 0.5, 1, 10);
+    ranged.range = 0.9f;
+    wrt_relight_set_lights(r, &ranged, NULL, 1);
+    wrt_relight_update(r, NULL);
+    CHECK(max_abs(wrt_relight_E(r), n3) == 0, "quad beyond the light's range: E exactly zero");
+    CHECK(max_abs(wrt_relight_tex(r, 0), (size_t)res * res * 3) == 0, "and its texture is cleared");
+    wrt_relight_destroy(r);
+    ts_free(&s);
+}
+
+/* Directional albedo of material m toward w_o by an independent quadrature (uniform
+ * hemisphere, stratified in cos theta and phi): integral f_r cos dw. */
+static double albedo(const wrt_material *m, wrt_v3 wo, int ch) {
+    int N = 400;
+    double sum = 0;
+    for (int j = 0; j < N; j++)
+        for (int i = 0; i < N; i++) {
+            double ct = (j + 0.5) / N, phi = 2 * WRT_PI * (i + 0.5) / N, st = sqrt(1 - ct * ct);
+            double f[3];
+            wrt_brdf_eval(m, v3(0, 0, 1), v3(st * cos(phi), st * sin(phi), ct), wo, f);
+            sum += f[ch] * ct;
+        }
+    return sum * 2 * WRT_PI / ((double)N * N);
+}
+
+static void test_glossy_beta(void) {
+    ts_scene s;
+    ts_init(&s);
+    int q = ts_quad(&s, unit_quad, 1, 1, 2);
+    ts_identity(&s, 1);
+    ts_finish(&s);
+    wrt_relight *r;
+    CHECK(wrt_relight_create(&s.g, NULL, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_material m;
+    memset(&m, 0, sizeof m);
+    for (int c = 0; c < 3; c++) m.base_color[c] = s.mats[1].base_color[c];
+    m.metallic = 0; m.roughness = 1; m.lambertian = 0;
+    double b[3];
+    CHECK(wrt_relight_beta(r, 0, 0.5, 0.5, 0, b) == 0, "no table for a Lambertian material");
+    /* table cell centres: w_o of table cell (8, 8) and one further out */
+    double probes[2][2] = {{8.5 / 16, 8.5 / 16}, {12.5 / 16, 6.5 / 16}};
+    for (int p = 0; p < 2; p++) {
+        double d[3];
+        wrt_concentric_dir(probes[p][0], probes[p][1], d);
+        CHECK(wrt_relight_beta(r, 1, probes[p][0], probes[p][1], 0, b) == 1, "table exists");
+        for (int c = 0; c < 3; c++) {
+            double a = albedo(&m, v3(d[0], d[1], d[2]), c);
+            CHECK_NEAR(b[c], a, 0.01 * a + 1e-4, "beta_root = directional albedo, probe %d channel %d", p, c);
+            CHECK(fabs(a - m.base_color[c]) < 0.1 * m.base_color[c], "rough dielectric is nearly diffuse (%g vs %g)", a, m.base_color[c]);
+        }
+        double wmax = 0;
+        for (int lev = 0; lev < 4; lev++)
+            for (int y = 0; y < (1 << lev); y++)
+                for (int x = 0; x < (1 << lev); x++)
+                    for (int t = 1; t <= 3; t++) {
+                        double bw[3];
+                        wrt_relight_beta(r, 1, probes[p][0], probes[p][1], wrt_relight_angular_index(lev, x, y, t), bw);
+                        for (int c = 0; c < 3; c++) if (fabs(bw[c]) > wmax) wmax = fabs(bw[c]);
+                    }
+        wrt_relight_beta(r, 1, probes[p][0], probes[p][1], 0, b);
+        CHECK(wmax < 0.05 * b[2], "wavelet betas small: %g vs root %g", wmax, b[2]);
+    }
+    /* Glossy projection: a far light projects onto the angular functions g(a_l, b_l). */
+    double d = 50, th = 0.35, ph = 0.3; /* (a_l, b_l) ~ (0.67, 0.57): away from level-1 cell edges */
+    wrt_v3 ldir = v3(sin(th) * cos(ph), sin(th) * sin(ph), cos(th));
+    wrt_light l = point_light(0.5 + d * ldir.x, 0.5 + d * ldir.y, d * ldir.z, 2500);
+    wrt_relight_set_lights(r, &l, NULL, 1);
+    CHECK(wrt_relight_update(r, NULL) == 0, "no eye yet: the glossy quad waits");
+    double eye[3] = {0.5, 0.5, 3};
+    wrt_relight_set_eye(r, eye);
+    CHECK(wrt_relight_update(r, NULL) == 1, "eye set: the glossy quad is synthesized");
+    const float *E = wrt_relight_E(r);
+    double E0 = 2500 * cos(th) / (d * d), la, lb, ld[3] = {ldir.x, ldir.y, ldir.z};
+    wrt_concentric_inv(ld, &la, &lb);
+    int checked = 0;
+    for (uint32_t f = s.quads[q].func_first; f < s.quads[q].func_first + s.quads[q].func_count; f++) {
+        wrt_fkey k = s.fkeys[f];
+        if (wrt_fkey_snode(k).level != 0 || wrt_fkey_stype(k) != 0) continue; /* spatial root */
+        double gv = wrt_haar2(wrt_fkey_anode(k), wrt_fkey_atype(k), la, lb);
+        double want = E0 * sqrt(1 / WRT_PI) * gv;
+        CHECK_NEAR(E[f * 3], want, 0.02 * E0 * sqrt(1 / WRT_PI) * 2, "angular coefficient %d", wrt_fkey_atype(k));
+        checked++;
+    }
+    CHECK(checked == 16, "16 angular functions at the spatial root (%d)", checked);
+    /* synthesized radiance toward the eye = f_r(w_l, w_o) E0 (the truth for a point
+     * light on a nearly diffuse BRDF, which the 4 x 4 angular cells resolve) */
+    const float *tex = wrt_relight_tex(r, q);
+    int res = wrt_relight_tex_res(r, q);
+    for (int j = 0; j < res; j += res - 1)
+        for (int i = 0; i < res; i += res - 1) {
+            double u = (i + 0.5) / res, v = (j + 0.5) / res, f[3];
+            wrt_v3 x = v3(u, v, 0), wo = v3_norm(v3_sub(v3(eye[0], eye[1], eye[2]), x));
+            wrt_v3 wl = v3_norm(v3_sub(l.pos, x));
+            wrt_brdf_eval(&m, v3(0, 0, 1), wl, wo, f);
+            double Ex = analytic_E(&l, x, v3(0, 0, 1));
+            for (int c = 0; c < 3; c++)
+                CHECK_NEAR(tex[((size_t)j * res + i) * 3 + c], f[c] * Ex, 0.03 * f[c] * Ex, "glossy texel (%d, %d) channel %d", i, j, c);
+        }
+    /* the eye behind the quad: it sends nothing that way */
+    double eyeb[3] = {0.5, 0.5, -3};
+    wrt_relight_set_eye(r, eyeb);
+    CHECK(wrt_relight_update(r, NULL) == 1, "eye move re-synthesizes the glossy quad");
+    CHECK(max_abs(wrt_relight_tex(r, q), (size_t)res * res * 3) == 0, "nothing toward an eye behind the quad");
+    wrt_relight_destroy(r);
+    ts_free(&s);
+}
+
+/* 294 quads (a box, walls 7 x 7), slevel 2, 40 operator entries per column. */
+static void test_bench(void) {
+    ts_scene s;
+    build_room(&s, 7, 2, 40);
+    for (int threads = 1; threads <= 2; threads++) {
+    wrt_relight *r;
+    wrt_relight_options o = {.threads = threads};
+    CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    double eye[3] = {0.5, 0.5, 0.95};
+    wrt_relight_set_eye(r, eye);
+    wrt_light l = point_light(0.5, 0.8, 0.5, 1);
+    wrt_relight_set_lights(r, &l, NULL, 1);
+    double t0 = wrt_now();
+    int n = wrt_relight_update(r, NULL);
+    double first = (wrt_now() - t0) * 1e3;
+    CHECK(n > 0, "first update");
+    wrt_relight_timings tm;
+    double ms = wrt_relight_bench(r, 20, &tm);
+    CHECK(ms > 0, "bench ran");
+    fprintf(stderr, "  bench (%d threads): %u quads, %u functions, %llu entries: first update %.1f ms, then %.2f ms/update "
+            "(projection %.2f, multiply %.2f, brdf %.2f, synthesis %.2f; %d quads re-synthesized)\n",
+            threads, s.g.nquads, s.g.nfuncs, (unsigned long long)s.g.nnz, first, ms, tm.projection, tm.multiply, tm.brdf,
+            tm.synthesis, tm.quads_resynthesized);
+    wrt_relight_destroy(r);
+    }
+    ts_free(&s);
+}
+
+int main(int argc, char **argv) {
+    TEST_RUN(test_far_light_root);
+    TEST_RUN(test_cell_irradiance);
+    TEST_RUN(test_round_trip);
+    TEST_RUN(test_shadow);
+    TEST_RUN(test_shadow_refine);
+    TEST_RUN(test_linearity);
+    TEST_RUN(test_exact_zeros);
+    TEST_RUN(test_glossy_beta);
+    TEST_RUN(test_bench);
+    TEST_END();
+}
