@@ -9,6 +9,7 @@
  * before tinygltf sees it. Every exception is caught at the boundary. Depends on
  * tinygltf 2.7, nlohmann json and stb_image (Debian packages). This is the scene-input
  * stage that precedes the paper's precomputation (Kontkanen et al. 2006, section 3). */
+#include <cerrno>
 #include <cmath>
 #include <cstdarg>
 #include <cstdint>
@@ -19,6 +20,8 @@
 #include <new>
 #include <string>
 #include <vector>
+
+#include <sys/stat.h>
 
 #define TINYGLTF_IMPLEMENTATION
 #define STB_IMAGE_IMPLEMENTATION
@@ -299,6 +302,44 @@ bool decode_image(tinygltf::Image *image, const int image_idx, std::string *err,
     image->image.assign(px, px + size_t(w) * size_t(h) * 4);
     stbi_image_free(px);
     return true;
+}
+
+/* ---- file access given to tinygltf: regular files only, size-checked ---- */
+const long long kMaxExternalFile = 4LL << 30;
+
+bool fs_exists(const std::string &path, void *) {
+    struct stat st;
+    return stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+
+std::string fs_expand(const std::string &path, void *) { return path; }
+
+bool fs_read(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *) {
+    FILE *f = fopen(path.c_str(), "rb");
+    if (!f) {
+        if (err) *err += "cannot open " + path + ": " + strerror(errno) + "\n";
+        return false;
+    }
+    struct stat st;
+    if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode) || st.st_size <= 0 ||
+        st.st_size > kMaxExternalFile) {
+        fclose(f);
+        if (err) *err += path + ": not a regular non-empty file under 4 GiB\n";
+        return false;
+    }
+    out->resize(size_t(st.st_size));
+    size_t got = fread(out->data(), 1, out->size(), f);
+    fclose(f);
+    if (got != out->size()) {
+        if (err) *err += path + ": short read\n";
+        return false;
+    }
+    return true;
+}
+
+bool fs_write(std::string *err, const std::string &, const std::vector<unsigned char> &, void *) {
+    if (err) *err += "writing is not supported\n";
+    return false;
 }
 
 /* ---- the reader ---- */
@@ -660,6 +701,8 @@ wrt_status read_impl(const void *data, size_t size, const char *base_dir, const 
     }
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(decode_image, nullptr);
+    tinygltf::FsCallbacks fs = {fs_exists, fs_expand, fs_read, fs_write, nullptr};
+    loader.SetFsCallbacks(fs);
     tinygltf::Model model;
     std::string err, warn;
     std::string dir = base_dir ? base_dir : "";

@@ -12,6 +12,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 static char tmpdir[256];
@@ -612,6 +613,19 @@ static void external_buffers(void) {
           wrt_last_error());
     free(t);
 
+    /* a buffer URI naming a folder */
+    char sub[512];
+    snprintf(sub, sizeof sub, "%s/sub", tmpdir);
+    CHECK(mkdir(sub, 0700) == 0, "mkdir");
+    sp.buffer_uri = "sub";
+    t = gltf_text(&sp);
+    write_file("dir.gltf", t, strlen(t));
+    snprintf(path, sizeof path, "%s/dir.gltf", tmpdir);
+    CHECK(wrt_scene_load(path, NULL, &s) == WRT_ERR_PARSE, "folder as buffer");
+    CHECK(strstr(wrt_last_error(), "sub") != NULL, "%s", wrt_last_error());
+    rmdir(sub);
+    free(t);
+
     snprintf(path, sizeof path, "%s/no such file.gltf", tmpdir);
     CHECK(wrt_scene_load(path, NULL, &s) == WRT_ERR_IO, "no file");
     CHECK(strstr(wrt_last_error(), "no such file.gltf") != NULL, "%s", wrt_last_error());
@@ -841,7 +855,7 @@ int main(int argc, char **argv) {
     TEST_RUN(bad_geometry);
     TEST_RUN(data_files);
     TEST_RUN(quad_finish);
-    const char *names[] = {"quad.glb", "quad.bin", "short.bin", "ext.gltf", "missing.gltf", "short.gltf"};
+    const char *names[] = {"quad.glb", "quad.bin", "short.bin", "ext.gltf", "missing.gltf", "short.gltf", "dir.gltf"};
     for (size_t i = 0; i < sizeof names / sizeof *names; i++) {
         char p[512];
         snprintf(p, sizeof p, "%s/%s", tmpdir, names[i]);
