@@ -465,6 +465,7 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int occl, bake_thread_counter
     push_up(&pc, 0);
     push_up(&pc, 1);
     size_t cap = 0;
+    double wfloor = sqrt(b->quads[s].area / b->quads[r].area); /* series.c's weighting */
     wrt_node an[64];
     int at[64];
     for (int a = 0; a < pc.nar || a < pc.nas; a++) wrt_angular_func(a, &an[a], &at[a]);
@@ -486,7 +487,7 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int occl, bake_thread_counter
                             for (int ch = 0; ch < 3; ch++) v[ch] = BV(&pc, bl, ri, sj, a, ch);
                         }
                         double m = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
-                        if (m == 0 || m < b->entry_floor) continue;
+                        if (m == 0 || m * wfloor < b->entry_floor) continue;
                         if (out->count == cap) {
                             cap = cap ? 2 * cap : 64;
                             out->e = wrt_xrealloc(out->e, cap * sizeof *out->e);

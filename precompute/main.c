@@ -36,6 +36,7 @@ static void usage(FILE *f) {
         "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
         "  --min-level L          refine every link at least to level L\n"
         "  --gathered             store the gathered GTO (T_fine G) instead of G - I\n"
+        "  --report-gathered      compute the gathered GTO's link count without storing it\n"
         "  --no-tail              do not add the estimated tail of the series\n"
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --threads N            worker threads (default: all cores); output is identical\n"
@@ -144,6 +145,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--max-bounces")) { ok = parse_int(a, v, 1, 1000000, &o.max_bounces); i++; }
         else if (!strcmp(a, "--threads")) { ok = parse_int(a, v, 1, 64, &o.threads); i++; }
         else if (!strcmp(a, "--gathered")) o.gathered = 1;
+        else if (!strcmp(a, "--report-gathered")) o.report_gathered = 1;
         else if (!strcmp(a, "--no-tail")) o.no_tail = 1;
         else if (!strcmp(a, "--drop-bad")) drop_bad = 1;
         else if (!strcmp(a, "--reproducible")) reproducible = 1;
