@@ -79,13 +79,18 @@ $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(ALL_LIB_OBJ)
 
 # The loader's fuzz target (libFuzzer, clang). Runs FUZZ_SECONDS (default 60).
 FUZZ_SECONDS ?= 60
+FUZZ_C := tools/fuzz_scene.c common/wrt_common.c formats/scene.c
+FUZZ_SAN := -fsanitize=address,undefined -fno-sanitize-recover=all
 fuzz:
-	@mkdir -p build/fuzz build/fuzz/corpus
-	clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -I. -I/usr/include/stb -w -D_GNU_SOURCE \
-	  -x c tools/fuzz_scene.c -x c common/wrt_common.c -x c formats/scene.c -x c++ formats/gltf_shim.cpp \
-	  -o build/fuzz/fuzz_scene -lm
-	cp -n assets/*.gltf build/fuzz/corpus/ 2>/dev/null || true
-	build/fuzz/fuzz_scene -max_total_time=$(FUZZ_SECONDS) -max_len=65536 build/fuzz/corpus 2>&1 | tail -n 5
+	@mkdir -p build/fuzz/obj build/fuzz/corpus
+	for f in $(FUZZ_C); do clang -std=c11 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -D_GNU_SOURCE \
+	  -c $$f -o build/fuzz/obj/$$(basename $$f .c).o || exit 1; done
+	[ build/fuzz/obj/gltf_shim.o -nt formats/gltf_shim.cpp ] || clang++ -std=c++17 -g -O1 \
+	  -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -I/usr/include/stb -w -D_GNU_SOURCE \
+	  -c formats/gltf_shim.cpp -o build/fuzz/obj/gltf_shim.o
+	clang++ -fsanitize=fuzzer $(FUZZ_SAN) build/fuzz/obj/*.o -o build/fuzz/fuzz_scene -lm
+	cp -n assets/*.gltf tests/data/*.gltf tests/data/*.glb build/fuzz/corpus/ 2>/dev/null || true
+	build/fuzz/fuzz_scene -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -rss_limit_mb=2048 build/fuzz/corpus 2>&1 | tail -n 5
 
 assets: $(BUILD)/wrt-scenegen
 	$(BUILD)/wrt-scenegen --all assets

@@ -20,6 +20,7 @@ typedef struct wrt_bake_options {
     double eps_compress;   /* drop operator entries below this (max over RGB) after each product */
     int max_slevel;        /* deepest spatial level of refinement (cells 2^-l of a quad) */
     int min_slevel;        /* refine every link at least to this level (default 0) */
+    int max_alevel;        /* cap on the angular level of glossy materials (1..3) */
     int receiver_samples;  /* receiver samples per link, a multiple of 4 (default 16) */
     int threads;           /* 0 = all cores */
     int gathered;          /* 1: store T_fine G instead of G - I */

@@ -23,8 +23,18 @@
  * (basis.h's normalisation), so the root entry of two parallelograms is
  * rho F_RS sqrt(A_R / A_S).
  *
- * Glossy materials: angular refinement is not implemented in this file; a non-Lambertian
- * sender is transported with its diffuse albedo (see bake.c, which warns). */
+ * Glossy materials (paper 4.3.2: angular refinement decided by the BRDF alone, down to
+ * its resolution). A glossy quad's functions carry the full angular Haar basis of its
+ * material's level L (4^L functions: root and wavelets of levels < L). A link touching a
+ * glossy quad holds, for each of its 16 spatial entries, the block over the receiver's
+ * and the sender's angular functions (RGB), with
+ *   T[r][s] = int int h_r h_s g_r(x<-y) btilde_{g_s}(y->x) V cos cos / (pi d^2) sqrt(J_R J_S)
+ * where btilde_g(w_o) = integral f_r(w, w_o) g(M^-1 w) cos dw (bake.c tabulates it per
+ * material; a diffuse side has btilde_root = albedo, g = 1). Directions are taken from the
+ * receiver sample to the centre of each sender quadrant, so the oracle also refines in
+ * space until a sender cell covers at most one receiver angular cell (projected solid
+ * angle pi 4^-L) and a receiver cell at most one sender angular cell. Diffuse-diffuse
+ * links keep one channel and no angular function at all. */
 #include <math.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -64,7 +74,7 @@ double wrt_ff_point_polygon(wrt_v3 x, wrt_v3 n, const wrt_v3 *poly, int count) {
 /* ---- per-pair link table ---- */
 typedef struct block {
     wrt_node rn, sn;
-    double c[4][4];
+    size_t data; /* offset of this block's values in pair_ctx.pool */
 } block;
 
 typedef struct pair_ctx {
@@ -72,11 +82,18 @@ typedef struct pair_ctx {
     int r, s;
     int occluded;            /* some quad may lie between R and S */
     double rho_max;
+    int lr, ls;              /* angular levels of receiver and sender (0: diffuse) */
+    int nar, nas, nang, nch; /* angular functions per side, their product, channels */
+    size_t bsize;            /* doubles per block: 16 nang nch */
     block *blocks; size_t nblocks, cap;
+    double *pool; size_t pool_cap;
     uint64_t *hkeys; uint32_t *hvals; size_t hcap, hcount;
     bake_thread_counters *tc;
     int cancelled;
 } pair_ctx;
+
+/* value (i, j, angular pair a, channel ch) of block bl */
+#define BV(pc, bl, i, j, a, ch) (pc)->pool[(bl)->data + ((((size_t)(i) * 4 + (j)) * (pc)->nang + (a)) * (pc)->nch + (ch))]
 
 static uint32_t node_pack(wrt_node n) { return ((uint32_t)n.level << 26) | ((uint32_t)n.y << 13) | n.x; }
 static uint64_t link_key(wrt_node rn, wrt_node sn) { return ((uint64_t)node_pack(rn) << 32) | node_pack(sn); }
@@ -104,26 +121,32 @@ static void hash_grow(pair_ctx *pc) {
     pc->hkeys = nk; pc->hvals = nv; pc->hcap = ncap;
 }
 
-/* Returns the block of link (rn, sn), creating a zero one if needed. */
-static block *get_block(pair_ctx *pc, wrt_node rn, wrt_node sn) {
+/* Index of the block of link (rn, sn), creating a zero one if needed. Pointers into
+ * blocks and pool are invalidated by a creation. */
+static size_t get_block(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     if (2 * (pc->hcount + 1) > pc->hcap) hash_grow(pc);
     uint64_t k = link_key(rn, sn);
     size_t h = mix64(k) & (pc->hcap - 1);
     while (pc->hvals[h] != UINT32_MAX) {
-        if (pc->hkeys[h] == k) return &pc->blocks[pc->hvals[h]];
+        if (pc->hkeys[h] == k) return pc->hvals[h];
         h = (h + 1) & (pc->hcap - 1);
     }
     if (pc->nblocks == pc->cap) {
         pc->cap = pc->cap ? pc->cap * 2 : 64;
         pc->blocks = wrt_xrealloc(pc->blocks, pc->cap * sizeof *pc->blocks);
     }
+    size_t need = (pc->nblocks + 1) * pc->bsize;
+    if (need > pc->pool_cap) {
+        pc->pool_cap = need * 2;
+        pc->pool = wrt_xrealloc(pc->pool, pc->pool_cap * sizeof *pc->pool);
+    }
     block *bl = &pc->blocks[pc->nblocks];
-    memset(bl, 0, sizeof *bl);
     bl->rn = rn; bl->sn = sn;
+    bl->data = pc->nblocks * pc->bsize;
+    memset(&pc->pool[bl->data], 0, pc->bsize * sizeof *pc->pool);
     pc->hkeys[h] = k; pc->hvals[h] = (uint32_t)pc->nblocks;
     pc->hcount++;
-    pc->nblocks++;
-    return bl;
+    return pc->nblocks++;
 }
 
 /* 1 if the segment a -> b is blocked by some quad. */
@@ -152,26 +175,62 @@ static void cell_poly(const wrt_quad *q, wrt_node n, wrt_v3 out[4]) {
     out[3] = wrt_quad_point(q, x0, y0 + sz);
 }
 
+/* Angular function index <-> (node, type): 0 is the root scaling; then level by level,
+ * node by node (row-major), the three wavelets. 4^L functions up to level L. */
+void wrt_angular_func(int idx, wrt_node *n, int *type) {
+    if (idx == 0) { *n = wrt_node_root(); *type = 0; return; }
+    int m = (idx - 1) / 3, t = (idx - 1) % 3 + 1, l = 0;
+    while (m >= (1 << (2 * l))) { m -= 1 << (2 * l); l++; }
+    wrt_node nn = {(uint8_t)l, (uint16_t)(m % (1 << l)), (uint16_t)(m / (1 << l))};
+    *n = nn; *type = t;
+}
+
+/* Values of all 4^L angular functions at (a, b); returns how many are non-zero and
+ * their indices in idx[] (1 + 3L at most). */
+static int angular_values(int L, double a, double b, int *idx, double *val) {
+    int k = 0;
+    idx[k] = 0; val[k++] = 1;
+    int base = 1;
+    for (int l = 0; l < L; l++) {
+        int side = 1 << l;
+        int x = (int)(a * side), y = (int)(b * side);
+        if (x >= side) x = side - 1;
+        if (y >= side) y = side - 1;
+        wrt_node n = {(uint8_t)l, (uint16_t)x, (uint16_t)y};
+        for (int t = 1; t <= 3; t++) {
+            idx[k] = base + 3 * (y * side + x) + (t - 1);
+            val[k++] = wrt_haar2(n, t, a, b);
+        }
+        base += 3 * side * side;
+    }
+    return k;
+}
+
 #define MAX_RS 64
 
-/* Samples the kernel on link (rn, sn): for each receiver sample k, G[k][q] is the
- * (visible) form factor from x_k to the sender's child quadrant q; qr[k] the receiver
- * quadrant of x_k and jr[k] sqrt(J_R) there. Returns 1 if some geometric transfer was
- * seen but every sample was blocked (mutually invisible supports). */
-static int eval_link(pair_ctx *pc, wrt_node rn, wrt_node sn, double G[][4], int *qr, double *jr,
-                     int ns) {
+typedef struct link_samples {
+    double G[MAX_RS][4];   /* visible form factor x_k -> sender quadrant q, times 1/sqrt(J_S) */
+    double F[MAX_RS][4];   /* the same as a plain form factor (for the oracle) */
+    int qr[MAX_RS];        /* receiver quadrant of x_k */
+    double jr[MAX_RS];     /* sqrt(J_R) at x_k */
+    wrt_v3 d[MAX_RS][4];   /* unit direction x_k -> centre of sender quadrant q */
+} link_samples;
+
+/* Samples the kernel on link (rn, sn). Returns 1 if some geometric transfer was seen
+ * but every sample was blocked (mutually invisible supports). */
+static int eval_link(pair_ctx *pc, wrt_node rn, wrt_node sn, link_samples *ls, int ns) {
     const bake_ctx *b = pc->b;
     const wrt_quad *R = &b->quads[pc->r], *S = &b->quads[pc->s];
     uint64_t h = mix64(((uint64_t)pc->r << 32 | (uint32_t)pc->s) ^ mix64(link_key(rn, sn)));
     double ru = u01(mix64(h + 1)), rv = u01(mix64(h + 2)), su = u01(mix64(h + 3)), sv = u01(mix64(h + 4));
     double rsz = wrt_node_size(rn), rx0 = wrt_node_x0(rn), ry0 = wrt_node_y0(rn);
-    double ssz = wrt_node_size(sn), sx0 = wrt_node_x0(sn), sy0 = wrt_node_y0(sn);
-    wrt_v3 spoly[4][4];
+    wrt_v3 spoly[4][4], scentre[4];
     double sinvj[4];
     for (int q = 0; q < 4; q++) {
         wrt_node c = wrt_node_child(sn, q & 1, q >> 1);
         cell_poly(S, c, spoly[q]);
         double cu = wrt_node_x0(c) + 0.5 * wrt_node_size(c), cv = wrt_node_y0(c) + 0.5 * wrt_node_size(c);
+        scentre[q] = wrt_quad_point(S, cu, cv);
         sinvj[q] = 1.0 / sqrt(wrt_quad_jacobian(S, cu, cv));
     }
     int per_q = ns / 4, side = per_q == 4 ? 2 : per_q == 16 ? 4 : per_q == 9 ? 3 : 1;
@@ -194,11 +253,12 @@ static int eval_link(pair_ctx *pc, wrt_node rn, wrt_node sn, double G[][4], int 
             }
             double u = rx0 + (cx + fu) * 0.5 * rsz, v = ry0 + (cy + fv) * 0.5 * rsz;
             wrt_v3 x = wrt_quad_point(R, u, v);
-            qr[k] = q;
-            jr[k] = sqrt(wrt_quad_jacobian(R, u, v));
+            ls->qr[k] = q;
+            ls->jr[k] = sqrt(wrt_quad_jacobian(R, u, v));
             double sd = v3_dot(v3_sub(x, S->p[0]), S->n);
             for (int t = 0; t < 4; t++) {
-                G[k][t] = 0;
+                ls->G[k][t] = ls->F[k][t] = 0;
+                ls->d[k][t] = v3_norm(v3_sub(scentre[t], x));
                 if (sd <= b->plane_eps) { pc->tc->rays_skipped_facing++; continue; }
                 double f = wrt_ff_point_polygon(x, R->n, spoly[t], 4);
                 pc->tc->samples++;
@@ -220,21 +280,88 @@ static int eval_link(pair_ctx *pc, wrt_node rn, wrt_node sn, double G[][4], int 
                     pc->tc->rays_skipped_unoccluded++;
                 }
                 any_vis = 1;
-                G[k][t] = f * sinvj[t];
+                ls->F[k][t] = f;
+                ls->G[k][t] = f * sinvj[t];
             }
         }
     }
-    (void)sx0; (void)sy0; (void)ssz;
     return any_geom && !any_vis;
+}
+
+/* Adds the leaf's integral to its block. */
+static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_samples *ls, int ns) {
+    const bake_ctx *b = pc->b;
+    const wrt_quad *R = &b->quads[pc->r], *S = &b->quads[pc->s];
+    double scale = ldexp(1.0, (int)sn.level - (int)rn.level) / ns;
+    size_t bi = get_block(pc, rn, sn);
+    block *bl = &pc->blocks[bi];
+    if (pc->nch == 1) {
+        /* c[i][j] = 2^ls 2^-lr / N sum_k sign_i(qr_k) sqrt(J_R) sum_q sign_j(q) G_kq */
+        for (int k = 0; k < ns; k++) {
+            int q = ls->qr[k];
+            for (int i = 0; i < 4; i++) {
+                double si = wrt_haar_sign(i, q & 1, q >> 1) * ls->jr[k] * scale;
+                for (int j = 0; j < 4; j++) {
+                    double acc = 0;
+                    for (int t = 0; t < 4; t++) acc += wrt_haar_sign(j, t & 1, t >> 1) * ls->G[k][t];
+                    BV(pc, bl, i, j, 0, 0) += si * acc;
+                }
+            }
+        }
+        return;
+    }
+    const double *srho = b->rho[pc->s];
+    int ridx[1 + 3 * WRT_MAX_ALEVEL];
+    double rval[1 + 3 * WRT_MAX_ALEVEL];
+    double beta[64 * 3];
+    for (int k = 0; k < ns; k++) {
+        int q = ls->qr[k];
+        for (int t = 0; t < 4; t++) {
+            double g = ls->G[k][t];
+            if (g == 0) continue;
+            wrt_v3 d = ls->d[k][t];
+            int nr = 1;
+            ridx[0] = 0; rval[0] = 1;
+            if (pc->lr) {
+                double loc[3] = {v3_dot(d, R->t), v3_dot(d, R->b), v3_dot(d, R->n)}, a, bb;
+                if (loc[2] < 0) loc[2] = 0;
+                wrt_concentric_inv(loc, &a, &bb);
+                nr = angular_values(pc->lr, a, bb, ridx, rval);
+            }
+            if (pc->ls) {
+                wrt_v3 w = v3_scale(d, -1);
+                double loc[3] = {v3_dot(w, S->t), v3_dot(w, S->b), v3_dot(w, S->n)}, a, bb;
+                if (loc[2] < 0) loc[2] = 0;
+                wrt_concentric_inv(loc, &a, &bb);
+                wrt_bake_btilde(b, b->scene->quads[pc->s].material, a, bb, beta);
+            } else {
+                beta[0] = srho[0]; beta[1] = srho[1]; beta[2] = srho[2];
+            }
+            for (int i = 0; i < 4; i++) {
+                double si = wrt_haar_sign(i, q & 1, q >> 1) * ls->jr[k] * scale;
+                for (int j = 0; j < 4; j++) {
+                    double w = si * wrt_haar_sign(j, t & 1, t >> 1) * g;
+                    for (int ia = 0; ia < nr; ia++) {
+                        double wa = w * rval[ia];
+                        double *dst = &BV(pc, bl, i, j, ridx[ia] * pc->nas, 0);
+                        for (int is = 0; is < pc->nas; is++) {
+                            dst[3 * is] += wa * beta[3 * is];
+                            dst[3 * is + 1] += wa * beta[3 * is + 1];
+                            dst[3 * is + 2] += wa * beta[3 * is + 2];
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     const bake_ctx *b = pc->b;
     if (pc->cancelled || atomic_load(b->cancel)) { pc->cancelled = 1; return; }
     int ns = b->opt.receiver_samples;
-    double G[MAX_RS][4], jr[MAX_RS];
-    int qr[MAX_RS];
-    int invisible = eval_link(pc, rn, sn, G, qr, jr, ns);
+    link_samples ls;
+    int invisible = eval_link(pc, rn, sn, &ls, ns);
     if (invisible) { pc->tc->links_invisible++; return; }
     /* The error of stopping here is the kernel's variation that the link's 2 x 2 x 2 x 2
      * block cannot hold: over the receiver, the spread of the point-to-sender form factor
@@ -243,42 +370,36 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
      * quad's area (its weight in the quad's L2 error) and by the sender's albedo, which
      * keeps the 1/d^2 singularity of shared edges from refining without end (the spread
      * there does not shrink with the cell) and makes the rule independent of scale. */
-    double qlo[4] = {INFINITY, INFINITY, INFINITY, INFINITY}, qhi[4] = {0, 0, 0, 0}, vs = 0;
+    double qlo[4] = {INFINITY, INFINITY, INFINITY, INFINITY}, qhi[4] = {0, 0, 0, 0}, vs = 0, fmaxall = 0, fsum = 0;
     for (int k = 0; k < ns; k++) {
         double f = 0, gmin = INFINITY, gmax = 0;
         for (int t = 0; t < 4; t++) {
-            f += G[k][t];
-            gmin = fmin(gmin, G[k][t]); gmax = fmax(gmax, G[k][t]);
+            f += ls.F[k][t];
+            gmin = fmin(gmin, ls.F[k][t]); gmax = fmax(gmax, ls.F[k][t]);
         }
-        qlo[qr[k]] = fmin(qlo[qr[k]], f); qhi[qr[k]] = fmax(qhi[qr[k]], f);
+        qlo[ls.qr[k]] = fmin(qlo[ls.qr[k]], f); qhi[ls.qr[k]] = fmax(qhi[ls.qr[k]], f);
         vs = fmax(vs, 4 * (gmax - gmin));
+        fmaxall = fmax(fmaxall, f);
+        fsum += f;
     }
     double vq = 0;
     for (int q = 0; q < 4; q++) vq = fmax(vq, qhi[q] - qlo[q]);
-    /* G carries 1/sqrt(J_S); express the variations as form factors again */
-    const wrt_quad *S = &b->quads[pc->s];
-    double sj = sqrt(S->area);
-    double vr = vq * sj * pc->rho_max * wrt_node_size(rn);
-    double vsn = vs * sj * pc->rho_max * wrt_node_size(sn);
+    double vr = vq * pc->rho_max * wrt_node_size(rn);
+    double vsn = vs * pc->rho_max * wrt_node_size(sn);
     int maxl = b->opt.max_slevel, minl = b->opt.min_slevel;
     int ref_r = rn.level < maxl && (vr > b->opt.eps_receiver || rn.level < minl);
     int ref_s = sn.level < maxl && (vsn > b->opt.eps_sender || sn.level < minl);
+    /* glossy: a sender cell must not cover more than one receiver angular cell, nor a
+     * receiver cell more than one sender angular cell (projected solid angle pi 4^-L) */
+    if (pc->lr && sn.level < maxl && fmaxall > ldexp(1.0, -2 * pc->lr)) ref_s = 1;
+    if (pc->ls && rn.level < maxl) {
+        const wrt_quad *R = &b->quads[pc->r], *S = &b->quads[pc->s];
+        double ar = R->area * ldexp(1.0, -2 * (int)rn.level), as = S->area * ldexp(1.0, -2 * (int)sn.level);
+        if (fsum / ns * ar / as > ldexp(1.0, -2 * pc->ls)) ref_r = 1;
+    }
     if (!ref_r && !ref_s) {
         pc->tc->links_leaf++;
-        /* c[i][j] = 2^lr 2^ls 4^-lr / N sum_k sign_i(qr_k) sqrt(J_R) sum_q sign_j(q) G_kq */
-        double scale = ldexp(1.0, (int)sn.level - (int)rn.level) / ns;
-        block *bl = get_block(pc, rn, sn);
-        for (int k = 0; k < ns; k++) {
-            int q = qr[k];
-            for (int i = 0; i < 4; i++) {
-                double si = wrt_haar_sign(i, q & 1, q >> 1) * jr[k] * scale;
-                for (int j = 0; j < 4; j++) {
-                    double acc = 0;
-                    for (int t = 0; t < 4; t++) acc += wrt_haar_sign(j, t & 1, t >> 1) * G[k][t];
-                    bl->c[i][j] += si * acc;
-                }
-            }
-        }
+        integrate_leaf(pc, rn, sn, &ls, ns);
         return;
     }
     pc->tc->links_refined++;
@@ -299,6 +420,7 @@ static void push_up(pair_ctx *pc, int side) {
         int l = side ? pc->blocks[i].sn.level : pc->blocks[i].rn.level;
         if (l > maxl) maxl = l;
     }
+    size_t per = (size_t)pc->nang * pc->nch;
     for (int L = maxl; L >= 1; L--) {
         for (size_t i = 0; i < pc->nblocks; i++) {
             block cb = pc->blocks[i];
@@ -306,18 +428,19 @@ static void push_up(pair_ctx *pc, int side) {
             if (n.level != L) continue;
             wrt_node p = wrt_node_parent(n);
             int cx = n.x & 1, cy = n.y & 1;
-            block *pb = side ? get_block(pc, cb.rn, p) : get_block(pc, p, cb.sn);
+            size_t pi = side ? get_block(pc, cb.rn, p) : get_block(pc, p, cb.sn);
+            block *pb = &pc->blocks[pi], *cbp = &pc->blocks[i];
             for (int t = 0; t < 4; t++) {
                 double w = 0.5 * wrt_haar_sign(t, cx, cy);
                 for (int o = 0; o < 4; o++) {
-                    if (side) pb->c[o][t] += w * cb.c[o][0];
-                    else pb->c[t][o] += w * cb.c[0][o];
+                    double *dst = side ? &BV(pc, pb, o, t, 0, 0) : &BV(pc, pb, t, o, 0, 0);
+                    const double *src = side ? &BV(pc, cbp, o, 0, 0, 0) : &BV(pc, cbp, 0, o, 0, 0);
+                    for (size_t a = 0; a < per; a++) dst[a] += w * src[a];
                 }
             }
-            block *cbp = &pc->blocks[i]; /* get_block may have moved the array */
             for (int o = 0; o < 4; o++) {
-                if (side) cbp->c[o][0] = 0;
-                else cbp->c[0][o] = 0;
+                double *src = side ? &BV(pc, cbp, o, 0, 0, 0) : &BV(pc, cbp, 0, o, 0, 0);
+                memset(src, 0, per * sizeof *src);
             }
         }
     }
@@ -327,14 +450,24 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int occl, bake_thread_counter
     pair_ctx pc = {.b = b, .r = r, .s = s, .occluded = occl, .tc = tc};
     const double *rho = b->rho[s];
     pc.rho_max = fmax(rho[0], fmax(rho[1], rho[2]));
+    pc.lr = b->alevel[b->scene->quads[r].material];
+    pc.ls = b->alevel[b->scene->quads[s].material];
+    pc.nar = 1 << (2 * pc.lr);
+    pc.nas = 1 << (2 * pc.ls);
+    pc.nang = pc.nar * pc.nas;
+    pc.nch = (pc.lr || pc.ls) ? 3 : 1;
+    pc.bsize = 16 * (size_t)pc.nang * pc.nch;
     memset(out, 0, sizeof *out);
-    if (pc.rho_max <= 0) return;
+    if (pc.rho_max <= 0 && !pc.ls) return;
+    if (pc.ls) pc.rho_max = fmax(pc.rho_max, 1e-3);
     refine(&pc, wrt_node_root(), wrt_node_root());
     if (pc.cancelled) { out->cancelled = 1; goto done; }
     push_up(&pc, 0);
     push_up(&pc, 1);
     size_t cap = 0;
-    wrt_node aroot = wrt_node_root();
+    wrt_node an[64];
+    int at[64];
+    for (int a = 0; a < pc.nar || a < pc.nas; a++) wrt_angular_func(a, &an[a], &at[a]);
     for (size_t i = 0; i < pc.nblocks; i++) {
         const block *bl = &pc.blocks[i];
         int any = 0;
@@ -342,21 +475,35 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int occl, bake_thread_counter
             if (ri == 0 && bl->rn.level != 0) continue;
             for (int sj = 0; sj < 4; sj++) {
                 if (sj == 0 && bl->sn.level != 0) continue;
-                double v = bl->c[ri][sj];
-                if (v == 0 || fabs(v) < b->entry_floor) continue;
-                if (out->count == cap) {
-                    cap = cap ? 2 * cap : 64;
-                    out->e = wrt_xrealloc(out->e, cap * sizeof *out->e);
+                for (int ia = 0; ia < pc.nar; ia++) {
+                    for (int is = 0; is < pc.nas; is++) {
+                        double v[3];
+                        int a = ia * pc.nas + is;
+                        if (pc.nch == 1) {
+                            double g = BV(&pc, bl, ri, sj, a, 0);
+                            for (int ch = 0; ch < 3; ch++) v[ch] = g * rho[ch];
+                        } else {
+                            for (int ch = 0; ch < 3; ch++) v[ch] = BV(&pc, bl, ri, sj, a, ch);
+                        }
+                        double m = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
+                        if (m == 0 || m < b->entry_floor) continue;
+                        if (out->count == cap) {
+                            cap = cap ? 2 * cap : 64;
+                            out->e = wrt_xrealloc(out->e, cap * sizeof *out->e);
+                        }
+                        pair_entry *e = &out->e[out->count++];
+                        e->r = wrt_fkey_make((uint32_t)r, bl->rn, ri, an[ia], at[ia]);
+                        e->s = wrt_fkey_make((uint32_t)s, bl->sn, sj, an[is], at[is]);
+                        for (int ch = 0; ch < 3; ch++) e->v[ch] = (float)v[ch];
+                        any = 1;
+                        if (ia || is) out->angular++;
+                    }
                 }
-                pair_entry *e = &out->e[out->count++];
-                e->r = wrt_fkey_make((uint32_t)r, bl->rn, ri, aroot, 0);
-                e->s = wrt_fkey_make((uint32_t)s, bl->sn, sj, aroot, 0);
-                for (int ch = 0; ch < 3; ch++) e->v[ch] = (float)(v * rho[ch]);
-                any = 1;
             }
         }
         out->links += any;
     }
+    out->glossy = pc.lr || pc.ls;
 done:
-    free(pc.blocks); free(pc.hkeys); free(pc.hvals);
+    free(pc.blocks); free(pc.pool); free(pc.hkeys); free(pc.hvals);
 }

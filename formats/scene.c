@@ -1,0 +1,910 @@
+/* scene.c: builds a wrt_scene from a glTF 2.0 file. The glTF reading itself (JSON,
+ * buffers, accessor validation, node flattening) is in gltf_shim.cpp; this file turns
+ * its triangles back into the quads the method works on (Kontkanen et al. 2006, section
+ * 3: the scene is a set of planar patches, each carrying its own wavelet basis), reports
+ * every triangle that does not fit with mesh/primitive/triangle, combines the
+ * metallic-roughness material factors with their texture means, converts the punctual
+ * lights and picks or makes the camera. It also prints the scene summary (text or JSON).
+ * Depends on wrt_common and the glTF shim.
+ *
+ * Pairing: within one primitive, vertices are matched by position (tolerance 1e-6 of
+ * the scene's diagonal), so shared or separate vertices, indexed or not, give the same
+ * adjacency. Two triangles sharing an edge form a quad candidate when they are
+ * coplanar, wound the same way and their union is strictly convex. Triangles with a
+ * single candidate are paired first (any complete pairing must pair them so); the rest
+ * go in index order, each taking its best free candidate: a parallelogram first, then
+ * one across the triangle's longest edge (a quad's diagonal), then the lowest index. */
+#define _POSIX_C_SOURCE 200809L
+#include "scene.h"
+#include "gltf_shim.h"
+
+#include <errno.h>
+#include <stdarg.h>
+#include <float.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define WRT_WELD_REL 1e-6        /* vertex match tolerance, relative to the scene diagonal */
+#define WRT_HUGE_COORD 1e15      /* coordinates beyond this are treated as non-finite */
+#define WRT_COLLINEAR_REL 1e-7   /* |cross| / size^2 under this is collinear */
+#define WRT_PARALLELOGRAM_REL 1e-5
+#define WRT_MAX_EDGE_FAN 8       /* edges shared by more triangles are not paired across */
+
+/* ------------------------------------------------------------------ quads */
+
+wrt_status wrt_quad_finish(wrt_quad *q) {
+    for (int i = 0; i < 4; i++)
+        if (!v3_finite(q->p[i])) return wrt_fail(WRT_ERR_GEOMETRY, "quad corner %d is not finite", i);
+    wrt_v3 d0 = v3_sub(q->p[2], q->p[0]), d1 = v3_sub(q->p[3], q->p[1]);
+    double size = fmax(v3_len(d0), v3_len(d1));
+    wrt_v3 c = v3_cross(v3_sub(q->p[1], q->p[0]), v3_sub(q->p[3], q->p[0]));
+    double clen = v3_len(c);
+    q->area = 0.5 * v3_len(v3_cross(d0, d1));
+    if (!(size > 0) || !isfinite(size) || !(clen > WRT_COLLINEAR_REL * size * size) ||
+        !(q->area > WRT_COLLINEAR_REL * size * size))
+        return wrt_fail(WRT_ERR_GEOMETRY, "degenerate quad (area %.3g, size %.3g)", q->area, size);
+    q->n = v3_scale(c, 1.0 / clen);
+    q->t = v3_norm(v3_sub(q->p[1], q->p[0]));
+    q->b = v3_cross(q->n, q->t);
+    wrt_v3 off = v3_sub(q->p[2], v3_sub(v3_add(q->p[1], q->p[3]), q->p[0]));
+    q->parallelogram = v3_len(off) <= WRT_PARALLELOGRAM_REL * size;
+    if (q->parallelogram) q->area = clen;
+    return WRT_OK;
+}
+
+/* ------------------------------------------------------------------ growing arrays */
+
+typedef struct problem_list {
+    wrt_problem *v;
+    int n, cap;
+} problem_list;
+
+static void add_problem(problem_list *l, int kind, int mesh, int prim, int tri, const char *fmt, ...)
+    __attribute__((format(printf, 6, 7)));
+static void add_problem(problem_list *l, int kind, int mesh, int prim, int tri, const char *fmt, ...) {
+    if (l->n == l->cap) {
+        l->cap = l->cap ? l->cap * 2 : 16;
+        l->v = wrt_xrealloc(l->v, (size_t)l->cap * sizeof *l->v);
+    }
+    wrt_problem *p = &l->v[l->n++];
+    p->kind = kind;
+    p->mesh = mesh;
+    p->prim = prim;
+    p->tri = tri;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(p->what, sizeof p->what, fmt, ap);
+    va_end(ap);
+}
+
+typedef struct quad_list {
+    wrt_quad *v;
+    int n, cap;
+} quad_list;
+
+static wrt_quad *add_quad(quad_list *l) {
+    if (l->n == l->cap) {
+        l->cap = l->cap ? l->cap * 2 : 64;
+        l->v = wrt_xrealloc(l->v, (size_t)l->cap * sizeof *l->v);
+    }
+    wrt_quad *q = &l->v[l->n++];
+    memset(q, 0, sizeof *q);
+    return q;
+}
+
+/* ------------------------------------------------------------------ vertex matching */
+
+typedef struct cell_entry {
+    int64_t k[3];
+    uint32_t v;
+} cell_entry;
+
+static int cmp_cell(const void *pa, const void *pb) {
+    const cell_entry *a = pa, *b = pb;
+    for (int i = 0; i < 3; i++)
+        if (a->k[i] != b->k[i]) return a->k[i] < b->k[i] ? -1 : 1;
+    return (a->v > b->v) - (a->v < b->v);
+}
+
+static int coord_ok(const double *p) {
+    for (int i = 0; i < 3; i++)
+        if (!isfinite(p[i]) || fabs(p[i]) > WRT_HUGE_COORD) return 0;
+    return 1;
+}
+
+static wrt_v3 pos_at(const wrt_gltf_prim *p, uint32_t i) {
+    return v3(p->pos[3 * (size_t)i], p->pos[3 * (size_t)i + 1], p->pos[3 * (size_t)i + 2]);
+}
+
+/* rep[v] = lowest-index representative vertex within eps of v (UINT32_MAX if not finite). */
+static void match_vertices(const wrt_gltf_prim *p, wrt_v3 origin, double eps, uint32_t *rep) {
+    size_t n = p->npos, m = 0;
+    cell_entry *e = wrt_xmalloc((n ? n : 1) * sizeof *e);
+    for (size_t v = 0; v < n; v++) {
+        rep[v] = UINT32_MAX;
+        const double *c = &p->pos[3 * v];
+        if (!coord_ok(c)) continue;
+        e[m].k[0] = (int64_t)floor((c[0] - origin.x) / eps);
+        e[m].k[1] = (int64_t)floor((c[1] - origin.y) / eps);
+        e[m].k[2] = (int64_t)floor((c[2] - origin.z) / eps);
+        e[m].v = (uint32_t)v;
+        m++;
+    }
+    qsort(e, m, sizeof *e, cmp_cell);
+    /* entries are sorted by cell then vertex index; walk vertices in index order */
+    size_t *where = wrt_xmalloc((n ? n : 1) * sizeof *where);
+    for (size_t i = 0; i < m; i++) where[e[i].v] = i;
+    for (size_t v = 0; v < n; v++) {
+        const double *c = &p->pos[3 * v];
+        if (!coord_ok(c)) continue;
+        const cell_entry *me = &e[where[v]];
+        uint32_t best = (uint32_t)v;
+        for (int dx = -1; dx <= 1; dx++)
+            for (int dy = -1; dy <= 1; dy++)
+                for (int dz = -1; dz <= 1; dz++) {
+                    cell_entry key = {{me->k[0] + dx, me->k[1] + dy, me->k[2] + dz}, 0};
+                    size_t lo = 0, hi = m; /* first entry >= key */
+                    while (lo < hi) {
+                        size_t mid = lo + (hi - lo) / 2;
+                        if (cmp_cell(&e[mid], &key) < 0) lo = mid + 1; else hi = mid;
+                    }
+                    for (size_t i = lo; i < m && e[i].k[0] == key.k[0] && e[i].k[1] == key.k[1] &&
+                                        e[i].k[2] == key.k[2] && e[i].v < best; i++) {
+                        uint32_t w = e[i].v;
+                        if (rep[w] != w) continue;
+                        const double *d = &p->pos[3 * (size_t)w];
+                        if (fabs(d[0] - c[0]) <= eps && fabs(d[1] - c[1]) <= eps &&
+                            fabs(d[2] - c[2]) <= eps) {
+                            best = w;
+                            break;
+                        }
+                    }
+                }
+        rep[v] = best;
+    }
+    free(where);
+    free(e);
+}
+
+/* ------------------------------------------------------------------ pairing */
+
+typedef struct edge_entry {
+    uint32_t lo, hi;
+    int tri;
+} edge_entry;
+
+static int cmp_edge(const void *pa, const void *pb) {
+    const edge_entry *a = pa, *b = pb;
+    if (a->lo != b->lo) return a->lo < b->lo ? -1 : 1;
+    if (a->hi != b->hi) return a->hi < b->hi ? -1 : 1;
+    return (a->tri > b->tri) - (a->tri < b->tri);
+}
+
+typedef struct cand {
+    int t, s;
+    int score;   /* higher is preferred */
+} cand;
+
+static int cmp_cand(const void *pa, const void *pb) {
+    const cand *a = pa, *b = pb;
+    if (a->t != b->t) return a->t < b->t ? -1 : 1;
+    if (a->score != b->score) return a->score > b->score ? -1 : 1;
+    return (a->s > b->s) - (a->s < b->s);
+}
+
+/* Why a triangle could not pair with a neighbour (the first reason found is kept). */
+typedef struct tri_info {
+    int bad;          /* 1 if the triangle itself is unusable (problem already added) */
+    int fail_kind;    /* WRT_PROBLEM_* from a rejected neighbour, 0 if none */
+    int fail_with;
+    double fail_value;
+    int ncand;        /* valid candidates before matching */
+    wrt_v3 n;         /* unit normal from the triangle's winding */
+    double longest2;  /* squared longest edge */
+} tri_info;
+
+typedef struct pair_ctx {
+    const wrt_gltf_prim *p;
+    const uint32_t *rep;
+    tri_info *info;
+    double planar_tol;
+} pair_ctx;
+
+/* Builds the quad of triangles t and s across their shared edge (reps ru, rv):
+ * p0 = t's own corner, then around in t's winding. Returns 0 if it is a valid
+ * planar strictly convex quad, else a WRT_PROBLEM_* (or -1 for opposite winding). */
+static int eval_pair(const pair_ctx *c, int t, int s, wrt_v3 q[4], double *value, int *para) {
+    const uint32_t *it = &c->p->idx[3 * (size_t)t], *is = &c->p->idx[3 * (size_t)s];
+    int k = -1, ks = -1;
+    for (int i = 0; i < 3; i++) {
+        uint32_t r = c->rep[it[i]];
+        if (r != c->rep[is[0]] && r != c->rep[is[1]] && r != c->rep[is[2]]) k = i;
+        uint32_t rs = c->rep[is[i]];
+        if (rs != c->rep[it[0]] && rs != c->rep[it[1]] && rs != c->rep[it[2]]) ks = i;
+    }
+    if (k < 0 || ks < 0) return WRT_PROBLEM_DEGENERATE; /* same three corners */
+    q[0] = pos_at(c->p, it[k]);
+    q[1] = pos_at(c->p, it[(k + 1) % 3]);
+    q[2] = pos_at(c->p, is[ks]);
+    q[3] = pos_at(c->p, it[(k + 2) % 3]);
+    wrt_v3 nt = c->info[t].n, ns = c->info[s].n;
+    double size = fmax(v3_len(v3_sub(q[2], q[0])), v3_len(v3_sub(q[3], q[1])));
+    double dev = fmax(fabs(v3_dot(v3_sub(q[2], q[0]), nt)), fabs(v3_dot(v3_sub(q[0], q[2]), ns)));
+    *value = dev / size;
+    if (!(dev <= c->planar_tol * size)) return WRT_PROBLEM_NONPLANAR;
+    if (v3_dot(nt, ns) <= 0) return -1;
+    wrt_v3 n = v3_norm(v3_add(nt, ns));
+    double thr = WRT_COLLINEAR_REL * size * size;
+    int collinear = 0;
+    for (int i = 0; i < 4; i++) {
+        wrt_v3 e1 = v3_sub(q[(i + 1) % 4], q[i]), e2 = v3_sub(q[(i + 2) % 4], q[(i + 1) % 4]);
+        double turn = v3_dot(v3_cross(e1, e2), n);
+        if (turn < -thr) { *value = i; return WRT_PROBLEM_NONCONVEX; }
+        if (turn <= thr) collinear = 1;
+    }
+    if (collinear) return WRT_PROBLEM_DEGENERATE;
+    wrt_v3 off = v3_sub(q[2], v3_sub(v3_add(q[1], q[3]), q[0]));
+    *para = v3_len(off) <= WRT_PARALLELOGRAM_REL * size;
+    return 0;
+}
+
+static const char *problem_name(int kind) {
+    switch (kind) {
+    case WRT_PROBLEM_UNPAIRED: return "unpaired";
+    case WRT_PROBLEM_NONPLANAR: return "non-planar";
+    case WRT_PROBLEM_DEGENERATE: return "degenerate";
+    case WRT_PROBLEM_NONCONVEX: return "non-convex";
+    case WRT_PROBLEM_NONFINITE: return "non-finite";
+    default: return "problem";
+    }
+}
+
+/* Pairs one primitive's triangles into quads (appended to ql) and reports every
+ * triangle left over (appended to pl). */
+static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, double planar_tol,
+                           int material, quad_list *ql, problem_list *pl) {
+    size_t ntri = p->ntri;
+    if (ntri == 0) return;
+    uint32_t *rep = wrt_xmalloc(p->npos * sizeof *rep);
+    match_vertices(p, origin, eps, rep);
+    tri_info *info = wrt_xcalloc(ntri, sizeof *info);
+    edge_entry *edges = wrt_xmalloc(3 * ntri * sizeof *edges);
+    size_t nedges = 0;
+    for (size_t t = 0; t < ntri; t++) {
+        const uint32_t *ix = &p->idx[3 * t];
+        uint32_t r[3] = {rep[ix[0]], rep[ix[1]], rep[ix[2]]};
+        int ti = (int)t;
+        if (r[0] == UINT32_MAX || r[1] == UINT32_MAX || r[2] == UINT32_MAX) {
+            int bad = r[0] == UINT32_MAX ? 0 : r[1] == UINT32_MAX ? 1 : 2;
+            add_problem(pl, WRT_PROBLEM_NONFINITE, p->mesh, p->prim, ti,
+                        "vertex %u has a NaN, infinite or huge coordinate", ix[bad]);
+            info[t].bad = 1;
+            continue;
+        }
+        if (r[0] == r[1] || r[1] == r[2] || r[0] == r[2]) {
+            add_problem(pl, WRT_PROBLEM_DEGENERATE, p->mesh, p->prim, ti,
+                        "zero area: two corners coincide");
+            info[t].bad = 1;
+            continue;
+        }
+        wrt_v3 a = pos_at(p, ix[0]), b = pos_at(p, ix[1]), c = pos_at(p, ix[2]);
+        wrt_v3 cr = v3_cross(v3_sub(b, a), v3_sub(c, a));
+        double l2 = fmax(v3_dot(v3_sub(b, a), v3_sub(b, a)),
+                         fmax(v3_dot(v3_sub(c, b), v3_sub(c, b)), v3_dot(v3_sub(a, c), v3_sub(a, c))));
+        if (!(v3_len(cr) > WRT_COLLINEAR_REL * l2)) {
+            add_problem(pl, WRT_PROBLEM_DEGENERATE, p->mesh, p->prim, ti,
+                        "zero area: collinear corners");
+            info[t].bad = 1;
+            continue;
+        }
+        info[t].n = v3_norm(cr);
+        info[t].longest2 = l2;
+        for (int e = 0; e < 3; e++) {
+            uint32_t u = r[e], v = r[(e + 1) % 3];
+            edges[nedges].lo = u < v ? u : v;
+            edges[nedges].hi = u < v ? v : u;
+            edges[nedges].tri = ti;
+            nedges++;
+        }
+    }
+    qsort(edges, nedges, sizeof *edges, cmp_edge);
+
+    pair_ctx ctx = {p, rep, info, planar_tol};
+    cand *cands = NULL;
+    size_t ncands = 0, capc = 0;
+    for (size_t i = 0; i < nedges;) {
+        size_t j = i;
+        while (j < nedges && edges[j].lo == edges[i].lo && edges[j].hi == edges[i].hi) j++;
+        if (j - i <= WRT_MAX_EDGE_FAN) {
+            for (size_t a = i; a < j; a++)
+                for (size_t b = a + 1; b < j; b++) {
+                    int t = edges[a].tri, s = edges[b].tri;
+                    if (t == s) continue;
+                    wrt_v3 q[4];
+                    double value = 0;
+                    int para = 0;
+                    int why = eval_pair(&ctx, t, s, q, &value, &para);
+                    if (why != 0) {
+                        int kind = why < 0 ? WRT_PROBLEM_UNPAIRED : why;
+                        if (!info[t].fail_kind) {
+                            info[t].fail_kind = kind; info[t].fail_with = s; info[t].fail_value = value;
+                        }
+                        if (!info[s].fail_kind) {
+                            info[s].fail_kind = kind; info[s].fail_with = t; info[s].fail_value = value;
+                        }
+                        continue;
+                    }
+                    /* the shared edge is the diagonal: is it each triangle's longest edge? */
+                    double diag2 = v3_dot(v3_sub(q[3], q[1]), v3_sub(q[3], q[1]));
+                    int score = 4 * para + (diag2 >= info[t].longest2 * (1 - 1e-9)) +
+                                (diag2 >= info[s].longest2 * (1 - 1e-9));
+                    if (ncands + 2 > capc) {
+                        capc = capc ? capc * 2 : 64;
+                        cands = wrt_xrealloc(cands, capc * sizeof *cands);
+                    }
+                    cands[ncands++] = (cand){t, s, score};
+                    cands[ncands++] = (cand){s, t, score};
+                }
+        } else {
+            for (size_t a = i; a < j; a++) {
+                int t = edges[a].tri;
+                if (!info[t].fail_kind) {
+                    info[t].fail_kind = WRT_PROBLEM_UNPAIRED; info[t].fail_with = -1;
+                    info[t].fail_value = (double)(j - i);
+                }
+            }
+        }
+        i = j;
+    }
+    if (ncands) qsort(cands, ncands, sizeof *cands, cmp_cand);
+    size_t *first = wrt_xcalloc(ntri + 1, sizeof *first);
+    for (size_t i = 0; i < ncands; i++) first[cands[i].t + 1]++;
+    for (size_t t = 0; t < ntri; t++) first[t + 1] += first[t];
+    int *deg = wrt_xcalloc(ntri, sizeof *deg);
+    int *mate = wrt_xmalloc(ntri * sizeof *mate);
+    int *stack = wrt_xmalloc(ntri * sizeof *stack);
+    size_t nstack = 0;
+    for (size_t t = 0; t < ntri; t++) {
+        mate[t] = -1;
+        deg[t] = (int)(first[t + 1] - first[t]);
+        info[t].ncand = deg[t];
+    }
+    for (size_t t = ntri; t-- > 0;)
+        if (deg[t] == 1) stack[nstack++] = (int)t;
+    size_t next = 0;
+    for (;;) {
+        int t = -1, s = -1;
+        while (nstack && t < 0) {
+            int c = stack[--nstack];
+            if (mate[c] >= 0 || deg[c] != 1) continue;
+            for (size_t k = first[c]; k < first[c + 1]; k++)
+                if (mate[cands[k].s] < 0) { t = c; s = cands[k].s; break; }
+        }
+        if (t < 0) {
+            while (next < ntri && (mate[next] >= 0 || deg[next] == 0)) next++;
+            if (next == ntri) break;
+            t = (int)next;
+            for (size_t k = first[t]; k < first[t + 1]; k++)
+                if (mate[cands[k].s] < 0) { s = cands[k].s; break; }
+            if (s < 0) { deg[t] = 0; continue; } /* cannot happen: deg counts free candidates */
+        }
+        mate[t] = s;
+        mate[s] = t;
+        int ends[2] = {t, s};
+        for (int e = 0; e < 2; e++)
+            for (size_t k = first[ends[e]]; k < first[ends[e] + 1]; k++) {
+                int o = cands[k].s;
+                if (mate[o] >= 0) continue;
+                if (--deg[o] == 1) stack[nstack++] = o;
+            }
+    }
+
+    for (size_t t = 0; t < ntri; t++) {
+        int ti = (int)t;
+        if (info[t].bad) continue;
+        int s = mate[t];
+        if (s >= 0) {
+            if (s < ti) continue;
+            wrt_v3 q[4];
+            double value = 0;
+            int para = 0;
+            eval_pair(&ctx, ti, s, q, &value, &para);
+            wrt_quad *quad = add_quad(ql);
+            for (int i = 0; i < 4; i++) quad->p[i] = q[i];
+            if (wrt_quad_finish(quad) != WRT_OK) {
+                ql->n--;
+                add_problem(pl, WRT_PROBLEM_DEGENERATE, p->mesh, p->prim, ti,
+                            "degenerate quad with triangle %d", s);
+                add_problem(pl, WRT_PROBLEM_DEGENERATE, p->mesh, p->prim, s,
+                            "degenerate quad with triangle %d", ti);
+                continue;
+            }
+            quad->material = material;
+            quad->mesh = p->mesh;
+            quad->prim = p->prim;
+            quad->tri[0] = ti;
+            quad->tri[1] = s;
+            quad->name = p->mesh;
+            continue;
+        }
+        const tri_info *in = &info[t];
+        if (in->ncand > 0)
+            add_problem(pl, WRT_PROBLEM_UNPAIRED, p->mesh, p->prim, ti,
+                        "unpaired: every adjacent partner was paired with another triangle");
+        else if (in->fail_kind == WRT_PROBLEM_NONPLANAR)
+            add_problem(pl, WRT_PROBLEM_NONPLANAR, p->mesh, p->prim, ti,
+                        "non-planar quad with triangle %d (off-plane distance %.3g of its size)",
+                        in->fail_with, in->fail_value);
+        else if (in->fail_kind == WRT_PROBLEM_NONCONVEX)
+            add_problem(pl, WRT_PROBLEM_NONCONVEX, p->mesh, p->prim, ti,
+                        "non-convex quad with triangle %d", in->fail_with);
+        else if (in->fail_kind == WRT_PROBLEM_DEGENERATE)
+            add_problem(pl, WRT_PROBLEM_DEGENERATE, p->mesh, p->prim, ti,
+                        "degenerate quad with triangle %d (collinear corners or same vertices)",
+                        in->fail_with);
+        else if (in->fail_kind == WRT_PROBLEM_UNPAIRED && in->fail_with >= 0)
+            add_problem(pl, WRT_PROBLEM_UNPAIRED, p->mesh, p->prim, ti,
+                        "unpaired: winding opposite to adjacent triangle %d", in->fail_with);
+        else if (in->fail_kind == WRT_PROBLEM_UNPAIRED)
+            add_problem(pl, WRT_PROBLEM_UNPAIRED, p->mesh, p->prim, ti,
+                        "unpaired: an edge is shared by %.0f triangles", in->fail_value);
+        else
+            add_problem(pl, WRT_PROBLEM_UNPAIRED, p->mesh, p->prim, ti,
+                        "unpaired: no adjacent triangle shares an edge");
+    }
+    free(stack);
+    free(mate);
+    free(deg);
+    free(first);
+    free(cands);
+    free(edges);
+    free(info);
+    free(rep);
+}
+
+/* ------------------------------------------------------------------ loading */
+
+static float clamp01(double x, int *changed) {
+    double y = fmin(fmax(x, 0.0), 1.0);
+    if (!(y == x)) *changed = 1;
+    return (float)y;
+}
+
+static int finite3(const double *v) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }
+
+static void convert_materials(const wrt_gltf_data *g, int need_default, wrt_scene *s,
+                              const char *label) {
+    int n = (int)g->nmaterials + (need_default ? 1 : 0);
+    s->materials = wrt_xcalloc((size_t)(n ? n : 1), sizeof *s->materials);
+    s->nmaterials = n;
+    for (int i = 0; i < (int)g->nmaterials; i++) {
+        const wrt_gltf_material *m = &g->materials[i];
+        wrt_material *o = &s->materials[i];
+        int changed = 0;
+        snprintf(o->name, sizeof o->name, "%s", m->name);
+        for (int c = 0; c < 3; c++) {
+            double bc = m->base_color[c] * (m->has_base_tex ? m->base_tex_mean[c] : 1.0);
+            o->base_color[c] = clamp01(bc, &changed);
+            double em = m->emissive[c] * (m->has_emissive_tex ? m->emissive_tex_mean[c] : 1.0);
+            o->emissive[c] = (float)(isfinite(em) && em > 0 ? em : 0.0);
+        }
+        o->metallic = clamp01(m->metallic * (m->has_mr_tex ? m->mr_tex_mean[2] : 1.0), &changed);
+        o->roughness = clamp01(m->roughness * (m->has_mr_tex ? m->mr_tex_mean[1] : 1.0), &changed);
+        o->has_texture = m->has_base_tex || m->has_mr_tex || m->has_emissive_tex;
+        if (changed)
+            wrt_log(WRT_LOG_WARN, "%s: material %d '%s': factor outside [0, 1] clamped", label, i,
+                    o->name);
+    }
+    if (need_default) {
+        wrt_material *o = &s->materials[n - 1];
+        snprintf(o->name, sizeof o->name, "%s", "glTF default");
+        o->base_color[0] = o->base_color[1] = o->base_color[2] = 1.0f;
+        o->metallic = 1.0f;
+        o->roughness = 1.0f;
+    }
+    for (int i = 0; i < n; i++) {
+        wrt_material *o = &s->materials[i];
+        o->lambertian = o->roughness == 1.0f && o->metallic == 0.0f;
+        if (o->emissive[0] > 0 || o->emissive[1] > 0 || o->emissive[2] > 0) s->nemissive++;
+    }
+}
+
+static wrt_status convert_lights(const wrt_gltf_data *g, wrt_scene *s, const char *label) {
+    s->lights = wrt_xcalloc(g->nlights ? g->nlights : 1, sizeof *s->lights);
+    for (size_t i = 0; i < g->nlights; i++) {
+        const wrt_gltf_light *l = &g->lights[i];
+        if (l->type == WRT_GLTF_LIGHT_DIRECTIONAL || l->type == WRT_GLTF_LIGHT_OTHER) {
+            wrt_log(WRT_LOG_WARN, "%s: light '%s' (node %d): %s lights are not supported, skipped",
+                    label, l->name, l->node,
+                    l->type == WRT_GLTF_LIGHT_DIRECTIONAL ? "directional" : "unknown-type");
+            continue;
+        }
+        if (!finite3(l->pos) || !finite3(l->dir) || !finite3(l->color) || !isfinite(l->intensity) ||
+            !isfinite(l->range) || !isfinite(l->inner_cone) || !isfinite(l->outer_cone))
+            return wrt_fail(WRT_ERR_PARSE, "%s: light '%s' (node %d) has a non-finite value", label,
+                            l->name, l->node);
+        if (l->intensity < 0 || l->range < 0 || l->color[0] < 0 || l->color[1] < 0 || l->color[2] < 0)
+            return wrt_fail(WRT_ERR_PARSE, "%s: light '%s' (node %d) has a negative intensity, range or color",
+                            label, l->name, l->node);
+        wrt_light *o = &s->lights[s->nlights++];
+        o->type = l->type == WRT_GLTF_LIGHT_SPOT ? WRT_LIGHT_SPOT : WRT_LIGHT_POINT;
+        snprintf(o->name, sizeof o->name, "%s", l->name);
+        o->pos = v3(l->pos[0], l->pos[1], l->pos[2]);
+        o->dir = v3(l->dir[0], l->dir[1], l->dir[2]);
+        for (int c = 0; c < 3; c++) o->color[c] = (float)l->color[c];
+        o->intensity = (float)l->intensity;
+        o->range = (float)l->range;
+        double inner = l->inner_cone, outer = l->outer_cone;
+        if (o->type == WRT_LIGHT_SPOT) {
+            if (!(outer > 0 && outer <= WRT_PI / 2 && inner >= 0 && inner < outer)) {
+                wrt_log(WRT_LOG_WARN,
+                        "%s: spot light '%s': cone angles inner %g outer %g outside 0 <= inner < "
+                        "outer <= pi/2, clamped",
+                        label, l->name, inner, outer);
+                outer = fmin(fmax(outer, 1e-3), WRT_PI / 2);
+                inner = fmin(fmax(inner, 0.0), outer * 0.999);
+            }
+        }
+        o->inner_cone = (float)inner;
+        o->outer_cone = (float)outer;
+    }
+    return WRT_OK;
+}
+
+static wrt_status make_camera(const wrt_gltf_data *g, wrt_scene *s, const char *label) {
+    wrt_camera *c = &s->camera;
+    const wrt_gltf_camera *gc = &g->camera;
+    if (gc->present) {
+        if (!finite3(gc->pos) || !finite3(gc->dir) || !finite3(gc->up) || !(gc->yfov > 0) ||
+            !(gc->yfov < WRT_PI) || !isfinite(gc->aspect) || !isfinite(gc->znear) ||
+            !isfinite(gc->zfar))
+            return wrt_fail(WRT_ERR_PARSE, "%s: camera of node %d: yfov %g or transform not usable",
+                            label, gc->node, gc->yfov);
+        c->pos = v3(gc->pos[0], gc->pos[1], gc->pos[2]);
+        c->dir = v3(gc->dir[0], gc->dir[1], gc->dir[2]);
+        c->up = v3(gc->up[0], gc->up[1], gc->up[2]);
+        c->yfov = gc->yfov;
+        c->aspect = gc->aspect > 0 ? gc->aspect : 0;
+        c->znear = gc->znear > 0 ? gc->znear : 0.01;
+        c->zfar = gc->zfar > c->znear ? gc->zfar : 0;
+        c->from_file = 1;
+        return WRT_OK;
+    }
+    wrt_v3 center = v3_scale(v3_add(s->bbox_min, s->bbox_max), 0.5);
+    double r = 0.5 * v3_len(v3_sub(s->bbox_max, s->bbox_min));
+    if (!(r > 0)) r = 1;
+    c->yfov = 0.8;
+    double dist = r / sin(0.5 * c->yfov);
+    c->pos = v3(center.x, center.y, center.z + dist);
+    c->dir = v3(0, 0, -1);
+    c->up = v3(0, 1, 0);
+    c->aspect = 0;
+    c->znear = 0.01 * r;
+    c->zfar = 2 * (dist + r);
+    c->from_file = 0;
+    return WRT_OK;
+}
+
+static wrt_status load_common(const void *data, size_t size, const char *base_dir, const char *label,
+                              const wrt_load_options *opt, wrt_scene *out) {
+    wrt_load_options defaults = {0, 0};
+    if (!opt) opt = &defaults;
+    double planar_tol = opt->planar_tol > 0 ? opt->planar_tol : 1e-4;
+    if (!isfinite(planar_tol) || planar_tol >= 1)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "planar_tol %g must be in (0, 1)", opt->planar_tol);
+    wrt_gltf_data g;
+    wrt_status st = wrt_gltf_read(data, size, base_dir, label, &g);
+    if (st != WRT_OK) return st;
+    if (g.warnings && g.warnings[0]) {
+        for (char *w = g.warnings; *w; w++)
+            if (*w == '\n') *w = ' ';
+        wrt_log(WRT_LOG_WARN, "%s: %s", label, g.warnings);
+    }
+    wrt_scene *s = out;
+    s->source_hash = wrt_hash64(data, size, WRT_HASH_SEED);
+
+    /* scene extent over every usable vertex: the scale of the matching tolerance */
+    wrt_v3 lo = v3(DBL_MAX, DBL_MAX, DBL_MAX), hi = v3(-DBL_MAX, -DBL_MAX, -DBL_MAX);
+    int need_default = 0;
+    for (size_t i = 0; i < g.nprims; i++) {
+        const wrt_gltf_prim *p = &g.prims[i];
+        if (p->material < 0) need_default = 1;
+        for (size_t v = 0; v < p->npos; v++) {
+            const double *c = &p->pos[3 * v];
+            if (!coord_ok(c)) continue;
+            lo = v3(fmin(lo.x, c[0]), fmin(lo.y, c[1]), fmin(lo.z, c[2]));
+            hi = v3(fmax(hi.x, c[0]), fmax(hi.y, c[1]), fmax(hi.z, c[2]));
+        }
+    }
+    if (lo.x > hi.x) lo = hi = v3(0, 0, 0);
+    double diag = v3_len(v3_sub(hi, lo));
+    double eps = diag > 0 ? WRT_WELD_REL * diag : 1.0;
+
+    convert_materials(&g, need_default, s, label);
+    s->nnames = (int)g.nmeshes;
+    s->names = wrt_xcalloc(g.nmeshes ? g.nmeshes : 1, sizeof *s->names);
+    for (size_t i = 0; i < g.nmeshes; i++) memcpy(s->names[i], g.mesh_names[i], 64);
+
+    quad_list ql = {0};
+    problem_list pl = {0};
+    size_t ntri = 0;
+    for (size_t i = 0; i < g.nprims; i++) {
+        const wrt_gltf_prim *p = &g.prims[i];
+        int material = p->material >= 0 ? p->material : s->nmaterials - 1;
+        pair_primitive(p, lo, eps, planar_tol, material, &ql, &pl);
+        ntri += p->ntri;
+    }
+    s->quads = ql.v;
+    s->nquads = ql.n;
+    s->problems = pl.v;
+    s->nproblems = pl.n;
+    s->ntriangles = (int)ntri;
+
+    if (pl.n > 0) {
+        char buf[700];
+        size_t used = 0;
+        int shown = pl.n < 3 ? pl.n : 3;
+        for (int i = 0; i < shown && used < sizeof buf; i++) {
+            const wrt_problem *pr = &pl.v[i];
+            const char *mname = pr->mesh >= 0 && pr->mesh < s->nnames ? s->names[pr->mesh] : "?";
+            int w = snprintf(buf + used, sizeof buf - used, "%smesh %d '%s' primitive %d triangle %d: %s (%s)",
+                             i ? "; " : "", pr->mesh, mname, pr->prim, pr->tri, pr->what,
+                             problem_name(pr->kind));
+            if (w < 0) break;
+            used += (size_t)w;
+        }
+        if (!opt->drop_bad) {
+            st = wrt_fail(WRT_ERR_GEOMETRY, "%s: %d bad triangle%s refused: %s%s", label, pl.n,
+                          pl.n == 1 ? "" : "s", buf,
+                          pl.n > shown ? "; ..." : "");
+            wrt_gltf_free(&g);
+            wrt_scene_free(s);
+            return st;
+        }
+        wrt_log(WRT_LOG_WARN, "%s: dropped %d bad triangle%s: %s%s", label, pl.n,
+                pl.n == 1 ? "" : "s", buf, pl.n > shown ? "; ..." : "");
+    }
+
+    /* bounding box of the kept geometry */
+    if (s->nquads > 0) {
+        lo = v3(DBL_MAX, DBL_MAX, DBL_MAX);
+        hi = v3(-DBL_MAX, -DBL_MAX, -DBL_MAX);
+        for (int i = 0; i < s->nquads; i++)
+            for (int k = 0; k < 4; k++) {
+                wrt_v3 c = s->quads[i].p[k];
+                lo = v3(fmin(lo.x, c.x), fmin(lo.y, c.y), fmin(lo.z, c.z));
+                hi = v3(fmax(hi.x, c.x), fmax(hi.y, c.y), fmax(hi.z, c.z));
+            }
+    } else {
+        wrt_log(WRT_LOG_WARN, "%s: the scene has no quads", label);
+    }
+    s->bbox_min = lo;
+    s->bbox_max = hi;
+
+    st = convert_lights(&g, s, label);
+    if (st == WRT_OK) st = make_camera(&g, s, label);
+    wrt_gltf_free(&g);
+    if (st != WRT_OK) wrt_scene_free(s);
+    return st;
+}
+
+wrt_status wrt_scene_load_memory(const void *data, size_t size, const char *base_dir,
+                                 const wrt_load_options *opt, wrt_scene *out) {
+    if (!out) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_scene_load_memory: out is NULL");
+    memset(out, 0, sizeof *out);
+    if (!data && size) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_scene_load_memory: data is NULL");
+    return load_common(data, size, base_dir ? base_dir : "", "<memory>", opt, out);
+}
+
+wrt_status wrt_scene_load(const char *path, const wrt_load_options *opt, wrt_scene *out) {
+    if (!out) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_scene_load: out is NULL");
+    memset(out, 0, sizeof *out);
+    if (!path) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_scene_load: path is NULL");
+    FILE *f = fopen(path, "rb");
+    if (!f) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    if (fseek(f, 0, SEEK_END) != 0) {
+        fclose(f);
+        return wrt_fail(WRT_ERR_IO, "%s: cannot seek: %s", path, strerror(errno));
+    }
+    long len = ftell(f);
+    if (len < 0 || fseek(f, 0, SEEK_SET) != 0) {
+        fclose(f);
+        return wrt_fail(WRT_ERR_IO, "%s: cannot size: %s", path, strerror(errno));
+    }
+    if (len == 0) {
+        fclose(f);
+        return wrt_fail(WRT_ERR_PARSE, "%s: empty file", path);
+    }
+    unsigned char *buf = wrt_xmalloc((size_t)len);
+    size_t got = fread(buf, 1, (size_t)len, f);
+    int rerr = ferror(f);
+    fclose(f);
+    if (got != (size_t)len || rerr) {
+        free(buf);
+        return wrt_fail(WRT_ERR_IO, "%s: short read", path);
+    }
+    /* external buffers and images resolve against the file's folder */
+    char dir[4096];
+    const char *slash = strrchr(path, '/');
+    if (slash) {
+        size_t n = (size_t)(slash - path);
+        if (n >= sizeof dir) n = sizeof dir - 1;
+        memcpy(dir, path, n);
+        dir[n] = 0;
+        if (n == 0) snprintf(dir, sizeof dir, "/");
+    } else {
+        snprintf(dir, sizeof dir, ".");
+    }
+    wrt_status st = load_common(buf, (size_t)len, dir, path, opt, out);
+    free(buf);
+    return st;
+}
+
+void wrt_scene_free(wrt_scene *s) {
+    if (!s) return;
+    free(s->quads);
+    free(s->materials);
+    free(s->lights);
+    free(s->names);
+    free(s->problems);
+    memset(s, 0, sizeof *s);
+}
+
+/* ------------------------------------------------------------------ summary */
+
+static void json_string(FILE *f, const char *s) {
+    fputc('"', f);
+    for (const unsigned char *c = (const unsigned char *)s; *c; c++) {
+        if (*c == '"' || *c == '\\') fprintf(f, "\\%c", *c);
+        else if (*c < 0x20 || *c == 0x7f) fprintf(f, "\\u%04x", *c);
+        else fputc(*c, f);
+    }
+    fputc('"', f);
+}
+
+/* Numbers in JSON must be finite. */
+static void json_num(FILE *f, double x) {
+    if (isfinite(x)) fprintf(f, "%.9g", x);
+    else fputs("null", f);
+}
+
+static void json_v3(FILE *f, wrt_v3 v) {
+    fputc('[', f);
+    json_num(f, v.x); fputc(',', f);
+    json_num(f, v.y); fputc(',', f);
+    json_num(f, v.z);
+    fputc(']', f);
+}
+
+/* Single-precision fields print with the digits a float holds (0.8, not 0.800000012). */
+static void json_numf(FILE *f, float x) {
+    if (isfinite(x)) fprintf(f, "%.7g", (double)x);
+    else fputs("null", f);
+}
+
+static void json_f3(FILE *f, const float *v) {
+    fputc('[', f);
+    json_numf(f, v[0]); fputc(',', f);
+    json_numf(f, v[1]); fputc(',', f);
+    json_numf(f, v[2]);
+    fputc(']', f);
+}
+
+void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
+    if (!s || !f) return;
+    int npara = 0;
+    int *uses = wrt_xcalloc((size_t)(s->nmaterials > 0 ? s->nmaterials : 1), sizeof *uses);
+    for (int i = 0; i < s->nquads; i++) {
+        npara += s->quads[i].parallelogram;
+        if (s->quads[i].material >= 0 && s->quads[i].material < s->nmaterials)
+            uses[s->quads[i].material]++;
+    }
+    const wrt_camera *c = &s->camera;
+    if (json) {
+        fprintf(f, "{\"quads\":%d,\"parallelograms\":%d,\"triangles\":%d,\"emissive\":%d,", s->nquads,
+                npara, s->ntriangles, s->nemissive);
+        fprintf(f, "\"source_hash\":\"%016llx\",\"bbox\":{\"min\":", (unsigned long long)s->source_hash);
+        json_v3(f, s->bbox_min);
+        fputs(",\"max\":", f);
+        json_v3(f, s->bbox_max);
+        fputs("},\"materials\":[", f);
+        for (int i = 0; i < s->nmaterials; i++) {
+            const wrt_material *m = &s->materials[i];
+            fputs(i ? ",{\"name\":" : "{\"name\":", f);
+            json_string(f, m->name);
+            fputs(",\"base_color\":", f);
+            json_f3(f, m->base_color);
+            fputs(",\"metallic\":", f);
+            json_numf(f, m->metallic);
+            fputs(",\"roughness\":", f);
+            json_numf(f, m->roughness);
+            fputs(",\"emissive\":", f);
+            json_f3(f, m->emissive);
+            fprintf(f, ",\"lambertian\":%s,\"textured\":%s,\"quads\":%d}", m->lambertian ? "true" : "false",
+                    m->has_texture ? "true" : "false", uses[i]);
+        }
+        fputs("],\"lights\":[", f);
+        for (int i = 0; i < s->nlights; i++) {
+            const wrt_light *l = &s->lights[i];
+            fprintf(f, "%s{\"type\":\"%s\",\"name\":", i ? "," : "", l->type == WRT_LIGHT_SPOT ? "spot" : "point");
+            json_string(f, l->name);
+            fputs(",\"position\":", f);
+            json_v3(f, l->pos);
+            fputs(",\"direction\":", f);
+            json_v3(f, l->dir);
+            fputs(",\"color\":", f);
+            json_f3(f, l->color);
+            fputs(",\"intensity\":", f);
+            json_numf(f, l->intensity);
+            fputs(",\"range\":", f);
+            json_numf(f, l->range);
+            fputs(",\"inner_cone\":", f);
+            json_numf(f, l->inner_cone);
+            fputs(",\"outer_cone\":", f);
+            json_numf(f, l->outer_cone);
+            fputc('}', f);
+        }
+        fputs("],\"camera\":{\"position\":", f);
+        json_v3(f, c->pos);
+        fputs(",\"direction\":", f);
+        json_v3(f, c->dir);
+        fputs(",\"up\":", f);
+        json_v3(f, c->up);
+        fputs(",\"yfov\":", f);
+        json_num(f, c->yfov);
+        fputs(",\"aspect\":", f);
+        json_num(f, c->aspect);
+        fputs(",\"znear\":", f);
+        json_num(f, c->znear);
+        fputs(",\"zfar\":", f);
+        json_num(f, c->zfar);
+        fprintf(f, ",\"from_file\":%s},\"problems\":[", c->from_file ? "true" : "false");
+        for (int i = 0; i < s->nproblems; i++) {
+            const wrt_problem *p = &s->problems[i];
+            fprintf(f, "%s{\"kind\":\"%s\",\"mesh\":%d,\"primitive\":%d,\"triangle\":%d,\"what\":",
+                    i ? "," : "", problem_name(p->kind), p->mesh, p->prim, p->tri);
+            json_string(f, p->what);
+            fputc('}', f);
+        }
+        fputs("]}\n", f);
+        free(uses);
+        return;
+    }
+    int ndiffuse = 0;
+    for (int i = 0; i < s->nmaterials; i++) ndiffuse += s->materials[i].lambertian;
+    fprintf(f, "scene: %d quads (%d parallelograms, %d general convex) from %d triangles\n", s->nquads,
+            npara, s->nquads - npara, s->ntriangles);
+    fprintf(f, "bbox: (%g, %g, %g) - (%g, %g, %g)\n", s->bbox_min.x, s->bbox_min.y, s->bbox_min.z,
+            s->bbox_max.x, s->bbox_max.y, s->bbox_max.z);
+    fprintf(f, "materials: %d (%d diffuse, %d glossy), %d emissive (reported only)\n", s->nmaterials,
+            ndiffuse, s->nmaterials - ndiffuse, s->nemissive);
+    for (int i = 0; i < s->nmaterials; i++) {
+        const wrt_material *m = &s->materials[i];
+        fprintf(f, "  [%d] %-24s %s base (%.3f, %.3f, %.3f) metallic %.3f roughness %.3f, %d quads\n", i,
+                m->name, m->lambertian ? "diffuse" : "glossy ", m->base_color[0], m->base_color[1],
+                m->base_color[2], m->metallic, m->roughness, uses[i]);
+    }
+    fprintf(f, "lights: %d\n", s->nlights);
+    for (int i = 0; i < s->nlights; i++) {
+        const wrt_light *l = &s->lights[i];
+        fprintf(f, "  [%d] %-5s %-16s at (%g, %g, %g) dir (%.3f, %.3f, %.3f) intensity %g cd color (%.3f, %.3f, %.3f)",
+                i, l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, l->pos.x, l->pos.y, l->pos.z,
+                l->dir.x, l->dir.y, l->dir.z, l->intensity, l->color[0], l->color[1], l->color[2]);
+        if (l->type == WRT_LIGHT_SPOT)
+            fprintf(f, " cone %.3f/%.3f rad", l->inner_cone, l->outer_cone);
+        if (l->range > 0) fprintf(f, " range %g", l->range);
+        fputc('\n', f);
+    }
+    fprintf(f, "camera: %s at (%g, %g, %g) looking (%.3f, %.3f, %.3f) yfov %.3f rad\n",
+            c->from_file ? "from file" : "default framing", c->pos.x, c->pos.y, c->pos.z, c->dir.x,
+            c->dir.y, c->dir.z, c->yfov);
+    fprintf(f, "problems: %d\n", s->nproblems);
+    for (int i = 0; i < s->nproblems && i < 50; i++) {
+        const wrt_problem *p = &s->problems[i];
+        fprintf(f, "  mesh %d primitive %d triangle %d: %s: %s\n", p->mesh, p->prim, p->tri,
+                problem_name(p->kind), p->what);
+    }
+    if (s->nproblems > 50) fprintf(f, "  ... %d more\n", s->nproblems - 50);
+    free(uses);
+}

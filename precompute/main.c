@@ -1,0 +1,298 @@
+/* main.c: the wrt-bake command line. Parses options, loads the scene, runs the bake
+ * (bake.h) with a progress bar on a terminal, writes the .gto atomically, prints the
+ * summary (text or --json). Also --scan (what the bake will see) and --info (inspect a
+ * .gto). Only this file exits. */
+#include <errno.h>
+#include <limits.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "../formats/gto.h"
+#include "../formats/scene.h"
+#include "bake.h"
+
+enum { EXIT_USAGE = 1, EXIT_INPUT = 2, EXIT_OUTPUT = 3, EXIT_CANCEL = 4, EXIT_ACCURACY = 5 };
+
+static void usage(FILE *f) {
+    fprintf(f,
+        "usage: wrt-bake SCENE.gltf|.glb -o OUT.gto [options]\n"
+        "       wrt-bake --scan SCENE.gltf [--json]     what the bake will see\n"
+        "       wrt-bake --info FILE.gto [--json]       header, provenance, figures, integrity\n"
+        "\n"
+        "Precomputes the light transport of a static quad scene (Wavelet Radiance Transport):\n"
+        "the direct transport operator by hierarchical refinement in a 4D Haar basis, then\n"
+        "the global transport operator by a Neumann series, written to a mappable .gto file.\n"
+        "\n"
+        "options:\n"
+        "  -o, --output FILE      the .gto to write (written to a temporary, then renamed)\n"
+        "  -q, --quality Q        1 (coarse, fast) .. 9 (fine, slow); default 5. Sets the\n"
+        "                         thresholds below consistently\n"
+        "  --eps-receiver E       receiver refinement threshold (form-factor spread)\n"
+        "  --eps-sender E         sender refinement threshold\n"
+        "  --eps-compress E       drop operator entries below E after each product\n"
+        "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
+        "  --min-level L          refine every link at least to level L\n"
+        "  --gathered             store the gathered GTO (T_fine G) instead of G - I\n"
+        "  --no-tail              do not add the estimated tail of the series\n"
+        "  --max-bounces N        cap on the series (default 2000)\n"
+        "  --threads N            worker threads (default: all cores); output is identical\n"
+        "  --drop-bad             drop bad triangles with a warning instead of refusing\n"
+        "  --reproducible         record no timings, so equal inputs give equal bytes\n"
+        "  --json                 print one JSON object with the figures on stdout\n"
+        "  --progress / --quiet   force or silence the progress bar (default: on a terminal)\n"
+        "  --print-config         print the resolved options and exit\n"
+        "  -h, --help, --version\n"
+        "\n"
+        "exit codes: 0 ok, 1 usage, 2 bad input scene, 3 output error, 4 interrupted,\n"
+        "            5 accuracy not met\n");
+}
+
+static int parse_int(const char *opt, const char *s, int lo, int hi, int *out) {
+    char *end;
+    errno = 0;
+    long v = strtol(s ? s : "", &end, 10);
+    if (!s || errno || *end || end == s || v < lo || v > hi) {
+        fprintf(stderr, "wrt-bake: error: %s needs an integer in [%d, %d], got '%s'\n", opt, lo, hi, s ? s : "");
+        return 0;
+    }
+    *out = (int)v;
+    return 1;
+}
+
+static int parse_double(const char *opt, const char *s, double lo, double hi, double *out) {
+    char *end;
+    errno = 0;
+    double v = strtod(s ? s : "", &end);
+    if (!s || errno || *end || end == s || !(v >= lo && v <= hi)) {
+        fprintf(stderr, "wrt-bake: error: %s needs a number in [%g, %g], got '%s'\n", opt, lo, hi, s ? s : "");
+        return 0;
+    }
+    *out = v;
+    return 1;
+}
+
+static int progress_on;
+static double progress_last;
+static int progress_cb(const char *phase, double done, void *user) {
+    (void)user;
+    if (!progress_on) return 1;
+    double now = wrt_now();
+    if (done < 1 && now - progress_last < 0.1) return 1;
+    progress_last = now;
+    int w = 40, n = (int)(done * w + 0.5);
+    fprintf(stderr, "\r%-4s [", phase);
+    for (int i = 0; i < w; i++) fputc(i < n ? '#' : '.', stderr);
+    fprintf(stderr, "] %3.0f%%", 100 * done);
+    if (done >= 1) fputc('\n', stderr);
+    fflush(stderr);
+    return 1;
+}
+
+static void json_counters(FILE *f, const wrt_bake_counters *c) {
+    fprintf(f,
+        "\"pairs\":{\"total\":%llu,\"exchange\":%llu,\"skipped_facing\":%llu,\"unoccluded\":%llu},"
+        "\"links\":{\"dto\":%llu,\"dto_diffuse\":%llu,\"dto_glossy\":%llu,\"gto\":%llu,\"gathered\":%llu,"
+        "\"refined\":%llu,\"leaves\":%llu,\"invisible\":%llu},"
+        "\"entries\":{\"dto\":%llu,\"spatial\":%llu,\"angular\":%llu,\"gto\":%llu,\"gathered\":%llu},"
+        "\"functions\":{\"total\":%u,\"angular\":%u},"
+        "\"rays\":{\"traced\":%llu,\"skipped_unoccluded\":%llu,\"skipped_facing\":%llu},\"samples\":%llu,"
+        "\"bounces\":%llu,\"energy_left\":%.6g,\"tail_fraction\":%.6g,\"series_ratio\":%.6g",
+        (unsigned long long)c->pairs_total, (unsigned long long)c->pairs_exchange,
+        (unsigned long long)c->pairs_skipped_facing, (unsigned long long)c->pairs_unoccluded,
+        (unsigned long long)c->links_dto, (unsigned long long)c->links_dto_diffuse,
+        (unsigned long long)c->links_dto_glossy, (unsigned long long)c->links_gto,
+        (unsigned long long)c->links_gathered, (unsigned long long)c->links_refined,
+        (unsigned long long)c->links_leaf, (unsigned long long)c->links_invisible,
+        (unsigned long long)c->entries_dto, (unsigned long long)c->entries_spatial,
+        (unsigned long long)c->entries_angular, (unsigned long long)c->entries_gto,
+        (unsigned long long)c->entries_gathered, c->nfuncs, c->nfuncs_angular,
+        (unsigned long long)c->rays_traced, (unsigned long long)c->rays_skipped_unoccluded,
+        (unsigned long long)c->rays_skipped_facing, (unsigned long long)c->samples,
+        (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio);
+}
+
+static void json_options(FILE *f, const wrt_bake_options *o) {
+    fprintf(f,
+        "{\"quality\":%d,\"eps_receiver\":%.6g,\"eps_sender\":%.6g,\"eps_compress\":%.6g,"
+        "\"max_level\":%d,\"min_level\":%d,\"receiver_samples\":%d,\"gathered\":%d,\"tail\":%d,"
+        "\"max_bounces\":%d}",
+        o->quality, o->eps_receiver, o->eps_sender, o->eps_compress, o->max_slevel, o->min_slevel,
+        o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces);
+}
+
+int main(int argc, char **argv) {
+    const char *scene_path = NULL, *out_path = NULL, *scan = NULL, *info = NULL;
+    int json = 0, force_progress = 0, quiet = 0, print_config = 0, reproducible = 0, drop_bad = 0;
+    wrt_bake_options o = {0};
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        int ok = 1;
+        if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
+        else if (!strcmp(a, "--version")) { printf("wrt-bake %s (.gto version %d)\n", WRT_VERSION_STRING, WRT_GTO_VERSION); return 0; }
+        else if (!strcmp(a, "-o") || !strcmp(a, "--output")) { if (!v) ok = 0; else out_path = v, i++; }
+        else if (!strcmp(a, "--scan")) { if (!v) ok = 0; else scan = v, i++; }
+        else if (!strcmp(a, "--info")) { if (!v) ok = 0; else info = v, i++; }
+        else if (!strcmp(a, "-q") || !strcmp(a, "--quality")) { ok = parse_int(a, v, 1, 9, &o.quality); i++; }
+        else if (!strcmp(a, "--eps-receiver")) { ok = parse_double(a, v, 1e-12, 10, &o.eps_receiver); i++; }
+        else if (!strcmp(a, "--eps-sender")) { ok = parse_double(a, v, 1e-12, 10, &o.eps_sender); i++; }
+        else if (!strcmp(a, "--eps-compress")) { ok = parse_double(a, v, 1e-15, 1, &o.eps_compress); i++; }
+        else if (!strcmp(a, "--max-level")) { ok = parse_int(a, v, 1, 10, &o.max_slevel); i++; }
+        else if (!strcmp(a, "--min-level")) { ok = parse_int(a, v, 0, 10, &o.min_slevel); i++; }
+        else if (!strcmp(a, "--max-bounces")) { ok = parse_int(a, v, 1, 1000000, &o.max_bounces); i++; }
+        else if (!strcmp(a, "--threads")) { ok = parse_int(a, v, 1, 64, &o.threads); i++; }
+        else if (!strcmp(a, "--gathered")) o.gathered = 1;
+        else if (!strcmp(a, "--no-tail")) o.no_tail = 1;
+        else if (!strcmp(a, "--drop-bad")) drop_bad = 1;
+        else if (!strcmp(a, "--reproducible")) reproducible = 1;
+        else if (!strcmp(a, "--json")) json = 1;
+        else if (!strcmp(a, "--progress")) force_progress = 1;
+        else if (!strcmp(a, "--quiet")) quiet = 1;
+        else if (!strcmp(a, "--print-config")) print_config = 1;
+        else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-bake: error: unknown option '%s' (see --help)\n", a); return EXIT_USAGE; }
+        else if (!scene_path) scene_path = a;
+        else { fprintf(stderr, "wrt-bake: error: unexpected argument '%s'\n", a); return EXIT_USAGE; }
+        if (!ok) {
+            if (!v) fprintf(stderr, "wrt-bake: error: %s needs a value\n", a);
+            return EXIT_USAGE;
+        }
+    }
+    if (o.min_slevel && o.max_slevel && o.min_slevel > o.max_slevel) {
+        fprintf(stderr, "wrt-bake: error: --min-level %d is deeper than --max-level %d\n", o.min_slevel, o.max_slevel);
+        return EXIT_USAGE;
+    }
+    if (print_config) {
+        wrt_bake_defaults(&o);
+        json_options(stdout, &o);
+        putchar('\n');
+        return 0;
+    }
+    if (info) {
+        wrt_status st = wrt_gto_print_info(info, json, stdout);
+        if (st != WRT_OK) {
+            fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+            return st == WRT_ERR_IO ? EXIT_OUTPUT : EXIT_INPUT;
+        }
+        return 0;
+    }
+    wrt_load_options lo = {.drop_bad = drop_bad};
+    if (scan) {
+        wrt_scene s;
+        wrt_status st = wrt_scene_load(scan, &lo, &s);
+        if (st != WRT_OK) {
+            fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+            return EXIT_INPUT;
+        }
+        wrt_scene_print_summary(&s, json, stdout);
+        wrt_scene_free(&s);
+        return 0;
+    }
+    if (!scene_path) { usage(stderr); return EXIT_USAGE; }
+    if (!out_path) { fprintf(stderr, "wrt-bake: error: no output file (-o OUT.gto)\n"); return EXIT_USAGE; }
+
+    wrt_gto_install_signal_cleanup();
+    double t0 = wrt_now();
+    wrt_scene s;
+    wrt_status st = wrt_scene_load(scene_path, &lo, &s);
+    if (st != WRT_OK) {
+        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+        return EXIT_INPUT;
+    }
+    if (s.nquads == 0) {
+        fprintf(stderr, "wrt-bake: error: %s: the scene has no quads\n", scene_path);
+        wrt_scene_free(&s);
+        return EXIT_INPUT;
+    }
+    progress_on = !quiet && (force_progress || isatty(2));
+    o.progress = progress_cb;
+    wrt_bake_result r;
+    st = wrt_bake_run(&s, &o, &r);
+    if (st != WRT_OK) {
+        fprintf(stderr, "%swrt-bake: error: %s\n", progress_on ? "\n" : "", wrt_last_error());
+        wrt_scene_free(&s);
+        return st == WRT_ERR_CANCELLED ? EXIT_CANCEL : EXIT_INPUT;
+    }
+    wrt_bake_defaults(&o);
+    const wrt_bake_counters *c = &r.c;
+
+    /* provenance: one JSON object */
+    char *prov = NULL;
+    size_t prov_len = 0;
+    FILE *pf = open_memstream(&prov, &prov_len);
+    fprintf(pf, "{\"tool\":\"wrt-bake\",\"version\":\"%s\",\"source\":\"", WRT_VERSION_STRING);
+    for (const char *p = scene_path; *p; p++) {
+        if (*p == '"' || *p == '\\') fputc('\\', pf);
+        if ((unsigned char)*p >= 0x20) fputc(*p, pf);
+    }
+    fprintf(pf, "\",\"source_hash\":\"%016llx\",\"options\":", (unsigned long long)s.source_hash);
+    json_options(pf, &o);
+    fprintf(pf, ",");
+    json_counters(pf, c);
+    if (!reproducible) fprintf(pf, ",\"seconds\":{\"dto\":%.3f,\"gto\":%.3f}", c->t_dto, c->t_gto);
+    fprintf(pf, "}");
+    fclose(pf);
+
+    wrt_gto_contents gc = {
+        .scene = &s, .fkeys = r.fkeys, .nfuncs = r.nfuncs,
+        .col_start = r.op.col, .rows = r.op.row, .vals = r.op.val,
+        .op_kind = (uint32_t)r.op_kind, .material_alevel = r.material_alevel, .provenance = prov,
+    };
+    gc.stats.links_dto = c->links_dto;
+    gc.stats.links_gto = c->links_gto;
+    gc.stats.links_gathered = c->links_gathered;
+    gc.stats.entries_dto = c->entries_dto;
+    gc.stats.entries_op = r.op.nnz;
+    gc.stats.rays_traced = c->rays_traced;
+    gc.stats.rays_skipped = c->rays_skipped_unoccluded + c->rays_skipped_facing;
+    gc.stats.bounces = c->bounces;
+    gc.stats.energy_left = c->energy_left;
+    if (!reproducible) { gc.stats.t_dto = c->t_dto; gc.stats.t_gto = c->t_gto; }
+    double tw = wrt_now();
+    st = wrt_gto_write(out_path, &gc);
+    double t_write = wrt_now() - tw, t_total = wrt_now() - t0;
+    free(prov);
+    if (st != WRT_OK) {
+        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+        wrt_bake_result_free(&r);
+        wrt_scene_free(&s);
+        return EXIT_OUTPUT;
+    }
+    long long bytes = -1;
+    FILE *of = fopen(out_path, "rb");
+    if (of) { fseek(of, 0, SEEK_END); bytes = ftell(of); fclose(of); }
+
+    if (json) {
+        printf("{\"scene\":\"%s\",\"output\":\"%s\",\"quads\":%d,\"bytes\":%lld,", scene_path, out_path, s.nquads, bytes);
+        printf("\"seconds\":{\"dto\":%.4f,\"gto\":%.4f,\"write\":%.4f,\"total\":%.4f,\"rays_thread\":%.4f},",
+               c->t_dto, c->t_gto, t_write, t_total, c->t_rays);
+        printf("\"operator\":\"%s\",\"options\":", r.op_kind == WRT_GTO_OP_GATHERED ? "gathered" : "indirect");
+        json_options(stdout, &o);
+        printf(",");
+        json_counters(stdout, c);
+        printf("}\n");
+    } else {
+        printf("baked %s -> %s (%lld bytes, %s operator)\n", scene_path, out_path, bytes,
+               r.op_kind == WRT_GTO_OP_GATHERED ? "gathered" : "indirect");
+        printf("  time      dto %.2f s, gto %.2f s, write %.2f s, total %.2f s\n", c->t_dto, c->t_gto, t_write, t_total);
+        printf("  quads     %d; pairs %llu exchanging of %llu (%llu skipped facing, %llu with no occluder)\n",
+               s.nquads, (unsigned long long)c->pairs_exchange, (unsigned long long)c->pairs_total,
+               (unsigned long long)c->pairs_skipped_facing, (unsigned long long)c->pairs_unoccluded);
+        printf("  links     dto %llu, gto %llu, gathered %llu (leaves %llu, invisible %llu)\n",
+               (unsigned long long)c->links_dto, (unsigned long long)c->links_gto,
+               (unsigned long long)c->links_gathered, (unsigned long long)c->links_leaf,
+               (unsigned long long)c->links_invisible);
+        printf("  entries   dto %llu (spatial %llu, angular %llu), stored %llu; functions %u (angular %u)\n",
+               (unsigned long long)c->entries_dto, (unsigned long long)c->entries_spatial,
+               (unsigned long long)c->entries_angular, (unsigned long long)r.op.nnz, c->nfuncs, c->nfuncs_angular);
+        printf("  rays      traced %llu, skipped %llu (no occluder) + %llu (facing)\n",
+               (unsigned long long)c->rays_traced, (unsigned long long)c->rays_skipped_unoccluded,
+               (unsigned long long)c->rays_skipped_facing);
+        printf("  series    %llu bounces, energy left %.2e, tail added %.2e (ratio %.4f)\n",
+               (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio);
+    }
+    wrt_bake_result_free(&r);
+    wrt_scene_free(&s);
+    return 0;
+}

@@ -1,0 +1,810 @@
+/* test_scene.c: tests of the glTF scene loader (formats/scene.c, formats/gltf_shim.cpp).
+ * Each case writes a small glTF (JSON with a base64 data URI, or a GLB, or files in a
+ * temporary folder) whose expected quads, transforms, materials, lights and camera are
+ * known by construction, loads it and compares. The bad-input cases check the status
+ * and a piece of the message that names what and where. */
+#ifndef _GNU_SOURCE
+#define _GNU_SOURCE
+#endif
+#include "tests/test.h"
+#include "formats/scene.h"
+
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static char tmpdir[256];
+
+/* ---------------------------------------------------------------- building glTF text */
+
+static char *b64(const void *data, size_t n) {
+    static const char tab[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    const unsigned char *d = data;
+    char *out = malloc(4 * ((n + 2) / 3) + 1), *o = out;
+    for (size_t i = 0; i < n; i += 3) {
+        unsigned v = (unsigned)d[i] << 16 | (i + 1 < n ? (unsigned)d[i + 1] << 8 : 0) |
+                     (i + 2 < n ? d[i + 2] : 0);
+        *o++ = tab[(v >> 18) & 63];
+        *o++ = tab[(v >> 12) & 63];
+        *o++ = i + 1 < n ? tab[(v >> 6) & 63] : '=';
+        *o++ = i + 2 < n ? tab[v & 63] : '=';
+    }
+    *o = 0;
+    return out;
+}
+
+static char *fmt(const char *f, ...) __attribute__((format(printf, 1, 2)));
+static char *fmt(const char *f, ...) {
+    va_list ap;
+    va_start(ap, f);
+    char *s = NULL;
+    if (vasprintf(&s, f, ap) < 0) s = NULL;
+    va_end(ap);
+    return s;
+}
+
+/* Replaces the first `from` in s (which must be there) by `to`; frees s. */
+static char *replace(char *s, const char *from, const char *to) {
+    char *at = strstr(s, from);
+    CHECK(at != NULL, "'%s' not in the generated glTF", from);
+    if (!at) return s;
+    char *r = fmt("%.*s%s%s", (int)(at - s), s, to, at + strlen(from));
+    free(s);
+    return r;
+}
+
+typedef struct spec {
+    const float *pos;
+    int nv;
+    const uint32_t *idx; /* NULL: non-indexed */
+    int ni;
+    const char *prim_extra;  /* appended inside the primitive, e.g. ",\"material\":0" */
+    const char *nodes;       /* JSON array; default one node with mesh 0 */
+    const char *roots;       /* JSON array of the scene's root nodes; default [0] */
+    const char *top;         /* extra top-level members, each followed by a comma */
+    const char *buffer_uri;  /* default: a data URI with the bytes */
+} spec;
+
+/* The buffer holds positions then indices. */
+static size_t spec_bytes(const spec *sp, unsigned char **out) {
+    size_t n = (size_t)sp->nv * 12 + (size_t)(sp->idx ? sp->ni : 0) * 4;
+    unsigned char *b = malloc(n ? n : 1);
+    memcpy(b, sp->pos, (size_t)sp->nv * 12);
+    if (sp->idx) memcpy(b + (size_t)sp->nv * 12, sp->idx, (size_t)sp->ni * 4);
+    *out = b;
+    return n;
+}
+
+static char *gltf_text(const spec *sp) {
+    unsigned char *bytes;
+    size_t n = spec_bytes(sp, &bytes);
+    char *data = b64(bytes, n);
+    char *uri = sp->buffer_uri ? fmt(",\"uri\":\"%s\"", sp->buffer_uri)
+                               : fmt(",\"uri\":\"data:application/octet-stream;base64,%s\"", data);
+    if (sp->buffer_uri && strcmp(sp->buffer_uri, "GLB") == 0) {
+        free(uri);
+        uri = fmt("%s", "");
+    }
+    char *idx_acc = sp->idx ? fmt(",{\"bufferView\":1,\"componentType\":5125,\"count\":%d,\"type\":\"SCALAR\"}", sp->ni)
+                            : fmt("%s", "");
+    char *idx_bv = sp->idx ? fmt(",{\"buffer\":0,\"byteOffset\":%d,\"byteLength\":%d}", sp->nv * 12, sp->ni * 4)
+                           : fmt("%s", "");
+    char *s = fmt("{\"asset\":{\"version\":\"2.0\"},%s\"scene\":0,\"scenes\":[{\"nodes\":%s}],"
+                  "\"nodes\":%s,"
+                  "\"meshes\":[{\"name\":\"plane\",\"primitives\":[{\"attributes\":{\"POSITION\":0}%s%s}]}],"
+                  "\"buffers\":[{\"byteLength\":%zu%s}],"
+                  "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":%d}%s],"
+                  "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":%d,\"type\":\"VEC3\"}%s]}",
+                  sp->top ? sp->top : "", sp->roots ? sp->roots : "[0]",
+                  sp->nodes ? sp->nodes : "[{\"mesh\":0}]", sp->idx ? ",\"indices\":1" : "",
+                  sp->prim_extra ? sp->prim_extra : "", n, uri, sp->nv * 12, idx_bv, sp->nv, idx_acc);
+    free(bytes);
+    free(data);
+    free(uri);
+    free(idx_acc);
+    free(idx_bv);
+    return s;
+}
+
+static wrt_status load_text(const char *text, int drop_bad, wrt_scene *s) {
+    wrt_load_options opt = {drop_bad, 0};
+    return wrt_scene_load_memory(text, strlen(text), tmpdir, &opt, s);
+}
+
+static wrt_status load_spec(const spec *sp, int drop_bad, wrt_scene *s) {
+    char *t = gltf_text(sp);
+    wrt_status st = load_text(t, drop_bad, s);
+    free(t);
+    return st;
+}
+
+static void write_file(const char *name, const void *data, size_t n) {
+    char path[512];
+    snprintf(path, sizeof path, "%s/%s", tmpdir, name);
+    FILE *f = fopen(path, "wb");
+    CHECK(f != NULL, "cannot write %s", path);
+    if (!f) return;
+    fwrite(data, 1, n, f);
+    fclose(f);
+}
+
+/* ---------------------------------------------------------------- geometry helpers */
+
+static const float unit_square[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+static const uint32_t square_idx[] = {0, 1, 2, 0, 2, 3};
+
+static int has_corner(const wrt_quad *q, double x, double y, double z, double tol) {
+    for (int i = 0; i < 4; i++)
+        if (fabs(q->p[i].x - x) <= tol && fabs(q->p[i].y - y) <= tol && fabs(q->p[i].z - z) <= tol)
+            return 1;
+    return 0;
+}
+
+/* Checks a loaded unit square: 1 quad, the 4 corners, CCW about `nz` (+1 or -1 along z). */
+static void check_unit_square(const wrt_scene *s, double nz) {
+    CHECK(s->nquads == 1, "nquads %d", s->nquads);
+    if (s->nquads != 1) return;
+    const wrt_quad *q = &s->quads[0];
+    CHECK(has_corner(q, 0, 0, 0, 1e-9) && has_corner(q, 1, 0, 0, 1e-9) && has_corner(q, 1, 1, 0, 1e-9) &&
+              has_corner(q, 0, 1, 0, 1e-9),
+          "corners");
+    wrt_v3 c = v3_cross(v3_sub(q->p[1], q->p[0]), v3_sub(q->p[3], q->p[0]));
+    CHECK(c.z * nz > 0, "(p1-p0)x(p3-p0) = (%g %g %g), expected along z %g", c.x, c.y, c.z, nz);
+    CHECK_NEAR(q->n.z, nz, 1e-12, "normal");
+    CHECK_NEAR(q->area, 1.0, 1e-12, "area");
+    CHECK(q->parallelogram == 1, "parallelogram");
+    CHECK_NEAR(v3_dot(q->t, q->b), 0.0, 1e-12, "t.b");
+    CHECK_NEAR(v3_dot(v3_cross(q->t, q->b), q->n), 1.0, 1e-12, "t x b = n");
+    CHECK(s->nproblems == 0, "nproblems %d", s->nproblems);
+    CHECK(s->ntriangles == 2, "ntriangles %d", s->ntriangles);
+}
+
+/* ---------------------------------------------------------------- good input */
+
+static void quad_shared_vertices(void) {
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
+    wrt_scene s;
+    wrt_status st = load_spec(&sp, 0, &s);
+    CHECK(st == WRT_OK, "%s", wrt_last_error());
+    check_unit_square(&s, 1);
+    CHECK(s.nmaterials == 1 && s.quads[0].material == 0, "default material added");
+    CHECK(strcmp(s.names[s.quads[0].name], "plane") == 0, "mesh name");
+    wrt_scene_free(&s);
+}
+
+static void quad_separate_vertices(void) {
+    const float pos[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 1, 1, 0, 0, 1, 0, 0, 0, 0};
+    const uint32_t idx[] = {0, 1, 2, 5, 3, 4};
+    spec sp = {.pos = pos, .nv = 6, .idx = idx, .ni = 6, .prim_extra = 0};
+    wrt_scene s;
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    check_unit_square(&s, 1);
+    wrt_scene_free(&s);
+}
+
+static void quad_non_indexed(void) {
+    const float pos[] = {1, 1, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 1, 1, 0};
+    spec sp = {.pos = pos, .nv = 6, .idx = NULL, .ni = 0, .prim_extra = 0};
+    wrt_scene s;
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    check_unit_square(&s, 1);
+    wrt_scene_free(&s);
+}
+
+static void quad_reversed_order(void) {
+    /* both triangles wound clockwise seen from +z: the front face looks down -z */
+    const uint32_t idx[] = {3, 2, 0, 2, 1, 0};
+    spec sp = {.pos = unit_square, .nv = 4, .idx = idx, .ni = 6, .prim_extra = 0};
+    wrt_scene s;
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    check_unit_square(&s, -1);
+    wrt_scene_free(&s);
+}
+
+static void trapezoid(void) {
+    const float pos[] = {0, 0, 0, 4, 0, 0, 3, 2, 0, 1, 2, 0};
+    const uint32_t idx[] = {1, 2, 0, 2, 3, 0};
+    spec sp = {.pos = pos, .nv = 4, .idx = idx, .ni = 6, .prim_extra = 0};
+    wrt_scene s;
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.nquads == 1, "nquads %d", s.nquads);
+    if (s.nquads == 1) {
+        const wrt_quad *q = &s.quads[0];
+        CHECK(q->parallelogram == 0, "a trapezoid is not a parallelogram");
+        CHECK_NEAR(q->area, 6.0, 1e-9, "area (4+2)/2*2");
+        CHECK_NEAR(q->n.z, 1.0, 1e-12, "normal");
+        /* the bilinear Jacobian integrates to the area */
+        double sum = 0;
+        for (int i = 0; i < 16; i++)
+            for (int j = 0; j < 16; j++) sum += wrt_quad_jacobian(q, (i + 0.5) / 16, (j + 0.5) / 16);
+        CHECK_NEAR(sum / 256, 6.0, 1e-9, "mean Jacobian");
+        /* corners are consecutive around the outline */
+        for (int i = 0; i < 4; i++) {
+            wrt_v3 e1 = v3_sub(q->p[(i + 1) % 4], q->p[i]), e2 = v3_sub(q->p[(i + 2) % 4], q->p[(i + 1) % 4]);
+            CHECK(v3_cross(e1, e2).z > 0, "convex CCW turn at corner %d", i + 1);
+        }
+    }
+    wrt_scene_free(&s);
+}
+
+static void grid_pairing(void) {
+    /* 3x2 cells of a 4x3 vertex grid, triangles listed in a scrambled order with alternating
+     * diagonals: every cell must come back as one unit square */
+    float pos[12 * 3];
+    for (int y = 0; y < 3; y++)
+        for (int x = 0; x < 4; x++) {
+            pos[3 * (y * 4 + x)] = (float)x;
+            pos[3 * (y * 4 + x) + 1] = (float)y;
+            pos[3 * (y * 4 + x) + 2] = 0;
+        }
+    uint32_t idx[12 * 3];
+    int nt = 0;
+    for (int y = 0; y < 2; y++)
+        for (int x = 0; x < 3; x++) {
+            uint32_t a = (uint32_t)(y * 4 + x), b = a + 1, c = a + 5, d = a + 4;
+            if ((x + y) % 2) {
+                uint32_t t1[3] = {a, b, c}, t2[3] = {a, c, d};
+                memcpy(&idx[3 * nt++], t1, sizeof t1);
+                memcpy(&idx[3 * nt++], t2, sizeof t2);
+            } else {
+                uint32_t t1[3] = {b, c, d}, t2[3] = {d, a, b};
+                memcpy(&idx[3 * nt++], t2, sizeof t2);
+                memcpy(&idx[3 * nt++], t1, sizeof t1);
+            }
+        }
+    /* scramble: reverse the triangle order */
+    for (int i = 0; i < nt / 2; i++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t t = idx[3 * i + k];
+            idx[3 * i + k] = idx[3 * (nt - 1 - i) + k];
+            idx[3 * (nt - 1 - i) + k] = t;
+        }
+    spec sp = {.pos = pos, .nv = 12, .idx = idx, .ni = nt * 3, .prim_extra = 0};
+    wrt_scene s;
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.nquads == 6, "nquads %d", s.nquads);
+    for (int i = 0; i < s.nquads; i++) {
+        CHECK_NEAR(s.quads[i].area, 1.0, 1e-12, "quad %d is a unit cell", i);
+        CHECK(s.quads[i].parallelogram, "quad %d parallelogram", i);
+    }
+    CHECK(s.nproblems == 0, "nproblems %d", s.nproblems);
+    wrt_scene_free(&s);
+}
+
+static void nested_transforms(void) {
+    /* parent: T(1,2,3) R(90 deg about z) S(2); child: matrix translating by (1,0,0), with
+     * the mesh; grandchild: a spot light rotated 90 deg about x (its -z becomes +y) */
+    const double h = sqrt(0.5);
+    char *nodes = fmt("[{\"translation\":[1,2,3],\"rotation\":[0,0,%.17g,%.17g],\"scale\":[2,2,2],\"children\":[1]},"
+                      "{\"matrix\":[1,0,0,0, 0,1,0,0, 0,0,1,0, 1,0,0,1],\"mesh\":0,\"children\":[2]},"
+                      "{\"rotation\":[%.17g,0,0,%.17g],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}}]",
+                      h, h, h, h);
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
+    sp.nodes = nodes;
+    sp.top = "\"extensionsUsed\":[\"KHR_lights_punctual\"],\"extensions\":{\"KHR_lights_punctual\":{\"lights\":"
+             "[{\"type\":\"spot\",\"name\":\"lamp\",\"spot\":{}}]}},";
+    wrt_scene s;
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.nquads == 1, "nquads %d", s.nquads);
+    if (s.nquads == 1) {
+        const wrt_quad *q = &s.quads[0];
+        /* local (x,y,0) -> child (x+1,y,0) -> scale (2x+2,2y,0) -> rot (-2y,2x+2,0) -> +(1,2,3) */
+        CHECK(has_corner(q, 1, 4, 3, 1e-6), "corner (0,0) -> (1,4,3)");
+        CHECK(has_corner(q, 1, 6, 3, 1e-6), "corner (1,0) -> (1,6,3)");
+        CHECK(has_corner(q, -1, 6, 3, 1e-6), "corner (1,1) -> (-1,6,3)");
+        CHECK(has_corner(q, -1, 4, 3, 1e-6), "corner (0,1) -> (-1,4,3)");
+        CHECK_NEAR(q->area, 4.0, 1e-6, "area scaled by 2x2");
+        CHECK_NEAR(q->n.z, 1.0, 1e-9, "normal stays +z");
+        CHECK_NEAR(s.bbox_min.x, -1, 1e-6, "bbox");
+        CHECK_NEAR(s.bbox_max.y, 6, 1e-6, "bbox");
+    }
+    CHECK(s.nlights == 1, "nlights %d", s.nlights);
+    if (s.nlights == 1) {
+        const wrt_light *l = &s.lights[0];
+        CHECK(l->type == WRT_LIGHT_SPOT, "spot");
+        CHECK(strcmp(l->name, "lamp") == 0, "name %s", l->name);
+        CHECK_NEAR(l->pos.x, 1, 1e-9, "light at the child's origin (1,4,3)");
+        CHECK_NEAR(l->pos.y, 4, 1e-9, "light pos y");
+        CHECK_NEAR(l->pos.z, 3, 1e-9, "light pos z");
+        /* -z -> (rot x) +y -> (rot z 90) -x */
+        CHECK_NEAR(l->dir.x, -1, 1e-9, "light dir x");
+        CHECK_NEAR(l->dir.y, 0, 1e-9, "light dir y");
+        CHECK_NEAR(l->dir.z, 0, 1e-9, "light dir z");
+        CHECK_NEAR(l->inner_cone, 0, 1e-7, "default inner cone");
+        CHECK_NEAR(l->outer_cone, WRT_PI / 4, 1e-6, "default outer cone");
+        CHECK_NEAR(l->intensity, 1, 0, "default intensity");
+        CHECK_NEAR(l->color[0] + l->color[1] + l->color[2], 3, 0, "default color");
+        CHECK_NEAR(l->range, 0, 0, "default range");
+    }
+    free(nodes);
+    wrt_scene_free(&s);
+}
+
+static void scene_choice(void) {
+    /* only the default scene's nodes count: scene 1 holds the mesh, scene 0 an empty node */
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
+    sp.nodes = "[{\"mesh\":0},{}]";
+    char *t = gltf_text(&sp);
+    t = replace(t, "\"scene\":0,\"scenes\":[{\"nodes\":[0]}]", "\"scene\":1,\"scenes\":[{\"nodes\":[1]},{\"nodes\":[0]}]");
+    wrt_scene s;
+    CHECK(load_text(t, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.nquads == 1, "default scene 1 has the quad: %d", s.nquads);
+    wrt_scene_free(&s);
+    t = replace(t, "\"scene\":1,", "");
+    test_capture_begin();
+    wrt_status st = load_text(t, 0, &s);
+    test_capture_end();
+    CHECK(st == WRT_OK, "%s", wrt_last_error());
+    CHECK(strstr(test_log, "no quads") != NULL, "%s", test_log);
+    CHECK(s.nquads == 0, "no default scene: scene 0 (empty) is used: %d", s.nquads);
+    wrt_scene_free(&s);
+    free(t);
+}
+
+/* A 2x1 24-bit BMP with the given RGB texels (stb_image reads BMP). */
+static size_t bmp_2x1(unsigned char out[62], const unsigned char rgb[6]) {
+    memset(out, 0, 62);
+    out[0] = 'B'; out[1] = 'M';
+    out[2] = 62;           /* file size */
+    out[10] = 54;          /* pixel offset */
+    out[14] = 40;          /* info header size */
+    out[18] = 2;           /* width */
+    out[22] = 1;           /* height */
+    out[26] = 1;           /* planes */
+    out[28] = 24;          /* bits */
+    out[34] = 8;           /* image size */
+    for (int i = 0; i < 2; i++) {
+        out[54 + 3 * i] = rgb[3 * i + 2];
+        out[54 + 3 * i + 1] = rgb[3 * i + 1];
+        out[54 + 3 * i + 2] = rgb[3 * i];
+    }
+    return 62;
+}
+
+static double srgb_lin(double c) { return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4); }
+
+static void materials(void) {
+    unsigned char bmp[62], bmp2[62];
+    const unsigned char base_texels[6] = {128, 64, 255, 128, 0, 255};
+    const unsigned char mr_texels[6] = {0, 128, 64, 0, 128, 64};
+    bmp_2x1(bmp, base_texels);
+    bmp_2x1(bmp2, mr_texels);
+    char *i0 = b64(bmp, 62), *i1 = b64(bmp2, 62);
+    char *top = fmt(
+        "\"materials\":["
+        "{\"name\":\"no factors\"},"
+        "{\"name\":\"matte\",\"pbrMetallicRoughness\":{\"metallicFactor\":0,\"baseColorFactor\":[0.5,0.25,0.125,1]}},"
+        "{\"name\":\"satin\",\"pbrMetallicRoughness\":{\"metallicFactor\":0,\"roughnessFactor\":0.5}},"
+        "{\"name\":\"lamp\\\"shade\",\"emissiveFactor\":[1,0.5,0]},"
+        "{\"name\":\"textured\",\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.5,1,1,1],\"baseColorTexture\":{\"index\":0},"
+        "\"metallicRoughnessTexture\":{\"index\":1}}}],"
+        "\"textures\":[{\"source\":0},{\"source\":1}],"
+        "\"images\":[{\"uri\":\"data:image/bmp;base64,%s\"},{\"uri\":\"data:image/bmp;base64,%s\"}],",
+        i0, i1);
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = ",\"material\":1"};
+    sp.top = top;
+    wrt_scene s;
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.nmaterials == 5, "no default added when every primitive has a material: %d", s.nmaterials);
+    if (s.nmaterials == 5) {
+        const wrt_material *m = s.materials;
+        CHECK(m[0].metallic == 1 && m[0].roughness == 1, "spec defaults metallic 1 roughness 1");
+        CHECK(m[0].base_color[0] == 1 && m[0].base_color[2] == 1, "default base color");
+        CHECK(m[0].lambertian == 0, "missing metallicFactor means metal, not lambertian");
+        CHECK(m[1].lambertian == 1, "metallic 0 roughness 1 is lambertian");
+        CHECK_NEAR(m[1].base_color[1], 0.25, 1e-7, "base color factor");
+        CHECK(m[2].lambertian == 0, "roughness 0.5 is glossy");
+        CHECK(s.nemissive == 1, "nemissive %d", s.nemissive);
+        CHECK_NEAR(m[3].emissive[1], 0.5, 1e-7, "emissive factor");
+        CHECK(strcmp(m[3].name, "lamp\"shade") == 0, "name %s", m[3].name);
+        /* base: factor x mean of sRGB-decoded texels */
+        CHECK_NEAR(m[4].base_color[0], 0.5 * srgb_lin(128 / 255.0), 1e-6, "R");
+        CHECK_NEAR(m[4].base_color[1], 0.5 * (srgb_lin(64 / 255.0) + 0), 1e-6, "G");
+        CHECK_NEAR(m[4].base_color[2], 1.0, 1e-6, "B");
+        /* metallic = B, roughness = G, linear */
+        CHECK_NEAR(m[4].metallic, 64 / 255.0, 1e-6, "metallic from B");
+        CHECK_NEAR(m[4].roughness, 128 / 255.0, 1e-6, "roughness from G");
+        CHECK(m[4].has_texture == 1, "has_texture");
+        CHECK(s.quads[0].material == 1, "quad material");
+    }
+    /* the JSON summary names materials, escapes strings, counts quads per material */
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    wrt_scene_print_summary(&s, 1, f);
+    fclose(f);
+    CHECK(strstr(buf, "\"quads\":1,") != NULL, "%s", buf);
+    CHECK(strstr(buf, "\"name\":\"lamp\\\"shade\"") != NULL, "escaped name: %s", buf);
+    CHECK(strstr(buf, "{\"name\":\"matte\",\"base_color\":[0.5,0.25,0.125],\"metallic\":0,\"roughness\":1") != NULL,
+          "%s", buf);
+    CHECK(strstr(buf, "\"lambertian\":true,\"textured\":false,\"quads\":1}") != NULL, "%s", buf);
+    CHECK(strchr(buf, '\n') == buf + len - 1, "one line");
+    free(buf);
+    wrt_scene_free(&s);
+    free(top);
+    free(i0);
+    free(i1);
+}
+
+static void lights_and_camera(void) {
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
+    sp.nodes = "[{\"mesh\":0,\"children\":[1,2,3,4]},"
+               "{\"translation\":[0,0,5],\"camera\":0},"
+               "{\"translation\":[0.5,0.5,2],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}},"
+               "{\"translation\":[0,1,2],\"extensions\":{\"KHR_lights_punctual\":{\"light\":1}}},"
+               "{\"extensions\":{\"KHR_lights_punctual\":{\"light\":2}}}]";
+    sp.top = "\"cameras\":[{\"type\":\"perspective\",\"perspective\":{\"yfov\":0.7,\"znear\":0.1,\"aspectRatio\":1.5}}],"
+             "\"extensionsUsed\":[\"KHR_lights_punctual\"],\"extensions\":{\"KHR_lights_punctual\":{\"lights\":["
+             "{\"type\":\"point\"},"
+             "{\"type\":\"spot\",\"color\":[1,0.5,0.25],\"intensity\":30,\"range\":10,"
+             "\"spot\":{\"innerConeAngle\":0.2,\"outerConeAngle\":0.5}},"
+             "{\"type\":\"directional\",\"name\":\"sun\"}]}},";
+    wrt_scene s;
+    test_capture_begin();
+    wrt_status st = load_spec(&sp, 0, &s);
+    test_capture_end();
+    CHECK(st == WRT_OK, "%s", wrt_last_error());
+    CHECK(strstr(test_log, "directional") && strstr(test_log, "sun"), "directional skipped: %s", test_log);
+    CHECK(s.nlights == 2, "nlights %d", s.nlights);
+    if (s.nlights == 2) {
+        CHECK(s.lights[0].type == WRT_LIGHT_POINT, "point");
+        CHECK_NEAR(s.lights[0].pos.z, 2, 0, "point z");
+        CHECK_NEAR(s.lights[0].intensity, 1, 0, "default intensity");
+        CHECK(s.lights[1].type == WRT_LIGHT_SPOT, "spot");
+        CHECK_NEAR(s.lights[1].dir.z, -1, 1e-12, "spot points down -z");
+        CHECK_NEAR(s.lights[1].intensity, 30, 0, "intensity");
+        CHECK_NEAR(s.lights[1].range, 10, 0, "range");
+        CHECK_NEAR(s.lights[1].inner_cone, 0.2, 1e-7, "inner");
+        CHECK_NEAR(s.lights[1].outer_cone, 0.5, 1e-7, "outer");
+        CHECK_NEAR(s.lights[1].color[2], 0.25, 0, "color");
+    }
+    CHECK(s.camera.from_file == 1, "camera from file");
+    CHECK_NEAR(s.camera.pos.z, 5, 0, "camera pos");
+    CHECK_NEAR(s.camera.dir.z, -1, 1e-12, "camera looks -z");
+    CHECK_NEAR(s.camera.up.y, 1, 1e-12, "camera up +y");
+    CHECK_NEAR(s.camera.yfov, 0.7, 0, "yfov");
+    CHECK_NEAR(s.camera.aspect, 1.5, 0, "aspect");
+    CHECK_NEAR(s.camera.znear, 0.1, 0, "znear");
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    wrt_scene_print_summary(&s, 1, f);
+    fclose(f);
+    CHECK(strstr(buf, "\"type\":\"spot\",\"name\":\"light1\",\"position\":[0,1,2],\"direction\":[0,0,-1],"
+                      "\"color\":[1,0.5,0.25],\"intensity\":30,\"range\":10,\"inner_cone\":0.2,"
+                      "\"outer_cone\":0.5}") != NULL, "%s", buf);
+    free(buf);
+    f = open_memstream(&buf, &len);
+    wrt_scene_print_summary(&s, 0, f);
+    fclose(f);
+    CHECK(strstr(buf, "1 quads (1 parallelograms") != NULL, "%s", buf);
+    CHECK(strstr(buf, "spot") != NULL && strstr(buf, "intensity 30 cd") != NULL, "%s", buf);
+    free(buf);
+    wrt_scene_free(&s);
+
+    /* no camera: a default one frames the bounding box */
+    spec plain = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
+    CHECK(load_spec(&plain, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.camera.from_file == 0, "default camera");
+    CHECK_NEAR(s.camera.pos.x, 0.5, 1e-12, "centered x");
+    CHECK_NEAR(s.camera.pos.y, 0.5, 1e-12, "centered y");
+    CHECK(s.camera.pos.z > 1, "in front of the square: z %g", s.camera.pos.z);
+    CHECK_NEAR(s.camera.dir.z, -1, 0, "looks at it");
+    wrt_scene_free(&s);
+}
+
+static void glb_and_hash(void) {
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
+    sp.buffer_uri = "GLB";
+    char *json = gltf_text(&sp);
+    size_t jl = strlen(json), jp = (jl + 3) & ~(size_t)3;
+    unsigned char *bin;
+    size_t bl = spec_bytes(&sp, &bin), bp = (bl + 3) & ~(size_t)3;
+    size_t total = 12 + 8 + jp + 8 + bp;
+    unsigned char *g = calloc(1, total);
+    uint32_t w[3] = {0x46546C67u, 2, (uint32_t)total};
+    memcpy(g, w, 12);
+    uint32_t c0[2] = {(uint32_t)jp, 0x4E4F534Au};
+    memcpy(g + 12, c0, 8);
+    memset(g + 20, ' ', jp);
+    memcpy(g + 20, json, jl);
+    uint32_t c1[2] = {(uint32_t)bp, 0x004E4942u};
+    memcpy(g + 20 + jp, c1, 8);
+    memcpy(g + 28 + jp, bin, bl);
+    wrt_scene s;
+    CHECK(wrt_scene_load_memory(g, total, NULL, NULL, &s) == WRT_OK, "%s", wrt_last_error());
+    check_unit_square(&s, 1);
+    CHECK(s.source_hash == wrt_hash64(g, total, WRT_HASH_SEED), "source hash");
+    wrt_scene_free(&s);
+
+    write_file("quad.glb", g, total);
+    char path[512];
+    snprintf(path, sizeof path, "%s/quad.glb", tmpdir);
+    CHECK(wrt_scene_load(path, NULL, &s) == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.nquads == 1, "from file");
+    wrt_scene_free(&s);
+
+    /* truncated GLB: every prefix fails cleanly */
+    for (size_t n = 1; n < total; n += (n < 40 ? 1 : 7)) {
+        wrt_status st = wrt_scene_load_memory(g, n, NULL, NULL, &s);
+        CHECK(st == WRT_ERR_PARSE, "prefix %zu: %d", n, st);
+    }
+    CHECK(wrt_scene_load_memory(g, total - 4, NULL, NULL, &s) == WRT_ERR_PARSE, "4 short");
+    CHECK(strstr(wrt_last_error(), "truncated") != NULL, "%s", wrt_last_error());
+    /* a BIN chunk claiming more than the file holds */
+    uint32_t big = (uint32_t)bp + 8;
+    memcpy(g + 20 + jp, &big, 4);
+    CHECK(wrt_scene_load_memory(g, total, NULL, NULL, &s) == WRT_ERR_PARSE, "BIN past end");
+    CHECK(strstr(wrt_last_error(), "BIN chunk") != NULL, "%s", wrt_last_error());
+    free(g);
+    free(bin);
+    free(json);
+}
+
+static void external_buffers(void) {
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
+    unsigned char *bytes;
+    size_t n = spec_bytes(&sp, &bytes);
+    write_file("quad.bin", bytes, n);
+    write_file("short.bin", bytes, n - 10);
+    sp.buffer_uri = "quad.bin";
+    char *t = gltf_text(&sp);
+    write_file("ext.gltf", t, strlen(t));
+    char path[512];
+    snprintf(path, sizeof path, "%s/ext.gltf", tmpdir);
+    wrt_scene s;
+    CHECK(wrt_scene_load(path, NULL, &s) == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.nquads == 1, "external buffer");
+    wrt_scene_free(&s);
+    free(t);
+
+    sp.buffer_uri = "nothere.bin";
+    t = gltf_text(&sp);
+    write_file("missing.gltf", t, strlen(t));
+    snprintf(path, sizeof path, "%s/missing.gltf", tmpdir);
+    CHECK(wrt_scene_load(path, NULL, &s) == WRT_ERR_PARSE, "missing buffer");
+    CHECK(strstr(wrt_last_error(), "nothere.bin") && strstr(wrt_last_error(), "missing.gltf"), "%s",
+          wrt_last_error());
+    free(t);
+
+    sp.buffer_uri = "short.bin";
+    t = gltf_text(&sp);
+    write_file("short.gltf", t, strlen(t));
+    snprintf(path, sizeof path, "%s/short.gltf", tmpdir);
+    CHECK(wrt_scene_load(path, NULL, &s) == WRT_ERR_PARSE, "truncated buffer");
+    CHECK(strstr(wrt_last_error(), "short.bin") != NULL || strstr(wrt_last_error(), "buffer") != NULL, "%s",
+          wrt_last_error());
+    free(t);
+
+    snprintf(path, sizeof path, "%s/no such file.gltf", tmpdir);
+    CHECK(wrt_scene_load(path, NULL, &s) == WRT_ERR_IO, "no file");
+    CHECK(strstr(wrt_last_error(), "no such file.gltf") != NULL, "%s", wrt_last_error());
+    free(bytes);
+}
+
+/* ---------------------------------------------------------------- bad input */
+
+/* Loads text, expects status `want` and `needle` (and `needle2` if given) in the message. */
+static void expect_fail(const char *what, const char *text, wrt_status want, const char *needle,
+                        const char *needle2) {
+    wrt_scene s;
+    wrt_status st = load_text(text, 0, &s);
+    CHECK(st == want, "%s: status %d (%s), expected %d: %s", what, st, wrt_status_str(st), want,
+          wrt_last_error());
+    CHECK(strstr(wrt_last_error(), needle) != NULL, "%s: '%s' not in: %s", what, needle, wrt_last_error());
+    if (needle2)
+        CHECK(strstr(wrt_last_error(), needle2) != NULL, "%s: '%s' not in: %s", what, needle2,
+              wrt_last_error());
+    CHECK(s.nquads == 0 && s.quads == NULL, "%s: output zeroed", what);
+    if (st == WRT_OK) wrt_scene_free(&s);
+}
+
+static void bad_json(void) {
+    expect_fail("malformed", "{\"asset\":{\"version\":\"2.0\"},\"scenes\":[", WRT_ERR_PARSE, "<memory>", NULL);
+    expect_fail("not json", "hello", WRT_ERR_PARSE, "<memory>", NULL);
+    expect_fail("empty", "", WRT_ERR_PARSE, "empty", NULL);
+    expect_fail("no scene", "{\"asset\":{\"version\":\"2.0\"}}", WRT_ERR_PARSE, "no scene", NULL);
+    expect_fail("cycle", "{\"asset\":{\"version\":\"2.0\"},\"scenes\":[{\"nodes\":[0]}],"
+                         "\"nodes\":[{\"children\":[1]},{\"children\":[0]}]}",
+                WRT_ERR_PARSE, "node 0 is reached twice", NULL);
+}
+
+static void bad_accessors(void) {
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
+    char *t = replace(gltf_text(&sp), "\"indices\":1", "\"indices\":7");
+    expect_fail("accessor out of range", t, WRT_ERR_PARSE, "indices accessor out of bounds", NULL);
+    free(t);
+    t = replace(gltf_text(&sp), "\"count\":4,", "\"count\":2147483648,");
+    expect_fail("absurd count", t, WRT_ERR_PARSE, "count 2147483648", "POSITION accessor 0");
+    free(t);
+    t = replace(gltf_text(&sp), "\"count\":6,", "\"count\":4294967295,");
+    expect_fail("absurd index count", t, WRT_ERR_PARSE, "4294967295", "indices accessor 1");
+    free(t);
+    t = replace(gltf_text(&sp), "\"byteLength\":48}", "\"byteLength\":4800}");
+    expect_fail("bufferView past buffer", t, WRT_ERR_PARSE, "bufferView 0", "runs past the end of buffer 0");
+    free(t);
+    t = replace(gltf_text(&sp), "\"byteLength\":48}", "\"byteLength\":48,\"byteStride\":8}");
+    expect_fail("stride too small", t, WRT_ERR_PARSE, "byteStride 8", NULL);
+    free(t);
+    t = replace(gltf_text(&sp), "\"componentType\":5125", "\"componentType\":5126");
+    expect_fail("float indices", t, WRT_ERR_PARSE, "componentType 5126", "indices accessor 1");
+    free(t);
+    t = replace(gltf_text(&sp), "\"type\":\"VEC3\"", "\"type\":\"VEC2\"");
+    expect_fail("VEC2 positions", t, WRT_ERR_PARSE, "expected VEC3", NULL);
+    free(t);
+    t = replace(gltf_text(&sp), "\"bufferView\":1,", "\"bufferView\":9,");
+    expect_fail("bufferView out of range", t, WRT_ERR_PARSE, "accessor[1] invalid bufferView", NULL);
+    free(t);
+    /* truncated data URI: the buffer holds fewer bytes than byteLength */
+    t = gltf_text(&sp);
+    char *comma = strstr(t, "base64,");
+    char *end = comma ? strchr(comma, '"') : NULL;
+    if (end) memmove(end - 16, end, strlen(end) + 1);
+    expect_fail("truncated data uri", t, WRT_ERR_PARSE, "<memory>", "Failed to decode");
+    free(t);
+    const uint32_t past[] = {0, 1, 2, 0, 2, 9};
+    spec sp2 = {.pos = unit_square, .nv = 4, .idx = past, .ni = 6, .prim_extra = 0};
+    t = gltf_text(&sp2);
+    expect_fail("index past vertex count", t, WRT_ERR_PARSE, "triangle 1: index 9", "vertex count 4");
+    free(t);
+    t = replace(gltf_text(&sp), "\"indices\":1", "\"indices\":1,\"mode\":1");
+    expect_fail("lines", t, WRT_ERR_UNSUPPORTED, "mode 1", "primitive 0");
+    free(t);
+    t = replace(gltf_text(&sp), "\"POSITION\":0", "\"NORMAL\":0");
+    expect_fail("no positions", t, WRT_ERR_PARSE, "no POSITION", NULL);
+    free(t);
+    t = replace(gltf_text(&sp), "\"indices\":1", "\"indices\":1,\"material\":3");
+    expect_fail("material out of range", t, WRT_ERR_PARSE, "material 3 does not exist", NULL);
+    free(t);
+    t = replace(gltf_text(&sp), "[{\"mesh\":0}]", "[{\"mesh\":0,\"extensions\":{\"KHR_lights_punctual\":{\"light\":5}}}]");
+    expect_fail("light out of range", t, WRT_ERR_PARSE, "light 5 does not exist", NULL);
+    free(t);
+}
+
+static void bad_geometry(void) {
+    const float nan_pos[] = {0, 0, 0, 1, 0, 0, NAN, 1, 0, 0, 1, 0};
+    spec sp = {.pos = nan_pos, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
+    char *t = gltf_text(&sp);
+    expect_fail("NaN", t, WRT_ERR_GEOMETRY, "triangle 0: vertex 2 has a NaN", "mesh 0 'plane' primitive 0");
+    free(t);
+    const float inf_pos[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, INFINITY, 0};
+    sp.pos = inf_pos;
+    t = gltf_text(&sp);
+    expect_fail("Inf", t, WRT_ERR_GEOMETRY, "triangle 1: vertex 3 has a NaN, infinite", NULL);
+    free(t);
+    const float bent[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0.5f};
+    sp.pos = bent;
+    t = gltf_text(&sp);
+    expect_fail("non-planar", t, WRT_ERR_GEOMETRY, "triangle 0: non-planar quad with triangle 1", "2 bad triangles");
+    free(t);
+    const float flat[] = {0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0, 0};
+    sp.pos = flat;
+    t = gltf_text(&sp);
+    expect_fail("zero area", t, WRT_ERR_GEOMETRY, "triangle 0: zero area", "triangle 1: zero area");
+    free(t);
+    const float dart[] = {0, 0, 0, 2, 0, 0, 0.5f, 0.5f, 0, 0, 2, 0};
+    sp.pos = dart;
+    t = gltf_text(&sp);
+    expect_fail("non-convex", t, WRT_ERR_GEOMETRY, "triangle 0: non-convex quad with triangle 1", NULL);
+    free(t);
+    const uint32_t one[] = {0, 1, 2};
+    spec sp1 = {.pos = unit_square, .nv = 4, .idx = one, .ni = 3, .prim_extra = 0};
+    t = gltf_text(&sp1);
+    expect_fail("single triangle", t, WRT_ERR_GEOMETRY, "triangle 0: unpaired", "1 bad triangle refused");
+    free(t);
+    const uint32_t flipped[] = {0, 1, 2, 0, 3, 2};
+    spec spf = {.pos = unit_square, .nv = 4, .idx = flipped, .ni = 6, .prim_extra = 0};
+    t = gltf_text(&spf);
+    expect_fail("opposite windings", t, WRT_ERR_GEOMETRY, "winding opposite", NULL);
+    free(t);
+
+    /* a quad plus a stray triangle: refused by default, dropped with drop_bad */
+    const float pos[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 5, 5, 5, 6, 5, 5, 5, 6, 5};
+    const uint32_t idx[] = {0, 1, 2, 0, 2, 3, 4, 5, 6};
+    spec sp3 = {.pos = pos, .nv = 7, .idx = idx, .ni = 9, .prim_extra = 0};
+    t = gltf_text(&sp3);
+    expect_fail("stray triangle", t, WRT_ERR_GEOMETRY, "triangle 2: unpaired", NULL);
+    wrt_scene s;
+    test_capture_begin();
+    wrt_status st = load_text(t, 1, &s);
+    test_capture_end();
+    CHECK(st == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.nquads == 1 && s.nproblems == 1, "kept %d quads, %d problems", s.nquads, s.nproblems);
+    CHECK(s.nproblems == 1 && s.problems[0].tri == 2 && s.problems[0].kind == WRT_PROBLEM_UNPAIRED, "problem");
+    CHECK(strstr(test_log, "dropped 1 bad triangle") != NULL, "%s", test_log);
+    CHECK_NEAR(s.bbox_max.x, 1, 0, "bbox of kept geometry");
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    wrt_scene_print_summary(&s, 1, f);
+    fclose(f);
+    CHECK(strstr(buf, "\"problems\":[{\"kind\":\"unpaired\",\"mesh\":0,\"primitive\":0,\"triangle\":2,") != NULL,
+          "%s", buf);
+    free(buf);
+    wrt_scene_free(&s);
+    free(t);
+}
+
+/* The committed files under tests/data (also the fuzzing seeds). */
+static void data_files(void) {
+    static const struct { const char *name; wrt_status st; const char *needle; } cases[] = {
+        {"quad.gltf", WRT_OK, ""},
+        {"quad.glb", WRT_OK, ""},
+        {"scene.gltf", WRT_OK, ""},
+        {"bad_json.gltf", WRT_ERR_PARSE, "bad_json.gltf"},
+        {"bad_count.gltf", WRT_ERR_PARSE, "count 2147483648"},
+        {"bad_index.gltf", WRT_ERR_PARSE, "triangle 1: index 7"},
+        {"bad_cycle.gltf", WRT_ERR_PARSE, "reached twice"},
+        {"bad_nonplanar.gltf", WRT_ERR_GEOMETRY, "non-planar"},
+        {"bad_unpaired.gltf", WRT_ERR_GEOMETRY, "triangle 0: unpaired"},
+        {"bad_truncated.glb", WRT_ERR_PARSE, "truncated"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        char path[256];
+        snprintf(path, sizeof path, "tests/data/%s", cases[i].name);
+        wrt_scene s;
+        wrt_status st = wrt_scene_load(path, NULL, &s);
+        CHECK(st == cases[i].st, "%s: status %d: %s", path, st, wrt_last_error());
+        if (st != WRT_OK) {
+            CHECK(strstr(wrt_last_error(), cases[i].needle) && strstr(wrt_last_error(), cases[i].name),
+                  "%s: '%s' not in: %s", path, cases[i].needle, wrt_last_error());
+            continue;
+        }
+        if (strcmp(cases[i].name, "scene.gltf") == 0) {
+            CHECK(s.nquads == 2 && s.nlights == 2 && s.camera.from_file && s.nmaterials == 2,
+                  "scene.gltf: %d quads %d lights", s.nquads, s.nlights);
+            /* floor: local y=0 plane, parent scaled 1.5 and lifted by -1: world y = -1 */
+            CHECK(s.nquads == 2 && fabs(s.quads[0].p[0].y + 1) < 1e-6, "floor at y=-1");
+            CHECK(s.nquads == 2 && fabs(s.quads[0].area - 9) < 1e-5, "floor area (2*1.5)^2 = %g", s.quads[0].area);
+            CHECK(s.nquads == 2 && s.quads[0].n.y > 0.999999, "floor faces up");
+        } else {
+            CHECK(s.nquads == 1, "%s: one quad", path);
+        }
+        wrt_scene_free(&s);
+    }
+}
+
+static void quad_finish(void) {
+    wrt_quad q = {0};
+    q.p[0] = v3(0, 0, 0); q.p[1] = v3(2, 0, 0); q.p[2] = v3(3, 1, 0); q.p[3] = v3(1, 1, 0);
+    CHECK(wrt_quad_finish(&q) == WRT_OK, "parallelogram");
+    CHECK(q.parallelogram == 1, "flag");
+    CHECK_NEAR(q.area, 2, 1e-12, "area");
+    CHECK_NEAR(q.t.x, 1, 1e-12, "t = p1-p0");
+    CHECK_NEAR(q.b.y, 1, 1e-12, "b = n x t");
+    q.p[2] = v3(3, 1 + 1e-3, 0);
+    CHECK(wrt_quad_finish(&q) == WRT_OK && q.parallelogram == 0, "off by 1e-3 is not a parallelogram");
+    q.p[1] = v3(1, 1, 0); q.p[2] = v3(2, 2, 0); q.p[3] = v3(3, 3, 0);
+    CHECK(wrt_quad_finish(&q) == WRT_ERR_GEOMETRY, "collinear");
+}
+
+int main(int argc, char **argv) {
+    snprintf(tmpdir, sizeof tmpdir, "/tmp/wrt_test_scene_XXXXXX");
+    if (!mkdtemp(tmpdir)) { perror("mkdtemp"); return 2; }
+    TEST_RUN(quad_shared_vertices);
+    TEST_RUN(quad_separate_vertices);
+    TEST_RUN(quad_non_indexed);
+    TEST_RUN(quad_reversed_order);
+    TEST_RUN(trapezoid);
+    TEST_RUN(grid_pairing);
+    TEST_RUN(nested_transforms);
+    TEST_RUN(scene_choice);
+    TEST_RUN(materials);
+    TEST_RUN(lights_and_camera);
+    TEST_RUN(glb_and_hash);
+    TEST_RUN(external_buffers);
+    TEST_RUN(bad_json);
+    TEST_RUN(bad_accessors);
+    TEST_RUN(bad_geometry);
+    TEST_RUN(data_files);
+    TEST_RUN(quad_finish);
+    const char *names[] = {"quad.glb", "quad.bin", "short.bin", "ext.gltf", "missing.gltf", "short.gltf"};
+    for (size_t i = 0; i < sizeof names / sizeof *names; i++) {
+        char p[512];
+        snprintf(p, sizeof p, "%s/%s", tmpdir, names[i]);
+        unlink(p);
+    }
+    rmdir(tmpdir);
+    TEST_END();
+}

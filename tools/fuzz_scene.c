@@ -1,0 +1,42 @@
+/* fuzz_scene.c: libFuzzer target for the scene loader (formats/scene.c and the tinygltf
+ * shim). Each input is loaded as given (JSON text, or GLB when it starts with "glTF"),
+ * then once more wrapped in a GLB container whose JSON chunk is the input and whose BIN
+ * chunk repeats its last bytes, so both readers see every input. External files resolve
+ * against a folder that does not exist. Built by `make fuzz`; the seeds are tests/data. */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/wrt_common.h"
+#include "formats/scene.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+static void quiet(int level, const char *msg, void *user) { (void)level; (void)msg; (void)user; }
+
+static void load(const void *p, size_t n, int drop_bad) {
+    wrt_load_options opt = {drop_bad, 0};
+    wrt_scene s;
+    if (wrt_scene_load_memory(p, n, "/nonexistent-wrt-fuzz", &opt, &s) == WRT_OK) wrt_scene_free(&s);
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
+    wrt_log_set_sink(quiet, NULL);
+    load(data, size, size & 1);
+    size_t jp = (size + 3) & ~(size_t)3, bl = size < 64 ? size : 64, bp = (bl + 3) & ~(size_t)3;
+    size_t total = 20 + jp + (bp ? 8 + bp : 0);
+    uint8_t *g = calloc(1, total);
+    if (!g) return 0;
+    uint32_t h[5] = {0x46546C67u, 2, (uint32_t)total, (uint32_t)jp, 0x4E4F534Au};
+    memcpy(g, h, sizeof h);
+    memset(g + 20, ' ', jp);
+    if (size) memcpy(g + 20, data, size);
+    if (bp) {
+        uint32_t c[2] = {(uint32_t)bp, 0x004E4942u};
+        memcpy(g + 20 + jp, c, 8);
+        memcpy(g + 28 + jp, data + size - bl, bl);
+    }
+    if (jp) load(g, total, !(size & 1));
+    free(g);
+    return 0;
+}

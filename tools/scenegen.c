@@ -1,0 +1,897 @@
+/* scenegen.c: wrt-scenegen, the generator of wrt's reference scenes. It writes
+ * self-contained glTF 2.0 files (.gltf, one buffer embedded as a base64 data URI)
+ * made only of quads, each stored as two indexed triangles (0,1,2)+(0,2,3) sharing
+ * the 0-2 diagonal, corners counter-clockwise seen from the front so that the glTF
+ * front face looks into the room. Materials are glTF metallic-roughness factors,
+ * lights are KHR_lights_punctual point or spot lights (intensity in candela, the
+ * spot's axis is its node's -Z), plus one perspective camera. Units are metres,
+ * +Y is up. Scenes: the Cornell box, the maze and the glossy test scene of the
+ * paper's section 6 (Table 1, Figure 10), and small test scenes for the bake
+ * (facing, perpendicular, furnace, tworooms, grazing). Every surface is an
+ * axis-aligned rectangle or a vertical/horizontal extrusion, and subdivision
+ * interpolates each coordinate symmetrically, so quads are exactly planar in
+ * float and neighbouring quads share bit-identical corners. Output depends only
+ * on the options (same options, same bytes). Depends on wrt_common.h only. */
+#define _POSIX_C_SOURCE 200809L
+#include "common/wrt_common.h"
+
+#include <errno.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* ---------------------------------------------------------------- options */
+
+enum { LIGHT_DEFAULT = -1, LIGHT_NONE = 0, LIGHT_POINT = 1, LIGHT_SPOT = 2 };
+
+typedef struct sg_options {
+    int res;          /* subdivisions per quad edge (every surface) */
+    double albedo;    /* the white/grey walls */
+    double scale;     /* uniform scale applied to the whole scene */
+    wrt_v3 offset;    /* translation applied after scaling */
+    double dist;      /* facing: distance between the squares */
+    double angle;     /* grazing: opening angle in degrees */
+    double thick;     /* tworooms: thickness of the shared wall */
+    int light;        /* LIGHT_*: override the scene's light type */
+    double intensity; /* > 0: override every light's intensity (candela, final) */
+    int cells;        /* maze: cells per side */
+    uint64_t seed;    /* maze: layout seed */
+} sg_options;
+
+static sg_options sg_defaults(void) {
+    sg_options o;
+    memset(&o, 0, sizeof o);
+    o.res = 1;
+    o.albedo = 0.75;
+    o.scale = 1.0;
+    o.offset = v3(0, 0, 0);
+    o.dist = 1.0;
+    o.angle = 1.0;
+    o.thick = 0.02;
+    o.light = LIGHT_DEFAULT;
+    o.intensity = 0.0;
+    o.cells = 6;
+    o.seed = 1;
+    return o;
+}
+
+/* ------------------------------------------------------------ scene model */
+
+typedef struct sg_material {
+    char name[64];
+    double rgb[3];
+    double metallic, roughness;
+} sg_material;
+
+typedef struct sg_mesh {
+    char name[64];
+    int material;
+    float *pos, *nrm; /* 4 vertices per quad, xyz each */
+    int nquads, cap;
+} sg_mesh;
+
+typedef struct sg_light {
+    char name[64];
+    int type; /* LIGHT_POINT or LIGHT_SPOT */
+    wrt_v3 pos, dir;
+    double rgb[3];
+    double intensity; /* candela at scale 1 */
+    double inner, outer; /* spot cone half-angles, radians */
+} sg_light;
+
+typedef struct sg_scene {
+    char name[64];
+    sg_options opt;
+    sg_material mats[16];
+    int nmats;
+    sg_mesh meshes[32];
+    int nmeshes;
+    sg_light lights[8];
+    int nlights;
+    wrt_v3 eye, target, up;
+    double yfov;
+} sg_scene;
+
+static int add_material(sg_scene *s, const char *name, double r, double g, double b,
+                        double metallic, double roughness) {
+    sg_material *m = &s->mats[s->nmats];
+    snprintf(m->name, sizeof m->name, "%s", name);
+    m->rgb[0] = r; m->rgb[1] = g; m->rgb[2] = b;
+    m->metallic = metallic;
+    m->roughness = roughness;
+    return s->nmats++;
+}
+
+static int add_mesh(sg_scene *s, const char *name, int material) {
+    sg_mesh *m = &s->meshes[s->nmeshes];
+    memset(m, 0, sizeof *m);
+    snprintf(m->name, sizeof m->name, "%s", name);
+    m->material = material;
+    return s->nmeshes++;
+}
+
+static void add_light(sg_scene *s, const char *name, int type, wrt_v3 pos, wrt_v3 target,
+                      double intensity, double r, double g, double b, double inner_deg,
+                      double outer_deg) {
+    sg_light *l = &s->lights[s->nlights++];
+    snprintf(l->name, sizeof l->name, "%s", name);
+    l->type = type;
+    l->pos = pos;
+    l->dir = v3_norm(v3_sub(target, pos));
+    l->rgb[0] = r; l->rgb[1] = g; l->rgb[2] = b;
+    l->intensity = intensity;
+    l->inner = inner_deg * WRT_PI / 180.0;
+    l->outer = outer_deg * WRT_PI / 180.0;
+}
+
+static void set_camera(sg_scene *s, wrt_v3 eye, wrt_v3 target, double yfov_deg) {
+    s->eye = eye;
+    s->target = target;
+    s->up = v3(0, 1, 0);
+    s->yfov = yfov_deg * WRT_PI / 180.0;
+}
+
+/* World position of a scene point: scale, then offset, rounded once to float. */
+static void put_point(const sg_scene *s, float *dst, wrt_v3 p) {
+    dst[0] = (float)(p.x * s->opt.scale + s->opt.offset.x);
+    dst[1] = (float)(p.y * s->opt.scale + s->opt.offset.y);
+    dst[2] = (float)(p.z * s->opt.scale + s->opt.offset.z);
+}
+
+/* Interpolates a coordinate between a and b at i/n, giving the same bits whichever
+ * end it starts from, so quads on both sides of an edge share their vertices. */
+static double lerp_sym(double a, double b, int i, int n) {
+    if (i == 0) return a;
+    if (i == n) return b;
+    if (a <= b) return a + (b - a) * ((double)i / n);
+    return b + (a - b) * ((double)(n - i) / n);
+}
+
+static wrt_v3 lerp_sym3(wrt_v3 a, wrt_v3 b, int i, int n) {
+    return v3(lerp_sym(a.x, b.x, i, n), lerp_sym(a.y, b.y, i, n), lerp_sym(a.z, b.z, i, n));
+}
+
+/* Point (i,j) of the n x n grid on the quad p0 p1 p2 p3 (i along p0->p1). */
+static wrt_v3 grid_point(const wrt_v3 p[4], int i, int j, int n) {
+    return lerp_sym3(lerp_sym3(p[0], p[1], i, n), lerp_sym3(p[3], p[2], i, n), j, n);
+}
+
+static void push_quad(sg_scene *s, sg_mesh *m, wrt_v3 a, wrt_v3 b, wrt_v3 c, wrt_v3 d,
+                      wrt_v3 n) {
+    if (m->nquads == m->cap) {
+        m->cap = m->cap ? 2 * m->cap : 16;
+        m->pos = wrt_xrealloc(m->pos, (size_t)m->cap * 12 * sizeof(float));
+        m->nrm = wrt_xrealloc(m->nrm, (size_t)m->cap * 12 * sizeof(float));
+    }
+    float *pp = m->pos + (size_t)m->nquads * 12, *nn = m->nrm + (size_t)m->nquads * 12;
+    put_point(s, pp + 0, a);
+    put_point(s, pp + 3, b);
+    put_point(s, pp + 6, c);
+    put_point(s, pp + 9, d);
+    for (int k = 0; k < 4; k++) {
+        nn[3 * k + 0] = (float)n.x;
+        nn[3 * k + 1] = (float)n.y;
+        nn[3 * k + 2] = (float)n.z;
+    }
+    m->nquads++;
+}
+
+/* Adds the planar convex quad with corners p0..p3 (in order around it) to mesh
+ * `mesh`, subdivided res x res, its front face towards `facing`: the corner order
+ * is reversed if needed, so the caller states intent instead of a winding. */
+static void add_quad(sg_scene *s, int mesh, wrt_v3 p0, wrt_v3 p1, wrt_v3 p2, wrt_v3 p3,
+                     wrt_v3 facing) {
+    wrt_v3 p[4] = {p0, p1, p2, p3};
+    wrt_v3 n = v3_cross(v3_sub(p1, p0), v3_sub(p3, p0));
+    if (v3_dot(n, facing) < 0) {
+        p[1] = p3;
+        p[3] = p1;
+        n = v3_scale(n, -1);
+    }
+    n = v3_norm(n);
+    int r = s->opt.res;
+    for (int j = 0; j < r; j++)
+        for (int i = 0; i < r; i++)
+            push_quad(s, &s->meshes[mesh], grid_point(p, i, j, r), grid_point(p, i + 1, j, r),
+                      grid_point(p, i + 1, j + 1, r), grid_point(p, i, j + 1, r), n);
+}
+
+/* Axis-aligned rectangle: `axis` 0/1/2 is the constant coordinate (value c), the
+ * other two span [lo0,hi0] x [lo1,hi1] in cyclic order (x: y,z; y: z,x; z: x,y);
+ * `sign` +1/-1 says which way along `axis` the front face looks. */
+static void add_rect(sg_scene *s, int mesh, int axis, double c, double lo0, double hi0,
+                     double lo1, double hi1, int sign) {
+    wrt_v3 q[4];
+    double u[4] = {lo0, hi0, hi0, lo0}, v[4] = {lo1, lo1, hi1, hi1};
+    for (int k = 0; k < 4; k++) {
+        double w[3];
+        w[axis] = c;
+        w[(axis + 1) % 3] = u[k];
+        w[(axis + 2) % 3] = v[k];
+        q[k] = v3(w[0], w[1], w[2]);
+    }
+    double f[3] = {0, 0, 0};
+    f[axis] = sign;
+    add_quad(s, mesh, q[0], q[1], q[2], q[3], v3(f[0], f[1], f[2]));
+}
+
+/* Closed axis-aligned box [lo,hi] seen from inside: 6 quads facing inwards. */
+static void add_room(sg_scene *s, int mesh, wrt_v3 lo, wrt_v3 hi) {
+    add_rect(s, mesh, 0, lo.x, lo.y, hi.y, lo.z, hi.z, +1);
+    add_rect(s, mesh, 0, hi.x, lo.y, hi.y, lo.z, hi.z, -1);
+    add_rect(s, mesh, 1, lo.y, lo.z, hi.z, lo.x, hi.x, +1);
+    add_rect(s, mesh, 1, hi.y, lo.z, hi.z, lo.x, hi.x, -1);
+    add_rect(s, mesh, 2, lo.z, lo.x, hi.x, lo.y, hi.y, +1);
+    add_rect(s, mesh, 2, hi.z, lo.x, hi.x, lo.y, hi.y, -1);
+}
+
+/* A box standing on y = 0: footprint w x d centred at (cx, cz) turned by `deg`
+ * degrees about +Y, height h; 4 sides and the top, facing outwards (no bottom). */
+static void add_block(sg_scene *s, int mesh, double cx, double cz, double w, double d,
+                      double h, double deg) {
+    double a = deg * WRT_PI / 180.0, ca = cos(a), sa = sin(a);
+    double lx[4] = {-w / 2, w / 2, w / 2, -w / 2}, lz[4] = {-d / 2, -d / 2, d / 2, d / 2};
+    wrt_v3 b[4], t[4];
+    for (int k = 0; k < 4; k++) {
+        double x = cx + ca * lx[k] + sa * lz[k], z = cz - sa * lx[k] + ca * lz[k];
+        b[k] = v3(x, 0, z);
+        t[k] = v3(x, h, z);
+    }
+    wrt_v3 centre = v3(cx, h / 2, cz);
+    for (int k = 0; k < 4; k++) {
+        int k1 = (k + 1) % 4;
+        wrt_v3 mid = v3_scale(v3_add(b[k], b[k1]), 0.5);
+        wrt_v3 out = v3_sub(mid, v3(centre.x, 0, centre.z));
+        add_quad(s, mesh, b[k], b[k1], t[k1], t[k], out);
+    }
+    add_quad(s, mesh, t[0], t[1], t[2], t[3], v3(0, 1, 0));
+}
+
+/* ----------------------------------------------------------------- scenes */
+
+/* Cornell box, 1 m: x in [-0.5,0.5] (red wall at -x, i.e. left as seen by the camera
+ * at +z), y in [0,1], z in [-0.5,0.5], open at +z. Dimensions follow the measured
+ * box (555 mm) divided by 555; the short and tall boxes stand where they do there. */
+static void scene_cornell(sg_scene *s) {
+    double a = s->opt.albedo;
+    int white = add_material(s, "white", a, a, a, 0, 1);
+    int red = add_material(s, "red", 0.63, 0.065, 0.05, 0, 1);
+    int green = add_material(s, "green", 0.14, 0.45, 0.09, 0, 1);
+    add_rect(s, add_mesh(s, "floor", white), 1, 0.0, -0.5, 0.5, -0.5, 0.5, +1);
+    add_rect(s, add_mesh(s, "ceiling", white), 1, 1.0, -0.5, 0.5, -0.5, 0.5, -1);
+    add_rect(s, add_mesh(s, "back_wall", white), 2, -0.5, -0.5, 0.5, 0.0, 1.0, +1);
+    add_rect(s, add_mesh(s, "left_wall", red), 0, -0.5, 0.0, 1.0, -0.5, 0.5, +1);
+    add_rect(s, add_mesh(s, "right_wall", green), 0, 0.5, 0.0, 1.0, -0.5, 0.5, -1);
+    add_block(s, add_mesh(s, "short_box", white), 0.17, 0.20, 0.30, 0.30, 0.30, -17);
+    add_block(s, add_mesh(s, "tall_box", white), -0.16, -0.13, 0.30, 0.30, 0.60, 17);
+    add_light(s, "ceiling_light", LIGHT_POINT, v3(0, 0.85, 0), v3(0, 0, 0), 2.5, 1, 1, 1, 60, 80);
+    set_camera(s, v3(0, 0.5, 1.9), v3(0, 0.5, 0), 39.3);
+}
+
+/* splitmix64: a tiny PRNG whose sequence is fixed by its seed on every platform. */
+static uint64_t rng_next(uint64_t *st) {
+    uint64_t z = (*st += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
+/* Maze: `cells` x `cells` corridors of 1 m separated by 0.2 m thick, 1 m high walls,
+ * carved by a depth-first search from a fixed seed. The layout is a grid of
+ * (2N+1)^2 blocks: odd/odd are corridor cells, even/even pillars, the rest walls that
+ * stand or were carved. Only the boundary between solid and open blocks is emitted
+ * (wall faces, tops of solid blocks, floor tiles of open blocks) plus the outside
+ * of the boundary wall, so no quad is hidden or overlapping and the whole surface
+ * is one consistently oriented sheet, open only along the bottom of its outside.
+ * Lit from above by three spotlights. */
+static void scene_maze(sg_scene *s) {
+    const double cw = 1.0, tw = 0.2, h = 1.0;
+    int n = s->opt.cells, g = 2 * n + 1;
+    unsigned char *solid = wrt_xcalloc((size_t)g * g, 1);
+    for (int z = 0; z < g; z++)
+        for (int x = 0; x < g; x++) solid[z * g + x] = !((x & 1) && (z & 1));
+    /* depth-first carving over cells (cx, cz) */
+    int *stack = wrt_xmalloc((size_t)n * n * sizeof(int));
+    unsigned char *seen = wrt_xcalloc((size_t)n * n, 1);
+    uint64_t st = s->opt.seed;
+    int sp = 0;
+    stack[sp++] = 0;
+    seen[0] = 1;
+    while (sp > 0) {
+        int c = stack[sp - 1], cx = c % n, cz = c / n;
+        int cand[4], nc = 0;
+        static const int dx[4] = {1, -1, 0, 0}, dz[4] = {0, 0, 1, -1};
+        for (int k = 0; k < 4; k++) {
+            int x = cx + dx[k], z = cz + dz[k];
+            if (x >= 0 && x < n && z >= 0 && z < n && !seen[z * n + x]) cand[nc++] = k;
+        }
+        if (nc == 0) { sp--; continue; }
+        int k = cand[rng_next(&st) % (uint64_t)nc];
+        int x = cx + dx[k], z = cz + dz[k];
+        solid[(2 * cz + 1 + dz[k]) * g + (2 * cx + 1 + dx[k])] = 0;
+        seen[z * n + x] = 1;
+        stack[sp++] = z * n + x;
+    }
+    /* block edges along x and z: position of grid line k */
+    double *line = wrt_xmalloc((size_t)(g + 1) * sizeof(double));
+    double half = (n * cw + (n + 1) * tw) / 2;
+    line[0] = -half;
+    for (int k = 0; k < g; k++) line[k + 1] = line[k] + ((k & 1) ? cw : tw);
+    line[g] = half;
+
+    double a = s->opt.albedo;
+    int m_floor = add_material(s, "floor_grey", 0.5, 0.5, 0.5, 0, 1);
+    int m_white = add_material(s, "wall_white", a, a, a, 0, 1);
+    int m_ochre = add_material(s, "wall_ochre", 0.72, 0.55, 0.25, 0, 1);
+    int m_blue = add_material(s, "wall_blue", 0.25, 0.35, 0.65, 0, 1);
+    int mfloor = add_mesh(s, "floor", m_floor);
+    int tops = add_mesh(s, "wall_tops", m_white);
+    int walls[3] = {add_mesh(s, "walls_white", m_white), add_mesh(s, "walls_ochre", m_ochre),
+                    add_mesh(s, "walls_blue", m_blue)};
+    for (int z = 0; z < g; z++)
+        for (int x = 0; x < g; x++) {
+            double x0 = line[x], x1 = line[x + 1], z0 = line[z], z1 = line[z + 1];
+            if (solid[z * g + x]) {
+                add_rect(s, tops, 1, h, z0, z1, x0, x1, +1);
+                continue;
+            }
+            add_rect(s, mfloor, 1, 0.0, z0, z1, x0, x1, +1);
+            /* faces of the solid neighbours that look into this open block */
+            int nx[4] = {x - 1, x + 1, x, x}, nz[4] = {z, z, z - 1, z + 1};
+            for (int k = 0; k < 4; k++) {
+                if (nx[k] < 0 || nx[k] >= g || nz[k] < 0 || nz[k] >= g) continue;
+                if (!solid[nz[k] * g + nx[k]]) continue;
+                int pick = (int)(rng_next(&st) % 10);
+                int mesh = walls[pick < 6 ? 0 : pick < 8 ? 1 : 2];
+                if (k == 0) add_rect(s, mesh, 0, x0, 0, h, z0, z1, +1);
+                if (k == 1) add_rect(s, mesh, 0, x1, 0, h, z0, z1, -1);
+                if (k == 2) add_rect(s, mesh, 2, z0, x0, x1, 0, h, +1);
+                if (k == 3) add_rect(s, mesh, 2, z1, x0, x1, 0, h, -1);
+            }
+        }
+    /* the outside of the boundary wall, so the maze looks solid from the camera */
+    for (int k = 0; k < g; k++) {
+        add_rect(s, walls[0], 0, -half, 0, h, line[k], line[k + 1], -1);
+        add_rect(s, walls[0], 0, half, 0, h, line[k], line[k + 1], +1);
+        add_rect(s, walls[0], 2, -half, line[k], line[k + 1], 0, h, -1);
+        add_rect(s, walls[0], 2, half, line[k], line[k + 1], 0, h, +1);
+    }
+    double f = half / 3.7; /* light layout designed for the 6 x 6 maze */
+    add_light(s, "spot_warm", LIGHT_SPOT, v3(-2.0 * f, 3.0, -2.0 * f), v3(-1.5 * f, 0, -1.2 * f),
+              30, 1.0, 0.9, 0.75, 30, 40);
+    add_light(s, "spot_cool", LIGHT_SPOT, v3(2.2 * f, 3.2, -0.5 * f), v3(1.5 * f, 0, 0.3 * f),
+              30, 0.75, 0.85, 1.0, 30, 40);
+    add_light(s, "spot_white", LIGHT_SPOT, v3(-0.5 * f, 3.0, 2.5 * f), v3(0.2 * f, 0, 1.8 * f),
+              30, 1, 1, 1, 30, 40);
+    set_camera(s, v3(0, 6.5 * f, 7.5 * f), v3(0, 0, 0.3 * f), 50);
+    free(line);
+    free(seen);
+    free(stack);
+    free(solid);
+}
+
+/* Glossy test scene: 3 x 3 m glossy floor (roughness 0.3), glossy back and side
+ * walls 2 m high (roughness 0.4, one blue), a diffuse orange box in the middle,
+ * one spotlight aimed at the box from the front right. */
+static void scene_glossy(sg_scene *s) {
+    double a = s->opt.albedo;
+    int m_floor = add_material(s, "glossy_floor", 0.55, 0.55, 0.55, 0, 0.3);
+    int m_wall = add_material(s, "glossy_wall", a, a, a, 0, 0.4);
+    int m_blue = add_material(s, "glossy_blue", 0.2, 0.3, 0.7, 0, 0.4);
+    int m_box = add_material(s, "orange", 0.8, 0.35, 0.1, 0, 1);
+    add_rect(s, add_mesh(s, "floor", m_floor), 1, 0.0, -1.5, 1.5, -1.5, 1.5, +1);
+    add_rect(s, add_mesh(s, "back_wall", m_wall), 2, -1.5, -1.5, 1.5, 0.0, 2.0, +1);
+    add_rect(s, add_mesh(s, "left_wall", m_blue), 0, -1.5, 0.0, 2.0, -1.5, 1.5, +1);
+    add_rect(s, add_mesh(s, "right_wall", m_wall), 0, 1.5, 0.0, 2.0, -1.5, 1.5, -1);
+    add_block(s, add_mesh(s, "box", m_box), 0, 0, 0.6, 0.6, 0.6, 25);
+    add_light(s, "spot", LIGHT_SPOT, v3(1.2, 2.2, 1.4), v3(0, 0.3, 0), 20, 1, 1, 1, 25, 35);
+    set_camera(s, v3(0, 1.4, 4.2), v3(0, 0.6, 0), 45);
+}
+
+/* Two unit squares facing each other across --dist along z, light half-way. */
+static void scene_facing(sg_scene *s) {
+    double a = s->opt.albedo, d = s->opt.dist;
+    int m = add_material(s, "grey", a, a, a, 0, 1);
+    add_rect(s, add_mesh(s, "square_a", m), 2, 0.0, -0.5, 0.5, -0.5, 0.5, +1);
+    add_rect(s, add_mesh(s, "square_b", m), 2, d, -0.5, 0.5, -0.5, 0.5, -1);
+    add_light(s, "light", LIGHT_POINT, v3(0, 0, d / 2), v3(0, 0, 0), 1, 1, 1, 1, 45, 60);
+    set_camera(s, v3(2.5, 0.8, d / 2 + 1.0), v3(0, 0, d / 2), 45);
+}
+
+/* Two unit squares at right angles sharing the edge y = z = 0, x in [0,1]: a floor
+ * (facing +y) and a wall (facing +z). */
+static void scene_perpendicular(sg_scene *s) {
+    double a = s->opt.albedo;
+    int m = add_material(s, "grey", a, a, a, 0, 1);
+    add_rect(s, add_mesh(s, "floor", m), 1, 0.0, 0, 1, 0, 1, +1);
+    add_rect(s, add_mesh(s, "wall", m), 2, 0.0, 0, 1, 0, 1, +1);
+    add_light(s, "light", LIGHT_POINT, v3(0.5, 0.5, 0.5), v3(0.5, 0, 0.5), 1, 1, 1, 1, 45, 60);
+    set_camera(s, v3(0.5, 1.5, 2.5), v3(0.5, 0.4, 0.4), 45);
+}
+
+/* Closed unit cube centred at the origin, 6 inward faces of --albedo, light at the
+ * centre: the furnace test (radiosity B = E/(1-rho) in closed form). */
+static void scene_furnace(sg_scene *s) {
+    double a = s->opt.albedo;
+    int m = add_material(s, "grey", a, a, a, 0, 1);
+    add_room(s, add_mesh(s, "cube", m), v3(-0.5, -0.5, -0.5), v3(0.5, 0.5, 0.5));
+    add_light(s, "light", LIGHT_POINT, v3(0, 0, 0), v3(0, -1, 0), 1, 1, 1, 1, 45, 60);
+    set_camera(s, v3(0, 0, 0.4), v3(0, 0, -0.5), 60);
+}
+
+/* Two closed 1 m rooms side by side along x, separated by a wall --thick thick
+ * (room A's +x face and room B's -x face back to back); the light is in room A,
+ * so room B must stay black (light leak test). */
+static void scene_tworooms(sg_scene *s) {
+    double a = s->opt.albedo, t = s->opt.thick / 2;
+    int m = add_material(s, "grey", a, a, a, 0, 1);
+    add_room(s, add_mesh(s, "room_a", m), v3(-1 - t, 0, -0.5), v3(-t, 1, 0.5));
+    add_room(s, add_mesh(s, "room_b", m), v3(t, 0, -0.5), v3(1 + t, 1, 0.5));
+    add_light(s, "light", LIGHT_POINT, v3(-0.5 - t, 0.5, 0), v3(-0.5 - t, 0, 0), 1, 1, 1, 1, 45, 60);
+    set_camera(s, v3(-0.95 - t, 0.6, 0.4), v3(-t, 0.4, -0.2), 60);
+}
+
+/* Two unit squares hinged on the z axis (x = y = 0, z in [0,1]) with an opening
+ * angle of --angle degrees: A lies in y = 0 along +x facing +y, B leaves the hinge
+ * at that angle above A and faces into the wedge. No light unless asked for. */
+static void scene_grazing(sg_scene *s) {
+    double a = s->opt.albedo, ang = s->opt.angle * WRT_PI / 180.0;
+    double c = cos(ang), sn = sin(ang);
+    int m = add_material(s, "grey", a, a, a, 0, 1);
+    add_rect(s, add_mesh(s, "square_a", m), 1, 0.0, 0, 1, 0, 1, +1);
+    add_quad(s, add_mesh(s, "square_b", m), v3(0, 0, 0), v3(c, sn, 0), v3(c, sn, 1), v3(0, 0, 1),
+             v3(sn, -c, 0));
+    double hb = ang / 2;
+    add_light(s, "light", LIGHT_POINT, v3(0.7 * cos(hb), 0.7 * sin(hb), 0.5), v3(0, 0, 0.5), 1, 1,
+              1, 1, 45, 60);
+    s->nlights = s->opt.light == LIGHT_DEFAULT ? 0 : s->nlights; /* default: unlit */
+    set_camera(s, v3(1.2, 1.0, 2.6), v3(0.4, 0.1, 0.5), 45);
+}
+
+typedef struct sg_entry {
+    const char *name;
+    void (*build)(sg_scene *);
+    const char *file; /* path under --all DIR */
+    const char *what;
+} sg_entry;
+
+static const sg_entry scenes[] = {
+    {"cornell", scene_cornell, "cornell.gltf", "1 m Cornell box, point light under the ceiling"},
+    {"maze", scene_maze, "maze.gltf", "maze of --cells^2 corridors, 3 spotlights"},
+    {"glossy", scene_glossy, "glossy.gltf", "glossy floor and walls, diffuse box, spotlight"},
+    {"facing", scene_facing, "test/facing.gltf", "two unit squares facing at --dist"},
+    {"perpendicular", scene_perpendicular, "test/perpendicular.gltf",
+     "two unit squares at right angles sharing an edge"},
+    {"furnace", scene_furnace, "test/furnace.gltf", "closed cube, light at the centre"},
+    {"tworooms", scene_tworooms, "test/tworooms.gltf", "two closed rooms, light in one"},
+    {"grazing", scene_grazing, "test/grazing.gltf", "two squares at an --angle degree edge"},
+};
+#define NSCENES ((int)(sizeof scenes / sizeof scenes[0]))
+
+/* ----------------------------------------------------------- JSON output */
+
+typedef struct sbuf {
+    char *p;
+    size_t n, cap;
+} sbuf;
+
+static void sb_put(sbuf *b, const char *s, size_t n) {
+    if (b->n + n + 1 > b->cap) {
+        while (b->n + n + 1 > b->cap) b->cap = b->cap ? 2 * b->cap : 4096;
+        b->p = wrt_xrealloc(b->p, b->cap);
+    }
+    memcpy(b->p + b->n, s, n);
+    b->n += n;
+    b->p[b->n] = 0;
+}
+
+static void sb_printf(sbuf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void sb_printf(sbuf *b, const char *fmt, ...) {
+    char tmp[512];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(tmp, sizeof tmp, fmt, ap);
+    va_end(ap);
+    if (n < 0) return;
+    if ((size_t)n < sizeof tmp) { sb_put(b, tmp, (size_t)n); return; }
+    char *big = wrt_xmalloc((size_t)n + 1);
+    va_start(ap, fmt);
+    vsnprintf(big, (size_t)n + 1, fmt, ap);
+    va_end(ap);
+    sb_put(b, big, (size_t)n);
+    free(big);
+}
+
+/* Shortest decimal text that reads back as the same float (JSON numbers). */
+static void sb_num(sbuf *b, double x) {
+    float f = (float)x;
+    if (f == 0) f = 0; /* no "-0" */
+    char t[40];
+    if (f == floorf(f) && fabsf(f) < 1e9f) {
+        snprintf(t, sizeof t, "%.0f", (double)f);
+        sb_put(b, t, strlen(t));
+        return;
+    }
+    for (int prec = 1; prec <= 9; prec++) {
+        snprintf(t, sizeof t, "%.*g", prec, (double)f);
+        if (strtof(t, NULL) == f) break;
+    }
+    sb_put(b, t, strlen(t));
+}
+
+static void sb_vec(sbuf *b, const double *v, int n) {
+    sb_put(b, "[", 1);
+    for (int k = 0; k < n; k++) {
+        if (k) sb_put(b, ",", 1);
+        sb_num(b, v[k]);
+    }
+    sb_put(b, "]", 1);
+}
+
+static void sb_base64(sbuf *b, const unsigned char *d, size_t n) {
+    static const char tab[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    char q[4];
+    for (size_t i = 0; i < n; i += 3) {
+        uint32_t v = (uint32_t)d[i] << 16;
+        if (i + 1 < n) v |= (uint32_t)d[i + 1] << 8;
+        if (i + 2 < n) v |= d[i + 2];
+        q[0] = tab[(v >> 18) & 63];
+        q[1] = tab[(v >> 12) & 63];
+        q[2] = i + 1 < n ? tab[(v >> 6) & 63] : '=';
+        q[3] = i + 2 < n ? tab[v & 63] : '=';
+        sb_put(b, q, 4);
+    }
+}
+
+/* Little-endian binary buffer, whatever the host's byte order. */
+typedef struct bbuf {
+    unsigned char *p;
+    size_t n, cap;
+} bbuf;
+
+static void bb_u32(bbuf *b, uint32_t v) {
+    if (b->n + 4 > b->cap) {
+        b->cap = b->cap ? 2 * b->cap : 4096;
+        b->p = wrt_xrealloc(b->p, b->cap);
+    }
+    for (int k = 0; k < 4; k++) b->p[b->n++] = (unsigned char)(v >> (8 * k));
+}
+
+static void bb_f32(bbuf *b, float f) {
+    uint32_t v;
+    memcpy(&v, &f, 4);
+    bb_u32(b, v);
+}
+
+/* Rotation taking the node's -Z to `dir` with +Y as close to `up` as possible, as a
+ * unit quaternion (x, y, z, w). */
+static void look_quat(wrt_v3 dir, wrt_v3 up, double q[4]) {
+    wrt_v3 f = v3_norm(dir);
+    if (fabs(v3_dot(f, v3_norm(up))) > 0.999) up = fabs(f.y) > 0.5 ? v3(0, 0, -1) : v3(0, 1, 0);
+    wrt_v3 r = v3_norm(v3_cross(f, up)), u = v3_cross(r, f), zb = v3_scale(f, -1);
+    double m00 = r.x, m10 = r.y, m20 = r.z, m01 = u.x, m11 = u.y, m21 = u.z;
+    double m02 = zb.x, m12 = zb.y, m22 = zb.z;
+    double tr = m00 + m11 + m22, x, y, z, w;
+    if (tr > 0) {
+        double k = sqrt(tr + 1.0) * 2;
+        w = k / 4; x = (m21 - m12) / k; y = (m02 - m20) / k; z = (m10 - m01) / k;
+    } else if (m00 > m11 && m00 > m22) {
+        double k = sqrt(1.0 + m00 - m11 - m22) * 2;
+        w = (m21 - m12) / k; x = k / 4; y = (m01 + m10) / k; z = (m02 + m20) / k;
+    } else if (m11 > m22) {
+        double k = sqrt(1.0 + m11 - m00 - m22) * 2;
+        w = (m02 - m20) / k; x = (m01 + m10) / k; y = k / 4; z = (m12 + m21) / k;
+    } else {
+        double k = sqrt(1.0 + m22 - m00 - m11) * 2;
+        w = (m10 - m01) / k; x = (m02 + m20) / k; y = (m12 + m21) / k; z = k / 4;
+    }
+    double l = sqrt(x * x + y * y + z * z + w * w);
+    if (w < 0) l = -l; /* canonical sign: w >= 0 */
+    q[0] = x / l; q[1] = y / l; q[2] = z / l; q[3] = w / l;
+}
+
+static wrt_v3 world(const sg_scene *s, wrt_v3 p) {
+    return v3_add(v3_scale(p, s->opt.scale), s->opt.offset);
+}
+
+/* Serializes the scene to glTF JSON text in `out`. */
+static void write_gltf(const sg_scene *s, sbuf *out) {
+    bbuf bin = {0};
+    sbuf acc = {0}, views = {0};
+    int nacc = 0;
+    /* per mesh: POSITION, NORMAL, indices; one buffer view each */
+    for (int i = 0; i < s->nmeshes; i++) {
+        const sg_mesh *m = &s->meshes[i];
+        size_t nv = (size_t)m->nquads * 4;
+        float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+        for (size_t v = 0; v < nv; v++)
+            for (int c = 0; c < 3; c++) {
+                float x = m->pos[3 * v + c];
+                if (v == 0 || x < lo[c]) lo[c] = x;
+                if (v == 0 || x > hi[c]) hi[c] = x;
+            }
+        for (int part = 0; part < 3; part++) {
+            size_t off = bin.n;
+            if (part < 2) {
+                const float *src = part == 0 ? m->pos : m->nrm;
+                for (size_t k = 0; k < 3 * nv; k++) bb_f32(&bin, src[k]);
+            } else {
+                for (uint32_t q = 0; q < (uint32_t)m->nquads; q++) {
+                    uint32_t b = 4 * q;
+                    bb_u32(&bin, b); bb_u32(&bin, b + 1); bb_u32(&bin, b + 2);
+                    bb_u32(&bin, b); bb_u32(&bin, b + 2); bb_u32(&bin, b + 3);
+                }
+            }
+            sb_printf(&views, "%s\n    {\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu,\"target\":%d}",
+                      nacc ? "," : "", off, bin.n - off, part < 2 ? 34962 : 34963);
+            if (part < 2) {
+                sb_printf(&acc, "%s\n    {\"bufferView\":%d,\"componentType\":5126,\"count\":%zu,\"type\":\"VEC3\"",
+                          nacc ? "," : "", nacc, nv);
+                if (part == 0) {
+                    double dlo[3] = {lo[0], lo[1], lo[2]}, dhi[3] = {hi[0], hi[1], hi[2]};
+                    sb_printf(&acc, ",\"min\":");
+                    sb_vec(&acc, dlo, 3);
+                    sb_printf(&acc, ",\"max\":");
+                    sb_vec(&acc, dhi, 3);
+                }
+                sb_printf(&acc, "}");
+            } else {
+                sb_printf(&acc, ",\n    {\"bufferView\":%d,\"componentType\":5125,\"count\":%zu,\"type\":\"SCALAR\"}",
+                          nacc, (size_t)m->nquads * 6);
+            }
+            nacc++;
+        }
+    }
+
+    sb_printf(out, "{\n  \"asset\":{\"version\":\"2.0\",\"generator\":\"wrt-scenegen %s\"},\n",
+              WRT_VERSION_STRING);
+    int nl = s->nlights;
+    if (nl > 0) {
+        sb_printf(out, "  \"extensionsUsed\":[\"KHR_lights_punctual\"],\n");
+        sb_printf(out, "  \"extensions\":{\"KHR_lights_punctual\":{\"lights\":[");
+        for (int i = 0; i < nl; i++) {
+            const sg_light *l = &s->lights[i];
+            double inten = s->opt.intensity > 0 ? s->opt.intensity
+                                                 : l->intensity * s->opt.scale * s->opt.scale;
+            sb_printf(out, "%s\n    {\"name\":\"%s\",\"type\":\"%s\",\"color\":", i ? "," : "",
+                      l->name, l->type == LIGHT_SPOT ? "spot" : "point");
+            sb_vec(out, l->rgb, 3);
+            sb_printf(out, ",\"intensity\":");
+            sb_num(out, inten);
+            if (l->type == LIGHT_SPOT) {
+                sb_printf(out, ",\"spot\":{\"innerConeAngle\":");
+                sb_num(out, l->inner);
+                sb_printf(out, ",\"outerConeAngle\":");
+                sb_num(out, l->outer);
+                sb_printf(out, "}");
+            }
+            sb_printf(out, "}");
+        }
+        sb_printf(out, "]}},\n");
+    }
+    /* nodes: meshes, lights, camera */
+    int nnodes = s->nmeshes + nl + 1;
+    sb_printf(out, "  \"scene\":0,\n  \"scenes\":[{\"name\":\"%s\",\"nodes\":[", s->name);
+    for (int i = 0; i < nnodes; i++) sb_printf(out, "%s%d", i ? "," : "", i);
+    sb_printf(out, "]}],\n  \"nodes\":[");
+    for (int i = 0; i < s->nmeshes; i++)
+        sb_printf(out, "%s\n    {\"name\":\"%s\",\"mesh\":%d}", i ? "," : "", s->meshes[i].name, i);
+    for (int i = 0; i < nl; i++) {
+        const sg_light *l = &s->lights[i];
+        wrt_v3 p = world(s, l->pos);
+        double t[3] = {p.x, p.y, p.z}, q[4];
+        if (l->type == LIGHT_SPOT) look_quat(l->dir, v3(0, 1, 0), q);
+        else { q[0] = q[1] = q[2] = 0; q[3] = 1; }
+        sb_printf(out, ",\n    {\"name\":\"%s\",\"translation\":", l->name);
+        sb_vec(out, t, 3);
+        sb_printf(out, ",\"rotation\":");
+        sb_vec(out, q, 4);
+        sb_printf(out, ",\"extensions\":{\"KHR_lights_punctual\":{\"light\":%d}}}", i);
+    }
+    {
+        wrt_v3 e = world(s, s->eye);
+        double t[3] = {e.x, e.y, e.z}, q[4];
+        look_quat(v3_sub(s->target, s->eye), s->up, q);
+        sb_printf(out, ",\n    {\"name\":\"camera\",\"camera\":0,\"translation\":");
+        sb_vec(out, t, 3);
+        sb_printf(out, ",\"rotation\":");
+        sb_vec(out, q, 4);
+        sb_printf(out, "}");
+    }
+    sb_printf(out, "\n  ],\n  \"cameras\":[{\"name\":\"camera\",\"type\":\"perspective\",\"perspective\":{\"yfov\":");
+    sb_num(out, s->yfov);
+    sb_printf(out, ",\"znear\":");
+    sb_num(out, 0.01 * s->opt.scale);
+    sb_printf(out, ",\"zfar\":");
+    sb_num(out, 1000 * s->opt.scale);
+    sb_printf(out, "}}],\n  \"meshes\":[");
+    for (int i = 0; i < s->nmeshes; i++)
+        sb_printf(out, "%s\n    {\"name\":\"%s\",\"primitives\":[{\"attributes\":{\"POSITION\":%d,\"NORMAL\":%d},\"indices\":%d,\"material\":%d,\"mode\":4}]}",
+                  i ? "," : "", s->meshes[i].name, 3 * i, 3 * i + 1, 3 * i + 2, s->meshes[i].material);
+    sb_printf(out, "\n  ],\n  \"materials\":[");
+    for (int i = 0; i < s->nmats; i++) {
+        const sg_material *m = &s->mats[i];
+        double bc[4] = {m->rgb[0], m->rgb[1], m->rgb[2], 1};
+        sb_printf(out, "%s\n    {\"name\":\"%s\",\"pbrMetallicRoughness\":{\"baseColorFactor\":", i ? "," : "", m->name);
+        sb_vec(out, bc, 4);
+        sb_printf(out, ",\"metallicFactor\":");
+        sb_num(out, m->metallic);
+        sb_printf(out, ",\"roughnessFactor\":");
+        sb_num(out, m->roughness);
+        sb_printf(out, "}}");
+    }
+    sb_printf(out, "\n  ],\n  \"accessors\":[%s\n  ],\n  \"bufferViews\":[%s\n  ],\n", acc.p, views.p);
+    sb_printf(out, "  \"buffers\":[{\"byteLength\":%zu,\"uri\":\"data:application/octet-stream;base64,", bin.n);
+    sb_base64(out, bin.p, bin.n);
+    sb_printf(out, "\"}]\n}\n");
+    free(bin.p);
+    free(acc.p);
+    free(views.p);
+}
+
+/* Writes `text` to `path` through a temporary file renamed over it. */
+static wrt_status write_file(const char *path, const char *text, size_t n) {
+    char tmp[4096];
+    if (snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid()) >= (int)sizeof tmp)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "%s: path too long", path);
+    FILE *f = fopen(tmp, "wb");
+    if (!f) return wrt_fail(WRT_ERR_IO, "%s: %s", tmp, strerror(errno));
+    int ok = fwrite(text, 1, n, f) == n;
+    ok = (fflush(f) == 0) && ok;
+    ok = (fsync(fileno(f)) == 0) && ok;
+    ok = (fclose(f) == 0) && ok;
+    if (!ok || rename(tmp, path) != 0) {
+        int e = errno;
+        remove(tmp);
+        return wrt_fail(WRT_ERR_IO, "%s: %s", path, strerror(e));
+    }
+    return WRT_OK;
+}
+
+static void free_scene(sg_scene *s) {
+    for (int i = 0; i < s->nmeshes; i++) {
+        free(s->meshes[i].pos);
+        free(s->meshes[i].nrm);
+    }
+}
+
+static wrt_status generate(const sg_entry *e, const sg_options *opt, const char *path) {
+    sg_scene s;
+    memset(&s, 0, sizeof s);
+    snprintf(s.name, sizeof s.name, "%s", e->name);
+    s.opt = *opt;
+    e->build(&s);
+    if (opt->light == LIGHT_NONE) s.nlights = 0;
+    for (int i = 0; i < s.nlights && opt->light > 0; i++)
+        s.lights[i].type = opt->light == LIGHT_SPOT ? LIGHT_SPOT : LIGHT_POINT;
+    sbuf text = {0};
+    write_gltf(&s, &text);
+    int nq = 0;
+    for (int i = 0; i < s.nmeshes; i++) nq += s.meshes[i].nquads;
+    wrt_status st = write_file(path, text.p, text.n);
+    if (st == WRT_OK)
+        printf("%s: %s, %d quads, %d triangles, %d lights, %zu bytes\n", path, e->name, nq,
+               2 * nq, s.nlights, text.n);
+    free(text.p);
+    free_scene(&s);
+    return st;
+}
+
+/* -------------------------------------------------------------- front end */
+
+static void usage(FILE *f) {
+    fprintf(f,
+            "usage: wrt-scenegen SCENE [options] --out FILE\n"
+            "       wrt-scenegen --all DIR [options]   (test scenes go to DIR/test/)\n"
+            "options:\n"
+            "  --res N          subdivide every quad into N x N, 1..128 (default 1)\n"
+            "  --albedo R       albedo of the white/grey surfaces (default 0.75)\n"
+            "  --scale S        scale the scene; light intensities scale by S^2 (default 1)\n"
+            "  --offset X,Y,Z   translate everything, lights and camera included\n"
+            "  --dist D         facing: distance between the squares (default 1)\n"
+            "  --angle A        grazing: opening angle in degrees (default 1)\n"
+            "  --thick T        tworooms: thickness of the shared wall (default 0.02)\n"
+            "  --light none|point|spot  change the lights' type or remove them\n"
+            "  --intensity I    every light's intensity in candela (after scaling)\n"
+            "  --cells N        maze: corridors per side (default 6)\n"
+            "  --seed N         maze: layout seed (default 1)\n"
+            "scenes:\n");
+    for (int i = 0; i < NSCENES; i++) fprintf(f, "  %-14s %s\n", scenes[i].name, scenes[i].what);
+}
+
+static int parse_num(const char *s, double lo, double hi, double *out) {
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (errno || end == s || *end || !isfinite(v) || v < lo || v > hi) return 0;
+    *out = v;
+    return 1;
+}
+
+static int mkdir_p(const char *dir) {
+    char buf[4096];
+    size_t n = strlen(dir);
+    if (n == 0 || n >= sizeof buf) return 0;
+    memcpy(buf, dir, n + 1);
+    for (size_t i = 1; i <= n; i++)
+        if (buf[i] == '/' || buf[i] == 0) {
+            char c = buf[i];
+            buf[i] = 0;
+            if (mkdir(buf, 0777) != 0 && errno != EEXIST) return 0;
+            buf[i] = c;
+        }
+    return 1;
+}
+
+int main(int argc, char **argv) {
+    sg_options opt = sg_defaults();
+    const char *scene = NULL, *out = NULL, *all = NULL;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        double x;
+        if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
+        if (a[0] != '-') {
+            if (scene) { fprintf(stderr, "wrt-scenegen: two scene names: %s, %s\n", scene, a); return 2; }
+            scene = a;
+            continue;
+        }
+        if (!v) { fprintf(stderr, "wrt-scenegen: %s needs a value\n", a); return 2; }
+        i++;
+        int ok = 1;
+        if (!strcmp(a, "--out")) out = v;
+        else if (!strcmp(a, "--all")) all = v;
+        else if (!strcmp(a, "--res")) { ok = parse_num(v, 1, 128, &x) && x == floor(x); opt.res = (int)x; }
+        else if (!strcmp(a, "--albedo")) ok = parse_num(v, 0, 1, &opt.albedo);
+        else if (!strcmp(a, "--scale")) ok = parse_num(v, 1e-6, 1e6, &opt.scale);
+        else if (!strcmp(a, "--dist")) ok = parse_num(v, 1e-6, 1e6, &opt.dist);
+        else if (!strcmp(a, "--angle")) ok = parse_num(v, 1e-3, 180, &opt.angle);
+        else if (!strcmp(a, "--thick")) ok = parse_num(v, 1e-6, 1, &opt.thick);
+        else if (!strcmp(a, "--intensity")) ok = parse_num(v, 1e-9, 1e12, &opt.intensity);
+        else if (!strcmp(a, "--cells")) { ok = parse_num(v, 2, 64, &x) && x == floor(x); opt.cells = (int)x; }
+        else if (!strcmp(a, "--seed")) { ok = parse_num(v, 0, 4e15, &x) && x == floor(x); opt.seed = (uint64_t)x; }
+        else if (!strcmp(a, "--light")) {
+            opt.light = !strcmp(v, "none") ? LIGHT_NONE : !strcmp(v, "point") ? LIGHT_POINT
+                      : !strcmp(v, "spot") ? LIGHT_SPOT : -2;
+            ok = opt.light != -2;
+        } else if (!strcmp(a, "--offset")) {
+            char *e1, *e2, *e3;
+            opt.offset.x = strtod(v, &e1);
+            ok = *e1 == ',';
+            if (ok) { opt.offset.y = strtod(e1 + 1, &e2); ok = *e2 == ','; }
+            if (ok) { opt.offset.z = strtod(e2 + 1, &e3); ok = *e3 == 0 && v3_finite(opt.offset); }
+            ok = ok && fabs(opt.offset.x) < 1e9 && fabs(opt.offset.y) < 1e9 && fabs(opt.offset.z) < 1e9;
+        } else {
+            fprintf(stderr, "wrt-scenegen: unknown option %s (see --help)\n", a);
+            return 2;
+        }
+        if (!ok) { fprintf(stderr, "wrt-scenegen: bad value for %s: %s\n", a, v); return 2; }
+    }
+    if (all) {
+        if (scene || out) { fprintf(stderr, "wrt-scenegen: --all takes no scene or --out\n"); return 2; }
+        char path[4096];
+        snprintf(path, sizeof path, "%s/test", all);
+        if (!mkdir_p(path)) { fprintf(stderr, "wrt-scenegen: cannot create %s: %s\n", path, strerror(errno)); return 1; }
+        for (int i = 0; i < NSCENES; i++) {
+            snprintf(path, sizeof path, "%s/%s", all, scenes[i].file);
+            if (generate(&scenes[i], &opt, path) != WRT_OK) {
+                fprintf(stderr, "wrt-scenegen: %s\n", wrt_last_error());
+                return 1;
+            }
+        }
+        return 0;
+    }
+    if (!scene || !out) { usage(stderr); return 2; }
+    for (int i = 0; i < NSCENES; i++)
+        if (!strcmp(scenes[i].name, scene)) {
+            if (generate(&scenes[i], &opt, out) != WRT_OK) {
+                fprintf(stderr, "wrt-scenegen: %s\n", wrt_last_error());
+                return 1;
+            }
+            return 0;
+        }
+    fprintf(stderr, "wrt-scenegen: unknown scene %s (see --help)\n", scene);
+    return 2;
+}
