@@ -389,13 +389,15 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     int maxl = b->opt.max_slevel, minl = b->opt.min_slevel;
     int ref_r = rn.level < maxl && (vr > b->opt.eps_receiver || rn.level < minl);
     int ref_s = sn.level < maxl && (vsn > b->opt.eps_sender || sn.level < minl);
-    /* glossy: a sender cell must not cover more than one receiver angular cell, nor a
-     * receiver cell more than one sender angular cell (projected solid angle pi 4^-L) */
-    if (pc->lr && sn.level < maxl && fmaxall > ldexp(1.0, -2 * pc->lr)) ref_s = 1;
+    /* glossy: a sender cell should not cover more than one receiver angular cell, nor a
+     * receiver cell more than one sender angular cell (projected solid angle pi 4^-L);
+     * weighted like the spreads above, since next to a shared edge a cell of any size
+     * covers a large solid angle and no spatial refinement can resolve it */
+    if (pc->lr && sn.level < maxl && fmaxall * wrt_node_size(sn) > ldexp(1.0, -2 * pc->lr)) ref_s = 1;
     if (pc->ls && rn.level < maxl) {
         const wrt_quad *R = &b->quads[pc->r], *S = &b->quads[pc->s];
         double ar = R->area * ldexp(1.0, -2 * (int)rn.level), as = S->area * ldexp(1.0, -2 * (int)sn.level);
-        if (fsum / ns * ar / as > ldexp(1.0, -2 * pc->ls)) ref_r = 1;
+        if (fsum / ns * ar / as * wrt_node_size(rn) > ldexp(1.0, -2 * pc->ls)) ref_r = 1;
     }
     if (!ref_r && !ref_s) {
         pc->tc->links_leaf++;

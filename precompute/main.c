@@ -281,10 +281,11 @@ int main(int argc, char **argv) {
         printf("  quads     %d; pairs %llu exchanging of %llu (%llu skipped facing, %llu with no occluder)\n",
                s.nquads, (unsigned long long)c->pairs_exchange, (unsigned long long)c->pairs_total,
                (unsigned long long)c->pairs_skipped_facing, (unsigned long long)c->pairs_unoccluded);
-        printf("  links     dto %llu, gto %llu, gathered %llu (leaves %llu, invisible %llu)\n",
-               (unsigned long long)c->links_dto, (unsigned long long)c->links_gto,
-               (unsigned long long)c->links_gathered, (unsigned long long)c->links_leaf,
-               (unsigned long long)c->links_invisible);
+        char gath[32] = "not computed";
+        if (o.gathered || o.report_gathered) snprintf(gath, sizeof gath, "%llu", (unsigned long long)c->links_gathered);
+        printf("  links     dto %llu, gto %llu, gathered %s (leaves %llu, invisible %llu)\n",
+               (unsigned long long)c->links_dto, (unsigned long long)c->links_gto, gath,
+               (unsigned long long)c->links_leaf, (unsigned long long)c->links_invisible);
         printf("  entries   dto %llu (spatial %llu, angular %llu), stored %llu; functions %u (angular %u)\n",
                (unsigned long long)c->entries_dto, (unsigned long long)c->entries_spatial,
                (unsigned long long)c->entries_angular, (unsigned long long)r.op.nnz, c->nfuncs, c->nfuncs_angular);
