@@ -119,9 +119,9 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
     fprintf(f,
         "{\"quality\":%d,\"eps_receiver\":%.6g,\"eps_sender\":%.6g,\"eps_compress\":%.6g,"
         "\"max_level\":%d,\"min_level\":%d,\"receiver_samples\":%d,\"gathered\":%d,\"tail\":%d,"
-        "\"max_bounces\":%d}",
+        "\"max_bounces\":%d,\"max_alevel\":%d}",
         o->quality, o->eps_receiver, o->eps_sender, o->eps_compress, o->max_slevel, o->min_slevel,
-        o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces);
+        o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces, o->max_alevel);
 }
 
 int main(int argc, char **argv) {

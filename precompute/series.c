@@ -35,7 +35,22 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     wrt_csc_weights W = {rw, cw};
     wrt_csc S = wrt_csc_copy(T), P = wrt_csc_copy(T);
     wrt_csc_compress(&P, eps, &W);
-    double pn_prev = wrt_csc_norm(&P), ratio = 0, ratio_prev = -1;
+    /* The tail's ratio is measured by power iteration on a smooth start vector (each quad's
+     * root coefficient, i.e. a uniform irradiance): its successive norms settle on the
+     * dominant eigenvalue much sooner than the norms of the whole terms, which keep the
+     * faster-decaying detail of every mode (measured: at albedo 0.9 the matrix-norm ratio
+     * still read 0.9046 when it looked settled, a 5% error in r/(1-r)). */
+    uint32_t n = T->n;
+    double *x = wrt_xcalloc(3 * (size_t)n + 1, sizeof *x), *y = wrt_xcalloc(3 * (size_t)n + 1, sizeof *y);
+    for (uint32_t i = 0; i < n; i++)
+        if (wrt_fkey_snode(res->fkeys[i]).level == 0 && wrt_fkey_stype(res->fkeys[i]) == 0 &&
+            wrt_fkey_angular_root(res->fkeys[i]))
+            x[3 * i] = x[3 * i + 1] = x[3 * i + 2] = sqrt(b->quads[wrt_fkey_quad(res->fkeys[i])].area);
+    wrt_csc_apply(&P, x, y);
+    double vn_prev = 0;
+    for (size_t i = 0; i < 3 * (size_t)n; i++) vn_prev += y[i] * y[i];
+    vn_prev = sqrt(vn_prev);
+    double ratio = 0, ratio_prev = -1;
     int stable = 0;
     C->bounces = 1;
     while ((int)C->bounces < b->opt.max_bounces && P.nnz) {
@@ -48,18 +63,24 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         wrt_csc_free(&S);
         S = S2;
         double pn = wrt_csc_norm(&P), sn = wrt_csc_norm(&S);
-        ratio = pn_prev > 0 ? pn / pn_prev : 0;
-        pn_prev = pn;
+        memset(y, 0, 3 * (size_t)n * sizeof *y);
+        wrt_csc_apply(&P, x, y);
+        double vn = 0;
+        for (size_t i = 0; i < 3 * (size_t)n; i++) vn += y[i] * y[i];
+        vn = sqrt(vn);
+        ratio = vn_prev > 0 ? vn / vn_prev : 0;
+        vn_prev = vn;
         C->energy_left = sn > 0 ? pn / sn : 0;
-        stable = (ratio_prev > 0 && fabs(ratio - ratio_prev) < 1e-4 * ratio) ? stable + 1 : 0;
+        stable = (ratio_prev > 0 && fabs(ratio - ratio_prev) < 1e-5 * ratio) ? stable + 1 : 0;
         ratio_prev = ratio;
         if (b->opt.progress && !b->opt.progress("gto", fmin(1.0, C->bounces / 50.0), b->opt.progress_user)) {
-            wrt_csc_free(&P); wrt_csc_free(&S); free(rw); free(cw);
+            wrt_csc_free(&P); wrt_csc_free(&S); free(rw); free(cw); free(x); free(y);
             return wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
         }
         if (C->energy_left < 1e-6) break;
-        if (stable >= 3 && C->bounces >= 8) break;
+        if (!b->opt.no_tail && stable >= 3 && C->bounces >= 8) break;
     }
+    free(x); free(y);
     C->series_ratio = ratio;
     if (!b->opt.no_tail && P.nnz && ratio > 0 && ratio < 1) {
         double k = ratio / (1 - ratio);
