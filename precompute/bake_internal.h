@@ -43,7 +43,9 @@ typedef struct pair_out {
 } pair_out;
 
 /* Refines, integrates and analyses the links from quad s to quad r (dto.c). */
-void wrt_dto_pair(const bake_ctx *b, int r, int s, int occluded, bake_thread_counters *tc, pair_out *out);
+/* flags: bit 0 an occluder may lie between, bit 1 diffuse pair computed once for both
+ * directions (the entries of T[s][r] are emitted too). */
+void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counters *tc, pair_out *out);
 
 /* btilde_g(w_o) for every angular function g of material m's level, RGB (out[3 * g + c]),
  * at the outgoing direction with concentric coordinates (a, b) in the quad's frame. */

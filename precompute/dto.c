@@ -81,6 +81,7 @@ typedef struct pair_ctx {
     const bake_ctx *b;
     int r, s;
     int occluded;            /* some quad may lie between R and S */
+    int sym;                 /* diffuse pair: links serve both directions (reciprocity) */
     double rho_max;
     int lr, ls;              /* angular levels of receiver and sender (0: diffuse) */
     int nar, nas, nang, nch; /* angular functions per side, their product, channels */
@@ -234,6 +235,7 @@ static int eval_link(pair_ctx *pc, wrt_node rn, wrt_node sn, link_samples *ls, i
         sinvj[q] = 1.0 / sqrt(wrt_quad_jacobian(S, cu, cv));
     }
     int per_q = ns / 4, side = per_q == 4 ? 2 : per_q == 16 ? 4 : per_q == 9 ? 3 : 1;
+    (void)ru; (void)rv;
     if (side * side != per_q) side = 1, per_q = 1;
     int any_geom = 0, any_vis = 0;
     int k = 0;
@@ -243,10 +245,18 @@ static int eval_link(pair_ctx *pc, wrt_node rn, wrt_node sn, link_samples *ls, i
             /* 2 x 2 Gauss-Legendre points per receiver quadrant (equal weights): exact for
              * bicubic integrands, where jittered strata left a few percent in the cell
              * distribution test; other sample counts use rotated strata */
-            double fu, fv;
+            double fu, fv, wq = 1;
             if (side == 2) {
                 fu = 0.5 + ((s & 1) ? 0.28867513459481287 : -0.28867513459481287);
                 fv = 0.5 + ((s & 2) ? 0.28867513459481287 : -0.28867513459481287);
+            } else if (side == 4) {
+                /* 4 x 4 Gauss-Legendre: nodes 1/2 +- x/2, weights w/2, scaled so that the
+                 * quadrant's weights sum to per_q like the equal-weight rules */
+                static const double gx[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563, 0.8611363115940526};
+                static const double gw[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461, 0.3478548451374538};
+                fu = 0.5 + 0.5 * gx[s % 4];
+                fv = 0.5 + 0.5 * gx[s / 4];
+                wq = 0.25 * gw[s % 4] * gw[s / 4] * per_q;
             } else {
                 fu = (s % side + ru) / side;
                 fv = (s / side + rv) / side;
@@ -254,7 +264,7 @@ static int eval_link(pair_ctx *pc, wrt_node rn, wrt_node sn, link_samples *ls, i
             double u = rx0 + (cx + fu) * 0.5 * rsz, v = ry0 + (cy + fv) * 0.5 * rsz;
             wrt_v3 x = wrt_quad_point(R, u, v);
             ls->qr[k] = q;
-            ls->jr[k] = sqrt(wrt_quad_jacobian(R, u, v));
+            ls->jr[k] = sqrt(wrt_quad_jacobian(R, u, v)) * wq;
             double sd = v3_dot(v3_sub(x, S->p[0]), S->n);
             for (int t = 0; t < 4; t++) {
                 ls->G[k][t] = ls->F[k][t] = 0;
@@ -387,15 +397,20 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     double vr = vq * pc->rho_max * wrt_node_size(rn);
     double vsn = vs * pc->rho_max * wrt_node_size(sn);
     int maxl = b->opt.max_slevel, minl = b->opt.min_slevel;
-    int ref_r = rn.level < maxl && (vr > b->opt.eps_receiver || rn.level < minl);
-    int ref_s = sn.level < maxl && (vsn > b->opt.eps_sender || sn.level < minl);
-    /* glossy: a sender cell must not cover more than one receiver angular cell, nor a
-     * receiver cell more than one sender angular cell (projected solid angle pi 4^-L) */
-    if (pc->lr && sn.level < maxl && fmaxall > ldexp(1.0, -2 * pc->lr)) ref_s = 1;
+    /* a link that serves both directions refines both sides by the finer threshold */
+    double eps_r = b->opt.eps_receiver, eps_s = b->opt.eps_sender;
+    if (pc->sym) eps_r = eps_s = fmin(eps_r, eps_s);
+    int ref_r = rn.level < maxl && (vr > eps_r || rn.level < minl);
+    int ref_s = sn.level < maxl && (vsn > eps_s || sn.level < minl);
+    /* glossy: a sender cell should not cover more than one receiver angular cell, nor a
+     * receiver cell more than one sender angular cell (projected solid angle pi 4^-L);
+     * weighted like the spreads above, since next to a shared edge a cell of any size
+     * covers a large solid angle and no spatial refinement can resolve it */
+    if (pc->lr && sn.level < maxl && fmaxall * wrt_node_size(sn) > ldexp(1.0, -2 * pc->lr)) ref_s = 1;
     if (pc->ls && rn.level < maxl) {
         const wrt_quad *R = &b->quads[pc->r], *S = &b->quads[pc->s];
         double ar = R->area * ldexp(1.0, -2 * (int)rn.level), as = S->area * ldexp(1.0, -2 * (int)sn.level);
-        if (fsum / ns * ar / as > ldexp(1.0, -2 * pc->ls)) ref_r = 1;
+        if (fsum / ns * ar / as * wrt_node_size(rn) > ldexp(1.0, -2 * pc->ls)) ref_r = 1;
     }
     if (!ref_r && !ref_s) {
         pc->tc->links_leaf++;
@@ -446,10 +461,13 @@ static void push_up(pair_ctx *pc, int side) {
     }
 }
 
-void wrt_dto_pair(const bake_ctx *b, int r, int s, int occl, bake_thread_counters *tc, pair_out *out) {
-    pair_ctx pc = {.b = b, .r = r, .s = s, .occluded = occl, .tc = tc};
-    const double *rho = b->rho[s];
+void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counters *tc, pair_out *out) {
+    pair_ctx pc = {.b = b, .r = r, .s = s, .occluded = flags & 1, .tc = tc};
+    int sym = (flags & 2) != 0;
+    const double *rho = b->rho[s], *rho_r = b->rho[r];
     pc.rho_max = fmax(rho[0], fmax(rho[1], rho[2]));
+    if (sym) pc.rho_max = fmax(pc.rho_max, fmax(rho_r[0], fmax(rho_r[1], rho_r[2])));
+    pc.sym = sym;
     pc.lr = b->alevel[b->scene->quads[r].material];
     pc.ls = b->alevel[b->scene->quads[s].material];
     pc.nar = 1 << (2 * pc.lr);
@@ -465,12 +483,13 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int occl, bake_thread_counter
     push_up(&pc, 0);
     push_up(&pc, 1);
     size_t cap = 0;
+    double wfloor = sqrt(b->quads[s].area / b->quads[r].area); /* series.c's weighting */
     wrt_node an[64];
     int at[64];
     for (int a = 0; a < pc.nar || a < pc.nas; a++) wrt_angular_func(a, &an[a], &at[a]);
     for (size_t i = 0; i < pc.nblocks; i++) {
         const block *bl = &pc.blocks[i];
-        int any = 0;
+        int any = 0, anyt = 0;
         for (int ri = 0; ri < 4; ri++) {
             if (ri == 0 && bl->rn.level != 0) continue;
             for (int sj = 0; sj < 4; sj++) {
@@ -486,22 +505,36 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int occl, bake_thread_counter
                             for (int ch = 0; ch < 3; ch++) v[ch] = BV(&pc, bl, ri, sj, a, ch);
                         }
                         double m = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
-                        if (m == 0 || m < b->entry_floor) continue;
-                        if (out->count == cap) {
+                        if (out->count + 2 > cap) {
                             cap = cap ? 2 * cap : 64;
                             out->e = wrt_xrealloc(out->e, cap * sizeof *out->e);
                         }
-                        pair_entry *e = &out->e[out->count++];
-                        e->r = wrt_fkey_make((uint32_t)r, bl->rn, ri, an[ia], at[ia]);
-                        e->s = wrt_fkey_make((uint32_t)s, bl->sn, sj, an[is], at[is]);
-                        for (int ch = 0; ch < 3; ch++) e->v[ch] = (float)v[ch];
-                        any = 1;
-                        if (ia || is) out->angular++;
+                        if (m != 0 && m * wfloor >= b->entry_floor) {
+                            pair_entry *e = &out->e[out->count++];
+                            e->r = wrt_fkey_make((uint32_t)r, bl->rn, ri, an[ia], at[ia]);
+                            e->s = wrt_fkey_make((uint32_t)s, bl->sn, sj, an[is], at[is]);
+                            for (int ch = 0; ch < 3; ch++) e->v[ch] = (float)v[ch];
+                            any = 1;
+                            if (ia || is) out->angular++;
+                        }
+                        if (sym) {
+                            /* T[s][r] = rho_R K[r][s]: the kernel is symmetric under basis.h's
+                             * normalisation, so the transposed entry needs no integral */
+                            double g = BV(&pc, bl, ri, sj, a, 0), mt = 0, vt[3];
+                            for (int ch = 0; ch < 3; ch++) { vt[ch] = g * rho_r[ch]; mt = fmax(mt, fabs(vt[ch])); }
+                            if (mt != 0 && mt / wfloor >= b->entry_floor) {
+                                pair_entry *e = &out->e[out->count++];
+                                e->r = wrt_fkey_make((uint32_t)s, bl->sn, sj, an[is], at[is]);
+                                e->s = wrt_fkey_make((uint32_t)r, bl->rn, ri, an[ia], at[ia]);
+                                for (int ch = 0; ch < 3; ch++) e->v[ch] = (float)vt[ch];
+                                anyt = 1;
+                            }
+                        }
                     }
                 }
             }
         }
-        out->links += any;
+        out->links += any + anyt;
     }
     out->glossy = pc.lr || pc.ls;
 done:

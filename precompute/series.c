@@ -6,8 +6,16 @@
  * dominant eigenvalue of T has taken over); the remaining tail is then added as the
  * geometric estimate P_n r / (1 - r), which matters at albedos near 1 (0.99 needs hundreds
  * of bounces otherwise). The gathered GTO T + T S (the fine DTO applied last) is computed
- * too, for its figures, and stored instead when asked. */
+ * too, for its figures, and stored instead when asked.
+ *
+ * Compression weighs an entry (r, s) by sqrt(A_s / A_r), the areas of the quads of its
+ * functions: an entry t moves t E_s into X_r, and coefficients scale as sqrt(area)
+ * (basis.h: uniform E0 gives E0 sqrt(A/pi)), so t sqrt(A_s/A_r) is the entry's share of
+ * the receiver's irradiance, a form factor. One threshold then means the same relative
+ * accuracy on a 1 mm quad beside 1 km walls as on the walls, and does not change when
+ * the scene is scaled. */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "../formats/gto.h"
@@ -18,13 +26,35 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     const wrt_csc *T = &res->dto;
     double eps = b->opt.eps_compress;
     int threads = b->opt.threads;
+    double *rw = wrt_xmalloc(((size_t)T->n + 1) * sizeof *rw), *cw = wrt_xmalloc(((size_t)T->n + 1) * sizeof *cw);
+    for (uint32_t i = 0; i < T->n; i++) {
+        double a = b->quads[wrt_fkey_quad(res->fkeys[i])].area;
+        rw[i] = 1 / sqrt(a);
+        cw[i] = sqrt(a);
+    }
+    wrt_csc_weights W = {rw, cw};
     wrt_csc S = wrt_csc_copy(T), P = wrt_csc_copy(T);
-    wrt_csc_compress(&P, eps);
-    double pn_prev = wrt_csc_norm(&P), ratio = 0, ratio_prev = -1;
+    wrt_csc_compress(&P, eps, &W);
+    /* The tail's ratio is measured by power iteration on a smooth start vector (each quad's
+     * root coefficient, i.e. a uniform irradiance): its successive norms settle on the
+     * dominant eigenvalue much sooner than the norms of the whole terms, which keep the
+     * faster-decaying detail of every mode (measured: at albedo 0.9 the matrix-norm ratio
+     * still read 0.9046 when it looked settled, a 5% error in r/(1-r)). */
+    uint32_t n = T->n;
+    double *x = wrt_xcalloc(3 * (size_t)n + 1, sizeof *x), *y = wrt_xcalloc(3 * (size_t)n + 1, sizeof *y);
+    for (uint32_t i = 0; i < n; i++)
+        if (wrt_fkey_snode(res->fkeys[i]).level == 0 && wrt_fkey_stype(res->fkeys[i]) == 0 &&
+            wrt_fkey_angular_root(res->fkeys[i]))
+            x[3 * i] = x[3 * i + 1] = x[3 * i + 2] = sqrt(b->quads[wrt_fkey_quad(res->fkeys[i])].area);
+    wrt_csc_apply(&P, x, y);
+    double vn_prev = 0;
+    for (size_t i = 0; i < 3 * (size_t)n; i++) vn_prev += y[i] * y[i];
+    vn_prev = sqrt(vn_prev);
+    double ratio = 0, ratio_prev = -1;
     int stable = 0;
     C->bounces = 1;
     while ((int)C->bounces < b->opt.max_bounces && P.nnz) {
-        wrt_csc N = wrt_csc_mul(&P, T, eps, threads);
+        wrt_csc N = wrt_csc_mul(&P, T, eps, &W, threads);
         wrt_csc_free(&P);
         P = N;
         if (!P.nnz) break;
@@ -33,18 +63,24 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         wrt_csc_free(&S);
         S = S2;
         double pn = wrt_csc_norm(&P), sn = wrt_csc_norm(&S);
-        ratio = pn_prev > 0 ? pn / pn_prev : 0;
-        pn_prev = pn;
+        memset(y, 0, 3 * (size_t)n * sizeof *y);
+        wrt_csc_apply(&P, x, y);
+        double vn = 0;
+        for (size_t i = 0; i < 3 * (size_t)n; i++) vn += y[i] * y[i];
+        vn = sqrt(vn);
+        ratio = vn_prev > 0 ? vn / vn_prev : 0;
+        vn_prev = vn;
         C->energy_left = sn > 0 ? pn / sn : 0;
-        stable = (ratio_prev > 0 && fabs(ratio - ratio_prev) < 1e-4 * ratio) ? stable + 1 : 0;
+        stable = (ratio_prev > 0 && fabs(ratio - ratio_prev) < 1e-5 * ratio) ? stable + 1 : 0;
         ratio_prev = ratio;
         if (b->opt.progress && !b->opt.progress("gto", fmin(1.0, C->bounces / 50.0), b->opt.progress_user)) {
-            wrt_csc_free(&P); wrt_csc_free(&S);
+            wrt_csc_free(&P); wrt_csc_free(&S); free(rw); free(cw); free(x); free(y);
             return wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
         }
         if (C->energy_left < 1e-6) break;
-        if (stable >= 3 && C->bounces >= 8) break;
+        if (!b->opt.no_tail && stable >= 3 && C->bounces >= 8) break;
     }
+    free(x); free(y);
     C->series_ratio = ratio;
     if (!b->opt.no_tail && P.nnz && ratio > 0 && ratio < 1) {
         double k = ratio / (1 - ratio);
@@ -55,23 +91,25 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         S = S2;
     }
     wrt_csc_free(&P);
-    wrt_csc_compress(&S, eps);
+    wrt_csc_compress(&S, eps, &W);
     C->entries_gto = S.nnz;
     C->links_gto = wrt_count_links(&S, res->fkeys);
-    /* gathered: T + T S */
-    wrt_csc TS = wrt_csc_mul(T, &S, eps, threads);
-    wrt_csc Gg = wrt_csc_add(&TS, T, 1.0);
-    wrt_csc_free(&TS);
-    C->entries_gathered = Gg.nnz;
-    C->links_gathered = wrt_count_links(&Gg, res->fkeys);
-    if (b->opt.gathered) {
-        res->op = Gg;
-        res->op_kind = WRT_GTO_OP_GATHERED;
-        wrt_csc_free(&S);
-    } else {
-        res->op = S;
-        res->op_kind = WRT_GTO_OP_INDIRECT;
-        wrt_csc_free(&Gg);
+    /* gathered: T + T S, computed when stored or when its figures are asked for */
+    if (b->opt.gathered || b->opt.report_gathered) {
+        wrt_csc TS = wrt_csc_mul(T, &S, eps, &W, threads);
+        wrt_csc Gg = wrt_csc_add(&TS, T, 1.0);
+        wrt_csc_free(&TS);
+        C->entries_gathered = Gg.nnz;
+        C->links_gathered = wrt_count_links(&Gg, res->fkeys);
+        if (b->opt.gathered) {
+            wrt_csc_free(&S);
+            S = Gg;
+        } else {
+            wrt_csc_free(&Gg);
+        }
     }
+    res->op = S;
+    res->op_kind = b->opt.gathered ? WRT_GTO_OP_GATHERED : WRT_GTO_OP_INDIRECT;
+    free(rw); free(cw);
     return WRT_OK;
 }

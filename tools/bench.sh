@@ -17,7 +17,7 @@ for s in $scenes; do
     for q in $qualities; do
         : > "$tmp/dto"; : > "$tmp/gto"; : > "$tmp/tot"
         for r in $(seq "$runs"); do
-            "$build/wrt-bake" "assets/$s.gltf" -o "$tmp/out.gto" --quality "$q" --json --quiet > "$tmp/j"
+            "$build/wrt-bake" "assets/$s.gltf" -o "$tmp/out.gto" --quality "$q" --json --quiet --report-gathered > "$tmp/j"
             tr -d '\n' < "$tmp/j" | grep -o '"seconds":{[^}]*}' > "$tmp/sec"
             field dto "$tmp/sec" >> "$tmp/dto"; field gto "$tmp/sec" >> "$tmp/gto"; field total "$tmp/sec" >> "$tmp/tot"
         done
