@@ -383,7 +383,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     free(job.out); free(job.tc); free(pr); free(ps); free(occl);
     C->t_dto = wrt_now() - t0;
 
-    if (st == WRT_OK) {
+    if (st == WRT_OK && !b.opt.dto_only) {
         double t1 = wrt_now();
         st = wrt_series_run(&b, res);
         C->t_gto = wrt_now() - t1;

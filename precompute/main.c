@@ -35,6 +35,7 @@ static void usage(FILE *f) {
         "  --eps-compress E       drop operator entries below E after each product\n"
         "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
         "  --min-level L          refine every link at least to level L\n"
+        "  --max-angular-level L  cap on glossy materials' angular level (1..3)\n"
         "  --gathered             store the gathered GTO (T_fine G) instead of G - I\n"
         "  --report-gathered      compute the gathered GTO's link count without storing it\n"
         "  --no-tail              do not add the estimated tail of the series\n"
@@ -142,6 +143,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--eps-compress")) { ok = parse_double(a, v, 1e-15, 1, &o.eps_compress); i++; }
         else if (!strcmp(a, "--max-level")) { ok = parse_int(a, v, 1, 10, &o.max_slevel); i++; }
         else if (!strcmp(a, "--min-level")) { ok = parse_int(a, v, 0, 10, &o.min_slevel); i++; }
+        else if (!strcmp(a, "--max-angular-level")) { ok = parse_int(a, v, 1, 3, &o.max_alevel); i++; }
         else if (!strcmp(a, "--max-bounces")) { ok = parse_int(a, v, 1, 1000000, &o.max_bounces); i++; }
         else if (!strcmp(a, "--threads")) { ok = parse_int(a, v, 1, 64, &o.threads); i++; }
         else if (!strcmp(a, "--gathered")) o.gathered = 1;
