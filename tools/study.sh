@@ -1,0 +1,154 @@
+#!/usr/bin/env bash
+# tools/study.sh: the accuracy/time study (the paper's section 6, Figures 6-9, for our
+# scenes). For each scene, bakes every quality of a sweep (wrt-bake --json; the median of
+# 3 runs when a bake takes under 10 s, else 1 run), compares all the bakes with one
+# path-traced reference (wrt-compare: relative RMSE of the indirect light over cell
+# averages and in the camera's image, the reference's error floor, the player's median
+# milliseconds per light change), and writes OUT/NAME.csv, OUT/NAME.json, OUT/NAME.png
+# (error against bake time, file bytes and milliseconds per light change, floor shown)
+# and OUT/README.md (the tables). Needs jq and gnuplot (tools/install-deps.sh).
+#
+# usage: tools/study.sh [-b BUILD] [-o OUTDIR] [-q "Q1 Q2 ..."] [SCENE.gltf ...]
+#   default scenes: assets/cornell.gltf assets/maze.gltf assets/glossy.gltf, swept over
+#   1..7, 1..6 and 1..5 (the higher qualities take minutes to hours on 2 cores: see
+#   docs/study/README.md); any other scene over 1..6 unless -q is given.
+#   WRT_STUDY_COMPARE: wrt-compare's reference options (default below).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build=build; out=docs/study; quals=""
+while getopts "b:o:q:h" opt; do
+    case $opt in
+        b) build=$OPTARG ;;
+        o) out=$OPTARG ;;
+        q) quals=$OPTARG ;;
+        *) sed -n '2,16p' "$0"; exit 1 ;;
+    esac
+done
+shift $((OPTIND - 1))
+scenes=("$@")
+[ ${#scenes[@]} -gt 0 ] || scenes=(assets/cornell.gltf assets/maze.gltf assets/glossy.gltf)
+compare_args=${WRT_STUDY_COMPARE:---lights 5 --cell-paths 4000000 --width 64 --spp 1024 --bench 21}
+for t in jq gnuplot; do command -v $t >/dev/null || { echo "study: needs $t (make deps)" >&2; exit 1; }; done
+for p in wrt-bake wrt-compare; do [ -x "$build/$p" ] || { echo "study: no $build/$p (make all)" >&2; exit 1; }; done
+mkdir -p "$out"
+t_start=$(date +%s)
+
+default_quals() {
+    case $(basename "$1" .gltf) in
+        cornell) echo "1 2 3 4 5 6 7" ;;
+        maze) echo "1 2 3 4 5 6" ;;
+        glossy) echo "1 2 3 4 5" ;;
+        *) echo "1 2 3 4 5 6" ;;
+    esac
+}
+
+for scene in "${scenes[@]}"; do
+    name=$(basename "$scene"); name=${name%.*}
+    work=$build/study/$name
+    mkdir -p "$work"
+    qs=${quals:-$(default_quals "$scene")}
+    gtos=()
+    echo "study: $name, qualities $qs" >&2
+    for q in $qs; do
+        gto=$work/q$q.gto
+        rm -f "$work"/bake_q$q.[1-3].json
+        "$build/wrt-bake" "$scene" -o "$gto" -q "$q" --json --quiet >"$work/bake_q$q.1.json"
+        runs=1
+        if jq -e '.seconds.total < 10' "$work/bake_q$q.1.json" >/dev/null; then
+            for r in 2 3; do
+                "$build/wrt-bake" "$scene" -o "$gto" -q "$q" --json --quiet >"$work/bake_q$q.$r.json"
+            done
+            runs=3
+        fi
+        # The run with the median total time gives every phase's figures.
+        jq -s --argjson runs $runs 'sort_by(.seconds.total) | .[(length / 2 | floor)] + {runs: $runs}' \
+            "$work"/bake_q$q.[1-3].json >"$work/bake_q$q.json" 2>/dev/null ||
+            jq --argjson runs 1 '. + {runs: $runs}' "$work/bake_q$q.1.json" >"$work/bake_q$q.json"
+        jq -r '"study: \(.options.quality): \(.seconds.total) s, \(.bytes) bytes (\(.runs) run(s))"' \
+            "$work/bake_q$q.json" >&2
+        gtos+=("$gto")
+    done
+    # shellcheck disable=SC2086
+    "$build/wrt-compare" "$scene" "${gtos[@]}" $compare_args >"$work/compare.json"
+
+    # One row per quality: the bake's figures and the comparison's.
+    jq -s '.' $(for q in $qs; do echo "$work/bake_q$q.json"; done) >"$work/bakes.json"
+    jq --slurpfile b "$work/bakes.json" --arg name "$name" --arg scene "$scene" \
+       --arg nproc "$(nproc)" --arg date "$(date -u +%Y-%m-%dT%H:%MZ)" --arg args "$compare_args" '
+      {scene: $scene, name: $name, date: $date, cores: ($nproc | tonumber), compare_options: $args,
+       lights: .lights, cells_per_side: .cells_per_side, reference: .reference,
+       rows: [range(0; .bakes | length) as $i | .bakes[$i] as $c | $b[0][$i] as $k |
+         {quality: $k.options.quality, bake_runs: $k.runs,
+          dto_s: $k.seconds.dto, gto_s: $k.seconds.gto, bake_s: $k.seconds.total,
+          links_dto: $k.links.dto, links_gto: $k.links.gto, links_gathered: $k.links.gathered,
+          bytes: $c.bytes, functions: $c.functions, entries: $c.entries,
+          ms_per_light_change: $c.ms_per_light_change,
+          cell_rmse: $c.cell_rmse, cell_floor: $c.cell_floor, cell_rmse_debiased: $c.cell_rmse_debiased,
+          image_rmse: $c.image_rmse, image_floor: $c.image_floor, image_rmse_debiased: $c.image_rmse_debiased,
+          per_light: $c.per_light}]}' "$work/compare.json" >"$out/$name.json.tmp"
+    mv "$out/$name.json.tmp" "$out/$name.json"
+    cols="quality bake_runs dto_s gto_s bake_s links_dto links_gto links_gathered bytes functions entries ms_per_light_change cell_rmse cell_floor cell_rmse_debiased image_rmse image_floor image_rmse_debiased"
+    { echo "$cols" | tr ' ' ','
+      jq -r --arg cols "$cols" '.rows[] as $r | [($cols | split(" "))[] | $r[.]] | @csv' "$out/$name.json"
+    } >"$out/$name.csv.tmp"
+    mv "$out/$name.csv.tmp" "$out/$name.csv"
+
+    # The plots: cell and image error (log) against bake s, MB and ms (log), the floors dashed.
+    cf=$(jq '.reference.cell_floor' "$out/$name.json"); imf=$(jq '.reference.image_floor' "$out/$name.json")
+    jq -r '.rows[] | "\(.quality) \(.bake_s) \(.bytes / 1e6) \(.ms_per_light_change) \(.cell_rmse) \(.image_rmse)"' \
+        "$out/$name.json" >"$work/plot.dat"
+    gnuplot <<EOF
+set terminal pngcairo size 1500,470 font "sans,11"
+set output "$out/$name.png.tmp"
+set multiplot layout 1,3 title "$name: relative RMSE of the indirect light against the reference (labels: quality)"
+set logscale xy
+set grid
+set key bottom left box opaque
+set ylabel "relative RMSE"
+set format y "%g"
+set yrange [*:*]
+cf = $cf; imf = $imf
+do for [c in "2 3 4"] {
+  col = c + 0
+  if (col == 2) { set xlabel "bake time (s)" }
+  if (col == 3) { set xlabel "file size (MB)" }
+  if (col == 4) { set xlabel "player ms per light change (median)" }
+  plot "$work/plot.dat" using col:5 with linespoints lw 2 pt 7 lc rgb "#1f77b4" title "cell averages", \
+       "" using col:5:1 with labels offset 0.8,0.8 font ",9" notitle, \
+       "" using col:6 with linespoints lw 2 pt 5 lc rgb "#d62728" title "image", \
+       "" using col:6:1 with labels offset 0.8,0.8 font ",9" notitle, \
+       cf with lines dt 2 lw 2 lc rgb "#1f77b4" title "reference floor (cells)", \
+       imf with lines dt 2 lw 2 lc rgb "#d62728" title "reference floor (image)"
+}
+unset multiplot
+EOF
+    mv "$out/$name.png.tmp" "$out/$name.png"
+    echo "study: wrote $out/$name.csv, $out/$name.json, $out/$name.png" >&2
+done
+
+# The tables, one per scene in $out (all scenes that have a JSON there).
+{
+    echo "# The accuracy/time study"
+    echo
+    echo "Generated by \`tools/study.sh\` (\`make study\`). Per quality: bake time (median of 3 runs"
+    echo "when under 10 s, else 1 run), links, bytes, the player's median milliseconds per light"
+    echo "change (projection + multiply + texture synthesis, no display), and the relative RMSE"
+    echo "of the indirect light against the path-traced reference, mean over the lights, for"
+    echo "cell averages of the incident irradiance and for the camera's image; \"floor\" is the"
+    echo "reference's own noise in the same units, \"debiased\" the error with that noise taken out."
+    for j in "$out"/*.json; do
+        n=$(jq -r '.name' "$j")
+        echo
+        echo "## $n"
+        echo
+        jq -r '"\(.scene), \(.lights | length) light positions, \(.cells_per_side)x\(.cells_per_side) cells per quad, reference: \(.reference.cell_paths_per_light) paths per light over the cells, image \(.reference.image.width)x\(.reference.image.height) at \(.reference.image.spp) paths per pixel (\(.reference.seconds) s); \(.cores) cores, \(.date)."' "$j"
+        echo
+        echo "![$n]($n.png)"
+        echo
+        echo "| quality | runs | DTO s | GTO s | bake s | links DTO | links GTO | gathered | MB | ms/light | cell rmse | floor | debiased | image rmse | floor | debiased |"
+        echo "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        jq -r '.rows[] | "| \(.quality) | \(.bake_runs) | \(.dto_s * 100 | round / 100) | \(.gto_s * 100 | round / 100) | \(.bake_s * 100 | round / 100) | \(.links_dto) | \(.links_gto) | \(.links_gathered) | \(.bytes / 1e4 | round / 100) | \(.ms_per_light_change * 100 | round / 100) | \(.cell_rmse * 1000 | round / 1000) | \(.cell_floor * 1000 | round / 1000) | \(.cell_rmse_debiased * 1000 | round / 1000) | \(.image_rmse * 1000 | round / 1000) | \(.image_floor * 1000 | round / 1000) | \(.image_rmse_debiased * 1000 | round / 1000) |"' "$j"
+    done
+} >"$out/README.md.tmp"
+mv "$out/README.md.tmp" "$out/README.md"
+echo "study: done in $(( $(date +%s) - t_start )) s; tables in $out/README.md" >&2
