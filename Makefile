@@ -26,6 +26,14 @@ ifneq ($(config),release)
 BUILD := build/$(config)
 endif
 
+# Quiet by default; `make V=1` shows the commands.
+ifeq ($(V),1)
+Q :=
+else
+Q := @
+endif
+.SECONDARY:
+
 LIBS_CORE := -lembree3 -lm
 LIBS_IMG := -lOpenImageIO -lOpenImageIO_Util
 LIBS_GL := -lglfw -lEGL -lGL
@@ -55,30 +63,37 @@ deps:
 
 $(BUILD)/obj/%.o: %.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
 
 $(BUILD)/obj/%.o: %.cpp
 	@mkdir -p $(dir $@)
-	$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
+	@$(if $(Q),echo "  CXX     $<")
+	$(Q)$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
 $(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(CORE_OBJ)
-	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE) $(LIBS_IMG)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE) $(LIBS_IMG)
 
 $(BUILD)/wrt-play: $(call obj,player/main.c) $(PLAY_OBJ) $(CORE_OBJ)
-	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
 
 $(BUILD)/wrt-ref: $(call obj,tools/ref_main.c) $(REF_OBJ) $(CORE_OBJ)
-	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
 $(BUILD)/wrt-compare: $(call obj,tools/compare_main.c tools/compare.c player/relight.c) $(REF_OBJ) $(CORE_OBJ)
 	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
 $(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c) $(CORE_OBJ)
-	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
 $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(ALL_LIB_OBJ)
 	@mkdir -p $(dir $@)
-	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
 
 # The loader's fuzz target (libFuzzer, clang). Runs FUZZ_SECONDS (default 60).
 FUZZ_SECONDS ?= 60

@@ -27,6 +27,7 @@ static void egl_destroy(wrt_platform *p) {
         eglDestroyContext(e->dpy, e->ctx);
     }
     if (e->dpy != EGL_NO_DISPLAY) eglTerminate(e->dpy);
+    eglReleaseThread();
     free(e);
 }
 

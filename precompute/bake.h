@@ -24,6 +24,7 @@ typedef struct wrt_bake_options {
     int receiver_samples;  /* receiver samples per link, a multiple of 4 (default 16) */
     int threads;           /* 0 = all cores */
     int gathered;          /* 1: store T_fine G instead of G - I */
+    int report_gathered;   /* 1: compute the gathered GTO's figures even when not stored */
     int max_bounces;       /* cap on the Neumann series (default 2000) */
     int no_tail;           /* 1: do not add the geometric estimate of the series' tail */
     wrt_progress_fn progress;

@@ -389,13 +389,15 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     int maxl = b->opt.max_slevel, minl = b->opt.min_slevel;
     int ref_r = rn.level < maxl && (vr > b->opt.eps_receiver || rn.level < minl);
     int ref_s = sn.level < maxl && (vsn > b->opt.eps_sender || sn.level < minl);
-    /* glossy: a sender cell must not cover more than one receiver angular cell, nor a
-     * receiver cell more than one sender angular cell (projected solid angle pi 4^-L) */
-    if (pc->lr && sn.level < maxl && fmaxall > ldexp(1.0, -2 * pc->lr)) ref_s = 1;
+    /* glossy: a sender cell should not cover more than one receiver angular cell, nor a
+     * receiver cell more than one sender angular cell (projected solid angle pi 4^-L);
+     * weighted like the spreads above, since next to a shared edge a cell of any size
+     * covers a large solid angle and no spatial refinement can resolve it */
+    if (pc->lr && sn.level < maxl && fmaxall * wrt_node_size(sn) > ldexp(1.0, -2 * pc->lr)) ref_s = 1;
     if (pc->ls && rn.level < maxl) {
         const wrt_quad *R = &b->quads[pc->r], *S = &b->quads[pc->s];
         double ar = R->area * ldexp(1.0, -2 * (int)rn.level), as = S->area * ldexp(1.0, -2 * (int)sn.level);
-        if (fsum / ns * ar / as > ldexp(1.0, -2 * pc->ls)) ref_r = 1;
+        if (fsum / ns * ar / as * wrt_node_size(rn) > ldexp(1.0, -2 * pc->ls)) ref_r = 1;
     }
     if (!ref_r && !ref_s) {
         pc->tc->links_leaf++;
@@ -465,6 +467,7 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int occl, bake_thread_counter
     push_up(&pc, 0);
     push_up(&pc, 1);
     size_t cap = 0;
+    double wfloor = sqrt(b->quads[s].area / b->quads[r].area); /* series.c's weighting */
     wrt_node an[64];
     int at[64];
     for (int a = 0; a < pc.nar || a < pc.nas; a++) wrt_angular_func(a, &an[a], &at[a]);
@@ -486,7 +489,7 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int occl, bake_thread_counter
                             for (int ch = 0; ch < 3; ch++) v[ch] = BV(&pc, bl, ri, sj, a, ch);
                         }
                         double m = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
-                        if (m == 0 || m < b->entry_floor) continue;
+                        if (m == 0 || m * wfloor < b->entry_floor) continue;
                         if (out->count == cap) {
                             cap = cap ? 2 * cap : 64;
                             out->e = wrt_xrealloc(out->e, cap * sizeof *out->e);

@@ -36,6 +36,7 @@ static void usage(FILE *f) {
         "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
         "  --min-level L          refine every link at least to level L\n"
         "  --gathered             store the gathered GTO (T_fine G) instead of G - I\n"
+        "  --report-gathered      compute the gathered GTO's link count without storing it\n"
         "  --no-tail              do not add the estimated tail of the series\n"
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --threads N            worker threads (default: all cores); output is identical\n"
@@ -144,6 +145,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--max-bounces")) { ok = parse_int(a, v, 1, 1000000, &o.max_bounces); i++; }
         else if (!strcmp(a, "--threads")) { ok = parse_int(a, v, 1, 64, &o.threads); i++; }
         else if (!strcmp(a, "--gathered")) o.gathered = 1;
+        else if (!strcmp(a, "--report-gathered")) o.report_gathered = 1;
         else if (!strcmp(a, "--no-tail")) o.no_tail = 1;
         else if (!strcmp(a, "--drop-bad")) drop_bad = 1;
         else if (!strcmp(a, "--reproducible")) reproducible = 1;
@@ -279,10 +281,11 @@ int main(int argc, char **argv) {
         printf("  quads     %d; pairs %llu exchanging of %llu (%llu skipped facing, %llu with no occluder)\n",
                s.nquads, (unsigned long long)c->pairs_exchange, (unsigned long long)c->pairs_total,
                (unsigned long long)c->pairs_skipped_facing, (unsigned long long)c->pairs_unoccluded);
-        printf("  links     dto %llu, gto %llu, gathered %llu (leaves %llu, invisible %llu)\n",
-               (unsigned long long)c->links_dto, (unsigned long long)c->links_gto,
-               (unsigned long long)c->links_gathered, (unsigned long long)c->links_leaf,
-               (unsigned long long)c->links_invisible);
+        char gath[32] = "not computed";
+        if (o.gathered || o.report_gathered) snprintf(gath, sizeof gath, "%llu", (unsigned long long)c->links_gathered);
+        printf("  links     dto %llu, gto %llu, gathered %s (leaves %llu, invisible %llu)\n",
+               (unsigned long long)c->links_dto, (unsigned long long)c->links_gto, gath,
+               (unsigned long long)c->links_leaf, (unsigned long long)c->links_invisible);
         printf("  entries   dto %llu (spatial %llu, angular %llu), stored %llu; functions %u (angular %u)\n",
                (unsigned long long)c->entries_dto, (unsigned long long)c->entries_spatial,
                (unsigned long long)c->entries_angular, (unsigned long long)r.op.nnz, c->nfuncs, c->nfuncs_angular);

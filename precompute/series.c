@@ -6,8 +6,16 @@
  * dominant eigenvalue of T has taken over); the remaining tail is then added as the
  * geometric estimate P_n r / (1 - r), which matters at albedos near 1 (0.99 needs hundreds
  * of bounces otherwise). The gathered GTO T + T S (the fine DTO applied last) is computed
- * too, for its figures, and stored instead when asked. */
+ * too, for its figures, and stored instead when asked.
+ *
+ * Compression weighs an entry (r, s) by sqrt(A_s / A_r), the areas of the quads of its
+ * functions: an entry t moves t E_s into X_r, and coefficients scale as sqrt(area)
+ * (basis.h: uniform E0 gives E0 sqrt(A/pi)), so t sqrt(A_s/A_r) is the entry's share of
+ * the receiver's irradiance, a form factor. One threshold then means the same relative
+ * accuracy on a 1 mm quad beside 1 km walls as on the walls, and does not change when
+ * the scene is scaled. */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "../formats/gto.h"
@@ -18,13 +26,20 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     const wrt_csc *T = &res->dto;
     double eps = b->opt.eps_compress;
     int threads = b->opt.threads;
+    double *rw = wrt_xmalloc(((size_t)T->n + 1) * sizeof *rw), *cw = wrt_xmalloc(((size_t)T->n + 1) * sizeof *cw);
+    for (uint32_t i = 0; i < T->n; i++) {
+        double a = b->quads[wrt_fkey_quad(res->fkeys[i])].area;
+        rw[i] = 1 / sqrt(a);
+        cw[i] = sqrt(a);
+    }
+    wrt_csc_weights W = {rw, cw};
     wrt_csc S = wrt_csc_copy(T), P = wrt_csc_copy(T);
-    wrt_csc_compress(&P, eps);
+    wrt_csc_compress(&P, eps, &W);
     double pn_prev = wrt_csc_norm(&P), ratio = 0, ratio_prev = -1;
     int stable = 0;
     C->bounces = 1;
     while ((int)C->bounces < b->opt.max_bounces && P.nnz) {
-        wrt_csc N = wrt_csc_mul(&P, T, eps, threads);
+        wrt_csc N = wrt_csc_mul(&P, T, eps, &W, threads);
         wrt_csc_free(&P);
         P = N;
         if (!P.nnz) break;
@@ -39,7 +54,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         stable = (ratio_prev > 0 && fabs(ratio - ratio_prev) < 1e-4 * ratio) ? stable + 1 : 0;
         ratio_prev = ratio;
         if (b->opt.progress && !b->opt.progress("gto", fmin(1.0, C->bounces / 50.0), b->opt.progress_user)) {
-            wrt_csc_free(&P); wrt_csc_free(&S);
+            wrt_csc_free(&P); wrt_csc_free(&S); free(rw); free(cw);
             return wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
         }
         if (C->energy_left < 1e-6) break;
@@ -55,23 +70,25 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         S = S2;
     }
     wrt_csc_free(&P);
-    wrt_csc_compress(&S, eps);
+    wrt_csc_compress(&S, eps, &W);
     C->entries_gto = S.nnz;
     C->links_gto = wrt_count_links(&S, res->fkeys);
-    /* gathered: T + T S */
-    wrt_csc TS = wrt_csc_mul(T, &S, eps, threads);
-    wrt_csc Gg = wrt_csc_add(&TS, T, 1.0);
-    wrt_csc_free(&TS);
-    C->entries_gathered = Gg.nnz;
-    C->links_gathered = wrt_count_links(&Gg, res->fkeys);
-    if (b->opt.gathered) {
-        res->op = Gg;
-        res->op_kind = WRT_GTO_OP_GATHERED;
-        wrt_csc_free(&S);
-    } else {
-        res->op = S;
-        res->op_kind = WRT_GTO_OP_INDIRECT;
-        wrt_csc_free(&Gg);
+    /* gathered: T + T S, computed when stored or when its figures are asked for */
+    if (b->opt.gathered || b->opt.report_gathered) {
+        wrt_csc TS = wrt_csc_mul(T, &S, eps, &W, threads);
+        wrt_csc Gg = wrt_csc_add(&TS, T, 1.0);
+        wrt_csc_free(&TS);
+        C->entries_gathered = Gg.nnz;
+        C->links_gathered = wrt_count_links(&Gg, res->fkeys);
+        if (b->opt.gathered) {
+            wrt_csc_free(&S);
+            S = Gg;
+        } else {
+            wrt_csc_free(&Gg);
+        }
     }
+    res->op = S;
+    res->op_kind = b->opt.gathered ? WRT_GTO_OP_GATHERED : WRT_GTO_OP_INDIRECT;
+    free(rw); free(cw);
     return WRT_OK;
 }

@@ -59,6 +59,7 @@ typedef struct col_out { uint32_t *row; float *val; uint32_t count; } col_out;
 typedef struct mul_ctx {
     const wrt_csc *a, *b;
     double drop;
+    const double *row_w, *col_w;
     col_out *out;
     double **acc;       /* per thread: 3n doubles */
     uint32_t **mark;    /* per thread: n markers (column index + 1) */
@@ -94,10 +95,11 @@ static void mul_column(size_t j, int th, void *user) {
     }
     qsort(list, nl, sizeof *list, cmp_u32);
     uint32_t kept = 0;
+    double cw = c->col_w ? c->col_w[j] : 1.0;
     for (uint32_t t = 0; t < nl; t++) {
         uint32_t i = list[t];
         double m = fmax(fabs(acc[3 * i]), fmax(fabs(acc[3 * i + 1]), fabs(acc[3 * i + 2])));
-        if (m >= c->drop && m > 0) list[kept++] = i;
+        if (m > 0 && m * cw * (c->row_w ? c->row_w[i] : 1.0) >= c->drop) list[kept++] = i;
     }
     col_out *o = &c->out[j];
     o->count = kept;
@@ -127,10 +129,11 @@ static wrt_csc gather_columns(uint32_t n, col_out *out) {
     return m;
 }
 
-wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, int threads) {
+wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads) {
     uint32_t n = a->n;
     int t = wrt_threads_resolve(threads);
     mul_ctx c = {.a = a, .b = b, .drop = drop};
+    if (w) { c.row_w = w->row_w; c.col_w = w->col_w; }
     c.out = wrt_xcalloc(n ? n : 1, sizeof *c.out);
     c.acc = wrt_xcalloc((size_t)t, sizeof *c.acc);
     c.mark = wrt_xcalloc((size_t)t, sizeof *c.mark);
@@ -182,14 +185,15 @@ wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s) {
     return m;
 }
 
-void wrt_csc_compress(wrt_csc *m, double drop) {
+void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w) {
     uint64_t k = 0, start = 0;
     for (uint32_t j = 0; j < m->n; j++) {
         uint64_t end = m->col[j + 1];
+        double cw = w && w->col_w ? w->col_w[j] : 1.0;
         for (uint64_t i = start; i < end; i++) {
             const float *v = &m->val[3 * i];
             double mx = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
-            if (mx >= drop && mx > 0) {
+            if (mx > 0 && mx * cw * (w && w->row_w ? w->row_w[m->row[i]] : 1.0) >= drop) {
                 m->row[k] = m->row[i];
                 memmove(&m->val[3 * k], v, 3 * sizeof *v);
                 k++;

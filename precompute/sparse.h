@@ -22,13 +22,16 @@ wrt_csc wrt_csc_from_triplets(uint32_t n, wrt_triplet *t, uint64_t count);
 void wrt_csc_free(wrt_csc *m);
 wrt_csc wrt_csc_copy(const wrt_csc *m);
 
-/* C = A B, entries whose largest channel magnitude is below `drop` removed.
- * Deterministic whatever `threads`. */
-wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, int threads);
+/* Weights of the compression test: an entry (i, j) is kept when its largest channel
+ * magnitude times row_w[i] times col_w[j] reaches `drop` (NULL weights are 1). */
+typedef struct wrt_csc_weights { const double *row_w, *col_w; } wrt_csc_weights;
+
+/* C = A B, compressed by `drop` and `w` (may be NULL). Deterministic whatever `threads`. */
+wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads);
 /* C = A + s B. */
 wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s);
-/* Removes entries whose largest channel magnitude is below `drop`. */
-void wrt_csc_compress(wrt_csc *m, double drop);
+/* Removes entries below `drop` (weighted as in wrt_csc_mul). */
+void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w);
 /* Frobenius norm over all channels. */
 double wrt_csc_norm(const wrt_csc *m);
 /* Largest channel magnitude of any entry. */

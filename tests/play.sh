@@ -51,7 +51,7 @@ if [ -z "$scene" ] && [ -x "$build/wrt-scenegen" ]; then
 fi
 gto=$tmp/scene.gto
 if [ -n "$scene" ] && [ -x "$bake" ]; then
-    check "bake $scene" "$bake" "$scene" -o "$gto"
+    check "bake $scene (quality 1)" "$bake" "$scene" -o "$gto" -q 1 --quiet
 elif [ -x "$build/tests/test_play" ]; then
     # no bake: the room test_play builds in C, with a stand-in operator
     check "write the test room (no wrt-bake)" "$build/tests/test_play" --write-gto "$gto"

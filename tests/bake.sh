@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# bake.sh: end-to-end tests of the wrt-bake command line: a bake and its --json figures,
+# the effect counters of a diffuse scene, identical bytes with 1 and 2 threads
+# (--reproducible), --info on good and damaged files with distinct errors, bad scenes and
+# absurd options refused with a message and the documented exit code, and an interrupted
+# bake leaving no output and no temporary behind.
+# Usage: tests/bake.sh BUILD. Prints "bake: N passed, N failed"; non-zero exit on a failure.
+set -u
+build=${1:-build}
+cd "$(dirname "$0")/.."
+bake=$build/wrt-bake
+gen=$build/wrt-scenegen
+pass=0; fail=0
+tmp=$(mktemp -d /tmp/wrt_bake_XXXXXX)
+trap 'rm -rf "$tmp"' EXIT
+ok() { pass=$((pass + 1)); echo "ok $1"; }
+ko() { fail=$((fail + 1)); echo "FAIL $1"; [ -s "$tmp/err" ] && sed 's/^/    /' "$tmp/err" | head -n 5; }
+check() { local name=$1; shift; if "$@" >"$tmp/out" 2>"$tmp/err"; then ok "$name"; else ko "$name"; fi; }
+expect_exit() {
+    local name=$1 code=$2 re=$3; shift 3
+    "$@" >"$tmp/out" 2>"$tmp/err"; local rc=$?
+    if [ $rc -eq "$code" ] && grep -Eqi -- "$re" "$tmp/err"; then ok "$name"; else echo "    exit $rc: $(head -c 300 "$tmp/err")"; fail=$((fail + 1)); echo "FAIL $name"; fi
+}
+jnum() { tr -d '\n' < "$2" | grep -o "\"$1\":[0-9.e+-]*" | head -n 1 | cut -d: -f2; }
+
+check "--help" "$bake" --help
+check "--version" "$bake" --version
+expect_exit "no output file: exit 1" 1 "no output" "$bake" assets/cornell.gltf
+expect_exit "quality 0 refused: exit 1" 1 "quality.*\[1, 9\]" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --quality 0
+expect_exit "absurd threads refused: exit 1" 1 "threads" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --threads 100000
+expect_exit "NaN threshold refused: exit 1" 1 "eps-compress" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --eps-compress nan
+expect_exit "unknown option: exit 1" 1 "unknown option" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --frobnicate
+expect_exit "min level above max level: exit 1" 1 "deeper" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --min-level 5 --max-level 3
+expect_exit "missing scene: exit 2" 2 "nope.gltf" "$bake" "$tmp/nope.gltf" -o "$tmp/x.gto"
+printf '{"asset":{"version":"2.0"},"meshes":[' > "$tmp/broken.gltf"
+expect_exit "malformed glTF: exit 2" 2 "broken.gltf" "$bake" "$tmp/broken.gltf" -o "$tmp/x.gto"
+[ ! -e "$tmp/x.gto" ] && ok "nothing written on failure" || ko "nothing written on failure"
+
+# A bake with figures.
+if "$bake" assets/test/facing.gltf -o "$tmp/f.gto" --json --quiet >"$tmp/f.json" 2>"$tmp/err"; then
+    ok "facing bake"
+    for k in dto gto total links entries bytes bounces rays energy_left angular; do
+        grep -q "\"$k\"" "$tmp/f.json" && ok "json has $k" || ko "json has $k"
+    done
+    [ "$(jnum traced "$tmp/f.json")" = 0 ] && ok "no occluder: no rays traced" || ko "no occluder: no rays traced"
+    [ "$(jnum angular "$tmp/f.json")" = 0 ] && ok "diffuse: no angular entries" || ko "diffuse: no angular entries"
+    bytes=$(jnum bytes "$tmp/f.json"); real=$(stat -c %s "$tmp/f.gto")
+    [ "$bytes" = "$real" ] && ok "bytes reported = file size ($real)" || ko "bytes reported ($bytes) = file size ($real)"
+else
+    ko "facing bake"
+fi
+
+# Same bytes whatever the thread count (timings left out with --reproducible).
+"$bake" assets/cornell.gltf -o "$tmp/t1.gto" --quality 2 --threads 1 --reproducible --quiet >/dev/null 2>"$tmp/err"
+"$bake" assets/cornell.gltf -o "$tmp/t2.gto" --quality 2 --threads 2 --reproducible --quiet >/dev/null 2>>"$tmp/err"
+cmp -s "$tmp/t1.gto" "$tmp/t2.gto" && ok "1 and 2 threads: identical bytes" || ko "1 and 2 threads: identical bytes"
+
+# --info on good and damaged files.
+check "--info on a good file" "$bake" --info "$tmp/t1.gto"
+grep -qi "ok" "$tmp/out" && ok "--info reports the integrity check" || ko "--info reports the integrity check"
+check "--info --json" "$bake" --info "$tmp/t1.gto" --json
+size=$(stat -c %s "$tmp/t1.gto")
+head -c $((size / 2)) "$tmp/t1.gto" > "$tmp/trunc.gto"
+expect_exit "truncated file: exit 2" 2 "truncated" "$bake" --info "$tmp/trunc.gto"
+cp "$tmp/t1.gto" "$tmp/flip.gto"
+printf '\xff' | dd of="$tmp/flip.gto" bs=1 seek=$((size - 100)) conv=notrunc 2>/dev/null
+expect_exit "flipped byte: exit 2, checksum" 2 "checksum" "$bake" --info "$tmp/flip.gto"
+printf 'GIF89a not a transport file at all' > "$tmp/foreign.gto"
+expect_exit "foreign file: exit 2" 2 "not a .gto" "$bake" --info "$tmp/foreign.gto"
+
+# An interrupted bake leaves nothing behind.
+"$gen" maze --out "$tmp/maze.gltf" >/dev/null 2>&1
+"$bake" "$tmp/maze.gltf" -o "$tmp/int.gto" --quality 6 --quiet >/dev/null 2>&1 &
+pid=$!
+sleep 1.5
+kill -TERM $pid 2>/dev/null  # (background jobs of a script ignore SIGINT)
+wait $pid; rc=$?
+if [ $rc -ne 0 ] && [ ! -e "$tmp/int.gto" ] && [ -z "$(ls "$tmp" | grep -F '.tmp.')" ]; then
+    ok "interrupted bake: no output, no temporary (exit $rc)"
+else
+    ko "interrupted bake: no output, no temporary (exit $rc)"
+fi
+
+echo "bake: $pass passed, $fail failed"
+[ "$fail" -eq 0 ]
