@@ -84,7 +84,8 @@ $(BUILD)/wrt-ref: $(call obj,tools/ref_main.c) $(REF_OBJ) $(CORE_OBJ)
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
 $(BUILD)/wrt-compare: $(call obj,tools/compare_main.c tools/compare.c player/relight.c) $(REF_OBJ) $(CORE_OBJ)
-	$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
 $(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
