@@ -8,20 +8,22 @@
 # (error against bake time, file bytes and milliseconds per light change, floor shown)
 # and OUT/README.md (the tables). Needs jq and gnuplot (tools/install-deps.sh).
 #
-# usage: tools/study.sh [-b BUILD] [-o OUTDIR] [-q "Q1 Q2 ..."] [SCENE.gltf ...]
+# usage: tools/study.sh [-b BUILD] [-o OUTDIR] [-q "Q1 Q2 ..."] [-P] [SCENE.gltf ...]
+#   -P: no bakes; redraw the plots and the tables from OUTDIR/*.json
 #   default scenes: assets/cornell.gltf assets/maze.gltf assets/glossy.gltf, swept over
 #   1..7, 1..6 and 1..5 (the higher qualities take minutes to hours on 2 cores: see
 #   docs/study/README.md); any other scene over 1..6 unless -q is given.
 #   WRT_STUDY_COMPARE: wrt-compare's reference options (default below).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-build=build; out=docs/study; quals=""
-while getopts "b:o:q:h" opt; do
+build=build; out=docs/study; quals=""; redraw=0
+while getopts "b:o:q:Ph" opt; do
     case $opt in
         b) build=$OPTARG ;;
         o) out=$OPTARG ;;
         q) quals=$OPTARG ;;
-        *) sed -n '2,16p' "$0"; exit 1 ;;
+        P) redraw=1 ;;
+        *) sed -n '2,17p' "$0"; exit 1 ;;
     esac
 done
 shift $((OPTIND - 1))
@@ -42,6 +44,49 @@ default_quals() {
     esac
 }
 
+# plot_scene JSON PNG: cell and image error (log) against bake s, MB and ms (log), each
+# with the reference's floor dashed in the same colour; labels are the qualities.
+plot_scene() {
+    local json=$1 png=$2 dat name cf imf ylo yhi
+    dat=$(mktemp)
+    name=$(jq -r '.name' "$json")
+    cf=$(jq '.reference.cell_floor' "$json"); imf=$(jq '.reference.image_floor' "$json")
+    ylo=$(jq '[.reference.cell_floor, .reference.image_floor, (.rows[] | .cell_rmse, .image_rmse)]
+              | map(select(. > 0)) | min / 1.6' "$json")
+    yhi=$(jq '[.rows[] | .cell_rmse, .image_rmse] | max * 4' "$json")
+    jq -r '.rows[] | "\(.quality) \(.bake_s) \(.bytes / 1e6) \(.ms_per_light_change) \(.cell_rmse) \(.image_rmse)"' \
+        "$json" >"$dat"
+    gnuplot <<EOF
+set terminal pngcairo size 1500,470 font "sans,11"
+set output "$png.tmp"
+set multiplot layout 1,3 title "$name: relative RMSE of the indirect light against the path-traced reference (point labels: quality)"
+set logscale xy
+set grid
+set key top right box opaque
+set ylabel "relative RMSE"
+set format y "%g"
+set yrange [$ylo:$yhi]
+set offsets graph 0.08, graph 0.08, 0, 0
+cf = $cf; imf = $imf
+do for [c in "2 3 4"] {
+  col = c + 0
+  if (col == 2) { set xlabel "bake time (s)" }
+  if (col == 3) { set xlabel "file size (MB)" }
+  if (col == 4) { set xlabel "player ms per light change (median)" }
+  plot "$dat" using col:5 with linespoints lw 2 pt 7 lc rgb "#1f77b4" title "cell averages", \\
+       "" using col:5:1 with labels offset 0.8,0.8 font ",9" notitle, \\
+       "" using col:6 with linespoints lw 2 pt 5 lc rgb "#d62728" title "image", \\
+       "" using col:6:1 with labels offset 0.8,0.8 font ",9" notitle, \\
+       cf with lines dt 2 lw 2 lc rgb "#1f77b4" title "reference floor (cells)", \\
+       imf with lines dt 2 lw 2 lc rgb "#d62728" title "reference floor (image)"
+}
+unset multiplot
+EOF
+    rm -f "$dat"
+    mv "$png.tmp" "$png"
+}
+
+[ $redraw -eq 0 ] || { scenes=(); for j in "$out"/*.json; do plot_scene "$j" "${j%.json}.png"; done; }
 for scene in "${scenes[@]}"; do
     name=$(basename "$scene"); name=${name%.*}
     work=$build/study/$name
@@ -93,36 +138,7 @@ for scene in "${scenes[@]}"; do
     } >"$out/$name.csv.tmp"
     mv "$out/$name.csv.tmp" "$out/$name.csv"
 
-    # The plots: cell and image error (log) against bake s, MB and ms (log), the floors dashed.
-    cf=$(jq '.reference.cell_floor' "$out/$name.json"); imf=$(jq '.reference.image_floor' "$out/$name.json")
-    jq -r '.rows[] | "\(.quality) \(.bake_s) \(.bytes / 1e6) \(.ms_per_light_change) \(.cell_rmse) \(.image_rmse)"' \
-        "$out/$name.json" >"$work/plot.dat"
-    gnuplot <<EOF
-set terminal pngcairo size 1500,470 font "sans,11"
-set output "$out/$name.png.tmp"
-set multiplot layout 1,3 title "$name: relative RMSE of the indirect light against the reference (labels: quality)"
-set logscale xy
-set grid
-set key bottom left box opaque
-set ylabel "relative RMSE"
-set format y "%g"
-set yrange [*:*]
-cf = $cf; imf = $imf
-do for [c in "2 3 4"] {
-  col = c + 0
-  if (col == 2) { set xlabel "bake time (s)" }
-  if (col == 3) { set xlabel "file size (MB)" }
-  if (col == 4) { set xlabel "player ms per light change (median)" }
-  plot "$work/plot.dat" using col:5 with linespoints lw 2 pt 7 lc rgb "#1f77b4" title "cell averages", \
-       "" using col:5:1 with labels offset 0.8,0.8 font ",9" notitle, \
-       "" using col:6 with linespoints lw 2 pt 5 lc rgb "#d62728" title "image", \
-       "" using col:6:1 with labels offset 0.8,0.8 font ",9" notitle, \
-       cf with lines dt 2 lw 2 lc rgb "#1f77b4" title "reference floor (cells)", \
-       imf with lines dt 2 lw 2 lc rgb "#d62728" title "reference floor (image)"
-}
-unset multiplot
-EOF
-    mv "$out/$name.png.tmp" "$out/$name.png"
+    plot_scene "$out/$name.json" "$out/$name.png"
     echo "study: wrote $out/$name.csv, $out/$name.json, $out/$name.png" >&2
 done
 
