@@ -132,7 +132,7 @@ demo: deps
 
 study: deps
 	@$(MAKE) --no-print-directory all
-	bash tools/study.sh
+	bash tools/study.sh $(STUDY_ARGS)
 
 bench: all
 	bash tools/bench.sh

@@ -10,26 +10,28 @@
 #
 # usage: tools/study.sh [-b BUILD] [-o OUTDIR] [-q "Q1 Q2 ..."] [-P] [SCENE.gltf ...]
 #   -P: no bakes; redraw the plots and the tables from OUTDIR/*.json
+#   -R: reuse the bakes (and their timings) in BUILD/study/NAME newer than wrt-bake and the scene
 #   default scenes: assets/cornell.gltf assets/maze.gltf assets/glossy.gltf, swept over
 #   1..7, 1..6 and 1..5 (the higher qualities take minutes to hours on 2 cores: see
 #   docs/study/README.md); any other scene over 1..6 unless -q is given.
 #   WRT_STUDY_COMPARE: wrt-compare's reference options (default below).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-build=build; out=docs/study; quals=""; redraw=0
-while getopts "b:o:q:Ph" opt; do
+build=build; out=docs/study; quals=""; redraw=0; reuse=0
+while getopts "b:o:q:PRh" opt; do
     case $opt in
         b) build=$OPTARG ;;
         o) out=$OPTARG ;;
         q) quals=$OPTARG ;;
         P) redraw=1 ;;
-        *) sed -n '2,17p' "$0"; exit 1 ;;
+        R) reuse=1 ;;
+        *) sed -n '2,18p' "$0"; exit 1 ;;
     esac
 done
 shift $((OPTIND - 1))
 scenes=("$@")
 [ ${#scenes[@]} -gt 0 ] || scenes=(assets/cornell.gltf assets/maze.gltf assets/glossy.gltf)
-compare_args=${WRT_STUDY_COMPARE:---lights 5 --cell-paths 4000000 --width 64 --spp 1024 --bench 21}
+compare_args=${WRT_STUDY_COMPARE:---lights 5 --cell-paths 10000000 --width 64 --spp 4096 --bench 21}
 for t in jq gnuplot; do command -v $t >/dev/null || { echo "study: needs $t (make deps)" >&2; exit 1; }; done
 for p in wrt-bake wrt-compare; do [ -x "$build/$p" ] || { echo "study: no $build/$p (make all)" >&2; exit 1; }; done
 mkdir -p "$out"
@@ -96,19 +98,24 @@ for scene in "${scenes[@]}"; do
     echo "study: $name, qualities $qs" >&2
     for q in $qs; do
         gto=$work/q$q.gto
-        rm -f "$work"/bake_q$q.[1-3].json
-        "$build/wrt-bake" "$scene" -o "$gto" -q "$q" --json --quiet >"$work/bake_q$q.1.json"
-        runs=1
-        if jq -e '.seconds.total < 10' "$work/bake_q$q.1.json" >/dev/null; then
-            for r in 2 3; do
-                "$build/wrt-bake" "$scene" -o "$gto" -q "$q" --json --quiet >"$work/bake_q$q.$r.json"
-            done
-            runs=3
+        if [ $reuse -eq 1 ] && [ -s "$work/bake_q$q.json" ] && [ "$gto" -nt "$build/wrt-bake" ] &&
+           [ "$gto" -nt "$scene" ]; then
+            echo "study: reusing $gto" >&2
+        else
+            rm -f "$work"/bake_q$q.[1-3].json
+            "$build/wrt-bake" "$scene" -o "$gto" -q "$q" --json --quiet >"$work/bake_q$q.1.json"
+            runs=1
+            if jq -e '.seconds.total < 10' "$work/bake_q$q.1.json" >/dev/null; then
+                for r in 2 3; do
+                    "$build/wrt-bake" "$scene" -o "$gto" -q "$q" --json --quiet >"$work/bake_q$q.$r.json"
+                done
+                runs=3
+            fi
+            # The run with the median total time gives every phase's figures.
+            jq -s --argjson runs $runs 'sort_by(.seconds.total) | .[(length / 2 | floor)] + {runs: $runs}' \
+                "$work"/bake_q$q.[1-3].json >"$work/bake_q$q.json" 2>/dev/null ||
+                jq --argjson runs 1 '. + {runs: $runs}' "$work/bake_q$q.1.json" >"$work/bake_q$q.json"
         fi
-        # The run with the median total time gives every phase's figures.
-        jq -s --argjson runs $runs 'sort_by(.seconds.total) | .[(length / 2 | floor)] + {runs: $runs}' \
-            "$work"/bake_q$q.[1-3].json >"$work/bake_q$q.json" 2>/dev/null ||
-            jq --argjson runs 1 '. + {runs: $runs}' "$work/bake_q$q.1.json" >"$work/bake_q$q.json"
         jq -r '"study: \(.options.quality): \(.seconds.total) s, \(.bytes) bytes (\(.runs) run(s))"' \
             "$work/bake_q$q.json" >&2
         gtos+=("$gto")
