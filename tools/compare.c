@@ -436,7 +436,7 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
         wrt_relight_update(r, NULL);
         const float *X = wrt_relight_X(r);
         wrt_compare_light_result *lr = &out->light[li];
-        double d2 = 0, se2 = 0, r2 = 0;
+        double d2 = 0, se2 = 0, r2 = 0, sw = 0, sr = 0;
         for (int q = 0; q < s->nquads; q++) {
             double *w = c->wcells[li] + (size_t)q * nc * 3;
             wavelet_cells(g, X, q, n, w);
@@ -446,9 +446,12 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
                 d2 += a * (w[k] - m[k]) * (w[k] - m[k]);
                 se2 += a * e[k] * e[k];
                 r2 += a * m[k] * m[k];
+                sw += a * w[k];
+                sr += a * m[k];
             }
         }
         rel_errors(d2, se2, r2, &lr->cell_rmse, &lr->cell_floor, &lr->cell_debiased);
+        lr->cell_ratio = sr > 0 ? sw / sr : 0;
         lr->image_rmse = lr->image_floor = lr->image_debiased = -1;
         if (c->width > 0) {
             d2 = se2 = r2 = 0;
@@ -474,8 +477,14 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
             }
             rel_errors(d2, se2, r2, &lr->image_rmse, &lr->image_floor, &lr->image_debiased);
         }
-        double *mf = &out->mean.cell_rmse, *lf = &lr->cell_rmse;
-        for (int k = 0; k < 6; k++) mf[k] += lf[k] / c->nlights;
+        wrt_compare_light_result *m = &out->mean;
+        m->cell_rmse += lr->cell_rmse / c->nlights;
+        m->cell_floor += lr->cell_floor / c->nlights;
+        m->cell_debiased += lr->cell_debiased / c->nlights;
+        m->image_rmse += lr->image_rmse / c->nlights;
+        m->image_floor += lr->image_floor / c->nlights;
+        m->image_debiased += lr->image_debiased / c->nlights;
+        m->cell_ratio += lr->cell_ratio / c->nlights;
     }
     /* Milliseconds per light change: the first light moved around a small circle. */
     int nb = c->opt.bench_updates;

@@ -75,6 +75,7 @@ void wrt_compare_ref_get_info(const wrt_compare_ref *r, wrt_compare_ref_info *in
 typedef struct wrt_compare_light_result {
     double cell_rmse, cell_floor, cell_debiased;
     double image_rmse, image_floor, image_debiased; /* -1 without the image comparison */
+    double cell_ratio;  /* sum w W / sum w R over cells and channels: the bake's overall bias */
 } wrt_compare_light_result;
 
 typedef struct wrt_compare_result {

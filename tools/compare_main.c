@@ -35,6 +35,8 @@ static void usage(FILE *f) {
             "  --images PREFIX     write PREFIX_{wavelet,reference}.exr/.png of the first\n"
             "                      light and the last bake\n"
             "  --max-error E       exit 5 if a bake's cell rmse exceeds E (pipeline check)\n"
+            "  --per-quad          add each quad's mean indirect irradiance (first light), wavelet\n"
+            "                      and reference, to each bake's figures\n"
             "exit codes: 0 ok, 1 usage, 2 bad scene or bake, 5 accuracy not met\n");
 }
 
@@ -84,8 +86,8 @@ static void json_str(FILE *f, const char *s) {
 static void json_errors(FILE *f, const wrt_compare_light_result *r) {
     printf("\"cell_rmse\":%.6g,\"cell_floor\":%.6g,\"cell_rmse_debiased\":%.6g,", r->cell_rmse, r->cell_floor,
            r->cell_debiased);
-    printf("\"image_rmse\":%.6g,\"image_floor\":%.6g,\"image_rmse_debiased\":%.6g", r->image_rmse, r->image_floor,
-           r->image_debiased);
+    printf("\"image_rmse\":%.6g,\"image_floor\":%.6g,\"image_rmse_debiased\":%.6g,\"cell_ratio\":%.6g",
+           r->image_rmse, r->image_floor, r->image_debiased, r->cell_ratio);
     (void)f;
 }
 
@@ -117,6 +119,7 @@ static void write_images(const char *prefix, const wrt_compare_ref *c, int w, in
 
 int main(int argc, char **argv) {
     const char *scene_path = NULL, *images = NULL;
+    int per_quad = 0;
     const char **gtos = wrt_xcalloc((size_t)argc, sizeof(char *));
     int ngto = 0, nlights_req = 5, nexplicit = 0;
     double explicit_pos[WRT_COMPARE_MAX_LIGHTS][3];
@@ -128,6 +131,7 @@ int main(int argc, char **argv) {
         int ok = 1, takes = 1;
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
         else if (!strcmp(a, "--no-image")) { o.width = -1; takes = 0; }
+        else if (!strcmp(a, "--per-quad")) { per_quad = 1; takes = 0; }
         else if (a[0] == '-' && a[1] == '-' && !v) ok = 0;
         else if (!strcmp(a, "--lights")) { ok = parse_long(v, 1, WRT_COMPARE_MAX_LIGHTS, &x); nlights_req = (int)x; }
         else if (!strcmp(a, "--light-pos")) {
@@ -230,7 +234,27 @@ int main(int argc, char **argv) {
             json_errors(stdout, &res.light[k]);
             printf("}");
         }
-        printf("]}");
+        printf("]");
+        if (per_quad) {
+            printf(",\"quads\":[");
+            for (int q = 0; q < scene.nquads; q++) {
+                const double *w = wrt_compare_cells(ref, 0, q, 1, NULL), *m = wrt_compare_cells(ref, 0, q, 0, NULL);
+                double mw[3] = {0, 0, 0}, mr[3] = {0, 0, 0}, d2 = 0, r2 = 0;
+                for (int k = 0; k < o.cells * o.cells; k++)
+                    for (int c = 0; c < 3; c++) {
+                        mw[c] += w[k * 3 + c] / (o.cells * o.cells);
+                        mr[c] += m[k * 3 + c] / (o.cells * o.cells);
+                        d2 += (w[k * 3 + c] - m[k * 3 + c]) * (w[k * 3 + c] - m[k * 3 + c]);
+                        r2 += m[k * 3 + c] * m[k * 3 + c];
+                    }
+                printf("%s{\"quad\":%d,\"material\":%d,\"area\":%.5g,\"wavelet\":[%.5g,%.5g,%.5g],"
+                       "\"reference\":[%.5g,%.5g,%.5g],\"cell_rmse\":%.5g}",
+                       q ? "," : "", q, scene.quads[q].material, scene.quads[q].area, mw[0], mw[1], mw[2], mr[0],
+                       mr[1], mr[2], r2 > 0 ? sqrt(d2 / r2) : 0);
+            }
+            printf("]");
+        }
+        printf("}");
         if (images) write_images(images, ref, info.width, info.height);
         wrt_gto_close(&g);
     }
