@@ -134,13 +134,13 @@ for scene in "${scenes[@]}"; do
           dto_s: $k.seconds.dto, gto_s: $k.seconds.gto, bake_s: $k.seconds.total,
           links_dto: $k.links.dto, links_gto: $k.links.gto, links_gathered: $k.links.gathered,
           bytes: $c.bytes, functions: $c.functions, entries: $c.entries,
-          ms_per_light_change: $c.ms_per_light_change,
+          ms_per_light_change: $c.ms_per_light_change, ms_min: $c.ms_min,
           cell_rmse: $c.cell_rmse, cell_floor: $c.cell_floor, cell_rmse_debiased: $c.cell_rmse_debiased,
           image_rmse: $c.image_rmse, image_floor: $c.image_floor, image_rmse_debiased: $c.image_rmse_debiased,
           cell_ratio: $c.cell_ratio,
           per_light: $c.per_light}]}' "$work/compare.json" >"$out/$name.json.tmp"
     mv "$out/$name.json.tmp" "$out/$name.json"
-    cols="quality bake_runs dto_s gto_s bake_s links_dto links_gto links_gathered bytes functions entries ms_per_light_change cell_rmse cell_floor cell_rmse_debiased image_rmse image_floor image_rmse_debiased cell_ratio"
+    cols="quality bake_runs dto_s gto_s bake_s links_dto links_gto links_gathered bytes functions entries ms_per_light_change ms_min cell_rmse cell_floor cell_rmse_debiased image_rmse image_floor image_rmse_debiased cell_ratio"
     { echo "$cols" | tr ' ' ','
       jq -r --arg cols "$cols" '.rows[] as $r | [($cols | split(" "))[] | $r[.]] | @csv' "$out/$name.json"
     } >"$out/$name.csv.tmp"
