@@ -10,7 +10,8 @@
 #
 # usage: tools/study.sh [-b BUILD] [-o OUTDIR] [-q "Q1 Q2 ..."] [-P] [SCENE.gltf ...]
 #   -P: no bakes; redraw the plots and the tables from OUTDIR/*.json
-#   -R: reuse the bakes (and their timings) in BUILD/study/NAME newer than wrt-bake and the scene
+#   -R: reuse the bakes (and their timings) in BUILD/study/NAME newer than wrt-bake and the
+#       scene, and the comparison if newer than wrt-compare and the bakes, with the same options
 #   default scenes: assets/cornell.gltf assets/maze.gltf assets/glossy.gltf, swept over
 #   1..7, 1..6 and 1..5 (the higher qualities take minutes to hours on 2 cores: see
 #   docs/study/README.md); any other scene over 1..6 unless -q is given.
@@ -25,7 +26,7 @@ while getopts "b:o:q:PRh" opt; do
         q) quals=$OPTARG ;;
         P) redraw=1 ;;
         R) reuse=1 ;;
-        *) sed -n '2,18p' "$0"; exit 1 ;;
+        *) sed -n '2,19p' "$0"; exit 1 ;;
     esac
 done
 shift $((OPTIND - 1))
@@ -120,8 +121,22 @@ for scene in "${scenes[@]}"; do
             "$work/bake_q$q.json" >&2
         gtos+=("$gto")
     done
-    # shellcheck disable=SC2086
-    "$build/wrt-compare" "$scene" "${gtos[@]}" $compare_args >"$work/compare.json"
+    # The comparison, unless -R and the last one is newer than wrt-compare and every bake,
+    # with the same bakes and options.
+    stale=1
+    if [ $reuse -eq 1 ] && [ -s "$work/compare.json" ] && [ "$work/compare.json" -nt "$build/wrt-compare" ] &&
+       [ "$(cat "$work/compare.args" 2>/dev/null)" = "${gtos[*]} $compare_args" ]; then
+        stale=0
+        for g in "${gtos[@]}"; do [ "$work/compare.json" -nt "$g" ] || stale=1; done
+    fi
+    if [ $stale -eq 1 ]; then
+        # shellcheck disable=SC2086
+        "$build/wrt-compare" "$scene" "${gtos[@]}" $compare_args >"$work/compare.json.tmp"
+        mv "$work/compare.json.tmp" "$work/compare.json"
+        echo "${gtos[*]} $compare_args" >"$work/compare.args"
+    else
+        echo "study: reusing $work/compare.json" >&2
+    fi
 
     # One row per quality: the bake's figures and the comparison's.
     jq -s '.' $(for q in $qs; do echo "$work/bake_q$q.json"; done) >"$work/bakes.json"
