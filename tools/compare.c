@@ -18,6 +18,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 struct wrt_compare_ref {
     const wrt_scene *scene;
@@ -486,30 +487,59 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
         m->image_debiased += lr->image_debiased / c->nlights;
         m->cell_ratio += lr->cell_ratio / c->nlights;
     }
-    /* Milliseconds per light change: the first light moved around a small circle. */
-    int nb = c->opt.bench_updates;
-    double *ms = wrt_xmalloc((size_t)nb * sizeof(double));
-    wrt_light l = c->lights[0];
+    wrt_relight_destroy(r);
+    st = wrt_compare_bench(g, &c->lights[0], eye, c->opt.bench_updates, c->opt.threads, out);
+    out->seconds = wrt_now() - t0;
+    return st;
+}
+
+static double cpu_now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const double eye[3], int updates,
+                             int threads, wrt_compare_result *out) {
+    if (updates < 1) return wrt_fail(WRT_ERR_INVALID_ARG, "compare: %d timed updates", updates);
+    wrt_relight *r;
+    wrt_relight_options ro = {0};
+    ro.threads = threads;
+    wrt_status st = wrt_relight_create(g, &ro, &r);
+    if (st != WRT_OK) return st;
+    wrt_relight_set_eye(r, eye);
+    wrt_relight_set_lights(r, light, NULL, 1);
+    wrt_relight_update(r, NULL);
+    wrt_v3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
+    for (uint32_t q = 0; q < g->nquads; q++)
+        for (int k = 0; k < 4; k++) {
+            const double *p = g->quads[q].p[k];
+            lo = v3(fmin(lo.x, p[0]), fmin(lo.y, p[1]), fmin(lo.z, p[2]));
+            hi = v3(fmax(hi.x, p[0]), fmax(hi.y, p[1]), fmax(hi.z, p[2]));
+        }
+    double *ms = wrt_xmalloc((size_t)updates * sizeof(double)), *cpu = wrt_xmalloc((size_t)updates * sizeof(double));
+    wrt_light l = *light;
     wrt_v3 p0 = l.pos;
-    double rad = 0.02 * size;
-    for (int k = 0; k < nb; k++) {
-        double a = 2 * WRT_PI * (k + 1) / nb;
+    double rad = 0.02 * v3_len(v3_sub(hi, lo));
+    for (int k = 0; k < updates; k++) {
+        double a = 2 * WRT_PI * (k + 1) / updates;
         l.pos = v3(p0.x + rad * cos(a), p0.y, p0.z + rad * sin(a));
-        double t1 = wrt_now();
+        double t1 = wrt_now(), c1 = cpu_now();
         wrt_relight_set_lights(r, &l, NULL, 1);
         wrt_relight_update(r, NULL);
         ms[k] = (wrt_now() - t1) * 1e3;
+        cpu[k] = (cpu_now() - c1) * 1e3;
     }
-    qsort(ms, (size_t)nb, sizeof(double), cmp_double);
-    out->ms_update_median = ms[nb / 2];
+    qsort(ms, (size_t)updates, sizeof(double), cmp_double);
+    qsort(cpu, (size_t)updates, sizeof(double), cmp_double);
+    out->ms_update_median = ms[updates / 2];
     out->ms_update_min = ms[0];
-    out->ms_update_max = ms[nb - 1];
-    free(ms);
+    out->ms_update_max = ms[updates - 1];
+    out->cpu_ms_update_median = cpu[updates / 2];
+    free(ms); free(cpu);
     wrt_relight_destroy(r);
-    out->seconds = wrt_now() - t0;
     return WRT_OK;
 }
-
 const float *wrt_compare_image(const wrt_compare_ref *c, int light, int wavelet) {
     if (light < 0 || light >= c->nlights || c->width <= 0) return NULL;
     return wavelet ? c->wimg[light] : c->img[light];

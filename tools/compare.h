@@ -84,6 +84,7 @@ typedef struct wrt_compare_result {
     wrt_compare_light_result mean;  /* means over the lights */
     double ms_update_median;        /* wrt_relight_update per light change, milliseconds */
     double ms_update_min, ms_update_max;
+    double cpu_ms_update_median;    /* the process's CPU time per light change (all threads) */
     double seconds;                 /* wall time of this comparison */
 } wrt_compare_result;
 
@@ -91,6 +92,13 @@ typedef struct wrt_compare_result {
  * reference: relights it for each light alone, with the eye at the scene camera.
  * Errors: WRT_ERR_INVALID_ARG (a different scene), what wrt_relight_create returns. */
 wrt_status wrt_compare_gto(const wrt_compare_ref *r, const wrt_gto *g, wrt_compare_result *out);
+
+/* Times the player's update per light change without a reference: relights `g` with
+ * `light` alone (eye at `eye`), then moves it `updates` times around a circle of 2% of
+ * the scene's size and times each set_lights + update (wall and process CPU time).
+ * Fills the ms_* and cpu_ms_* fields of *out (and nothing else). */
+wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const double eye[3], int updates,
+                             int threads, wrt_compare_result *out);
 
 /* For tests and pictures: the last comparison's wavelet and reference indirect images of
  * light `light` (width x height RGB, top row first; NULL if none). Valid until the next

@@ -57,7 +57,7 @@ plot_scene() {
     ylo=$(jq '[.reference.cell_floor, .reference.image_floor, (.rows[] | .cell_rmse, .image_rmse)]
               | map(select(. > 0)) | min / 1.6' "$json")
     yhi=$(jq '[.rows[] | .cell_rmse, .image_rmse] | max * 4' "$json")
-    jq -r '.rows[] | "\(.quality) \(.bake_s) \(.bytes / 1e6) \(.ms_per_light_change) \(.cell_rmse) \(.image_rmse)"' \
+    jq -r '.rows[] | "\(.quality) \(.bake_s) \(.bytes / 1e6) \(.cpu_ms_per_light_change) \(.cell_rmse) \(.image_rmse)"' \
         "$json" >"$dat"
     gnuplot <<EOF
 set terminal pngcairo size 1500,470 font "sans,11"
@@ -75,7 +75,7 @@ do for [c in "2 3 4"] {
   col = c + 0
   if (col == 2) { set xlabel "bake time (s)" }
   if (col == 3) { set xlabel "file size (MB)" }
-  if (col == 4) { set xlabel "player ms per light change (median)" }
+  if (col == 4) { set xlabel "player CPU ms per light change (median)" }
   plot "$dat" using col:5 with linespoints lw 2 pt 7 lc rgb "#1f77b4" title "cell averages", \\
        "" using col:5:1 with labels offset 0.8,0.8 font ",9" notitle, \\
        "" using col:6 with linespoints lw 2 pt 5 lc rgb "#d62728" title "image", \\
@@ -137,25 +137,28 @@ for scene in "${scenes[@]}"; do
     else
         echo "study: reusing $work/compare.json" >&2
     fi
+    # The player's time per light change, in a pass of its own (no path tracing beside it).
+    "$build/wrt-compare" "$scene" "${gtos[@]}" --bench-only --bench 41 >"$work/bench.json"
 
     # One row per quality: the bake's figures and the comparison's.
     jq -s '.' $(for q in $qs; do echo "$work/bake_q$q.json"; done) >"$work/bakes.json"
-    jq --slurpfile b "$work/bakes.json" --arg name "$name" --arg scene "$scene" \
+    jq --slurpfile b "$work/bakes.json" --slurpfile t "$work/bench.json" --arg name "$name" --arg scene "$scene" \
        --arg nproc "$(nproc)" --arg date "$(date -u +%Y-%m-%dT%H:%MZ)" --arg args "$compare_args" '
       {scene: $scene, name: $name, date: $date, cores: ($nproc | tonumber), compare_options: $args,
        lights: .lights, cells_per_side: .cells_per_side, reference: .reference,
-       rows: [range(0; .bakes | length) as $i | .bakes[$i] as $c | $b[0][$i] as $k |
+       rows: [range(0; .bakes | length) as $i | .bakes[$i] as $c | $b[0][$i] as $k | $t[0].bakes[$i] as $m |
          {quality: $k.options.quality, bake_runs: $k.runs,
           dto_s: $k.seconds.dto, gto_s: $k.seconds.gto, bake_s: $k.seconds.total,
-          links_dto: $k.links.dto, links_gto: $k.links.gto, links_gathered: $k.links.gathered,
+          links_dto: $k.links.dto, links_gto: $k.links.gto, links_gathered: (if $k.links.gathered > 0 then $k.links.gathered else null end),
           bytes: $c.bytes, functions: $c.functions, entries: $c.entries,
-          ms_per_light_change: $c.ms_per_light_change, ms_min: $c.ms_min,
+          ms_per_light_change: $m.ms_per_light_change, ms_min: $m.ms_min,
+          cpu_ms_per_light_change: $m.cpu_ms_per_light_change,
           cell_rmse: $c.cell_rmse, cell_floor: $c.cell_floor, cell_rmse_debiased: $c.cell_rmse_debiased,
           image_rmse: $c.image_rmse, image_floor: $c.image_floor, image_rmse_debiased: $c.image_rmse_debiased,
           cell_ratio: $c.cell_ratio,
           per_light: $c.per_light}]}' "$work/compare.json" >"$out/$name.json.tmp"
     mv "$out/$name.json.tmp" "$out/$name.json"
-    cols="quality bake_runs dto_s gto_s bake_s links_dto links_gto links_gathered bytes functions entries ms_per_light_change ms_min cell_rmse cell_floor cell_rmse_debiased image_rmse image_floor image_rmse_debiased cell_ratio"
+    cols="quality bake_runs dto_s gto_s bake_s links_dto links_gto links_gathered bytes functions entries ms_per_light_change ms_min cpu_ms_per_light_change cell_rmse cell_floor cell_rmse_debiased image_rmse image_floor image_rmse_debiased cell_ratio"
     { echo "$cols" | tr ' ' ','
       jq -r --arg cols "$cols" '.rows[] as $r | [($cols | split(" "))[] | $r[.]] | @csv' "$out/$name.json"
     } >"$out/$name.csv.tmp"
@@ -175,6 +178,11 @@ done
     echo "of the indirect light against the path-traced reference, mean over the lights, for"
     echo "cell averages of the incident irradiance and for the camera's image; \"floor\" is the"
     echo "reference's own noise in the same units, \"debiased\" the error with that noise taken out."
+    echo "Light changes are timed in a pass of their own (41 changes); \"best ms\" is the fastest"
+    echo "(the median suffers first when the machine is shared), \"CPU ms\" the median CPU time of"
+    echo "the process (all threads), which other load on the machine does not inflate: the plots"
+    echo "use it; \"gathered\" is empty when the bake did not compute the gathered"
+    echo "operator (wrt-bake computes it only when it stores it or is given --report-gathered)."
     for j in "$out"/*.json; do
         n=$(jq -r '.name' "$j")
         echo
@@ -184,9 +192,9 @@ done
         echo
         echo "![$n]($n.png)"
         echo
-        echo "| quality | runs | DTO s | GTO s | bake s | links DTO | links GTO | gathered | MB | ms/light | cell rmse | floor | debiased | image rmse | floor | debiased |"
-        echo "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-        jq -r '.rows[] | "| \(.quality) | \(.bake_runs) | \(.dto_s * 100 | round / 100) | \(.gto_s * 100 | round / 100) | \(.bake_s * 100 | round / 100) | \(.links_dto) | \(.links_gto) | \(.links_gathered) | \(.bytes / 1e4 | round / 100) | \(.ms_per_light_change * 100 | round / 100) | \(.cell_rmse * 1000 | round / 1000) | \(.cell_floor * 1000 | round / 1000) | \(.cell_rmse_debiased * 1000 | round / 1000) | \(.image_rmse * 1000 | round / 1000) | \(.image_floor * 1000 | round / 1000) | \(.image_rmse_debiased * 1000 | round / 1000) |"' "$j"
+        echo "| quality | runs | DTO s | GTO s | bake s | links DTO | links GTO | gathered | MB | ms/light | best ms | CPU ms | cell rmse | floor | debiased | image rmse | floor | debiased |"
+        echo "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        jq -r '.rows[] | "| \(.quality) | \(.bake_runs) | \(.dto_s * 100 | round / 100) | \(.gto_s * 100 | round / 100) | \(.bake_s * 100 | round / 100) | \(.links_dto) | \(.links_gto) | \(.links_gathered // "–") | \(.bytes / 1e4 | round / 100) | \(.ms_per_light_change * 100 | round / 100) | \(.ms_min * 100 | round / 100) | \(.cpu_ms_per_light_change * 100 | round / 100) | \(.cell_rmse * 1000 | round / 1000) | \(.cell_floor * 1000 | round / 1000) | \(.cell_rmse_debiased * 1000 | round / 1000) | \(.image_rmse * 1000 | round / 1000) | \(.image_floor * 1000 | round / 1000) | \(.image_rmse_debiased * 1000 | round / 1000) |"' "$j"
     done
 } >"$out/README.md.tmp"
 mv "$out/README.md.tmp" "$out/README.md"
