@@ -47,6 +47,46 @@ void wrt_compare_defaults(wrt_compare_options *o) {
     if (o->seed == 0) o->seed = 1;
 }
 
+/* Nearest quad hit by the ray p + t d (t > 0), or -1: Moller-Trumbore on both triangles. */
+static int nearest_quad(const wrt_scene *s, wrt_v3 p, wrt_v3 d) {
+    double best = INFINITY;
+    int hit = -1;
+    for (int q = 0; q < s->nquads; q++) {
+        const wrt_v3 *c = s->quads[q].p;
+        for (int t = 0; t < 2; t++) {
+            wrt_v3 a = c[0], b = c[t ? 2 : 1], e = c[t ? 3 : 2];
+            wrt_v3 e1 = v3_sub(b, a), e2 = v3_sub(e, a), h = v3_cross(d, e2);
+            double det = v3_dot(e1, h);
+            if (fabs(det) < 1e-12) continue;
+            wrt_v3 sv = v3_sub(p, a);
+            double u = v3_dot(sv, h) / det;
+            if (u < 0 || u > 1) continue;
+            wrt_v3 qv = v3_cross(sv, e1);
+            double v = v3_dot(d, qv) / det;
+            if (v < 0 || u + v > 1) continue;
+            double tt = v3_dot(e2, qv) / det;
+            if (tt > 1e-9 && tt < best) { best = tt; hit = q; }
+        }
+    }
+    return hit;
+}
+
+/* 1 if p looks enclosed by the back of surfaces (inside a closed block, where a light
+ * lights nothing): most of 26 directions first meet a quad from behind. */
+static int inside_solid(const wrt_scene *s, wrt_v3 p) {
+    int back = 0, n = 0;
+    for (int x = -1; x <= 1; x++)
+        for (int y = -1; y <= 1; y++)
+            for (int z = -1; z <= 1; z++) {
+                if (!x && !y && !z) continue;
+                wrt_v3 d = v3_norm(v3(x + 0.013 * y, y + 0.017 * z, z + 0.011 * x));
+                int q = nearest_quad(s, p, d);
+                n++;
+                if (q >= 0 && v3_dot(d, s->quads[q].n) > 0) back++;
+            }
+    return 2 * back > n;
+}
+
 int wrt_compare_default_lights(const wrt_scene *s, int count, wrt_light *out) {
     /* Fractions of the box: upper half, a quarter in from the sides, spread around. */
     static const double frac[][3] = {
@@ -72,10 +112,17 @@ int wrt_compare_default_lights(const wrt_scene *s, int count, wrt_light *out) {
         base.intensity = (float)(d > 0 ? d * d : 1);
         base.outer_cone = (float)(WRT_PI / 4);
     }
-    for (int i = 0; k < count; i++, k++) {
-        const double *f = frac[i % (int)(sizeof frac / sizeof frac[0])];
+    int nfrac = (int)(sizeof frac / sizeof frac[0]);
+    for (int i = 0; k < count && i < 4 * nfrac; i++) {
+        /* Past the table, the same fractions pulled toward the centre. */
+        const double *f = frac[i % nfrac];
+        double pull = 1 - 0.2 * (i / nfrac);
+        wrt_v3 p = v3(lo.x + (0.5 + pull * (f[0] - 0.5)) * ext.x, lo.y + (0.5 + pull * (f[1] - 0.5)) * ext.y,
+                      lo.z + (0.5 + pull * (f[2] - 0.5)) * ext.z);
+        if (inside_solid(s, p)) continue;
         out[k] = base;
-        out[k].pos = v3(lo.x + f[0] * ext.x, lo.y + f[1] * ext.y, lo.z + f[2] * ext.z);
+        out[k].pos = p;
+        k++;
     }
     return k;
 }
@@ -273,6 +320,7 @@ wrt_status wrt_compare_ref_create(const wrt_scene *s, const wrt_light *lights, i
     if (c->width > 0) st = camera_hits(c);
     size_t ncell = (size_t)s->nquads * c->n * c->n * 3, npix = (size_t)c->width * c->height * 3;
     double cfl = 0, ifl = 0;
+    int nlit = 0;
     for (int li = 0; li < nlights && st == WRT_OK; li++) {
         c->cell_mean[li] = wrt_xmalloc(ncell * sizeof(double));
         c->cell_se[li] = wrt_xmalloc(ncell * sizeof(double));
@@ -289,6 +337,7 @@ wrt_status wrt_compare_ref_create(const wrt_scene *s, const wrt_light *lights, i
             }
         rel_errors(0, se2, r2, &rm, &fl, &db);
         cfl += fl;
+        nlit += r2 > 0;
         if (c->width > 0) {
             c->img[li] = wrt_xmalloc(npix * sizeof(float));
             c->img_se[li] = wrt_xmalloc(npix * sizeof(float));
@@ -315,8 +364,12 @@ wrt_status wrt_compare_ref_create(const wrt_scene *s, const wrt_light *lights, i
     c->info.cell_paths = c->opt.cell_paths;
     c->info.width = c->width; c->info.height = c->height;
     c->info.spp = c->width > 0 ? c->opt.spp : 0;
-    c->info.cell_floor = cfl / nlights;
-    c->info.image_floor = c->width > 0 ? ifl / nlights : -1;
+    if (nlit == 0) {
+        wrt_compare_ref_destroy(c);
+        return wrt_fail(WRT_ERR_INVALID_ARG, "compare: no light reaches any surface indirectly");
+    }
+    c->info.cell_floor = cfl / nlit;
+    c->info.image_floor = c->width > 0 ? ifl / nlit : -1;
     *out = c;
     return WRT_OK;
 }
@@ -432,6 +485,7 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
     wrt_relight_set_eye(r, eye);
     int n = c->n, nc = n * n, ns = c->opt.sub * c->opt.sub;
     out->nlights = c->nlights;
+    int nlit = 0;
     for (int li = 0; li < c->nlights; li++) {
         wrt_relight_set_lights(r, &c->lights[li], NULL, 1);
         wrt_relight_update(r, NULL);
@@ -478,14 +532,22 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
             }
             rel_errors(d2, se2, r2, &lr->image_rmse, &lr->image_floor, &lr->image_debiased);
         }
+        if (lr->cell_rmse == 0 && lr->cell_floor == 0) continue; /* no indirect light at all */
         wrt_compare_light_result *m = &out->mean;
-        m->cell_rmse += lr->cell_rmse / c->nlights;
-        m->cell_floor += lr->cell_floor / c->nlights;
-        m->cell_debiased += lr->cell_debiased / c->nlights;
-        m->image_rmse += lr->image_rmse / c->nlights;
-        m->image_floor += lr->image_floor / c->nlights;
-        m->image_debiased += lr->image_debiased / c->nlights;
-        m->cell_ratio += lr->cell_ratio / c->nlights;
+        m->cell_rmse += lr->cell_rmse;
+        m->cell_floor += lr->cell_floor;
+        m->cell_debiased += lr->cell_debiased;
+        m->image_rmse += lr->image_rmse;
+        m->image_floor += lr->image_floor;
+        m->image_debiased += lr->image_debiased;
+        m->cell_ratio += lr->cell_ratio;
+        nlit++;
+    }
+    if (nlit > 0) {
+        wrt_compare_light_result *m = &out->mean;
+        m->cell_rmse /= nlit; m->cell_floor /= nlit; m->cell_debiased /= nlit;
+        m->image_rmse /= nlit; m->image_floor /= nlit; m->image_debiased /= nlit;
+        m->cell_ratio /= nlit;
     }
     wrt_relight_destroy(r);
     st = wrt_compare_bench(g, &c->lights[0], eye, c->opt.bench_updates, c->opt.threads, out);

@@ -17,7 +17,8 @@
  *   debiased = sqrt(max(0, sum w ((W - R)^2 - s^2)) / sum w R^2)
  * Since E[(W - R)^2] = (W - truth)^2 + s^2, `debiased` estimates the error against the
  * exact answer, and an rmse not clearly above the floor says nothing. Figures over
- * several lights are the means of the per-light figures.
+ * several lights are the means of the per-light figures, over the lights whose reference
+ * has any indirect light (a light that lights nothing has no relative error).
  *
  * Not thread-safe: one call at a time on a wrt_compare_ref (each call uses its threads). */
 #ifndef WRT_COMPARE_H
@@ -47,7 +48,8 @@ void wrt_compare_defaults(wrt_compare_options *o);
 
 /* The default light positions: the scene's first light as it is, then count - 1 copies of
  * it (same type, colour, intensity, spot axis and cones) moved to fixed fractions of the
- * scene's bounding box, away from its walls. A scene without a light gets a white point
+ * scene's bounding box, away from its walls, skipping a position enclosed by the back of
+ * surfaces (inside a closed block, where it would light nothing). A scene without a light gets a white point
  * light of intensity diag^2 (diag: the box diagonal) at those positions. Returns the
  * number written (<= count, <= WRT_COMPARE_MAX_LIGHTS). Deterministic. */
 int wrt_compare_default_lights(const wrt_scene *s, int count, wrt_light *out);
