@@ -68,6 +68,7 @@ set grid
 set key top right box opaque
 set ylabel "relative RMSE"
 set format y "%g"
+set ytics add ("0.002" 0.002, "0.005" 0.005, "0.02" 0.02, "0.05" 0.05, "0.2" 0.2, "0.5" 0.5)
 set yrange [$ylo:$yhi]
 set offsets graph 0.08, graph 0.08, 0, 0
 cf = $cf; imf = $imf
