@@ -42,7 +42,7 @@ LIBS_GL := -lglfw -lEGL -lGL
 CORE_SRC := $(wildcard common/*.c) $(wildcard formats/*.c) $(wildcard formats/*.cpp)
 BAKE_SRC := $(filter-out precompute/main.c,$(wildcard precompute/*.c))
 PLAY_SRC := $(filter-out player/main.c,$(wildcard player/*.c) $(wildcard player/*.cpp))
-REF_SRC := $(filter-out tools/ref_main.c tools/scenegen.c tools/fuzz_%.c,$(wildcard tools/*.c))
+REF_SRC := $(filter-out tools/ref_main.c tools/scenegen.c tools/fuzz_%.c tools/compare%.c,$(wildcard tools/*.c))
 
 obj = $(patsubst %.cpp,$(BUILD)/obj/%.o,$(patsubst %.c,$(BUILD)/obj/%.o,$(1)))
 CORE_OBJ := $(call obj,$(CORE_SRC))
@@ -51,7 +51,7 @@ PLAY_OBJ := $(call obj,$(PLAY_SRC))
 REF_OBJ := $(call obj,$(REF_SRC))
 ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(REF_OBJ) $(CORE_OBJ)
 
-PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-scenegen
+PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-scenegen $(BUILD)/wrt-compare
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
@@ -80,6 +80,10 @@ $(BUILD)/wrt-play: $(call obj,player/main.c) $(PLAY_OBJ) $(CORE_OBJ)
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
 
 $(BUILD)/wrt-ref: $(call obj,tools/ref_main.c) $(REF_OBJ) $(CORE_OBJ)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
+
+$(BUILD)/wrt-compare: $(call obj,tools/compare_main.c tools/compare.c player/relight.c) $(REF_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
@@ -128,7 +132,7 @@ demo: deps
 
 study: deps
 	@$(MAKE) --no-print-directory all
-	bash tools/study.sh
+	bash tools/study.sh $(STUDY_ARGS)
 
 bench: all
 	bash tools/bench.sh

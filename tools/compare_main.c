@@ -1,0 +1,313 @@
+/* compare_main.c: wrt-compare, how far bakes are from the path-traced reference
+ * (tools/compare.h). Loads the scene, path-traces the reference once for a few light
+ * positions, compares every .gto given with it, and prints one JSON object on stdout
+ * (progress on stderr). With --max-error E it is the pipeline's accuracy check: exit
+ * code 5 when a bake's cell-average error (mean over the lights, reference noise
+ * included, so the check errs on the safe side) exceeds E. The measurement of the
+ * accuracy/time study (paper section 6). */
+#include "tools/compare.h"
+
+#include "formats/image.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void usage(FILE *f) {
+    fprintf(f,
+            "usage: wrt-compare SCENE.gltf FILE.gto [FILE.gto ...] [options]\n"
+            "Compares bakes of SCENE with a path-traced reference; prints one JSON object.\n"
+            "  --lights K          light positions: the scene's first light and K-1 moved\n"
+            "                      copies inside the bounding box (default 5)\n"
+            "  --light-pos X,Y,Z   a light position (repeatable; replaces the defaults; a copy\n"
+            "                      of the scene's first light moved there)\n"
+            "  --cells N           cells per quad side (default 4)\n"
+            "  --cell-paths N      reference paths per light over all cells (default 2000000)\n"
+            "  --pilot N           paths per cell of the pilot pass (default 32)\n"
+            "  --width W           image width, the height follows the camera (default 96)\n"
+            "  --spp N             reference paths per pixel (default 512)\n"
+            "  --sub N             camera rays per pixel side for the bake's image (default 4)\n"
+            "  --no-image          compare cell averages only\n"
+            "  --bench N           timed light changes for the median (default 21)\n"
+            "  --bench-only        no reference: only time the light changes of each bake\n"
+            "  --threads N         0 = all cores (default)\n"
+            "  --seed S            reference seed (default 1)\n"
+            "  --images PREFIX     write PREFIX_{wavelet,reference}.exr/.png of the first\n"
+            "                      light and the last bake\n"
+            "  --max-error E       exit 5 if a bake's cell rmse exceeds E (pipeline check)\n"
+            "  --per-quad          add each quad's mean indirect irradiance (first light), wavelet\n"
+            "                      and reference, to each bake's figures\n"
+            "exit codes: 0 ok, 1 usage, 2 bad scene or bake, 5 accuracy not met\n");
+}
+
+static int parse_long(const char *s, long lo, long hi, long *out) {
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (end == s || *end || errno || v < lo || v > hi) return 0;
+    *out = v;
+    return 1;
+}
+
+static int parse_double(const char *s, double *out) {
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || *end || errno || !isfinite(v)) return 0;
+    *out = v;
+    return 1;
+}
+
+static int parse3(const char *s, double v[3]) {
+    char *end;
+    for (int i = 0; i < 3; i++) {
+        errno = 0;
+        v[i] = strtod(s, &end);
+        if (end == s || errno || !isfinite(v[i])) return 0;
+        s = end;
+        if (i < 2) {
+            if (*s != ',') return 0;
+            s++;
+        }
+    }
+    return *s == 0;
+}
+
+static void json_str(FILE *f, const char *s) {
+    fputc('"', f);
+    for (; *s; s++) {
+        if (*s == '"' || *s == '\\') fprintf(f, "\\%c", *s);
+        else if ((unsigned char)*s < 0x20) fprintf(f, "\\u%04x", *s);
+        else fputc(*s, f);
+    }
+    fputc('"', f);
+}
+
+static void json_errors(FILE *f, const wrt_compare_light_result *r) {
+    printf("\"cell_rmse\":%.6g,\"cell_floor\":%.6g,\"cell_rmse_debiased\":%.6g,", r->cell_rmse, r->cell_floor,
+           r->cell_debiased);
+    printf("\"image_rmse\":%.6g,\"image_floor\":%.6g,\"image_rmse_debiased\":%.6g,\"cell_ratio\":%.6g",
+           r->image_rmse, r->image_floor, r->image_debiased, r->cell_ratio);
+    (void)f;
+}
+
+/* The first light's images as EXR (linear) and PNG (scaled by the reference's maximum,
+ * gamma 2.2) for looking at. */
+static void write_images(const char *prefix, const wrt_compare_ref *c, int w, int h) {
+    const float *img[2] = {wrt_compare_image(c, 0, 1), wrt_compare_image(c, 0, 0)};
+    const char *name[2] = {"wavelet", "reference"};
+    if (!img[0] || !img[1]) return;
+    size_t n = (size_t)w * h * 3;
+    double mx = 0;
+    for (size_t i = 0; i < n; i++) mx = img[1][i] > mx ? img[1][i] : mx;
+    double scale = mx > 0 ? 1 / mx : 1;
+    uint8_t *px = wrt_xmalloc(n);
+    for (int k = 0; k < 2; k++) {
+        char path[4096];
+        snprintf(path, sizeof path, "%s_%s.exr", prefix, name[k]);
+        if (wrt_image_write_exr(path, img[k], w, h) != WRT_OK) fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+        for (size_t i = 0; i < n; i++) {
+            double v = img[k][i] * scale;
+            v = v < 0 ? 0 : v > 1 ? 1 : pow(v, 1 / 2.2);
+            px[i] = (uint8_t)lround(v * 255);
+        }
+        snprintf(path, sizeof path, "%s_%s.png", prefix, name[k]);
+        if (wrt_image_write_rgb8(path, px, w, h) != WRT_OK) fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+    }
+    free(px);
+}
+
+int main(int argc, char **argv) {
+    const char *scene_path = NULL, *images = NULL;
+    int per_quad = 0, bench_only = 0;
+    const char **gtos = wrt_xcalloc((size_t)argc, sizeof(char *));
+    int ngto = 0, nlights_req = 5, nexplicit = 0;
+    double explicit_pos[WRT_COMPARE_MAX_LIGHTS][3];
+    double max_error = -1;
+    wrt_compare_options o = {0};
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        long x;
+        int ok = 1, takes = 1;
+        if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
+        else if (!strcmp(a, "--no-image")) { o.width = -1; takes = 0; }
+        else if (!strcmp(a, "--per-quad")) { per_quad = 1; takes = 0; }
+        else if (!strcmp(a, "--bench-only")) { bench_only = 1; takes = 0; }
+        else if (a[0] == '-' && a[1] == '-' && !v) ok = 0;
+        else if (!strcmp(a, "--lights")) { ok = parse_long(v, 1, WRT_COMPARE_MAX_LIGHTS, &x); nlights_req = (int)x; }
+        else if (!strcmp(a, "--light-pos")) {
+            ok = nexplicit < WRT_COMPARE_MAX_LIGHTS && parse3(v, explicit_pos[nexplicit]);
+            nexplicit += ok;
+        }
+        else if (!strcmp(a, "--cells")) { ok = parse_long(v, 1, 64, &x); o.cells = (int)x; }
+        else if (!strcmp(a, "--cell-paths")) ok = parse_long(v, 1, 1L << 40, &o.cell_paths);
+        else if (!strcmp(a, "--pilot")) { ok = parse_long(v, 2, 1 << 20, &x); o.pilot = (int)x; }
+        else if (!strcmp(a, "--width")) { ok = parse_long(v, 1, 4096, &x); o.width = (int)x; }
+        else if (!strcmp(a, "--spp")) { ok = parse_long(v, 2, 1 << 24, &x); o.spp = (int)x; }
+        else if (!strcmp(a, "--sub")) { ok = parse_long(v, 1, 16, &x); o.sub = (int)x; }
+        else if (!strcmp(a, "--bench")) { ok = parse_long(v, 1, 100000, &x); o.bench_updates = (int)x; }
+        else if (!strcmp(a, "--threads")) { ok = parse_long(v, 0, 256, &x); o.threads = (int)x; }
+        else if (!strcmp(a, "--seed")) { ok = parse_long(v, 1, 1L << 62, &x); o.seed = (uint64_t)x; }
+        else if (!strcmp(a, "--images")) images = v;
+        else if (!strcmp(a, "--max-error")) ok = parse_double(v, &max_error) && max_error >= 0;
+        else if (a[0] == '-') { fprintf(stderr, "wrt-compare: unknown option %s\n", a); usage(stderr); return 1; }
+        else {
+            takes = 0;
+            if (!scene_path) scene_path = a;
+            else gtos[ngto++] = a;
+        }
+        if (!ok) { fprintf(stderr, "wrt-compare: bad value for %s\n", a); return 1; }
+        i += takes;
+    }
+    if (!scene_path || ngto == 0) { usage(stderr); return 1; }
+
+    wrt_scene scene;
+    if (wrt_scene_load(scene_path, NULL, &scene) != WRT_OK) {
+        fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+        return 2;
+    }
+    wrt_light lights[WRT_COMPARE_MAX_LIGHTS];
+    int nl;
+    if (nexplicit > 0) {
+        wrt_compare_default_lights(&scene, 1, lights);
+        for (int k = 1; k < nexplicit; k++) lights[k] = lights[0];
+        for (int k = 0; k < nexplicit; k++) lights[k].pos = v3(explicit_pos[k][0], explicit_pos[k][1], explicit_pos[k][2]);
+        nl = nexplicit;
+    } else nl = wrt_compare_default_lights(&scene, nlights_req, lights);
+
+    if (bench_only) {
+        wrt_compare_defaults(&o);
+        double eye[3] = {scene.camera.pos.x, scene.camera.pos.y, scene.camera.pos.z};
+        int bad = 0;
+        printf("{\"scene\":");
+        json_str(stdout, scene_path);
+        printf(",\"bakes\":[");
+        for (int b = 0; b < ngto; b++) {
+            wrt_gto g;
+            wrt_compare_result res = {0};
+            if (wrt_gto_open(gtos[b], &g) != WRT_OK) {
+                fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+                bad = 1;
+                continue;
+            }
+            if ((int)g.nquads != scene.nquads ||
+                wrt_compare_bench(&g, &lights[0], eye, o.bench_updates, o.threads, &res) != WRT_OK) {
+                fprintf(stderr, "wrt-compare: %s: %s\n", gtos[b],
+                        (int)g.nquads != scene.nquads ? "not baked from this scene" : wrt_last_error());
+                wrt_gto_close(&g);
+                bad = 1;
+                continue;
+            }
+            printf("%s{\"file\":", b ? "," : "");
+            json_str(stdout, gtos[b]);
+            printf(",\"bytes\":%zu,\"ms_per_light_change\":%.4f,\"ms_min\":%.4f,\"ms_max\":%.4f,"
+                   "\"cpu_ms_per_light_change\":%.4f,\"bench_updates\":%d}",
+                   g.size, res.ms_update_median, res.ms_update_min, res.ms_update_max, res.cpu_ms_update_median,
+                   o.bench_updates);
+            fprintf(stderr, "wrt-compare: %s: %.2f ms per light change (median; fastest %.2f, CPU %.2f)\n",
+                    gtos[b], res.ms_update_median, res.ms_update_min, res.cpu_ms_update_median);
+            wrt_gto_close(&g);
+        }
+        printf("],\"ok\":%s}\n", bad ? "false" : "true");
+        wrt_scene_free(&scene);
+        free(gtos);
+        return bad ? 2 : 0;
+    }
+
+    fprintf(stderr, "wrt-compare: reference for %d light(s)...\n", nl);
+    wrt_compare_ref *ref;
+    wrt_status st = wrt_compare_ref_create(&scene, lights, nl, &o, &ref);
+    if (st != WRT_OK) {
+        fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+        wrt_scene_free(&scene);
+        return st == WRT_ERR_INVALID_ARG ? 1 : 2;
+    }
+    wrt_compare_ref_info info;
+    wrt_compare_ref_get_info(ref, &info);
+    wrt_compare_defaults(&o);
+    fprintf(stderr, "wrt-compare: reference %.1f s, cell floor %.4f, image floor %.4f\n", info.seconds,
+            info.cell_floor, info.image_floor);
+
+    printf("{\"scene\":");
+    json_str(stdout, scene_path);
+    printf(",\"quads\":%d,\"cells_per_side\":%d,\"lights\":[", scene.nquads, o.cells);
+    for (int k = 0; k < nl; k++)
+        printf("%s{\"type\":\"%s\",\"pos\":[%.6g,%.6g,%.6g],\"intensity\":%.6g}", k ? "," : "",
+               lights[k].type == WRT_LIGHT_SPOT ? "spot" : "point", lights[k].pos.x, lights[k].pos.y,
+               lights[k].pos.z, lights[k].intensity);
+    printf("],\"reference\":{\"seconds\":%.3f,\"rays\":%llu,\"cell_paths_per_light\":%ld,\"pilot\":%d,"
+           "\"image\":{\"width\":%d,\"height\":%d,\"spp\":%d,\"sub\":%d,\"valid_pixels\":%d},"
+           "\"cell_floor\":%.6g,\"image_floor\":%.6g},\"bakes\":[",
+           info.seconds, (unsigned long long)info.rays, info.cell_paths, o.pilot, info.width, info.height,
+           info.spp, o.sub, info.valid_pixels, info.cell_floor, info.image_floor);
+    int failed = 0, exceeded = 0;
+    for (int b = 0; b < ngto; b++) {
+        wrt_gto g;
+        if (wrt_gto_open(gtos[b], &g) != WRT_OK) {
+            fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+            failed = 1;
+            continue;
+        }
+        wrt_compare_result res;
+        st = wrt_compare_gto(ref, &g, &res);
+        if (st != WRT_OK) {
+            fprintf(stderr, "wrt-compare: %s: %s\n", gtos[b], wrt_last_error());
+            wrt_gto_close(&g);
+            failed = 1;
+            continue;
+        }
+        int over = max_error >= 0 && !(res.mean.cell_rmse <= max_error);
+        exceeded |= over;
+        fprintf(stderr, "wrt-compare: %s: cell rmse %.4f (floor %.4f), image rmse %.4f (floor %.4f), %.2f ms/light%s\n",
+                gtos[b], res.mean.cell_rmse, res.mean.cell_floor, res.mean.image_rmse, res.mean.image_floor,
+                res.ms_update_median, over ? "  ACCURACY NOT MET" : "");
+        printf("%s{\"file\":", b ? "," : "");
+        json_str(stdout, gtos[b]);
+        printf(",\"bytes\":%zu,\"functions\":%u,\"entries\":%llu,", g.size, g.nfuncs, (unsigned long long)g.nnz);
+        json_errors(stdout, &res.mean);
+        printf(",\"ms_per_light_change\":%.4f,\"ms_min\":%.4f,\"ms_max\":%.4f,\"cpu_ms_per_light_change\":%.4f,"
+               "\"bench_updates\":%d,"
+               "\"seconds\":%.3f,\"within_max_error\":%s,\"per_light\":[",
+               res.ms_update_median, res.ms_update_min, res.ms_update_max, res.cpu_ms_update_median,
+               o.bench_updates, res.seconds,
+               over ? "false" : "true");
+        for (int k = 0; k < res.nlights; k++) {
+            printf("%s{", k ? "," : "");
+            json_errors(stdout, &res.light[k]);
+            printf("}");
+        }
+        printf("]");
+        if (per_quad) {
+            printf(",\"quads\":[");
+            for (int q = 0; q < scene.nquads; q++) {
+                const double *w = wrt_compare_cells(ref, 0, q, 1, NULL), *m = wrt_compare_cells(ref, 0, q, 0, NULL);
+                double mw[3] = {0, 0, 0}, mr[3] = {0, 0, 0}, d2 = 0, r2 = 0;
+                for (int k = 0; k < o.cells * o.cells; k++)
+                    for (int c = 0; c < 3; c++) {
+                        mw[c] += w[k * 3 + c] / (o.cells * o.cells);
+                        mr[c] += m[k * 3 + c] / (o.cells * o.cells);
+                        d2 += (w[k * 3 + c] - m[k * 3 + c]) * (w[k * 3 + c] - m[k * 3 + c]);
+                        r2 += m[k * 3 + c] * m[k * 3 + c];
+                    }
+                printf("%s{\"quad\":%d,\"material\":%d,\"area\":%.5g,\"wavelet\":[%.5g,%.5g,%.5g],"
+                       "\"reference\":[%.5g,%.5g,%.5g],\"cell_rmse\":%.5g}",
+                       q ? "," : "", q, scene.quads[q].material, scene.quads[q].area, mw[0], mw[1], mw[2], mr[0],
+                       mr[1], mr[2], r2 > 0 ? sqrt(d2 / r2) : 0);
+            }
+            printf("]");
+        }
+        printf("}");
+        if (images) write_images(images, ref, info.width, info.height);
+        wrt_gto_close(&g);
+    }
+    printf("],\"max_error\":");
+    if (max_error >= 0) printf("%.6g", max_error);
+    else printf("null");
+    printf(",\"ok\":%s}\n", failed || exceeded ? "false" : "true");
+    wrt_compare_ref_destroy(ref);
+    wrt_scene_free(&scene);
+    free(gtos);
+    if (failed) return 2;
+    return exceeded ? 5 : 0;
+}

@@ -1,0 +1,202 @@
+#!/usr/bin/env bash
+# tools/study.sh: the accuracy/time study (the paper's section 6, Figures 6-9, for our
+# scenes). For each scene, bakes every quality of a sweep (wrt-bake --json; the median of
+# 3 runs when a bake takes under 10 s, else 1 run), compares all the bakes with one
+# path-traced reference (wrt-compare: relative RMSE of the indirect light over cell
+# averages and in the camera's image, the reference's error floor, the player's median
+# milliseconds per light change), and writes OUT/NAME.csv, OUT/NAME.json, OUT/NAME.png
+# (error against bake time, file bytes and milliseconds per light change, floor shown)
+# and OUT/README.md (the tables). Needs jq and gnuplot (tools/install-deps.sh).
+#
+# usage: tools/study.sh [-b BUILD] [-o OUTDIR] [-q "Q1 Q2 ..."] [-P] [SCENE.gltf ...]
+#   -P: no bakes; redraw the plots and the tables from OUTDIR/*.json
+#   -R: reuse the bakes (and their timings) in BUILD/study/NAME newer than wrt-bake and the
+#       scene, and the comparison if newer than wrt-compare and the bakes, with the same options
+#   default scenes: assets/cornell.gltf assets/maze.gltf assets/glossy.gltf, swept over
+#   1..7, 1..6 and 1..5 (the higher qualities take minutes to hours on 2 cores: see
+#   docs/study/README.md); any other scene over 1..6 unless -q is given.
+#   WRT_STUDY_COMPARE: wrt-compare's reference options (default below).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build=build; out=docs/study; quals=""; redraw=0; reuse=0
+while getopts "b:o:q:PRh" opt; do
+    case $opt in
+        b) build=$OPTARG ;;
+        o) out=$OPTARG ;;
+        q) quals=$OPTARG ;;
+        P) redraw=1 ;;
+        R) reuse=1 ;;
+        *) sed -n '2,19p' "$0"; exit 1 ;;
+    esac
+done
+shift $((OPTIND - 1))
+scenes=("$@")
+[ ${#scenes[@]} -gt 0 ] || scenes=(assets/cornell.gltf assets/maze.gltf assets/glossy.gltf)
+compare_args=${WRT_STUDY_COMPARE:---lights 5 --cell-paths 10000000 --width 64 --spp 4096 --bench 21}
+for t in jq gnuplot; do command -v $t >/dev/null || { echo "study: needs $t (make deps)" >&2; exit 1; }; done
+for p in wrt-bake wrt-compare; do [ -x "$build/$p" ] || { echo "study: no $build/$p (make all)" >&2; exit 1; }; done
+mkdir -p "$out"
+t_start=$(date +%s)
+
+default_quals() {
+    case $(basename "$1" .gltf) in
+        cornell) echo "1 2 3 4 5 6 7" ;;
+        maze) echo "1 2 3 4 5 6" ;;
+        glossy) echo "1 2 3 4 5" ;;
+        *) echo "1 2 3 4 5 6" ;;
+    esac
+}
+
+# plot_scene JSON PNG: cell and image error (log) against bake s, MB and ms (log), each
+# with the reference's floor dashed in the same colour; labels are the qualities.
+plot_scene() {
+    local json=$1 png=$2 dat name cf imf ylo yhi
+    dat=$(mktemp)
+    name=$(jq -r '.name' "$json")
+    cf=$(jq '.reference.cell_floor' "$json"); imf=$(jq '.reference.image_floor' "$json")
+    ylo=$(jq '[.reference.cell_floor, .reference.image_floor, (.rows[] | .cell_rmse, .image_rmse)]
+              | map(select(. > 0)) | min / 1.6' "$json")
+    yhi=$(jq '[.rows[] | .cell_rmse, .image_rmse] | max * 4' "$json")
+    jq -r '.rows[] | "\(.quality) \(.bake_s) \(.bytes / 1e6) \(.cpu_ms_per_light_change) \(.cell_rmse) \(.image_rmse)"' \
+        "$json" >"$dat"
+    gnuplot <<EOF
+set terminal pngcairo size 1500,470 font "sans,11"
+set output "$png.tmp"
+set multiplot layout 1,3 title "$name: relative RMSE of the indirect light against the path-traced reference (point labels: quality)"
+set logscale xy
+set grid
+set key top right box opaque
+set ylabel "relative RMSE"
+set format y "%g"
+set ytics add ("0.002" 0.002, "0.005" 0.005, "0.02" 0.02, "0.05" 0.05, "0.2" 0.2, "0.5" 0.5)
+set yrange [$ylo:$yhi]
+set offsets graph 0.08, graph 0.08, 0, 0
+cf = $cf; imf = $imf
+do for [c in "2 3 4"] {
+  col = c + 0
+  if (col == 2) { set xlabel "bake time (s)" }
+  if (col == 3) { set xlabel "file size (MB)" }
+  if (col == 4) { set xlabel "player CPU ms per light change (median)" }
+  plot "$dat" using col:5 with linespoints lw 2 pt 7 lc rgb "#1f77b4" title "cell averages", \\
+       "" using col:5:1 with labels offset 0.8,0.8 font ",9" notitle, \\
+       "" using col:6 with linespoints lw 2 pt 5 lc rgb "#d62728" title "image", \\
+       "" using col:6:1 with labels offset 0.8,0.8 font ",9" notitle, \\
+       cf with lines dt 2 lw 2 lc rgb "#1f77b4" title "reference floor (cells)", \\
+       imf with lines dt 2 lw 2 lc rgb "#d62728" title "reference floor (image)"
+}
+unset multiplot
+EOF
+    rm -f "$dat"
+    mv "$png.tmp" "$png"
+}
+
+[ $redraw -eq 0 ] || { scenes=(); for j in "$out"/*.json; do plot_scene "$j" "${j%.json}.png"; done; }
+for scene in "${scenes[@]}"; do
+    name=$(basename "$scene"); name=${name%.*}
+    work=$build/study/$name
+    mkdir -p "$work"
+    qs=${quals:-$(default_quals "$scene")}
+    gtos=()
+    echo "study: $name, qualities $qs" >&2
+    for q in $qs; do
+        gto=$work/q$q.gto
+        if [ $reuse -eq 1 ] && [ -s "$work/bake_q$q.json" ] && [ "$gto" -nt "$build/wrt-bake" ] &&
+           [ "$gto" -nt "$scene" ]; then
+            echo "study: reusing $gto" >&2
+        else
+            rm -f "$work"/bake_q$q.[1-3].json
+            "$build/wrt-bake" "$scene" -o "$gto" -q "$q" --json --quiet >"$work/bake_q$q.1.json"
+            runs=1
+            if jq -e '.seconds.total < 10' "$work/bake_q$q.1.json" >/dev/null; then
+                for r in 2 3; do
+                    "$build/wrt-bake" "$scene" -o "$gto" -q "$q" --json --quiet >"$work/bake_q$q.$r.json"
+                done
+                runs=3
+            fi
+            # The run with the median total time gives every phase's figures.
+            jq -s --argjson runs $runs 'sort_by(.seconds.total) | .[(length / 2 | floor)] + {runs: $runs}' \
+                "$work"/bake_q$q.[1-3].json >"$work/bake_q$q.json" 2>/dev/null ||
+                jq --argjson runs 1 '. + {runs: $runs}' "$work/bake_q$q.1.json" >"$work/bake_q$q.json"
+        fi
+        jq -r '"study: \(.options.quality): \(.seconds.total) s, \(.bytes) bytes (\(.runs) run(s))"' \
+            "$work/bake_q$q.json" >&2
+        gtos+=("$gto")
+    done
+    # The comparison, unless -R and the last one is newer than wrt-compare and every bake,
+    # with the same bakes and options.
+    stale=1
+    if [ $reuse -eq 1 ] && [ -s "$work/compare.json" ] && [ "$work/compare.json" -nt "$build/wrt-compare" ] &&
+       [ "$(cat "$work/compare.args" 2>/dev/null)" = "${gtos[*]} $compare_args" ]; then
+        stale=0
+        for g in "${gtos[@]}"; do [ "$work/compare.json" -nt "$g" ] || stale=1; done
+    fi
+    if [ $stale -eq 1 ]; then
+        # shellcheck disable=SC2086
+        "$build/wrt-compare" "$scene" "${gtos[@]}" $compare_args >"$work/compare.json.tmp"
+        mv "$work/compare.json.tmp" "$work/compare.json"
+        echo "${gtos[*]} $compare_args" >"$work/compare.args"
+    else
+        echo "study: reusing $work/compare.json" >&2
+    fi
+    # The player's time per light change, in a pass of its own (no path tracing beside it).
+    "$build/wrt-compare" "$scene" "${gtos[@]}" --bench-only --bench 41 >"$work/bench.json"
+
+    # One row per quality: the bake's figures and the comparison's.
+    jq -s '.' $(for q in $qs; do echo "$work/bake_q$q.json"; done) >"$work/bakes.json"
+    jq --slurpfile b "$work/bakes.json" --slurpfile t "$work/bench.json" --arg name "$name" --arg scene "$scene" \
+       --arg nproc "$(nproc)" --arg date "$(date -u +%Y-%m-%dT%H:%MZ)" --arg args "$compare_args" '
+      {scene: $scene, name: $name, date: $date, cores: ($nproc | tonumber), compare_options: $args,
+       lights: .lights, cells_per_side: .cells_per_side, reference: .reference,
+       rows: [range(0; .bakes | length) as $i | .bakes[$i] as $c | $b[0][$i] as $k | $t[0].bakes[$i] as $m |
+         {quality: $k.options.quality, bake_runs: $k.runs,
+          dto_s: $k.seconds.dto, gto_s: $k.seconds.gto, bake_s: $k.seconds.total,
+          links_dto: $k.links.dto, links_gto: $k.links.gto, links_gathered: (if $k.links.gathered > 0 then $k.links.gathered else null end),
+          bytes: $c.bytes, functions: $c.functions, entries: $c.entries,
+          ms_per_light_change: $m.ms_per_light_change, ms_min: $m.ms_min,
+          cpu_ms_per_light_change: $m.cpu_ms_per_light_change,
+          cell_rmse: $c.cell_rmse, cell_floor: $c.cell_floor, cell_rmse_debiased: $c.cell_rmse_debiased,
+          image_rmse: $c.image_rmse, image_floor: $c.image_floor, image_rmse_debiased: $c.image_rmse_debiased,
+          cell_ratio: $c.cell_ratio,
+          per_light: $c.per_light}]}' "$work/compare.json" >"$out/$name.json.tmp"
+    mv "$out/$name.json.tmp" "$out/$name.json"
+    cols="quality bake_runs dto_s gto_s bake_s links_dto links_gto links_gathered bytes functions entries ms_per_light_change ms_min cpu_ms_per_light_change cell_rmse cell_floor cell_rmse_debiased image_rmse image_floor image_rmse_debiased cell_ratio"
+    { echo "$cols" | tr ' ' ','
+      jq -r --arg cols "$cols" '.rows[] as $r | [($cols | split(" "))[] | $r[.]] | @csv' "$out/$name.json"
+    } >"$out/$name.csv.tmp"
+    mv "$out/$name.csv.tmp" "$out/$name.csv"
+
+    plot_scene "$out/$name.json" "$out/$name.png"
+    echo "study: wrote $out/$name.csv, $out/$name.json, $out/$name.png" >&2
+done
+
+# The tables, one per scene in $out (all scenes that have a JSON there).
+{
+    echo "# The accuracy/time study"
+    echo
+    echo "Generated by \`tools/study.sh\` (\`make study\`). Per quality: bake time (median of 3 runs"
+    echo "when under 10 s, else 1 run), links, bytes, the player's median milliseconds per light"
+    echo "change (projection + multiply + texture synthesis, no display), and the relative RMSE"
+    echo "of the indirect light against the path-traced reference, mean over the lights, for"
+    echo "cell averages of the incident irradiance and for the camera's image; \"floor\" is the"
+    echo "reference's own noise in the same units, \"debiased\" the error with that noise taken out."
+    echo "Light changes are timed in a pass of their own (41 changes); \"best ms\" is the fastest"
+    echo "(the median suffers first when the machine is shared), \"CPU ms\" the median CPU time of"
+    echo "the process (all threads), which other load on the machine does not inflate: the plots"
+    echo "use it; \"gathered\" is empty when the bake did not compute the gathered"
+    echo "operator (wrt-bake computes it only when it stores it or is given --report-gathered)."
+    for j in "$out"/*.json; do
+        n=$(jq -r '.name' "$j")
+        echo
+        echo "## $n"
+        echo
+        jq -r '"\(.scene), \(.lights | length) light positions, \(.cells_per_side)x\(.cells_per_side) cells per quad, reference: \(.reference.cell_paths_per_light) paths per light over the cells, image \(.reference.image.width)x\(.reference.image.height) at \(.reference.image.spp) paths per pixel (\(.reference.seconds) s); \(.cores) cores, \(.date)."' "$j"
+        echo
+        echo "![$n]($n.png)"
+        echo
+        echo "| quality | runs | DTO s | GTO s | bake s | links DTO | links GTO | gathered | MB | ms/light | best ms | CPU ms | cell rmse | floor | debiased | image rmse | floor | debiased |"
+        echo "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        jq -r '.rows[] | "| \(.quality) | \(.bake_runs) | \(.dto_s * 100 | round / 100) | \(.gto_s * 100 | round / 100) | \(.bake_s * 100 | round / 100) | \(.links_dto) | \(.links_gto) | \(.links_gathered // "–") | \(.bytes / 1e4 | round / 100) | \(.ms_per_light_change * 100 | round / 100) | \(.ms_min * 100 | round / 100) | \(.cpu_ms_per_light_change * 100 | round / 100) | \(.cell_rmse * 1000 | round / 1000) | \(.cell_floor * 1000 | round / 1000) | \(.cell_rmse_debiased * 1000 | round / 1000) | \(.image_rmse * 1000 | round / 1000) | \(.image_floor * 1000 | round / 1000) | \(.image_rmse_debiased * 1000 | round / 1000) |"' "$j"
+    done
+} >"$out/README.md.tmp"
+mv "$out/README.md.tmp" "$out/README.md"
+echo "study: done in $(( $(date +%s) - t_start )) s; tables in $out/README.md" >&2
