@@ -71,7 +71,7 @@ $(BUILD)/obj/%.o: %.cpp
 	@$(if $(Q),echo "  CXX     $<")
 	$(Q)$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
-$(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(CORE_OBJ)
+$(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(call obj,player/relight.c tools/reference.c tools/compare.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE) $(LIBS_IMG)
 

@@ -12,6 +12,7 @@
 
 #include "../formats/gto.h"
 #include "../formats/scene.h"
+#include "../tools/compare.h"
 #include "bake.h"
 
 enum { EXIT_USAGE = 1, EXIT_INPUT = 2, EXIT_OUTPUT = 3, EXIT_CANCEL = 4, EXIT_ACCURACY = 5 };
@@ -43,6 +44,10 @@ static void usage(FILE *f) {
         "  --threads N            worker threads (default: all cores); output is identical\n"
         "  --drop-bad             drop bad triangles with a warning instead of refusing\n"
         "  --reproducible         record no timings, so equal inputs give equal bytes\n"
+        "  --max-error E          check the bake against a path-traced reference (cell-average\n"
+        "                         relative RMSE of the indirect light, 2 light positions) and\n"
+        "                         fail with exit code 5, writing nothing, if it exceeds E\n"
+        "  --check-paths N        reference paths per light for --max-error (default 1000000)\n"
         "  --json                 print one JSON object with the figures on stdout\n"
         "  --progress / --quiet   force or silence the progress bar (default: on a terminal)\n"
         "  --print-config         print the resolved options and exit\n"
@@ -128,6 +133,8 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
 int main(int argc, char **argv) {
     const char *scene_path = NULL, *out_path = NULL, *scan = NULL, *info = NULL;
     int json = 0, force_progress = 0, quiet = 0, print_config = 0, reproducible = 0, drop_bad = 0;
+    double max_error = -1;
+    int check_paths = 1000000;
     wrt_bake_options o = {0};
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -146,6 +153,8 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--max-angular-level")) { ok = parse_int(a, v, 1, 3, &o.max_alevel); i++; }
         else if (!strcmp(a, "--max-bounces")) { ok = parse_int(a, v, 1, 1000000, &o.max_bounces); i++; }
         else if (!strcmp(a, "--threads")) { ok = parse_int(a, v, 1, 64, &o.threads); i++; }
+        else if (!strcmp(a, "--max-error")) { ok = parse_double(a, v, 0, 100, &max_error); i++; }
+        else if (!strcmp(a, "--check-paths")) { ok = parse_int(a, v, 1000, 1000000000, &check_paths); i++; }
         else if (!strcmp(a, "--gathered")) o.gathered = 1;
         else if (!strcmp(a, "--report-gathered")) o.report_gathered = 1;
         else if (!strcmp(a, "--no-tail")) o.no_tail = 1;
@@ -253,9 +262,17 @@ int main(int argc, char **argv) {
     gc.stats.bounces = c->bounces;
     gc.stats.energy_left = c->energy_left;
     if (!reproducible) { gc.stats.t_dto = c->t_dto; gc.stats.t_gto = c->t_gto; }
+    /* With --max-error the file is first written beside the target, checked, and only
+     * renamed over the target when it passes: a rejected bake leaves the target as it was. */
+    char check_path[4096];
+    const char *write_path = out_path;
+    if (max_error >= 0) {
+        snprintf(check_path, sizeof check_path, "%s.check", out_path);
+        write_path = check_path;
+    }
     double tw = wrt_now();
-    st = wrt_gto_write(out_path, &gc);
-    double t_write = wrt_now() - tw, t_total = wrt_now() - t0;
+    st = wrt_gto_write(write_path, &gc);
+    double t_write = wrt_now() - tw;
     free(prov);
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
@@ -263,6 +280,51 @@ int main(int argc, char **argv) {
         wrt_scene_free(&s);
         return EXIT_OUTPUT;
     }
+    double check_error = -1, check_floor = -1, t_check = 0;
+    if (max_error >= 0) {
+        double tc = wrt_now();
+        wrt_light lights[2];
+        int nl = wrt_compare_default_lights(&s, 2, lights);
+        wrt_compare_options co = {.cells = 4, .cell_paths = check_paths, .width = -1, .bench_updates = 1,
+                                  .threads = o.threads};
+        wrt_compare_ref *ref = NULL;
+        wrt_gto g;
+        wrt_compare_result cr;
+        st = wrt_compare_ref_create(&s, lights, nl, &co, &ref);
+        if (st == WRT_OK) st = wrt_gto_open(write_path, &g);
+        if (st == WRT_OK) {
+            st = wrt_compare_gto(ref, &g, &cr);
+            wrt_gto_close(&g);
+        }
+        wrt_compare_ref_destroy(ref);
+        t_check = wrt_now() - tc;
+        if (st != WRT_OK) {
+            fprintf(stderr, "wrt-bake: error: accuracy check failed to run: %s\n", wrt_last_error());
+            unlink(write_path);
+            wrt_bake_result_free(&r);
+            wrt_scene_free(&s);
+            return EXIT_OUTPUT;
+        }
+        check_error = cr.mean.cell_rmse;
+        check_floor = cr.mean.cell_floor;
+        if (check_error > max_error) {
+            fprintf(stderr, "wrt-bake: error: accuracy not met: relative RMSE of the indirect light %.4f "
+                    "(reference noise %.4f) exceeds --max-error %.4f; %s not written\n",
+                    check_error, check_floor, max_error, out_path);
+            unlink(write_path);
+            wrt_bake_result_free(&r);
+            wrt_scene_free(&s);
+            return EXIT_ACCURACY;
+        }
+        if (rename(write_path, out_path) != 0) {
+            fprintf(stderr, "wrt-bake: error: %s: cannot rename to %s: %s\n", write_path, out_path, strerror(errno));
+            unlink(write_path);
+            wrt_bake_result_free(&r);
+            wrt_scene_free(&s);
+            return EXIT_OUTPUT;
+        }
+    }
+    double t_total = wrt_now() - t0;
     long long bytes = -1;
     FILE *of = fopen(out_path, "rb");
     if (of) { fseek(of, 0, SEEK_END); bytes = ftell(of); fclose(of); }
@@ -271,6 +333,9 @@ int main(int argc, char **argv) {
         printf("{\"scene\":\"%s\",\"output\":\"%s\",\"quads\":%d,\"bytes\":%lld,", scene_path, out_path, s.nquads, bytes);
         printf("\"seconds\":{\"dto\":%.4f,\"gto\":%.4f,\"write\":%.4f,\"total\":%.4f,\"rays_thread\":%.4f},",
                c->t_dto, c->t_gto, t_write, t_total, c->t_rays);
+        if (max_error >= 0)
+            printf("\"check\":{\"cell_rmse\":%.6g,\"floor\":%.6g,\"max_error\":%.6g,\"seconds\":%.3f},",
+                   check_error, check_floor, max_error, t_check);
         printf("\"operator\":\"%s\",\"options\":", r.op_kind == WRT_GTO_OP_GATHERED ? "gathered" : "indirect");
         json_options(stdout, &o);
         printf(",");
@@ -294,6 +359,9 @@ int main(int argc, char **argv) {
         printf("  rays      traced %llu, skipped %llu (no occluder) + %llu (facing)\n",
                (unsigned long long)c->rays_traced, (unsigned long long)c->rays_skipped_unoccluded,
                (unsigned long long)c->rays_skipped_facing);
+        if (max_error >= 0)
+            printf("  check     relative RMSE %.4f against the reference (its noise %.4f), limit %.4f, %.1f s\n",
+                   check_error, check_floor, max_error, t_check);
         printf("  series    %llu bounces, energy left %.2e, tail added %.2e (ratio %.4f)\n",
                (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio);
     }

@@ -68,6 +68,13 @@ expect_exit "flipped byte: exit 2, checksum" 2 "checksum" "$bake" --info "$tmp/f
 printf 'GIF89a not a transport file at all' > "$tmp/foreign.gto"
 expect_exit "foreign file: exit 2" 2 "not a .gto" "$bake" --info "$tmp/foreign.gto"
 
+# The accuracy check: a generous limit passes and writes, an impossible one exits 5 and
+# leaves nothing.
+"$bake" assets/cornell.gltf -o "$tmp/ok.gto" --quality 2 --max-error 0.6 --check-paths 200000 --json --quiet >"$tmp/c.json" 2>"$tmp/err"
+[ $? -eq 0 ] && [ -s "$tmp/ok.gto" ] && grep -q '"check"' "$tmp/c.json" && ok "--max-error met: written, figures in JSON" || ko "--max-error met: written, figures in JSON"
+expect_exit "--max-error not met: exit 5" 5 "accuracy not met" "$bake" assets/cornell.gltf -o "$tmp/bad.gto" --quality 2 --max-error 0.001 --check-paths 200000
+[ ! -e "$tmp/bad.gto" ] && [ ! -e "$tmp/bad.gto.check" ] && ok "rejected bake leaves nothing" || ko "rejected bake leaves nothing"
+
 # An interrupted bake leaves nothing behind.
 "$gen" maze --out "$tmp/maze.gltf" >/dev/null 2>&1
 "$bake" "$tmp/maze.gltf" -o "$tmp/int.gto" --quality 6 --quiet >/dev/null 2>&1 &
