@@ -5,17 +5,22 @@
  * (5.4). Depends on formats/gto.h (the mapped operator), common/basis.h, common/brdf.h
  * and Embree 3 (shadow rays of the projection); pthreads for the parallel loops.
  *
- * Projection level rule. For light l and quad q, with d the distance from the light to
- * the closest point of the quad and D the quad's longer diagonal, the spatial grid has
- * 2^L x 2^L cells, L = ceil(log2(8 D / d)): a cell is at most d/8 wide, so 1/d^2 and the
- * cosine change by at most ~1/8 across a cell. L is clamped to [min(2, cap), cap], cap =
- * min(slevel + 1, 6) (slevel + 1 resolves every function the file holds on q); a
- * positive options.proj_level replaces the rule (same cap). L depends on geometry only,
- * never on intensity or on other lights, so each light's E is linear in that light.
- * If the samples at that level find a shadow edge on the quad (some lit, some occluded),
- * the quad is sampled again at the cap (a property of the light and the geometry only,
- * so linearity holds). Each cell takes 4 samples at fixed rotated-grid positions
- * (deterministic).
+ * Projection: an adaptive quadtree per quad and light. Every cell of the 8 x 8 grid
+ * (PROJ_MIN_LEVEL; coarser if the quad holds no finer functions) is either split
+ * unseen, while it is wider than 1/8 of its distance to the light (1/11.3 on quads with
+ * angular functions), so that 1/d^2 and the cosine change by at most ~1/8 across a
+ * cell, or sampled (4 samples at fixed rotated-grid positions, one shadow ray each). A
+ * sampled cell is split again when its samples see a shadow edge (some lit, some
+ * occluded), or on a glossy quad the light in different cells of the finest angular
+ * level, or when its neighbour sees the opposite (the edge runs between them); down to
+ * the cap, min(slevel + 1, 6), which resolves every function the file holds on the quad.
+ * A cell that is not split is a leaf: the projected function is constant over it, so
+ * its finer wavelets are exactly zero, cost no rays and are not stored (E stays sparse
+ * for the multiply). Every decision depends on the geometry and the light's position
+ * and shape only, never on its intensity, colour or other lights, so each light's E is
+ * linear in that light. A positive options.proj_level samples every cell of that level
+ * instead (edges still split down to the cap); options.proj_reference samples every cell
+ * of the cap (the tests' truth).
  *
  * Departures from the paper, by design: direct light on a glossy quad is projected onto
  * the angular functions too (the light direction evaluated in the angular Haar basis),
@@ -37,6 +42,8 @@
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
 #define PROJ_CELL_K 8.0      /* cells at most d / PROJ_CELL_K wide */
+#define PROJ_CELL_K_GLOSSY 11.3 /* on quads with angular functions (measured: error below 1.2x)*/
+#define PROJ_MIN_LEVEL 3     /* every quad is sampled on at least 8 x 8 cells (if it has them) */
 #define ANG_LEVELS 4         /* angular node levels 0..3 (basis.h: 2 bits of level) */
 #define NANG 256             /* angular functions over node levels 0..3: 4^ANG_LEVELS */
 #define BETA_RES 16          /* beta table: 16 x 16 outgoing directions */
@@ -106,6 +113,7 @@ typedef struct quad_info {
     wrt_v3 p[4], n, t, b;
     double area, diam, mean_factor; /* mean_factor: mean irradiance per root coefficient */
     int parallelogram, slevel, material, glossy;
+    int alevel;                     /* deepest angular node level among its functions */
     int tex_level;                  /* texture is 2^tex_level a side */
     size_t tex_off;                 /* offset of its texels (x3 floats) */
     int root_func;                  /* index of (spatial root, angular root), -1 if absent */
@@ -128,6 +136,11 @@ typedef struct worker {
     double *acc; size_t acc_cap;    /* glossy texel accumulator */
     float *wts; int *cells; size_t view_cap; /* glossy per-texel bilinear lookups */
     uint32_t *oidx; float *oval; size_t on, ocap; /* projection output */
+    uint32_t *pstate;               /* adaptive projection, per cell of levels 0..max: */
+    uint8_t *prefined;              /* VIS bits and angular cell; split or not */
+    uint16_t *pcells;               /* cells sampled, level by level */
+    double *pval; size_t pval_cap;  /* scaling coefficients of those cells, x slots */
+    double *pwav; size_t pwav_cap;  /* wavelets of split cells, x 3 x slots */
     double brdf_time;
 } worker;
 
@@ -257,6 +270,10 @@ static double quad_dist(const quad_info *q, wrt_v3 p) {
 /* Fixed rotated-grid sample positions within a cell (4 samples). */
 static const double cell_samples[4][2] = {{0.375, 0.125}, {0.875, 0.375}, {0.625, 0.875}, {0.125, 0.625}};
 
+/* Cells of levels 0..l-1 of a quadtree: the offset of level l in per-level arrays. */
+#define LEVEL_OFF(l) ((((size_t)1 << (2 * (l))) - 1) / 3)
+#define PROJ_TREE_CELLS LEVEL_OFF(PROJ_MAX_LEVEL + 1)
+
 static int projection_cap(const wrt_relight *r, const quad_info *q) {
     int cap = q->slevel + 1;
     if (cap > PROJ_MAX_LEVEL) cap = PROJ_MAX_LEVEL;
@@ -278,23 +295,41 @@ static int projection_level(const wrt_relight *r, const quad_info *q, double d) 
     return L > cap ? cap : L;
 }
 
+/* A light's constants, hoisted out of the per-sample loop. */
+typedef struct light_c {
+    wrt_v3 pos, dir;
+    double intensity, range, cos_outer, inv_den;
+    int spot;
+} light_c;
+
+static light_c light_consts(const wrt_light *l) {
+    light_c c;
+    c.pos = l->pos;
+    c.dir = l->dir;
+    c.intensity = l->intensity;
+    c.range = l->range;
+    c.spot = l->type == WRT_LIGHT_SPOT;
+    c.cos_outer = cos(l->outer_cone);
+    double den = cos(l->inner_cone) - c.cos_outer;
+    c.inv_den = 1.0 / (den > 1e-3 ? den : 1e-3);
+    return c;
+}
+
 /* Direct irradiance (without colour) from light l at x with unit normal n, and the
  * unit direction toward the light; 0 if none arrives (visibility excluded). */
-static double light_irradiance(const wrt_light *l, wrt_v3 x, wrt_v3 n, wrt_v3 *w, double *dist) {
+static double light_irradiance(const light_c *l, wrt_v3 x, wrt_v3 n, wrt_v3 *w, double *dist) {
     wrt_v3 dl = v3_sub(l->pos, x);
     double d2 = v3_dot(dl, dl);
     if (!(d2 > 0)) return 0;
-    double d = sqrt(d2);
-    *w = v3_scale(dl, 1.0 / d);
-    *dist = d;
-    double cosx = v3_dot(*w, n);
+    double cosx = v3_dot(dl, n);
     if (cosx <= 0) return 0;
-    double e = l->intensity * cosx / d2;
-    if (l->type == WRT_LIGHT_SPOT) {
+    double d = sqrt(d2), inv_d = 1.0 / d;
+    *w = v3_scale(dl, inv_d);
+    *dist = d;
+    double e = l->intensity * cosx * inv_d / d2;
+    if (l->spot) {
         double cd = -v3_dot(*w, l->dir); /* angle between the axis and light -> x */
-        double co = cos(l->outer_cone), ci = cos(l->inner_cone);
-        double den = ci - co > 1e-3 ? ci - co : 1e-3;
-        double s = (cd - co) / den;
+        double s = (cd - l->cos_outer) * l->inv_den;
         s = s < 0 ? 0 : s > 1 ? 1 : s;
         e *= s * s;
     }
@@ -309,69 +344,137 @@ static double light_irradiance(const wrt_light *l, wrt_v3 x, wrt_v3 n, wrt_v3 *w
 
 #define VIS_LIT 1
 #define VIS_SHADOWED 2
+#define VIS_EVAL 4      /* cell state: evaluated at this level */
+#define VIS_ANGMIX 8    /* cell state: its lit samples see the light in different angular cells */
+#define VIS_ANG_SHIFT 8 /* cell state: 1 + the angular cell of its lit samples, above this bit */
 
-/* Fills w->grid with the level-L scaling coefficients (cell average x 2^-L) of
- * E_dir V g sqrt(J/pi) for each angular slot. Returns VIS_LIT if any sample is lit,
- * VIS_SHADOWED if any sample facing the light is occluded. */
-static int sample_grid(wrt_relight *r, worker *w, const quad_info *q, const wrt_light *l, int L, int nslot,
-                       const int16_t *slot_of) {
-    int n = 1 << L;
-    size_t ncell = (size_t)n * n;
-    int angular = nslot > 1;
-    w->grid = grow(w->grid, &w->grid_cap, ncell * nslot, sizeof(double));
-    w->pyr = grow(w->pyr, &w->pyr_cap, ncell * nslot, sizeof(double));
-    memset(w->grid, 0, ncell * nslot * sizeof(double));
-    double inv_pi = 1.0 / WRT_PI, cellw = 1.0 / n;
-    int vis = 0;
-    for (int j = 0; j < n; j++)
-        for (int i = 0; i < n; i++) {
-            for (int s = 0; s < 4; s++) {
-                double u = (i + cell_samples[s][0]) * cellw, v = (j + cell_samples[s][1]) * cellw;
-                wrt_v3 x = quad_point(q, u, v), dir;
-                double d = 0;
-                double e = light_irradiance(l, x, q->n, &dir, &d);
-                if (e == 0) continue;
-                /* Shadow ray from just above the surface toward the light. */
-                wrt_v3 o = v3_sub(v3_mad(x, q->n, r->eps), r->origin);
-                struct RTCRay ray;
-                ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
-                ray.dir_x = (float)dir.x; ray.dir_y = (float)dir.y; ray.dir_z = (float)dir.z;
-                ray.tnear = 0;
-                ray.tfar = (float)(d - 2 * r->eps);
-                ray.time = 0; ray.mask = 0xFFFFFFFFu; ray.id = 0; ray.flags = 0;
-                if (ray.tfar > 0) {
-                    struct RTCIntersectContext ic;
-                    rtcInitIntersectContext(&ic);
-                    rtcOccluded1(r->scene, &ic, &ray);
-                    if (ray.tfar < 0) { vis |= VIS_SHADOWED; continue; } /* occluded: tfar = -inf */
-                }
-                double val = e * sqrt(quad_jacobian(q, u, v) * inv_pi) * 0.25 * cellw; /* 2^-L x average */
-                size_t cell = (size_t)j * n + i;
-                vis |= VIS_LIT;
-                w->grid[cell * nslot + slot_of[0]] += val;
-                if (!angular) continue;
-                double loc[3] = {v3_dot(dir, q->t), v3_dot(dir, q->b), v3_dot(dir, q->n)}, a, b;
-                wrt_concentric_inv(loc, &a, &b);
-                for (int al = 0; al < ANG_LEVELS; al++) {
-                    int an = 1 << al;
-                    int ax = (int)(a * an), ay = (int)(b * an);
-                    if (ax > an - 1) ax = an - 1;
-                    if (ay > an - 1) ay = an - 1;
-                    double su = a * an - ax < 0.5 ? 1.0 : -1.0, sv = b * an - ay < 0.5 ? 1.0 : -1.0;
-                    uint32_t k = haar_index(al, ax, ay, 1);
-                    double gv[3] = {an * su, an * sv, an * su * sv};
-                    for (int t = 0; t < 3; t++) {
-                        int sl = slot_of[k + t];
-                        if (sl >= 0) w->grid[cell * nslot + sl] += val * gv[t];
-                    }
-                }
+/* What every cell of one quad's projection shares. */
+typedef struct proj_setup {
+    const quad_info *q;
+    const light_c *lc;
+    int nslot, nsamp, grid_n, rays; /* grid_n > 0: n x n samples a cell, else cell_samples */
+    int ang_res;                    /* angular cells a side (0: diffuse quad) */
+    const int16_t *slot_of;
+} proj_setup;
+
+/* Cell (i, j) of level l: out[slot] = the level-l scaling coefficient (cell average x
+ * 2^-l) of E_dir V g sqrt(J/pi) for each angular slot, from the cell's samples.
+ * Returns VIS_LIT if a sample is lit, | VIS_SHADOWED if a sample facing the light is
+ * occluded. */
+static uint32_t eval_cell(const wrt_relight *r, const proj_setup *ps, int l, int i, int j, double *out) {
+    const quad_info *q = ps->q;
+    int nslot = ps->nslot, angular = nslot > 1, root_slot = ps->slot_of[0];
+    for (int s = 0; s < nslot; s++) out[s] = 0;
+    double cellw = ldexp(1.0, -l), wgt = cellw / ps->nsamp, inv_pi = 1.0 / WRT_PI;
+    double sj = q->parallelogram ? sqrt(q->area * inv_pi) : 0;
+    uint32_t vis = 0, ang_cell = 0;
+    for (int k = 0; k < ps->nsamp; k++) {
+        double ou = ps->grid_n ? (k % ps->grid_n + 0.5) / ps->grid_n : cell_samples[k][0];
+        double ov = ps->grid_n ? (k / ps->grid_n + 0.5) / ps->grid_n : cell_samples[k][1];
+        double u = (i + ou) * cellw, v = (j + ov) * cellw;
+        wrt_v3 x = quad_point(q, u, v), dir;
+        double d = 0;
+        double e = light_irradiance(ps->lc, x, q->n, &dir, &d);
+        if (e == 0) continue;
+        if (ps->rays) { /* shadow ray from just above the surface toward the light */
+            wrt_v3 o = v3_sub(v3_mad(x, q->n, r->eps), r->origin);
+            struct RTCRay ray;
+            ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
+            ray.dir_x = (float)dir.x; ray.dir_y = (float)dir.y; ray.dir_z = (float)dir.z;
+            ray.tnear = 0;
+            ray.tfar = (float)(d - 2 * r->eps);
+            ray.time = 0; ray.mask = 0xFFFFFFFFu; ray.id = 0; ray.flags = 0;
+            if (ray.tfar > 0) {
+                struct RTCIntersectContext ic;
+                rtcInitIntersectContext(&ic);
+                rtcOccluded1(r->scene, &ic, &ray);
+                if (ray.tfar < 0) { vis |= VIS_SHADOWED; continue; } /* occluded: tfar = -inf */
             }
         }
-    return vis;
+        double val = e * (q->parallelogram ? sj : sqrt(quad_jacobian(q, u, v) * inv_pi)) * wgt;
+        vis |= VIS_LIT;
+        if (root_slot >= 0) out[root_slot] += val;
+        if (!angular) continue;
+        double loc[3] = {v3_dot(dir, q->t), v3_dot(dir, q->b), v3_dot(dir, q->n)}, a, b;
+        wrt_concentric_inv(loc, &a, &b);
+        if (ps->ang_res) { /* where the wavelets of the finest angular level change sign */
+            int ar = ps->ang_res, ax = (int)(a * ar), ay = (int)(b * ar);
+            uint32_t id = 1 + (uint32_t)((ay < ar ? ay : ar - 1) * ar + (ax < ar ? ax : ar - 1));
+            if (ang_cell && id != ang_cell) vis |= VIS_ANGMIX;
+            ang_cell = id;
+        }
+        for (int al = 0; al < ANG_LEVELS; al++) {
+            int an = 1 << al;
+            int ax = (int)(a * an), ay = (int)(b * an);
+            if (ax > an - 1) ax = an - 1;
+            if (ay > an - 1) ay = an - 1;
+            double su = a * an - ax < 0.5 ? 1.0 : -1.0, sv = b * an - ay < 0.5 ? 1.0 : -1.0;
+            uint32_t kk = haar_index(al, ax, ay, 1);
+            double gv[3] = {an * su, an * sv, an * su * sv};
+            for (int t = 0; t < 3; t++) {
+                int sl = ps->slot_of[kk + t];
+                if (sl >= 0) out[sl] += val * gv[t];
+            }
+        }
+    }
+    return vis | (vis & VIS_ANGMIX ? 0 : ang_cell << VIS_ANG_SHIFT);
 }
 
-typedef struct proj_ctx { const wrt_light *light; double *root; } proj_ctx;
+/* Visibility class (VIS bits) of cell (x, y) of level l: its own if it was evaluated
+ * at l, else that of the evaluated ancestor (a leaf of the quadtree) that covers it. */
+static uint32_t state_at(const worker *w, int Ld, int l, int x, int y) {
+    for (int k = l; k >= Ld; k--) {
+        uint32_t s = w->pstate[LEVEL_OFF(k) + ((size_t)(y >> (l - k)) << k) + (size_t)(x >> (l - k))];
+        if (s & VIS_EVAL) return s;
+    }
+    return 0;
+}
 
+/* A cell is split when its samples see a shadow edge (some lit, some occluded) or, on
+ * a glossy quad, the light in different angular cells; or when it is all lit and a
+ * neighbour all occluded (or the reverse), or both see the light in different angular
+ * cells: the edge then runs between their samples. */
+static int needs_refine(const worker *w, int Ld, int l, int x, int y) {
+    int n = 1 << l;
+    uint32_t s = w->pstate[LEVEL_OFF(l) + (size_t)y * n + x];
+    int v = (int)(s & 3);
+    if (v == (VIS_LIT | VIS_SHADOWED) || (s & VIS_ANGMIX)) return 1;
+    if (v == 0) return 0;
+    int opp = v ^ (VIS_LIT | VIS_SHADOWED);
+    static const int nb[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+    for (int k = 0; k < 4; k++) {
+        int nx = x + nb[k][0], ny = y + nb[k][1];
+        if (nx < 0 || ny < 0 || nx >= n || ny >= n) continue;
+        uint32_t ns = state_at(w, Ld, l, nx, ny);
+        if ((int)(ns & 3) == opp) return 1;
+        if (v == VIS_LIT && (ns & 3) == VIS_LIT && !(ns & VIS_ANGMIX) && (ns >> VIS_ANG_SHIFT) != (s >> VIS_ANG_SHIFT))
+            return 1;
+    }
+    return 0;
+}
+
+/* The level rule, cell by cell: a cell is split while it is wider than 1/PROJ_CELL_K of
+ * its distance to the light, so that 1/d^2 and the cosine change by at most ~1/8
+ * across it. Geometry and the light's position only. */
+static int too_close(const proj_setup *ps, int l, int i, int j) {
+    const quad_info *q = ps->q;
+    double h = ldexp(1.0, -l), u0 = i * h, v0 = j * h;
+    wrt_v3 c00 = quad_point(q, u0, v0), c11 = quad_point(q, u0 + h, v0 + h);
+    wrt_v3 c10 = quad_point(q, u0 + h, v0), c01 = quad_point(q, u0, v0 + h);
+    double diam = fmax(v3_len(v3_sub(c11, c00)), v3_len(v3_sub(c10, c01)));
+    wrt_v3 mid = quad_point(q, u0 + 0.5 * h, v0 + 0.5 * h);
+    double d = v3_len(v3_sub(mid, ps->lc->pos)) - 0.5 * diam;
+    return (q->nang > 1 ? PROJ_CELL_K_GLOSSY : PROJ_CELL_K) * diam > d;
+}
+
+typedef struct proj_ctx { const wrt_light *light; const light_c *lc; double *root; } proj_ctx;
+
+/* Projects light ctx->light onto quad qidx's functions (section 5.1), adaptively: every
+ * cell of the level rule's grid (r->qlevel) is sampled; cells on a shadow edge are split,
+ * level by level, down to the cap. A cell that is not split is a leaf: its function is
+ * constant over it, so its finer wavelets are exactly zero and are not stored. The split
+ * decisions depend on the light's position and the geometry only (never on intensity
+ * or colour), so E stays linear in each light. */
 static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     proj_ctx *ctx = vctx;
     const wrt_light *l = ctx->light;
@@ -385,8 +488,9 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     if (gq->func_count == 0 || l->intensity == 0) return;
     /* A light on or behind the quad's plane lights nothing (exactly zero). */
     if (v3_dot(v3_sub(l->pos, q->p[0]), q->n) <= 0) return;
-    int L = r->qlevel[qidx];
-    if (L < 0) return; /* beyond the light's range */
+    int Ld = r->qlevel[qidx];
+    if (Ld < 0) return; /* beyond the light's range */
+    int cap = projection_cap(r, q);
     /* Angular slots: the root, plus the quad's angular functions when it has any. */
     int nslot = q->nang > 0 ? q->nang : 1;
     const uint16_t *alist = r->ang_list + q->ang_first;
@@ -394,25 +498,97 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     for (int a = 0; a < NANG; a++) slot_of[a] = -1;
     if (q->nang > 0) for (int s = 0; s < q->nang; s++) slot_of[alist[s]] = (int16_t)s;
     else slot_of[0] = 0;
-    int vis = sample_grid(r, w, q, l, L, nslot, slot_of);
-    /* A shadow edge crosses the quad: resolve it as finely as the file can hold. */
-    int cap = projection_cap(r, q);
-    if (vis == (VIS_LIT | VIS_SHADOWED) && L < cap) {
-        L = cap;
-        vis = sample_grid(r, w, q, l, L, nslot, slot_of);
+    proj_setup ps = {q, ctx->lc, nslot, 4, 0, 1, 0, slot_of};
+    if (q->nang > 1) ps.ang_res = 2 << q->alevel;
+    int local_rule = r->opt.proj_level == 0;
+    if (r->opt.proj_reference > 0) { /* every cell of the finest grid */
+        Ld = cap;
+        local_rule = 0;
+        if (r->opt.proj_reference > 1) ps.grid_n = r->opt.proj_reference > 8 ? 8 : r->opt.proj_reference;
+        ps.nsamp = ps.grid_n ? ps.grid_n * ps.grid_n : 4;
     }
-    if (!(vis & VIS_LIT)) return;
-    haar_analyse(w->grid, L, nslot, w->pyr);
+    if (Ld > cap) Ld = cap;
+    w->pval = grow(w->pval, &w->pval_cap, LEVEL_OFF(cap + 1) * nslot, sizeof(double));
+    w->pwav = grow(w->pwav, &w->pwav_cap, LEVEL_OFF(cap) * 3 * nslot + 1, sizeof(double));
+    memset(w->pstate + LEVEL_OFF(Ld), 0, (LEVEL_OFF(cap + 1) - LEVEL_OFF(Ld)) * sizeof(uint32_t));
+    memset(w->prefined + LEVEL_OFF(Ld), 0, LEVEL_OFF(cap + 1) - LEVEL_OFF(Ld));
+    /* Top-down: sample the cells of level l, split those on an edge. */
+    size_t lstart[PROJ_MAX_LEVEL + 2], nc = 0;
+    for (size_t c = 0; c < ((size_t)1 << (2 * Ld)); c++) w->pcells[nc++] = (uint16_t)c;
+    lstart[Ld] = 0;
+    lstart[Ld + 1] = nc;
+    int any = 0, last = Ld;
+    for (int lv = Ld;; lv++) {
+        int n = 1 << lv;
+        size_t off = LEVEL_OFF(lv);
+        size_t start = nc;
+        for (size_t k = lstart[lv]; k < lstart[lv + 1]; k++) {
+            int c = w->pcells[k], x = c % n, y = c / n, n2 = 2 * n;
+            if (local_rule && lv < cap && too_close(&ps, lv, x, y)) { /* split unseen */
+                w->prefined[off + c] = 1;
+                w->pcells[nc++] = (uint16_t)((2 * y) * n2 + 2 * x);
+                w->pcells[nc++] = (uint16_t)((2 * y) * n2 + 2 * x + 1);
+                w->pcells[nc++] = (uint16_t)((2 * y + 1) * n2 + 2 * x);
+                w->pcells[nc++] = (uint16_t)((2 * y + 1) * n2 + 2 * x + 1);
+                continue;
+            }
+            uint32_t vis = eval_cell(r, &ps, lv, x, y, w->pval + (off + c) * nslot);
+            w->pstate[off + c] = VIS_EVAL | vis;
+            any |= (int)(vis & 3);
+        }
+        last = lv;
+        if (lv == cap || r->opt.proj_reference > 0) break;
+        for (size_t k = lstart[lv]; k < lstart[lv + 1]; k++) {
+            int c = w->pcells[k], x = c % n, y = c / n, n2 = 2 * n;
+            if (!(w->pstate[off + c] & VIS_EVAL) || !needs_refine(w, Ld, lv, x, y)) continue;
+            w->prefined[off + c] = 1;
+            w->pcells[nc++] = (uint16_t)((2 * y) * n2 + 2 * x);
+            w->pcells[nc++] = (uint16_t)((2 * y) * n2 + 2 * x + 1);
+            w->pcells[nc++] = (uint16_t)((2 * y + 1) * n2 + 2 * x);
+            w->pcells[nc++] = (uint16_t)((2 * y + 1) * n2 + 2 * x + 1);
+        }
+        if (nc == start) break;
+        lstart[lv + 2] = nc;
+    }
+    if (!(any & VIS_LIT)) return;
+    /* Bottom-up: a split cell's scaling coefficient and wavelets from its children. */
+    for (int lv = last - 1; lv >= Ld; lv--) {
+        int n = 1 << lv, n2 = 2 * n;
+        size_t off = LEVEL_OFF(lv), off2 = LEVEL_OFF(lv + 1);
+        for (size_t k = lstart[lv]; k < lstart[lv + 1]; k++) {
+            int c = w->pcells[k], x = c % n, y = c / n;
+            if (!w->prefined[off + c]) continue;
+            const double *a = w->pval + (off2 + (size_t)(2 * y) * n2 + 2 * x) * nslot, *b = a + nslot;
+            const double *d = w->pval + (off2 + (size_t)(2 * y + 1) * n2 + 2 * x) * nslot, *e = d + nslot;
+            double *wv = w->pwav + (off + c) * 3 * nslot, *pv = w->pval + (off + c) * nslot;
+            for (int s = 0; s < nslot; s++) {
+                wv[s] = (a[s] - b[s] + d[s] - e[s]) * 0.5;             /* type 1: sign by cx */
+                wv[nslot + s] = (a[s] + b[s] - d[s] - e[s]) * 0.5;     /* type 2: sign by cy */
+                wv[2 * nslot + s] = (a[s] - b[s] - d[s] + e[s]) * 0.5; /* type 3 */
+                pv[s] = (a[s] + b[s] + d[s] + e[s]) * 0.5;
+            }
+        }
+    }
+    /* Levels above the rule's grid: plain Haar analysis of that grid. */
+    w->pyr = grow(w->pyr, &w->pyr_cap, ((size_t)1 << (2 * Ld)) * nslot, sizeof(double));
+    haar_analyse(w->pval + LEVEL_OFF(Ld) * nslot, Ld, nslot, w->pyr);
     const float *col = l->color;
-    double I0 = w->pyr[slot_of[0]];
+    double I0 = slot_of[0] >= 0 ? w->pyr[slot_of[0]] : 0;
     for (int c = 0; c < 3; c++) ctx->root[qidx * 3 + c] = I0 * col[c];
     /* Keep the coefficients whose function exists on the quad. */
     size_t f0 = gq->func_first, fc = gq->func_count;
     for (size_t f = f0; f < f0 + fc; f++) {
-        if (r->fn_slevel[f] >= L && r->fn_spidx[f] != 0) continue; /* finer than the grid */
         int sl = slot_of[r->fn_ang[f]];
         if (sl < 0) continue;
-        double cv = w->pyr[(size_t)r->fn_spidx[f] * nslot + sl];
+        uint32_t sp = r->fn_spidx[f];
+        int lev = r->fn_slevel[f];
+        double cv;
+        if (sp == 0 || lev < Ld) cv = w->pyr[(size_t)sp * nslot + sl];
+        else if (lev < last) { /* a wavelet of a split cell, or zero */
+            uint32_t k = sp - 1, cell = k / 3 - (uint32_t)LEVEL_OFF(lev);
+            if (!w->prefined[LEVEL_OFF(lev) + cell]) continue;
+            cv = w->pwav[((LEVEL_OFF(lev) + cell) * 3 + k % 3) * nslot + sl];
+        } else continue; /* finer than any split cell: zero */
         if (cv == 0) continue;
         if (w->on == w->ocap) {
             w->ocap = w->ocap ? 2 * w->ocap : 1024;
@@ -428,14 +604,19 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
 
 static void project_light(wrt_relight *r, light_state *ls) {
     for (int t = 0; t < r->nthreads; t++) r->workers[t].on = 0;
-    proj_ctx ctx = {&ls->light, ls->root};
+    light_c lc = light_consts(&ls->light);
+    proj_ctx ctx = {&ls->light, &lc, ls->root};
     /* Levels first (cheap), so that the loop knows its work. */
     double work = 0;
     for (uint32_t q = 0; q < r->g->nquads; q++) {
         double dmin = quad_dist(&r->qi[q], ls->light.pos);
         int L = ls->light.range > 0 && dmin >= ls->light.range ? -1 : projection_level(r, &r->qi[q], dmin);
+        if (L >= 0) work += ldexp(r->opt.proj_reference > 0 ? 4096.0 : 4.0, 2 * L);
+        if (L >= 0 && r->opt.proj_level == 0) { /* the rule is applied cell by cell from here */
+            int cap = projection_cap(r, &r->qi[q]);
+            L = cap < PROJ_MIN_LEVEL ? cap : PROJ_MIN_LEVEL;
+        }
         r->qlevel[q] = (int8_t)L;
-        if (L >= 0) work += ldexp(4.0, 2 * L);
     }
     parallel_for(r, (int)r->g->nquads, work, project_quad, &ctx);
     size_t total = 0;
@@ -710,6 +891,11 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->nthreads = r->opt.threads > 0 ? r->opt.threads : (int)(nc > 0 ? nc : 1);
     if (r->nthreads > 64) r->nthreads = 64;
     r->workers = wrt_xcalloc((size_t)r->nthreads, sizeof(worker));
+    for (int t = 0; t < r->nthreads; t++) {
+        r->workers[t].pstate = wrt_xcalloc(PROJ_TREE_CELLS, sizeof(uint32_t));
+        r->workers[t].prefined = wrt_xcalloc(PROJ_TREE_CELLS, 1);
+        r->workers[t].pcells = wrt_xcalloc(PROJ_TREE_CELLS, sizeof(uint16_t));
+    }
 
     uint32_t nq = g->nquads, nf = g->nfuncs;
     r->mats = wrt_xcalloc(g->nmaterials ? g->nmaterials : 1, sizeof(wrt_material));
@@ -773,6 +959,11 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
         for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++)
             if (r->fn_slevel[f] > sl && r->fn_slevel[f] != FN_INVALID) sl = r->fn_slevel[f];
         qi->slevel = sl;
+        for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++)
+            if (r->fn_slevel[f] != FN_INVALID && r->fn_ang[f] != 0) {
+                int al = (int)wrt_fkey_anode(g->fkeys[f]).level;
+                if (al > qi->alevel) qi->alevel = al;
+            }
         qi->tex_level = sl + 1 < r->max_tex_level ? sl + 1 : r->max_tex_level;
         qi->tex_off = tex_total;
         tex_total += ((size_t)1 << (2 * qi->tex_level)) * 3;
@@ -876,6 +1067,7 @@ void wrt_relight_destroy(wrt_relight *r) {
         for (int t = 0; t < r->nthreads; t++) {
             worker *w = &r->workers[t];
             free(w->grid); free(w->pyr); free(w->acc); free(w->wts); free(w->cells); free(w->oidx); free(w->oval);
+            free(w->pstate); free(w->prefined); free(w->pcells); free(w->pval); free(w->pwav);
         }
     free(r->workers);
     if (r->beta) for (uint32_t m = 0; m < r->g->nmaterials; m++) free(r->beta[m]);
