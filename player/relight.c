@@ -89,23 +89,29 @@ static void haar_analyse(double *v, int L, int nc, double *pyr) {
     for (int c = 0; c < nc; c++) pyr[c] = v[c];
 }
 
-/* Inverse of haar_analyse: from the pyramid (levels < L) to 4^L level-L scaling
- * coefficients in `v` (row-major, nc channels). */
-static void haar_synthesize(const double *pyr, int L, int nc, double *v) {
-    for (int c = 0; c < nc; c++) v[c] = pyr[c];
+/* Inverse of haar_analyse in single precision for 3 channels: from the pyramid `pyr`
+ * (levels < L) to `out` (4^L x 3); `v` is scratch for 4^(L-1) x 3 (at least 3). The
+ * textures are floats, and the additions of 6 levels add ~1e-6 relative. */
+static void haar_synthesize3f(const float *pyr, int L, float *v, float *out) {
+    float *first = L == 0 ? out : v;
+    first[0] = pyr[0]; first[1] = pyr[1]; first[2] = pyr[2];
     for (int l = 0; l < L; l++) {
         int n = 1 << l, n2 = 2 * n;
+        float *dst = l == L - 1 ? out : v; /* in place until the last level: backwards */
         for (int y = n - 1; y >= 0; y--)
-            for (int x = n - 1; x >= 0; x--)
-                for (int c = 0; c < nc; c++) {
-                    uint32_t k = haar_index(l, x, y, 1);
-                    double p = v[(y * n + x) * nc + c];
-                    double w1 = pyr[k * nc + c], w2 = pyr[(k + 1) * nc + c], w3 = pyr[(k + 2) * nc + c];
-                    v[((2 * y) * n2 + 2 * x) * nc + c] = 0.5 * (p + w1 + w2 + w3);
-                    v[((2 * y) * n2 + 2 * x + 1) * nc + c] = 0.5 * (p - w1 + w2 - w3);
-                    v[((2 * y + 1) * n2 + 2 * x) * nc + c] = 0.5 * (p + w1 - w2 - w3);
-                    v[((2 * y + 1) * n2 + 2 * x + 1) * nc + c] = 0.5 * (p - w1 - w2 + w3);
+            for (int x = n - 1; x >= 0; x--) {
+                uint32_t k = haar_index(l, x, y, 1);
+                const float *w1 = pyr + (size_t)k * 3, *w2 = w1 + 3, *w3 = w1 + 6;
+                float p[3] = {v[(y * n + x) * 3], v[(y * n + x) * 3 + 1], v[(y * n + x) * 3 + 2]};
+                float *a = dst + ((size_t)(2 * y) * n2 + 2 * x) * 3, *d = dst + ((size_t)(2 * y + 1) * n2 + 2 * x) * 3;
+                for (int c = 0; c < 3; c++) {
+                    float s0 = p[c] + w2[c], s1 = p[c] - w2[c]; /* upper row, lower row */
+                    a[c] = 0.5f * (s0 + w1[c] + w3[c]);
+                    a[3 + c] = 0.5f * (s0 - w1[c] - w3[c]);
+                    d[c] = 0.5f * (s1 + w1[c] - w3[c]);
+                    d[3 + c] = 0.5f * (s1 - w1[c] + w3[c]);
                 }
+            }
     }
 }
 
@@ -133,7 +139,8 @@ typedef struct light_state {
 typedef struct worker {
     double *grid; size_t grid_cap;  /* projection grids / synthesis cells */
     double *pyr; size_t pyr_cap;
-    double *acc; size_t acc_cap;    /* glossy texel accumulator */
+    float *acc; size_t acc_cap;     /* glossy texel accumulator */
+    float *fpyr, *fgrid; size_t fpyr_cap, fgrid_cap; /* synthesis pyramid and scratch */
     float *wts; int *cells; size_t view_cap; /* glossy per-texel bilinear lookups */
     uint32_t *oidx; float *oval; size_t on, ocap; /* projection output */
     uint32_t *pstate;               /* adaptive projection, per cell of levels 0..max: */
@@ -170,6 +177,7 @@ struct wrt_relight {
     float *E, *X, *Xprev; double *Xd;
     uint32_t *cols;                 /* non-zero columns of E */
     float *tex; uint8_t *tex_nonzero, *x_nonzero, *resynth;
+    float *texk;                    /* per texel of non-parallelograms: 2^Lt sqrt(pi/J)/pi */
     out_rec *recs;
     worker *workers;
 };
@@ -690,31 +698,35 @@ int wrt_relight_beta(const wrt_relight *r, int material, double a_o, double b_o,
 
 /* ------------------------------------------------------------- synthesis ---- */
 
-/* Outgoing radiance of a Lambertian quad: base/pi x irradiance, texel averages. */
+/* Outgoing radiance of a Lambertian quad: base/pi x irradiance, texel averages. The
+ * texel factor 2^Lt sqrt(pi/J)/pi (h value x sqrt(pi/J) x 1/pi) and the base colour
+ * are folded into the coefficients (synthesis is linear); a non-parallelogram's
+ * varying factor is applied after, from r->texk. */
 static void synth_diffuse(wrt_relight *r, worker *w, int qidx) {
     const quad_info *q = &r->qi[qidx];
     const wrt_gto_quad *gq = &r->g->quads[qidx];
     int Lt = q->tex_level, res = 1 << Lt;
     size_t ncell = (size_t)res * res;
-    w->grid = grow(w->grid, &w->grid_cap, ncell * 3, sizeof(double));
-    w->pyr = grow(w->pyr, &w->pyr_cap, ncell * 3, sizeof(double));
-    memset(w->pyr, 0, ncell * 3 * sizeof(double));
+    w->fpyr = grow(w->fpyr, &w->fpyr_cap, ncell * 3, sizeof(float));
+    w->fgrid = grow(w->fgrid, &w->fgrid_cap, ncell * 3 / 4 + 3, sizeof(float));
+    float *pyr = w->fpyr;
+    memset(pyr, 0, ncell * 3 * sizeof(float));
+    const float *base = r->mats[q->material].base_color;
+    float kc[3];
+    double k = q->parallelogram ? ldexp(1.0, Lt) * sqrt(WRT_PI / q->area) / WRT_PI : 1;
+    for (int c = 0; c < 3; c++) kc[c] = (float)(k * base[c]);
     for (size_t f = gq->func_first; f < (size_t)gq->func_first + gq->func_count; f++) {
         if (r->fn_ang[f] != 0) continue;
         if (r->fn_slevel[f] >= Lt && r->fn_spidx[f] != 0) continue; /* averages to 0 per texel */
-        for (int c = 0; c < 3; c++) w->pyr[(size_t)r->fn_spidx[f] * 3 + c] = r->X[f * 3 + c];
+        for (int c = 0; c < 3; c++) pyr[(size_t)r->fn_spidx[f] * 3 + c] = r->X[f * 3 + c] * kc[c];
     }
-    haar_synthesize(w->pyr, Lt, 3, w->grid);
-    const float *base = r->mats[q->material].base_color;
     float *tex = r->tex + q->tex_off;
-    double lev = ldexp(1.0, Lt);
-    for (int j = 0; j < res; j++)
-        for (int i = 0; i < res; i++) {
-            double J = quad_jacobian(q, (i + 0.5) / res, (j + 0.5) / res);
-            double k = lev * sqrt(WRT_PI / J) / WRT_PI; /* h value x sqrt(pi/J) x 1/pi */
-            size_t t = (size_t)j * res + i;
-            for (int c = 0; c < 3; c++) tex[t * 3 + c] = (float)(w->grid[t * 3 + c] * k * base[c]);
-        }
+    haar_synthesize3f(pyr, Lt, w->fgrid, tex);
+    if (!q->parallelogram) {
+        const float *tk = r->texk + q->tex_off / 3;
+        for (size_t t = 0; t < ncell; t++)
+            for (int c = 0; c < 3; c++) tex[t * 3 + c] *= tk[t];
+    }
 }
 
 /* Outgoing radiance toward the eye of a glossy quad:
@@ -726,13 +738,13 @@ static void synth_glossy(wrt_relight *r, worker *w, int qidx) {
     float *tex = r->tex + q->tex_off;
     const float *beta = r->beta[q->material];
     double t0 = wrt_now();
-    w->acc = grow(w->acc, &w->acc_cap, ncell * 3, sizeof(double));
+    w->acc = grow(w->acc, &w->acc_cap, ncell * 3, sizeof(float));
     if (ncell * 4 > w->view_cap) {
         w->view_cap = ncell * 4;
         w->cells = wrt_xrealloc(w->cells, w->view_cap * sizeof(int));
         w->wts = wrt_xrealloc(w->wts, w->view_cap * sizeof(float));
     }
-    memset(w->acc, 0, ncell * 3 * sizeof(double));
+    memset(w->acc, 0, ncell * 3 * sizeof(float));
     /* Per texel: the outgoing direction's bilinear cells in the beta table, weights
      * folded with 2^Lt / sqrt(pi J); and the box of table cells the quad looks through. */
     int bx0 = BETA_RES, bx1 = -1, by0 = BETA_RES, by1 = -1;
@@ -772,8 +784,10 @@ static void synth_glossy(wrt_relight *r, worker *w, int qidx) {
             }
     w->brdf_time += wrt_now() - t0;
     if (bx1 < 0) { memset(tex, 0, ncell * 3 * sizeof(float)); return; }
-    w->grid = grow(w->grid, &w->grid_cap, ncell * 3, sizeof(double));
-    w->pyr = grow(w->pyr, &w->pyr_cap, ncell * 3, sizeof(double));
+    w->fpyr = grow(w->fpyr, &w->fpyr_cap, ncell * 3, sizeof(float));
+    w->fgrid = grow(w->fgrid, &w->fgrid_cap, ncell * 3 / 4 + 3, sizeof(float));
+    w->grid = grow(w->grid, &w->grid_cap, ncell * 3, sizeof(double)); /* used as floats */
+    float *pyr = w->fpyr, *vals = (float *)w->grid;
     const uint16_t *alist = r->ang_list + q->ang_first;
     const uint32_t *astart = r->ang_start + q->ang_first + qidx; /* nang + 1 entries */
     for (int s = 0; s < q->nang; s++) {
@@ -788,30 +802,30 @@ static void synth_glossy(wrt_relight *r, worker *w, int qidx) {
                     }
             if (mx <= PRUNE_REL * root_max) continue;
         }
-        memset(w->pyr, 0, ncell * 3 * sizeof(double));
+        memset(pyr, 0, ncell * 3 * sizeof(float));
         int nz = 0;
         for (uint32_t p = astart[s]; p < astart[s + 1]; p++) {
             uint32_t f = r->ang_perm[p];
             if (r->fn_slevel[f] >= Lt && r->fn_spidx[f] != 0) continue;
             for (int c = 0; c < 3; c++) {
                 float xv = r->X[(size_t)f * 3 + c];
-                w->pyr[(size_t)r->fn_spidx[f] * 3 + c] = xv;
+                pyr[(size_t)r->fn_spidx[f] * 3 + c] = xv;
                 nz |= xv != 0;
             }
         }
         if (!nz) continue;
-        haar_synthesize(w->pyr, Lt, 3, w->grid);
+        haar_synthesize3f(pyr, Lt, w->fgrid, vals);
         for (size_t t = 0; t < ncell; t++) {
-            double bsum[3] = {0, 0, 0};
+            float bsum[3] = {0, 0, 0};
             for (int k = 0; k < 4; k++) {
                 const float *b = beta + ((size_t)w->cells[t * 4 + k] * NANG + g) * 3;
-                double wk = w->wts[t * 4 + k];
+                float wk = w->wts[t * 4 + k];
                 for (int c = 0; c < 3; c++) bsum[c] += wk * b[c];
             }
-            for (int c = 0; c < 3; c++) w->acc[t * 3 + c] += w->grid[t * 3 + c] * bsum[c];
+            for (int c = 0; c < 3; c++) w->acc[t * 3 + c] += vals[t * 3 + c] * bsum[c];
         }
     }
-    for (size_t t = 0; t < ncell * 3; t++) tex[t] = (float)w->acc[t];
+    memcpy(tex, w->acc, ncell * 3 * sizeof(float));
 }
 
 typedef struct synth_ctx { const int *list; } synth_ctx;
@@ -1040,6 +1054,17 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->Xd = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(double));
     r->cols = wrt_xcalloc((size_t)nf + 1, sizeof(uint32_t));
     r->tex = wrt_xcalloc(tex_total + 1, sizeof(float));
+    r->texk = wrt_xcalloc(tex_total / 3 + 1, sizeof(float));
+    for (uint32_t q = 0; q < nq; q++) {
+        const quad_info *qi = &r->qi[q];
+        if (qi->parallelogram) continue;
+        int res = 1 << qi->tex_level;
+        for (int j = 0; j < res; j++)
+            for (int i = 0; i < res; i++) {
+                double J = quad_jacobian(qi, (i + 0.5) / res, (j + 0.5) / res);
+                r->texk[qi->tex_off / 3 + (size_t)j * res + i] = (float)(res * sqrt(WRT_PI / J) / WRT_PI);
+            }
+    }
     r->tex_nonzero = wrt_xcalloc(nq + 1, 1);
     r->x_nonzero = wrt_xcalloc(nq + 1, 1);
     r->resynth = wrt_xcalloc(nq + 1, 1);
@@ -1067,6 +1092,7 @@ void wrt_relight_destroy(wrt_relight *r) {
         for (int t = 0; t < r->nthreads; t++) {
             worker *w = &r->workers[t];
             free(w->grid); free(w->pyr); free(w->acc); free(w->wts); free(w->cells); free(w->oidx); free(w->oval);
+            free(w->fpyr); free(w->fgrid);
             free(w->pstate); free(w->prefined); free(w->pcells); free(w->pval); free(w->pwav);
         }
     free(r->workers);
@@ -1074,7 +1100,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     free(r->beta);
     free(r->mats); free(r->fn_slevel); free(r->fn_ang); free(r->fn_spidx); free(r->qi);
     free(r->ang_list); free(r->ang_start); free(r->ang_perm);
-    free(r->E); free(r->X); free(r->Xprev); free(r->Xd); free(r->cols); free(r->tex); free(r->tex_nonzero); free(r->x_nonzero);
+    free(r->E); free(r->X); free(r->Xprev); free(r->Xd); free(r->cols); free(r->tex); free(r->texk); free(r->tex_nonzero); free(r->x_nonzero);
     free(r->resynth); free(r->recs); free(r->qlevel);
     free(r);
 }
