@@ -182,6 +182,7 @@ struct wrt_relight {
     /* Embree */
     RTCDevice dev; RTCScene scene;
     wrt_v3 origin; double eps, scene_diag;
+    double size;                    /* per light: bounds the distances in the culling tests */
     /* state */
     light_state *lights; int nlights, lights_cap;
     int e_dirty, eye_dirty, have_eye;
@@ -493,28 +494,28 @@ static int too_close(const proj_setup *ps, int l, int i, int j) {
  * tests are conservative (a B they keep may still miss), exact up to a 1e-9 relative
  * tolerance on points on a plane, and depend on the geometry and the light's position
  * only. */
-static int all_below(const wrt_v3 *pts, int n, wrt_v3 o, wrt_v3 nrm) {
-    double tol = 1e-9 * v3_len(nrm);
+static int all_below(const wrt_v3 *pts, int n, wrt_v3 o, wrt_v3 nrm, double size) {
+    double tol = 1e-9 * size * sqrt(v3_dot(nrm, nrm)); /* size: bounds |pts[k] - o| */
     for (int k = 0; k < n; k++)
-        if (v3_dot(v3_sub(pts[k], o), nrm) > tol * v3_len(v3_sub(pts[k], o))) return 0;
+        if (v3_dot(v3_sub(pts[k], o), nrm) > tol) return 0;
     return 1;
 }
 
 /* 1 if quad b cannot meet the pyramid of light l and the convex planar polygon c[0..3]
  * (normal n, light on its front). */
-static int pyramid_clear(const wrt_v3 c[4], wrt_v3 n, wrt_v3 l, const quad_info *b) {
+static int pyramid_clear(const wrt_v3 c[4], wrt_v3 n, wrt_v3 l, const quad_info *b, double size) {
     /* b on or behind the polygon's plane, or beyond the light's parallel plane */
-    if (all_below(b->p, 4, c[0], n) || all_below(b->p, 4, l, v3_scale(n, -1))) return 1;
+    if (all_below(b->p, 4, c[0], n, size) || all_below(b->p, 4, l, v3_scale(n, -1), size)) return 1;
     /* the pyramid's sides: inward normals (e_k - l) x (e_k+1 - l) for a ccw polygon */
     wrt_v3 mid = v3_sub(v3_scale(v3_add(v3_add(c[0], c[1]), v3_add(c[2], c[3])), 0.25), l);
     for (int k = 0; k < 4; k++) {
         wrt_v3 sn = v3_cross(v3_sub(c[(k + 1) & 3], l), v3_sub(c[k], l));
         if (v3_dot(sn, mid) < 0) sn = v3_scale(sn, -1); /* inward whatever the winding */
-        if (all_below(b->p, 4, l, sn)) return 1;
+        if (all_below(b->p, 4, l, sn, size)) return 1;
     }
     /* b's plane leaves the light and the polygon on one side */
     wrt_v3 pts[5] = {c[0], c[1], c[2], c[3], l};
-    if (all_below(pts, 5, b->p[0], b->n) || all_below(pts, 5, b->p[0], v3_scale(b->n, -1))) return 1;
+    if (all_below(pts, 5, b->p[0], b->n, size) || all_below(pts, 5, b->p[0], v3_scale(b->n, -1), size)) return 1;
     return 0;
 }
 
@@ -524,7 +525,7 @@ static int cell_clear(const wrt_relight *r, const worker *w, const quad_info *q,
     double h = ldexp(1.0, -lv), u0 = i * h, v0 = j * h;
     wrt_v3 c[4] = {quad_point(q, u0, v0), quad_point(q, u0 + h, v0), quad_point(q, u0 + h, v0 + h), quad_point(q, u0, v0 + h)};
     for (int k = 0; k < w->nocc; k++)
-        if (!pyramid_clear(c, q->n, l, &r->qi[w->occ[k]])) return 0;
+        if (!pyramid_clear(c, q->n, l, &r->qi[w->occ[k]], r->size)) return 0;
     return 1;
 }
 
@@ -544,7 +545,7 @@ static void find_occluders(const wrt_relight *r, worker *w, int a, wrt_v3 l) {
         if (cb->dmin >= ca->dmax) continue; /* entirely farther than a */
         /* radii in [0, pi/2]: their sum in [0, pi], where cos decreases */
         if (ca->cosa > -1 && cb->cosa > -1 && v3_dot(ca->u, cb->u) < ca->cosa * cb->cosa - ca->sina * cb->sina) continue;
-        if (pyramid_clear(qa->p, qa->n, l, &r->qi[b])) continue;
+        if (pyramid_clear(qa->p, qa->n, l, &r->qi[b], r->size)) continue;
         w->occ[w->nocc++] = b;
     }
 }
@@ -696,6 +697,7 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
 static void project_light(wrt_relight *r, light_state *ls) {
     for (int t = 0; t < r->nthreads; t++) r->workers[t].on = 0;
     light_c lc = light_consts(&ls->light);
+    r->size = 2 * (r->scene_diag + v3_len(v3_sub(ls->light.pos, r->origin)));
     proj_ctx ctx = {&ls->light, &lc, ls->root};
     /* Levels first (cheap), so that the loop knows its work; bounding cones. */
     double work = 0;
