@@ -92,28 +92,49 @@ static void haar_analyse(double *v, int L, int nc, double *pyr) {
     for (int c = 0; c < nc; c++) pyr[c] = v[c];
 }
 
-/* Inverse of haar_analyse in single precision for 3 channels: from the pyramid `pyr`
- * (levels < L) to `out` (4^L x 3); `v` is scratch for 4^(L-1) x 3 (at least 3). The
- * textures are floats, and the additions of 6 levels add ~1e-6 relative. */
-static void haar_synthesize3f(const float *pyr, int L, float *v, float *out) {
-    float *first = L == 0 ? out : v;
-    first[0] = pyr[0]; first[1] = pyr[1]; first[2] = pyr[2];
+/* Inverse of haar_analyse in single precision for 3 channels padded to 4 (SIMD): from
+ * the pyramid `pyr` (levels < L, 4 floats a coefficient) to `out` (4^L texels, `ostride`
+ * floats apart, 3 written); `v` is scratch for 4^(L-1) x 4 floats (at least 4); pyr and
+ * v 16-byte aligned. The textures are floats; 6 levels of additions add ~1e-6 relative. */
+static void haar_synthesize4f(const float *pyr, int L, float *v, float *out, int ostride) {
+    if (L == 0) { memcpy(out, pyr, 3 * sizeof(float)); return; }
+    memcpy(v, pyr, 4 * sizeof(float));
     for (int l = 0; l < L; l++) {
-        int n = 1 << l, n2 = 2 * n;
-        float *dst = l == L - 1 ? out : v; /* in place until the last level: backwards */
-        for (int y = n - 1; y >= 0; y--)
+        int n = 1 << l, n2 = 2 * n, last = l == L - 1;
+        for (int y = n - 1; y >= 0; y--) /* backwards: in place in v until the last level */
             for (int x = n - 1; x >= 0; x--) {
-                uint32_t k = haar_index(l, x, y, 1);
-                const float *w1 = pyr + (size_t)k * 3, *w2 = w1 + 3, *w3 = w1 + 6;
-                float p[3] = {v[(y * n + x) * 3], v[(y * n + x) * 3 + 1], v[(y * n + x) * 3 + 2]};
-                float *a = dst + ((size_t)(2 * y) * n2 + 2 * x) * 3, *d = dst + ((size_t)(2 * y + 1) * n2 + 2 * x) * 3;
-                for (int c = 0; c < 3; c++) {
-                    float s0 = p[c] + w2[c], s1 = p[c] - w2[c]; /* upper row, lower row */
-                    a[c] = 0.5f * (s0 + w1[c] + w3[c]);
-                    a[3 + c] = 0.5f * (s0 - w1[c] - w3[c]);
-                    d[c] = 0.5f * (s1 + w1[c] - w3[c]);
-                    d[3 + c] = 0.5f * (s1 - w1[c] + w3[c]);
+                const float *w1 = pyr + (size_t)haar_index(l, x, y, 1) * 4, *w2 = w1 + 4, *w3 = w1 + 8;
+                const float *pv = v + ((size_t)y * n + x) * 4;
+                float q[4][4]; /* children (2x, 2y), (2x+1, 2y), (2x, 2y+1), (2x+1, 2y+1) */
+#ifdef __SSE2__
+                __m128 p = _mm_load_ps(pv), a1 = _mm_load_ps(w1), a2 = _mm_load_ps(w2), a3 = _mm_load_ps(w3);
+                __m128 h = _mm_set1_ps(0.5f), s0 = _mm_add_ps(p, a2), s1 = _mm_sub_ps(p, a2);
+                __m128 c0 = _mm_mul_ps(h, _mm_add_ps(s0, _mm_add_ps(a1, a3)));
+                __m128 c1 = _mm_mul_ps(h, _mm_sub_ps(s0, _mm_add_ps(a1, a3)));
+                __m128 c2 = _mm_mul_ps(h, _mm_add_ps(s1, _mm_sub_ps(a1, a3)));
+                __m128 c3 = _mm_mul_ps(h, _mm_sub_ps(s1, _mm_sub_ps(a1, a3)));
+                if (!last) {
+                    float *a = v + ((size_t)(2 * y) * n2 + 2 * x) * 4, *d = v + ((size_t)(2 * y + 1) * n2 + 2 * x) * 4;
+                    _mm_store_ps(a, c0); _mm_store_ps(a + 4, c1); _mm_store_ps(d, c2); _mm_store_ps(d + 4, c3);
+                    continue;
                 }
+                _mm_storeu_ps(q[0], c0); _mm_storeu_ps(q[1], c1); _mm_storeu_ps(q[2], c2); _mm_storeu_ps(q[3], c3);
+#else
+                for (int c = 0; c < 4; c++) {
+                    float s0 = pv[c] + w2[c], s1 = pv[c] - w2[c];
+                    q[0][c] = 0.5f * (s0 + (w1[c] + w3[c]));
+                    q[1][c] = 0.5f * (s0 - (w1[c] + w3[c]));
+                    q[2][c] = 0.5f * (s1 + (w1[c] - w3[c]));
+                    q[3][c] = 0.5f * (s1 - (w1[c] - w3[c]));
+                }
+                if (!last) {
+                    float *a = v + ((size_t)(2 * y) * n2 + 2 * x) * 4, *d = v + ((size_t)(2 * y + 1) * n2 + 2 * x) * 4;
+                    memcpy(a, q[0], 16); memcpy(a + 4, q[1], 16); memcpy(d, q[2], 16); memcpy(d + 4, q[3], 16);
+                    continue;
+                }
+#endif
+                float *a = out + ((size_t)(2 * y) * n2 + 2 * x) * ostride, *d = out + ((size_t)(2 * y + 1) * n2 + 2 * x) * ostride;
+                memcpy(a, q[0], 12); memcpy(a + ostride, q[1], 12); memcpy(d, q[2], 12); memcpy(d + ostride, q[3], 12);
             }
     }
 }
@@ -124,6 +145,7 @@ typedef struct quad_info {
     wrt_v3 centre; double radius;   /* bounding sphere */
     int parallelogram, slevel, material, glossy;
     int alevel;                     /* deepest angular node level among its functions */
+    int synth_full;                 /* its angular-root functions fill the texture's pyramid */
     int tex_level;                  /* texture is 2^tex_level a side */
     size_t tex_off;                 /* offset of its texels (x3 floats) */
     int root_func;                  /* index of (spatial root, angular root), -1 if absent */
@@ -144,7 +166,7 @@ typedef struct worker {
     double *grid; size_t grid_cap;  /* projection grids / synthesis cells */
     double *pyr; size_t pyr_cap;
     float *acc; size_t acc_cap;     /* glossy texel accumulator */
-    float *fpyr, *fgrid; size_t fpyr_cap, fgrid_cap; /* synthesis pyramid and scratch */
+    float *fpyr, *fgrid; size_t fpyr_cap, fgrid_cap; /* synthesis pyramid and scratch, x 4 */
     float *wts; int *cells; size_t view_cap; /* glossy per-texel bilinear lookups */
     uint32_t *oidx; float *oval; size_t on, ocap; /* projection output */
     uint32_t *pstate;               /* adaptive projection, per cell of levels 0..max: */
@@ -179,6 +201,7 @@ struct wrt_relight {
     uint32_t *ang_perm;             /* functions of each quad grouped by angular index */
     uint16_t *ang_list;             /* present angular indices per quad (qi.ang_first) */
     uint32_t *ang_start;            /* for each (quad, present angular): range in ang_perm, +1 */
+    uint8_t *ang_full;              /* for each (quad, present angular): fills the pyramid */
     /* Embree */
     RTCDevice dev; RTCScene scene;
     wrt_v3 origin; double eps, scene_diag;
@@ -803,10 +826,10 @@ static void synth_diffuse(wrt_relight *r, worker *w, int qidx) {
     const wrt_gto_quad *gq = &r->g->quads[qidx];
     int Lt = q->tex_level, res = 1 << Lt;
     size_t ncell = (size_t)res * res;
-    w->fpyr = grow(w->fpyr, &w->fpyr_cap, ncell * 3, sizeof(float));
-    w->fgrid = grow(w->fgrid, &w->fgrid_cap, ncell * 3 / 4 + 3, sizeof(float));
+    w->fpyr = grow(w->fpyr, &w->fpyr_cap, ncell * 4, sizeof(float));
+    w->fgrid = grow(w->fgrid, &w->fgrid_cap, ncell + 4, sizeof(float));
     float *pyr = w->fpyr;
-    memset(pyr, 0, ncell * 3 * sizeof(float));
+    if (!q->synth_full) memset(pyr, 0, ncell * 4 * sizeof(float)); /* else every slot is written */
     const float *base = r->mats[q->material].base_color;
     float kc[3];
     double k = q->parallelogram ? ldexp(1.0, Lt) * sqrt(WRT_PI / q->area) / WRT_PI : 1;
@@ -814,10 +837,12 @@ static void synth_diffuse(wrt_relight *r, worker *w, int qidx) {
     for (size_t f = gq->func_first; f < (size_t)gq->func_first + gq->func_count; f++) {
         if (r->fn_ang[f] != 0) continue;
         if (r->fn_slevel[f] >= Lt && r->fn_spidx[f] != 0) continue; /* averages to 0 per texel */
-        for (int c = 0; c < 3; c++) pyr[(size_t)r->fn_spidx[f] * 3 + c] = r->X[f * 3 + c] * kc[c];
+        float *pc = pyr + (size_t)r->fn_spidx[f] * 4;
+        for (int c = 0; c < 3; c++) pc[c] = r->X[f * 3 + c] * kc[c];
+        pc[3] = 0;
     }
     float *tex = r->tex + q->tex_off;
-    haar_synthesize3f(pyr, Lt, w->fgrid, tex);
+    haar_synthesize4f(pyr, Lt, w->fgrid, tex, 3);
     if (!q->parallelogram) {
         const float *tk = r->texk + q->tex_off / 3;
         for (size_t t = 0; t < ncell; t++)
@@ -880,8 +905,8 @@ static void synth_glossy(wrt_relight *r, worker *w, int qidx) {
             }
     w->brdf_time += wrt_now() - t0;
     if (bx1 < 0) { memset(tex, 0, ncell * 3 * sizeof(float)); return; }
-    w->fpyr = grow(w->fpyr, &w->fpyr_cap, ncell * 3, sizeof(float));
-    w->fgrid = grow(w->fgrid, &w->fgrid_cap, ncell * 3 / 4 + 3, sizeof(float));
+    w->fpyr = grow(w->fpyr, &w->fpyr_cap, ncell * 4, sizeof(float));
+    w->fgrid = grow(w->fgrid, &w->fgrid_cap, ncell + 4, sizeof(float));
     w->grid = grow(w->grid, &w->grid_cap, ncell * 3, sizeof(double)); /* used as floats */
     float *pyr = w->fpyr, *vals = (float *)w->grid;
     const uint16_t *alist = r->ang_list + q->ang_first;
@@ -898,19 +923,21 @@ static void synth_glossy(wrt_relight *r, worker *w, int qidx) {
                     }
             if (mx <= PRUNE_REL * root_max) continue;
         }
-        memset(pyr, 0, ncell * 3 * sizeof(float));
+        if (!r->ang_full[q->ang_first + s]) memset(pyr, 0, ncell * 4 * sizeof(float));
         int nz = 0;
         for (uint32_t p = astart[s]; p < astart[s + 1]; p++) {
             uint32_t f = r->ang_perm[p];
             if (r->fn_slevel[f] >= Lt && r->fn_spidx[f] != 0) continue;
+            float *pc = pyr + (size_t)r->fn_spidx[f] * 4;
             for (int c = 0; c < 3; c++) {
                 float xv = r->X[(size_t)f * 3 + c];
-                pyr[(size_t)r->fn_spidx[f] * 3 + c] = xv;
+                pc[c] = xv;
                 nz |= xv != 0;
             }
+            pc[3] = 0;
         }
         if (!nz) continue;
-        haar_synthesize3f(pyr, Lt, w->fgrid, vals);
+        haar_synthesize4f(pyr, Lt, w->fgrid, vals, 3);
         for (size_t t = 0; t < ncell; t++) {
             float bsum[3] = {0, 0, 0};
             for (int k = 0; k < 4; k++) {
@@ -1108,6 +1135,7 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     }
     r->ang_list = wrt_xcalloc(ang_total ? ang_total : 1, sizeof(uint16_t));
     r->ang_start = wrt_xcalloc(ang_total + nq + 1, sizeof(uint32_t));
+    r->ang_full = wrt_xcalloc(ang_total + 1, 1);
     r->ang_perm = wrt_xcalloc(nf ? nf : 1, sizeof(uint32_t));
     sort_ang = r->fn_ang;
     for (uint32_t q = 0; q < nq; q++) {
@@ -1124,6 +1152,16 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
             if (s < 0 || al[s] != a) { s++; al[s] = (uint16_t)a; as[s] = gq->func_first + k; }
         }
         as[qi->nang] = gq->func_first + gq->func_count;
+        /* Whether a synthesis pyramid (levels < tex_level) is filled without clearing. */
+        for (int a = 0; a < qi->nang; a++) {
+            size_t cnt = 0;
+            for (uint32_t p = as[a]; p < as[a + 1]; p++) {
+                uint32_t f = r->ang_perm[p];
+                cnt += r->fn_slevel[f] != FN_INVALID && (r->fn_spidx[f] == 0 || r->fn_slevel[f] < qi->tex_level);
+            }
+            r->ang_full[qi->ang_first + a] = cnt == ((size_t)1 << (2 * qi->tex_level));
+            if (al[a] == 0) qi->synth_full = r->ang_full[qi->ang_first + a];
+        }
     }
     /* Embree scene of every quad, in a frame centred on the scene (float precision). */
     r->origin = nq ? v3_scale(v3_add(bmin, bmax), 0.5) : v3(0, 0, 0);
@@ -1208,7 +1246,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (r->beta) for (uint32_t m = 0; m < r->g->nmaterials; m++) free(r->beta[m]);
     free(r->beta);
     free(r->mats); free(r->fn_slevel); free(r->fn_ang); free(r->fn_spidx); free(r->qi);
-    free(r->ang_list); free(r->ang_start); free(r->ang_perm);
+    free(r->ang_list); free(r->ang_start); free(r->ang_full); free(r->ang_perm);
     free(r->E); free(r->X); free(r->Xprev); free(r->X4); free(r->cols); free(r->tex); free(r->texk); free(r->tex_nonzero); free(r->x_nonzero);
     free(r->resynth); free(r->recs); free(r->qlevel); free(r->cones);
     free(r);
