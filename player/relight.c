@@ -160,6 +160,8 @@ typedef struct light_state {
     uint32_t *idx; float *val;      /* sparse E at scale 1: function index, RGB */
     size_t n, cap;
     double *root;                   /* nquads x 3: projected (root, root) coefficient */
+    double last_work;               /* its last projection's work (samples and rays, in
+                                     * parallel_for's units): an estimate of the next one's */
 } light_state;
 
 typedef struct worker {
@@ -178,6 +180,7 @@ typedef struct worker {
     double *pval; size_t pval_cap;  /* scaling coefficients of those cells, x slots */
     double *pwav; size_t pwav_cap;  /* wavelets of split cells, x 3 x slots */
     double brdf_time;
+    long nsamples;                  /* samples and shadow rays of the projection */
 } worker;
 
 typedef struct out_rec { int worker; size_t start, count; } out_rec;
@@ -240,11 +243,11 @@ static void *job_run(void *p) {
  * calling thread: starting threads, and waiting for the slowest, would cost more. */
 #define PARALLEL_MIN_WORK 10000.0
 
-/* Runs fn over items 0..n-1 on up to nthreads threads (one if `work` is small). Results
- * must not depend on which worker ran an item (callers write per item, or merge per
- * item in item order). */
-static void parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ctx) {
-    if (n <= 0) return;
+/* Runs fn over items 0..n-1 on up to nthreads threads (one if `work` is small); returns
+ * the number of threads used. Results must not depend on which worker ran an item
+ * (callers write per item, or merge per item in item order). */
+static int parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ctx) {
+    if (n <= 0) return 0;
     job j = {r, fn, ctx, 0, n};
     int nt = r->nthreads < n ? r->nthreads : n;
     if (work < PARALLEL_MIN_WORK) nt = 1;
@@ -259,6 +262,7 @@ static void parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ct
     args[0].j = &j; args[0].wid = 0;
     job_run(&args[0]);
     for (int t = 1; t <= started; t++) pthread_join(th[t], NULL);
+    return started + 1;
 }
 
 static void *grow(void *p, size_t *cap, size_t need, size_t elem) {
@@ -406,7 +410,8 @@ typedef struct proj_setup {
  * 2^-l) of E_dir V g sqrt(J/pi) for each angular slot, from the cell's samples.
  * Returns VIS_LIT if a sample is lit, | VIS_SHADOWED if a sample facing the light is
  * occluded. */
-static uint32_t eval_cell(const wrt_relight *r, const proj_setup *ps, int l, int i, int j, int rays, double *out) {
+static uint32_t eval_cell(const wrt_relight *r, worker *w, const proj_setup *ps, int l, int i, int j, int rays, double *out) {
+    w->nsamples += ps->nsamp * (1 + rays);
     const quad_info *q = ps->q;
     int nslot = ps->nslot, angular = nslot > 1, root_slot = ps->slot_of[0];
     for (int s = 0; s < nslot; s++) out[s] = 0;
@@ -647,7 +652,7 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
                 w->pcells[nc++] = (uint16_t)((2 * y + 1) * n2 + 2 * x + 1);
                 continue;
             }
-            uint32_t vis = eval_cell(r, &ps, lv, x, y, !clear, w->pval + (off + c) * nslot);
+            uint32_t vis = eval_cell(r, w, &ps, lv, x, y, !clear, w->pval + (off + c) * nslot);
             w->pstate[off + c] = VIS_EVAL | vis;
             any |= (int)(vis & 3);
         }
@@ -745,7 +750,11 @@ static void project_light(wrt_relight *r, light_state *ls) {
         }
         r->qlevel[q] = (int8_t)L;
     }
+    if (ls->last_work > 0) work = ls->last_work; /* the light moves a little: as much as last time */
+    for (int t = 0; t < r->nthreads; t++) r->workers[t].nsamples = 0;
     parallel_for(r, (int)r->g->nquads, work, project_quad, &ctx);
+    ls->last_work = 0;
+    for (int t = 0; t < r->nthreads; t++) ls->last_work += 0.25 * (double)r->workers[t].nsamples; /* ~50 ns each */
     size_t total = 0;
     for (uint32_t q = 0; q < r->g->nquads; q++) total += r->recs[q].count;
     if (total > ls->cap) {
@@ -963,6 +972,7 @@ static void synth_item(wrt_relight *r, worker *w, int item, void *vctx) {
 /* -------------------------------------------------------------- multiply ---- */
 
 #define MUL_MAX_CHUNKS 256
+#define MUL_PARALLEL_ENTRIES 3e7 /* entries touched above which the multiply is split */
 
 typedef struct mul_ctx { const uint32_t *cols; uint32_t ncols; int nchunk; } mul_ctx;
 
@@ -1329,10 +1339,12 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
             entries += (double)(g->col_start[c + 1] - g->col_start[c]);
         }
         mul_ctx mc = {r->cols, ncols, 0};
-        int nchunk = r->nthreads;
+        /* Bound by memory: threads that stream halves of the same columns were measured
+         * slower than one on 2 cores (maze 4.2 vs 2.8 ms, glossy 14 vs 11 ms). */
+        int nchunk = entries > MUL_PARALLEL_ENTRIES ? r->nthreads : 1;
         if (nchunk > MUL_MAX_CHUNKS) nchunk = MUL_MAX_CHUNKS;
         mc.nchunk = nchunk;
-        parallel_for(r, nchunk, (entries + nf) / 50, mul_chunk, &mc); /* ~4 ns an entry */
+        parallel_for(r, nchunk, 1e9, mul_chunk, &mc);
         memcpy(r->Xprev, r->X, (size_t)nf * 3 * sizeof(float)); /* X keeps its address */
         for (size_t f = 0; f < nf; f++)
             for (int c = 0; c < 3; c++) r->X[f * 3 + c] = r->X4[f * 4 + c];
@@ -1374,7 +1386,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     double work = 0;
     for (int k = 0; k < nsynth; k++) {
         const quad_info *qi = &r->qi[list[k]];
-        work += ldexp(qi->glossy ? 0.3 * qi->nang : 0.1, 2 * qi->tex_level); /* ~20 ns a texel */
+        work += ldexp(qi->glossy ? 0.3 * qi->nang : 0.015, 2 * qi->tex_level); /* ~3 ns a diffuse texel */
     }
     parallel_for(r, nsynth, work, synth_item, &sc);
     double t4 = wrt_now(), bt = 0;
