@@ -20,7 +20,10 @@
  * and shape only, never on its intensity, colour or other lights, so each light's E is
  * linear in that light. A positive options.proj_level samples every cell of that level
  * instead (edges still split down to the cap); options.proj_reference samples every cell
- * of the cap (the tests' truth).
+ * of the cap (the tests' truth). Shadow rays are traced only where a quad may shade the
+ * cell: bounding cones from the light, then a separation test against the pyramid from
+ * the light to the quad (and to each coarse cell); quads wholly outside a spot's cone or
+ * beyond its range are skipped. The same exact zeros and values as tracing every ray.
  *
  * Departures from the paper, by design: direct light on a glossy quad is projected onto
  * the angular functions too (the light direction evaluated in the angular Haar basis),
@@ -601,6 +604,11 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     if (v3_dot(v3_sub(l->pos, q->p[0]), q->n) <= 0) return;
     int Ld = r->qlevel[qidx];
     if (Ld < 0) return; /* beyond the light's range */
+    if (l->type == WRT_LIGHT_SPOT && r->cones[qidx].cosa > -1) { /* wholly outside the spot's cone */
+        const light_cone *cn = &r->cones[qidx];
+        double co = ctx->lc->cos_outer, so = sqrt(fmax(0, 1 - co * co));
+        if (l->outer_cone < WRT_PI / 2 && v3_dot(l->dir, cn->u) < co * cn->cosa - so * cn->sina) return;
+    }
     int cap = projection_cap(r, q);
     /* Angular slots: the root, plus the quad's angular functions when it has any. */
     int nslot = q->nang > 0 ? q->nang : 1;
