@@ -739,7 +739,7 @@ int main(int argc, char **argv) {
         o.width = a.plat->fb_width;
         o.height = a.plat->fb_height;
     }
-    wrt_relight_options ro = {0, o.max_tex_res, o.threads};
+    wrt_relight_options ro = {.max_tex_res = o.max_tex_res, .threads = o.threads};
     if ((s = wrt_relight_create(&a.g, &ro, &a.rl))) {
         fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         rc = EXIT_RUNTIME;

@@ -5,17 +5,25 @@
  * (5.4). Depends on formats/gto.h (the mapped operator), common/basis.h, common/brdf.h
  * and Embree 3 (shadow rays of the projection); pthreads for the parallel loops.
  *
- * Projection level rule. For light l and quad q, with d the distance from the light to
- * the closest point of the quad and D the quad's longer diagonal, the spatial grid has
- * 2^L x 2^L cells, L = ceil(log2(8 D / d)): a cell is at most d/8 wide, so 1/d^2 and the
- * cosine change by at most ~1/8 across a cell. L is clamped to [min(2, cap), cap], cap =
- * min(slevel + 1, 6) (slevel + 1 resolves every function the file holds on q); a
- * positive options.proj_level replaces the rule (same cap). L depends on geometry only,
- * never on intensity or on other lights, so each light's E is linear in that light.
- * If the samples at that level find a shadow edge on the quad (some lit, some occluded),
- * the quad is sampled again at the cap (a property of the light and the geometry only,
- * so linearity holds). Each cell takes 4 samples at fixed rotated-grid positions
- * (deterministic).
+ * Projection: an adaptive quadtree per quad and light. Every cell of the 8 x 8 grid
+ * (PROJ_MIN_LEVEL; coarser if the quad holds no finer functions) is either split
+ * unseen, while it is wider than 1/8 of its distance to the light (1/11.3 on quads with
+ * angular functions), so that 1/d^2 and the cosine change by at most ~1/8 across a
+ * cell, or sampled (4 samples at fixed rotated-grid positions, one shadow ray each). A
+ * sampled cell is split again when its samples see a shadow edge (some lit, some
+ * occluded), or on a glossy quad the light in different cells of the finest angular
+ * level, or when its neighbour sees the opposite (the edge runs between them); down to
+ * the cap, min(slevel + 1, 6), which resolves every function the file holds on the quad.
+ * A cell that is not split is a leaf: the projected function is constant over it, so
+ * its finer wavelets are exactly zero, cost no rays and are not stored (E stays sparse
+ * for the multiply). Every decision depends on the geometry and the light's position
+ * and shape only, never on its intensity, colour or other lights, so each light's E is
+ * linear in that light. A positive options.proj_level samples every cell of that level
+ * instead (edges still split down to the cap); options.proj_reference samples every cell
+ * of the cap (the tests' truth). Shadow rays are traced only where a quad may shade the
+ * cell: bounding cones from the light, then a separation test against the pyramid from
+ * the light to the quad (and to each coarse cell); quads wholly outside a spot's cone or
+ * beyond its range are skipped. The same exact zeros and values as tracing every ray.
  *
  * Departures from the paper, by design: direct light on a glossy quad is projected onto
  * the angular functions too (the light direction evaluated in the angular Haar basis),
@@ -26,6 +34,9 @@
 #include "relight.h"
 
 #include <embree3/rtcore.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -37,6 +48,8 @@
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
 #define PROJ_CELL_K 8.0      /* cells at most d / PROJ_CELL_K wide */
+#define PROJ_CELL_K_GLOSSY 11.3 /* on quads with angular functions (measured: error below 1.2x)*/
+#define PROJ_MIN_LEVEL 3     /* every quad is sampled on at least 8 x 8 cells (if it has them) */
 #define ANG_LEVELS 4         /* angular node levels 0..3 (basis.h: 2 bits of level) */
 #define NANG 256             /* angular functions over node levels 0..3: 4^ANG_LEVELS */
 #define BETA_RES 16          /* beta table: 16 x 16 outgoing directions */
@@ -82,30 +95,60 @@ static void haar_analyse(double *v, int L, int nc, double *pyr) {
     for (int c = 0; c < nc; c++) pyr[c] = v[c];
 }
 
-/* Inverse of haar_analyse: from the pyramid (levels < L) to 4^L level-L scaling
- * coefficients in `v` (row-major, nc channels). */
-static void haar_synthesize(const double *pyr, int L, int nc, double *v) {
-    for (int c = 0; c < nc; c++) v[c] = pyr[c];
+/* Inverse of haar_analyse in single precision for 3 channels padded to 4 (SIMD): from
+ * the pyramid `pyr` (levels < L, 4 floats a coefficient) to `out` (4^L texels, `ostride`
+ * floats apart, 3 written); `v` is scratch for 4^(L-1) x 4 floats (at least 4); pyr and
+ * v 16-byte aligned. The textures are floats; 6 levels of additions add ~1e-6 relative. */
+static void haar_synthesize4f(const float *pyr, int L, float *v, float *out, int ostride) {
+    if (L == 0) { memcpy(out, pyr, 3 * sizeof(float)); return; }
+    memcpy(v, pyr, 4 * sizeof(float));
     for (int l = 0; l < L; l++) {
-        int n = 1 << l, n2 = 2 * n;
-        for (int y = n - 1; y >= 0; y--)
-            for (int x = n - 1; x >= 0; x--)
-                for (int c = 0; c < nc; c++) {
-                    uint32_t k = haar_index(l, x, y, 1);
-                    double p = v[(y * n + x) * nc + c];
-                    double w1 = pyr[k * nc + c], w2 = pyr[(k + 1) * nc + c], w3 = pyr[(k + 2) * nc + c];
-                    v[((2 * y) * n2 + 2 * x) * nc + c] = 0.5 * (p + w1 + w2 + w3);
-                    v[((2 * y) * n2 + 2 * x + 1) * nc + c] = 0.5 * (p - w1 + w2 - w3);
-                    v[((2 * y + 1) * n2 + 2 * x) * nc + c] = 0.5 * (p + w1 - w2 - w3);
-                    v[((2 * y + 1) * n2 + 2 * x + 1) * nc + c] = 0.5 * (p - w1 - w2 + w3);
+        int n = 1 << l, n2 = 2 * n, last = l == L - 1;
+        for (int y = n - 1; y >= 0; y--) /* backwards: in place in v until the last level */
+            for (int x = n - 1; x >= 0; x--) {
+                const float *w1 = pyr + (size_t)haar_index(l, x, y, 1) * 4, *w2 = w1 + 4, *w3 = w1 + 8;
+                const float *pv = v + ((size_t)y * n + x) * 4;
+                float q[4][4]; /* children (2x, 2y), (2x+1, 2y), (2x, 2y+1), (2x+1, 2y+1) */
+#ifdef __SSE2__
+                __m128 p = _mm_load_ps(pv), a1 = _mm_load_ps(w1), a2 = _mm_load_ps(w2), a3 = _mm_load_ps(w3);
+                __m128 h = _mm_set1_ps(0.5f), s0 = _mm_add_ps(p, a2), s1 = _mm_sub_ps(p, a2);
+                __m128 c0 = _mm_mul_ps(h, _mm_add_ps(s0, _mm_add_ps(a1, a3)));
+                __m128 c1 = _mm_mul_ps(h, _mm_sub_ps(s0, _mm_add_ps(a1, a3)));
+                __m128 c2 = _mm_mul_ps(h, _mm_add_ps(s1, _mm_sub_ps(a1, a3)));
+                __m128 c3 = _mm_mul_ps(h, _mm_sub_ps(s1, _mm_sub_ps(a1, a3)));
+                if (!last) {
+                    float *a = v + ((size_t)(2 * y) * n2 + 2 * x) * 4, *d = v + ((size_t)(2 * y + 1) * n2 + 2 * x) * 4;
+                    _mm_store_ps(a, c0); _mm_store_ps(a + 4, c1); _mm_store_ps(d, c2); _mm_store_ps(d + 4, c3);
+                    continue;
                 }
+                _mm_storeu_ps(q[0], c0); _mm_storeu_ps(q[1], c1); _mm_storeu_ps(q[2], c2); _mm_storeu_ps(q[3], c3);
+#else
+                for (int c = 0; c < 4; c++) {
+                    float s0 = pv[c] + w2[c], s1 = pv[c] - w2[c];
+                    q[0][c] = 0.5f * (s0 + (w1[c] + w3[c]));
+                    q[1][c] = 0.5f * (s0 - (w1[c] + w3[c]));
+                    q[2][c] = 0.5f * (s1 + (w1[c] - w3[c]));
+                    q[3][c] = 0.5f * (s1 - (w1[c] - w3[c]));
+                }
+                if (!last) {
+                    float *a = v + ((size_t)(2 * y) * n2 + 2 * x) * 4, *d = v + ((size_t)(2 * y + 1) * n2 + 2 * x) * 4;
+                    memcpy(a, q[0], 16); memcpy(a + 4, q[1], 16); memcpy(d, q[2], 16); memcpy(d + 4, q[3], 16);
+                    continue;
+                }
+#endif
+                float *a = out + ((size_t)(2 * y) * n2 + 2 * x) * ostride, *d = out + ((size_t)(2 * y + 1) * n2 + 2 * x) * ostride;
+                memcpy(a, q[0], 12); memcpy(a + ostride, q[1], 12); memcpy(d, q[2], 12); memcpy(d + ostride, q[3], 12);
+            }
     }
 }
 
 typedef struct quad_info {
     wrt_v3 p[4], n, t, b;
     double area, diam, mean_factor; /* mean_factor: mean irradiance per root coefficient */
+    wrt_v3 centre; double radius;   /* bounding sphere */
     int parallelogram, slevel, material, glossy;
+    int alevel;                     /* deepest angular node level among its functions */
+    int synth_full;                 /* its angular-root functions fill the texture's pyramid */
     int tex_level;                  /* texture is 2^tex_level a side */
     size_t tex_off;                 /* offset of its texels (x3 floats) */
     int root_func;                  /* index of (spatial root, angular root), -1 if absent */
@@ -120,24 +163,41 @@ typedef struct light_state {
     uint32_t *idx; float *val;      /* sparse E at scale 1: function index, RGB */
     size_t n, cap;
     double *root;                   /* nquads x 3: projected (root, root) coefficient */
+    double last_work;               /* its last projection's work (samples and rays, in
+                                     * parallel_for's units): an estimate of the next one's */
 } light_state;
 
 typedef struct worker {
     double *grid; size_t grid_cap;  /* projection grids / synthesis cells */
     double *pyr; size_t pyr_cap;
-    double *acc; size_t acc_cap;    /* glossy texel accumulator */
+    float *acc; size_t acc_cap;     /* glossy texel accumulator */
+    float *fpyr, *fgrid; size_t fpyr_cap, fgrid_cap; /* synthesis pyramid and scratch, x 4 */
     float *wts; int *cells; size_t view_cap; /* glossy per-texel bilinear lookups */
     uint32_t *oidx; float *oval; size_t on, ocap; /* projection output */
+    uint32_t *pstate;               /* adaptive projection, per cell of levels 0..max: */
+    uint8_t *prefined;              /* VIS bits and angular cell; split or not */
+    uint8_t *pclear;                /* no occluder can shade the cell: no rays */
+    uint32_t *occ; int nocc;        /* the quads that may shade the quad in progress */
+    size_t nocc_cap;
+    uint16_t *pcells;               /* cells sampled, level by level */
+    double *pval; size_t pval_cap;  /* scaling coefficients of those cells, x slots */
+    double *pwav; size_t pwav_cap;  /* wavelets of split cells, x 3 x slots */
     double brdf_time;
+    long nsamples;                  /* samples and shadow rays of the projection */
 } worker;
 
 typedef struct out_rec { int worker; size_t start, count; } out_rec;
+
+/* A quad's bounding sphere seen from a light: unit direction to its centre, the cosine
+ * and sine of its angular radius (cos = -1: the light is inside), distance range. */
+typedef struct light_cone { wrt_v3 u; double cosa, sina, dmin, dmax; } light_cone;
 
 struct wrt_relight {
     const wrt_gto *g;
     wrt_relight_options opt;
     int nthreads, max_tex_level;
     int8_t *qlevel;                 /* projection level per quad for the light in progress */
+    light_cone *cones;              /* per quad, as seen from the light in progress */
     quad_info *qi;
     wrt_material *mats;
     float **beta;                   /* per material: [BETA_RES^2][NANG][3], NULL if unused */
@@ -147,16 +207,20 @@ struct wrt_relight {
     uint32_t *ang_perm;             /* functions of each quad grouped by angular index */
     uint16_t *ang_list;             /* present angular indices per quad (qi.ang_first) */
     uint32_t *ang_start;            /* for each (quad, present angular): range in ang_perm, +1 */
+    uint8_t *ang_full;              /* for each (quad, present angular): fills the pyramid */
     /* Embree */
     RTCDevice dev; RTCScene scene;
     wrt_v3 origin; double eps, scene_diag;
+    double size;                    /* per light: bounds the distances in the culling tests */
     /* state */
     light_state *lights; int nlights, lights_cap;
     int e_dirty, eye_dirty, have_eye;
     double eye[3];
-    float *E, *X, *Xprev; double *Xd;
+    float *E, *X, *Xprev;
+    float *X4;                      /* X being summed: 4 floats a function (RGB, unused) */
     uint32_t *cols;                 /* non-zero columns of E */
     float *tex; uint8_t *tex_nonzero, *x_nonzero, *resynth;
+    float *texk;                    /* per texel of non-parallelograms: 2^Lt sqrt(pi/J)/pi */
     out_rec *recs;
     worker *workers;
 };
@@ -182,11 +246,11 @@ static void *job_run(void *p) {
  * calling thread: starting threads, and waiting for the slowest, would cost more. */
 #define PARALLEL_MIN_WORK 10000.0
 
-/* Runs fn over items 0..n-1 on up to nthreads threads (one if `work` is small). Results
- * must not depend on which worker ran an item (callers write per item, or merge per
- * item in item order). */
-static void parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ctx) {
-    if (n <= 0) return;
+/* Runs fn over items 0..n-1 on up to nthreads threads (one if `work` is small); returns
+ * the number of threads used. Results must not depend on which worker ran an item
+ * (callers write per item, or merge per item in item order). */
+static int parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ctx) {
+    if (n <= 0) return 0;
     job j = {r, fn, ctx, 0, n};
     int nt = r->nthreads < n ? r->nthreads : n;
     if (work < PARALLEL_MIN_WORK) nt = 1;
@@ -201,6 +265,7 @@ static void parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ct
     args[0].j = &j; args[0].wid = 0;
     job_run(&args[0]);
     for (int t = 1; t <= started; t++) pthread_join(th[t], NULL);
+    return started + 1;
 }
 
 static void *grow(void *p, size_t *cap, size_t need, size_t elem) {
@@ -257,6 +322,10 @@ static double quad_dist(const quad_info *q, wrt_v3 p) {
 /* Fixed rotated-grid sample positions within a cell (4 samples). */
 static const double cell_samples[4][2] = {{0.375, 0.125}, {0.875, 0.375}, {0.625, 0.875}, {0.125, 0.625}};
 
+/* Cells of levels 0..l-1 of a quadtree: the offset of level l in per-level arrays. */
+#define LEVEL_OFF(l) ((((size_t)1 << (2 * (l))) - 1) / 3)
+#define PROJ_TREE_CELLS LEVEL_OFF(PROJ_MAX_LEVEL + 1)
+
 static int projection_cap(const wrt_relight *r, const quad_info *q) {
     int cap = q->slevel + 1;
     if (cap > PROJ_MAX_LEVEL) cap = PROJ_MAX_LEVEL;
@@ -278,23 +347,41 @@ static int projection_level(const wrt_relight *r, const quad_info *q, double d) 
     return L > cap ? cap : L;
 }
 
+/* A light's constants, hoisted out of the per-sample loop. */
+typedef struct light_c {
+    wrt_v3 pos, dir;
+    double intensity, range, cos_outer, inv_den;
+    int spot;
+} light_c;
+
+static light_c light_consts(const wrt_light *l) {
+    light_c c;
+    c.pos = l->pos;
+    c.dir = l->dir;
+    c.intensity = l->intensity;
+    c.range = l->range;
+    c.spot = l->type == WRT_LIGHT_SPOT;
+    c.cos_outer = cos(l->outer_cone);
+    double den = cos(l->inner_cone) - c.cos_outer;
+    c.inv_den = 1.0 / (den > 1e-3 ? den : 1e-3);
+    return c;
+}
+
 /* Direct irradiance (without colour) from light l at x with unit normal n, and the
  * unit direction toward the light; 0 if none arrives (visibility excluded). */
-static double light_irradiance(const wrt_light *l, wrt_v3 x, wrt_v3 n, wrt_v3 *w, double *dist) {
+static double light_irradiance(const light_c *l, wrt_v3 x, wrt_v3 n, wrt_v3 *w, double *dist) {
     wrt_v3 dl = v3_sub(l->pos, x);
     double d2 = v3_dot(dl, dl);
     if (!(d2 > 0)) return 0;
-    double d = sqrt(d2);
-    *w = v3_scale(dl, 1.0 / d);
-    *dist = d;
-    double cosx = v3_dot(*w, n);
+    double cosx = v3_dot(dl, n);
     if (cosx <= 0) return 0;
-    double e = l->intensity * cosx / d2;
-    if (l->type == WRT_LIGHT_SPOT) {
+    double d = sqrt(d2), inv_d = 1.0 / d;
+    *w = v3_scale(dl, inv_d);
+    *dist = d;
+    double e = l->intensity * cosx * inv_d / d2;
+    if (l->spot) {
         double cd = -v3_dot(*w, l->dir); /* angle between the axis and light -> x */
-        double co = cos(l->outer_cone), ci = cos(l->inner_cone);
-        double den = ci - co > 1e-3 ? ci - co : 1e-3;
-        double s = (cd - co) / den;
+        double s = (cd - l->cos_outer) * l->inv_den;
         s = s < 0 ? 0 : s > 1 ? 1 : s;
         e *= s * s;
     }
@@ -309,69 +396,199 @@ static double light_irradiance(const wrt_light *l, wrt_v3 x, wrt_v3 n, wrt_v3 *w
 
 #define VIS_LIT 1
 #define VIS_SHADOWED 2
+#define VIS_EVAL 4      /* cell state: evaluated at this level */
+#define VIS_ANGMIX 8    /* cell state: its lit samples see the light in different angular cells */
+#define VIS_ANG_SHIFT 8 /* cell state: 1 + the angular cell of its lit samples, above this bit */
 
-/* Fills w->grid with the level-L scaling coefficients (cell average x 2^-L) of
- * E_dir V g sqrt(J/pi) for each angular slot. Returns VIS_LIT if any sample is lit,
- * VIS_SHADOWED if any sample facing the light is occluded. */
-static int sample_grid(wrt_relight *r, worker *w, const quad_info *q, const wrt_light *l, int L, int nslot,
-                       const int16_t *slot_of) {
-    int n = 1 << L;
-    size_t ncell = (size_t)n * n;
-    int angular = nslot > 1;
-    w->grid = grow(w->grid, &w->grid_cap, ncell * nslot, sizeof(double));
-    w->pyr = grow(w->pyr, &w->pyr_cap, ncell * nslot, sizeof(double));
-    memset(w->grid, 0, ncell * nslot * sizeof(double));
-    double inv_pi = 1.0 / WRT_PI, cellw = 1.0 / n;
-    int vis = 0;
-    for (int j = 0; j < n; j++)
-        for (int i = 0; i < n; i++) {
-            for (int s = 0; s < 4; s++) {
-                double u = (i + cell_samples[s][0]) * cellw, v = (j + cell_samples[s][1]) * cellw;
-                wrt_v3 x = quad_point(q, u, v), dir;
-                double d = 0;
-                double e = light_irradiance(l, x, q->n, &dir, &d);
-                if (e == 0) continue;
-                /* Shadow ray from just above the surface toward the light. */
-                wrt_v3 o = v3_sub(v3_mad(x, q->n, r->eps), r->origin);
-                struct RTCRay ray;
-                ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
-                ray.dir_x = (float)dir.x; ray.dir_y = (float)dir.y; ray.dir_z = (float)dir.z;
-                ray.tnear = 0;
-                ray.tfar = (float)(d - 2 * r->eps);
-                ray.time = 0; ray.mask = 0xFFFFFFFFu; ray.id = 0; ray.flags = 0;
-                if (ray.tfar > 0) {
-                    struct RTCIntersectContext ic;
-                    rtcInitIntersectContext(&ic);
-                    rtcOccluded1(r->scene, &ic, &ray);
-                    if (ray.tfar < 0) { vis |= VIS_SHADOWED; continue; } /* occluded: tfar = -inf */
-                }
-                double val = e * sqrt(quad_jacobian(q, u, v) * inv_pi) * 0.25 * cellw; /* 2^-L x average */
-                size_t cell = (size_t)j * n + i;
-                vis |= VIS_LIT;
-                w->grid[cell * nslot + slot_of[0]] += val;
-                if (!angular) continue;
-                double loc[3] = {v3_dot(dir, q->t), v3_dot(dir, q->b), v3_dot(dir, q->n)}, a, b;
-                wrt_concentric_inv(loc, &a, &b);
-                for (int al = 0; al < ANG_LEVELS; al++) {
-                    int an = 1 << al;
-                    int ax = (int)(a * an), ay = (int)(b * an);
-                    if (ax > an - 1) ax = an - 1;
-                    if (ay > an - 1) ay = an - 1;
-                    double su = a * an - ax < 0.5 ? 1.0 : -1.0, sv = b * an - ay < 0.5 ? 1.0 : -1.0;
-                    uint32_t k = haar_index(al, ax, ay, 1);
-                    double gv[3] = {an * su, an * sv, an * su * sv};
-                    for (int t = 0; t < 3; t++) {
-                        int sl = slot_of[k + t];
-                        if (sl >= 0) w->grid[cell * nslot + sl] += val * gv[t];
-                    }
-                }
+/* What every cell of one quad's projection shares. */
+typedef struct proj_setup {
+    const quad_info *q;
+    const light_c *lc;
+    int nslot, nsamp, grid_n, rays; /* grid_n > 0: n x n samples a cell, else cell_samples */
+    int ang_res;                    /* angular cells a side (0: diffuse quad) */
+    const int16_t *slot_of;
+} proj_setup;
+
+/* Cell (i, j) of level l: out[slot] = the level-l scaling coefficient (cell average x
+ * 2^-l) of E_dir V g sqrt(J/pi) for each angular slot, from the cell's samples.
+ * Returns VIS_LIT if a sample is lit, | VIS_SHADOWED if a sample facing the light is
+ * occluded. */
+static uint32_t eval_cell(const wrt_relight *r, worker *w, const proj_setup *ps, int l, int i, int j, int rays, double *out) {
+    w->nsamples += ps->nsamp * (1 + rays);
+    const quad_info *q = ps->q;
+    int nslot = ps->nslot, angular = nslot > 1, root_slot = ps->slot_of[0];
+    for (int s = 0; s < nslot; s++) out[s] = 0;
+    double cellw = ldexp(1.0, -l), wgt = cellw / ps->nsamp, inv_pi = 1.0 / WRT_PI;
+    double sj = q->parallelogram ? sqrt(q->area * inv_pi) : 0;
+    uint32_t vis = 0, ang_cell = 0;
+    for (int k = 0; k < ps->nsamp; k++) {
+        double ou = ps->grid_n ? (k % ps->grid_n + 0.5) / ps->grid_n : cell_samples[k][0];
+        double ov = ps->grid_n ? (k / ps->grid_n + 0.5) / ps->grid_n : cell_samples[k][1];
+        double u = (i + ou) * cellw, v = (j + ov) * cellw;
+        wrt_v3 x = quad_point(q, u, v), dir;
+        double d = 0;
+        double e = light_irradiance(ps->lc, x, q->n, &dir, &d);
+        if (e == 0) continue;
+        if (rays) { /* shadow ray from just above the surface toward the light */
+            wrt_v3 o = v3_sub(v3_mad(x, q->n, r->eps), r->origin);
+            struct RTCRay ray;
+            ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
+            ray.dir_x = (float)dir.x; ray.dir_y = (float)dir.y; ray.dir_z = (float)dir.z;
+            ray.tnear = 0;
+            ray.tfar = (float)(d - 2 * r->eps);
+            ray.time = 0; ray.mask = 0xFFFFFFFFu; ray.id = 0; ray.flags = 0;
+            if (ray.tfar > 0) {
+                struct RTCIntersectContext ic;
+                rtcInitIntersectContext(&ic);
+                rtcOccluded1(r->scene, &ic, &ray);
+                if (ray.tfar < 0) { vis |= VIS_SHADOWED; continue; } /* occluded: tfar = -inf */
             }
         }
-    return vis;
+        double val = e * (q->parallelogram ? sj : sqrt(quad_jacobian(q, u, v) * inv_pi)) * wgt;
+        vis |= VIS_LIT;
+        if (root_slot >= 0) out[root_slot] += val;
+        if (!angular) continue;
+        double loc[3] = {v3_dot(dir, q->t), v3_dot(dir, q->b), v3_dot(dir, q->n)}, a, b;
+        wrt_concentric_inv(loc, &a, &b);
+        if (ps->ang_res) { /* where the wavelets of the finest angular level change sign */
+            int ar = ps->ang_res, ax = (int)(a * ar), ay = (int)(b * ar);
+            uint32_t id = 1 + (uint32_t)((ay < ar ? ay : ar - 1) * ar + (ax < ar ? ax : ar - 1));
+            if (ang_cell && id != ang_cell) vis |= VIS_ANGMIX;
+            ang_cell = id;
+        }
+        for (int al = 0; al < ANG_LEVELS; al++) {
+            int an = 1 << al;
+            int ax = (int)(a * an), ay = (int)(b * an);
+            if (ax > an - 1) ax = an - 1;
+            if (ay > an - 1) ay = an - 1;
+            double su = a * an - ax < 0.5 ? 1.0 : -1.0, sv = b * an - ay < 0.5 ? 1.0 : -1.0;
+            uint32_t kk = haar_index(al, ax, ay, 1);
+            double gv[3] = {an * su, an * sv, an * su * sv};
+            for (int t = 0; t < 3; t++) {
+                int sl = ps->slot_of[kk + t];
+                if (sl >= 0) out[sl] += val * gv[t];
+            }
+        }
+    }
+    return vis | (vis & VIS_ANGMIX ? 0 : ang_cell << VIS_ANG_SHIFT);
 }
 
-typedef struct proj_ctx { const wrt_light *light; double *root; } proj_ctx;
+/* Visibility class (VIS bits) of cell (x, y) of level l: its own if it was evaluated
+ * at l, else that of the evaluated ancestor (a leaf of the quadtree) that covers it. */
+static uint32_t state_at(const worker *w, int Ld, int l, int x, int y) {
+    for (int k = l; k >= Ld; k--) {
+        uint32_t s = w->pstate[LEVEL_OFF(k) + ((size_t)(y >> (l - k)) << k) + (size_t)(x >> (l - k))];
+        if (s & VIS_EVAL) return s;
+    }
+    return 0;
+}
 
+/* A cell is split when its samples see a shadow edge (some lit, some occluded) or, on
+ * a glossy quad, the light in different angular cells; or when it is all lit and a
+ * neighbour all occluded (or the reverse), or both see the light in different angular
+ * cells: the edge then runs between their samples. */
+static int needs_refine(const worker *w, int Ld, int l, int x, int y) {
+    int n = 1 << l;
+    uint32_t s = w->pstate[LEVEL_OFF(l) + (size_t)y * n + x];
+    int v = (int)(s & 3);
+    if (v == (VIS_LIT | VIS_SHADOWED) || (s & VIS_ANGMIX)) return 1;
+    if (v == 0) return 0;
+    int opp = v ^ (VIS_LIT | VIS_SHADOWED);
+    static const int nb[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+    for (int k = 0; k < 4; k++) {
+        int nx = x + nb[k][0], ny = y + nb[k][1];
+        if (nx < 0 || ny < 0 || nx >= n || ny >= n) continue;
+        uint32_t ns = state_at(w, Ld, l, nx, ny);
+        if ((int)(ns & 3) == opp) return 1;
+        if (v == VIS_LIT && (ns & 3) == VIS_LIT && !(ns & VIS_ANGMIX) && (ns >> VIS_ANG_SHIFT) != (s >> VIS_ANG_SHIFT))
+            return 1;
+    }
+    return 0;
+}
+
+/* The level rule, cell by cell: a cell is split while it is wider than 1/PROJ_CELL_K of
+ * its distance to the light, so that 1/d^2 and the cosine change by at most ~1/8
+ * across it. Geometry and the light's position only. */
+static int too_close(const proj_setup *ps, int l, int i, int j) {
+    const quad_info *q = ps->q;
+    double h = ldexp(1.0, -l), u0 = i * h, v0 = j * h;
+    wrt_v3 c00 = quad_point(q, u0, v0), c11 = quad_point(q, u0 + h, v0 + h);
+    wrt_v3 c10 = quad_point(q, u0 + h, v0), c01 = quad_point(q, u0, v0 + h);
+    double diam = fmax(v3_len(v3_sub(c11, c00)), v3_len(v3_sub(c10, c01)));
+    wrt_v3 mid = quad_point(q, u0 + 0.5 * h, v0 + 0.5 * h);
+    double d = v3_len(v3_sub(mid, ps->lc->pos)) - 0.5 * diam;
+    return (q->nang > 1 ? PROJ_CELL_K_GLOSSY : PROJ_CELL_K) * diam > d;
+}
+
+/* Occluder culling: a shadow ray from a point of quad A (or of one of its cells) to the
+ * light can only hit a quad B that meets the pyramid spanned by the light and A. These
+ * tests are conservative (a B they keep may still miss), exact up to a 1e-9 relative
+ * tolerance on points on a plane, and depend on the geometry and the light's position
+ * only. */
+static int all_below(const wrt_v3 *pts, int n, wrt_v3 o, wrt_v3 nrm, double size) {
+    double tol = 1e-9 * size * sqrt(v3_dot(nrm, nrm)); /* size: bounds |pts[k] - o| */
+    for (int k = 0; k < n; k++)
+        if (v3_dot(v3_sub(pts[k], o), nrm) > tol) return 0;
+    return 1;
+}
+
+/* 1 if quad b cannot meet the pyramid of light l and the convex planar polygon c[0..3]
+ * (normal n, light on its front). */
+static int pyramid_clear(const wrt_v3 c[4], wrt_v3 n, wrt_v3 l, const quad_info *b, double size) {
+    /* b on or behind the polygon's plane, or beyond the light's parallel plane */
+    if (all_below(b->p, 4, c[0], n, size) || all_below(b->p, 4, l, v3_scale(n, -1), size)) return 1;
+    /* the pyramid's sides: inward normals (e_k - l) x (e_k+1 - l) for a ccw polygon */
+    wrt_v3 mid = v3_sub(v3_scale(v3_add(v3_add(c[0], c[1]), v3_add(c[2], c[3])), 0.25), l);
+    for (int k = 0; k < 4; k++) {
+        wrt_v3 sn = v3_cross(v3_sub(c[(k + 1) & 3], l), v3_sub(c[k], l));
+        if (v3_dot(sn, mid) < 0) sn = v3_scale(sn, -1); /* inward whatever the winding */
+        if (all_below(b->p, 4, l, sn, size)) return 1;
+    }
+    /* b's plane leaves the light and the polygon on one side */
+    wrt_v3 pts[5] = {c[0], c[1], c[2], c[3], l};
+    if (all_below(pts, 5, b->p[0], b->n, size) || all_below(pts, 5, b->p[0], v3_scale(b->n, -1), size)) return 1;
+    return 0;
+}
+
+/* Cell (i, j) of level l of quad q: 1 if none of the quad's possible occluders can
+ * shade it. */
+static int cell_clear(const wrt_relight *r, const worker *w, const quad_info *q, wrt_v3 l, int lv, int i, int j) {
+    double h = ldexp(1.0, -lv), u0 = i * h, v0 = j * h;
+    wrt_v3 c[4] = {quad_point(q, u0, v0), quad_point(q, u0 + h, v0), quad_point(q, u0 + h, v0 + h), quad_point(q, u0, v0 + h)};
+    for (int k = 0; k < w->nocc; k++)
+        if (!pyramid_clear(c, q->n, l, &r->qi[w->occ[k]], r->size)) return 0;
+    return 1;
+}
+
+/* The quads that may shade some point of quad a (into w->occ): bounding cones from the
+ * light first, then the pyramid tests. */
+static void find_occluders(const wrt_relight *r, worker *w, int a, wrt_v3 l) {
+    uint32_t nq = r->g->nquads;
+    size_t cap = w->nocc_cap;
+    w->occ = grow(w->occ, &cap, nq + 1, sizeof(uint32_t));
+    w->nocc_cap = cap;
+    w->nocc = 0;
+    const light_cone *ca = &r->cones[a];
+    const quad_info *qa = &r->qi[a];
+    for (uint32_t b = 0; b < nq; b++) {
+        if ((int)b == a) continue;
+        const light_cone *cb = &r->cones[b];
+        if (cb->dmin >= ca->dmax) continue; /* entirely farther than a */
+        /* radii in [0, pi/2]: their sum in [0, pi], where cos decreases */
+        if (ca->cosa > -1 && cb->cosa > -1 && v3_dot(ca->u, cb->u) < ca->cosa * cb->cosa - ca->sina * cb->sina) continue;
+        if (pyramid_clear(qa->p, qa->n, l, &r->qi[b], r->size)) continue;
+        w->occ[w->nocc++] = b;
+    }
+}
+
+typedef struct proj_ctx { const wrt_light *light; const light_c *lc; double *root; } proj_ctx;
+
+/* Projects light ctx->light onto quad qidx's functions (section 5.1), adaptively: every
+ * cell of the level rule's grid (r->qlevel) is sampled; cells on a shadow edge are split,
+ * level by level, down to the cap. A cell that is not split is a leaf: its function is
+ * constant over it, so its finer wavelets are exactly zero and are not stored. The split
+ * decisions depend on the light's position and the geometry only (never on intensity
+ * or colour), so E stays linear in each light. */
 static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     proj_ctx *ctx = vctx;
     const wrt_light *l = ctx->light;
@@ -385,8 +602,14 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     if (gq->func_count == 0 || l->intensity == 0) return;
     /* A light on or behind the quad's plane lights nothing (exactly zero). */
     if (v3_dot(v3_sub(l->pos, q->p[0]), q->n) <= 0) return;
-    int L = r->qlevel[qidx];
-    if (L < 0) return; /* beyond the light's range */
+    int Ld = r->qlevel[qidx];
+    if (Ld < 0) return; /* beyond the light's range */
+    if (l->type == WRT_LIGHT_SPOT && r->cones[qidx].cosa > -1) { /* wholly outside the spot's cone */
+        const light_cone *cn = &r->cones[qidx];
+        double co = ctx->lc->cos_outer, so = sqrt(fmax(0, 1 - co * co));
+        if (l->outer_cone < WRT_PI / 2 && v3_dot(l->dir, cn->u) < co * cn->cosa - so * cn->sina) return;
+    }
+    int cap = projection_cap(r, q);
     /* Angular slots: the root, plus the quad's angular functions when it has any. */
     int nslot = q->nang > 0 ? q->nang : 1;
     const uint16_t *alist = r->ang_list + q->ang_first;
@@ -394,25 +617,106 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     for (int a = 0; a < NANG; a++) slot_of[a] = -1;
     if (q->nang > 0) for (int s = 0; s < q->nang; s++) slot_of[alist[s]] = (int16_t)s;
     else slot_of[0] = 0;
-    int vis = sample_grid(r, w, q, l, L, nslot, slot_of);
-    /* A shadow edge crosses the quad: resolve it as finely as the file can hold. */
-    int cap = projection_cap(r, q);
-    if (vis == (VIS_LIT | VIS_SHADOWED) && L < cap) {
-        L = cap;
-        vis = sample_grid(r, w, q, l, L, nslot, slot_of);
+    proj_setup ps = {q, ctx->lc, nslot, 4, 0, 1, 0, slot_of};
+    if (q->nang > 1) ps.ang_res = 2 << q->alevel;
+    int local_rule = r->opt.proj_level == 0;
+    if (r->opt.proj_reference > 0) { /* every cell of the finest grid */
+        Ld = cap;
+        local_rule = 0;
+        if (r->opt.proj_reference > 1) ps.grid_n = r->opt.proj_reference > 8 ? 8 : r->opt.proj_reference;
+        ps.nsamp = ps.grid_n ? ps.grid_n * ps.grid_n : 4;
     }
-    if (!(vis & VIS_LIT)) return;
-    haar_analyse(w->grid, L, nslot, w->pyr);
+    if (Ld > cap) Ld = cap;
+    w->pval = grow(w->pval, &w->pval_cap, LEVEL_OFF(cap + 1) * nslot, sizeof(double));
+    w->pwav = grow(w->pwav, &w->pwav_cap, LEVEL_OFF(cap) * 3 * nslot + 1, sizeof(double));
+    memset(w->pstate + LEVEL_OFF(Ld), 0, (LEVEL_OFF(cap + 1) - LEVEL_OFF(Ld)) * sizeof(uint32_t));
+    memset(w->prefined + LEVEL_OFF(Ld), 0, LEVEL_OFF(cap + 1) - LEVEL_OFF(Ld));
+    /* Quads that may shade this one; none: no rays at all. */
+    if (r->opt.proj_reference == 0) {
+        find_occluders(r, w, qidx, l->pos);
+        if (w->nocc == 0) ps.rays = 0;
+    }
+    /* Top-down: sample the cells of level l, split those on an edge. */
+    size_t lstart[PROJ_MAX_LEVEL + 2], nc = 0;
+    for (size_t c = 0; c < ((size_t)1 << (2 * Ld)); c++) w->pcells[nc++] = (uint16_t)c;
+    lstart[Ld] = 0;
+    lstart[Ld + 1] = nc;
+    int any = 0, last = Ld;
+    for (int lv = Ld;; lv++) {
+        int n = 1 << lv;
+        size_t off = LEVEL_OFF(lv);
+        size_t start = nc;
+        for (size_t k = lstart[lv]; k < lstart[lv + 1]; k++) {
+            int c = w->pcells[k], x = c % n, y = c / n, n2 = 2 * n;
+            /* clear of occluders: its parent is, or (near the top) the test says so */
+            int clear = !ps.rays || (lv > Ld && w->pclear[LEVEL_OFF(lv - 1) + (size_t)(y / 2) * (n / 2) + x / 2]) ||
+                        (lv <= PROJ_MIN_LEVEL + 1 && r->opt.proj_reference == 0 && cell_clear(r, w, q, l->pos, lv, x, y));
+            w->pclear[off + c] = (uint8_t)clear;
+            if (local_rule && lv < cap && too_close(&ps, lv, x, y)) { /* split unseen */
+                w->prefined[off + c] = 1;
+                w->pcells[nc++] = (uint16_t)((2 * y) * n2 + 2 * x);
+                w->pcells[nc++] = (uint16_t)((2 * y) * n2 + 2 * x + 1);
+                w->pcells[nc++] = (uint16_t)((2 * y + 1) * n2 + 2 * x);
+                w->pcells[nc++] = (uint16_t)((2 * y + 1) * n2 + 2 * x + 1);
+                continue;
+            }
+            uint32_t vis = eval_cell(r, w, &ps, lv, x, y, !clear, w->pval + (off + c) * nslot);
+            w->pstate[off + c] = VIS_EVAL | vis;
+            any |= (int)(vis & 3);
+        }
+        last = lv;
+        if (lv == cap || r->opt.proj_reference > 0) break;
+        for (size_t k = lstart[lv]; k < lstart[lv + 1]; k++) {
+            int c = w->pcells[k], x = c % n, y = c / n, n2 = 2 * n;
+            if (!(w->pstate[off + c] & VIS_EVAL) || !needs_refine(w, Ld, lv, x, y)) continue;
+            w->prefined[off + c] = 1;
+            w->pcells[nc++] = (uint16_t)((2 * y) * n2 + 2 * x);
+            w->pcells[nc++] = (uint16_t)((2 * y) * n2 + 2 * x + 1);
+            w->pcells[nc++] = (uint16_t)((2 * y + 1) * n2 + 2 * x);
+            w->pcells[nc++] = (uint16_t)((2 * y + 1) * n2 + 2 * x + 1);
+        }
+        if (nc == start) break;
+        lstart[lv + 2] = nc;
+    }
+    if (!(any & VIS_LIT)) return;
+    /* Bottom-up: a split cell's scaling coefficient and wavelets from its children. */
+    for (int lv = last - 1; lv >= Ld; lv--) {
+        int n = 1 << lv, n2 = 2 * n;
+        size_t off = LEVEL_OFF(lv), off2 = LEVEL_OFF(lv + 1);
+        for (size_t k = lstart[lv]; k < lstart[lv + 1]; k++) {
+            int c = w->pcells[k], x = c % n, y = c / n;
+            if (!w->prefined[off + c]) continue;
+            const double *a = w->pval + (off2 + (size_t)(2 * y) * n2 + 2 * x) * nslot, *b = a + nslot;
+            const double *d = w->pval + (off2 + (size_t)(2 * y + 1) * n2 + 2 * x) * nslot, *e = d + nslot;
+            double *wv = w->pwav + (off + c) * 3 * nslot, *pv = w->pval + (off + c) * nslot;
+            for (int s = 0; s < nslot; s++) {
+                wv[s] = (a[s] - b[s] + d[s] - e[s]) * 0.5;             /* type 1: sign by cx */
+                wv[nslot + s] = (a[s] + b[s] - d[s] - e[s]) * 0.5;     /* type 2: sign by cy */
+                wv[2 * nslot + s] = (a[s] - b[s] - d[s] + e[s]) * 0.5; /* type 3 */
+                pv[s] = (a[s] + b[s] + d[s] + e[s]) * 0.5;
+            }
+        }
+    }
+    /* Levels above the rule's grid: plain Haar analysis of that grid. */
+    w->pyr = grow(w->pyr, &w->pyr_cap, ((size_t)1 << (2 * Ld)) * nslot, sizeof(double));
+    haar_analyse(w->pval + LEVEL_OFF(Ld) * nslot, Ld, nslot, w->pyr);
     const float *col = l->color;
-    double I0 = w->pyr[slot_of[0]];
+    double I0 = slot_of[0] >= 0 ? w->pyr[slot_of[0]] : 0;
     for (int c = 0; c < 3; c++) ctx->root[qidx * 3 + c] = I0 * col[c];
     /* Keep the coefficients whose function exists on the quad. */
     size_t f0 = gq->func_first, fc = gq->func_count;
     for (size_t f = f0; f < f0 + fc; f++) {
-        if (r->fn_slevel[f] >= L && r->fn_spidx[f] != 0) continue; /* finer than the grid */
         int sl = slot_of[r->fn_ang[f]];
         if (sl < 0) continue;
-        double cv = w->pyr[(size_t)r->fn_spidx[f] * nslot + sl];
+        uint32_t sp = r->fn_spidx[f];
+        int lev = r->fn_slevel[f];
+        double cv;
+        if (sp == 0 || lev < Ld) cv = w->pyr[(size_t)sp * nslot + sl];
+        else if (lev < last) { /* a wavelet of a split cell, or zero */
+            uint32_t k = sp - 1, cell = k / 3 - (uint32_t)LEVEL_OFF(lev);
+            if (!w->prefined[LEVEL_OFF(lev) + cell]) continue;
+            cv = w->pwav[((LEVEL_OFF(lev) + cell) * 3 + k % 3) * nslot + sl];
+        } else continue; /* finer than any split cell: zero */
         if (cv == 0) continue;
         if (w->on == w->ocap) {
             w->ocap = w->ocap ? 2 * w->ocap : 1024;
@@ -428,16 +732,37 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
 
 static void project_light(wrt_relight *r, light_state *ls) {
     for (int t = 0; t < r->nthreads; t++) r->workers[t].on = 0;
-    proj_ctx ctx = {&ls->light, ls->root};
-    /* Levels first (cheap), so that the loop knows its work. */
+    light_c lc = light_consts(&ls->light);
+    r->size = 2 * (r->scene_diag + v3_len(v3_sub(ls->light.pos, r->origin)));
+    proj_ctx ctx = {&ls->light, &lc, ls->root};
+    /* Levels first (cheap), so that the loop knows its work; bounding cones. */
     double work = 0;
     for (uint32_t q = 0; q < r->g->nquads; q++) {
+        const quad_info *qi = &r->qi[q];
+        light_cone *cn = &r->cones[q];
+        wrt_v3 dc = v3_sub(qi->centre, ls->light.pos);
+        double D = v3_len(dc);
+        cn->dmin = D > qi->radius ? D - qi->radius : 0;
+        cn->dmax = D + qi->radius;
+        if (D > qi->radius) {
+            cn->u = v3_scale(dc, 1.0 / D);
+            cn->sina = qi->radius / D;
+            cn->cosa = sqrt(1 - cn->sina * cn->sina);
+        } else { cn->u = v3(0, 0, 1); cn->sina = 0; cn->cosa = -1; } /* the light is inside */
         double dmin = quad_dist(&r->qi[q], ls->light.pos);
         int L = ls->light.range > 0 && dmin >= ls->light.range ? -1 : projection_level(r, &r->qi[q], dmin);
+        if (L >= 0) work += ldexp(r->opt.proj_reference > 0 ? 4096.0 : 4.0, 2 * L);
+        if (L >= 0 && r->opt.proj_level == 0) { /* the rule is applied cell by cell from here */
+            int cap = projection_cap(r, &r->qi[q]);
+            L = cap < PROJ_MIN_LEVEL ? cap : PROJ_MIN_LEVEL;
+        }
         r->qlevel[q] = (int8_t)L;
-        if (L >= 0) work += ldexp(4.0, 2 * L);
     }
+    if (ls->last_work > 0) work = ls->last_work; /* the light moves a little: as much as last time */
+    for (int t = 0; t < r->nthreads; t++) r->workers[t].nsamples = 0;
     parallel_for(r, (int)r->g->nquads, work, project_quad, &ctx);
+    ls->last_work = 0;
+    for (int t = 0; t < r->nthreads; t++) ls->last_work += 0.25 * (double)r->workers[t].nsamples; /* ~50 ns each */
     size_t total = 0;
     for (uint32_t q = 0; q < r->g->nquads; q++) total += r->recs[q].count;
     if (total > ls->cap) {
@@ -509,31 +834,37 @@ int wrt_relight_beta(const wrt_relight *r, int material, double a_o, double b_o,
 
 /* ------------------------------------------------------------- synthesis ---- */
 
-/* Outgoing radiance of a Lambertian quad: base/pi x irradiance, texel averages. */
+/* Outgoing radiance of a Lambertian quad: base/pi x irradiance, texel averages. The
+ * texel factor 2^Lt sqrt(pi/J)/pi (h value x sqrt(pi/J) x 1/pi) and the base colour
+ * are folded into the coefficients (synthesis is linear); a non-parallelogram's
+ * varying factor is applied after, from r->texk. */
 static void synth_diffuse(wrt_relight *r, worker *w, int qidx) {
     const quad_info *q = &r->qi[qidx];
     const wrt_gto_quad *gq = &r->g->quads[qidx];
     int Lt = q->tex_level, res = 1 << Lt;
     size_t ncell = (size_t)res * res;
-    w->grid = grow(w->grid, &w->grid_cap, ncell * 3, sizeof(double));
-    w->pyr = grow(w->pyr, &w->pyr_cap, ncell * 3, sizeof(double));
-    memset(w->pyr, 0, ncell * 3 * sizeof(double));
+    w->fpyr = grow(w->fpyr, &w->fpyr_cap, ncell * 4, sizeof(float));
+    w->fgrid = grow(w->fgrid, &w->fgrid_cap, ncell + 4, sizeof(float));
+    float *pyr = w->fpyr;
+    if (!q->synth_full) memset(pyr, 0, ncell * 4 * sizeof(float)); /* else every slot is written */
+    const float *base = r->mats[q->material].base_color;
+    float kc[3];
+    double k = q->parallelogram ? ldexp(1.0, Lt) * sqrt(WRT_PI / q->area) / WRT_PI : 1;
+    for (int c = 0; c < 3; c++) kc[c] = (float)(k * base[c]);
     for (size_t f = gq->func_first; f < (size_t)gq->func_first + gq->func_count; f++) {
         if (r->fn_ang[f] != 0) continue;
         if (r->fn_slevel[f] >= Lt && r->fn_spidx[f] != 0) continue; /* averages to 0 per texel */
-        for (int c = 0; c < 3; c++) w->pyr[(size_t)r->fn_spidx[f] * 3 + c] = r->X[f * 3 + c];
+        float *pc = pyr + (size_t)r->fn_spidx[f] * 4;
+        for (int c = 0; c < 3; c++) pc[c] = r->X[f * 3 + c] * kc[c];
+        pc[3] = 0;
     }
-    haar_synthesize(w->pyr, Lt, 3, w->grid);
-    const float *base = r->mats[q->material].base_color;
     float *tex = r->tex + q->tex_off;
-    double lev = ldexp(1.0, Lt);
-    for (int j = 0; j < res; j++)
-        for (int i = 0; i < res; i++) {
-            double J = quad_jacobian(q, (i + 0.5) / res, (j + 0.5) / res);
-            double k = lev * sqrt(WRT_PI / J) / WRT_PI; /* h value x sqrt(pi/J) x 1/pi */
-            size_t t = (size_t)j * res + i;
-            for (int c = 0; c < 3; c++) tex[t * 3 + c] = (float)(w->grid[t * 3 + c] * k * base[c]);
-        }
+    haar_synthesize4f(pyr, Lt, w->fgrid, tex, 3);
+    if (!q->parallelogram) {
+        const float *tk = r->texk + q->tex_off / 3;
+        for (size_t t = 0; t < ncell; t++)
+            for (int c = 0; c < 3; c++) tex[t * 3 + c] *= tk[t];
+    }
 }
 
 /* Outgoing radiance toward the eye of a glossy quad:
@@ -545,13 +876,13 @@ static void synth_glossy(wrt_relight *r, worker *w, int qidx) {
     float *tex = r->tex + q->tex_off;
     const float *beta = r->beta[q->material];
     double t0 = wrt_now();
-    w->acc = grow(w->acc, &w->acc_cap, ncell * 3, sizeof(double));
+    w->acc = grow(w->acc, &w->acc_cap, ncell * 3, sizeof(float));
     if (ncell * 4 > w->view_cap) {
         w->view_cap = ncell * 4;
         w->cells = wrt_xrealloc(w->cells, w->view_cap * sizeof(int));
         w->wts = wrt_xrealloc(w->wts, w->view_cap * sizeof(float));
     }
-    memset(w->acc, 0, ncell * 3 * sizeof(double));
+    memset(w->acc, 0, ncell * 3 * sizeof(float));
     /* Per texel: the outgoing direction's bilinear cells in the beta table, weights
      * folded with 2^Lt / sqrt(pi J); and the box of table cells the quad looks through. */
     int bx0 = BETA_RES, bx1 = -1, by0 = BETA_RES, by1 = -1;
@@ -591,8 +922,10 @@ static void synth_glossy(wrt_relight *r, worker *w, int qidx) {
             }
     w->brdf_time += wrt_now() - t0;
     if (bx1 < 0) { memset(tex, 0, ncell * 3 * sizeof(float)); return; }
-    w->grid = grow(w->grid, &w->grid_cap, ncell * 3, sizeof(double));
-    w->pyr = grow(w->pyr, &w->pyr_cap, ncell * 3, sizeof(double));
+    w->fpyr = grow(w->fpyr, &w->fpyr_cap, ncell * 4, sizeof(float));
+    w->fgrid = grow(w->fgrid, &w->fgrid_cap, ncell + 4, sizeof(float));
+    w->grid = grow(w->grid, &w->grid_cap, ncell * 3, sizeof(double)); /* used as floats */
+    float *pyr = w->fpyr, *vals = (float *)w->grid;
     const uint16_t *alist = r->ang_list + q->ang_first;
     const uint32_t *astart = r->ang_start + q->ang_first + qidx; /* nang + 1 entries */
     for (int s = 0; s < q->nang; s++) {
@@ -607,30 +940,32 @@ static void synth_glossy(wrt_relight *r, worker *w, int qidx) {
                     }
             if (mx <= PRUNE_REL * root_max) continue;
         }
-        memset(w->pyr, 0, ncell * 3 * sizeof(double));
+        if (!r->ang_full[q->ang_first + s]) memset(pyr, 0, ncell * 4 * sizeof(float));
         int nz = 0;
         for (uint32_t p = astart[s]; p < astart[s + 1]; p++) {
             uint32_t f = r->ang_perm[p];
             if (r->fn_slevel[f] >= Lt && r->fn_spidx[f] != 0) continue;
+            float *pc = pyr + (size_t)r->fn_spidx[f] * 4;
             for (int c = 0; c < 3; c++) {
                 float xv = r->X[(size_t)f * 3 + c];
-                w->pyr[(size_t)r->fn_spidx[f] * 3 + c] = xv;
+                pc[c] = xv;
                 nz |= xv != 0;
             }
+            pc[3] = 0;
         }
         if (!nz) continue;
-        haar_synthesize(w->pyr, Lt, 3, w->grid);
+        haar_synthesize4f(pyr, Lt, w->fgrid, vals, 3);
         for (size_t t = 0; t < ncell; t++) {
-            double bsum[3] = {0, 0, 0};
+            float bsum[3] = {0, 0, 0};
             for (int k = 0; k < 4; k++) {
                 const float *b = beta + ((size_t)w->cells[t * 4 + k] * NANG + g) * 3;
-                double wk = w->wts[t * 4 + k];
+                float wk = w->wts[t * 4 + k];
                 for (int c = 0; c < 3; c++) bsum[c] += wk * b[c];
             }
-            for (int c = 0; c < 3; c++) w->acc[t * 3 + c] += w->grid[t * 3 + c] * bsum[c];
+            for (int c = 0; c < 3; c++) w->acc[t * 3 + c] += vals[t * 3 + c] * bsum[c];
         }
     }
-    for (size_t t = 0; t < ncell * 3; t++) tex[t] = (float)w->acc[t];
+    memcpy(tex, w->acc, ncell * 3 * sizeof(float));
 }
 
 typedef struct synth_ctx { const int *list; } synth_ctx;
@@ -645,12 +980,14 @@ static void synth_item(wrt_relight *r, worker *w, int item, void *vctx) {
 /* -------------------------------------------------------------- multiply ---- */
 
 #define MUL_MAX_CHUNKS 256
+#define MUL_PARALLEL_ENTRIES 3e7 /* entries touched above which the multiply is split */
 
 typedef struct mul_ctx { const uint32_t *cols; uint32_t ncols; int nchunk; } mul_ctx;
 
 /* Rows [lo, hi) of X = Op E: each chunk scans every non-zero column and takes the
  * entries of its rows (rows ascend within a column), so each X entry sums its terms in
- * column order whatever the thread count. */
+ * column order whatever the thread count. Single precision, 4 lanes an entry (the
+ * operator and X are floats; measured against double sums: ~1e-6 relative). */
 static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
     (void)w;
     const mul_ctx *mc = vctx;
@@ -658,7 +995,7 @@ static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
     uint32_t nf = g->nfuncs;
     uint32_t lo = (uint32_t)((uint64_t)nf * item / mc->nchunk), hi = (uint32_t)((uint64_t)nf * (item + 1) / mc->nchunk);
     if (lo >= hi) return;
-    memset(r->Xd + (size_t)lo * 3, 0, (size_t)(hi - lo) * 3 * sizeof(double));
+    memset(r->X4 + (size_t)lo * 4, 0, (size_t)(hi - lo) * 4 * sizeof(float));
     for (uint32_t k = 0; k < mc->ncols; k++) {
         uint32_t s = mc->cols[k];
         uint64_t a = g->col_start[s], b = g->col_start[s + 1];
@@ -668,13 +1005,21 @@ static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
             if (g->rows[m] < lo) a = m + 1; else b = m;
         }
         const float *e = r->E + (size_t)s * 3;
-        double e0 = e[0], e1 = e[1], e2 = e[2];
-        for (uint64_t i = a, end = g->col_start[s + 1]; i < end && g->rows[i] < hi; i++) {
-            double *x = r->Xd + (size_t)g->rows[i] * 3;
+        uint64_t end = g->col_start[s + 1], vend = end < g->nnz ? end : g->nnz - 1; /* 4-float loads stay inside */
+        uint64_t i = a;
+#ifdef __SSE2__
+        __m128 ev = _mm_set_ps(0.0f, e[2], e[1], e[0]);
+        for (; i < vend && g->rows[i] < hi; i++) {
+            float *x = r->X4 + (size_t)g->rows[i] * 4;
+            _mm_store_ps(x, _mm_add_ps(_mm_load_ps(x), _mm_mul_ps(ev, _mm_loadu_ps(g->vals + i * 3))));
+        }
+#endif
+        for (; i < end && g->rows[i] < hi; i++) {
+            float *x = r->X4 + (size_t)g->rows[i] * 4;
             const float *v = g->vals + i * 3;
-            x[0] += e0 * v[0];
-            x[1] += e1 * v[1];
-            x[2] += e2 * v[2];
+            x[0] += e[0] * v[0];
+            x[1] += e[1] * v[1];
+            x[2] += e[2] * v[2];
         }
     }
 }
@@ -710,6 +1055,12 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->nthreads = r->opt.threads > 0 ? r->opt.threads : (int)(nc > 0 ? nc : 1);
     if (r->nthreads > 64) r->nthreads = 64;
     r->workers = wrt_xcalloc((size_t)r->nthreads, sizeof(worker));
+    for (int t = 0; t < r->nthreads; t++) {
+        r->workers[t].pstate = wrt_xcalloc(PROJ_TREE_CELLS, sizeof(uint32_t));
+        r->workers[t].prefined = wrt_xcalloc(PROJ_TREE_CELLS, 1);
+        r->workers[t].pclear = wrt_xcalloc(PROJ_TREE_CELLS, 1);
+        r->workers[t].pcells = wrt_xcalloc(PROJ_TREE_CELLS, sizeof(uint16_t));
+    }
 
     uint32_t nq = g->nquads, nf = g->nfuncs;
     r->mats = wrt_xcalloc(g->nmaterials ? g->nmaterials : 1, sizeof(wrt_material));
@@ -767,12 +1118,19 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
         qi->area = v3_len(v3_cross(v3_sub(qi->p[1], qi->p[0]), v3_sub(qi->p[3], qi->p[0])));
         if (!qi->parallelogram) qi->area = gq->area;
         qi->diam = fmax(v3_len(v3_sub(qi->p[2], qi->p[0])), v3_len(v3_sub(qi->p[3], qi->p[1])));
+        qi->centre = v3_scale(v3_add(v3_add(qi->p[0], qi->p[1]), v3_add(qi->p[2], qi->p[3])), 0.25);
+        for (int k = 0; k < 4; k++) qi->radius = fmax(qi->radius, v3_len(v3_sub(qi->p[k], qi->centre)));
         qi->material = (int)gq->material;
         qi->glossy = !r->mats[gq->material].lambertian;
         int sl = 0;
         for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++)
             if (r->fn_slevel[f] > sl && r->fn_slevel[f] != FN_INVALID) sl = r->fn_slevel[f];
         qi->slevel = sl;
+        for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++)
+            if (r->fn_slevel[f] != FN_INVALID && r->fn_ang[f] != 0) {
+                int al = (int)wrt_fkey_anode(g->fkeys[f]).level;
+                if (al > qi->alevel) qi->alevel = al;
+            }
         qi->tex_level = sl + 1 < r->max_tex_level ? sl + 1 : r->max_tex_level;
         qi->tex_off = tex_total;
         tex_total += ((size_t)1 << (2 * qi->tex_level)) * 3;
@@ -795,6 +1153,7 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     }
     r->ang_list = wrt_xcalloc(ang_total ? ang_total : 1, sizeof(uint16_t));
     r->ang_start = wrt_xcalloc(ang_total + nq + 1, sizeof(uint32_t));
+    r->ang_full = wrt_xcalloc(ang_total + 1, 1);
     r->ang_perm = wrt_xcalloc(nf ? nf : 1, sizeof(uint32_t));
     sort_ang = r->fn_ang;
     for (uint32_t q = 0; q < nq; q++) {
@@ -811,6 +1170,16 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
             if (s < 0 || al[s] != a) { s++; al[s] = (uint16_t)a; as[s] = gq->func_first + k; }
         }
         as[qi->nang] = gq->func_first + gq->func_count;
+        /* Whether a synthesis pyramid (levels < tex_level) is filled without clearing. */
+        for (int a = 0; a < qi->nang; a++) {
+            size_t cnt = 0;
+            for (uint32_t p = as[a]; p < as[a + 1]; p++) {
+                uint32_t f = r->ang_perm[p];
+                cnt += r->fn_slevel[f] != FN_INVALID && (r->fn_spidx[f] == 0 || r->fn_slevel[f] < qi->tex_level);
+            }
+            r->ang_full[qi->ang_first + a] = cnt == ((size_t)1 << (2 * qi->tex_level));
+            if (al[a] == 0) qi->synth_full = r->ang_full[qi->ang_first + a];
+        }
     }
     /* Embree scene of every quad, in a frame centred on the scene (float precision). */
     r->origin = nq ? v3_scale(v3_add(bmin, bmax), 0.5) : v3(0, 0, 0);
@@ -846,14 +1215,26 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->E = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
     r->X = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
     r->Xprev = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
-    r->Xd = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(double));
+    r->X4 = wrt_xcalloc((size_t)nf * 4 + 4, sizeof(float)); /* malloc: 16-byte aligned */
     r->cols = wrt_xcalloc((size_t)nf + 1, sizeof(uint32_t));
     r->tex = wrt_xcalloc(tex_total + 1, sizeof(float));
+    r->texk = wrt_xcalloc(tex_total / 3 + 1, sizeof(float));
+    for (uint32_t q = 0; q < nq; q++) {
+        const quad_info *qi = &r->qi[q];
+        if (qi->parallelogram) continue;
+        int res = 1 << qi->tex_level;
+        for (int j = 0; j < res; j++)
+            for (int i = 0; i < res; i++) {
+                double J = quad_jacobian(qi, (i + 0.5) / res, (j + 0.5) / res);
+                r->texk[qi->tex_off / 3 + (size_t)j * res + i] = (float)(res * sqrt(WRT_PI / J) / WRT_PI);
+            }
+    }
     r->tex_nonzero = wrt_xcalloc(nq + 1, 1);
     r->x_nonzero = wrt_xcalloc(nq + 1, 1);
     r->resynth = wrt_xcalloc(nq + 1, 1);
     r->recs = wrt_xcalloc(nq + 1, sizeof(out_rec));
     r->qlevel = wrt_xcalloc(nq + 1, sizeof(int8_t));
+    r->cones = wrt_xcalloc(nq + 1, sizeof(light_cone));
     /* BRDF tables of the materials glossy quads use. */
     r->beta = wrt_xcalloc(g->nmaterials + 1, sizeof(float *));
     for (uint32_t m = 0; m < g->nmaterials; m++) {
@@ -876,14 +1257,16 @@ void wrt_relight_destroy(wrt_relight *r) {
         for (int t = 0; t < r->nthreads; t++) {
             worker *w = &r->workers[t];
             free(w->grid); free(w->pyr); free(w->acc); free(w->wts); free(w->cells); free(w->oidx); free(w->oval);
+            free(w->fpyr); free(w->fgrid);
+            free(w->pstate); free(w->prefined); free(w->pclear); free(w->occ); free(w->pcells); free(w->pval); free(w->pwav);
         }
     free(r->workers);
     if (r->beta) for (uint32_t m = 0; m < r->g->nmaterials; m++) free(r->beta[m]);
     free(r->beta);
     free(r->mats); free(r->fn_slevel); free(r->fn_ang); free(r->fn_spidx); free(r->qi);
-    free(r->ang_list); free(r->ang_start); free(r->ang_perm);
-    free(r->E); free(r->X); free(r->Xprev); free(r->Xd); free(r->cols); free(r->tex); free(r->tex_nonzero); free(r->x_nonzero);
-    free(r->resynth); free(r->recs); free(r->qlevel);
+    free(r->ang_list); free(r->ang_start); free(r->ang_full); free(r->ang_perm);
+    free(r->E); free(r->X); free(r->Xprev); free(r->X4); free(r->cols); free(r->tex); free(r->texk); free(r->tex_nonzero); free(r->x_nonzero);
+    free(r->resynth); free(r->recs); free(r->qlevel); free(r->cones);
     free(r);
 }
 
@@ -964,12 +1347,15 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
             entries += (double)(g->col_start[c + 1] - g->col_start[c]);
         }
         mul_ctx mc = {r->cols, ncols, 0};
-        int nchunk = r->nthreads;
+        /* Bound by memory: threads that stream halves of the same columns were measured
+         * slower than one on 2 cores (maze 4.2 vs 2.8 ms, glossy 14 vs 11 ms). */
+        int nchunk = entries > MUL_PARALLEL_ENTRIES ? r->nthreads : 1;
         if (nchunk > MUL_MAX_CHUNKS) nchunk = MUL_MAX_CHUNKS;
         mc.nchunk = nchunk;
-        parallel_for(r, nchunk, (entries + nf) / 50, mul_chunk, &mc); /* ~4 ns an entry */
+        parallel_for(r, nchunk, 1e9, mul_chunk, &mc);
         memcpy(r->Xprev, r->X, (size_t)nf * 3 * sizeof(float)); /* X keeps its address */
-        for (size_t k = 0; k < (size_t)nf * 3; k++) r->X[k] = (float)r->Xd[k];
+        for (size_t f = 0; f < nf; f++)
+            for (int c = 0; c < 3; c++) r->X[f * 3 + c] = r->X4[f * 4 + c];
         for (uint32_t q = 0; q < nq; q++) {
             const wrt_gto_quad *gq = &g->quads[q];
             size_t a = (size_t)gq->func_first * 3, n = (size_t)gq->func_count * 3;
@@ -1008,7 +1394,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     double work = 0;
     for (int k = 0; k < nsynth; k++) {
         const quad_info *qi = &r->qi[list[k]];
-        work += ldexp(qi->glossy ? 0.3 * qi->nang : 0.1, 2 * qi->tex_level); /* ~20 ns a texel */
+        work += ldexp(qi->glossy ? 0.3 * qi->nang : 0.015, 2 * qi->tex_level); /* ~3 ns a diffuse texel */
     }
     parallel_for(r, nsynth, work, synth_item, &sc);
     double t4 = wrt_now(), bt = 0;

@@ -16,6 +16,9 @@ typedef struct wrt_relight_options {
     int proj_level;      /* spatial projection level; 0 = chosen per quad from the light (default) */
     int max_tex_res;     /* cap on a quad's texture resolution (0 = 64) */
     int threads;         /* 0 = all cores */
+    int proj_reference;  /* n > 0: sample every cell of every quad's finest grid (no
+                          * adaptivity; slow, for tests): n = 1 with the 4 samples a
+                          * cell the adaptive projection takes, n = 2..8 with n x n */
 } wrt_relight_options;
 
 typedef struct wrt_relight_timings { /* milliseconds of the last update */

@@ -194,7 +194,7 @@ static void test_write_and_draw(void) {
     if (s) return;
     CHECK(g.nquads == (uint32_t)nq, "quads %u", g.nquads);
     wrt_relight *rl = NULL;
-    wrt_relight_options ro = {0, 16, 2};
+    wrt_relight_options ro = {.max_tex_res = 16, .threads = 2};
     CHECK(wrt_relight_create(&g, &ro, &rl) == WRT_OK, "%s", wrt_last_error());
     wrt_render *rd = NULL;
     wrt_render_options o = {W, H, 256};

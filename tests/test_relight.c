@@ -699,12 +699,107 @@ static void test_bench(void) {
     ts_free(&s);
 }
 
+static double rel_rms(const float *a, const float *b, size_t n) {
+    double d = 0, m = 0;
+    for (size_t i = 0; i < n; i++) { d += ((double)a[i] - b[i]) * ((double)a[i] - b[i]); m += (double)b[i] * b[i]; }
+    return m > 0 ? sqrt(d / m) : sqrt(d);
+}
+
+/* The adaptive projection (cells split only near shadow edges, angular edges and the
+ * light) against exhaustive projections that sample every cell of every quad's finest
+ * grid: with the same 4 samples a cell, E and X = Op E agree closely; against 8 x 8
+ * samples a cell (the truth), the coarse scaling coefficients agree closely and E, X
+ * within the 4-sample quantization of cells cut by edges (on the glossy wall, where the
+ * light crosses angular cells, the random operator weighs those fine coefficients as
+ * much as coarse ones). And E stays linear in each light. */
+static void test_adaptive_vs_reference(void) {
+    ts_scene s;
+    ts_init(&s);
+    ts_quad(&s, unit_quad, 0, 4, 0);                                              /* floor */
+    const double wall[4][3] = {{0, 0, 0}, {0, 1, 0}, {0, 1, 1}, {0, 0, 1}};
+    ts_quad(&s, wall, 1, 3, 2);                                                    /* glossy wall */
+    const double occ[4][3] = {{0.3, 0.2, 0.4}, {0.3, 0.7, 0.4}, {0.6, 0.7, 0.4}, {0.6, 0.2, 0.4}};
+    ts_quad(&s, occ, 0, 1, 0);
+    const double occ2[4][3] = {{0.15, 0.75, 0.1}, {0.15, 0.9, 0.5}, {0.35, 0.9, 0.5}, {0.35, 0.75, 0.1}};
+    ts_quad(&s, occ2, 0, 1, 0);
+    ts_random(&s, 20);
+    ts_finish(&s);
+    size_t n3 = (size_t)s.nf * 3;
+    wrt_relight *ra, *r4, *rt;
+    wrt_relight_options oa = {.threads = 2}, o4 = {.threads = 2, .proj_reference = 1};
+    wrt_relight_options ot = {.threads = 2, .proj_reference = 8};
+    CHECK(wrt_relight_create(&s.g, &oa, &ra) == WRT_OK, "%s", wrt_last_error());
+    CHECK(wrt_relight_create(&s.g, &o4, &r4) == WRT_OK, "%s", wrt_last_error());
+    CHECK(wrt_relight_create(&s.g, &ot, &rt) == WRT_OK, "%s", wrt_last_error());
+    wrt_light L[2] = {point_light(0.45, 0.5, 1.0, 2), point_light(0.25, 0.35, 0.15, 0.3)};
+    float *E[2], *X[2];
+    for (int i = 0; i < 2; i++) {
+        E[i] = malloc(n3 * sizeof(float));
+        X[i] = malloc(n3 * sizeof(float));
+        wrt_relight *rs[3] = {ra, r4, rt};
+        for (int k = 0; k < 3; k++) {
+            wrt_relight_set_lights(rs[k], &L[i], NULL, 1);
+            wrt_relight_update(rs[k], NULL);
+        }
+        memcpy(E[i], wrt_relight_E(ra), n3 * sizeof(float));
+        memcpy(X[i], wrt_relight_X(ra), n3 * sizeof(float));
+        const float *E4 = wrt_relight_E(r4), *X4 = wrt_relight_X(r4), *Et = wrt_relight_E(rt), *Xt = wrt_relight_X(rt);
+        double e4 = rel_rms(E[i], E4, n3), x4 = rel_rms(X[i], X4, n3), et = rel_rms(E[i], Et, n3), xt = rel_rms(X[i], Xt, n3);
+        double e4t = rel_rms(E4, Et, n3);
+        /* coarse scaling coefficients: averages over 4 x 4 cells (spatial levels < 2),
+         * angular root */
+        double cw = 0, cm = 0;
+        for (uint32_t f = 0; f < s.nf; f++) {
+            wrt_fkey k = s.fkeys[f];
+            if (!wrt_fkey_angular_root(k) || wrt_fkey_snode(k).level >= 2) continue;
+            for (int c = 0; c < 3; c++) {
+                double d = (double)E[i][f * 3 + c] - Et[f * 3 + c];
+                cw += d * d; cm += (double)Et[f * 3 + c] * Et[f * 3 + c];
+            }
+        }
+        double ce = sqrt(cw / cm);
+        fprintf(stderr, "  light %d, relative RMS: adaptive vs 4 samples everywhere: E %.4f, X %.4f; vs 64 samples: "
+                "E %.4f, X %.4f, coarse E %.4f (4 samples everywhere vs 64: E %.4f)\n", i, e4, x4, et, xt, ce, e4t);
+        CHECK(max_abs(Et, n3) > 0 && max_abs(E[i], n3) > 0, "light %d reaches the quads", i);
+        CHECK(e4 < 0.02, "light %d: E relative RMS %.4f vs 4 samples on every cell", i, e4);
+        CHECK(x4 < 0.02, "light %d: X relative RMS %.4f vs 4 samples on every cell", i, x4);
+        CHECK(ce < 0.01, "light %d: coarse E relative RMS %.4f vs 64 samples on every cell", i, ce);
+        CHECK(et < 1.2 * e4t + 0.01, "light %d: E relative RMS %.4f vs 64 samples, 4 samples on every cell %.4f", i, et, e4t);
+    }
+    /* both lights at once: the sum of each alone */
+    float sc[2] = {1, 1};
+    wrt_relight_set_lights(ra, L, sc, 2);
+    wrt_relight_update(ra, NULL);
+    const float *Eab = wrt_relight_E(ra), *Xab = wrt_relight_X(ra);
+    double em = 0, ed = 0, xm = 0, xd = 0;
+    for (size_t k = 0; k < n3; k++) {
+        em = fmax(em, fabs(Eab[k])); ed = fmax(ed, fabs(Eab[k] - E[0][k] - E[1][k]));
+        xm = fmax(xm, fabs(Xab[k])); xd = fmax(xd, fabs(Xab[k] - X[0][k] - X[1][k]));
+    }
+    CHECK(ed <= 1e-4 * em, "E(A+B) - E(A) - E(B) = %g of %g", ed, em);
+    CHECK(xd <= 1e-4 * xm, "X(A+B) - X(A) - X(B) = %g of %g", xd, xm);
+    /* 3 x the intensity gives 3 E: the splits do not depend on intensity */
+    wrt_light l3 = L[1];
+    l3.intensity *= 3;
+    wrt_relight_set_lights(ra, &l3, NULL, 1);
+    wrt_relight_update(ra, NULL);
+    double d3 = 0;
+    for (size_t k = 0; k < n3; k++) d3 = fmax(d3, fabs(wrt_relight_E(ra)[k] - 3 * E[1][k]));
+    CHECK(d3 <= 1e-5 * 3 * max_abs(E[1], n3), "3 x intensity gives 3 E (off by %g)", d3);
+    for (int i = 0; i < 2; i++) { free(E[i]); free(X[i]); }
+    wrt_relight_destroy(ra);
+    wrt_relight_destroy(r4);
+    wrt_relight_destroy(rt);
+    ts_free(&s);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(test_far_light_root);
     TEST_RUN(test_cell_irradiance);
     TEST_RUN(test_round_trip);
     TEST_RUN(test_shadow);
     TEST_RUN(test_shadow_refine);
+    TEST_RUN(test_adaptive_vs_reference);
     TEST_RUN(test_linearity);
     TEST_RUN(test_exact_zeros);
     TEST_RUN(test_glossy_beta);
