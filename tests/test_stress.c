@@ -209,7 +209,16 @@ static void test_furnace(void) {
         tsb_box_inward(&s, P(0, 0, 0), P(1, 1, 1), n, m);
         wrt_bake_result r;
         wrt_bake_options o = opts(quality, 0, 0);
-        CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+        wrt_status st = wrt_bake_run(&s, &o, &r);
+        if (st == WRT_ERR_ACCURACY) {
+            /* a diverging series must be refused with a clear error, never truncated silently */
+            CHECK(strstr(wrt_last_error(), "diverges") != NULL, "message: %s", wrt_last_error());
+            printf("furnace rho %.3f: the bake refuses: %s\n", rho, wrt_last_error());
+            KNOWN(0, "furnace rho %.3f: no operator (series diverges)", rho);
+            tsb_free(&s);
+            continue;
+        }
+        CHECK(st == WRT_OK, "%s", wrt_last_error());
         check_bake(&r, "furnace");
         double *x = calloc(3 * r.nfuncs, sizeof *x), *y = calloc(3 * r.nfuncs, sizeof *y);
         for (int q = 0; q < s.nquads; q++) {
