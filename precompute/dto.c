@@ -160,8 +160,12 @@ static int occluded(const bake_ctx *b, wrt_v3 a, wrt_v3 bpt) {
     struct RTCRay ray;
     ray.org_x = (float)a.x; ray.org_y = (float)a.y; ray.org_z = (float)a.z;
     ray.dir_x = (float)(d.x / len); ray.dir_y = (float)(d.y / len); ray.dir_z = (float)(d.z / len);
-    ray.tnear = (float)(b->ray_eps);
-    ray.tfar = (float)(len - b->ray_eps);
+    /* Both ends are already lifted off their quads by ray_eps along the normals, so the
+     * ray cannot meet its own quads; trimming ray_eps off each end as well let rays
+     * through walls thinner than ray_eps when an end lay within ray_eps of the wall's
+     * foot (light leaked between two rooms sharing a zero-thickness wall). */
+    ray.tnear = 0;
+    ray.tfar = (float)(len * (1 - 1e-7));
     ray.time = 0; ray.mask = 0xFFFFFFFF; ray.id = 0; ray.flags = 0;
     if (ray.tfar <= ray.tnear) return 0;
     rtcOccluded1(b->rtc, &ctx, &ray);

@@ -82,6 +82,18 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     }
     free(x); free(y);
     C->series_ratio = ratio;
+    /* Terms that keep growing (the ratio settled at or above 1, or still above 1 at the
+     * cap) mean the discrete operator's dominant eigenvalue is >= 1: the sum so far is
+     * a truncation of a divergent series, not an approximation of G - I. */
+    if (P.nnz && ratio >= 1 && C->energy_left >= 1e-6) {
+        double rmax = 0;
+        for (int q = 0; q < b->nq; q++) rmax = fmax(rmax, fmax(b->rho[q][0], fmax(b->rho[q][1], b->rho[q][2])));
+        wrt_csc_free(&P); wrt_csc_free(&S);
+        return wrt_fail(WRT_ERR_ACCURACY,
+                        "the light transport series diverges: each bounce multiplies the light by %.4f after %llu "
+                        "bounces (largest albedo %.4f; the discretised transport gains energy: lower the albedo or "
+                        "raise the quality)", ratio, (unsigned long long)C->bounces, rmax);
+    }
     if (!b->opt.no_tail && P.nnz && ratio > 0 && ratio < 1) {
         double k = ratio / (1 - ratio);
         wrt_csc S2 = wrt_csc_add(&S, &P, k);
