@@ -790,7 +790,7 @@ static void thin_wall_case(double t) {
 static void test_thin_wall(void) {
     thin_wall_case(1e-3);
     thin_wall_case(1e-6);
-    if (full) thin_wall_case(0);
+    thin_wall_case(0);
 }
 
 /* --------------------------------------------------------- bad input files ---- */
