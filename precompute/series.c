@@ -88,7 +88,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     if (P.nnz && ratio >= 1 && C->energy_left >= 1e-6) {
         double rmax = 0;
         for (int q = 0; q < b->nq; q++) rmax = fmax(rmax, fmax(b->rho[q][0], fmax(b->rho[q][1], b->rho[q][2])));
-        wrt_csc_free(&P); wrt_csc_free(&S);
+        wrt_csc_free(&P); wrt_csc_free(&S); free(rw); free(cw);
         return wrt_fail(WRT_ERR_ACCURACY,
                         "the light transport series diverges: each bounce multiplies the light by %.4f after %llu "
                         "bounces (largest albedo %.4f; the discretised transport gains energy: lower the albedo or "
