@@ -223,10 +223,10 @@ typedef struct link_samples {
 
 /* Samples the kernel on link (rn, sn). Returns 1 if some geometric transfer was seen
  * but every sample was blocked (mutually invisible supports). */
-static int eval_link(pair_ctx *pc, wrt_node rn, wrt_node sn, link_samples *ls, int ns) {
+static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, link_samples *ls, int ns) {
     const bake_ctx *b = pc->b;
-    const wrt_quad *R = &b->quads[pc->r], *S = &b->quads[pc->s];
-    uint64_t h = mix64(((uint64_t)pc->r << 32 | (uint32_t)pc->s) ^ mix64(link_key(rn, sn)));
+    const wrt_quad *R = &b->quads[ri], *S = &b->quads[si];
+    uint64_t h = mix64(((uint64_t)ri << 32 | (uint32_t)si) ^ mix64(link_key(rn, sn)));
     double ru = u01(mix64(h + 1)), rv = u01(mix64(h + 2)), su = u01(mix64(h + 3)), sv = u01(mix64(h + 4));
     double rsz = wrt_node_size(rn), rx0 = wrt_node_x0(rn), ry0 = wrt_node_y0(rn);
     wrt_v3 spoly[4][4], scentre[4];
@@ -303,14 +303,17 @@ static int eval_link(pair_ctx *pc, wrt_node rn, wrt_node sn, link_samples *ls, i
 }
 
 /* Adds the leaf's integral to its block. */
-static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_samples *ls, int ns) {
+static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_samples *ls, int ns, int swapped) {
     const bake_ctx *b = pc->b;
     const wrt_quad *R = &b->quads[pc->r], *S = &b->quads[pc->s];
     double scale = ldexp(1.0, (int)sn.level - (int)rn.level) / ns;
     size_t bi = get_block(pc, rn, sn);
     block *bl = &pc->blocks[bi];
     if (pc->nch == 1) {
-        /* c[i][j] = 2^ls 2^-lr / N sum_k sign_i(qr_k) sqrt(J_R) sum_q sign_j(q) G_kq */
+        /* c[i][j] = 2^ls 2^-lr / N sum_k sign_i(qr_k) sqrt(J_R) sum_q sign_j(q) G_kq; with
+         * `swapped` the samples were taken on S and the closed form on R: the kernel is
+         * symmetric, so the block is the transpose, with the levels exchanged */
+        if (swapped) scale = ldexp(1.0, (int)rn.level - (int)sn.level) / ns;
         for (int k = 0; k < ns; k++) {
             int q = ls->qr[k];
             for (int i = 0; i < 4; i++) {
@@ -318,7 +321,8 @@ static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_sa
                 for (int j = 0; j < 4; j++) {
                     double acc = 0;
                     for (int t = 0; t < 4; t++) acc += wrt_haar_sign(j, t & 1, t >> 1) * ls->G[k][t];
-                    BV(pc, bl, i, j, 0, 0) += si * acc;
+                    if (swapped) BV(pc, bl, j, i, 0, 0) += si * acc;
+                    else BV(pc, bl, i, j, 0, 0) += si * acc;
                 }
             }
         }
@@ -375,7 +379,18 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     if (pc->cancelled || atomic_load(b->cancel)) { pc->cancelled = 1; return; }
     int ns = b->opt.receiver_samples;
     link_samples ls;
-    int invisible = eval_link(pc, rn, sn, &ls, ns);
+    /* Quadrature points go on the smaller cell and the closed form on the larger: a
+     * coarse receiver seeing a fine sender cell near a shared edge integrates the peaked
+     * point-to-cell form factor badly with 16 points, and those errors do not cancel over
+     * receivers, so the operator gained energy (furnace). A diffuse link serves both
+     * directions with a symmetric kernel, so its roles can be exchanged freely. */
+    int swapped = 0;
+    if (pc->sym) {
+        double ar = b->quads[pc->r].area * ldexp(1.0, -2 * (int)rn.level);
+        double as = b->quads[pc->s].area * ldexp(1.0, -2 * (int)sn.level);
+        swapped = ar > as * (1 + 1e-9);
+    }
+    int invisible = swapped ? eval_link(pc, pc->s, pc->r, sn, rn, &ls, ns) : eval_link(pc, pc->r, pc->s, rn, sn, &ls, ns);
     if (invisible) { pc->tc->links_invisible++; return; }
     /* The error of stopping here is the kernel's variation that the link's 2 x 2 x 2 x 2
      * block cannot hold: over the receiver, the spread of the point-to-sender form factor
@@ -398,8 +413,8 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     }
     double vq = 0;
     for (int q = 0; q < 4; q++) vq = fmax(vq, qhi[q] - qlo[q]);
-    double vr = vq * pc->rho_max * wrt_node_size(rn);
-    double vsn = vs * pc->rho_max * wrt_node_size(sn);
+    double vr = (swapped ? vs : vq) * pc->rho_max * wrt_node_size(rn);
+    double vsn = (swapped ? vq : vs) * pc->rho_max * wrt_node_size(sn);
     int maxl = b->opt.max_slevel, minl = b->opt.min_slevel;
     /* a link that serves both directions refines both sides by the finer threshold */
     double eps_r = b->opt.eps_receiver, eps_s = b->opt.eps_sender;
@@ -418,7 +433,7 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     }
     if (!ref_r && !ref_s) {
         pc->tc->links_leaf++;
-        integrate_leaf(pc, rn, sn, &ls, ns);
+        integrate_leaf(pc, rn, sn, &ls, ns, swapped);
         return;
     }
     pc->tc->links_refined++;
