@@ -9,27 +9,13 @@
 #include "common/brdf.h"
 #include "ff_closed.h"
 #include "precompute/bake.h"
+#include "bake_helpers.h"
 #include "scene_build.h"
 #include "test.h"
 
-static wrt_v3 P(double x, double y, double z) { return v3(x, y, z); }
 
-static wrt_bake_options opts(int q, int minl, int maxl) {
-    wrt_bake_options o = {0};
-    o.quality = q; o.min_slevel = minl; o.max_slevel = maxl;
-    o.threads = 2;
-    return o;
-}
 
-static double entry(const wrt_bake_result *r, const wrt_csc *m, uint64_t rk, uint64_t sk) {
-    int64_t i = wrt_fkey_find(r->fkeys, r->nfuncs, rk), j = wrt_fkey_find(r->fkeys, r->nfuncs, sk);
-    if (i < 0 || j < 0) return 0;
-    for (uint64_t k = m->col[j]; k < m->col[j + 1]; k++)
-        if (m->row[k] == (uint32_t)i) return m->val[3 * k];
-    return 0;
-}
 
-static uint64_t root_key(int q) { return wrt_fkey_make((uint32_t)q, wrt_node_root(), 0, wrt_node_root(), 0); }
 
 /* Coefficients (channel 0 = 1 = 2) of a uniform irradiance E0 over cell (level, cx, cy)
  * of quad q (a parallelogram of area A): E0 sqrt(A/pi) * integral over the cell of h. */
