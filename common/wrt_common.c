@@ -3,6 +3,8 @@
 #define _POSIX_C_SOURCE 200809L
 #include "wrt_common.h"
 
+#include <errno.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -91,4 +93,19 @@ uint64_t wrt_hash64(const void *data, size_t n, uint64_t seed) {
         h *= 0x100000001b3ULL;
     }
     return h;
+}
+
+int wrt_parse_vec3(const char *s, double v[3]) {
+    char *end;
+    for (int i = 0; i < 3; i++) {
+        errno = 0;
+        v[i] = strtod(s, &end);
+        if (end == s || errno || !isfinite(v[i])) return 0;
+        s = end;
+        if (i < 2) {
+            if (*s != ',') return 0;
+            s++;
+        }
+    }
+    return *s == 0;
 }

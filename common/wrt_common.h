@@ -79,6 +79,9 @@ static inline wrt_v3 v3_norm(wrt_v3 a) {
 }
 static inline int v3_finite(wrt_v3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 
+/* Parses "X,Y,Z" (three finite numbers, nothing else) into v; returns 1 on success. */
+int wrt_parse_vec3(const char *s, double v[3]);
+
 /* FNV-1a 64-bit over bytes, for provenance hashes and checksums. */
 uint64_t wrt_hash64(const void *data, size_t n, uint64_t seed);
 #define WRT_HASH_SEED 0xcbf29ce484222325ULL

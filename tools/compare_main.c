@@ -59,21 +59,6 @@ static int parse_double(const char *s, double *out) {
     return 1;
 }
 
-static int parse3(const char *s, double v[3]) {
-    char *end;
-    for (int i = 0; i < 3; i++) {
-        errno = 0;
-        v[i] = strtod(s, &end);
-        if (end == s || errno || !isfinite(v[i])) return 0;
-        s = end;
-        if (i < 2) {
-            if (*s != ',') return 0;
-            s++;
-        }
-    }
-    return *s == 0;
-}
-
 static void json_str(FILE *f, const char *s) {
     fputc('"', f);
     for (; *s; s++) {
@@ -137,7 +122,7 @@ int main(int argc, char **argv) {
         else if (a[0] == '-' && a[1] == '-' && !v) ok = 0;
         else if (!strcmp(a, "--lights")) { ok = parse_long(v, 1, WRT_COMPARE_MAX_LIGHTS, &x); nlights_req = (int)x; }
         else if (!strcmp(a, "--light-pos")) {
-            ok = nexplicit < WRT_COMPARE_MAX_LIGHTS && parse3(v, explicit_pos[nexplicit]);
+            ok = nexplicit < WRT_COMPARE_MAX_LIGHTS && wrt_parse_vec3(v, explicit_pos[nexplicit]);
             nexplicit += ok;
         }
         else if (!strcmp(a, "--cells")) { ok = parse_long(v, 1, 64, &x); o.cells = (int)x; }

@@ -47,21 +47,6 @@ static void usage(FILE *f) {
             "  --json                  print the figures as one JSON object\n");
 }
 
-static int parse3(const char *s, double v[3]) {
-    char *end;
-    for (int i = 0; i < 3; i++) {
-        errno = 0;
-        v[i] = strtod(s, &end);
-        if (end == s || errno || !isfinite(v[i])) return 0;
-        s = end;
-        if (i < 2) {
-            if (*s != ',') return 0;
-            s++;
-        }
-    }
-    return *s == 0;
-}
-
 static int parse_int(const char *s, long lo, long hi, int *out) {
     char *end;
     errno = 0;
@@ -203,9 +188,9 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--no-image")) { image = 0; takes = 0; }
         else if (!strcmp(a, "--pfm")) { pfm = 1; takes = 0; }
         else if (a[0] == '-' && a[1] == '-' && !v) ok = 0;
-        else if (!strcmp(a, "--light-pos")) { ok = parse3(v, lpos); have_pos = 1; }
-        else if (!strcmp(a, "--light-dir")) { ok = parse3(v, ldir); have_dir = 1; }
-        else if (!strcmp(a, "--light-color")) ok = parse3(v, lcolor);
+        else if (!strcmp(a, "--light-pos")) { ok = wrt_parse_vec3(v, lpos); have_pos = 1; }
+        else if (!strcmp(a, "--light-dir")) { ok = wrt_parse_vec3(v, ldir); have_dir = 1; }
+        else if (!strcmp(a, "--light-color")) ok = wrt_parse_vec3(v, lcolor);
         else if (!strcmp(a, "--light-intensity")) { char *e; lint = strtod(v, &e); ok = *e == 0 && lint >= 0 && isfinite(lint); }
         else if (!strcmp(a, "--light-cone")) ok = sscanf(v, "%lf,%lf", &cone_in, &cone_out) == 2 && cone_in >= 0 && cone_out > cone_in && cone_out <= WRT_PI / 2;
         else if (!strcmp(a, "--exposure")) { char *e; exposure = strtod(v, &e); ok = *e == 0 && exposure > 0 && isfinite(exposure); }
