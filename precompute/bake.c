@@ -371,6 +371,13 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
                     memcpy(tr[t].v, e->v, sizeof e->v);
                     t++;
                 }
+            if (!b.opt.no_balance) {
+                double tb = wrt_now();
+                uint64_t tcap = nent ? nent : 1, t0n = t;
+                wrt_balance_run(&b, np, pr, ps, job.out, keys, res->nfuncs, &tr, &t, &tcap);
+                C->balance_entries = t - t0n;
+                C->t_balance = wrt_now() - tb;
+            }
             res->dto = wrt_csc_from_triplets(res->nfuncs, tr, t);
             free(tr);
             C->entries_dto = res->dto.nnz;
@@ -379,7 +386,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             for (uint32_t f = 0; f < res->nfuncs; f++) C->nfuncs_angular += !wrt_fkey_angular_root(res->fkeys[f]);
         }
     }
-    for (size_t i = 0; i < np; i++) free(job.out[i].e);
+    for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].leaf); }
     free(job.out); free(job.tc); free(pr); free(ps); free(occl);
     C->t_dto = wrt_now() - t0;
 

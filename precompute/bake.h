@@ -28,6 +28,7 @@ typedef struct wrt_bake_options {
     int dto_only;          /* 1: stop after the DTO (res->op stays empty): for tests */
     int max_bounces;       /* cap on the Neumann series (default 2000) */
     int no_tail;           /* 1: do not add the geometric estimate of the series' tail */
+    int no_balance;        /* 1: keep T's root rows as the links integrate them (no power balance) */
     wrt_progress_fn progress;
     void *progress_user;
 } wrt_bake_options;
@@ -60,7 +61,9 @@ typedef struct wrt_bake_counters {
     uint64_t links_gto, entries_gto;
     uint64_t links_gathered, entries_gathered;
     uint32_t nfuncs, nfuncs_angular;
-    double t_dto, t_gto;           /* seconds */
+    uint64_t balance_entries;      /* root entries the power balance set (balance.c) */
+    double t_dto, t_gto;           /* seconds (t_dto includes t_balance) */
+    double t_balance;
     double t_rays;                 /* thread-seconds spent in visibility rays */
 } wrt_bake_counters;
 

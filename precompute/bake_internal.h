@@ -34,8 +34,15 @@ typedef struct bake_thread_counters {
 } bake_thread_counters;
 
 typedef struct pair_entry { uint64_t r, s; float v[3]; } pair_entry;
+/* A leaf link of a pair with a diffuse sender, kept for the power balance (balance.c):
+ * the receiver and sender cells (dto.c's node packing) and the visible share of the
+ * link's sampled form factor (1 where no occluder can lie between the quads). */
+typedef struct leaf_rec { uint32_t rn, sn; float vis; } leaf_rec;
 typedef struct pair_out {
     pair_entry *e; size_t count;
+    leaf_rec *leaf; size_t nleaf;
+    int occluded;          /* an occluder may lie between the quads */
+    int leaf_dirs;         /* bit 0: the leaves serve sender s; bit 1: also sender r (reciprocal pair) */
     uint64_t links;
     uint64_t angular;      /* entries with an angular wavelet on either side */
     int glossy;            /* the pair touches a glossy quad */
@@ -54,6 +61,18 @@ void wrt_bake_btilde(const bake_ctx *b, int m, double a, double bb, double *out)
 /* Builds b->btilde for every glossy material (bake.c). */
 void wrt_bake_btilde_build(bake_ctx *b);
 void wrt_angular_func(int idx, wrt_node *n, int *type);
+
+static inline uint32_t wrt_node_pack(wrt_node n) { return ((uint32_t)n.level << 26) | ((uint32_t)n.y << 13) | n.x; }
+static inline wrt_node wrt_node_unpack(uint32_t k) {
+    wrt_node n = {(uint8_t)(k >> 26), (uint16_t)(k & 0x1FFF), (uint16_t)((k >> 13) & 0x1FFF)};
+    return n;
+}
+
+/* The power balance (balance.c): correction triplets for the quads' root rows of T, so
+ * that every diffuse sender function delivers the power its pointwise form factors say.
+ * Appends to *tr (count *nt, capacity *cap). */
+void wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, const pair_out *out,
+                     const uint64_t *fkeys, uint32_t nf, wrt_triplet **tr, uint64_t *nt, uint64_t *cap);
 
 /* The Neumann series (series.c): fills res->op and the series counters. */
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res);

@@ -91,13 +91,14 @@ typedef struct pair_ctx {
     uint64_t *hkeys; uint32_t *hvals; size_t hcap, hcount;
     bake_thread_counters *tc;
     int cancelled;
+    int record;              /* keep the leaves for the power balance */
+    leaf_rec *leaf; size_t nleaf, leaf_cap;
 } pair_ctx;
 
 /* value (i, j, angular pair a, channel ch) of block bl */
 #define BV(pc, bl, i, j, a, ch) (pc)->pool[(bl)->data + ((((size_t)(i) * 4 + (j)) * (pc)->nang + (a)) * (pc)->nch + (ch))]
 
-static uint32_t node_pack(wrt_node n) { return ((uint32_t)n.level << 26) | ((uint32_t)n.y << 13) | n.x; }
-static uint64_t link_key(wrt_node rn, wrt_node sn) { return ((uint64_t)node_pack(rn) << 32) | node_pack(sn); }
+static uint64_t link_key(wrt_node rn, wrt_node sn) { return ((uint64_t)wrt_node_pack(rn) << 32) | wrt_node_pack(sn); }
 
 static uint64_t mix64(uint64_t z) {
     z += 0x9e3779b97f4a7c15ULL;
@@ -219,6 +220,7 @@ typedef struct link_samples {
     int qr[MAX_RS];        /* receiver quadrant of x_k */
     double jr[MAX_RS];     /* sqrt(J_R) at x_k */
     wrt_v3 d[MAX_RS][4];   /* unit direction x_k -> centre of sender quadrant q */
+    double fgeom, fvis;    /* sums of the sampled form factors, all and visible */
 } link_samples;
 
 /* Samples the kernel on link (rn, sn). Returns 1 if some geometric transfer was seen
@@ -243,6 +245,7 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
     if (side * side != per_q) side = 1, per_q = 1;
     int any_geom = 0, any_vis = 0;
     int k = 0;
+    ls->fgeom = ls->fvis = 0;
     for (int q = 0; q < 4; q++) {
         int cx = q & 1, cy = q >> 1;
         for (int s = 0; s < per_q; s++, k++) {
@@ -278,6 +281,7 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
                 pc->tc->samples++;
                 if (f <= 0) { pc->tc->rays_skipped_facing++; continue; }
                 any_geom = 1;
+                ls->fgeom += f;
                 if (pc->occluded) {
                     /* a stratified target in the sender quadrant, different per sample */
                     double gu = fmod(((k % 4) + su) / 4.0 + 0.618033988749895 * (k / 4), 1.0);
@@ -294,6 +298,7 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
                     pc->tc->rays_skipped_unoccluded++;
                 }
                 any_vis = 1;
+                ls->fvis += f;
                 ls->F[k][t] = f;
                 ls->G[k][t] = f * sinvj[t];
             }
@@ -434,6 +439,14 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     if (!ref_r && !ref_s) {
         pc->tc->links_leaf++;
         integrate_leaf(pc, rn, sn, &ls, ns, swapped);
+        if (pc->record) {
+            if (pc->nleaf == pc->leaf_cap) {
+                pc->leaf_cap = pc->leaf_cap ? 2 * pc->leaf_cap : 64;
+                pc->leaf = wrt_xrealloc(pc->leaf, pc->leaf_cap * sizeof *pc->leaf);
+            }
+            double vis = !pc->occluded ? 1.0 : ls.fgeom > 0 ? ls.fvis / ls.fgeom : 1.0;
+            pc->leaf[pc->nleaf++] = (leaf_rec){wrt_node_pack(rn), wrt_node_pack(sn), (float)vis};
+        }
         return;
     }
     pc->tc->links_refined++;
@@ -497,7 +510,15 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
     memset(out, 0, sizeof *out);
     if (pc.rho_max <= 0 && !pc.ls) return;
     if (pc.ls) pc.rho_max = fmax(pc.rho_max, 1e-3);
+    /* leaves are kept for the power balance where the sender is diffuse */
+    pc.record = !b->opt.no_balance && !pc.ls;
     refine(&pc, wrt_node_root(), wrt_node_root());
+    if (pc.record) {
+        out->leaf = pc.leaf; out->nleaf = pc.nleaf;
+        out->leaf_dirs = 1 | (sym ? 2 : 0);
+        out->occluded = pc.occluded;
+        pc.leaf = NULL;
+    }
     if (pc.cancelled) { out->cancelled = 1; goto done; }
     push_up(&pc, 0);
     push_up(&pc, 1);
@@ -557,5 +578,5 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
     }
     out->glossy = pc.lr || pc.ls;
 done:
-    free(pc.blocks); free(pc.pool); free(pc.hkeys); free(pc.hvals);
+    free(pc.blocks); free(pc.pool); free(pc.hkeys); free(pc.hvals); free(pc.leaf);
 }

@@ -40,6 +40,8 @@ static void usage(FILE *f) {
         "  --gathered             store the gathered GTO (T_fine G) instead of G - I\n"
         "  --report-gathered      compute the gathered GTO's link count without storing it\n"
         "  --no-tail              do not add the estimated tail of the series\n"
+        "  --no-balance           keep T's quad-to-quad power as the links integrate it (no\n"
+        "                         power balance: loses energy conservation; for comparison)\n"
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --threads N            worker threads (default: all cores); output is identical\n"
         "  --drop-bad             drop bad triangles with a warning instead of refusing\n"
@@ -106,7 +108,7 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
         "\"entries\":{\"dto\":%llu,\"spatial\":%llu,\"angular\":%llu,\"gto\":%llu,\"gathered\":%llu},"
         "\"functions\":{\"total\":%u,\"angular\":%u},"
         "\"rays\":{\"traced\":%llu,\"skipped_unoccluded\":%llu,\"skipped_facing\":%llu},\"samples\":%llu,"
-        "\"bounces\":%llu,\"energy_left\":%.6g,\"tail_fraction\":%.6g,\"series_ratio\":%.6g",
+        "\"bounces\":%llu,\"energy_left\":%.6g,\"tail_fraction\":%.6g,\"series_ratio\":%.6g,\"balance_entries\":%llu",
         (unsigned long long)c->pairs_total, (unsigned long long)c->pairs_exchange,
         (unsigned long long)c->pairs_skipped_facing, (unsigned long long)c->pairs_unoccluded,
         (unsigned long long)c->links_dto, (unsigned long long)c->links_dto_diffuse,
@@ -118,16 +120,17 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
         (unsigned long long)c->entries_gathered, c->nfuncs, c->nfuncs_angular,
         (unsigned long long)c->rays_traced, (unsigned long long)c->rays_skipped_unoccluded,
         (unsigned long long)c->rays_skipped_facing, (unsigned long long)c->samples,
-        (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio);
+        (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio,
+        (unsigned long long)c->balance_entries);
 }
 
 static void json_options(FILE *f, const wrt_bake_options *o) {
     fprintf(f,
         "{\"quality\":%d,\"eps_receiver\":%.6g,\"eps_sender\":%.6g,\"eps_compress\":%.6g,"
         "\"max_level\":%d,\"min_level\":%d,\"receiver_samples\":%d,\"gathered\":%d,\"tail\":%d,"
-        "\"max_bounces\":%d,\"max_alevel\":%d}",
+        "\"max_bounces\":%d,\"max_alevel\":%d,\"balance\":%d}",
         o->quality, o->eps_receiver, o->eps_sender, o->eps_compress, o->max_slevel, o->min_slevel,
-        o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces, o->max_alevel);
+        o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces, o->max_alevel, !o->no_balance);
 }
 
 int main(int argc, char **argv) {
@@ -158,6 +161,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--gathered")) o.gathered = 1;
         else if (!strcmp(a, "--report-gathered")) o.report_gathered = 1;
         else if (!strcmp(a, "--no-tail")) o.no_tail = 1;
+        else if (!strcmp(a, "--no-balance")) o.no_balance = 1;
         else if (!strcmp(a, "--drop-bad")) drop_bad = 1;
         else if (!strcmp(a, "--reproducible")) reproducible = 1;
         else if (!strcmp(a, "--json")) json = 1;
@@ -331,8 +335,8 @@ int main(int argc, char **argv) {
 
     if (json) {
         printf("{\"scene\":\"%s\",\"output\":\"%s\",\"quads\":%d,\"bytes\":%lld,", scene_path, out_path, s.nquads, bytes);
-        printf("\"seconds\":{\"dto\":%.4f,\"gto\":%.4f,\"write\":%.4f,\"total\":%.4f,\"rays_thread\":%.4f},",
-               c->t_dto, c->t_gto, t_write, t_total, c->t_rays);
+        printf("\"seconds\":{\"dto\":%.4f,\"balance\":%.4f,\"gto\":%.4f,\"write\":%.4f,\"total\":%.4f,"
+               "\"rays_thread\":%.4f},", c->t_dto, c->t_balance, c->t_gto, t_write, t_total, c->t_rays);
         if (max_error >= 0)
             printf("\"check\":{\"cell_rmse\":%.6g,\"floor\":%.6g,\"max_error\":%.6g,\"seconds\":%.3f},",
                    check_error, check_floor, max_error, t_check);
@@ -364,6 +368,9 @@ int main(int argc, char **argv) {
                    check_error, check_floor, max_error, t_check);
         printf("  series    %llu bounces, energy left %.2e, tail added %.2e (ratio %.4f)\n",
                (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio);
+        if (!o.no_balance)
+            printf("  balance   %llu quad-to-quad power entries set, %.2f s\n",
+                   (unsigned long long)c->balance_entries, c->t_balance);
     }
     wrt_bake_result_free(&r);
     wrt_scene_free(&s);
