@@ -380,6 +380,11 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             }
             res->dto = wrt_csc_from_triplets(res->nfuncs, tr, t);
             free(tr);
+            if (!b.opt.no_balance) {
+                double tb = wrt_now();
+                C->balance_entries += wrt_balance_glossy(&b, keys, res->nfuncs, &res->dto);
+                C->t_balance += wrt_now() - tb;
+            }
             C->entries_dto = res->dto.nnz;
             C->entries_spatial = res->dto.nnz - C->entries_angular;
             C->nfuncs = res->nfuncs;

@@ -74,6 +74,10 @@ static inline wrt_node wrt_node_unpack(uint32_t k) {
 void wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, const pair_out *out,
                      const uint64_t *fkeys, uint32_t nf, wrt_triplet **tr, uint64_t *nt, uint64_t *cap);
 
+/* The power balance of glossy senders (balance.c), on the assembled T: returns the
+ * number of entries adjusted. */
+uint64_t wrt_balance_glossy(const bake_ctx *b, const uint64_t *fkeys, uint32_t nf, wrt_csc *T);
+
 /* The Neumann series (series.c): fills res->op and the series counters. */
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res);
 
