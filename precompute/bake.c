@@ -171,10 +171,6 @@ int64_t wrt_fkey_find(const uint64_t *fkeys, uint32_t n, uint64_t key) {
     return (lo < n && fkeys[lo] == key) ? (int64_t)lo : -1;
 }
 
-static int cmp_u64(const void *pa, const void *pb) {
-    uint64_t a = *(const uint64_t *)pa, b = *(const uint64_t *)pb;
-    return a < b ? -1 : a > b;
-}
 
 /* The link of a function: its key without the wavelet types. */
 static uint64_t support_of(uint64_t k) { return k & ~((3ULL << 16) | (3ULL << 6)); }
@@ -351,7 +347,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
                 keys[nk++] = job.out[i].e[k].r;
                 keys[nk++] = job.out[i].e[k].s;
             }
-        qsort(keys, nk, sizeof *keys, cmp_u64);
+        wrt_sort_u64(keys, nk);
         uint64_t nu = 0;
         for (uint64_t i = 0; i < nk; i++)
             if (nu == 0 || keys[nu - 1] != keys[i]) keys[nu++] = keys[i];

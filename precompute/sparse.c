@@ -67,11 +67,12 @@ typedef struct mul_ctx {
     uint32_t **tmp;     /* per thread: the sort's buffer */
 } mul_ctx;
 
-/* Sorts a[0..n) (values < 2^32) ascending: insertion sort for short lists, else an LSD
- * radix sort by 11-bit digits through tmp (n entries). qsort with a comparison callback
- * took 38% of a maze bake (the product sorts every column's touched rows). */
+/* Sorts a[0..n) (values <= maxv) ascending: insertion sort for short lists, else an LSD
+ * radix sort by bytes through tmp (n entries), as many passes as maxv needs. qsort with
+ * a comparison callback took 38% of a maze bake (the product sorts every column's
+ * touched rows). */
 static void sort_u32(uint32_t *a, uint32_t n, uint32_t *tmp, uint32_t maxv) {
-    if (n < 48) {
+    if (n < 32) {
         for (uint32_t i = 1; i < n; i++) {
             uint32_t v = a[i], j = i;
             while (j > 0 && a[j - 1] > v) { a[j] = a[j - 1]; j--; }
@@ -80,12 +81,12 @@ static void sort_u32(uint32_t *a, uint32_t n, uint32_t *tmp, uint32_t maxv) {
         return;
     }
     uint32_t *src = a, *dst = tmp;
-    for (int shift = 0; shift < 32 && (maxv >> shift); shift += 11) {
-        uint32_t count[2048 + 1];
+    for (int shift = 0; shift < 32 && (maxv >> shift); shift += 8) {
+        uint32_t count[256 + 1];
         memset(count, 0, sizeof count);
-        for (uint32_t i = 0; i < n; i++) count[((src[i] >> shift) & 2047) + 1]++;
-        for (int d = 0; d < 2048; d++) count[d + 1] += count[d];
-        for (uint32_t i = 0; i < n; i++) dst[count[(src[i] >> shift) & 2047]++] = src[i];
+        for (uint32_t i = 0; i < n; i++) count[((src[i] >> shift) & 255) + 1]++;
+        for (int d = 0; d < 256; d++) count[d + 1] += count[d];
+        for (uint32_t i = 0; i < n; i++) dst[count[(src[i] >> shift) & 255]++] = src[i];
         uint32_t *t = src; src = dst; dst = t;
     }
     if (src != a) memcpy(a, src, n * sizeof *a);
@@ -113,12 +114,20 @@ static void mul_column(size_t j, int th, void *user) {
             acc[3 * i + 2] += (double)av[2] * bv[2];
         }
     }
-    sort_u32(list, nl, c->tmp[th], a->n);
+    if ((uint64_t)nl * 8 > a->n) {
+        /* a dense column: reading the markers in order is cheaper than sorting */
+        nl = 0;
+        for (uint32_t i = 0; i < a->n; i++) if (mark[i] == j + 1) list[nl++] = i;
+    } else {
+        sort_u32(list, nl, c->tmp[th], a->n);
+    }
     uint32_t kept = 0;
     double cw = c->col_w ? c->col_w[j] : 1.0;
     for (uint32_t t = 0; t < nl; t++) {
         uint32_t i = list[t];
-        double m = fmax(fabs(acc[3 * i]), fmax(fabs(acc[3 * i + 1]), fabs(acc[3 * i + 2])));
+        double m0 = fabs(acc[3 * i]), m1 = fabs(acc[3 * i + 1]), m2 = fabs(acc[3 * i + 2]);
+        double m = m0 > m1 ? m0 : m1;
+        m = m > m2 ? m : m2;
         if (m > 0 && m * cw * (c->row_w ? c->row_w[i] : 1.0) >= c->drop) list[kept++] = i;
     }
     col_out *o = &c->out[j];
@@ -130,6 +139,32 @@ static void mul_column(size_t j, int th, void *user) {
         o->row[t] = i;
         for (int ch = 0; ch < 3; ch++) o->val[3 * t + ch] = (float)acc[3 * i + ch];
     }
+}
+
+void wrt_sort_u64(uint64_t *a, size_t n) {
+    if (n < 64) {
+        for (size_t i = 1; i < n; i++) {
+            uint64_t v = a[i];
+            size_t j = i;
+            while (j > 0 && a[j - 1] > v) { a[j] = a[j - 1]; j--; }
+            a[j] = v;
+        }
+        return;
+    }
+    uint64_t all_or = 0;
+    for (size_t i = 0; i < n; i++) all_or |= a[i];
+    uint64_t *tmp = wrt_xmalloc(n * sizeof *tmp), *src = a, *dst = tmp;
+    size_t *count = wrt_xmalloc((65536 + 1) * sizeof *count);
+    for (int shift = 0; shift < 64; shift += 16) {
+        if (!((all_or >> shift) & 0xFFFF)) continue; /* a digit that is zero everywhere */
+        memset(count, 0, (65536 + 1) * sizeof *count);
+        for (size_t i = 0; i < n; i++) count[((src[i] >> shift) & 0xFFFF) + 1]++;
+        for (int d = 0; d < 65536; d++) count[d + 1] += count[d];
+        for (size_t i = 0; i < n; i++) dst[count[(src[i] >> shift) & 0xFFFF]++] = src[i];
+        uint64_t *t = src; src = dst; dst = t;
+    }
+    if (src != a) memcpy(a, src, n * sizeof *a);
+    free(tmp); free(count);
 }
 
 static wrt_csc gather_columns(uint32_t n, col_out *out) {

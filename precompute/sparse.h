@@ -5,6 +5,7 @@
 #ifndef WRT_SPARSE_H
 #define WRT_SPARSE_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 typedef struct wrt_csc {
@@ -32,6 +33,8 @@ wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_c
 wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s);
 /* Removes entries below `drop` (weighted as in wrt_csc_mul). */
 void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w);
+/* Sorts n 64-bit keys ascending (LSD radix; for the bake's function keys). */
+void wrt_sort_u64(uint64_t *a, size_t n);
 /* Frobenius norm over all channels. */
 double wrt_csc_norm(const wrt_csc *m);
 /* Largest channel magnitude of any entry. */
