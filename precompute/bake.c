@@ -370,7 +370,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             if (!b.opt.no_balance) {
                 double tb = wrt_now();
                 uint64_t tcap = nent ? nent : 1, t0n = t;
-                wrt_balance_run(&b, np, pr, ps, job.out, keys, res->nfuncs, &tr, &t, &tcap);
+                C->closed = wrt_balance_run(&b, np, pr, ps, job.out, keys, res->nfuncs, &tr, &t, &tcap);
                 C->balance_entries = t - t0n;
                 C->t_balance = wrt_now() - tb;
             }

@@ -62,6 +62,7 @@ typedef struct wrt_bake_counters {
     uint64_t links_gathered, entries_gathered;
     uint32_t nfuncs, nfuncs_angular;
     uint64_t balance_entries;      /* root entries the power balance set (balance.c) */
+    int closed;                    /* the balance found the scene closed (no ray escapes) */
     double t_dto, t_gto;           /* seconds (t_dto includes t_balance) */
     double t_balance;
     double t_rays;                 /* thread-seconds spent in visibility rays */

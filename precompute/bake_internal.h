@@ -70,8 +70,8 @@ static inline wrt_node wrt_node_unpack(uint32_t k) {
 
 /* The power balance (balance.c): correction triplets for the quads' root rows of T, so
  * that every diffuse sender function delivers the power its pointwise form factors say.
- * Appends to *tr (count *nt, capacity *cap). */
-void wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, const pair_out *out,
+ * Appends to *tr (count *nt, capacity *cap). Returns 1 if the scene was found closed. */
+int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, const pair_out *out,
                      const uint64_t *fkeys, uint32_t nf, wrt_triplet **tr, uint64_t *nt, uint64_t *cap);
 
 /* The power balance of glossy senders (balance.c), on the assembled T: returns the

@@ -45,6 +45,13 @@
 #include "../common/threads.h"
 #include "bake_internal.h"
 
+static uint64_t hmix(uint64_t z) {
+    z += 0x9e3779b97f4a7c15ULL;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
 /* one receiving side of a pair, as seen from sender quad s */
 typedef struct src_ref { uint32_t pair; uint8_t swap; } src_ref;
 
@@ -56,6 +63,7 @@ typedef struct bal_ctx {
     const uint64_t *fkeys;
     uint32_t nf;
     src_ref **refs; size_t *nrefs;  /* per sender quad */
+    int closed;                     /* every ray from every quad meets a quad's front */
     wrt_triplet **res; uint64_t *nres;
 } bal_ctx;
 
@@ -148,6 +156,37 @@ static void sender_tree(const uint64_t *fkeys, uint32_t nf, int s, int angular_r
     *tree_out = tree; *nt_out = nt; *leaves_out = leaves; *nl_out = nl;
 }
 
+/* For a link (S, R) of an occluded pair: the transfer of the sender functions strictly
+ * inside S, which the link's block cannot hold (it resolves S's children only), from the
+ * closed form at the centre of each tree leaf under S times the link's visible share.
+ * Returns the integral over n and adds the Haar coefficients of the tree cells strictly
+ * inside S to add[] (column 1 + 3 cell + type - 1). */
+typedef struct walk_ctx {
+    const wrt_quad *Sq, *Rq;
+    wrt_node Rn;
+    const uint32_t *tree;
+    size_t nt;
+    double scale;      /* vis / sqrt(J_R) */
+    double plane_eps;
+    double *add;
+} walk_ctx;
+
+static double walk_inside(const walk_ctx *w, wrt_node n, int inside) {
+    ptrdiff_t ti = find_u32(w->tree, w->nt, wrt_node_pack(n));
+    if (ti < 0) return w->scale * side_integral(w->Sq, n, w->Rq, w->Rn, w->plane_eps, 1);
+    double ch[4];
+    for (int q = 0; q < 4; q++) ch[q] = walk_inside(w, wrt_node_child(n, q & 1, q >> 1), 1);
+    if (inside) {
+        double sc = ldexp(1.0, n.level);
+        for (int t = 1; t <= 3; t++) {
+            double a = 0;
+            for (int q = 0; q < 4; q++) a += wrt_haar_sign(t, q & 1, q >> 1) * ch[q];
+            w->add[1 + 3 * (size_t)ti + (size_t)(t - 1)] += sc * a;
+        }
+    }
+    return ch[0] + ch[1] + ch[2] + ch[3];
+}
+
 static void balance_sender(size_t si, int th, void *user) {
     (void)th;
     bal_ctx *c = user;
@@ -171,6 +210,8 @@ static void balance_sender(size_t si, int th, void *user) {
         if (rloc[r] < 0) { rloc[r] = nrecv; recv[nrecv++] = r; }
     }
     uint8_t *rkeep = wrt_xcalloc((size_t)nrecv + 1, 1);
+    size_t ncol = 1 + 3 * nt;
+    double *addv = wrt_xcalloc((size_t)nrecv * ncol, sizeof *addv); /* occluded pairs: what the links miss */
     double *v = wrt_xcalloc((size_t)nrecv * nl, sizeof *v);  /* per receiver: best rule */
     double *tot = wrt_xcalloc(nl, sizeof *tot);                /* all receivers: sender-side rule, x sqrt(A_r) */
     uint32_t *stack = wrt_xmalloc((4 * (size_t)WRT_MAX_SLEVEL * 4 + 8) * sizeof *stack);
@@ -181,7 +222,20 @@ static void balance_sender(size_t si, int th, void *user) {
         const wrt_quad *Rq = &b->quads[r];
         double *vr = &v[(size_t)rloc[r] * nl];
         double wr = sqrt(Rq->area);
-        if (po->occluded) { rkeep[rloc[r]] = 1; continue; }
+        if (po->occluded) {
+            rkeep[rloc[r]] = 1;
+            walk_ctx w = {.Sq = Sq, .Rq = Rq, .tree = tree, .nt = nt, .plane_eps = b->plane_eps,
+                          .add = &addv[(size_t)rloc[r] * ncol]};
+            for (size_t k = 0; k < po->nleaf; k++) {
+                const leaf_rec *lr = &po->leaf[k];
+                wrt_node Sn = wrt_node_unpack(rf.swap ? lr->rn : lr->sn);
+                if (lr->vis <= 0 || !in_set(tree, nt, wrt_node_pack(Sn))) continue;
+                w.Rn = wrt_node_unpack(rf.swap ? lr->sn : lr->rn);
+                w.scale = lr->vis / sqrt(jac_at(Rq, w.Rn));
+                walk_inside(&w, Sn, 0);
+            }
+            continue;
+        }
         for (size_t k = 0; k < po->nleaf; k++) {
             const leaf_rec *lr = &po->leaf[k];
             wrt_node Sn = wrt_node_unpack(rf.swap ? lr->rn : lr->sn), Rn = wrt_node_unpack(rf.swap ? lr->sn : lr->rn);
@@ -237,16 +291,21 @@ static void balance_sender(size_t si, int th, void *user) {
     /* Haar analysis over the tree: per receiver and for the total. Columns: the root and
      * the three wavelets of each tree cell. Sums over cells are built bottom-up through a
      * map cell -> sum (tree cells and leaves, sorted). */
-    size_t ncol = 1 + 3 * nt;
-    double *tc = wrt_xcalloc(ncol * ((size_t)nrecv + 1), sizeof *tc); /* [recv or total][col] */
+    /* rows: each receiver, the sender-side total, what the function emits */
+    double *tc = wrt_xcalloc(ncol * ((size_t)nrecv + 2), sizeof *tc);
+    double *emit = wrt_xmalloc((nl + 1) * sizeof *emit);
+    for (size_t i = 0; i < nl; i++) {
+        wrt_node f = wrt_node_unpack(leaves[i]);
+        emit[i] = sqrt(jac_at(Sq, f)) * ldexp(1.0, -2 * (int)f.level);
+    }
     size_t nall = nt + nl;
     uint32_t *all = wrt_xmalloc((nall + 1) * sizeof *all);
     memcpy(all, tree, nt * sizeof *all);
     memcpy(all + nt, leaves, nl * sizeof *all);
     qsort(all, nall, sizeof *all, cmp_u32);
     double *sum = wrt_xmalloc((nall + 1) * sizeof *sum);
-    for (int ri = 0; ri <= nrecv; ri++) {
-        const double *src = ri < nrecv ? &v[(size_t)ri * nl] : tot;
+    for (int ri = 0; ri <= nrecv + 1; ri++) {
+        const double *src = ri < nrecv ? &v[(size_t)ri * nl] : ri == nrecv ? tot : emit;
         double *out = &tc[(size_t)ri * ncol];
         for (size_t i = 0; i < nall; i++) sum[i] = 0;
         for (size_t i = 0; i < nl; i++) {
@@ -312,22 +371,27 @@ static void balance_sender(size_t si, int th, void *user) {
         for (size_t j = 0; j < ncol; j++) {
             double t = tc[(size_t)ri * ncol + j], *o = &nw[((size_t)ri * ncol + j) * 3];
             if (rkeep[ri]) {
-                for (int ch = 0; ch < 3; ch++) o[ch] = cur[((size_t)ri * ncol + j) * 3 + ch];
+                /* the links' own entry, plus what they miss of functions inside their cells */
+                double ad = addv[(size_t)ri * ncol + j], ma = fabs(ad) * fmax(rho[0], fmax(rho[1], rho[2]));
+                int keep = has[(size_t)ri * ncol + j] || ma * wfloor >= floor_;
+                for (int ch = 0; ch < 3; ch++) o[ch] = cur[((size_t)ri * ncol + j) * 3 + ch] + (keep ? rho[ch] * ad : 0);
                 continue;
             }
             double m = fabs(t) * fmax(rho[0], fmax(rho[1], rho[2]));
             if (m * wfloor >= floor_) for (int ch = 0; ch < 3; ch++) o[ch] = rho[ch] * t;
         }
     }
-    /* each column's power over the unoccluded receivers made the sender-side total: the
-     * difference spread over its kept root entries in proportion to their power */
+    /* each column's power over the unoccluded receivers made the sender-side total, or
+     * in a closed scene its power over all receivers made what it emits: the difference
+     * spread over its kept root entries in proportion to their power */
+    int closed = c->closed;
     for (size_t j = 0; j < ncol; j++) {
         double want[3], have[3] = {0, 0, 0}, wsum = 0;
-        for (int ch = 0; ch < 3; ch++) want[ch] = rho[ch] * tc[(size_t)nrecv * ncol + j];
+        for (int ch = 0; ch < 3; ch++) want[ch] = rho[ch] * tc[((size_t)nrecv + (closed ? 1 : 0)) * ncol + j];
         for (int ri = 0; ri < nrecv; ri++) {
             double wr = sqrt(b->quads[recv[ri]].area);
             const double *o = &nw[((size_t)ri * ncol + j) * 3];
-            if (rkeep[ri]) continue;
+            if (rkeep[ri] && !closed) continue;
             for (int ch = 0; ch < 3; ch++) have[ch] += wr * o[ch];
             wsum += wr * fabs(o[0] + o[1] + o[2]);
         }
@@ -346,7 +410,7 @@ static void balance_sender(size_t si, int th, void *user) {
             if (!(wsum > 0)) continue;
         }
         for (int ri = 0; ri < nrecv; ri++) {
-            if (rkeep[ri]) continue;
+            if (rkeep[ri] && !closed) continue;
             double wr = sqrt(b->quads[recv[ri]].area);
             double *o = &nw[((size_t)ri * ncol + j) * 3];
             double share = wr * fabs(o[0] + o[1] + o[2]) / wsum;
@@ -377,14 +441,51 @@ static void balance_sender(size_t si, int th, void *user) {
             ne++;
         }
     }
-    free(cur); free(has); free(nw); free(rkeep);
+    free(cur); free(has); free(nw); free(rkeep); free(addv); free(emit);
     c->res[s] = res; c->nres[s] = ne;
     free(tc); free(v); free(tot); free(recv); free(rloc); free(leaves); free(tree);
 }
 
-void wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, const pair_out *out,
-                     const uint64_t *fkeys, uint32_t nf, wrt_triplet **tr, uint64_t *nt, uint64_t *cap) {
+/* 1 if the ray from o along dir meets the front of a quad other than `self` */
+static int caught(const bake_ctx *b, wrt_v3 o, wrt_v3 dir, int self) {
+    struct RTCIntersectContext ictx;
+    rtcInitIntersectContext(&ictx);
+    struct RTCRayHit rh;
+    memset(&rh, 0, sizeof rh);
+    rh.ray.org_x = (float)o.x; rh.ray.org_y = (float)o.y; rh.ray.org_z = (float)o.z;
+    rh.ray.dir_x = (float)dir.x; rh.ray.dir_y = (float)dir.y; rh.ray.dir_z = (float)dir.z;
+    rh.ray.tnear = 0; rh.ray.tfar = INFINITY; rh.ray.mask = 0xFFFFFFFF;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(b->rtc, &ictx, &rh);
+    return rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && (int)rh.hit.primID != self &&
+           v3_dot(dir, b->quads[rh.hit.primID].n) < 0;
+}
+
+/* A scene is closed when light cannot leave it: 256 cosine-distributed rays from points
+ * spread over each quad all meet the front of a quad. Then every function's light is
+ * caught, and its column's power must be what it emits, whatever lies between. */
+static int scene_closed(const bake_ctx *b) {
+    enum { N = 256 };
+    for (int q = 0; q < b->nq; q++) {
+        const wrt_quad *Q = &b->quads[q];
+        for (int i = 0; i < N; i++) {
+            uint64_t h = hmix(((uint64_t)q << 20) ^ (uint64_t)i);
+            double u = ((i % 16) + (double)(h & 0xFFFF) / 65536.0) / 16, v = ((i / 16) + (double)((h >> 16) & 0xFFFF) / 65536.0) / 16;
+            int k = (i * 7 + 5) % N;
+            double a = ((k % 16) + (double)((h >> 32) & 0xFFFF) / 65536.0) / 16, bb = ((k / 16) + (double)(h >> 48) / 65536.0) / 16;
+            double d[3];
+            wrt_concentric_dir(a, bb, d);
+            wrt_v3 dir = v3_add(v3_add(v3_scale(Q->t, d[0]), v3_scale(Q->b, d[1])), v3_scale(Q->n, d[2]));
+            if (!caught(b, v3_mad(wrt_quad_point(Q, u, v), Q->n, b->ray_eps), dir, q)) return 0;
+        }
+    }
+    return 1;
+}
+
+int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, const pair_out *out,
+                    const uint64_t *fkeys, uint32_t nf, wrt_triplet **tr, uint64_t *nt, uint64_t *cap) {
     bal_ctx c = {.b = b, .np = np, .pr = pr, .ps = ps, .out = out, .fkeys = fkeys, .nf = nf};
+    c.closed = scene_closed(b);
     int nq = b->nq;
     c.refs = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof *c.refs);
     c.nrefs = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof *c.nrefs);
@@ -415,6 +516,7 @@ void wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps,
         free(c.res[s]); free(c.refs[s]);
     }
     free(c.res); free(c.nres); free(c.refs); free(c.nrefs); free(capr);
+    return c.closed;
 }
 
 /* ---- glossy senders ----
@@ -446,12 +548,6 @@ static int angular_index(wrt_node n, int t) {
     return 1 + 3 * (base + n.y * (1 << n.level) + n.x) + (t - 1);
 }
 
-static uint64_t hmix(uint64_t z) {
-    z += 0x9e3779b97f4a7c15ULL;
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
 
 static void balance_glossy_sender(size_t si, int th, void *user) {
     (void)th;

@@ -108,7 +108,8 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
         "\"entries\":{\"dto\":%llu,\"spatial\":%llu,\"angular\":%llu,\"gto\":%llu,\"gathered\":%llu},"
         "\"functions\":{\"total\":%u,\"angular\":%u},"
         "\"rays\":{\"traced\":%llu,\"skipped_unoccluded\":%llu,\"skipped_facing\":%llu},\"samples\":%llu,"
-        "\"bounces\":%llu,\"energy_left\":%.6g,\"tail_fraction\":%.6g,\"series_ratio\":%.6g,\"balance_entries\":%llu",
+        "\"bounces\":%llu,\"energy_left\":%.6g,\"tail_fraction\":%.6g,\"series_ratio\":%.6g,\"balance_entries\":%llu,"
+        "\"closed\":%s",
         (unsigned long long)c->pairs_total, (unsigned long long)c->pairs_exchange,
         (unsigned long long)c->pairs_skipped_facing, (unsigned long long)c->pairs_unoccluded,
         (unsigned long long)c->links_dto, (unsigned long long)c->links_dto_diffuse,
@@ -121,7 +122,7 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
         (unsigned long long)c->rays_traced, (unsigned long long)c->rays_skipped_unoccluded,
         (unsigned long long)c->rays_skipped_facing, (unsigned long long)c->samples,
         (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio,
-        (unsigned long long)c->balance_entries);
+        (unsigned long long)c->balance_entries, c->closed ? "true" : "false");
 }
 
 static void json_options(FILE *f, const wrt_bake_options *o) {
@@ -369,8 +370,8 @@ int main(int argc, char **argv) {
         printf("  series    %llu bounces, energy left %.2e, tail added %.2e (ratio %.4f)\n",
                (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio);
         if (!o.no_balance)
-            printf("  balance   %llu quad-to-quad power entries set, %.2f s\n",
-                   (unsigned long long)c->balance_entries, c->t_balance);
+            printf("  balance   %llu power entries set, %.2f s; the scene is %s\n", (unsigned long long)c->balance_entries,
+                   c->t_balance, c->closed ? "closed (no light escapes)" : "open");
     }
     wrt_bake_result_free(&r);
     wrt_scene_free(&s);

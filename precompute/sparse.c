@@ -65,7 +65,31 @@ typedef struct mul_ctx {
     uint32_t **mark;    /* per thread: n markers (column index + 1) */
     uint32_t **list;    /* per thread: touched rows */
     uint32_t **tmp;     /* per thread: the sort's buffer */
+    const double *power_w;
 } mul_ctx;
+
+/* Compression without losing power: the power (sum of power_w x entry) of the entries a
+ * column drops is given, channel by channel, to its kept entries that carry power and
+ * have the loss's sign, in proportion to theirs, when they can take it without more than
+ * doubling (so no entry changes sign, and a column whose power nearly cancels is left
+ * alone). Without it a closed scene at albedo 0.999 lost 3e-5 of its light per product. */
+static void spread_power(const uint32_t *rows, uint32_t n, double *acc, const double *pw, const double lost[3]) {
+    for (int ch = 0; ch < 3; ch++) {
+        if (lost[ch] == 0) continue;
+        double wsum = 0;
+        for (uint32_t t = 0; t < n; t++) {
+            uint32_t i = rows[t];
+            double v = acc[3 * i + ch];
+            if (pw[i] != 0 && (v > 0) == (lost[ch] > 0) && v != 0) wsum += pw[i] * fabs(v);
+        }
+        if (!(wsum > 0) || fabs(lost[ch]) > wsum) continue;
+        for (uint32_t t = 0; t < n; t++) {
+            uint32_t i = rows[t];
+            double v = acc[3 * i + ch];
+            if (pw[i] != 0 && (v > 0) == (lost[ch] > 0) && v != 0) acc[3 * i + ch] = v + lost[ch] * fabs(v) / wsum;
+        }
+    }
+}
 
 /* Sorts a[0..n) (values <= maxv) ascending: insertion sort for short lists, else an LSD
  * radix sort by bytes through tmp (n entries), as many passes as maxv needs. qsort with
@@ -121,14 +145,32 @@ static void mul_column(size_t j, int th, void *user) {
     } else {
         sort_u32(list, nl, c->tmp[th], a->n);
     }
-    uint32_t kept = 0;
-    double cw = c->col_w ? c->col_w[j] : 1.0;
+    uint32_t kept = 0, kept_power = 0, best = UINT32_MAX;
+    double cw = c->col_w ? c->col_w[j] : 1.0, lost[3] = {0, 0, 0}, bestw = 0;
+    const double *pw = c->power_w;
     for (uint32_t t = 0; t < nl; t++) {
         uint32_t i = list[t];
         double m0 = fabs(acc[3 * i]), m1 = fabs(acc[3 * i + 1]), m2 = fabs(acc[3 * i + 2]);
         double m = m0 > m1 ? m0 : m1;
         m = m > m2 ? m : m2;
-        if (m > 0 && m * cw * (c->row_w ? c->row_w[i] : 1.0) >= c->drop) list[kept++] = i;
+        if (m > 0 && m * cw * (c->row_w ? c->row_w[i] : 1.0) >= c->drop) {
+            list[kept++] = i;
+            kept_power += pw && pw[i] != 0;
+        } else if (pw && pw[i] != 0) {
+            for (int ch = 0; ch < 3; ch++) lost[ch] += pw[i] * acc[3 * i + ch];
+            if (pw[i] * (m0 + m1 + m2) > bestw) { bestw = pw[i] * (m0 + m1 + m2); best = i; }
+        }
+    }
+    if (pw && (lost[0] != 0 || lost[1] != 0 || lost[2] != 0)) {
+        if (!kept_power && best != UINT32_MAX) {
+            /* no entry that carries power survived: the largest of those dropped stays */
+            uint32_t at = kept;
+            while (at > 0 && list[at - 1] > best) { list[at] = list[at - 1]; at--; }
+            list[at] = best;
+            kept++;
+            for (int ch = 0; ch < 3; ch++) lost[ch] -= pw[best] * acc[3 * best + ch];
+        }
+        spread_power(list, kept, acc, pw, lost);
     }
     col_out *o = &c->out[j];
     o->count = kept;
@@ -188,7 +230,7 @@ wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_c
     uint32_t n = a->n;
     int t = wrt_threads_resolve(threads);
     mul_ctx c = {.a = a, .b = b, .drop = drop};
-    if (w) { c.row_w = w->row_w; c.col_w = w->col_w; }
+    if (w) { c.row_w = w->row_w; c.col_w = w->col_w; c.power_w = w->power_w; }
     c.out = wrt_xcalloc(n ? n : 1, sizeof *c.out);
     c.acc = wrt_xcalloc((size_t)t, sizeof *c.acc);
     c.mark = wrt_xcalloc((size_t)t, sizeof *c.mark);
@@ -209,6 +251,11 @@ wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_c
 }
 
 wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s) {
+    const double s3[3] = {s, s, s};
+    return wrt_csc_add3(a, b, s3);
+}
+
+wrt_csc wrt_csc_add3(const wrt_csc *a, const wrt_csc *b, const double s[3]) {
     uint32_t n = a->n;
     wrt_csc m = {.n = n};
     uint64_t cap = a->nnz + b->nnz;
@@ -225,13 +272,13 @@ wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s) {
                 for (int c = 0; c < 3; c++) m.val[3 * k + c] = a->val[3 * ia + c];
                 if (rb == ra) {
                     for (int c = 0; c < 3; c++)
-                        m.val[3 * k + c] = (float)((double)m.val[3 * k + c] + s * b->val[3 * ib + c]);
+                        m.val[3 * k + c] = (float)((double)m.val[3 * k + c] + s[c] * b->val[3 * ib + c]);
                     ib++;
                 }
                 ia++;
             } else {
                 m.row[k] = rb;
-                for (int c = 0; c < 3; c++) m.val[3 * k + c] = (float)(s * b->val[3 * ib + c]);
+                for (int c = 0; c < 3; c++) m.val[3 * k + c] = (float)(s[c] * b->val[3 * ib + c]);
                 ib++;
             }
             k++;
@@ -244,16 +291,51 @@ wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s) {
 
 void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w) {
     uint64_t k = 0, start = 0;
+    const double *pw = w ? w->power_w : NULL;
     for (uint32_t j = 0; j < m->n; j++) {
-        uint64_t end = m->col[j + 1];
-        double cw = w && w->col_w ? w->col_w[j] : 1.0;
+        uint64_t end = m->col[j + 1], first = k, best = UINT64_MAX;
+        double cw = w && w->col_w ? w->col_w[j] : 1.0, lost[3] = {0, 0, 0};
+        if (pw) {
+            /* if no entry that carries power would survive, the largest of them stays */
+            double bestw = 0;
+            int any = 0;
+            for (uint64_t i = start; i < end && !any; i++) {
+                const float *v = &m->val[3 * i];
+                double mx = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
+                if (pw[m->row[i]] == 0) continue;
+                if (mx > 0 && mx * cw * (w->row_w ? w->row_w[m->row[i]] : 1.0) >= drop) any = 1;
+                else if (pw[m->row[i]] * (fabs(v[0]) + fabs(v[1]) + fabs(v[2])) > bestw) {
+                    bestw = pw[m->row[i]] * (fabs(v[0]) + fabs(v[1]) + fabs(v[2]));
+                    best = i;
+                }
+            }
+            if (any) best = UINT64_MAX;
+        }
         for (uint64_t i = start; i < end; i++) {
             const float *v = &m->val[3 * i];
             double mx = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
-            if (mx > 0 && mx * cw * (w && w->row_w ? w->row_w[m->row[i]] : 1.0) >= drop) {
+            if (i == best || (mx > 0 && mx * cw * (w && w->row_w ? w->row_w[m->row[i]] : 1.0) >= drop)) {
                 m->row[k] = m->row[i];
                 memmove(&m->val[3 * k], v, 3 * sizeof *v);
                 k++;
+            } else if (pw && pw[m->row[i]] != 0) {
+                for (int ch = 0; ch < 3; ch++) lost[ch] += pw[m->row[i]] * v[ch];
+            }
+        }
+        if (pw && (lost[0] != 0 || lost[1] != 0 || lost[2] != 0)) {
+            for (int ch = 0; ch < 3; ch++) {
+                if (lost[ch] == 0) continue;
+                double wsum = 0;
+                for (uint64_t i = first; i < k; i++) {
+                    double v = m->val[3 * i + ch];
+                    if (pw[m->row[i]] != 0 && v != 0 && (v > 0) == (lost[ch] > 0)) wsum += pw[m->row[i]] * fabs(v);
+                }
+                if (!(wsum > 0) || fabs(lost[ch]) > wsum) continue;
+                for (uint64_t i = first; i < k; i++) {
+                    double v = m->val[3 * i + ch];
+                    if (pw[m->row[i]] != 0 && v != 0 && (v > 0) == (lost[ch] > 0))
+                        m->val[3 * i + ch] = (float)(v + lost[ch] * fabs(v) / wsum);
+                }
             }
         }
         start = end;

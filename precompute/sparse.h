@@ -25,12 +25,15 @@ wrt_csc wrt_csc_copy(const wrt_csc *m);
 
 /* Weights of the compression test: an entry (i, j) is kept when its largest channel
  * magnitude times row_w[i] times col_w[j] reaches `drop` (NULL weights are 1). */
-typedef struct wrt_csc_weights { const double *row_w, *col_w; } wrt_csc_weights;
+/* power_w (may be NULL): each row's power weight (0 for rows that carry no power); the
+ * power of a column's dropped entries is then given to its kept ones, in proportion. */
+typedef struct wrt_csc_weights { const double *row_w, *col_w, *power_w; } wrt_csc_weights;
 
 /* C = A B, compressed by `drop` and `w` (may be NULL). Deterministic whatever `threads`. */
 wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads);
-/* C = A + s B. */
+/* C = A + s B, and with a scale per channel. */
 wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s);
+wrt_csc wrt_csc_add3(const wrt_csc *a, const wrt_csc *b, const double s[3]);
 /* Removes entries below `drop` (weighted as in wrt_csc_mul). */
 void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w);
 /* Sorts n 64-bit keys ascending (LSD radix; for the bake's function keys). */
