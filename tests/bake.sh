@@ -50,10 +50,26 @@ else
     ko "facing bake"
 fi
 
+# The power balance: a closed scene is found closed, an open one open; --no-balance
+# leaves T as the links computed it.
+if "$bake" assets/test/furnace.gltf -o "$tmp/fu.gto" --quality 2 --json --quiet >"$tmp/fu.json" 2>"$tmp/err" &&
+   "$bake" assets/test/furnace.gltf -o "$tmp/fu0.gto" --quality 2 --json --quiet --no-balance >"$tmp/fu0.json" 2>>"$tmp/err"; then
+    grep -q '"closed":true' "$tmp/fu.json" && ok "furnace: found closed" || ko "furnace: found closed"
+    grep -q '"closed":false' "$tmp/f.json" && ok "facing squares: found open" || ko "facing squares: found open"
+    [ "$(jnum balance_entries "$tmp/fu.json")" -gt 0 ] && ok "balance sets entries" || ko "balance sets entries"
+    [ "$(jnum balance_entries "$tmp/fu0.json")" = 0 ] && grep -q '"balance":0' "$tmp/fu0.json" &&
+        ok "--no-balance: no entries set, recorded in the options" || ko "--no-balance: no entries set, recorded"
+else
+    ko "furnace bakes"; head -c 300 "$tmp/err"
+fi
+
 # Same bytes whatever the thread count (timings left out with --reproducible).
 "$bake" assets/cornell.gltf -o "$tmp/t1.gto" --quality 2 --threads 1 --reproducible --quiet >/dev/null 2>"$tmp/err"
 "$bake" assets/cornell.gltf -o "$tmp/t2.gto" --quality 2 --threads 2 --reproducible --quiet >/dev/null 2>>"$tmp/err"
 cmp -s "$tmp/t1.gto" "$tmp/t2.gto" && ok "1 and 2 threads: identical bytes" || ko "1 and 2 threads: identical bytes"
+"$bake" assets/glossy.gltf -o "$tmp/g1.gto" --quality 2 --threads 1 --reproducible --quiet >/dev/null 2>"$tmp/err"
+"$bake" assets/glossy.gltf -o "$tmp/g2.gto" --quality 2 --threads 2 --reproducible --quiet >/dev/null 2>>"$tmp/err"
+cmp -s "$tmp/g1.gto" "$tmp/g2.gto" && ok "glossy, 1 and 2 threads: identical bytes" || ko "glossy, 1 and 2 threads: identical bytes"
 
 # --info on good and damaged files.
 check "--info on a good file" "$bake" --info "$tmp/t1.gto"
