@@ -508,7 +508,7 @@ int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, 
             *cap = (*nt + c.nres[s]) * 2;
             *tr = wrt_xrealloc(*tr, *cap * sizeof **tr);
         }
-        memcpy(*tr + *nt, c.res[s], c.nres[s] * sizeof **tr);
+        if (c.nres[s]) memcpy(*tr + *nt, c.res[s], c.nres[s] * sizeof **tr);
         *nt += c.nres[s];
         free(c.res[s]); free(c.refs[s]);
     }
