@@ -92,14 +92,20 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
             for (int ch = 0; ch < 3; ch++) vp[ch] += pw[i] * y[3 * i + ch];
         int settled = 1;
         ratio = 0;
+        C->energy_left = sn > 0 ? pn / sn : 0;
         for (int ch = 0; ch < 3; ch++) {
             rc[ch] = vp_prev[ch] > 0 ? vp[ch] / vp_prev[ch] : 0;
             vp_prev[ch] = vp[ch];
             ratio = fmax(ratio, rc[ch]);
-            settled &= rc_prev[ch] >= 0 && fabs(rc[ch] - rc_prev[ch]) <= 1e-5 * rc[ch];
+            /* settled when the ratio has stopped moving, or when what its movement could
+             * still change in the tail, |dr| / (1 - r)^2 times the last term's share of
+             * the sum, is under 1e-6 (cornell q5: 15 bounces instead of 21, the maze 12
+             * instead of 16, the cell error against the path tracer the same to 1e-6) */
+            double dr = fabs(rc[ch] - rc_prev[ch]);
+            settled &= rc_prev[ch] >= 0 &&
+                       (dr <= 1e-5 * rc[ch] || (rc[ch] < 1 && dr / ((1 - rc[ch]) * (1 - rc[ch])) * C->energy_left <= 1e-6));
             rc_prev[ch] = rc[ch];
         }
-        C->energy_left = sn > 0 ? pn / sn : 0;
         stable = settled ? stable + 1 : 0;
         if (b->opt.progress && !b->opt.progress("gto", fmin(1.0, C->bounces / 50.0), b->opt.progress_user)) {
             wrt_csc_free(&P); wrt_csc_free(&S); free(rw); free(cw); free(pw); free(x); free(y);
