@@ -62,6 +62,23 @@ void wrt_bake_btilde(const bake_ctx *b, int m, double a, double bb, double *out)
 void wrt_bake_btilde_build(bake_ctx *b);
 void wrt_angular_func(int idx, wrt_node *n, int *type);
 
+/* splitmix64's finalizer: sample keys and hash slots from integers. */
+static inline uint64_t wrt_mix64(uint64_t z) {
+    z += 0x9e3779b97f4a7c15ULL;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
+/* The corners of cell n of quad q, in order. */
+static inline void wrt_cell_poly(const wrt_quad *q, wrt_node n, wrt_v3 out[4]) {
+    double x0 = wrt_node_x0(n), y0 = wrt_node_y0(n), sz = wrt_node_size(n);
+    out[0] = wrt_quad_point(q, x0, y0);
+    out[1] = wrt_quad_point(q, x0 + sz, y0);
+    out[2] = wrt_quad_point(q, x0 + sz, y0 + sz);
+    out[3] = wrt_quad_point(q, x0, y0 + sz);
+}
+
 static inline uint32_t wrt_node_pack(wrt_node n) { return ((uint32_t)n.level << 26) | ((uint32_t)n.y << 13) | n.x; }
 static inline wrt_node wrt_node_unpack(uint32_t k) {
     wrt_node n = {(uint8_t)(k >> 26), (uint16_t)(k & 0x1FFF), (uint16_t)((k >> 13) & 0x1FFF)};

@@ -41,12 +41,6 @@
 #include "../common/threads.h"
 #include "bake_internal.h"
 
-static uint64_t hmix(uint64_t z) {
-    z += 0x9e3779b97f4a7c15ULL;
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
 
 /* one receiving side of a pair, as seen from sender quad s */
 typedef struct src_ref { uint32_t pair; uint8_t swap; } src_ref;
@@ -80,13 +74,32 @@ static ptrdiff_t find_u32(const uint32_t *set, size_t n, uint32_t k) {
 }
 static int in_set(const uint32_t *set, size_t n, uint32_t k) { return find_u32(set, n, k) >= 0; }
 
-static void cell_poly(const wrt_quad *q, wrt_node n, wrt_v3 out[4]) {
-    double x0 = wrt_node_x0(n), y0 = wrt_node_y0(n), sz = wrt_node_size(n);
-    out[0] = wrt_quad_point(q, x0, y0);
-    out[1] = wrt_quad_point(q, x0 + sz, y0);
-    out[2] = wrt_quad_point(q, x0 + sz, y0 + sz);
-    out[3] = wrt_quad_point(q, x0, y0 + sz);
+/* index of the first key >= k in the sorted keys (n if none) */
+static uint32_t first_key_at_least(const uint64_t *keys, uint32_t n, uint64_t k) {
+    uint32_t a = 0, z = n;
+    while (a < z) {
+        uint32_t m = a + (z - a) / 2;
+        if (keys[m] < k) a = m + 1;
+        else z = m;
+    }
+    return a;
 }
+
+/* 1 if the ray from o along dir meets the front of a quad other than `self` */
+static int caught(const bake_ctx *b, wrt_v3 o, wrt_v3 dir, int self) {
+    struct RTCIntersectContext ictx;
+    rtcInitIntersectContext(&ictx);
+    struct RTCRayHit rh;
+    memset(&rh, 0, sizeof rh);
+    rh.ray.org_x = (float)o.x; rh.ray.org_y = (float)o.y; rh.ray.org_z = (float)o.z;
+    rh.ray.dir_x = (float)dir.x; rh.ray.dir_y = (float)dir.y; rh.ray.dir_z = (float)dir.z;
+    rh.ray.tnear = 0; rh.ray.tfar = INFINITY; rh.ray.mask = 0xFFFFFFFF;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(b->rtc, &ictx, &rh);
+    return rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && (int)rh.hit.primID != self &&
+           v3_dot(dir, b->quads[rh.hit.primID].n) < 0;
+}
+
 
 #define GL2 0.28867513459481287
 
@@ -94,7 +107,7 @@ static void cell_poly(const wrt_quad *q, wrt_node n, wrt_v3 out[4]) {
  * (param measure), without B's Jacobian */
 static double side_integral(const wrt_quad *A, wrt_node c, const wrt_quad *B, wrt_node d, double plane_eps, int npts) {
     wrt_v3 poly[4];
-    cell_poly(B, d, poly);
+    wrt_cell_poly(B, d, poly);
     double sz = wrt_node_size(c), x0 = wrt_node_x0(c), y0 = wrt_node_y0(c), acc = 0;
     double off = npts == 1 ? 0 : GL2;
     for (int q = 0; q < npts; q++) {
@@ -121,8 +134,8 @@ static void sender_tree(const uint64_t *fkeys, uint32_t nf, int s, int angular_r
                         size_t *nt_out, uint32_t **leaves_out, size_t *nl_out) {
     uint64_t lo_key = (uint64_t)s << 42, hi_key = (uint64_t)(s + 1) << 42;
     uint32_t lo, hi;
-    { uint32_t a = 0, z = nf; while (a < z) { uint32_t m = a + (z - a) / 2; if (fkeys[m] < lo_key) a = m + 1; else z = m; } lo = a; }
-    { uint32_t a = 0, z = nf; while (a < z) { uint32_t m = a + (z - a) / 2; if (fkeys[m] < hi_key) a = m + 1; else z = m; } hi = a; }
+    lo = first_key_at_least(fkeys, nf, lo_key);
+    hi = first_key_at_least(fkeys, nf, hi_key);
     size_t tcap = 16, nt = 0;
     uint32_t *tree = wrt_xmalloc(tcap * sizeof *tree);
     for (uint32_t i = lo; i < hi; i++) {
@@ -443,20 +456,6 @@ static void balance_sender(size_t si, int th, void *user) {
     free(tc); free(v); free(recv); free(rloc); free(leaves); free(tree);
 }
 
-/* 1 if the ray from o along dir meets the front of a quad other than `self` */
-static int caught(const bake_ctx *b, wrt_v3 o, wrt_v3 dir, int self) {
-    struct RTCIntersectContext ictx;
-    rtcInitIntersectContext(&ictx);
-    struct RTCRayHit rh;
-    memset(&rh, 0, sizeof rh);
-    rh.ray.org_x = (float)o.x; rh.ray.org_y = (float)o.y; rh.ray.org_z = (float)o.z;
-    rh.ray.dir_x = (float)dir.x; rh.ray.dir_y = (float)dir.y; rh.ray.dir_z = (float)dir.z;
-    rh.ray.tnear = 0; rh.ray.tfar = INFINITY; rh.ray.mask = 0xFFFFFFFF;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(b->rtc, &ictx, &rh);
-    return rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && (int)rh.hit.primID != self &&
-           v3_dot(dir, b->quads[rh.hit.primID].n) < 0;
-}
 
 /* A scene is closed when light cannot leave it: 256 cosine-distributed rays from points
  * spread over each quad all meet the front of a quad. Then every function's light is
@@ -466,7 +465,7 @@ static int scene_closed(const bake_ctx *b) {
     for (int q = 0; q < b->nq; q++) {
         const wrt_quad *Q = &b->quads[q];
         for (int i = 0; i < N; i++) {
-            uint64_t h = hmix(((uint64_t)q << 20) ^ (uint64_t)i);
+            uint64_t h = wrt_mix64(((uint64_t)q << 20) ^ (uint64_t)i);
             double u = ((i % 16) + (double)(h & 0xFFFF) / 65536.0) / 16, v = ((i / 16) + (double)((h >> 16) & 0xFFFF) / 65536.0) / 16;
             int k = (i * 7 + 5) % N;
             double a = ((k % 16) + (double)((h >> 32) & 0xFFFF) / 65536.0) / 16, bb = ((k / 16) + (double)(h >> 48) / 65536.0) / 16;
@@ -576,9 +575,9 @@ static void balance_glossy_sender(size_t si, int th, void *user) {
         double sz = wrt_node_size(f), x0 = wrt_node_x0(f), y0 = wrt_node_y0(f);
         for (int k = 0; k < na; k++) {
             int hits = 0;
-            uint64_t h = hmix(((uint64_t)s << 40) ^ ((uint64_t)leaves[li] << 8) ^ (uint64_t)k);
+            uint64_t h = wrt_mix64(((uint64_t)s << 40) ^ ((uint64_t)leaves[li] << 8) ^ (uint64_t)k);
             for (int i = 0; i < M; i++) {
-                uint64_t hi = hmix(h + (uint64_t)i);
+                uint64_t hi = wrt_mix64(h + (uint64_t)i);
                 double ju = (double)(hi & 0xFFFF) / 65536.0, jv = (double)((hi >> 16) & 0xFFFF) / 65536.0;
                 double ja = (double)((hi >> 32) & 0xFFFF) / 65536.0, jb = (double)((hi >> 48) & 0xFFFF) / 65536.0;
                 int dj = (i * 5 + 3) % M;
@@ -587,19 +586,7 @@ static void balance_glossy_sender(size_t si, int th, void *user) {
                 double d[3];
                 wrt_concentric_dir(a, bb, d);
                 wrt_v3 dir = v3_add(v3_add(v3_scale(Sq->t, d[0]), v3_scale(Sq->b, d[1])), v3_scale(Sq->n, d[2]));
-                wrt_v3 o = v3_mad(wrt_quad_point(Sq, u, v), Sq->n, b->ray_eps);
-                struct RTCIntersectContext ictx;
-                rtcInitIntersectContext(&ictx);
-                struct RTCRayHit rh;
-                memset(&rh, 0, sizeof rh);
-                rh.ray.org_x = (float)o.x; rh.ray.org_y = (float)o.y; rh.ray.org_z = (float)o.z;
-                rh.ray.dir_x = (float)dir.x; rh.ray.dir_y = (float)dir.y; rh.ray.dir_z = (float)dir.z;
-                rh.ray.tnear = 0; rh.ray.tfar = INFINITY; rh.ray.mask = 0xFFFFFFFF;
-                rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-                rtcIntersect1(b->rtc, &ictx, &rh);
-                if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && (int)rh.hit.primID != s &&
-                    v3_dot(dir, b->quads[rh.hit.primID].n) < 0)
-                    hits++;
+                hits += caught(b, v3_mad(wrt_quad_point(Sq, u, v), Sq->n, b->ray_eps), dir, s);
             }
             cap[k] = (double)hits / M;
         }
@@ -613,7 +600,7 @@ static void balance_glossy_sender(size_t si, int th, void *user) {
     /* every column of the quad */
     uint64_t lo_key = (uint64_t)s << 42;
     uint32_t lo = 0;
-    { uint32_t a = 0, z = c->nf; while (a < z) { uint32_t mm = a + (z - a) / 2; if (c->fkeys[mm] < lo_key) a = mm + 1; else z = mm; } lo = a; }
+    lo = first_key_at_least(c->fkeys, c->nf, lo_key);
     wrt_csc *T = c->T;
     for (uint32_t j = lo; j < c->nf && wrt_fkey_quad(c->fkeys[j]) == (uint32_t)s; j++) {
         uint64_t key = c->fkeys[j];

@@ -100,12 +100,6 @@ typedef struct pair_ctx {
 
 static uint64_t link_key(wrt_node rn, wrt_node sn) { return ((uint64_t)wrt_node_pack(rn) << 32) | wrt_node_pack(sn); }
 
-static uint64_t mix64(uint64_t z) {
-    z += 0x9e3779b97f4a7c15ULL;
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
 static double u01(uint64_t h) { return (double)(h >> 11) * 0x1.0p-53; }
 
 static void hash_grow(pair_ctx *pc) {
@@ -115,7 +109,7 @@ static void hash_grow(pair_ctx *pc) {
     for (size_t i = 0; i < ncap; i++) nv[i] = UINT32_MAX;
     for (size_t i = 0; i < pc->hcap; i++) {
         if (pc->hvals[i] == UINT32_MAX) continue;
-        size_t h = mix64(pc->hkeys[i]) & (ncap - 1);
+        size_t h = wrt_mix64(pc->hkeys[i]) & (ncap - 1);
         while (nv[h] != UINT32_MAX) h = (h + 1) & (ncap - 1);
         nk[h] = pc->hkeys[i]; nv[h] = pc->hvals[i];
     }
@@ -128,7 +122,7 @@ static void hash_grow(pair_ctx *pc) {
 static size_t get_block(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     if (2 * (pc->hcount + 1) > pc->hcap) hash_grow(pc);
     uint64_t k = link_key(rn, sn);
-    size_t h = mix64(k) & (pc->hcap - 1);
+    size_t h = wrt_mix64(k) & (pc->hcap - 1);
     while (pc->hvals[h] != UINT32_MAX) {
         if (pc->hkeys[h] == k) return pc->hvals[h];
         h = (h + 1) & (pc->hcap - 1);
@@ -173,13 +167,6 @@ static int occluded(const bake_ctx *b, wrt_v3 a, wrt_v3 bpt) {
     return ray.tfar < 0;
 }
 
-static void cell_poly(const wrt_quad *q, wrt_node n, wrt_v3 out[4]) {
-    double x0 = wrt_node_x0(n), y0 = wrt_node_y0(n), sz = wrt_node_size(n);
-    out[0] = wrt_quad_point(q, x0, y0);
-    out[1] = wrt_quad_point(q, x0 + sz, y0);
-    out[2] = wrt_quad_point(q, x0 + sz, y0 + sz);
-    out[3] = wrt_quad_point(q, x0, y0 + sz);
-}
 
 /* Angular function index <-> (node, type): 0 is the root scaling; then level by level,
  * node by node (row-major), the three wavelets. 4^L functions up to level L. */
@@ -228,14 +215,14 @@ typedef struct link_samples {
 static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, link_samples *ls, int ns) {
     const bake_ctx *b = pc->b;
     const wrt_quad *R = &b->quads[ri], *S = &b->quads[si];
-    uint64_t h = mix64(((uint64_t)ri << 32 | (uint32_t)si) ^ mix64(link_key(rn, sn)));
-    double ru = u01(mix64(h + 1)), rv = u01(mix64(h + 2)), su = u01(mix64(h + 3)), sv = u01(mix64(h + 4));
+    uint64_t h = wrt_mix64(((uint64_t)ri << 32 | (uint32_t)si) ^ wrt_mix64(link_key(rn, sn)));
+    double ru = u01(wrt_mix64(h + 1)), rv = u01(wrt_mix64(h + 2)), su = u01(wrt_mix64(h + 3)), sv = u01(wrt_mix64(h + 4));
     double rsz = wrt_node_size(rn), rx0 = wrt_node_x0(rn), ry0 = wrt_node_y0(rn);
     wrt_v3 spoly[4][4], scentre[4];
     double sinvj[4];
     for (int q = 0; q < 4; q++) {
         wrt_node c = wrt_node_child(sn, q & 1, q >> 1);
-        cell_poly(S, c, spoly[q]);
+        wrt_cell_poly(S, c, spoly[q]);
         double cu = wrt_node_x0(c) + 0.5 * wrt_node_size(c), cv = wrt_node_y0(c) + 0.5 * wrt_node_size(c);
         scentre[q] = wrt_quad_point(S, cu, cv);
         sinvj[q] = 1.0 / sqrt(wrt_quad_jacobian(S, cu, cv));
