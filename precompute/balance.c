@@ -41,6 +41,8 @@
 #include "../common/threads.h"
 #include "bake_internal.h"
 
+#define GL2 0.28867513459481287 /* 2 x 2 Gauss-Legendre: centre +- GL2 x side */
+
 
 /* one receiving side of a pair, as seen from sender quad s */
 typedef struct src_ref { uint32_t pair; uint8_t swap; } src_ref;
@@ -85,6 +87,31 @@ static uint32_t first_key_at_least(const uint64_t *keys, uint32_t n, uint64_t k)
     return a;
 }
 
+double wrt_func_power(const wrt_quad *q, wrt_node n, int type) {
+    if (q->parallelogram) return type == 0 ? sqrt(q->area) * ldexp(1.0, -(int)n.level) : 0;
+    /* sqrt(J) is smooth (J is linear in u and v on a planar quad): 2 x 2 points per quadrant */
+    double sz = wrt_node_size(n), x0 = wrt_node_x0(n), y0 = wrt_node_y0(n), acc = 0;
+    for (int c = 0; c < 4; c++) {
+        double sign = type ? wrt_haar_sign(type, c & 1, c >> 1) : 1;
+        for (int k = 0; k < 4; k++) {
+            double u = x0 + sz * (0.5 * (c & 1) + 0.25 + ((k & 1) ? 0.5 : -0.5) * GL2);
+            double v = y0 + sz * (0.5 * (c >> 1) + 0.25 + ((k & 2) ? 0.5 : -0.5) * GL2);
+            acc += sign * sqrt(wrt_quad_jacobian(q, u, v));
+        }
+    }
+    return acc * sz * sz / 16 * ldexp(1.0, n.level);
+}
+
+double *wrt_power_weights(const bake_ctx *b, const uint64_t *fkeys, uint32_t nf) {
+    double *pw = wrt_xcalloc((size_t)nf + 1, sizeof *pw);
+    for (uint32_t i = 0; i < nf; i++) {
+        uint64_t k = fkeys[i];
+        if (wrt_fkey_angular_root(k))
+            pw[i] = wrt_func_power(&b->quads[wrt_fkey_quad(k)], wrt_fkey_snode(k), wrt_fkey_stype(k));
+    }
+    return pw;
+}
+
 /* 1 if the ray from o along dir meets the front of a quad other than `self` */
 static int caught(const bake_ctx *b, wrt_v3 o, wrt_v3 dir, int self) {
     struct RTCIntersectContext ictx;
@@ -101,7 +128,6 @@ static int caught(const bake_ctx *b, wrt_v3 o, wrt_v3 dir, int self) {
 }
 
 
-#define GL2 0.28867513459481287
 
 /* int_c sqrt(J_A) F(y -> cell d of quad B) du' over cell c of quad A with 2 x 2 points on c
  * (param measure), without B's Jacobian */
@@ -297,22 +323,15 @@ static void balance_sender(size_t si, int th, void *user) {
     /* Haar analysis over the tree: per receiver and for the total. Columns: the root and
      * the three wavelets of each tree cell. Sums over cells are built bottom-up through a
      * map cell -> sum (tree cells and leaves, sorted). */
-    /* rows: each receiver, the sender-side total, what the function emits */
-    double *tc = wrt_xcalloc(ncol * ((size_t)nrecv + 2), sizeof *tc);
-    double *emit = wrt_xmalloc((nl + 1) * sizeof *emit);
-    for (size_t i = 0; i < nl; i++) {
-        wrt_node f = wrt_node_unpack(leaves[i]);
-        emit[i] = sqrt(jac_at(Sq, f)) * ldexp(1.0, -2 * (int)f.level);
-    }
+    double *tc = wrt_xcalloc(ncol * ((size_t)nrecv + 1), sizeof *tc); /* [receiver][column] */
     size_t nall = nt + nl;
     uint32_t *all = wrt_xmalloc((nall + 1) * sizeof *all);
     memcpy(all, tree, nt * sizeof *all);
     memcpy(all + nt, leaves, nl * sizeof *all);
     qsort(all, nall, sizeof *all, cmp_u32);
     double *sum = wrt_xmalloc((nall + 1) * sizeof *sum);
-    for (int ri = 0; ri <= nrecv + 1; ri++) {
-        if (ri == nrecv) continue; /* (row kept for the layout) */
-        const double *src = ri < nrecv ? &v[(size_t)ri * nl] : emit;
+    for (int ri = 0; ri < nrecv; ri++) {
+        const double *src = &v[(size_t)ri * nl];
         double *out = &tc[(size_t)ri * ncol];
         for (size_t i = 0; i < nall; i++) sum[i] = 0;
         for (size_t i = 0; i < nl; i++) {
@@ -345,6 +364,7 @@ static void balance_sender(size_t si, int th, void *user) {
     free(sum); free(all);
     /* the root entries the pairs emitted */
     double *cur = wrt_xcalloc((size_t)nrecv * ncol * 3, sizeof *cur);
+    double *wp = wrt_xcalloc((size_t)nrecv * ncol * 3, sizeof *wp); /* wavelet rows' power */
     uint8_t *has = wrt_xcalloc((size_t)nrecv * ncol + 1, 1);
     for (size_t i = 0; i < c->nrefs[s]; i++) {
         src_ref rf = c->refs[s][i];
@@ -352,9 +372,15 @@ static void balance_sender(size_t si, int th, void *user) {
         size_t ri = (size_t)rloc[r];
         uint64_t rootr = wrt_fkey_make((uint32_t)r, wrt_node_root(), 0, wrt_node_root(), 0);
         const pair_out *po = &c->out[rf.pair];
+        const wrt_quad *Rq = &b->quads[r];
         for (size_t k = 0; k < po->count; k++) {
             const pair_entry *e = &po->e[k];
-            if (e->r != rootr || wrt_fkey_quad(e->s) != (uint32_t)s || !wrt_fkey_angular_root(e->s)) continue;
+            if (wrt_fkey_quad(e->r) != (uint32_t)r || wrt_fkey_quad(e->s) != (uint32_t)s || !wrt_fkey_angular_root(e->s))
+                continue;
+            int wavelet_row = e->r != rootr;
+            /* a general quad's wavelet rows carry power too (wrt_func_power), which the
+             * root entry must leave room for; a parallelogram's carry none */
+            if (wavelet_row && (Rq->parallelogram || !wrt_fkey_angular_root(e->r))) continue;
             size_t j = 0;
             int st = wrt_fkey_stype(e->s);
             if (st) {
@@ -363,6 +389,11 @@ static void balance_sender(size_t si, int th, void *user) {
                 if (p < 0) continue;
                 j = 1 + 3 * (size_t)p + (size_t)(st - 1);
             } else if (wrt_fkey_snode(e->s).level != 0) {
+                continue;
+            }
+            if (wavelet_row) {
+                double pwr = wrt_func_power(Rq, wrt_fkey_snode(e->r), wrt_fkey_stype(e->r));
+                for (int ch = 0; ch < 3; ch++) wp[(ri * ncol + j) * 3 + ch] += pwr * e->v[ch];
                 continue;
             }
             has[ri * ncol + j] = 1;
@@ -394,14 +425,18 @@ static void balance_sender(size_t si, int th, void *user) {
      * sender-side total, sampled on the sender's leaves, cost the 1-degree wedge 0.65
      * points and the right angle 0.05, near the shared edge where that rule is weakest.) */
     int closed = c->closed;
+    double *wroot = wrt_xmalloc(((size_t)nrecv + 1) * sizeof *wroot);
+    for (int ri = 0; ri < nrecv; ri++) wroot[ri] = wrt_func_power(&b->quads[recv[ri]], wrt_node_root(), 0);
     for (size_t j = 0; j < ncol; j++) {
         double want[3], have[3] = {0, 0, 0}, wsum = 0;
-        for (int ch = 0; ch < 3; ch++) want[ch] = rho[ch] * tc[((size_t)nrecv + 1) * ncol + j];
+        wrt_node jn = j ? wrt_node_unpack(tree[(j - 1) / 3]) : wrt_node_root();
+        double emitted = wrt_func_power(Sq, jn, j ? (int)((j - 1) % 3) + 1 : 0);
+        for (int ch = 0; ch < 3; ch++) want[ch] = rho[ch] * emitted;
         for (int ri = 0; ri < nrecv; ri++) {
-            double wr = sqrt(b->quads[recv[ri]].area);
-            const double *o = &nw[((size_t)ri * ncol + j) * 3];
+            double wr = wroot[ri];
+            const double *o = &nw[((size_t)ri * ncol + j) * 3], *w = &wp[((size_t)ri * ncol + j) * 3];
             if (rkeep[ri] && !closed) continue;
-            for (int ch = 0; ch < 3; ch++) have[ch] += wr * o[ch];
+            for (int ch = 0; ch < 3; ch++) have[ch] += wr * o[ch] + w[ch];
             wsum += wr * fabs(o[0] + o[1] + o[2]);
         }
         if (!(wsum > 0)) {
@@ -411,7 +446,7 @@ static void balance_sender(size_t si, int th, void *user) {
             if (j) continue;
             for (int ri = 0; ri < nrecv; ri++) {
                 if (rkeep[ri]) continue;
-                double wr = sqrt(b->quads[recv[ri]].area), t = tc[(size_t)ri * ncol + j];
+                double wr = wroot[ri], t = tc[(size_t)ri * ncol + j];
                 double *o = &nw[((size_t)ri * ncol + j) * 3];
                 for (int ch = 0; ch < 3; ch++) { o[ch] = rho[ch] * t; have[ch] += wr * o[ch]; }
                 wsum += wr * fabs(o[0] + o[1] + o[2]);
@@ -421,7 +456,7 @@ static void balance_sender(size_t si, int th, void *user) {
         if (!closed) continue;
         for (int ri = 0; ri < nrecv; ri++) {
             if (rkeep[ri] && !closed) continue;
-            double wr = sqrt(b->quads[recv[ri]].area);
+            double wr = wroot[ri];
             double *o = &nw[((size_t)ri * ncol + j) * 3];
             double share = wr * fabs(o[0] + o[1] + o[2]) / wsum;
             if (share == 0) continue;
@@ -451,7 +486,7 @@ static void balance_sender(size_t si, int th, void *user) {
             ne++;
         }
     }
-    free(cur); free(has); free(nw); free(rkeep); free(addv); free(emit);
+    free(cur); free(wp); free(has); free(nw); free(wroot); free(rkeep); free(addv);
     c->res[s] = res; c->nres[s] = ne;
     free(tc); free(v); free(recv); free(rloc); free(leaves); free(tree);
 }
@@ -646,12 +681,7 @@ static void balance_glossy_sender(size_t si, int th, void *user) {
 
 uint64_t wrt_balance_glossy(const bake_ctx *b, const uint64_t *fkeys, uint32_t nf, wrt_csc *T) {
     int nq = b->nq;
-    double *pw = wrt_xcalloc((size_t)nf + 1, sizeof *pw);
-    for (uint32_t i = 0; i < nf; i++) {
-        uint64_t k = fkeys[i];
-        if (wrt_fkey_stype(k) == 0 && wrt_fkey_snode(k).level == 0 && wrt_fkey_angular_root(k))
-            pw[i] = sqrt(b->quads[wrt_fkey_quad(k)].area);
-    }
+    double *pw = wrt_power_weights(b, fkeys, nf);
     gbal_ctx c = {.b = b, .fkeys = fkeys, .nf = nf, .T = T, .pw = pw};
     c.changed = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof *c.changed);
     wrt_parallel_for((size_t)nq, b->opt.threads, balance_glossy_sender, &c);

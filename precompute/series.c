@@ -32,13 +32,9 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         rw[i] = 1 / sqrt(a);
         cw[i] = sqrt(a);
     }
-    /* power weights: sqrt(A) on each quad's root function (irradiance x area), 0 on the
-     * wavelets, whose integral is 0: compression keeps each column's power */
-    double *pw = wrt_xcalloc((size_t)T->n + 1, sizeof *pw);
-    for (uint32_t i = 0; i < T->n; i++)
-        if (wrt_fkey_snode(res->fkeys[i]).level == 0 && wrt_fkey_stype(res->fkeys[i]) == 0 &&
-            wrt_fkey_angular_root(res->fkeys[i]))
-            pw[i] = sqrt(b->quads[wrt_fkey_quad(res->fkeys[i])].area);
+    /* power weights (irradiance x area per unit coefficient: sqrt(A) on a parallelogram's
+     * root, 0 on its wavelets): compression keeps each column's power */
+    double *pw = wrt_power_weights(b, res->fkeys, T->n);
     wrt_csc_weights W = {rw, cw, pw};
     wrt_csc S = wrt_csc_copy(T), P = wrt_csc_copy(T);
     wrt_csc_compress(&P, eps, &W);
