@@ -22,7 +22,7 @@ typedef struct bake_ctx {
     double plane_eps;       /* "in front of a plane" tolerance */
     double entry_floor;     /* entries below this are dropped at emission */
     uint8_t *alevel;        /* angular level per material (0: Lambertian) */
-    float **btilde;         /* per glossy material: BT_RES^2 x 4^L x 3 table of btilde */
+    float **btilde;         /* per glossy material: common/brdf_table.h's table, or NULL */
     atomic_int *cancel;
 } bake_ctx;
 
@@ -55,8 +55,8 @@ typedef struct pair_out {
 void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counters *tc, pair_out *out);
 
 /* btilde_g(w_o) for every angular function g of material m's level, RGB (out[3 * g + c]),
- * at the outgoing direction with concentric coordinates (a, b) in the quad's frame. */
-#define WRT_BT_RES 32
+ * at the outgoing direction with concentric coordinates (a, b) in the quad's frame:
+ * the shared table of common/brdf_table.h. */
 void wrt_bake_btilde(const bake_ctx *b, int m, double a, double bb, double *out);
 /* Builds b->btilde for every glossy material (bake.c). */
 void wrt_bake_btilde_build(bake_ctx *b);
