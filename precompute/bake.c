@@ -12,7 +12,7 @@
 #include "../common/threads.h"
 #include "../common/brdf.h"
 #include "../common/brdf_table.h"
-#include "bake_internal.h"
+#include "bake_ctx.h"
 
 void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->quality <= 0) o->quality = 5;

@@ -1,7 +1,7 @@
-/* bake_internal.h: what the parts of the bake share and nothing else does: the bake
+/* bake_ctx.h: what the parts of the bake share and nothing else does: the bake
  * context (the scene in a local frame, Embree's scene, options) and per-thread counters. */
-#ifndef WRT_BAKE_INTERNAL_H
-#define WRT_BAKE_INTERNAL_H
+#ifndef WRT_BAKE_CTX_H
+#define WRT_BAKE_CTX_H
 
 #include <stdatomic.h>
 #include <embree3/rtcore.h>
