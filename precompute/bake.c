@@ -12,7 +12,9 @@
 #include "../common/threads.h"
 #include "../common/brdf.h"
 #include "../common/brdf_table.h"
-#include "bake_ctx.h"
+#include "dto.h"
+#include "balance.h"
+#include "series.h"
 
 void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->quality <= 0) o->quality = 5;
@@ -36,7 +38,7 @@ void wrt_bake_defaults(wrt_bake_options *o) {
 }
 
 /* The shared angular BRDF table (common/brdf_table.h) of every glossy material. */
-void wrt_bake_btilde_build(bake_ctx *b) {
+static void bake_btilde_build(bake_ctx *b) {
     const wrt_scene *sc = b->scene;
     b->btilde = wrt_xcalloc((size_t)(sc->nmaterials ? sc->nmaterials : 1), sizeof *b->btilde);
     for (int m = 0; m < sc->nmaterials; m++) {
@@ -44,9 +46,6 @@ void wrt_bake_btilde_build(bake_ctx *b) {
         b->btilde[m] = wrt_xmalloc(WRT_BRDF_TABLE_FLOATS * sizeof(float));
         wrt_brdf_table_build(&sc->materials[m], b->opt.threads, b->btilde[m]);
     }
-}
-void wrt_bake_btilde(const bake_ctx *b, int m, double a, double bb, double *out) {
-    wrt_brdf_table_lookup(b->btilde[m], 1 << (2 * b->alevel[m]), a, bb, out);
 }
 
 static double signed_dist(const wrt_quad *q, wrt_v3 p) { return v3_dot(v3_sub(p, q->p[0]), q->n); }
@@ -198,7 +197,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         int l = wrt_brdf_angular_level(&scene->materials[m]);
         b.alevel[m] = (uint8_t)(l > b.opt.max_alevel ? b.opt.max_alevel : l);
     }
-    wrt_bake_btilde_build(&b);
+    bake_btilde_build(&b);
 
     /* Embree */
     b.dev = rtcNewDevice("threads=1");

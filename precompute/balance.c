@@ -40,7 +40,7 @@
 #include "../common/basis.h"
 #include "../common/threads.h"
 #include "../common/brdf_table.h"
-#include "bake_ctx.h"
+#include "balance.h"
 
 #define GL2 0.28867513459481287 /* 2 x 2 Gauss-Legendre: centre +- GL2 x side */
 
