@@ -30,6 +30,7 @@
 #define WRT_COLLINEAR_REL 1e-7   /* |cross| / size^2 under this is collinear */
 #define WRT_PARALLELOGRAM_REL 1e-5
 #define WRT_MAX_EDGE_FAN 8       /* edges shared by more triangles are not paired across */
+#define WRT_TWIN_GAP 1e-4        /* a double-sided quad's back twin, set back by this x diagonal */
 
 /* ------------------------------------------------------------------ quads */
 
@@ -666,6 +667,36 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
                 pl.n == 1 ? "" : "s", buf, pl.n > shown ? "; ..." : "");
     }
 
+    /* doubleSided (glTF: no back-face culling, both sides lit): each such quad gets a
+     * back-to-back twin facing the other way, set back by WRT_TWIN_GAP of the scene's
+     * diagonal so that a ray meets the side it comes from first (two coincident faces
+     * would be hit in arbitrary order). Every part of the method then treats the two
+     * sides as the one-sided quads it knows. */
+    int nfront = ql.n;
+    for (int i = 0; i < nfront; i++) {
+        int m = ql.v[i].material;
+        if (m < 0 || m >= (int)g.nmaterials || !g.materials[m].double_sided) continue;
+        wrt_quad *b = add_quad(&ql);
+        const wrt_quad *f = &ql.v[i]; /* after add_quad: it may move the array */
+        wrt_v3 back = v3_scale(f->n, -WRT_TWIN_GAP * (diag > 0 ? diag : 1.0));
+        b->p[0] = v3_add(f->p[0], back);
+        b->p[1] = v3_add(f->p[3], back);
+        b->p[2] = v3_add(f->p[2], back);
+        b->p[3] = v3_add(f->p[1], back);
+        b->material = f->material;
+        b->mesh = f->mesh;
+        b->prim = f->prim;
+        b->tri[0] = f->tri[0];
+        b->tri[1] = f->tri[1];
+        b->name = f->name;
+        if (wrt_quad_finish(b) != WRT_OK) ql.n--; /* cannot happen: f was finished */
+        else s->ntwins++;
+    }
+    s->quads = ql.v;
+    s->nquads = ql.n;
+    s->ignored = wrt_xmalloc(strlen(g.ignored ? g.ignored : "") + 1);
+    strcpy(s->ignored, g.ignored ? g.ignored : "");
+
     /* bounding box of the kept geometry */
     if (s->nquads > 0) {
         lo = v3(DBL_MAX, DBL_MAX, DBL_MAX);
@@ -748,6 +779,7 @@ void wrt_scene_free(wrt_scene *s) {
     free(s->lights);
     free(s->names);
     free(s->problems);
+    free(s->ignored);
     memset(s, 0, sizeof *s);
 }
 
@@ -859,7 +891,10 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
         json_num(f, c->znear);
         fputs(",\"zfar\":", f);
         json_num(f, c->zfar);
-        fprintf(f, ",\"from_file\":%s},\"problems\":[", c->from_file ? "true" : "false");
+        fprintf(f, ",\"from_file\":%s},\"double_sided_twins\":%d,\"ignored\":", c->from_file ? "true" : "false",
+                s->ntwins);
+        json_string(f, s->ignored ? s->ignored : "");
+        fputs(",\"problems\":[", f);
         for (int i = 0; i < s->nproblems; i++) {
             const wrt_problem *p = &s->problems[i];
             fprintf(f, "%s{\"kind\":\"%s\",\"mesh\":%d,\"primitive\":%d,\"triangle\":%d,\"what\":",
@@ -899,6 +934,10 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
     fprintf(f, "camera: %s at (%g, %g, %g) looking (%.3f, %.3f, %.3f) yfov %.3f rad\n",
             c->from_file ? "from file" : "default framing", c->pos.x, c->pos.y, c->pos.z, c->dir.x,
             c->dir.y, c->dir.z, c->yfov);
+    if (s->ntwins)
+        fprintf(f, "double-sided: %d quads have a back-to-back twin (included in the count above)\n",
+                s->ntwins);
+    fprintf(f, "ignored (not used by the bake): %s\n", s->ignored && s->ignored[0] ? s->ignored : "nothing");
     fprintf(f, "problems: %d\n", s->nproblems);
     for (int i = 0; i < s->nproblems && i < 50; i++) {
         const wrt_problem *p = &s->problems[i];
