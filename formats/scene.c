@@ -19,6 +19,9 @@
 #include "gltf_shim.h"
 
 #include <errno.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <stdarg.h>
 #include <float.h>
 #include <stdio.h>
@@ -732,28 +735,42 @@ wrt_status wrt_scene_load(const char *path, const wrt_load_options *opt, wrt_sce
     if (!out) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_scene_load: out is NULL");
     memset(out, 0, sizeof *out);
     if (!path) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_scene_load: path is NULL");
-    FILE *f = fopen(path, "rb");
-    if (!f) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    if (fseek(f, 0, SEEK_END) != 0) {
-        fclose(f);
-        return wrt_fail(WRT_ERR_IO, "%s: cannot seek: %s", path, strerror(errno));
+    /* O_NONBLOCK: a FIFO or a device is refused by fstat instead of blocking the open;
+     * the size comes from fstat of the regular file, never from seeking. */
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
+    if (fd < 0) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    struct stat sb;
+    if (fstat(fd, &sb) != 0) {
+        int e = errno;
+        close(fd);
+        return wrt_fail(WRT_ERR_IO, "%s: cannot stat: %s", path, strerror(e));
     }
-    long len = ftell(f);
-    if (len < 0 || fseek(f, 0, SEEK_SET) != 0) {
-        fclose(f);
-        return wrt_fail(WRT_ERR_IO, "%s: cannot size: %s", path, strerror(errno));
+    if (!S_ISREG(sb.st_mode)) {
+        close(fd);
+        return wrt_fail(WRT_ERR_PARSE, "%s: not a regular file (%s)", path,
+                        S_ISDIR(sb.st_mode) ? "a directory" : S_ISFIFO(sb.st_mode) ? "a FIFO"
+                        : S_ISCHR(sb.st_mode) || S_ISBLK(sb.st_mode) ? "a device" : "a special file");
     }
-    if (len == 0) {
-        fclose(f);
+    if (sb.st_size == 0) {
+        close(fd);
         return wrt_fail(WRT_ERR_PARSE, "%s: empty file", path);
     }
-    unsigned char *buf = wrt_xmalloc((size_t)len);
-    size_t got = fread(buf, 1, (size_t)len, f);
-    int rerr = ferror(f);
-    fclose(f);
-    if (got != (size_t)len || rerr) {
+    if ((uint64_t)sb.st_size > 0xFFFFFFF0u) {
+        close(fd);
+        return wrt_fail(WRT_ERR_UNSUPPORTED, "%s: larger than 4 GiB", path);
+    }
+    size_t len = (size_t)sb.st_size, got = 0;
+    unsigned char *buf = wrt_xmalloc(len);
+    while (got < len) {
+        ssize_t r = read(fd, buf + got, len - got);
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0) break;
+        got += (size_t)r;
+    }
+    close(fd);
+    if (got != len) {
         free(buf);
-        return wrt_fail(WRT_ERR_IO, "%s: short read", path);
+        return wrt_fail(WRT_ERR_IO, "%s: short read (%zu of %zu bytes)", path, got, len);
     }
     /* external buffers and images resolve against the file's folder */
     char dir[4096];
@@ -767,7 +784,7 @@ wrt_status wrt_scene_load(const char *path, const wrt_load_options *opt, wrt_sce
     } else {
         snprintf(dir, sizeof dir, ".");
     }
-    wrt_status st = load_common(buf, (size_t)len, dir, path, opt, out);
+    wrt_status st = load_common(buf, len, dir, path, opt, out);
     free(buf);
     return st;
 }

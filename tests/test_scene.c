@@ -865,6 +865,29 @@ static void double_sided(void) {
     wrt_scene_free(&s);
 }
 
+/* A scene that is not a regular file is refused before it is read: a FIFO at once
+ * (no writer: a blocking open would wait for ever), a directory without an allocation
+ * of its "size". */
+static void not_regular(void) {
+    char fifo[512], dir[512];
+    snprintf(fifo, sizeof fifo, "%s/pipe.gltf", tmpdir);
+    snprintf(dir, sizeof dir, "%s/folder.gltf", tmpdir);
+    unlink(fifo);
+    CHECK(mkfifo(fifo, 0600) == 0, "mkfifo");
+    mkdir(dir, 0700);
+    wrt_scene s;
+    double t0 = wrt_now();
+    wrt_status st = wrt_scene_load(fifo, NULL, &s);
+    CHECK(st == WRT_ERR_PARSE && strstr(wrt_last_error(), "pipe.gltf: not a regular file (a FIFO)"),
+          "FIFO: %s", wrt_last_error());
+    CHECK(wrt_now() - t0 < 5, "FIFO refused in %.1f s", wrt_now() - t0);
+    st = wrt_scene_load(dir, NULL, &s);
+    CHECK(st == WRT_ERR_PARSE && strstr(wrt_last_error(), "folder.gltf: not a regular file (a directory)"),
+          "directory: %s", wrt_last_error());
+    unlink(fifo);
+    rmdir(dir);
+}
+
 static void bad_geometry(void) {
     const float nan_pos[] = {0, 0, 0, 1, 0, 0, NAN, 1, 0, 0, 1, 0};
     spec sp = {.pos = nan_pos, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
@@ -1004,6 +1027,7 @@ int main(int argc, char **argv) {
     TEST_RUN(strict_fields);
     TEST_RUN(strict_warnings_and_ignored);
     TEST_RUN(double_sided);
+    TEST_RUN(not_regular);
     TEST_RUN(data_files);
     TEST_RUN(quad_finish);
     const char *names[] = {"quad.glb", "quad.bin", "short.bin", "ext.gltf", "missing.gltf", "short.gltf", "dir.gltf"};
