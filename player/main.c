@@ -188,6 +188,11 @@ static int parse_args(int argc, char **argv, options *o) {
 #undef NEED
     }
     if (!o->file) { fprintf(stderr, "wrt-play: no input file (see --help)\n"); return 0; }
+    if (o->has_cam_pos && o->has_cam_target && o->cam_pos[0] == o->cam_target[0] &&
+        o->cam_pos[1] == o->cam_target[1] && o->cam_pos[2] == o->cam_target[2]) {
+        fprintf(stderr, "wrt-play: --camera-pos equals --camera-target: the camera has no view direction\n");
+        return 0;
+    }
     if (o->script && !o->pattern) { fprintf(stderr, "wrt-play: --script needs --out-pattern\n"); return 0; }
     if (o->headless && !o->out && !o->script && !o->stats && !o->bench) {
         fprintf(stderr, "wrt-play: --headless needs --out, --script, --stats-json or --bench\n");
@@ -401,7 +406,7 @@ static void setup_lights(app *a) {
     memcpy(a->scales, o->scales, sizeof a->scales);
 }
 
-static void setup_view(app *a) {
+static int setup_view(app *a) {
     wrt_render_default_view(&a->g, &a->view);
     const options *o = a->o;
     if (o->has_cam_pos) {
@@ -414,6 +419,14 @@ static void setup_view(app *a) {
     }
     if (o->has_cam_target) memcpy(a->view.target, o->cam_target, sizeof a->view.target);
     if (o->has_fov) a->view.yfov = o->fov * WRT_PI / 180;
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) d2 += (a->view.target[k] - a->view.eye[k]) * (a->view.target[k] - a->view.eye[k]);
+    if (!(d2 > 0)) {
+        fprintf(stderr, "wrt-play: the camera's position (%g, %g, %g) equals its target: no view direction\n",
+                a->view.eye[0], a->view.eye[1], a->view.eye[2]);
+        return 0;
+    }
+    return 1;
 }
 
 /* ---------------------------------------------------------------- script */
@@ -751,7 +764,10 @@ int main(int argc, char **argv) {
         rc = s == WRT_ERR_GL ? EXIT_GL : EXIT_USAGE;
         goto done;
     }
-    setup_view(&a);
+    if (!setup_view(&a)) {
+        rc = EXIT_USAGE;
+        goto done;
+    }
     setup_lights(&a);
     if (a.nlights > WRT_RENDER_MAX_LIGHTS)
         wrt_log(WRT_LOG_WARN, "%d lights: only the first %d are used", a.nlights, WRT_RENDER_MAX_LIGHTS);
@@ -770,7 +786,7 @@ int main(int argc, char **argv) {
     }
     if (o.out || o.stats) {
         if (o.bench || o.script) { /* back to the command line's camera and lights */
-            setup_view(&a);
+            (void)setup_view(&a); /* checked above */
             free(a.lights);
             setup_lights(&a);
         }
