@@ -39,7 +39,7 @@ LIBS_IMG := -lOpenImageIO -lOpenImageIO_Util
 LIBS_GL := -lglfw -lEGL -lGL
 
 # Sources: every .c/.cpp in a part's folder, except its programs' main files.
-CORE_SRC := $(wildcard common/*.c) $(wildcard formats/*.c) $(wildcard formats/*.cpp)
+CORE_SRC := $(wildcard common/*.c) $(wildcard formats/*.c) $(wildcard formats/*.cpp) $(wildcard cli/*.c)
 BAKE_SRC := $(filter-out precompute/main.c,$(wildcard precompute/*.c))
 PLAY_SRC := $(filter-out player/main.c,$(wildcard player/*.c) $(wildcard player/*.cpp))
 REF_SRC := $(filter-out tools/ref_main.c tools/scenegen.c tools/fuzz_%.c tools/compare%.c,$(wildcard tools/*.c))

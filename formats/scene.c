@@ -937,11 +937,11 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
                 m->name, m->lambertian ? "diffuse" : "glossy ", m->base_color[0], m->base_color[1],
                 m->base_color[2], m->metallic, m->roughness, uses[i]);
     }
-    fprintf(f, "lights: %d\n", s->nlights);
+    fprintf(f, "lights: %d (numbered from 1, as --light N and --light-scale N=S take them)\n", s->nlights);
     for (int i = 0; i < s->nlights; i++) {
         const wrt_light *l = &s->lights[i];
         fprintf(f, "  [%d] %-5s %-16s at (%g, %g, %g) dir (%.3f, %.3f, %.3f) intensity %g cd color (%.3f, %.3f, %.3f)",
-                i, l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, l->pos.x, l->pos.y, l->pos.z,
+                i + 1, l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, l->pos.x, l->pos.y, l->pos.z,
                 l->dir.x, l->dir.y, l->dir.z, l->intensity, l->color[0], l->color[1], l->color[2]);
         if (l->type == WRT_LIGHT_SPOT)
             fprintf(f, " cone %.3f/%.3f rad", l->inner_cone, l->outer_cone);

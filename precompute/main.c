@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "../cli/cli.h"
 #include "../formats/gto.h"
 #include "../formats/scene.h"
 #include "../tools/compare.h"
@@ -29,7 +30,8 @@ static void usage(FILE *f) {
         "the global transport operator by a Neumann series, written to a mappable .gto file.\n"
         "\n"
         "options:\n"
-        "  -o, --output FILE      the .gto to write (written to a temporary, then renamed)\n"
+        "  -o, --out FILE         the .gto to write (written to a temporary, then renamed;\n"
+        "                         --output is the same)\n"
         "  -q, --quality Q        1 (coarse, fast) .. 9 (fine, slow); default 5. Sets the\n"
         "                         thresholds below consistently\n"
         "  --eps-receiver E       receiver refinement threshold (form-factor spread)\n"
@@ -54,12 +56,12 @@ static void usage(FILE *f) {
         "                         fail with exit code 5, writing nothing, if it exceeds E\n"
         "  --check-paths N        reference paths per light for --max-error (default 1000000)\n"
         "  --json                 print one JSON object with the figures on stdout\n"
-        "  --progress / --quiet   force or silence the progress bar (default: on a terminal)\n"
+        "  --progress / --quiet   force or silence the progress lines, one per phase (load,\n"
+        "                         dto, balance, series, write; default: when stderr is a terminal)\n"
         "  --print-config         print the resolved options and exit\n"
         "  -h, --help, --version\n"
-        "\n"
-        "exit codes: 0 ok, 1 usage, 2 bad input scene, 3 output error, 4 interrupted,\n"
-        "            5 accuracy not met\n");
+        "\n");
+    wrt_cli_exit_table(f);
 }
 
 static int parse_int(const char *opt, const char *s, int lo, int hi, int *out) {
@@ -86,20 +88,10 @@ static int parse_double(const char *opt, const char *s, double lo, double hi, do
     return 1;
 }
 
-static int progress_on;
-static double progress_last;
+/* One line per phase on a terminal (cli/cli.h); the bake's "gto" phase is the series. */
 static int progress_cb(const char *phase, double done, void *user) {
     (void)user;
-    if (!progress_on) return 1;
-    double now = wrt_now();
-    if (done < 1 && now - progress_last < 0.1) return 1;
-    progress_last = now;
-    int w = 40, n = (int)(done * w + 0.5);
-    fprintf(stderr, "\r%-4s [", phase);
-    for (int i = 0; i < w; i++) fputc(i < n ? '#' : '.', stderr);
-    fprintf(stderr, "] %3.0f%%", 100 * done);
-    if (done >= 1) fputc('\n', stderr);
-    fflush(stderr);
+    wrt_cli_progress(!strcmp(phase, "gto") ? "series" : phase, done);
     return 1;
 }
 
@@ -174,7 +166,7 @@ int main(int argc, char **argv) {
         int ok = 1;
         /* An option given twice is refused (`-o a -o b` would silently take the last). */
         if (a[0] == '-' && a[1]) {
-            const char *canon = !strcmp(a, "-o") ? "--output" : !strcmp(a, "-q") ? "--quality" : a;
+            const char *canon = (!strcmp(a, "-o") || !strcmp(a, "--out")) ? "--output" : !strcmp(a, "-q") ? "--quality" : a;
             for (int k = 0; k < nseen; k++)
                 if (!strcmp(seen[k], canon)) {
                     fprintf(stderr, "wrt-bake: error: %s given twice\n", a);
@@ -183,8 +175,8 @@ int main(int argc, char **argv) {
             if (nseen < (int)(sizeof seen / sizeof *seen)) seen[nseen++] = canon;
         }
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
-        else if (!strcmp(a, "--version")) { printf("wrt-bake %s (.gto version %d)\n", WRT_VERSION_STRING, WRT_GTO_VERSION); return 0; }
-        else if (!strcmp(a, "-o") || !strcmp(a, "--output")) { if (!v) ok = 0; else out_path = v, i++; }
+        else if (!strcmp(a, "--version")) { wrt_cli_version("wrt-bake"); return 0; }
+        else if (!strcmp(a, "-o") || !strcmp(a, "--out") || !strcmp(a, "--output")) { if (!v) ok = 0; else out_path = v, i++; }
         else if (!strcmp(a, "--scan")) { if (!v) ok = 0; else scan = v, i++; }
         else if (!strcmp(a, "--info")) { if (!v) ok = 0; else info = v, i++; }
         else if (!strcmp(a, "-q") || !strcmp(a, "--quality")) { ok = parse_int(a, v, 1, 9, &o.quality); i++; }
@@ -228,10 +220,14 @@ int main(int argc, char **argv) {
         return 0;
     }
     if (info) {
+        if (access(info, R_OK) != 0) { /* one message, not a report of a file that is not there */
+            fprintf(stderr, "wrt-bake: error: %s: %s\n", info, strerror(errno));
+            return EXIT_INPUT;
+        }
         wrt_status st = wrt_gto_print_info(info, json, stdout);
         if (st != WRT_OK) {
             fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-            return st == WRT_ERR_IO ? EXIT_OUTPUT : EXIT_INPUT;
+            return EXIT_INPUT; /* a .gto that cannot be read is bad input, missing or not */
         }
         return 0;
     }
@@ -249,6 +245,7 @@ int main(int argc, char **argv) {
     }
     if (!scene_path) { usage(stderr); return EXIT_USAGE; }
     if (!out_path) { fprintf(stderr, "wrt-bake: error: no output file (-o OUT.gto)\n"); return EXIT_USAGE; }
+    wrt_cli_progress_enable(!quiet && (force_progress || isatty(2)));
 
     /* The output, checked before any work: not the scene (same file, also through a
      * link), not a directory, in a folder where a file can be made. */
@@ -261,7 +258,9 @@ int main(int argc, char **argv) {
     install_interrupt_exit();
     double t0 = wrt_now();
     wrt_scene s;
+    wrt_cli_progress("load", -1);
     wrt_status st = wrt_scene_load(scene_path, &lo, &s);
+    wrt_cli_progress_end();
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return EXIT_INPUT;
@@ -271,12 +270,12 @@ int main(int argc, char **argv) {
         wrt_scene_free(&s);
         return EXIT_INPUT;
     }
-    progress_on = !quiet && (force_progress || isatty(2));
     o.progress = progress_cb;
     wrt_bake_result r;
     st = wrt_bake_run(&s, &o, &r);
+    wrt_cli_progress_end();
     if (st != WRT_OK) {
-        fprintf(stderr, "%swrt-bake: error: %s\n", progress_on ? "\n" : "", wrt_last_error());
+        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         wrt_scene_free(&s);
         return st == WRT_ERR_CANCELLED ? EXIT_CANCEL : EXIT_INPUT;
     }
@@ -321,7 +320,9 @@ int main(int argc, char **argv) {
      * as it was and no file behind. */
     double tw = wrt_now();
     wrt_gto_pending pend;
+    wrt_cli_progress("write", -1);
     st = wrt_gto_write_pending(out_path, &gc, &pend);
+    wrt_cli_progress_end();
     double t_write = wrt_now() - tw;
     free(prov);
     if (st != WRT_OK) {
