@@ -231,6 +231,41 @@ static void test_furnace(void) {
                 "rho 0.5 with --no-balance: flux %+.4f%%, worst quad %.4f%%", 100 * (ratio_off - 1), 100 * worst_off);
 }
 
+/* A closed box of coloured albedo (0.5, 0.9, 0.99): each channel is its own furnace,
+ * rho_c / (1 - rho_c) on every quad, so a fault that takes one channel's albedo, tail
+ * ratio or coefficient for another (the balance, the series, compression, the sparse
+ * products) shows as a channel off by a factor up to 99. */
+static void test_coloured_furnace(void) {
+    double rho[3] = {0.5, 0.9, 0.99};
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, rho[0], rho[1], rho[2]);
+    tsb_box_inward(&s, P(0, 0, 0), P(1, 1, 1), 1, m);
+    wrt_bake_result r;
+    wrt_bake_options o = opts(4, 0, 0);
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    double *x = calloc(3 * r.nfuncs, sizeof *x), *y = calloc(3 * r.nfuncs, sizeof *y);
+    for (int q = 0; q < s.nquads; q++) {
+        int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(q));
+        for (int c = 0; c < 3; c++) x[3 * f + c] = sqrt(s.quads[q].area / M_PI);
+    }
+    wrt_csc_apply(&r.op, x, y);
+    for (int c = 0; c < 3; c++) {
+        double truth = rho[c] / (1 - rho[c]), worst = 0;
+        for (int q = 0; q < s.nquads; q++) {
+            int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(q));
+            worst = fmax(worst, fabs(y[3 * f + c] * sqrt(M_PI / s.quads[q].area) / truth - 1));
+        }
+        char id[48];
+        snprintf(id, sizeof id, "furnace-coloured-channel-%d", c);
+        CHECK_CLAIM(id, worst, CLAIM_FURNACE, "albedo %.2f: worst quad vs %.6g (bounces %llu)", rho[c], truth,
+                    (unsigned long long)r.c.bounces);
+    }
+    free(x); free(y);
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+}
+
 /* Power of each sender column of T: sum_r sqrt(A_r) T[root_r][j] (parallelograms), the
  * power its unit coefficient delivers; in a closed box a diffuse sender's root function
  * delivers rho sqrt(A_s) (all it emits is caught) and a wavelet 0 (it emits nothing net).
@@ -611,6 +646,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_reciprocity);
     TEST_RUN(test_distribution);
     TEST_RUN(test_furnace);
+    TEST_RUN(test_coloured_furnace);
     TEST_RUN(test_power_balance);
     TEST_RUN(test_glossy_power_balance);
     TEST_RUN(test_coplanar_and_backfacing);
