@@ -20,6 +20,11 @@
 /* README "a floor of general quads to 0.01% in the mean and 0.15% per quad" */
 #define CLAIM_GENERAL_MEAN 1e-4
 #define CLAIM_GENERAL_QUAD 1.5e-3
+/* README "a closed box of glossy metal, mirror or dielectric: its indirect flux within 1.5%
+ * of a random walk's" (+ 3 standard errors of the walk) */
+#define CLAIM_GLOSSY_FLUX 1.5e-2
+/* README "the glossy dielectric under isotropic light is 5.3% low" (the limit, + 0.7 points) */
+#define CLAIM_GLOSSY_DIELECTRIC_ISOTROPIC 6e-2
 /* README "with a box inside it to 0.01% in the mean at albedo 0.9 and above" */
 #define CLAIM_OCCLUDED_MEAN 1e-4
 /* README "0.2% at 0.5" */
