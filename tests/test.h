@@ -40,8 +40,8 @@ static const char *test_current = "";
  * stdout, so every run shows how close each claim is to failing (docs/claims.md). */
 #define CHECK_CLAIM(id, err, tol, ...) do { \
     double claim_e_ = fabs(err), claim_t_ = (tol); \
-    printf("claim %s: measured %.4f%%, tolerance %.4f%%, margin %.4f%%: ", id, 100 * claim_e_, 100 * claim_t_, \
-           100 * (claim_t_ - claim_e_)); \
+    printf("claim %s: measured %.4f%%, tolerance %.4f%% (%s), margin %.4f%%: ", id, 100 * claim_e_, 100 * claim_t_, \
+           #tol, 100 * (claim_t_ - claim_e_)); \
     printf(__VA_ARGS__); putchar('\n'); \
     CHECK(claim_e_ <= claim_t_, "claim %s: error %.4f%% above its tolerance %.4f%%", id, 100 * claim_e_, 100 * claim_t_); \
     } while (0)
