@@ -296,6 +296,15 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     /* run in chunks so the progress callback can be called between them */
     size_t chunk = np / 50 + 1;
     wrt_status mst = WRT_OK;
+    /* the pairs' link tables may use what the budget leaves beside what is resident now */
+    atomic_ullong pool_bytes, pool_refused;
+    atomic_init(&pool_bytes, 0);
+    atomic_init(&pool_refused, 0);
+    b.pool_bytes = &pool_bytes;
+    b.pool_refused = &pool_refused;
+    uint64_t rss0 = wrt_bake_rss_bytes();
+    b.pool_limit = b.opt.max_memory_mb * 1024.0 * 1024.0 - (double)rss0;
+    if (b.pool_limit < 0) b.pool_limit = 0;
     if (b.opt.progress) b.opt.progress("dto", 0, b.opt.progress_user);
     for (size_t start = 0; start < np; start += chunk) {
         size_t n = np - start < chunk ? np - start : chunk;
@@ -333,6 +342,15 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         C->t_rays += job.tc[t].t_rays;
     }
     wrt_status st = mst;
+    if (st == WRT_OK && atomic_load(&pool_refused)) {
+        double mb = 1.0 / (1024.0 * 1024.0), need = (double)atomic_load(&pool_refused) * mb;
+        C->mem_estimate_mb = (double)rss0 * mb + need;
+        st = wrt_fail(WRT_ERR_NOMEM,
+                      "the bake would need at least %.0f MB (the links of the transport operator T being refined: "
+                      "%.0f MB more than the %.0f MB in use), over the memory budget of %.0f MB (--max-memory; "
+                      "default half the physical memory): lower --quality or --max-angular-level, or raise "
+                      "--max-memory", (double)rss0 * mb + need, need, (double)rss0 * mb, b.opt.max_memory_mb);
+    }
     if (st == WRT_OK && atomic_load(&cancel)) st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
 
     /* index the basis functions: every key used, plus each quad's root */

@@ -40,7 +40,8 @@ static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, c
     }
     const double per = 16.0; /* bytes per entry: row index and three floats */
     char what[96];
-    snprintf(what, sizeof what, "bounce %d of the series", bounce);
+    if (bounce > 0) snprintf(what, sizeof what, "bounce %d of the series", bounce);
+    else snprintf(what, sizeof what, "the gathered operator T S");
     double need = per * (2 * bound + (double)S->nnz + bound);
     if ((double)wrt_bake_rss_bytes() + need <= 0.25 * b->opt.max_memory_mb * 1024.0 * 1024.0) {
         /* within a quarter of the budget even at the bound: no sample needed (the
@@ -181,6 +182,14 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     C->links_gto = wrt_count_links(&S, res->fkeys);
     /* gathered: T + T S, computed when stored or when its figures are asked for */
     if (b->opt.gathered || b->opt.report_gathered) {
+        /* T S: the same check, with T on the left (column j of T S gathers T's columns) */
+        wrt_status mst = series_memory_check(b, C, T, &S, &S, eps, &W, 0);
+        if (mst != WRT_OK) {
+            char msg[1024];
+            snprintf(msg, sizeof msg, "%s", wrt_last_error());
+            wrt_csc_free(&S); free(rw); free(cw); free(pw);
+            return wrt_fail(mst, "%s", msg);
+        }
         wrt_csc TS = wrt_csc_mul(T, &S, eps, &W, threads);
         wrt_csc Gg = wrt_csc_add(&TS, T, 1.0);
         wrt_csc_free(&TS);

@@ -146,7 +146,7 @@ if "$gen" cornell-glossy --roughness 0.3 -o "$tmp/cg.gltf" >/dev/null 2>"$tmp/er
         ko "memory: estimate $est MB covers the peak $peak MB"
     fi
     low=$(awk -v p="$peak" 'BEGIN { printf "%d", p / 2 }')
-    expect_exit "memory: budget $low MB refused: exit 7, figure named" 7 "would need about [0-9]+ MB.*budget of $low MB" \
+    expect_exit "memory: budget $low MB refused: exit 7, figure named" 7 "would need (about|at least) [0-9]+ MB.*budget of $low MB" \
         "$bake" "$tmp/cg.gltf" -q 3 -o "$tmp/cglow.gto" --max-memory "$low" --quiet
     [ ! -e "$tmp/cglow.gto" ] && [ -z "$(ls "$tmp" | grep -F '.tmp.')" ] && ok "memory: nothing written when refused" ||
         ko "memory: nothing written when refused"
@@ -159,6 +159,19 @@ if "$gen" cornell-glossy --roughness 0.3 -o "$tmp/cg.gltf" >/dev/null 2>"$tmp/er
             ko "memory: sampled estimate $e2 MB covers the peak $p2 MB"
     else
         ko "memory: a budget of $tight MB (1.3 x the peak) is enough"
+    fi
+    # A setting far beyond the budget (the glossy asset at quality 9, 64 x 64 angular
+    # cells on every glossy link) is refused before its link tables grow past the
+    # budget: the kernel's peak for the process (getrusage of the child) stays under it.
+    rc=$(python3 -c 'import resource, subprocess, sys
+p = subprocess.run(sys.argv[1:-1], stdout=subprocess.DEVNULL, stderr=open(sys.argv[-1] + ".err", "w"))
+print(p.returncode, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss // 1024)' \
+        "$bake" assets/glossy.gltf -q 9 -o "$tmp/g9.gto" --max-memory 400 --quiet "$tmp/g9")
+    set -- $rc
+    if [ "${1:-x}" = 7 ] && [ "${2:-999999}" -le 400 ] && grep -q "budget of 400 MB" "$tmp/g9.err" && [ ! -e "$tmp/g9.gto" ]; then
+        ok "memory: quality 9 glossy refused at 400 MB (exit 7), peak ${2} MB"
+    else
+        ko "memory: quality 9 glossy refused at 400 MB (exit ${1:-?}), peak ${2:-?} MB"
     fi
     enough=$(awk -v e="$est" 'BEGIN { printf "%d", e * 1.1 + 16 }')
     check "memory: budget $enough MB is enough" "$bake" "$tmp/cg.gltf" -q 3 -o "$tmp/cgok.gto" --max-memory "$enough" --quiet
