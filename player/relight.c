@@ -1001,11 +1001,13 @@ static int material_used_glossy(const wrt_relight *r, uint32_t m) {
     return 0;
 }
 
-static const uint8_t *sort_ang; /* qsort has no context argument; create is not re-entrant here */
-static int cmp_by_ang(const void *a, const void *b) {
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    if (sort_ang[x] != sort_ang[y]) return sort_ang[x] < sort_ang[y] ? -1 : 1;
-    return x < y ? -1 : x > y;
+/* perm[0..n) = first + k ordered by angular index, then by function index (a stable
+ * counting sort: no comparison callback, hence no shared sort context). */
+static void sort_by_ang(const uint8_t *ang, uint32_t first, uint32_t n, uint32_t *perm) {
+    uint32_t start[NANG + 1] = {0};
+    for (uint32_t k = 0; k < n; k++) start[ang[first + k] + 1]++;
+    for (int a = 0; a < NANG; a++) start[a + 1] += start[a];
+    for (uint32_t k = 0; k < n; k++) perm[start[ang[first + k]]++] = first + k;
 }
 
 wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out) {
@@ -1125,13 +1127,11 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->ang_start = wrt_xcalloc(ang_total + nq + 1, sizeof(uint32_t));
     r->ang_full = wrt_xcalloc(ang_total + 1, 1);
     r->ang_perm = wrt_xcalloc(nf ? nf : 1, sizeof(uint32_t));
-    sort_ang = r->fn_ang;
     for (uint32_t q = 0; q < nq; q++) {
         const wrt_gto_quad *gq = &g->quads[q];
         quad_info *qi = &r->qi[q];
         uint32_t *perm = r->ang_perm + gq->func_first;
-        for (uint32_t k = 0; k < gq->func_count; k++) perm[k] = gq->func_first + k;
-        qsort(perm, gq->func_count, sizeof(uint32_t), cmp_by_ang);
+        sort_by_ang(r->fn_ang, gq->func_first, gq->func_count, perm);
         uint16_t *al = r->ang_list + qi->ang_first;
         uint32_t *as = r->ang_start + qi->ang_first + q;
         int s = -1;
