@@ -149,6 +149,10 @@ void wrt_runtime_quad_mean(const wrt_runtime *rt, int q, float rgb[3]);
  * for cell (i, j). n in 1..1024. Errors: WRT_ERR_INVALID_ARG. */
 wrt_status wrt_runtime_quad_cells(const wrt_runtime *rt, int q, int n, double *out, wrt_error *err);
 
+/* Mean incident irradiance over quad q (RGB), direct (from the light's projection) and
+ * indirect, for the current lights. */
+void wrt_runtime_quad_irradiance(const wrt_runtime *rt, int q, double direct[3], double indirect[3]);
+
 /* Milliseconds of the last update's stages (projection, multiply, brdf, synthesis). */
 void wrt_runtime_timings(const wrt_runtime *rt, double ms[4]);
 

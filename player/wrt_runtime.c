@@ -245,6 +245,10 @@ wrt_status wrt_runtime_quad_cells(const wrt_runtime *rt, int q, int n, double *o
     return WRT_OK;
 }
 
+void wrt_runtime_quad_irradiance(const wrt_runtime *rt, int q, double direct[3], double indirect[3]) {
+    wrt_relight_quad_irradiance(rt->rl, q, direct, indirect);
+}
+
 void wrt_runtime_timings(const wrt_runtime *rt, double ms[4]) {
     ms[0] = rt->tm.projection; ms[1] = rt->tm.multiply; ms[2] = rt->tm.brdf; ms[3] = rt->tm.synthesis;
 }
