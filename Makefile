@@ -63,7 +63,7 @@ TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
 .PHONY: all deps demo test tests stress study fuzz clean assets bench install
-all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight
+all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/tests/runtime_instances
 
 deps:
 	@bash tools/install-deps.sh
@@ -91,6 +91,12 @@ $(BUILD)/examples/relight: examples/relight.c $(BUILD)/libwrt.a include/wrt.h
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
+
+# The runtime's instances test: the public header and libwrt.a, nothing else.
+$(BUILD)/tests/runtime_instances: tests/runtime_instances.c $(BUILD)/libwrt.a include/wrt.h
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -D_GNU_SOURCE -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
 
 # make install PREFIX=DIR: the header, both libraries and wrt.pc (pkg-config).
 PREFIX ?= /usr/local
