@@ -37,7 +37,6 @@
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
-#include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -46,6 +45,7 @@
 #include "../common/basis.h"
 #include "../common/brdf.h"
 #include "../common/brdf_table.h"
+#include "../common/threads.h"
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
 #define PROJ_CELL_K 8.0      /* cells at most d / PROJ_CELL_K wide */
@@ -223,23 +223,17 @@ struct wrt_relight {
     float *texk;                    /* per texel of non-parallelograms: 2^Lt sqrt(pi/J)/pi */
     out_rec *recs;
     worker *workers;
+    wrt_pool *pool;                 /* nthreads threads, parked between loops */
 };
 
 /* ---------------------------------------------------------------- threads ---- */
 
 typedef void (*job_fn)(wrt_relight *r, worker *w, int item, void *ctx);
-typedef struct job { wrt_relight *r; job_fn fn; void *ctx; atomic_int next; int n; } job;
-typedef struct job_arg { job *j; int wid; } job_arg;
+typedef struct job { wrt_relight *r; job_fn fn; void *ctx; } job;
 
-static void *job_run(void *p) {
-    job_arg *a = p;
-    job *j = a->j;
-    for (;;) {
-        int i = atomic_fetch_add(&j->next, 1);
-        if (i >= j->n) break;
-        j->fn(j->r, &j->r->workers[a->wid], i, j->ctx);
-    }
-    return NULL;
+static void job_item(size_t item, int thread, void *user) {
+    job *j = user;
+    j->fn(j->r, &j->r->workers[thread], (int)item, j->ctx);
 }
 
 /* Below this much work (units of about one shadow ray, ~0.2 us) a loop runs on the
@@ -251,21 +245,8 @@ static void *job_run(void *p) {
  * (callers write per item, or merge per item in item order). */
 static int parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ctx) {
     if (n <= 0) return 0;
-    job j = {r, fn, ctx, 0, n};
-    int nt = r->nthreads < n ? r->nthreads : n;
-    if (work < PARALLEL_MIN_WORK) nt = 1;
-    pthread_t th[64];
-    job_arg args[64];
-    int started = 0;
-    for (int t = 1; t < nt; t++) {
-        args[t].j = &j; args[t].wid = t;
-        if (pthread_create(&th[t], NULL, job_run, &args[t]) != 0) break;
-        started = t;
-    }
-    args[0].j = &j; args[0].wid = 0;
-    job_run(&args[0]);
-    for (int t = 1; t <= started; t++) pthread_join(th[t], NULL);
-    return started + 1;
+    job j = {r, fn, ctx};
+    return wrt_pool_run(r->pool, (size_t)n, work < PARALLEL_MIN_WORK ? 1 : 0, job_item, &j);
 }
 
 static void *grow(void *p, size_t *cap, size_t need, size_t elem) {
@@ -1026,6 +1007,11 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     long nc = sysconf(_SC_NPROCESSORS_ONLN);
     r->nthreads = r->opt.threads > 0 ? r->opt.threads : (int)(nc > 0 ? nc : 1);
     if (r->nthreads > 64) r->nthreads = 64;
+    if (wrt_pool_create(r->nthreads, &r->pool) != WRT_OK) {
+        free(r);
+        return wrt_fail(WRT_ERR_NOMEM, "relight: no memory for the thread pool");
+    }
+    r->nthreads = wrt_pool_size(r->pool);
     r->workers = wrt_xcalloc((size_t)r->nthreads, sizeof(worker));
     for (int t = 0; t < r->nthreads; t++) {
         r->workers[t].pstate = wrt_xcalloc(PROJ_TREE_CELLS, sizeof(uint32_t));
@@ -1218,6 +1204,7 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
 
 void wrt_relight_destroy(wrt_relight *r) {
     if (!r) return;
+    wrt_pool_destroy(r->pool);
     if (r->scene) rtcReleaseScene(r->scene);
     if (r->dev) rtcReleaseDevice(r->dev);
     for (int i = 0; i < r->lights_cap; i++) { free(r->lights[i].idx); free(r->lights[i].val); free(r->lights[i].root); }
