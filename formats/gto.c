@@ -9,6 +9,7 @@
  * syncs it and renames it over the target. Depends on wrt_common, scene.h, basis.h and
  * POSIX (mmap, mkstemp, fsync, rename, sigaction). */
 #include "gto.h"
+#include "scene.h"
 
 #include <errno.h>
 #include <fcntl.h>

@@ -2,12 +2,14 @@
  * Byte layout, alignment, version rules and checksums are specified in
  * formats/GTO_FORMAT.md; the structs here are that layout (little-endian, checked
  * by static asserts in gto.c). The player maps the file and uses these arrays in
- * place: nothing is parsed. Depends on wrt_common.h and scene.h. */
+ * place: nothing is parsed. Depends on common/scene_types.h (not on the loader). */
 #ifndef WRT_GTO_H
 #define WRT_GTO_H
 
 #include "../common/wrt_common.h"
-#include "scene.h"
+#include "../common/scene_types.h"
+
+typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes one */
 
 #include <stdio.h>
 

@@ -21,6 +21,7 @@
 
 #include "tests/test.h"
 #include "formats/gto.h"
+#include "formats/scene.h"
 #include "common/basis.h"
 
 /* From GTO_FORMAT.md. */
