@@ -574,9 +574,9 @@ static int run_bench(app *a) {
     if (!rc) {
         const char *names[7] = {"projection", "multiply", "brdf", "synthesis", "upload", "draw", "frame"};
         printf("{\"frames\": %d, \"width\": %d, \"height\": %d, \"mode\": \"%s\", \"quads\": %u, "
-               "\"funcs\": %u, \"nnz\": %llu, \"threads\": %d, \"first_frame_ms\": %.3f, \"median_ms\": {",
+               "\"funcs\": %u, \"nnz\": %llu, \"threads\": %d, \"msaa\": %d, \"first_frame_ms\": %.3f, \"median_ms\": {",
                n, a->o->width, a->o->height, wrt_render_mode_name(a->mode), a->g.nquads, a->g.nfuncs,
-               (unsigned long long)a->g.nnz, a->o->threads, first);
+               (unsigned long long)a->g.nnz, a->o->threads, wrt_render_samples(a->rd), first);
         double med_frame = 0;
         for (int k = 0; k < 7; k++) {
             double m = median(col[k], n);
@@ -702,13 +702,10 @@ static int win_reload(app *a, win_state *w) {
     return 0;
 }
 
-static void draw_overlay(app *a, win_state *w) {
-    wrt_overlay *ov = w->ov;
-    int W = a->o->width, H = a->o->height, sc = W >= 1000 ? 2 : 1;
-    float ch = 9.0f * sc;
-    wrt_overlay_begin(ov, W, H);
-    static const float white[4] = {1, 1, 1, 1}, dim[4] = {0.7f, 0.7f, 0.7f, 1}, yellow[4] = {1, 0.85f, 0.2f, 1},
-                       panel[4] = {0, 0, 0, 0.6f}, black[4] = {0, 0, 0, 0.8f};
+static const float white[4] = {1, 1, 1, 1}, dim[4] = {0.7f, 0.7f, 0.7f, 1}, yellow[4] = {1, 0.85f, 0.2f, 1},
+                   panel[4] = {0, 0, 0, 0.6f}, black[4] = {0, 0, 0, 0.8f};
+
+static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch) {
     /* a marker at each light: a cross in its colour, a frame around the selected one,
      * hollow and grey when it is off; its number beside it */
     for (int i = 0; i < nshown(a); i++) {
@@ -735,6 +732,13 @@ static void draw_overlay(app *a, win_state *w) {
         wrt_overlay_rect(ov, x + r + 2, y - r - ch, 6.0f * sc * (float)strlen(num) + 2, ch, black);
         wrt_overlay_text(ov, x + r + 3, y - r - ch, sc, i == w->sel ? yellow : white, num);
     }
+}
+
+static void draw_overlay(app *a, win_state *w) {
+    wrt_overlay *ov = w->ov;
+    int W = a->o->width, H = a->o->height, sc = W >= 1000 ? 2 : 1;
+    float ch = 9.0f * sc;
+    wrt_overlay_begin(ov, W, H);
     double now = wrt_now();
     if (!w->overlay_on) {
         const char *hint = w->status_until > now ? w->status : "H: help and lights";
@@ -742,6 +746,7 @@ static void draw_overlay(app *a, win_state *w) {
         wrt_overlay_measure(hint, sc, &tw, &th);
         wrt_overlay_rect(ov, 4, (float)H - th - 8, tw + 8, th + 4, panel);
         wrt_overlay_text(ov, 8, (float)H - th - 6, sc, dim, hint);
+        draw_markers(a, w, ov, sc, ch);
         wrt_overlay_draw(ov);
         return;
     }
@@ -789,6 +794,7 @@ static void draw_overlay(app *a, win_state *w) {
         lineno++;
         line = nl ? nl + 1 : NULL;
     }
+    draw_markers(a, w, ov, sc, ch); /* over the panel: a light behind it stays visible */
     wrt_overlay_draw(ov);
 }
 
@@ -818,8 +824,9 @@ static int run_window(app *a) {
     double lo[3], hi[3];
     wrt_render_scene_bounds(&a->g, lo, hi);
     double size = v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
-    wrt_v3 up;
-    scene_up(a, &up);
+    /* yaw and the lights' up/down keys turn and move about the world's up, glTF's +Y,
+     * whatever the camera's roll or tilt */
+    wrt_v3 up = v3(0, 1, 0);
     double last = wrt_now(), title_at = 0;
     int frame = 0, rc = 0, was_idle = -1, dirty = 1;
     stage_ms t;

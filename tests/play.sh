@@ -100,6 +100,33 @@ if [ -f "$gto" ]; then
         check "window screenshot not blank" "$img" --nonblank "$tmp/shot.png"
     fi
 
+    # keys are events: a tap (press and release between two frames) of Space switches the
+    # light off, then F12 saves the window; the saved picture is darker than the first one
+    if command -v xvfb-run >/dev/null && command -v xdotool >/dev/null; then
+        cat >"$tmp/keys.sh" <<KEYS
+#!/bin/bash
+cd "$tmp" && rm -f wrt-play-*.png
+"$PWD/$play" "$gto" "\${@}" >"$tmp/win.log" 2>&1 &
+pid=\$!
+for i in \$(seq 50); do wid=\$(xdotool search --name wrt-play 2>/dev/null | head -n 1); [ -n "\$wid" ] && break; sleep 0.2; done
+sleep 2
+xdotool key --window "\$wid" F12; sleep 2
+xdotool key --window "\$wid" space; sleep 1
+xdotool key --window "\$wid" F12; sleep 2
+xdotool key --window "\$wid" Escape
+wait \$pid
+KEYS
+        timeout 90 xvfb-run -a -s "-screen 0 800x600x24" bash "$tmp/keys.sh" "${W[@]}" --msaa 1 --no-overlay >/dev/null 2>&1
+        if [ -f "$tmp/wrt-play-0001.png" ] && [ -f "$tmp/wrt-play-0002.png" ]; then
+            m1=$("$img" --stats "$tmp/wrt-play-0001.png" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+            m2=$("$img" --stats "$tmp/wrt-play-0002.png" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+            if awk -v a="$m1" -v b="$m2" 'BEGIN { exit !(b < 0.5 * a) }'; then ok "window: Space tap switches the light off (mean $m1 -> $m2)"
+            else ko "window: Space tap switches the light off (mean $m1 -> $m2)"; fi
+        else
+            cat "$tmp/win.log"; ko "window: F12 saved two screenshots"
+        fi
+    fi
+
     # truncated copies: a clear message and exit 2, never a crash
     size=$(stat -c %s "$gto")
     for cut in 0 7 64 $((size / 2)) $((size - 1)); do
