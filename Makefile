@@ -61,12 +61,18 @@ all: $(PROGRAMS) $(TESTS)
 deps:
 	@bash tools/install-deps.sh
 
-$(BUILD)/obj/%.o: %.c
+# A plain `make` on a machine without the packages names them and the command that
+# installs them, before any compiler error (checked once per build directory).
+$(BUILD)/.deps-checked: tools/check-deps.sh
+	@bash tools/check-deps.sh $(CXX)
+	@mkdir -p $(dir $@) && touch $@
+
+$(BUILD)/obj/%.o: %.c | $(BUILD)/.deps-checked
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
 
-$(BUILD)/obj/%.o: %.cpp
+$(BUILD)/obj/%.o: %.cpp | $(BUILD)/.deps-checked
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CXX     $<")
 	$(Q)$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
