@@ -166,6 +166,11 @@ static int parse_args(int argc, char **argv, options *o) {
 #undef NUM
     }
     if (!o->file) { fprintf(stderr, "wrt-play: no input file (see --help)\n"); return 0; }
+    if (o->has_cam_pos && o->has_cam_target && o->cam_pos[0] == o->cam_target[0] &&
+        o->cam_pos[1] == o->cam_target[1] && o->cam_pos[2] == o->cam_target[2]) {
+        fprintf(stderr, "wrt-play: --camera-pos equals --camera-target: the camera has no view direction\n");
+        return 0;
+    }
     if (o->script && !o->pattern) { fprintf(stderr, "wrt-play: --script needs --out-pattern\n"); return 0; }
     if (o->headless && !o->out && !o->script && !o->stats && !o->bench) {
         fprintf(stderr, "wrt-play: --headless needs -o/--out, --script, --stats-json or --bench\n");
@@ -386,7 +391,7 @@ static int setup_lights(app *a) {
     return rc;
 }
 
-static void setup_view(app *a) {
+static int setup_view(app *a) {
     wrt_render_default_view(&a->g, &a->view);
     const options *o = a->o;
     if (o->has_cam_pos) {
@@ -399,6 +404,14 @@ static void setup_view(app *a) {
     }
     if (o->has_cam_target) memcpy(a->view.target, o->cam_target, sizeof a->view.target);
     if (o->has_fov) a->view.yfov = o->fov * WRT_PI / 180;
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) d2 += (a->view.target[k] - a->view.eye[k]) * (a->view.target[k] - a->view.eye[k]);
+    if (!(d2 > 0)) {
+        fprintf(stderr, "wrt-play: the camera's position (%g, %g, %g) equals its target: no view direction\n",
+                a->view.eye[0], a->view.eye[1], a->view.eye[2]);
+        return 0;
+    }
+    return 1;
 }
 
 /* ---------------------------------------------------------------- script */
@@ -866,7 +879,7 @@ static int run_window(app *a) {
             else if (k == WRT_KEY_T && !in.events[e].repeat) a->mode = (wrt_render_mode)((a->mode + 1) % WRT_MODE_COUNT);
             else if ((k == WRT_KEY_H || k == WRT_KEY_F1) && !in.events[e].repeat) w.overlay_on = !w.overlay_on;
             else if (k == WRT_KEY_R && !in.events[e].repeat) {
-                setup_view(a);
+                (void)setup_view(a); /* checked at the start */
                 free(a->lights);
                 if ((rc = setup_lights(a))) break;
                 win_reset_lights(a, &w);
@@ -995,8 +1008,7 @@ int main(int argc, char **argv) {
     }
     /* the view and the lights first: a light the file does not have is refused before
      * any window opens */
-    setup_view(&a);
-    int rc = setup_lights(&a);
+    int rc = setup_view(&a) ? setup_lights(&a) : EXIT_USAGE;
     if (rc) {
         free(a.lights);
         wrt_gto_close(&a.g);
@@ -1043,7 +1055,7 @@ int main(int argc, char **argv) {
     }
     if (o.out || o.stats) {
         if (o.bench || o.script) { /* back to the command line's camera and lights */
-            setup_view(&a);
+            (void)setup_view(&a); /* checked above */
             free(a.lights);
             if ((rc = setup_lights(&a))) goto done;
         }

@@ -773,7 +773,12 @@ void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode) {
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_LESS);
-    glDisable(GL_CULL_FACE);
+    /* Quads are one-sided (glTF: back faces of a single-sided material are culled); a
+     * doubleSided quad arrives as two back-to-back quads, 1e-4 of the scene apart, which
+     * the depth buffer alone could not order. Counter-clockwise about the normal. */
+    glEnable(GL_CULL_FACE);
+    glCullFace(GL_BACK);
+    glFrontFace(GL_CCW);
     GLuint p = r->prog_scene;
     glUseProgram(p);
     glUniformMatrix4fv(loc(p, "u_vp"), 1, GL_FALSE, vpf);

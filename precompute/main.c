@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "../cli/cli.h"
@@ -47,7 +48,9 @@ static void usage(FILE *f) {
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --threads N            worker threads (default: all cores); output is identical\n"
         "  --drop-bad             drop bad triangles with a warning instead of refusing\n"
-        "  --reproducible         record no timings, so equal inputs give equal bytes\n"
+        "  --provenance-timings   also store the bake's timings in the file (they differ from\n"
+        "                         run to run: by default equal inputs give equal bytes)\n"
+        "  --reproducible         the default (no timings stored); kept for older scripts\n"
         "  --max-error E          check the bake against a path-traced reference (cell-average\n"
         "                         relative RMSE of the indirect light, 2 light positions) and\n"
         "                         fail with exit code 5, writing nothing, if it exceeds E\n"
@@ -92,6 +95,30 @@ static int progress_cb(const char *phase, double done, void *user) {
     return 1;
 }
 
+/* SIGINT, SIGTERM, SIGHUP: remove the temporary being written (if it has a name; an
+ * unnamed one goes with the process), say so, and exit with the documented code 4.
+ * The target is the older file or none: it is only ever replaced by a rename. */
+static void interrupt_exit(int sig) {
+    (void)sig;
+    wrt_gto_remove_temporaries();
+    static const char msg[] = "\nwrt-bake: interrupted; nothing written, the output is as it was\n";
+    ssize_t w = write(2, msg, sizeof msg - 1);
+    (void)w;
+    _exit(EXIT_CANCEL);
+}
+
+static void install_interrupt_exit(void) {
+    static const int sigs[] = {SIGINT, SIGTERM, SIGHUP};
+    for (size_t i = 0; i < sizeof sigs / sizeof *sigs; i++) {
+        struct sigaction old, sa;
+        if (sigaction(sigs[i], NULL, &old) != 0 || old.sa_handler == SIG_IGN) continue;
+        memset(&sa, 0, sizeof sa);
+        sa.sa_handler = interrupt_exit;
+        sigfillset(&sa.sa_mask);
+        sigaction(sigs[i], &sa, NULL);
+    }
+}
+
 static void json_counters(FILE *f, const wrt_bake_counters *c) {
     fprintf(f,
         "\"pairs\":{\"total\":%llu,\"exchange\":%llu,\"skipped_facing\":%llu,\"unoccluded\":%llu},"
@@ -128,13 +155,25 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
 
 int main(int argc, char **argv) {
     const char *scene_path = NULL, *out_path = NULL, *scan = NULL, *info = NULL;
-    int json = 0, force_progress = 0, quiet = 0, print_config = 0, reproducible = 0, drop_bad = 0;
+    int json = 0, force_progress = 0, quiet = 0, print_config = 0, timings = 0, drop_bad = 0;
+    const char *seen[64];
+    int nseen = 0;
     double max_error = -1;
     int check_paths = 1000000;
     wrt_bake_options o = {0};
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         int ok = 1;
+        /* An option given twice is refused (`-o a -o b` would silently take the last). */
+        if (a[0] == '-' && a[1]) {
+            const char *canon = !strcmp(a, "-o") ? "--output" : !strcmp(a, "-q") ? "--quality" : a;
+            for (int k = 0; k < nseen; k++)
+                if (!strcmp(seen[k], canon)) {
+                    fprintf(stderr, "wrt-bake: error: %s given twice\n", a);
+                    return EXIT_USAGE;
+                }
+            if (nseen < (int)(sizeof seen / sizeof *seen)) seen[nseen++] = canon;
+        }
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
         else if (!strcmp(a, "--version")) { wrt_cli_version("wrt-bake"); return 0; }
         else if (!strcmp(a, "-o") || !strcmp(a, "--out") || !strcmp(a, "--output")) { if (!v) ok = 0; else out_path = v, i++; }
@@ -156,7 +195,8 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--no-tail")) o.no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o.no_balance = 1;
         else if (!strcmp(a, "--drop-bad")) drop_bad = 1;
-        else if (!strcmp(a, "--reproducible")) reproducible = 1;
+        else if (!strcmp(a, "--reproducible")) timings = 0;
+        else if (!strcmp(a, "--provenance-timings")) timings = 1;
         else if (!strcmp(a, "--json")) json = 1;
         else if (!strcmp(a, "--progress")) force_progress = 1;
         else if (!strcmp(a, "--quiet")) quiet = 1;
@@ -207,7 +247,15 @@ int main(int argc, char **argv) {
     if (!out_path) { fprintf(stderr, "wrt-bake: error: no output file (-o OUT.gto)\n"); return EXIT_USAGE; }
     wrt_cli_progress_enable(!quiet && (force_progress || isatty(2)));
 
-    wrt_gto_install_signal_cleanup();
+    /* The output, checked before any work: not the scene (same file, also through a
+     * link), not a directory, in a folder where a file can be made. */
+    const char *inputs[1] = {scene_path};
+    wrt_status cst = wrt_gto_check_output(out_path, inputs, 1);
+    if (cst != WRT_OK) {
+        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+        return cst == WRT_ERR_INVALID_ARG ? EXIT_USAGE : EXIT_OUTPUT;
+    }
+    install_interrupt_exit();
     double t0 = wrt_now();
     wrt_scene s;
     wrt_cli_progress("load", -1);
@@ -247,7 +295,7 @@ int main(int argc, char **argv) {
     json_options(pf, &o);
     fprintf(pf, ",");
     json_counters(pf, c);
-    if (!reproducible) fprintf(pf, ",\"seconds\":{\"dto\":%.3f,\"gto\":%.3f}", c->t_dto, c->t_gto);
+    if (timings) fprintf(pf, ",\"seconds\":{\"dto\":%.3f,\"gto\":%.3f}", c->t_dto, c->t_gto);
     fprintf(pf, "}");
     fclose(pf);
 
@@ -265,18 +313,15 @@ int main(int argc, char **argv) {
     gc.stats.rays_skipped = c->rays_skipped_unoccluded + c->rays_skipped_facing;
     gc.stats.bounces = c->bounces;
     gc.stats.energy_left = c->energy_left;
-    if (!reproducible) { gc.stats.t_dto = c->t_dto; gc.stats.t_gto = c->t_gto; }
-    /* With --max-error the file is first written beside the target, checked, and only
-     * renamed over the target when it passes: a rejected bake leaves the target as it was. */
-    char check_path[4096];
-    const char *write_path = out_path;
-    if (max_error >= 0) {
-        snprintf(check_path, sizeof check_path, "%s.check", out_path);
-        write_path = check_path;
-    }
+    if (timings) { gc.stats.t_dto = c->t_dto; gc.stats.t_gto = c->t_gto; }
+    /* The file is written to a private temporary in the target's folder (unnamed where
+     * the file system allows); with --max-error it is checked there and only renamed
+     * over the target when it passes: a rejected or interrupted bake leaves the target
+     * as it was and no file behind. */
     double tw = wrt_now();
+    wrt_gto_pending pend;
     wrt_cli_progress("write", -1);
-    st = wrt_gto_write(write_path, &gc);
+    st = wrt_gto_write_pending(out_path, &gc, &pend);
     wrt_cli_progress_end();
     double t_write = wrt_now() - tw;
     free(prov);
@@ -297,7 +342,7 @@ int main(int argc, char **argv) {
         wrt_gto g;
         wrt_compare_result cr;
         st = wrt_compare_ref_create(&s, lights, nl, &co, &ref);
-        if (st == WRT_OK) st = wrt_gto_open(write_path, &g);
+        if (st == WRT_OK) st = wrt_gto_open_pending(&pend, &g);
         if (st == WRT_OK) {
             st = wrt_compare_gto(ref, &g, &cr);
             wrt_gto_close(&g);
@@ -306,7 +351,7 @@ int main(int argc, char **argv) {
         t_check = wrt_now() - tc;
         if (st != WRT_OK) {
             fprintf(stderr, "wrt-bake: error: accuracy check failed to run: %s\n", wrt_last_error());
-            unlink(write_path);
+            wrt_gto_discard(&pend);
             wrt_bake_result_free(&r);
             wrt_scene_free(&s);
             return EXIT_OUTPUT;
@@ -317,23 +362,25 @@ int main(int argc, char **argv) {
             fprintf(stderr, "wrt-bake: error: accuracy not met: relative RMSE of the indirect light %.4f "
                     "(reference noise %.4f) exceeds --max-error %.4f; %s not written\n",
                     check_error, check_floor, max_error, out_path);
-            unlink(write_path);
+            wrt_gto_discard(&pend);
             wrt_bake_result_free(&r);
             wrt_scene_free(&s);
             return EXIT_ACCURACY;
         }
-        if (rename(write_path, out_path) != 0) {
-            fprintf(stderr, "wrt-bake: error: %s: cannot rename to %s: %s\n", write_path, out_path, strerror(errno));
-            unlink(write_path);
-            wrt_bake_result_free(&r);
-            wrt_scene_free(&s);
-            return EXIT_OUTPUT;
-        }
+    }
+    tw = wrt_now();
+    st = wrt_gto_commit(&pend);
+    t_write += wrt_now() - tw;
+    if (st != WRT_OK) {
+        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+        wrt_bake_result_free(&r);
+        wrt_scene_free(&s);
+        return EXIT_OUTPUT;
     }
     double t_total = wrt_now() - t0;
     long long bytes = -1;
-    FILE *of = fopen(out_path, "rb");
-    if (of) { fseek(of, 0, SEEK_END); bytes = ftell(of); fclose(of); }
+    struct stat ob;
+    if (stat(out_path, &ob) == 0) bytes = (long long)ob.st_size;
 
     if (json) {
         printf("{\"scene\":\"%s\",\"output\":\"%s\",\"quads\":%d,\"bytes\":%lld,", scene_path, out_path, s.nquads, bytes);

@@ -19,7 +19,8 @@
 #include <string.h>
 
 #include "../formats/gto.h"
-#include "bake_internal.h"
+#include "series.h"
+#include "balance.h"
 
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     wrt_bake_counters *C = &res->c;

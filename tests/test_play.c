@@ -10,6 +10,7 @@
 #include "tests/test.h"
 #include "common/basis.h"
 #include "formats/gto.h"
+#include "formats/scene.h"
 #include "formats/image.h"
 #include "player/platform.h"
 #include "player/relight.h"
