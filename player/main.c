@@ -52,6 +52,8 @@ static void usage(FILE *f) {
         "  --exposure EV         exposure in stops (default 0): x 2^EV, then Reinhard x/(1+x),\n"
         "                        then sRGB; the same curve as wrt-ref's and wrt-compare's PNGs\n"
         "  --msaa N              samples per pixel of the rasterizer: 1, 2, 4 or 8 (default 4)\n"
+        "  --supersample N       headless pictures: render N x N times the pixels and average\n"
+        "                        them (smooths shadow edges too; N = 1..4, default 1)\n"
         "  --direct-only | --indirect-only   show one part (default: both)\n"
         "  --stats-json FILE     per quad: area, centroid, normal, mesh name, mean direct and\n"
         "                        indirect incident irradiance (RGB) for the current lights\n"
@@ -88,7 +90,7 @@ static void usage(FILE *f) {
 
 typedef struct options {
     const char *file, *out, *script, *pattern, *stats, *screenshot;
-    int headless, width, height, bench, frames, threads, max_tex_res, shadow_res, msaa, no_overlay;
+    int headless, width, height, bench, frames, threads, max_tex_res, shadow_res, msaa, no_overlay, supersample;
     wrt_render_mode mode;
     float exposure;
     double script_fps;
@@ -114,6 +116,7 @@ static int parse_args(int argc, char **argv, options *o) {
     o->height = 480;
     o->max_tex_res = 64;
     o->msaa = 4;
+    o->supersample = 1;
     wrt_cli_lights_init(&o->lights);
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
@@ -148,6 +151,7 @@ static int parse_args(int argc, char **argv, options *o) {
             INT(1, 8, o->msaa);
             if (o->msaa & (o->msaa - 1)) { fprintf(stderr, "wrt-play: bad value for --msaa: '%s' (1, 2, 4 or 8)\n", v); return 0; }
         }
+        else if (!strcmp(a, "--supersample")) INT(1, 4, o->supersample);
         else if (!strcmp(a, "--exposure")) { double e; NUM(-64, 64, e); o->exposure = (float)e; }
         else if (!strcmp(a, "--script-fps")) NUM(1e-3, 1e4, o->script_fps);
         else if (!strcmp(a, "--fov")) { NUM(1, 179, o->fov); o->has_fov = 1; }
@@ -270,9 +274,26 @@ static int run_frame(app *a, stage_ms *t) {
 }
 
 static int save_picture(app *a, const char *path) {
-    int w = a->o->width, h = a->o->height;
+    int w = a->o->width, h = a->o->height, ss = a->o->headless ? a->o->supersample : 1;
     float *lin = wrt_xmalloc((size_t)w * h * 3 * sizeof(float));
-    wrt_render_read_linear(a->rd, lin);
+    if (ss > 1) {
+        /* rendered at ss x the size: the mean of each ss x ss block (a box filter of the
+         * linear radiance, which smooths shadow edges too, unlike MSAA) */
+        size_t W = (size_t)w * ss;
+        float *big = wrt_xmalloc(W * (size_t)h * ss * 3 * sizeof(float));
+        wrt_render_read_linear(a->rd, big);
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++)
+                for (int c = 0; c < 3; c++) {
+                    double sum = 0;
+                    for (int j = 0; j < ss; j++)
+                        for (int i = 0; i < ss; i++) sum += big[((size_t)(y * ss + j) * W + (size_t)x * ss + i) * 3 + c];
+                    lin[((size_t)y * w + x) * 3 + c] = (float)(sum / (ss * ss));
+                }
+        free(big);
+    } else {
+        wrt_render_read_linear(a->rd, lin);
+    }
     wrt_status s;
     if (wrt_image_is_exr(path)) {
         s = wrt_image_write_exr(path, lin, w, h);
@@ -1032,7 +1053,8 @@ int main(int argc, char **argv) {
         rc = EXIT_RUNTIME;
         goto done;
     }
-    wrt_render_options rdo = {o.width, o.height, o.shadow_res, o.msaa};
+    int ss = o.headless ? o.supersample : 1;
+    wrt_render_options rdo = {o.width * ss, o.height * ss, o.shadow_res, o.msaa};
     if ((s = wrt_render_create(&a.g, &rdo, &a.rd))) {
         fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         rc = s == WRT_ERR_GL ? EXIT_GL : EXIT_USAGE;

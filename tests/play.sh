@@ -100,6 +100,14 @@ if [ -f "$gto" ]; then
         check "window screenshot not blank" "$img" --nonblank "$tmp/shot.png"
     fi
 
+    # --supersample 2 averages 2 x 2 rendered pixels: the picture's mean stays (within 2%),
+    # its edges are smoothed
+    check "headless --supersample 2" "$play" "$gto" --headless "${W[@]}" --supersample 2 -o "$tmp/ss2.exr"
+    m1=$("$img" --stats "$tmp/both.exr" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+    m2=$("$img" --stats "$tmp/ss2.exr" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+    awk -v a="$m1" -v b="$m2" 'BEGIN { d = (b - a) / a; exit !(d < 0.02 && d > -0.02) }' &&
+        ok "supersampled mean $m2 = plain mean $m1 (2%)" || ko "supersampled mean $m2 = plain mean $m1 (2%)"
+
     # keys are events: a tap (press and release between two frames) of Space switches the
     # light off, then F12 saves the window; the saved picture is darker than the first one
     if command -v xvfb-run >/dev/null && command -v xdotool >/dev/null; then
