@@ -740,8 +740,8 @@ static const float white[4] = {1, 1, 1, 1}, dim[4] = {0.7f, 0.7f, 0.7f, 1}, yell
                    panel[4] = {0, 0, 0, 0.6f}, black[4] = {0, 0, 0, 0.8f};
 
 static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch) {
-    /* a marker at each light: a cross in its colour, a frame around the selected one,
-     * hollow and grey when it is off; its number beside it */
+    /* a marker at each light: a cross in its colour (grey when off), a frame around the
+     * selected one, its number beside it, a dotted axis for a spot */
     for (int i = 0; i < nshown(a); i++) {
         double p[3] = {a->lights[i].pos.x, a->lights[i].pos.y, a->lights[i].pos.z}, px[2];
         if (!wrt_render_project(a->rd, &a->view, p, px)) continue;
@@ -750,6 +750,17 @@ static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch
         float c[4] = {a->lights[i].color[0], a->lights[i].color[1], a->lights[i].color[2], 1};
         float m = fmaxf(c[0], fmaxf(c[1], c[2]));
         for (int k = 0; k < 3; k++) c[k] = on ? (m > 0 ? 0.35f + 0.65f * c[k] / m : 1) : 0.45f;
+        if (a->lights[i].type == WRT_LIGHT_SPOT) {
+            /* a spot's axis: dots from the light along its direction, a tenth of the box */
+            double len = 0.1 * v3_len(v3(w->box_hi[0] - w->box_lo[0], w->box_hi[1] - w->box_lo[1],
+                                          w->box_hi[2] - w->box_lo[2]));
+            for (int k = 1; k <= 8; k++) {
+                double q[3], qx[2];
+                for (int d = 0; d < 3; d++) q[d] = p[d] + (&a->lights[i].dir.x)[d] * len * k / 8;
+                if (wrt_render_project(a->rd, &a->view, q, qx))
+                    wrt_overlay_rect(ov, (float)qx[0] - sc, (float)qx[1] - sc, 2.0f * sc, 2.0f * sc, c);
+            }
+        }
         if (i == w->sel) {
             float t = 2.0f * sc, R = r + 4.0f * sc;
             wrt_overlay_rect(ov, x - R, y - R, 2 * R, t, yellow);

@@ -98,6 +98,12 @@ if [ -f "$gto" ]; then
     if command -v xvfb-run >/dev/null; then
         check "window under Xvfb" timeout 60 xvfb-run -a -s "-screen 0 800x600x24" "$play" "$gto" "${W[@]}" --frames 3 --screenshot "$tmp/shot.png"
         check "window screenshot not blank" "$img" --nonblank "$tmp/shot.png"
+        # the overlay (panel, text, light markers) is drawn: the picture differs from --no-overlay
+        timeout 60 xvfb-run -a -s "-screen 0 800x600x24" "$play" "$gto" "${W[@]}" --frames 3 --no-overlay --screenshot "$tmp/shot0.png" >/dev/null 2>&1
+        m1=$("$img" --stats "$tmp/shot.png" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+        m0=$("$img" --stats "$tmp/shot0.png" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+        awk -v a="$m1" -v b="$m0" 'BEGIN { d = (a - b) / b; exit !(d > 0.01 || d < -0.01) }' &&
+            ok "overlay drawn (mean $m1 with, $m0 without)" || ko "overlay drawn (mean $m1 with, $m0 without)"
     fi
 
     # --supersample 2 averages 2 x 2 rendered pixels: the picture's mean stays (within 2%),
