@@ -55,7 +55,7 @@ PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-sc
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
-.PHONY: all deps demo test tests stress study fuzz clean assets bench
+.PHONY: all deps demo test tests stress study fuzz clean assets bench mutate
 all: $(PROGRAMS) $(TESTS)
 
 deps:
@@ -97,7 +97,7 @@ $(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
-$(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(ALL_LIB_OBJ)
+$(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(ALL_LIB_OBJ) $(call obj,tools/compare.c)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
@@ -139,6 +139,11 @@ test: deps
 stress: deps
 	@$(MAKE) --no-print-directory all
 	@WRT_STRESS_FULL=1 bash tests/run.sh $(BUILD) stress
+
+# The mutation run (tests/mutate.sh): deliberate faults in the core numerics, one at a
+# time, built into $(BUILD)/mutate; prints "N caught, N survived". MUTATIONS="id ..." selects.
+mutate: deps
+	@bash tests/mutate.sh $(BUILD) $(MUTATIONS)
 
 DEMO_SCENE ?= assets/cornell.gltf
 demo: deps

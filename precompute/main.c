@@ -166,7 +166,7 @@ int main(int argc, char **argv) {
         int ok = 1;
         /* An option given twice is refused (`-o a -o b` would silently take the last). */
         if (a[0] == '-' && a[1]) {
-            const char *canon = !strcmp(a, "-o") ? "--output" : !strcmp(a, "-q") ? "--quality" : a;
+            const char *canon = (!strcmp(a, "-o") || !strcmp(a, "--out")) ? "--output" : !strcmp(a, "-q") ? "--quality" : a;
             for (int k = 0; k < nseen; k++)
                 if (!strcmp(seen[k], canon)) {
                     fprintf(stderr, "wrt-bake: error: %s given twice\n", a);
