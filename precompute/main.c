@@ -234,6 +234,19 @@ int main(int argc, char **argv) {
     }
     wrt_load_options lo = {.drop_bad = drop_bad};
     if (scan) {
+        /* a baked file given by mistake: say so rather than show the glTF parser's error */
+        struct stat sst;
+        FILE *sf = stat(scan, &sst) == 0 && S_ISREG(sst.st_mode) ? fopen(scan, "rb") : NULL; /* no FIFO waits */
+        char magic[8] = {0};
+        if (sf) {
+            size_t got = fread(magic, 1, sizeof magic, sf);
+            fclose(sf);
+            if (got == sizeof magic && !memcmp(magic, "\x89WRT\r\n\x1a\n", sizeof magic)) { /* .gto magic */
+                fprintf(stderr, "wrt-bake: error: %s is a baked .gto file, not a scene: use --info to inspect it\n",
+                        scan);
+                return EXIT_INPUT;
+            }
+        }
         wrt_scene s;
         wrt_status st = wrt_scene_load(scan, &lo, &s);
         if (st != WRT_OK) {
