@@ -131,8 +131,8 @@ mutation compress-power: compression hands a column's dropped power to its kept 
   file precompute/sparse.c
   find acc[3 * i + ch] = v + lost[ch] * fabs(v) / wsum;
   repl acc[3 * i + ch] = v + 2 * lost[ch] * fabs(v) / wsum;
+  run test_bake test_small_quads_furnace test_coloured_furnace
   run test_stress test_furnace test_furnace_occluded
-  run test_bake test_coloured_furnace
   run test_accuracy
 
 mutation sparse-apply-channel: the bake's sparse multiply uses channel 0 of x for every channel
