@@ -43,7 +43,7 @@ printf 'this is not a gto file, just text\n%.0s' {1..50} >"$tmp/foreign.gto"
 expect_exit "foreign file: exit 2" 2 "not|foreign|magic" "$play" "$tmp/foreign.gto" --headless --out "$tmp/x.png"
 expect_exit "unknown option: exit 1" 1 "unknown option" "$play" x.gto --frobnicate
 expect_exit "bad vector: exit 1" 1 "bad value" "$play" x.gto --light-pos 1,2
-expect_exit "headless without output: exit 1" 1 "needs --out" "$play" x.gto --headless
+expect_exit "headless without output: exit 1" 1 "needs -o/--out" "$play" x.gto --headless
 
 # A small baked scene.
 scene=""
