@@ -37,7 +37,7 @@
 #define CLAIM_WEDGE_L5 1e-4
 /* README: "metal, mirror and dielectric boxes within 1.5% in flux of a random walk of light" */
 #define CLAIM_GLOSSY_FLUX 1.5e-2
-/* README: "the dielectric under isotropic light 5.2% low" */
+/* README: "the dielectric under isotropic light 5.3% low" */
 #define CLAIM_GLOSSY_DIELECTRIC_ISOTROPIC 6e-2
 
 /* The bake against the path tracer (test_accuracy.c: cornell, coloured lights and walls,

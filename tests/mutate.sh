@@ -207,6 +207,13 @@ mutation brdf-ggx-d: GGX's D with t instead of t^2 in the denominator
   repl return a2 / (WRT_PI * t);
   run test_brdf test_ggx_albedo_quadrature test_fresnel
 
+mutation brdf-table-scale: the shared angular BRDF table 2% high
+  file common/brdf_table.c
+  find for (int k = 0; k < WRT_BRDF_TABLE_NANG * 3; k++) out[k] *= WRT_PI;
+  repl for (int k = 0; k < WRT_BRDF_TABLE_NANG * 3; k++) out[k] *= 1.02 * WRT_PI;
+  run test_brdf test_brdf_table
+  run test_bake test_glossy_power_balance
+
 mutation gto-section-checksum: the reader ignores a section's checksum
   file formats/gto.c
   find if (sum != s->checksum)
