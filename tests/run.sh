@@ -1,17 +1,21 @@
 #!/usr/bin/env bash
 # Runs every test program in BUILD/tests (and the shell tests in tests/*.sh), then prints
 # the total as "N passed, N failed", the line CI reads, followed by ", N skipped" when a
-# check could not run here (each skipped check says why). Usage: tests/run.sh BUILD [stress]
+# check could not run here (each skipped check says why). WRT_TEST_LOGS=DIR keeps each
+# program's output in DIR/NAME.out (tests/claims.sh --write reads them). Usage: tests/run.sh BUILD [stress]
 set -u
 build=${1:-build}
 export WRT_BUILD=$build
 pass=0; fail=0; skip=0; failed_names=()
+logs=${WRT_TEST_LOGS:-}   # a folder: each program's output is kept there as NAME.out
+[ -n "$logs" ] && mkdir -p "$logs"
 # skipped COUNT-LINE: the N of a trailing ", N skipped", else 0
 skipped() { local n; n=$(sed -nE 's/.* ([0-9]+) skipped.*/\1/p' <<<"$1"); echo "${n:-0}"; }
 cd "$(dirname "$0")/.."
 for t in "$build"/tests/test_*; do
     [ -x "$t" ] || continue
     out=$("$t" 2>&1); rc=$?
+    [ -n "$logs" ] && printf '%s\n' "$out" >"$logs/$(basename "$t").out"
     line=$(printf '%s\n' "$out" | grep -E '[0-9]+ passed, [0-9]+ failed' | tail -n 1)
     p=$(sed -E 's/^(.*[^0-9])?([0-9]+) passed, ([0-9]+) failed.*/\2/' <<<"$line")
     f=$(sed -E 's/^(.*[^0-9])?([0-9]+) passed, ([0-9]+) failed.*/\3/' <<<"$line")
@@ -28,6 +32,7 @@ done
 for s in tests/*.sh; do
     case "$(basename "$s")" in run.sh|mutate.sh) continue ;; esac   # mutate.sh: `make mutate`
     out=$(bash "$s" "$build" 2>&1); rc=$?
+    [ -n "$logs" ] && printf '%s\n' "$out" >"$logs/$(basename "$s" .sh).out"
     line=$(printf '%s\n' "$out" | grep -E '[0-9]+ passed, [0-9]+ failed' | tail -n 1)
     p=$(sed -E 's/^(.*[^0-9])?([0-9]+) passed, ([0-9]+) failed.*/\2/' <<<"$line"); [[ "$p" =~ ^[0-9]+$ ]] || p=0
     f=$(sed -E 's/^(.*[^0-9])?([0-9]+) passed, ([0-9]+) failed.*/\3/' <<<"$line"); [[ "$f" =~ ^[0-9]+$ ]] || f=0
