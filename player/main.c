@@ -5,7 +5,7 @@
  * (direct light with shadow maps + the indirect textures), in a GLFW window or headless
  * (EGL) into image files, a scripted sequence of frames, per-quad statistics or a
  * benchmark. Command line and exit codes: see usage() below. The only file that exits.
- * Depends on formats/gto.h, formats/image.h, player/relight.h, player/render.h,
+ * Depends on formats/gto.h, formats/image.h, include/wrt.h (the runtime), player/render.h,
  * player/platform.h. */
 #include <ctype.h>
 #include <errno.h>
@@ -20,7 +20,7 @@
 #include "../formats/image.h"
 #include "overlay.h"
 #include "platform.h"
-#include "relight.h"
+#include "../include/wrt.h"
 #include "render.h"
 
 /* The exit codes of every tool (cli/cli.h). */
@@ -220,7 +220,7 @@ typedef struct app {
     options *o;
     wrt_gto g;
     wrt_platform *plat;
-    wrt_relight *rl;
+    wrt_runtime *rl;
     wrt_render *rd;
     wrt_light *lights;
     int nlights;
@@ -242,21 +242,35 @@ static int run_frame(app *a, stage_ms *t) {
     wrt_render_set_lights(a->rd, a->lights, a->scales, n);
     /* direct-only pictures need no relighting; everything else does */
     if (a->mode != WRT_MODE_DIRECT || a->o->stats) {
-        wrt_relight_timings rt;
-        memset(&rt, 0, sizeof rt);
-        wrt_relight_set_lights(a->rl, a->lights, a->scales, n);
-        wrt_relight_set_eye(a->rl, a->view.eye);
-        int changed = wrt_relight_update(a->rl, &rt);
+        double ms[4];
+        wrt_runtime_light rls[WRT_RENDER_MAX_LIGHTS];
+        for (int i = 0; i < n; i++) { /* the runtime's lights: a scale folds into the intensity */
+            const wrt_light *l = &a->lights[i];
+            memset(&rls[i], 0, sizeof rls[i]);
+            rls[i].kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT : WRT_LIGHT_KIND_POINT;
+            rls[i].position[0] = l->pos.x; rls[i].position[1] = l->pos.y; rls[i].position[2] = l->pos.z;
+            rls[i].direction[0] = l->dir.x; rls[i].direction[1] = l->dir.y; rls[i].direction[2] = l->dir.z;
+            for (int c = 0; c < 3; c++) rls[i].color[c] = l->color[c];
+            rls[i].intensity = a->scales[i] != 1 ? l->intensity * a->scales[i] : l->intensity;
+            rls[i].inner_cone = l->inner_cone;
+            rls[i].outer_cone = l->outer_cone;
+            rls[i].off = a->scales[i] == 0;
+        }
+        int changed = 0;
+        wrt_runtime_set_lights(a->rl, rls, n, NULL);
+        wrt_runtime_set_eye(a->rl, a->view.eye, NULL);
+        wrt_runtime_update(a->rl, &changed, NULL);
+        wrt_runtime_timings(a->rl, ms);
         t->relit = changed > 0 || !a->relit_once;
-        t->projection = rt.projection;
-        t->multiply = rt.multiply;
-        t->brdf = rt.brdf;
-        t->synthesis = rt.synthesis;
+        t->projection = ms[0];
+        t->multiply = ms[1];
+        t->brdf = ms[2];
+        t->synthesis = ms[3];
         double t1 = wrt_now();
         if (changed > 0 || !a->relit_once) {
             for (uint32_t q = 0; q < a->g.nquads; q++) {
-                const float *tex = wrt_relight_tex(a->rl, (int)q);
-                int res = wrt_relight_tex_res(a->rl, (int)q);
+                int res;
+                const float *tex = wrt_runtime_quad_texture(a->rl, (int)q, &res);
                 if (tex && res > 0) wrt_render_set_quad_tex(a->rd, (int)q, res, tex);
             }
             if (wrt_render_upload(a->rd) < 0) return EXIT_GL;
@@ -348,7 +362,7 @@ static int write_stats(app *a, const char *path) {
         const wrt_gto_quad *Q = &a->g.quads[q];
         double c[3], dir[3], ind[3];
         quad_centroid(Q, c);
-        wrt_relight_quad_irradiance(a->rl, (int)q, dir, ind);
+        wrt_runtime_quad_irradiance(a->rl, (int)q, dir, ind);
         fprintf(f, "%s\n    {\"quad\": %u, \"mesh\": ", q ? "," : "", q);
         json_str(f, Q->name < a->g.nnames ? a->g.names[Q->name] : "", 64);
         fprintf(f, ", \"material\": %u, \"area\": %.9g, \"centroid\": [%.17g, %.17g, %.17g], "
@@ -707,14 +721,14 @@ static int win_reload(app *a, win_state *w) {
         return 0;
     }
     wrt_render_destroy(a->rd);
-    wrt_relight_destroy(a->rl);
+    wrt_runtime_close(a->rl);
     a->rd = NULL;
     a->rl = NULL;
     int same_lights = g2.nlights == a->g.nlights;
     wrt_gto_close(&a->g);
     a->g = g2;
-    wrt_relight_options ro = {.max_tex_res = a->o->max_tex_res, .threads = a->o->threads};
-    if (wrt_relight_create(&a->g, &ro, &a->rl)) {
+    wrt_runtime_options ro = {.max_tex_res = a->o->max_tex_res, .threads = a->o->threads};
+    if (wrt_runtime_open_memory(a->g.map, a->g.size, &ro, &a->rl, NULL)) {
         fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         return EXIT_RUNTIME;
     }
@@ -1058,8 +1072,8 @@ int main(int argc, char **argv) {
         o.width = a.plat->fb_width;
         o.height = a.plat->fb_height;
     }
-    wrt_relight_options ro = {.max_tex_res = o.max_tex_res, .threads = o.threads};
-    if ((s = wrt_relight_create(&a.g, &ro, &a.rl))) {
+    wrt_runtime_options ro = {.max_tex_res = o.max_tex_res, .threads = o.threads};
+    if ((s = wrt_runtime_open_memory(a.g.map, a.g.size, &ro, &a.rl, NULL))) {
         fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         rc = EXIT_RUNTIME;
         goto done;
@@ -1099,7 +1113,7 @@ int main(int argc, char **argv) {
     }
 done:
     wrt_render_destroy(a.rd);
-    wrt_relight_destroy(a.rl);
+    wrt_runtime_close(a.rl);
     free(a.lights);
     wrt_platform_destroy(a.plat);
     wrt_gto_close(&a.g);

@@ -161,6 +161,7 @@ int main(int argc, char **argv) {
     double max_error = -1;
     int check_paths = 1000000;
     wrt_bake_options o = {0};
+    install_interrupt_exit(); /* first: a signal from here on exits 4, writing nothing */
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         int ok = 1;
@@ -268,7 +269,6 @@ int main(int argc, char **argv) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return cst == WRT_ERR_INVALID_ARG ? EXIT_USAGE : EXIT_OUTPUT;
     }
-    install_interrupt_exit();
     double t0 = wrt_now();
     wrt_scene s;
     wrt_cli_progress("load", -1);
