@@ -46,6 +46,7 @@
 #include "../common/brdf.h"
 #include "../common/brdf_table.h"
 #include "../common/threads.h"
+#include "../common/rt_scene.h"
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
 #define PROJ_CELL_K 8.0      /* cells at most d / PROJ_CELL_K wide */
@@ -1141,32 +1142,16 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->origin = nq ? v3_scale(v3_add(bmin, bmax), 0.5) : v3(0, 0, 0);
     r->scene_diag = nq ? v3_len(v3_sub(bmax, bmin)) : 1;
     if (!(r->scene_diag > 0)) r->scene_diag = 1;
-    r->eps = 1e-5 * r->scene_diag;
-    r->dev = rtcNewDevice(NULL);
-    if (!r->dev) { wrt_relight_destroy(r); return wrt_fail(WRT_ERR_UNSUPPORTED, "relight: cannot create an Embree device"); }
-    r->scene = rtcNewScene(r->dev);
-    if (nq) {
-        RTCGeometry geo = rtcNewGeometry(r->dev, RTC_GEOMETRY_TYPE_QUAD);
-        float *vb = rtcSetNewGeometryBuffer(geo, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), (size_t)nq * 4);
-        unsigned *ib = rtcSetNewGeometryBuffer(geo, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned), nq);
-        if (!vb || !ib) { rtcReleaseGeometry(geo); wrt_relight_destroy(r); return wrt_fail(WRT_ERR_NOMEM, "relight: Embree buffers"); }
-        for (uint32_t q = 0; q < nq; q++)
-            for (int k = 0; k < 4; k++) {
-                wrt_v3 p = v3_sub(r->qi[q].p[k], r->origin);
-                vb[(q * 4 + k) * 3 + 0] = (float)p.x;
-                vb[(q * 4 + k) * 3 + 1] = (float)p.y;
-                vb[(q * 4 + k) * 3 + 2] = (float)p.z;
-                ib[q * 4 + k] = q * 4 + (unsigned)k;
-            }
-        rtcCommitGeometry(geo);
-        rtcAttachGeometry(r->scene, geo);
-        rtcReleaseGeometry(geo);
-    }
-    rtcCommitScene(r->scene);
-    if (rtcGetDeviceError(r->dev) != RTC_ERROR_NONE) {
-        wrt_relight_destroy(r);
-        return wrt_fail(WRT_ERR_UNSUPPORTED, "relight: Embree scene build failed");
-    }
+    wrt_v3 *corners = wrt_xmalloc((size_t)(nq ? nq : 1) * 4 * sizeof *corners);
+    for (uint32_t q = 0; q < nq; q++)
+        for (int k = 0; k < 4; k++) corners[4 * q + k] = r->qi[q].p[k];
+    wrt_rt_scene rs;
+    wrt_status est = wrt_rt_scene_build(corners, (int)nq, r->origin, NULL, 0, &rs);
+    free(corners);
+    if (est != WRT_OK) { wrt_relight_destroy(r); return est; }
+    r->dev = rs.dev;
+    r->scene = rs.scene;
+    r->eps = rs.eps;
     /* State. */
     r->E = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
     r->X = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
