@@ -34,6 +34,8 @@ typedef struct wrt_scene {
     int nemissive;         /* materials with non-zero emission (reported only) */
     wrt_v3 bbox_min, bbox_max;
     uint64_t source_hash;  /* hash of the source file bytes */
+    int ntwins;            /* back-to-back twins added for doubleSided materials (in nquads) */
+    char *ignored;         /* glTF fields the bake does not use, "; "-separated (owned) */
 } wrt_scene;
 
 typedef struct wrt_load_options {

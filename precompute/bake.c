@@ -247,6 +247,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     job.tc = wrt_xcalloc((size_t)nt, sizeof *job.tc);
     /* run in chunks so the progress callback can be called between them */
     size_t chunk = np / 50 + 1;
+    if (b.opt.progress) b.opt.progress("dto", 0, b.opt.progress_user);
     for (size_t start = 0; start < np; start += chunk) {
         size_t n = np - start < chunk ? np - start : chunk;
         dto_job sub = job;
@@ -308,6 +309,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
                     t++;
                 }
             if (!b.opt.no_balance) {
+                if (b.opt.progress) b.opt.progress("balance", -1, b.opt.progress_user); /* no fraction known */
                 double tb = wrt_now();
                 uint64_t tcap = nent ? nent : 1, t0n = t;
                 C->closed = wrt_balance_run(&b, np, pr, ps, job.out, keys, res->nfuncs, &tr, &t, &tcap);

@@ -198,7 +198,7 @@ static void test_write_and_draw(void) {
     wrt_relight_options ro = {.max_tex_res = 16, .threads = 2};
     CHECK(wrt_relight_create(&g, &ro, &rl) == WRT_OK, "%s", wrt_last_error());
     wrt_render *rd = NULL;
-    wrt_render_options o = {W, H, 256};
+    wrt_render_options o = {W, H, 256, 1};
     CHECK(wrt_render_create(&g, &o, &rd) == WRT_OK, "%s", wrt_last_error());
     if (rl && rd) {
         wrt_light l;
