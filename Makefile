@@ -69,12 +69,18 @@ all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/tests/run
 deps:
 	@bash tools/install-deps.sh
 
-$(BUILD)/obj/%.o: %.c
+# A plain `make` on a machine without the packages names them and the command that
+# installs them, before any compiler error (checked once per build directory).
+$(BUILD)/.deps-checked: tools/check-deps.sh
+	@bash tools/check-deps.sh $(CXX)
+	@mkdir -p $(dir $@) && touch $@
+
+$(BUILD)/obj/%.o: %.c | $(BUILD)/.deps-checked
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
 
-$(BUILD)/pic/%.o: %.c
+$(BUILD)/pic/%.o: %.c | $(BUILD)/.deps-checked
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $< (PIC)")
 	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -fPIC -c $< -o $@
@@ -110,7 +116,7 @@ install: $(LIBWRT)
 	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|'"$$(sed -n 's/#define WRT_VERSION_STRING "\(.*\)"/\1/p' common/wrt_common.h)"'|' \
 	    tools/wrt.pc.in > $(DESTDIR)$(PREFIX)/lib/pkgconfig/wrt.pc
 
-$(BUILD)/obj/%.o: %.cpp
+$(BUILD)/obj/%.o: %.cpp | $(BUILD)/.deps-checked
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CXX     $<")
 	$(Q)$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
