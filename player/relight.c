@@ -37,7 +37,6 @@
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
-#include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -46,6 +45,7 @@
 #include "../common/basis.h"
 #include "../common/brdf.h"
 #include "../common/brdf_table.h"
+#include "../common/threads.h"
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
 #define PROJ_CELL_K 8.0      /* cells at most d / PROJ_CELL_K wide */
@@ -223,23 +223,17 @@ struct wrt_relight {
     float *texk;                    /* per texel of non-parallelograms: 2^Lt sqrt(pi/J)/pi */
     out_rec *recs;
     worker *workers;
+    wrt_pool *pool;                 /* nthreads threads, parked between loops */
 };
 
 /* ---------------------------------------------------------------- threads ---- */
 
 typedef void (*job_fn)(wrt_relight *r, worker *w, int item, void *ctx);
-typedef struct job { wrt_relight *r; job_fn fn; void *ctx; atomic_int next; int n; } job;
-typedef struct job_arg { job *j; int wid; } job_arg;
+typedef struct job { wrt_relight *r; job_fn fn; void *ctx; } job;
 
-static void *job_run(void *p) {
-    job_arg *a = p;
-    job *j = a->j;
-    for (;;) {
-        int i = atomic_fetch_add(&j->next, 1);
-        if (i >= j->n) break;
-        j->fn(j->r, &j->r->workers[a->wid], i, j->ctx);
-    }
-    return NULL;
+static void job_item(size_t item, int thread, void *user) {
+    job *j = user;
+    j->fn(j->r, &j->r->workers[thread], (int)item, j->ctx);
 }
 
 /* Below this much work (units of about one shadow ray, ~0.2 us) a loop runs on the
@@ -251,21 +245,8 @@ static void *job_run(void *p) {
  * (callers write per item, or merge per item in item order). */
 static int parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ctx) {
     if (n <= 0) return 0;
-    job j = {r, fn, ctx, 0, n};
-    int nt = r->nthreads < n ? r->nthreads : n;
-    if (work < PARALLEL_MIN_WORK) nt = 1;
-    pthread_t th[64];
-    job_arg args[64];
-    int started = 0;
-    for (int t = 1; t < nt; t++) {
-        args[t].j = &j; args[t].wid = t;
-        if (pthread_create(&th[t], NULL, job_run, &args[t]) != 0) break;
-        started = t;
-    }
-    args[0].j = &j; args[0].wid = 0;
-    job_run(&args[0]);
-    for (int t = 1; t <= started; t++) pthread_join(th[t], NULL);
-    return started + 1;
+    job j = {r, fn, ctx};
+    return wrt_pool_run(r->pool, (size_t)n, work < PARALLEL_MIN_WORK ? 1 : 0, job_item, &j);
 }
 
 static void *grow(void *p, size_t *cap, size_t need, size_t elem) {
@@ -1001,11 +982,13 @@ static int material_used_glossy(const wrt_relight *r, uint32_t m) {
     return 0;
 }
 
-static const uint8_t *sort_ang; /* qsort has no context argument; create is not re-entrant here */
-static int cmp_by_ang(const void *a, const void *b) {
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    if (sort_ang[x] != sort_ang[y]) return sort_ang[x] < sort_ang[y] ? -1 : 1;
-    return x < y ? -1 : x > y;
+/* perm[0..n) = first + k ordered by angular index, then by function index (a stable
+ * counting sort: no comparison callback, hence no shared sort context). */
+static void sort_by_ang(const uint8_t *ang, uint32_t first, uint32_t n, uint32_t *perm) {
+    uint32_t start[NANG + 1] = {0};
+    for (uint32_t k = 0; k < n; k++) start[ang[first + k] + 1]++;
+    for (int a = 0; a < NANG; a++) start[a + 1] += start[a];
+    for (uint32_t k = 0; k < n; k++) perm[start[ang[first + k]]++] = first + k;
 }
 
 wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out) {
@@ -1024,6 +1007,11 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     long nc = sysconf(_SC_NPROCESSORS_ONLN);
     r->nthreads = r->opt.threads > 0 ? r->opt.threads : (int)(nc > 0 ? nc : 1);
     if (r->nthreads > 64) r->nthreads = 64;
+    if (wrt_pool_create(r->nthreads, &r->pool) != WRT_OK) {
+        free(r);
+        return wrt_fail(WRT_ERR_NOMEM, "relight: no memory for the thread pool");
+    }
+    r->nthreads = wrt_pool_size(r->pool);
     r->workers = wrt_xcalloc((size_t)r->nthreads, sizeof(worker));
     for (int t = 0; t < r->nthreads; t++) {
         r->workers[t].pstate = wrt_xcalloc(PROJ_TREE_CELLS, sizeof(uint32_t));
@@ -1125,13 +1113,11 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->ang_start = wrt_xcalloc(ang_total + nq + 1, sizeof(uint32_t));
     r->ang_full = wrt_xcalloc(ang_total + 1, 1);
     r->ang_perm = wrt_xcalloc(nf ? nf : 1, sizeof(uint32_t));
-    sort_ang = r->fn_ang;
     for (uint32_t q = 0; q < nq; q++) {
         const wrt_gto_quad *gq = &g->quads[q];
         quad_info *qi = &r->qi[q];
         uint32_t *perm = r->ang_perm + gq->func_first;
-        for (uint32_t k = 0; k < gq->func_count; k++) perm[k] = gq->func_first + k;
-        qsort(perm, gq->func_count, sizeof(uint32_t), cmp_by_ang);
+        sort_by_ang(r->fn_ang, gq->func_first, gq->func_count, perm);
         uint16_t *al = r->ang_list + qi->ang_first;
         uint32_t *as = r->ang_start + qi->ang_first + q;
         int s = -1;
@@ -1218,6 +1204,7 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
 
 void wrt_relight_destroy(wrt_relight *r) {
     if (!r) return;
+    wrt_pool_destroy(r->pool);
     if (r->scene) rtcReleaseScene(r->scene);
     if (r->dev) rtcReleaseDevice(r->dev);
     for (int i = 0; i < r->lights_cap; i++) { free(r->lights[i].idx); free(r->lights[i].val); free(r->lights[i].root); }

@@ -161,6 +161,7 @@ int main(int argc, char **argv) {
     double max_error = -1;
     int check_paths = 1000000;
     wrt_bake_options o = {0};
+    install_interrupt_exit(); /* first: a signal from here on exits 4, writing nothing */
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         int ok = 1;
@@ -233,6 +234,19 @@ int main(int argc, char **argv) {
     }
     wrt_load_options lo = {.drop_bad = drop_bad};
     if (scan) {
+        /* a baked file given by mistake: say so rather than show the glTF parser's error */
+        struct stat sst;
+        FILE *sf = stat(scan, &sst) == 0 && S_ISREG(sst.st_mode) ? fopen(scan, "rb") : NULL; /* no FIFO waits */
+        char magic[8] = {0};
+        if (sf) {
+            size_t got = fread(magic, 1, sizeof magic, sf);
+            fclose(sf);
+            if (got == sizeof magic && !memcmp(magic, "\x89WRT\r\n\x1a\n", sizeof magic)) { /* .gto magic */
+                fprintf(stderr, "wrt-bake: error: %s is a baked .gto file, not a scene: use --info to inspect it\n",
+                        scan);
+                return EXIT_INPUT;
+            }
+        }
         wrt_scene s;
         wrt_status st = wrt_scene_load(scan, &lo, &s);
         if (st != WRT_OK) {
@@ -255,7 +269,6 @@ int main(int argc, char **argv) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return cst == WRT_ERR_INVALID_ARG ? EXIT_USAGE : EXIT_OUTPUT;
     }
-    install_interrupt_exit();
     double t0 = wrt_now();
     wrt_scene s;
     wrt_cli_progress("load", -1);

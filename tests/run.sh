@@ -17,12 +17,13 @@ for t in "$build"/tests/test_*; do
     out=$("$t" 2>&1); rc=$?
     [ -n "$logs" ] && printf '%s\n' "$out" >"$logs/$(basename "$t").out"
     line=$(printf '%s\n' "$out" | grep -E '[0-9]+ passed, [0-9]+ failed' | tail -n 1)
-    p=$(sed -E 's/.* ([0-9]+) passed, ([0-9]+) failed.*/\1/' <<<"$line")
-    f=$(sed -E 's/.* ([0-9]+) passed, ([0-9]+) failed.*/\2/' <<<"$line")
+    p=$(sed -E 's/^(.*[^0-9])?([0-9]+) passed, ([0-9]+) failed.*/\2/' <<<"$line")
+    f=$(sed -E 's/^(.*[^0-9])?([0-9]+) passed, ([0-9]+) failed.*/\3/' <<<"$line")
     [[ "$p" =~ ^[0-9]+$ ]] || p=0
     [[ "$f" =~ ^[0-9]+$ ]] || f=0
     if [ $rc -ne 0 ] && [ "$f" -eq 0 ]; then f=1; fi   # a crash counts as a failure
     k=$(skipped "$line"); skip=$((skip + k))
+    if [ $((p + f + k)) -eq 0 ]; then f=1; echo "$t: no 'N passed, N failed' line: counted as a failure"; fi
     pass=$((pass + p)); fail=$((fail + f))
     if [ "$f" -ne 0 ]; then failed_names+=("$t"); printf '%s\n' "$out" | grep -E 'FAIL|not ok|ERROR|Sanitizer' | head -n 20; fi
     [ "$k" -gt 0 ] && printf '%s\n' "$out" | grep -E '^skipped' | head -n 10
@@ -33,10 +34,11 @@ for s in tests/*.sh; do
     out=$(bash "$s" "$build" 2>&1); rc=$?
     [ -n "$logs" ] && printf '%s\n' "$out" >"$logs/$(basename "$s" .sh).out"
     line=$(printf '%s\n' "$out" | grep -E '[0-9]+ passed, [0-9]+ failed' | tail -n 1)
-    p=$(sed -E 's/.* ([0-9]+) passed, ([0-9]+) failed.*/\1/' <<<"$line"); [[ "$p" =~ ^[0-9]+$ ]] || p=0
-    f=$(sed -E 's/.* ([0-9]+) passed, ([0-9]+) failed.*/\2/' <<<"$line"); [[ "$f" =~ ^[0-9]+$ ]] || f=0
+    p=$(sed -E 's/^(.*[^0-9])?([0-9]+) passed, ([0-9]+) failed.*/\2/' <<<"$line"); [[ "$p" =~ ^[0-9]+$ ]] || p=0
+    f=$(sed -E 's/^(.*[^0-9])?([0-9]+) passed, ([0-9]+) failed.*/\3/' <<<"$line"); [[ "$f" =~ ^[0-9]+$ ]] || f=0
     if [ $rc -ne 0 ] && [ "$f" -eq 0 ]; then f=1; fi
     k=$(skipped "$line"); skip=$((skip + k))
+    if [ $((p + f + k)) -eq 0 ]; then f=1; echo "$s: no 'N passed, N failed' line: counted as a failure"; fi
     pass=$((pass + p)); fail=$((fail + f))
     if [ "$f" -ne 0 ]; then failed_names+=("$s"); printf '%s\n' "$out" | grep -E 'FAIL' | head -n 20; fi
     [ "$k" -gt 0 ] && printf '%s\n' "$out" | grep -E '^skipped' | head -n 10

@@ -11,7 +11,7 @@
 #include "tools/compare.h"
 
 #include "common/basis.h"
-#include "player/relight.h"
+#include "include/wrt.h"
 #include "tools/reference.h"
 
 #include <embree3/rtcore.h>
@@ -388,56 +388,30 @@ void wrt_compare_ref_get_info(const wrt_compare_ref *c, wrt_compare_ref_info *in
 
 /* ---- the wavelet side ---- */
 
-/* Cell averages of the indirect irradiance reconstructed from X on quad q (compare.h):
- * each Haar function's exact average over each cell it overlaps, times sqrt(pi/J) (exact
- * for a parallelogram; for a general quad its cell mean by 8 x 8 midpoints, an
- * approximation since J varies within the cell). */
-static void wavelet_cells(const wrt_gto *g, const float *X, int q, int n, double *out) {
-    const wrt_gto_quad *gq = &g->quads[q];
-    memset(out, 0, (size_t)n * n * 3 * sizeof(double));
-    for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++) {
-        wrt_fkey k = g->fkeys[f];
-        if (!wrt_fkey_angular_root(k)) continue;
-        const float *x = X + (size_t)f * 3;
-        if (x[0] == 0 && x[1] == 0 && x[2] == 0) continue;
-        wrt_node nd = wrt_fkey_snode(k);
-        int type = wrt_fkey_stype(k);
-        double sz = wrt_node_size(nd), h = sz / 2, val = ldexp(1.0, nd.level);
-        for (int cy = 0; cy < 2; cy++)
-            for (int cx = 0; cx < 2; cx++) {
-                double r0 = wrt_node_x0(nd) + cx * h, s0 = wrt_node_y0(nd) + cy * h;
-                double sgn = val * wrt_haar_sign(type, cx, cy);
-                int i0 = (int)floor(r0 * n), i1 = (int)ceil((r0 + h) * n), j0 = (int)floor(s0 * n),
-                    j1 = (int)ceil((s0 + h) * n);
-                if (i1 > n) i1 = n;
-                if (j1 > n) j1 = n;
-                for (int j = j0; j < j1; j++)
-                    for (int i = i0; i < i1; i++) {
-                        double ox = fmin(r0 + h, (i + 1.0) / n) - fmax(r0, (double)i / n);
-                        double oy = fmin(s0 + h, (j + 1.0) / n) - fmax(s0, (double)j / n);
-                        if (ox <= 0 || oy <= 0) continue;
-                        double a = sgn * ox * oy * n * n;
-                        for (int c = 0; c < 3; c++) out[((size_t)j * n + i) * 3 + c] += a * x[c];
-                    }
-            }
-    }
-    wrt_quad wq;
-    memset(&wq, 0, sizeof wq);
-    for (int i = 0; i < 4; i++) wq.p[i] = v3(gq->p[i][0], gq->p[i][1], gq->p[i][2]);
-    wq.area = gq->area;
-    wq.parallelogram = (gq->flags & 1) != 0;
-    for (int j = 0; j < n; j++)
-        for (int i = 0; i < n; i++) {
-            double fac = 0;
-            if (wq.parallelogram) fac = sqrt(WRT_PI / wq.area);
-            else {
-                for (int b = 0; b < 8; b++)
-                    for (int a = 0; a < 8; a++)
-                        fac += sqrt(WRT_PI / wrt_quad_jacobian(&wq, (i + (a + 0.5) / 8) / n, (j + (b + 0.5) / 8) / n));
-                fac /= 64;
-            }
-            for (int c = 0; c < 3; c++) out[((size_t)j * n + i) * 3 + c] *= fac;
-        }
+/* A scene light as the runtime library takes it. */
+static wrt_runtime_light runtime_light(const wrt_light *l) {
+    wrt_runtime_light o;
+    memset(&o, 0, sizeof o);
+    o.kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT : WRT_LIGHT_KIND_POINT;
+    o.position[0] = l->pos.x; o.position[1] = l->pos.y; o.position[2] = l->pos.z;
+    o.direction[0] = l->dir.x; o.direction[1] = l->dir.y; o.direction[2] = l->dir.z;
+    for (int c = 0; c < 3; c++) o.color[c] = l->color[c];
+    o.intensity = l->intensity;
+    o.inner_cone = l->inner_cone;
+    o.outer_cone = l->outer_cone;
+    return o;
+}
+
+static wrt_status set_light(wrt_runtime *r, const wrt_light *l) {
+    wrt_runtime_light rl = runtime_light(l);
+    return wrt_runtime_set_lights(r, &rl, 1, NULL);
+}
+
+/* The runtime on the bake's bytes (already mapped and checked by the caller). */
+static wrt_status open_runtime(const wrt_gto *g, int threads, wrt_runtime **r) {
+    wrt_runtime_options ro = {0};
+    ro.threads = threads;
+    return wrt_runtime_open_memory(g->map, g->size, &ro, r, NULL);
 }
 
 /* Bilinear lookup of a quad's texture at (u,v), clamped to its own texels. */
@@ -476,25 +450,24 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
             if (!(v3_len(d) <= 1e-6 * (size > 0 ? size : 1)))
                 return wrt_fail(WRT_ERR_INVALID_ARG, "compare: quad %d of the bake differs from the scene's: not baked from it", q);
         }
-    wrt_relight *r;
-    wrt_relight_options ro = {0};
-    ro.threads = c->opt.threads;
-    wrt_status st = wrt_relight_create(g, &ro, &r);
+    wrt_runtime *r;
+    wrt_status st = open_runtime(g, c->opt.threads, &r);
     if (st != WRT_OK) return st;
     double eye[3] = {s->camera.pos.x, s->camera.pos.y, s->camera.pos.z};
-    wrt_relight_set_eye(r, eye);
+    wrt_runtime_set_eye(r, eye, NULL);
     int n = c->n, nc = n * n, ns = c->opt.sub * c->opt.sub;
     out->nlights = c->nlights;
     int nlit = 0;
     for (int li = 0; li < c->nlights; li++) {
-        wrt_relight_set_lights(r, &c->lights[li], NULL, 1);
-        wrt_relight_update(r, NULL);
-        const float *X = wrt_relight_X(r);
+        if ((st = set_light(r, &c->lights[li])) || (st = wrt_runtime_update(r, NULL, NULL))) {
+            wrt_runtime_close(r);
+            return st;
+        }
         wrt_compare_light_result *lr = &out->light[li];
         double d2 = 0, se2 = 0, r2 = 0, sw = 0, sr = 0;
         for (int q = 0; q < s->nquads; q++) {
             double *w = c->wcells[li] + (size_t)q * nc * 3;
-            wavelet_cells(g, X, q, n, w);
+            wrt_runtime_quad_cells(r, q, n, w, NULL);
             const double *m = c->cell_mean[li] + (size_t)q * nc * 3, *e = c->cell_se[li] + (size_t)q * nc * 3;
             double a = s->quads[q].area;
             for (int k = 0; k < nc * 3; k++) {
@@ -517,7 +490,9 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
                     for (int k = 0; k < ns; k++) {
                         int q = c->hit_quad[p * ns + k];
                         double v[3];
-                        tex_lookup(wrt_relight_tex(r, q), wrt_relight_tex_res(r, q), c->hit_uv[(p * ns + k) * 2],
+                        int res;
+                        const float *tex = wrt_runtime_quad_texture(r, q, &res);
+                        tex_lookup(tex, res, c->hit_uv[(p * ns + k) * 2],
                                    c->hit_uv[(p * ns + k) * 2 + 1], v);
                         for (int ch = 0; ch < 3; ch++) acc[ch] += v[ch] / ns;
                     }
@@ -549,7 +524,7 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
         m->image_rmse /= nlit; m->image_floor /= nlit; m->image_debiased /= nlit;
         m->cell_ratio /= nlit;
     }
-    wrt_relight_destroy(r);
+    wrt_runtime_close(r);
     st = wrt_compare_bench(g, &c->lights[0], eye, c->opt.bench_updates, c->opt.threads, out);
     out->seconds = wrt_now() - t0;
     return st;
@@ -564,14 +539,13 @@ static double cpu_now(void) {
 wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const double eye[3], int updates,
                              int threads, wrt_compare_result *out) {
     if (updates < 1) return wrt_fail(WRT_ERR_INVALID_ARG, "compare: %d timed updates", updates);
-    wrt_relight *r;
-    wrt_relight_options ro = {0};
-    ro.threads = threads;
-    wrt_status st = wrt_relight_create(g, &ro, &r);
+    wrt_runtime *r;
+    wrt_status st = open_runtime(g, threads, &r);
     if (st != WRT_OK) return st;
-    wrt_relight_set_eye(r, eye);
-    wrt_relight_set_lights(r, light, NULL, 1);
-    wrt_relight_update(r, NULL);
+    if ((st = wrt_runtime_set_eye(r, eye, NULL)) || (st = set_light(r, light)) || (st = wrt_runtime_update(r, NULL, NULL))) {
+        wrt_runtime_close(r);
+        return st;
+    }
     wrt_v3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
     for (uint32_t q = 0; q < g->nquads; q++)
         for (int k = 0; k < 4; k++) {
@@ -587,8 +561,8 @@ wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const dou
         double a = 2 * WRT_PI * (k + 1) / updates;
         l.pos = v3(p0.x + rad * cos(a), p0.y, p0.z + rad * sin(a));
         double t1 = wrt_now(), c1 = cpu_now();
-        wrt_relight_set_lights(r, &l, NULL, 1);
-        wrt_relight_update(r, NULL);
+        set_light(r, &l);
+        wrt_runtime_update(r, NULL, NULL);
         ms[k] = (wrt_now() - t1) * 1e3;
         cpu[k] = (cpu_now() - c1) * 1e3;
     }
@@ -599,7 +573,7 @@ wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const dou
     out->ms_update_max = ms[updates - 1];
     out->cpu_ms_update_median = cpu[updates / 2];
     free(ms); free(cpu);
-    wrt_relight_destroy(r);
+    wrt_runtime_close(r);
     return WRT_OK;
 }
 const float *wrt_compare_image(const wrt_compare_ref *c, int light, int wavelet) {

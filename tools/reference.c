@@ -11,9 +11,9 @@
  * so that Embree's single-precision intersections never see their own surface. */
 #include "reference.h"
 #include "common/brdf.h"
+#include "common/threads.h"
 
 #include <embree3/rtcore.h>
-#include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -334,37 +334,24 @@ typedef struct ref_job {
     int nlights, max_bounces, nitems;
     void (*fn)(struct ref_job *job, ref_thread *th, int item);
     void *ctx;
-    atomic_int next;
 } ref_job;
 
-static void *job_worker(void *arg) {
-    ref_job *job = arg;
-    ref_thread th = {job->r, job->lights, job->nlights, job->max_bounces, 0};
-    for (;;) {
-        int i = atomic_fetch_add(&job->next, 1);
-        if (i >= job->nitems) break;
-        job->fn(job, &th, i);
-    }
-    atomic_fetch_add(&job->r->rays, th.rays);
-    return NULL;
+typedef struct ref_run { ref_job *job; ref_thread th[64]; } ref_run;
+
+static void job_item(size_t item, int thread, void *user) {
+    ref_run *run = user;
+    run->job->fn(run->job, &run->th[thread], (int)item);
 }
 
+/* The items on common/threads.c's pool; each thread's state (and ray count) apart. */
 static void job_run(ref_job *job, int threads) {
-    if (threads <= 0) {
-        long n = sysconf(_SC_NPROCESSORS_ONLN);
-        threads = n > 0 ? (int)n : 1;
-    }
-    if (threads > 256) threads = 256;
-    if (threads > job->nitems) threads = job->nitems > 0 ? job->nitems : 1;
-    atomic_store(&job->next, 0);
-    pthread_t tid[256];
-    int started = 0;
-    for (int i = 1; i < threads; i++) {
-        if (pthread_create(&tid[started], NULL, job_worker, job) != 0) break;
-        started++;
-    }
-    job_worker(job); /* the caller works too; a failed pthread_create only costs speed */
-    for (int i = 0; i < started; i++) pthread_join(tid[i], NULL);
+    ref_run run;
+    run.job = job;
+    for (int t = 0; t < 64; t++) run.th[t] = (ref_thread){job->r, job->lights, job->nlights, job->max_bounces, 0};
+    wrt_parallel_for((size_t)(job->nitems > 0 ? job->nitems : 0), threads, job_item, &run);
+    uint64_t rays = 0;
+    for (int t = 0; t < 64; t++) rays += run.th[t].rays;
+    atomic_fetch_add(&job->r->rays, rays);
 }
 
 static wrt_status check_common(wrt_ref *r, const wrt_light *lights, int nlights, int samples) {
