@@ -15,6 +15,7 @@
 #include "../common/threads.h"
 #include "../common/brdf.h"
 #include "../common/brdf_table.h"
+#include "../common/rt_scene.h"
 #include "dto.h"
 #include "balance.h"
 #include "series.h"
@@ -214,7 +215,6 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     b.scene_size = v3_len(v3_sub(scene->bbox_max, scene->bbox_min));
     if (!(b.scene_size > 0) || !isfinite(b.scene_size))
         return wrt_fail(WRT_ERR_GEOMETRY, "scene has no extent (bounding box diagonal %g)", b.scene_size);
-    b.ray_eps = 1e-6 * b.scene_size;
     b.plane_eps = 1e-7 * b.scene_size;
     b.entry_floor = 0.1 * b.opt.eps_compress; /* far below what the series keeps */
     b.quads = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * sizeof *b.quads);
@@ -236,28 +236,17 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     }
     bake_btilde_build(&b);
 
-    /* Embree */
-    b.dev = rtcNewDevice("threads=1");
-    if (!b.dev) { free(b.quads); free(b.rho); return wrt_fail(WRT_ERR_NOMEM, "Embree device creation failed"); }
-    b.rtc = rtcNewScene(b.dev);
-    rtcSetSceneFlags(b.rtc, RTC_SCENE_FLAG_ROBUST);
-    RTCGeometry geom = rtcNewGeometry(b.dev, RTC_GEOMETRY_TYPE_QUAD);
-    float *vb = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                        (size_t)(b.nq ? b.nq : 1) * 4);
-    unsigned *ib = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned),
-                                           (size_t)(b.nq ? b.nq : 1));
-    for (int i = 0; i < b.nq; i++) {
-        for (int k = 0; k < 4; k++) {
-            vb[12 * i + 3 * k] = (float)b.quads[i].p[k].x;
-            vb[12 * i + 3 * k + 1] = (float)b.quads[i].p[k].y;
-            vb[12 * i + 3 * k + 2] = (float)b.quads[i].p[k].z;
-            ib[4 * i + k] = (unsigned)(4 * i + k);
-        }
-    }
-    rtcCommitGeometry(geom);
-    rtcAttachGeometry(b.rtc, geom);
-    rtcReleaseGeometry(geom);
-    rtcCommitScene(b.rtc);
+    /* Embree (common/rt_scene.h: its ray offset is the bake's too) */
+    wrt_v3 *corners = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * 4 * sizeof *corners);
+    for (int i = 0; i < b.nq; i++)
+        for (int k = 0; k < 4; k++) corners[4 * i + k] = b.quads[i].p[k];
+    wrt_rt_scene rs;
+    wrt_status est = wrt_rt_scene_build(corners, b.nq, v3(0, 0, 0), "threads=1", WRT_RT_ROBUST, &rs);
+    free(corners);
+    if (est != WRT_OK) { free(b.quads); free(b.rho); return est; }
+    b.dev = rs.dev;
+    b.rtc = rs.scene;
+    b.ray_eps = rs.eps;
 
     /* pairs */
     size_t cap = 64, np = 0;

@@ -282,6 +282,25 @@ int main(int argc, char **argv) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return EXIT_INPUT;
     }
+    /* ... nor any file the scene read (external buffers and images). */
+    if (s.files && s.files[0]) {
+        const char *ins[64];
+        int nin = 0;
+        for (char *l = s.files; *l && nin < 64;) {
+            char *nl = strchr(l, '\n');
+            if (nl) *nl = 0;
+            ins[nin++] = l;
+            if (!nl) break;
+            l = nl + 1;
+        }
+        cst = wrt_gto_check_output(out_path, ins, nin);
+        for (int k = 0; k < nin - 1; k++) ((char *)ins[k])[strlen(ins[k])] = '\n';
+        if (cst != WRT_OK) {
+            fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+            wrt_scene_free(&s);
+            return cst == WRT_ERR_INVALID_ARG ? EXIT_USAGE : EXIT_OUTPUT;
+        }
+    }
     if (s.nquads == 0) {
         fprintf(stderr, "wrt-bake: error: %s: the scene has no quads\n", scene_path);
         wrt_scene_free(&s);

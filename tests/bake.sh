@@ -108,6 +108,13 @@ expect_exit "-o names the scene: exit 1" 1 "the output is the input" "$bake" "$t
 expect_exit "-o is a hard link to the scene: exit 1" 1 "the output is the input" "$bake" "$tmp/scene.gltf" -o "$tmp/hard.gto"
 expect_exit "-o is a symbolic link to the scene: exit 1" 1 "the output is the input" "$bake" "$tmp/scene.gltf" -o "$tmp/sym.gto"
 cmp -s "$tmp/scene.gltf" "$tmp/scene.orig" && ok "the scene is intact" || ko "the scene is intact"
+# ... nor a file the scene reads (an external buffer).
+b64=$(grep -o 'base64,[A-Za-z0-9+/=]*' tests/data/quad.gltf | head -n 1 | cut -d, -f2)
+printf '%s' "$b64" | base64 -d > "$tmp/q.bin"; cp "$tmp/q.bin" "$tmp/q.orig"
+sed "s|data:application/octet-stream;base64,[A-Za-z0-9+/=]*|q.bin|" tests/data/quad.gltf > "$tmp/ext.gltf"
+"$bake" --scan "$tmp/ext.gltf" >/dev/null 2>"$tmp/err" && ok "scene with an external buffer loads" || ko "scene with an external buffer loads"
+expect_exit "-o names the scene's buffer: exit 1" 1 "q.bin: the output is the input" "$bake" "$tmp/ext.gltf" -o "$tmp/q.bin"
+cmp -s "$tmp/q.bin" "$tmp/q.orig" && ok "the buffer is intact" || ko "the buffer is intact"
 expect_exit "-o given twice: exit 1" 1 "-o given twice" "$bake" assets/cornell.gltf -o "$tmp/a.gto" -o "$tmp/b.gto"
 expect_exit "--quality given twice: exit 1" 1 "given twice" "$bake" assets/cornell.gltf -o "$tmp/a.gto" -q 2 --quality 3
 expect_exit "-o is a directory: exit 3" 3 "the output is a directory" "$bake" assets/cornell.gltf -o "$tmp"
