@@ -787,7 +787,7 @@ static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch
         wrt_overlay_rect(ov, x - 2.0f * sc, y - r - 1, 4.0f * sc, 2 * r + 2, black);
         wrt_overlay_rect(ov, x - r, y - 1.0f * sc, 2 * r, 2.0f * sc, c);
         wrt_overlay_rect(ov, x - 1.0f * sc, y - r, 2.0f * sc, 2 * r, c);
-        char num[8];
+        char num[16];
         snprintf(num, sizeof num, "%d", i + 1);
         wrt_overlay_rect(ov, x + r + 2, y - r - ch, 6.0f * sc * (float)strlen(num) + 2, ch, black);
         wrt_overlay_text(ov, x + r + 3, y - r - ch, sc, i == w->sel ? yellow : white, num);

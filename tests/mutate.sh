@@ -229,6 +229,10 @@ mutation gto-header-checksum: the reader ignores the header's checksum
 EOF
 
 # ------------------------------------------------------------------ machinery ----
+# one run at a time in a tree: two would mutate and restore the same files
+mkdir -p "$build"
+exec 9>"$build/.mutate.lock"
+flock -n 9 || { echo "mutate: another run is using this tree ($build/.mutate.lock)" >&2; exit 1; }
 tmp=$(mktemp -d /tmp/wrt_mutate_XXXXXX)
 mutated=""   # the file currently mutated, restored by the trap
 restore() {
@@ -237,8 +241,11 @@ restore() {
         mutated=""
     fi
 }
+child=""     # the build or test running now: waited for in the background, so that a
+             # signal is handled at once (bash defers traps while a foreground child runs)
 trap 'restore; rm -rf "$tmp"' EXIT
-trap 'echo "mutate: interrupted, restoring the tree" >&2; restore; exit 4' INT TERM
+trap 'echo "mutate: interrupted, restoring the tree" >&2; [ -n "$child" ] && kill -TERM "$child" 2>/dev/null; restore; exit 4' INT TERM
+run_child() { "$@" & child=$!; wait "$child"; local rc=$?; child=""; return $rc; }
 
 # apply FILE PAIRS-FILE [--check]: every snippet must occur exactly once; replaces them.
 apply() {
@@ -309,7 +316,7 @@ targets_for() {
 }
 
 echo "mutate: building the unmutated tree into $B"
-if ! make --no-print-directory BUILD="$B" -j"$jobs" all >"$tmp/build.log" 2>&1; then
+if ! run_child make --no-print-directory BUILD="$B" -j"$jobs" all >"$tmp/build.log" 2>&1; then
     tail -n 20 "$tmp/build.log"; echo "mutate: the unmutated tree does not build"; exit 1
 fi
 caught=0; survived=0; broken=0; survivors=(); t_all=$(date +%s)
@@ -321,7 +328,7 @@ for ((i = 0; i < total; i++)); do
     tg=""
     while IFS= read -r r; do [ -n "$r" ] && tg+=" $(targets_for ${r%% *})"; done <<<"${runs[i]}"
     # shellcheck disable=SC2086
-    if ! make --no-print-directory BUILD="$B" -j"$jobs" $tg >"$tmp/build.log" 2>&1; then
+    if ! run_child make --no-print-directory BUILD="$B" -j"$jobs" $tg >"$tmp/build.log" 2>&1; then
         restore; broken=$((broken + 1)); echo "did not build  $id"; tail -n 5 "$tmp/build.log"; continue
     fi
     verdict=survived; by=""
@@ -329,10 +336,10 @@ for ((i = 0; i < total; i++)); do
         [ -n "$r" ] || continue
         prog=${r%% *}; cases=""; [ "$prog" != "$r" ] && cases=${r#* }
         if [[ "$prog" == tests/*.sh ]]; then
-            WRT_BUILD=$B timeout 600 bash "$prog" "$B" >"$tmp/run.log" 2>&1; rc=$?
+            WRT_BUILD=$B run_child timeout 600 bash "$prog" "$B" >"$tmp/run.log" 2>&1; rc=$?
         else
             # shellcheck disable=SC2086
-            WRT_BUILD=$B timeout 600 "$B/tests/$prog" $cases >"$tmp/run.log" 2>&1; rc=$?
+            WRT_BUILD=$B run_child timeout 600 "$B/tests/$prog" $cases >"$tmp/run.log" 2>&1; rc=$?
             for c in $cases; do # a misspelt case would run nothing and pass
                 grep -q "ok $c (" "$tmp/run.log" || { echo "stale $id: $prog has no case $c"; broken=$((broken + 1)); }
             done
