@@ -71,7 +71,7 @@ $(BUILD)/obj/%.o: %.cpp
 	@$(if $(Q),echo "  CXX     $<")
 	$(Q)$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
-$(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(call obj,player/relight.c tools/reference.c tools/compare.c) $(CORE_OBJ)
+$(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(call obj,player/relight.c player/reconstruct.c tools/reference.c tools/compare.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE) $(LIBS_IMG)
 
@@ -83,7 +83,7 @@ $(BUILD)/wrt-ref: $(call obj,tools/ref_main.c) $(REF_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
-$(BUILD)/wrt-compare: $(call obj,tools/compare_main.c tools/compare.c player/relight.c) $(REF_OBJ) $(CORE_OBJ)
+$(BUILD)/wrt-compare: $(call obj,tools/compare_main.c tools/compare.c player/relight.c player/reconstruct.c) $(REF_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
