@@ -33,8 +33,11 @@ static void usage(FILE *f) {
             "  --bench-only        no reference: only time the light changes of each bake\n"
             "  --threads N         0 = all cores (default)\n"
             "  --seed S            reference seed (default 1)\n"
-            "  --images PREFIX     write PREFIX_{wavelet,reference}.exr/.png of the first\n"
-            "                      light and the last bake\n"
+            "  --images PREFIX     write PREFIX_{wavelet,haar,reference}.exr/.png and\n"
+            "                      PREFIX_panel.png (haar | smooth | reference | error map)\n"
+            "                      of the first light and the last bake\n"
+            "  --closeup X,Y,S     with --images: PREFIX_closeup.png, the S x S pixels at\n"
+            "                      X, Y of the Haar and the smooth display, 4x enlarged\n"
             "  --max-error E       exit 5 if a bake's cell rmse exceeds E (pipeline check)\n"
             "  --per-quad          add each quad's mean indirect irradiance (first light), wavelet\n"
             "                      and reference, to each bake's figures\n"
@@ -72,23 +75,42 @@ static void json_str(FILE *f, const char *s) {
 static void json_errors(FILE *f, const wrt_compare_light_result *r) {
     printf("\"cell_rmse\":%.6g,\"cell_floor\":%.6g,\"cell_rmse_debiased\":%.6g,", r->cell_rmse, r->cell_floor,
            r->cell_debiased);
-    printf("\"image_rmse\":%.6g,\"image_floor\":%.6g,\"image_rmse_debiased\":%.6g,\"cell_ratio\":%.6g",
+    printf("\"image_rmse\":%.6g,\"image_floor\":%.6g,\"image_rmse_debiased\":%.6g,\"cell_ratio\":%.6g,",
            r->image_rmse, r->image_floor, r->image_debiased, r->cell_ratio);
+    printf("\"cell_rmse_smooth\":%.6g,\"cell_rmse_smooth_debiased\":%.6g,\"image_rmse_haar\":%.6g,"
+           "\"image_rmse_haar_debiased\":%.6g,",
+           r->cell_rmse_smooth, r->cell_debiased_smooth, r->image_rmse_haar, r->image_debiased_haar);
+    printf("\"seam_across\":%.6g,\"seam_inside\":%.6g,\"seam_across_haar\":%.6g,\"seam_inside_haar\":%.6g",
+           r->seam_across, r->seam_inside, r->seam_across_haar, r->seam_inside_haar);
     (void)f;
 }
 
+/* Error heat map colour of t in [0, 1]: black, blue, red, yellow, white. */
+static void heat(double t, uint8_t *px) {
+    static const double k[5][3] = {{0, 0, 0}, {0.1, 0.2, 0.9}, {0.9, 0.1, 0.1}, {1, 0.9, 0.1}, {1, 1, 1}};
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    double f = t * 4;
+    int i = f >= 4 ? 3 : (int)f;
+    double a = f - i;
+    for (int c = 0; c < 3; c++) px[c] = (uint8_t)lround(255 * (k[i][c] * (1 - a) + k[i + 1][c] * a));
+}
+
 /* The first light's images as EXR (linear) and PNG (scaled by the reference's maximum,
- * gamma 2.2) for looking at. */
-static void write_images(const char *prefix, const wrt_compare_ref *c, int w, int h) {
-    const float *img[2] = {wrt_compare_image(c, 0, 1), wrt_compare_image(c, 0, 0)};
-    const char *name[2] = {"wavelet", "reference"};
-    if (!img[0] || !img[1]) return;
+ * gamma 2.2) for looking at: the bake's display (wavelet: smooth; haar: the Haar cells
+ * as blocks), the reference, and PREFIX_panel.png: haar | wavelet | reference | error
+ * heat map of the smooth display (|wavelet - reference| summed over RGB, relative to
+ * the reference's mean, 0 black .. 0.5 and above white). */
+static void write_images(const char *prefix, const wrt_compare_ref *c, int w, int h, const double *closeup) {
+    const float *img[3] = {wrt_compare_image(c, 0, 1), wrt_compare_image(c, 0, 0), wrt_compare_image(c, 0, 2)};
+    const char *name[3] = {"wavelet", "reference", "haar"};
+    if (!img[0] || !img[1] || !img[2]) return;
     size_t n = (size_t)w * h * 3;
-    double mx = 0;
-    for (size_t i = 0; i < n; i++) mx = img[1][i] > mx ? img[1][i] : mx;
+    double mx = 0, mean = 0;
+    for (size_t i = 0; i < n; i++) { mx = img[1][i] > mx ? img[1][i] : mx; mean += img[1][i] / (double)n; }
     double scale = mx > 0 ? 1 / mx : 1;
-    uint8_t *px = wrt_xmalloc(n);
-    for (int k = 0; k < 2; k++) {
+    uint8_t *px = wrt_xmalloc(n), *panel = wrt_xmalloc(n * 4);
+    static const int slot[3] = {1, 2, 0}; /* panel order: haar, wavelet, reference, error */
+    for (int k = 0; k < 3; k++) {
         char path[4096];
         snprintf(path, sizeof path, "%s_%s.exr", prefix, name[k]);
         if (wrt_image_write_exr(path, img[k], w, h) != WRT_OK) fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
@@ -97,14 +119,41 @@ static void write_images(const char *prefix, const wrt_compare_ref *c, int w, in
             v = v < 0 ? 0 : v > 1 ? 1 : pow(v, 1 / 2.2);
             px[i] = (uint8_t)lround(v * 255);
         }
+        for (int y = 0; y < h; y++) memcpy(panel + ((size_t)y * 4 * w + (size_t)slot[k] * w) * 3, px + (size_t)y * w * 3, (size_t)w * 3);
         snprintf(path, sizeof path, "%s_%s.png", prefix, name[k]);
         if (wrt_image_write_rgb8(path, px, w, h) != WRT_OK) fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
     }
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            size_t p = ((size_t)y * w + x) * 3;
+            double d = 0;
+            for (int ch = 0; ch < 3; ch++) d += fabs(img[0][p + ch] - img[1][p + ch]) / 3;
+            heat(mean > 0 ? d / mean / 0.5 : 0, panel + ((size_t)y * 4 * w + 3 * (size_t)w + x) * 3);
+        }
+    char path[4096];
+    snprintf(path, sizeof path, "%s_panel.png", prefix);
+    if (wrt_image_write_rgb8(path, panel, 4 * w, h) != WRT_OK) fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+    if (closeup) { /* PREFIX_closeup.png: the haar and wavelet panels' square X, Y, S, x4 */
+        int x0 = (int)closeup[0], y0 = (int)closeup[1], sz = (int)closeup[2], k = 4, cw = 2 * sz * k + k;
+        uint8_t *cu = wrt_xcalloc((size_t)cw * sz * k * 3, 1);
+        for (int y = 0; y < sz * k; y++)
+            for (int x = 0; x < cw; x++) {
+                int side = x / (sz * k + k), xx = (x - side * (sz * k + k)) / k, yy = y / k;
+                if (xx >= sz || x0 + xx >= w || y0 + yy >= h) continue; /* the gap, or outside */
+                memcpy(cu + ((size_t)y * cw + x) * 3, panel + ((size_t)(y0 + yy) * 4 * w + (size_t)side * w + x0 + xx) * 3, 3);
+            }
+        snprintf(path, sizeof path, "%s_closeup.png", prefix);
+        if (wrt_image_write_rgb8(path, cu, cw, sz * k) != WRT_OK) fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+        free(cu);
+    }
     free(px);
+    free(panel);
 }
 
 int main(int argc, char **argv) {
     const char *scene_path = NULL, *images = NULL;
+    double closeup[3] = {0, 0, 0};
+    int has_closeup = 0;
     int per_quad = 0, bench_only = 0;
     const char **gtos = wrt_xcalloc((size_t)argc, sizeof(char *));
     int ngto = 0, nlights_req = 5, nexplicit = 0;
@@ -135,6 +184,11 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--threads")) { ok = parse_long(v, 0, 256, &x); o.threads = (int)x; }
         else if (!strcmp(a, "--seed")) { ok = parse_long(v, 1, 1L << 62, &x); o.seed = (uint64_t)x; }
         else if (!strcmp(a, "--images")) images = v;
+        else if (!strcmp(a, "--closeup")) {
+            ok = wrt_parse_vec3(v, closeup) && closeup[0] >= 0 && closeup[1] >= 0 && closeup[2] >= 1 &&
+                 closeup[0] == floor(closeup[0]) && closeup[1] == floor(closeup[1]) && closeup[2] == floor(closeup[2]);
+            has_closeup = 1;
+        }
         else if (!strcmp(a, "--max-error")) ok = parse_double(v, &max_error) && max_error >= 0;
         else if (a[0] == '-') { fprintf(stderr, "wrt-compare: unknown option %s\n", a); usage(stderr); return 1; }
         else {
@@ -283,7 +337,7 @@ int main(int argc, char **argv) {
             printf("]");
         }
         printf("}");
-        if (images) write_images(images, ref, info.width, info.height);
+        if (images) write_images(images, ref, info.width, info.height, has_closeup ? closeup : NULL);
         wrt_gto_close(&g);
     }
     printf("],\"max_error\":");
