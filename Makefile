@@ -39,7 +39,7 @@ LIBS_IMG := -lOpenImageIO -lOpenImageIO_Util
 LIBS_GL := -lglfw -lEGL -lGL
 
 # Sources: every .c/.cpp in a part's folder, except its programs' main files.
-CORE_SRC := $(wildcard common/*.c) $(wildcard formats/*.c) $(wildcard formats/*.cpp)
+CORE_SRC := $(wildcard common/*.c) $(wildcard formats/*.c) $(wildcard formats/*.cpp) $(wildcard cli/*.c)
 BAKE_SRC := $(filter-out precompute/main.c,$(wildcard precompute/*.c))
 PLAY_SRC := $(filter-out player/main.c,$(wildcard player/*.c) $(wildcard player/*.cpp))
 REF_SRC := $(filter-out tools/ref_main.c tools/scenegen.c tools/fuzz_%.c tools/compare%.c,$(wildcard tools/*.c))
@@ -55,7 +55,7 @@ PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-sc
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
-.PHONY: all deps demo test tests stress study fuzz clean assets bench
+.PHONY: all deps demo test tests stress study fuzz clean assets bench mutate
 all: $(PROGRAMS) $(TESTS)
 
 deps:
@@ -91,25 +91,37 @@ $(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
-$(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(ALL_LIB_OBJ)
+$(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(ALL_LIB_OBJ) $(call obj,tools/compare.c)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
 
-# The loader's fuzz target (libFuzzer, clang). Runs FUZZ_SECONDS (default 60).
+# The fuzz targets (libFuzzer, clang): the glTF loader (fuzz_scene) and the .gto reader
+# (fuzz_gto). `make fuzz` builds both and runs each for FUZZ_SECONDS (default 60) from
+# the committed seeds, copied into build/fuzz/corpus-* (which grow as they run).
 FUZZ_SECONDS ?= 60
-FUZZ_C := tools/fuzz_scene.c common/wrt_common.c formats/scene.c
+FUZZ_SCENE_C := tools/fuzz_scene.c common/wrt_common.c formats/scene.c
+FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c formats/gto.c
 FUZZ_SAN := -fsanitize=address,undefined -fno-sanitize-recover=all
-fuzz:
-	@mkdir -p build/fuzz/obj build/fuzz/corpus
-	for f in $(FUZZ_C); do clang -std=c11 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -D_GNU_SOURCE \
-	  -c $$f -o build/fuzz/obj/$$(basename $$f .c).o || exit 1; done
-	[ build/fuzz/obj/gltf_shim.o -nt formats/gltf_shim.cpp ] || clang++ -std=c++17 -g -O1 \
-	  -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -I/usr/include/stb -w -D_GNU_SOURCE \
-	  -c formats/gltf_shim.cpp -o build/fuzz/obj/gltf_shim.o
-	clang++ -fsanitize=fuzzer $(FUZZ_SAN) build/fuzz/obj/*.o -o build/fuzz/fuzz_scene -lm
-	cp -n assets/*.gltf tests/data/*.gltf tests/data/*.glb build/fuzz/corpus/ 2>/dev/null || true
-	build/fuzz/fuzz_scene -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -rss_limit_mb=2048 build/fuzz/corpus 2>&1 | tail -n 5
+FUZZ_CC = clang -std=c11 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -D_GNU_SOURCE
+fuzz: build/fuzz/fuzz_scene build/fuzz/fuzz_gto
+	@mkdir -p build/fuzz/corpus-scene build/fuzz/corpus-gto
+	cp -n assets/*.gltf tests/data/*.gltf tests/data/*.glb build/fuzz/corpus-scene/ 2>/dev/null || true
+	cp -n tests/data/gto/*.gto tests/data/fuzz_gto/* build/fuzz/corpus-gto/ 2>/dev/null || true
+	build/fuzz/fuzz_scene -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -rss_limit_mb=2048 build/fuzz/corpus-scene 2>&1 | tail -n 3
+	build/fuzz/fuzz_gto -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -rss_limit_mb=2048 build/fuzz/corpus-gto 2>&1 | tail -n 3
+
+build/fuzz/fuzz_scene: $(FUZZ_SCENE_C) formats/gltf_shim.cpp $(wildcard formats/*.h common/*.h)
+	@mkdir -p build/fuzz/obj-scene
+	for f in $(FUZZ_SCENE_C); do $(FUZZ_CC) -c $$f -o build/fuzz/obj-scene/$$(basename $$f .c).o || exit 1; done
+	clang++ -std=c++17 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -I/usr/include/stb -w -D_GNU_SOURCE \
+	  -c formats/gltf_shim.cpp -o build/fuzz/obj-scene/gltf_shim.o
+	clang++ -fsanitize=fuzzer $(FUZZ_SAN) build/fuzz/obj-scene/*.o -o $@ -lm
+
+build/fuzz/fuzz_gto: $(FUZZ_GTO_C) $(wildcard formats/*.h common/*.h)
+	@mkdir -p build/fuzz/obj-gto
+	for f in $(FUZZ_GTO_C); do $(FUZZ_CC) -c $$f -o build/fuzz/obj-gto/$$(basename $$f .c).o || exit 1; done
+	clang -fsanitize=fuzzer $(FUZZ_SAN) build/fuzz/obj-gto/*.o -o $@ -lm -pthread
 
 assets: $(BUILD)/wrt-scenegen
 	$(BUILD)/wrt-scenegen --all assets
@@ -121,6 +133,11 @@ test: deps
 stress: deps
 	@$(MAKE) --no-print-directory all
 	@WRT_STRESS_FULL=1 bash tests/run.sh $(BUILD) stress
+
+# The mutation run (tests/mutate.sh): deliberate faults in the core numerics, one at a
+# time, built into $(BUILD)/mutate; prints "N caught, N survived". MUTATIONS="id ..." selects.
+mutate: deps
+	@bash tests/mutate.sh $(BUILD) $(MUTATIONS)
 
 DEMO_SCENE ?= assets/cornell.gltf
 demo: deps

@@ -10,7 +10,7 @@
 #ifndef WRT_BRDF_H
 #define WRT_BRDF_H
 
-#include "../formats/scene.h"
+#include "scene_types.h"
 
 /* f_r(wi, wo) for material m at a surface with normal n; out = RGB. Zero if
  * either direction is below the surface. */

@@ -10,6 +10,7 @@
  * tinygltf 2.7, nlohmann json and stb_image (Debian packages). This is the scene-input
  * stage that precedes the paper's precomputation (Kontkanen et al. 2006, section 3). */
 #include <cerrno>
+#include <cfloat>
 #include <cmath>
 #include <cstdarg>
 #include <cstdint>
@@ -92,6 +93,13 @@ void mat_dir(const mat4 &a, const double d[3], double out[3]) {
     double l = std::sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
     if (l > 0 && std::isfinite(l))
         for (int r = 0; r < 3; r++) out[r] /= l;
+}
+
+/* Determinant of the upper-left 3x3 (the linear part). */
+double mat_det3(const mat4 &a) {
+    const double *m = a.m;
+    return m[0] * (m[5] * m[10] - m[9] * m[6]) - m[4] * (m[1] * m[10] - m[9] * m[2]) +
+           m[8] * (m[1] * m[6] - m[5] * m[2]);
 }
 
 /* The node's local transform: its matrix if it has one, else T * R * S. */
@@ -454,6 +462,19 @@ struct reader {
                                            : WRT_GLTF_LIGHT_OTHER;
         copy_name(o.name, l.name, "light", size_t(li));
         o.node = int(node);
+        /* The light's axis is the node's -Z: a singular transform has none, a mirroring one
+         * (negative determinant) turns it around. */
+        double det = mat_det3(world);
+        if (!(std::fabs(det) > 1e-18) || !std::isfinite(det))
+            throw make_error(WRT_ERR_PARSE,
+                             "%s: nodes[%zu]: light %d's world transform has zero scale (determinant "
+                             "%g): no position frame or direction",
+                             label, node, li, det);
+        if (det < 0 && o.type == WRT_GLTF_LIGHT_SPOT)
+            throw make_error(WRT_ERR_PARSE,
+                             "%s: nodes[%zu]: spot light %d's world transform has a negative scale "
+                             "(determinant %g): it mirrors the spot's direction",
+                             label, node, li, det);
         const double origin[3] = {0, 0, 0}, minus_z[3] = {0, 0, -1};
         mat_point(world, origin, o.pos);
         mat_dir(world, minus_z, o.dir);
@@ -470,6 +491,12 @@ struct reader {
             throw make_error(WRT_ERR_PARSE, "%s: node %zu: camera %d does not exist", label, node, ci);
         const tinygltf::Camera &c = model.cameras[size_t(ci)];
         if (camera.present || c.type != "perspective") return;
+        double det = mat_det3(world);
+        if (!(std::fabs(det) > 1e-18) || !std::isfinite(det))
+            throw make_error(WRT_ERR_PARSE,
+                             "%s: nodes[%zu]: camera %d's world transform has zero scale (determinant "
+                             "%g): no view direction",
+                             label, node, ci, det);
         camera.present = 1;
         camera.node = int(node);
         const double origin[3] = {0, 0, 0}, minus_z[3] = {0, 0, -1}, plus_y[3] = {0, 1, 0};
@@ -570,9 +597,8 @@ void check_glb(const unsigned char *b, size_t size, const char *label) {
 /* References tinygltf checks with terse messages ("primitive indices accessor out of
  * bounds") are checked here first on the raw JSON, so the error says which mesh,
  * primitive or accessor. Malformed JSON is left to tinygltf's parser error. */
-void check_references(const char *text, size_t len, const char *label) {
-    nlohmann::json j = nlohmann::json::parse(text, text + len, nullptr, false);
-    if (j.is_discarded() || !j.is_object()) return;
+void check_references(const nlohmann::json &j, const char *label) {
+    if (!j.is_object()) return;
     auto count = [&](const char *k) -> size_t {
         auto it = j.find(k);
         return it != j.end() && it->is_array() ? it->size() : 0;
@@ -640,6 +666,454 @@ void check_references(const char *text, size_t len, const char *label) {
         }
 }
 
+/* ---- the strict pass: every field the reader uses, checked on the raw JSON ----
+ * tinygltf reads a field of the wrong type or length as absent (its default), so the
+ * fields the project uses are checked here first against the glTF 2.0 schema and the
+ * KHR_lights_punctual specification: types, array lengths, ranges, finite after
+ * conversion to float, references that exist. An invalid field is refused with its JSON
+ * path; a valid but unusual one is warned about; a field the bake does not use is listed
+ * (by path pattern, with a count) so that --scan can show it as ignored. */
+typedef nlohmann::json json;
+
+struct strict_check {
+    const json &root;
+    const char *label;
+    std::string warnings;
+    std::vector<std::pair<std::string, size_t>> ignored; /* path pattern, how many */
+
+    strict_check(const json &r, const char *l) : root(r), label(l) {}
+
+    [[noreturn]] __attribute__((format(printf, 3, 4))) void fail(const std::string &path, const char *fmt, ...) {
+        char buf[512];
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(buf, sizeof buf, fmt, ap);
+        va_end(ap);
+        throw make_error(WRT_ERR_PARSE, "%s: %.200s: %s", label, path.c_str(), buf);
+    }
+    __attribute__((format(printf, 3, 4))) void warn(const std::string &path, const char *fmt, ...) {
+        char buf[512];
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(buf, sizeof buf, fmt, ap);
+        va_end(ap);
+        warnings += path + ": " + buf + "\n";
+    }
+    void ignore(const std::string &pattern) {
+        for (auto &p : ignored)
+            if (p.first == pattern) { p.second++; return; }
+        ignored.push_back({pattern, 1});
+    }
+    /* Members other than `used` (and name/extras, which carry no light) are ignored. */
+    void ignore_others(const json &o, const std::string &pattern, std::initializer_list<const char *> used) {
+        for (auto it = o.begin(); it != o.end(); ++it) {
+            const std::string &k = it.key();
+            if (k == "name" || k == "extras") continue;
+            bool u = false;
+            for (const char *x : used) u = u || k == x;
+            if (!u) ignore(pattern + "." + k);
+        }
+    }
+    static std::string at(const std::string &p, const char *k) { return p + "." + k; }
+    static std::string at(const std::string &p, size_t i) { return p + "[" + std::to_string(i) + "]"; }
+
+    const json *member(const json &o, const char *k) {
+        auto it = o.find(k);
+        return it == o.end() ? nullptr : &*it;
+    }
+    const json &object(const json &v, const std::string &path) {
+        if (!v.is_object()) fail(path, "must be an object");
+        return v;
+    }
+    const json *array_member(const json &o, const char *k, const std::string &path) {
+        const json *v = member(o, k);
+        if (v && !v->is_array()) fail(at(path, k), "must be an array");
+        return v;
+    }
+    size_t count(const char *k) {
+        const json *v = member(root, k);
+        return v && v->is_array() ? v->size() : 0;
+    }
+    /* A number (not a string, not a boolean) in [lo, hi] (bounds exclusive where asked),
+     * finite also as a float when `as_float`. */
+    double number(const json &v, const std::string &path, double lo, double hi, bool lo_excl = false,
+                  bool hi_excl = false, bool as_float = true) {
+        if (!v.is_number()) fail(path, "must be a number, not %s", v.type_name());
+        double d = v.get<double>();
+        if (!std::isfinite(d)) fail(path, "is not finite");
+        if (as_float && std::fabs(d) > double(FLT_MAX))
+            fail(path, "%g is not finite as a 32-bit float (largest %g)", d, double(FLT_MAX));
+        if (d < lo || (lo_excl && d == lo) || d > hi || (hi_excl && d == hi))
+            fail(path, "%g is outside %s%g, %g%s", d, lo_excl ? "(" : "[", lo, hi, hi_excl ? ")" : "]");
+        return d;
+    }
+    long long integer(const json &v, const std::string &path, long long lo, long long hi) {
+        if (!v.is_number()) fail(path, "must be an integer, not %s", v.type_name());
+        double d = v.get<double>();
+        if (!(d == std::floor(d)) || !std::isfinite(d)) fail(path, "%g is not an integer", d);
+        if (d < double(lo) || d > double(hi)) fail(path, "%.0f is outside [%lld, %lld]", d, lo, hi);
+        return (long long)d;
+    }
+    /* An index into the top-level array `what`. */
+    long long ref(const json &v, const std::string &path, const char *what) {
+        size_t n = count(what);
+        if (!v.is_number()) fail(path, "must be an index into %s, not %s", what, v.type_name());
+        double d = v.get<double>();
+        if (!(d == std::floor(d)) || d < 0 || d >= double(n))
+            fail(path, "refers to %s %g, which does not exist (the file has %zu)", what, d, n);
+        return (long long)d;
+    }
+    void numbers(const json &v, const std::string &path, size_t len, double lo, double hi) {
+        if (!v.is_array()) fail(path, "must be an array of %zu numbers, not %s", len, v.type_name());
+        if (v.size() != len) fail(path, "has %zu elements, expected %zu", v.size(), len);
+        for (size_t i = 0; i < len; i++) number(v[i], at(path, i), lo, hi);
+    }
+    void boolean(const json &v, const std::string &path) {
+        if (!v.is_boolean()) fail(path, "must be true or false, not %s", v.type_name());
+    }
+    const std::string &string(const json &v, const std::string &path) {
+        if (!v.is_string()) fail(path, "must be a string, not %s", v.type_name());
+        return v.get_ref<const std::string &>();
+    }
+
+    void asset() {
+        const json *a = member(root, "asset");
+        if (!a) fail("asset", "is missing (required)");
+        object(*a, "asset");
+        const json *v = member(*a, "version");
+        if (!v) fail("asset.version", "is missing (required)");
+        const std::string &s = string(*v, "asset.version");
+        int major = -1, minor = -1, used = 0;
+        if (sscanf(s.c_str(), "%d.%d%n", &major, &minor, &used) != 2 || size_t(used) != s.size())
+            fail("asset.version", "'%.40s' is not MAJOR.MINOR", s.c_str());
+        if (major != 2)
+            throw make_error(WRT_ERR_UNSUPPORTED, "%s: asset.version: '%.40s': only glTF 2.x is supported",
+                             label, s.c_str());
+        if (const json *mv = member(*a, "minVersion")) {
+            const std::string &m = string(*mv, "asset.minVersion");
+            int mj = -1, mn = -1;
+            if (sscanf(m.c_str(), "%d.%d", &mj, &mn) != 2 || mj != 2 || mn > 0)
+                throw make_error(WRT_ERR_UNSUPPORTED,
+                                 "%s: asset.minVersion: '%.40s': this reader implements glTF 2.0", label,
+                                 m.c_str());
+        }
+        if (minor > 0) warn("asset.version", "'%s': newer than 2.0; read as 2.0", s.c_str());
+    }
+
+    void texture_info(const json &t, const std::string &path, const std::string &pattern, bool used) {
+        object(t, path);
+        const json *i = member(t, "index");
+        if (!i) fail(at(path, "index"), "is missing (required)");
+        long long ti = ref(*i, at(path, "index"), "textures");
+        if (const json *tc = member(t, "texCoord")) integer(*tc, at(path, "texCoord"), 0, INT32_MAX);
+        const json &tex = root["textures"][size_t(ti)];
+        if (used && !member(tex, "source"))
+            fail(path, "texture %lld has no source image (an extension's image is not supported)", ti);
+        if (used) ignore_others(t, pattern, {"index", "texCoord"});
+    }
+
+    void materials() {
+        const json *ms = array_member(root, "materials", "");
+        if (!ms) return;
+        for (size_t i = 0; i < ms->size(); i++) {
+            std::string p = at("materials", i);
+            const json &m = object((*ms)[i], p);
+            if (const json *pbr = member(m, "pbrMetallicRoughness")) {
+                std::string pp = at(p, "pbrMetallicRoughness");
+                object(*pbr, pp);
+                if (const json *v = member(*pbr, "baseColorFactor")) numbers(*v, at(pp, "baseColorFactor"), 4, 0, 1);
+                if (const json *v = member(*pbr, "metallicFactor")) number(*v, at(pp, "metallicFactor"), 0, 1);
+                if (const json *v = member(*pbr, "roughnessFactor")) number(*v, at(pp, "roughnessFactor"), 0, 1);
+                if (const json *v = member(*pbr, "baseColorTexture"))
+                    texture_info(*v, at(pp, "baseColorTexture"), "materials[*].pbrMetallicRoughness.baseColorTexture", true);
+                if (const json *v = member(*pbr, "metallicRoughnessTexture"))
+                    texture_info(*v, at(pp, "metallicRoughnessTexture"),
+                                 "materials[*].pbrMetallicRoughness.metallicRoughnessTexture", true);
+                ignore_others(*pbr, "materials[*].pbrMetallicRoughness",
+                              {"baseColorFactor", "metallicFactor", "roughnessFactor", "baseColorTexture",
+                               "metallicRoughnessTexture"});
+            }
+            if (const json *v = member(m, "emissiveFactor")) numbers(*v, at(p, "emissiveFactor"), 3, 0, 1);
+            if (const json *v = member(m, "emissiveTexture"))
+                texture_info(*v, at(p, "emissiveTexture"), "materials[*].emissiveTexture", true);
+            if (const json *v = member(m, "normalTexture")) texture_info(*v, at(p, "normalTexture"), "", false);
+            if (const json *v = member(m, "occlusionTexture")) texture_info(*v, at(p, "occlusionTexture"), "", false);
+            if (const json *v = member(m, "doubleSided")) boolean(*v, at(p, "doubleSided"));
+            if (const json *v = member(m, "alphaMode")) {
+                const std::string &s = string(*v, at(p, "alphaMode"));
+                if (s != "OPAQUE" && s != "MASK" && s != "BLEND")
+                    fail(at(p, "alphaMode"), "'%.40s' is not OPAQUE, MASK or BLEND", s.c_str());
+                if (s != "OPAQUE") warn(at(p, "alphaMode"), "%s: transparency is not modelled, the surface is opaque", s.c_str());
+            }
+            if (const json *v = member(m, "alphaCutoff")) number(*v, at(p, "alphaCutoff"), 0, FLT_MAX);
+            ignore_others(m, "materials[*]", {"pbrMetallicRoughness", "emissiveFactor", "emissiveTexture", "doubleSided"});
+        }
+    }
+
+    void textures() {
+        const json *ts = array_member(root, "textures", "");
+        if (!ts) return;
+        for (size_t i = 0; i < ts->size(); i++) {
+            std::string p = at("textures", i);
+            const json &t = object((*ts)[i], p);
+            if (const json *s = member(t, "source")) ref(*s, at(p, "source"), "images");
+            if (const json *s = member(t, "sampler")) ref(*s, at(p, "sampler"), "samplers");
+        }
+    }
+
+    void lights() {
+        const json *ex = member(root, "extensions");
+        if (!ex) return;
+        object(*ex, "extensions");
+        for (auto it = ex->begin(); it != ex->end(); ++it)
+            if (it.key() != "KHR_lights_punctual") ignore("extensions." + it.key());
+        const json *kl = member(*ex, "KHR_lights_punctual");
+        if (!kl) return;
+        std::string kp = "extensions.KHR_lights_punctual";
+        object(*kl, kp);
+        const json *ls = array_member(*kl, "lights", kp);
+        if (!ls) return;
+        for (size_t i = 0; i < ls->size(); i++) {
+            std::string p = at(at(kp, "lights"), i);
+            const json &l = object((*ls)[i], p);
+            const json *t = member(l, "type");
+            if (!t) fail(at(p, "type"), "is missing (required)");
+            const std::string &type = string(*t, at(p, "type"));
+            if (type != "point" && type != "spot" && type != "directional")
+                fail(at(p, "type"), "'%.40s' is not point, spot or directional", type.c_str());
+            if (const json *v = member(l, "color")) numbers(*v, at(p, "color"), 3, 0, 1);
+            if (const json *v = member(l, "intensity")) number(*v, at(p, "intensity"), 0, FLT_MAX);
+            if (const json *v = member(l, "range")) number(*v, at(p, "range"), 0, FLT_MAX, true);
+            const json *sp = member(l, "spot");
+            if (type == "spot") {
+                if (!sp) fail(at(p, "spot"), "is missing (required for a spot light)");
+                std::string spp = at(p, "spot");
+                object(*sp, spp);
+                double inner = 0, outer = M_PI / 4;
+                if (const json *v = member(*sp, "innerConeAngle"))
+                    inner = number(*v, at(spp, "innerConeAngle"), 0, M_PI / 2, false, true);
+                if (const json *v = member(*sp, "outerConeAngle"))
+                    outer = number(*v, at(spp, "outerConeAngle"), 0, M_PI / 2, true, false);
+                if (!(inner < outer))
+                    fail(spp, "innerConeAngle %g must be less than outerConeAngle %g", inner, outer);
+            } else if (sp) {
+                ignore("extensions.KHR_lights_punctual.lights[*].spot (on a " + type + " light)");
+            }
+        }
+    }
+
+    void cameras() {
+        const json *cs = array_member(root, "cameras", "");
+        if (!cs) return;
+        for (size_t i = 0; i < cs->size(); i++) {
+            std::string p = at("cameras", i);
+            const json &c = object((*cs)[i], p);
+            const json *t = member(c, "type");
+            if (!t) fail(at(p, "type"), "is missing (required)");
+            const std::string &type = string(*t, at(p, "type"));
+            if (type != "perspective" && type != "orthographic")
+                fail(at(p, "type"), "'%.40s' is not perspective or orthographic", type.c_str());
+            if (type == "orthographic") {
+                ignore("cameras[*] (orthographic)");
+                continue;
+            }
+            const json *pe = member(c, "perspective");
+            std::string pp = at(p, "perspective");
+            if (!pe) fail(pp, "is missing (required for a perspective camera)");
+            object(*pe, pp);
+            const json *y = member(*pe, "yfov");
+            if (!y) fail(at(pp, "yfov"), "is missing (required)");
+            number(*y, at(pp, "yfov"), 0, M_PI, true, true);
+            const json *zn = member(*pe, "znear");
+            if (!zn) fail(at(pp, "znear"), "is missing (required)");
+            double znear = number(*zn, at(pp, "znear"), 0, FLT_MAX, true);
+            if (const json *zf = member(*pe, "zfar")) {
+                double zfar = number(*zf, at(pp, "zfar"), 0, FLT_MAX, true);
+                if (!(zfar > znear)) fail(at(pp, "zfar"), "%g must be greater than znear %g", zfar, znear);
+            }
+            if (const json *a = member(*pe, "aspectRatio")) number(*a, at(pp, "aspectRatio"), 0, FLT_MAX, true);
+        }
+    }
+
+    void nodes() {
+        const json *ns = array_member(root, "nodes", "");
+        if (!ns) return;
+        for (size_t i = 0; i < ns->size(); i++) {
+            std::string p = at("nodes", i);
+            const json &n = object((*ns)[i], p);
+            const json *mat = member(n, "matrix");
+            if (mat) numbers(*mat, at(p, "matrix"), 16, -DBL_MAX, DBL_MAX);
+            const char *trs[3] = {"translation", "rotation", "scale"};
+            const size_t len[3] = {3, 4, 3};
+            for (int k = 0; k < 3; k++) {
+                const json *v = member(n, trs[k]);
+                if (!v) continue;
+                if (mat) fail(p, "has both matrix and %s (the specification allows one or the other)", trs[k]);
+                numbers(*v, at(p, trs[k]), len[k], k == 1 ? -1 : -DBL_MAX, k == 1 ? 1 : DBL_MAX);
+                if (k == 1) {
+                    double q2 = 0;
+                    for (size_t c = 0; c < 4; c++) q2 += (*v)[c].get<double>() * (*v)[c].get<double>();
+                    if (!(std::fabs(std::sqrt(q2) - 1) <= 1e-3))
+                        warn(at(p, "rotation"), "quaternion of length %g, not unit; normalized", std::sqrt(q2));
+                }
+            }
+            if (const json *v = member(n, "mesh")) ref(*v, at(p, "mesh"), "meshes");
+            if (const json *v = member(n, "camera")) ref(*v, at(p, "camera"), "cameras");
+            if (const json *ch = array_member(n, "children", p))
+                for (size_t c = 0; c < ch->size(); c++) ref((*ch)[c], at(at(p, "children"), c), "nodes");
+            if (const json *ex = member(n, "extensions")) {
+                object(*ex, at(p, "extensions"));
+                for (auto it = ex->begin(); it != ex->end(); ++it)
+                    if (it.key() != "KHR_lights_punctual") ignore("nodes[*].extensions." + it.key());
+                if (const json *kl = member(*ex, "KHR_lights_punctual")) {
+                    std::string kp = at(at(p, "extensions"), "KHR_lights_punctual");
+                    object(*kl, kp);
+                    const json *l = member(*kl, "light");
+                    if (!l) fail(at(kp, "light"), "is missing (required)");
+                    const json *root_ext = member(root, "extensions");
+                    size_t nl = 0;
+                    if (root_ext && root_ext->is_object()) {
+                        const json *rk = member(*root_ext, "KHR_lights_punctual");
+                        if (rk && rk->is_object()) {
+                            const json *ls = member(*rk, "lights");
+                            if (ls && ls->is_array()) nl = ls->size();
+                        }
+                    }
+                    if (!l->is_number() || l->get<double>() != std::floor(l->get<double>()) ||
+                        l->get<double>() < 0 || l->get<double>() >= double(nl))
+                        fail(at(kp, "light"), "refers to light %s, which does not exist (the file has %zu)",
+                             l->dump().substr(0, 40).c_str(), nl);
+                }
+            }
+            ignore_others(n, "nodes[*]", {"matrix", "translation", "rotation", "scale", "mesh", "camera",
+                                          "children", "extensions"});
+        }
+    }
+
+    void meshes() {
+        const json *ms = array_member(root, "meshes", "");
+        if (!ms) return;
+        for (size_t i = 0; i < ms->size(); i++) {
+            std::string p = at("meshes", i);
+            const json &m = object((*ms)[i], p);
+            const json *ps = array_member(m, "primitives", p);
+            if (!ps) fail(at(p, "primitives"), "is missing (required)");
+            for (size_t k = 0; k < ps->size(); k++) {
+                std::string pp = at(at(p, "primitives"), k);
+                const json &pr = object((*ps)[k], pp);
+                if (const json *v = member(pr, "mode")) integer(*v, at(pp, "mode"), 0, 6);
+                if (const json *v = member(pr, "material")) ref(*v, at(pp, "material"), "materials");
+                if (const json *v = member(pr, "indices")) ref(*v, at(pp, "indices"), "accessors");
+                const json *at_ = member(pr, "attributes");
+                if (!at_) fail(at(pp, "attributes"), "is missing (required)");
+                object(*at_, at(pp, "attributes"));
+                for (auto it = at_->begin(); it != at_->end(); ++it) {
+                    ref(it.value(), at(at(pp, "attributes"), it.key().c_str()), "accessors");
+                    if (it.key() != "POSITION") ignore("meshes[*].primitives[*].attributes." + it.key());
+                }
+                ignore_others(pr, "meshes[*].primitives[*]", {"mode", "material", "indices", "attributes"});
+            }
+            ignore_others(m, "meshes[*]", {"primitives"});
+        }
+    }
+
+    void accessors() {
+        const json *as = array_member(root, "accessors", "");
+        if (!as) return;
+        for (size_t i = 0; i < as->size(); i++) {
+            std::string p = at("accessors", i);
+            const json &a = object((*as)[i], p);
+            if (const json *v = member(a, "bufferView")) ref(*v, at(p, "bufferView"), "bufferViews");
+            if (const json *v = member(a, "byteOffset")) integer(*v, at(p, "byteOffset"), 0, INT64_MAX / 2);
+            const json *ct = member(a, "componentType");
+            if (!ct) fail(at(p, "componentType"), "is missing (required)");
+            long long c = integer(*ct, at(p, "componentType"), 5120, 5126);
+            if (c == 5124) fail(at(p, "componentType"), "5124 (signed int) is not a glTF component type");
+            const json *cnt = member(a, "count");
+            if (!cnt) fail(at(p, "count"), "is missing (required)");
+            integer(*cnt, at(p, "count"), 1, INT64_MAX / 2);
+            const json *t = member(a, "type");
+            if (!t) fail(at(p, "type"), "is missing (required)");
+            string(*t, at(p, "type"));
+            if (const json *v = member(a, "normalized")) boolean(*v, at(p, "normalized"));
+        }
+    }
+
+    void buffer_views() {
+        const json *bs = array_member(root, "bufferViews", "");
+        if (bs)
+            for (size_t i = 0; i < bs->size(); i++) {
+                std::string p = at("bufferViews", i);
+                const json &b = object((*bs)[i], p);
+                const json *buf = member(b, "buffer");
+                if (!buf) fail(at(p, "buffer"), "is missing (required)");
+                ref(*buf, at(p, "buffer"), "buffers");
+                if (const json *v = member(b, "byteOffset")) integer(*v, at(p, "byteOffset"), 0, INT64_MAX / 2);
+                const json *bl = member(b, "byteLength");
+                if (!bl) fail(at(p, "byteLength"), "is missing (required)");
+                integer(*bl, at(p, "byteLength"), 1, INT64_MAX / 2);
+                if (const json *v = member(b, "byteStride")) {
+                    long long s = integer(*v, at(p, "byteStride"), 4, 252);
+                    if (s % 4) fail(at(p, "byteStride"), "%lld is not a multiple of 4", s);
+                }
+            }
+        const json *bufs = array_member(root, "buffers", "");
+        if (bufs)
+            for (size_t i = 0; i < bufs->size(); i++) {
+                std::string p = at("buffers", i);
+                const json &b = object((*bufs)[i], p);
+                const json *bl = member(b, "byteLength");
+                if (!bl) fail(at(p, "byteLength"), "is missing (required)");
+                integer(*bl, at(p, "byteLength"), 1, INT64_MAX / 2);
+            }
+    }
+
+    void scenes() {
+        const json *ss = array_member(root, "scenes", "");
+        if (const json *s = member(root, "scene")) ref(*s, "scene", "scenes");
+        if (!ss) return;
+        for (size_t i = 0; i < ss->size(); i++) {
+            std::string p = at("scenes", i);
+            const json &s = object((*ss)[i], p);
+            if (const json *ns = array_member(s, "nodes", p))
+                for (size_t k = 0; k < ns->size(); k++) ref((*ns)[k], at(at(p, "nodes"), k), "nodes");
+        }
+    }
+
+    void run() {
+        if (!root.is_object()) fail("(top level)", "must be a JSON object");
+        asset();
+        scenes();
+        nodes();
+        meshes();
+        accessors();
+        buffer_views();
+        materials();
+        textures();
+        cameras();
+        lights();
+        for (auto it = root.begin(); it != root.end(); ++it) {
+            static const char *used[] = {"asset", "scene", "scenes", "nodes", "meshes", "accessors",
+                                         "bufferViews", "buffers", "materials", "textures", "images",
+                                         "cameras", "extensions", "extensionsUsed", "extensionsRequired",
+                                         "extras"};
+            bool u = false;
+            for (const char *k : used) u = u || it.key() == k;
+            if (!u) ignore(it.key());
+        }
+    }
+
+    std::string ignored_text() const {
+        std::string s;
+        for (const auto &p : ignored) {
+            if (!s.empty()) s += "; ";
+            s += p.first;
+            if (p.second > 1) s += " (" + std::to_string(p.second) + ")";
+        }
+        return s;
+    }
+};
+
 void fill(const tinygltf::Model &model, const char *label, wrt_gltf_data *out, reader &rd) {
     /* materials */
     size_t nm = model.materials.size();
@@ -657,12 +1131,25 @@ void fill(const tinygltf::Model &model, const char *label, wrt_gltf_data *out, r
         o.roughness = pbr.roughnessFactor;
         for (int c = 0; c < 3; c++)
             o.emissive[c] = m.emissiveFactor.size() == 3 ? m.emissiveFactor[size_t(c)] : 0.0;
-        o.has_base_tex = texture_mean(model, pbr.baseColorTexture.index, true, o.base_tex_mean);
+        o.double_sided = m.doubleSided ? 1 : 0;
+        /* A texture that is named must be read: never silently the factor alone. */
+        auto need = [&](int tex, bool srgb, double mean[4], const char *what) -> int {
+            if (tex < 0) return 0;
+            if (!texture_mean(model, tex, srgb, mean))
+                throw make_error(WRT_ERR_PARSE,
+                                 "%s: materials[%zu].%s: texture %d has no decoded image (missing, "
+                                 "unknown format or not 8 bits per channel)",
+                                 label, i, what, tex);
+            return 1;
+        };
+        o.has_base_tex = need(pbr.baseColorTexture.index, true, o.base_tex_mean,
+                              "pbrMetallicRoughness.baseColorTexture");
         double mr[4];
-        o.has_mr_tex = texture_mean(model, pbr.metallicRoughnessTexture.index, false, mr);
+        o.has_mr_tex = need(pbr.metallicRoughnessTexture.index, false, mr,
+                            "pbrMetallicRoughness.metallicRoughnessTexture");
         for (int c = 0; c < 3; c++) o.mr_tex_mean[c] = o.has_mr_tex ? mr[c] : 1.0;
         double em[4];
-        o.has_emissive_tex = texture_mean(model, m.emissiveTexture.index, true, em);
+        o.has_emissive_tex = need(m.emissiveTexture.index, true, em, "emissiveTexture");
         for (int c = 0; c < 3; c++) o.emissive_tex_mean[c] = o.has_emissive_tex ? em[c] : 1.0;
     }
     /* mesh names */
@@ -682,7 +1169,6 @@ void fill(const tinygltf::Model &model, const char *label, wrt_gltf_data *out, r
     for (size_t i = 0; i < rd.lights.size(); i++) out->lights[i] = rd.lights[i];
     out->nlights = rd.lights.size();
     out->camera = rd.camera;
-    (void)label;
 }
 
 wrt_status read_impl(const void *data, size_t size, const char *base_dir, const char *label,
@@ -691,13 +1177,25 @@ wrt_status read_impl(const void *data, size_t size, const char *base_dir, const 
     if (size > 0xFFFFFFF0u) throw make_error(WRT_ERR_UNSUPPORTED, "%s: larger than 4 GiB", label);
     const unsigned char *b = static_cast<const unsigned char *>(data);
     bool glb = size >= 4 && memcmp(b, "glTF", 4) == 0;
+    const char *text = reinterpret_cast<const char *>(b);
+    size_t text_len = size;
     if (glb) {
         check_glb(b, size, label);
         uint32_t len0;
         memcpy(&len0, b + 12, 4);
-        check_references(reinterpret_cast<const char *>(b + 20), len0, label);
-    } else {
-        check_references(reinterpret_cast<const char *>(b), size, label);
+        text += 20;
+        text_len = len0;
+    }
+    std::string strict_warnings, ignored;
+    {
+        nlohmann::json j = nlohmann::json::parse(text, text + text_len, nullptr, false);
+        if (!j.is_discarded()) { /* malformed JSON is left to tinygltf's parser error */
+            check_references(j, label);
+            strict_check sc(j, label);
+            sc.run();
+            strict_warnings = sc.warnings;
+            ignored = sc.ignored_text();
+        }
     }
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(decode_image, nullptr);
@@ -724,8 +1222,9 @@ wrt_status read_impl(const void *data, size_t size, const char *base_dir, const 
     reader rd(model, label);
     rd.run();
     fill(model, label, out, rd);
-    out->warnings = strdup(warn.c_str());
-    if (!out->warnings) throw std::bad_alloc();
+    out->warnings = strdup((strict_warnings + warn).c_str());
+    out->ignored = strdup(ignored.c_str());
+    if (!out->warnings || !out->ignored) throw std::bad_alloc();
     return WRT_OK;
 }
 
@@ -764,5 +1263,6 @@ extern "C" void wrt_gltf_free(wrt_gltf_data *d) {
     free(d->lights);
     free(d->mesh_names);
     free(d->warnings);
+    free(d->ignored);
     memset(d, 0, sizeof *d);
 }

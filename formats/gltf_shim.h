@@ -36,6 +36,7 @@ typedef struct wrt_gltf_material {
     double metallic, roughness;
     double emissive[3];
     int has_base_tex, has_mr_tex, has_emissive_tex; /* 1 if the texture was decoded */
+    int double_sided;        /* material.doubleSided */
     double base_tex_mean[4];
     double mr_tex_mean[3];   /* R, G (roughness), B (metallic) */
     double emissive_tex_mean[3];
@@ -65,7 +66,9 @@ typedef struct wrt_gltf_data {
     wrt_gltf_light *lights; size_t nlights;
     wrt_gltf_camera camera;
     char (*mesh_names)[64]; size_t nmeshes;
-    char *warnings;          /* tinygltf's warnings, "" if none (owned) */
+    char *warnings;          /* warnings, one a line, "" if none (owned) */
+    char *ignored;           /* fields the bake does not use, "; "-separated path patterns
+                                with a count where more than one, "" if none (owned) */
 } wrt_gltf_data;
 
 /* Parses `size` bytes (JSON text, or GLB when they start with "glTF"). External

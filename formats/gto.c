@@ -9,11 +9,13 @@
  * syncs it and renames it over the target. Depends on wrt_common, scene.h, basis.h and
  * POSIX (mmap, mkstemp, fsync, rename, sigaction). */
 #include "gto.h"
+#include "scene.h"
 
 #include <errno.h>
 #include <fcntl.h>
 #include <inttypes.h>
 #include <limits.h>
+#include <math.h>
 #include <signal.h>
 #include <stdalign.h>
 #include <stdarg.h>
@@ -22,6 +24,8 @@
 #include <string.h>
 #include <sys/mman.h>
 #include <sys/resource.h>
+#include <dirent.h>
+#include <pthread.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -230,13 +234,45 @@ static void check_quads_local(vctx *v, const uint8_t *base, uint64_t first, uint
             for (int j = 0; j < 3; j++)
                 if (!isfinite(q[i].p[k][j]))
                     return vbad(v, "quad %" PRIu64 ": corner %d is not finite", i, k);
+        const float *f[3] = {q[i].n, q[i].t, q[i].b};
+        for (int k = 0; k < 3; k++) {
+            double l = sqrt((double)f[k][0] * f[k][0] + (double)f[k][1] * f[k][1] + (double)f[k][2] * f[k][2]);
+            if (!(fabs(l - 1) <= 1e-3))
+                return vbad(v, "quad %" PRIu64 ": %s is not a unit vector", i, k == 0 ? "normal" : k == 1 ? "tangent" : "bitangent");
+        }
+        if (!(q[i].area > 0) || !isfinite(q[i].area))
+            return vbad(v, "quad %" PRIu64 ": area %g is not finite and > 0", i, (double)q[i].area);
     }
+}
+
+/* Every number handed out is checked: finite, and in the range its meaning allows
+ * (0 <= x <= 1 for a factor, unit length for a direction, ...). */
+static int in01(double x) { return x >= 0 && x <= 1; }            /* false for NaN */
+static int fin3d(const double *x) { return isfinite(x[0]) && isfinite(x[1]) && isfinite(x[2]); }
+static int unit3d(const double *x) {
+    double l = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+    return fabs(l - 1) <= 1e-3;
 }
 
 static void check_materials(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
     const wrt_gto_material *m = (const wrt_gto_material *)base;
-    for (uint64_t i = first; i < first + n; i++)
+    for (uint64_t i = first; i < first + n; i++) {
         if (!has_nul64(m[i].name)) return vbad(v, "material %" PRIu64 ": name not terminated", i);
+        for (int c = 0; c < 3; c++) {
+            if (!in01(m[i].base_color[c]))
+                return vbad(v, "material %" PRIu64 ": base_color[%d] %g is not in [0, 1]", i, c,
+                            (double)m[i].base_color[c]);
+            if (!(m[i].emissive[c] >= 0) || !isfinite(m[i].emissive[c]))
+                return vbad(v, "material %" PRIu64 ": emissive[%d] %g is not finite and >= 0", i, c,
+                            (double)m[i].emissive[c]);
+        }
+        if (!in01(m[i].metallic) || !in01(m[i].roughness))
+            return vbad(v, "material %" PRIu64 ": metallic %g or roughness %g is not in [0, 1]", i,
+                        (double)m[i].metallic, (double)m[i].roughness);
+        if (m[i].lambertian > 1 || m[i].alevel > WRT_MAX_ALEVEL)
+            return vbad(v, "material %" PRIu64 ": lambertian %u or alevel %u out of range", i,
+                        m[i].lambertian, m[i].alevel);
+    }
 }
 
 static void check_lights(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
@@ -245,6 +281,44 @@ static void check_lights(vctx *v, const uint8_t *base, uint64_t first, uint64_t 
         if (!has_nul64(l[i].name)) return vbad(v, "light %" PRIu64 ": name not terminated", i);
         if (l[i].type > WRT_LIGHT_SPOT)
             return vbad(v, "light %" PRIu64 ": unknown type %u", i, l[i].type);
+        if (!fin3d(l[i].pos) || !fin3d(l[i].dir) || (l[i].type == WRT_LIGHT_SPOT && !unit3d(l[i].dir)))
+            return vbad(v, "light %" PRIu64 ": position or direction not finite (or not unit)", i);
+        for (int c = 0; c < 3; c++)
+            if (!(l[i].color[c] >= 0) || !isfinite(l[i].color[c]))
+                return vbad(v, "light %" PRIu64 ": color[%d] %g is not finite and >= 0", i, c,
+                            (double)l[i].color[c]);
+        if (!(l[i].intensity >= 0) || !isfinite(l[i].intensity) || !(l[i].range >= 0) ||
+            !isfinite(l[i].range))
+            return vbad(v, "light %" PRIu64 ": intensity %g or range %g is not finite and >= 0", i,
+                        (double)l[i].intensity, (double)l[i].range);
+        if (!(l[i].inner_cone >= 0) || !(l[i].outer_cone >= l[i].inner_cone) ||
+            !(l[i].outer_cone <= (float)(WRT_PI / 2) * 1.0001f))
+            return vbad(v, "light %" PRIu64 ": cone angles %g / %g not 0 <= inner <= outer <= pi/2", i,
+                        (double)l[i].inner_cone, (double)l[i].outer_cone);
+    }
+}
+
+static void check_camera(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const wrt_gto_camera *c = (const wrt_gto_camera *)base;
+    for (uint64_t i = first; i < first + n; i++) {
+        if (!fin3d(c[i].pos) || !fin3d(c[i].dir) || !fin3d(c[i].up) || !unit3d(c[i].dir) ||
+            !unit3d(c[i].up))
+            return vbad(v, "camera: position, direction or up not finite (or not unit)");
+        if (!(c[i].yfov > 0 && c[i].yfov < WRT_PI) || !(c[i].aspect >= 0) || !isfinite(c[i].aspect) ||
+            !(c[i].znear > 0) || !isfinite(c[i].znear) || !(c[i].zfar >= 0) || !isfinite(c[i].zfar))
+            return vbad(v, "camera: yfov %g, aspect %g, znear %g or zfar %g out of range", c[i].yfov,
+                        c[i].aspect, c[i].znear, c[i].zfar);
+    }
+}
+
+static void check_stats(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const wrt_gto_stats *s = (const wrt_gto_stats *)base;
+    for (uint64_t i = first; i < first + n; i++) {
+        const double t[5] = {s[i].t_dto, s[i].t_gto, s[i].t_write, s[i].t_total, s[i].energy_left};
+        for (int k = 0; k < 5; k++)
+            if (!(t[k] >= 0) || !isfinite(t[k]))
+                return vbad(v, "stats: %s %g is not finite and >= 0",
+                            k == 4 ? "energy_left" : "a time", t[k]);
     }
 }
 
@@ -411,6 +485,8 @@ static chunk_check sec_checker(uint32_t id) {
     case SEC_QUADS: return check_quads_local;
     case SEC_MATERIALS: return check_materials;
     case SEC_LIGHTS: return check_lights;
+    case SEC_CAMERA: return check_camera;
+    case SEC_STATS: return check_stats;
     case SEC_NAMES: return check_names;
     case SEC_FKEYS: return check_fkeys;
     case SEC_COL_START: return check_col_start;
@@ -630,29 +706,34 @@ wrt_status wrt_gto_open_memory(const void *data, size_t size, wrt_gto *out) {
     return WRT_OK;
 }
 
-/* Maps a whole file read-only. *map is NULL for an empty file. */
-static wrt_status map_file(const char *path, void **map, size_t *len) {
+/* Maps the whole of an open regular file read-only. *map is NULL for an empty file. */
+static wrt_status map_fd(int fd, const char *path, void **map, size_t *len) {
     *map = NULL; *len = 0;
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
     struct stat st;
-    if (fstat(fd, &st) != 0) {
-        int e = errno; close(fd);
-        return wrt_fail(WRT_ERR_IO, "%s: cannot stat: %s", path, strerror(e));
-    }
-    if (!S_ISREG(st.st_mode)) { close(fd); return wrt_fail(WRT_ERR_IO, "%s: not a regular file", path); }
-    if ((uint64_t)st.st_size > SIZE_MAX) { close(fd); return wrt_fail(WRT_ERR_IO, "%s: too large", path); }
+    if (fstat(fd, &st) != 0) return wrt_fail(WRT_ERR_IO, "%s: cannot stat: %s", path, strerror(errno));
+    if (!S_ISREG(st.st_mode))
+        return wrt_fail(WRT_ERR_NOT_OURS, "%s: not a regular file (%s)", path,
+                        S_ISDIR(st.st_mode) ? "a directory" : S_ISFIFO(st.st_mode) ? "a FIFO"
+                        : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "a device" : "a special file");
+    if ((uint64_t)st.st_size > SIZE_MAX) return wrt_fail(WRT_ERR_IO, "%s: too large", path);
     *len = (size_t)st.st_size;
     if (*len) {
         void *p = mmap(NULL, *len, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
-        if (p == MAP_FAILED) {
-            int e = errno; close(fd);
-            return wrt_fail(WRT_ERR_IO, "%s: cannot map: %s", path, strerror(e));
-        }
+        if (p == MAP_FAILED) return wrt_fail(WRT_ERR_IO, "%s: cannot map: %s", path, strerror(errno));
         *map = p;
     }
-    close(fd);
     return WRT_OK;
+}
+
+/* Maps a whole file read-only. O_NONBLOCK: a FIFO or device is refused by the fstat
+ * that follows instead of blocking the open. */
+static wrt_status map_file(const char *path, void **map, size_t *len) {
+    *map = NULL; *len = 0;
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
+    if (fd < 0) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    wrt_status st = map_fd(fd, path, map, len);
+    close(fd);
+    return st;
 }
 
 static wrt_status prefix_error(const char *path, wrt_status st) {
@@ -770,7 +851,110 @@ static void copy_name(char dst[64], const char *src) {
 
 typedef struct wsec { uint32_t id; uint64_t count; const void *data; } wsec;
 
-wrt_status wrt_gto_write(const char *path, const wrt_gto_contents *c) {
+/* Removes PATH.tmp.PID.* left by a process that no longer exists (killed while
+ * writing). Temporaries of live processes, and names of another form, are left. */
+static void remove_stale_temporaries(const char *path) {
+    const char *slash = strrchr(path, '/');
+    const char *base = slash ? slash + 1 : path;
+    size_t dl = slash ? (size_t)(slash - path) : 0;
+    char *dir = wrt_xmalloc(dl + 2);
+    if (slash) { memcpy(dir, path, dl); dir[dl] = 0; if (dl == 0) strcpy(dir, "/"); }
+    else strcpy(dir, ".");
+    DIR *d = opendir(dir);
+    size_t bl = strlen(base);
+    if (d) {
+        struct dirent *e;
+        while ((e = readdir(d))) {
+            const char *n = e->d_name;
+            if (strncmp(n, base, bl) != 0 || strncmp(n + bl, ".tmp.", 5) != 0) continue;
+            char *end;
+            errno = 0;
+            long pid = strtol(n + bl + 5, &end, 10);
+            if (errno || end == n + bl + 5 || *end != '.' || pid <= 0 || pid == (long)getpid()) continue;
+            if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue; /* alive, or not ours to judge */
+            int fd = dirfd(d);
+            if (unlinkat(fd, n, 0) == 0)
+                wrt_log(WRT_LOG_INFO, "removed %s/%s, left by process %ld, which is gone", dir, n, pid);
+        }
+        closedir(d);
+    }
+    free(dir);
+}
+
+static int force_named;
+void wrt_gto_force_named_temporaries(int on) { force_named = on; }
+
+/* Creates the temporary for `path` in its folder: O_TMPFILE if the file system has it
+ * (and not forced off), else a named one, armed for the signal handler. */
+static wrt_status tmp_create(const char *path, wrt_gto_pending *p) {
+    remove_stale_temporaries(path);
+    p->path = wrt_xmalloc(strlen(path) + 1);
+    strcpy(p->path, path);
+    size_t pl = strlen(path);
+    int e = 0;
+#ifdef O_TMPFILE
+    if (!force_named) {
+        char *dir = wrt_xmalloc(pl + 2);
+        strcpy(dir, path);
+        char *slash = strrchr(dir, '/');
+        if (!slash) strcpy(dir, ".");
+        else if (slash == dir) dir[1] = 0;
+        else *slash = 0;
+        p->fd = open(dir, O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+        e = errno;
+        free(dir);
+        if (p->fd >= 0) return WRT_OK;
+        if (e != EOPNOTSUPP && e != EISDIR && e != EINVAL) {
+            wrt_gto_discard(p);
+            return wrt_fail(WRT_ERR_IO, "cannot create a temporary file for %s: %s", path, strerror(e));
+        }
+    }
+#endif
+    p->tmp = wrt_xmalloc(pl + 40);
+    snprintf(p->tmp, pl + 40, "%s.tmp.%ld.XXXXXX", path, (long)getpid());
+    sigset_t all, old;
+    sigfillset(&all);
+    pthread_sigmask(SIG_BLOCK, &all, &old);
+    p->fd = mkostemp(p->tmp, O_CLOEXEC);
+    e = errno;
+    if (p->fd >= 0) p->slot = tmp_arm(p->tmp);
+    pthread_sigmask(SIG_SETMASK, &old, NULL);
+    if (p->fd < 0) {
+        free(p->tmp);
+        p->tmp = NULL;
+        wrt_gto_discard(p);
+        return wrt_fail(WRT_ERR_IO, "cannot create a temporary file for %s: %s", path, strerror(e));
+    }
+    return WRT_OK;
+}
+
+wrt_status wrt_gto_check_output(const char *path, const char *const *inputs, int ninputs) {
+    if (!path || !path[0]) return wrt_fail(WRT_ERR_INVALID_ARG, "no output path");
+    struct stat so;
+    int exists = stat(path, &so) == 0;
+    if (exists && S_ISDIR(so.st_mode))
+        return wrt_fail(WRT_ERR_IO, "%s: the output is a directory", path);
+    for (int i = 0; i < ninputs && exists; i++) {
+        struct stat si;
+        if (inputs[i] && stat(inputs[i], &si) == 0 && si.st_dev == so.st_dev && si.st_ino == so.st_ino)
+            return wrt_fail(WRT_ERR_INVALID_ARG, "%s: the output is the input %s (same file)", path,
+                            inputs[i]);
+    }
+    /* Can a temporary be made beside it? (Made and dropped now, before any work.) */
+    wrt_gto_pending p;
+    memset(&p, 0, sizeof p);
+    p.fd = -1;
+    p.slot = -1;
+    wrt_status st = tmp_create(path, &p);
+    wrt_gto_discard(&p);
+    return st;
+}
+
+wrt_status wrt_gto_write_pending(const char *path, const wrt_gto_contents *c, wrt_gto_pending *p) {
+    if (!p) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_gto_write_pending: no result");
+    memset(p, 0, sizeof *p);
+    p->fd = -1;
+    p->slot = -1;
     if (!path || !c || !c->scene) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_gto_write: no path or contents");
     const wrt_scene *sc = c->scene;
     uint32_t nf = c->nfuncs;
@@ -912,64 +1096,139 @@ wrt_status wrt_gto_write(const char *path, const wrt_gto_contents *c) {
     h->file_size = off;
     h->header_checksum = wrt_gto_checksum(head, sizeof head);
 
-    /* The temporary, armed for the signal handler before anything can interrupt us. */
-    char *tmp = NULL;
-    int fd = -1, slot = -1;
+    /* The temporary: unnamed where the file system allows (O_TMPFILE: nothing is left
+     * behind whatever kills us), else named PATH.tmp.PID.XXXXXX and armed for the
+     * signal handler; a later write to the same path removes a named one whose process
+     * is gone. */
+    if (st == WRT_OK) st = tmp_create(path, p);
     if (st == WRT_OK) {
-        size_t pl = strlen(path);
-        tmp = wrt_xmalloc(pl + 12);
-        memcpy(tmp, path, pl);
-        memcpy(tmp + pl, ".tmp.XXXXXX", 12);
-        sigset_t all, old;
-        sigfillset(&all);
-        pthread_sigmask(SIG_BLOCK, &all, &old);
-        fd = mkostemp(tmp, O_CLOEXEC);
-        int e = errno;
-        if (fd >= 0) slot = tmp_arm(tmp);
-        pthread_sigmask(SIG_SETMASK, &old, NULL);
-        if (fd < 0)
-            st = wrt_fail(WRT_ERR_IO, "cannot create a temporary file for %s: %s", path, strerror(e));
-    }
-    if (st == WRT_OK) {
-        if (write_hook) write_hook(tmp);
+        char proc[64];
+        snprintf(proc, sizeof proc, "/proc/self/fd/%d", p->fd);
+        if (write_hook) write_hook(p->tmp ? p->tmp : proc);
         mode_t um = umask(0);
         umask(um);
         static const uint8_t zeros[GTO_ALIGN];
-        int bad = fchmod(fd, 0666 & ~um) != 0 || write_all(fd, head, sizeof head) != 0;
+        int bad = fchmod(p->fd, 0666 & ~um) != 0 || write_all(p->fd, head, sizeof head) != 0;
         uint64_t at = sizeof head;
         for (int i = 0; i < SEC_KNOWN && !bad; i++) {
-            bad = write_all(fd, zeros, tab[i].offset - at) != 0 ||
-                  write_all(fd, secs[i].data, tab[i].size) != 0;
+            bad = write_all(p->fd, zeros, tab[i].offset - at) != 0 ||
+                  write_all(p->fd, secs[i].data, tab[i].size) != 0;
             at = tab[i].offset + tab[i].size;
         }
-        if (!bad) bad = fsync(fd) != 0;
-        int e = errno;
-        if (close(fd) != 0 && !bad) { bad = 1; e = errno; }
-        fd = -1;
-        if (!bad && rename(tmp, path) != 0) { bad = 1; e = errno; }
+        if (!bad) bad = fsync(p->fd) != 0;
         if (bad) {
-            unlink(tmp);
+            int e = errno;
+            wrt_gto_discard(p);
             st = wrt_fail(WRT_ERR_IO, "cannot write %s: %s", path, strerror(e));
         }
     }
-    tmp_disarm(slot);
-    if (st == WRT_OK) {
-        /* Make the rename durable. */
-        char *dir = wrt_xmalloc(strlen(path) + 2);
-        strcpy(dir, path);
-        char *slash = strrchr(dir, '/');
-        if (!slash) strcpy(dir, ".");
-        else if (slash == dir) dir[1] = 0;
-        else *slash = 0;
-        int dfd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-        if (dfd < 0 || fsync(dfd) != 0)
-            wrt_log(WRT_LOG_WARN, "wrote %s but could not sync its directory: %s", path, strerror(errno));
-        if (dfd >= 0) close(dfd);
-        free(dir);
-    }
-    free(tmp);
     free(quads); free(mats); free(lights); free(names);
     return st;
+}
+
+wrt_status wrt_gto_write(const char *path, const wrt_gto_contents *c) {
+    wrt_gto_pending p;
+    wrt_status st = wrt_gto_write_pending(path, c, &p);
+    if (st == WRT_OK) st = wrt_gto_commit(&p);
+    return st;
+}
+
+wrt_status wrt_gto_open_pending(const wrt_gto_pending *p, wrt_gto *out) {
+    memset(out, 0, sizeof *out);
+    if (!p || p->fd < 0) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_gto_open_pending: nothing pending");
+    void *map; size_t len;
+    wrt_status st = map_fd(p->fd, p->path, &map, &len);
+    if (st != WRT_OK) return st;
+    static const uint64_t empty = 0;
+    st = validate(map ? map : (const void *)&empty, len, out);
+    if (st != WRT_OK) {
+        if (map) munmap(map, len);
+        memset(out, 0, sizeof *out);
+        return prefix_error(p->path, st);
+    }
+    out->map = map;
+    out->size = len;
+    out->owns_map = 1;
+    return WRT_OK;
+}
+
+wrt_status wrt_gto_commit(wrt_gto_pending *p) {
+    if (!p || p->fd < 0) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_gto_commit: nothing pending");
+    wrt_status st = WRT_OK;
+    int e = 0;
+    if (!p->tmp) {
+        /* Give the unnamed file a name (armed for the signal handler while it has one),
+         * then rename it over the target: the target is the old file or the new one. */
+        size_t pl = strlen(p->path);
+        char *name = wrt_xmalloc(pl + 48);
+        char proc[64];
+        snprintf(proc, sizeof proc, "/proc/self/fd/%d", p->fd);
+        static atomic_uint counter;
+        int linked = 0;
+        for (int tries = 0; tries < 100 && !linked; tries++) {
+            snprintf(name, pl + 48, "%s.tmp.%ld.%u", p->path, (long)getpid(),
+                     atomic_fetch_add(&counter, 1u));
+            sigset_t all, old;
+            sigfillset(&all);
+            pthread_sigmask(SIG_BLOCK, &all, &old);
+            if (linkat(AT_FDCWD, proc, AT_FDCWD, name, AT_SYMLINK_FOLLOW) == 0) {
+                linked = 1;
+                p->slot = tmp_arm(name);
+            } else {
+                e = errno;
+            }
+            pthread_sigmask(SIG_SETMASK, &old, NULL);
+            if (!linked && e != EEXIST) break;
+        }
+        if (!linked) {
+            free(name);
+            wrt_gto_discard(p);
+            return wrt_fail(WRT_ERR_IO, "cannot write %s: cannot name the temporary: %s", p->path ? p->path : "",
+                            strerror(e));
+        }
+        p->tmp = name;
+    }
+    if (close(p->fd) != 0) { st = WRT_ERR_IO; e = errno; }
+    p->fd = -1;
+    if (st == WRT_OK && rename(p->tmp, p->path) != 0) { st = WRT_ERR_IO; e = errno; }
+    if (st != WRT_OK) {
+        unlink(p->tmp);
+        tmp_disarm(p->slot);
+        p->slot = -1;
+        wrt_status r = wrt_fail(WRT_ERR_IO, "cannot write %s: %s", p->path, strerror(e));
+        wrt_gto_discard(p);
+        return r;
+    }
+    tmp_disarm(p->slot);
+    p->slot = -1;
+    free(p->tmp);
+    p->tmp = NULL; /* the name is the target's now */
+    /* Make the rename durable. */
+    char *dir = wrt_xmalloc(strlen(p->path) + 2);
+    strcpy(dir, p->path);
+    char *slash = strrchr(dir, '/');
+    if (!slash) strcpy(dir, ".");
+    else if (slash == dir) dir[1] = 0;
+    else *slash = 0;
+    int dfd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dfd < 0 || fsync(dfd) != 0)
+        wrt_log(WRT_LOG_WARN, "wrote %s but could not sync its directory: %s", p->path, strerror(errno));
+    if (dfd >= 0) close(dfd);
+    free(dir);
+    wrt_gto_discard(p);
+    return WRT_OK;
+}
+
+void wrt_gto_discard(wrt_gto_pending *p) {
+    if (!p) return;
+    if (p->fd >= 0) close(p->fd);
+    if (p->tmp) unlink(p->tmp);
+    tmp_disarm(p->slot);
+    free(p->tmp);
+    free(p->path);
+    memset(p, 0, sizeof *p);
+    p->fd = -1;
+    p->slot = -1;
 }
 
 /* ------------------------------------------------------------------------------------

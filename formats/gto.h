@@ -2,12 +2,14 @@
  * Byte layout, alignment, version rules and checksums are specified in
  * formats/GTO_FORMAT.md; the structs here are that layout (little-endian, checked
  * by static asserts in gto.c). The player maps the file and uses these arrays in
- * place: nothing is parsed. Depends on wrt_common.h and scene.h. */
+ * place: nothing is parsed. Depends on common/scene_types.h (not on the loader). */
 #ifndef WRT_GTO_H
 #define WRT_GTO_H
 
 #include "../common/wrt_common.h"
-#include "scene.h"
+#include "../common/scene_types.h"
+
+typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes one */
 
 #include <stdio.h>
 
@@ -140,13 +142,41 @@ typedef struct wrt_gto_contents {
     const char *provenance;          /* JSON text */
 } wrt_gto_contents;
 
-/* Writes atomically: PATH.tmp.XXXXXX, fsync, rename over `path`, fsync the directory.
+/* Writes atomically: a temporary (see wrt_gto_write_pending), fsync, rename over
+ * `path`, fsync the directory.
  * On any failure the temporary is removed and `path` is untouched. Checks the
  * contents first as the reader would (WRT_ERR_INVALID_ARG naming what is wrong): fkeys
  * strictly ascending with quads < nquads, col_start monotone from 0, rows < nfuncs and
  * ascending within a column, vals finite, material and name indices in range.
  * `c->provenance` may be NULL (empty). Same contents give the same bytes. */
 wrt_status wrt_gto_write(const char *path, const wrt_gto_contents *c);
+
+/* The same in two steps, for a caller that checks the file before it replaces the
+ * target (wrt-bake --max-error): wrt_gto_write_pending writes and syncs a private
+ * temporary in the target's folder (unnamed with O_TMPFILE where the file system has
+ * it, so that nothing is left whatever ends the process; else PATH.tmp.PID.XXXXXX,
+ * removed by the signal handler and by a later write to the same path once PID is
+ * gone); wrt_gto_open_pending maps and validates it; wrt_gto_commit renames it over the
+ * target; wrt_gto_discard drops it (the target untouched). Each pending file ends in
+ * exactly one commit or discard (commit discards on failure). */
+typedef struct wrt_gto_pending {
+    int fd;       /* the open temporary, -1 if none */
+    char *path;   /* the target */
+    char *tmp;    /* the temporary's name, NULL while it has none */
+    int slot;     /* signal-handler slot, -1 if none */
+} wrt_gto_pending;
+wrt_status wrt_gto_write_pending(const char *path, const wrt_gto_contents *c, wrt_gto_pending *p);
+wrt_status wrt_gto_open_pending(const wrt_gto_pending *p, wrt_gto *out);
+wrt_status wrt_gto_commit(wrt_gto_pending *p);
+void wrt_gto_discard(wrt_gto_pending *p);
+
+/* Before a long computation: refuses an output that is a directory or the same file
+ * (device and inode, so also through links) as one of `inputs` (WRT_ERR_INVALID_ARG),
+ * and one in whose folder no temporary can be created (WRT_ERR_IO). */
+wrt_status wrt_gto_check_output(const char *path, const char *const *inputs, int ninputs);
+
+/* For tests: named temporaries even where O_TMPFILE works. */
+void wrt_gto_force_named_temporaries(int on);
 
 /* Installs SIGINT/SIGTERM/SIGHUP handlers (where not ignored) that remove the
  * temporary file of a wrt_gto_write in progress, then re-raise the signal with its
@@ -157,7 +187,8 @@ void wrt_gto_install_signal_cleanup(void);
 void wrt_gto_remove_temporaries(void);
 
 /* For tests: called by wrt_gto_write once the temporary exists, before any payload
- * is written (NULL: none). Not thread-safe; set it before writing. */
+ * is written, with its name (/proc/self/fd/N for an unnamed one) (NULL: none). Not
+ * thread-safe; set it before writing. */
 typedef void (*wrt_gto_write_hook)(const char *tmp_path);
 void wrt_gto_set_write_hook(wrt_gto_write_hook hook);
 

@@ -19,6 +19,9 @@
 #include "gltf_shim.h"
 
 #include <errno.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <stdarg.h>
 #include <float.h>
 #include <stdio.h>
@@ -30,6 +33,7 @@
 #define WRT_COLLINEAR_REL 1e-7   /* |cross| / size^2 under this is collinear */
 #define WRT_PARALLELOGRAM_REL 1e-5
 #define WRT_MAX_EDGE_FAN 8       /* edges shared by more triangles are not paired across */
+#define WRT_TWIN_GAP 1e-4        /* a double-sided quad's back twin, set back by this x diagonal */
 
 /* ------------------------------------------------------------------ quads */
 
@@ -666,6 +670,36 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
                 pl.n == 1 ? "" : "s", buf, pl.n > shown ? "; ..." : "");
     }
 
+    /* doubleSided (glTF: no back-face culling, both sides lit): each such quad gets a
+     * back-to-back twin facing the other way, set back by WRT_TWIN_GAP of the scene's
+     * diagonal so that a ray meets the side it comes from first (two coincident faces
+     * would be hit in arbitrary order). Every part of the method then treats the two
+     * sides as the one-sided quads it knows. */
+    int nfront = ql.n;
+    for (int i = 0; i < nfront; i++) {
+        int m = ql.v[i].material;
+        if (m < 0 || m >= (int)g.nmaterials || !g.materials[m].double_sided) continue;
+        wrt_quad *b = add_quad(&ql);
+        const wrt_quad *f = &ql.v[i]; /* after add_quad: it may move the array */
+        wrt_v3 back = v3_scale(f->n, -WRT_TWIN_GAP * (diag > 0 ? diag : 1.0));
+        b->p[0] = v3_add(f->p[0], back);
+        b->p[1] = v3_add(f->p[3], back);
+        b->p[2] = v3_add(f->p[2], back);
+        b->p[3] = v3_add(f->p[1], back);
+        b->material = f->material;
+        b->mesh = f->mesh;
+        b->prim = f->prim;
+        b->tri[0] = f->tri[0];
+        b->tri[1] = f->tri[1];
+        b->name = f->name;
+        if (wrt_quad_finish(b) != WRT_OK) ql.n--; /* cannot happen: f was finished */
+        else s->ntwins++;
+    }
+    s->quads = ql.v;
+    s->nquads = ql.n;
+    s->ignored = wrt_xmalloc(strlen(g.ignored ? g.ignored : "") + 1);
+    strcpy(s->ignored, g.ignored ? g.ignored : "");
+
     /* bounding box of the kept geometry */
     if (s->nquads > 0) {
         lo = v3(DBL_MAX, DBL_MAX, DBL_MAX);
@@ -701,28 +735,42 @@ wrt_status wrt_scene_load(const char *path, const wrt_load_options *opt, wrt_sce
     if (!out) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_scene_load: out is NULL");
     memset(out, 0, sizeof *out);
     if (!path) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_scene_load: path is NULL");
-    FILE *f = fopen(path, "rb");
-    if (!f) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    if (fseek(f, 0, SEEK_END) != 0) {
-        fclose(f);
-        return wrt_fail(WRT_ERR_IO, "%s: cannot seek: %s", path, strerror(errno));
+    /* O_NONBLOCK: a FIFO or a device is refused by fstat instead of blocking the open;
+     * the size comes from fstat of the regular file, never from seeking. */
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
+    if (fd < 0) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    struct stat sb;
+    if (fstat(fd, &sb) != 0) {
+        int e = errno;
+        close(fd);
+        return wrt_fail(WRT_ERR_IO, "%s: cannot stat: %s", path, strerror(e));
     }
-    long len = ftell(f);
-    if (len < 0 || fseek(f, 0, SEEK_SET) != 0) {
-        fclose(f);
-        return wrt_fail(WRT_ERR_IO, "%s: cannot size: %s", path, strerror(errno));
+    if (!S_ISREG(sb.st_mode)) {
+        close(fd);
+        return wrt_fail(WRT_ERR_PARSE, "%s: not a regular file (%s)", path,
+                        S_ISDIR(sb.st_mode) ? "a directory" : S_ISFIFO(sb.st_mode) ? "a FIFO"
+                        : S_ISCHR(sb.st_mode) || S_ISBLK(sb.st_mode) ? "a device" : "a special file");
     }
-    if (len == 0) {
-        fclose(f);
+    if (sb.st_size == 0) {
+        close(fd);
         return wrt_fail(WRT_ERR_PARSE, "%s: empty file", path);
     }
-    unsigned char *buf = wrt_xmalloc((size_t)len);
-    size_t got = fread(buf, 1, (size_t)len, f);
-    int rerr = ferror(f);
-    fclose(f);
-    if (got != (size_t)len || rerr) {
+    if ((uint64_t)sb.st_size > 0xFFFFFFF0u) {
+        close(fd);
+        return wrt_fail(WRT_ERR_UNSUPPORTED, "%s: larger than 4 GiB", path);
+    }
+    size_t len = (size_t)sb.st_size, got = 0;
+    unsigned char *buf = wrt_xmalloc(len);
+    while (got < len) {
+        ssize_t r = read(fd, buf + got, len - got);
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0) break;
+        got += (size_t)r;
+    }
+    close(fd);
+    if (got != len) {
         free(buf);
-        return wrt_fail(WRT_ERR_IO, "%s: short read", path);
+        return wrt_fail(WRT_ERR_IO, "%s: short read (%zu of %zu bytes)", path, got, len);
     }
     /* external buffers and images resolve against the file's folder */
     char dir[4096];
@@ -736,7 +784,7 @@ wrt_status wrt_scene_load(const char *path, const wrt_load_options *opt, wrt_sce
     } else {
         snprintf(dir, sizeof dir, ".");
     }
-    wrt_status st = load_common(buf, (size_t)len, dir, path, opt, out);
+    wrt_status st = load_common(buf, len, dir, path, opt, out);
     free(buf);
     return st;
 }
@@ -748,6 +796,7 @@ void wrt_scene_free(wrt_scene *s) {
     free(s->lights);
     free(s->names);
     free(s->problems);
+    free(s->ignored);
     memset(s, 0, sizeof *s);
 }
 
@@ -859,7 +908,10 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
         json_num(f, c->znear);
         fputs(",\"zfar\":", f);
         json_num(f, c->zfar);
-        fprintf(f, ",\"from_file\":%s},\"problems\":[", c->from_file ? "true" : "false");
+        fprintf(f, ",\"from_file\":%s},\"double_sided_twins\":%d,\"ignored\":", c->from_file ? "true" : "false",
+                s->ntwins);
+        json_string(f, s->ignored ? s->ignored : "");
+        fputs(",\"problems\":[", f);
         for (int i = 0; i < s->nproblems; i++) {
             const wrt_problem *p = &s->problems[i];
             fprintf(f, "%s{\"kind\":\"%s\",\"mesh\":%d,\"primitive\":%d,\"triangle\":%d,\"what\":",
@@ -885,11 +937,11 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
                 m->name, m->lambertian ? "diffuse" : "glossy ", m->base_color[0], m->base_color[1],
                 m->base_color[2], m->metallic, m->roughness, uses[i]);
     }
-    fprintf(f, "lights: %d\n", s->nlights);
+    fprintf(f, "lights: %d (numbered from 1, as --light N and --light-scale N=S take them)\n", s->nlights);
     for (int i = 0; i < s->nlights; i++) {
         const wrt_light *l = &s->lights[i];
         fprintf(f, "  [%d] %-5s %-16s at (%g, %g, %g) dir (%.3f, %.3f, %.3f) intensity %g cd color (%.3f, %.3f, %.3f)",
-                i, l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, l->pos.x, l->pos.y, l->pos.z,
+                i + 1, l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, l->pos.x, l->pos.y, l->pos.z,
                 l->dir.x, l->dir.y, l->dir.z, l->intensity, l->color[0], l->color[1], l->color[2]);
         if (l->type == WRT_LIGHT_SPOT)
             fprintf(f, " cone %.3f/%.3f rad", l->inner_cone, l->outer_cone);
@@ -899,6 +951,10 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
     fprintf(f, "camera: %s at (%g, %g, %g) looking (%.3f, %.3f, %.3f) yfov %.3f rad\n",
             c->from_file ? "from file" : "default framing", c->pos.x, c->pos.y, c->pos.z, c->dir.x,
             c->dir.y, c->dir.z, c->yfov);
+    if (s->ntwins)
+        fprintf(f, "double-sided: %d quads have a back-to-back twin (included in the count above)\n",
+                s->ntwins);
+    fprintf(f, "ignored (not used by the bake): %s\n", s->ignored && s->ignored[0] ? s->ignored : "nothing");
     fprintf(f, "problems: %d\n", s->nproblems);
     for (int i = 0; i < s->nproblems && i < 50; i++) {
         const wrt_problem *p = &s->problems[i];

@@ -9,101 +9,93 @@
  * player/platform.h. */
 #include <ctype.h>
 #include <errno.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
+#include "../cli/cli.h"
 #include "../formats/gto.h"
 #include "../formats/image.h"
+#include "overlay.h"
 #include "platform.h"
 #include "relight.h"
 #include "render.h"
 
+/* The exit codes of every tool (cli/cli.h). */
 enum {
-    EXIT_USAGE = 1,   /* bad command line */
-    EXIT_INPUT = 2,   /* the .gto (or script) cannot be read: missing, truncated, corrupt, foreign, newer */
-    EXIT_GL = 3,      /* no OpenGL 4.5 context, no window, shader or framebuffer failure */
-    EXIT_OUTPUT = 4,  /* an output file cannot be written */
-    EXIT_RUNTIME = 5  /* the relighting core failed */
+    EXIT_USAGE = WRT_EXIT_USAGE,      /* bad command line, a light the file does not have */
+    EXIT_INPUT = WRT_EXIT_INPUT,      /* the .gto (or script) cannot be read: missing, truncated, corrupt, foreign, newer */
+    EXIT_OUTPUT = WRT_EXIT_OUTPUT,    /* an output file cannot be written */
+    EXIT_GL = WRT_EXIT_GL,            /* no OpenGL 4.5 context, no window, shader or framebuffer failure */
+    EXIT_RUNTIME = WRT_EXIT_INTERNAL  /* the relighting core failed */
 };
 
 static void usage(FILE *f) {
     fprintf(f,
         "usage: wrt-play FILE.gto [options]\n"
-        "Relights a scene baked by wrt-bake (Wavelet Radiance Transport) in real time.\n"
-        "Without --headless: a window. Mouse (left button held) looks around, W A S D move,\n"
-        "Q E down/up, arrows or I J K L move light 1 horizontally, U O lower/raise it,\n"
-        "Shift moves faster, 1-9 switch lights on and off, T cycles both/direct/indirect,\n"
-        "P prints the camera and light as --camera-pos/--light-pos options, Esc quits.\n"
-        "The title bar shows the milliseconds of each stage.\n"
+        "Relights a scene baked by wrt-bake (Wavelet Radiance Transport) in real time, in a\n"
+        "window or headless into pictures. In the window (H or F1 shows these keys on screen):\n"
+        "  mouse (left button) look       W A S D move, Q E down/up, Shift faster\n"
+        "  Tab / 1-9 select a light       arrows or I J K L move it, U O lower/raise it\n"
+        "  Space switch it on/off         + - brighter/dimmer, C cycle its colour\n"
+        "  [ ] exposure -/+ 1/2 stop      T both/direct/indirect, R reset view and lights\n"
+        "  F5 reload the .gto             F12 screenshot (wrt-play-N.png), P print as options\n"
+        "  Esc quit\n"
         "\n"
         "Output:\n"
-        "  --headless            no window (EGL surfaceless); needs --out, --script, --stats-json or --bench\n"
-        "  --out IMG             write the picture: .exr = linear radiance (float RGB),\n"
+        "  --headless            no window (EGL surfaceless); needs -o, --script, --stats-json or --bench\n"
+        "  -o, --out IMG         write the picture: .exr = linear radiance (float RGB),\n"
         "                        anything else (.png) = tone mapped 8-bit sRGB\n"
         "  --width W --height H  picture or window size (default 640 x 480)\n"
-        "  --exposure EV         exposure in stops before the tone curve (default 0): x 2^EV,\n"
-        "                        then Reinhard x/(1+x), then sRGB\n"
+        "  --exposure EV         exposure in stops (default 0): x 2^EV, then Reinhard x/(1+x),\n"
+        "                        then sRGB; the same curve as wrt-ref's and wrt-compare's PNGs\n"
+        "  --msaa N              samples per pixel of the rasterizer: 1, 2, 4 or 8 (default 4)\n"
         "  --direct-only | --indirect-only   show one part (default: both)\n"
         "  --stats-json FILE     per quad: area, centroid, normal, mesh name, mean direct and\n"
         "                        indirect incident irradiance (RGB) for the current lights\n"
         "  --bench N             move light 1 along a fixed circle for N frames; print one JSON\n"
         "                        object with the median milliseconds of each stage and the fps\n"
         "  --frames N            window: quit after N frames; --screenshot IMG saves the last one\n"
+        "  --no-overlay          window: start with the on-screen overlay hidden\n"
         "  --script FILE --out-pattern PATTERN   render one frame per keyframe (see below) to\n"
         "                        PATTERN with one %%d or %%0Nd, e.g. frame_%%04d.png\n"
         "  --script-fps F        instead, sample the keyframes (linear interpolation in t) at F frames/s\n"
         "\n"
-        "Camera and lights (default: from the file; light 1 is the one overridden):\n"
+        "Camera:\n"
         "  --camera-pos X,Y,Z --camera-target X,Y,Z --fov DEG (vertical)\n"
-        "  --light-pos X,Y,Z --light-dir X,Y,Z --light-intensity I (candela)\n"
-        "  --light-scale I=S     multiply light I (1-based) by S (repeatable)\n"
-        "  --lights-off I[,J..]  switch lights off (1-based)\n"
+        "Lights (default: the file's):\n");
+    wrt_cli_lights_help(f);
+    fprintf(f,
+        "Other:\n"
         "  --threads N           relighting threads (0 = all cores)\n"
         "  --max-tex-res N       cap on a quad's texture resolution (default 64)\n"
         "  --shadow-res N        shadow cube map face size (default 512)\n"
-        "  --version, --help\n"
+        "  --version, -h, --help\n"
         "\n"
         "Script: one keyframe per line, '#' starts a comment. A line is a time t in seconds\n"
-        "followed by any of the keys below with their values; a key left out keeps its\n"
-        "previous value:\n"
+        "followed by any of the keys below with their values (they change light 1 or the one\n"
+        "--light names); a key left out keeps its previous value:\n"
         "  t light_pos X Y Z light_dir X Y Z light_intensity I camera_pos X Y Z camera_target X Y Z\n"
         "e.g.  0.0 light_pos 0 1.9 0 camera_pos 0 1 3.5 camera_target 0 1 0\n"
         "      1.0 light_pos 0.5 1.9 0\n"
-        "\n"
-        "Exit codes: 0 success, 1 bad command line, 2 the .gto or script cannot be read\n"
-        "(missing, truncated, corrupted, not a .gto, newer version), 3 OpenGL/window failure,\n"
-        "4 an output cannot be written, 5 the relighting failed.\n");
+        "\n");
+    wrt_cli_exit_table(f);
 }
 
 /* ---------------------------------------------------------------- options */
 
 typedef struct options {
     const char *file, *out, *script, *pattern, *stats, *screenshot;
-    int headless, width, height, bench, frames, threads, max_tex_res, shadow_res;
+    int headless, width, height, bench, frames, threads, max_tex_res, shadow_res, msaa, no_overlay;
     wrt_render_mode mode;
     float exposure;
     double script_fps;
-    int has_light_pos, has_light_dir, has_light_int, has_cam_pos, has_cam_target, has_fov;
-    double light_pos[3], light_dir[3], light_int, cam_pos[3], cam_target[3], fov;
-    float scales[WRT_RENDER_MAX_LIGHTS];
+    int has_cam_pos, has_cam_target, has_fov;
+    double cam_pos[3], cam_target[3], fov;
+    wrt_cli_lights lights;
 } options;
-
-static int parse_vec(const char *s, double v[3]) {
-    char *end;
-    for (int k = 0; k < 3; k++) {
-        errno = 0;
-        v[k] = strtod(s, &end);
-        if (end == s || errno || !isfinite(v[k])) return 0;
-        s = end;
-        if (k < 2) {
-            if (*s != ',') return 0;
-            s++;
-        }
-    }
-    return *s == 0;
-}
 
 static int parse_num(const char *s, double lo, double hi, double *out) {
     char *end;
@@ -114,70 +106,54 @@ static int parse_num(const char *s, double lo, double hi, double *out) {
     return 1;
 }
 
-static int bad(const char *opt, const char *val) {
-    fprintf(stderr, "wrt-play: bad value for %s: '%s' (see --help)\n", opt, val ? val : "");
-    return 0;
-}
+static const char *T = "wrt-play";
 
 static int parse_args(int argc, char **argv, options *o) {
     memset(o, 0, sizeof *o);
     o->width = 640;
     o->height = 480;
     o->max_tex_res = 64;
-    for (int i = 0; i < WRT_RENDER_MAX_LIGHTS; i++) o->scales[i] = 1;
+    o->msaa = 4;
+    wrt_cli_lights_init(&o->lights);
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+        long n;
         double x;
+        int lr = wrt_cli_lights_option(T, &o->lights, argc, argv, &i);
+        if (lr < 0) return 0;
+        if (lr > 0) continue;
 #define NEED() do { if (!v) { fprintf(stderr, "wrt-play: %s needs a value\n", a); return 0; } i++; } while (0)
+#define INT(lo, hi, dst) do { if (!wrt_cli_int(T, a, v, lo, hi, &n)) return 0; i++; dst = (int)n; } while (0)
+#define NUM(lo, hi, dst) do { if (!wrt_cli_num(T, a, v, lo, hi, &x)) return 0; i++; dst = x; } while (0)
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) { usage(stdout); exit(0); }
-        else if (!strcmp(a, "--version")) {
-            printf("wrt-play %s (.gto version %d)\n", WRT_VERSION_STRING, WRT_GTO_VERSION);
-            exit(0);
-        }
+        else if (!strcmp(a, "--version")) { wrt_cli_version(T); exit(0); }
         else if (!strcmp(a, "--headless")) o->headless = 1;
+        else if (!strcmp(a, "--no-overlay")) o->no_overlay = 1;
         else if (!strcmp(a, "--direct-only")) o->mode = WRT_MODE_DIRECT;
         else if (!strcmp(a, "--indirect-only")) o->mode = WRT_MODE_INDIRECT;
-        else if (!strcmp(a, "--out")) { NEED(); o->out = v; }
+        else if (!strcmp(a, "-o") || !strcmp(a, "--out")) { NEED(); o->out = v; }
         else if (!strcmp(a, "--script")) { NEED(); o->script = v; }
         else if (!strcmp(a, "--out-pattern")) { NEED(); o->pattern = v; }
         else if (!strcmp(a, "--stats-json")) { NEED(); o->stats = v; }
         else if (!strcmp(a, "--screenshot")) { NEED(); o->screenshot = v; }
-        else if (!strcmp(a, "--width")) { NEED(); if (!parse_num(v, 1, 16384, &x) || x != floor(x)) return bad(a, v); o->width = (int)x; }
-        else if (!strcmp(a, "--height")) { NEED(); if (!parse_num(v, 1, 16384, &x) || x != floor(x)) return bad(a, v); o->height = (int)x; }
-        else if (!strcmp(a, "--bench")) { NEED(); if (!parse_num(v, 1, 1e6, &x) || x != floor(x)) return bad(a, v); o->bench = (int)x; }
-        else if (!strcmp(a, "--frames")) { NEED(); if (!parse_num(v, 1, 1e9, &x) || x != floor(x)) return bad(a, v); o->frames = (int)x; }
-        else if (!strcmp(a, "--threads")) { NEED(); if (!parse_num(v, 0, 1024, &x) || x != floor(x)) return bad(a, v); o->threads = (int)x; }
-        else if (!strcmp(a, "--max-tex-res")) { NEED(); if (!parse_num(v, 1, 1024, &x) || x != floor(x)) return bad(a, v); o->max_tex_res = (int)x; }
-        else if (!strcmp(a, "--shadow-res")) { NEED(); if (!parse_num(v, 16, 8192, &x) || x != floor(x)) return bad(a, v); o->shadow_res = (int)x; }
-        else if (!strcmp(a, "--exposure")) { NEED(); if (!parse_num(v, -64, 64, &x)) return bad(a, v); o->exposure = (float)x; }
-        else if (!strcmp(a, "--script-fps")) { NEED(); if (!parse_num(v, 1e-3, 1e4, &x)) return bad(a, v); o->script_fps = x; }
-        else if (!strcmp(a, "--fov")) { NEED(); if (!parse_num(v, 1, 179, &x)) return bad(a, v); o->fov = x; o->has_fov = 1; }
-        else if (!strcmp(a, "--light-intensity")) { NEED(); if (!parse_num(v, 0, 1e30, &x)) return bad(a, v); o->light_int = x; o->has_light_int = 1; }
-        else if (!strcmp(a, "--light-pos")) { NEED(); if (!parse_vec(v, o->light_pos)) return bad(a, v); o->has_light_pos = 1; }
-        else if (!strcmp(a, "--light-dir")) { NEED(); if (!parse_vec(v, o->light_dir) || v3_len(v3(o->light_dir[0], o->light_dir[1], o->light_dir[2])) == 0) return bad(a, v); o->has_light_dir = 1; }
-        else if (!strcmp(a, "--camera-pos")) { NEED(); if (!parse_vec(v, o->cam_pos)) return bad(a, v); o->has_cam_pos = 1; }
-        else if (!strcmp(a, "--camera-target")) { NEED(); if (!parse_vec(v, o->cam_target)) return bad(a, v); o->has_cam_target = 1; }
-        else if (!strcmp(a, "--light-scale")) {
-            NEED();
-            char *end;
-            long li = strtol(v, &end, 10);
-            if (end == v || *end != '=' || li < 1 || li > WRT_RENDER_MAX_LIGHTS || !parse_num(end + 1, 0, 1e30, &x))
-                return bad(a, v);
-            o->scales[li - 1] = (float)x;
-        } else if (!strcmp(a, "--lights-off")) {
-            NEED();
-            const char *s = v;
-            for (;;) {
-                char *end;
-                long li = strtol(s, &end, 10);
-                if (end == s || li < 1 || li > WRT_RENDER_MAX_LIGHTS) return bad(a, v);
-                o->scales[li - 1] = 0;
-                if (*end == 0) break;
-                if (*end != ',') return bad(a, v);
-                s = end + 1;
-            }
-        } else if (a[0] == '-' && a[1]) {
+        else if (!strcmp(a, "--width")) INT(1, 16384, o->width);
+        else if (!strcmp(a, "--height")) INT(1, 16384, o->height);
+        else if (!strcmp(a, "--bench")) INT(1, 1000000, o->bench);
+        else if (!strcmp(a, "--frames")) INT(1, 1000000000, o->frames);
+        else if (!strcmp(a, "--threads")) INT(0, 1024, o->threads);
+        else if (!strcmp(a, "--max-tex-res")) INT(1, 1024, o->max_tex_res);
+        else if (!strcmp(a, "--shadow-res")) INT(16, 8192, o->shadow_res);
+        else if (!strcmp(a, "--msaa")) {
+            INT(1, 8, o->msaa);
+            if (o->msaa & (o->msaa - 1)) { fprintf(stderr, "wrt-play: bad value for --msaa: '%s' (1, 2, 4 or 8)\n", v); return 0; }
+        }
+        else if (!strcmp(a, "--exposure")) { double e; NUM(-64, 64, e); o->exposure = (float)e; }
+        else if (!strcmp(a, "--script-fps")) NUM(1e-3, 1e4, o->script_fps);
+        else if (!strcmp(a, "--fov")) { NUM(1, 179, o->fov); o->has_fov = 1; }
+        else if (!strcmp(a, "--camera-pos")) { if (!wrt_cli_vec3(T, a, v, o->cam_pos)) return 0; i++; o->has_cam_pos = 1; }
+        else if (!strcmp(a, "--camera-target")) { if (!wrt_cli_vec3(T, a, v, o->cam_target)) return 0; i++; o->has_cam_target = 1; }
+        else if (a[0] == '-' && a[1]) {
             fprintf(stderr, "wrt-play: unknown option %s (see --help)\n", a);
             return 0;
         } else if (!o->file) o->file = a;
@@ -186,11 +162,18 @@ static int parse_args(int argc, char **argv, options *o) {
             return 0;
         }
 #undef NEED
+#undef INT
+#undef NUM
     }
     if (!o->file) { fprintf(stderr, "wrt-play: no input file (see --help)\n"); return 0; }
+    if (o->has_cam_pos && o->has_cam_target && o->cam_pos[0] == o->cam_target[0] &&
+        o->cam_pos[1] == o->cam_target[1] && o->cam_pos[2] == o->cam_target[2]) {
+        fprintf(stderr, "wrt-play: --camera-pos equals --camera-target: the camera has no view direction\n");
+        return 0;
+    }
     if (o->script && !o->pattern) { fprintf(stderr, "wrt-play: --script needs --out-pattern\n"); return 0; }
     if (o->headless && !o->out && !o->script && !o->stats && !o->bench) {
-        fprintf(stderr, "wrt-play: --headless needs --out, --script, --stats-json or --bench\n");
+        fprintf(stderr, "wrt-play: --headless needs -o/--out, --script, --stats-json or --bench\n");
         return 0;
     }
     return 1;
@@ -224,7 +207,10 @@ static int format_frame(const char *pat, int frame, char *out, size_t n) {
 
 /* ---------------------------------------------------------------- the application */
 
-typedef struct stage_ms { double projection, multiply, brdf, synthesis, upload, draw, frame; } stage_ms;
+typedef struct stage_ms {
+    double projection, multiply, brdf, synthesis, upload, draw, frame;
+    int relit; /* the frame relit (a light or the eye moved) */
+} stage_ms;
 
 typedef struct app {
     options *o;
@@ -257,6 +243,7 @@ static int run_frame(app *a, stage_ms *t) {
         wrt_relight_set_lights(a->rl, a->lights, a->scales, n);
         wrt_relight_set_eye(a->rl, a->view.eye);
         int changed = wrt_relight_update(a->rl, &rt);
+        t->relit = changed > 0 || !a->relit_once;
         t->projection = rt.projection;
         t->multiply = rt.multiply;
         t->brdf = rt.brdf;
@@ -369,7 +356,10 @@ static void scene_up(const app *a, wrt_v3 *up) {
     if (!(v3_len(*up) > 0.5)) *up = v3(0, 1, 0);
 }
 
-static void setup_lights(app *a) {
+/* The light the command line's --light names (0-based), which scripts and --bench move. */
+static int chosen_light(const app *a) { return a->o->lights.which ? a->o->lights.which - 1 : 0; }
+
+static int setup_lights(app *a) {
     const options *o = a->o;
     a->nlights = (int)a->g.nlights;
     int need_default = a->nlights == 0;
@@ -394,14 +384,14 @@ static void setup_lights(app *a) {
         a->nlights = 1;
         wrt_log(WRT_LOG_WARN, "the file has no light: using a point light at (%g, %g, %g)", l->pos.x, l->pos.y, l->pos.z);
     }
-    wrt_light *l = &a->lights[0];
-    if (o->has_light_pos) l->pos = v3(o->light_pos[0], o->light_pos[1], o->light_pos[2]);
-    if (o->has_light_dir) l->dir = v3_norm(v3(o->light_dir[0], o->light_dir[1], o->light_dir[2]));
-    if (o->has_light_int) l->intensity = (float)o->light_int;
-    memcpy(a->scales, o->scales, sizeof a->scales);
+    float *sc = wrt_xmalloc((size_t)a->nlights * sizeof *sc);
+    int rc = wrt_cli_lights_apply(T, &o->lights, a->lights, a->nlights, sc);
+    for (int i = 0; i < WRT_RENDER_MAX_LIGHTS; i++) a->scales[i] = i < a->nlights ? sc[i] : 1;
+    free(sc);
+    return rc;
 }
 
-static void setup_view(app *a) {
+static int setup_view(app *a) {
     wrt_render_default_view(&a->g, &a->view);
     const options *o = a->o;
     if (o->has_cam_pos) {
@@ -414,6 +404,14 @@ static void setup_view(app *a) {
     }
     if (o->has_cam_target) memcpy(a->view.target, o->cam_target, sizeof a->view.target);
     if (o->has_fov) a->view.yfov = o->fov * WRT_PI / 180;
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) d2 += (a->view.target[k] - a->view.eye[k]) * (a->view.target[k] - a->view.eye[k]);
+    if (!(d2 > 0)) {
+        fprintf(stderr, "wrt-play: the camera's position (%g, %g, %g) equals its target: no view direction\n",
+                a->view.eye[0], a->view.eye[1], a->view.eye[2]);
+        return 0;
+    }
+    return 1;
 }
 
 /* ---------------------------------------------------------------- script */
@@ -432,12 +430,12 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
     keyframe cur;
     memset(&cur, 0, sizeof cur);
     for (int k = 0; k < 3; k++) {
-        cur.lpos[k] = (&a->lights[0].pos.x)[k];
-        cur.ldir[k] = (&a->lights[0].dir.x)[k];
+        cur.lpos[k] = (&a->lights[chosen_light(a)].pos.x)[k];
+        cur.ldir[k] = (&a->lights[chosen_light(a)].dir.x)[k];
         cur.cpos[k] = a->view.eye[k];
         cur.ctarget[k] = a->view.target[k];
     }
-    cur.lint = a->lights[0].intensity;
+    cur.lint = a->lights[chosen_light(a)].intensity;
     keyframe *kf = NULL;
     int n = 0, cap = 0, lineno = 0;
     char line[4096];
@@ -497,7 +495,7 @@ fail:
 }
 
 static void apply_keyframe(app *a, const keyframe *k0, const keyframe *k1, double s) {
-    wrt_light *l = &a->lights[0];
+    wrt_light *l = &a->lights[chosen_light(a)];
     double lp[3], ld[3];
     for (int k = 0; k < 3; k++) {
         lp[k] = k0->lpos[k] + (k1->lpos[k] - k0->lpos[k]) * s;
@@ -560,7 +558,7 @@ static int run_bench(app *a) {
     int n = a->o->bench;
     double *col[7];
     for (int k = 0; k < 7; k++) col[k] = wrt_xmalloc((size_t)n * sizeof(double));
-    wrt_light *l = &a->lights[0];
+    wrt_light *l = &a->lights[chosen_light(a)];
     wrt_v3 c = l->pos, up, e1, e2;
     scene_up(a, &up);
     e1 = v3_norm(v3_cross(up, fabs(up.x) < 0.9 ? v3(1, 0, 0) : v3(0, 0, 1)));
@@ -607,37 +605,304 @@ static int run_bench(app *a) {
 
 /* ---------------------------------------------------------------- window */
 
+/* The colours C cycles through; the first is the light's own colour from the file. */
+static const struct { const char *name; float rgb[3]; } colours[] = {
+    {"file", {1, 1, 1}}, {"white", {1, 1, 1}}, {"warm", {1.0f, 0.72f, 0.45f}}, {"cool", {0.62f, 0.78f, 1.0f}},
+    {"red", {1.0f, 0.25f, 0.2f}}, {"green", {0.3f, 1.0f, 0.35f}}, {"blue", {0.3f, 0.45f, 1.0f}},
+};
+#define NCOLOURS ((int)(sizeof colours / sizeof colours[0]))
+
+typedef struct win_state {
+    wrt_overlay *ov;
+    int sel, overlay_on;
+    float exposure;
+    float saved_scale[WRT_RENDER_MAX_LIGHTS]; /* what Space restores */
+    float file_colour[WRT_RENDER_MAX_LIGHTS][3];
+    int colour[WRT_RENDER_MAX_LIGHTS];
+    double box_lo[3], box_hi[3];              /* where lights may go */
+    double frame_ms, fps, last_draw;          /* smoothed; when the last frame was drawn */
+    stage_ms relight;                         /* the last frame that relit */
+    int relit_any;
+    char status[256];
+    double status_until;
+    int shots;
+} win_state;
+
+static int nshown(const app *a) { return a->nlights < WRT_RENDER_MAX_LIGHTS ? a->nlights : WRT_RENDER_MAX_LIGHTS; }
+
+/* Lights stay inside the scene's bounding box (grown to hold where the file puts them),
+ * so that no key drives a light out of reach. */
+static void light_bounds(app *a, win_state *w) {
+    wrt_render_scene_bounds(&a->g, w->box_lo, w->box_hi);
+    double size = v3_len(v3(w->box_hi[0] - w->box_lo[0], w->box_hi[1] - w->box_lo[1], w->box_hi[2] - w->box_lo[2]));
+    for (int k = 0; k < 3; k++) {
+        w->box_lo[k] += 1e-3 * size;
+        w->box_hi[k] -= 1e-3 * size;
+    }
+    for (int i = 0; i < a->nlights; i++)
+        for (int k = 0; k < 3; k++) {
+            double p = (&a->lights[i].pos.x)[k];
+            if (p < w->box_lo[k]) w->box_lo[k] = p;
+            if (p > w->box_hi[k]) w->box_hi[k] = p;
+        }
+}
+
+static void win_reset_lights(app *a, win_state *w) {
+    for (int i = 0; i < WRT_RENDER_MAX_LIGHTS; i++) {
+        w->saved_scale[i] = a->scales[i] != 0 ? a->scales[i] : 1;
+        w->colour[i] = 0;
+        if (i < a->nlights) memcpy(w->file_colour[i], a->lights[i].color, sizeof w->file_colour[i]);
+    }
+    if (w->sel >= nshown(a)) w->sel = 0;
+    light_bounds(a, w);
+}
+
+static void say(win_state *w, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void say(win_state *w, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(w->status, sizeof w->status, fmt, ap);
+    va_end(ap);
+    w->status_until = wrt_now() + 3;
+    fprintf(stderr, "wrt-play: %s\n", w->status);
+}
+
+static int save_window(app *a, const char *path) {
+    uint8_t *b = wrt_xmalloc((size_t)a->o->width * a->o->height * 3);
+    wrt_render_read_window(a->o->width, a->o->height, b);
+    wrt_status s = wrt_image_write_rgb8(path, b, a->o->width, a->o->height);
+    free(b);
+    if (s) fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+    return s ? EXIT_OUTPUT : 0;
+}
+
+/* F5: maps the file again (after a new bake) and rebuilds the relighting and the
+ * renderer; the camera stays, the lights too if the file has as many. */
+static int win_reload(app *a, win_state *w) {
+    wrt_gto g2;
+    wrt_status s = wrt_gto_open(a->o->file, &g2);
+    if (s) {
+        say(w, "reload failed, keeping the old file: %s", wrt_last_error());
+        return 0;
+    }
+    wrt_render_destroy(a->rd);
+    wrt_relight_destroy(a->rl);
+    a->rd = NULL;
+    a->rl = NULL;
+    int same_lights = g2.nlights == a->g.nlights;
+    wrt_gto_close(&a->g);
+    a->g = g2;
+    wrt_relight_options ro = {.max_tex_res = a->o->max_tex_res, .threads = a->o->threads};
+    if (wrt_relight_create(&a->g, &ro, &a->rl)) {
+        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        return EXIT_RUNTIME;
+    }
+    wrt_render_options rdo = {a->o->width, a->o->height, a->o->shadow_res, a->o->msaa};
+    if ((s = wrt_render_create(&a->g, &rdo, &a->rd))) {
+        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        return s == WRT_ERR_GL ? EXIT_GL : EXIT_RUNTIME;
+    }
+    a->relit_once = 0;
+    if (!same_lights) {
+        free(a->lights);
+        int rc = setup_lights(a);
+        if (rc) return rc;
+        win_reset_lights(a, w);
+    } else {
+        light_bounds(a, w);
+    }
+    say(w, "reloaded %s: %u quads, %u functions", a->o->file, a->g.nquads, a->g.nfuncs);
+    return 0;
+}
+
+static void draw_overlay(app *a, win_state *w) {
+    wrt_overlay *ov = w->ov;
+    int W = a->o->width, H = a->o->height, sc = W >= 1000 ? 2 : 1;
+    float ch = 9.0f * sc;
+    wrt_overlay_begin(ov, W, H);
+    static const float white[4] = {1, 1, 1, 1}, dim[4] = {0.7f, 0.7f, 0.7f, 1}, yellow[4] = {1, 0.85f, 0.2f, 1},
+                       panel[4] = {0, 0, 0, 0.6f}, black[4] = {0, 0, 0, 0.8f};
+    /* a marker at each light: a cross in its colour, a frame around the selected one,
+     * hollow and grey when it is off; its number beside it */
+    for (int i = 0; i < nshown(a); i++) {
+        double p[3] = {a->lights[i].pos.x, a->lights[i].pos.y, a->lights[i].pos.z}, px[2];
+        if (!wrt_render_project(a->rd, &a->view, p, px)) continue;
+        float x = (float)px[0], y = (float)px[1], r = 6.0f * sc;
+        int on = a->scales[i] != 0;
+        float c[4] = {a->lights[i].color[0], a->lights[i].color[1], a->lights[i].color[2], 1};
+        float m = fmaxf(c[0], fmaxf(c[1], c[2]));
+        for (int k = 0; k < 3; k++) c[k] = on ? (m > 0 ? 0.35f + 0.65f * c[k] / m : 1) : 0.45f;
+        if (i == w->sel) {
+            float t = 2.0f * sc, R = r + 4.0f * sc;
+            wrt_overlay_rect(ov, x - R, y - R, 2 * R, t, yellow);
+            wrt_overlay_rect(ov, x - R, y + R - t, 2 * R, t, yellow);
+            wrt_overlay_rect(ov, x - R, y - R, t, 2 * R, yellow);
+            wrt_overlay_rect(ov, x + R - t, y - R, t, 2 * R, yellow);
+        }
+        wrt_overlay_rect(ov, x - r - 1, y - 2.0f * sc, 2 * r + 2, 4.0f * sc, black);
+        wrt_overlay_rect(ov, x - 2.0f * sc, y - r - 1, 4.0f * sc, 2 * r + 2, black);
+        wrt_overlay_rect(ov, x - r, y - 1.0f * sc, 2 * r, 2.0f * sc, c);
+        wrt_overlay_rect(ov, x - 1.0f * sc, y - r, 2.0f * sc, 2 * r, c);
+        char num[8];
+        snprintf(num, sizeof num, "%d", i + 1);
+        wrt_overlay_rect(ov, x + r + 2, y - r - ch, 6.0f * sc * (float)strlen(num) + 2, ch, black);
+        wrt_overlay_text(ov, x + r + 3, y - r - ch, sc, i == w->sel ? yellow : white, num);
+    }
+    double now = wrt_now();
+    if (!w->overlay_on) {
+        const char *hint = w->status_until > now ? w->status : "H: help and lights";
+        float tw, th;
+        wrt_overlay_measure(hint, sc, &tw, &th);
+        wrt_overlay_rect(ov, 4, (float)H - th - 8, tw + 8, th + 4, panel);
+        wrt_overlay_text(ov, 8, (float)H - th - 6, sc, dim, hint);
+        wrt_overlay_draw(ov);
+        return;
+    }
+    char buf[8192];
+    size_t n = 0;
+#define ADD(...) n += (size_t)snprintf(buf + n, n < sizeof buf ? sizeof buf - n : 0, __VA_ARGS__)
+    const char *base = strrchr(a->o->file, '/');
+    ADD("WRT-PLAY  %s  %u quads  [%s]  exposure %+.1f EV  MSAA %dx\n", base ? base + 1 : a->o->file, a->g.nquads,
+        wrt_render_mode_name(a->mode), w->exposure, wrt_render_samples(a->rd));
+    ADD("%.1f fps  frame %.1f ms  draw %.1f ms", w->fps, w->frame_ms, w->relight.draw);
+    if (w->relit_any)
+        ADD("  last relight: proj %.1f mul %.1f brdf %.1f synth %.1f upload %.1f ms\n", w->relight.projection,
+            w->relight.multiply, w->relight.brdf, w->relight.synthesis, w->relight.upload);
+    else
+        ADD("\n");
+    ADD("\nLIGHTS  (Tab/1-9 select, Space on/off, +/- intensity, C colour)\n");
+    for (int i = 0; i < nshown(a); i++) {
+        const wrt_light *l = &a->lights[i];
+        ADD("%c %d %-5s %-16.16s %-3s %9.4g cd x%-5.3g (%.2f, %.2f, %.2f) %s\n", i == w->sel ? '>' : ' ', i + 1,
+            l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, a->scales[i] != 0 ? "on" : "OFF", l->intensity,
+            a->scales[i] != 0 ? a->scales[i] : w->saved_scale[i], l->pos.x, l->pos.y, l->pos.z,
+            colours[w->colour[i]].name);
+    }
+    if (a->nlights > WRT_RENDER_MAX_LIGHTS) ADD("  (%d more not shown)\n", a->nlights - WRT_RENDER_MAX_LIGHTS);
+    ADD("\nKEYS  mouse (left button) look   W A S D  Q E  move   Shift faster\n"
+        "      arrows / I J K L  U O  move the light   [ ] exposure   T both/direct/indirect\n"
+        "      R reset   F5 reload   F12 screenshot   P print options   H hide   Esc quit\n");
+    if (w->status_until > now) ADD("\n%s\n", w->status);
+#undef ADD
+    float tw, th;
+    wrt_overlay_measure(buf, sc, &tw, &th);
+    wrt_overlay_rect(ov, 4, 4, tw + 12, th + 8, panel);
+    /* the text, the selected light's line in yellow */
+    float y = 8;
+    char *line = buf;
+    int lineno = 0, first_light_line = 4;
+    while (line && *line) {
+        char *nl = strchr(line, '\n');
+        if (nl) *nl = 0;
+        int li = lineno - first_light_line;
+        int is_light = li >= 0 && li < nshown(a);
+        const float *col = is_light && li == w->sel ? yellow : lineno == 0 || is_light ? white : dim;
+        wrt_overlay_text(ov, 10, y, sc, col, line);
+        y += ch;
+        lineno++;
+        line = nl ? nl + 1 : NULL;
+    }
+    wrt_overlay_draw(ov);
+}
+
+static void win_title(app *a, win_state *w, int idle) {
+    char title[512];
+    const char *base = strrchr(a->o->file, '/');
+    if (idle)
+        snprintf(title, sizeof title, "wrt-play: %s [%s]", base ? base + 1 : a->o->file, wrt_render_mode_name(a->mode));
+    else
+        snprintf(title, sizeof title, "wrt-play: %s [%s] %.0f fps, %.1f ms/frame", base ? base + 1 : a->o->file,
+                 wrt_render_mode_name(a->mode), w->fps, w->frame_ms);
+    a->plat->set_title(a->plat, title);
+}
+
 static int run_window(app *a) {
     wrt_platform *p = a->plat;
+    win_state w;
+    memset(&w, 0, sizeof w);
+    w.overlay_on = !a->o->no_overlay;
+    w.exposure = a->o->exposure;
+    w.sel = chosen_light(a) < nshown(a) ? chosen_light(a) : 0;
+    if (wrt_overlay_create(&w.ov)) {
+        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        return EXIT_GL;
+    }
+    win_reset_lights(a, &w);
     double lo[3], hi[3];
     wrt_render_scene_bounds(&a->g, lo, hi);
     double size = v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
     wrt_v3 up;
     scene_up(a, &up);
     double last = wrt_now(), title_at = 0;
-    int frame = 0, rc = 0;
+    int frame = 0, rc = 0, was_idle = -1, dirty = 1;
     stage_ms t;
     memset(&t, 0, sizeof t);
     for (;;) {
         wrt_input in;
         p->poll(p, &in);
-        if (in.close_requested || in.down[WRT_KEY_ESCAPE]) break;
+        if (in.close_requested) break;
         double now = wrt_now(), dt = fmin(now - last, 0.1);
         last = now;
         double speed = size * 0.3 * dt * (in.down[WRT_KEY_SHIFT] ? 4 : 1);
-        /* camera: mouse look, WASD QE */
+        int quit = 0, shot = 0, changed = in.nevents > 0 || in.mouse_dx != 0 || in.mouse_dy != 0;
+        wrt_light *sl = &a->lights[w.sel];
+        /* key presses, in order */
+        for (int e = 0; e < in.nevents; e++) {
+            int k = in.events[e].key;
+            if (k == WRT_KEY_ESCAPE) quit = 1;
+            else if (k == WRT_KEY_TAB && !in.events[e].repeat)
+                w.sel = (w.sel + (in.events[e].shift ? nshown(a) - 1 : 1)) % nshown(a);
+            else if (k >= WRT_KEY_1 && k <= WRT_KEY_9) {
+                int i = k - WRT_KEY_1;
+                if (i < nshown(a)) w.sel = i;
+                else say(&w, "there is no light %d (the file has %d)", i + 1, a->nlights);
+            } else if (k == WRT_KEY_SPACE && !in.events[e].repeat) {
+                if (a->scales[w.sel] != 0) { w.saved_scale[w.sel] = a->scales[w.sel]; a->scales[w.sel] = 0; }
+                else a->scales[w.sel] = w.saved_scale[w.sel] != 0 ? w.saved_scale[w.sel] : 1;
+            } else if (k == WRT_KEY_PLUS || k == WRT_KEY_MINUS) {
+                float f = k == WRT_KEY_PLUS ? 1.25f : 0.8f;
+                if (a->scales[w.sel] != 0) a->scales[w.sel] = fminf(fmaxf(a->scales[w.sel] * f, 1e-4f), 1e4f);
+                else w.saved_scale[w.sel] = fminf(fmaxf(w.saved_scale[w.sel] * f, 1e-4f), 1e4f);
+            } else if (k == WRT_KEY_C && !in.events[e].repeat) {
+                int c = (w.colour[w.sel] + 1) % NCOLOURS;
+                w.colour[w.sel] = c;
+                memcpy(sl->color, c == 0 ? w.file_colour[w.sel] : colours[c].rgb, sizeof sl->color);
+            } else if (k == WRT_KEY_LBRACKET) w.exposure = fmaxf(w.exposure - 0.5f, -20);
+            else if (k == WRT_KEY_RBRACKET) w.exposure = fminf(w.exposure + 0.5f, 20);
+            else if (k == WRT_KEY_T && !in.events[e].repeat) a->mode = (wrt_render_mode)((a->mode + 1) % WRT_MODE_COUNT);
+            else if ((k == WRT_KEY_H || k == WRT_KEY_F1) && !in.events[e].repeat) w.overlay_on = !w.overlay_on;
+            else if (k == WRT_KEY_R && !in.events[e].repeat) {
+                (void)setup_view(a); /* checked at start */
+                free(a->lights);
+                if ((rc = setup_lights(a))) break;
+                win_reset_lights(a, &w);
+                w.exposure = a->o->exposure;
+                a->mode = a->o->mode;
+                say(&w, "view, lights and exposure reset");
+            } else if (k == WRT_KEY_F5 && !in.events[e].repeat) {
+                if ((rc = win_reload(a, &w))) break;
+            } else if (k == WRT_KEY_F12 && !in.events[e].repeat) shot = 1;
+            else if (k == WRT_KEY_P && !in.events[e].repeat) {
+                const wrt_light *l = &a->lights[w.sel];
+                printf("--camera-pos %.6g,%.6g,%.6g --camera-target %.6g,%.6g,%.6g --light %d --light-pos %.6g,%.6g,%.6g\n",
+                       a->view.eye[0], a->view.eye[1], a->view.eye[2], a->view.target[0], a->view.target[1],
+                       a->view.target[2], w.sel + 1, l->pos.x, l->pos.y, l->pos.z);
+                fflush(stdout);
+            }
+            sl = &a->lights[w.sel];
+        }
+        if (rc || quit) break;
+        /* camera: mouse look, W A S D Q E held */
         wrt_v3 eye = v3(a->view.eye[0], a->view.eye[1], a->view.eye[2]);
         wrt_v3 fwd = v3_norm(v3_sub(v3(a->view.target[0], a->view.target[1], a->view.target[2]), eye));
         if (in.mouse_dx != 0 || in.mouse_dy != 0) {
             double yaw = -in.mouse_dx * 0.004, pitch = -in.mouse_dy * 0.004;
-            wrt_v3 right = v3_norm(v3_cross(fwd, up));
             /* rotate about up (yaw), then about right (pitch), keeping away from the poles */
             wrt_v3 f1 = v3_add(v3_scale(fwd, cos(yaw)), v3_scale(v3_cross(up, fwd), sin(yaw)));
             f1 = v3_add(f1, v3_scale(up, v3_dot(up, fwd) * (1 - cos(yaw))));
             wrt_v3 right1 = v3_norm(v3_cross(f1, up));
             wrt_v3 f2 = v3_norm(v3_add(v3_scale(f1, cos(pitch)), v3_scale(v3_cross(right1, f1), sin(pitch))));
             if (fabs(v3_dot(f2, up)) < 0.98) fwd = f2; else fwd = v3_norm(f1);
-            (void)right;
         }
         wrt_v3 right = v3_norm(v3_cross(fwd, up));
         wrt_v3 move = v3(0, 0, 0);
@@ -647,11 +912,12 @@ static int run_window(app *a) {
         if (in.down[WRT_KEY_A]) move = v3_sub(move, right);
         if (in.down[WRT_KEY_E]) move = v3_add(move, up);
         if (in.down[WRT_KEY_Q]) move = v3_sub(move, up);
+        changed |= v3_len(move) > 0;
         eye = v3_mad(eye, move, speed);
         wrt_v3 target = v3_add(eye, fwd);
         a->view.eye[0] = eye.x; a->view.eye[1] = eye.y; a->view.eye[2] = eye.z;
         a->view.target[0] = target.x; a->view.target[1] = target.y; a->view.target[2] = target.z;
-        /* light 1: arrows / IJKL horizontally (relative to the view), U O vertically */
+        /* the selected light: arrows / I J K L horizontally (relative to the view), U O vertically */
         wrt_v3 hf = v3_norm(v3_sub(fwd, v3_scale(up, v3_dot(fwd, up))));
         wrt_v3 lm = v3(0, 0, 0);
         if (in.down[WRT_KEY_UP] || in.down[WRT_KEY_I]) lm = v3_add(lm, hf);
@@ -660,50 +926,56 @@ static int run_window(app *a) {
         if (in.down[WRT_KEY_LEFT] || in.down[WRT_KEY_J]) lm = v3_sub(lm, right);
         if (in.down[WRT_KEY_O]) lm = v3_add(lm, up);
         if (in.down[WRT_KEY_U]) lm = v3_sub(lm, up);
-        a->lights[0].pos = v3_mad(a->lights[0].pos, lm, speed * 0.5);
-        for (int i = 0; i < 9; i++)
-            if (in.pressed[WRT_KEY_1 + i] && i < a->nlights && i < WRT_RENDER_MAX_LIGHTS)
-                a->scales[i] = a->scales[i] != 0 ? 0.0f : (a->o->scales[i] != 0 ? a->o->scales[i] : 1.0f);
-        if (in.pressed[WRT_KEY_T]) a->mode = (wrt_render_mode)((a->mode + 1) % WRT_MODE_COUNT);
-        if (in.pressed[WRT_KEY_P]) {
-            const wrt_light *l = &a->lights[0];
-            printf("--camera-pos %.6g,%.6g,%.6g --camera-target %.6g,%.6g,%.6g --light-pos %.6g,%.6g,%.6g\n",
-                   eye.x, eye.y, eye.z, target.x, target.y, target.z, l->pos.x, l->pos.y, l->pos.z);
-            fflush(stdout);
+        if (v3_len(lm) > 0) {
+            changed = 1;
+            wrt_v3 np = v3_mad(sl->pos, lm, fmax(speed, size * 0.005) * 0.5);
+            double c[3] = {np.x, np.y, np.z};
+            for (int k = 0; k < 3; k++) c[k] = fmin(fmax(c[k], w.box_lo[k]), w.box_hi[k]);
+            sl->pos = v3(c[0], c[1], c[2]);
         }
         if (p->fb_width > 0 && p->fb_height > 0 &&
             (p->fb_width != a->o->width || p->fb_height != a->o->height)) {
             if (wrt_render_resize(a->rd, p->fb_width, p->fb_height) == WRT_OK) {
                 a->o->width = p->fb_width;
                 a->o->height = p->fb_height;
+                changed = 1;
             }
         }
+        int idle = !changed && !dirty && w.status_until < now;
+        if (idle && was_idle == 1 && !(a->o->frames > 0)) {
+            /* nothing moves: sleep until an event (at most 0.1 s), no frames drawn */
+            if (p->wait) p->wait(p, 0.1);
+            continue;
+        }
+        dirty = 0;
         if ((rc = run_frame(a, &t))) break;
-        wrt_render_present(a->rd, a->o->width, a->o->height, a->o->exposure);
+        if (t.relit) { w.relight = t; w.relit_any = 1; }
+        w.relight.draw = t.draw;
+        w.frame_ms = w.frame_ms > 0 ? 0.8 * w.frame_ms + 0.2 * t.frame : t.frame;
+        /* frames per second over the frames drawn in a row (an idle pause restarts it) */
+        double since = now - w.last_draw;
+        if (was_idle == 0 && since > 0) w.fps = w.fps > 0 ? 0.8 * w.fps + 0.2 / since : 1 / since;
+        w.last_draw = now;
+        wrt_render_present(a->rd, a->o->width, a->o->height, w.exposure);
+        draw_overlay(a, &w);
         frame++;
         int last_frame = a->o->frames > 0 && frame >= a->o->frames;
-        if (last_frame && a->o->screenshot) {
-            uint8_t *b = wrt_xmalloc((size_t)a->o->width * a->o->height * 3);
-            wrt_render_read_window(a->o->width, a->o->height, b);
-            wrt_status s = wrt_image_write_rgb8(a->o->screenshot, b, a->o->width, a->o->height);
-            free(b);
-            if (s) {
-                fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
-                rc = EXIT_OUTPUT;
-            }
+        if (last_frame && a->o->screenshot) rc = save_window(a, a->o->screenshot);
+        if (shot) {
+            char path[64];
+            do snprintf(path, sizeof path, "wrt-play-%04d.png", ++w.shots);
+            while (access(path, F_OK) == 0 && w.shots < 9999);
+            if (save_window(a, path) == 0) say(&w, "saved %s", path);
         }
         p->swap(p);
-        if (now - title_at > 0.25 || last_frame) {
-            char title[512];
-            snprintf(title, sizeof title,
-                     "wrt-play [%s] %.1f ms/frame: proj %.2f mul %.2f brdf %.2f synth %.2f upload %.2f draw %.2f",
-                     wrt_render_mode_name(a->mode), t.frame, t.projection, t.multiply, t.brdf, t.synthesis,
-                     t.upload, t.draw);
-            p->set_title(p, title);
+        if (now - title_at > 0.25 || last_frame || was_idle != idle) {
+            win_title(a, &w, idle);
             title_at = now;
         }
+        was_idle = idle;
         if (last_frame || rc) break;
     }
+    wrt_overlay_destroy(w.ov);
     return rc;
 }
 
@@ -727,11 +999,19 @@ int main(int argc, char **argv) {
         fprintf(stderr, "wrt-play: %s: %s: %s\n", o.file, wrt_status_str(s), wrt_last_error());
         return EXIT_INPUT;
     }
-    int rc = 0;
+    /* the view and the lights first: a light the file does not have is refused before
+     * any window opens */
+    int rc = setup_view(&a) ? setup_lights(&a) : EXIT_USAGE;
+    if (rc) {
+        free(a.lights);
+        wrt_gto_close(&a.g);
+        return rc;
+    }
     if (o.headless) s = wrt_platform_egl_create(&a.plat);
     else s = wrt_platform_glfw_create(o.width, o.height, "wrt-play", &a.plat);
     if (s) {
         fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        free(a.lights);
         wrt_gto_close(&a.g);
         return EXIT_GL;
     }
@@ -745,14 +1025,12 @@ int main(int argc, char **argv) {
         rc = EXIT_RUNTIME;
         goto done;
     }
-    wrt_render_options rdo = {o.width, o.height, o.shadow_res};
+    wrt_render_options rdo = {o.width, o.height, o.shadow_res, o.msaa};
     if ((s = wrt_render_create(&a.g, &rdo, &a.rd))) {
         fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         rc = s == WRT_ERR_GL ? EXIT_GL : EXIT_USAGE;
         goto done;
     }
-    setup_view(&a);
-    setup_lights(&a);
     if (a.nlights > WRT_RENDER_MAX_LIGHTS)
         wrt_log(WRT_LOG_WARN, "%d lights: only the first %d are used", a.nlights, WRT_RENDER_MAX_LIGHTS);
 
@@ -770,9 +1048,9 @@ int main(int argc, char **argv) {
     }
     if (o.out || o.stats) {
         if (o.bench || o.script) { /* back to the command line's camera and lights */
-            setup_view(&a);
+            (void)setup_view(&a); /* checked above */
             free(a.lights);
-            setup_lights(&a);
+            if ((rc = setup_lights(&a))) goto done;
         }
         stage_ms t;
         if ((rc = run_frame(&a, &t))) goto done;

@@ -1,6 +1,7 @@
 /* platform_glfw.c: the window backend of platform.h. A GLFW window (X11) with an
- * OpenGL 4.5 core context, vsync off, and the keyboard and mouse state the player's
- * camera and light controls read. Depends on GLFW 3.3 and wrt_common. */
+ * OpenGL 4.5 core context, vsync off, key presses queued by GLFW's key callback (as
+ * events, so that taps shorter than a frame are kept) and the held keys and mouse
+ * motion the player's camera and light controls read. Depends on GLFW 3.3 and wrt_common. */
 #include "platform.h"
 
 #include <GLFW/glfw3.h>
@@ -11,7 +12,9 @@
 typedef struct glfw_platform {
     wrt_platform base;
     GLFWwindow *win;
-    unsigned char prev[WRT_KEY_COUNT];
+    wrt_key_event queue[WRT_MAX_EVENTS];
+    int nqueue;
+    unsigned char tapped[WRT_KEY_COUNT]; /* went down since the last poll */
     double mx, my;
     int have_mouse;
 } glfw_platform;
@@ -28,17 +31,50 @@ static const int key_map[WRT_KEY_COUNT] = {
     [WRT_KEY_1] = GLFW_KEY_1, [WRT_KEY_2] = GLFW_KEY_2, [WRT_KEY_3] = GLFW_KEY_3,
     [WRT_KEY_4] = GLFW_KEY_4, [WRT_KEY_5] = GLFW_KEY_5, [WRT_KEY_6] = GLFW_KEY_6,
     [WRT_KEY_7] = GLFW_KEY_7, [WRT_KEY_8] = GLFW_KEY_8, [WRT_KEY_9] = GLFW_KEY_9,
+    [WRT_KEY_TAB] = GLFW_KEY_TAB, [WRT_KEY_SPACE] = GLFW_KEY_SPACE, [WRT_KEY_PLUS] = GLFW_KEY_EQUAL,
+    [WRT_KEY_MINUS] = GLFW_KEY_MINUS, [WRT_KEY_C] = GLFW_KEY_C, [WRT_KEY_R] = GLFW_KEY_R,
+    [WRT_KEY_H] = GLFW_KEY_H, [WRT_KEY_LBRACKET] = GLFW_KEY_LEFT_BRACKET,
+    [WRT_KEY_RBRACKET] = GLFW_KEY_RIGHT_BRACKET, [WRT_KEY_F1] = GLFW_KEY_F1, [WRT_KEY_F5] = GLFW_KEY_F5,
+    [WRT_KEY_F12] = GLFW_KEY_F12,
 };
+
+/* GLFW key -> ours (the keypad's + and -, the right Shift, count as the main ones). */
+static int our_key(int key) {
+    if (key == GLFW_KEY_KP_ADD) return WRT_KEY_PLUS;
+    if (key == GLFW_KEY_KP_SUBTRACT) return WRT_KEY_MINUS;
+    if (key == GLFW_KEY_RIGHT_SHIFT) return WRT_KEY_SHIFT;
+    for (int k = 0; k < WRT_KEY_COUNT; k++)
+        if (key_map[k] == key) return k;
+    return -1;
+}
+
+static void on_key(GLFWwindow *win, int key, int scancode, int action, int mods) {
+    (void)scancode;
+    glfw_platform *g = glfwGetWindowUserPointer(win);
+    int k = our_key(key);
+    if (!g || k < 0 || action == GLFW_RELEASE) return;
+    if (action == GLFW_PRESS) g->tapped[k] = 1;
+    if (g->nqueue < WRT_MAX_EVENTS) {
+        wrt_key_event *e = &g->queue[g->nqueue++];
+        e->key = k;
+        e->shift = (mods & GLFW_MOD_SHIFT) != 0;
+        e->repeat = action == GLFW_REPEAT;
+    }
+}
 
 static void glfw_poll(wrt_platform *p, wrt_input *in) {
     glfw_platform *g = (glfw_platform *)p;
     memset(in, 0, sizeof *in);
     glfwPollEvents();
+    memcpy(in->events, g->queue, (size_t)g->nqueue * sizeof *g->queue);
+    in->nevents = g->nqueue;
+    g->nqueue = 0;
     for (int k = 0; k < WRT_KEY_COUNT; k++) {
-        in->down[k] = glfwGetKey(g->win, key_map[k]) == GLFW_PRESS;
-        in->pressed[k] = in->down[k] && !g->prev[k];
-        g->prev[k] = in->down[k];
+        /* a key tapped and released between two polls still moves for one frame */
+        in->down[k] = glfwGetKey(g->win, key_map[k]) == GLFW_PRESS || g->tapped[k];
+        g->tapped[k] = 0;
     }
+    if (glfwGetKey(g->win, GLFW_KEY_RIGHT_SHIFT) == GLFW_PRESS) in->down[WRT_KEY_SHIFT] = 1;
     double x, y;
     glfwGetCursorPos(g->win, &x, &y);
     if (glfwGetMouseButton(g->win, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
@@ -51,6 +87,11 @@ static void glfw_poll(wrt_platform *p, wrt_input *in) {
     g->my = y;
     in->close_requested = glfwWindowShouldClose(g->win);
     glfwGetFramebufferSize(g->win, &p->fb_width, &p->fb_height);
+}
+
+static void glfw_wait(wrt_platform *p, double seconds) {
+    (void)p;
+    glfwWaitEventsTimeout(seconds);
 }
 
 static void glfw_swap(wrt_platform *p) { glfwSwapBuffers(((glfw_platform *)p)->win); }
@@ -91,9 +132,12 @@ wrt_status wrt_platform_glfw_create(int width, int height, const char *title, wr
     glfwSwapInterval(0);
     glfw_platform *g = wrt_xcalloc(1, sizeof *g);
     g->win = win;
+    glfwSetWindowUserPointer(win, g);
+    glfwSetKeyCallback(win, on_key);
     g->base.name = "glfw";
     g->base.has_window = 1;
     g->base.poll = glfw_poll;
+    g->base.wait = glfw_wait;
     g->base.swap = glfw_swap;
     g->base.set_title = glfw_set_title;
     g->base.destroy = glfw_destroy;

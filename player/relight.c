@@ -45,6 +45,7 @@
 
 #include "../common/basis.h"
 #include "../common/brdf.h"
+#include "../common/brdf_table.h"
 #include "reconstruct.h"
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
@@ -53,8 +54,7 @@
 #define PROJ_MIN_LEVEL 3     /* every quad is sampled on at least 8 x 8 cells (if it has them) */
 #define ANG_LEVELS 4         /* angular node levels 0..3 (basis.h: 2 bits of level) */
 #define NANG 256             /* angular functions over node levels 0..3: 4^ANG_LEVELS */
-#define BETA_RES 16          /* beta table: 16 x 16 outgoing directions */
-#define BETA_QUAD 64         /* quadrature: 64 x 64 incident directions */
+#define BETA_RES WRT_BRDF_TABLE_RES /* beta table: common/brdf_table.h, shared with the bake */
 #define FN_INVALID 255       /* fn_slevel of a key that is not a basis function */
 #define PRUNE_REL 1e-3       /* glossy synthesis: skip |beta_g| < PRUNE_REL beta_root */
 
@@ -792,36 +792,6 @@ static void project_light(wrt_relight *r, light_state *ls) {
 
 /* ------------------------------------------------------------ BRDF table ---- */
 
-typedef struct beta_ctx { int mat; } beta_ctx;
-
-/* One outgoing direction (item = cell of the 16 x 16 table) of material ctx->mat:
- * beta_g(w_o) = pi * integral over [0,1]^2 of f_r(M(a,b), w_o) g(a,b) da db for every
- * angular function g of node levels 0..3, by the midpoint rule on 64 x 64 points. */
-static void beta_cell(wrt_relight *r, worker *w, int item, void *vctx) {
-    beta_ctx *ctx = vctx;
-    const wrt_material *m = &r->mats[ctx->mat];
-    int oi = item % BETA_RES, oj = item / BETA_RES;
-    double wo[3];
-    wrt_concentric_dir((oi + 0.5) / BETA_RES, (oj + 0.5) / BETA_RES, wo);
-    int Lc = ANG_LEVELS, nc = 1 << Lc, per = BETA_QUAD / nc;
-    w->grid = grow(w->grid, &w->grid_cap, (size_t)nc * nc * 3, sizeof(double));
-    w->pyr = grow(w->pyr, &w->pyr_cap, (size_t)nc * nc * 3, sizeof(double));
-    memset(w->grid, 0, (size_t)nc * nc * 3 * sizeof(double));
-    wrt_v3 n = v3(0, 0, 1), vo = v3(wo[0], wo[1], wo[2]);
-    double scale = 1.0 / (per * per) / nc; /* cell average x 2^-Lc */
-    for (int j = 0; j < BETA_QUAD; j++)
-        for (int i = 0; i < BETA_QUAD; i++) {
-            double wi[3], f[3];
-            wrt_concentric_dir((i + 0.5) / BETA_QUAD, (j + 0.5) / BETA_QUAD, wi);
-            wrt_brdf_eval(m, n, v3(wi[0], wi[1], wi[2]), vo, f);
-            size_t cell = (size_t)(j / per) * nc + (size_t)(i / per);
-            for (int c = 0; c < 3; c++) w->grid[cell * 3 + c] += f[c] * scale;
-        }
-    haar_analyse(w->grid, Lc, 3, w->pyr);
-    float *out = r->beta[ctx->mat] + (size_t)item * NANG * 3;
-    for (int k = 0; k < NANG * 3; k++) out[k] = (float)(WRT_PI * w->pyr[k]);
-}
-
 int wrt_relight_beta(const wrt_relight *r, int material, double a_o, double b_o, int ang, double out[3]) {
     out[0] = out[1] = out[2] = 0;
     if (material < 0 || material >= (int)r->g->nmaterials || !r->beta[material] || ang < 0 || ang >= NANG) return 0;
@@ -1344,8 +1314,7 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     for (uint32_t m = 0; m < g->nmaterials; m++) {
         if (!material_used_glossy(r, m)) continue;
         r->beta[m] = wrt_xmalloc((size_t)BETA_RES * BETA_RES * NANG * 3 * sizeof(float));
-        beta_ctx bc = {(int)m};
-        parallel_for(r, BETA_RES * BETA_RES, 1e9, beta_cell, &bc);
+        wrt_brdf_table_build(&r->mats[m], r->nthreads, r->beta[m]);
     }
     *out = r;
     return WRT_OK;

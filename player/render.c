@@ -12,6 +12,8 @@
 #define GL_GLEXT_PROTOTYPES 1
 #include "render.h"
 
+#include "../cli/cli.h"
+
 #include <GL/glcorearb.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -169,6 +171,8 @@ struct wrt_render {
     GLuint prog_scene, prog_shadow, prog_present;
     GLuint vao, vbo_geom, vbo_rect, ibo, vao_empty;
     GLuint fbo, color, depth;
+    int samples;             /* MSAA samples; > 1: draw into ms_fbo, resolve into fbo */
+    GLuint ms_fbo, ms_color, ms_depth;
     GLuint shadow_tex, shadow_fbo;
     int shadow_res, shadow_layers;
     int nlights;
@@ -397,6 +401,27 @@ static wrt_status make_fbo(wrt_render *r) {
         glDeleteTextures(1, &r->color);
         glDeleteTextures(1, &r->depth);
     }
+    if (r->ms_fbo) {
+        glDeleteFramebuffers(1, &r->ms_fbo);
+        glDeleteTextures(1, &r->ms_color);
+        glDeleteTextures(1, &r->ms_depth);
+        r->ms_fbo = 0;
+    }
+    if (r->samples > 1) {
+        /* the multisampled picture, resolved (averaged per pixel: a box filter of the
+         * linear radiance) into the single-sampled one after each draw */
+        glCreateTextures(GL_TEXTURE_2D_MULTISAMPLE, 1, &r->ms_color);
+        glTextureStorage2DMultisample(r->ms_color, r->samples, GL_RGBA32F, r->width, r->height, GL_TRUE);
+        glCreateTextures(GL_TEXTURE_2D_MULTISAMPLE, 1, &r->ms_depth);
+        glTextureStorage2DMultisample(r->ms_depth, r->samples, GL_DEPTH_COMPONENT32F, r->width, r->height, GL_TRUE);
+        glCreateFramebuffers(1, &r->ms_fbo);
+        glNamedFramebufferTexture(r->ms_fbo, GL_COLOR_ATTACHMENT0, r->ms_color, 0);
+        glNamedFramebufferTexture(r->ms_fbo, GL_DEPTH_ATTACHMENT, r->ms_depth, 0);
+        GLenum st = glCheckNamedFramebufferStatus(r->ms_fbo, GL_FRAMEBUFFER);
+        if (st != GL_FRAMEBUFFER_COMPLETE)
+            return wrt_fail(WRT_ERR_GL, "%d-sample float framebuffer %dx%d incomplete (0x%x)", r->samples, r->width,
+                            r->height, st);
+    }
     glCreateTextures(GL_TEXTURE_2D, 1, &r->color);
     glTextureStorage2D(r->color, 1, GL_RGBA32F, r->width, r->height);
     glTextureParameteri(r->color, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
@@ -445,6 +470,12 @@ wrt_status wrt_render_create(const wrt_gto *g, const wrt_render_options *opt, wr
     r->width = w;
     r->height = h;
     r->shadow_res = opt && opt->shadow_res > 0 ? opt->shadow_res : 512;
+    r->samples = opt && opt->msaa > 1 ? opt->msaa : 1;
+    if (r->samples > 1) {
+        GLint maxs = 1;
+        glGetIntegerv(GL_MAX_SAMPLES, &maxs);
+        if (r->samples > maxs) r->samples = maxs > 1 ? maxs : 1;
+    }
     double lo[3], hi[3], d2 = 0;
     wrt_render_scene_bounds(g, lo, hi);
     for (int k = 0; k < 3; k++) {
@@ -491,6 +522,9 @@ void wrt_render_destroy(wrt_render *r) {
     glDeleteFramebuffers(1, &r->shadow_fbo);
     glDeleteTextures(1, &r->color);
     glDeleteTextures(1, &r->depth);
+    glDeleteFramebuffers(1, &r->ms_fbo);
+    glDeleteTextures(1, &r->ms_color);
+    glDeleteTextures(1, &r->ms_depth);
     glDeleteTextures(1, &r->shadow_tex);
     glDeleteTextures(1, &r->atlas);
     if (r->tex)
@@ -696,10 +730,9 @@ int wrt_render_upload(wrt_render *r) {
 
 /* ---------------------------------------------------------------- drawing */
 
-void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode) {
-    if (r->layout_dirty) wrt_render_upload(r);
-    draw_shadow_maps(r);
-    double eye[3], at[3], view[16], proj[16], vp[16];
+/* The view-projection matrix of v (positions relative to r->origin) and the eye. */
+static void view_projection(const wrt_render *r, const wrt_view *v, double vp[16], double eye[3]) {
+    double at[3], view[16], proj[16];
     for (int k = 0; k < 3; k++) {
         eye[k] = v->eye[k] - r->origin[k];
         at[k] = v->target[k] - r->origin[k];
@@ -710,17 +743,42 @@ void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode) {
     mat_look_at(eye, at, v->up, view);
     mat_perspective(v->yfov > 0 ? v->yfov : WRT_PI / 4, (double)r->width / r->height, zn, zf, proj);
     mat_mul(proj, view, vp);
+}
+
+int wrt_render_project(const wrt_render *r, const wrt_view *v, const double p[3], double px[2]) {
+    double vp[16], eye[3], q[4];
+    view_projection(r, v, vp, eye);
+    double x[4] = {p[0] - r->origin[0], p[1] - r->origin[1], p[2] - r->origin[2], 1};
+    for (int i = 0; i < 4; i++) q[i] = vp[i] * x[0] + vp[4 + i] * x[1] + vp[8 + i] * x[2] + vp[12 + i] * x[3];
+    if (!(q[3] > 1e-9)) return 0;
+    px[0] = (q[0] / q[3] * 0.5 + 0.5) * r->width;
+    px[1] = (0.5 - q[1] / q[3] * 0.5) * r->height;
+    return 1;
+}
+
+int wrt_render_samples(const wrt_render *r) { return r->samples; }
+
+void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode) {
+    if (r->layout_dirty) wrt_render_upload(r);
+    draw_shadow_maps(r);
+    double eye[3], vp[16];
+    view_projection(r, v, vp, eye);
     float vpf[16];
     mat_to_float(vp, vpf);
 
-    glBindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, r->ms_fbo ? r->ms_fbo : r->fbo);
     glDrawBuffer(GL_COLOR_ATTACHMENT0);
     glViewport(0, 0, r->width, r->height);
     glClearColor(0, 0, 0, 1);
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_LESS);
-    glDisable(GL_CULL_FACE);
+    /* Quads are one-sided (glTF: back faces of a single-sided material are culled); a
+     * doubleSided quad arrives as two back-to-back quads, 1e-4 of the scene apart, which
+     * the depth buffer alone could not order. Counter-clockwise about the normal. */
+    glEnable(GL_CULL_FACE);
+    glCullFace(GL_BACK);
+    glFrontFace(GL_CCW);
     GLuint p = r->prog_scene;
     glUseProgram(p);
     glUniformMatrix4fv(loc(p, "u_vp"), 1, GL_FALSE, vpf);
@@ -762,6 +820,9 @@ void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode) {
     glUniform2f(loc(p, "u_atlas_size"), (float)(r->atlas_w ? r->atlas_w : 1), (float)(r->atlas_h ? r->atlas_h : 1));
     glBindVertexArray(r->vao);
     glDrawElements(GL_TRIANGLES, (GLsizei)(r->g->nquads * 6), GL_UNSIGNED_INT, NULL);
+    if (r->ms_fbo)
+        glBlitNamedFramebuffer(r->ms_fbo, r->fbo, 0, 0, r->width, r->height, 0, 0, r->width, r->height,
+                               GL_COLOR_BUFFER_BIT, GL_NEAREST);
 }
 
 void wrt_render_present(wrt_render *r, int fb_w, int fb_h, float exposure_ev) {
@@ -799,17 +860,6 @@ void wrt_render_read_window(int fb_w, int fb_h, uint8_t *rgb) {
     free(tmp);
 }
 
-static float srgb_encode(float x) {
-    return x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
-}
-
 void wrt_render_tonemap(const float *rgb, size_t npixels, float exposure_ev, uint8_t *out) {
-    float s = exp2f(exposure_ev);
-    for (size_t i = 0; i < npixels * 3; i++) {
-        float x = rgb[i] * s;
-        if (!(x > 0)) x = 0; /* also NaN */
-        x = x / (1 + x);
-        float e = srgb_encode(x) * 255.0f + 0.5f;
-        out[i] = (uint8_t)(e > 255 ? 255 : e);
-    }
+    wrt_tonemap_rgb8(rgb, npixels, exposure_ev, out);
 }

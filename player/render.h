@@ -33,6 +33,8 @@ typedef struct wrt_view {
 typedef struct wrt_render_options {
     int width, height;  /* size of the picture (framebuffer object) */
     int shadow_res;     /* cube shadow map face size; 0 = 512 */
+    int msaa;           /* multisample anti-aliasing samples per pixel; 0 or 1 = none (capped
+                         * at what the GPU allows) */
 } wrt_render_options;
 
 typedef struct wrt_render wrt_render;
@@ -63,6 +65,11 @@ int wrt_render_upload(wrt_render *r);
 
 /* Draws the picture (shadow maps first where lights changed) into the framebuffer object. */
 void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode);
+/* Where world point p lands in the picture: pixels from the top-left corner; 0 if it
+ * is behind the eye. */
+int wrt_render_project(const wrt_render *r, const wrt_view *v, const double p[3], double px[2]);
+/* The samples per pixel in use (1 = no MSAA). */
+int wrt_render_samples(const wrt_render *r);
 /* Tone maps the picture into the current default framebuffer (a window) of fb_w x fb_h. */
 void wrt_render_present(wrt_render *r, int fb_w, int fb_h, float exposure_ev);
 /* Reads the picture back: width x height linear RGB floats, the top row first. */
@@ -73,7 +80,8 @@ void wrt_render_read_window(int fb_w, int fb_h, uint8_t *rgb);
 void wrt_render_finish(void);
 
 /* The display curve, on the CPU, the same as the shader of wrt_render_present:
- * x * 2^ev, Reinhard x / (1 + x) per channel, then sRGB encoding. */
+ * x * 2^ev, Reinhard x / (1 + x) per channel, then sRGB encoding (wrt_tonemap_rgb8 of
+ * cli/cli.h, which every tool's PNG uses). */
 void wrt_render_tonemap(const float *rgb, size_t npixels, float exposure_ev, uint8_t *out);
 
 /* "OpenGL 4.5 (Core Profile) Mesa ... | llvmpipe ..." of the current context. */

@@ -11,7 +11,10 @@
 #include "../common/basis.h"
 #include "../common/threads.h"
 #include "../common/brdf.h"
-#include "bake_internal.h"
+#include "../common/brdf_table.h"
+#include "dto.h"
+#include "balance.h"
+#include "series.h"
 
 void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->quality <= 0) o->quality = 5;
@@ -34,66 +37,14 @@ void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->max_alevel > WRT_MAX_ALEVEL) o->max_alevel = WRT_MAX_ALEVEL;
 }
 
-/* Angular function values at (a, b), 4^L of them (dense). */
-static void angular_dense(int L, double a, double b, double *val) {
-    int n = 1 << (2 * L);
-    for (int i = 0; i < n; i++) {
-        wrt_node nd;
-        int t;
-        wrt_angular_func(i, &nd, &t);
-        val[i] = wrt_haar2(nd, t, a, b);
-    }
-}
-
-/* btilde_g(w_o) = integral f(w, w_o) g(M^-1 w) cos dw, estimated by importance sampling the
- * BRDF (f cos / pdf weights) with a fixed stratified sequence, on a BT_RES^2 grid of w_o. */
-void wrt_bake_btilde_build(bake_ctx *b) {
+/* The shared angular BRDF table (common/brdf_table.h) of every glossy material. */
+static void bake_btilde_build(bake_ctx *b) {
     const wrt_scene *sc = b->scene;
     b->btilde = wrt_xcalloc((size_t)(sc->nmaterials ? sc->nmaterials : 1), sizeof *b->btilde);
-    enum { NS = 1024 };
     for (int m = 0; m < sc->nmaterials; m++) {
-        int L = b->alevel[m];
-        if (!L) continue;
-        int na = 1 << (2 * L);
-        float *tab = wrt_xcalloc((size_t)WRT_BT_RES * WRT_BT_RES * na * 3, sizeof *tab);
-        double *acc = wrt_xmalloc((size_t)na * 3 * sizeof *acc), *g = wrt_xmalloc((size_t)na * sizeof *g);
-        wrt_v3 n = v3(0, 0, 1);
-        for (int cell = 0; cell < WRT_BT_RES * WRT_BT_RES; cell++) {
-            double ao = ((cell % WRT_BT_RES) + 0.5) / WRT_BT_RES, bo = ((cell / WRT_BT_RES) + 0.5) / WRT_BT_RES, d[3];
-            wrt_concentric_dir(ao, bo, d);
-            wrt_v3 wo = v3(d[0], d[1], d[2]);
-            memset(acc, 0, (size_t)na * 3 * sizeof *acc);
-            for (int i = 0; i < NS; i++) {
-                double u1 = (i + 0.5) / NS, u2 = fmod(0.5 + i * 0.7548776662466927, 1.0),
-                       u3 = fmod(0.5 + i * 0.5698402909980532, 1.0), w[3];
-                wrt_v3 wi = wrt_brdf_sample(&sc->materials[m], n, wo, u1, u2, u3, w);
-                if (!(w[0] > 0 || w[1] > 0 || w[2] > 0) || !(wi.z > 0)) continue;
-                double loc[3] = {wi.x, wi.y, wi.z}, a, bb;
-                wrt_concentric_inv(loc, &a, &bb);
-                angular_dense(L, a, bb, g);
-                for (int k = 0; k < na; k++)
-                    for (int c = 0; c < 3; c++) acc[3 * k + c] += w[c] * g[k];
-            }
-            for (int k = 0; k < 3 * na; k++) tab[(size_t)cell * na * 3 + k] = (float)(acc[k] / NS);
-        }
-        free(acc); free(g);
-        b->btilde[m] = tab;
-    }
-}
-
-void wrt_bake_btilde(const bake_ctx *b, int m, double a, double bb, double *out) {
-    int L = b->alevel[m], na = 1 << (2 * L);
-    const float *tab = b->btilde[m];
-    double x = a * WRT_BT_RES - 0.5, y = bb * WRT_BT_RES - 0.5;
-    int x0 = (int)floor(x), y0 = (int)floor(y);
-    double fx = x - x0, fy = y - y0;
-    int xs[2] = {x0 < 0 ? 0 : x0 > WRT_BT_RES - 1 ? WRT_BT_RES - 1 : x0, x0 + 1 > WRT_BT_RES - 1 ? WRT_BT_RES - 1 : x0 + 1 < 0 ? 0 : x0 + 1};
-    int ys[2] = {y0 < 0 ? 0 : y0 > WRT_BT_RES - 1 ? WRT_BT_RES - 1 : y0, y0 + 1 > WRT_BT_RES - 1 ? WRT_BT_RES - 1 : y0 + 1 < 0 ? 0 : y0 + 1};
-    double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
-    for (int k = 0; k < 3 * na; k++) out[k] = 0;
-    for (int c = 0; c < 4; c++) {
-        const float *t = &tab[((size_t)ys[c >> 1] * WRT_BT_RES + xs[c & 1]) * na * 3];
-        for (int k = 0; k < 3 * na; k++) out[k] += w[c] * t[k];
+        if (!b->alevel[m]) continue;
+        b->btilde[m] = wrt_xmalloc(WRT_BRDF_TABLE_FLOATS * sizeof(float));
+        wrt_brdf_table_build(&sc->materials[m], b->opt.threads, b->btilde[m]);
     }
 }
 
@@ -246,7 +197,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         int l = wrt_brdf_angular_level(&scene->materials[m]);
         b.alevel[m] = (uint8_t)(l > b.opt.max_alevel ? b.opt.max_alevel : l);
     }
-    wrt_bake_btilde_build(&b);
+    bake_btilde_build(&b);
 
     /* Embree */
     b.dev = rtcNewDevice("threads=1");
@@ -307,6 +258,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     job.tc = wrt_xcalloc((size_t)nt, sizeof *job.tc);
     /* run in chunks so the progress callback can be called between them */
     size_t chunk = np / 50 + 1;
+    if (b.opt.progress) b.opt.progress("dto", 0, b.opt.progress_user);
     for (size_t start = 0; start < np; start += chunk) {
         size_t n = np - start < chunk ? np - start : chunk;
         dto_job sub = job;
@@ -368,6 +320,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
                     t++;
                 }
             if (!b.opt.no_balance) {
+                if (b.opt.progress) b.opt.progress("balance", -1, b.opt.progress_user); /* no fraction known */
                 double tb = wrt_now();
                 uint64_t tcap = nent ? nent : 1, t0n = t;
                 C->closed = wrt_balance_run(&b, np, pr, ps, job.out, keys, res->nfuncs, &tr, &t, &tcap);

@@ -9,7 +9,8 @@
 #include "../formats/scene.h"
 #include "sparse.h"
 
-/* Progress: phase name and fraction done; return 0 to cancel. */
+/* Progress: phase name ("dto", "balance", "gto") and fraction done, or < 0 when no
+ * fraction is known; return 0 to cancel. */
 typedef int (*wrt_progress_fn)(const char *phase, double done, void *user);
 
 /* Zero means "default" for every field; wrt_bake_defaults() shows the defaults. */

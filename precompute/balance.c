@@ -39,7 +39,8 @@
 
 #include "../common/basis.h"
 #include "../common/threads.h"
-#include "bake_internal.h"
+#include "../common/brdf_table.h"
+#include "balance.h"
 
 #define GL2 0.28867513459481287 /* 2 x 2 Gauss-Legendre: centre +- GL2 x side */
 
@@ -588,18 +589,19 @@ static void balance_glossy_sender(size_t si, int th, void *user) {
     c->changed[s] = 0;
     if (!L || !b->btilde[m]) return;
     const wrt_quad *Sq = &b->quads[s];
-    int na = 1 << (2 * L), side = 1 << L, tr = WRT_BT_RES >> L;
+    int na = 1 << (2 * L), side = 1 << L, tr = WRT_BRDF_TABLE_RES >> L;
     size_t nt, nl;
     uint32_t *tree, *leaves;
     sender_tree(c->fkeys, c->nf, s, 0, &tree, &nt, &leaves, &nl);
     /* B[k][g][ch]: btilde_g integrated over angular cell k (cos dw / pi = da db) */
     double *B = wrt_xcalloc((size_t)na * na * 3, sizeof *B);
     const float *tab = b->btilde[m];
-    for (int cell = 0; cell < WRT_BT_RES * WRT_BT_RES; cell++) {
-        int k = ((cell / WRT_BT_RES) / tr) * side + (cell % WRT_BT_RES) / tr;
+    for (int cell = 0; cell < WRT_BRDF_TABLE_RES * WRT_BRDF_TABLE_RES; cell++) {
+        int k = ((cell / WRT_BRDF_TABLE_RES) / tr) * side + (cell % WRT_BRDF_TABLE_RES) / tr;
         for (int g = 0; g < na; g++)
             for (int ch = 0; ch < 3; ch++)
-                B[((size_t)k * na + g) * 3 + ch] += tab[((size_t)cell * na + g) * 3 + ch] / (WRT_BT_RES * WRT_BT_RES);
+                B[((size_t)k * na + g) * 3 + ch] +=
+                    tab[((size_t)cell * WRT_BRDF_TABLE_NANG + g) * 3 + ch] / (WRT_BRDF_TABLE_RES * WRT_BRDF_TABLE_RES);
     }
     /* V[f][g][ch] = sqrt(J) |f| sum_k C(f, k) B[k][g][ch] */
     double *V = wrt_xcalloc(nl * na * 3, sizeof *V);

@@ -43,7 +43,7 @@
 #include <embree3/rtcore.h>
 
 #include "../common/basis.h"
-#include "bake_internal.h"
+#include "dto.h"
 
 /* ---- Lambert's closed form, clipped to the half-space in front of x ---- */
 double wrt_ff_point_polygon(wrt_v3 x, wrt_v3 n, const wrt_v3 *poly, int count) {

@@ -8,8 +8,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include "../cli/cli.h"
 #include "../formats/gto.h"
 #include "../formats/scene.h"
 #include "../tools/compare.h"
@@ -28,7 +30,8 @@ static void usage(FILE *f) {
         "the global transport operator by a Neumann series, written to a mappable .gto file.\n"
         "\n"
         "options:\n"
-        "  -o, --output FILE      the .gto to write (written to a temporary, then renamed)\n"
+        "  -o, --out FILE         the .gto to write (written to a temporary, then renamed;\n"
+        "                         --output is the same)\n"
         "  -q, --quality Q        1 (coarse, fast) .. 9 (fine, slow); default 5. Sets the\n"
         "                         thresholds below consistently\n"
         "  --eps-receiver E       receiver refinement threshold (form-factor spread)\n"
@@ -45,18 +48,20 @@ static void usage(FILE *f) {
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --threads N            worker threads (default: all cores); output is identical\n"
         "  --drop-bad             drop bad triangles with a warning instead of refusing\n"
-        "  --reproducible         record no timings, so equal inputs give equal bytes\n"
+        "  --provenance-timings   also store the bake's timings in the file (they differ from\n"
+        "                         run to run: by default equal inputs give equal bytes)\n"
+        "  --reproducible         the default (no timings stored); kept for older scripts\n"
         "  --max-error E          check the bake against a path-traced reference (cell-average\n"
         "                         relative RMSE of the indirect light, 2 light positions) and\n"
         "                         fail with exit code 5, writing nothing, if it exceeds E\n"
         "  --check-paths N        reference paths per light for --max-error (default 1000000)\n"
         "  --json                 print one JSON object with the figures on stdout\n"
-        "  --progress / --quiet   force or silence the progress bar (default: on a terminal)\n"
+        "  --progress / --quiet   force or silence the progress lines, one per phase (load,\n"
+        "                         dto, balance, series, write; default: when stderr is a terminal)\n"
         "  --print-config         print the resolved options and exit\n"
         "  -h, --help, --version\n"
-        "\n"
-        "exit codes: 0 ok, 1 usage, 2 bad input scene, 3 output error, 4 interrupted,\n"
-        "            5 accuracy not met\n");
+        "\n");
+    wrt_cli_exit_table(f);
 }
 
 static int parse_int(const char *opt, const char *s, int lo, int hi, int *out) {
@@ -83,21 +88,35 @@ static int parse_double(const char *opt, const char *s, double lo, double hi, do
     return 1;
 }
 
-static int progress_on;
-static double progress_last;
+/* One line per phase on a terminal (cli/cli.h); the bake's "gto" phase is the series. */
 static int progress_cb(const char *phase, double done, void *user) {
     (void)user;
-    if (!progress_on) return 1;
-    double now = wrt_now();
-    if (done < 1 && now - progress_last < 0.1) return 1;
-    progress_last = now;
-    int w = 40, n = (int)(done * w + 0.5);
-    fprintf(stderr, "\r%-4s [", phase);
-    for (int i = 0; i < w; i++) fputc(i < n ? '#' : '.', stderr);
-    fprintf(stderr, "] %3.0f%%", 100 * done);
-    if (done >= 1) fputc('\n', stderr);
-    fflush(stderr);
+    wrt_cli_progress(!strcmp(phase, "gto") ? "series" : phase, done);
     return 1;
+}
+
+/* SIGINT, SIGTERM, SIGHUP: remove the temporary being written (if it has a name; an
+ * unnamed one goes with the process), say so, and exit with the documented code 4.
+ * The target is the older file or none: it is only ever replaced by a rename. */
+static void interrupt_exit(int sig) {
+    (void)sig;
+    wrt_gto_remove_temporaries();
+    static const char msg[] = "\nwrt-bake: interrupted; nothing written, the output is as it was\n";
+    ssize_t w = write(2, msg, sizeof msg - 1);
+    (void)w;
+    _exit(EXIT_CANCEL);
+}
+
+static void install_interrupt_exit(void) {
+    static const int sigs[] = {SIGINT, SIGTERM, SIGHUP};
+    for (size_t i = 0; i < sizeof sigs / sizeof *sigs; i++) {
+        struct sigaction old, sa;
+        if (sigaction(sigs[i], NULL, &old) != 0 || old.sa_handler == SIG_IGN) continue;
+        memset(&sa, 0, sizeof sa);
+        sa.sa_handler = interrupt_exit;
+        sigfillset(&sa.sa_mask);
+        sigaction(sigs[i], &sa, NULL);
+    }
 }
 
 static void json_counters(FILE *f, const wrt_bake_counters *c) {
@@ -136,16 +155,28 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
 
 int main(int argc, char **argv) {
     const char *scene_path = NULL, *out_path = NULL, *scan = NULL, *info = NULL;
-    int json = 0, force_progress = 0, quiet = 0, print_config = 0, reproducible = 0, drop_bad = 0;
+    int json = 0, force_progress = 0, quiet = 0, print_config = 0, timings = 0, drop_bad = 0;
+    const char *seen[64];
+    int nseen = 0;
     double max_error = -1;
     int check_paths = 1000000;
     wrt_bake_options o = {0};
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         int ok = 1;
+        /* An option given twice is refused (`-o a -o b` would silently take the last). */
+        if (a[0] == '-' && a[1]) {
+            const char *canon = (!strcmp(a, "-o") || !strcmp(a, "--out")) ? "--output" : !strcmp(a, "-q") ? "--quality" : a;
+            for (int k = 0; k < nseen; k++)
+                if (!strcmp(seen[k], canon)) {
+                    fprintf(stderr, "wrt-bake: error: %s given twice\n", a);
+                    return EXIT_USAGE;
+                }
+            if (nseen < (int)(sizeof seen / sizeof *seen)) seen[nseen++] = canon;
+        }
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
-        else if (!strcmp(a, "--version")) { printf("wrt-bake %s (.gto version %d)\n", WRT_VERSION_STRING, WRT_GTO_VERSION); return 0; }
-        else if (!strcmp(a, "-o") || !strcmp(a, "--output")) { if (!v) ok = 0; else out_path = v, i++; }
+        else if (!strcmp(a, "--version")) { wrt_cli_version("wrt-bake"); return 0; }
+        else if (!strcmp(a, "-o") || !strcmp(a, "--out") || !strcmp(a, "--output")) { if (!v) ok = 0; else out_path = v, i++; }
         else if (!strcmp(a, "--scan")) { if (!v) ok = 0; else scan = v, i++; }
         else if (!strcmp(a, "--info")) { if (!v) ok = 0; else info = v, i++; }
         else if (!strcmp(a, "-q") || !strcmp(a, "--quality")) { ok = parse_int(a, v, 1, 9, &o.quality); i++; }
@@ -164,7 +195,8 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--no-tail")) o.no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o.no_balance = 1;
         else if (!strcmp(a, "--drop-bad")) drop_bad = 1;
-        else if (!strcmp(a, "--reproducible")) reproducible = 1;
+        else if (!strcmp(a, "--reproducible")) timings = 0;
+        else if (!strcmp(a, "--provenance-timings")) timings = 1;
         else if (!strcmp(a, "--json")) json = 1;
         else if (!strcmp(a, "--progress")) force_progress = 1;
         else if (!strcmp(a, "--quiet")) quiet = 1;
@@ -188,10 +220,14 @@ int main(int argc, char **argv) {
         return 0;
     }
     if (info) {
+        if (access(info, R_OK) != 0) { /* one message, not a report of a file that is not there */
+            fprintf(stderr, "wrt-bake: error: %s: %s\n", info, strerror(errno));
+            return EXIT_INPUT;
+        }
         wrt_status st = wrt_gto_print_info(info, json, stdout);
         if (st != WRT_OK) {
             fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-            return st == WRT_ERR_IO ? EXIT_OUTPUT : EXIT_INPUT;
+            return EXIT_INPUT; /* a .gto that cannot be read is bad input, missing or not */
         }
         return 0;
     }
@@ -209,11 +245,22 @@ int main(int argc, char **argv) {
     }
     if (!scene_path) { usage(stderr); return EXIT_USAGE; }
     if (!out_path) { fprintf(stderr, "wrt-bake: error: no output file (-o OUT.gto)\n"); return EXIT_USAGE; }
+    wrt_cli_progress_enable(!quiet && (force_progress || isatty(2)));
 
-    wrt_gto_install_signal_cleanup();
+    /* The output, checked before any work: not the scene (same file, also through a
+     * link), not a directory, in a folder where a file can be made. */
+    const char *inputs[1] = {scene_path};
+    wrt_status cst = wrt_gto_check_output(out_path, inputs, 1);
+    if (cst != WRT_OK) {
+        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+        return cst == WRT_ERR_INVALID_ARG ? EXIT_USAGE : EXIT_OUTPUT;
+    }
+    install_interrupt_exit();
     double t0 = wrt_now();
     wrt_scene s;
+    wrt_cli_progress("load", -1);
     wrt_status st = wrt_scene_load(scene_path, &lo, &s);
+    wrt_cli_progress_end();
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return EXIT_INPUT;
@@ -223,12 +270,12 @@ int main(int argc, char **argv) {
         wrt_scene_free(&s);
         return EXIT_INPUT;
     }
-    progress_on = !quiet && (force_progress || isatty(2));
     o.progress = progress_cb;
     wrt_bake_result r;
     st = wrt_bake_run(&s, &o, &r);
+    wrt_cli_progress_end();
     if (st != WRT_OK) {
-        fprintf(stderr, "%swrt-bake: error: %s\n", progress_on ? "\n" : "", wrt_last_error());
+        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         wrt_scene_free(&s);
         return st == WRT_ERR_CANCELLED ? EXIT_CANCEL : EXIT_INPUT;
     }
@@ -248,7 +295,7 @@ int main(int argc, char **argv) {
     json_options(pf, &o);
     fprintf(pf, ",");
     json_counters(pf, c);
-    if (!reproducible) fprintf(pf, ",\"seconds\":{\"dto\":%.3f,\"gto\":%.3f}", c->t_dto, c->t_gto);
+    if (timings) fprintf(pf, ",\"seconds\":{\"dto\":%.3f,\"gto\":%.3f}", c->t_dto, c->t_gto);
     fprintf(pf, "}");
     fclose(pf);
 
@@ -266,17 +313,16 @@ int main(int argc, char **argv) {
     gc.stats.rays_skipped = c->rays_skipped_unoccluded + c->rays_skipped_facing;
     gc.stats.bounces = c->bounces;
     gc.stats.energy_left = c->energy_left;
-    if (!reproducible) { gc.stats.t_dto = c->t_dto; gc.stats.t_gto = c->t_gto; }
-    /* With --max-error the file is first written beside the target, checked, and only
-     * renamed over the target when it passes: a rejected bake leaves the target as it was. */
-    char check_path[4096];
-    const char *write_path = out_path;
-    if (max_error >= 0) {
-        snprintf(check_path, sizeof check_path, "%s.check", out_path);
-        write_path = check_path;
-    }
+    if (timings) { gc.stats.t_dto = c->t_dto; gc.stats.t_gto = c->t_gto; }
+    /* The file is written to a private temporary in the target's folder (unnamed where
+     * the file system allows); with --max-error it is checked there and only renamed
+     * over the target when it passes: a rejected or interrupted bake leaves the target
+     * as it was and no file behind. */
     double tw = wrt_now();
-    st = wrt_gto_write(write_path, &gc);
+    wrt_gto_pending pend;
+    wrt_cli_progress("write", -1);
+    st = wrt_gto_write_pending(out_path, &gc, &pend);
+    wrt_cli_progress_end();
     double t_write = wrt_now() - tw;
     free(prov);
     if (st != WRT_OK) {
@@ -296,7 +342,7 @@ int main(int argc, char **argv) {
         wrt_gto g;
         wrt_compare_result cr;
         st = wrt_compare_ref_create(&s, lights, nl, &co, &ref);
-        if (st == WRT_OK) st = wrt_gto_open(write_path, &g);
+        if (st == WRT_OK) st = wrt_gto_open_pending(&pend, &g);
         if (st == WRT_OK) {
             st = wrt_compare_gto(ref, &g, &cr);
             wrt_gto_close(&g);
@@ -305,7 +351,7 @@ int main(int argc, char **argv) {
         t_check = wrt_now() - tc;
         if (st != WRT_OK) {
             fprintf(stderr, "wrt-bake: error: accuracy check failed to run: %s\n", wrt_last_error());
-            unlink(write_path);
+            wrt_gto_discard(&pend);
             wrt_bake_result_free(&r);
             wrt_scene_free(&s);
             return EXIT_OUTPUT;
@@ -316,23 +362,25 @@ int main(int argc, char **argv) {
             fprintf(stderr, "wrt-bake: error: accuracy not met: relative RMSE of the indirect light %.4f "
                     "(reference noise %.4f) exceeds --max-error %.4f; %s not written\n",
                     check_error, check_floor, max_error, out_path);
-            unlink(write_path);
+            wrt_gto_discard(&pend);
             wrt_bake_result_free(&r);
             wrt_scene_free(&s);
             return EXIT_ACCURACY;
         }
-        if (rename(write_path, out_path) != 0) {
-            fprintf(stderr, "wrt-bake: error: %s: cannot rename to %s: %s\n", write_path, out_path, strerror(errno));
-            unlink(write_path);
-            wrt_bake_result_free(&r);
-            wrt_scene_free(&s);
-            return EXIT_OUTPUT;
-        }
+    }
+    tw = wrt_now();
+    st = wrt_gto_commit(&pend);
+    t_write += wrt_now() - tw;
+    if (st != WRT_OK) {
+        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+        wrt_bake_result_free(&r);
+        wrt_scene_free(&s);
+        return EXIT_OUTPUT;
     }
     double t_total = wrt_now() - t0;
     long long bytes = -1;
-    FILE *of = fopen(out_path, "rb");
-    if (of) { fseek(of, 0, SEEK_END); bytes = ftell(of); fclose(of); }
+    struct stat ob;
+    if (stat(out_path, &ob) == 0) bytes = (long long)ob.st_size;
 
     if (json) {
         printf("{\"scene\":\"%s\",\"output\":\"%s\",\"quads\":%d,\"bytes\":%lld,", scene_path, out_path, s.nquads, bytes);

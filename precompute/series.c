@@ -19,7 +19,8 @@
 #include <string.h>
 
 #include "../formats/gto.h"
-#include "bake_internal.h"
+#include "series.h"
+#include "balance.h"
 
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     wrt_bake_counters *C = &res->c;
@@ -103,7 +104,10 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
             rc_prev[ch] = rc[ch];
         }
         stable = settled ? stable + 1 : 0;
-        if (b->opt.progress && !b->opt.progress("gto", fmin(1.0, C->bounces / 50.0), b->opt.progress_user)) {
+        /* how far: the light left on its way from 1 down to the 1e-6 where the series stops
+         * at the latest (it often stops sooner, when the tail can be added) */
+        double done = C->energy_left > 0 ? log(C->energy_left) / log(1e-6) : 1;
+        if (b->opt.progress && !b->opt.progress("gto", fmin(1.0, fmax(done, 0.0)), b->opt.progress_user)) {
             wrt_csc_free(&P); wrt_csc_free(&S); free(rw); free(cw); free(pw); free(x); free(y);
             return wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
         }

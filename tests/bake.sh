@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # bake.sh: end-to-end tests of the wrt-bake command line: a bake and its --json figures,
 # the effect counters of a diffuse scene, identical bytes with 1 and 2 threads
-# (--reproducible), --info on good and damaged files with distinct errors, bad scenes and
-# absurd options refused with a message and the documented exit code, and an interrupted
-# bake leaving no output and no temporary behind.
+# (by default; timings only with --provenance-timings), --info on good and damaged files
+# with distinct errors, bad scenes and absurd options refused with a message and the
+# documented exit code, the output checked before the work (never an input, a writable
+# folder), non-regular inputs refused without blocking, the --max-error check file
+# private, and an interrupted bake leaving no output and no temporary behind (exit 4).
 # Usage: tests/bake.sh BUILD. Prints "bake: N passed, N failed"; non-zero exit on a failure.
 set -u
 build=${1:-build}
@@ -63,13 +65,18 @@ else
     ko "furnace bakes"; head -c 300 "$tmp/err"
 fi
 
-# Same bytes whatever the thread count (timings left out with --reproducible).
-"$bake" assets/cornell.gltf -o "$tmp/t1.gto" --quality 2 --threads 1 --reproducible --quiet >/dev/null 2>"$tmp/err"
-"$bake" assets/cornell.gltf -o "$tmp/t2.gto" --quality 2 --threads 2 --reproducible --quiet >/dev/null 2>>"$tmp/err"
+# Same bytes whatever the thread count, by default (timings only on request).
+"$bake" assets/cornell.gltf -o "$tmp/t1.gto" --quality 2 --threads 1 --quiet >/dev/null 2>"$tmp/err"
+"$bake" assets/cornell.gltf -o "$tmp/t2.gto" --quality 2 --threads 2 --quiet >/dev/null 2>>"$tmp/err"
 cmp -s "$tmp/t1.gto" "$tmp/t2.gto" && ok "1 and 2 threads: identical bytes" || ko "1 and 2 threads: identical bytes"
-"$bake" assets/glossy.gltf -o "$tmp/g1.gto" --quality 2 --threads 1 --reproducible --quiet >/dev/null 2>"$tmp/err"
-"$bake" assets/glossy.gltf -o "$tmp/g2.gto" --quality 2 --threads 2 --reproducible --quiet >/dev/null 2>>"$tmp/err"
+"$bake" assets/glossy.gltf -o "$tmp/g1.gto" --quality 2 --threads 1 --quiet >/dev/null 2>"$tmp/err"
+"$bake" assets/glossy.gltf -o "$tmp/g2.gto" --quality 2 --threads 2 --quiet >/dev/null 2>>"$tmp/err"
 cmp -s "$tmp/g1.gto" "$tmp/g2.gto" && ok "glossy, 1 and 2 threads: identical bytes" || ko "glossy, 1 and 2 threads: identical bytes"
+"$bake" assets/cornell.gltf -o "$tmp/t3.gto" --quality 2 --threads 2 --provenance-timings --quiet >/dev/null 2>>"$tmp/err"
+"$bake" --info "$tmp/t3.gto" --json > "$tmp/t3.json" 2>>"$tmp/err"
+"$bake" --info "$tmp/t1.gto" --json > "$tmp/t1.json" 2>>"$tmp/err"
+grep -q '"seconds":{"dto"' "$tmp/t3.json" && ! grep -q '"seconds":{"dto"' "$tmp/t1.json" &&
+    ok "--provenance-timings stores the timings, the default does not" || ko "--provenance-timings stores the timings, the default does not"
 
 # --info on good and damaged files.
 check "--info on a good file" "$bake" --info "$tmp/t1.gto"
@@ -91,14 +98,45 @@ expect_exit "foreign file: exit 2" 2 "not a .gto" "$bake" --info "$tmp/foreign.g
 expect_exit "--max-error not met: exit 5" 5 "accuracy not met" "$bake" assets/cornell.gltf -o "$tmp/bad.gto" --quality 2 --max-error 0.001 --check-paths 200000
 [ ! -e "$tmp/bad.gto" ] && [ ! -e "$tmp/bad.gto.check" ] && ok "rejected bake leaves nothing" || ko "rejected bake leaves nothing"
 
-# An interrupted bake leaves nothing behind.
+# The output is never an input, and is checked before the work.
+cp assets/test/facing.gltf "$tmp/scene.gltf"; cp "$tmp/scene.gltf" "$tmp/scene.orig"
+ln -f "$tmp/scene.gltf" "$tmp/hard.gto"; ln -sf "$tmp/scene.gltf" "$tmp/sym.gto"
+expect_exit "-o names the scene: exit 1" 1 "the output is the input" "$bake" "$tmp/scene.gltf" -o "$tmp/scene.gltf"
+expect_exit "-o is a hard link to the scene: exit 1" 1 "the output is the input" "$bake" "$tmp/scene.gltf" -o "$tmp/hard.gto"
+expect_exit "-o is a symbolic link to the scene: exit 1" 1 "the output is the input" "$bake" "$tmp/scene.gltf" -o "$tmp/sym.gto"
+cmp -s "$tmp/scene.gltf" "$tmp/scene.orig" && ok "the scene is intact" || ko "the scene is intact"
+expect_exit "-o given twice: exit 1" 1 "-o given twice" "$bake" assets/cornell.gltf -o "$tmp/a.gto" -o "$tmp/b.gto"
+expect_exit "--quality given twice: exit 1" 1 "given twice" "$bake" assets/cornell.gltf -o "$tmp/a.gto" -q 2 --quality 3
+expect_exit "-o is a directory: exit 3" 3 "the output is a directory" "$bake" assets/cornell.gltf -o "$tmp"
 "$gen" maze --out "$tmp/maze.gltf" >/dev/null 2>&1
+t0=$(date +%s%N)
+expect_exit "unwritable output folder: exit 3" 3 "cannot create a temporary file" "$bake" "$tmp/maze.gltf" -o /proc/wrt_no.gto --quality 6
+ms=$(( ($(date +%s%N) - t0) / 1000000 ))
+[ "$ms" -lt 2000 ] && ok "unwritable folder refused before the bake (${ms} ms)" || ko "unwritable folder refused before the bake (${ms} ms)"
+mkfifo "$tmp/pipe.gltf" "$tmp/pipe.gto"; mkdir "$tmp/dir.gltf"
+expect_exit "FIFO scene: exit 2, no hang" 2 "not a regular file \(a FIFO\)" timeout 10 "$bake" "$tmp/pipe.gltf" -o "$tmp/x.gto"
+expect_exit "FIFO --scan: exit 2, no hang" 2 "not a regular file \(a FIFO\)" timeout 10 "$bake" --scan "$tmp/pipe.gltf"
+expect_exit "FIFO --info: exit 2, no hang" 2 "not a regular file \(a FIFO\)" timeout 10 "$bake" --info "$tmp/pipe.gto"
+expect_exit "directory scene: exit 2" 2 "not a regular file \(a directory\)" "$bake" "$tmp/dir.gltf" -o "$tmp/x.gto"
+expect_exit "camera position = target: exit 1" 1 "no view direction" "$build/wrt-play" "$tmp/t1.gto" --headless --out "$tmp/x.png" --camera-pos 1,2,3 --camera-target 1,2,3
+# The check file of --max-error is private: a user's file of the old fixed name is kept,
+# and two checked bakes to one output do not read each other's file.
+echo "mine" > "$tmp/two.gto.check"
+"$bake" assets/cornell.gltf -o "$tmp/two.gto" --quality 2 --max-error 0.6 --check-paths 200000 --quiet >/dev/null 2>"$tmp/err" & p1=$!
+"$bake" assets/cornell.gltf -o "$tmp/two.gto" --quality 2 --max-error 0.6 --check-paths 200000 --quiet >/dev/null 2>>"$tmp/err" & p2=$!
+wait $p1; r1=$?; wait $p2; r2=$?
+[ $r1 -eq 0 ] && [ $r2 -eq 0 ] && "$bake" --info "$tmp/two.gto" >/dev/null 2>>"$tmp/err" &&
+    ok "two checked bakes to one output both succeed" || ko "two checked bakes to one output both succeed ($r1, $r2)"
+[ "$(cat "$tmp/two.gto.check")" = mine ] && ok "a user's OUT.gto.check is left alone" || ko "a user's OUT.gto.check is left alone"
+[ -z "$(ls "$tmp" | grep -F '.tmp.')" ] && ok "no temporary left" || ko "no temporary left"
+
+# An interrupted bake leaves nothing behind and exits 4.
 "$bake" "$tmp/maze.gltf" -o "$tmp/int.gto" --quality 6 --quiet >/dev/null 2>&1 &
 pid=$!
 sleep 1.5
 kill -TERM $pid 2>/dev/null  # (background jobs of a script ignore SIGINT)
 wait $pid; rc=$?
-if [ $rc -ne 0 ] && [ ! -e "$tmp/int.gto" ] && [ -z "$(ls "$tmp" | grep -F '.tmp.')" ]; then
+if [ $rc -eq 4 ] && [ ! -e "$tmp/int.gto" ] && [ -z "$(ls "$tmp" | grep -F '.tmp.')" ]; then
     ok "interrupted bake: no output, no temporary (exit $rc)"
 else
     ko "interrupted bake: no output, no temporary (exit $rc)"

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # tests/compare.sh BUILD: wrt-compare on a tiny bake (two facing quads, quality 2): the JSON
-# has its keys, the errors are finite and below a generous bound (the two-quad bake's cell
-# error is about 0.15 against a floor near 0.03 at these samples), the reference floor is
-# below the error, and --max-error works as the pipeline check (exit 5 when not met, 0
-# when met). Prints "N passed, N failed". A few seconds.
+# has its keys, the errors are finite and at what this bake measures (cell error 0.019
+# debiased, raw 0.036 against a reference floor of 0.030 at these samples; the image at
+# 64 paths a pixel is within the reference's own noise), the reference floor is below
+# the error, and --max-error works as the pipeline check (exit 5 when not met, 0 when
+# met). The accuracy gate proper is tests/test_accuracy.c. Prints "N passed, N failed".
 set -u
 build=${1:-build}
 cd "$(dirname "$0")/.."
@@ -26,9 +27,9 @@ for key in scene lights reference cell_floor image_floor bakes cell_rmse cell_rm
 done
 # The first number after a key, as awk reads it.
 num() { grep -o "\"$1\":[-0-9.eE+naif]*" <<<"$json" | head -n 1 | cut -d: -f2; }
-cell=$(num cell_rmse); img=$(num image_rmse); fl=$(grep -o '"bakes":\[{.*' <<<"$json" | grep -o '"cell_floor":[-0-9.eE+]*' | head -n 1 | cut -d: -f2)
-awk -v c="$cell" 'BEGIN{exit !(c == c + 0 && c > 0.01 && c < 0.5)}'; check "cell rmse $cell finite, in (0.01, 0.5)" $?
-awk -v c="$img" 'BEGIN{exit !(c == c + 0 && c >= 0 && c < 1.5)}'; check "image rmse $img finite, in [0, 1.5)" $?
+cell=$(num cell_rmse); img=$(num image_rmse); deb=$(num cell_rmse_debiased); ifl=$(num image_floor); fl=$(grep -o '"bakes":\[{.*' <<<"$json" | grep -o '"cell_floor":[-0-9.eE+]*' | head -n 1 | cut -d: -f2)
+awk -v c="$deb" 'BEGIN{exit !(c == c + 0 && c >= 0 && c <= 0.03)}'; check "cell rmse debiased $deb <= 0.03 (measured 0.019)" $?
+awk -v c="$img" -v f="$ifl" 'BEGIN{exit !(c == c + 0 && c >= 0 && c <= 1.1 * f + 0.05)}'; check "image rmse $img within the reference's noise $ifl" $?
 awk -v c="$cell" -v f="$fl" 'BEGIN{exit !(f > 0 && f < c)}'; check "cell floor $fl below the error $cell" $?
 "$build/wrt-compare" "$scene" "$tmp/f.gto" "${args[@]}" --no-image --max-error 1e-9 >"$tmp/strict.json" 2>/dev/null
 rc=$?; [ $rc -eq 5 ]; check "--max-error 1e-9 exits 5 (got $rc)" $?

@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
 # Runs every test program in BUILD/tests (and the shell tests in tests/*.sh), then prints
-# the total as "N passed, N failed", the line CI reads. Usage: tests/run.sh BUILD [stress]
+# the total as "N passed, N failed", the line CI reads, followed by ", N skipped" when a
+# check could not run here (each skipped check says why). Usage: tests/run.sh BUILD [stress]
 set -u
 build=${1:-build}
 export WRT_BUILD=$build
-pass=0; fail=0; failed_names=()
+pass=0; fail=0; skip=0; failed_names=()
+# skipped COUNT-LINE: the N of a trailing ", N skipped", else 0
+skipped() { local n; n=$(sed -nE 's/.* ([0-9]+) skipped.*/\1/p' <<<"$1"); echo "${n:-0}"; }
 cd "$(dirname "$0")/.."
 for t in "$build"/tests/test_*; do
     [ -x "$t" ] || continue
@@ -15,21 +18,25 @@ for t in "$build"/tests/test_*; do
     [[ "$p" =~ ^[0-9]+$ ]] || p=0
     [[ "$f" =~ ^[0-9]+$ ]] || f=0
     if [ $rc -ne 0 ] && [ "$f" -eq 0 ]; then f=1; fi   # a crash counts as a failure
+    k=$(skipped "$line"); skip=$((skip + k))
     pass=$((pass + p)); fail=$((fail + f))
     if [ "$f" -ne 0 ]; then failed_names+=("$t"); printf '%s\n' "$out" | grep -E 'FAIL|not ok|ERROR|Sanitizer' | head -n 20; fi
-    printf '%-40s %4d passed, %d failed\n' "$(basename "$t")" "$p" "$f"
+    [ "$k" -gt 0 ] && printf '%s\n' "$out" | grep -E '^skipped' | head -n 10
+    printf '%-40s %4d passed, %d failed%s\n' "$(basename "$t")" "$p" "$f" "$([ "$k" -gt 0 ] && echo ", $k skipped")"
 done
 for s in tests/*.sh; do
-    [ "$(basename "$s")" = run.sh ] && continue
+    case "$(basename "$s")" in run.sh|mutate.sh) continue ;; esac   # mutate.sh: `make mutate`
     out=$(bash "$s" "$build" 2>&1); rc=$?
     line=$(printf '%s\n' "$out" | grep -E '[0-9]+ passed, [0-9]+ failed' | tail -n 1)
     p=$(sed -E 's/.* ([0-9]+) passed, ([0-9]+) failed.*/\1/' <<<"$line"); [[ "$p" =~ ^[0-9]+$ ]] || p=0
     f=$(sed -E 's/.* ([0-9]+) passed, ([0-9]+) failed.*/\2/' <<<"$line"); [[ "$f" =~ ^[0-9]+$ ]] || f=0
     if [ $rc -ne 0 ] && [ "$f" -eq 0 ]; then f=1; fi
+    k=$(skipped "$line"); skip=$((skip + k))
     pass=$((pass + p)); fail=$((fail + f))
     if [ "$f" -ne 0 ]; then failed_names+=("$s"); printf '%s\n' "$out" | grep -E 'FAIL' | head -n 20; fi
-    printf '%-40s %4d passed, %d failed\n' "$(basename "$s")" "$p" "$f"
+    [ "$k" -gt 0 ] && printf '%s\n' "$out" | grep -E '^skipped' | head -n 10
+    printf '%-40s %4d passed, %d failed%s\n' "$(basename "$s")" "$p" "$f" "$([ "$k" -gt 0 ] && echo ", $k skipped")"
 done
 [ ${#failed_names[@]} -eq 0 ] || echo "failing: ${failed_names[*]}"
-echo "$pass passed, $fail failed"
+if [ "$skip" -gt 0 ]; then echo "$pass passed, $fail failed, $skip skipped"; else echo "$pass passed, $fail failed"; fi
 [ "$fail" -eq 0 ]

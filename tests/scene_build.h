@@ -7,7 +7,15 @@
 #include <string.h>
 #include "formats/scene.h"
 
-static inline void tsb_init(wrt_scene *s) { memset(s, 0, sizeof *s); }
+/* An empty scene with a valid camera (looking down -Z from the origin), which the .gto
+ * writer requires; tests that need a particular view set their own. */
+static inline void tsb_init(wrt_scene *s) {
+    memset(s, 0, sizeof *s);
+    s->camera.dir = v3(0, 0, -1);
+    s->camera.up = v3(0, 1, 0);
+    s->camera.yfov = 0.8;
+    s->camera.znear = 0.01;
+}
 
 static inline int tsb_material(wrt_scene *s, double r, double g, double b) {
     s->materials = realloc(s->materials, (size_t)(s->nmaterials + 1) * sizeof *s->materials);

@@ -287,12 +287,12 @@ check tworooms-thick "$tmp/t2.gltf" quads=48 mode=inward
 run glossy-res "$tmp/gl.gltf" glossy --res 3 --scale 0.5
 check glossy-res "$tmp/gl.gltf" quads=81 mode=room intensity=5
 
-# bad arguments are refused with status 2 and write nothing
+# bad arguments are refused with status 1 (bad command line) and write nothing
 for args in "cornell --res 0" "cornell --albedo 1.5" "nosuch" "cornell --offset 1,2" "cornell --light blue" \
             "grazing --angle 0" "cornell --scale -1" "cornell --res 2.5"; do
     # shellcheck disable=SC2086
     "$gen" $args --out "$tmp/bad.gltf" >/dev/null 2>&1; rc=$?
-    if [ $rc -eq 2 ] && [ ! -e "$tmp/bad.gltf" ]; then ok; else bad "wrt-scenegen $args: status $rc"; fi
+    if [ $rc -eq 1 ] && [ ! -e "$tmp/bad.gltf" ]; then ok; else bad "wrt-scenegen $args: status $rc"; fi
 done
 
 # the loader accepts every file, when wrt-bake is built

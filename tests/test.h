@@ -10,7 +10,7 @@
 #include <string.h>
 #include "common/wrt_common.h"
 
-static int test_passed, test_failed, test_case_failed;
+static int test_passed, test_failed, test_case_failed, test_skipped;
 static const char *test_current = "";
 
 #define CHECK(cond, ...) do { \
@@ -29,6 +29,23 @@ static const char *test_current = "";
         fprintf(stderr, __VA_ARGS__); fputc('\n', stderr); \
     } } while (0)
 
+/* A check that cannot run here (a tool missing): never silent, it prints "skipped" with
+ * the reason and is counted; TEST_END's totals then end with ", N skipped". */
+#define SKIP(...) do { \
+    test_skipped++; fprintf(stderr, "skipped %s: ", test_current); \
+    fprintf(stderr, __VA_ARGS__); fputc('\n', stderr); } while (0)
+
+/* An accuracy the README claims (tests/claims.h): the relative error |err| must be within
+ * tol. Prints "claim ID: measured M%, tolerance T%, margin (T - M)%" and the context on
+ * stdout, so every run shows how close each claim is to failing (docs/claims.md). */
+#define CHECK_CLAIM(id, err, tol, ...) do { \
+    double claim_e_ = fabs(err), claim_t_ = (tol); \
+    printf("claim %s: measured %.4f%%, tolerance %.4f%% (%s), margin %.4f%%: ", id, 100 * claim_e_, 100 * claim_t_, \
+           #tol, 100 * (claim_t_ - claim_e_)); \
+    printf(__VA_ARGS__); putchar('\n'); \
+    CHECK(claim_e_ <= claim_t_, "claim %s: error %.4f%% above its tolerance %.4f%%", id, 100 * claim_e_, 100 * claim_t_); \
+    } while (0)
+
 /* Runs a case if argv selects it (no argument: all cases). */
 #define TEST_RUN(fn) do { \
     if (test_selected(argc, argv, #fn)) { \
@@ -37,7 +54,8 @@ static const char *test_current = "";
     } } while (0)
 
 #define TEST_END() do { \
-    printf("%s: %d passed, %d failed\n", argv[0], test_passed, test_failed); \
+    if (test_skipped) printf("%s: %d passed, %d failed, %d skipped\n", argv[0], test_passed, test_failed, test_skipped); \
+    else printf("%s: %d passed, %d failed\n", argv[0], test_passed, test_failed); \
     return test_failed ? 1 : 0; } while (0)
 
 static inline int test_selected(int argc, char **argv, const char *name) {

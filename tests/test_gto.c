@@ -21,6 +21,7 @@
 
 #include "tests/test.h"
 #include "formats/gto.h"
+#include "formats/scene.h"
 #include "common/basis.h"
 
 /* From GTO_FORMAT.md. */
@@ -450,7 +451,22 @@ static void test_foreign(void) {
     expect(open_copy(d, n, &g), WRT_ERR_NOT_OURS, "not a .gto file", "high bit stripped");
     free(b); free(d);
     expect(wrt_gto_open(tpath("does_not_exist.gto"), &g), WRT_ERR_IO, "cannot open", "missing file");
-    expect(wrt_gto_open(tmpdir, &g), WRT_ERR_IO, "not a regular file", "directory");
+    expect(wrt_gto_open(tmpdir, &g), WRT_ERR_NOT_OURS, "not a regular file (a directory)", "directory");
+    /* A FIFO is refused at once (opened without blocking, then fstat), not waited on. */
+    const char *fifo = tpath("pipe.gto");
+    unlink(fifo);
+    CHECK(mkfifo(fifo, 0600) == 0, "mkfifo: %s", strerror(errno));
+    double t0 = wrt_now();
+    expect(wrt_gto_open(fifo, &g), WRT_ERR_NOT_OURS, "not a regular file (a FIFO)", "FIFO");
+    char *info = NULL;
+    size_t tn = 0;
+    FILE *f = open_memstream(&info, &tn);
+    wrt_status st = wrt_gto_print_info(fifo, 0, f);
+    fclose(f);
+    CHECK(st == WRT_ERR_NOT_OURS && strstr(wrt_last_error(), "a FIFO"), "--info on a FIFO: %s", wrt_last_error());
+    CHECK(wrt_now() - t0 < 5, "FIFO answered in %.1f s", wrt_now() - t0);
+    free(info);
+    unlink(fifo);
 }
 
 static void test_empty(void) {
@@ -665,6 +681,56 @@ static void test_bad_indices(void) {
     free(b);
 }
 
+/* Every number handed out is checked, with consistent checksums (a forged file), and
+ * --info's integrity line reports it. */
+static void test_bad_numbers(void) {
+    build();
+    const char *p = tpath("num_src.gto");
+    if (!write_good(p)) return;
+    size_t n;
+    uint8_t *b = read_all(p, &n);
+    float fnan = NAN, finf = INFINITY, two = 2, neg = -1;
+    double dnan = NAN, dzero = 0;
+    corrupt_index(b, n, S_MATERIALS, 104 + 64 + 4, &fnan, 4, "material 1: base_color[1] nan is not in [0, 1]", "material NaN");
+    corrupt_index(b, n, S_MATERIALS, 76, &two, 4, "material 0: metallic 2 or roughness", "metallic 2");
+    corrupt_index(b, n, S_MATERIALS, 84, &finf, 4, "material 0: emissive[0] inf is not finite", "emissive inf");
+    corrupt_index(b, n, S_LIGHTS, 68, &fnan, 4, "light 0: color[0] nan is not finite", "light colour NaN");
+    corrupt_index(b, n, S_LIGHTS, 144 + 128, &fnan, 4, "light 1: intensity nan", "light intensity NaN");
+    corrupt_index(b, n, S_LIGHTS, 128, &finf, 4, "light 0: intensity inf", "light intensity inf");
+    corrupt_index(b, n, S_LIGHTS, 144 + 132, &neg, 4, "light 1: intensity 100 or range -1", "negative range");
+    corrupt_index(b, n, S_LIGHTS, 80, &dnan, 8, "light 0: position or direction not finite", "light position NaN");
+    corrupt_index(b, n, S_LIGHTS, 144 + 104 + 16, &dzero, 8, "light 1: position or direction not finite (or not unit)", "spot axis zero");
+    corrupt_index(b, n, S_LIGHTS, 144 + 136, &two, 4, "light 1: cone angles 2 / 0.4", "cone");
+    corrupt_index(b, n, S_CAMERA, 72, &dnan, 8, "camera: yfov nan", "yfov NaN");
+    corrupt_index(b, n, S_CAMERA, 88, &dzero, 8, "camera: yfov 0.7, aspect 1.5, znear 0 ", "znear 0");
+    corrupt_index(b, n, S_CAMERA, 24 + 16, &dzero, 8, "camera: position, direction or up not finite", "camera dir zero");
+    corrupt_index(b, n, S_STATS, 96, &dnan, 8, "stats: energy_left nan", "energy NaN");
+    corrupt_index(b, n, S_QUADS, 96, &fnan, 4, "quad 0: normal is not a unit vector", "normal NaN");
+    corrupt_index(b, n, S_QUADS, 168 + 132, &neg, 4, "quad 1: area -1 is not finite and > 0", "negative area");
+    /* --info: a forged file with NaN in a light is not "integrity: ok". */
+    uint8_t *c = malloc(n);
+    memcpy(c, b, n);
+    memcpy(c + sec_off(c, S_LIGHTS) + 128, &fnan, 4);
+    fix_section_sum(c, S_LIGHTS);
+    fix_header_sum(c);
+    write_raw(tpath("nan_light.gto"), c, n);
+    char *text = NULL;
+    size_t tn = 0;
+    FILE *f = open_memstream(&text, &tn);
+    wrt_status st = wrt_gto_print_info(tpath("nan_light.gto"), 0, f);
+    fclose(f);
+    CHECK(st == WRT_ERR_CORRUPT, "info status %s", wrt_status_str(st));
+    CHECK(strstr(text, "integrity:  FAILED (corrupt") && strstr(text, "light 0: intensity nan"), "%s", text);
+    free(text);
+    free(c);
+    /* The writer refuses the same numbers. */
+    wrt_light saved = lights[0];
+    lights[0].intensity = NAN;
+    expect(wrt_gto_write(tpath("w.gto"), &contents), WRT_ERR_INVALID_ARG, "light 0: intensity nan", "writer NaN");
+    lights[0] = saved;
+    free(b);
+}
+
 /* The checks run 8192 elements at a time: a fault right at a chunk boundary, inside
  * a column that spans it, must still be found. */
 static void test_chunk_boundaries(void) {
@@ -782,7 +848,26 @@ static void raise_term(const char *tmp) {
     _exit(4); /* not reached */
 }
 
-/* A bake interrupted while writing leaves neither the temporary nor a target. */
+/* Forks a writer that is killed by `sig` once its temporary exists; returns the status. */
+static int killed_write(const char *path, int handler, int named) {
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid == 0) {
+        if (handler) wrt_gto_install_signal_cleanup();
+        wrt_gto_force_named_temporaries(named);
+        wrt_gto_set_write_hook(raise_term);
+        wrt_gto_write(path, &contents);
+        _exit(5);
+    }
+    int ws = 0;
+    waitpid(pid, &ws, 0);
+    return ws;
+}
+
+/* A write interrupted while writing leaves neither a temporary nor a target: an
+ * unnamed temporary (O_TMPFILE) vanishes with the process, a named one is removed by
+ * the handler; without the handler the named one stays, and the next write to the
+ * same path removes it (its process is gone). */
 static void test_signal_cleanup(void) {
     build();
     char dir[512];
@@ -790,29 +875,82 @@ static void test_signal_cleanup(void) {
     mkdir(dir, 0777);
     char path[600];
     snprintf(path, sizeof path, "%s/out.gto", dir);
-    fflush(NULL);
-    pid_t pid = fork();
-    if (pid == 0) {
-        wrt_gto_install_signal_cleanup();
-        wrt_gto_set_write_hook(raise_term);
-        wrt_gto_write(path, &contents);
-        _exit(5);
-    }
-    int ws = 0;
-    waitpid(pid, &ws, 0);
-    CHECK(WIFSIGNALED(ws) && WTERMSIG(ws) == SIGTERM, "child ended with status 0x%x, expected SIGTERM", ws);
-    CHECK(count_tmp_files(dir) == 0, "temporary survived the signal");
     struct stat sb;
+    int ws = killed_write(path, 0, 0);
+    CHECK(WIFSIGNALED(ws) && WTERMSIG(ws) == SIGTERM, "unnamed: child ended with status 0x%x, expected SIGTERM", ws);
+    CHECK(count_tmp_files(dir) == 0, "unnamed temporary left without any handler");
     CHECK(stat(path, &sb) != 0, "target appeared");
-    /* Without the handler the temporary stays: the test above shows the handler's work. */
-    pid = fork();
-    if (pid == 0) {
-        wrt_gto_set_write_hook(raise_term);
-        wrt_gto_write(path, &contents);
-        _exit(5);
-    }
-    waitpid(pid, &ws, 0);
-    CHECK(WIFSIGNALED(ws) && count_tmp_files(dir) == 1, "control: temporary expected without handler");
+    ws = killed_write(path, 1, 1);
+    CHECK(WIFSIGNALED(ws) && WTERMSIG(ws) == SIGTERM, "named: child ended with status 0x%x, expected SIGTERM", ws);
+    CHECK(count_tmp_files(dir) == 0, "named temporary survived the handler");
+    CHECK(stat(path, &sb) != 0, "target appeared");
+    ws = killed_write(path, 0, 1);
+    CHECK(WIFSIGNALED(ws) && count_tmp_files(dir) == 1, "control: named temporary expected without handler");
+    test_capture_begin();
+    int ok = write_good(path);
+    test_capture_end();
+    CHECK(ok && count_tmp_files(dir) == 0, "the next write removes the stale temporary (%d left)", count_tmp_files(dir));
+    CHECK(strstr(test_log, "which is gone") != NULL, "log: %s", test_log);
+    unlink(path);
+}
+
+/* A pending write: checked through its descriptor, then committed or discarded; the
+ * target is the old file until the commit. */
+static void test_pending(void) {
+    build();
+    const char *p = tpath("pend.gto");
+    write_raw(p, "old", 3);
+    wrt_gto_pending w;
+    CHECK(wrt_gto_write_pending(p, &contents, &w) == WRT_OK, "%s", wrt_last_error());
+    char dir[512];
+    snprintf(dir, sizeof dir, "%s", tmpdir);
+    CHECK(count_tmp_files(dir) == 0, "an unnamed temporary has no name");
+    wrt_gto g;
+    CHECK(wrt_gto_open_pending(&w, &g) == WRT_OK && g.nquads == 3, "open pending: %s", wrt_last_error());
+    wrt_gto_close(&g);
+    size_t n;
+    uint8_t *b = read_all(p, &n);
+    CHECK(n == 3 && memcmp(b, "old", 3) == 0, "target untouched while pending");
+    free(b);
+    wrt_gto_discard(&w);
+    b = read_all(p, &n);
+    CHECK(n == 3 && memcmp(b, "old", 3) == 0, "target untouched after discard");
+    free(b);
+    CHECK(count_tmp_files(dir) == 0, "nothing left after discard");
+    CHECK(wrt_gto_write_pending(p, &contents, &w) == WRT_OK, "%s", wrt_last_error());
+    CHECK(wrt_gto_commit(&w) == WRT_OK, "commit: %s", wrt_last_error());
+    CHECK(wrt_gto_open(p, &g) == WRT_OK, "committed file opens: %s", wrt_last_error());
+    wrt_gto_close(&g);
+    CHECK(count_tmp_files(dir) == 0, "nothing left after commit");
+    /* the same with a named temporary */
+    wrt_gto_force_named_temporaries(1);
+    CHECK(wrt_gto_write_pending(p, &contents, &w) == WRT_OK, "%s", wrt_last_error());
+    CHECK(count_tmp_files(dir) == 1, "named temporary while pending");
+    wrt_gto_discard(&w);
+    CHECK(count_tmp_files(dir) == 0, "named temporary removed by discard");
+    wrt_gto_force_named_temporaries(0);
+}
+
+/* The output is checked before any work: not an input (same inode, also through a
+ * hard or symbolic link), not a directory, in a folder where a file can be made. */
+static void test_check_output(void) {
+    const char *in = tpath("in.gltf");
+    write_raw(in, "{}", 2);
+    const char *inputs[1] = {in};
+    expect(wrt_gto_check_output(in, inputs, 1), WRT_ERR_INVALID_ARG, "the output is the input", "same path");
+    const char *hard = tpath("hard.gto"), *sym = tpath("sym.gto");
+    unlink(hard); unlink(sym);
+    CHECK(link(in, hard) == 0 && symlink(in, sym) == 0, "links: %s", strerror(errno));
+    expect(wrt_gto_check_output(hard, inputs, 1), WRT_ERR_INVALID_ARG, "the output is the input", "hard link");
+    expect(wrt_gto_check_output(sym, inputs, 1), WRT_ERR_INVALID_ARG, "the output is the input", "symbolic link");
+    expect(wrt_gto_check_output(tmpdir, inputs, 1), WRT_ERR_IO, "the output is a directory", "directory");
+    expect(wrt_gto_check_output("/proc/wrt_no.gto", inputs, 1), WRT_ERR_IO, "cannot create a temporary file", "unwritable");
+    expect(wrt_gto_check_output(tpath("no/such/dir.gto"), inputs, 1), WRT_ERR_IO, "cannot create a temporary file", "missing folder");
+    CHECK(wrt_gto_check_output(tpath("fresh.gto"), inputs, 1) == WRT_OK, "a new file: %s", wrt_last_error());
+    char dir[512];
+    snprintf(dir, sizeof dir, "%s", tmpdir);
+    CHECK(count_tmp_files(dir) == 0, "the probe leaves nothing");
+    unlink(hard); unlink(sym);
 }
 
 /* ---- inspection ---- */
@@ -967,10 +1105,13 @@ int main(int argc, char **argv) {
     TEST_RUN(test_versions);
     TEST_RUN(test_bad_offsets);
     TEST_RUN(test_bad_indices);
+    TEST_RUN(test_bad_numbers);
     TEST_RUN(test_chunk_boundaries);
     TEST_RUN(test_write_errors);
     TEST_RUN(test_failed_write_keeps_target);
     TEST_RUN(test_signal_cleanup);
+    TEST_RUN(test_pending);
+    TEST_RUN(test_check_output);
     TEST_RUN(test_print_info);
     TEST_RUN(test_open_speed);
     char cmd[600];

@@ -10,6 +10,7 @@
 #include "tests/test.h"
 #include "common/basis.h"
 #include "formats/gto.h"
+#include "formats/scene.h"
 #include "formats/image.h"
 #include "player/platform.h"
 #include "player/relight.h"
@@ -197,7 +198,7 @@ static void test_write_and_draw(void) {
     wrt_relight_options ro = {.max_tex_res = 16, .threads = 2};
     CHECK(wrt_relight_create(&g, &ro, &rl) == WRT_OK, "%s", wrt_last_error());
     wrt_render *rd = NULL;
-    wrt_render_options o = {W, H, 256};
+    wrt_render_options o = {W, H, 256, 1};
     CHECK(wrt_render_create(&g, &o, &rd) == WRT_OK, "%s", wrt_last_error());
     if (rl && rd) {
         wrt_light l;

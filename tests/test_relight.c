@@ -689,14 +689,64 @@ static void test_bench(void) {
     double first = (wrt_now() - t0) * 1e3;
     CHECK(n > 0, "first update");
     wrt_relight_timings tm;
+    size_t n3 = (size_t)s.g.nfuncs * 3;
+    float *x0 = malloc(n3 * sizeof *x0);
+    memcpy(x0, wrt_relight_X(r), n3 * sizeof *x0);
     double ms = wrt_relight_bench(r, 20, &tm);
-    CHECK(ms > 0, "bench ran");
+    /* the benchmark moves the light and puts it back: the same X to the bit */
+    CHECK(memcmp(x0, wrt_relight_X(r), n3 * sizeof *x0) == 0, "X after the benchmark restored the light");
+    free(x0);
     fprintf(stderr, "  bench (%d threads): %u quads, %u functions, %llu entries: first update %.1f ms, then %.2f ms/update "
             "(projection %.2f, multiply %.2f, brdf %.2f, synthesis %.2f; %d quads re-synthesized)\n",
             threads, s.g.nquads, s.g.nfuncs, (unsigned long long)s.g.nnz, first, ms, tm.projection, tm.multiply, tm.brdf,
             tm.synthesis, tm.quads_resynthesized);
     wrt_relight_destroy(r);
     }
+    ts_free(&s);
+}
+
+/* X = Op E against a dense reference product: a random sparse operator (entries of both
+ * signs, every quad's functions), two lights of different colours (so each channel of E
+ * differs), and the product recomputed here in double precision over every (row, column)
+ * of the operator expanded to dense columns, channel by channel. */
+static void test_multiply_dense(void) {
+    ts_scene s;
+    build_room(&s, 2, 2, 60);
+    uint32_t nf = s.nf;
+    wrt_relight *r;
+    CHECK(wrt_relight_create(&s.g, NULL, &r) == WRT_OK, "%s", wrt_last_error());
+    double eye[3] = {0.5, 0.5, 0.9};
+    wrt_relight_set_eye(r, eye);
+    wrt_light L[2] = {point_light(0.3, 0.7, 0.6, 2), point_light(0.7, 0.25, 0.4, 1)};
+    L[0].color[0] = 1; L[0].color[1] = 0.45f; L[0].color[2] = 0.1f;
+    L[1].color[0] = 0.15f; L[1].color[1] = 0.6f; L[1].color[2] = 1;
+    wrt_relight_set_lights(r, L, NULL, 2);
+    wrt_relight_update(r, NULL);
+    const float *E = wrt_relight_E(r), *X = wrt_relight_X(r);
+    double *col = malloc((size_t)nf * sizeof *col), *ref = calloc((size_t)nf * 3, sizeof *ref);
+    int differ = 0;
+    for (uint32_t j = 0; j < nf; j++) differ |= E[3 * j] != E[3 * j + 1] || E[3 * j + 1] != E[3 * j + 2];
+    CHECK(differ, "the lights' colours make E's channels differ");
+    for (int c = 0; c < 3; c++)
+        for (uint32_t j = 0; j < nf; j++) {
+            memset(col, 0, (size_t)nf * sizeof *col);
+            for (uint64_t k = s.col[j]; k < s.col[j + 1]; k++) col[s.rows[k]] = s.vals[3 * k + c];
+            double e = E[3 * j + c];
+            if (e == 0) continue;
+            for (uint32_t i = 0; i < nf; i++) ref[3 * i + c] += col[i] * e;
+        }
+    double worst[3] = {0, 0, 0}, mx[3] = {0, 0, 0};
+    for (uint32_t i = 0; i < nf; i++)
+        for (int c = 0; c < 3; c++) {
+            mx[c] = fmax(mx[c], fabs(ref[3 * i + c]));
+            worst[c] = fmax(worst[c], fabs(X[3 * i + c] - ref[3 * i + c]));
+        }
+    for (int c = 0; c < 3; c++)
+        CHECK(mx[c] > 0 && worst[c] <= 1e-5 * mx[c], "channel %d: X off the dense product by %.3g of %.3g", c, worst[c], mx[c]);
+    printf("multiply vs dense product: %u functions, %llu entries; worst |X - ref| / max: %.2e %.2e %.2e\n", nf,
+           (unsigned long long)s.g.nnz, worst[0] / mx[0], worst[1] / mx[1], worst[2] / mx[2]);
+    free(col); free(ref);
+    wrt_relight_destroy(r);
     ts_free(&s);
 }
 
@@ -802,6 +852,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_shadow_refine);
     TEST_RUN(test_adaptive_vs_reference);
     TEST_RUN(test_linearity);
+    TEST_RUN(test_multiply_dense);
     TEST_RUN(test_exact_zeros);
     TEST_RUN(test_glossy_beta);
     TEST_RUN(test_bench);

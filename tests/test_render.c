@@ -84,7 +84,7 @@ static wrt_light point_light(double intensity) {
 static float img[W * H * 3], img2[W * H * 3], img3[W * H * 3];
 
 static void render(wrt_render_mode mode, const wrt_light *l, int nl, float *out) {
-    wrt_render_options o = {W, H, 512};
+    wrt_render_options o = {W, H, 512, 1};
     wrt_render *r = NULL;
     wrt_status s = wrt_render_create(&g, &o, &r);
     CHECK(s == WRT_OK, "create: %s", wrt_last_error());
@@ -230,7 +230,7 @@ static void test_spot(void) {
 /* Indirect light: constant 1 on the left half, 3 on the right, and a gradient test. */
 static void test_atlas(void) {
     build(0);
-    wrt_render_options o = {W, H, 256};
+    wrt_render_options o = {W, H, 256, 1};
     wrt_render *r = NULL;
     CHECK(wrt_render_create(&g, &o, &r) == WRT_OK, "%s", wrt_last_error());
     if (!r) return;

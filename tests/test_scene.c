@@ -713,8 +713,179 @@ static void bad_accessors(void) {
     expect_fail("required extension", t, WRT_ERR_UNSUPPORTED, "required extension KHR_draco_mesh_compression", NULL);
     free(t);
     t = replace(gltf_text(&sp), "[{\"mesh\":0}]", "[{\"mesh\":0,\"extensions\":{\"KHR_lights_punctual\":{\"light\":5}}}]");
-    expect_fail("light out of range", t, WRT_ERR_PARSE, "light 5 does not exist", NULL);
+    expect_fail("light out of range", t, WRT_ERR_PARSE, "KHR_lights_punctual.light: refers to light 5", NULL);
     free(t);
+}
+
+
+/* The strict pass: each field the reader uses, invalid in one way, is refused with its
+ * JSON path and what is wrong; nothing becomes a default silently. */
+static void strict_case(const char *what, const char *top, const char *prim_extra, const char *nodes,
+                        wrt_status want, const char *needle, const char *needle2) {
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = prim_extra};
+    sp.top = top;
+    sp.nodes = nodes;
+    char *t = gltf_text(&sp);
+    expect_fail(what, t, want, needle, needle2);
+    free(t);
+}
+
+#define LIGHTS(x) "\"extensionsUsed\":[\"KHR_lights_punctual\"],\"extensions\":{\"KHR_lights_punctual\":{\"lights\":[" x "]}},"
+#define LIGHT_NODE(extra) "[{\"mesh\":0,\"children\":[1]},{" extra "\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}}]"
+
+static void strict_fields(void) {
+    const char *mat0 = ",\"material\":0";
+    strict_case("baseColorFactor of 3", "\"materials\":[{\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.5,0.5,0.5]}}],",
+                mat0, NULL, WRT_ERR_PARSE, "materials[0].pbrMetallicRoughness.baseColorFactor: has 3 elements, expected 4", NULL);
+    strict_case("baseColorFactor of 5", "\"materials\":[{\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.5,0.5,0.5,1,1]}}],",
+                mat0, NULL, WRT_ERR_PARSE, "baseColorFactor: has 5 elements, expected 4", NULL);
+    strict_case("baseColorFactor string", "\"materials\":[{\"pbrMetallicRoughness\":{\"baseColorFactor\":\"grey\"}}],",
+                mat0, NULL, WRT_ERR_PARSE, "baseColorFactor: must be an array of 4 numbers, not string", NULL);
+    strict_case("baseColorFactor element string", "\"materials\":[{\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.5,\"0.5\",0.5,1]}}],",
+                mat0, NULL, WRT_ERR_PARSE, "baseColorFactor[1]: must be a number, not string", NULL);
+    strict_case("metallicFactor string", "\"materials\":[{\"pbrMetallicRoughness\":{\"metallicFactor\":\"0\"}}],",
+                mat0, NULL, WRT_ERR_PARSE, "materials[0].pbrMetallicRoughness.metallicFactor: must be a number, not string", NULL);
+    strict_case("roughness above 1", "\"materials\":[{\"pbrMetallicRoughness\":{\"roughnessFactor\":1.5}}],",
+                mat0, NULL, WRT_ERR_PARSE, "roughnessFactor: 1.5 is outside [0, 1]", NULL);
+    strict_case("emissiveFactor string", "\"materials\":[{\"emissiveFactor\":[\"1\",0,0]}],",
+                mat0, NULL, WRT_ERR_PARSE, "materials[0].emissiveFactor[0]: must be a number", NULL);
+    strict_case("missing texture", "\"materials\":[{\"pbrMetallicRoughness\":{\"baseColorTexture\":{\"index\":3}}}],",
+                mat0, NULL, WRT_ERR_PARSE, "baseColorTexture.index: refers to textures 3, which does not exist (the file has 0)", NULL);
+    strict_case("texture without image", "\"materials\":[{\"emissiveTexture\":{\"index\":0}}],\"textures\":[{\"source\":2}],",
+                mat0, NULL, WRT_ERR_PARSE, "textures[0].source: refers to images 2, which does not exist", NULL);
+    strict_case("undecodable image", "\"materials\":[{\"pbrMetallicRoughness\":{\"baseColorTexture\":{\"index\":0}}}],"
+                "\"textures\":[{\"source\":0}],\"images\":[{\"uri\":\"data:image/png;base64,AAAAAAAAAAAA\"}],",
+                mat0, NULL, WRT_ERR_PARSE, "materials[0].pbrMetallicRoughness.baseColorTexture: texture 0 has no decoded image", NULL);
+    strict_case("doubleSided string", "\"materials\":[{\"doubleSided\":\"yes\"}],", mat0, NULL, WRT_ERR_PARSE,
+                "materials[0].doubleSided: must be true or false, not string", NULL);
+    strict_case("light colour of 2", LIGHTS("{\"type\":\"point\",\"color\":[1,1]}"), NULL, LIGHT_NODE(""), WRT_ERR_PARSE,
+                "extensions.KHR_lights_punctual.lights[0].color: has 2 elements, expected 3", NULL);
+    strict_case("light intensity string", LIGHTS("{\"type\":\"point\",\"intensity\":\"5\"}"), NULL, LIGHT_NODE(""),
+                WRT_ERR_PARSE, "lights[0].intensity: must be a number, not string", NULL);
+    strict_case("intensity 1e39", LIGHTS("{\"type\":\"point\",\"intensity\":1e39}"), NULL, LIGHT_NODE(""), WRT_ERR_PARSE,
+                "lights[0].intensity: 1e+39 is not finite as a 32-bit float", NULL);
+    strict_case("range 0", LIGHTS("{\"type\":\"point\",\"range\":0}"), NULL, LIGHT_NODE(""), WRT_ERR_PARSE,
+                "lights[0].range: 0 is outside (0,", NULL);
+    strict_case("spot cones crossed", LIGHTS("{\"type\":\"spot\",\"spot\":{\"innerConeAngle\":0.6,\"outerConeAngle\":0.5}}"),
+                NULL, LIGHT_NODE(""), WRT_ERR_PARSE, "lights[0].spot: innerConeAngle 0.6 must be less than outerConeAngle 0.5", NULL);
+    strict_case("light type", LIGHTS("{\"type\":\"area\"}"), NULL, LIGHT_NODE(""), WRT_ERR_PARSE,
+                "lights[0].type: 'area' is not point, spot or directional", NULL);
+    strict_case("zero scale light", LIGHTS("{\"type\":\"spot\",\"spot\":{}}"), NULL, LIGHT_NODE("\"scale\":[1,0,1],"),
+                WRT_ERR_PARSE, "nodes[1]: light 0's world transform has zero scale", NULL);
+    strict_case("zero scale parent", LIGHTS("{\"type\":\"point\"}"), NULL,
+                "[{\"mesh\":0,\"scale\":[0,0,0],\"children\":[1]},{\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}}]",
+                WRT_ERR_PARSE, "nodes[1]: light 0's world transform has zero scale", NULL);
+    strict_case("negative scale spot", LIGHTS("{\"type\":\"spot\",\"spot\":{}}"), NULL, LIGHT_NODE("\"scale\":[1,1,-1],"),
+                WRT_ERR_PARSE, "nodes[1]: spot light 0's world transform has a negative scale", NULL);
+    strict_case("matrix and TRS", NULL, NULL,
+                "[{\"mesh\":0,\"matrix\":[1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1],\"translation\":[1,0,0]}]", WRT_ERR_PARSE,
+                "nodes[0]: has both matrix and translation", NULL);
+    strict_case("scale of 2", NULL, NULL, "[{\"mesh\":0,\"scale\":[1,1]}]", WRT_ERR_PARSE,
+                "nodes[0].scale: has 2 elements, expected 3", NULL);
+    strict_case("camera znear 0", "\"cameras\":[{\"type\":\"perspective\",\"perspective\":{\"yfov\":0.7,\"znear\":0}}],", NULL,
+                "[{\"mesh\":0,\"children\":[1]},{\"camera\":0,\"translation\":[0,0,3]}]", WRT_ERR_PARSE,
+                "cameras[0].perspective.znear: 0 is outside (0,", NULL);
+    strict_case("camera zfar below znear", "\"cameras\":[{\"type\":\"perspective\",\"perspective\":{\"yfov\":0.7,\"znear\":1,\"zfar\":0.5}}],",
+                NULL, "[{\"mesh\":0}]", WRT_ERR_PARSE, "cameras[0].perspective.zfar: 0.5 must be greater than znear 1", NULL);
+    strict_case("camera zero scale", "\"cameras\":[{\"type\":\"perspective\",\"perspective\":{\"yfov\":0.7,\"znear\":0.1}}],", NULL,
+                "[{\"mesh\":0,\"children\":[1]},{\"camera\":0,\"scale\":[0,0,0]}]", WRT_ERR_PARSE,
+                "nodes[1]: camera 0's world transform has zero scale", NULL);
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6};
+    char *t = replace(gltf_text(&sp), "\"version\":\"2.0\"", "\"version\":\"3.0\"");
+    expect_fail("asset version 3.0", t, WRT_ERR_UNSUPPORTED, "asset.version: '3.0': only glTF 2.x is supported", NULL);
+    free(t);
+    t = replace(gltf_text(&sp), "\"version\":\"2.0\"", "\"version\":2");
+    expect_fail("asset version number", t, WRT_ERR_PARSE, "asset.version: must be a string, not number", NULL);
+    free(t);
+    t = replace(gltf_text(&sp), "\"componentType\":5126,", "\"byteOffset\":-4,\"componentType\":5126,");
+    expect_fail("negative byteOffset", t, WRT_ERR_PARSE, "accessors[0].byteOffset: -4 is outside [0,", NULL);
+    free(t);
+    t = replace(gltf_text(&sp), "\"byteOffset\":0,", "\"byteOffset\":-8,");
+    expect_fail("negative bufferView byteOffset", t, WRT_ERR_PARSE, "bufferViews[0].byteOffset: -8 is outside [0,", NULL);
+    free(t);
+    t = replace(gltf_text(&sp), "\"count\":4,", "\"count\":4.5,");
+    expect_fail("fractional count", t, WRT_ERR_PARSE, "accessors[0].count: 4.5 is not an integer", NULL);
+    free(t);
+}
+
+/* Valid but unusual fields are warned about; fields the bake does not use are listed. */
+static void strict_warnings_and_ignored(void) {
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = ",\"material\":0"};
+    sp.top = "\"materials\":[{\"alphaMode\":\"BLEND\",\"normalTexture\":{\"index\":0}}],\"textures\":[{\"source\":0}],"
+             "\"images\":[{\"uri\":\"data:image/png;base64,AAAA\"}],\"animations\":[],";
+    sp.nodes = "[{\"mesh\":0,\"rotation\":[0,0,0,0.9]}]";
+    char *t = gltf_text(&sp);
+    t = replace(t, "\"attributes\":{\"POSITION\":0}", "\"attributes\":{\"POSITION\":0,\"NORMAL\":0}");
+    wrt_scene s;
+    test_capture_begin();
+    wrt_status st = load_text(t, 0, &s);
+    test_capture_end();
+    CHECK(st == WRT_OK, "%s", wrt_last_error());
+    CHECK(strstr(test_log, "materials[0].alphaMode: BLEND: transparency is not modelled") != NULL, "%s", test_log);
+    CHECK(strstr(test_log, "nodes[0].rotation: quaternion of length 0.9, not unit") != NULL, "%s", test_log);
+    if (st == WRT_OK) {
+        CHECK(strstr(s.ignored, "materials[*].alphaMode") != NULL, "%s", s.ignored);
+        CHECK(strstr(s.ignored, "materials[*].normalTexture") != NULL, "%s", s.ignored);
+        CHECK(strstr(s.ignored, "meshes[*].primitives[*].attributes.NORMAL") != NULL, "%s", s.ignored);
+        CHECK(strstr(s.ignored, "animations") != NULL, "%s", s.ignored);
+        char *buf = NULL;
+        size_t len = 0;
+        FILE *f = open_memstream(&buf, &len);
+        wrt_scene_print_summary(&s, 0, f);
+        fclose(f);
+        CHECK(strstr(buf, "ignored (not used by the bake): ") != NULL && strstr(buf, "attributes.NORMAL"), "%s", buf);
+        free(buf);
+        wrt_scene_free(&s);
+    }
+    free(t);
+}
+
+/* doubleSided: each quad gets a back-to-back twin, facing the other way, set back by
+ * 1e-4 of the diagonal; a one-sided material gets none. */
+static void double_sided(void) {
+    spec sp = {.pos = unit_square, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = ",\"material\":0"};
+    sp.top = "\"materials\":[{\"doubleSided\":true}],";
+    wrt_scene s;
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.nquads == 2 && s.ntwins == 1, "quads %d twins %d", s.nquads, s.ntwins);
+    if (s.nquads == 2) {
+        const wrt_quad *f = &s.quads[0], *b = &s.quads[1];
+        CHECK_NEAR(f->n.z, 1, 1e-12, "front faces +z");
+        CHECK_NEAR(b->n.z, -1, 1e-12, "twin faces -z");
+        CHECK_NEAR(b->area, f->area, 1e-12, "same area");
+        double gap = 1e-4 * sqrt(2.0);
+        for (int k = 0; k < 4; k++) CHECK_NEAR(b->p[k].z, -gap, 1e-15, "twin set back by 1e-4 diagonal");
+        CHECK(has_corner(b, 1, 1, -gap, 1e-12) && has_corner(b, 0, 1, -gap, 1e-12), "same outline");
+        CHECK(b->material == 0 && b->mesh == 0, "same material and mesh");
+    }
+    wrt_scene_free(&s);
+    sp.top = "\"materials\":[{\"doubleSided\":false}],";
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "%s", wrt_last_error());
+    CHECK(s.nquads == 1 && s.ntwins == 0, "one-sided: quads %d", s.nquads);
+    wrt_scene_free(&s);
+}
+
+/* A scene that is not a regular file is refused before it is read: a FIFO at once
+ * (no writer: a blocking open would wait for ever), a directory without an allocation
+ * of its "size". */
+static void not_regular(void) {
+    char fifo[512], dir[512];
+    snprintf(fifo, sizeof fifo, "%s/pipe.gltf", tmpdir);
+    snprintf(dir, sizeof dir, "%s/folder.gltf", tmpdir);
+    unlink(fifo);
+    CHECK(mkfifo(fifo, 0600) == 0, "mkfifo");
+    mkdir(dir, 0700);
+    wrt_scene s;
+    double t0 = wrt_now();
+    wrt_status st = wrt_scene_load(fifo, NULL, &s);
+    CHECK(st == WRT_ERR_PARSE && strstr(wrt_last_error(), "pipe.gltf: not a regular file (a FIFO)"),
+          "FIFO: %s", wrt_last_error());
+    CHECK(wrt_now() - t0 < 5, "FIFO refused in %.1f s", wrt_now() - t0);
+    st = wrt_scene_load(dir, NULL, &s);
+    CHECK(st == WRT_ERR_PARSE && strstr(wrt_last_error(), "folder.gltf: not a regular file (a directory)"),
+          "directory: %s", wrt_last_error());
+    unlink(fifo);
+    rmdir(dir);
 }
 
 static void bad_geometry(void) {
@@ -853,6 +1024,10 @@ int main(int argc, char **argv) {
     TEST_RUN(bad_json);
     TEST_RUN(bad_accessors);
     TEST_RUN(bad_geometry);
+    TEST_RUN(strict_fields);
+    TEST_RUN(strict_warnings_and_ignored);
+    TEST_RUN(double_sided);
+    TEST_RUN(not_regular);
     TEST_RUN(data_files);
     TEST_RUN(quad_finish);
     const char *names[] = {"quad.glb", "quad.bin", "short.bin", "ext.gltf", "missing.gltf", "short.gltf", "dir.gltf"};

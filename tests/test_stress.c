@@ -22,6 +22,7 @@
 #include "player/relight.h"
 #include "precompute/bake.h"
 #include "bake_helpers.h"
+#include "claims.h"
 #include "scene_build.h"
 #include "test.h"
 #include "tools/reference.h"
@@ -227,8 +228,9 @@ static void test_furnace(void) {
          * mixed levels left fine sender wavelets delivering net power, the dominant
          * eigenvalue of T was rho (1 + 0.003..0.008), and 1 / (1 - rho) amplified it
          * (+4% at 0.9, +55% at 0.99, a diverging series at 0.999). */
-        CHECK(worst < 0.02, "furnace rho %.3f: indirect %.4f .. %.4f, truth %.4f (worst %.2f%%)", rho, lo, hi, truth,
-              100 * worst);
+        char id[80];
+        snprintf(id, sizeof id, "stress-furnace-quad-%g", rho);
+        CHECK_CLAIM(id, worst, CLAIM_FURNACE, "furnace rho %.3f: indirect %.6g .. %.6g, truth %.6g", rho, lo, hi, truth);
         printf("furnace injected rho %.3f: indirect %.5g .. %.5g vs truth %.5g (worst %.3f%%); bounces %llu, "
                "tail %.3e, energy left %.3e, ratio %.5f\n", rho, lo, hi, truth, 100 * worst,
                (unsigned long long)r.c.bounces, r.c.tail_fraction, r.c.energy_left, r.c.series_ratio);
@@ -240,9 +242,11 @@ static void test_furnace(void) {
             lit L;
             player_light(&p, &l, &L, "furnace light");
             double want = L.flux_direct * truth;
-            CHECK(fabs(L.flux_indirect / want - 1) < 0.02, "furnace rho %.3f: indirect flux %.5g, direct x rho/(1-rho) %.5g",
-                  rho, L.flux_indirect, want);
-            CHECK(fabs(L.flux_direct / (4 * M_PI) - 1) < 0.02, "direct flux %.5g vs 4 pi", L.flux_direct);
+            snprintf(id, sizeof id, "stress-furnace-light-%g", rho);
+            CHECK_CLAIM(id, L.flux_indirect / want - 1, CLAIM_FURNACE_LIGHT, "indirect flux %.7g, direct x rho/(1-rho) %.7g",
+                        L.flux_indirect, want);
+            snprintf(id, sizeof id, "stress-furnace-direct-%g", rho);
+            CHECK_CLAIM(id, L.flux_direct / (4 * M_PI) - 1, CLAIM_FURNACE, "direct flux %.7g vs 4 pi I", L.flux_direct);
             printf("furnace light rho %.3f: indirect flux %.6g vs direct x rho/(1-rho) %.6g (%.3f%%); direct flux "
                    "%.6g vs 4 pi I %.6g (%.3f%%); texel min/max %.2e\n", rho, L.flux_indirect, want,
                    100 * (L.flux_indirect / want - 1), L.flux_direct, 4 * M_PI, 100 * (L.flux_direct / (4 * M_PI) - 1),
@@ -282,7 +286,12 @@ static void test_furnace_occluded(void) {
         check_bake(&r, "furnace with an occluder");
         CHECK(r.c.closed == 1, "the balance finds the scene closed");
         double lo, hi, mean, worst = uniform_response(&s, &r, truth, &lo, &hi, &mean);
-        CHECK(worst < 0.02, "furnace with an occluder, rho %.3f: worst quad %.2f%% off %.4g", rho, 100 * worst, truth);
+        char id[80];
+        snprintf(id, sizeof id, "stress-occluded-mean-%g", rho);
+        CHECK_CLAIM(id, mean / truth - 1, rho >= 0.9 ? CLAIM_OCCLUDED_MEAN : CLAIM_OCCLUDED_MEAN_LOW,
+                    "furnace with an occluder, rho %.3f: mean indirect %.7g vs %.7g", rho, mean, truth);
+        snprintf(id, sizeof id, "stress-occluded-quad-%g", rho);
+        CHECK_CLAIM(id, worst, CLAIM_OCCLUDED_QUAD, "furnace with an occluder, rho %.3f: worst quad", rho);
         printf("furnace with an occluder, rho %.3f: mean indirect %.6g vs truth %.6g (%.3f%%), worst quad %.3f%%; "
                "bounces %llu, ratio %.6f\n", rho, mean, truth, 100 * (mean / truth - 1), 100 * worst,
                (unsigned long long)r.c.bounces, r.c.series_ratio);
@@ -343,8 +352,12 @@ static void test_furnace_general_quads(void) {
             flux += fq;
             area += s.quads[q].area;
         }
-        CHECK(fabs(flux / area / truth - 1) < 0.005 && worst < 0.02, "general quads, rho %.3f: mean %.5g, worst %.2f%%",
-              rho, flux / area, 100 * worst);
+        char id[80];
+        snprintf(id, sizeof id, "stress-general-mean-%g", rho);
+        CHECK_CLAIM(id, flux / area / truth - 1, CLAIM_GENERAL_MEAN, "general quads, rho %.3f: mean %.7g vs %.7g", rho,
+                    flux / area, truth);
+        snprintf(id, sizeof id, "stress-general-quad-%g", rho);
+        CHECK_CLAIM(id, worst, CLAIM_GENERAL_QUAD, "general quads, rho %.3f: worst quad", rho);
         printf("furnace with general quads, rho %.3f: mean indirect %.6g vs truth %.6g (%.3f%%), worst quad %.3f%%\n",
                rho, flux / area, truth, 100 * (flux / area / truth - 1), 100 * worst);
         free(pw); free(x); free(y);
@@ -413,7 +426,7 @@ static void wedge_scene(wrt_scene *s, double theta) {
     tsb_quad(s, P(0, 0, 0), P(0, 1, 0), P(c, 1, sn), P(c, 0, sn), m);
 }
 
-static void edge_case(double theta, double truth, const char *name) {
+static void edge_case(double theta, double truth, const char *name, const double tol[3]) {
     wrt_scene s;
     wedge_scene(&s, theta);
     int q = 5;
@@ -430,7 +443,10 @@ static void edge_case(double theta, double truth, const char *name) {
         leaves[k] = r.c.links_leaf;
         /* Before the power balance: 0.986, 0.968, 0.947, 0.935 at max levels 3..6 (truth
          * 0.983), the transfer lost as refinement deepened (links of mixed levels) */
-        CHECK(fabs(fl[k] / truth - 1) < 0.02, "%s: F = %.5f, truth %.5f (max level %d)", name, fl[k], truth, maxl[k]);
+        char id[80];
+        snprintf(id, sizeof id, "stress-%s-level-%d", name, maxl[k]);
+        for (char *c = id; *c; c++) if (*c == ' ') *c = '-';
+        CHECK_CLAIM(id, fl[k] / truth - 1, tol[k], "%s: F = %.7f, truth %.7f (max level %d)", name, fl[k], truth, maxl[k]);
         printf("%s: F = %.6f vs truth %.6f (%.3f%%), quality %d, max level %d: %llu leaves, %llu refined\n", name,
                fl[k], truth, 100 * (fl[k] / truth - 1), q, maxl[k], (unsigned long long)r.c.links_leaf,
                (unsigned long long)r.c.links_refined);
@@ -446,7 +462,8 @@ static void edge_case(double theta, double truth, const char *name) {
 
 static void test_right_angle(void) {
     double truth = ffc_perpendicular(0, 1, 0, 1, 0, 1, 0, 1);
-    edge_case(M_PI / 2, truth, "right angle");
+    const double tol[3] = {CLAIM_FF, CLAIM_FF, CLAIM_FF};
+    edge_case(M_PI / 2, truth, "right angle", tol);
 }
 
 static void test_wedge_one_degree(void) {
@@ -458,7 +475,8 @@ static void test_wedge_one_degree(void) {
     CHECK(fabs(tr - cr) < 1e-6, "quadrature at 90 degrees %.8f vs closed form %.8f", tr, cr);
     printf("wedge truth: 1 degree F = %.8f (depth 20) / %.8f (depth 26); 90 degrees %.8f vs closed form %.8f\n",
            t1, t2, tr, cr);
-    edge_case(th, t2, "wedge 1 degree");
+    const double tol[3] = {CLAIM_WEDGE_L3, CLAIM_WEDGE_L4, CLAIM_WEDGE_L5};
+    edge_case(th, t2, "wedge 1 degree", tol);
 }
 
 /* ------------------------------------------------------------------ scale ---- */
@@ -619,31 +637,82 @@ static void test_tiny_quad(void) {
 
 /* ------------------------------------------------------------------ glossy ---- */
 
-/* Smallest and largest directional albedo of material m over outgoing directions (the
- * mean of the sampler's f cos / pdf weights, 4096 per direction), largest channel. */
-static void albedo_range(const wrt_material *m, double *amin, double *amax) {
-    *amin = INFINITY; *amax = 0;
-    wrt_v3 n = P(0, 0, 1);
-    for (int e = 0; e < 24; e++) {
-        double ct = cos((e + 0.5) / 24 * 0.5 * M_PI), st = sqrt(1 - ct * ct);
-        wrt_v3 wo = P(st, 0, ct);
-        double acc[3] = {0, 0, 0};
-        int N = 4096;
-        for (int i = 0; i < N; i++) {
-            double w[3];
-            double u1 = (i + 0.5) / N, u2 = fmod(0.5 + i * 0.7548776662466927, 1.0), u3 = fmod(0.5 + i * 0.5698402909980532, 1.0);
-            wrt_brdf_sample(m, n, wo, u1, u2, u3, w);
-            for (int c = 0; c < 3; c++) if (isfinite(w[c])) acc[c] += w[c];
-        }
-        double a = fmax(acc[0], fmax(acc[1], acc[2])) / N;
-        *amin = fmin(*amin, a); *amax = fmax(*amax, a);
-    }
+/* The truth for a closed unit box of one glossy material, by a random walk of light
+ * written here (no bake, no player): photons start either as uniform isotropic incident
+ * radiance on the walls (the injected furnace: a uniform wall point, a cosine-distributed
+ * arriving direction) or from a point light at lpos (isotropic), reflect by the BRDF's
+ * importance sampler (weight f cos / pdf, reciprocal BRDF) and travel straight to the next
+ * wall; every arrival after the first reflection is indirect. Returns the indirect flux
+ * over the flux arriving directly, with its standard error in *se. */
+static uint64_t walk_state;
+static double walk_rnd(void) {
+    uint64_t z = (walk_state += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return (double)((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
 }
 
-/* A closed box with glossy walls. Uniform isotropic irradiance on every wall: each
- * bounce reflects between the smallest and the largest directional albedo, so the
- * indirect flux lies between flux_in a_min / (1 - a_min) and flux_in a_max / (1 - a_max)
- * (a wider band than the truth, but one that energy creation or loss leaves). */
+/* From p along unit d to the box's inside: the hit point and the wall's inward normal. */
+static wrt_v3 box_hit(wrt_v3 p, wrt_v3 d, wrt_v3 *n) {
+    double pc[3] = {p.x, p.y, p.z}, dc[3] = {d.x, d.y, d.z}, tmin = INFINITY;
+    int axis = 0;
+    for (int a = 0; a < 3; a++) {
+        double t = dc[a] > 0 ? (1 - pc[a]) / dc[a] : dc[a] < 0 ? -pc[a] / dc[a] : INFINITY;
+        if (t < tmin) { tmin = t; axis = a; }
+    }
+    double nc[3] = {0, 0, 0};
+    nc[axis] = dc[axis] > 0 ? -1 : 1;
+    *n = P(nc[0], nc[1], nc[2]);
+    wrt_v3 h = v3_add(p, v3_scale(d, tmin));
+    double hc[3] = {h.x, h.y, h.z};
+    hc[axis] = dc[axis] > 0 ? 1 : 0; /* exactly on the wall */
+    for (int a = 0; a < 3; a++) hc[a] = fmin(1, fmax(0, hc[a]));
+    return P(hc[0], hc[1], hc[2]);
+}
+
+static double glossy_walk(const wrt_material *m, int from_light, wrt_v3 lpos, int N, double *se) {
+    walk_state = 0x1234567ULL + (uint64_t)from_light;
+    double s = 0, s2 = 0;
+    for (int i = 0; i < N; i++) {
+        wrt_v3 p, n, d;
+        if (from_light) {
+            double z = 2 * walk_rnd() - 1, ph = 2 * M_PI * walk_rnd(), r = sqrt(fmax(0, 1 - z * z));
+            d = P(r * cos(ph), r * sin(ph), z);
+            p = box_hit(lpos, d, &n);
+        } else {
+            int w = (int)(walk_rnd() * 6) % 6, axis = w / 2;
+            double c[3] = {walk_rnd(), walk_rnd(), walk_rnd()};
+            c[axis] = w & 1;
+            p = P(c[0], c[1], c[2]);
+            double nc[3] = {0, 0, 0};
+            nc[axis] = (w & 1) ? -1 : 1;
+            n = P(nc[0], nc[1], nc[2]);
+            /* arriving direction: minus a cosine-distributed direction about n */
+            double r = sqrt(walk_rnd()), ph = 2 * M_PI * walk_rnd(), lz = sqrt(fmax(0, 1 - r * r));
+            wrt_v3 t = fabs(n.x) < 0.9 ? v3_norm(v3_cross(n, P(1, 0, 0))) : v3_norm(v3_cross(n, P(0, 1, 0)));
+            wrt_v3 b = v3_cross(n, t);
+            d = v3_scale(v3_add(v3_add(v3_scale(t, r * cos(ph)), v3_scale(b, r * sin(ph))), v3_scale(n, lz)), -1);
+        }
+        double weight = 1, sum = 0;
+        for (int k = 0; k < 20000 && weight > 1e-8; k++) { /* what is left: < 1e-8 x the ratio */
+            double w3[3];
+            wrt_v3 out = wrt_brdf_sample(m, n, v3_scale(d, -1), walk_rnd(), walk_rnd(), walk_rnd(), w3);
+            if (!(w3[0] > 0) || !(v3_dot(out, n) > 0)) break;
+            weight *= w3[0];
+            d = v3_norm(out);
+            p = box_hit(p, d, &n);
+            sum += weight;
+        }
+        s += sum; s2 += sum * sum;
+    }
+    double mean = s / N;
+    *se = sqrt(fmax(0, s2 / N - mean * mean) / N) / mean;
+    return mean;
+}
+
+/* A closed box with glossy walls, against glossy_walk: uniform isotropic irradiance
+ * injected on every wall (the operator's own flux ratio) and a point light inside
+ * (through the player). */
 static void glossy_case(double roughness, double metallic, const char *name) {
     wrt_scene s;
     tsb_init(&s);
@@ -652,13 +721,15 @@ static void glossy_case(double roughness, double metallic, const char *name) {
     s.materials[m].roughness = (float)roughness;
     s.materials[m].metallic = (float)metallic;
     tsb_box_inward(&s, P(0, 0, 0), P(1, 1, 1), 1, m);
-    double amin, amax;
-    albedo_range(&s.materials[m], &amin, &amax);
-    int bounded = amax < 1;
-    double lo = amin / (1 - amin), hi = bounded ? amax / (1 - amax) : INFINITY;
+    wrt_v3 lpos = P(0.31, 0.47, 0.62);
+    int nw = full ? 100000 : 10000;
+    double t0 = wrt_now(), se_inj, se_light;
+    double truth_inj = glossy_walk(&s.materials[m], 0, lpos, nw, &se_inj);
+    double truth_light = glossy_walk(&s.materials[m], 1, lpos, nw, &se_light);
+    double tw = wrt_now() - t0;
     wrt_bake_result r;
     wrt_bake_options o = opts(full ? 4 : 3, 0, full ? 3 : 2);
-    double t0 = wrt_now();
+    t0 = wrt_now();
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
     check_bake(&r, name);
     double tb = wrt_now() - t0;
@@ -678,25 +749,28 @@ static void glossy_case(double roughness, double metallic, const char *name) {
         flux += e * s.quads[q].area;
     }
     double ratio = flux / flux_in;
-    CHECK(isfinite(ratio) && ratio <= hi * 1.02, "%s: indirect / direct flux %.5g above the bound %.5g", name, ratio, hi);
-    CHECK(ratio >= lo * 0.98, "%s: indirect / direct flux %.5g below the bound %.5g", name, ratio, lo);
+    char id[96];
+    snprintf(id, sizeof id, "stress-glossy-%s-injected", name);
+    for (char *c = id; *c; c++) if (*c == ' ' || *c == ',' || *c == '(' || *c == ')') *c = '-';
+    /* the dielectric's directional albedo passes 1 toward grazing (1.59), where a level-2
+     * angular basis is coarsest: under isotropic light its flux is a known limit */
+    double tol_inj = metallic == 0 ? CLAIM_GLOSSY_DIELECTRIC_ISOTROPIC : CLAIM_GLOSSY_FLUX;
+    CHECK_CLAIM(id, ratio / truth_inj - 1, tol_inj + 3 * se_inj, "%s furnace (injected): indirect / direct "
+                "flux %.5f, random walk %.5f (standard error %.3f%%); angular entries %llu, bounces %llu, bake %.2f s, "
+                "walk %.2f s", name, ratio, truth_inj, 100 * se_inj, (unsigned long long)r.c.entries_angular,
+                (unsigned long long)r.c.bounces, tb, tw);
     CHECK(negq == 0, "%s: %d quads with negative indirect irradiance", name, negq);
-    printf("%s furnace (injected): indirect / direct flux %.5f within [%.4f, %.4f] (directional albedo %.4f .. %.4f); "
-           "angular entries %llu, bounces %llu, bake %.2f s\n", name, ratio, lo, hi, amin, amax,
-           (unsigned long long)r.c.entries_angular, (unsigned long long)r.c.bounces, tb);
-    if (!bounded)
-        printf("%s: the material reflects more than it receives at grazing (directional albedo %.3f > 1): the glTF "
-               "mix (1 - F) diffuse + F specular is not energy-conserving; only the lower bound holds\n", name, amax);
     player p;
     if (player_open(&s, &r, &p)) {
-        wrt_light l = point_light(P(0.31, 0.47, 0.62), 1.0);
+        wrt_light l = point_light(lpos, 1.0);
         lit L;
         player_light(&p, &l, &L, name);
         double lr = L.flux_indirect / L.flux_direct;
-        CHECK(isfinite(lr) && lr <= hi * 1.02 && lr >= lo * 0.98, "%s: light: indirect / direct flux %.5g outside [%.5g, %.5g]",
-              name, lr, lo, hi);
-        printf("%s furnace (light): indirect / direct flux %.5f within [%.4f, %.4f], texel min/max %.3e\n", name, lr, lo,
-               hi, L.tex_min_rel);
+        snprintf(id, sizeof id, "stress-glossy-%s-light", name);
+        for (char *c = id; *c; c++) if (*c == ' ' || *c == ',' || *c == '(' || *c == ')') *c = '-';
+        CHECK_CLAIM(id, lr / truth_light - 1, CLAIM_GLOSSY_FLUX + 3 * se_light, "%s furnace (a point light): indirect / "
+                    "direct flux %.5f, random walk %.5f (standard error %.3f%%), texel min/max %.3e", name, lr,
+                    truth_light, 100 * se_light, L.tex_min_rel);
         lit_free(&L);
         player_close(&p);
     }
@@ -743,11 +817,14 @@ static void test_light_positions(void) {
         }
         CHECK(zero_ok, "%s: direct light on a quad that cannot see the light", cases[c].name);
         if (cases[c].flux > 0) {
-            CHECK(fabs(L.flux_direct / cases[c].flux - 1) < 0.02, "%s: direct flux %.5g vs %.5g", cases[c].name,
-                  L.flux_direct, cases[c].flux);
+            char id[80];
+            snprintf(id, sizeof id, "stress-light-direct-%d", c);
+            CHECK_CLAIM(id, L.flux_direct / cases[c].flux - 1, CLAIM_FURNACE, "%s: direct flux %.7g vs %.7g",
+                        cases[c].name, L.flux_direct, cases[c].flux);
             double want = L.flux_direct * 0.5 / (1 - 0.5);
-            CHECK(fabs(L.flux_indirect / want - 1) < 0.02, "%s: indirect flux %.5g vs %.5g", cases[c].name,
-                  L.flux_indirect, want);
+            snprintf(id, sizeof id, "stress-light-indirect-%d", c);
+            CHECK_CLAIM(id, L.flux_indirect / want - 1, CLAIM_FURNACE_LIGHT, "%s: indirect flux %.7g vs %.7g",
+                        cases[c].name, L.flux_indirect, want);
         } else {
             int allzero = 1;
             const float *E = wrt_relight_E(p.rl), *X = wrt_relight_X(p.rl);

@@ -6,6 +6,7 @@
  * included, so the check errs on the safe side) exceeds E. The measurement of the
  * accuracy/time study (paper section 6). */
 #include "tools/compare.h"
+#include "cli/cli.h"
 
 #include "formats/image.h"
 
@@ -18,10 +19,14 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: wrt-compare SCENE.gltf FILE.gto [FILE.gto ...] [options]\n"
             "Compares bakes of SCENE with a path-traced reference; prints one JSON object.\n"
-            "  --lights K          light positions: the scene's first light and K-1 moved\n"
-            "                      copies inside the bounding box (default 5)\n"
-            "  --light-pos X,Y,Z   a light position (repeatable; replaces the defaults; a copy\n"
-            "                      of the scene's first light moved there)\n"
+            "It compares one light at a time: light 1 (or the one --light names) at its own\n"
+            "position and at K-1 positions moved inside the bounding box.\n"
+            "  --lights K          positions of the light (default 5)\n"
+            "  --light-pos X,Y,Z   a position of the light (repeatable; replaces the defaults)\n"
+            "Light changes (as in wrt-play and wrt-ref):\n");
+    wrt_cli_lights_help(f);
+    fprintf(f,
+            "Measurement:\n"
             "  --cells N           cells per quad side (default 4)\n"
             "  --cell-paths N      reference paths per light over all cells (default 2000000)\n"
             "  --pilot N           paths per cell of the pilot pass (default 32)\n"
@@ -33,15 +38,18 @@ static void usage(FILE *f) {
             "  --bench-only        no reference: only time the light changes of each bake\n"
             "  --threads N         0 = all cores (default)\n"
             "  --seed S            reference seed (default 1)\n"
-            "  --images PREFIX     write PREFIX_{wavelet,haar,reference}.exr/.png and\n"
-            "                      PREFIX_panel.png (haar | smooth | reference | error map)\n"
-            "                      of the first light and the last bake\n"
-            "  --closeup X,Y,S     with --images: PREFIX_closeup.png, the S x S pixels at\n"
-            "                      X, Y of the Haar and the smooth display, 4x enlarged\n"
+            "  -o, --out PREFIX    write PREFIX_{wavelet,haar,reference}.exr/.png and\n"
+            "                      PREFIX_panel.png (Haar | smooth | reference | error map)\n"
+            "                      of the first position and the last bake (--images is the same)\n"
+            "  --closeup X,Y,S     with --out: PREFIX_closeup.png, the S x S pixels at X, Y of\n"
+            "                      the Haar and the smooth display, 4x enlarged\n"
+            "  --exposure EV       the PNGs' exposure in stops (default 0), wrt-play's curve\n"
             "  --max-error E       exit 5 if a bake's cell rmse exceeds E (pipeline check)\n"
             "  --per-quad          add each quad's mean indirect irradiance (first light), wavelet\n"
             "                      and reference, to each bake's figures\n"
-            "exit codes: 0 ok, 1 usage, 2 bad scene or bake, 5 accuracy not met\n");
+            "  --version, -h, --help\n"
+            "\n");
+    wrt_cli_exit_table(f);
 }
 
 static int parse_long(const char *s, long lo, long hi, long *out) {
@@ -60,16 +68,6 @@ static int parse_double(const char *s, double *out) {
     if (end == s || *end || errno || !isfinite(v)) return 0;
     *out = v;
     return 1;
-}
-
-static void json_str(FILE *f, const char *s) {
-    fputc('"', f);
-    for (; *s; s++) {
-        if (*s == '"' || *s == '\\') fprintf(f, "\\%c", *s);
-        else if ((unsigned char)*s < 0x20) fprintf(f, "\\u%04x", *s);
-        else fputc(*s, f);
-    }
-    fputc('"', f);
 }
 
 static void json_errors(FILE *f, const wrt_compare_light_result *r) {
@@ -95,33 +93,43 @@ static void heat(double t, uint8_t *px) {
     for (int c = 0; c < 3; c++) px[c] = (uint8_t)lround(255 * (k[i][c] * (1 - a) + k[i + 1][c] * a));
 }
 
-/* The first light's images as EXR (linear) and PNG (scaled by the reference's maximum,
- * gamma 2.2) for looking at: the bake's display (wavelet: smooth; haar: the Haar cells
- * as blocks), the reference, and PREFIX_panel.png: haar | wavelet | reference | error
- * heat map of the smooth display (|wavelet - reference| summed over RGB, relative to
- * the reference's mean, 0 black .. 0.5 and above white). */
-static void write_images(const char *prefix, const wrt_compare_ref *c, int w, int h, const double *closeup) {
+static int write_png(const char *prefix, const char *name, const uint8_t *px, int w, int h) {
+    char path[4096];
+    snprintf(path, sizeof path, "%s_%s.png", prefix, name);
+    if (wrt_image_write_rgb8(path, px, w, h) == WRT_OK) return 0;
+    fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+    return WRT_EXIT_OUTPUT;
+}
+
+/* The first light's images as EXR (linear) and PNG (the tone curve of every tool's PNG,
+ * cli/cli.h, so that they can be put beside wrt-play's and wrt-ref's): the bake's display
+ * (wavelet: smooth; haar: the Haar cells as blocks), the reference, and
+ * PREFIX_panel.png: haar | wavelet | reference | error heat map of the smooth display
+ * (|wavelet - reference| over RGB relative to the reference's mean: black 0, white 50%
+ * and above); with `closeup` (X, Y, S) PREFIX_closeup.png, the Haar and smooth panels'
+ * S x S pixels at X, Y enlarged 4 times. Returns 0 or WRT_EXIT_OUTPUT. */
+static int write_images(const char *prefix, const wrt_compare_ref *c, int w, int h, double exposure,
+                        const double *closeup) {
     const float *img[3] = {wrt_compare_image(c, 0, 1), wrt_compare_image(c, 0, 0), wrt_compare_image(c, 0, 2)};
     const char *name[3] = {"wavelet", "reference", "haar"};
-    if (!img[0] || !img[1] || !img[2]) return;
-    size_t n = (size_t)w * h * 3;
-    double mx = 0, mean = 0;
-    for (size_t i = 0; i < n; i++) { mx = img[1][i] > mx ? img[1][i] : mx; mean += img[1][i] / (double)n; }
-    double scale = mx > 0 ? 1 / mx : 1;
-    uint8_t *px = wrt_xmalloc(n), *panel = wrt_xmalloc(n * 4);
     static const int slot[3] = {1, 2, 0}; /* panel order: haar, wavelet, reference, error */
+    if (!img[0] || !img[1] || !img[2]) return 0;
+    size_t n = (size_t)w * h;
+    uint8_t *px = wrt_xmalloc(n * 3), *panel = wrt_xmalloc(n * 3 * 4);
+    int rc = 0;
+    double mean = 0;
+    for (size_t i = 0; i < n * 3; i++) mean += img[1][i] / (double)(n * 3);
     for (int k = 0; k < 3; k++) {
         char path[4096];
         snprintf(path, sizeof path, "%s_%s.exr", prefix, name[k]);
-        if (wrt_image_write_exr(path, img[k], w, h) != WRT_OK) fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
-        for (size_t i = 0; i < n; i++) {
-            double v = img[k][i] * scale;
-            v = v < 0 ? 0 : v > 1 ? 1 : pow(v, 1 / 2.2);
-            px[i] = (uint8_t)lround(v * 255);
+        if (wrt_image_write_exr(path, img[k], w, h) != WRT_OK) {
+            fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+            rc = WRT_EXIT_OUTPUT;
         }
-        for (int y = 0; y < h; y++) memcpy(panel + ((size_t)y * 4 * w + (size_t)slot[k] * w) * 3, px + (size_t)y * w * 3, (size_t)w * 3);
-        snprintf(path, sizeof path, "%s_%s.png", prefix, name[k]);
-        if (wrt_image_write_rgb8(path, px, w, h) != WRT_OK) fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+        wrt_tonemap_rgb8(img[k], n, (float)exposure, px);
+        for (int y = 0; y < h; y++)
+            memcpy(panel + ((size_t)y * 4 * w + (size_t)slot[k] * w) * 3, px + (size_t)y * w * 3, (size_t)w * 3);
+        if (write_png(prefix, name[k], px, w, h)) rc = WRT_EXIT_OUTPUT;
     }
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++) {
@@ -130,10 +138,8 @@ static void write_images(const char *prefix, const wrt_compare_ref *c, int w, in
             for (int ch = 0; ch < 3; ch++) d += fabs(img[0][p + ch] - img[1][p + ch]) / 3;
             heat(mean > 0 ? d / mean / 0.5 : 0, panel + ((size_t)y * 4 * w + 3 * (size_t)w + x) * 3);
         }
-    char path[4096];
-    snprintf(path, sizeof path, "%s_panel.png", prefix);
-    if (wrt_image_write_rgb8(path, panel, 4 * w, h) != WRT_OK) fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
-    if (closeup) { /* PREFIX_closeup.png: the haar and wavelet panels' square X, Y, S, x4 */
+    if (write_png(prefix, "panel", panel, 4 * w, h)) rc = WRT_EXIT_OUTPUT;
+    if (closeup) {
         int x0 = (int)closeup[0], y0 = (int)closeup[1], sz = (int)closeup[2], k = 4, cw = 2 * sz * k + k;
         uint8_t *cu = wrt_xcalloc((size_t)cw * sz * k * 3, 1);
         for (int y = 0; y < sz * k; y++)
@@ -142,12 +148,23 @@ static void write_images(const char *prefix, const wrt_compare_ref *c, int w, in
                 if (xx >= sz || x0 + xx >= w || y0 + yy >= h) continue; /* the gap, or outside */
                 memcpy(cu + ((size_t)y * cw + x) * 3, panel + ((size_t)(y0 + yy) * 4 * w + (size_t)side * w + x0 + xx) * 3, 3);
             }
-        snprintf(path, sizeof path, "%s_closeup.png", prefix);
-        if (wrt_image_write_rgb8(path, cu, cw, sz * k) != WRT_OK) fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+        if (write_png(prefix, "closeup", cu, cw, sz * k)) rc = WRT_EXIT_OUTPUT;
         free(cu);
     }
     free(px);
     free(panel);
+    return rc;
+}
+
+static const char *T = "wrt-compare";
+
+static int takes_value(const char *a) {
+    static const char *const names[] = {"--lights", "--light-pos", "--cells", "--cell-paths", "--pilot", "--width",
+                                        "--spp", "--sub", "--bench", "--threads", "--seed", "--images", "-o",
+                                        "--out", "--exposure", "--max-error", "--closeup"};
+    for (size_t k = 0; k < sizeof names / sizeof *names; k++)
+        if (!strcmp(a, names[k])) return 1;
+    return 0;
 }
 
 int main(int argc, char **argv) {
@@ -158,17 +175,29 @@ int main(int argc, char **argv) {
     const char **gtos = wrt_xcalloc((size_t)argc, sizeof(char *));
     int ngto = 0, nlights_req = 5, nexplicit = 0;
     double explicit_pos[WRT_COMPARE_MAX_LIGHTS][3];
-    double max_error = -1;
+    double max_error = -1, exposure = 0;
     wrt_compare_options o = {0};
+    wrt_cli_lights L;
+    wrt_cli_lights_init(&L);
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         long x;
         int ok = 1, takes = 1;
+        if (strcmp(a, "--light-pos")) {
+            int lr = wrt_cli_lights_option(T, &L, argc, argv, &i);
+            if (lr < 0) return WRT_EXIT_USAGE;
+            if (lr > 0) continue;
+        }
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
+        else if (!strcmp(a, "--version")) { wrt_cli_version(T); return 0; }
         else if (!strcmp(a, "--no-image")) { o.width = -1; takes = 0; }
         else if (!strcmp(a, "--per-quad")) { per_quad = 1; takes = 0; }
         else if (!strcmp(a, "--bench-only")) { bench_only = 1; takes = 0; }
-        else if (a[0] == '-' && a[1] == '-' && !v) ok = 0;
+        else if (a[0] == '-' && a[1] && !takes_value(a)) {
+            fprintf(stderr, "wrt-compare: unknown option %s (see --help)\n", a);
+            return WRT_EXIT_USAGE;
+        }
+        else if (a[0] == '-' && a[1] && !v) { fprintf(stderr, "wrt-compare: %s needs a value\n", a); return WRT_EXIT_USAGE; }
         else if (!strcmp(a, "--lights")) { ok = parse_long(v, 1, WRT_COMPARE_MAX_LIGHTS, &x); nlights_req = (int)x; }
         else if (!strcmp(a, "--light-pos")) {
             ok = nexplicit < WRT_COMPARE_MAX_LIGHTS && wrt_parse_vec3(v, explicit_pos[nexplicit]);
@@ -183,28 +212,52 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--bench")) { ok = parse_long(v, 1, 100000, &x); o.bench_updates = (int)x; }
         else if (!strcmp(a, "--threads")) { ok = parse_long(v, 0, 256, &x); o.threads = (int)x; }
         else if (!strcmp(a, "--seed")) { ok = parse_long(v, 1, 1L << 62, &x); o.seed = (uint64_t)x; }
-        else if (!strcmp(a, "--images")) images = v;
+        else if (!strcmp(a, "--images") || !strcmp(a, "-o") || !strcmp(a, "--out")) images = v;
+        else if (!strcmp(a, "--exposure")) ok = parse_double(v, &exposure) && fabs(exposure) <= 64;
         else if (!strcmp(a, "--closeup")) {
             ok = wrt_parse_vec3(v, closeup) && closeup[0] >= 0 && closeup[1] >= 0 && closeup[2] >= 1 &&
                  closeup[0] == floor(closeup[0]) && closeup[1] == floor(closeup[1]) && closeup[2] == floor(closeup[2]);
             has_closeup = 1;
         }
         else if (!strcmp(a, "--max-error")) ok = parse_double(v, &max_error) && max_error >= 0;
-        else if (a[0] == '-') { fprintf(stderr, "wrt-compare: unknown option %s\n", a); usage(stderr); return 1; }
+        else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-compare: unknown option %s (see --help)\n", a); return 1; }
         else {
             takes = 0;
             if (!scene_path) scene_path = a;
             else gtos[ngto++] = a;
         }
-        if (!ok) { fprintf(stderr, "wrt-compare: bad value for %s\n", a); return 1; }
+        if (!ok) { fprintf(stderr, "wrt-compare: bad value for %s: '%s' (see --help)\n", a, v ? v : ""); return 1; }
         i += takes;
     }
-    if (!scene_path || ngto == 0) { usage(stderr); return 1; }
+    if (!scene_path || ngto == 0) {
+        fprintf(stderr, "wrt-compare: needs a scene and at least one .gto (see --help)\n");
+        return 1;
+    }
 
     wrt_scene scene;
     if (wrt_scene_load(scene_path, NULL, &scene) != WRT_OK) {
         fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
         return 2;
+    }
+    /* the light compared: --light N's (default 1), with the command line's changes, put
+     * first, where wrt_compare_default_lights takes it from */
+    if (wrt_cli_lights_any(&L)) {
+        int which = L.which ? L.which : 1;
+        for (int k = 0; k < WRT_CLI_MAX_LIGHTS; k++)
+            if (L.scaled[k] && k != which - 1 && k < scene.nlights) {
+                fprintf(stderr, "wrt-compare: %s %d: the comparison uses light %d only\n",
+                        L.scale[k] == 0 ? "--lights-off" : "--light-scale", k + 1, which);
+                wrt_scene_free(&scene);
+                return WRT_EXIT_USAGE;
+            }
+        int arc = wrt_cli_lights_apply(T, &L, scene.lights, scene.nlights, NULL);
+        if (arc) {
+            wrt_scene_free(&scene);
+            return arc;
+        }
+        wrt_light t = scene.lights[0];
+        scene.lights[0] = scene.lights[which - 1];
+        scene.lights[which - 1] = t;
     }
     wrt_light lights[WRT_COMPARE_MAX_LIGHTS];
     int nl;
@@ -220,7 +273,7 @@ int main(int argc, char **argv) {
         double eye[3] = {scene.camera.pos.x, scene.camera.pos.y, scene.camera.pos.z};
         int bad = 0;
         printf("{\"scene\":");
-        json_str(stdout, scene_path);
+        wrt_cli_json_str(stdout, scene_path);
         printf(",\"bakes\":[");
         for (int b = 0; b < ngto; b++) {
             wrt_gto g;
@@ -239,7 +292,7 @@ int main(int argc, char **argv) {
                 continue;
             }
             printf("%s{\"file\":", b ? "," : "");
-            json_str(stdout, gtos[b]);
+            wrt_cli_json_str(stdout, gtos[b]);
             printf(",\"bytes\":%zu,\"ms_per_light_change\":%.4f,\"ms_min\":%.4f,\"ms_max\":%.4f,"
                    "\"cpu_ms_per_light_change\":%.4f,\"bench_updates\":%d}",
                    g.size, res.ms_update_median, res.ms_update_min, res.ms_update_max, res.cpu_ms_update_median,
@@ -269,7 +322,7 @@ int main(int argc, char **argv) {
             info.cell_floor, info.image_floor);
 
     printf("{\"scene\":");
-    json_str(stdout, scene_path);
+    wrt_cli_json_str(stdout, scene_path);
     printf(",\"quads\":%d,\"cells_per_side\":%d,\"lights\":[", scene.nquads, o.cells);
     for (int k = 0; k < nl; k++)
         printf("%s{\"type\":\"%s\",\"pos\":[%.6g,%.6g,%.6g],\"intensity\":%.6g}", k ? "," : "",
@@ -280,7 +333,7 @@ int main(int argc, char **argv) {
            "\"cell_floor\":%.6g,\"image_floor\":%.6g},\"bakes\":[",
            info.seconds, (unsigned long long)info.rays, info.cell_paths, o.pilot, info.width, info.height,
            info.spp, o.sub, info.valid_pixels, info.cell_floor, info.image_floor);
-    int failed = 0, exceeded = 0;
+    int failed = 0, exceeded = 0, failed_output = 0;
     for (int b = 0; b < ngto; b++) {
         wrt_gto g;
         if (wrt_gto_open(gtos[b], &g) != WRT_OK) {
@@ -302,7 +355,7 @@ int main(int argc, char **argv) {
                 gtos[b], res.mean.cell_rmse, res.mean.cell_floor, res.mean.image_rmse, res.mean.image_floor,
                 res.ms_update_median, over ? "  ACCURACY NOT MET" : "");
         printf("%s{\"file\":", b ? "," : "");
-        json_str(stdout, gtos[b]);
+        wrt_cli_json_str(stdout, gtos[b]);
         printf(",\"bytes\":%zu,\"functions\":%u,\"entries\":%llu,", g.size, g.nfuncs, (unsigned long long)g.nnz);
         json_errors(stdout, &res.mean);
         printf(",\"ms_per_light_change\":%.4f,\"ms_min\":%.4f,\"ms_max\":%.4f,\"cpu_ms_per_light_change\":%.4f,"
@@ -337,7 +390,8 @@ int main(int argc, char **argv) {
             printf("]");
         }
         printf("}");
-        if (images) write_images(images, ref, info.width, info.height, has_closeup ? closeup : NULL);
+        if (images && write_images(images, ref, info.width, info.height, exposure, has_closeup ? closeup : NULL))
+            failed_output = 1;
         wrt_gto_close(&g);
     }
     printf("],\"max_error\":");
@@ -347,6 +401,7 @@ int main(int argc, char **argv) {
     wrt_compare_ref_destroy(ref);
     wrt_scene_free(&scene);
     free(gtos);
-    if (failed) return 2;
-    return exceeded ? 5 : 0;
+    if (failed) return WRT_EXIT_INPUT;
+    if (failed_output) return WRT_EXIT_OUTPUT;
+    return exceeded ? WRT_EXIT_ACCURACY : 0;
 }

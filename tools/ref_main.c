@@ -8,6 +8,7 @@
  * error) as text or one JSON object. The reference for the comparisons of the paper's
  * section 6 (Kontkanen et al. 2006). */
 #include "tools/reference.h"
+#include "cli/cli.h"
 
 /* The OpenImageIO shim is optional at build time so that this tool stands alone. */
 #if defined(__has_include)
@@ -25,35 +26,32 @@
 static void usage(FILE *f) {
     fprintf(f,
             "usage: wrt-ref SCENE.gltf [options]\n"
-            "  --light-pos X,Y,Z       use one light there (a copy of the scene's first light,\n"
-            "                          or a white point light) instead of the scene's lights\n"
-            "  --light-dir X,Y,Z       make it a spot light along this axis\n"
-            "  --light-cone IN,OUT     spot cone angles in radians (default 0,0.7854)\n"
-            "  --light-intensity I     candela (default: the scene light's, else 1)\n"
-            "  --light-color R,G,B     linear RGB (default 1,1,1)\n"
+            "Path-traces the scene (the independent reference): images of the radiance toward\n"
+            "the camera, and/or irradiance at points or averaged over cells of a quad.\n"
+            "Lights (default: the scene's; with none, --light-pos adds a white point light of 1 cd):\n");
+    wrt_cli_lights_help(f);
+    fprintf(f,
+            "Images:\n"
             "  --spp N                 samples per pixel (default 64)\n"
             "  --width W --height H    image size (default 256 x 256)\n"
             "  --no-image              do not render an image\n"
-            "  --out PREFIX            image files PREFIX_{direct,indirect,both,stderr}.exr\n"
-            "                          and PREFIX_both.png (default ref)\n"
+            "  -o, --out PREFIX        image files PREFIX_{direct,indirect,both,stderr}.exr\n"
+            "                          and PREFIX_{both,direct}.png (default ref)\n"
             "  --pfm                   write .pfm files instead (always, without OpenImageIO)\n"
-            "  --exposure E            scale before the PNG's sRGB encoding (default 1)\n"
+            "  --exposure EV           the PNGs' exposure in stops (default 0): x 2^EV, Reinhard\n"
+            "                          x/(1+x), sRGB, the same curve as wrt-play's\n"
+            "Points and cells:\n"
             "  --points FILE           irradiance at points, one 'QUAD U V' per line\n"
             "  --cells QUAD,N          mean irradiance over an N x N (u,v) grid on a quad\n"
             "  --samples N             paths per point / per cell (default 1024)\n"
+            "Other:\n"
             "  --max-bounces N         reflections of indirect light, 0 = unbiased (default 0)\n"
             "  --threads N             worker threads, 0 = all cores (default 0)\n"
             "  --seed S                random seed (default 1)\n"
-            "  --json                  print the figures as one JSON object\n");
-}
-
-static int parse_int(const char *s, long lo, long hi, int *out) {
-    char *end;
-    errno = 0;
-    long v = strtol(s, &end, 10);
-    if (end == s || *end || errno || v < lo || v > hi) return 0;
-    *out = (int)v;
-    return 1;
+            "  --json                  print the figures as one JSON object\n"
+            "  --version, -h, --help\n"
+            "\n");
+    wrt_cli_exit_table(f);
 }
 
 /* Writes a little-endian PFM (bottom row first) through a temporary file. */
@@ -112,24 +110,6 @@ static wrt_status read_points(const char *path, const wrt_scene *s, point_list *
     return WRT_OK;
 }
 
-/* A JSON string literal (quotes, backslashes and control characters escaped). */
-static void print_json_str(const char *s) {
-    putchar('"');
-    for (; *s; s++) {
-        unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\') printf("\\%c", c);
-        else if (c < 0x20) printf("\\u%04x", c);
-        else putchar(c);
-    }
-    putchar('"');
-}
-
-/* sRGB encoding of a linear value in [0, 1]. */
-static double srgb_encode(double v) {
-    v = v < 0 ? 0 : v > 1 ? 1 : v;
-    return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1 / 2.4) - 0.055;
-}
-
 /* Writes one image: EXR when the OpenImageIO shim is built in and pfm is 0, else PFM. */
 static wrt_status write_image(const char *prefix, const char *name, int pfm, const float *rgb,
                               int w, int h, char *path, size_t pathsize) {
@@ -144,18 +124,18 @@ static wrt_status write_image(const char *prefix, const char *name, int pfm, con
     return write_pfm(path, rgb, w, h);
 }
 
-static wrt_status write_png(const char *prefix, const float *rgb, int w, int h, double exposure,
+/* PREFIX_NAME.png through the tone curve every tool's PNG shares (cli/cli.h). */
+static wrt_status write_png(const char *prefix, const char *name, const float *rgb, int w, int h, double exposure,
                             char *path, size_t pathsize) {
 #ifdef WRT_REF_HAVE_IMAGE
-    size_t n = (size_t)w * h * 3;
-    uint8_t *px = wrt_xmalloc(n);
-    for (size_t i = 0; i < n; i++) px[i] = (uint8_t)(255 * srgb_encode(rgb[i] * exposure) + 0.5);
-    snprintf(path, pathsize, "%s_both.png", prefix);
+    uint8_t *px = wrt_xmalloc((size_t)w * h * 3);
+    wrt_tonemap_rgb8(rgb, (size_t)w * h, (float)exposure, px);
+    snprintf(path, pathsize, "%s_%s.png", prefix, name);
     wrt_status st = wrt_image_write_rgb8(path, px, w, h);
     free(px);
     return st;
 #else
-    (void)prefix; (void)rgb; (void)w; (void)h; (void)exposure; (void)srgb_encode;
+    (void)prefix; (void)name; (void)rgb; (void)w; (void)h; (void)exposure;
     path[0] = 0;
     return WRT_OK;
 #endif
@@ -172,94 +152,100 @@ static double mean_of_f(const float *v, size_t n) {
     return n ? s / n : 0;
 }
 
+static const char *T = "wrt-ref";
+
 int main(int argc, char **argv) {
     const char *scene_path = NULL, *out_prefix = "ref", *points_path = NULL;
-    double lpos[3], ldir[3], lcolor[3] = {1, 1, 1}, lint = -1, cone_in = 0, cone_out = WRT_PI / 4;
-    double exposure = 1;
+    double exposure = 0;
     int pfm = 0;
-    int have_pos = 0, have_dir = 0, spp = 64, width = 256, height = 256, image = 1;
+    int spp = 64, width = 256, height = 256, image = 1;
     int samples = 1024, max_bounces = 0, threads = 0, json = 0, cell_quad = -1, cell_n = 0;
     long long seed = 1;
+    wrt_cli_lights L;
+    wrt_cli_lights_init(&L);
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        int ok = 1, takes = 1;
+        long n;
+        int lr = wrt_cli_lights_option(T, &L, argc, argv, &i);
+        if (lr < 0) return WRT_EXIT_USAGE;
+        if (lr > 0) continue;
+#define INT(lo, hi, dst) do { if (!wrt_cli_int(T, a, v, lo, hi, &n)) return WRT_EXIT_USAGE; dst = (int)n; i++; } while (0)
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
-        else if (!strcmp(a, "--json")) { json = 1; takes = 0; }
-        else if (!strcmp(a, "--no-image")) { image = 0; takes = 0; }
-        else if (!strcmp(a, "--pfm")) { pfm = 1; takes = 0; }
-        else if (a[0] == '-' && a[1] == '-' && !v) ok = 0;
-        else if (!strcmp(a, "--light-pos")) { ok = wrt_parse_vec3(v, lpos); have_pos = 1; }
-        else if (!strcmp(a, "--light-dir")) { ok = wrt_parse_vec3(v, ldir); have_dir = 1; }
-        else if (!strcmp(a, "--light-color")) ok = wrt_parse_vec3(v, lcolor);
-        else if (!strcmp(a, "--light-intensity")) { char *e; lint = strtod(v, &e); ok = *e == 0 && lint >= 0 && isfinite(lint); }
-        else if (!strcmp(a, "--light-cone")) ok = sscanf(v, "%lf,%lf", &cone_in, &cone_out) == 2 && cone_in >= 0 && cone_out > cone_in && cone_out <= WRT_PI / 2;
-        else if (!strcmp(a, "--exposure")) { char *e; exposure = strtod(v, &e); ok = *e == 0 && exposure > 0 && isfinite(exposure); }
-        else if (!strcmp(a, "--spp")) ok = parse_int(v, 1, 1 << 24, &spp);
-        else if (!strcmp(a, "--width")) ok = parse_int(v, 1, 16384, &width);
-        else if (!strcmp(a, "--height")) ok = parse_int(v, 1, 16384, &height);
-        else if (!strcmp(a, "--out")) out_prefix = v;
-        else if (!strcmp(a, "--points")) points_path = v;
-        else if (!strcmp(a, "--cells")) ok = sscanf(v, "%d,%d", &cell_quad, &cell_n) == 2 && cell_quad >= 0 && cell_n >= 1 && cell_n <= 4096;
-        else if (!strcmp(a, "--samples")) ok = parse_int(v, 1, 1 << 30, &samples);
-        else if (!strcmp(a, "--max-bounces")) ok = parse_int(v, 0, 100000, &max_bounces);
-        else if (!strcmp(a, "--threads")) ok = parse_int(v, 0, 256, &threads);
-        else if (!strcmp(a, "--seed")) { char *e; seed = strtoll(v, &e, 10); ok = *e == 0; }
-        else if (a[0] == '-') { fprintf(stderr, "wrt-ref: unknown option %s\n", a); usage(stderr); return 2; }
-        else { scene_path = a; takes = 0; }
-        if (!ok) { fprintf(stderr, "wrt-ref: bad value for %s\n", a); return 2; }
-        i += takes;
+        else if (!strcmp(a, "--version")) { wrt_cli_version(T); return 0; }
+        else if (!strcmp(a, "--json")) json = 1;
+        else if (!strcmp(a, "--no-image")) image = 0;
+        else if (!strcmp(a, "--pfm")) pfm = 1;
+        else if (!strcmp(a, "--exposure")) { if (!wrt_cli_num(T, a, v, -64, 64, &exposure)) return WRT_EXIT_USAGE; i++; }
+        else if (!strcmp(a, "--spp")) INT(1, 1 << 24, spp);
+        else if (!strcmp(a, "--width")) INT(1, 16384, width);
+        else if (!strcmp(a, "--height")) INT(1, 16384, height);
+        else if (!strcmp(a, "--samples")) INT(1, 1 << 30, samples);
+        else if (!strcmp(a, "--max-bounces")) INT(0, 100000, max_bounces);
+        else if (!strcmp(a, "--threads")) INT(0, 256, threads);
+        else if (!strcmp(a, "--seed")) { if (!wrt_cli_int(T, a, v, 0, 1L << 62, &n)) return WRT_EXIT_USAGE; seed = n; i++; }
+        else if (!strcmp(a, "-o") || !strcmp(a, "--out") || !strcmp(a, "--points")) {
+            if (!v) { fprintf(stderr, "wrt-ref: %s needs a value\n", a); return WRT_EXIT_USAGE; }
+            if (!strcmp(a, "--points")) points_path = v; else out_prefix = v;
+            i++;
+        } else if (!strcmp(a, "--cells")) {
+            if (!v || sscanf(v, "%d,%d", &cell_quad, &cell_n) != 2 || cell_quad < 0 || cell_n < 1 || cell_n > 4096) {
+                fprintf(stderr, "wrt-ref: bad value for --cells: '%s' (QUAD,N with N in [1, 4096])\n", v ? v : "");
+                return WRT_EXIT_USAGE;
+            }
+            i++;
+        }
+        else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-ref: unknown option %s (see --help)\n", a); return WRT_EXIT_USAGE; }
+        else if (!scene_path) scene_path = a;
+        else { fprintf(stderr, "wrt-ref: more than one scene ('%s', '%s')\n", scene_path, a); return WRT_EXIT_USAGE; }
+#undef INT
     }
-    if (!scene_path) { usage(stderr); return 2; }
+    if (!scene_path) { fprintf(stderr, "wrt-ref: no scene (see --help)\n"); return WRT_EXIT_USAGE; }
 
     wrt_scene scene;
     wrt_status st = wrt_scene_load(scene_path, NULL, &scene);
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-ref: %s: %s\n", wrt_status_str(st), wrt_last_error());
-        return 1;
+        return WRT_EXIT_INPUT;
     }
     if (cell_quad >= scene.nquads) {
-        fprintf(stderr, "wrt-ref: --cells quad %d, the scene has %d\n", cell_quad, scene.nquads);
+        fprintf(stderr, "wrt-ref: --cells quad %d, the scene has %d (numbered from 0)\n", cell_quad, scene.nquads);
         wrt_scene_free(&scene);
-        return 2;
+        return WRT_EXIT_USAGE;
     }
-    wrt_light one;
-    const wrt_light *lights = scene.lights;
+    /* the scene's lights with the command line's changes; a scene without lights gets a
+     * white point light of 1 cd where --light-pos puts it */
     int nlights = scene.nlights;
-    if (have_pos) {
-        memset(&one, 0, sizeof one);
-        if (scene.nlights > 0) one = scene.lights[0];
-        else {
-            one.intensity = 1;
-            one.outer_cone = (float)(WRT_PI / 4);
-            snprintf(one.name, sizeof one.name, "command line");
-        }
-        one.pos = v3(lpos[0], lpos[1], lpos[2]);
-        one.type = WRT_LIGHT_POINT;
-        if (have_dir) {
-            one.type = WRT_LIGHT_SPOT;
-            one.dir = v3_norm(v3(ldir[0], ldir[1], ldir[2]));
-            one.inner_cone = (float)cone_in;
-            one.outer_cone = (float)cone_out;
-        }
-        if (lint >= 0) one.intensity = (float)lint;
-        for (int c = 0; c < 3; c++) one.color[c] = (float)lcolor[c];
-        lights = &one;
+    wrt_light *lights = wrt_xcalloc((size_t)(nlights ? nlights : 1), sizeof *lights);
+    if (nlights) memcpy(lights, scene.lights, (size_t)nlights * sizeof *lights);
+    else if (L.has_pos) {
+        lights[0].type = WRT_LIGHT_POINT;
+        lights[0].intensity = 1;
+        lights[0].outer_cone = (float)(WRT_PI / 4);
+        for (int c = 0; c < 3; c++) lights[0].color[c] = 1;
+        snprintf(lights[0].name, sizeof lights[0].name, "command line");
         nlights = 1;
+    }
+    int arc = wrt_cli_lights_apply(T, &L, lights, nlights, NULL);
+    if (arc) {
+        free(lights);
+        wrt_scene_free(&scene);
+        return arc;
     }
     if (nlights == 0) wrt_log(WRT_LOG_WARN, "%s has no lights: everything is black", scene_path);
 
     wrt_ref *ref = wrt_ref_create(&scene);
     if (!ref) {
         fprintf(stderr, "wrt-ref: %s\n", wrt_last_error());
+        free(lights);
         wrt_scene_free(&scene);
-        return 1;
+        return WRT_EXIT_INTERNAL;
     }
     int rc = 0;
     double t_image = 0, t_points = 0, t_cells = 0;
     double img_se = 0, img_ind = 0, img_dir = 0;
     double pt_se = 0, pt_ind = 0, cell_se = 0, cell_ind = 0;
     int npoints = 0;
-    char written[5][4200];
+    char written[6][4200];
     int nwritten = 0;
 
     if (image) {
@@ -279,14 +265,18 @@ int main(int argc, char **argv) {
                                  sizeof written[k]);
                 if (st == WRT_OK) nwritten++;
             }
-            if (st == WRT_OK && !pfm) {
-                st = write_png(out_prefix, both, width, height, exposure, written[4],
-                               sizeof written[4]);
-                if (st == WRT_OK && written[4][0]) nwritten++;
+            for (int k = 0; k < 2 && st == WRT_OK && !pfm; k++) {
+                st = write_png(out_prefix, k ? "direct" : "both", k ? d : both, width, height, exposure,
+                               written[nwritten], sizeof written[nwritten]);
+                if (st == WRT_OK && written[nwritten][0]) nwritten++;
             }
+        } else {
+            fprintf(stderr, "wrt-ref: %s\n", wrt_last_error());
+            rc = st == WRT_ERR_INVALID_ARG ? WRT_EXIT_USAGE : WRT_EXIT_INTERNAL;
+            st = WRT_OK;
         }
         free(d); free(ind); free(both); free(se);
-        if (st != WRT_OK) { fprintf(stderr, "wrt-ref: %s\n", wrt_last_error()); rc = 1; }
+        if (st != WRT_OK) { fprintf(stderr, "wrt-ref: %s\n", wrt_last_error()); rc = WRT_EXIT_OUTPUT; }
     }
     if (points_path && rc == 0) {
         point_list pl;
@@ -311,7 +301,10 @@ int main(int argc, char **argv) {
             free(d); free(ind); free(se);
         }
         free(pl.p); free(pl.quad); free(pl.uv);
-        if (st != WRT_OK) { fprintf(stderr, "wrt-ref: %s\n", wrt_last_error()); rc = 1; }
+        if (st != WRT_OK) {
+            fprintf(stderr, "wrt-ref: %s\n", wrt_last_error());
+            rc = st == WRT_ERR_IO || st == WRT_ERR_PARSE ? WRT_EXIT_INPUT : WRT_EXIT_INTERNAL;
+        }
     }
     if (cell_n > 0 && rc == 0) {
         size_t n = (size_t)cell_n * cell_n * 3;
@@ -330,7 +323,7 @@ int main(int argc, char **argv) {
                        ind[3 * c + 1], ind[3 * c + 2], se[3 * c], se[3 * c + 1], se[3 * c + 2]);
         } else {
             fprintf(stderr, "wrt-ref: %s\n", wrt_last_error());
-            rc = 1;
+            rc = WRT_EXIT_INTERNAL;
         }
         free(d); free(ind); free(se);
     }
@@ -338,7 +331,7 @@ int main(int argc, char **argv) {
     uint64_t rays = wrt_ref_rays(ref);
     if (json) {
         printf("{\"scene\":");
-        print_json_str(scene_path);
+        wrt_cli_json_str(stdout, scene_path);
         printf(",\"quads\":%d,\"lights\":%d,\"threads\":%d,\"seed\":%lld,"
                "\"max_bounces\":%d,\"time_s\":%.4f,\"rays\":%llu,\"mrays_per_s\":%.3f",
                scene.nquads, nlights, threads, seed, max_bounces, t_all,
@@ -350,7 +343,7 @@ int main(int argc, char **argv) {
                    width, height, spp, t_image, img_dir, img_ind, img_se);
         for (int k = 0; image && k < nwritten; k++) {
             if (k) putchar(',');
-            print_json_str(written[k]);
+            wrt_cli_json_str(stdout, written[k]);
         }
         if (image) printf("]}");
         if (points_path)
@@ -371,6 +364,7 @@ int main(int argc, char **argv) {
         for (int k = 0; k < nwritten; k++) fprintf(stderr, "wrote %s\n", written[k]);
     }
     wrt_ref_destroy(ref);
+    free(lights);
     wrt_scene_free(&scene);
     return rc;
 }

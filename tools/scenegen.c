@@ -13,6 +13,7 @@
  * float and neighbouring quads share bit-identical corners. Output depends only
  * on the options (same options, same bytes). Depends on wrt_common.h only. */
 #define _POSIX_C_SOURCE 200809L
+#include "cli/cli.h"
 #include "common/wrt_common.h"
 
 #include <errno.h>
@@ -784,7 +785,7 @@ static wrt_status generate(const sg_entry *e, const sg_options *opt, const char 
 
 static void usage(FILE *f) {
     fprintf(f,
-            "usage: wrt-scenegen SCENE [options] --out FILE\n"
+            "usage: wrt-scenegen SCENE [options] -o FILE     (-o and --out are the same)\n"
             "       wrt-scenegen --all DIR [options]   (test scenes go to DIR/test/)\n"
             "options:\n"
             "  --res N          subdivide every quad into N x N, 1..128 (default 1)\n"
@@ -800,6 +801,8 @@ static void usage(FILE *f) {
             "  --seed N         maze: layout seed (default 1)\n"
             "scenes:\n");
     for (int i = 0; i < NSCENES; i++) fprintf(f, "  %-14s %s\n", scenes[i].name, scenes[i].what);
+    fprintf(f, "\n");
+    wrt_cli_exit_table(f);
 }
 
 static int parse_num(const char *s, double lo, double hi, double *out) {
@@ -833,15 +836,21 @@ int main(int argc, char **argv) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         double x;
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
+        if (!strcmp(a, "--version")) { wrt_cli_version("wrt-scenegen"); return 0; }
         if (a[0] != '-') {
-            if (scene) { fprintf(stderr, "wrt-scenegen: two scene names: %s, %s\n", scene, a); return 2; }
+            if (scene) { fprintf(stderr, "wrt-scenegen: two scene names: %s, %s\n", scene, a); return WRT_EXIT_USAGE; }
             scene = a;
             continue;
         }
-        if (!v) { fprintf(stderr, "wrt-scenegen: %s needs a value\n", a); return 2; }
+        static const char *const known[] = {"--out", "-o", "--all", "--res", "--albedo", "--scale", "--dist", "--angle",
+                                            "--thick", "--intensity", "--cells", "--seed", "--light", "--offset"};
+        int is_known = 0;
+        for (size_t k = 0; k < sizeof known / sizeof *known; k++) is_known |= !strcmp(a, known[k]);
+        if (!is_known) { fprintf(stderr, "wrt-scenegen: unknown option %s (see --help)\n", a); return WRT_EXIT_USAGE; }
+        if (!v) { fprintf(stderr, "wrt-scenegen: %s needs a value\n", a); return WRT_EXIT_USAGE; }
         i++;
         int ok = 1;
-        if (!strcmp(a, "--out")) out = v;
+        if (!strcmp(a, "--out") || !strcmp(a, "-o")) out = v;
         else if (!strcmp(a, "--all")) all = v;
         else if (!strcmp(a, "--res")) { ok = parse_num(v, 1, 128, &x) && x == floor(x); opt.res = (int)x; }
         else if (!strcmp(a, "--albedo")) ok = parse_num(v, 0, 1, &opt.albedo);
@@ -865,33 +874,33 @@ int main(int argc, char **argv) {
             ok = ok && fabs(opt.offset.x) < 1e9 && fabs(opt.offset.y) < 1e9 && fabs(opt.offset.z) < 1e9;
         } else {
             fprintf(stderr, "wrt-scenegen: unknown option %s (see --help)\n", a);
-            return 2;
+            return WRT_EXIT_USAGE;
         }
-        if (!ok) { fprintf(stderr, "wrt-scenegen: bad value for %s: %s\n", a, v); return 2; }
+        if (!ok) { fprintf(stderr, "wrt-scenegen: bad value for %s: %s\n", a, v); return WRT_EXIT_USAGE; }
     }
     if (all) {
-        if (scene || out) { fprintf(stderr, "wrt-scenegen: --all takes no scene or --out\n"); return 2; }
+        if (scene || out) { fprintf(stderr, "wrt-scenegen: --all takes no scene or --out\n"); return WRT_EXIT_USAGE; }
         char path[4096];
         snprintf(path, sizeof path, "%s/test", all);
-        if (!mkdir_p(path)) { fprintf(stderr, "wrt-scenegen: cannot create %s: %s\n", path, strerror(errno)); return 1; }
+        if (!mkdir_p(path)) { fprintf(stderr, "wrt-scenegen: cannot create %s: %s\n", path, strerror(errno)); return WRT_EXIT_OUTPUT; }
         for (int i = 0; i < NSCENES; i++) {
             snprintf(path, sizeof path, "%s/%s", all, scenes[i].file);
             if (generate(&scenes[i], &opt, path) != WRT_OK) {
                 fprintf(stderr, "wrt-scenegen: %s\n", wrt_last_error());
-                return 1;
+                return WRT_EXIT_OUTPUT;
             }
         }
         return 0;
     }
-    if (!scene || !out) { usage(stderr); return 2; }
+    if (!scene || !out) { usage(stderr); return WRT_EXIT_USAGE; }
     for (int i = 0; i < NSCENES; i++)
         if (!strcmp(scenes[i].name, scene)) {
             if (generate(&scenes[i], &opt, out) != WRT_OK) {
                 fprintf(stderr, "wrt-scenegen: %s\n", wrt_last_error());
-                return 1;
+                return WRT_EXIT_OUTPUT;
             }
             return 0;
         }
     fprintf(stderr, "wrt-scenegen: unknown scene %s (see --help)\n", scene);
-    return 2;
+    return WRT_EXIT_USAGE;
 }

@@ -1,0 +1,329 @@
+/* cli.c: the command-line vocabulary shared by every wrt tool (see cli.h). */
+#include "cli.h"
+
+#include <errno.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "../formats/gto.h"
+
+void wrt_cli_exit_table(FILE *f) {
+    fprintf(f,
+            "exit codes (the same in every wrt tool):\n"
+            "  0 ok                        4 interrupted (SIGINT/SIGTERM), after cleaning up\n"
+            "  1 bad command line          5 accuracy not met\n"
+            "  2 bad input (scene, .gto)   6 no display / OpenGL unavailable\n"
+            "  3 output cannot be written  7 out of memory or internal error\n");
+}
+
+void wrt_cli_version(const char *tool) {
+    printf("%s %s (.gto version %d)\n", tool, WRT_VERSION_STRING, WRT_GTO_VERSION);
+}
+
+static int bad(const char *tool, const char *opt, const char *val, const char *want) {
+    if (!val) fprintf(stderr, "%s: %s needs a value (%s)\n", tool, opt, want);
+    else fprintf(stderr, "%s: bad value for %s: '%s' (%s)\n", tool, opt, val, want);
+    return 0;
+}
+
+int wrt_cli_int(const char *tool, const char *opt, const char *val, long lo, long hi, long *out) {
+    char want[96];
+    snprintf(want, sizeof want, "an integer in [%ld, %ld]", lo, hi);
+    if (!val) return bad(tool, opt, val, want);
+    char *end;
+    errno = 0;
+    long v = strtol(val, &end, 10);
+    if (end == val || *end || errno || v < lo || v > hi) return bad(tool, opt, val, want);
+    *out = v;
+    return 1;
+}
+
+int wrt_cli_num(const char *tool, const char *opt, const char *val, double lo, double hi, double *out) {
+    char want[96];
+    snprintf(want, sizeof want, "a number in [%g, %g]", lo, hi);
+    if (!val) return bad(tool, opt, val, want);
+    char *end;
+    errno = 0;
+    double v = strtod(val, &end);
+    if (end == val || *end || errno || !isfinite(v) || !(v >= lo && v <= hi)) return bad(tool, opt, val, want);
+    *out = v;
+    return 1;
+}
+
+int wrt_cli_vec3(const char *tool, const char *opt, const char *val, double out[3]) {
+    if (!val || !wrt_parse_vec3(val, out)) return bad(tool, opt, val, "three numbers X,Y,Z");
+    return 1;
+}
+
+/* ---------------------------------------------------------------- lights */
+
+void wrt_cli_lights_init(wrt_cli_lights *L) {
+    memset(L, 0, sizeof *L);
+    for (int i = 0; i < WRT_CLI_MAX_LIGHTS; i++) L->scale[i] = 1;
+}
+
+int wrt_cli_lights_any(const wrt_cli_lights *L) {
+    return L->which || L->has_pos || L->has_dir || L->has_cone || L->has_intensity || L->has_color || L->max_named;
+}
+
+static void name_light(wrt_cli_lights *L, long n) {
+    if (n > L->max_named) L->max_named = (int)n;
+}
+
+int wrt_cli_lights_option(const char *tool, wrt_cli_lights *L, int argc, char **argv, int *i) {
+    const char *a = argv[*i], *v = *i + 1 < argc ? argv[*i + 1] : NULL;
+    int ok;
+    long n;
+    if (!strcmp(a, "--light")) {
+        ok = wrt_cli_int(tool, a, v, 1, WRT_CLI_MAX_LIGHTS, &n);
+        if (ok) { L->which = (int)n; name_light(L, n); }
+    } else if (!strcmp(a, "--light-pos")) {
+        ok = L->has_pos = wrt_cli_vec3(tool, a, v, L->pos);
+    } else if (!strcmp(a, "--light-dir")) {
+        ok = wrt_cli_vec3(tool, a, v, L->dir);
+        if (ok && v3_len(v3(L->dir[0], L->dir[1], L->dir[2])) == 0) ok = bad(tool, a, v, "a non-zero direction");
+        L->has_dir = ok;
+    } else if (!strcmp(a, "--light-cone")) {
+        char *end = NULL;
+        double c[2] = {0, 0};
+        ok = v != NULL;
+        if (ok) {
+            errno = 0;
+            c[0] = strtod(v, &end);
+            ok = end != v && *end == ',' && !errno;
+            if (ok) {
+                const char *s = end + 1;
+                c[1] = strtod(s, &end);
+                ok = end != s && *end == 0 && !errno;
+            }
+        }
+        if (!ok || !(c[0] >= 0 && c[1] > c[0] && c[1] <= WRT_PI / 2))
+            ok = bad(tool, a, v, "IN,OUT radians with 0 <= IN < OUT <= pi/2");
+        else { L->cone[0] = c[0]; L->cone[1] = c[1]; L->has_cone = 1; }
+    } else if (!strcmp(a, "--light-intensity")) {
+        ok = L->has_intensity = wrt_cli_num(tool, a, v, 0, 1e30, &L->intensity);
+    } else if (!strcmp(a, "--light-color")) {
+        ok = wrt_cli_vec3(tool, a, v, L->color);
+        if (ok && !(L->color[0] >= 0 && L->color[1] >= 0 && L->color[2] >= 0)) ok = bad(tool, a, v, "R,G,B >= 0");
+        L->has_color = ok;
+    } else if (!strcmp(a, "--light-scale")) {
+        ok = v != NULL;
+        char *end = NULL;
+        if (ok) { errno = 0; n = strtol(v, &end, 10); }
+        double s = 0;
+        if (!ok || end == v || *end != '=' || errno || n < 1 || n > WRT_CLI_MAX_LIGHTS) {
+            ok = bad(tool, a, v, "N=S, light N (1-based) times S");
+        } else {
+            char full[64];
+            snprintf(full, sizeof full, "%s (the factor)", a);
+            ok = wrt_cli_num(tool, full, end + 1, 0, 1e30, &s);
+        }
+        if (ok) { L->scale[n - 1] = (float)s; L->scaled[n - 1] = 1; name_light(L, n); }
+    } else if (!strcmp(a, "--lights-off")) {
+        ok = v != NULL;
+        const char *s = v;
+        while (ok) {
+            char *end;
+            errno = 0;
+            n = strtol(s, &end, 10);
+            if (end == s || errno || n < 1 || n > WRT_CLI_MAX_LIGHTS || (*end && *end != ',')) { ok = 0; break; }
+            L->scale[n - 1] = 0;
+            L->scaled[n - 1] = 1;
+            name_light(L, n);
+            if (!*end) break;
+            s = end + 1;
+        }
+        if (!ok) bad(tool, a, v, "light numbers N[,M..], 1-based");
+    } else {
+        return 0;
+    }
+    if (v) (*i)++;
+    return ok ? 1 : -1;
+}
+
+int wrt_cli_lights_apply(const char *tool, const wrt_cli_lights *L, wrt_light *lights, int n, float *scales) {
+    int which = L->which ? L->which : 1;
+    for (int k = 0; k < WRT_CLI_MAX_LIGHTS; k++) {
+        if (!L->scaled[k] || k < n) continue;
+        fprintf(stderr, "%s: %s %d: the scene has %d light%s (lights are numbered from 1)\n", tool,
+                L->scale[k] == 0 ? "--lights-off" : "--light-scale", k + 1, n, n == 1 ? "" : "s");
+        return WRT_EXIT_USAGE;
+    }
+    int per_light = L->has_pos || L->has_dir || L->has_cone || L->has_intensity || L->has_color;
+    if ((L->which || per_light) && which > n) {
+        fprintf(stderr, "%s: --light %d: the scene has %d light%s (lights are numbered from 1)\n", tool, which, n,
+                n == 1 ? "" : "s");
+        return WRT_EXIT_USAGE;
+    }
+    if (per_light) {
+        wrt_light *l = &lights[which - 1];
+        if (L->has_dir && l->type != WRT_LIGHT_SPOT && !L->has_cone) {
+            fprintf(stderr,
+                    "%s: --light-dir: light %d ('%s') is a point light, which shines every way; add "
+                    "--light-cone IN,OUT to make it a spot light\n",
+                    tool, which, l->name);
+            return WRT_EXIT_USAGE;
+        }
+        if (L->has_pos) l->pos = v3(L->pos[0], L->pos[1], L->pos[2]);
+        if (L->has_cone) {
+            l->type = WRT_LIGHT_SPOT;
+            l->inner_cone = (float)L->cone[0];
+            l->outer_cone = (float)L->cone[1];
+            if (!L->has_dir && !(v3_len(l->dir) > 0.5)) l->dir = v3(0, -1, 0);
+        }
+        if (L->has_dir) l->dir = v3_norm(v3(L->dir[0], L->dir[1], L->dir[2]));
+        if (L->has_intensity) l->intensity = (float)L->intensity;
+        if (L->has_color)
+            for (int c = 0; c < 3; c++) l->color[c] = (float)L->color[c];
+    }
+    for (int k = 0; k < n; k++) {
+        float s = k < WRT_CLI_MAX_LIGHTS ? L->scale[k] : 1;
+        if (scales) scales[k] = s;
+        else lights[k].intensity *= s;
+    }
+    return 0;
+}
+
+void wrt_cli_lights_help(FILE *f) {
+    fprintf(f,
+            "  --light N               the light the options below change (default 1; lights are\n"
+            "                          numbered from 1, as --scan lists them)\n"
+            "  --light-pos X,Y,Z       move it\n"
+            "  --light-dir X,Y,Z       aim a spot light (a point light needs --light-cone too)\n"
+            "  --light-cone IN,OUT     make it a spot light with these cone angles (radians)\n"
+            "  --light-intensity I     its intensity in candela\n"
+            "  --light-color R,G,B     its colour, linear RGB\n"
+            "  --light-scale N=S       multiply light N by S (repeatable)\n"
+            "  --lights-off N[,M..]    switch lights off\n"
+            "  A light number the scene does not have is refused (exit 1).\n");
+}
+
+/* ---------------------------------------------------------------- tone mapping, JSON */
+
+static float srgb_encode(float x) {
+    return x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
+}
+
+void wrt_tonemap_rgb8(const float *rgb, size_t npixels, float exposure_ev, uint8_t *out) {
+    float s = exp2f(exposure_ev);
+    for (size_t i = 0; i < npixels * 3; i++) {
+        float x = rgb[i] * s;
+        if (!(x > 0)) x = 0; /* also NaN */
+        x = x / (1 + x);
+        float e = srgb_encode(x) * 255.0f + 0.5f;
+        out[i] = (uint8_t)(e > 255 ? 255 : e);
+    }
+}
+
+void wrt_cli_json_str(FILE *f, const char *s) {
+    fputc('"', f);
+    for (; *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\') fprintf(f, "\\%c", c);
+        else if (c < 0x20) fprintf(f, "\\u%04x", c);
+        else fputc(c, f);
+    }
+    fputc('"', f);
+}
+
+/* ---------------------------------------------------------------- progress */
+
+/* The state of the line, and a thread that redraws it every half second, so that its
+ * elapsed time moves while a phase gives no news (the balance). */
+static struct {
+    int on, active;
+    char phase[32];
+    double start, last, done;
+    pthread_mutex_t mu;
+    pthread_t ticker;
+    int ticking;
+} prog = {.mu = PTHREAD_MUTEX_INITIALIZER};
+
+static void draw(int final);
+
+static void *tick(void *arg) {
+    (void)arg;
+    for (;;) {
+        struct timespec ts = {0, 500000000L};
+        nanosleep(&ts, NULL);
+        pthread_mutex_lock(&prog.mu);
+        if (prog.on && prog.active && wrt_now() - prog.last >= 0.45) {
+            prog.last = wrt_now();
+            draw(0);
+        }
+        pthread_mutex_unlock(&prog.mu);
+    }
+    return NULL;
+}
+
+void wrt_cli_progress_enable(int on) {
+    pthread_mutex_lock(&prog.mu);
+    prog.on = on;
+    if (on && !prog.ticking && pthread_create(&prog.ticker, NULL, tick, NULL) == 0) {
+        pthread_detach(prog.ticker);
+        prog.ticking = 1;
+    }
+    pthread_mutex_unlock(&prog.mu);
+}
+int wrt_cli_progress_enabled(void) { return prog.on; }
+static void fmt_secs(char *b, size_t n, double s) {
+    if (s < 60) snprintf(b, n, "%.1f s", s);
+    else snprintf(b, n, "%d:%02d min", (int)(s / 60), (int)fmod(s, 60));
+}
+
+static void draw(int final) {
+    double now = wrt_now(), el = now - prog.start;
+    char e[32], left[48] = "";
+    fmt_secs(e, sizeof e, el);
+    fprintf(stderr, "\r  %-8s ", prog.phase);
+    if (prog.done >= 0 || final) {
+        double d = final ? 1 : prog.done;
+        int w = 30, k = (int)(d * w + 0.5);
+        fputc('[', stderr);
+        for (int i = 0; i < w; i++) fputc(i < k ? '#' : '.', stderr);
+        fprintf(stderr, "] %3.0f%%", 100 * d);
+        if (!final && d > 0.02 && d < 1 && el > 0.5) {
+            char r[32];
+            fmt_secs(r, sizeof r, el * (1 - d) / d);
+            snprintf(left, sizeof left, "  ~%s left", r);
+        }
+    } else {
+        fprintf(stderr, "%-37s", "...");
+    }
+    fprintf(stderr, "  %9s%-18s", e, final ? "  done" : left);
+    if (final) fputc('\n', stderr);
+    fflush(stderr);
+}
+
+static void end_locked(void) {
+    if (prog.on && prog.active) draw(1);
+    prog.active = 0;
+}
+
+void wrt_cli_progress_end(void) {
+    pthread_mutex_lock(&prog.mu);
+    end_locked();
+    pthread_mutex_unlock(&prog.mu);
+}
+
+void wrt_cli_progress(const char *phase, double done) {
+    if (!prog.on) return;
+    pthread_mutex_lock(&prog.mu);
+    double now = wrt_now();
+    if (!prog.active || strncmp(prog.phase, phase, sizeof prog.phase - 1)) {
+        end_locked();
+        snprintf(prog.phase, sizeof prog.phase, "%s", phase);
+        prog.start = now;
+        prog.last = 0;
+        prog.active = 1;
+    }
+    prog.done = done > 1 ? 1 : done;
+    if (now - prog.last >= 0.1) {
+        prog.last = now;
+        draw(0);
+    }
+    pthread_mutex_unlock(&prog.mu);
+}

@@ -1,0 +1,34 @@
+/* dto.h: the Direct Transport Operator, pair by pair (dto.c): refines, integrates and
+ * analyses the links from one quad to another. Called by the driver (bake.c); its
+ * results (pair_out) feed the power balance (balance.h). Depends on bake_ctx.h. */
+#ifndef WRT_DTO_H
+#define WRT_DTO_H
+
+#include "bake_ctx.h"
+
+typedef struct pair_entry { uint64_t r, s; float v[3]; } pair_entry;
+/* A leaf link of a pair with a diffuse sender, kept for the power balance (balance.c):
+ * the receiver and sender cells (dto.c's node packing) and the visible share of the
+ * link's sampled form factor (1 where no occluder can lie between the quads). */
+typedef struct leaf_rec { uint32_t rn, sn; float vis; } leaf_rec;
+typedef struct pair_out {
+    pair_entry *e; size_t count;
+    leaf_rec *leaf; size_t nleaf;
+    int occluded;          /* an occluder may lie between the quads */
+    int leaf_dirs;         /* bit 0: the leaves serve sender s; bit 1: also sender r (reciprocal pair) */
+    uint64_t links;
+    uint64_t angular;      /* entries with an angular wavelet on either side */
+    int glossy;            /* the pair touches a glossy quad */
+    int cancelled;
+} pair_out;
+
+/* Refines, integrates and analyses the links from quad s to quad r (dto.c). */
+/* flags: bit 0 an occluder may lie between, bit 1 diffuse pair computed once for both
+ * directions (the entries of T[s][r] are emitted too). */
+void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counters *tc, pair_out *out);
+
+/* The angular function of index idx (common/brdf_table.h's order): node and type. */
+void wrt_angular_func(int idx, wrt_node *n, int *type);
+
+
+#endif

@@ -1,0 +1,12 @@
+/* series.h: the Neumann series G - I = T + T^2 + ... with compression (series.c), the
+ * last stage of the bake. Depends on bake_ctx.h. */
+#ifndef WRT_SERIES_H
+#define WRT_SERIES_H
+
+#include "bake_ctx.h"
+
+/* The Neumann series (series.c): fills res->op and the series counters. */
+wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res);
+
+
+#endif

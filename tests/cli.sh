@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# cli.sh: the command-line vocabulary every tool shares (cli/cli.h): --version in each,
+# the one exit-code table in each --help, -o accepted for the output everywhere, and the
+# light options refused with a message and exit 1 when they name a light the scene does
+# not have, or aim a point light, in wrt-play, wrt-ref and wrt-compare alike.
+# Usage: tests/cli.sh BUILD. Prints "cli: N passed, N failed"; non-zero exit on a failure.
+set -u
+build=${1:-build}
+cd "$(dirname "$0")/.."
+pass=0; fail=0
+tmp=$(mktemp -d /tmp/wrt_cli_XXXXXX)
+trap 'rm -rf "$tmp"' EXIT
+ok() { pass=$((pass + 1)); echo "ok $1"; }
+ko() { fail=$((fail + 1)); echo "FAIL $1"; [ -s "$tmp/err" ] && sed 's/^/    /' "$tmp/err" | head -n 5; }
+# expect NAME CODE REGEX CMD...: exit code CODE and stderr (or stdout) matching REGEX
+expect() {
+    local name=$1 code=$2 re=$3; shift 3
+    "$@" >"$tmp/out" 2>"$tmp/err"; local rc=$?
+    if [ $rc -eq "$code" ] && { [ -z "$re" ] || cat "$tmp/err" "$tmp/out" | grep -Eq -- "$re"; }; then ok "$name"; else echo "    exit $rc"; ko "$name"; fi
+}
+
+tools=(wrt-bake wrt-play wrt-ref wrt-compare wrt-scenegen)
+for t in "${tools[@]}"; do
+    [ -x "$build/$t" ] || { ko "$build/$t not built"; continue; }
+    expect "$t --version" 0 "^$t [0-9]+\.[0-9]+\.[0-9]+ \(\.gto version [0-9]+\)" "$build/$t" --version
+    "$build/$t" --help >"$tmp/help" 2>&1
+    # the table, the same lines in every tool
+    if grep -q "exit codes (the same in every wrt tool)" "$tmp/help" &&
+       grep -Eq "0 ok +4 interrupted" "$tmp/help" && grep -Eq "1 bad command line +5 accuracy not met" "$tmp/help" &&
+       grep -Eq "2 bad input \(scene, .gto\) +6 no display" "$tmp/help" &&
+       grep -Eq "3 output cannot be written +7 out of memory" "$tmp/help"; then
+        ok "$t --help prints the exit-code table"
+    else
+        ko "$t --help prints the exit-code table"
+    fi
+    grep -Eq -- "-o, --out|-o FILE|-o OUT" "$tmp/help" && ok "$t --help names -o" || ko "$t --help names -o"
+    expect "$t unknown option: exit 1" 1 "unknown option" "$build/$t" --frobnicate
+done
+
+# the same exit code for the same failure in every tool that reads a scene / a .gto
+expect "wrt-bake missing scene: exit 2" 2 "nope.gltf" "$build/wrt-bake" "$tmp/nope.gltf" -o "$tmp/x.gto"
+expect "wrt-ref missing scene: exit 2" 2 "nope.gltf" "$build/wrt-ref" "$tmp/nope.gltf" -o "$tmp/r"
+expect "wrt-compare missing scene: exit 2" 2 "nope.gltf" "$build/wrt-compare" "$tmp/nope.gltf" "$tmp/x.gto"
+expect "wrt-play missing file: exit 2" 2 "nope.gto" "$build/wrt-play" "$tmp/nope.gto" --headless -o "$tmp/x.png"
+expect "wrt-bake --info missing file: exit 2, said once" 2 "nope.gto: No such file" "$build/wrt-bake" --info "$tmp/nope.gto"
+[ "$(grep -c nope.gto "$tmp/err" "$tmp/out" | awk -F: '{s += $2} END {print s}')" = 1 ] && ok "--info: one message" || ko "--info: one message"
+expect "wrt-ref bad value: exit 1" 1 "bad value for --spp" "$build/wrt-ref" assets/cornell.gltf --spp 0
+
+# the light options, on the Cornell box's one point light
+scene=assets/cornell.gltf
+gto=$tmp/c.gto
+"$build/wrt-bake" "$scene" -o "$gto" -q 1 --quiet >/dev/null 2>"$tmp/err" && ok "bake $scene (-o)" || ko "bake $scene (-o)"
+expect "wrt-bake --out is -o" 0 "baked" "$build/wrt-bake" assets/test/facing.gltf --out "$tmp/f.gto" -q 1 --quiet
+play=("$build/wrt-play" "$gto" --headless --width 64 --height 48 -o "$tmp/p.png")
+ref=("$build/wrt-ref" "$scene" --width 16 --height 16 --spp 1 -o "$tmp/r")
+cmp=("$build/wrt-compare" "$scene" "$gto" --no-image --cell-paths 2000 --lights 1 --bench 1)
+for tool in play ref cmp; do
+    eval "cmd=(\"\${$tool[@]}\")"
+    expect "$tool --light-scale 2=3: no light 2, exit 1" 1 "light-scale 2: the scene has 1 light" "${cmd[@]}" --light-scale 2=3
+    expect "$tool --lights-off 3: no light 3, exit 1" 1 "lights-off 3: the scene has 1 light" "${cmd[@]}" --lights-off 3
+    expect "$tool --light 2: no light 2, exit 1" 1 "light 2: the scene has 1 light" "${cmd[@]}" --light 2 --light-pos 0,0.5,0
+    expect "$tool --light-dir on a point light: exit 1" 1 "point light.*--light-cone" "${cmd[@]}" --light-dir 0,-1,0
+    expect "$tool --light-scale 0=1: exit 1" 1 "bad value for --light-scale" "${cmd[@]}" --light-scale 0=1
+    expect "$tool --light-pos 1,2: exit 1" 1 "bad value for --light-pos" "${cmd[@]}" --light-pos 1,2
+    expect "$tool --light-cone 1,0.5: exit 1" 1 "bad value for --light-cone" "${cmd[@]}" --light-cone 1,0.5
+done
+expect "wrt-play: a spot made with --light-cone and aimed: exit 0" 0 "" "${play[@]}" --light-dir 0,-1,0 --light-cone 0.3,0.5
+expect "wrt-ref: the same spot: exit 0" 0 "wrote" "${ref[@]}" --light-dir 0,-1,0 --light-cone 0.3,0.5
+expect "wrt-play --msaa 3: exit 1" 1 "bad value for --msaa" "${play[@]}" --msaa 3
+# a light switched off by number 1 (the first, as --scan numbers it) gives a black picture
+"$build/wrt-bake" --scan "$scene" | grep -q "^  \[1\] point" && ok "--scan numbers lights from 1" || ko "--scan numbers lights from 1"
+if [ -x "$build/tests/test_image" ]; then
+    "$build/wrt-play" "$gto" --headless --width 64 --height 48 --lights-off 1 -o "$tmp/off.exr" 2>"$tmp/err"
+    "$build/tests/test_image" --stats "$tmp/off.exr" >"$tmp/out" 2>>"$tmp/err"
+    grep -q "max 0 " "$tmp/out" && ok "--lights-off 1 switches the first light off" || ko "--lights-off 1 switches the first light off"
+fi
+# no display: exit 6
+expect "wrt-play without a display: exit 6" 6 "display|window" env -u DISPLAY -u WAYLAND_DISPLAY "$build/wrt-play" "$gto"
+
+echo "cli: $pass passed, $fail failed"
+[ "$fail" -eq 0 ]
