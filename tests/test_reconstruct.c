@@ -359,6 +359,7 @@ static void test_two_rooms_dark(void) {
         double mx = tex_max(p.rl, q);
         if (q < na) a = fmax(a, mx); else b = fmax(b, mx);
     }
+    fprintf(stderr, "  two rooms: brightest texel of the dark room %.3g, of the lit room %.3g\n", b, a);
     CHECK(a > 0, "room A is lit (%g)", a);
     CHECK(b <= 1e-4 * a, "room B's brightest texel %g is %g of room A's", b, a > 0 ? b / a : 0);
     player_close(&p);
