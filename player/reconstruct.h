@@ -5,19 +5,22 @@
  * shared by coplanar neighbours, and never across a crease, a contact line or a wall.
  *
  * The method, average-interpolating subdivision: level by level from a quad's root, a
- * cell whose children the bake knows (it stored a wavelet there) takes the bake's
- * children averages; a cell the bake did not refine is split by the quadratic
- * average-interpolating rule, child = a + sx (a_E - a_W)/8 + sy (a_N - a_S)/8 +
- * sx sy (a_NE - a_NW - a_SE + a_SW)/64 (sx, sy = -1 or +1 toward the child), which keeps
- * the cell's average exactly and reproduces a quadratic's averages; so every cell average
- * the bake computed is kept. Past the finest known level `extra` more levels are
- * predicted, so the finest known cells are shown as a smooth surface too. Neighbours
+ * cell whose children's averages are kept (wrt_recon_params: the bake stored a function
+ * there, above a level or with sharp details) takes the bake's children averages; any
+ * other cell is split by the quadratic average-interpolating rule, child = a +
+ * sx (a_E - a_W)/8 + sy (a_N - a_S)/8 + sx sy (a_NE - a_NW - a_SE + a_SW)/64 (sx, sy = -1
+ * or +1 toward the child), its slopes limited so that no child leaves the range of its
+ * neighbours (then without the cross term). Each split keeps the cell's average exactly
+ * (so every kept average is kept) and reproduces a linear function exactly. Neighbours
  * across an edge come from the neighbouring quad (same level, along the shared edge);
  * where there is none, linear extrapolation from the quad's own cells. The output's
- * texels are the finest level's averages, except that texels on a shared edge hold the
+ * texels are the output level's averages, except that texels on a shared edge hold the
  * mean of the two cells beside the edge and corner texels the mean of the cells around
  * the corner, so that a clamped bilinear lookup (GL_LINEAR, CLAMP_TO_EDGE) is continuous
- * across the edge: both quads show exactly the same values along it.
+ * across the edge: both quads show exactly the same values along it. What such a texel
+ * gains, the texel one step inside gives back (from 4 texels a side), so each quad's
+ * texel sum, which is exactly the integral of its clamped bilinear display, is kept.
+ * Negative values (an undershoot where a sharp detail is kept) are clamped to 0.
  *
  * Neighbours: two quads are smooth neighbours across an edge when they share it (both
  * end points within 1e-6 of the scene's size), lie in one plane, face the same way and
