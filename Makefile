@@ -33,6 +33,7 @@ else
 Q := @
 endif
 .SECONDARY:
+.SECONDEXPANSION:
 
 LIBS_CORE := -lembree3 -lm
 LIBS_IMG := -lOpenImageIO -lOpenImageIO_Util
@@ -51,27 +52,76 @@ PLAY_OBJ := $(call obj,$(PLAY_SRC))
 REF_OBJ := $(call obj,$(REF_SRC))
 ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(REF_OBJ) $(CORE_OBJ)
 
+# The runtime library (include/wrt.h): the base, the .gto reader and the relighting core;
+# no loader, no image I/O, no OpenGL.
+LIB_SRC := $(wildcard common/*.c) formats/gto.c player/relight.c player/reconstruct.c player/wrt_runtime.c
+LIB_OBJ := $(call obj,$(LIB_SRC))
+PIC_OBJ := $(patsubst %.c,$(BUILD)/pic/%.o,$(LIB_SRC))
+LIBWRT := $(BUILD)/libwrt.a $(BUILD)/libwrt.so
+
 PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-scenegen $(BUILD)/wrt-compare
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
-.PHONY: all deps demo test tests stress study fuzz clean assets bench mutate
-all: $(PROGRAMS) $(TESTS)
+.PHONY: all deps demo test tests stress study fuzz clean assets bench mutate install
+all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/tests/runtime_instances
 
 deps:
 	@bash tools/install-deps.sh
 
-$(BUILD)/obj/%.o: %.c
+# A plain `make` on a machine without the packages names them and the command that
+# installs them, before any compiler error (checked once per build directory).
+$(BUILD)/.deps-checked: tools/check-deps.sh
+	@bash tools/check-deps.sh $(CXX)
+	@mkdir -p $(dir $@) && touch $@
+
+$(BUILD)/obj/%.o: %.c | $(BUILD)/.deps-checked
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
 
-$(BUILD)/obj/%.o: %.cpp
+$(BUILD)/pic/%.o: %.c | $(BUILD)/.deps-checked
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  CC      $< (PIC)")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -fPIC -c $< -o $@
+
+$(BUILD)/libwrt.a: $(LIB_OBJ)
+	@$(if $(Q),echo "  AR      $@")
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(BUILD)/libwrt.so: $(PIC_OBJ)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CC) -shared -Wl,-soname,libwrt.so.1 $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
+
+# The example, built against the library as an embedder would.
+$(BUILD)/examples/relight: examples/relight.c $(BUILD)/libwrt.a include/wrt.h
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
+
+# The runtime's instances test: the public header and libwrt.a, nothing else.
+$(BUILD)/tests/runtime_instances: tests/runtime_instances.c $(BUILD)/libwrt.a include/wrt.h
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -D_GNU_SOURCE -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
+
+# make install PREFIX=DIR: the header, both libraries and wrt.pc (pkg-config).
+PREFIX ?= /usr/local
+install: $(LIBWRT)
+	install -d $(DESTDIR)$(PREFIX)/include $(DESTDIR)$(PREFIX)/lib/pkgconfig
+	install -m 644 include/wrt.h $(DESTDIR)$(PREFIX)/include/wrt.h
+	install -m 644 $(BUILD)/libwrt.a $(DESTDIR)$(PREFIX)/lib/libwrt.a
+	install -m 755 $(BUILD)/libwrt.so $(DESTDIR)$(PREFIX)/lib/libwrt.so.1
+	ln -sf libwrt.so.1 $(DESTDIR)$(PREFIX)/lib/libwrt.so
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|'"$$(sed -n 's/#define WRT_VERSION_STRING "\(.*\)"/\1/p' common/wrt_common.h)"'|' \
+	    tools/wrt.pc.in > $(DESTDIR)$(PREFIX)/lib/pkgconfig/wrt.pc
+
+$(BUILD)/obj/%.o: %.cpp | $(BUILD)/.deps-checked
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CXX     $<")
 	$(Q)$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
-$(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(call obj,player/relight.c player/reconstruct.c tools/reference.c tools/compare.c) $(CORE_OBJ)
+$(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(call obj,player/relight.c player/reconstruct.c player/wrt_runtime.c tools/reference.c tools/compare.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE) $(LIBS_IMG)
 
@@ -83,7 +133,7 @@ $(BUILD)/wrt-ref: $(call obj,tools/ref_main.c) $(REF_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
-$(BUILD)/wrt-compare: $(call obj,tools/compare_main.c tools/compare.c player/relight.c player/reconstruct.c) $(REF_OBJ) $(CORE_OBJ)
+$(BUILD)/wrt-compare: $(call obj,tools/compare_main.c tools/compare.c player/relight.c player/reconstruct.c player/wrt_runtime.c) $(REF_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
@@ -91,10 +141,38 @@ $(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
-$(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(ALL_LIB_OBJ) $(call obj,tools/compare.c)
+# Tests link only what they test: each names the parts it needs (archives, so only the
+# objects it reaches are linked), lowest last; a test not listed gets every part.
+PART_common := $(wildcard common/*.c)
+PART_formats := $(wildcard formats/*.c) $(wildcard formats/*.cpp)
+PART_cli := $(wildcard cli/*.c)
+PART_bake := $(BAKE_SRC)
+PART_runtime := player/relight.c player/reconstruct.c player/wrt_runtime.c
+PART_display := $(filter-out player/main.c $(PART_runtime),$(wildcard player/*.c))
+PART_verify := tools/reference.c tools/compare.c
+ALL_PARTS := display cli verify bake runtime formats common
+TEST_PARTS_test_brdf := common
+TEST_PARTS_test_gto := formats common
+TEST_PARTS_test_image := formats common
+TEST_PARTS_test_scene := formats common
+TEST_PARTS_test_bake := bake formats common
+TEST_PARTS_test_relight := runtime formats common
+TEST_PARTS_test_reconstruct := bake runtime formats common
+TEST_PARTS_test_reference := verify formats common
+TEST_PARTS_test_accuracy := verify bake runtime formats common
+TEST_PARTS_test_stress := verify bake runtime formats common
+TEST_PARTS_test_render := display cli formats common
+TEST_PARTS_test_play := display cli runtime formats common
+test_parts = $(or $(TEST_PARTS_$(1)),$(ALL_PARTS))
+
+$(BUILD)/parts/%.a: $$(call obj,$$(PART_$$*))
+	@mkdir -p $(dir $@)
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $$(foreach p,$$(call test_parts,$$*),$(BUILD)/parts/$$(p).a)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  LINK    $@")
-	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(if $(filter display,$(call test_parts,$*)),$(LIBS_GL)) $(LIBS_IMG) $(LIBS_CORE)
 
 # The fuzz targets (libFuzzer, clang): the glTF loader (fuzz_scene) and the .gto reader
 # (fuzz_gto). `make fuzz` builds both and runs each for FUZZ_SECONDS (default 60) from

@@ -3,15 +3,15 @@
  * options with one wording of their errors, the light-override options (the same
  * meaning and 1-based light numbers in wrt-play, wrt-ref and wrt-compare), JSON string
  * escaping, and the progress line of long work on a terminal.
- * Depends on common/wrt_common.h and formats/scene.h (wrt_light), so it sits above
- * both. Not thread-safe (one progress line per process). */
+ * Depends on common/wrt_common.h, common/scene_types.h (wrt_light) and, for the
+ * version, formats/gto.h. The progress line is one per process, guarded by a mutex. */
 #ifndef WRT_CLI_H
 #define WRT_CLI_H
 
 #include <stdio.h>
 
 #include "../common/wrt_common.h"
-#include "../formats/scene.h"
+#include "../common/scene_types.h"
 
 /* The exit codes of every tool. */
 enum {

@@ -9,28 +9,13 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "../include/wrt.h"
+
 #define WRT_VERSION_STRING "0.1.0"
 #define WRT_PI 3.14159265358979323846
 
-/* Every fallible function returns one of these; details go to wrt_last_error(). */
-typedef enum wrt_status {
-    WRT_OK = 0,
-    WRT_ERR_IO,          /* could not open, read or write a file */
-    WRT_ERR_NOT_OURS,    /* not our kind of file (foreign magic) */
-    WRT_ERR_CORRUPT,     /* our kind of file, but broken: truncated, bad offsets, checksum */
-    WRT_ERR_UNSUPPORTED, /* valid, but a version or feature we do not support */
-    WRT_ERR_PARSE,       /* malformed input (glTF JSON, buffers, accessors) */
-    WRT_ERR_GEOMETRY,    /* geometry we refuse: unpaired triangles, non-planar/degenerate quads, NaN */
-    WRT_ERR_INVALID_ARG, /* absurd option or argument */
-    WRT_ERR_NOMEM,
-    WRT_ERR_CANCELLED,   /* a progress callback asked to stop */
-    WRT_ERR_ACCURACY,    /* a required accuracy was not met */
-    WRT_ERR_GL,          /* OpenGL / EGL / window system failure */
-    WRT_STATUS_COUNT
-} wrt_status;
-
-/* Short constant text for a status ("ok", "i/o error", ...). */
-const char *wrt_status_str(wrt_status s);
+/* Every fallible function returns a wrt_status (include/wrt.h, the public header, defines
+ * it and wrt_status_str); details go to wrt_last_error(). */
 
 /* Sets the calling thread's last error message (printf-style) and returns `s`,
  * so that `return wrt_fail(WRT_ERR_PARSE, "x: %d", n);` reads naturally. */

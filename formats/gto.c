@@ -301,9 +301,12 @@ static void check_lights(vctx *v, const uint8_t *base, uint64_t first, uint64_t 
 static void check_camera(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
     const wrt_gto_camera *c = (const wrt_gto_camera *)base;
     for (uint64_t i = first; i < first + n; i++) {
-        if (!fin3d(c[i].pos) || !fin3d(c[i].dir) || !fin3d(c[i].up) || !unit3d(c[i].dir) ||
-            !unit3d(c[i].up))
-            return vbad(v, "camera: position, direction or up not finite (or not unit)");
+        if (!fin3d(c[i].pos) || !fin3d(c[i].dir) || !fin3d(c[i].up))
+            return vbad(v, "camera: position, direction or up not finite");
+        /* yfov 0: the scene has no camera (a scene built in code); the player frames it */
+        if (c[i].yfov == 0 && c[i].aspect == 0 && c[i].znear == 0 && c[i].zfar == 0) continue;
+        if (!unit3d(c[i].dir) || !unit3d(c[i].up))
+            return vbad(v, "camera: direction or up not of unit length");
         if (!(c[i].yfov > 0 && c[i].yfov < WRT_PI) || !(c[i].aspect >= 0) || !isfinite(c[i].aspect) ||
             !(c[i].znear > 0) || !isfinite(c[i].znear) || !(c[i].zfar >= 0) || !isfinite(c[i].zfar))
             return vbad(v, "camera: yfov %g, aspect %g, znear %g or zfar %g out of range", c[i].yfov,
@@ -1235,6 +1238,29 @@ void wrt_gto_discard(wrt_gto_pending *p) {
  * Inspection
  * ---------------------------------------------------------------------------------- */
 
+/* The first value of "key" in the provenance JSON, a string (unescaped quotes end it)
+ * or a number, into out (empty if absent); printable ASCII only. */
+static void prov_value(const char *p, size_t n, const char *key, char *out, size_t outn) {
+    out[0] = 0;
+    char pat[64];
+    int pl = snprintf(pat, sizeof pat, "\"%s\":", key);
+    if (pl <= 0 || (size_t)pl >= sizeof pat || !p) return;
+    for (size_t i = 0; i + (size_t)pl < n; i++) {
+        if (memcmp(p + i, pat, (size_t)pl)) continue;
+        size_t j = i + (size_t)pl, o = 0;
+        int str = j < n && p[j] == '"';
+        if (str) j++;
+        for (; j < n && o + 1 < outn; j++) {
+            char c = p[j];
+            if (str ? c == '"' : (c == ',' || c == '}' || c == ' ')) break;
+            if (str && c == '\\' && j + 1 < n) c = p[++j];
+            out[o++] = (c >= 0x20 && c < 0x7f) ? c : '?';
+        }
+        out[o] = 0;
+        return;
+    }
+}
+
 /* Minimal JSON syntax check (so --info --json can embed the provenance as is). */
 static const char *js_ws(const char *p, const char *e) {
     while (p < e && (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r')) p++;
@@ -1456,14 +1482,35 @@ wrt_status wrt_gto_print_info(const char *path, int json, FILE *f) {
             fprintf(f, "            entries per column: mean %.1f, max %u; functions per quad: max %u; "
                     "deepest level: spatial %u, angular %u\n",
                     g.nfuncs ? (double)g.nnz / g.nfuncs : 0.0, max_col, max_fpq, max_sl, max_al);
-            fprintf(f, "bake:       DTO %.2f s, GTO %.2f s, write %.2f s, total %.2f s\n",
-                    S->t_dto, S->t_gto, S->t_write, S->t_total);
+            /* only the times the bake recorded (none with --reproducible) */
+            if (S->t_dto > 0 || S->t_gto > 0) {
+                fprintf(f, "bake:       DTO %.2f s, GTO %.2f s", S->t_dto, S->t_gto);
+                if (S->t_write > 0) fprintf(f, ", write %.2f s", S->t_write);
+                if (S->t_total > 0) fprintf(f, ", total %.2f s", S->t_total);
+                fputc('\n', f);
+            } else {
+                fprintf(f, "bake:       no timings recorded (--reproducible)\n");
+            }
             fprintf(f, "            links: DTO %" PRIu64 ", GTO %" PRIu64 ", gathered %" PRIu64
                     "; entries: DTO %" PRIu64 ", operator %" PRIu64 "\n", S->links_dto, S->links_gto,
                     S->links_gathered, S->entries_dto, S->entries_op);
             fprintf(f, "            rays: %" PRIu64 " traced, %" PRIu64 " skipped; bounces %" PRIu64
                     "; energy left %.3g\n", S->rays_traced, S->rays_skipped, S->bounces, S->energy_left);
-            fprintf(f, "provenance: %.*s\n", (int)g.provenance_len, g.provenance);
+            {
+                /* the provenance is JSON: its main facts here, all of it with --json */
+                char tool[64], ver[32], src[512], hash[40], q[16];
+                prov_value(g.provenance, g.provenance_len, "tool", tool, sizeof tool);
+                prov_value(g.provenance, g.provenance_len, "version", ver, sizeof ver);
+                prov_value(g.provenance, g.provenance_len, "source", src, sizeof src);
+                prov_value(g.provenance, g.provenance_len, "source_hash", hash, sizeof hash);
+                prov_value(g.provenance, g.provenance_len, "quality", q, sizeof q);
+                if (tool[0] || src[0])
+                    fprintf(f, "provenance: %s %s from %s (hash %s), quality %s; --info --json shows all of it\n",
+                            tool[0] ? tool : "?", ver, src[0] ? src : "?", hash[0] ? hash : "?", q[0] ? q : "?");
+                else /* not wrt-bake's: as written, up to 300 bytes */
+                    fprintf(f, "provenance: %.*s%s\n", g.provenance_len > 300 ? 300 : (int)g.provenance_len,
+                            g.provenance, g.provenance_len > 300 ? "..." : "");
+            }
             fprintf(f, "integrity:  ok (checksums and indices verified: %s in %.2f ms, %.0f MB/s)\n",
                     human_bytes(len, hb), dt * 1e3, mbs);
         } else {

@@ -5,7 +5,7 @@
  * (direct light with shadow maps + the indirect textures), in a GLFW window or headless
  * (EGL) into image files, a scripted sequence of frames, per-quad statistics or a
  * benchmark. Command line and exit codes: see usage() below. The only file that exits.
- * Depends on formats/gto.h, formats/image.h, player/relight.h, player/render.h,
+ * Depends on formats/gto.h, formats/image.h, include/wrt.h (the runtime), player/render.h,
  * player/platform.h. */
 #include <ctype.h>
 #include <errno.h>
@@ -20,7 +20,7 @@
 #include "../formats/image.h"
 #include "overlay.h"
 #include "platform.h"
-#include "relight.h"
+#include "../include/wrt.h"
 #include "render.h"
 
 /* The exit codes of every tool (cli/cli.h). */
@@ -52,6 +52,8 @@ static void usage(FILE *f) {
         "  --exposure EV         exposure in stops (default 0): x 2^EV, then Reinhard x/(1+x),\n"
         "                        then sRGB; the same curve as wrt-ref's and wrt-compare's PNGs\n"
         "  --msaa N              samples per pixel of the rasterizer: 1, 2, 4 or 8 (default 4)\n"
+        "  --supersample N       headless pictures: render N x N times the pixels and average\n"
+        "                        them (smooths shadow edges too; N = 1..4, default 1)\n"
         "  --direct-only | --indirect-only   show one part (default: both)\n"
         "  --stats-json FILE     per quad: area, centroid, normal, mesh name, mean direct and\n"
         "                        indirect incident irradiance (RGB) for the current lights\n"
@@ -88,7 +90,7 @@ static void usage(FILE *f) {
 
 typedef struct options {
     const char *file, *out, *script, *pattern, *stats, *screenshot;
-    int headless, width, height, bench, frames, threads, max_tex_res, shadow_res, msaa, no_overlay;
+    int headless, width, height, bench, frames, threads, max_tex_res, shadow_res, msaa, no_overlay, supersample;
     wrt_render_mode mode;
     float exposure;
     double script_fps;
@@ -114,6 +116,7 @@ static int parse_args(int argc, char **argv, options *o) {
     o->height = 480;
     o->max_tex_res = 64;
     o->msaa = 4;
+    o->supersample = 1;
     wrt_cli_lights_init(&o->lights);
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
@@ -148,6 +151,7 @@ static int parse_args(int argc, char **argv, options *o) {
             INT(1, 8, o->msaa);
             if (o->msaa & (o->msaa - 1)) { fprintf(stderr, "wrt-play: bad value for --msaa: '%s' (1, 2, 4 or 8)\n", v); return 0; }
         }
+        else if (!strcmp(a, "--supersample")) INT(1, 4, o->supersample);
         else if (!strcmp(a, "--exposure")) { double e; NUM(-64, 64, e); o->exposure = (float)e; }
         else if (!strcmp(a, "--script-fps")) NUM(1e-3, 1e4, o->script_fps);
         else if (!strcmp(a, "--fov")) { NUM(1, 179, o->fov); o->has_fov = 1; }
@@ -216,7 +220,7 @@ typedef struct app {
     options *o;
     wrt_gto g;
     wrt_platform *plat;
-    wrt_relight *rl;
+    wrt_runtime *rl;
     wrt_render *rd;
     wrt_light *lights;
     int nlights;
@@ -238,21 +242,35 @@ static int run_frame(app *a, stage_ms *t) {
     wrt_render_set_lights(a->rd, a->lights, a->scales, n);
     /* direct-only pictures need no relighting; everything else does */
     if (a->mode != WRT_MODE_DIRECT || a->o->stats) {
-        wrt_relight_timings rt;
-        memset(&rt, 0, sizeof rt);
-        wrt_relight_set_lights(a->rl, a->lights, a->scales, n);
-        wrt_relight_set_eye(a->rl, a->view.eye);
-        int changed = wrt_relight_update(a->rl, &rt);
+        double ms[4];
+        wrt_runtime_light rls[WRT_RENDER_MAX_LIGHTS];
+        for (int i = 0; i < n; i++) { /* the runtime's lights: a scale folds into the intensity */
+            const wrt_light *l = &a->lights[i];
+            memset(&rls[i], 0, sizeof rls[i]);
+            rls[i].kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT : WRT_LIGHT_KIND_POINT;
+            rls[i].position[0] = l->pos.x; rls[i].position[1] = l->pos.y; rls[i].position[2] = l->pos.z;
+            rls[i].direction[0] = l->dir.x; rls[i].direction[1] = l->dir.y; rls[i].direction[2] = l->dir.z;
+            for (int c = 0; c < 3; c++) rls[i].color[c] = l->color[c];
+            rls[i].intensity = a->scales[i] != 1 ? l->intensity * a->scales[i] : l->intensity;
+            rls[i].inner_cone = l->inner_cone;
+            rls[i].outer_cone = l->outer_cone;
+            rls[i].off = a->scales[i] == 0;
+        }
+        int changed = 0;
+        wrt_runtime_set_lights(a->rl, rls, n, NULL);
+        wrt_runtime_set_eye(a->rl, a->view.eye, NULL);
+        wrt_runtime_update(a->rl, &changed, NULL);
         t->relit = changed > 0 || !a->relit_once;
-        t->projection = rt.projection;
-        t->multiply = rt.multiply;
-        t->brdf = rt.brdf;
-        t->synthesis = rt.synthesis;
+        wrt_runtime_timings(a->rl, ms);
+        t->projection = ms[0];
+        t->multiply = ms[1];
+        t->brdf = ms[2];
+        t->synthesis = ms[3];
         double t1 = wrt_now();
         if (changed > 0 || !a->relit_once) {
             for (uint32_t q = 0; q < a->g.nquads; q++) {
-                const float *tex = wrt_relight_tex(a->rl, (int)q);
-                int res = wrt_relight_tex_res(a->rl, (int)q);
+                int res;
+                const float *tex = wrt_runtime_quad_texture(a->rl, (int)q, &res);
                 if (tex && res > 0) wrt_render_set_quad_tex(a->rd, (int)q, res, tex);
             }
             if (wrt_render_upload(a->rd) < 0) return EXIT_GL;
@@ -270,9 +288,26 @@ static int run_frame(app *a, stage_ms *t) {
 }
 
 static int save_picture(app *a, const char *path) {
-    int w = a->o->width, h = a->o->height;
+    int w = a->o->width, h = a->o->height, ss = a->o->headless ? a->o->supersample : 1;
     float *lin = wrt_xmalloc((size_t)w * h * 3 * sizeof(float));
-    wrt_render_read_linear(a->rd, lin);
+    if (ss > 1) {
+        /* rendered at ss x the size: the mean of each ss x ss block (a box filter of the
+         * linear radiance, which smooths shadow edges too, unlike MSAA) */
+        size_t W = (size_t)w * ss;
+        float *big = wrt_xmalloc(W * (size_t)h * ss * 3 * sizeof(float));
+        wrt_render_read_linear(a->rd, big);
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++)
+                for (int c = 0; c < 3; c++) {
+                    double sum = 0;
+                    for (int j = 0; j < ss; j++)
+                        for (int i = 0; i < ss; i++) sum += big[((size_t)(y * ss + j) * W + (size_t)x * ss + i) * 3 + c];
+                    lin[((size_t)y * w + x) * 3 + c] = (float)(sum / (ss * ss));
+                }
+        free(big);
+    } else {
+        wrt_render_read_linear(a->rd, lin);
+    }
     wrt_status s;
     if (wrt_image_is_exr(path)) {
         s = wrt_image_write_exr(path, lin, w, h);
@@ -327,7 +362,7 @@ static int write_stats(app *a, const char *path) {
         const wrt_gto_quad *Q = &a->g.quads[q];
         double c[3], dir[3], ind[3];
         quad_centroid(Q, c);
-        wrt_relight_quad_irradiance(a->rl, (int)q, dir, ind);
+        wrt_runtime_quad_irradiance(a->rl, (int)q, dir, ind);
         fprintf(f, "%s\n    {\"quad\": %u, \"mesh\": ", q ? "," : "", q);
         json_str(f, Q->name < a->g.nnames ? a->g.names[Q->name] : "", 64);
         fprintf(f, ", \"material\": %u, \"area\": %.9g, \"centroid\": [%.17g, %.17g, %.17g], "
@@ -587,9 +622,9 @@ static int run_bench(app *a) {
     if (!rc) {
         const char *names[7] = {"projection", "multiply", "brdf", "synthesis", "upload", "draw", "frame"};
         printf("{\"frames\": %d, \"width\": %d, \"height\": %d, \"mode\": \"%s\", \"quads\": %u, "
-               "\"funcs\": %u, \"nnz\": %llu, \"threads\": %d, \"first_frame_ms\": %.3f, \"median_ms\": {",
+               "\"funcs\": %u, \"nnz\": %llu, \"threads\": %d, \"msaa\": %d, \"first_frame_ms\": %.3f, \"median_ms\": {",
                n, a->o->width, a->o->height, wrt_render_mode_name(a->mode), a->g.nquads, a->g.nfuncs,
-               (unsigned long long)a->g.nnz, a->o->threads, first);
+               (unsigned long long)a->g.nnz, a->o->threads, wrt_render_samples(a->rd), first);
         double med_frame = 0;
         for (int k = 0; k < 7; k++) {
             double m = median(col[k], n);
@@ -686,15 +721,16 @@ static int win_reload(app *a, win_state *w) {
         return 0;
     }
     wrt_render_destroy(a->rd);
-    wrt_relight_destroy(a->rl);
+    wrt_runtime_close(a->rl);
     a->rd = NULL;
     a->rl = NULL;
     int same_lights = g2.nlights == a->g.nlights;
     wrt_gto_close(&a->g);
     a->g = g2;
-    wrt_relight_options ro = {.max_tex_res = a->o->max_tex_res, .threads = a->o->threads};
-    if (wrt_relight_create(&a->g, &ro, &a->rl)) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+    wrt_runtime_options ro = {.max_tex_res = a->o->max_tex_res, .threads = a->o->threads};
+    wrt_error err;
+    if (wrt_runtime_open_memory(a->g.map, a->g.size, &ro, &a->rl, &err)) {
+        fprintf(stderr, "wrt-play: %s\n", err.message);
         return EXIT_RUNTIME;
     }
     wrt_render_options rdo = {a->o->width, a->o->height, a->o->shadow_res, a->o->msaa};
@@ -715,15 +751,12 @@ static int win_reload(app *a, win_state *w) {
     return 0;
 }
 
-static void draw_overlay(app *a, win_state *w) {
-    wrt_overlay *ov = w->ov;
-    int W = a->o->width, H = a->o->height, sc = W >= 1000 ? 2 : 1;
-    float ch = 9.0f * sc;
-    wrt_overlay_begin(ov, W, H);
-    static const float white[4] = {1, 1, 1, 1}, dim[4] = {0.7f, 0.7f, 0.7f, 1}, yellow[4] = {1, 0.85f, 0.2f, 1},
-                       panel[4] = {0, 0, 0, 0.6f}, black[4] = {0, 0, 0, 0.8f};
-    /* a marker at each light: a cross in its colour, a frame around the selected one,
-     * hollow and grey when it is off; its number beside it */
+static const float white[4] = {1, 1, 1, 1}, dim[4] = {0.7f, 0.7f, 0.7f, 1}, yellow[4] = {1, 0.85f, 0.2f, 1},
+                   panel[4] = {0, 0, 0, 0.6f}, black[4] = {0, 0, 0, 0.8f};
+
+static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch) {
+    /* a marker at each light: a cross in its colour (grey when off), a frame around the
+     * selected one, its number beside it, a dotted axis for a spot */
     for (int i = 0; i < nshown(a); i++) {
         double p[3] = {a->lights[i].pos.x, a->lights[i].pos.y, a->lights[i].pos.z}, px[2];
         if (!wrt_render_project(a->rd, &a->view, p, px)) continue;
@@ -732,6 +765,17 @@ static void draw_overlay(app *a, win_state *w) {
         float c[4] = {a->lights[i].color[0], a->lights[i].color[1], a->lights[i].color[2], 1};
         float m = fmaxf(c[0], fmaxf(c[1], c[2]));
         for (int k = 0; k < 3; k++) c[k] = on ? (m > 0 ? 0.35f + 0.65f * c[k] / m : 1) : 0.45f;
+        if (a->lights[i].type == WRT_LIGHT_SPOT) {
+            /* a spot's axis: dots from the light along its direction, a tenth of the box */
+            double len = 0.1 * v3_len(v3(w->box_hi[0] - w->box_lo[0], w->box_hi[1] - w->box_lo[1],
+                                          w->box_hi[2] - w->box_lo[2]));
+            for (int k = 1; k <= 8; k++) {
+                double q[3], qx[2];
+                for (int d = 0; d < 3; d++) q[d] = p[d] + (&a->lights[i].dir.x)[d] * len * k / 8;
+                if (wrt_render_project(a->rd, &a->view, q, qx))
+                    wrt_overlay_rect(ov, (float)qx[0] - sc, (float)qx[1] - sc, 2.0f * sc, 2.0f * sc, c);
+            }
+        }
         if (i == w->sel) {
             float t = 2.0f * sc, R = r + 4.0f * sc;
             wrt_overlay_rect(ov, x - R, y - R, 2 * R, t, yellow);
@@ -743,11 +787,18 @@ static void draw_overlay(app *a, win_state *w) {
         wrt_overlay_rect(ov, x - 2.0f * sc, y - r - 1, 4.0f * sc, 2 * r + 2, black);
         wrt_overlay_rect(ov, x - r, y - 1.0f * sc, 2 * r, 2.0f * sc, c);
         wrt_overlay_rect(ov, x - 1.0f * sc, y - r, 2.0f * sc, 2 * r, c);
-        char num[8];
+        char num[16];
         snprintf(num, sizeof num, "%d", i + 1);
         wrt_overlay_rect(ov, x + r + 2, y - r - ch, 6.0f * sc * (float)strlen(num) + 2, ch, black);
         wrt_overlay_text(ov, x + r + 3, y - r - ch, sc, i == w->sel ? yellow : white, num);
     }
+}
+
+static void draw_overlay(app *a, win_state *w) {
+    wrt_overlay *ov = w->ov;
+    int W = a->o->width, H = a->o->height, sc = W >= 1000 ? 2 : 1;
+    float ch = 9.0f * sc;
+    wrt_overlay_begin(ov, W, H);
     double now = wrt_now();
     if (!w->overlay_on) {
         const char *hint = w->status_until > now ? w->status : "H: help and lights";
@@ -755,6 +806,7 @@ static void draw_overlay(app *a, win_state *w) {
         wrt_overlay_measure(hint, sc, &tw, &th);
         wrt_overlay_rect(ov, 4, (float)H - th - 8, tw + 8, th + 4, panel);
         wrt_overlay_text(ov, 8, (float)H - th - 6, sc, dim, hint);
+        draw_markers(a, w, ov, sc, ch);
         wrt_overlay_draw(ov);
         return;
     }
@@ -802,6 +854,7 @@ static void draw_overlay(app *a, win_state *w) {
         lineno++;
         line = nl ? nl + 1 : NULL;
     }
+    draw_markers(a, w, ov, sc, ch); /* over the panel: a light behind it stays visible */
     wrt_overlay_draw(ov);
 }
 
@@ -831,8 +884,9 @@ static int run_window(app *a) {
     double lo[3], hi[3];
     wrt_render_scene_bounds(&a->g, lo, hi);
     double size = v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
-    wrt_v3 up;
-    scene_up(a, &up);
+    /* yaw and the lights' up/down keys turn and move about the world's up, glTF's +Y,
+     * whatever the camera's roll or tilt */
+    wrt_v3 up = v3(0, 1, 0);
     double last = wrt_now(), title_at = 0;
     int frame = 0, rc = 0, was_idle = -1, dirty = 1;
     stage_ms t;
@@ -872,7 +926,7 @@ static int run_window(app *a) {
             else if (k == WRT_KEY_T && !in.events[e].repeat) a->mode = (wrt_render_mode)((a->mode + 1) % WRT_MODE_COUNT);
             else if ((k == WRT_KEY_H || k == WRT_KEY_F1) && !in.events[e].repeat) w.overlay_on = !w.overlay_on;
             else if (k == WRT_KEY_R && !in.events[e].repeat) {
-                (void)setup_view(a); /* checked at start */
+                (void)setup_view(a); /* checked at the start */
                 free(a->lights);
                 if ((rc = setup_lights(a))) break;
                 win_reset_lights(a, &w);
@@ -1019,13 +1073,14 @@ int main(int argc, char **argv) {
         o.width = a.plat->fb_width;
         o.height = a.plat->fb_height;
     }
-    wrt_relight_options ro = {.max_tex_res = o.max_tex_res, .threads = o.threads};
-    if ((s = wrt_relight_create(&a.g, &ro, &a.rl))) {
+    wrt_runtime_options ro = {.max_tex_res = o.max_tex_res, .threads = o.threads};
+    if ((s = wrt_runtime_open_memory(a.g.map, a.g.size, &ro, &a.rl, NULL))) {
         fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         rc = EXIT_RUNTIME;
         goto done;
     }
-    wrt_render_options rdo = {o.width, o.height, o.shadow_res, o.msaa};
+    int ss = o.headless ? o.supersample : 1;
+    wrt_render_options rdo = {o.width * ss, o.height * ss, o.shadow_res, o.msaa};
     if ((s = wrt_render_create(&a.g, &rdo, &a.rd))) {
         fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         rc = s == WRT_ERR_GL ? EXIT_GL : EXIT_USAGE;
@@ -1059,7 +1114,7 @@ int main(int argc, char **argv) {
     }
 done:
     wrt_render_destroy(a.rd);
-    wrt_relight_destroy(a.rl);
+    wrt_runtime_close(a.rl);
     free(a.lights);
     wrt_platform_destroy(a.plat);
     wrt_gto_close(&a.g);

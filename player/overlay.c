@@ -268,6 +268,7 @@ void wrt_overlay_draw(wrt_overlay *o) {
     }
     glViewport(0, 0, o->fb_w, o->fb_h);
     glDisable(GL_DEPTH_TEST);
+    glDisable(GL_CULL_FACE); /* the scene pass culls back faces; these quads wind either way */
     glEnable(GL_BLEND);
     glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
     glUseProgram(o->prog);

@@ -74,6 +74,12 @@ if [ -x "$build/tests/test_image" ]; then
     "$build/tests/test_image" --stats "$tmp/off.exr" >"$tmp/out" 2>>"$tmp/err"
     grep -q "max 0 " "$tmp/out" && ok "--lights-off 1 switches the first light off" || ko "--lights-off 1 switches the first light off"
 fi
+# --scan of a baked file says what it is; --info prints no raw JSON and no unrecorded times
+expect "--scan of a .gto: exit 2, named" 2 "is a baked .gto file, not a scene" "$build/wrt-bake" --scan "$gto"
+"$build/wrt-bake" --info "$gto" >"$tmp/info" 2>"$tmp/err"
+grep -q '^provenance: wrt-bake .* from assets/cornell.gltf' "$tmp/info" && ! grep -q '{' "$tmp/info" &&
+    ok "--info: provenance as text, no raw JSON" || ko "--info: provenance as text, no raw JSON"
+grep -q "0\.00 s" "$tmp/info" && ko "--info shows no 0.00 s" || ok "--info shows no 0.00 s"
 # no display: exit 6
 expect "wrt-play without a display: exit 6" 6 "display|window" env -u DISPLAY -u WAYLAND_DISPLAY "$build/wrt-play" "$gto"
 

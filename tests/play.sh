@@ -103,9 +103,50 @@ if [ -f "$gto" ]; then
     if command -v xvfb-run >/dev/null; then
         check "window under Xvfb" timeout 60 xvfb-run -a -s "-screen 0 800x600x24" "$play" "$gto" "${W[@]}" --frames 3 --screenshot "$tmp/shot.png"
         check "window screenshot not blank" "$img" --nonblank "$tmp/shot.png"
+        # the overlay (panel, text, light markers) is drawn: the picture differs from --no-overlay
+        timeout 60 xvfb-run -a -s "-screen 0 800x600x24" "$play" "$gto" "${W[@]}" --frames 3 --no-overlay --screenshot "$tmp/shot0.png" >/dev/null 2>&1
+        m1=$("$img" --stats "$tmp/shot.png" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+        m0=$("$img" --stats "$tmp/shot0.png" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+        awk -v a="$m1" -v b="$m0" 'BEGIN { d = (a - b) / b; exit !(d > 0.01 || d < -0.01) }' &&
+            ok "overlay drawn (mean $m1 with, $m0 without)" || ko "overlay drawn (mean $m1 with, $m0 without)"
     else
         skipped "window under Xvfb: xvfb-run missing (tools/install-deps.sh installs xvfb)"
         skipped "window screenshot not blank: xvfb-run missing"
+    fi
+
+    # --supersample 2 averages 2 x 2 rendered pixels: the picture's mean stays (within 2%),
+    # its edges are smoothed
+    check "headless --supersample 2" "$play" "$gto" --headless "${W[@]}" --supersample 2 -o "$tmp/ss2.exr"
+    m1=$("$img" --stats "$tmp/both.exr" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+    m2=$("$img" --stats "$tmp/ss2.exr" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+    awk -v a="$m1" -v b="$m2" 'BEGIN { d = (b - a) / a; exit !(d < 0.02 && d > -0.02) }' &&
+        ok "supersampled mean $m2 = plain mean $m1 (2%)" || ko "supersampled mean $m2 = plain mean $m1 (2%)"
+
+    # keys are events: a tap (press and release between two frames) of Space switches the
+    # light off, then F12 saves the window; the saved picture is darker than the first one
+    if command -v xvfb-run >/dev/null && command -v xdotool >/dev/null; then
+        cat >"$tmp/keys.sh" <<KEYS
+#!/bin/bash
+cd "$tmp" && rm -f wrt-play-*.png
+"$PWD/$play" "$gto" "\${@}" >"$tmp/win.log" 2>&1 &
+pid=\$!
+for i in \$(seq 50); do wid=\$(xdotool search --name wrt-play 2>/dev/null | head -n 1); [ -n "\$wid" ] && break; sleep 0.2; done
+sleep 2
+xdotool key --window "\$wid" F12; sleep 2
+xdotool key --window "\$wid" space; sleep 1
+xdotool key --window "\$wid" F12; sleep 2
+xdotool key --window "\$wid" Escape
+wait \$pid
+KEYS
+        timeout 90 xvfb-run -a -s "-screen 0 800x600x24" bash "$tmp/keys.sh" "${W[@]}" --msaa 1 --no-overlay >/dev/null 2>&1
+        if [ -f "$tmp/wrt-play-0001.png" ] && [ -f "$tmp/wrt-play-0002.png" ]; then
+            m1=$("$img" --stats "$tmp/wrt-play-0001.png" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+            m2=$("$img" --stats "$tmp/wrt-play-0002.png" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+            if awk -v a="$m1" -v b="$m2" 'BEGIN { exit !(b < 0.5 * a) }'; then ok "window: Space tap switches the light off (mean $m1 -> $m2)"
+            else ko "window: Space tap switches the light off (mean $m1 -> $m2)"; fi
+        else
+            cat "$tmp/win.log"; ko "window: F12 saved two screenshots"
+        fi
     fi
 
     # truncated copies: a clear message and exit 2, never a crash

@@ -703,7 +703,8 @@ static void test_bad_numbers(void) {
     corrupt_index(b, n, S_LIGHTS, 144 + 136, &two, 4, "light 1: cone angles 2 / 0.4", "cone");
     corrupt_index(b, n, S_CAMERA, 72, &dnan, 8, "camera: yfov nan", "yfov NaN");
     corrupt_index(b, n, S_CAMERA, 88, &dzero, 8, "camera: yfov 0.7, aspect 1.5, znear 0 ", "znear 0");
-    corrupt_index(b, n, S_CAMERA, 24 + 16, &dzero, 8, "camera: position, direction or up not finite", "camera dir zero");
+    corrupt_index(b, n, S_CAMERA, 24 + 16, &dzero, 8, "camera: direction or up not of unit length", "camera dir zero");
+    corrupt_index(b, n, S_CAMERA, 48 + 8, &dnan, 8, "camera: position, direction or up not finite", "camera up NaN");
     corrupt_index(b, n, S_STATS, 96, &dnan, 8, "stats: energy_left nan", "energy NaN");
     corrupt_index(b, n, S_QUADS, 96, &fnan, 4, "quad 0: normal is not a unit vector", "normal NaN");
     corrupt_index(b, n, S_QUADS, 168 + 132, &neg, 4, "quad 1: area -1 is not finite and > 0", "negative area");

@@ -7,6 +7,9 @@
  *                                              and the picture is not one flat colour
  *   test_image --sum BOTH DIRECT INDIRECT TOL  exit 0 if mean |both - (direct + indirect)|
  *                                              is below TOL x mean(both) (linear EXR)
+ *   test_image --error IMG REF                 prints the relative RMSE of IMG against REF
+ *                                              (linear EXR; sqrt(mean (a-b)^2) / mean b) and
+ *                                              the median and 99th percentile of |a-b| / mean b
  * Without arguments it runs its own cases. */
 #include "tests/test.h"
 #include "formats/image.h"
@@ -107,7 +110,44 @@ static int sum_check(const char *both, const char *dir, const char *ind, double 
     return rel <= tol && md > 0 && mi > 0 ? 0 : 1;
 }
 
+static int cmp_d(const void *x, const void *y) {
+    double a = *(const double *)x, b = *(const double *)y;
+    return a < b ? -1 : a > b;
+}
+
+static int error_of(const char *img, const char *ref) {
+    float *a, *b;
+    int w[2], h[2];
+    if (!load(img, &a, &w[0], &h[0])) return 2;
+    if (!load(ref, &b, &w[1], &h[1])) return 2;
+    if (w[0] != w[1] || h[0] != h[1]) {
+        fprintf(stderr, "test_image: sizes differ\n");
+        return 1;
+    }
+    size_t n = (size_t)w[0] * h[0];
+    double *e = malloc(n * sizeof *e), se = 0, mb = 0;
+    for (size_t i = 0; i < n * 3; i++) mb += b[i];
+    mb /= (double)(n * 3);
+    for (size_t p = 0; p < n; p++) {
+        double d = 0;
+        for (int k = 0; k < 3; k++) {
+            double x = (double)a[p * 3 + k] - (double)b[p * 3 + k];
+            se += x * x;
+            d += fabs(x) / 3;
+        }
+        e[p] = d / mb;
+    }
+    qsort(e, n, sizeof *e, cmp_d);
+    printf("rmse %.5f median %.5f p99 %.5f (relative to the reference's mean %.5g)\n", sqrt(se / (double)(n * 3)) / mb,
+           e[n / 2], e[(size_t)(0.99 * (double)(n - 1))], mb);
+    free(e);
+    free(a);
+    free(b);
+    return 0;
+}
+
 int main(int argc, char **argv) {
+    if (argc == 4 && !strcmp(argv[1], "--error")) return error_of(argv[2], argv[3]);
     if (argc == 3 && !strcmp(argv[1], "--stats")) return stats(argv[2], 1) == 2 ? 2 : 0;
     if (argc == 3 && !strcmp(argv[1], "--nonblank")) return stats(argv[2], 1);
     if (argc == 6 && !strcmp(argv[1], "--sum")) return sum_check(argv[2], argv[3], argv[4], atof(argv[5]));

@@ -316,6 +316,73 @@ static void test_round_trip(void) {
     }
 }
 
+/* Mean over the unit square (z = 0, normal +z) of the irradiance of light l with the
+ * KHR_lights_punctual spot falloff clamp((cos - cos_outer) / (cos_inner - cos_outer), 0, 1)^2
+ * written here, by a 256 x 256 midpoint rule. */
+static double mean_E_dense(const wrt_light *l) {
+    int N = 256;
+    double sum = 0;
+    for (int j = 0; j < N; j++)
+        for (int i = 0; i < N; i++) {
+            wrt_v3 x = v3((i + 0.5) / N, (j + 0.5) / N, 0), d = v3_sub(l->pos, x);
+            double d2 = v3_dot(d, d), c = d.z / sqrt(d2);
+            if (c <= 0) continue;
+            double e = l->intensity * c / d2;
+            if (l->type == WRT_LIGHT_SPOT) {
+                double ca = -v3_dot(v3_scale(d, 1 / sqrt(d2)), l->dir), co = cos(l->outer_cone), ci = cos(l->inner_cone);
+                double t = (ca - co) / (ci - co);
+                t = t < 0 ? 0 : t > 1 ? 1 : t;
+                e *= t * t;
+            }
+            sum += e;
+        }
+    return sum / ((double)N * N);
+}
+
+/* The texture's mean and the projection's mean direct irradiance against the exact mean
+ * over the quad (base / pi times it for the diffuse texture), for a point light and for
+ * a spot whose cone edge crosses the quad. The texel-by-texel round trip above allows
+ * each texel the irradiance's variation over it; the means leave only the projection's
+ * sampling error. */
+static void test_mean_irradiance(void) {
+    for (int k = 0; k < 2; k++) {
+        ts_scene s;
+        ts_init(&s);
+        ts_quad(&s, unit_quad, 0, 2, 0);
+        ts_identity(&s, 1);
+        ts_finish(&s);
+        wrt_relight *r;
+        wrt_relight_options o = {.proj_level = 4};
+        CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
+        wrt_light l = point_light(0.3, 0.6, 0.5, 10);
+        if (k) {
+            l.type = WRT_LIGHT_SPOT;
+            l.pos = v3(0.5, 0.5, 0.6);
+            l.dir = v3_norm(v3(0.3, 0.1, -1));
+            l.inner_cone = 0.2f; l.outer_cone = 0.6f;
+        }
+        wrt_relight_set_lights(r, &l, NULL, 1);
+        wrt_relight_update(r, NULL);
+        double truth = mean_E_dense(&l), dir[3], ind[3];
+        wrt_relight_quad_irradiance(r, 0, dir, ind);
+        const float *tex = wrt_relight_tex(r, 0);
+        int res = wrt_relight_tex_res(r, 0);
+        double tm[3] = {0, 0, 0};
+        for (int t = 0; t < res * res; t++)
+            for (int c = 0; c < 3; c++) tm[c] += tex[t * 3 + c] / (res * res);
+        double ed = fabs(dir[0] / truth - 1), et = 0;
+        for (int c = 0; c < 3; c++) et = fmax(et, fabs(tm[c] / (s.mats[0].base_color[c] / WRT_PI * truth) - 1));
+        CHECK(ed < 2e-3, "%s: mean direct irradiance %.6g vs exact %.6g (%.3f%%)", k ? "spot" : "point", dir[0], truth,
+              100 * ed);
+        CHECK(et < 2e-3, "%s: mean texel radiance off base / pi x exact mean irradiance by %.3f%%", k ? "spot" : "point",
+              100 * et);
+        printf("mean irradiance, %s light: projection %.6g vs exact %.6g (%.4f%%); texture off by %.4f%%\n",
+               k ? "spot" : "point", dir[0], truth, 100 * ed, 100 * et);
+        wrt_relight_destroy(r);
+        ts_free(&s);
+    }
+}
+
 /* A square occluder between light and receiver: texels well inside its shadow are 0,
  * texels well outside it match the unoccluded irradiance. */
 static void test_shadow(void) {
@@ -848,6 +915,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_far_light_root);
     TEST_RUN(test_cell_irradiance);
     TEST_RUN(test_round_trip);
+    TEST_RUN(test_mean_irradiance);
     TEST_RUN(test_shadow);
     TEST_RUN(test_shadow_refine);
     TEST_RUN(test_adaptive_vs_reference);

@@ -11,8 +11,9 @@
 #include "tools/compare.h"
 
 #include "common/basis.h"
+#include "include/wrt.h"
+#include "common/rt_scene.h"
 #include "player/reconstruct.h"
-#include "player/relight.h"
 #include "tools/reference.h"
 
 #include <embree3/rtcore.h>
@@ -168,10 +169,6 @@ static wrt_status ref_cells(wrt_compare_ref *c, wrt_ref *ref, int li, double *me
     return st;
 }
 
-static void embree_error(void *user, enum RTCError code, const char *str) {
-    (void)user;
-    wrt_log(WRT_LOG_WARN, "compare: Embree error %d: %s", (int)code, str ? str : "");
-}
 
 /* (u,v) of a point x on the quad's plane: the parallelogram's affine inverse, then
  * Newton steps on the bilinear map for a general convex quad. */
@@ -213,31 +210,15 @@ static wrt_status camera_hits(wrt_compare_ref *c) {
     int w = c->width, h = c->height, sub = c->opt.sub, ns = sub * sub;
     cam cm;
     if (!make_cam(&s->camera, w, h, &cm)) return wrt_fail(WRT_ERR_INVALID_ARG, "compare: degenerate camera");
-    RTCDevice dev = rtcNewDevice(NULL);
-    if (!dev) return wrt_fail(WRT_ERR_UNSUPPORTED, "compare: rtcNewDevice failed");
-    rtcSetDeviceErrorFunction(dev, embree_error, NULL);
-    RTCScene sc = rtcNewScene(dev);
-    rtcSetSceneFlags(sc, RTC_SCENE_FLAG_ROBUST);
-    RTCGeometry g = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_QUAD);
-    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                        4 * (size_t)s->nquads);
-    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned),
-                                           (size_t)s->nquads);
-    if (!vb || !ib) {
-        rtcReleaseGeometry(g); rtcReleaseScene(sc); rtcReleaseDevice(dev);
-        return wrt_fail(WRT_ERR_NOMEM, "compare: Embree buffers");
-    }
+    wrt_v3 *corners = malloc((size_t)(s->nquads > 0 ? s->nquads : 1) * 4 * sizeof *corners);
+    if (!corners) return wrt_fail(WRT_ERR_NOMEM, "compare: no memory for %d quads", s->nquads);
     for (int i = 0; i < s->nquads; i++)
-        for (int k = 0; k < 4; k++) {
-            vb[12 * i + 3 * k + 0] = (float)s->quads[i].p[k].x;
-            vb[12 * i + 3 * k + 1] = (float)s->quads[i].p[k].y;
-            vb[12 * i + 3 * k + 2] = (float)s->quads[i].p[k].z;
-            ib[4 * i + k] = (unsigned)(4 * i + k);
-        }
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(sc, g);
-    rtcReleaseGeometry(g);
-    rtcCommitScene(sc);
+        for (int k = 0; k < 4; k++) corners[4 * i + k] = s->quads[i].p[k];
+    wrt_rt_scene rs;
+    wrt_status st = wrt_rt_scene_build(corners, s->nquads, v3(0, 0, 0), NULL, WRT_RT_ROBUST, &rs);
+    free(corners);
+    if (st != WRT_OK) return st;
+    RTCScene sc = rs.scene;
     size_t npix = (size_t)w * h;
     c->hit_quad = wrt_xmalloc(npix * ns * sizeof(int));
     c->hit_uv = wrt_xmalloc(npix * ns * 2 * sizeof(float));
@@ -277,8 +258,7 @@ static wrt_status camera_hits(wrt_compare_ref *c) {
             c->valid[p] = (unsigned char)ok;
             nvalid += ok;
         }
-    rtcReleaseScene(sc);
-    rtcReleaseDevice(dev);
+    wrt_rt_scene_release(&rs);
     c->info.valid_pixels = nvalid;
     return WRT_OK;
 }
@@ -390,56 +370,31 @@ void wrt_compare_ref_get_info(const wrt_compare_ref *c, wrt_compare_ref_info *in
 
 /* ---- the wavelet side ---- */
 
-/* Cell averages of the indirect irradiance reconstructed from X on quad q (compare.h):
- * each Haar function's exact average over each cell it overlaps, times sqrt(pi/J) (exact
- * for a parallelogram; for a general quad its cell mean by 8 x 8 midpoints, an
- * approximation since J varies within the cell). */
-static void wavelet_cells(const wrt_gto *g, const float *X, int q, int n, double *out) {
-    const wrt_gto_quad *gq = &g->quads[q];
-    memset(out, 0, (size_t)n * n * 3 * sizeof(double));
-    for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++) {
-        wrt_fkey k = g->fkeys[f];
-        if (!wrt_fkey_angular_root(k)) continue;
-        const float *x = X + (size_t)f * 3;
-        if (x[0] == 0 && x[1] == 0 && x[2] == 0) continue;
-        wrt_node nd = wrt_fkey_snode(k);
-        int type = wrt_fkey_stype(k);
-        double sz = wrt_node_size(nd), h = sz / 2, val = ldexp(1.0, nd.level);
-        for (int cy = 0; cy < 2; cy++)
-            for (int cx = 0; cx < 2; cx++) {
-                double r0 = wrt_node_x0(nd) + cx * h, s0 = wrt_node_y0(nd) + cy * h;
-                double sgn = val * wrt_haar_sign(type, cx, cy);
-                int i0 = (int)floor(r0 * n), i1 = (int)ceil((r0 + h) * n), j0 = (int)floor(s0 * n),
-                    j1 = (int)ceil((s0 + h) * n);
-                if (i1 > n) i1 = n;
-                if (j1 > n) j1 = n;
-                for (int j = j0; j < j1; j++)
-                    for (int i = i0; i < i1; i++) {
-                        double ox = fmin(r0 + h, (i + 1.0) / n) - fmax(r0, (double)i / n);
-                        double oy = fmin(s0 + h, (j + 1.0) / n) - fmax(s0, (double)j / n);
-                        if (ox <= 0 || oy <= 0) continue;
-                        double a = sgn * ox * oy * n * n;
-                        for (int c = 0; c < 3; c++) out[((size_t)j * n + i) * 3 + c] += a * x[c];
-                    }
-            }
-    }
-    wrt_quad wq;
-    memset(&wq, 0, sizeof wq);
-    for (int i = 0; i < 4; i++) wq.p[i] = v3(gq->p[i][0], gq->p[i][1], gq->p[i][2]);
-    wq.area = gq->area;
-    wq.parallelogram = (gq->flags & 1) != 0;
-    for (int j = 0; j < n; j++)
-        for (int i = 0; i < n; i++) {
-            double fac = 0;
-            if (wq.parallelogram) fac = sqrt(WRT_PI / wq.area);
-            else {
-                for (int b = 0; b < 8; b++)
-                    for (int a = 0; a < 8; a++)
-                        fac += sqrt(WRT_PI / wrt_quad_jacobian(&wq, (i + (a + 0.5) / 8) / n, (j + (b + 0.5) / 8) / n));
-                fac /= 64;
-            }
-            for (int c = 0; c < 3; c++) out[((size_t)j * n + i) * 3 + c] *= fac;
-        }
+/* A scene light as the runtime library takes it. */
+static wrt_runtime_light runtime_light(const wrt_light *l) {
+    wrt_runtime_light o;
+    memset(&o, 0, sizeof o);
+    o.kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT : WRT_LIGHT_KIND_POINT;
+    o.position[0] = l->pos.x; o.position[1] = l->pos.y; o.position[2] = l->pos.z;
+    o.direction[0] = l->dir.x; o.direction[1] = l->dir.y; o.direction[2] = l->dir.z;
+    for (int c = 0; c < 3; c++) o.color[c] = l->color[c];
+    o.intensity = l->intensity;
+    o.inner_cone = l->inner_cone;
+    o.outer_cone = l->outer_cone;
+    return o;
+}
+
+static wrt_status set_light(wrt_runtime *r, const wrt_light *l) {
+    wrt_runtime_light rl = runtime_light(l);
+    return wrt_runtime_set_lights(r, &rl, 1, NULL);
+}
+
+/* The runtime on the bake's bytes (already mapped and checked by the caller). */
+static wrt_status open_runtime(const wrt_gto *g, int threads, int haar_blocks, wrt_runtime **r) {
+    wrt_runtime_options ro = {0};
+    ro.threads = threads;
+    ro.haar_blocks = haar_blocks;
+    return wrt_runtime_open_memory(g->map, g->size, &ro, r, NULL);
 }
 
 /* Bilinear lookup of a quad's texture at (u,v), clamped to its own texels. */
@@ -461,10 +416,10 @@ static void tex_lookup(const float *tex, int res, double u, double v, double out
  * Lambertian quad the texture (outgoing radiance, base/pi x irradiance) sampled as
  * tex_lookup does, 8 x 8 points a cell, times pi/base; elsewhere (glossy quads, a black
  * channel) the Haar cells already in out. */
-static void display_cells(const wrt_gto *g, const wrt_relight *r, int q, int n, double *out) {
+static void display_cells(const wrt_gto *g, const wrt_runtime *r, int q, int n, double *out) {
     const wrt_gto_material *mt = &g->materials[g->quads[q].material];
-    const float *tex = wrt_relight_tex(r, q);
-    int res = wrt_relight_tex_res(r, q);
+    int res;
+    const float *tex = wrt_runtime_quad_texture(r, q, &res);
     if (!mt->lambertian || !tex) return;
     for (int j = 0; j < n; j++)
         for (int i = 0; i < n; i++) {
@@ -481,7 +436,7 @@ static void display_cells(const wrt_gto *g, const wrt_relight *r, int q, int n, 
 }
 
 /* The image of relighter `r` for light li into `wi` and its errors against the reference. */
-static void image_errors(const wrt_compare_ref *c, int li, const wrt_relight *r, float *wi, double *rmse,
+static void image_errors(const wrt_compare_ref *c, int li, const wrt_runtime *r, float *wi, double *rmse,
                          double *floor_, double *deb) {
     double d2 = 0, se2 = 0, r2 = 0;
     int ns = c->opt.sub * c->opt.sub;
@@ -491,8 +446,9 @@ static void image_errors(const wrt_compare_ref *c, int li, const wrt_relight *r,
             for (int k = 0; k < ns; k++) {
                 int q = c->hit_quad[p * ns + k];
                 double v[3];
-                tex_lookup(wrt_relight_tex(r, q), wrt_relight_tex_res(r, q), c->hit_uv[(p * ns + k) * 2],
-                           c->hit_uv[(p * ns + k) * 2 + 1], v);
+                int res;
+                const float *tex = wrt_runtime_quad_texture(r, q, &res);
+                tex_lookup(tex, res, c->hit_uv[(p * ns + k) * 2], c->hit_uv[(p * ns + k) * 2 + 1], v);
                 for (int ch = 0; ch < 3; ch++) acc[ch] += v[ch] / ns;
             }
             for (int ch = 0; ch < 3; ch++) {
@@ -521,24 +477,25 @@ static void edge_uv(int e, double t, double d, double *u, double *v) {
  * points along it, the display's jump between the two quads a quarter texel inside each,
  * and the jump across the parallel line through the quad's middle at the same distance;
  * each summed over RGB and divided by the sum of the values there. */
-static void seam_jumps(const wrt_gto *g, const wrt_relight *r, const wrt_recon *rc, double *across, double *inside) {
+static void seam_jumps(const wrt_gto *g, const wrt_runtime *r, const wrt_recon *rc, double *across, double *inside) {
     double ja = 0, ji = 0, sa = 0, si = 0;
     for (int q = 0; q < (int)g->nquads; q++)
         for (int e = 0; e < 4; e++) {
             int ne, fl, o = wrt_recon_neighbour(rc, q, e, &ne, &fl);
             if (o < q) continue; /* none, or counted from the other side */
-            int rq = wrt_relight_tex_res(r, q), ro = wrt_relight_tex_res(r, o);
+            int rq, ro;
+            const float *tq = wrt_runtime_quad_texture(r, q, &rq), *to = wrt_runtime_quad_texture(r, o, &ro);
             double dq = 0.25 / rq, dn = 0.25 / ro;
             for (int k = 0; k < 32; k++) {
                 double t = (k + 0.5) / 32, u, v, a[3], b[3], c0[3], c1[3];
                 edge_uv(e, t, dq, &u, &v);
-                tex_lookup(wrt_relight_tex(r, q), rq, u, v, a);
+                tex_lookup(tq, rq, u, v, a);
                 edge_uv(ne, fl ? 1 - t : t, dn, &u, &v);
-                tex_lookup(wrt_relight_tex(r, o), ro, u, v, b);
+                tex_lookup(to, ro, u, v, b);
                 edge_uv(e, t, 0.5 - dq, &u, &v);
-                tex_lookup(wrt_relight_tex(r, q), rq, u, v, c0);
+                tex_lookup(tq, rq, u, v, c0);
                 edge_uv(e, t, 0.5 + dq, &u, &v);
-                tex_lookup(wrt_relight_tex(r, q), rq, u, v, c1);
+                tex_lookup(tq, rq, u, v, c1);
                 for (int c = 0; c < 3; c++) {
                     ja += fabs(a[c] - b[c]); sa += (a[c] + b[c]) / 2;
                     ji += fabs(c0[c] - c1[c]); si += (c0[c] + c1[c]) / 2;
@@ -570,15 +527,11 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
             if (!(v3_len(d) <= 1e-6 * (size > 0 ? size : 1)))
                 return wrt_fail(WRT_ERR_INVALID_ARG, "compare: quad %d of the bake differs from the scene's: not baked from it", q);
         }
-    wrt_relight *r;
-    wrt_relight_options ro = {0};
-    ro.threads = c->opt.threads;
-    wrt_status st = wrt_relight_create(g, &ro, &r);
+    wrt_runtime *r, *rh; /* rh: the same bake shown as Haar blocks, for the before/after figures */
+    wrt_status st = open_runtime(g, c->opt.threads, 0, &r);
     if (st != WRT_OK) return st;
-    wrt_relight *rh; /* the same bake shown as Haar blocks, for the before/after figures */
-    ro.haar_blocks = 1;
-    st = wrt_relight_create(g, &ro, &rh);
-    if (st != WRT_OK) { wrt_relight_destroy(r); return st; }
+    st = open_runtime(g, c->opt.threads, 1, &rh);
+    if (st != WRT_OK) { wrt_runtime_close(r); return st; }
     double (*corners)[4][3] = wrt_xmalloc((g->nquads ? g->nquads : 1) * sizeof *corners);
     uint32_t *mat = wrt_xmalloc((g->nquads ? g->nquads : 1) * sizeof(uint32_t));
     for (uint32_t q = 0; q < g->nquads; q++) {
@@ -588,24 +541,26 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
     wrt_recon *rc = wrt_recon_create((int)g->nquads, (const double (*)[4][3])corners, mat);
     free(corners);
     free(mat);
-    if (!rc) { wrt_relight_destroy(r); wrt_relight_destroy(rh); return wrt_fail(WRT_ERR_NOMEM, "compare: adjacency"); }
+    if (!rc) { wrt_runtime_close(r); wrt_runtime_close(rh); return wrt_fail(WRT_ERR_NOMEM, "compare: adjacency"); }
     double eye[3] = {s->camera.pos.x, s->camera.pos.y, s->camera.pos.z};
-    wrt_relight_set_eye(r, eye);
-    wrt_relight_set_eye(rh, eye);
+    wrt_runtime_set_eye(r, eye, NULL);
+    wrt_runtime_set_eye(rh, eye, NULL);
     int n = c->n, nc = n * n;
     out->nlights = c->nlights;
     int nlit = 0;
     for (int li = 0; li < c->nlights; li++) {
-        wrt_relight_set_lights(r, &c->lights[li], NULL, 1);
-        wrt_relight_update(r, NULL);
-        wrt_relight_set_lights(rh, &c->lights[li], NULL, 1);
-        wrt_relight_update(rh, NULL);
-        const float *X = wrt_relight_X(r);
+        if ((st = set_light(r, &c->lights[li])) || (st = wrt_runtime_update(r, NULL, NULL)) ||
+            (st = set_light(rh, &c->lights[li])) || (st = wrt_runtime_update(rh, NULL, NULL))) {
+            wrt_runtime_close(r);
+            wrt_runtime_close(rh);
+            wrt_recon_destroy(rc);
+            return st;
+        }
         wrt_compare_light_result *lr = &out->light[li];
         double d2 = 0, se2 = 0, r2 = 0, sw = 0, sr = 0;
         for (int q = 0; q < s->nquads; q++) {
             double *w = c->wcells[li] + (size_t)q * nc * 3;
-            wavelet_cells(g, X, q, n, w);
+            wrt_runtime_quad_cells(r, q, n, w, NULL);
             const double *m = c->cell_mean[li] + (size_t)q * nc * 3, *e = c->cell_se[li] + (size_t)q * nc * 3;
             double a = s->quads[q].area;
             for (int k = 0; k < nc * 3; k++) {
@@ -669,8 +624,8 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
         m->image_rmse_haar /= nlit; m->image_debiased_haar /= nlit;
         m->seam_across /= nlit; m->seam_inside /= nlit; m->seam_across_haar /= nlit; m->seam_inside_haar /= nlit;
     }
-    wrt_relight_destroy(r);
-    wrt_relight_destroy(rh);
+    wrt_runtime_close(r);
+    wrt_runtime_close(rh);
     wrt_recon_destroy(rc);
     st = wrt_compare_bench(g, &c->lights[0], eye, c->opt.bench_updates, c->opt.threads, out);
     out->seconds = wrt_now() - t0;
@@ -686,14 +641,13 @@ static double cpu_now(void) {
 wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const double eye[3], int updates,
                              int threads, wrt_compare_result *out) {
     if (updates < 1) return wrt_fail(WRT_ERR_INVALID_ARG, "compare: %d timed updates", updates);
-    wrt_relight *r;
-    wrt_relight_options ro = {0};
-    ro.threads = threads;
-    wrt_status st = wrt_relight_create(g, &ro, &r);
+    wrt_runtime *r;
+    wrt_status st = open_runtime(g, threads, 0, &r);
     if (st != WRT_OK) return st;
-    wrt_relight_set_eye(r, eye);
-    wrt_relight_set_lights(r, light, NULL, 1);
-    wrt_relight_update(r, NULL);
+    if ((st = wrt_runtime_set_eye(r, eye, NULL)) || (st = set_light(r, light)) || (st = wrt_runtime_update(r, NULL, NULL))) {
+        wrt_runtime_close(r);
+        return st;
+    }
     wrt_v3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
     for (uint32_t q = 0; q < g->nquads; q++)
         for (int k = 0; k < 4; k++) {
@@ -709,8 +663,8 @@ wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const dou
         double a = 2 * WRT_PI * (k + 1) / updates;
         l.pos = v3(p0.x + rad * cos(a), p0.y, p0.z + rad * sin(a));
         double t1 = wrt_now(), c1 = cpu_now();
-        wrt_relight_set_lights(r, &l, NULL, 1);
-        wrt_relight_update(r, NULL);
+        set_light(r, &l);
+        wrt_runtime_update(r, NULL, NULL);
         ms[k] = (wrt_now() - t1) * 1e3;
         cpu[k] = (cpu_now() - c1) * 1e3;
     }
@@ -721,7 +675,7 @@ wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const dou
     out->ms_update_max = ms[updates - 1];
     out->cpu_ms_update_median = cpu[updates / 2];
     free(ms); free(cpu);
-    wrt_relight_destroy(r);
+    wrt_runtime_close(r);
     return WRT_OK;
 }
 const float *wrt_compare_image(const wrt_compare_ref *c, int light, int wavelet) {

@@ -52,42 +52,60 @@ default_quals() {
 }
 
 # plot_scene JSON PNG: cell and image error (log) against bake s, MB and ms (log), each
-# with the reference's floor dashed in the same colour; labels are the qualities.
+# with the reference's floor dashed in the same colour; labels are the qualities. The axes
+# span the data (and the floors), the legend is drawn once.
 plot_scene() {
     local json=$1 png=$2 dat name cf imf ylo yhi
     dat=$(mktemp)
     name=$(jq -r '.name' "$json")
     cf=$(jq '.reference.cell_floor' "$json"); imf=$(jq '.reference.image_floor' "$json")
     ylo=$(jq '[.reference.cell_floor, .reference.image_floor, (.rows[] | .cell_rmse, .image_rmse)]
-              | map(select(. > 0)) | min / 1.6' "$json")
-    yhi=$(jq '[.rows[] | .cell_rmse, .image_rmse] | max * 4' "$json")
+              | map(select(. > 0)) | min / 1.25' "$json")
+    yhi=$(jq '[.rows[] | .cell_rmse, .image_rmse] | max * 1.25' "$json")
     jq -r '.rows[] | "\(.quality) \(.bake_s) \(.bytes / 1e6) \(.cpu_ms_per_light_change) \(.cell_rmse) \(.image_rmse)"' \
         "$json" >"$dat"
     gnuplot <<EOF
-set terminal pngcairo size 1500,470 font "sans,11"
+set terminal pngcairo size 1500,500 font "sans,11"
 set output "$png.tmp"
-set multiplot layout 1,3 title "$name: relative RMSE of the indirect light against the path-traced reference (point labels: quality)"
+set multiplot title "$name: relative RMSE of the indirect light against the path-traced reference (point labels: quality)"
 set logscale xy
 set grid
-set key top right box opaque
+set autoscale xfix
+# 1-2-5 ticks, so that an axis within one decade still has labels
+set xtics ()
+set for [e=-3:5] xtics add (sprintf("%g", 10.0**e) 10.0**e, sprintf("%g", 2 * 10.0**e) 2 * 10.0**e, sprintf("%g", 5 * 10.0**e) 5 * 10.0**e)
 set ylabel "relative RMSE"
 set format y "%g"
 set ytics add ("0.002" 0.002, "0.005" 0.005, "0.02" 0.02, "0.05" 0.05, "0.2" 0.2, "0.5" 0.5)
 set yrange [$ylo:$yhi]
 set offsets graph 0.08, graph 0.08, 0, 0
 cf = $cf; imf = $imf
+# three panels fitted to the data (a margin of 8% of a panel), no legend in them ...
+unset key
+set size 0.333, 0.84
 do for [c in "2 3 4"] {
   col = c + 0
+  set origin (col - 2) * 0.333, 0
   if (col == 2) { set xlabel "bake time (s)" }
   if (col == 3) { set xlabel "file size (MB)" }
   if (col == 4) { set xlabel "player CPU ms per light change (median)" }
-  plot "$dat" using col:5 with linespoints lw 2 pt 7 lc rgb "#1f77b4" title "cell averages", \\
-       "" using col:5:1 with labels offset 0.8,0.8 font ",9" notitle, \\
-       "" using col:6 with linespoints lw 2 pt 5 lc rgb "#d62728" title "image", \\
-       "" using col:6:1 with labels offset 0.8,0.8 font ",9" notitle, \\
-       cf with lines dt 2 lw 2 lc rgb "#1f77b4" title "reference floor (cells)", \\
-       imf with lines dt 2 lw 2 lc rgb "#d62728" title "reference floor (image)"
+  plot "$dat" using col:5 with linespoints lw 2 pt 7 lc rgb "#1f77b4", \
+       "" using col:5:1 with labels offset 0.8,0.8 font ",9", \
+       "" using col:6 with linespoints lw 2 pt 5 lc rgb "#d62728", \
+       "" using col:6:1 with labels offset 0.8,0.8 font ",9", \
+       cf with lines dt 2 lw 2 lc rgb "#1f77b4", \
+       imf with lines dt 2 lw 2 lc rgb "#d62728"
 }
+# ... and one legend for the three, in a row above them
+set origin 0, 0.83
+set size 1, 0.09
+unset border; unset tics; unset xlabel; unset ylabel; unset grid; unset logscale
+set xrange [0:1]; set yrange [0:1]
+set key center center horizontal maxrows 1 width 3
+plot NaN with linespoints lw 2 pt 7 lc rgb "#1f77b4" title "cell averages", \
+     NaN with linespoints lw 2 pt 5 lc rgb "#d62728" title "image", \
+     NaN with lines dt 2 lw 2 lc rgb "#1f77b4" title "path tracer noise (cells)", \
+     NaN with lines dt 2 lw 2 lc rgb "#d62728" title "path tracer noise (image)"
 unset multiplot
 EOF
     rm -f "$dat"
