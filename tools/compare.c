@@ -13,7 +13,6 @@
 #include "common/basis.h"
 #include "include/wrt.h"
 #include "common/rt_scene.h"
-#include "player/reconstruct.h"
 #include "tools/reference.h"
 
 #include <embree3/rtcore.h>
@@ -473,15 +472,50 @@ static void edge_uv(int e, double t, double d, double *u, double *v) {
     }
 }
 
-/* Seams (compare.h): over every edge shared by smooth neighbours (reconstruct.h), 32
- * points along it, the display's jump between the two quads a quarter texel inside each,
- * and the jump across the parallel line through the quad's middle at the same distance;
- * each summed over RGB and divided by the sum of the values there. */
-static void seam_jumps(const wrt_gto *g, const wrt_runtime *r, const wrt_recon *rc, double *across, double *inside) {
+/* Point at t along edge e of quad q (edge_uv's numbering: 0 from p0 to p1, 1 from p1 to
+ * p2, 2 from p3 to p2, 3 from p0 to p3). */
+static void edge_point(const wrt_gto *g, int q, int e, double t, double out[3]) {
+    static const int ends[4][2] = {{0, 1}, {1, 2}, {3, 2}, {0, 3}};
+    const double *a = g->quads[q].p[ends[e][0]], *b = g->quads[q].p[ends[e][1]];
+    for (int k = 0; k < 3; k++) out[k] = a[k] + t * (b[k] - a[k]);
+}
+
+static double dist3(const double a[3], const double b[3]) {
+    return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/* Quad q's neighbour across edge e, found here from the file's geometry alone (not from the
+ * display's own adjacency, so that a neighbour the display misses still counts as a seam):
+ * a quad of the same material, facing the same way in the same plane, whose edge has the
+ * same two ends. -1 if none; *nedge its edge, *flip 1 if it runs the other way. */
+static int shared_edge(const wrt_gto *g, int q, int e, double tol, int *nedge, int *flip) {
+    double a[3], b[3], c[3], d[3];
+    edge_point(g, q, e, 0, a);
+    edge_point(g, q, e, 1, b);
+    const float *nq = g->quads[q].n;
+    for (int o = 0; o < (int)g->nquads; o++) {
+        if (o == q || g->quads[o].material != g->quads[q].material) continue;
+        const float *no = g->quads[o].n;
+        if (nq[0] * no[0] + nq[1] * no[1] + nq[2] * no[2] < 1 - 1e-5) continue;
+        for (int f = 0; f < 4; f++) {
+            edge_point(g, o, f, 0, c);
+            edge_point(g, o, f, 1, d);
+            if (dist3(a, c) < tol && dist3(b, d) < tol) { *nedge = f; *flip = 0; return o; }
+            if (dist3(a, d) < tol && dist3(b, c) < tol) { *nedge = f; *flip = 1; return o; }
+        }
+    }
+    return -1;
+}
+
+/* Seams (compare.h): over every edge two coplanar quads of one material share, 32 points
+ * along it, the display's jump between the two quads a quarter texel inside each, and the
+ * jump across the parallel line through the quad's middle at the same distance; each
+ * summed over RGB and divided by the sum of the values there. */
+static void seam_jumps(const wrt_gto *g, const wrt_runtime *r, double tol, double *across, double *inside) {
     double ja = 0, ji = 0, sa = 0, si = 0;
     for (int q = 0; q < (int)g->nquads; q++)
         for (int e = 0; e < 4; e++) {
-            int ne, fl, o = wrt_recon_neighbour(rc, q, e, &ne, &fl);
+            int ne = 0, fl = 0, o = shared_edge(g, q, e, tol, &ne, &fl);
             if (o < q) continue; /* none, or counted from the other side */
             int rq, ro;
             const float *tq = wrt_runtime_quad_texture(r, q, &rq), *to = wrt_runtime_quad_texture(r, o, &ro);
@@ -532,16 +566,6 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
     if (st != WRT_OK) return st;
     st = open_runtime(g, c->opt.threads, 1, &rh);
     if (st != WRT_OK) { wrt_runtime_close(r); return st; }
-    double (*corners)[4][3] = wrt_xmalloc((g->nquads ? g->nquads : 1) * sizeof *corners);
-    uint32_t *mat = wrt_xmalloc((g->nquads ? g->nquads : 1) * sizeof(uint32_t));
-    for (uint32_t q = 0; q < g->nquads; q++) {
-        memcpy(corners[q], g->quads[q].p, sizeof corners[q]);
-        mat[q] = g->quads[q].material;
-    }
-    wrt_recon *rc = wrt_recon_create((int)g->nquads, (const double (*)[4][3])corners, mat);
-    free(corners);
-    free(mat);
-    if (!rc) { wrt_runtime_close(r); wrt_runtime_close(rh); return wrt_fail(WRT_ERR_NOMEM, "compare: adjacency"); }
     double eye[3] = {s->camera.pos.x, s->camera.pos.y, s->camera.pos.z};
     wrt_runtime_set_eye(r, eye, NULL);
     wrt_runtime_set_eye(rh, eye, NULL);
@@ -553,7 +577,6 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
             (st = set_light(rh, &c->lights[li])) || (st = wrt_runtime_update(rh, NULL, NULL))) {
             wrt_runtime_close(r);
             wrt_runtime_close(rh);
-            wrt_recon_destroy(rc);
             return st;
         }
         wrt_compare_light_result *lr = &out->light[li];
@@ -596,8 +619,8 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
             image_errors(c, li, r, c->wimg[li], &lr->image_rmse, &lr->image_floor, &lr->image_debiased);
             image_errors(c, li, rh, c->wimg_haar[li], &lr->image_rmse_haar, &fl, &lr->image_debiased_haar);
         }
-        seam_jumps(g, r, rc, &lr->seam_across, &lr->seam_inside);
-        seam_jumps(g, rh, rc, &lr->seam_across_haar, &lr->seam_inside_haar);
+        seam_jumps(g, r, 1e-6 * (size > 0 ? size : 1), &lr->seam_across, &lr->seam_inside);
+        seam_jumps(g, rh, 1e-6 * (size > 0 ? size : 1), &lr->seam_across_haar, &lr->seam_inside_haar);
         if (lr->cell_rmse == 0 && lr->cell_floor == 0) continue; /* no indirect light at all */
         wrt_compare_light_result *m = &out->mean;
         m->cell_rmse += lr->cell_rmse;
@@ -626,7 +649,6 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
     }
     wrt_runtime_close(r);
     wrt_runtime_close(rh);
-    wrt_recon_destroy(rc);
     st = wrt_compare_bench(g, &c->lights[0], eye, c->opt.bench_updates, c->opt.threads, out);
     out->seconds = wrt_now() - t0;
     return st;
