@@ -48,6 +48,7 @@
 #include "../common/threads.h"
 #include "../common/rt_scene.h"
 #include "reconstruct.h"
+#include "gather.h"
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
 #define PROJ_CELL_K 8.0      /* cells at most d / PROJ_CELL_K wide */
@@ -237,6 +238,9 @@ struct wrt_relight {
     const float **rin;              /* per quad, for wrt_recon_run (groups are disjoint) */
     const uint8_t **rknown;
     float **rout;
+    wrt_gather *gather;             /* final gather on glossy quads (gather.h); NULL: none */
+    const float **gtex; float **gout; int *gres; /* per quad: displayed texture, side */
+    int glin_dirty;                 /* the gather's incident light waits for an update */
 };
 
 /* ---------------------------------------------------------------- threads ---- */
@@ -1333,6 +1337,33 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
         if (r->oom) return relight_nomem(r);
         wrt_brdf_table_build(&r->mats[m], r->nthreads, r->beta[m]);
     }
+    /* The final gather on glossy quads (gather.h); WRT_FINAL_GATHER=0 turns it off (the
+     * coarse angular synthesis alone: for before/after measurements). */
+    const char *fg = getenv("WRT_FINAL_GATHER");
+    if (!r->opt.no_gather && !(fg && strcmp(fg, "0") == 0)) {
+        wrt_gather_quad *gqs = calloc(nq ? nq : 1, sizeof *gqs);
+        if (!gqs) return relight_nomem(r);
+        for (uint32_t q = 0; q < nq; q++) {
+            const quad_info *qi = &r->qi[q];
+            memcpy(gqs[q].p, qi->p, sizeof gqs[q].p);
+            gqs[q].n = qi->n; gqs[q].t = qi->t; gqs[q].b = qi->b;
+            gqs[q].mat = &r->mats[qi->material];
+        }
+        wrt_status gs = wrt_gather_create((int)nq, gqs, r->scene, r->origin, r->eps, r->pool, &r->gather);
+        free(gqs);
+        if (gs != WRT_OK) return relight_nomem(r);
+        if (r->gather) {
+            r->gtex = calloc(nq, sizeof *r->gtex);
+            r->gout = calloc(nq, sizeof *r->gout);
+            r->gres = calloc(nq, sizeof *r->gres);
+            if (!r->gtex || !r->gout || !r->gres) return relight_nomem(r);
+            for (uint32_t q = 0; q < nq; q++) {
+                r->gres[q] = wrt_relight_tex_res(r, (int)q);
+                r->gtex[q] = wrt_relight_tex(r, (int)q);
+                r->gout[q] = (float *)r->gtex[q];
+            }
+        }
+    }
     *out = r;
     return WRT_OK;
 }
@@ -1340,6 +1371,8 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
 void wrt_relight_destroy(wrt_relight *r) {
     if (!r) return;
     wrt_pool_destroy(r->pool);
+    wrt_gather_destroy(r->gather);
+    free(r->gtex); free(r->gout); free(r->gres);
     if (r->scene) rtcReleaseScene(r->scene);
     if (r->dev) rtcReleaseDevice(r->dev);
     for (int i = 0; i < r->lights_cap; i++) { /* idx, val: grown in updates (malloc) */
@@ -1421,6 +1454,34 @@ void wrt_relight_set_eye(wrt_relight *r, const double eye[3]) {
     }
 }
 
+/* The final gather's direct irradiance: every light at x (colour, scale, shadow ray). */
+static void gather_direct(void *user, wrt_v3 x, wrt_v3 n, double out[3]) {
+    const wrt_relight *r = user;
+    out[0] = out[1] = out[2] = 0;
+    for (int i = 0; i < r->nlights; i++) {
+        const light_state *ls = &r->lights[i];
+        if (ls->scale == 0) continue;
+        light_c lc = light_consts(&ls->light);
+        wrt_v3 dir;
+        double d = 0, e = light_irradiance(&lc, x, n, &dir, &d);
+        if (e == 0) continue;
+        wrt_v3 o = v3_sub(v3_mad(x, n, r->eps), r->origin);
+        struct RTCRay ray;
+        ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
+        ray.dir_x = (float)dir.x; ray.dir_y = (float)dir.y; ray.dir_z = (float)dir.z;
+        ray.tnear = 0;
+        ray.tfar = (float)(d - 2 * r->eps);
+        ray.time = 0; ray.mask = 0xFFFFFFFFu; ray.id = 0; ray.flags = 0;
+        if (ray.tfar > 0) {
+            struct RTCIntersectContext ic;
+            rtcInitIntersectContext(&ic);
+            rtcOccluded1(r->scene, &ic, &ray);
+            if (ray.tfar < 0) continue;
+        }
+        for (int c = 0; c < 3; c++) out[c] += ls->scale * ls->light.color[c] * e;
+    }
+}
+
 int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     wrt_relight_timings t = {0};
     const wrt_gto *g = r->g;
@@ -1436,6 +1497,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     double t1 = wrt_now();
     t.projection = (t1 - t0) * 1e3;
     memset(r->resynth, 0, nq);
+    int lights_dirty = r->e_dirty, eye_moved = r->eye_dirty;
     if (r->e_dirty) {
         r->e_dirty = 0;
         /* E = sum of scaled per-light projections, in light order. */
@@ -1495,6 +1557,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
             continue;
         }
         if (r->qi[q].glossy && !r->have_eye) continue; /* no view yet: waits for set_eye */
+        if (r->qi[q].glossy && r->gather) continue;    /* drawn by the final gather below */
         r->tex_nonzero[q] = 1;
         list[nsynth++] = (int)q;
         if (r->recon) r->regroup[wrt_recon_group(r->recon, (int)q)] = 1;
@@ -1532,6 +1595,15 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
         parallel_for(r, nre, rwork, recon_item, &rcx);
         t.reconstruction = (wrt_now() - t4) * 1e3;
         t.synthesis += t.reconstruction;
+    }
+    if (lights_dirty) r->glin_dirty = 1;
+    if (r->gather && r->have_eye && (r->glin_dirty || eye_moved)) { /* gather.h */
+        double t5 = wrt_now();
+        if (r->glin_dirty) wrt_gather_lights(r->gather, gather_direct, r, r->gtex, r->gres);
+        r->glin_dirty = 0;
+        wrt_gather_eye(r->gather, r->eye, r->gout, r->gres);
+        for (uint32_t q = 0; q < nq; q++) nchanged += r->qi[q].glossy;
+        t.synthesis += (wrt_now() - t5) * 1e3;
     }
     t.quads_resynthesized = nchanged;
     if (tm) *tm = t;

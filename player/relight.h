@@ -25,6 +25,8 @@ typedef struct wrt_relight_options {
                           * default: none; negative: coarser) */
     int recon_keep;      /* the bake's cell averages kept as computed down to 2^keep cells
                           * a side, resampled smoothly below (0 = the default, 3) */
+    int no_gather;       /* 1: glossy quads show the coarse angular synthesis only, no
+                          * final gather (player/gather.h); also WRT_FINAL_GATHER=0 */
     void *(*alloc)(size_t size, void *user); /* the relighter's arrays (both or neither; */
     void (*free)(void *p, void *user);        /* NULL: malloc and free). Update-time scratch */
     void *alloc_user;                         /* still comes from malloc. */

@@ -1,0 +1,48 @@
+/* gather.h: the last bounce on glossy quads at the display's resolution (a final
+ * gather, guide/primer.md section 9). What the eye sees on a glossy surface,
+ *   L_o(x, w_o) = sum over incident cells a of L_in(x, a) beta(a, w_o),
+ *   beta(a, w_o) = integral over cell a of f_r(w_i, w_o) cos(theta_i) dw_i,
+ * with a one of GATHER_DIRS x GATHER_DIRS cells of the cosine-weighted concentric map
+ * (common/basis.h) and x one of GATHER_PTS x GATHER_PTS points of the quad. At creation
+ * one ray per (point, cell) finds the quad and (u, v) the cell sees (geometry only);
+ * beta is tabulated per glossy material at GATHER_BRES x GATHER_BRES outgoing directions.
+ * At a light change L_in is rebuilt: a diffuse hit sends base/pi x (direct + indirect
+ * irradiance), the direct from the caller's lights (with shadows) on a GATHER_DTEX grid
+ * of the seen quad, the indirect from the seen quad's displayed texture (which already
+ * holds base/pi x indirect irradiance). A glossy hit sends nothing here (a limitation:
+ * glossy-to-glossy-to-eye light is missing). At an eye move only the sum over a is
+ * redone. Everything is linear in the lights. Depends on Embree 3, common/brdf.h,
+ * common/basis.h and common/threads.h. */
+#ifndef WRT_GATHER_H
+#define WRT_GATHER_H
+
+#include <embree3/rtcore.h>
+
+#include "../common/scene_types.h"
+#include "../common/threads.h"
+
+typedef struct wrt_gather wrt_gather;
+
+typedef struct wrt_gather_quad {
+    wrt_v3 p[4], n, t, b;     /* corners (bilinear in u, v as relight.c), frame */
+    const wrt_material *mat;  /* NULL or Lambertian: diffuse; else glossy (gathered) */
+} wrt_gather_quad;
+
+/* Direct irradiance (RGB, shadows included) at x with unit normal n, from the lights. */
+typedef void (*wrt_gather_direct_fn)(void *user, wrt_v3 x, wrt_v3 n, double out[3]);
+
+/* NULL *out and WRT_OK when no quad is glossy. Errors: WRT_ERR_NOMEM. */
+wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, wrt_v3 origin, double eps,
+                             wrt_pool *pool, wrt_gather **out);
+void wrt_gather_destroy(wrt_gather *g); /* NULL: no-op */
+
+/* Rebuilds L_in from the lights (direct) and the quads' displayed textures tex[q] of
+ * tex_res[q] texels a side (outgoing indirect radiance, RGB). */
+void wrt_gather_lights(wrt_gather *g, wrt_gather_direct_fn direct, void *user, const float *const *tex,
+                       const int *tex_res);
+
+/* Writes the gathered outgoing radiance toward the eye into out[q] (out_res[q] a side)
+ * of every glossy quad q; other quads' out[q] are not touched. */
+void wrt_gather_eye(wrt_gather *g, const double eye[3], float *const *out, const int *out_res);
+
+#endif
