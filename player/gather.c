@@ -13,15 +13,18 @@
 #define GATHER_BRES 32  /* outgoing directions a side of the beta table */
 #define GATHER_BSAMP 3  /* samples a side per incident cell when integrating beta */
 #define GATHER_DTEX 32  /* direct-irradiance grid a side on a quad that a gather ray sees */
+#define GATHER_RG 64    /* outgoing-radiance grid a side on it (what a gather entry reads) */
 
 #define NDIR (GATHER_DIRS * GATHER_DIRS)
 #define NPT (GATHER_PTS * GATHER_PTS)
 
 typedef struct ghit { int32_t quad; float u, v; } ghit;
+#define RG2 (GATHER_RG * GATHER_RG)
 
 typedef struct gquad {
     int glossy;
-    ghit *hits;       /* NPT x NDIR (glossy quads) */
+    ghit *hits;       /* NPT x NDIR (glossy quads): what each ray sees (at creation) */
+    int32_t *cell;    /* NPT x NDIR: slot x RG2 + radiance cell it reads, -1: nothing */
     float *lin;       /* NPT x NDIR x 3: L_in */
     float *lout;      /* NPT x 3: L_o toward the eye at the points */
     int beta_id;      /* index into g->beta */
@@ -33,8 +36,10 @@ struct wrt_gather {
     wrt_gather_quad *q;
     gquad *gq;
     int *glossy; int nglossy;
-    uint8_t *seen;     /* quads some gather ray hits */
-    float *direct;     /* nq x GATHER_DTEX^2 x 3 (only seen quads filled) */
+    int32_t *slot;     /* per quad: its slot among the diffuse quads some ray sees, -1 */
+    int *slot_quad; int nslot;
+    float *direct;     /* nslot x GATHER_DTEX^2 x 3: direct irradiance */
+    float *rad;        /* nslot x RG2 x 3: outgoing radiance (direct + indirect) */
     float **beta;      /* per glossy quad's material: GATHER_BRES^2 x NDIR x 3 */
     const wrt_material **beta_mat; int nbeta;
     RTCScene scene; wrt_v3 origin; double eps;
@@ -147,11 +152,13 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
     g->q = malloc((size_t)nq * sizeof *g->q);
     g->gq = calloc((size_t)nq, sizeof *g->gq);
     g->glossy = malloc((size_t)ng * sizeof(int));
-    g->seen = calloc((size_t)nq, 1);
+    g->slot = malloc((size_t)nq * sizeof(int32_t));
+    g->slot_quad = malloc((size_t)nq * sizeof(int));
     g->beta = calloc((size_t)ng, sizeof(float *));
     g->beta_mat = calloc((size_t)ng, sizeof(wrt_material *));
-    if (!g->q || !g->gq || !g->glossy || !g->seen || !g->beta || !g->beta_mat) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
+    if (!g->q || !g->gq || !g->glossy || !g->slot || !g->slot_quad || !g->beta || !g->beta_mat) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
     memcpy(g->q, q, (size_t)nq * sizeof *g->q);
+    for (int i = 0; i < nq; i++) g->slot[i] = -1;
     for (int i = 0; i < nq; i++) {
         if (!is_glossy(q[i].mat)) continue;
         gquad *G = &g->gq[i];
@@ -174,11 +181,32 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
         }
         trace_ctx tc = {g, i};
         wrt_pool_run(pool, NPT, 0, trace_point, &tc);
-        for (size_t k = 0; k < (size_t)NPT * NDIR; k++)
-            if (G->hits[k].quad >= 0) g->seen[G->hits[k].quad] = 1;
+        for (size_t k = 0; k < (size_t)NPT * NDIR; k++) {
+            int hq = G->hits[k].quad;
+            if (hq < 0 || is_glossy(q[hq].mat) || g->slot[hq] >= 0) continue;
+            g->slot[hq] = g->nslot;
+            g->slot_quad[g->nslot++] = hq;
+        }
     }
-    g->direct = calloc((size_t)nq * GATHER_DTEX * GATHER_DTEX * 3, sizeof(float));
-    if (!g->direct) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
+    /* Each ray reads the nearest cell of its quad's radiance grid: a table, not a search. */
+    for (int k = 0; k < g->nglossy; k++) {
+        gquad *G = &g->gq[g->glossy[k]];
+        G->cell = malloc((size_t)NPT * NDIR * sizeof(int32_t));
+        if (!G->cell) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
+        for (size_t e = 0; e < (size_t)NPT * NDIR; e++) {
+            const ghit *h = &G->hits[e];
+            if (h->quad < 0 || g->slot[h->quad] < 0) { G->cell[e] = -1; continue; }
+            int cx = (int)(h->u * GATHER_RG), cy = (int)(h->v * GATHER_RG);
+            cx = cx < 0 ? 0 : cx >= GATHER_RG ? GATHER_RG - 1 : cx;
+            cy = cy < 0 ? 0 : cy >= GATHER_RG ? GATHER_RG - 1 : cy;
+            G->cell[e] = g->slot[h->quad] * RG2 + cy * GATHER_RG + cx;
+        }
+        free(G->hits);
+        G->hits = NULL;
+    }
+    g->direct = calloc((size_t)(g->nslot ? g->nslot : 1) * GATHER_DTEX * GATHER_DTEX * 3, sizeof(float));
+    g->rad = calloc((size_t)(g->nslot ? g->nslot : 1) * RG2 * 3, sizeof(float));
+    if (!g->direct || !g->rad) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
     *out = g;
     return WRT_OK;
 }
@@ -186,9 +214,9 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
 void wrt_gather_destroy(wrt_gather *g) {
     if (!g) return;
     if (g->gq)
-        for (int i = 0; i < g->nq; i++) { free(g->gq[i].hits); free(g->gq[i].lin); free(g->gq[i].lout); }
+        for (int i = 0; i < g->nq; i++) { free(g->gq[i].hits); free(g->gq[i].cell); free(g->gq[i].lin); free(g->gq[i].lout); }
     for (int b = 0; b < g->nbeta; b++) free(g->beta[b]);
-    free(g->beta); free(g->beta_mat); free(g->direct); free(g->seen); free(g->glossy); free(g->gq); free(g->q);
+    free(g->beta); free(g->beta_mat); free(g->direct); free(g->rad); free(g->slot); free(g->slot_quad); free(g->glossy); free(g->gq); free(g->q);
     free(g);
 }
 
@@ -197,10 +225,9 @@ void wrt_gather_destroy(wrt_gather *g) {
 static void direct_row(size_t item, int thread, void *user) {
     (void)thread;
     wrt_gather *g = user;
-    int q = (int)(item / GATHER_DTEX), j = (int)(item % GATHER_DTEX);
-    if (!g->seen[q]) return;
-    const wrt_gather_quad *Q = &g->q[q];
-    float *d = g->direct + ((size_t)q * GATHER_DTEX + j) * GATHER_DTEX * 3;
+    int s = (int)(item / GATHER_DTEX), j = (int)(item % GATHER_DTEX);
+    const wrt_gather_quad *Q = &g->q[g->slot_quad[s]];
+    float *d = g->direct + ((size_t)s * GATHER_DTEX + j) * GATHER_DTEX * 3;
     for (int i = 0; i < GATHER_DTEX; i++) {
         double e[3];
         g->dfn(g->duser, qpoint(Q, (i + 0.5) / GATHER_DTEX, (j + 0.5) / GATHER_DTEX), Q->n, e);
@@ -224,23 +251,36 @@ static void bilerp(const float *t, int n, double u, double v, float out[3]) {
     }
 }
 
+/* Row j of slot s's radiance grid: base/pi x direct + the displayed indirect radiance. */
+static void rad_row(size_t item, int thread, void *user) {
+    (void)thread;
+    wrt_gather *g = user;
+    int s = (int)(item / GATHER_RG), j = (int)(item % GATHER_RG), hq = g->slot_quad[s];
+    const float *base = g->q[hq].mat ? g->q[hq].mat->base_color : NULL;
+    const float *dt = g->direct + (size_t)s * GATHER_DTEX * GATHER_DTEX * 3;
+    float *o = g->rad + ((size_t)s * RG2 + (size_t)j * GATHER_RG) * 3;
+    double v = (j + 0.5) / GATHER_RG;
+    for (int i = 0; i < GATHER_RG; i++) {
+        double u = (i + 0.5) / GATHER_RG;
+        float dv[3], iv[3] = {0, 0, 0};
+        bilerp(dt, GATHER_DTEX, u, v, dv);
+        if (g->tex[hq] && g->tex_res[hq] > 0) bilerp(g->tex[hq], g->tex_res[hq], u, v, iv);
+        for (int c = 0; c < 3; c++) o[i * 3 + c] = (float)((base ? base[c] : 0) / M_PI) * dv[c] + iv[c];
+    }
+}
+
 static void lin_point(size_t item, int thread, void *user) {
     (void)thread;
     wrt_gather *g = user;
     int q = g->glossy[item / NPT];
     size_t p = item % NPT;
-    const ghit *h = g->gq[q].hits + p * NDIR;
+    const int32_t *cell = g->gq[q].cell + p * NDIR;
     float *lin = g->gq[q].lin + p * NDIR * 3;
     for (int a = 0; a < NDIR; a++) {
         float *l = lin + a * 3;
-        l[0] = l[1] = l[2] = 0;
-        int hq = h[a].quad;
-        if (hq < 0 || is_glossy(g->q[hq].mat)) continue; /* glossy senders: not gathered */
-        float dv[3], iv[3] = {0, 0, 0};
-        bilerp(g->direct + (size_t)hq * GATHER_DTEX * GATHER_DTEX * 3, GATHER_DTEX, h[a].u, h[a].v, dv);
-        if (g->tex[hq] && g->tex_res[hq] > 0) bilerp(g->tex[hq], g->tex_res[hq], h[a].u, h[a].v, iv);
-        const float *base = g->q[hq].mat ? g->q[hq].mat->base_color : NULL;
-        for (int c = 0; c < 3; c++) l[c] = (float)((base ? base[c] : 0) / M_PI) * dv[c] + iv[c];
+        if (cell[a] < 0) { l[0] = l[1] = l[2] = 0; continue; } /* nothing, or glossy: not gathered */
+        const float *rv = g->rad + (size_t)cell[a] * 3;
+        l[0] = rv[0]; l[1] = rv[1]; l[2] = rv[2];
     }
 }
 
@@ -248,7 +288,8 @@ void wrt_gather_lights(wrt_gather *g, wrt_gather_direct_fn direct, void *user, c
                        const int *tex_res) {
     if (!g) return;
     g->dfn = direct; g->duser = user; g->tex = tex; g->tex_res = tex_res;
-    wrt_pool_run(g->pool, (size_t)g->nq * GATHER_DTEX, 0, direct_row, g);
+    wrt_pool_run(g->pool, (size_t)g->nslot * GATHER_DTEX, 0, direct_row, g);
+    wrt_pool_run(g->pool, (size_t)g->nslot * GATHER_RG, 0, rad_row, g);
     wrt_pool_run(g->pool, (size_t)g->nglossy * NPT, 0, lin_point, g);
 }
 

@@ -9,7 +9,8 @@
  * At a light change L_in is rebuilt: a diffuse hit sends base/pi x (direct + indirect
  * irradiance), the direct from the caller's lights (with shadows) on a GATHER_DTEX grid
  * of the seen quad, the indirect from the seen quad's displayed texture (which already
- * holds base/pi x indirect irradiance). A glossy hit sends nothing here (a limitation:
+ * holds base/pi x indirect irradiance), both resampled onto a GATHER_RG grid whose
+ * nearest cell each ray reads (a table made at creation). A glossy hit sends nothing here (a limitation:
  * glossy-to-glossy-to-eye light is missing). At an eye move only the sum over a is
  * redone. Everything is linear in the lights. Depends on Embree 3, common/brdf.h,
  * common/basis.h and common/threads.h. */
