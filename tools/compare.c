@@ -13,7 +13,7 @@
 #include "common/basis.h"
 #include "include/wrt.h"
 #include "common/rt_scene.h"
-#include "player/reconstruct.h"
+#include "common/reconstruct.h"
 #include "tools/reference.h"
 
 #include <embree3/rtcore.h>
