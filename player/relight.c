@@ -1570,8 +1570,9 @@ double wrt_relight_bench(wrt_relight *r, int updates, wrt_relight_timings *mean)
     wrt_relight_timings sum = {0};
     if (mean) *mean = sum;
     if (r->nlights == 0 || updates <= 0) return -1;
-    wrt_light *ls = wrt_xmalloc((size_t)r->nlights * sizeof(wrt_light));
-    float *sc = wrt_xmalloc((size_t)r->nlights * sizeof(float));
+    wrt_light *ls = ra_calloc(r, (size_t)r->nlights, sizeof(wrt_light));
+    float *sc = ra_calloc(r, (size_t)r->nlights, sizeof(float));
+    if (r->oom) { r->oom = 0; ra_free(r, ls); ra_free(r, sc); return -1; }
     for (int i = 0; i < r->nlights; i++) { ls[i] = r->lights[i].light; sc[i] = r->lights[i].scale; }
     wrt_v3 p0 = ls[0].pos;
     double rad = 0.02 * r->scene_diag, t0 = wrt_now();
@@ -1596,6 +1597,6 @@ double wrt_relight_bench(wrt_relight *r, int updates, wrt_relight_timings *mean)
         mean->quads_resynthesized = sum.quads_resynthesized / updates;
         mean->lights_changed = sum.lights_changed / updates;
     }
-    free(ls); free(sc);
+    ra_free(r, ls); ra_free(r, sc);
     return ms;
 }

@@ -89,7 +89,7 @@ int wrt_relight_beta(const wrt_relight *r, int m, double a_o, double b_o, int an
 
 /* Micro-benchmark: moves light 0 around a small circle (2% of the scene diagonal) for
  * `updates` updates, restores it, and returns the mean milliseconds per update (mean
- * timings in *mean if not NULL); -1 if no light is set. */
+ * timings in *mean if not NULL); -1 if no light is set (or no memory). */
 double wrt_relight_bench(wrt_relight *r, int updates, wrt_relight_timings *mean);
 
 #endif
