@@ -33,6 +33,7 @@ else
 Q := @
 endif
 .SECONDARY:
+.SECONDEXPANSION:
 
 LIBS_CORE := -lembree3 -lm
 LIBS_IMG := -lOpenImageIO -lOpenImageIO_Util
@@ -62,7 +63,7 @@ PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-sc
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
-.PHONY: all deps demo test tests stress study fuzz clean assets bench install mutate
+.PHONY: all deps demo test tests stress study fuzz clean assets bench mutate install
 all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/tests/runtime_instances
 
 deps:
@@ -140,10 +141,37 @@ $(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
-$(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $(ALL_LIB_OBJ) $(call obj,tools/compare.c)
+# Tests link only what they test: each names the parts it needs (archives, so only the
+# objects it reaches are linked), lowest last; a test not listed gets every part.
+PART_common := $(wildcard common/*.c)
+PART_formats := $(wildcard formats/*.c) $(wildcard formats/*.cpp)
+PART_cli := $(wildcard cli/*.c)
+PART_bake := $(BAKE_SRC)
+PART_runtime := player/relight.c player/wrt_runtime.c
+PART_display := $(filter-out player/main.c $(PART_runtime),$(wildcard player/*.c))
+PART_verify := tools/reference.c tools/compare.c
+ALL_PARTS := display cli verify bake runtime formats common
+TEST_PARTS_test_brdf := common
+TEST_PARTS_test_gto := formats common
+TEST_PARTS_test_image := formats common
+TEST_PARTS_test_scene := formats common
+TEST_PARTS_test_bake := bake formats common
+TEST_PARTS_test_relight := runtime formats common
+TEST_PARTS_test_reference := verify formats common
+TEST_PARTS_test_accuracy := verify bake runtime formats common
+TEST_PARTS_test_stress := verify bake runtime formats common
+TEST_PARTS_test_render := display cli formats common
+TEST_PARTS_test_play := display cli runtime formats common
+test_parts = $(or $(TEST_PARTS_$(1)),$(ALL_PARTS))
+
+$(BUILD)/parts/%.a: $$(call obj,$$(PART_$$*))
+	@mkdir -p $(dir $@)
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $$(foreach p,$$(call test_parts,$$*),$(BUILD)/parts/$$(p).a)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  LINK    $@")
-	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(if $(filter display,$(call test_parts,$*)),$(LIBS_GL)) $(LIBS_IMG) $(LIBS_CORE)
 
 # The fuzz targets (libFuzzer, clang): the glTF loader (fuzz_scene) and the .gto reader
 # (fuzz_gto). `make fuzz` builds both and runs each for FUZZ_SECONDS (default 60) from

@@ -322,7 +322,8 @@ bool fs_exists(const std::string &path, void *) {
 
 std::string fs_expand(const std::string &path, void *) { return path; }
 
-bool fs_read(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *) {
+bool fs_read(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *user) {
+    if (user) static_cast<std::vector<std::string> *>(user)->push_back(path); /* an input */
     FILE *f = fopen(path.c_str(), "rb");
     if (!f) {
         if (err) *err += "cannot open " + path + ": " + strerror(errno) + "\n";
@@ -1199,7 +1200,8 @@ wrt_status read_impl(const void *data, size_t size, const char *base_dir, const 
     }
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(decode_image, nullptr);
-    tinygltf::FsCallbacks fs = {fs_exists, fs_expand, fs_read, fs_write, nullptr};
+    std::vector<std::string> files_read;
+    tinygltf::FsCallbacks fs = {fs_exists, fs_expand, fs_read, fs_write, &files_read};
     loader.SetFsCallbacks(fs);
     tinygltf::Model model;
     std::string err, warn;
@@ -1225,6 +1227,10 @@ wrt_status read_impl(const void *data, size_t size, const char *base_dir, const 
     out->warnings = strdup((strict_warnings + warn).c_str());
     out->ignored = strdup(ignored.c_str());
     if (!out->warnings || !out->ignored) throw std::bad_alloc();
+    std::string files;
+    for (const std::string &f : files_read) files += f + '\n';
+    out->files = strdup(files.c_str());
+    if (!out->files) throw std::bad_alloc();
     return WRT_OK;
 }
 
@@ -1264,5 +1270,6 @@ extern "C" void wrt_gltf_free(wrt_gltf_data *d) {
     free(d->mesh_names);
     free(d->warnings);
     free(d->ignored);
+    free(d->files);
     memset(d, 0, sizeof *d);
 }

@@ -69,6 +69,7 @@ typedef struct wrt_gltf_data {
     char *warnings;          /* warnings, one a line, "" if none (owned) */
     char *ignored;           /* fields the bake does not use, "; "-separated path patterns
                                 with a count where more than one, "" if none (owned) */
+    char *files;             /* external files read (buffers, images), one a line (owned) */
 } wrt_gltf_data;
 
 /* Parses `size` bytes (JSON text, or GLB when they start with "glTF"). External

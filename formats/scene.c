@@ -699,6 +699,8 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
     s->nquads = ql.n;
     s->ignored = wrt_xmalloc(strlen(g.ignored ? g.ignored : "") + 1);
     strcpy(s->ignored, g.ignored ? g.ignored : "");
+    s->files = wrt_xmalloc(strlen(g.files ? g.files : "") + 1);
+    strcpy(s->files, g.files ? g.files : "");
 
     /* bounding box of the kept geometry */
     if (s->nquads > 0) {
@@ -797,6 +799,7 @@ void wrt_scene_free(wrt_scene *s) {
     free(s->names);
     free(s->problems);
     free(s->ignored);
+    free(s->files);
     memset(s, 0, sizeof *s);
 }
 

@@ -36,6 +36,7 @@ typedef struct wrt_scene {
     uint64_t source_hash;  /* hash of the source file bytes */
     int ntwins;            /* back-to-back twins added for doubleSided materials (in nquads) */
     char *ignored;         /* glTF fields the bake does not use, "; "-separated (owned) */
+    char *files;           /* external files read (buffers, images), one a line (owned) */
 } wrt_scene;
 
 typedef struct wrt_load_options {

@@ -72,8 +72,10 @@ typedef struct wrt_error {
 
 /* Memory. alloc(size, user) returns memory aligned for any type, or NULL (the call then
  * fails with WRT_ERR_NOMEM); free(p, user) releases it. All zero: malloc and free.
- * Used for the runtime's handle and its per-call scratch; the relighting core's arrays
- * still come from malloc (a failure there ends the process), and Embree keeps its own. */
+ * Used for the runtime's handle and every array it keeps (operator indexing, textures,
+ * coefficient vectors, BRDF tables, lights); the scratch its worker threads grow during
+ * an update still comes from malloc (a failure there ends the process), and Embree and
+ * the thread pool keep their own. */
 typedef struct wrt_allocator {
     void *(*alloc)(size_t size, void *user);
     void (*free)(void *p, void *user);

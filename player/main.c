@@ -260,8 +260,8 @@ static int run_frame(app *a, stage_ms *t) {
         wrt_runtime_set_lights(a->rl, rls, n, NULL);
         wrt_runtime_set_eye(a->rl, a->view.eye, NULL);
         wrt_runtime_update(a->rl, &changed, NULL);
-        wrt_runtime_timings(a->rl, ms);
         t->relit = changed > 0 || !a->relit_once;
+        wrt_runtime_timings(a->rl, ms);
         t->projection = ms[0];
         t->multiply = ms[1];
         t->brdf = ms[2];
@@ -728,8 +728,9 @@ static int win_reload(app *a, win_state *w) {
     wrt_gto_close(&a->g);
     a->g = g2;
     wrt_runtime_options ro = {.max_tex_res = a->o->max_tex_res, .threads = a->o->threads};
-    if (wrt_runtime_open_memory(a->g.map, a->g.size, &ro, &a->rl, NULL)) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+    wrt_error err;
+    if (wrt_runtime_open_memory(a->g.map, a->g.size, &ro, &a->rl, &err)) {
+        fprintf(stderr, "wrt-play: %s\n", err.message);
         return EXIT_RUNTIME;
     }
     wrt_render_options rdo = {a->o->width, a->o->height, a->o->shadow_res, a->o->msaa};
@@ -786,7 +787,7 @@ static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch
         wrt_overlay_rect(ov, x - 2.0f * sc, y - r - 1, 4.0f * sc, 2 * r + 2, black);
         wrt_overlay_rect(ov, x - r, y - 1.0f * sc, 2 * r, 2.0f * sc, c);
         wrt_overlay_rect(ov, x - 1.0f * sc, y - r, 2.0f * sc, 2 * r, c);
-        char num[8];
+        char num[16];
         snprintf(num, sizeof num, "%d", i + 1);
         wrt_overlay_rect(ov, x + r + 2, y - r - ch, 6.0f * sc * (float)strlen(num) + 2, ch, black);
         wrt_overlay_text(ov, x + r + 3, y - r - ch, sc, i == w->sel ? yellow : white, num);

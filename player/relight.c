@@ -46,6 +46,7 @@
 #include "../common/brdf.h"
 #include "../common/brdf_table.h"
 #include "../common/threads.h"
+#include "../common/rt_scene.h"
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
 #define PROJ_CELL_K 8.0      /* cells at most d / PROJ_CELL_K wide */
@@ -223,6 +224,8 @@ struct wrt_relight {
     float *texk;                    /* per texel of non-parallelograms: 2^Lt sqrt(pi/J)/pi */
     out_rec *recs;
     worker *workers;
+    int *synth_list;                /* nquads + 1: quads to synthesize this update */
+    int oom;                        /* an allocation failed */
     wrt_pool *pool;                 /* nthreads threads, parked between loops */
 };
 
@@ -247,6 +250,23 @@ static int parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ctx
     if (n <= 0) return 0;
     job j = {r, fn, ctx};
     return wrt_pool_run(r->pool, (size_t)n, work < PARALLEL_MIN_WORK ? 1 : 0, job_item, &j);
+}
+
+/* The relighter's own arrays come from the caller's allocator (wrt_relight_options;
+ * malloc/free by default); a failure marks r->oom and the call returns WRT_ERR_NOMEM.
+ * (The workers' scratch, grown during updates, still comes from malloc: grow below.) */
+static void *ra_calloc(wrt_relight *r, size_t count, size_t size) {
+    if (size && count > SIZE_MAX / size) { r->oom = 1; return NULL; }
+    size_t n = count * size;
+    if (!n) n = 1;
+    void *p = r->opt.alloc ? r->opt.alloc(n, r->opt.alloc_user) : malloc(n);
+    if (!p) { r->oom = 1; return NULL; }
+    return memset(p, 0, n);
+}
+static void ra_free(const wrt_relight *r, void *p) {
+    if (!p) return;
+    if (r->opt.alloc && r->opt.free) r->opt.free(p, r->opt.alloc_user);
+    else free(p);
 }
 
 static void *grow(void *p, size_t *cap, size_t need, size_t elem) {
@@ -991,14 +1011,24 @@ static void sort_by_ang(const uint8_t *ang, uint32_t first, uint32_t n, uint32_t
     for (uint32_t k = 0; k < n; k++) perm[start[ang[first + k]]++] = first + k;
 }
 
+static wrt_status relight_nomem(wrt_relight *r) {
+    wrt_relight_destroy(r);
+    return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory");
+}
+
 wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out) {
     *out = NULL;
     if (!g) return wrt_fail(WRT_ERR_INVALID_ARG, "relight: no operator");
-    wrt_relight *r = wrt_xcalloc(1, sizeof *r);
+    wrt_relight_options o = {0};
+    if (opt) o = *opt;
+    if (!o.alloc != !o.free) return wrt_fail(WRT_ERR_INVALID_ARG, "relight: an allocator needs both alloc and free");
+    wrt_relight *r = o.alloc ? o.alloc(sizeof *r, o.alloc_user) : malloc(sizeof *r);
+    if (!r) return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory");
+    memset(r, 0, sizeof *r);
     r->g = g;
-    if (opt) r->opt = *opt;
+    r->opt = o;
     if (r->opt.proj_level < 0 || r->opt.proj_level > PROJ_MAX_LEVEL) {
-        free(r);
+        ra_free(r, r);
         return wrt_fail(WRT_ERR_INVALID_ARG, "relight: projection level %d outside 0..%d", opt->proj_level, PROJ_MAX_LEVEL);
     }
     int mt = r->opt.max_tex_res > 0 ? r->opt.max_tex_res : 64;
@@ -1008,20 +1038,23 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->nthreads = r->opt.threads > 0 ? r->opt.threads : (int)(nc > 0 ? nc : 1);
     if (r->nthreads > 64) r->nthreads = 64;
     if (wrt_pool_create(r->nthreads, &r->pool) != WRT_OK) {
-        free(r);
+        ra_free(r, r);
         return wrt_fail(WRT_ERR_NOMEM, "relight: no memory for the thread pool");
     }
     r->nthreads = wrt_pool_size(r->pool);
-    r->workers = wrt_xcalloc((size_t)r->nthreads, sizeof(worker));
+    r->workers = ra_calloc(r, (size_t)r->nthreads, sizeof(worker));
+    if (r->oom) return relight_nomem(r);
     for (int t = 0; t < r->nthreads; t++) {
-        r->workers[t].pstate = wrt_xcalloc(PROJ_TREE_CELLS, sizeof(uint32_t));
-        r->workers[t].prefined = wrt_xcalloc(PROJ_TREE_CELLS, 1);
-        r->workers[t].pclear = wrt_xcalloc(PROJ_TREE_CELLS, 1);
-        r->workers[t].pcells = wrt_xcalloc(PROJ_TREE_CELLS, sizeof(uint16_t));
+        r->workers[t].pstate = ra_calloc(r, PROJ_TREE_CELLS, sizeof(uint32_t));
+        r->workers[t].prefined = ra_calloc(r, PROJ_TREE_CELLS, 1);
+        r->workers[t].pclear = ra_calloc(r, PROJ_TREE_CELLS, 1);
+        r->workers[t].pcells = ra_calloc(r, PROJ_TREE_CELLS, sizeof(uint16_t));
     }
+    if (r->oom) return relight_nomem(r);
 
     uint32_t nq = g->nquads, nf = g->nfuncs;
-    r->mats = wrt_xcalloc(g->nmaterials ? g->nmaterials : 1, sizeof(wrt_material));
+    r->mats = ra_calloc(r, g->nmaterials ? g->nmaterials : 1, sizeof(wrt_material));
+    if (r->oom) return relight_nomem(r);
     for (uint32_t m = 0; m < g->nmaterials; m++) {
         const wrt_gto_material *gm = &g->materials[m];
         wrt_material *mm = &r->mats[m];
@@ -1033,9 +1066,10 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
         mm->lambertian = gm->lambertian != 0;
     }
     /* Per function: spatial level and pyramid slot, angular index. */
-    r->fn_slevel = wrt_xcalloc(nf ? nf : 1, 1);
-    r->fn_ang = wrt_xcalloc(nf ? nf : 1, 1);
-    r->fn_spidx = wrt_xcalloc(nf ? nf : 1, sizeof(uint32_t));
+    r->fn_slevel = ra_calloc(r, nf ? nf : 1, 1);
+    r->fn_ang = ra_calloc(r, nf ? nf : 1, 1);
+    r->fn_spidx = ra_calloc(r, nf ? nf : 1, sizeof(uint32_t));
+    if (r->oom) return relight_nomem(r);
     uint32_t nbad = 0;
     for (uint32_t f = 0; f < nf; f++) {
         wrt_fkey k = g->fkeys[f];
@@ -1054,7 +1088,8 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     }
     if (nbad) wrt_log(WRT_LOG_WARN, "relight: %u function keys are not basis functions; ignored", nbad);
     /* Per quad. */
-    r->qi = wrt_xcalloc(nq ? nq : 1, sizeof(quad_info));
+    r->qi = ra_calloc(r, nq ? nq : 1, sizeof(quad_info));
+    if (r->oom) return relight_nomem(r);
     wrt_v3 bmin = v3(INFINITY, INFINITY, INFINITY), bmax = v3(-INFINITY, -INFINITY, -INFINITY);
     size_t tex_total = 0, ang_total = 0;
     for (uint32_t q = 0; q < nq; q++) {
@@ -1109,10 +1144,11 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
         qi->ang_first = (uint32_t)ang_total;
         ang_total += (size_t)na;
     }
-    r->ang_list = wrt_xcalloc(ang_total ? ang_total : 1, sizeof(uint16_t));
-    r->ang_start = wrt_xcalloc(ang_total + nq + 1, sizeof(uint32_t));
-    r->ang_full = wrt_xcalloc(ang_total + 1, 1);
-    r->ang_perm = wrt_xcalloc(nf ? nf : 1, sizeof(uint32_t));
+    r->ang_list = ra_calloc(r, ang_total ? ang_total : 1, sizeof(uint16_t));
+    r->ang_start = ra_calloc(r, ang_total + nq + 1, sizeof(uint32_t));
+    r->ang_full = ra_calloc(r, ang_total + 1, 1);
+    r->ang_perm = ra_calloc(r, nf ? nf : 1, sizeof(uint32_t));
+    if (r->oom) return relight_nomem(r);
     for (uint32_t q = 0; q < nq; q++) {
         const wrt_gto_quad *gq = &g->quads[q];
         quad_info *qi = &r->qi[q];
@@ -1141,40 +1177,26 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->origin = nq ? v3_scale(v3_add(bmin, bmax), 0.5) : v3(0, 0, 0);
     r->scene_diag = nq ? v3_len(v3_sub(bmax, bmin)) : 1;
     if (!(r->scene_diag > 0)) r->scene_diag = 1;
-    r->eps = 1e-5 * r->scene_diag;
-    r->dev = rtcNewDevice(NULL);
-    if (!r->dev) { wrt_relight_destroy(r); return wrt_fail(WRT_ERR_UNSUPPORTED, "relight: cannot create an Embree device"); }
-    r->scene = rtcNewScene(r->dev);
-    if (nq) {
-        RTCGeometry geo = rtcNewGeometry(r->dev, RTC_GEOMETRY_TYPE_QUAD);
-        float *vb = rtcSetNewGeometryBuffer(geo, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), (size_t)nq * 4);
-        unsigned *ib = rtcSetNewGeometryBuffer(geo, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned), nq);
-        if (!vb || !ib) { rtcReleaseGeometry(geo); wrt_relight_destroy(r); return wrt_fail(WRT_ERR_NOMEM, "relight: Embree buffers"); }
-        for (uint32_t q = 0; q < nq; q++)
-            for (int k = 0; k < 4; k++) {
-                wrt_v3 p = v3_sub(r->qi[q].p[k], r->origin);
-                vb[(q * 4 + k) * 3 + 0] = (float)p.x;
-                vb[(q * 4 + k) * 3 + 1] = (float)p.y;
-                vb[(q * 4 + k) * 3 + 2] = (float)p.z;
-                ib[q * 4 + k] = q * 4 + (unsigned)k;
-            }
-        rtcCommitGeometry(geo);
-        rtcAttachGeometry(r->scene, geo);
-        rtcReleaseGeometry(geo);
-    }
-    rtcCommitScene(r->scene);
-    if (rtcGetDeviceError(r->dev) != RTC_ERROR_NONE) {
-        wrt_relight_destroy(r);
-        return wrt_fail(WRT_ERR_UNSUPPORTED, "relight: Embree scene build failed");
-    }
+    wrt_v3 *corners = ra_calloc(r, (size_t)(nq ? nq : 1) * 4, sizeof *corners);
+    if (r->oom) return relight_nomem(r);
+    for (uint32_t q = 0; q < nq; q++)
+        for (int k = 0; k < 4; k++) corners[4 * q + k] = r->qi[q].p[k];
+    wrt_rt_scene rs;
+    wrt_status est = wrt_rt_scene_build(corners, (int)nq, r->origin, NULL, 0, &rs);
+    ra_free(r, corners);
+    if (est != WRT_OK) { wrt_relight_destroy(r); return est; }
+    r->dev = rs.dev;
+    r->scene = rs.scene;
+    r->eps = rs.eps;
     /* State. */
-    r->E = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
-    r->X = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
-    r->Xprev = wrt_xcalloc((size_t)nf * 3 + 1, sizeof(float));
-    r->X4 = wrt_xcalloc((size_t)nf * 4 + 4, sizeof(float)); /* malloc: 16-byte aligned */
-    r->cols = wrt_xcalloc((size_t)nf + 1, sizeof(uint32_t));
-    r->tex = wrt_xcalloc(tex_total + 1, sizeof(float));
-    r->texk = wrt_xcalloc(tex_total / 3 + 1, sizeof(float));
+    r->E = ra_calloc(r, (size_t)nf * 3 + 1, sizeof(float));
+    r->X = ra_calloc(r, (size_t)nf * 3 + 1, sizeof(float));
+    r->Xprev = ra_calloc(r, (size_t)nf * 3 + 1, sizeof(float));
+    r->X4 = ra_calloc(r, (size_t)nf * 4 + 4, sizeof(float)); /* malloc: 16-byte aligned */
+    r->cols = ra_calloc(r, (size_t)nf + 1, sizeof(uint32_t));
+    r->tex = ra_calloc(r, tex_total + 1, sizeof(float));
+    r->texk = ra_calloc(r, tex_total / 3 + 1, sizeof(float));
+    if (r->oom) return relight_nomem(r);
     for (uint32_t q = 0; q < nq; q++) {
         const quad_info *qi = &r->qi[q];
         if (qi->parallelogram) continue;
@@ -1185,17 +1207,21 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
                 r->texk[qi->tex_off / 3 + (size_t)j * res + i] = (float)(res * sqrt(WRT_PI / J) / WRT_PI);
             }
     }
-    r->tex_nonzero = wrt_xcalloc(nq + 1, 1);
-    r->x_nonzero = wrt_xcalloc(nq + 1, 1);
-    r->resynth = wrt_xcalloc(nq + 1, 1);
-    r->recs = wrt_xcalloc(nq + 1, sizeof(out_rec));
-    r->qlevel = wrt_xcalloc(nq + 1, sizeof(int8_t));
-    r->cones = wrt_xcalloc(nq + 1, sizeof(light_cone));
+    r->tex_nonzero = ra_calloc(r, nq + 1, 1);
+    r->x_nonzero = ra_calloc(r, nq + 1, 1);
+    r->resynth = ra_calloc(r, nq + 1, 1);
+    r->recs = ra_calloc(r, nq + 1, sizeof(out_rec));
+    r->qlevel = ra_calloc(r, nq + 1, sizeof(int8_t));
+    r->cones = ra_calloc(r, nq + 1, sizeof(light_cone));
+    r->synth_list = ra_calloc(r, nq + 1, sizeof(int));
+    if (r->oom) return relight_nomem(r);
     /* BRDF tables of the materials glossy quads use. */
-    r->beta = wrt_xcalloc(g->nmaterials + 1, sizeof(float *));
+    r->beta = ra_calloc(r, g->nmaterials + 1, sizeof(float *));
+    if (r->oom) return relight_nomem(r);
     for (uint32_t m = 0; m < g->nmaterials; m++) {
         if (!material_used_glossy(r, m)) continue;
-        r->beta[m] = wrt_xmalloc((size_t)BETA_RES * BETA_RES * NANG * 3 * sizeof(float));
+        r->beta[m] = ra_calloc(r, (size_t)BETA_RES * BETA_RES * NANG * 3, sizeof(float));
+        if (r->oom) return relight_nomem(r);
         wrt_brdf_table_build(&r->mats[m], r->nthreads, r->beta[m]);
     }
     *out = r;
@@ -1207,23 +1233,27 @@ void wrt_relight_destroy(wrt_relight *r) {
     wrt_pool_destroy(r->pool);
     if (r->scene) rtcReleaseScene(r->scene);
     if (r->dev) rtcReleaseDevice(r->dev);
-    for (int i = 0; i < r->lights_cap; i++) { free(r->lights[i].idx); free(r->lights[i].val); free(r->lights[i].root); }
-    free(r->lights);
+    for (int i = 0; i < r->lights_cap; i++) { /* idx, val: grown in updates (malloc) */
+        free(r->lights[i].idx); free(r->lights[i].val); ra_free(r, r->lights[i].root);
+    }
+    ra_free(r, r->lights);
     if (r->workers)
         for (int t = 0; t < r->nthreads; t++) {
             worker *w = &r->workers[t];
+            /* scratch grown in updates (malloc) */
             free(w->grid); free(w->pyr); free(w->acc); free(w->wts); free(w->cells); free(w->oidx); free(w->oval);
-            free(w->fpyr); free(w->fgrid);
-            free(w->pstate); free(w->prefined); free(w->pclear); free(w->occ); free(w->pcells); free(w->pval); free(w->pwav);
+            free(w->fpyr); free(w->fgrid); free(w->occ); free(w->pval); free(w->pwav);
+            ra_free(r, w->pstate); ra_free(r, w->prefined); ra_free(r, w->pclear); ra_free(r, w->pcells);
         }
-    free(r->workers);
-    if (r->beta) for (uint32_t m = 0; m < r->g->nmaterials; m++) free(r->beta[m]);
-    free(r->beta);
-    free(r->mats); free(r->fn_slevel); free(r->fn_ang); free(r->fn_spidx); free(r->qi);
-    free(r->ang_list); free(r->ang_start); free(r->ang_full); free(r->ang_perm);
-    free(r->E); free(r->X); free(r->Xprev); free(r->X4); free(r->cols); free(r->tex); free(r->texk); free(r->tex_nonzero); free(r->x_nonzero);
-    free(r->resynth); free(r->recs); free(r->qlevel); free(r->cones);
-    free(r);
+    ra_free(r, r->workers);
+    if (r->beta) for (uint32_t m = 0; m < r->g->nmaterials; m++) ra_free(r, r->beta[m]);
+    ra_free(r, r->beta);
+    ra_free(r, r->mats); ra_free(r, r->fn_slevel); ra_free(r, r->fn_ang); ra_free(r, r->fn_spidx); ra_free(r, r->qi);
+    ra_free(r, r->ang_list); ra_free(r, r->ang_start); ra_free(r, r->ang_full); ra_free(r, r->ang_perm);
+    ra_free(r, r->E); ra_free(r, r->X); ra_free(r, r->Xprev); ra_free(r, r->X4); ra_free(r, r->cols); ra_free(r, r->tex); ra_free(r, r->texk); ra_free(r, r->tex_nonzero); ra_free(r, r->x_nonzero);
+    ra_free(r, r->resynth); ra_free(r, r->recs); ra_free(r, r->qlevel); ra_free(r, r->cones);
+    ra_free(r, r->synth_list);
+    ra_free(r, r);
 }
 
 /* ----------------------------------------------------------------- update ---- */
@@ -1236,14 +1266,24 @@ static int same_light(const wrt_light *a, const wrt_light *b) {
            a->outer_cone == b->outer_cone;
 }
 
-void wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const float *scales, int n) {
+wrt_status wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const float *scales, int n) {
     if (n < 0) n = 0;
     if (n > r->lights_cap) {
-        r->lights = wrt_xrealloc(r->lights, (size_t)n * sizeof(light_state));
-        for (int i = r->lights_cap; i < n; i++) {
-            memset(&r->lights[i], 0, sizeof(light_state));
-            r->lights[i].root = wrt_xcalloc((size_t)r->g->nquads * 3 + 1, sizeof(double));
+        light_state *nl = ra_calloc(r, (size_t)n, sizeof(light_state));
+        double **roots = ra_calloc(r, (size_t)n, sizeof(double *));
+        for (int i = r->lights_cap; i < n && !r->oom; i++) roots[i] = ra_calloc(r, (size_t)r->g->nquads * 3 + 1, sizeof(double));
+        if (r->oom) {
+            r->oom = 0;
+            if (roots) for (int i = r->lights_cap; i < n; i++) ra_free(r, roots[i]);
+            ra_free(r, roots);
+            ra_free(r, nl);
+            return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory for %d lights", n);
         }
+        if (r->lights_cap) memcpy(nl, r->lights, (size_t)r->lights_cap * sizeof(light_state));
+        for (int i = r->lights_cap; i < n; i++) nl[i].root = roots[i];
+        ra_free(r, roots);
+        ra_free(r, r->lights);
+        r->lights = nl;
         r->lights_cap = n;
     }
     if (n != r->nlights) r->e_dirty = 1;
@@ -1258,6 +1298,7 @@ void wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const float
         if (i >= r->nlights || ls->scale != s) { ls->scale = s; r->e_dirty = 1; }
     }
     r->nlights = n;
+    return WRT_OK;
 }
 
 void wrt_relight_set_eye(wrt_relight *r, const double eye[3]) {
@@ -1328,7 +1369,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
         for (uint32_t q = 0; q < nq; q++)
             if (r->qi[q].glossy && r->x_nonzero[q]) r->resynth[q] = 1;
     }
-    int *list = wrt_xmalloc((nq + 1) * sizeof(int));
+    int *list = r->synth_list;
     int nsynth = 0, ncleared = 0;
     for (uint32_t q = 0; q < nq; q++) {
         if (!r->resynth[q]) continue;
@@ -1361,7 +1402,6 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     if (t.synthesis < 0) t.synthesis = 0;
     nchanged = nsynth + ncleared;
     t.quads_resynthesized = nchanged;
-    free(list);
     if (tm) *tm = t;
     return nchanged;
 }

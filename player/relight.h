@@ -19,6 +19,9 @@ typedef struct wrt_relight_options {
     int proj_reference;  /* n > 0: sample every cell of every quad's finest grid (no
                           * adaptivity; slow, for tests): n = 1 with the 4 samples a
                           * cell the adaptive projection takes, n = 2..8 with n x n */
+    void *(*alloc)(size_t size, void *user); /* the relighter's arrays (both or neither; */
+    void (*free)(void *p, void *user);        /* NULL: malloc and free). Update-time scratch */
+    void *alloc_user;                         /* still comes from malloc. */
 } wrt_relight_options;
 
 typedef struct wrt_relight_timings { /* milliseconds of the last update */
@@ -32,8 +35,9 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
 void wrt_relight_destroy(wrt_relight *r); /* NULL is a no-op */
 
 /* Sets the lights (copied). scales[i] multiplies light i (0 switches it off); scales may
- * be NULL (all 1). Only lights that changed are re-projected at the next update. */
-void wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const float *scales, int n);
+ * be NULL (all 1). Only lights that changed are re-projected at the next update.
+ * Errors: WRT_ERR_NOMEM (the lights are then as before). */
+wrt_status wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const float *scales, int n);
 /* Sets the eye position; only glossy quads depend on it. */
 void wrt_relight_set_eye(wrt_relight *r, const double eye[3]);
 

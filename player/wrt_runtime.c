@@ -60,7 +60,8 @@ static wrt_status open_common(const void *data, size_t size, const char *path, c
     rt->al = o.allocator;
     wrt_status s = path ? wrt_gto_open(path, &rt->g) : wrt_gto_open_memory(data, size, &rt->g);
     if (s) { rt->al.free(rt, rt->al.user); return fail(err, s); }
-    wrt_relight_options ro = {.proj_level = o.proj_level, .max_tex_res = o.max_tex_res, .threads = o.threads};
+    wrt_relight_options ro = {.proj_level = o.proj_level, .max_tex_res = o.max_tex_res, .threads = o.threads,
+                              .alloc = o.allocator.alloc, .free = o.allocator.free, .alloc_user = o.allocator.user};
     if ((s = wrt_relight_create(&rt->g, &ro, &rt->rl))) {
         wrt_gto_close(&rt->g);
         rt->al.free(rt, rt->al.user);
@@ -138,10 +139,11 @@ wrt_status wrt_runtime_set_lights(wrt_runtime *rt, const wrt_runtime_light *in, 
         ls[i].outer_cone = spot ? outer : (float)(WRT_PI / 4);
         sc[i] = l->off ? 0.0f : 1.0f;
     }
+    wrt_status s = wrt_relight_set_lights(rt->rl, ls, sc, n);
+    if (s) return fail(err, s);
     memcpy(rt->lights, ls, (size_t)n * sizeof *ls);
     memcpy(rt->scales, sc, (size_t)n * sizeof *sc);
     rt->nlights = n;
-    wrt_relight_set_lights(rt->rl, rt->lights, rt->scales, n);
     return WRT_OK;
 }
 

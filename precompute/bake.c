@@ -5,13 +5,17 @@
  * thread count), the basis functions indexed, then the series (series.c).
  * Depends on Embree 3, dto.c, series.c, sparse.c. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include "../common/basis.h"
 #include "../common/threads.h"
 #include "../common/brdf.h"
 #include "../common/brdf_table.h"
+#include "../common/rt_scene.h"
 #include "dto.h"
 #include "balance.h"
 #include "series.h"
@@ -35,6 +39,40 @@ void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->max_bounces <= 0) o->max_bounces = 2000;
     if (o->max_alevel <= 0) o->max_alevel = q <= 3 ? 1 : q <= 6 ? 2 : 3;
     if (o->max_alevel > WRT_MAX_ALEVEL) o->max_alevel = WRT_MAX_ALEVEL;
+    if (o->max_memory_mb <= 0) o->max_memory_mb = wrt_bake_memory_default();
+}
+
+double wrt_bake_memory_default(void) {
+    long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    if (pages <= 0 || size <= 0) return 4096;
+    return 0.5 * (double)pages * (double)size / (1024.0 * 1024.0);
+}
+
+uint64_t wrt_bake_rss_bytes(void) {
+    FILE *f = fopen("/proc/self/statm", "r");
+    unsigned long long total = 0, res = 0;
+    int n = f ? fscanf(f, "%llu %llu", &total, &res) : 0;
+    if (f) fclose(f);
+    long size = sysconf(_SC_PAGESIZE);
+    return n == 2 && size > 0 ? (uint64_t)res * (uint64_t)size : 0;
+}
+
+uint64_t wrt_bake_peak_rss_bytes(void) {
+    struct rusage ru;
+    if (getrusage(RUSAGE_SELF, &ru) != 0) return 0;
+    return (uint64_t)ru.ru_maxrss * 1024u; /* kilobytes on Linux */
+}
+
+wrt_status wrt_bake_memory_check(const wrt_bake_options *o, wrt_bake_counters *c, uint64_t need, const char *what) {
+    double mb = 1.0 / (1024.0 * 1024.0);
+    double total = ((double)wrt_bake_rss_bytes() + (double)need) * mb;
+    if (total > c->mem_estimate_mb) c->mem_estimate_mb = total;
+    if (total <= o->max_memory_mb) return WRT_OK;
+    return wrt_fail(WRT_ERR_NOMEM,
+                    "the bake would need about %.0f MB (%s: %.0f MB more than the %.0f MB in use), over the "
+                    "memory budget of %.0f MB (--max-memory; default half the physical memory): lower --quality "
+                    "or --max-angular-level, or raise --max-memory",
+                    total, what, (double)need * mb, (double)wrt_bake_rss_bytes() * mb, o->max_memory_mb);
 }
 
 /* The shared angular BRDF table (common/brdf_table.h) of every glossy material. */
@@ -177,7 +215,6 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     b.scene_size = v3_len(v3_sub(scene->bbox_max, scene->bbox_min));
     if (!(b.scene_size > 0) || !isfinite(b.scene_size))
         return wrt_fail(WRT_ERR_GEOMETRY, "scene has no extent (bounding box diagonal %g)", b.scene_size);
-    b.ray_eps = 1e-6 * b.scene_size;
     b.plane_eps = 1e-7 * b.scene_size;
     b.entry_floor = 0.1 * b.opt.eps_compress; /* far below what the series keeps */
     b.quads = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * sizeof *b.quads);
@@ -199,28 +236,17 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     }
     bake_btilde_build(&b);
 
-    /* Embree */
-    b.dev = rtcNewDevice("threads=1");
-    if (!b.dev) { free(b.quads); free(b.rho); return wrt_fail(WRT_ERR_NOMEM, "Embree device creation failed"); }
-    b.rtc = rtcNewScene(b.dev);
-    rtcSetSceneFlags(b.rtc, RTC_SCENE_FLAG_ROBUST);
-    RTCGeometry geom = rtcNewGeometry(b.dev, RTC_GEOMETRY_TYPE_QUAD);
-    float *vb = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                        (size_t)(b.nq ? b.nq : 1) * 4);
-    unsigned *ib = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned),
-                                           (size_t)(b.nq ? b.nq : 1));
-    for (int i = 0; i < b.nq; i++) {
-        for (int k = 0; k < 4; k++) {
-            vb[12 * i + 3 * k] = (float)b.quads[i].p[k].x;
-            vb[12 * i + 3 * k + 1] = (float)b.quads[i].p[k].y;
-            vb[12 * i + 3 * k + 2] = (float)b.quads[i].p[k].z;
-            ib[4 * i + k] = (unsigned)(4 * i + k);
-        }
-    }
-    rtcCommitGeometry(geom);
-    rtcAttachGeometry(b.rtc, geom);
-    rtcReleaseGeometry(geom);
-    rtcCommitScene(b.rtc);
+    /* Embree (common/rt_scene.h: its ray offset is the bake's too) */
+    wrt_v3 *corners = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * 4 * sizeof *corners);
+    for (int i = 0; i < b.nq; i++)
+        for (int k = 0; k < 4; k++) corners[4 * i + k] = b.quads[i].p[k];
+    wrt_rt_scene rs;
+    wrt_status est = wrt_rt_scene_build(corners, b.nq, v3(0, 0, 0), "threads=1", WRT_RT_ROBUST, &rs);
+    free(corners);
+    if (est != WRT_OK) { free(b.quads); free(b.rho); return est; }
+    b.dev = rs.dev;
+    b.rtc = rs.scene;
+    b.ray_eps = rs.eps;
 
     /* pairs */
     size_t cap = 64, np = 0;
@@ -258,6 +284,16 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     job.tc = wrt_xcalloc((size_t)nt, sizeof *job.tc);
     /* run in chunks so the progress callback can be called between them */
     size_t chunk = np / 50 + 1;
+    wrt_status mst = WRT_OK;
+    /* the pairs' link tables may use what the budget leaves beside what is resident now */
+    atomic_ullong pool_bytes, pool_refused;
+    atomic_init(&pool_bytes, 0);
+    atomic_init(&pool_refused, 0);
+    b.pool_bytes = &pool_bytes;
+    b.pool_refused = &pool_refused;
+    uint64_t rss0 = wrt_bake_rss_bytes();
+    b.pool_limit = b.opt.max_memory_mb * 1024.0 * 1024.0 - (double)rss0;
+    if (b.pool_limit < 0) b.pool_limit = 0;
     if (b.opt.progress) b.opt.progress("dto", 0, b.opt.progress_user);
     for (size_t start = 0; start < np; start += chunk) {
         size_t n = np - start < chunk ? np - start : chunk;
@@ -267,6 +303,22 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         if (b.opt.progress && !b.opt.progress("dto", (double)(start + n) / (double)np, b.opt.progress_user))
             atomic_store(&cancel, 1);
         if (atomic_load(&cancel)) break;
+        /* Memory: the entries so far, extrapolated over the pairs left (the pairs run in
+         * scene order, so a glossy wall late in the list is seen only when reached: the
+         * check repeats after every chunk), then their conversion to triplets, keys and
+         * the matrix, which needs about 60 bytes per entry beside the entries' 32. */
+        uint64_t ent = 0;
+        for (size_t i = 0; i < start + n; i++) ent += job.out[i].count;
+        double done = (double)(start + n) / (double)np, left = (1 - done) / done;
+        uint64_t need = (uint64_t)((double)ent * left * sizeof(pair_entry) + (double)ent * (1 + left) * 60.0);
+        uint64_t known = (uint64_t)((double)ent * 60.0);
+        /* the extrapolation from under a tenth of the pairs is noise (the first pairs of
+         * the glossy asset are its heaviest: 3x the final figure): it refuses only from
+         * there on, what is already computed at any time; the figure recorded is the last */
+        double keep = C->mem_estimate_mb;
+        mst = wrt_bake_memory_check(&b.opt, C, done >= 0.1 ? need : known, "the transport operator T");
+        if (start + n < np) C->mem_estimate_mb = keep;
+        if (mst != WRT_OK) break;
     }
     for (int t = 0; t < nt; t++) {
         C->samples += job.tc[t].samples;
@@ -278,8 +330,17 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         C->links_invisible += job.tc[t].links_invisible;
         C->t_rays += job.tc[t].t_rays;
     }
-    wrt_status st = WRT_OK;
-    if (atomic_load(&cancel)) st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
+    wrt_status st = mst;
+    if (st == WRT_OK && atomic_load(&pool_refused)) {
+        double mb = 1.0 / (1024.0 * 1024.0), need = (double)atomic_load(&pool_refused) * mb;
+        C->mem_estimate_mb = (double)rss0 * mb + need;
+        st = wrt_fail(WRT_ERR_NOMEM,
+                      "the bake would need at least %.0f MB (the links of the transport operator T being refined: "
+                      "%.0f MB more than the %.0f MB in use), over the memory budget of %.0f MB (--max-memory; "
+                      "default half the physical memory): lower --quality or --max-angular-level, or raise "
+                      "--max-memory", (double)rss0 * mb + need, need, (double)rss0 * mb, b.opt.max_memory_mb);
+    }
+    if (st == WRT_OK && atomic_load(&cancel)) st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
 
     /* index the basis functions: every key used, plus each quad's root */
     uint64_t nent = 0;

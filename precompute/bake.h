@@ -30,6 +30,7 @@ typedef struct wrt_bake_options {
     int max_bounces;       /* cap on the Neumann series (default 2000) */
     int no_tail;           /* 1: do not add the geometric estimate of the series' tail */
     int no_balance;        /* 1: keep T's root rows as the links integrate them (no power balance) */
+    double max_memory_mb;  /* memory budget; default half the physical memory (wrt_bake_memory_default) */
     wrt_progress_fn progress;
     void *progress_user;
 } wrt_bake_options;
@@ -67,6 +68,7 @@ typedef struct wrt_bake_counters {
     double t_dto, t_gto;           /* seconds (t_dto includes t_balance) */
     double t_balance;
     double t_rays;                 /* thread-seconds spent in visibility rays */
+    double mem_estimate_mb;        /* the largest memory need the bake estimated before allocating */
 } wrt_bake_counters;
 
 typedef struct wrt_bake_result {
@@ -83,6 +85,15 @@ typedef struct wrt_bake_result {
  * leaves *res empty. */
 wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt, wrt_bake_result *res);
 void wrt_bake_result_free(wrt_bake_result *res);
+
+/* The default memory budget in MB: half the physical memory. */
+double wrt_bake_memory_default(void);
+/* The process's resident memory now and at its peak (getrusage), in bytes (0 if unknown). */
+uint64_t wrt_bake_rss_bytes(void);
+uint64_t wrt_bake_peak_rss_bytes(void);
+/* Refuses (WRT_ERR_NOMEM, a message naming the figures) when `need` bytes more than
+ * what is resident now would pass the budget; records the largest estimate in *c. */
+wrt_status wrt_bake_memory_check(const wrt_bake_options *o, wrt_bake_counters *c, uint64_t need, const char *what);
 
 /* Counts links (groups of entries sharing the four supports) of a matrix over fkeys. */
 uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys);

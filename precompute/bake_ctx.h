@@ -27,6 +27,11 @@ typedef struct bake_ctx {
     uint8_t *alevel;        /* angular level per material (0: Lambertian) */
     float **btilde;         /* per glossy material: common/brdf_table.h's table, or NULL */
     atomic_int *cancel;
+    /* Memory of the pairs' link tables in flight (dto.c): a table's growth is refused
+     * before it is allocated when the sum would pass pool_limit bytes; pool_refused then
+     * holds the size it would have reached, and the bake is cancelled. */
+    atomic_ullong *pool_bytes, *pool_refused;
+    double pool_limit;
 } bake_ctx;
 
 typedef struct bake_thread_counters {

@@ -133,6 +133,24 @@ static size_t get_block(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     }
     size_t need = (pc->nblocks + 1) * pc->bsize;
     if (need > pc->pool_cap) {
+        /* memory: the growth is counted against the bake's budget before it is made; over
+         * it the bake is cancelled (the values written from here on are never used) and
+         * the last block is reused so the refinement can unwind */
+        const bake_ctx *b = pc->b;
+        unsigned long long add = (unsigned long long)(need * 2 - pc->pool_cap) * sizeof *pc->pool;
+        if (b->pool_bytes && pc->nblocks > 0) {
+            unsigned long long now = atomic_fetch_add(b->pool_bytes, add) + add;
+            if ((double)now > b->pool_limit) {
+                atomic_fetch_sub(b->pool_bytes, add);
+                unsigned long long prev = atomic_load(b->pool_refused);
+                while (now > prev && !atomic_compare_exchange_weak(b->pool_refused, &prev, now)) {}
+                atomic_store(b->cancel, 1);
+                pc->cancelled = 1;
+                return pc->nblocks - 1;
+            }
+        } else if (b->pool_bytes) {
+            atomic_fetch_add(b->pool_bytes, add);
+        }
         pc->pool_cap = need * 2;
         pc->pool = wrt_xrealloc(pc->pool, pc->pool_cap * sizeof *pc->pool);
     }
@@ -565,5 +583,6 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
     }
     out->glossy = pc.lr || pc.ls;
 done:
+    if (b->pool_bytes) atomic_fetch_sub(b->pool_bytes, (unsigned long long)pc.pool_cap * sizeof *pc.pool);
     free(pc.blocks); free(pc.pool); free(pc.hkeys); free(pc.hvals); free(pc.leaf);
 }

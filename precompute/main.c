@@ -17,7 +17,7 @@
 #include "../tools/compare.h"
 #include "bake.h"
 
-enum { EXIT_USAGE = 1, EXIT_INPUT = 2, EXIT_OUTPUT = 3, EXIT_CANCEL = 4, EXIT_ACCURACY = 5 };
+enum { EXIT_USAGE = 1, EXIT_INPUT = 2, EXIT_OUTPUT = 3, EXIT_CANCEL = 4, EXIT_ACCURACY = 5, EXIT_INTERNAL = 7 };
 
 static void usage(FILE *f) {
     fprintf(f,
@@ -46,6 +46,9 @@ static void usage(FILE *f) {
         "  --no-balance           keep T's quad-to-quad power as the links integrate it (no\n"
         "                         power balance: loses energy conservation; for comparison)\n"
         "  --max-bounces N        cap on the series (default 2000)\n"
+        "  --max-memory MB        memory budget: the bake estimates what each stage needs\n"
+        "                         before allocating it and refuses (exit 7, naming the figure)\n"
+        "                         when it would pass; default half the physical memory\n"
         "  --threads N            worker threads (default: all cores); output is identical\n"
         "  --drop-bad             drop bad triangles with a warning instead of refusing\n"
         "  --provenance-timings   also store the bake's timings in the file (they differ from\n"
@@ -187,6 +190,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--max-level")) { ok = parse_int(a, v, 1, 10, &o.max_slevel); i++; }
         else if (!strcmp(a, "--min-level")) { ok = parse_int(a, v, 0, 10, &o.min_slevel); i++; }
         else if (!strcmp(a, "--max-angular-level")) { ok = parse_int(a, v, 1, 3, &o.max_alevel); i++; }
+        else if (!strcmp(a, "--max-memory")) { ok = parse_double(a, v, 1, 1e9, &o.max_memory_mb); i++; }
         else if (!strcmp(a, "--max-bounces")) { ok = parse_int(a, v, 1, 1000000, &o.max_bounces); i++; }
         else if (!strcmp(a, "--threads")) { ok = parse_int(a, v, 1, 64, &o.threads); i++; }
         else if (!strcmp(a, "--max-error")) { ok = parse_double(a, v, 0, 100, &max_error); i++; }
@@ -278,6 +282,25 @@ int main(int argc, char **argv) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return EXIT_INPUT;
     }
+    /* ... nor any file the scene read (external buffers and images). */
+    if (s.files && s.files[0]) {
+        const char *ins[64];
+        int nin = 0;
+        for (char *l = s.files; *l && nin < 64;) {
+            char *nl = strchr(l, '\n');
+            if (nl) *nl = 0;
+            ins[nin++] = l;
+            if (!nl) break;
+            l = nl + 1;
+        }
+        cst = wrt_gto_check_output(out_path, ins, nin);
+        for (int k = 0; k < nin - 1; k++) ((char *)ins[k])[strlen(ins[k])] = '\n';
+        if (cst != WRT_OK) {
+            fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+            wrt_scene_free(&s);
+            return cst == WRT_ERR_INVALID_ARG ? EXIT_USAGE : EXIT_OUTPUT;
+        }
+    }
     if (s.nquads == 0) {
         fprintf(stderr, "wrt-bake: error: %s: the scene has no quads\n", scene_path);
         wrt_scene_free(&s);
@@ -290,7 +313,7 @@ int main(int argc, char **argv) {
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         wrt_scene_free(&s);
-        return st == WRT_ERR_CANCELLED ? EXIT_CANCEL : EXIT_INPUT;
+        return st == WRT_ERR_CANCELLED ? EXIT_CANCEL : st == WRT_ERR_NOMEM ? EXIT_INTERNAL : EXIT_INPUT;
     }
     wrt_bake_defaults(&o);
     const wrt_bake_counters *c = &r.c;
@@ -402,6 +425,8 @@ int main(int argc, char **argv) {
         if (max_error >= 0)
             printf("\"check\":{\"cell_rmse\":%.6g,\"floor\":%.6g,\"max_error\":%.6g,\"seconds\":%.3f},",
                    check_error, check_floor, max_error, t_check);
+        printf("\"memory_mb\":{\"peak_rss\":%.1f,\"estimated\":%.1f,\"budget\":%.0f},",
+               (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), c->mem_estimate_mb, o.max_memory_mb);
         printf("\"operator\":\"%s\",\"options\":", r.op_kind == WRT_GTO_OP_GATHERED ? "gathered" : "indirect");
         json_options(stdout, &o);
         printf(",");
@@ -411,6 +436,8 @@ int main(int argc, char **argv) {
         printf("baked %s -> %s (%lld bytes, %s operator)\n", scene_path, out_path, bytes,
                r.op_kind == WRT_GTO_OP_GATHERED ? "gathered" : "indirect");
         printf("  time      dto %.2f s, gto %.2f s, write %.2f s, total %.2f s\n", c->t_dto, c->t_gto, t_write, t_total);
+        printf("  memory    peak %.1f MB resident (largest estimate %.1f MB, budget %.0f MB)\n",
+               (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), c->mem_estimate_mb, o.max_memory_mb);
         printf("  quads     %d; pairs %llu exchanging of %llu (%llu skipped facing, %llu with no occluder)\n",
                s.nquads, (unsigned long long)c->pairs_exchange, (unsigned long long)c->pairs_total,
                (unsigned long long)c->pairs_skipped_facing, (unsigned long long)c->pairs_unoccluded);

@@ -15,12 +15,44 @@
  * accuracy on a 1 mm quad beside 1 km walls as on the walls, and does not change when
  * the scene is scaled. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "../formats/gto.h"
 #include "series.h"
 #include "balance.h"
+
+/* Memory before each product: an upper bound on the product's entries from the column
+ * counts (column j of P T has at most the sum of the counts of P's columns that T's
+ * column j touches, and at most n), and, when that bound passes a quarter of the
+ * budget, an estimate from every 16th column of the product (sparse.h; it costs a
+ * sixteenth of the product). The product needs its
+ * entries twice (columns, then gathered), the sum that follows S + N once more. */
+static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, const wrt_csc *P, const wrt_csc *T,
+                                      const wrt_csc *S, double eps, const wrt_csc_weights *W, int bounce) {
+    double bound = 0;
+    for (uint32_t j = 0; j < T->n; j++) {
+        double cnt = 0;
+        for (uint64_t k = T->col[j]; k < T->col[j + 1] && cnt < T->n; k++)
+            cnt += (double)(P->col[T->row[k] + 1] - P->col[T->row[k]]);
+        bound += cnt < T->n ? cnt : T->n;
+    }
+    const double per = 16.0; /* bytes per entry: row index and three floats */
+    char what[96];
+    if (bounce > 0) snprintf(what, sizeof what, "bounce %d of the series", bounce);
+    else snprintf(what, sizeof what, "the gathered operator T S");
+    double need = per * (2 * bound + (double)S->nnz + bound);
+    if ((double)wrt_bake_rss_bytes() + need <= 0.25 * b->opt.max_memory_mb * 1024.0 * 1024.0) {
+        /* within a quarter of the budget even at the bound: no sample needed (the
+         * sample costs a sixteenth of a product: 6% of a maze bake's series) */
+        return wrt_bake_memory_check(&b->opt, C, (uint64_t)need, what);
+    }
+    uint64_t est = wrt_csc_mul_estimate(P, T, eps, W, 16, b->opt.threads);
+    /* 1.25: the sample's spread, measured on the glossy asset (see the commit message) */
+    need = per * 1.25 * (2 * (double)est + (double)S->nnz + (double)est);
+    return wrt_bake_memory_check(&b->opt, C, (uint64_t)need, what);
+}
 
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     wrt_bake_counters *C = &res->c;
@@ -63,6 +95,13 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     int stable = 0;
     C->bounces = 1;
     while ((int)C->bounces < b->opt.max_bounces && P.nnz) {
+        wrt_status mst = series_memory_check(b, C, &P, T, &S, eps, &W, (int)C->bounces + 1);
+        if (mst != WRT_OK) {
+            char msg[1024];
+            snprintf(msg, sizeof msg, "%s", wrt_last_error());
+            wrt_csc_free(&P); wrt_csc_free(&S); free(rw); free(cw); free(pw); free(x); free(y);
+            return wrt_fail(mst, "%s", msg);
+        }
         wrt_csc N = wrt_csc_mul(&P, T, eps, &W, threads);
         if (!N.nnz) {
             /* every entry of the next term fell under the threshold, but together they
@@ -143,6 +182,14 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     C->links_gto = wrt_count_links(&S, res->fkeys);
     /* gathered: T + T S, computed when stored or when its figures are asked for */
     if (b->opt.gathered || b->opt.report_gathered) {
+        /* T S: the same check, with T on the left (column j of T S gathers T's columns) */
+        wrt_status mst = series_memory_check(b, C, T, &S, &S, eps, &W, 0);
+        if (mst != WRT_OK) {
+            char msg[1024];
+            snprintf(msg, sizeof msg, "%s", wrt_last_error());
+            wrt_csc_free(&S); free(rw); free(cw); free(pw);
+            return wrt_fail(mst, "%s", msg);
+        }
         wrt_csc TS = wrt_csc_mul(T, &S, eps, &W, threads);
         wrt_csc Gg = wrt_csc_add(&TS, T, 1.0);
         wrt_csc_free(&TS);

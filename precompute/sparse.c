@@ -250,6 +250,54 @@ wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_c
     return m;
 }
 
+typedef struct mul_sample_ctx { mul_ctx *c; uint32_t stride; } mul_sample_ctx;
+
+static void mul_sample_column(size_t i, int th, void *user) {
+    mul_sample_ctx *sc = user;
+    size_t j = i * sc->stride;
+    mul_column(j, th, sc->c);
+    col_out *o = &sc->c->out[j];
+    free(o->row); free(o->val);
+    o->row = NULL; o->val = NULL;
+}
+
+uint64_t wrt_csc_mul_estimate(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w,
+                              uint32_t stride, int threads) {
+    uint32_t n = a->n;
+    if (stride < 1) stride = 1;
+    if (n == 0) return 0;
+    int t = wrt_threads_resolve(threads);
+    mul_ctx c = {.a = a, .b = b, .drop = drop};
+    if (w) { c.row_w = w->row_w; c.col_w = w->col_w; c.power_w = w->power_w; }
+    c.out = wrt_xcalloc(n, sizeof *c.out);
+    c.acc = wrt_xcalloc((size_t)t, sizeof *c.acc);
+    c.mark = wrt_xcalloc((size_t)t, sizeof *c.mark);
+    c.list = wrt_xcalloc((size_t)t, sizeof *c.list);
+    c.tmp = wrt_xcalloc((size_t)t, sizeof *c.tmp);
+    for (int i = 0; i < t; i++) {
+        c.tmp[i] = wrt_xmalloc(((size_t)n + 1) * sizeof(uint32_t));
+        c.acc[i] = wrt_xmalloc(((size_t)n * 3 + 1) * sizeof(double));
+        c.mark[i] = wrt_xcalloc((size_t)n + 1, sizeof(uint32_t));
+        c.list[i] = wrt_xmalloc(((size_t)n + 1) * sizeof(uint32_t));
+    }
+    size_t m = ((size_t)n + stride - 1) / stride;
+    mul_sample_ctx sc = {&c, stride};
+    wrt_parallel_for(m, t, mul_sample_column, &sc);
+    /* the sampled columns' counts, scaled by the share of B's entries they hold (a
+     * product column's fill follows its B column's), so a few dense columns are not
+     * missed or overweighted by the stride */
+    uint64_t kept = 0, bs = 0;
+    for (size_t i = 0; i < m; i++) {
+        size_t j = i * stride;
+        kept += c.out[j].count;
+        bs += b->col[j + 1] - b->col[j];
+    }
+    for (int i = 0; i < t; i++) { free(c.acc[i]); free(c.mark[i]); free(c.list[i]); free(c.tmp[i]); }
+    free(c.acc); free(c.mark); free(c.list); free(c.tmp); free(c.out);
+    double scale = bs > 0 ? (double)b->nnz / (double)bs : (double)n / (double)m;
+    return (uint64_t)((double)kept * scale + 0.5);
+}
+
 wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s) {
     const double s3[3] = {s, s, s};
     return wrt_csc_add3(a, b, s3);

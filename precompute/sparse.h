@@ -31,6 +31,11 @@ typedef struct wrt_csc_weights { const double *row_w, *col_w, *power_w; } wrt_cs
 
 /* C = A B, compressed by `drop` and `w` (may be NULL). Deterministic whatever `threads`. */
 wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads);
+/* Estimated entries of wrt_csc_mul(a, b, drop, w) from every stride-th column of the
+ * product (computed and discarded), scaled by the share of B's entries those columns
+ * hold: what the product will allocate, known before it is allocated. */
+uint64_t wrt_csc_mul_estimate(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w,
+                              uint32_t stride, int threads);
 /* C = A + s B, and with a scale per channel. */
 wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s);
 wrt_csc wrt_csc_add3(const wrt_csc *a, const wrt_csc *b, const double s[3]);

@@ -5,7 +5,9 @@
 # with distinct errors, bad scenes and absurd options refused with a message and the
 # documented exit code, the output checked before the work (never an input, a writable
 # folder), non-regular inputs refused without blocking, the --max-error check file
-# private, and an interrupted bake leaving no output and no temporary behind (exit 4).
+# private, a memory budget refused with the figure named (exit 7) and the peak memory
+# covered by the estimate, and an interrupted bake leaving no output and no temporary
+# behind (exit 4).
 # Usage: tests/bake.sh BUILD. Prints "bake: N passed, N failed"; non-zero exit on a failure.
 set -u
 build=${1:-build}
@@ -105,6 +107,13 @@ expect_exit "-o names the scene: exit 1" 1 "the output is the input" "$bake" "$t
 expect_exit "-o is a hard link to the scene: exit 1" 1 "the output is the input" "$bake" "$tmp/scene.gltf" -o "$tmp/hard.gto"
 expect_exit "-o is a symbolic link to the scene: exit 1" 1 "the output is the input" "$bake" "$tmp/scene.gltf" -o "$tmp/sym.gto"
 cmp -s "$tmp/scene.gltf" "$tmp/scene.orig" && ok "the scene is intact" || ko "the scene is intact"
+# ... nor a file the scene reads (an external buffer).
+b64=$(grep -o 'base64,[A-Za-z0-9+/=]*' tests/data/quad.gltf | head -n 1 | cut -d, -f2)
+printf '%s' "$b64" | base64 -d > "$tmp/q.bin"; cp "$tmp/q.bin" "$tmp/q.orig"
+sed "s|data:application/octet-stream;base64,[A-Za-z0-9+/=]*|q.bin|" tests/data/quad.gltf > "$tmp/ext.gltf"
+"$bake" --scan "$tmp/ext.gltf" >/dev/null 2>"$tmp/err" && ok "scene with an external buffer loads" || ko "scene with an external buffer loads"
+expect_exit "-o names the scene's buffer: exit 1" 1 "q.bin: the output is the input" "$bake" "$tmp/ext.gltf" -o "$tmp/q.bin"
+cmp -s "$tmp/q.bin" "$tmp/q.orig" && ok "the buffer is intact" || ko "the buffer is intact"
 expect_exit "-o given twice: exit 1" 1 "-o given twice" "$bake" assets/cornell.gltf -o "$tmp/a.gto" -o "$tmp/b.gto"
 expect_exit "--quality given twice: exit 1" 1 "given twice" "$bake" assets/cornell.gltf -o "$tmp/a.gto" -q 2 --quality 3
 expect_exit "-o is a directory: exit 3" 3 "the output is a directory" "$bake" assets/cornell.gltf -o "$tmp"
@@ -129,6 +138,53 @@ wait $p1; r1=$?; wait $p2; r2=$?
     ok "two checked bakes to one output both succeed" || ko "two checked bakes to one output both succeed ($r1, $r2)"
 [ "$(cat "$tmp/two.gto.check")" = mine ] && ok "a user's OUT.gto.check is left alone" || ko "a user's OUT.gto.check is left alone"
 [ -z "$(ls "$tmp" | grep -F '.tmp.')" ] && ok "no temporary left" || ko "no temporary left"
+
+# Memory: a glossy bake reports its peak resident memory and the largest need it
+# estimated before allocating; the estimate covers the peak the bake then had (measured
+# by the kernel, not by the bake's own accounting), a budget under that peak is refused
+# (exit 7) with the estimated figure named and nothing written, a budget at the
+# estimate is enough.
+if "$gen" cornell-glossy --roughness 0.3 -o "$tmp/cg.gltf" >/dev/null 2>"$tmp/err" &&
+   "$bake" "$tmp/cg.gltf" -q 3 -o "$tmp/cg.gto" --json --quiet >"$tmp/cg.json" 2>"$tmp/err"; then
+    peak=$(jnum peak_rss "$tmp/cg.json"); est=$(jnum estimated "$tmp/cg.json")
+    if awk -v p="$peak" -v e="$est" 'BEGIN { exit !(p > 10 && e >= 0.9 * p) }'; then
+        ok "memory: estimate $est MB covers the peak $peak MB"
+    else
+        ko "memory: estimate $est MB covers the peak $peak MB"
+    fi
+    low=$(awk -v p="$peak" 'BEGIN { printf "%d", p / 2 }')
+    expect_exit "memory: budget $low MB refused: exit 7, figure named" 7 "would need (about|at least) [0-9]+ MB.*budget of $low MB" \
+        "$bake" "$tmp/cg.gltf" -q 3 -o "$tmp/cglow.gto" --max-memory "$low" --quiet
+    [ ! -e "$tmp/cglow.gto" ] && [ -z "$(ls "$tmp" | grep -F '.tmp.')" ] && ok "memory: nothing written when refused" ||
+        ko "memory: nothing written when refused"
+    # Under the columns' upper bound the series samples every 16th column of each
+    # product instead: that estimate must still cover the peak, and fit 1.3 x the peak.
+    tight=$(awk -v p="$peak" 'BEGIN { printf "%d", p * 1.3 + 1 }')
+    if "$bake" "$tmp/cg.gltf" -q 3 -o "$tmp/cgt.gto" --max-memory "$tight" --json --quiet >"$tmp/cgt.json" 2>"$tmp/err"; then
+        p2=$(jnum peak_rss "$tmp/cgt.json"); e2=$(jnum estimated "$tmp/cgt.json")
+        awk -v p="$p2" -v e="$e2" 'BEGIN { exit !(e >= 0.95 * p) }' && ok "memory: sampled estimate $e2 MB covers the peak $p2 MB" ||
+            ko "memory: sampled estimate $e2 MB covers the peak $p2 MB"
+    else
+        ko "memory: a budget of $tight MB (1.3 x the peak) is enough"
+    fi
+    # A setting far beyond the budget (the glossy asset at quality 9, 64 x 64 angular
+    # cells on every glossy link) is refused before its link tables grow past the
+    # budget: the kernel's peak for the process (getrusage of the child) stays under it.
+    rc=$(python3 -c 'import resource, subprocess, sys
+p = subprocess.run(sys.argv[1:-1], stdout=subprocess.DEVNULL, stderr=open(sys.argv[-1] + ".err", "w"))
+print(p.returncode, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss // 1024)' \
+        "$bake" assets/glossy.gltf -q 9 -o "$tmp/g9.gto" --max-memory 400 --quiet "$tmp/g9")
+    set -- $rc
+    if [ "${1:-x}" = 7 ] && [ "${2:-999999}" -le 400 ] && grep -q "budget of 400 MB" "$tmp/g9.err" && [ ! -e "$tmp/g9.gto" ]; then
+        ok "memory: quality 9 glossy refused at 400 MB (exit 7), peak ${2} MB"
+    else
+        ko "memory: quality 9 glossy refused at 400 MB (exit ${1:-?}), peak ${2:-?} MB"
+    fi
+    enough=$(awk -v e="$est" 'BEGIN { printf "%d", e * 1.1 + 16 }')
+    check "memory: budget $enough MB is enough" "$bake" "$tmp/cg.gltf" -q 3 -o "$tmp/cgok.gto" --max-memory "$enough" --quiet
+else
+    ko "cornell-glossy bake"
+fi
 
 # An interrupted bake leaves nothing behind and exits 4.
 "$bake" "$tmp/maze.gltf" -o "$tmp/int.gto" --quality 6 --quiet >/dev/null 2>&1 &

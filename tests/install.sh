@@ -39,5 +39,5 @@ awk '{for (i = 2; i <= 4; i++) if ($i != $i + 0 || $i < 0) bad = 1; if ($2 + $3 
 check "finite, non-negative, some quad lit" $?
 "$build/examples/relight" "$tmp/m.gto" >"$tmp/ex2.txt" 2>/dev/null && cmp -s "$tmp/ex.txt" "$tmp/ex2.txt"
 check "installed and in-tree builds print the same numbers" $?
-echo "$pass passed, $fail failed"
+echo "install.sh: $pass passed, $fail failed"
 [ $fail -eq 0 ]

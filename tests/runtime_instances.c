@@ -66,9 +66,14 @@ static void *run_job(void *p) {
     return NULL;
 }
 
-/* A counting allocator. */
-typedef struct counter { long allocs, frees; } counter;
-static void *c_alloc(size_t n, void *u) { ((counter *)u)->allocs++; return malloc(n); }
+/* A counting allocator; with fail_at > 0, allocation number fail_at fails. */
+typedef struct counter { long allocs, frees, fail_at; } counter;
+static void *c_alloc(size_t n, void *u) {
+    counter *c = u;
+    if (c->fail_at > 0 && c->allocs + 1 == c->fail_at) { c->fail_at = -1; return NULL; }
+    c->allocs++;
+    return malloc(n);
+}
 static void c_free(void *p, void *u) { if (p) ((counter *)u)->frees++; free(p); }
 
 static void *read_all(const char *path, size_t *size) {
@@ -91,7 +96,7 @@ int main(int argc, char **argv) {
     CHECK(bdata != NULL, "read %s", argv[2]);
     if (!bdata) return 1;
     wrt_runtime_options opt = {.threads = 2};
-    counter cnt = {0, 0};
+    counter cnt = {0, 0, 0};
     opt.allocator = (wrt_allocator){c_alloc, c_free, &cnt};
     wrt_error err;
     result alone[2][STEPS];
@@ -140,6 +145,17 @@ int main(int argc, char **argv) {
     wrt_runtime_close(ja.rt);
     wrt_runtime_close(jb.rt);
     CHECK(cnt.allocs > 0 && cnt.allocs == cnt.frees, "allocator: %ld blocks, %ld freed", cnt.allocs, cnt.frees);
+    /* every allocation of open failing in turn: WRT_ERR_NOMEM, everything given back */
+    int nomem_ok = 1, tries = 0;
+    for (long k = 1; k < 1000; k++, tries++) {
+        counter fc = {0, 0, k};
+        wrt_runtime_options fo = {.threads = 2, .allocator = {c_alloc, c_free, &fc}};
+        wrt_runtime *f;
+        wrt_status st = wrt_runtime_open_memory(bdata, bsize, &fo, &f, &err);
+        if (st == WRT_OK) { wrt_runtime_close(f); nomem_ok &= fc.allocs == fc.frees; break; }
+        nomem_ok &= st == WRT_ERR_NOMEM && f == NULL && fc.allocs == fc.frees && err.message[0];
+    }
+    CHECK(nomem_ok && tries > 5, "each of the %d allocations of open failing: WRT_ERR_NOMEM, nothing leaked", tries);
     /* errors: status and message, nothing aborts */
     wrt_runtime *x = (wrt_runtime *)&cnt;
     wrt_status s = wrt_runtime_open_file("/nonexistent/none.gto", NULL, &x, &err);

@@ -247,9 +247,16 @@ check furnace "$tmp/all/test/furnace.gltf" quads=6 lights=1 mode=inward light0=0
     bbox=-0.5,-0.5,-0.5,0.5,0.5,0.5
 check tworooms "$tmp/all/test/tworooms.gltf" quads=12 lights=1 mode=inward
 check grazing "$tmp/all/test/grazing.gltf" quads=2 lights=0 mode=hinge angle=1
+check cornell-glossy "$tmp/all/test/cornell_glossy.gltf" quads=15 lights=1 mode=room type=point camdir=0,0,-1 \
+    bbox=-0.5,0,-0.5,0.5,1,0.5 lookat_bbox=1 glossy=glossy_metal:0.3,white:1
+check glossy-box "$tmp/all/test/glossy_box.gltf" quads=6 lights=1 mode=inward \
+    bbox=-0.5,-0.5,-0.5,0.5,0.5,0.5 glossy=metal:0.3
+"$gen" cornell-glossy --roughness 0.05 -o "$tmp/cg05.gltf" >/dev/null 2>&1
+check cornell-glossy-0.05 "$tmp/cg05.gltf" quads=15 lights=1 mode=room type=point glossy=glossy_metal:0.05
 
 # the committed assets are what the generator writes now
-for f in cornell maze glossy test/facing test/perpendicular test/furnace test/tworooms test/grazing; do
+for f in cornell maze glossy test/facing test/perpendicular test/furnace test/tworooms test/grazing \
+         test/cornell_glossy test/glossy_box; do
     if cmp -s "$tmp/all/$f.gltf" "assets/$f.gltf"; then ok; else bad "assets/$f.gltf is stale (run make assets)"; fi
 done
 

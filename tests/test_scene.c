@@ -592,6 +592,7 @@ static void external_buffers(void) {
     wrt_scene s;
     CHECK(wrt_scene_load(path, NULL, &s) == WRT_OK, "%s", wrt_last_error());
     CHECK(s.nquads == 1, "external buffer");
+    CHECK(s.files && strstr(s.files, "/quad.bin\n"), "the external file is listed as an input: %s", s.files);
     wrt_scene_free(&s);
     free(t);
 

@@ -12,6 +12,7 @@
 
 #include "common/basis.h"
 #include "include/wrt.h"
+#include "common/rt_scene.h"
 #include "tools/reference.h"
 
 #include <embree3/rtcore.h>
@@ -167,10 +168,6 @@ static wrt_status ref_cells(wrt_compare_ref *c, wrt_ref *ref, int li, double *me
     return st;
 }
 
-static void embree_error(void *user, enum RTCError code, const char *str) {
-    (void)user;
-    wrt_log(WRT_LOG_WARN, "compare: Embree error %d: %s", (int)code, str ? str : "");
-}
 
 /* (u,v) of a point x on the quad's plane: the parallelogram's affine inverse, then
  * Newton steps on the bilinear map for a general convex quad. */
@@ -212,31 +209,15 @@ static wrt_status camera_hits(wrt_compare_ref *c) {
     int w = c->width, h = c->height, sub = c->opt.sub, ns = sub * sub;
     cam cm;
     if (!make_cam(&s->camera, w, h, &cm)) return wrt_fail(WRT_ERR_INVALID_ARG, "compare: degenerate camera");
-    RTCDevice dev = rtcNewDevice(NULL);
-    if (!dev) return wrt_fail(WRT_ERR_UNSUPPORTED, "compare: rtcNewDevice failed");
-    rtcSetDeviceErrorFunction(dev, embree_error, NULL);
-    RTCScene sc = rtcNewScene(dev);
-    rtcSetSceneFlags(sc, RTC_SCENE_FLAG_ROBUST);
-    RTCGeometry g = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_QUAD);
-    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                        4 * (size_t)s->nquads);
-    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned),
-                                           (size_t)s->nquads);
-    if (!vb || !ib) {
-        rtcReleaseGeometry(g); rtcReleaseScene(sc); rtcReleaseDevice(dev);
-        return wrt_fail(WRT_ERR_NOMEM, "compare: Embree buffers");
-    }
+    wrt_v3 *corners = malloc((size_t)(s->nquads > 0 ? s->nquads : 1) * 4 * sizeof *corners);
+    if (!corners) return wrt_fail(WRT_ERR_NOMEM, "compare: no memory for %d quads", s->nquads);
     for (int i = 0; i < s->nquads; i++)
-        for (int k = 0; k < 4; k++) {
-            vb[12 * i + 3 * k + 0] = (float)s->quads[i].p[k].x;
-            vb[12 * i + 3 * k + 1] = (float)s->quads[i].p[k].y;
-            vb[12 * i + 3 * k + 2] = (float)s->quads[i].p[k].z;
-            ib[4 * i + k] = (unsigned)(4 * i + k);
-        }
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(sc, g);
-    rtcReleaseGeometry(g);
-    rtcCommitScene(sc);
+        for (int k = 0; k < 4; k++) corners[4 * i + k] = s->quads[i].p[k];
+    wrt_rt_scene rs;
+    wrt_status st = wrt_rt_scene_build(corners, s->nquads, v3(0, 0, 0), NULL, WRT_RT_ROBUST, &rs);
+    free(corners);
+    if (st != WRT_OK) return st;
+    RTCScene sc = rs.scene;
     size_t npix = (size_t)w * h;
     c->hit_quad = wrt_xmalloc(npix * ns * sizeof(int));
     c->hit_uv = wrt_xmalloc(npix * ns * 2 * sizeof(float));
@@ -276,8 +257,7 @@ static wrt_status camera_hits(wrt_compare_ref *c) {
             c->valid[p] = (unsigned char)ok;
             nvalid += ok;
         }
-    rtcReleaseScene(sc);
-    rtcReleaseDevice(dev);
+    wrt_rt_scene_release(&rs);
     c->info.valid_pixels = nvalid;
     return WRT_OK;
 }

@@ -7,11 +7,12 @@
  *
  * Geometry is kept in double on our side: normals and planes are recomputed from the
  * quad corners, hit points are snapped back onto the hit quad's plane, and ray origins
- * are offset along the normal by a scale-relative epsilon (1e-5 x the scene's size)
+ * are offset along the normal by a scale-relative epsilon (wrt_ray_eps, common/rt_scene.h: 1e-5 x the scene's size)
  * so that Embree's single-precision intersections never see their own surface. */
 #include "reference.h"
 #include "common/brdf.h"
 #include "common/threads.h"
+#include "common/rt_scene.h"
 
 #include <embree3/rtcore.h>
 #include <stdatomic.h>
@@ -60,10 +61,6 @@ static double rng_next(ref_rng *r) {
 }
 
 /* ---- creation ---- */
-static void embree_error(void *user, enum RTCError code, const char *str) {
-    (void)user;
-    wrt_log(WRT_LOG_ERROR, "embree error %d: %s", (int)code, str ? str : "");
-}
 
 static void frame_of(wrt_v3 n, wrt_v3 *t, wrt_v3 *b) {
     wrt_v3 a = fabs(n.x) < 0.6 ? v3(1, 0, 0) : v3(0, 1, 0);
@@ -79,7 +76,6 @@ wrt_ref *wrt_ref_create(const wrt_scene *scene) {
     wrt_ref *r = wrt_xcalloc(1, sizeof *r);
     r->scene = scene;
     r->quads = wrt_xcalloc((size_t)scene->nquads, sizeof *r->quads);
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int i = 0; i < scene->nquads; i++) {
         const wrt_quad *q = &scene->quads[i];
         if (q->material < 0 || q->material >= scene->nmaterials) {
@@ -99,61 +95,25 @@ wrt_ref *wrt_ref_create(const wrt_scene *scene) {
         frame_of(n, &rq->t, &rq->b);
         rq->d = v3_dot(n, q->p[0]);
         rq->m = &scene->materials[q->material];
-        for (int k = 0; k < 4; k++) {
-            double c[3] = {q->p[k].x, q->p[k].y, q->p[k].z};
-            for (int a = 0; a < 3; a++) {
-                if (c[a] < lo[a]) lo[a] = c[a];
-                if (c[a] > hi[a]) hi[a] = c[a];
-            }
-        }
     }
-    double size = 0;
-    for (int a = 0; a < 3; a++) {
-        size = fmax(size, hi[a] - lo[a]);
-        size = fmax(size, fmax(fabs(lo[a]), fabs(hi[a])));
-    }
-    r->eps = 1e-5 * (size > 0 ? size : 1);
-
-    r->device = rtcNewDevice(NULL);
-    if (!r->device) {
-        wrt_fail(WRT_ERR_UNSUPPORTED, "reference: rtcNewDevice failed (error %d)",
-                 (int)rtcGetDeviceError(NULL));
-        wrt_ref_destroy(r);
-        return NULL;
-    }
-    rtcSetDeviceErrorFunction(r->device, embree_error, NULL);
-    r->rtc = rtcNewScene(r->device);
-    rtcSetSceneFlags(r->rtc, RTC_SCENE_FLAG_ROBUST);
-    rtcSetSceneBuildQuality(r->rtc, RTC_BUILD_QUALITY_HIGH);
-    RTCGeometry g = rtcNewGeometry(r->device, RTC_GEOMETRY_TYPE_QUAD);
-    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                        3 * sizeof(float), 4 * (size_t)scene->nquads);
-    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4,
-                                           4 * sizeof(unsigned), (size_t)scene->nquads);
-    if (!vb || !ib) {
-        rtcReleaseGeometry(g);
-        wrt_fail(WRT_ERR_NOMEM, "reference: Embree buffers for %d quads", scene->nquads);
+    wrt_v3 *corners = malloc((size_t)(scene->nquads > 0 ? scene->nquads : 1) * 4 * sizeof *corners);
+    if (!corners) {
+        wrt_fail(WRT_ERR_NOMEM, "reference: no memory for %d quads", scene->nquads);
         wrt_ref_destroy(r);
         return NULL;
     }
     for (int i = 0; i < scene->nquads; i++)
-        for (int k = 0; k < 4; k++) {
-            const wrt_v3 p = scene->quads[i].p[k];
-            vb[12 * i + 3 * k + 0] = (float)p.x;
-            vb[12 * i + 3 * k + 1] = (float)p.y;
-            vb[12 * i + 3 * k + 2] = (float)p.z;
-            ib[4 * i + k] = (unsigned)(4 * i + k);
-        }
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(r->rtc, g);
-    rtcReleaseGeometry(g);
-    rtcCommitScene(r->rtc);
-    enum RTCError err = rtcGetDeviceError(r->device);
-    if (err != RTC_ERROR_NONE) {
-        wrt_fail(WRT_ERR_UNSUPPORTED, "reference: Embree scene build failed (error %d)", (int)err);
+        for (int k = 0; k < 4; k++) corners[4 * i + k] = scene->quads[i].p[k];
+    wrt_rt_scene rs;
+    wrt_status st = wrt_rt_scene_build(corners, scene->nquads, v3(0, 0, 0), NULL, WRT_RT_ROBUST | WRT_RT_HIGH_QUALITY, &rs);
+    free(corners);
+    if (st != WRT_OK) {
         wrt_ref_destroy(r);
         return NULL;
     }
+    r->device = rs.dev;
+    r->rtc = rs.scene;
+    r->eps = rs.eps;
     return r;
 }
 

@@ -40,6 +40,7 @@ typedef struct sg_options {
     double intensity; /* > 0: override every light's intensity (candela, final) */
     int cells;        /* maze: cells per side */
     uint64_t seed;    /* maze: layout seed */
+    double roughness; /* cornell-glossy, glossy-box: the metal's roughness */
 } sg_options;
 
 static sg_options sg_defaults(void) {
@@ -56,6 +57,7 @@ static sg_options sg_defaults(void) {
     o.intensity = 0.0;
     o.cells = 6;
     o.seed = 1;
+    o.roughness = 0.3;
     return o;
 }
 
@@ -256,14 +258,15 @@ static void add_block(sg_scene *s, int mesh, double cx, double cz, double w, dou
 /* Cornell box, 1 m: x in [-0.5,0.5] (red wall at -x, i.e. left as seen by the camera
  * at +z), y in [0,1], z in [-0.5,0.5], open at +z. Dimensions follow the measured
  * box (555 mm) divided by 555; the short and tall boxes stand where they do there. */
-static void scene_cornell(sg_scene *s) {
+static void cornell_build(sg_scene *s, int glossy_back) {
     double a = s->opt.albedo;
     int white = add_material(s, "white", a, a, a, 0, 1);
     int red = add_material(s, "red", 0.63, 0.065, 0.05, 0, 1);
     int green = add_material(s, "green", 0.14, 0.45, 0.09, 0, 1);
+    int back = glossy_back ? add_material(s, "glossy_metal", 0.9, 0.9, 0.9, 1, s->opt.roughness) : white;
     add_rect(s, add_mesh(s, "floor", white), 1, 0.0, -0.5, 0.5, -0.5, 0.5, +1);
     add_rect(s, add_mesh(s, "ceiling", white), 1, 1.0, -0.5, 0.5, -0.5, 0.5, -1);
-    add_rect(s, add_mesh(s, "back_wall", white), 2, -0.5, -0.5, 0.5, 0.0, 1.0, +1);
+    add_rect(s, add_mesh(s, "back_wall", back), 2, -0.5, -0.5, 0.5, 0.0, 1.0, +1);
     add_rect(s, add_mesh(s, "left_wall", red), 0, -0.5, 0.0, 1.0, -0.5, 0.5, +1);
     add_rect(s, add_mesh(s, "right_wall", green), 0, 0.5, 0.0, 1.0, -0.5, 0.5, -1);
     add_block(s, add_mesh(s, "short_box", white), 0.17, 0.20, 0.30, 0.30, 0.30, -17);
@@ -271,6 +274,13 @@ static void scene_cornell(sg_scene *s) {
     add_light(s, "ceiling_light", LIGHT_POINT, v3(0, 0.85, 0), v3(0, 0, 0), 2.5, 1, 1, 1, 60, 80);
     set_camera(s, v3(0, 0.5, 1.9), v3(0, 0.5, 0), 39.3);
 }
+
+static void scene_cornell(sg_scene *s) { cornell_build(s, 0); }
+
+/* The Cornell box with a glossy metal back wall (base colour 0.9, metallic 1,
+ * roughness --roughness): the reflections of the lit ceiling and of the boxes are
+ * glossy-to-diffuse-to-glossy transport a path tracer shows. */
+static void scene_cornell_glossy(sg_scene *s) { cornell_build(s, 1); }
 
 /* splitmix64: a tiny PRNG whose sequence is fixed by its seed on every platform. */
 static uint64_t rng_next(uint64_t *st) {
@@ -423,6 +433,17 @@ static void scene_furnace(sg_scene *s) {
     set_camera(s, v3(0, 0, 0.4), v3(0, 0, -0.5), 60);
 }
 
+/* Closed 1 m cube of glossy metal (base colour --albedo, metallic 1, roughness
+ * --roughness) with a point light at the centre: the closed glossy box whose total
+ * flux must match the path tracer's (no energy created, also near a mirror). */
+static void scene_glossy_box(sg_scene *s) {
+    double a = s->opt.albedo;
+    int m = add_material(s, "metal", a, a, a, 1, s->opt.roughness);
+    add_room(s, add_mesh(s, "cube", m), v3(-0.5, -0.5, -0.5), v3(0.5, 0.5, 0.5));
+    add_light(s, "light", LIGHT_POINT, v3(0.1, 0.15, -0.05), v3(0, -1, 0), 1, 1, 1, 1, 45, 60);
+    set_camera(s, v3(0, 0, 0.4), v3(0, 0, -0.5), 60);
+}
+
 /* Two closed 1 m rooms side by side along x, separated by a wall --thick thick
  * (room A's +x face and room B's -x face back to back); the light is in room A,
  * so room B must stay black (light leak test). */
@@ -469,6 +490,9 @@ static const sg_entry scenes[] = {
     {"furnace", scene_furnace, "test/furnace.gltf", "closed cube, light at the centre"},
     {"tworooms", scene_tworooms, "test/tworooms.gltf", "two closed rooms, light in one"},
     {"grazing", scene_grazing, "test/grazing.gltf", "two squares at an --angle degree edge"},
+    {"cornell-glossy", scene_cornell_glossy, "test/cornell_glossy.gltf",
+     "Cornell box, back wall glossy metal of --roughness"},
+    {"glossy-box", scene_glossy_box, "test/glossy_box.gltf", "closed metal cube of --roughness, point light"},
 };
 #define NSCENES ((int)(sizeof scenes / sizeof scenes[0]))
 
@@ -799,6 +823,7 @@ static void usage(FILE *f) {
             "  --intensity I    every light's intensity in candela (after scaling)\n"
             "  --cells N        maze: corridors per side (default 6)\n"
             "  --seed N         maze: layout seed (default 1)\n"
+            "  --roughness R    cornell-glossy, glossy-box: the metal's roughness (default 0.3)\n"
             "scenes:\n");
     for (int i = 0; i < NSCENES; i++) fprintf(f, "  %-14s %s\n", scenes[i].name, scenes[i].what);
     fprintf(f, "\n");
@@ -843,7 +868,8 @@ int main(int argc, char **argv) {
             continue;
         }
         static const char *const known[] = {"--out", "-o", "--all", "--res", "--albedo", "--scale", "--dist", "--angle",
-                                            "--thick", "--intensity", "--cells", "--seed", "--light", "--offset"};
+                                            "--thick", "--intensity", "--cells", "--seed", "--light", "--offset",
+                                            "--roughness"};
         int is_known = 0;
         for (size_t k = 0; k < sizeof known / sizeof *known; k++) is_known |= !strcmp(a, known[k]);
         if (!is_known) { fprintf(stderr, "wrt-scenegen: unknown option %s (see --help)\n", a); return WRT_EXIT_USAGE; }
@@ -861,6 +887,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--intensity")) ok = parse_num(v, 1e-9, 1e12, &opt.intensity);
         else if (!strcmp(a, "--cells")) { ok = parse_num(v, 2, 64, &x) && x == floor(x); opt.cells = (int)x; }
         else if (!strcmp(a, "--seed")) { ok = parse_num(v, 0, 4e15, &x) && x == floor(x); opt.seed = (uint64_t)x; }
+        else if (!strcmp(a, "--roughness")) ok = parse_num(v, 0, 1, &opt.roughness);
         else if (!strcmp(a, "--light")) {
             opt.light = !strcmp(v, "none") ? LIGHT_NONE : !strcmp(v, "point") ? LIGHT_POINT
                       : !strcmp(v, "spot") ? LIGHT_SPOT : -2;
