@@ -87,6 +87,8 @@ typedef struct wrt_runtime_options {
     int max_tex_res;    /* cap on a quad's texture side in texels, a power of two: 0 = 64 */
     int proj_level;     /* spatial level of the direct light's projection: 0 = chosen per quad */
     wrt_allocator allocator;
+    int haar_blocks;    /* 1: textures show the bake's Haar cells as blocks, without the smooth
+                         * reconstruction (for before/after comparisons); 0 = smooth */
 } wrt_runtime_options;
 
 /* Fills the zero fields of *o with the defaults. */

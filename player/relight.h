@@ -19,6 +19,12 @@ typedef struct wrt_relight_options {
     int proj_reference;  /* n > 0: sample every cell of every quad's finest grid (no
                           * adaptivity; slow, for tests): n = 1 with the 4 samples a
                           * cell the adaptive projection takes, n = 2..8 with n x n */
+    int haar_blocks;     /* 1: textures are the Haar cells as they are (no smooth
+                          * reconstruction, player/reconstruct.h): for before/after */
+    int recon_extra;     /* smooth texture's levels past the finest cells' (0 = the
+                          * default: none; negative: coarser) */
+    int recon_keep;      /* the bake's cell averages kept as computed down to 2^keep cells
+                          * a side, resampled smoothly below (0 = the default, 3) */
     void *(*alloc)(size_t size, void *user); /* the relighter's arrays (both or neither; */
     void (*free)(void *p, void *user);        /* NULL: malloc and free). Update-time scratch */
     void *alloc_user;                         /* still comes from malloc. */
@@ -26,6 +32,7 @@ typedef struct wrt_relight_options {
 
 typedef struct wrt_relight_timings { /* milliseconds of the last update */
     double projection, multiply, brdf, synthesis;
+    double reconstruction;  /* of synthesis: the smooth display of the changed quads' groups */
     int quads_resynthesized;
     int lights_changed;
 } wrt_relight_timings;
@@ -47,7 +54,10 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *t);
 
 /* Quad q's texture of outgoing indirect radiance (linear RGB floats, res x res texels,
  * texel (i, j) covers u in [i/res, (i+1)/res), v in [j/res, (j+1)/res), stored row j
- * after row j-1). Valid until the next update. */
+ * after row j-1). Valid until the next update. Unless options.haar_blocks, it is the
+ * smooth reconstruction of player/reconstruct.h, meant to be sampled bilinearly and
+ * clamped to the quad's texels: texels on an edge shared with a coplanar neighbour hold
+ * the value on the edge, the same on both sides. */
 int wrt_relight_tex_res(const wrt_relight *r, int q);
 const float *wrt_relight_tex(const wrt_relight *r, int q);
 
@@ -79,7 +89,7 @@ int wrt_relight_beta(const wrt_relight *r, int m, double a_o, double b_o, int an
 
 /* Micro-benchmark: moves light 0 around a small circle (2% of the scene diagonal) for
  * `updates` updates, restores it, and returns the mean milliseconds per update (mean
- * timings in *mean if not NULL); -1 if no light is set. */
+ * timings in *mean if not NULL); -1 if no light is set (or no memory). */
 double wrt_relight_bench(wrt_relight *r, int updates, wrt_relight_timings *mean);
 
 #endif

@@ -61,7 +61,8 @@ static wrt_status open_common(const void *data, size_t size, const char *path, c
     wrt_status s = path ? wrt_gto_open(path, &rt->g) : wrt_gto_open_memory(data, size, &rt->g);
     if (s) { rt->al.free(rt, rt->al.user); return fail(err, s); }
     wrt_relight_options ro = {.proj_level = o.proj_level, .max_tex_res = o.max_tex_res, .threads = o.threads,
-                              .alloc = o.allocator.alloc, .free = o.allocator.free, .alloc_user = o.allocator.user};
+                              .alloc = o.allocator.alloc, .free = o.allocator.free, .alloc_user = o.allocator.user,
+                              .haar_blocks = o.haar_blocks};
     if ((s = wrt_relight_create(&rt->g, &ro, &rt->rl))) {
         wrt_gto_close(&rt->g);
         rt->al.free(rt, rt->al.user);

@@ -287,7 +287,7 @@ static void test_round_trip(void) {
         ts_identity(&s, 1);
         ts_finish(&s);
         wrt_relight *r;
-        wrt_relight_options o = {.proj_level = 3};
+        wrt_relight_options o = {.proj_level = 3, .haar_blocks = 1}; /* the Haar texels themselves */
         CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
         CHECK(wrt_relight_tex_res(r, 0) == 8, "texture res %d (slevel 2 -> 2^3)", wrt_relight_tex_res(r, 0));
         wrt_light l = point_light(0.3, 0.6, 0.5, 10);
@@ -431,7 +431,8 @@ static void test_shadow_refine(void) {
     ts_identity(&s, 1);
     ts_finish(&s);
     wrt_relight *r;
-    CHECK(wrt_relight_create(&s.g, NULL, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_relight_options o = {.haar_blocks = 1}; /* the Haar texels themselves */
+    CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
     wrt_light l = point_light(0.5, 0.5, 1.0, 10);
     wrt_relight_set_lights(r, &l, NULL, 1);
     wrt_relight_update(r, NULL);

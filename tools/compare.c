@@ -33,7 +33,7 @@ struct wrt_compare_ref {
     int *hit_quad; float *hit_uv; unsigned char *valid;
     /* last comparison */
     double *wcells[WRT_COMPARE_MAX_LIGHTS];
-    float *wimg[WRT_COMPARE_MAX_LIGHTS];
+    float *wimg[WRT_COMPARE_MAX_LIGHTS], *wimg_haar[WRT_COMPARE_MAX_LIGHTS];
     wrt_compare_ref_info info;
 };
 
@@ -322,6 +322,7 @@ wrt_status wrt_compare_ref_create(const wrt_scene *s, const wrt_light *lights, i
             c->img[li] = wrt_xmalloc(npix * sizeof(float));
             c->img_se[li] = wrt_xmalloc(npix * sizeof(float));
             c->wimg[li] = wrt_xcalloc(npix, sizeof(float));
+            c->wimg_haar[li] = wrt_xcalloc(npix, sizeof(float));
             st = wrt_ref_render(ref, &c->lights[li], 1, &s->camera, c->width, c->height, c->opt.spp, 0,
                                 c->opt.threads, c->opt.seed * 1000003u + (uint64_t)li * 7919u + 17,
                                 NULL, c->img[li], NULL, c->img_se[li]);
@@ -358,7 +359,7 @@ void wrt_compare_ref_destroy(wrt_compare_ref *c) {
     if (!c) return;
     for (int i = 0; i < WRT_COMPARE_MAX_LIGHTS; i++) {
         free(c->cell_mean[i]); free(c->cell_se[i]); free(c->img[i]); free(c->img_se[i]);
-        free(c->wcells[i]); free(c->wimg[i]);
+        free(c->wcells[i]); free(c->wimg[i]); free(c->wimg_haar[i]);
     }
     free(c->hit_quad); free(c->hit_uv); free(c->valid);
     free(c);
@@ -388,9 +389,10 @@ static wrt_status set_light(wrt_runtime *r, const wrt_light *l) {
 }
 
 /* The runtime on the bake's bytes (already mapped and checked by the caller). */
-static wrt_status open_runtime(const wrt_gto *g, int threads, wrt_runtime **r) {
+static wrt_status open_runtime(const wrt_gto *g, int threads, int haar_blocks, wrt_runtime **r) {
     wrt_runtime_options ro = {0};
     ro.threads = threads;
+    ro.haar_blocks = haar_blocks;
     return wrt_runtime_open_memory(g->map, g->size, &ro, r, NULL);
 }
 
@@ -407,6 +409,135 @@ static void tex_lookup(const float *tex, int res, double u, double v, double out
         double w = ((k & 1) ? tx : 1 - tx) * ((k >> 1) ? ty : 1 - ty);
         for (int c = 0; c < 3; c++) out[c] += w * tex[((size_t)y * res + x) * 3 + c];
     }
+}
+
+/* Cell averages of the indirect irradiance as the player shows it (compare.h): on a
+ * Lambertian quad the texture (outgoing radiance, base/pi x irradiance) sampled as
+ * tex_lookup does, 8 x 8 points a cell, times pi/base; elsewhere (glossy quads, a black
+ * channel) the Haar cells already in out. */
+static void display_cells(const wrt_gto *g, const wrt_runtime *r, int q, int n, double *out) {
+    const wrt_gto_material *mt = &g->materials[g->quads[q].material];
+    int res;
+    const float *tex = wrt_runtime_quad_texture(r, q, &res);
+    if (!mt->lambertian || !tex) return;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) {
+            double acc[3] = {0, 0, 0};
+            for (int b = 0; b < 8; b++)
+                for (int a = 0; a < 8; a++) {
+                    double v[3];
+                    tex_lookup(tex, res, (i + (a + 0.5) / 8) / n, (j + (b + 0.5) / 8) / n, v);
+                    for (int c = 0; c < 3; c++) acc[c] += v[c] / 64;
+                }
+            for (int c = 0; c < 3; c++)
+                if (mt->base_color[c] > 0) out[((size_t)j * n + i) * 3 + c] = acc[c] * WRT_PI / mt->base_color[c];
+        }
+}
+
+/* The image of relighter `r` for light li into `wi` and its errors against the reference. */
+static void image_errors(const wrt_compare_ref *c, int li, const wrt_runtime *r, float *wi, double *rmse,
+                         double *floor_, double *deb) {
+    double d2 = 0, se2 = 0, r2 = 0;
+    int ns = c->opt.sub * c->opt.sub;
+    for (size_t p = 0; p < (size_t)c->width * c->height; p++) {
+        double acc[3] = {0, 0, 0};
+        if (c->valid[p]) {
+            for (int k = 0; k < ns; k++) {
+                int q = c->hit_quad[p * ns + k];
+                double v[3];
+                int res;
+                const float *tex = wrt_runtime_quad_texture(r, q, &res);
+                tex_lookup(tex, res, c->hit_uv[(p * ns + k) * 2], c->hit_uv[(p * ns + k) * 2 + 1], v);
+                for (int ch = 0; ch < 3; ch++) acc[ch] += v[ch] / ns;
+            }
+            for (int ch = 0; ch < 3; ch++) {
+                double ref = c->img[li][p * 3 + ch], e = c->img_se[li][p * 3 + ch];
+                d2 += (acc[ch] - ref) * (acc[ch] - ref);
+                se2 += e * e;
+                r2 += ref * ref;
+            }
+        }
+        for (int ch = 0; ch < 3; ch++) wi[p * 3 + ch] = (float)acc[ch];
+    }
+    rel_errors(d2, se2, r2, rmse, floor_, deb);
+}
+
+/* (u, v) of the point at t along edge e of a quad (reconstruct.h's numbering), d inside. */
+static void edge_uv(int e, double t, double d, double *u, double *v) {
+    switch (e) {
+    case 0: *u = t; *v = d; break;
+    case 1: *u = 1 - d; *v = t; break;
+    case 2: *u = t; *v = 1 - d; break;
+    default: *u = d; *v = t; break;
+    }
+}
+
+/* Point at t along edge e of quad q (edge_uv's numbering: 0 from p0 to p1, 1 from p1 to
+ * p2, 2 from p3 to p2, 3 from p0 to p3). */
+static void edge_point(const wrt_gto *g, int q, int e, double t, double out[3]) {
+    static const int ends[4][2] = {{0, 1}, {1, 2}, {3, 2}, {0, 3}};
+    const double *a = g->quads[q].p[ends[e][0]], *b = g->quads[q].p[ends[e][1]];
+    for (int k = 0; k < 3; k++) out[k] = a[k] + t * (b[k] - a[k]);
+}
+
+static double dist3(const double a[3], const double b[3]) {
+    return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/* Quad q's neighbour across edge e, found here from the file's geometry alone (not from the
+ * display's own adjacency, so that a neighbour the display misses still counts as a seam):
+ * a quad of the same material, facing the same way in the same plane, whose edge has the
+ * same two ends. -1 if none; *nedge its edge, *flip 1 if it runs the other way. */
+static int shared_edge(const wrt_gto *g, int q, int e, double tol, int *nedge, int *flip) {
+    double a[3], b[3], c[3], d[3];
+    edge_point(g, q, e, 0, a);
+    edge_point(g, q, e, 1, b);
+    const float *nq = g->quads[q].n;
+    for (int o = 0; o < (int)g->nquads; o++) {
+        if (o == q || g->quads[o].material != g->quads[q].material) continue;
+        const float *no = g->quads[o].n;
+        if (nq[0] * no[0] + nq[1] * no[1] + nq[2] * no[2] < 1 - 1e-5) continue;
+        for (int f = 0; f < 4; f++) {
+            edge_point(g, o, f, 0, c);
+            edge_point(g, o, f, 1, d);
+            if (dist3(a, c) < tol && dist3(b, d) < tol) { *nedge = f; *flip = 0; return o; }
+            if (dist3(a, d) < tol && dist3(b, c) < tol) { *nedge = f; *flip = 1; return o; }
+        }
+    }
+    return -1;
+}
+
+/* Seams (compare.h): over every edge two coplanar quads of one material share, 32 points
+ * along it, the display's jump between the two quads a quarter texel inside each, and the
+ * jump across the parallel line through the quad's middle at the same distance; each
+ * summed over RGB and divided by the sum of the values there. */
+static void seam_jumps(const wrt_gto *g, const wrt_runtime *r, double tol, double *across, double *inside) {
+    double ja = 0, ji = 0, sa = 0, si = 0;
+    for (int q = 0; q < (int)g->nquads; q++)
+        for (int e = 0; e < 4; e++) {
+            int ne = 0, fl = 0, o = shared_edge(g, q, e, tol, &ne, &fl);
+            if (o < q) continue; /* none, or counted from the other side */
+            int rq, ro;
+            const float *tq = wrt_runtime_quad_texture(r, q, &rq), *to = wrt_runtime_quad_texture(r, o, &ro);
+            double dq = 0.25 / rq, dn = 0.25 / ro;
+            for (int k = 0; k < 32; k++) {
+                double t = (k + 0.5) / 32, u, v, a[3], b[3], c0[3], c1[3];
+                edge_uv(e, t, dq, &u, &v);
+                tex_lookup(tq, rq, u, v, a);
+                edge_uv(ne, fl ? 1 - t : t, dn, &u, &v);
+                tex_lookup(to, ro, u, v, b);
+                edge_uv(e, t, 0.5 - dq, &u, &v);
+                tex_lookup(tq, rq, u, v, c0);
+                edge_uv(e, t, 0.5 + dq, &u, &v);
+                tex_lookup(tq, rq, u, v, c1);
+                for (int c = 0; c < 3; c++) {
+                    ja += fabs(a[c] - b[c]); sa += (a[c] + b[c]) / 2;
+                    ji += fabs(c0[c] - c1[c]); si += (c0[c] + c1[c]) / 2;
+                }
+            }
+        }
+    *across = sa > 0 ? ja / sa : 0;
+    *inside = si > 0 ? ji / si : 0;
 }
 
 static int cmp_double(const void *a, const void *b) {
@@ -430,17 +561,22 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
             if (!(v3_len(d) <= 1e-6 * (size > 0 ? size : 1)))
                 return wrt_fail(WRT_ERR_INVALID_ARG, "compare: quad %d of the bake differs from the scene's: not baked from it", q);
         }
-    wrt_runtime *r;
-    wrt_status st = open_runtime(g, c->opt.threads, &r);
+    wrt_runtime *r, *rh; /* rh: the same bake shown as Haar blocks, for the before/after figures */
+    wrt_status st = open_runtime(g, c->opt.threads, 0, &r);
     if (st != WRT_OK) return st;
+    st = open_runtime(g, c->opt.threads, 1, &rh);
+    if (st != WRT_OK) { wrt_runtime_close(r); return st; }
     double eye[3] = {s->camera.pos.x, s->camera.pos.y, s->camera.pos.z};
     wrt_runtime_set_eye(r, eye, NULL);
-    int n = c->n, nc = n * n, ns = c->opt.sub * c->opt.sub;
+    wrt_runtime_set_eye(rh, eye, NULL);
+    int n = c->n, nc = n * n;
     out->nlights = c->nlights;
     int nlit = 0;
     for (int li = 0; li < c->nlights; li++) {
-        if ((st = set_light(r, &c->lights[li])) || (st = wrt_runtime_update(r, NULL, NULL))) {
+        if ((st = set_light(r, &c->lights[li])) || (st = wrt_runtime_update(r, NULL, NULL)) ||
+            (st = set_light(rh, &c->lights[li])) || (st = wrt_runtime_update(rh, NULL, NULL))) {
             wrt_runtime_close(r);
+            wrt_runtime_close(rh);
             return st;
         }
         wrt_compare_light_result *lr = &out->light[li];
@@ -459,34 +595,32 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
             }
         }
         rel_errors(d2, se2, r2, &lr->cell_rmse, &lr->cell_floor, &lr->cell_debiased);
+        /* The same cells of the smooth display (Lambertian quads; the Haar cells elsewhere). */
+        d2 = se2 = r2 = 0;
+        double *w = wrt_xmalloc((size_t)nc * 3 * sizeof(double));
+        for (int q = 0; q < s->nquads; q++) {
+            memcpy(w, c->wcells[li] + (size_t)q * nc * 3, (size_t)nc * 3 * sizeof(double));
+            display_cells(g, r, q, n, w);
+            const double *m = c->cell_mean[li] + (size_t)q * nc * 3, *e = c->cell_se[li] + (size_t)q * nc * 3;
+            double a = s->quads[q].area;
+            for (int k = 0; k < nc * 3; k++) {
+                d2 += a * (w[k] - m[k]) * (w[k] - m[k]);
+                se2 += a * e[k] * e[k];
+                r2 += a * m[k] * m[k];
+            }
+        }
+        free(w);
+        double fl;
+        rel_errors(d2, se2, r2, &lr->cell_rmse_smooth, &fl, &lr->cell_debiased_smooth);
         lr->cell_ratio = sr > 0 ? sw / sr : 0;
         lr->image_rmse = lr->image_floor = lr->image_debiased = -1;
+        lr->image_rmse_haar = lr->image_debiased_haar = -1;
         if (c->width > 0) {
-            d2 = se2 = r2 = 0;
-            float *wi = c->wimg[li];
-            for (size_t p = 0; p < (size_t)c->width * c->height; p++) {
-                double acc[3] = {0, 0, 0};
-                if (c->valid[p]) {
-                    for (int k = 0; k < ns; k++) {
-                        int q = c->hit_quad[p * ns + k];
-                        double v[3];
-                        int res;
-                        const float *tex = wrt_runtime_quad_texture(r, q, &res);
-                        tex_lookup(tex, res, c->hit_uv[(p * ns + k) * 2],
-                                   c->hit_uv[(p * ns + k) * 2 + 1], v);
-                        for (int ch = 0; ch < 3; ch++) acc[ch] += v[ch] / ns;
-                    }
-                    for (int ch = 0; ch < 3; ch++) {
-                        double ref = c->img[li][p * 3 + ch], e = c->img_se[li][p * 3 + ch];
-                        d2 += (acc[ch] - ref) * (acc[ch] - ref);
-                        se2 += e * e;
-                        r2 += ref * ref;
-                    }
-                }
-                for (int ch = 0; ch < 3; ch++) wi[p * 3 + ch] = (float)acc[ch];
-            }
-            rel_errors(d2, se2, r2, &lr->image_rmse, &lr->image_floor, &lr->image_debiased);
+            image_errors(c, li, r, c->wimg[li], &lr->image_rmse, &lr->image_floor, &lr->image_debiased);
+            image_errors(c, li, rh, c->wimg_haar[li], &lr->image_rmse_haar, &fl, &lr->image_debiased_haar);
         }
+        seam_jumps(g, r, 1e-6 * (size > 0 ? size : 1), &lr->seam_across, &lr->seam_inside);
+        seam_jumps(g, rh, 1e-6 * (size > 0 ? size : 1), &lr->seam_across_haar, &lr->seam_inside_haar);
         if (lr->cell_rmse == 0 && lr->cell_floor == 0) continue; /* no indirect light at all */
         wrt_compare_light_result *m = &out->mean;
         m->cell_rmse += lr->cell_rmse;
@@ -496,6 +630,12 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
         m->image_floor += lr->image_floor;
         m->image_debiased += lr->image_debiased;
         m->cell_ratio += lr->cell_ratio;
+        m->cell_rmse_smooth += lr->cell_rmse_smooth;
+        m->cell_debiased_smooth += lr->cell_debiased_smooth;
+        m->image_rmse_haar += lr->image_rmse_haar;
+        m->image_debiased_haar += lr->image_debiased_haar;
+        m->seam_across += lr->seam_across; m->seam_inside += lr->seam_inside;
+        m->seam_across_haar += lr->seam_across_haar; m->seam_inside_haar += lr->seam_inside_haar;
         nlit++;
     }
     if (nlit > 0) {
@@ -503,8 +643,12 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
         m->cell_rmse /= nlit; m->cell_floor /= nlit; m->cell_debiased /= nlit;
         m->image_rmse /= nlit; m->image_floor /= nlit; m->image_debiased /= nlit;
         m->cell_ratio /= nlit;
+        m->cell_rmse_smooth /= nlit; m->cell_debiased_smooth /= nlit;
+        m->image_rmse_haar /= nlit; m->image_debiased_haar /= nlit;
+        m->seam_across /= nlit; m->seam_inside /= nlit; m->seam_across_haar /= nlit; m->seam_inside_haar /= nlit;
     }
     wrt_runtime_close(r);
+    wrt_runtime_close(rh);
     st = wrt_compare_bench(g, &c->lights[0], eye, c->opt.bench_updates, c->opt.threads, out);
     out->seconds = wrt_now() - t0;
     return st;
@@ -520,7 +664,7 @@ wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const dou
                              int threads, wrt_compare_result *out) {
     if (updates < 1) return wrt_fail(WRT_ERR_INVALID_ARG, "compare: %d timed updates", updates);
     wrt_runtime *r;
-    wrt_status st = open_runtime(g, threads, &r);
+    wrt_status st = open_runtime(g, threads, 0, &r);
     if (st != WRT_OK) return st;
     if ((st = wrt_runtime_set_eye(r, eye, NULL)) || (st = set_light(r, light)) || (st = wrt_runtime_update(r, NULL, NULL))) {
         wrt_runtime_close(r);
@@ -558,7 +702,7 @@ wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const dou
 }
 const float *wrt_compare_image(const wrt_compare_ref *c, int light, int wavelet) {
     if (light < 0 || light >= c->nlights || c->width <= 0) return NULL;
-    return wavelet ? c->wimg[light] : c->img[light];
+    return wavelet == 2 ? c->wimg_haar[light] : wavelet ? c->wimg[light] : c->img[light];
 }
 
 const double *wrt_compare_cells(const wrt_compare_ref *c, int light, int q, int wavelet, const double **se) {

@@ -78,6 +78,17 @@ typedef struct wrt_compare_light_result {
     double cell_rmse, cell_floor, cell_debiased;
     double image_rmse, image_floor, image_debiased; /* -1 without the image comparison */
     double cell_ratio;  /* sum w W / sum w R over cells and channels: the bake's overall bias */
+    /* The display (player/reconstruct.h): the cells of the smooth textures on Lambertian
+     * quads (the Haar cells elsewhere), and the image of the Haar cells as blocks, the
+     * display before the smooth reconstruction (same floors as above). */
+    double cell_rmse_smooth, cell_debiased_smooth;
+    double image_rmse_haar, image_debiased_haar;
+    /* Seams of the display (smooth; _haar: the Haar blocks): over the edges shared by
+     * coplanar neighbours (reconstruct.h), the mean jump between the two quads a quarter
+     * texel either side of the edge, and inside: the jump across each quad's middle line
+     * at the same distance; both relative to the light's value there. 0 without shared
+     * edges. */
+    double seam_across, seam_inside, seam_across_haar, seam_inside_haar;
 } wrt_compare_light_result;
 
 typedef struct wrt_compare_result {
@@ -102,8 +113,9 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *r, const wrt_gto *g, wrt_compa
 wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const double eye[3], int updates,
                              int threads, wrt_compare_result *out);
 
-/* For tests and pictures: the last comparison's wavelet and reference indirect images of
- * light `light` (width x height RGB, top row first; NULL if none). Valid until the next
+/* For tests and pictures: the last comparison's wavelet (wavelet = 1; 2: the Haar cells
+ * as blocks) and reference (0) indirect images of light `light` (width x height RGB, top
+ * row first; NULL if none). Valid until the next
  * wrt_compare_gto or destroy. Invalid pixels (a camera ray missed or saw a back face) are 0. */
 const float *wrt_compare_image(const wrt_compare_ref *r, int light, int wavelet);
 /* Cell averages of quad q for light `light`: n x n x RGB, cell (i, j) at (j n + i) x 3,

@@ -38,8 +38,11 @@ static void usage(FILE *f) {
             "  --bench-only        no reference: only time the light changes of each bake\n"
             "  --threads N         0 = all cores (default)\n"
             "  --seed S            reference seed (default 1)\n"
-            "  -o, --out PREFIX    write PREFIX_{wavelet,reference}.exr/.png of the first\n"
-            "                      position and the last bake (--images is the same)\n"
+            "  -o, --out PREFIX    write PREFIX_{wavelet,haar,reference}.exr/.png and\n"
+            "                      PREFIX_panel.png (Haar | smooth | reference | error map)\n"
+            "                      of the first position and the last bake (--images is the same)\n"
+            "  --closeup X,Y,S     with --out: PREFIX_closeup.png, the S x S pixels at X, Y of\n"
+            "                      the Haar and the smooth display, 4x enlarged\n"
             "  --exposure EV       the PNGs' exposure in stops (default 0), wrt-play's curve\n"
             "  --max-error E       exit 5 if a bake's cell rmse exceeds E (pipeline check)\n"
             "  --per-quad          add each quad's mean indirect irradiance (first light), wavelet\n"
@@ -70,22 +73,53 @@ static int parse_double(const char *s, double *out) {
 static void json_errors(FILE *f, const wrt_compare_light_result *r) {
     printf("\"cell_rmse\":%.6g,\"cell_floor\":%.6g,\"cell_rmse_debiased\":%.6g,", r->cell_rmse, r->cell_floor,
            r->cell_debiased);
-    printf("\"image_rmse\":%.6g,\"image_floor\":%.6g,\"image_rmse_debiased\":%.6g,\"cell_ratio\":%.6g",
+    printf("\"image_rmse\":%.6g,\"image_floor\":%.6g,\"image_rmse_debiased\":%.6g,\"cell_ratio\":%.6g,",
            r->image_rmse, r->image_floor, r->image_debiased, r->cell_ratio);
+    printf("\"cell_rmse_smooth\":%.6g,\"cell_rmse_smooth_debiased\":%.6g,\"image_rmse_haar\":%.6g,"
+           "\"image_rmse_haar_debiased\":%.6g,",
+           r->cell_rmse_smooth, r->cell_debiased_smooth, r->image_rmse_haar, r->image_debiased_haar);
+    printf("\"seam_across\":%.6g,\"seam_inside\":%.6g,\"seam_across_haar\":%.6g,\"seam_inside_haar\":%.6g",
+           r->seam_across, r->seam_inside, r->seam_across_haar, r->seam_inside_haar);
     (void)f;
 }
 
+/* Error heat map colour of t in [0, 1]: black, blue, red, yellow, white. */
+static void heat(double t, uint8_t *px) {
+    static const double k[5][3] = {{0, 0, 0}, {0.1, 0.2, 0.9}, {0.9, 0.1, 0.1}, {1, 0.9, 0.1}, {1, 1, 1}};
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    double f = t * 4;
+    int i = f >= 4 ? 3 : (int)f;
+    double a = f - i;
+    for (int c = 0; c < 3; c++) px[c] = (uint8_t)lround(255 * (k[i][c] * (1 - a) + k[i + 1][c] * a));
+}
+
+static int write_png(const char *prefix, const char *name, const uint8_t *px, int w, int h) {
+    char path[4096];
+    snprintf(path, sizeof path, "%s_%s.png", prefix, name);
+    if (wrt_image_write_rgb8(path, px, w, h) == WRT_OK) return 0;
+    fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+    return WRT_EXIT_OUTPUT;
+}
+
 /* The first light's images as EXR (linear) and PNG (the tone curve of every tool's PNG,
- * cli/cli.h, so that they can be put beside wrt-play's and wrt-ref's). Returns 0 or
- * WRT_EXIT_OUTPUT. */
-static int write_images(const char *prefix, const wrt_compare_ref *c, int w, int h, double exposure) {
-    const float *img[2] = {wrt_compare_image(c, 0, 1), wrt_compare_image(c, 0, 0)};
-    const char *name[2] = {"wavelet", "reference"};
-    if (!img[0] || !img[1]) return 0;
+ * cli/cli.h, so that they can be put beside wrt-play's and wrt-ref's): the bake's display
+ * (wavelet: smooth; haar: the Haar cells as blocks), the reference, and
+ * PREFIX_panel.png: haar | wavelet | reference | error heat map of the smooth display
+ * (|wavelet - reference| over RGB relative to the reference's mean: black 0, white 50%
+ * and above); with `closeup` (X, Y, S) PREFIX_closeup.png, the Haar and smooth panels'
+ * S x S pixels at X, Y enlarged 4 times. Returns 0 or WRT_EXIT_OUTPUT. */
+static int write_images(const char *prefix, const wrt_compare_ref *c, int w, int h, double exposure,
+                        const double *closeup) {
+    const float *img[3] = {wrt_compare_image(c, 0, 1), wrt_compare_image(c, 0, 0), wrt_compare_image(c, 0, 2)};
+    const char *name[3] = {"wavelet", "reference", "haar"};
+    static const int slot[3] = {1, 2, 0}; /* panel order: haar, wavelet, reference, error */
+    if (!img[0] || !img[1] || !img[2]) return 0;
     size_t n = (size_t)w * h;
-    uint8_t *px = wrt_xmalloc(n * 3);
+    uint8_t *px = wrt_xmalloc(n * 3), *panel = wrt_xmalloc(n * 3 * 4);
     int rc = 0;
-    for (int k = 0; k < 2; k++) {
+    double mean = 0;
+    for (size_t i = 0; i < n * 3; i++) mean += img[1][i] / (double)(n * 3);
+    for (int k = 0; k < 3; k++) {
         char path[4096];
         snprintf(path, sizeof path, "%s_%s.exr", prefix, name[k]);
         if (wrt_image_write_exr(path, img[k], w, h) != WRT_OK) {
@@ -93,13 +127,32 @@ static int write_images(const char *prefix, const wrt_compare_ref *c, int w, int
             rc = WRT_EXIT_OUTPUT;
         }
         wrt_tonemap_rgb8(img[k], n, (float)exposure, px);
-        snprintf(path, sizeof path, "%s_%s.png", prefix, name[k]);
-        if (wrt_image_write_rgb8(path, px, w, h) != WRT_OK) {
-            fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
-            rc = WRT_EXIT_OUTPUT;
+        for (int y = 0; y < h; y++)
+            memcpy(panel + ((size_t)y * 4 * w + (size_t)slot[k] * w) * 3, px + (size_t)y * w * 3, (size_t)w * 3);
+        if (write_png(prefix, name[k], px, w, h)) rc = WRT_EXIT_OUTPUT;
+    }
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            size_t p = ((size_t)y * w + x) * 3;
+            double d = 0;
+            for (int ch = 0; ch < 3; ch++) d += fabs(img[0][p + ch] - img[1][p + ch]) / 3;
+            heat(mean > 0 ? d / mean / 0.5 : 0, panel + ((size_t)y * 4 * w + 3 * (size_t)w + x) * 3);
         }
+    if (write_png(prefix, "panel", panel, 4 * w, h)) rc = WRT_EXIT_OUTPUT;
+    if (closeup) {
+        int x0 = (int)closeup[0], y0 = (int)closeup[1], sz = (int)closeup[2], k = 4, cw = 2 * sz * k + k;
+        uint8_t *cu = wrt_xcalloc((size_t)cw * sz * k * 3, 1);
+        for (int y = 0; y < sz * k; y++)
+            for (int x = 0; x < cw; x++) {
+                int side = x / (sz * k + k), xx = (x - side * (sz * k + k)) / k, yy = y / k;
+                if (xx >= sz || x0 + xx >= w || y0 + yy >= h) continue; /* the gap, or outside */
+                memcpy(cu + ((size_t)y * cw + x) * 3, panel + ((size_t)(y0 + yy) * 4 * w + (size_t)side * w + x0 + xx) * 3, 3);
+            }
+        if (write_png(prefix, "closeup", cu, cw, sz * k)) rc = WRT_EXIT_OUTPUT;
+        free(cu);
     }
     free(px);
+    free(panel);
     return rc;
 }
 
@@ -108,7 +161,7 @@ static const char *T = "wrt-compare";
 static int takes_value(const char *a) {
     static const char *const names[] = {"--lights", "--light-pos", "--cells", "--cell-paths", "--pilot", "--width",
                                         "--spp", "--sub", "--bench", "--threads", "--seed", "--images", "-o",
-                                        "--out", "--exposure", "--max-error"};
+                                        "--out", "--exposure", "--max-error", "--closeup"};
     for (size_t k = 0; k < sizeof names / sizeof *names; k++)
         if (!strcmp(a, names[k])) return 1;
     return 0;
@@ -116,6 +169,8 @@ static int takes_value(const char *a) {
 
 int main(int argc, char **argv) {
     const char *scene_path = NULL, *images = NULL;
+    double closeup[3] = {0, 0, 0};
+    int has_closeup = 0;
     int per_quad = 0, bench_only = 0;
     const char **gtos = wrt_xcalloc((size_t)argc, sizeof(char *));
     int ngto = 0, nlights_req = 5, nexplicit = 0;
@@ -159,6 +214,11 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--seed")) { ok = parse_long(v, 1, 1L << 62, &x); o.seed = (uint64_t)x; }
         else if (!strcmp(a, "--images") || !strcmp(a, "-o") || !strcmp(a, "--out")) images = v;
         else if (!strcmp(a, "--exposure")) ok = parse_double(v, &exposure) && fabs(exposure) <= 64;
+        else if (!strcmp(a, "--closeup")) {
+            ok = wrt_parse_vec3(v, closeup) && closeup[0] >= 0 && closeup[1] >= 0 && closeup[2] >= 1 &&
+                 closeup[0] == floor(closeup[0]) && closeup[1] == floor(closeup[1]) && closeup[2] == floor(closeup[2]);
+            has_closeup = 1;
+        }
         else if (!strcmp(a, "--max-error")) ok = parse_double(v, &max_error) && max_error >= 0;
         else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-compare: unknown option %s (see --help)\n", a); return 1; }
         else {
@@ -330,7 +390,8 @@ int main(int argc, char **argv) {
             printf("]");
         }
         printf("}");
-        if (images && write_images(images, ref, info.width, info.height, exposure)) failed_output = 1;
+        if (images && write_images(images, ref, info.width, info.height, exposure, has_closeup ? closeup : NULL))
+            failed_output = 1;
         wrt_gto_close(&g);
     }
     printf("],\"max_error\":");

@@ -4,7 +4,11 @@
 # 3 runs when a bake takes under 10 s, else 1 run), compares all the bakes with one
 # path-traced reference (wrt-compare: relative RMSE of the indirect light over cell
 # averages and in the camera's image, the reference's error floor, the player's median
-# milliseconds per light change), and writes OUT/NAME.csv, OUT/NAME.json, OUT/NAME.png
+# milliseconds per light change; the image error of the smooth display and of the Haar
+# cells before it), times the path tracer (wrt-ref) per path per pixel so that each row
+# states the path tracer's seconds to the same image error, renders the pictures of the
+# default quality (OUT/NAME_panel.png: Haar | smooth | path tracer | error map), and
+# writes OUT/NAME.csv, OUT/NAME.json, OUT/NAME.png
 # (error against bake time, file bytes and milliseconds per light change, floor shown)
 # and OUT/README.md (the tables). Needs jq and gnuplot (tools/install-deps.sh).
 #
@@ -26,7 +30,7 @@ while getopts "b:o:q:PRh" opt; do
         q) quals=$OPTARG ;;
         P) redraw=1 ;;
         R) reuse=1 ;;
-        *) sed -n '2,19p' "$0"; exit 1 ;;
+        *) sed -n '2,22p' "$0"; exit 1 ;;
     esac
 done
 shift $((OPTIND - 1))
@@ -158,13 +162,26 @@ for scene in "${scenes[@]}"; do
     fi
     # The player's time per light change, in a pass of its own (no path tracing beside it).
     "$build/wrt-compare" "$scene" "${gtos[@]}" --bench-only --bench 41 >"$work/bench.json"
+    # The alternative: the path tracer's seconds per path per pixel for the same image
+    # (same machine, all cores, the scene's light): it reaches a relative RMSE e in
+    # spp_ref (floor / e)^2 paths per pixel, floor being the reference's noise at spp_ref.
+    "$build/wrt-ref" "$scene" --spp 256 --width "$(jq '.reference.image.width' "$work/compare.json")" \
+        --height "$(jq '.reference.image.height' "$work/compare.json")" --json --out "$work/pt" >"$work/pt.json"
+    # The pictures: the default quality (5, else the last) beside the path tracer, 192 wide.
+    qd=$(for q in $qs; do echo "$q"; done | grep -x 5 || for q in $qs; do echo "$q"; done | tail -n 1)
+    "$build/wrt-compare" "$scene" "$work/q$qd.gto" --lights 1 --cell-paths 100000 --width 192 --spp 1024 \
+        --bench 1 --images "$work/img" >/dev/null
+    cp "$work/img_panel.png" "$out/${name}_panel.png"
 
     # One row per quality: the bake's figures and the comparison's.
     jq -s '.' $(for q in $qs; do echo "$work/bake_q$q.json"; done) >"$work/bakes.json"
-    jq --slurpfile b "$work/bakes.json" --slurpfile t "$work/bench.json" --arg name "$name" --arg scene "$scene" \
+    jq --slurpfile b "$work/bakes.json" --slurpfile t "$work/bench.json" --slurpfile pt "$work/pt.json" \
+       --arg name "$name" --arg scene "$scene" --arg qd "$qd" \
        --arg nproc "$(nproc)" --arg date "$(date -u +%Y-%m-%dT%H:%MZ)" --arg args "$compare_args" '
+      (($pt[0].image.time_s / $pt[0].image.spp)) as $spp_s | .reference.image.spp as $spp_ref |
       {scene: $scene, name: $name, date: $date, cores: ($nproc | tonumber), compare_options: $args,
        lights: .lights, cells_per_side: .cells_per_side, reference: .reference,
+       pictures_quality: ($qd | tonumber), path_tracer_s_per_spp: $spp_s,
        rows: [range(0; .bakes | length) as $i | .bakes[$i] as $c | $b[0][$i] as $k | $t[0].bakes[$i] as $m |
          {quality: $k.options.quality, bake_runs: $k.runs,
           dto_s: $k.seconds.dto, gto_s: $k.seconds.gto, bake_s: $k.seconds.total,
@@ -175,9 +192,14 @@ for scene in "${scenes[@]}"; do
           cell_rmse: $c.cell_rmse, cell_floor: $c.cell_floor, cell_rmse_debiased: $c.cell_rmse_debiased,
           image_rmse: $c.image_rmse, image_floor: $c.image_floor, image_rmse_debiased: $c.image_rmse_debiased,
           cell_ratio: $c.cell_ratio,
+          cell_rmse_smooth: $c.cell_rmse_smooth, cell_rmse_smooth_debiased: $c.cell_rmse_smooth_debiased,
+          image_rmse_haar: $c.image_rmse_haar, image_rmse_haar_debiased: $c.image_rmse_haar_debiased,
+          path_tracer_s: (if $c.image_rmse_debiased > 0 then
+              $spp_s * $spp_ref * ($c.image_floor / $c.image_rmse_debiased) * ($c.image_floor / $c.image_rmse_debiased)
+            else null end),
           per_light: $c.per_light}]}' "$work/compare.json" >"$out/$name.json.tmp"
     mv "$out/$name.json.tmp" "$out/$name.json"
-    cols="quality bake_runs dto_s gto_s bake_s links_dto links_gto links_gathered bytes functions entries ms_per_light_change ms_min cpu_ms_per_light_change cell_rmse cell_floor cell_rmse_debiased image_rmse image_floor image_rmse_debiased cell_ratio"
+    cols="quality bake_runs dto_s gto_s bake_s links_dto links_gto links_gathered bytes functions entries ms_per_light_change ms_min cpu_ms_per_light_change cell_rmse cell_floor cell_rmse_debiased image_rmse image_floor image_rmse_debiased cell_ratio cell_rmse_smooth cell_rmse_smooth_debiased image_rmse_haar image_rmse_haar_debiased path_tracer_s"
     { echo "$cols" | tr ' ' ','
       jq -r --arg cols "$cols" '.rows[] as $r | [($cols | split(" "))[] | $r[.]] | @csv' "$out/$name.json"
     } >"$out/$name.csv.tmp"
@@ -202,6 +224,12 @@ done
     echo "the process (all threads), which other load on the machine does not inflate: the plots"
     echo "use it; \"gathered\" is empty when the bake did not compute the gathered"
     echo "operator (wrt-bake computes it only when it stores it or is given --report-gathered)."
+    echo "The image is the player's smooth display (player/reconstruct.h); \"Haar image\" is the"
+    echo "same bake shown as its Haar cells (the display before the reconstruction), \"smooth"
+    echo "cells\" the display's cell averages. \"path tracer s\" is what the alternative costs:"
+    echo "the seconds the path tracer (wrt-ref, same machine, all cores) takes to render the"
+    echo "same image to the same error (debiased image error), from its time per path per pixel"
+    echo "and its noise at the reference's paths per pixel; compare with ms per light change."
     for j in "$out"/*.json; do
         n=$(jq -r '.name' "$j")
         echo
@@ -211,9 +239,13 @@ done
         echo
         echo "![$n]($n.png)"
         echo
-        echo "| quality | runs | DTO s | GTO s | bake s | links DTO | links GTO | gathered | MB | ms/light | best ms | CPU ms | cell rmse | floor | debiased | image rmse | floor | debiased |"
-        echo "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-        jq -r '.rows[] | "| \(.quality) | \(.bake_runs) | \(.dto_s * 100 | round / 100) | \(.gto_s * 100 | round / 100) | \(.bake_s * 100 | round / 100) | \(.links_dto) | \(.links_gto) | \(.links_gathered // "–") | \(.bytes / 1e4 | round / 100) | \(.ms_per_light_change * 100 | round / 100) | \(.ms_min * 100 | round / 100) | \(.cpu_ms_per_light_change * 100 | round / 100) | \(.cell_rmse * 1000 | round / 1000) | \(.cell_floor * 1000 | round / 1000) | \(.cell_rmse_debiased * 1000 | round / 1000) | \(.image_rmse * 1000 | round / 1000) | \(.image_floor * 1000 | round / 1000) | \(.image_rmse_debiased * 1000 | round / 1000) |"' "$j"
+        echo "Quality $(jq -r '.pictures_quality' "$j"), first light: Haar cells | smooth display | path tracer | error of the smooth display (|difference| / mean, black 0, white 50% and above):"
+        echo
+        echo "![$n pictures](${n}_panel.png)"
+        echo
+        echo "| quality | runs | DTO s | GTO s | bake s | links DTO | links GTO | gathered | MB | ms/light | best ms | CPU ms | cell rmse | floor | debiased | smooth cells debiased | image rmse | floor | debiased | Haar image debiased | path tracer s |"
+        echo "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        jq -r '.rows[] | "| \(.quality) | \(.bake_runs) | \(.dto_s * 100 | round / 100) | \(.gto_s * 100 | round / 100) | \(.bake_s * 100 | round / 100) | \(.links_dto) | \(.links_gto) | \(.links_gathered // "–") | \(.bytes / 1e4 | round / 100) | \(.ms_per_light_change * 100 | round / 100) | \(.ms_min * 100 | round / 100) | \(.cpu_ms_per_light_change * 100 | round / 100) | \(.cell_rmse * 1000 | round / 1000) | \(.cell_floor * 1000 | round / 1000) | \(.cell_rmse_debiased * 1000 | round / 1000) | \(.cell_rmse_smooth_debiased * 1000 | round / 1000) | \(.image_rmse * 1000 | round / 1000) | \(.image_floor * 1000 | round / 1000) | \(.image_rmse_debiased * 1000 | round / 1000) | \(.image_rmse_haar_debiased * 1000 | round / 1000) | \(if .path_tracer_s then (.path_tracer_s * 100 | round / 100) else "–" end) |"' "$j"
     done
 } >"$out/README.md.tmp"
 mv "$out/README.md.tmp" "$out/README.md"

@@ -1,0 +1,429 @@
+/* reconstruct.c: smooth single-level reconstruction of each quad's indirect light, as
+ * specified in reconstruct.h. */
+#include "reconstruct.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Edge e runs from corner E_END[e][0] to E_END[e][1], along increasing u (edges 0, 2)
+ * or v (edges 1, 3). */
+static const int E_END[4][2] = {{0, 1}, {1, 2}, {3, 2}, {0, 3}};
+#define MAX_AROUND 16 /* quads around one corner within a group */
+
+typedef struct corner_set { int n; int quad[MAX_AROUND], corner[MAX_AROUND]; } corner_set;
+
+struct wrt_recon {
+    int n, ngroups;
+    int (*nb)[4], (*nbe)[4], (*flip)[4];
+    int *group, *slot;           /* slot: position within its group */
+    int *gfirst, *gquads;        /* members of group g: gquads[gfirst[g] .. gfirst[g+1]) */
+    corner_set (*around)[4];     /* quads around each corner (itself included), ascending */
+};
+
+/* ------------------------------------------------------------ adjacency ---- */
+
+typedef struct { double x, y, z; } v3;
+static v3 mk(const double *p) { v3 r = {p[0], p[1], p[2]}; return r; }
+static v3 sub(v3 a, v3 b) { v3 r = {a.x - b.x, a.y - b.y, a.z - b.z}; return r; }
+static double dot(v3 a, v3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static v3 cross(v3 a, v3 b) { v3 r = {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; return r; }
+static double len(v3 a) { return sqrt(dot(a, a)); }
+
+static int same_point(const double *a, const double *b, double tol) {
+    return fabs(a[0] - b[0]) <= tol && fabs(a[1] - b[1]) <= tol && fabs(a[2] - b[2]) <= tol;
+}
+
+static v3 quad_normal(const double (*c)[3]) {
+    v3 n = cross(sub(mk(c[2]), mk(c[0])), sub(mk(c[3]), mk(c[1])));
+    double l = len(n);
+    if (l > 0) { n.x /= l; n.y /= l; n.z /= l; }
+    return n;
+}
+
+/* Distance from p to the line through a, b (b != a). */
+static double line_dist(v3 p, v3 a, v3 b) {
+    v3 d = sub(b, a);
+    double l = len(d);
+    return l > 0 ? len(cross(sub(p, a), d)) / l : len(sub(p, a));
+}
+
+/* 1 if some quad other than q and o has an edge lying along segment a-b (collinear and
+ * overlapping it by more than tol): a wall or a box's side standing on the edge. */
+static int edge_blocked(int n, const double (*corners)[4][3], int q, int o, v3 a, v3 b, double tol) {
+    v3 d = sub(b, a);
+    double l = len(d);
+    if (!(l > 0)) return 1;
+    for (int k = 0; k < n; k++) {
+        if (k == q || k == o) continue;
+        for (int e = 0; e < 4; e++) {
+            v3 c0 = mk(corners[k][E_END[e][0]]), c1 = mk(corners[k][E_END[e][1]]);
+            if (line_dist(c0, a, b) > tol || line_dist(c1, a, b) > tol) continue;
+            double t0 = dot(sub(c0, a), d) / l, t1 = dot(sub(c1, a), d) / l;
+            double lo = fmax(fmin(t0, t1), 0), hi = fmin(fmax(t0, t1), l);
+            if (hi - lo > tol) return 1;
+        }
+    }
+    return 0;
+}
+
+wrt_recon *wrt_recon_create(int n, const double (*corners)[4][3], const uint32_t *material) {
+    wrt_recon *rc = calloc(1, sizeof *rc);
+    if (!rc) return NULL;
+    rc->n = n;
+    size_t m = n > 0 ? (size_t)n : 1;
+    rc->nb = malloc(m * sizeof *rc->nb);
+    rc->nbe = malloc(m * sizeof *rc->nbe);
+    rc->flip = malloc(m * sizeof *rc->flip);
+    rc->group = malloc(m * sizeof(int));
+    rc->slot = malloc(m * sizeof(int));
+    rc->gfirst = malloc((m + 1) * sizeof(int));
+    rc->gquads = malloc(m * sizeof(int));
+    rc->around = malloc(m * sizeof *rc->around);
+    v3 *nrm = malloc(m * sizeof(v3));
+    int *stack = malloc(m * sizeof(int));
+    if (!rc->nb || !rc->nbe || !rc->flip || !rc->group || !rc->slot || !rc->gfirst || !rc->gquads ||
+        !rc->around || !nrm || !stack) {
+        free(nrm); free(stack); wrt_recon_destroy(rc);
+        return NULL;
+    }
+    /* Tolerance: 1e-6 of the scene's size. */
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int q = 0; q < n; q++)
+        for (int k = 0; k < 4; k++)
+            for (int c = 0; c < 3; c++) {
+                lo[c] = fmin(lo[c], corners[q][k][c]);
+                hi[c] = fmax(hi[c], corners[q][k][c]);
+            }
+    double size = n > 0 ? sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                               (hi[2] - lo[2]) * (hi[2] - lo[2])) : 1;
+    double tol = 1e-6 * (size > 0 ? size : 1);
+    for (int q = 0; q < n; q++) {
+        nrm[q] = quad_normal(corners[q]);
+        for (int e = 0; e < 4; e++) rc->nb[q][e] = -1, rc->nbe[q][e] = 0, rc->flip[q][e] = 0;
+    }
+    for (int q = 0; q < n; q++)
+        for (int e = 0; e < 4; e++) {
+            const double *a = corners[q][E_END[e][0]], *b = corners[q][E_END[e][1]];
+            for (int o = 0; o < n && rc->nb[q][e] < 0; o++) {
+                if (o == q || material[o] != material[q] || dot(nrm[q], nrm[o]) < 1 - 1e-9) continue;
+                int coplanar = 1;
+                for (int k = 0; k < 4; k++)
+                    if (fabs(dot(sub(mk(corners[o][k]), mk(a)), nrm[q])) > tol) coplanar = 0;
+                if (!coplanar) continue;
+                for (int f = 0; f < 4; f++) {
+                    const double *c = corners[o][E_END[f][0]], *d = corners[o][E_END[f][1]];
+                    int fl;
+                    if (same_point(a, c, tol) && same_point(b, d, tol)) fl = 0;
+                    else if (same_point(a, d, tol) && same_point(b, c, tol)) fl = 1;
+                    else continue;
+                    if (edge_blocked(n, corners, q, o, mk(a), mk(b), tol)) break;
+                    rc->nb[q][e] = o; rc->nbe[q][e] = f; rc->flip[q][e] = fl;
+                    break;
+                }
+            }
+        }
+    /* A neighbour relation must be mutual (it is, up to the tolerance; enforce it). */
+    for (int q = 0; q < n; q++)
+        for (int e = 0; e < 4; e++) {
+            int o = rc->nb[q][e];
+            if (o >= 0 && rc->nb[o][rc->nbe[q][e]] != q) rc->nb[q][e] = -1;
+        }
+    /* Groups: connected components, numbered by their smallest quad. */
+    for (int q = 0; q < n; q++) rc->group[q] = -1;
+    int ng = 0;
+    for (int q = 0; q < n; q++) {
+        if (rc->group[q] >= 0) continue;
+        int sp = 0;
+        stack[sp++] = q;
+        rc->group[q] = ng;
+        while (sp) {
+            int x = stack[--sp];
+            for (int e = 0; e < 4; e++) {
+                int o = rc->nb[x][e];
+                if (o >= 0 && rc->group[o] < 0) { rc->group[o] = ng; stack[sp++] = o; }
+            }
+        }
+        ng++;
+    }
+    rc->ngroups = ng;
+    int *cnt = calloc((size_t)ng + 1, sizeof(int));
+    if (!cnt) { free(nrm); free(stack); wrt_recon_destroy(rc); return NULL; }
+    for (int q = 0; q < n; q++) cnt[rc->group[q] + 1]++;
+    rc->gfirst[0] = 0;
+    for (int g = 0; g < ng; g++) rc->gfirst[g + 1] = rc->gfirst[g] + cnt[g + 1];
+    memset(cnt, 0, ((size_t)ng + 1) * sizeof(int));
+    for (int q = 0; q < n; q++) {
+        int g = rc->group[q];
+        rc->slot[q] = cnt[g];
+        rc->gquads[rc->gfirst[g] + cnt[g]++] = q;
+    }
+    free(cnt);
+    /* Quads around each corner: walk the smooth edges that end at it. */
+    for (int q = 0; q < n; q++)
+        for (int k = 0; k < 4; k++) {
+            corner_set *cs = &rc->around[q][k];
+            cs->n = 1; cs->quad[0] = q; cs->corner[0] = k;
+            for (int h = 0; h < cs->n; h++) {
+                int x = cs->quad[h], xk = cs->corner[h];
+                for (int e = 0; e < 4; e++) {
+                    int end = E_END[e][0] == xk ? 0 : E_END[e][1] == xk ? 1 : -1;
+                    int o = rc->nb[x][e];
+                    if (end < 0 || o < 0) continue;
+                    int ok = E_END[rc->nbe[x][e]][rc->flip[x][e] ? 1 - end : end], seen = 0;
+                    for (int s = 0; s < cs->n; s++) seen |= cs->quad[s] == o && cs->corner[s] == ok;
+                    if (!seen && cs->n < MAX_AROUND) { cs->quad[cs->n] = o; cs->corner[cs->n] = ok; cs->n++; }
+                }
+            }
+            for (int a = 1; a < cs->n; a++) /* ascending quad: the same sum from every side */
+                for (int b = a; b > 0 && cs->quad[b - 1] > cs->quad[b]; b--) {
+                    int t = cs->quad[b]; cs->quad[b] = cs->quad[b - 1]; cs->quad[b - 1] = t;
+                    t = cs->corner[b]; cs->corner[b] = cs->corner[b - 1]; cs->corner[b - 1] = t;
+                }
+        }
+    free(nrm);
+    free(stack);
+    return rc;
+}
+
+void wrt_recon_destroy(wrt_recon *rc) {
+    if (!rc) return;
+    free(rc->nb); free(rc->nbe); free(rc->flip); free(rc->group); free(rc->slot);
+    free(rc->gfirst); free(rc->gquads); free(rc->around);
+    free(rc);
+}
+
+int wrt_recon_ngroups(const wrt_recon *rc) { return rc->ngroups; }
+int wrt_recon_group(const wrt_recon *rc, int q) { return q >= 0 && q < rc->n ? rc->group[q] : -1; }
+
+const int *wrt_recon_members(const wrt_recon *rc, int gr, int *count) {
+    if (gr < 0 || gr >= rc->ngroups) { *count = 0; return NULL; }
+    *count = rc->gfirst[gr + 1] - rc->gfirst[gr];
+    return rc->gquads + rc->gfirst[gr];
+}
+
+int wrt_recon_neighbour(const wrt_recon *rc, int q, int e, int *nedge, int *flip) {
+    if (q < 0 || q >= rc->n || e < 0 || e > 3) return -1;
+    if (nedge) *nedge = rc->nbe[q][e];
+    if (flip) *flip = rc->flip[q][e];
+    return rc->nb[q][e];
+}
+
+/* ------------------------------------------------------- reconstruction ---- */
+
+/* Cell k (0 .. m-1, along the edge's direction) of edge e of an m x m grid. */
+static size_t edge_cell(int e, int m, int k) {
+    switch (e) {
+    case 0: return (size_t)k;
+    case 1: return (size_t)k * m + (m - 1);
+    case 2: return (size_t)(m - 1) * m + k;
+    default: return (size_t)k * m;
+    }
+}
+
+/* The cell one step inside from edge cell k of edge e (m >= 3): not on any edge. */
+static size_t inner_cell(int e, int m, int k) {
+    switch (e) {
+    case 0: return (size_t)m + k;
+    case 1: return (size_t)k * m + (m - 2);
+    case 2: return (size_t)(m - 2) * m + k;
+    default: return (size_t)k * m + 1;
+    }
+}
+
+/* The cell diagonally inside corner k (m >= 3). */
+static size_t corner_inner(int k, int m) {
+    return k == 0 ? (size_t)m + 1 : k == 1 ? (size_t)m + m - 2 : k == 2 ? (size_t)(m - 2) * m + m - 2 : (size_t)(m - 2) * m + 1;
+}
+
+static size_t corner_cell(int k, int m) {
+    return k == 0 ? 0 : k == 1 ? (size_t)(m - 1) : k == 2 ? (size_t)m * m - 1 : (size_t)(m - 1) * m;
+}
+
+/* The argument of least magnitude if all three have one sign, else 0 (the MC limiter). */
+static inline float minmod3(float a, float b, float c) {
+    if (a > 0 && b > 0 && c > 0) { float m = a < b ? a : b; return m < c ? m : c; }
+    if (a < 0 && b < 0 && c < 0) { float m = a > b ? a : b; return m > c ? m : c; }
+    return 0;
+}
+
+int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
+                  const uint8_t *const *known, float *const *out, const wrt_recon_params *prm) {
+    int keep = prm ? prm->keep : WRT_RECON_KEEP, limit = prm ? prm->limit : 1;
+    float sharp = prm ? prm->sharp : WRT_RECON_SHARP;
+    int nm;
+    const int *mem = wrt_recon_members(rc, gr, &nm);
+    if (nm == 0) return 0;
+    size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
+    size_t full = ((size_t)1 << (2 * Lo)) * nc;
+    size_t ext_n = (((size_t)1 << Lo) + 2) * (((size_t)1 << Lo) + 2) * nc;
+    float *buf = malloc(((size_t)nm * (pyr_n + 2 * full) + ext_n) * sizeof(float));
+    if (!buf) return -1;
+    float *ext = buf + (size_t)nm * (pyr_n + 2 * full);
+    /* Pyramids of the input: level l at offset (4^l - 1)/3 cells. */
+    for (int s = 0; s < nm; s++) {
+        float *pyr = buf + (size_t)s * pyr_n;
+        size_t offL = (((size_t)1 << (2 * L)) - 1) / 3 * nc;
+        memcpy(pyr + offL, in[mem[s]], ((size_t)1 << (2 * L)) * nc * sizeof(float));
+        for (int l = L - 1; l >= 0; l--) {
+            int m = 1 << l;
+            float *p = pyr + (((size_t)1 << (2 * l)) - 1) / 3 * nc, *c = pyr + (((size_t)1 << (2 * (l + 1))) - 1) / 3 * nc;
+            for (int j = 0; j < m; j++)
+                for (int i = 0; i < m; i++)
+                    for (int ch = 0; ch < nc; ch++) {
+                        size_t c0 = ((size_t)(2 * j) * 2 * m + 2 * i) * nc + ch, r = (size_t)2 * m * nc;
+                        p[((size_t)j * m + i) * nc + ch] = 0.25f * (c[c0] + c[c0 + nc] + c[c0 + r] + c[c0 + r + nc]);
+                    }
+        }
+    }
+#define CUR(s) (buf + (size_t)nm * pyr_n + (size_t)(s) * 2 * full + (size_t)cur_half * full)
+#define NXT(s) (buf + (size_t)nm * pyr_n + (size_t)(s) * 2 * full + (size_t)(1 - cur_half) * full)
+    int cur_half = 0;
+    for (int s = 0; s < nm; s++) memcpy(CUR(s), buf + (size_t)s * pyr_n, nc * sizeof(float));
+    for (int l = 0; l < Lo; l++) {
+        int m = 1 << l, w = m + 2;
+        for (int s = 0; s < nm; s++) {
+            int q = mem[s];
+            const float *a = CUR(s);
+            float *nx = NXT(s);
+            /* The extended grid: own cells, ghost rows from the neighbours or extrapolated. */
+            for (int j = 0; j < m; j++)
+                memcpy(ext + ((size_t)(j + 1) * w + 1) * nc, a + (size_t)j * m * nc, (size_t)m * nc * sizeof(float));
+            for (int e = 0; e < 4; e++) {
+                int o = rc->nb[q][e];
+                const float *b = o >= 0 ? CUR(rc->slot[o]) : NULL;
+                for (int k = 0; k < m; k++) {
+                    size_t gi; /* ghost position in ext, and the inner cells beside it */
+                    size_t in0 = edge_cell(e, m, k), in1;
+                    switch (e) {
+                    case 0: gi = (size_t)k + 1; in1 = in0 + m; break;
+                    case 1: gi = (size_t)(k + 1) * w + m + 1; in1 = in0 - 1; break;
+                    case 2: gi = (size_t)(m + 1) * w + k + 1; in1 = in0 - m; break;
+                    default: gi = (size_t)(k + 1) * w; in1 = in0 + 1; break;
+                    }
+                    float *g = ext + gi * nc;
+                    if (b) {
+                        const float *src = b + edge_cell(rc->nbe[q][e], m, rc->flip[q][e] ? m - 1 - k : k) * nc;
+                        memcpy(g, src, nc * sizeof(float));
+                    } else if (m >= 2) {
+                        for (int ch = 0; ch < nc; ch++) g[ch] = 2 * a[in0 * nc + ch] - a[in1 * nc + ch];
+                    } else {
+                        memcpy(g, a + in0 * nc, nc * sizeof(float));
+                    }
+                }
+            }
+            /* Corners of the extended grid: bilinear extrapolation from the ghosts. */
+            static const int cx[4] = {0, 1, 1, 0}, cy[4] = {0, 0, 1, 1};
+            for (int k = 0; k < 4; k++) {
+                int gx = cx[k] ? m + 1 : 0, gy = cy[k] ? m + 1 : 0, ix = cx[k] ? m : 1, iy = cy[k] ? m : 1;
+                float *g = ext + ((size_t)gy * w + gx) * nc;
+                const float *eu = ext + ((size_t)iy * w + gx) * nc, *ev = ext + ((size_t)gy * w + ix) * nc,
+                            *ai = ext + ((size_t)iy * w + ix) * nc;
+                for (int ch = 0; ch < nc; ch++) g[ch] = eu[ch] + ev[ch] - ai[ch];
+            }
+            /* Children: two output rows per input row. */
+            const float *pyr = buf + (size_t)s * pyr_n;
+            const float *pl = l < L ? pyr + (((size_t)1 << (2 * l)) - 1) / 3 * nc : NULL;
+            const float *pc = l < L ? pyr + (((size_t)1 << (2 * (l + 1))) - 1) / 3 * nc : NULL;
+            const uint8_t *kn = l < L && known && known[q] ? known[q] + wrt_recon_node(l, 0, 0) : NULL;
+            int m2 = 2 * m, all_known = l < L && !kn;
+            size_t rs = (size_t)m2 * nc, ws = (size_t)w * nc; /* output and ext row strides */
+            for (int j = 0; j < m; j++) {
+                const float *rowc = ext + ((size_t)(j + 1) * w + 1) * nc;
+                float *o0 = nx + (size_t)(2 * j) * rs, *o1 = o0 + rs;
+                const float *p0 = pc ? pc + (size_t)(2 * j) * rs : NULL, *p1 = p0 ? p0 + rs : NULL;
+                for (int i = 0; i < m; i++) {
+                    const float *c = rowc + (size_t)i * nc;
+                    size_t x0 = (size_t)(2 * i) * nc, x1 = x0 + nc;
+                    int is_known = all_known || (kn && kn[(size_t)j * m + i]);
+                    if (is_known && l >= keep) { /* past `keep`: only a sharp feature's details */
+                        float dmax = 0, pmax = 0;
+                        for (int ch = 0; ch < nc; ch++) {
+                            float par = pl[((size_t)j * m + i) * nc + ch];
+                            float d0 = fabsf(p0[x0 + ch] - par), d1 = fabsf(p0[x1 + ch] - par);
+                            float d2 = fabsf(p1[x0 + ch] - par), d3 = fabsf(p1[x1 + ch] - par);
+                            float ap = fabsf(par);
+                            pmax = ap > pmax ? ap : pmax;
+                            dmax = d0 > dmax ? d0 : dmax;
+                            dmax = d1 > dmax ? d1 : dmax;
+                            dmax = d2 > dmax ? d2 : dmax;
+                            dmax = d3 > dmax ? d3 : dmax;
+                        }
+                        is_known = sharp > 0 && dmax > sharp * pmax;
+                    }
+                    if (is_known) {
+                        for (int ch = 0; ch < nc; ch++) {
+                            float dv = c[ch] - pl[((size_t)j * m + i) * nc + ch];
+                            o0[x0 + ch] = p0[x0 + ch] + dv;
+                            o0[x1 + ch] = p0[x1 + ch] + dv;
+                            o1[x0 + ch] = p1[x0 + ch] + dv;
+                            o1[x1 + ch] = p1[x1 + ch] + dv;
+                        }
+                        continue;
+                    }
+                    for (int ch = 0; ch < nc; ch++) {
+                        float av = c[ch], E = c[nc + ch], W = c[ch - nc], N = c[ws + ch], S = c[ch - ws];
+                        float dx = (E - W) * 0.125f, dy = (N - S) * 0.125f;
+                        float dxy = (c[ws + nc + ch] - c[ws - nc + ch] - c[ch + nc - ws] + c[ch - nc - ws]) * (1.0f / 64);
+                        if (limit) { /* no new extremum: a dark cell beside a lit one stays dark */
+                            float lx = minmod3(2 * (av - W), 0.5f * (E - W), 2 * (E - av)) * 0.25f;
+                            float ly = minmod3(2 * (av - S), 0.5f * (N - S), 2 * (N - av)) * 0.25f;
+                            if (lx != dx || ly != dy) dxy = 0;
+                            dx = lx;
+                            dy = ly;
+                        }
+                        o0[x0 + ch] = av - dx - dy + dxy;
+                        o0[x1 + ch] = av + dx - dy - dxy;
+                        o1[x0 + ch] = av - dx + dy - dxy;
+                        o1[x1 + ch] = av + dx + dy + dxy;
+                    }
+                }
+            }
+        }
+        cur_half = 1 - cur_half;
+    }
+    /* Output: shared-edge texels the mean of the two cells beside the edge, corner texels
+     * the mean of the cells around the corner; everything else the finest averages. */
+    int m = 1 << Lo;
+    for (int s = 0; s < nm; s++) {
+        int q = mem[s];
+        const float *a = CUR(s);
+        float *o = out[q];
+        memcpy(o, a, full * sizeof(float));
+        if (m < 2) continue;
+        for (int e = 0; e < 4; e++) {
+            int nbq = rc->nb[q][e];
+            if (nbq < 0) continue;
+            const float *b = CUR(rc->slot[nbq]);
+            for (int k = 1; k < m - 1; k++) {
+                size_t mi = edge_cell(e, m, k) * nc, ii = inner_cell(e, m, k) * nc;
+                size_t bi = edge_cell(rc->nbe[q][e], m, rc->flip[q][e] ? m - 1 - k : k) * nc;
+                for (int ch = 0; ch < nc; ch++) {
+                    o[mi + ch] = 0.5f * (a[mi + ch] + b[bi + ch]);
+                    if (m >= 4) o[ii + ch] -= o[mi + ch] - a[mi + ch];
+                }
+            }
+        }
+        for (int k = 0; k < 4; k++) {
+            const corner_set *cs = &rc->around[q][k];
+            if (cs->n < 2) continue;
+            size_t mi = corner_cell(k, m) * nc, ii = corner_inner(k, m) * nc;
+            for (int ch = 0; ch < nc; ch++) {
+                float sum = 0;
+                for (int t = 0; t < cs->n; t++) sum += CUR(rc->slot[cs->quad[t]])[corner_cell(cs->corner[t], m) * nc + ch];
+                o[mi + ch] = sum / (float)cs->n;
+                if (m >= 4) o[ii + ch] -= o[mi + ch] - a[mi + ch];
+            }
+        }
+    }
+    /* Light is never negative: the prediction can undershoot beside a sharp edge. */
+    for (int s = 0; s < nm; s++) {
+        float *o = out[mem[s]];
+        for (size_t k = 0; k < full; k++) o[k] = o[k] < 0 ? 0 : o[k];
+    }
+#undef CUR
+#undef NXT
+    free(buf);
+    return 0;
+}

@@ -1,0 +1,78 @@
+/* reconstruct.h: smooth display of each quad's indirect light. The bake's Haar solution
+ * is piecewise constant over its cells; shown as is it draws the cell grid on the screen.
+ * This module resamples it into a smooth single-level grid per quad before display (the
+ * "flattening" of Lehtinen et al. 2008), continuous inside a quad and across the edges
+ * shared by coplanar neighbours, and never across a crease, a contact line or a wall.
+ *
+ * The method, average-interpolating subdivision: level by level from a quad's root, a
+ * cell whose children's averages are kept (wrt_recon_params: the bake stored a function
+ * there, above a level or with sharp details) takes the bake's children averages; any
+ * other cell is split by the quadratic average-interpolating rule, child = a +
+ * sx (a_E - a_W)/8 + sy (a_N - a_S)/8 + sx sy (a_NE - a_NW - a_SE + a_SW)/64 (sx, sy = -1
+ * or +1 toward the child), its slopes limited so that no child leaves the range of its
+ * neighbours (then without the cross term). Each split keeps the cell's average exactly
+ * (so every kept average is kept) and reproduces a linear function exactly. Neighbours
+ * across an edge come from the neighbouring quad (same level, along the shared edge);
+ * where there is none, linear extrapolation from the quad's own cells. The output's
+ * texels are the output level's averages, except that texels on a shared edge hold the
+ * mean of the two cells beside the edge and corner texels the mean of the cells around
+ * the corner, so that a clamped bilinear lookup (GL_LINEAR, CLAMP_TO_EDGE) is continuous
+ * across the edge: both quads show exactly the same values along it. What such a texel
+ * gains, the texel one step inside gives back (from 4 texels a side), so each quad's
+ * texel sum, which is exactly the integral of its clamped bilinear display, is kept.
+ * Negative values (an undershoot where a sharp detail is kept) are clamped to 0.
+ *
+ * Neighbours: two quads are smooth neighbours across an edge when they share it (both
+ * end points within 1e-6 of the scene's size), lie in one plane, face the same way and
+ * have the same material, and no other quad has an edge lying along the shared edge (a
+ * wall standing on it, a box's side on a floor). Groups: the connected sets of quads
+ * under that relation; a group is reconstructed together and at one resolution.
+ *
+ * Pure functions of their arguments: no OpenGL, no globals; depends on libc only.
+ * Reentrant: distinct groups may be reconstructed in parallel. */
+#ifndef WRT_RECONSTRUCT_H
+#define WRT_RECONSTRUCT_H
+
+#include <stdint.h>
+
+typedef struct wrt_recon wrt_recon;
+
+/* Adjacency of `n` quads: corners[q] in (u,v) order (0,0), (1,0), (1,1), (0,1), world
+ * space; material[q] any identifier (equal = same material). NULL on out of memory. */
+wrt_recon *wrt_recon_create(int n, const double (*corners)[4][3], const uint32_t *material);
+void wrt_recon_destroy(wrt_recon *rc); /* NULL is a no-op */
+
+int wrt_recon_ngroups(const wrt_recon *rc);
+int wrt_recon_group(const wrt_recon *rc, int q);
+/* The members of group `gr`, ascending; *count their number. */
+const int *wrt_recon_members(const wrt_recon *rc, int gr, int *count);
+/* Quad q's smooth neighbour across edge e (0: v = 0, 1: u = 1, 2: v = 1, 3: u = 0), or -1;
+ * *nedge its edge, *flip 1 if it runs the shared edge the other way. */
+int wrt_recon_neighbour(const wrt_recon *rc, int q, int e, int *nedge, int *flip);
+
+/* Index of node (level l, x, y) in a `known` mask: levels 0 .. L-1, level by level, row
+ * by row: (4^l - 1)/3 + y 2^l + x. A mask for levels < L holds (4^L - 1)/3 bytes. */
+static inline uint32_t wrt_recon_node(int l, int x, int y) {
+    return (uint32_t)((((uint32_t)1 << (2 * l)) - 1) / 3 + ((uint32_t)y << l) + (uint32_t)x);
+}
+
+/* Which of the bake's averages are kept (NULL: the defaults). A node's children keep the
+ * bake's averages if it holds a function and lies above level `keep`, or below it if its
+ * details are sharp: a child differs from the node's average by more than `sharp` times
+ * it (0: never); the rest are predicted. `limit` 1: the prediction's slopes are limited
+ * (monotonized central: no child beyond its neighbours' range, so a dark cell beside a lit
+ * one stays dark, and linear functions are still reproduced exactly). */
+typedef struct wrt_recon_params { int keep; float sharp; int limit; } wrt_recon_params;
+#define WRT_RECON_KEEP 3
+#define WRT_RECON_SHARP 0.5f
+
+/* Reconstructs every member of group `gr`: in[q] holds quad q's 2^L x 2^L cell averages
+ * (nc floats a cell, cell (i, j) at (j 2^L + i) nc, i along u), known[q] its mask for
+ * levels < L (1: the bake stored a function at the node, so its children's averages are
+ * known; NULL: all known), out[q] receives 2^Lo x 2^Lo cells in the same layout (Lo < L:
+ * the input's details below level Lo are averaged out). in, known and out are indexed by quad; only the group's members are read.
+ * Returns 0, or -1 on out of memory (out untouched). */
+int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
+                  const uint8_t *const *known, float *const *out, const wrt_recon_params *p);
+
+#endif

@@ -1,0 +1,430 @@
+/* test_reconstruct.c: the smooth display of player/reconstruct.c. Truths that do not
+ * depend on the module: a linear function's cell averages (closed form), the input's own
+ * averages, exact zeros, and the geometry of the test scenes. Then through the player on
+ * real bakes: no light into a dark room through a wall standing on a shared edge, and no
+ * seam across the shared edges of a subdivided box (jump across an edge against the
+ * jump inside a quad, the Haar blocks beside it to show the measure sees seams). */
+#include "common/basis.h"
+#include "formats/gto.h"
+#include "player/reconstruct.h"
+#include "player/relight.h"
+#include "precompute/bake.h"
+#include "scene_build.h"
+#include "test.h"
+
+#include <stdlib.h>
+#include <unistd.h>
+
+/* Every stored node's averages kept, slopes limited (the module's parts one at a time). */
+static const wrt_recon_params all = {99, 0, 1};
+
+static uint64_t rng = 88172645463325252ull;
+static double rnd(void) { /* xorshift, uniform in [0, 1) */
+    rng ^= rng << 13; rng ^= rng >> 7; rng ^= rng << 17;
+    return (double)(rng >> 11) / 9007199254740992.0;
+}
+
+/* Bilinear lookup clamped to the quad's texels, as GL_LINEAR + CLAMP_TO_EDGE. */
+static double lookup(const float *t, int res, int nc, int ch, double u, double v) {
+    double fx = u * res - 0.5, fy = v * res - 0.5;
+    int x0 = (int)floor(fx), y0 = (int)floor(fy);
+    double tx = fx - x0, ty = fy - y0, s = 0;
+    for (int k = 0; k < 4; k++) {
+        int x = x0 + (k & 1), y = y0 + (k >> 1);
+        x = x < 0 ? 0 : x >= res ? res - 1 : x;
+        y = y < 0 ? 0 : y >= res ? res - 1 : y;
+        s += ((k & 1) ? tx : 1 - tx) * ((k >> 1) ? ty : 1 - ty) * t[((size_t)y * res + x) * nc + ch];
+    }
+    return s;
+}
+
+static void edge_uv(int e, double t, double d, double *u, double *v) {
+    switch (e) {
+    case 0: *u = t; *v = d; break;
+    case 1: *u = 1 - d; *v = t; break;
+    case 2: *u = t; *v = 1 - d; break;
+    default: *u = d; *v = t; break;
+    }
+}
+
+/* A random known mask for levels < L: levels < full all known, deeper nodes known with
+ * probability p where their parent is. */
+static uint8_t *random_known(int L, int full, double p) {
+    uint8_t *k = calloc((((size_t)1 << (2 * L)) - 1) / 3 + 1, 1);
+    for (int l = 0; l < L; l++)
+        for (int y = 0; y < (1 << l); y++)
+            for (int x = 0; x < (1 << l); x++) {
+                int parent = l == 0 || k[wrt_recon_node(l - 1, x / 2, y / 2)];
+                k[wrt_recon_node(l, x, y)] = (uint8_t)(l < full || (parent && rnd() < p));
+            }
+    return k;
+}
+
+/* Every node known and no refinement past the input: the output is the input (values in
+ * [0, 1); the sums of the synthesis round at 6e-8). */
+static void test_all_known_is_identity(void) {
+    double c[1][4][3] = {{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}}};
+    uint32_t m = 0;
+    wrt_recon *rc = wrt_recon_create(1, (const double (*)[4][3])c, &m);
+    float in[64 * 3], out[64 * 3];
+    for (int i = 0; i < 64 * 3; i++) in[i] = (float)rnd();
+    const float *ip[1] = {in};
+    float *op[1] = {out};
+    CHECK(wrt_recon_run(rc, 0, 3, 3, 3, ip, NULL, op, &all) == 0, "run");
+    double md = 0;
+    for (int i = 0; i < 64 * 3; i++) md = fmax(md, fabs(out[i] - in[i]));
+    CHECK(md < 1e-6, "max |out - in| = %g (float rounding only)", md);
+    wrt_recon_destroy(rc);
+}
+
+/* Every cell average the bake knows (a cell whose ancestors all hold functions) is kept
+ * by the smooth output, two levels finer. */
+static void test_known_averages_kept(void) {
+    double c[1][4][3] = {{{0, 0, 0}, {2, 0, 0}, {2, 1, 0}, {0, 1, 0}}};
+    uint32_t m = 0;
+    wrt_recon *rc = wrt_recon_create(1, (const double (*)[4][3])c, &m);
+    int L = 4, Lo = 6, n = 1 << L, no = 1 << Lo;
+    float *in = malloc((size_t)n * n * sizeof(float)), *out = malloc((size_t)no * no * sizeof(float));
+    for (int trial = 0; trial < 4; trial++) {
+        for (int i = 0; i < n * n; i++) in[i] = (float)(1 + rnd()); /* positive: no clamping */
+        uint8_t *k = random_known(L, 2, 0.6);
+        const float *ip[1] = {in};
+        const uint8_t *kp[1] = {k};
+        float *op[1] = {out};
+        CHECK(wrt_recon_run(rc, 0, L, Lo, 1, ip, kp, op, &all) == 0, "run");
+        double worst = 0;
+        int cells = 0;
+        for (int l = 1; l <= L; l++) { /* cells at level l: known if the parent chain is */
+            int s = 1 << l, f = no / s, fi = n / s;
+            for (int y = 0; y < s; y++)
+                for (int x = 0; x < s; x++) {
+                    int known = 1;
+                    for (int a = l - 1; a >= 0; a--) known &= k[wrt_recon_node(a, x >> (l - a), y >> (l - a))];
+                    if (!known) continue;
+                    double so = 0, si = 0;
+                    for (int b = 0; b < f; b++)
+                        for (int a = 0; a < f; a++) so += out[(size_t)(y * f + b) * no + x * f + a];
+                    for (int b = 0; b < fi; b++)
+                        for (int a = 0; a < fi; a++) si += in[(size_t)(y * fi + b) * n + x * fi + a];
+                    worst = fmax(worst, fabs(so / (f * f) - si / (fi * fi)) / (si / (fi * fi)));
+                    cells++;
+                }
+        }
+        CHECK(cells > 100, "%d known cells checked", cells);
+        CHECK(worst < 1e-5, "trial %d: worst relative change of a known cell average %g", trial, worst);
+        free(k);
+    }
+    free(in); free(out);
+    wrt_recon_destroy(rc);
+}
+
+/* A linear function's averages on two coplanar quads (the second with its corners
+ * listed from another corner, so the shared edge is read through the mapping), nothing
+ * known below the root: the output's inner texels are the function's averages, the
+ * shared edge's texels its value on the edge (and the texels beside them give back the
+ * difference, not checked here). */
+static double lin(double x, double y) { return 1 + 2 * x + 3 * y; }
+
+static void test_linear_reproduced(void) {
+    /* both face +z; quad 1 listed from (2,0): its u runs along +y, its v along -x */
+    double d[2][4][3] = {{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}},
+                         {{2, 0, 0}, {2, 1, 0}, {1, 1, 0}, {1, 0, 0}}};
+    uint32_t m[2] = {0, 0};
+    wrt_recon *rc = wrt_recon_create(2, (const double (*)[4][3])d, m);
+    int ne, fl;
+    CHECK(wrt_recon_neighbour(rc, 0, 1, &ne, &fl) == 1, "quad 0's edge u = 1 borders quad 1");
+    CHECK(wrt_recon_ngroups(rc) == 1, "one group");
+    int L = 3, Lo = 5, n = 1 << L, no = 1 << Lo;
+    float in[2][64], out[2][1024];
+    uint8_t *k = random_known(L, 1, 0); /* the root only */
+    for (int q = 0; q < 2; q++)
+        for (int j = 0; j < n; j++)
+            for (int i = 0; i < n; i++) { /* average of a linear function = value at the centre */
+                double u = (i + 0.5) / n, v = (j + 0.5) / n, x = 0, y = 0;
+                double w[4] = {(1 - u) * (1 - v), u * (1 - v), u * v, (1 - u) * v};
+                for (int a = 0; a < 4; a++) { x += w[a] * d[q][a][0]; y += w[a] * d[q][a][1]; }
+                in[q][j * n + i] = (float)lin(x, y);
+            }
+    const float *ip[2] = {in[0], in[1]};
+    const uint8_t *kp[2] = {k, k};
+    float *op[2] = {out[0], out[1]};
+    CHECK(wrt_recon_run(rc, 0, L, Lo, 1, ip, kp, op, &all) == 0, "run");
+    double worst = 0, worst_edge = 0;
+    for (int q = 0; q < 2; q++)
+        for (int j = 0; j < no; j++)
+            for (int i = 0; i < no; i++) {
+                double u = (i + 0.5) / no, v = (j + 0.5) / no, x = 0, y = 0;
+                int border = i == 0 || j == 0 || i == no - 1 || j == no - 1;
+                if ((q == 0 && i == no - 2) || (q == 1 && j == no - 2)) continue; /* give back what the edge gained */
+                if (border) { /* edge texels hold the value on the edge where shared */
+                    if (!(q == 0 && i == no - 1 && j > 0 && j < no - 1)) continue;
+                    u = 1;
+                }
+                double w[4] = {(1 - u) * (1 - v), u * (1 - v), u * v, (1 - u) * v};
+                for (int a = 0; a < 4; a++) { x += w[a] * d[q][a][0]; y += w[a] * d[q][a][1]; }
+                double e = fabs(out[q][j * no + i] - lin(x, y));
+                if (border) worst_edge = fmax(worst_edge, e);
+                else worst = fmax(worst, e);
+            }
+    CHECK(worst < 1e-5, "inner texels off a linear function by %g", worst);
+    CHECK(worst_edge < 1e-5, "shared-edge texels off its value on the edge by %g", worst_edge);
+    free(k);
+    wrt_recon_destroy(rc);
+}
+
+/* Four coplanar quads around a common corner, listed from different corners, random
+ * blocky light and random refinement: the smooth display has no jump across the shared
+ * edges (the two quads' lookups a hair either side agree), while the input's blocks do;
+ * and each quad keeps its mean. */
+static void test_continuous_across_edges(void) {
+    double d[4][4][3] = {{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}},
+                         {{1, 0, 0}, {2, 0, 0}, {2, 1, 0}, {1, 1, 0}},
+                         {{1, 2, 0}, {0, 2, 0}, {0, 1, 0}, {1, 1, 0}},  /* rotated half a turn */
+                         {{1, 1, 0}, {2, 1, 0}, {2, 2, 0}, {1, 2, 0}}};
+    uint32_t m[4] = {7, 7, 7, 7};
+    wrt_recon *rc = wrt_recon_create(4, (const double (*)[4][3])d, m);
+    CHECK(wrt_recon_ngroups(rc) == 1, "one group (%d)", wrt_recon_ngroups(rc));
+    int L = 4, Lo = 5, n = 1 << L, no = 1 << Lo, nc = 3;
+    float *in[4], *out[4];
+    uint8_t *k[4];
+    for (int q = 0; q < 4; q++) {
+        in[q] = malloc((size_t)n * n * nc * sizeof(float));
+        out[q] = malloc((size_t)no * no * nc * sizeof(float));
+        for (int i = 0; i < n * n * nc; i++) in[q][i] = (float)(0.5 + rnd());
+        k[q] = random_known(L, 2, 0.5);
+    }
+    CHECK(wrt_recon_run(rc, 0, L, Lo, nc, (const float *const *)in, (const uint8_t *const *)k, out, &all) == 0, "run");
+    double jump = 0, jump_in = 0;
+    int edges = 0;
+    for (int q = 0; q < 4; q++)
+        for (int e = 0; e < 4; e++) {
+            int ne, fl, o = wrt_recon_neighbour(rc, q, e, &ne, &fl);
+            if (o < 0) continue;
+            edges++;
+            for (int s = 0; s <= 64; s++) {
+                double t = s / 64.0, u, v, u2, v2;
+                edge_uv(e, t, 1e-9, &u, &v);
+                edge_uv(ne, fl ? 1 - t : t, 1e-9, &u2, &v2);
+                for (int ch = 0; ch < nc; ch++) {
+                    jump = fmax(jump, fabs(lookup(out[q], no, nc, ch, u, v) - lookup(out[o], no, nc, ch, u2, v2)));
+                    jump_in = fmax(jump_in, fabs(lookup(in[q], n, nc, ch, u, v) - lookup(in[o], n, nc, ch, u2, v2)));
+                }
+            }
+        }
+    CHECK(edges == 8, "8 shared edge sides (%d)", edges);
+    double worst_mean = 0; /* each quad's texel sum (its display's integral) is the input's */
+    for (int q = 0; q < 4; q++)
+        for (int ch = 0; ch < nc; ch++) {
+            double si = 0, so = 0;
+            for (int i = 0; i < n * n; i++) si += in[q][i * nc + ch] / (n * n);
+            for (int i = 0; i < no * no; i++) so += out[q][i * nc + ch] / (no * no);
+            worst_mean = fmax(worst_mean, fabs(so - si) / si);
+        }
+    CHECK(worst_mean < 1e-5, "a quad's mean moved by %g of itself", worst_mean);
+    CHECK(jump < 1e-5, "largest jump across a shared edge %g", jump);
+    CHECK(jump_in > 0.1, "the blocks it started from jump by %g there", jump_in);
+    for (int q = 0; q < 4; q++) { free(in[q]); free(out[q]); free(k[q]); }
+    wrt_recon_destroy(rc);
+}
+
+/* No smoothing across a crease, between materials, back to back, or across a shared
+ * edge a wall stands on: a dark quad stays exactly dark beside a bright one, and the
+ * same pair with no wall does share light (so the check can fail). */
+static void test_no_light_across(void) {
+    double floor2[2][4][3] = {{{0, 0, 0}, {1, 0, 0}, {1, 0, -1}, {0, 0, -1}},
+                              {{1, 0, 0}, {2, 0, 0}, {2, 0, -1}, {1, 0, -1}}};
+    double wall[4][3] = {{1, 0, 0}, {1, 0, -1}, {1, 1, -1}, {1, 1, 0}};
+    double crease[2][4][3] = {{{0, 0, 0}, {1, 0, 0}, {1, 0, -1}, {0, 0, -1}},
+                              {{1, 0, 0}, {1, 0, -1}, {1, 1, -1}, {1, 1, 0}}};
+    double backs[2][4][3] = {{{0, 0, 0}, {1, 0, 0}, {1, 0, -1}, {0, 0, -1}},
+                             {{1, 0, 0}, {1, 0, -1}, {2, 0, -1}, {2, 0, 0}}};
+    uint32_t m2[2] = {0, 0}, m2b[2] = {0, 1}, m3[3] = {0, 0, 0};
+    wrt_recon *rc;
+    rc = wrt_recon_create(2, (const double (*)[4][3])crease, m2);
+    CHECK(wrt_recon_neighbour(rc, 0, 1, NULL, NULL) < 0 && wrt_recon_ngroups(rc) == 2, "no smoothing round a crease");
+    wrt_recon_destroy(rc);
+    rc = wrt_recon_create(2, (const double (*)[4][3])backs, m2);
+    CHECK(wrt_recon_ngroups(rc) == 2, "none between quads facing opposite ways");
+    wrt_recon_destroy(rc);
+    rc = wrt_recon_create(2, (const double (*)[4][3])floor2, m2b);
+    CHECK(wrt_recon_ngroups(rc) == 2, "none between two materials");
+    wrt_recon_destroy(rc);
+    double three[3][4][3];
+    memcpy(three, floor2, sizeof floor2);
+    memcpy(three[2], wall, sizeof wall);
+    for (int with_wall = 0; with_wall < 2; with_wall++) {
+        rc = wrt_recon_create(2 + with_wall, (const double (*)[4][3])three, m3);
+        int L = 3, Lo = 5, n = 1 << L, no = 1 << Lo;
+        float lit[64], dark[64] = {0}, o0[1024], o1[1024], o2[1024];
+        for (int i = 0; i < n * n; i++) lit[i] = (float)(1 + rnd());
+        const float *ip[3] = {lit, dark, dark};
+        float *op[3] = {o0, o1, o2};
+        int g = wrt_recon_group(rc, 1);
+        if (g != wrt_recon_group(rc, 0)) CHECK(wrt_recon_run(rc, wrt_recon_group(rc, 0), L, Lo, 1, ip, NULL, op, &all) == 0, "run");
+        CHECK(wrt_recon_run(rc, g, L, Lo, 1, ip, NULL, op, &all) == 0, "run");
+        double mx = 0;
+        for (int i = 0; i < no * no; i++) mx = fmax(mx, o1[i]);
+        if (with_wall) CHECK(mx == 0, "a wall on the shared edge: the dark quad stays 0 (max %g)", mx);
+        else CHECK(mx > 0.1, "no wall: the same quads share light (max %g)", mx);
+        wrt_recon_destroy(rc);
+    }
+}
+
+/* ------------------------------------------------------- through the player ---- */
+
+static char tmpdir[256];
+
+typedef struct player { wrt_gto g; wrt_relight *rl, *rh; char path[300]; } player;
+
+/* Bakes s at `quality`, writes and maps the .gto, makes a smooth and a Haar relighter
+ * lit by `l`. */
+static int player_open(const wrt_scene *s, int quality, const wrt_light *l, player *p) {
+    static int counter;
+    memset(p, 0, sizeof *p);
+    wrt_bake_options o = {0};
+    o.quality = quality;
+    o.threads = 2;
+    wrt_bake_result r;
+    if (wrt_bake_run(s, &o, &r) != WRT_OK) { CHECK(0, "bake: %s", wrt_last_error()); return 0; }
+    snprintf(p->path, sizeof p->path, "%s/r%d.gto", tmpdir, counter++);
+    wrt_scene sc = *s; /* no names */
+    sc.quads = malloc((size_t)s->nquads * sizeof *sc.quads);
+    memcpy(sc.quads, s->quads, (size_t)s->nquads * sizeof *sc.quads);
+    for (int q = 0; q < sc.nquads; q++) sc.quads[q].name = -1;
+    wrt_gto_contents gc = {.scene = &sc, .fkeys = r.fkeys, .nfuncs = r.nfuncs, .col_start = r.op.col,
+                           .rows = r.op.row, .vals = r.op.val, .op_kind = (uint32_t)r.op_kind,
+                           .material_alevel = r.material_alevel};
+    wrt_status st = wrt_gto_write(p->path, &gc);
+    wrt_bake_result_free(&r);
+    free(sc.quads);
+    if (st != WRT_OK || wrt_gto_open(p->path, &p->g) != WRT_OK) { CHECK(0, "gto: %s", wrt_last_error()); return 0; }
+    wrt_relight_options ro = {.threads = 2};
+    CHECK(wrt_relight_create(&p->g, &ro, &p->rl) == WRT_OK, "relight: %s", wrt_last_error());
+    ro.haar_blocks = 1;
+    CHECK(wrt_relight_create(&p->g, &ro, &p->rh) == WRT_OK, "relight: %s", wrt_last_error());
+    if (!p->rl || !p->rh) return 0;
+    double eye[3] = {0, 0.5, 0};
+    wrt_relight *both[2] = {p->rl, p->rh};
+    for (int k = 0; k < 2; k++) {
+        wrt_relight_set_eye(both[k], eye);
+        wrt_relight_set_lights(both[k], l, NULL, 1);
+        wrt_relight_update(both[k], NULL);
+    }
+    return 1;
+}
+
+static void player_close(player *p) {
+    wrt_relight_destroy(p->rl);
+    wrt_relight_destroy(p->rh);
+    wrt_gto_close(&p->g);
+    unlink(p->path);
+}
+
+static wrt_light point_light(wrt_v3 pos) {
+    wrt_light l;
+    memset(&l, 0, sizeof l);
+    l.type = WRT_LIGHT_POINT;
+    l.pos = pos;
+    l.dir = v3(0, -1, 0);
+    l.color[0] = l.color[1] = l.color[2] = 1;
+    l.intensity = 1;
+    l.outer_cone = (float)(M_PI / 4);
+    return l;
+}
+
+static double tex_max(const wrt_relight *r, int q) {
+    const float *t = wrt_relight_tex(r, q);
+    int res = wrt_relight_tex_res(r, q);
+    double mx = 0;
+    for (int i = 0; i < res * res * 3; i++) mx = fmax(mx, t[i]);
+    return mx;
+}
+
+/* Two closed rooms sharing a wall (back to back, no thickness), each face 2 x 2 quads, so
+ * the floors (and ceilings, far walls) of the two rooms are coplanar neighbours whose
+ * shared edge has the wall standing on it; the light in room A: room B's textures stay
+ * below 1e-4 of room A's. */
+static void test_two_rooms_dark(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, 0.75, 0.75, 0.75);
+    tsb_box_inward(&s, v3(-1, 0, -0.5), v3(0, 1, 0.5), 2, m);
+    int na = s.nquads;
+    tsb_box_inward(&s, v3(0, 0, -0.5), v3(1, 1, 0.5), 2, m);
+    wrt_light l = point_light(v3(-0.5, 0.5, 0));
+    player p;
+    if (!player_open(&s, 3, &l, &p)) { tsb_free(&s); return; }
+    double a = 0, b = 0;
+    for (int q = 0; q < s.nquads; q++) {
+        double mx = tex_max(p.rl, q);
+        if (q < na) a = fmax(a, mx); else b = fmax(b, mx);
+    }
+    fprintf(stderr, "  two rooms: brightest texel of the dark room %.3g, of the lit room %.3g\n", b, a);
+    CHECK(a > 0, "room A is lit (%g)", a);
+    CHECK(b <= 1e-4 * a, "room B's brightest texel %g is %g of room A's", b, a > 0 ? b / a : 0);
+    player_close(&p);
+    tsb_free(&s);
+}
+
+/* A closed box, each face 4 x 4 quads, light inside: the jump of the display across the
+ * shared edges (a quarter texel either side) is no larger than the jump across each quad's
+ * middle line at the same distance, where the Haar blocks jump more than twice as much
+ * across the edges as inside (measured: 2.5 times). */
+static void test_box_no_seams(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, 0.75, 0.75, 0.75);
+    tsb_box_inward(&s, v3(-0.5, 0, -0.5), v3(0.5, 1, 0.5), 4, m);
+    wrt_light l = point_light(v3(0.1, 0.8, 0.2));
+    player p;
+    if (!player_open(&s, 3, &l, &p)) { tsb_free(&s); return; }
+    double (*c)[4][3] = malloc((size_t)s.nquads * sizeof *c);
+    uint32_t *mat = calloc((size_t)s.nquads, sizeof(uint32_t));
+    for (int q = 0; q < s.nquads; q++)
+        for (int k = 0; k < 4; k++) { c[q][k][0] = s.quads[q].p[k].x; c[q][k][1] = s.quads[q].p[k].y; c[q][k][2] = s.quads[q].p[k].z; }
+    wrt_recon *rc = wrt_recon_create(s.nquads, (const double (*)[4][3])c, mat);
+    CHECK(wrt_recon_ngroups(rc) == 6, "six faces, six groups (%d)", wrt_recon_ngroups(rc));
+    double across[2] = {0, 0}, inside[2] = {0, 0};
+    wrt_relight *both[2] = {p.rl, p.rh};
+    for (int k = 0; k < 2; k++)
+        for (int q = 0; q < s.nquads; q++)
+            for (int e = 0; e < 4; e++) {
+                int ne, fl, o = wrt_recon_neighbour(rc, q, e, &ne, &fl);
+                if (o < q) continue;
+                int rq = wrt_relight_tex_res(both[k], q), ro = wrt_relight_tex_res(both[k], o);
+                const float *tq = wrt_relight_tex(both[k], q), *to = wrt_relight_tex(both[k], o);
+                for (int i = 0; i < 16; i++) {
+                    double t = (i + 0.5) / 16, u, v, u2, v2;
+                    edge_uv(e, t, 0.25 / rq, &u, &v);
+                    edge_uv(ne, fl ? 1 - t : t, 0.25 / ro, &u2, &v2);
+                    double a = lookup(tq, rq, 3, 1, u, v), b = lookup(to, ro, 3, 1, u2, v2);
+                    edge_uv(e, t, 0.5 - 0.25 / rq, &u, &v);
+                    edge_uv(e, t, 0.5 + 0.25 / rq, &u2, &v2);
+                    double c0 = lookup(tq, rq, 3, 1, u, v), c1 = lookup(tq, rq, 3, 1, u2, v2);
+                    across[k] += fabs(a - b);
+                    inside[k] += fabs(c0 - c1);
+                }
+            }
+    fprintf(stderr, "  seams: smooth across %.4g inside %.4g; Haar blocks across %.4g inside %.4g\n", across[0],
+            inside[0], across[1], inside[1]);
+    CHECK(across[0] <= inside[0], "smooth: jump across shared edges %g, inside quads %g", across[0], inside[0]);
+    CHECK(across[1] > 2 * inside[1], "the Haar blocks do show seams: across %g, inside %g", across[1], inside[1]);
+    free(c); free(mat);
+    wrt_recon_destroy(rc);
+    player_close(&p);
+    tsb_free(&s);
+}
+
+int main(int argc, char **argv) {
+    snprintf(tmpdir, sizeof tmpdir, "/tmp/wrt_test_reconstruct_XXXXXX");
+    if (!mkdtemp(tmpdir)) { perror("mkdtemp"); return 1; }
+    TEST_RUN(test_all_known_is_identity);
+    TEST_RUN(test_known_averages_kept);
+    TEST_RUN(test_linear_reproduced);
+    TEST_RUN(test_continuous_across_edges);
+    TEST_RUN(test_no_light_across);
+    TEST_RUN(test_two_rooms_dark);
+    TEST_RUN(test_box_no_seams);
+    rmdir(tmpdir);
+    TEST_END();
+}
