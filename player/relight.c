@@ -47,7 +47,7 @@
 #include "../common/brdf_table.h"
 #include "../common/threads.h"
 #include "../common/rt_scene.h"
-#include "reconstruct.h"
+#include "../common/reconstruct.h"
 #include "gather.h"
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
