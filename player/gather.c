@@ -183,7 +183,7 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
         wrt_pool_run(pool, NPT, 0, trace_point, &tc);
         for (size_t k = 0; k < (size_t)NPT * NDIR; k++) {
             int hq = G->hits[k].quad;
-            if (hq < 0 || is_glossy(q[hq].mat) || g->slot[hq] >= 0) continue;
+            if (hq < 0 || g->slot[hq] >= 0) continue;
             g->slot[hq] = g->nslot;
             g->slot_quad[g->nslot++] = hq;
         }
@@ -256,7 +256,7 @@ static void rad_row(size_t item, int thread, void *user) {
     (void)thread;
     wrt_gather *g = user;
     int s = (int)(item / GATHER_RG), j = (int)(item % GATHER_RG), hq = g->slot_quad[s];
-    const float *base = g->q[hq].mat ? g->q[hq].mat->base_color : NULL;
+    const float *base = g->q[hq].albedo;
     const float *dt = g->direct + (size_t)s * GATHER_DTEX * GATHER_DTEX * 3;
     float *o = g->rad + ((size_t)s * RG2 + (size_t)j * GATHER_RG) * 3;
     double v = (j + 0.5) / GATHER_RG;
@@ -265,7 +265,7 @@ static void rad_row(size_t item, int thread, void *user) {
         float dv[3], iv[3] = {0, 0, 0};
         bilerp(dt, GATHER_DTEX, u, v, dv);
         if (g->tex[hq] && g->tex_res[hq] > 0) bilerp(g->tex[hq], g->tex_res[hq], u, v, iv);
-        for (int c = 0; c < 3; c++) o[i * 3 + c] = (float)((base ? base[c] : 0) / M_PI) * dv[c] + iv[c];
+        for (int c = 0; c < 3; c++) o[i * 3 + c] = (float)(base[c] / M_PI) * dv[c] + iv[c];
     }
 }
 
@@ -278,7 +278,7 @@ static void lin_point(size_t item, int thread, void *user) {
     float *lin = g->gq[q].lin + p * NDIR * 3;
     for (int a = 0; a < NDIR; a++) {
         float *l = lin + a * 3;
-        if (cell[a] < 0) { l[0] = l[1] = l[2] = 0; continue; } /* nothing, or glossy: not gathered */
+        if (cell[a] < 0) { l[0] = l[1] = l[2] = 0; continue; } /* sees nothing (or a back) */
         const float *rv = g->rad + (size_t)cell[a] * 3;
         l[0] = rv[0]; l[1] = rv[1]; l[2] = rv[2];
     }

@@ -6,13 +6,15 @@
  * (common/basis.h) and x one of GATHER_PTS x GATHER_PTS points of the quad. At creation
  * one ray per (point, cell) finds the quad and (u, v) the cell sees (geometry only);
  * beta is tabulated per glossy material at GATHER_BRES x GATHER_BRES outgoing directions.
- * At a light change L_in is rebuilt: a diffuse hit sends base/pi x (direct + indirect
+ * At a light change L_in is rebuilt: a hit quad sends albedo/pi x (direct + indirect
  * irradiance), the direct from the caller's lights (with shadows) on a GATHER_DTEX grid
- * of the seen quad, the indirect from the seen quad's displayed texture (which already
- * holds base/pi x indirect irradiance), both resampled onto a GATHER_RG grid whose
- * nearest cell each ray reads (a table made at creation). A glossy hit sends nothing here (a limitation:
- * glossy-to-glossy-to-eye light is missing). At an eye move only the sum over a is
- * redone. Everything is linear in the lights. Depends on Embree 3, common/brdf.h,
+ * of the seen quad, the indirect from the caller's texture of it (albedo/pi x indirect
+ * irradiance; a diffuse quad's displayed texture), both resampled onto a GATHER_RG grid
+ * whose nearest cell each ray reads (a table made at creation). A diffuse quad's albedo
+ * is its base colour (exact); a glossy quad's is the caller's mean directional albedo,
+ * a diffuse stand-in for its lobe (exact for uniform incident light; a glossy quad seen
+ * in another shows no sharp reflection of its own). At an eye move only the sum over a
+ * is redone. Everything is linear in the lights. Depends on Embree 3, common/brdf.h,
  * common/basis.h and common/threads.h. */
 #ifndef WRT_GATHER_H
 #define WRT_GATHER_H
@@ -27,6 +29,7 @@ typedef struct wrt_gather wrt_gather;
 typedef struct wrt_gather_quad {
     wrt_v3 p[4], n, t, b;     /* corners (bilinear in u, v as relight.c), frame */
     const wrt_material *mat;  /* NULL or Lambertian: diffuse; else glossy (gathered) */
+    float albedo[3];          /* what a ray that sees it gets: albedo/pi x direct + tex */
 } wrt_gather_quad;
 
 /* Direct irradiance (RGB, shadows included) at x with unit normal n, from the lights. */

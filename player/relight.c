@@ -240,6 +240,9 @@ struct wrt_relight {
     float **rout;
     wrt_gather *gather;             /* final gather on glossy quads (gather.h); NULL: none */
     const float **gtex; float **gout; int *gres; /* per quad: displayed texture, side */
+    int *gires;                     /* per quad: side of gtex (a glossy quad's: gdiff) */
+    float **gdiff;                  /* per glossy quad: albedo/pi x indirect irradiance */
+    float (*galb)[3];               /* per material: mean directional albedo (glossy) */
     int glin_dirty;                 /* the gather's incident light waits for an update */
 };
 
@@ -823,7 +826,7 @@ int wrt_relight_beta(const wrt_relight *r, int material, double a_o, double b_o,
  * texel factor 2^Lt sqrt(pi/J)/pi (h value x sqrt(pi/J) x 1/pi) and the base colour
  * are folded into the coefficients (synthesis is linear); a non-parallelogram's
  * varying factor is applied after, from r->texk. */
-static void synth_diffuse(wrt_relight *r, worker *w, int qidx) {
+static void synth_diffuse(wrt_relight *r, worker *w, int qidx, const float *base, float *tex) {
     const quad_info *q = &r->qi[qidx];
     const wrt_gto_quad *gq = &r->g->quads[qidx];
     int Lt = q->tex_level, res = 1 << Lt;
@@ -832,7 +835,6 @@ static void synth_diffuse(wrt_relight *r, worker *w, int qidx) {
     w->fgrid = grow(w->fgrid, &w->fgrid_cap, ncell + 4, sizeof(float));
     float *pyr = w->fpyr;
     if (!q->synth_full) memset(pyr, 0, ncell * 4 * sizeof(float)); /* else every slot is written */
-    const float *base = r->mats[q->material].base_color;
     float kc[3];
     double k = q->parallelogram ? ldexp(1.0, Lt) * sqrt(WRT_PI / q->area) / WRT_PI : 1;
     for (int c = 0; c < 3; c++) kc[c] = (float)(k * base[c]);
@@ -843,7 +845,6 @@ static void synth_diffuse(wrt_relight *r, worker *w, int qidx) {
         for (int c = 0; c < 3; c++) pc[c] = r->X[f * 3 + c] * kc[c];
         pc[3] = 0;
     }
-    float *tex = r->tex + q->tex_off;
     haar_synthesize4f(pyr, Lt, w->fgrid, tex, 3);
     if (!q->parallelogram) {
         const float *tk = r->texk + q->tex_off / 3;
@@ -959,7 +960,7 @@ static void synth_item(wrt_relight *r, worker *w, int item, void *vctx) {
     synth_ctx *ctx = vctx;
     int q = ctx->list[item];
     if (r->qi[q].glossy) synth_glossy(r, w, q);
-    else synth_diffuse(r, w, q);
+    else synth_diffuse(r, w, q, r->mats[r->qi[q].material].base_color, r->tex + r->qi[q].tex_off);
 }
 
 /* --------------------------------------------------------- reconstruction ---- */
@@ -1343,9 +1344,19 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     if (!r->opt.no_gather && !(fg && strcmp(fg, "0") == 0)) {
         wrt_gather_quad *gqs = calloc(nq ? nq : 1, sizeof *gqs);
         if (!gqs) return relight_nomem(r);
+        r->galb = calloc(g->nmaterials + 1, sizeof *r->galb);
+        if (!r->galb) { free(gqs); return relight_nomem(r); }
+        for (uint32_t m = 0; m < g->nmaterials; m++) { /* cosine-weighted mean over w_o of beta_root */
+            if (!r->beta[m]) { for (int c = 0; c < 3; c++) r->galb[m][c] = r->mats[m].base_color[c]; continue; }
+            double sum[3] = {0, 0, 0};
+            for (int k = 0; k < BETA_RES * BETA_RES; k++)
+                for (int c = 0; c < 3; c++) sum[c] += r->beta[m][((size_t)k * NANG) * 3 + c];
+            for (int c = 0; c < 3; c++) r->galb[m][c] = (float)(sum[c] / (BETA_RES * BETA_RES));
+        }
         for (uint32_t q = 0; q < nq; q++) {
             const quad_info *qi = &r->qi[q];
             memcpy(gqs[q].p, qi->p, sizeof gqs[q].p);
+            memcpy(gqs[q].albedo, r->galb[qi->material], sizeof gqs[q].albedo);
             gqs[q].n = qi->n; gqs[q].t = qi->t; gqs[q].b = qi->b;
             gqs[q].mat = &r->mats[qi->material];
         }
@@ -1356,11 +1367,18 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
             r->gtex = calloc(nq, sizeof *r->gtex);
             r->gout = calloc(nq, sizeof *r->gout);
             r->gres = calloc(nq, sizeof *r->gres);
-            if (!r->gtex || !r->gout || !r->gres) return relight_nomem(r);
+            r->gires = calloc(nq, sizeof *r->gires);
+            r->gdiff = calloc(nq, sizeof *r->gdiff);
+            if (!r->gtex || !r->gout || !r->gres || !r->gires || !r->gdiff) return relight_nomem(r);
             for (uint32_t q = 0; q < nq; q++) {
-                r->gres[q] = wrt_relight_tex_res(r, (int)q);
+                r->gires[q] = r->gres[q] = wrt_relight_tex_res(r, (int)q);
                 r->gtex[q] = wrt_relight_tex(r, (int)q);
                 r->gout[q] = (float *)r->gtex[q];
+                if (!r->qi[q].glossy) continue;
+                r->gires[q] = 1 << r->qi[q].tex_level;
+                r->gdiff[q] = calloc((size_t)r->gires[q] * r->gires[q] * 3, sizeof(float));
+                if (!r->gdiff[q]) return relight_nomem(r);
+                r->gtex[q] = r->gdiff[q];
             }
         }
     }
@@ -1372,7 +1390,8 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (!r) return;
     wrt_pool_destroy(r->pool);
     wrt_gather_destroy(r->gather);
-    free(r->gtex); free(r->gout); free(r->gres);
+    if (r->gdiff) for (uint32_t q = 0; q < r->g->nquads; q++) free(r->gdiff[q]);
+    free(r->gtex); free(r->gout); free(r->gres); free(r->gires); free(r->gdiff); free(r->galb);
     if (r->scene) rtcReleaseScene(r->scene);
     if (r->dev) rtcReleaseDevice(r->dev);
     for (int i = 0; i < r->lights_cap; i++) { /* idx, val: grown in updates (malloc) */
@@ -1599,7 +1618,14 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     if (lights_dirty) r->glin_dirty = 1;
     if (r->gather && r->have_eye && (r->glin_dirty || eye_moved)) { /* gather.h */
         double t5 = wrt_now();
-        if (r->glin_dirty) wrt_gather_lights(r->gather, gather_direct, r, r->gtex, r->gres);
+        if (r->glin_dirty) {
+            /* A glossy quad seen by a gather ray sends its mean albedo / pi times its
+             * indirect irradiance (its angular-root functions): exact for uniform
+             * incident light, a diffuse approximation of its lobe otherwise. */
+            for (uint32_t q = 0; q < nq; q++)
+                if (r->gdiff[q]) synth_diffuse(r, &r->workers[0], (int)q, r->galb[r->qi[q].material], r->gdiff[q]);
+            wrt_gather_lights(r->gather, gather_direct, r, r->gtex, r->gires);
+        }
         r->glin_dirty = 0;
         wrt_gather_eye(r->gather, r->eye, r->gout, r->gres);
         for (uint32_t q = 0; q < nq; q++) nchanged += r->qi[q].glossy;
