@@ -50,7 +50,7 @@
 #include "../common/brdf_table.h"
 #include "../common/threads.h"
 #include "../common/rt_scene.h"
-#include "reconstruct.h"
+#include "../common/reconstruct.h"
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
 #define PROJ_CELL_K 8.0      /* cells at most d / PROJ_CELL_K wide */

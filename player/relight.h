@@ -20,7 +20,7 @@ typedef struct wrt_relight_options {
                           * adaptivity; slow, for tests): n = 1 with the 4 samples a
                           * cell the adaptive projection takes, n = 2..8 with n x n */
     int haar_blocks;     /* 1: textures are the Haar cells as they are (no smooth
-                          * reconstruction, player/reconstruct.h): for before/after */
+                          * reconstruction, common/reconstruct.h): for before/after */
     int recon_extra;     /* smooth texture's levels past the finest cells' (0 = the
                           * default: none; negative: coarser) */
     int recon_keep;      /* the bake's cell averages kept as computed down to 2^keep cells
@@ -63,7 +63,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *t);
 /* Quad q's texture of outgoing indirect radiance (linear RGB floats, res x res texels,
  * texel (i, j) covers u in [i/res, (i+1)/res), v in [j/res, (j+1)/res), stored row j
  * after row j-1). Valid until the next update. Unless options.haar_blocks, it is the
- * smooth reconstruction of player/reconstruct.h, meant to be sampled bilinearly and
+ * smooth reconstruction of common/reconstruct.h, meant to be sampled bilinearly and
  * clamped to the quad's texels: texels on an edge shared with a coplanar neighbour hold
  * the value on the edge, the same on both sides. */
 int wrt_relight_tex_res(const wrt_relight *r, int q);

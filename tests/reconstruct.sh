@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# tests/reconstruct.sh BUILD: the smooth display (player/reconstruct.h) against the path
+# tests/reconstruct.sh BUILD: the smooth display (common/reconstruct.h) against the path
 # tracer, through wrt-compare. Cornell at the default quality, two light positions, a
 # 48-pixel image at 1024 paths a pixel (the reference is seeded, the same on any thread
 # count): the smooth display's debiased image error was measured at 0.0290 and must stay

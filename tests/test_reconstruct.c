@@ -1,4 +1,4 @@
-/* test_reconstruct.c: the smooth display of player/reconstruct.c. Truths that do not
+/* test_reconstruct.c: the smooth display of common/reconstruct.c. Truths that do not
  * depend on the module: a linear function's cell averages (closed form), the input's own
  * averages, exact zeros, and the geometry of the test scenes. Then through the player on
  * real bakes: no light into a dark room through a wall standing on a shared edge, and no
@@ -6,7 +6,7 @@
  * jump inside a quad, the Haar blocks beside it to show the measure sees seams). */
 #include "common/basis.h"
 #include "formats/gto.h"
-#include "player/reconstruct.h"
+#include "common/reconstruct.h"
 #include "player/relight.h"
 #include "precompute/bake.h"
 #include "scene_build.h"

@@ -4,7 +4,7 @@
 #   0 include/        the public header (status codes, the runtime API)
 #   1 common/         math, BRDF, BRDF table, threads, scene types
 #   2 formats/        glTF loader, .gto reader/writer, images
-#   3 precompute/     the bake (library part)      | 3 runtime: player/relight.*, player/reconstruct.*, player/wrt_runtime.c
+#   3 precompute/     the bake (library part)      | 3 runtime: player/relight.*, player/wrt_runtime.c
 #   4 verification:   tools/reference.*, tools/compare.* (the runtime only through include/wrt.h)
 #   4 cli/            the programs' command-line helpers (options, exit codes, progress)
 #   5 programs:       */main.c, tools/*_main.c, tools/scenegen.c, tools/fuzz_*.c, player/render.*,
@@ -19,7 +19,7 @@ def part(p):
     if p.startswith('common/'): return (1, 'common')
     if p.startswith('formats/'): return (2, 'formats')
     if p.startswith('precompute/') and not p.endswith('main.c'): return (3, 'precompute')
-    if re.match(r'player/(relight\.[ch]|reconstruct\.[ch]|wrt_runtime\.c)$', p): return (3, 'runtime')
+    if re.match(r'player/(relight\.[ch]|wrt_runtime\.c)$', p): return (3, 'runtime')
     if re.match(r'tools/(reference|compare)\.[ch]$', p): return (4, 'verification')
     if p.startswith('cli/'): return (4, 'cli')
     if p.startswith('precompute/'): return (5, 'wrt-bake')

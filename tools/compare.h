@@ -78,7 +78,7 @@ typedef struct wrt_compare_light_result {
     double cell_rmse, cell_floor, cell_debiased;
     double image_rmse, image_floor, image_debiased; /* -1 without the image comparison */
     double cell_ratio;  /* sum w W / sum w R over cells and channels: the bake's overall bias */
-    /* The display (player/reconstruct.h): the cells of the smooth textures on Lambertian
+    /* The display (common/reconstruct.h): the cells of the smooth textures on Lambertian
      * quads (the Haar cells elsewhere), and the image of the Haar cells as blocks, the
      * display before the smooth reconstruction (same floors as above). */
     double cell_rmse_smooth, cell_debiased_smooth;

@@ -224,7 +224,7 @@ done
     echo "the process (all threads), which other load on the machine does not inflate: the plots"
     echo "use it; \"gathered\" is empty when the bake did not compute the gathered"
     echo "operator (wrt-bake computes it only when it stores it or is given --report-gathered)."
-    echo "The image is the player's smooth display (player/reconstruct.h); \"Haar image\" is the"
+    echo "The image is the player's smooth display (common/reconstruct.h); \"Haar image\" is the"
     echo "same bake shown as its Haar cells (the display before the reconstruction), \"smooth"
     echo "cells\" the display's cell averages. \"path tracer s\" is what the alternative costs:"
     echo "the seconds the path tracer (wrt-ref, same machine, all cores) takes to render the"

@@ -28,7 +28,8 @@
  * wall standing on it, a box's side on a floor). Groups: the connected sets of quads
  * under that relation; a group is reconstructed together and at one resolution.
  *
- * Pure functions of their arguments: no OpenGL, no globals; depends on libc only.
+ * Pure functions of their arguments: no OpenGL, no globals; depends on libc only (so it
+ * sits in common/: the runtime uses it for its textures, the verification for its seams).
  * Reentrant: distinct groups may be reconstructed in parallel. */
 #ifndef WRT_RECONSTRUCT_H
 #define WRT_RECONSTRUCT_H
