@@ -121,11 +121,16 @@ typedef struct build_job { const wrt_material *m; float *tab; } build_job;
 static void build_cell(size_t cell, int thread, void *user) {
     (void)thread;
     build_job *j = user;
+    wrt_brdf_table_build_cell(j->m, (int)cell, j->tab);
+}
+
+void wrt_brdf_table_build_cell(const wrt_material *m, int cell_index, float *tab) {
+    size_t cell = (size_t)cell_index;
     double wo[3], out[WRT_BRDF_TABLE_NANG * 3];
     wrt_concentric_dir((cell % WRT_BRDF_TABLE_RES + 0.5) / WRT_BRDF_TABLE_RES,
                        (cell / WRT_BRDF_TABLE_RES + 0.5) / WRT_BRDF_TABLE_RES, wo);
-    wrt_brdf_beta_direct(j->m, wo, 1, 4, out);
-    float *t = j->tab + cell * WRT_BRDF_TABLE_NANG * 3;
+    wrt_brdf_beta_direct(m, wo, 1, 4, out);
+    float *t = tab + cell * WRT_BRDF_TABLE_NANG * 3;
     for (int k = 0; k < WRT_BRDF_TABLE_NANG * 3; k++) t[k] = (float)out[k];
 }
 

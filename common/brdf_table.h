@@ -39,6 +39,9 @@ void wrt_brdf_angular_func(int idx, int *level, int *x, int *y, int *type);
 /* Fills tab (WRT_BRDF_TABLE_FLOATS floats, caller's memory) for material m on `threads`
  * threads (0 = all cores; the result does not depend on it). No allocation, no failure. */
 void wrt_brdf_table_build(const wrt_material *m, int threads, float *tab);
+/* One outgoing direction's row of that table (cell in [0, WRT_BRDF_TABLE_RES^2)): for
+ * callers that run the cells on threads of their own. */
+void wrt_brdf_table_build_cell(const wrt_material *m, int cell, float *tab);
 
 /* beta_g at the outgoing direction with concentric coordinates (a, b), bilinear between
  * the table's directions (clamped at the border), for g in [0, nang): out[3 * g + c]. */

@@ -20,7 +20,11 @@ struct wrt_recon {
     int *group, *slot;           /* slot: position within its group */
     int *gfirst, *gquads;        /* members of group g: gquads[gfirst[g] .. gfirst[g+1]) */
     corner_set (*around)[4];     /* quads around each corner (itself included), ascending */
+    wrt_recon_allocator al;      /* alloc NULL: malloc and free */
 };
+
+static void *rc_alloc(const wrt_recon_allocator *al, size_t n) { return al->alloc ? al->alloc(n ? n : 1, al->user) : malloc(n ? n : 1); }
+static void rc_free(const wrt_recon_allocator *al, void *p) { if (p) { if (al->alloc) al->free(p, al->user); else free(p); } }
 
 /* ------------------------------------------------------------ adjacency ---- */
 
@@ -69,23 +73,32 @@ static int edge_blocked(int n, const double (*corners)[4][3], int q, int o, v3 a
 }
 
 wrt_recon *wrt_recon_create(int n, const double (*corners)[4][3], const uint32_t *material) {
-    wrt_recon *rc = calloc(1, sizeof *rc);
+    return wrt_recon_create_with(n, corners, material, NULL);
+}
+
+wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uint32_t *material,
+                                 const wrt_recon_allocator *alloc) {
+    wrt_recon_allocator al = {0};
+    if (alloc && alloc->alloc && alloc->free) al = *alloc;
+    wrt_recon *rc = rc_alloc(&al, sizeof *rc);
     if (!rc) return NULL;
+    memset(rc, 0, sizeof *rc);
+    rc->al = al;
     rc->n = n;
     size_t m = n > 0 ? (size_t)n : 1;
-    rc->nb = malloc(m * sizeof *rc->nb);
-    rc->nbe = malloc(m * sizeof *rc->nbe);
-    rc->flip = malloc(m * sizeof *rc->flip);
-    rc->group = malloc(m * sizeof(int));
-    rc->slot = malloc(m * sizeof(int));
-    rc->gfirst = malloc((m + 1) * sizeof(int));
-    rc->gquads = malloc(m * sizeof(int));
-    rc->around = malloc(m * sizeof *rc->around);
-    v3 *nrm = malloc(m * sizeof(v3));
-    int *stack = malloc(m * sizeof(int));
+    rc->nb = rc_alloc(&al, m * sizeof *rc->nb);
+    rc->nbe = rc_alloc(&al, m * sizeof *rc->nbe);
+    rc->flip = rc_alloc(&al, m * sizeof *rc->flip);
+    rc->group = rc_alloc(&al, m * sizeof(int));
+    rc->slot = rc_alloc(&al, m * sizeof(int));
+    rc->gfirst = rc_alloc(&al, (m + 1) * sizeof(int));
+    rc->gquads = rc_alloc(&al, m * sizeof(int));
+    rc->around = rc_alloc(&al, m * sizeof *rc->around);
+    v3 *nrm = rc_alloc(&al, m * sizeof(v3));
+    int *stack = rc_alloc(&al, m * sizeof(int));
     if (!rc->nb || !rc->nbe || !rc->flip || !rc->group || !rc->slot || !rc->gfirst || !rc->gquads ||
         !rc->around || !nrm || !stack) {
-        free(nrm); free(stack); wrt_recon_destroy(rc);
+        rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc);
         return NULL;
     }
     /* Tolerance: 1e-6 of the scene's size. */
@@ -148,8 +161,9 @@ wrt_recon *wrt_recon_create(int n, const double (*corners)[4][3], const uint32_t
         ng++;
     }
     rc->ngroups = ng;
-    int *cnt = calloc((size_t)ng + 1, sizeof(int));
-    if (!cnt) { free(nrm); free(stack); wrt_recon_destroy(rc); return NULL; }
+    int *cnt = rc_alloc(&al, ((size_t)ng + 1) * sizeof(int));
+    if (!cnt) { rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc); return NULL; }
+    memset(cnt, 0, ((size_t)ng + 1) * sizeof(int));
     for (int q = 0; q < n; q++) cnt[rc->group[q] + 1]++;
     rc->gfirst[0] = 0;
     for (int g = 0; g < ng; g++) rc->gfirst[g + 1] = rc->gfirst[g] + cnt[g + 1];
@@ -159,7 +173,7 @@ wrt_recon *wrt_recon_create(int n, const double (*corners)[4][3], const uint32_t
         rc->slot[q] = cnt[g];
         rc->gquads[rc->gfirst[g] + cnt[g]++] = q;
     }
-    free(cnt);
+    rc_free(&al, cnt);
     /* Quads around each corner: walk the smooth edges that end at it. */
     for (int q = 0; q < n; q++)
         for (int k = 0; k < 4; k++) {
@@ -182,16 +196,17 @@ wrt_recon *wrt_recon_create(int n, const double (*corners)[4][3], const uint32_t
                     t = cs->corner[b]; cs->corner[b] = cs->corner[b - 1]; cs->corner[b - 1] = t;
                 }
         }
-    free(nrm);
-    free(stack);
+    rc_free(&al, nrm);
+    rc_free(&al, stack);
     return rc;
 }
 
 void wrt_recon_destroy(wrt_recon *rc) {
     if (!rc) return;
-    free(rc->nb); free(rc->nbe); free(rc->flip); free(rc->group); free(rc->slot);
-    free(rc->gfirst); free(rc->gquads); free(rc->around);
-    free(rc);
+    const wrt_recon_allocator al = rc->al;
+    rc_free(&al, rc->nb); rc_free(&al, rc->nbe); rc_free(&al, rc->flip); rc_free(&al, rc->group); rc_free(&al, rc->slot);
+    rc_free(&al, rc->gfirst); rc_free(&al, rc->gquads); rc_free(&al, rc->around);
+    rc_free(&al, rc);
 }
 
 int wrt_recon_ngroups(const wrt_recon *rc) { return rc->ngroups; }
@@ -258,7 +273,7 @@ int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const floa
     size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
     size_t full = ((size_t)1 << (2 * Lo)) * nc;
     size_t ext_n = (((size_t)1 << Lo) + 2) * (((size_t)1 << Lo) + 2) * nc;
-    float *buf = malloc(((size_t)nm * (pyr_n + 2 * full) + ext_n) * sizeof(float));
+    float *buf = rc_alloc(&rc->al, ((size_t)nm * (pyr_n + 2 * full) + ext_n) * sizeof(float));
     if (!buf) return -1;
     float *ext = buf + (size_t)nm * (pyr_n + 2 * full);
     /* Pyramids of the input: level l at offset (4^l - 1)/3 cells. */
@@ -424,6 +439,6 @@ int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const floa
     }
 #undef CUR
 #undef NXT
-    free(buf);
+    rc_free(&rc->al, buf);
     return 0;
 }

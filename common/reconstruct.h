@@ -34,6 +34,7 @@
 #ifndef WRT_RECONSTRUCT_H
 #define WRT_RECONSTRUCT_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 typedef struct wrt_recon wrt_recon;
@@ -41,6 +42,15 @@ typedef struct wrt_recon wrt_recon;
 /* Adjacency of `n` quads: corners[q] in (u,v) order (0,0), (1,0), (1,1), (0,1), world
  * space; material[q] any identifier (equal = same material). NULL on out of memory. */
 wrt_recon *wrt_recon_create(int n, const double (*corners)[4][3], const uint32_t *material);
+/* The same with the caller's allocator (alloc NULL: malloc and free), used for the
+ * adjacency and for wrt_recon_run's scratch (then from the threads that run it). */
+typedef struct wrt_recon_allocator {
+    void *(*alloc)(size_t size, void *user);
+    void (*free)(void *p, void *user);
+    void *user;
+} wrt_recon_allocator;
+wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uint32_t *material,
+                                 const wrt_recon_allocator *a);
 void wrt_recon_destroy(wrt_recon *rc); /* NULL is a no-op */
 
 int wrt_recon_ngroups(const wrt_recon *rc);

@@ -22,11 +22,24 @@
  *
  * Rules. Every call that can fail returns a wrt_status (WRT_OK = 0) and, if `err` is not
  * NULL, fills it with the status and a message naming what failed; nothing aborts or
- * exits. Option structs are zero-initialised for the defaults (wrt_runtime_defaults
- * shows them). The library keeps no global state: any number of runtimes may live in
- * one process, each used by one thread at a time (different runtimes from different
- * threads at once is fine), and each gives exactly what it gives alone. Results do not
- * depend on the thread count.
+ * exits, out of memory included (an update that runs out returns WRT_ERR_NOMEM; the
+ * textures may then be partly updated, and the next update redoes them all). Option
+ * structs are zero-initialised for the defaults (wrt_runtime_defaults shows them).
+ * Results do not depend on the thread count or on a job hook.
+ *
+ * Threads. The runtime keeps its state in its handle: any number of runtimes may live
+ * in one process and each gives exactly what it gives alone. One runtime is used by one
+ * thread at a time (its calls are not synchronised); different runtimes from different
+ * threads at once are fine. Process-wide state the library touches, all of it safe from
+ * any thread: (1) a thread-local buffer with the calling thread's last error message
+ * (copied into your wrt_error before a call returns, so only `err` matters to you);
+ * (2) when wrt_runtime_options.log is NULL, warnings go to wrt's process-wide log
+ * (stderr: "wrt: warning: ..."), whose sink the library only reads; set `log` to
+ * receive them per runtime instead. Your allocator and job hook are called from the
+ * update's worker threads (or your hook's threads) at once, so they must be thread-safe.
+ * Without a job hook each runtime keeps its own pool of `threads` - 1 worker threads,
+ * parked between updates; with one it starts no thread of its own. Embree (the ray
+ * tracer used for shadow rays) builds its scene at open on threads of its own.
  *
  * Quads. A quad's texture covers its parameter square: texel (i, j) of res x res covers
  * u in [i/res, (i+1)/res), v in [j/res, (j+1)/res), row j after row j-1, where the point
@@ -72,10 +85,10 @@ typedef struct wrt_error {
 
 /* Memory. alloc(size, user) returns memory aligned for any type, or NULL (the call then
  * fails with WRT_ERR_NOMEM); free(p, user) releases it. All zero: malloc and free.
- * Used for the runtime's handle and every array it keeps (operator indexing, textures,
- * coefficient vectors, BRDF tables, lights); the scratch its worker threads grow during
- * an update still comes from malloc (a failure there ends the process), and Embree and
- * the thread pool keep their own. */
+ * Used for the runtime's handle, every array it keeps (operator indexing, textures,
+ * coefficient vectors, BRDF tables, lights) and the scratch its workers grow during an
+ * update (called from those threads at once: must be thread-safe). Embree's scene and
+ * the thread pool's control block keep their own (malloc). */
 typedef struct wrt_allocator {
     void *(*alloc)(size_t size, void *user);
     void (*free)(void *p, void *user);
@@ -89,6 +102,20 @@ typedef struct wrt_runtime_options {
     wrt_allocator allocator;
     int haar_blocks;    /* 1: textures show the bake's Haar cells as blocks, without the smooth
                          * reconstruction (for before/after comparisons); 0 = smooth */
+    /* Job hook (optional): your scheduler instead of the runtime's thread pool. It must
+     * call fn(ctx, i) once for every i in [0, n), on threads of its choosing, at most
+     * `threads` (0: the online cores) of them at once, and return when all are done;
+     * the calling thread may take part. The runtime calls it from its own calls (open,
+     * update) for each parallel loop of 2 items or more: quads to project or synthesize,
+     * chunks of the multiply, groups of quads to smooth, BRDF table rows. Calls of fn
+     * beyond `threads` at once wait for a free slot. NULL: the runtime's pool. */
+    void (*parallel_for)(void *user, int n, void (*fn)(void *ctx, int i), void *ctx);
+    void *parallel_user;
+    /* Log (optional): the runtime's warnings (level 0 error, 1 warning, 2 info), e.g.
+     * function keys the file holds that it ignores, Embree's errors (these possibly from
+     * worker threads: thread-safe). NULL: wrt's process-wide log (stderr). */
+    void (*log)(void *user, int level, const char *message);
+    void *log_user;
 } wrt_runtime_options;
 
 /* Fills the zero fields of *o with the defaults. */
@@ -137,7 +164,8 @@ wrt_status wrt_runtime_set_lights(wrt_runtime *rt, const wrt_runtime_light *ligh
 wrt_status wrt_runtime_set_eye(wrt_runtime *rt, const double eye[3], wrt_error *err);
 
 /* Recomputes what changed since the last update. *changed (if not NULL) receives the
- * number of quads whose texture changed (0: nothing to upload). */
+ * number of quads whose texture changed (0: nothing to upload). Errors: WRT_ERR_NOMEM
+ * (then *changed is 0, and the next successful update redoes every texture). */
 wrt_status wrt_runtime_update(wrt_runtime *rt, int *changed, wrt_error *err);
 
 /* The scene's quads: count, corners (p[4][3], world space), and after an update each

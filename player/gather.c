@@ -43,7 +43,7 @@ struct wrt_gather {
     float **beta;      /* per glossy quad's material: GATHER_BRES^2 x NDIR x 3 */
     const wrt_material **beta_mat; int nbeta;
     RTCScene scene; wrt_v3 origin; double eps;
-    wrt_pool *pool;
+    wrt_gather_env env;
     /* per loop */
     wrt_gather_direct_fn dfn; void *duser;
     const float *const *tex; const int *tex_res;
@@ -75,14 +75,16 @@ static void qinvert(const wrt_gather_quad *q, wrt_v3 x, double *pu, double *pv) 
     *pv = v < 0 ? 0 : v > 1 ? 1 : v;
 }
 
+static void *ga(const wrt_gather *g, size_t bytes) { return g->env.alloc(g->env.user, bytes ? bytes : 1); }
+static void gf(const wrt_gather *g, void *p) { if (p) g->env.free(g->env.user, p); }
+
 static int is_glossy(const wrt_material *m) { return m && !m->lambertian; }
 
 /* -------------------------------------------------------------- creation ---- */
 
 typedef struct trace_ctx { wrt_gather *g; int gq; } trace_ctx;
 
-static void trace_point(size_t item, int thread, void *user) {
-    (void)thread;
+static void trace_point(size_t item, void *user) {
     trace_ctx *tc = user;
     wrt_gather *g = tc->g;
     const wrt_gather_quad *q = &g->q[tc->gq];
@@ -117,8 +119,7 @@ static void trace_point(size_t item, int thread, void *user) {
 typedef struct beta_ctx { wrt_gather *g; int b; } beta_ctx;
 
 /* beta(a, w_o) = int_cell f_r cos dw = pi int_cell f_r da db (cosine-weighted map). */
-static void beta_row(size_t item, int thread, void *user) {
-    (void)thread;
+static void beta_row(size_t item, void *user) {
     beta_ctx *bc = user;
     const wrt_material *m = bc->g->beta_mat[bc->b];
     float *out = bc->g->beta[bc->b] + item * NDIR * 3;
@@ -141,21 +142,22 @@ static void beta_row(size_t item, int thread, void *user) {
 }
 
 wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, wrt_v3 origin, double eps,
-                             wrt_pool *pool, wrt_gather **out) {
+                             const wrt_gather_env *env, wrt_gather **out) {
     *out = NULL;
     int ng = 0;
     for (int i = 0; i < nq; i++) ng += is_glossy(q[i].mat);
     if (!ng) return WRT_OK;
-    wrt_gather *g = calloc(1, sizeof *g);
+    wrt_gather *g = env->alloc(env->user, sizeof *g);
     if (!g) return WRT_ERR_NOMEM;
-    g->nq = nq; g->scene = scene; g->origin = origin; g->eps = eps; g->pool = pool;
-    g->q = malloc((size_t)nq * sizeof *g->q);
-    g->gq = calloc((size_t)nq, sizeof *g->gq);
-    g->glossy = malloc((size_t)ng * sizeof(int));
-    g->slot = malloc((size_t)nq * sizeof(int32_t));
-    g->slot_quad = malloc((size_t)nq * sizeof(int));
-    g->beta = calloc((size_t)ng, sizeof(float *));
-    g->beta_mat = calloc((size_t)ng, sizeof(wrt_material *));
+    g->env = *env;
+    g->nq = nq; g->scene = scene; g->origin = origin; g->eps = eps;
+    g->q = ga(g, (size_t)nq * sizeof *g->q);
+    g->gq = ga(g, ((size_t)nq) * sizeof *g->gq);
+    g->glossy = ga(g, (size_t)ng * sizeof(int));
+    g->slot = ga(g, (size_t)nq * sizeof(int32_t));
+    g->slot_quad = ga(g, (size_t)nq * sizeof(int));
+    g->beta = ga(g, ((size_t)ng) * sizeof(float *));
+    g->beta_mat = ga(g, ((size_t)ng) * sizeof(wrt_material *));
     if (!g->q || !g->gq || !g->glossy || !g->slot || !g->slot_quad || !g->beta || !g->beta_mat) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
     memcpy(g->q, q, (size_t)nq * sizeof *g->q);
     for (int i = 0; i < nq; i++) g->slot[i] = -1;
@@ -164,23 +166,23 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
         gquad *G = &g->gq[i];
         G->glossy = 1;
         g->glossy[g->nglossy++] = i;
-        G->hits = malloc((size_t)NPT * NDIR * sizeof(ghit));
-        G->lin = calloc((size_t)NPT * NDIR * 3, sizeof(float));
-        G->lout = calloc((size_t)NPT * 3, sizeof(float));
+        G->hits = ga(g, (size_t)NPT * NDIR * sizeof(ghit));
+        G->lin = ga(g, ((size_t)NPT * NDIR * 3) * sizeof(float));
+        G->lout = ga(g, ((size_t)NPT * 3) * sizeof(float));
         if (!G->hits || !G->lin || !G->lout) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
         G->beta_id = -1;
         for (int b = 0; b < g->nbeta; b++) if (g->beta_mat[b] == q[i].mat) G->beta_id = b;
         if (G->beta_id < 0) {
             G->beta_id = g->nbeta;
             g->beta_mat[g->nbeta] = q[i].mat;
-            g->beta[g->nbeta] = malloc((size_t)GATHER_BRES * GATHER_BRES * NDIR * 3 * sizeof(float));
+            g->beta[g->nbeta] = ga(g, (size_t)GATHER_BRES * GATHER_BRES * NDIR * 3 * sizeof(float));
             if (!g->beta[g->nbeta]) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
             beta_ctx bc = {g, g->nbeta};
-            wrt_pool_run(pool, (size_t)GATHER_BRES * GATHER_BRES, 0, beta_row, &bc);
+            g->env.run(g->env.user, (size_t)GATHER_BRES * GATHER_BRES, beta_row, &bc);
             g->nbeta++;
         }
         trace_ctx tc = {g, i};
-        wrt_pool_run(pool, NPT, 0, trace_point, &tc);
+        g->env.run(g->env.user, NPT, trace_point, &tc);
         for (size_t k = 0; k < (size_t)NPT * NDIR; k++) {
             int hq = G->hits[k].quad;
             if (hq < 0 || g->slot[hq] >= 0) continue;
@@ -191,7 +193,7 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
     /* Each ray reads the nearest cell of its quad's radiance grid: a table, not a search. */
     for (int k = 0; k < g->nglossy; k++) {
         gquad *G = &g->gq[g->glossy[k]];
-        G->cell = malloc((size_t)NPT * NDIR * sizeof(int32_t));
+        G->cell = ga(g, (size_t)NPT * NDIR * sizeof(int32_t));
         if (!G->cell) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
         for (size_t e = 0; e < (size_t)NPT * NDIR; e++) {
             const ghit *h = &G->hits[e];
@@ -201,11 +203,11 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
             cy = cy < 0 ? 0 : cy >= GATHER_RG ? GATHER_RG - 1 : cy;
             G->cell[e] = g->slot[h->quad] * RG2 + cy * GATHER_RG + cx;
         }
-        free(G->hits);
+        gf(g, G->hits);
         G->hits = NULL;
     }
-    g->direct = calloc((size_t)(g->nslot ? g->nslot : 1) * GATHER_DTEX * GATHER_DTEX * 3, sizeof(float));
-    g->rad = calloc((size_t)(g->nslot ? g->nslot : 1) * RG2 * 3, sizeof(float));
+    g->direct = ga(g, ((size_t)(g->nslot ? g->nslot : 1) * GATHER_DTEX * GATHER_DTEX * 3) * sizeof(float));
+    g->rad = ga(g, ((size_t)(g->nslot ? g->nslot : 1) * RG2 * 3) * sizeof(float));
     if (!g->direct || !g->rad) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
     *out = g;
     return WRT_OK;
@@ -214,16 +216,15 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
 void wrt_gather_destroy(wrt_gather *g) {
     if (!g) return;
     if (g->gq)
-        for (int i = 0; i < g->nq; i++) { free(g->gq[i].hits); free(g->gq[i].cell); free(g->gq[i].lin); free(g->gq[i].lout); }
-    for (int b = 0; b < g->nbeta; b++) free(g->beta[b]);
-    free(g->beta); free(g->beta_mat); free(g->direct); free(g->rad); free(g->slot); free(g->slot_quad); free(g->glossy); free(g->gq); free(g->q);
-    free(g);
+        for (int i = 0; i < g->nq; i++) { gf(g, g->gq[i].hits); gf(g, g->gq[i].cell); gf(g, g->gq[i].lin); gf(g, g->gq[i].lout); }
+    for (int b = 0; b < g->nbeta; b++) gf(g, g->beta[b]);
+    gf(g, g->beta); gf(g, g->beta_mat); gf(g, g->direct); gf(g, g->rad); gf(g, g->slot); gf(g, g->slot_quad); gf(g, g->glossy); gf(g, g->gq); gf(g, g->q);
+    gf(g, g);
 }
 
 /* ---------------------------------------------------------- light change ---- */
 
-static void direct_row(size_t item, int thread, void *user) {
-    (void)thread;
+static void direct_row(size_t item, void *user) {
     wrt_gather *g = user;
     int s = (int)(item / GATHER_DTEX), j = (int)(item % GATHER_DTEX);
     const wrt_gather_quad *Q = &g->q[g->slot_quad[s]];
@@ -252,8 +253,7 @@ static void bilerp(const float *t, int n, double u, double v, float out[3]) {
 }
 
 /* Row j of slot s's radiance grid: base/pi x direct + the displayed indirect radiance. */
-static void rad_row(size_t item, int thread, void *user) {
-    (void)thread;
+static void rad_row(size_t item, void *user) {
     wrt_gather *g = user;
     int s = (int)(item / GATHER_RG), j = (int)(item % GATHER_RG), hq = g->slot_quad[s];
     const float *base = g->q[hq].albedo;
@@ -269,8 +269,7 @@ static void rad_row(size_t item, int thread, void *user) {
     }
 }
 
-static void lin_point(size_t item, int thread, void *user) {
-    (void)thread;
+static void lin_point(size_t item, void *user) {
     wrt_gather *g = user;
     int q = g->glossy[item / NPT];
     size_t p = item % NPT;
@@ -288,15 +287,14 @@ void wrt_gather_lights(wrt_gather *g, wrt_gather_direct_fn direct, void *user, c
                        const int *tex_res) {
     if (!g) return;
     g->dfn = direct; g->duser = user; g->tex = tex; g->tex_res = tex_res;
-    wrt_pool_run(g->pool, (size_t)g->nslot * GATHER_DTEX, 0, direct_row, g);
-    wrt_pool_run(g->pool, (size_t)g->nslot * GATHER_RG, 0, rad_row, g);
-    wrt_pool_run(g->pool, (size_t)g->nglossy * NPT, 0, lin_point, g);
+    g->env.run(g->env.user, (size_t)g->nslot * GATHER_DTEX, direct_row, g);
+    g->env.run(g->env.user, (size_t)g->nslot * GATHER_RG, rad_row, g);
+    g->env.run(g->env.user, (size_t)g->nglossy * NPT, lin_point, g);
 }
 
 /* ------------------------------------------------------------- eye move ---- */
 
-static void lout_point(size_t item, int thread, void *user) {
-    (void)thread;
+static void lout_point(size_t item, void *user) {
     wrt_gather *g = user;
     int q = g->glossy[item / NPT];
     size_t p = item % NPT;
@@ -330,8 +328,7 @@ static void lout_point(size_t item, int thread, void *user) {
     for (int c = 0; c < 3; c++) lo[c] = (float)s[c];
 }
 
-static void out_quad(size_t item, int thread, void *user) {
-    (void)thread;
+static void out_quad(size_t item, void *user) {
     wrt_gather *g = user;
     int q = g->glossy[item];
     float *o = g->out[q];
@@ -345,6 +342,6 @@ void wrt_gather_eye(wrt_gather *g, const double eye[3], float *const *out, const
     if (!g) return;
     memcpy(g->eye, eye, sizeof g->eye);
     g->out = out; g->out_res = out_res;
-    wrt_pool_run(g->pool, (size_t)g->nglossy * NPT, 0, lout_point, g);
-    wrt_pool_run(g->pool, (size_t)g->nglossy, 0, out_quad, g);
+    g->env.run(g->env.user, (size_t)g->nglossy * NPT, lout_point, g);
+    g->env.run(g->env.user, (size_t)g->nglossy, out_quad, g);
 }

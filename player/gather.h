@@ -14,15 +14,16 @@
  * is its base colour (exact); a glossy quad's is the caller's mean directional albedo,
  * a diffuse stand-in for its lobe (exact for uniform incident light; a glossy quad seen
  * in another shows no sharp reflection of its own). At an eye move only the sum over a
- * is redone. Everything is linear in the lights. Depends on Embree 3, common/brdf.h,
- * common/basis.h and common/threads.h. */
+ * is redone. Everything is linear in the lights. Loops and memory are the caller's
+ * (wrt_gather_env: the relighter's job hook or pool, and its allocator). Depends on
+ * Embree 3, common/brdf.h and common/basis.h. */
 #ifndef WRT_GATHER_H
 #define WRT_GATHER_H
 
 #include <embree3/rtcore.h>
 
 #include "../common/scene_types.h"
-#include "../common/threads.h"
+#include "../common/wrt_common.h"
 
 typedef struct wrt_gather wrt_gather;
 
@@ -32,12 +33,22 @@ typedef struct wrt_gather_quad {
     float albedo[3];          /* what a ray that sees it gets: albedo/pi x direct + tex */
 } wrt_gather_quad;
 
+/* The caller's parallel loop (fn(item, ctx) for item in [0, n), any threads) and
+ * allocator (zeroed blocks; NULL: no memory). */
+typedef void (*wrt_gather_item_fn)(size_t item, void *ctx);
+typedef struct wrt_gather_env {
+    void (*run)(void *user, size_t n, wrt_gather_item_fn fn, void *ctx);
+    void *(*alloc)(void *user, size_t bytes);
+    void (*free)(void *user, void *p);
+    void *user;
+} wrt_gather_env;
+
 /* Direct irradiance (RGB, shadows included) at x with unit normal n, from the lights. */
 typedef void (*wrt_gather_direct_fn)(void *user, wrt_v3 x, wrt_v3 n, double out[3]);
 
 /* NULL *out and WRT_OK when no quad is glossy. Errors: WRT_ERR_NOMEM. */
 wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, wrt_v3 origin, double eps,
-                             wrt_pool *pool, wrt_gather **out);
+                             const wrt_gather_env *env, wrt_gather **out);
 void wrt_gather_destroy(wrt_gather *g); /* NULL: no-op */
 
 /* Rebuilds L_in from the lights (direct) and the quads' displayed textures tex[q] of

@@ -40,6 +40,9 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sched.h>
+#include <stdarg.h>
+#include <stdio.h>
 #include <unistd.h>
 
 #include "../common/basis.h"
@@ -231,7 +234,10 @@ struct wrt_relight {
     worker *workers;
     int *synth_list;                /* nquads + 1: quads to synthesize this update */
     int oom;                        /* an allocation failed */
-    wrt_pool *pool;                 /* nthreads threads, parked between loops */
+    atomic_int upd_oom;             /* an allocation of the update's scratch failed */
+    int redo_all;                   /* an update failed part way: the next one redoes every quad */
+    _Atomic unsigned char *wbusy;   /* job hook: worker slots in use (nthreads) */
+    wrt_pool *pool;                 /* nthreads threads, parked between loops (NULL with a hook) */
     wrt_recon *recon;               /* smooth display: NULL with options.haar_blocks */
     float *stex;                    /* the smooth textures */
     uint8_t *regroup;               /* per group: reconstruct at this update */
@@ -260,18 +266,44 @@ static void job_item(size_t item, int thread, void *user) {
  * calling thread: starting threads, and waiting for the slowest, would cost more. */
 #define PARALLEL_MIN_WORK 10000.0
 
-/* Runs fn over items 0..n-1 on up to nthreads threads (one if `work` is small); returns
- * the number of threads used. Results must not depend on which worker ran an item
- * (callers write per item, or merge per item in item order). */
+/* The caller's job hook runs items on threads of its choosing, at most nthreads at once:
+ * each item takes a free worker slot (its scratch) for its duration. More calls at once
+ * than promised wait for a slot. */
+static void hook_item(void *user, int item) {
+    job *j = user;
+    wrt_relight *r = j->r;
+    for (;;) {
+        for (int t = 0; t < r->nthreads; t++) {
+            unsigned char free_slot = 0;
+            if (atomic_load_explicit(&r->wbusy[t], memory_order_relaxed) == 0 &&
+                atomic_compare_exchange_strong(&r->wbusy[t], &free_slot, 1)) {
+                j->fn(r, &r->workers[t], item, j->ctx);
+                atomic_store(&r->wbusy[t], 0);
+                return;
+            }
+        }
+        sched_yield();
+    }
+}
+
+/* Runs fn over items 0..n-1 on up to nthreads threads (one if `work` is small; with a job
+ * hook, every loop of 2 items or more goes to the hook); returns the number of threads
+ * used. Results must not depend on which worker ran an item (callers write per item, or
+ * merge per item in item order). */
 static int parallel_for(wrt_relight *r, int n, double work, job_fn fn, void *ctx) {
     if (n <= 0) return 0;
     job j = {r, fn, ctx};
+    if (r->opt.parallel_for) {
+        if (n == 1) { fn(r, &r->workers[0], 0, ctx); return 1; }
+        r->opt.parallel_for(r->opt.parallel_user, n, hook_item, &j);
+        return r->nthreads;
+    }
     return wrt_pool_run(r->pool, (size_t)n, work < PARALLEL_MIN_WORK ? 1 : 0, job_item, &j);
 }
 
 /* The relighter's own arrays come from the caller's allocator (wrt_relight_options;
  * malloc/free by default); a failure marks r->oom and the call returns WRT_ERR_NOMEM.
- * (The workers' scratch, grown during updates, still comes from malloc: grow below.) */
+ * The workers' scratch, grown during updates, too: grow below. */
 static void *ra_calloc(wrt_relight *r, size_t count, size_t size) {
     if (size && count > SIZE_MAX / size) { r->oom = 1; return NULL; }
     size_t n = count * size;
@@ -286,13 +318,26 @@ static void ra_free(const wrt_relight *r, void *p) {
     else free(p);
 }
 
-static void *grow(void *p, size_t *cap, size_t need, size_t elem) {
+/* Scratch of at least `need` elements: p itself if it holds them, else a larger block
+ * from the caller's allocator (the first `keep` elements copied, p freed, *cap updated).
+ * NULL if there is no memory: p and *cap are left as they were and r->upd_oom is set (the
+ * update then fails with WRT_ERR_NOMEM). Called from worker threads. */
+static void *grow_keep(wrt_relight *r, void *p, size_t *cap, size_t need, size_t elem, size_t keep) {
     if (need <= *cap) return p;
     size_t c = *cap ? *cap : 64;
     while (c < need) c *= 2;
+    void *np = c > SIZE_MAX / elem ? NULL : r->opt.alloc ? r->opt.alloc(c * elem, r->opt.alloc_user) : malloc(c * elem);
+    if (!np) { atomic_store(&r->upd_oom, 1); return NULL; }
+    if (keep && p) memcpy(np, p, keep * elem);
+    ra_free(r, p);
     *cap = c;
-    return wrt_xrealloc(p, c * elem);
+    return np;
 }
+static void *grow(wrt_relight *r, void *p, size_t *cap, size_t need, size_t elem) {
+    return grow_keep(r, p, cap, need, elem, 0);
+}
+#define GROW(r, ptr, cap, need) /* grows w->ptr, or returns (void) from the caller */ \
+    do { void *np_ = grow(r, ptr, &(cap), need, sizeof *(ptr)); if (!np_) return; ptr = np_; } while (0)
 
 /* -------------------------------------------------------------- geometry ---- */
 
@@ -579,13 +624,13 @@ static int cell_clear(const wrt_relight *r, const worker *w, const quad_info *q,
 }
 
 /* The quads that may shade some point of quad a (into w->occ): bounding cones from the
- * light first, then the pyramid tests. */
-static void find_occluders(const wrt_relight *r, worker *w, int a, wrt_v3 l) {
+ * light first, then the pyramid tests. -1 if there is no memory for the list. */
+static int find_occluders(wrt_relight *r, worker *w, int a, wrt_v3 l) {
     uint32_t nq = r->g->nquads;
-    size_t cap = w->nocc_cap;
-    w->occ = grow(w->occ, &cap, nq + 1, sizeof(uint32_t));
-    w->nocc_cap = cap;
     w->nocc = 0;
+    uint32_t *occ = grow(r, w->occ, &w->nocc_cap, nq + 1, sizeof(uint32_t));
+    if (!occ) return -1;
+    w->occ = occ;
     const light_cone *ca = &r->cones[a];
     const quad_info *qa = &r->qi[a];
     for (uint32_t b = 0; b < nq; b++) {
@@ -597,6 +642,7 @@ static void find_occluders(const wrt_relight *r, worker *w, int a, wrt_v3 l) {
         if (pyramid_clear(qa->p, qa->n, l, &r->qi[b], r->size)) continue;
         w->occ[w->nocc++] = b;
     }
+    return 0;
 }
 
 typedef struct proj_ctx { const wrt_light *light; const light_c *lc; double *root; } proj_ctx;
@@ -645,13 +691,13 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
         ps.nsamp = ps.grid_n ? ps.grid_n * ps.grid_n : 4;
     }
     if (Ld > cap) Ld = cap;
-    w->pval = grow(w->pval, &w->pval_cap, LEVEL_OFF(cap + 1) * nslot, sizeof(double));
-    w->pwav = grow(w->pwav, &w->pwav_cap, LEVEL_OFF(cap) * 3 * nslot + 1, sizeof(double));
+    GROW(r, w->pval, w->pval_cap, LEVEL_OFF(cap + 1) * nslot);
+    GROW(r, w->pwav, w->pwav_cap, LEVEL_OFF(cap) * 3 * nslot + 1);
     memset(w->pstate + LEVEL_OFF(Ld), 0, (LEVEL_OFF(cap + 1) - LEVEL_OFF(Ld)) * sizeof(uint32_t));
     memset(w->prefined + LEVEL_OFF(Ld), 0, LEVEL_OFF(cap + 1) - LEVEL_OFF(Ld));
     /* Quads that may shade this one; none: no rays at all. */
     if (r->opt.proj_reference == 0) {
-        find_occluders(r, w, qidx, l->pos);
+        if (find_occluders(r, w, qidx, l->pos) != 0) return;
         if (w->nocc == 0) ps.rays = 0;
     }
     /* Top-down: sample the cells of level l, split those on an edge. */
@@ -716,7 +762,7 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
         }
     }
     /* Levels above the rule's grid: plain Haar analysis of that grid. */
-    w->pyr = grow(w->pyr, &w->pyr_cap, ((size_t)1 << (2 * Ld)) * nslot, sizeof(double));
+    GROW(r, w->pyr, w->pyr_cap, ((size_t)1 << (2 * Ld)) * nslot);
     haar_analyse(w->pval + LEVEL_OFF(Ld) * nslot, Ld, nslot, w->pyr);
     const float *col = l->color;
     double I0 = slot_of[0] >= 0 ? w->pyr[slot_of[0]] : 0;
@@ -736,10 +782,15 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
             cv = w->pwav[((LEVEL_OFF(lev) + cell) * 3 + k % 3) * nslot + sl];
         } else continue; /* finer than any split cell: zero */
         if (cv == 0) continue;
-        if (w->on == w->ocap) {
-            w->ocap = w->ocap ? 2 * w->ocap : 1024;
-            w->oidx = wrt_xrealloc(w->oidx, w->ocap * sizeof(uint32_t));
-            w->oval = wrt_xrealloc(w->oval, w->ocap * 3 * sizeof(float));
+        if (w->on == w->ocap) { /* both grow to 2 x ocap, keeping what they hold */
+            size_t ci = w->ocap, cvc = 3 * w->ocap;
+            uint32_t *ni = grow_keep(r, w->oidx, &ci, w->ocap ? 2 * w->ocap : 1024, sizeof(uint32_t), w->on);
+            if (!ni) return;
+            w->oidx = ni;
+            float *nv = grow_keep(r, w->oval, &cvc, 3 * ci, sizeof(float), 3 * w->on);
+            if (!nv) return; /* oidx grew, ocap did not: a later try grows oval only */
+            w->oval = nv;
+            w->ocap = ci;
         }
         w->oidx[w->on] = (uint32_t)f;
         for (int c = 0; c < 3; c++) w->oval[w->on * 3 + c] = (float)(cv * col[c]);
@@ -748,7 +799,8 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     }
 }
 
-static void project_light(wrt_relight *r, light_state *ls) {
+/* 0, or -1 if memory ran out (the light stays unprojected). */
+static int project_light(wrt_relight *r, light_state *ls) {
     for (int t = 0; t < r->nthreads; t++) r->workers[t].on = 0;
     light_c lc = light_consts(&ls->light);
     r->size = 2 * (r->scene_diag + v3_len(v3_sub(ls->light.pos, r->origin)));
@@ -779,14 +831,20 @@ static void project_light(wrt_relight *r, light_state *ls) {
     if (ls->last_work > 0) work = ls->last_work; /* the light moves a little: as much as last time */
     for (int t = 0; t < r->nthreads; t++) r->workers[t].nsamples = 0;
     parallel_for(r, (int)r->g->nquads, work, project_quad, &ctx);
+    if (atomic_load(&r->upd_oom)) return -1;
     ls->last_work = 0;
     for (int t = 0; t < r->nthreads; t++) ls->last_work += 0.25 * (double)r->workers[t].nsamples; /* ~50 ns each */
     size_t total = 0;
     for (uint32_t q = 0; q < r->g->nquads; q++) total += r->recs[q].count;
     if (total > ls->cap) {
-        ls->cap = total;
-        ls->idx = wrt_xrealloc(ls->idx, total * sizeof(uint32_t));
-        ls->val = wrt_xrealloc(ls->val, total * 3 * sizeof(float));
+        size_t ci = ls->cap, cv = 3 * ls->cap;
+        uint32_t *ni = grow(r, ls->idx, &ci, total, sizeof(uint32_t));
+        if (!ni) return -1;
+        ls->idx = ni;
+        float *nv = grow(r, ls->val, &cv, 3 * ci, sizeof(float));
+        if (!nv) return -1;
+        ls->val = nv;
+        ls->cap = ci;
     }
     size_t k = 0;
     for (uint32_t q = 0; q < r->g->nquads; q++) {
@@ -799,6 +857,7 @@ static void project_light(wrt_relight *r, light_state *ls) {
     }
     ls->n = total;
     ls->projected = 1;
+    return 0;
 }
 
 /* ------------------------------------------------------------ BRDF table ---- */
@@ -831,8 +890,8 @@ static void synth_diffuse(wrt_relight *r, worker *w, int qidx, const float *base
     const wrt_gto_quad *gq = &r->g->quads[qidx];
     int Lt = q->tex_level, res = 1 << Lt;
     size_t ncell = (size_t)res * res;
-    w->fpyr = grow(w->fpyr, &w->fpyr_cap, ncell * 4, sizeof(float));
-    w->fgrid = grow(w->fgrid, &w->fgrid_cap, ncell + 4, sizeof(float));
+    GROW(r, w->fpyr, w->fpyr_cap, ncell * 4);
+    GROW(r, w->fgrid, w->fgrid_cap, ncell + 4);
     float *pyr = w->fpyr;
     if (!q->synth_full) memset(pyr, 0, ncell * 4 * sizeof(float)); /* else every slot is written */
     float kc[3];
@@ -862,11 +921,16 @@ static void synth_glossy(wrt_relight *r, worker *w, int qidx) {
     float *tex = r->tex + q->tex_off;
     const float *beta = r->beta[q->material];
     double t0 = wrt_now();
-    w->acc = grow(w->acc, &w->acc_cap, ncell * 3, sizeof(float));
+    GROW(r, w->acc, w->acc_cap, ncell * 3);
     if (ncell * 4 > w->view_cap) {
-        w->view_cap = ncell * 4;
-        w->cells = wrt_xrealloc(w->cells, w->view_cap * sizeof(int));
-        w->wts = wrt_xrealloc(w->wts, w->view_cap * sizeof(float));
+        size_t cc = w->view_cap, cw = w->view_cap;
+        int *nc = grow(r, w->cells, &cc, ncell * 4, sizeof(int));
+        if (!nc) return;
+        w->cells = nc;
+        float *nw = grow(r, w->wts, &cw, cc, sizeof(float));
+        if (!nw) return;
+        w->wts = nw;
+        w->view_cap = cc;
     }
     memset(w->acc, 0, ncell * 3 * sizeof(float));
     /* Per texel: the outgoing direction's bilinear cells in the beta table, weights
@@ -908,9 +972,9 @@ static void synth_glossy(wrt_relight *r, worker *w, int qidx) {
             }
     w->brdf_time += wrt_now() - t0;
     if (bx1 < 0) { memset(tex, 0, ncell * 3 * sizeof(float)); return; }
-    w->fpyr = grow(w->fpyr, &w->fpyr_cap, ncell * 4, sizeof(float));
-    w->fgrid = grow(w->fgrid, &w->fgrid_cap, ncell + 4, sizeof(float));
-    w->grid = grow(w->grid, &w->grid_cap, ncell * 3, sizeof(double)); /* used as floats */
+    GROW(r, w->fpyr, w->fpyr_cap, ncell * 4);
+    GROW(r, w->fgrid, w->fgrid_cap, ncell + 4);
+    GROW(r, w->grid, w->grid_cap, ncell * 3); /* used as floats */
     float *pyr = w->fpyr, *vals = (float *)w->grid;
     const uint16_t *alist = r->ang_list + q->ang_first;
     const uint32_t *astart = r->ang_start + q->ang_first + qidx; /* nang + 1 entries */
@@ -979,16 +1043,17 @@ static void synth_item(wrt_relight *r, worker *w, int item, void *vctx) {
 static wrt_status setup_reconstruction(wrt_relight *r, size_t *tex_total) {
     const wrt_gto *g = r->g;
     uint32_t nq = g->nquads;
-    double (*corners)[4][3] = malloc((nq ? nq : 1) * sizeof *corners);
-    uint32_t *mat = malloc((nq ? nq : 1) * sizeof(uint32_t));
-    if (!corners || !mat) { free(corners); free(mat); return WRT_ERR_NOMEM; }
+    double (*corners)[4][3] = ra_calloc(r, nq ? nq : 1, sizeof *corners);
+    uint32_t *mat = ra_calloc(r, nq ? nq : 1, sizeof(uint32_t));
+    if (r->oom) { ra_free(r, corners); ra_free(r, mat); return WRT_ERR_NOMEM; }
     for (uint32_t q = 0; q < nq; q++) {
         memcpy(corners[q], g->quads[q].p, sizeof corners[q]);
         mat[q] = g->quads[q].material;
     }
-    r->recon = wrt_recon_create((int)nq, (const double (*)[4][3])corners, mat);
-    free(corners);
-    free(mat);
+    wrt_recon_allocator ral = {r->opt.alloc, r->opt.free, r->opt.alloc_user};
+    r->recon = wrt_recon_create_with((int)nq, (const double (*)[4][3])corners, mat, &ral);
+    ra_free(r, corners);
+    ra_free(r, mat);
     if (!r->recon) return WRT_ERR_NOMEM;
     int ng = wrt_recon_ngroups(r->recon);
     r->regroup = ra_calloc(r, (size_t)ng + 1, 1);
@@ -1050,15 +1115,7 @@ static void recon_item(wrt_relight *r, worker *w, int item, void *vctx) {
     }
     wrt_recon_params rp = {r->opt.recon_keep > 0 ? r->opt.recon_keep : WRT_RECON_KEEP, WRT_RECON_SHARP, 1};
     if (wrt_recon_run(r->recon, gr, q0->tex_level, q0->stex_level, 3, in, kn, out, &rp) != 0)
-        for (int k = 0; k < nm; k++) { /* out of memory: the nearest texels */
-            const quad_info *qi = &r->qi[mem[k]];
-            int L = qi->tex_level, Lo = qi->stex_level, m = 1 << Lo;
-            for (int j = 0; j < m; j++)
-                for (int i = 0; i < m; i++)
-                    memcpy(out[mem[k]] + ((size_t)j * m + i) * 3,
-                           in[mem[k]] + ((size_t)((j << L) >> Lo) * ((size_t)1 << L) + (size_t)((i << L) >> Lo)) * 3,
-                           3 * sizeof(float));
-        }
+        atomic_store(&r->upd_oom, 1); /* out of memory: the update fails */
 }
 
 /* -------------------------------------------------------------- multiply ---- */
@@ -1124,10 +1181,47 @@ static void sort_by_ang(const uint8_t *ang, uint32_t first, uint32_t n, uint32_t
     for (uint32_t k = 0; k < n; k++) perm[start[ang[first + k]]++] = first + k;
 }
 
+/* Messages: the caller's log callback (options.log), else wrt_log. */
+static void relight_log(const wrt_relight *r, int level, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static void relight_log(const wrt_relight *r, int level, const char *fmt, ...) {
+    char buf[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    if (r->opt.log) r->opt.log(r->opt.log_user, level, buf);
+    else wrt_log(level, "%s", buf);
+}
+
+static void embree_error(void *user, enum RTCError code, const char *str) {
+    relight_log(user, WRT_LOG_WARN, "Embree error %d: %s", (int)code, str ? str : "");
+}
+
+typedef struct brdf_ctx { const wrt_material *m; float *tab; } brdf_ctx;
+static void brdf_cell_item(wrt_relight *r, worker *w, int item, void *vctx) {
+    (void)r; (void)w;
+    const brdf_ctx *bc = vctx;
+    wrt_brdf_table_build_cell(bc->m, item, bc->tab);
+}
+
 static wrt_status relight_nomem(wrt_relight *r) {
     wrt_relight_destroy(r);
     return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory");
 }
+
+/* The final gather's loops and memory (gather.h): the relighter's own. */
+typedef struct gather_job { wrt_gather_item_fn fn; void *ctx; } gather_job;
+static void gather_item(wrt_relight *r, worker *w, int item, void *ctx) {
+    (void)r; (void)w;
+    const gather_job *j = ctx;
+    j->fn((size_t)item, j->ctx);
+}
+static void gather_run(void *user, size_t n, wrt_gather_item_fn fn, void *ctx) {
+    gather_job j = {fn, ctx};
+    parallel_for(user, (int)n, 1e9, gather_item, &j);
+}
+static void *gather_alloc(void *user, size_t bytes) { return ra_calloc(user, 1, bytes); }
+static void gather_free(void *user, void *p) { ra_free(user, p); }
 
 wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out) {
     *out = NULL;
@@ -1150,11 +1244,17 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     long nc = sysconf(_SC_NPROCESSORS_ONLN);
     r->nthreads = r->opt.threads > 0 ? r->opt.threads : (int)(nc > 0 ? nc : 1);
     if (r->nthreads > 64) r->nthreads = 64;
-    if (wrt_pool_create(r->nthreads, &r->pool) != WRT_OK) {
-        ra_free(r, r);
-        return wrt_fail(WRT_ERR_NOMEM, "relight: no memory for the thread pool");
+    if (r->opt.parallel_for) { /* the caller's job hook: no thread of our own */
+        r->wbusy = ra_calloc(r, (size_t)r->nthreads, sizeof *r->wbusy);
+        if (r->oom) { ra_free(r, r); return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory"); }
+        for (int t = 0; t < r->nthreads; t++) atomic_init(&r->wbusy[t], 0);
+    } else {
+        if (wrt_pool_create(r->nthreads, &r->pool) != WRT_OK) {
+            ra_free(r, r);
+            return wrt_fail(WRT_ERR_NOMEM, "relight: no memory for the thread pool");
+        }
+        r->nthreads = wrt_pool_size(r->pool);
     }
-    r->nthreads = wrt_pool_size(r->pool);
     r->workers = ra_calloc(r, (size_t)r->nthreads, sizeof(worker));
     if (r->oom) return relight_nomem(r);
     for (int t = 0; t < r->nthreads; t++) {
@@ -1199,7 +1299,7 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
         r->fn_spidx[f] = haar_index(s.level, s.x, s.y, st);
         r->fn_ang[f] = (uint8_t)haar_index(a.level, a.x, a.y, at);
     }
-    if (nbad) wrt_log(WRT_LOG_WARN, "relight: %u function keys are not basis functions; ignored", nbad);
+    if (nbad) relight_log(r, WRT_LOG_WARN, "relight: %u function keys are not basis functions; ignored", nbad);
     /* Per quad. */
     r->qi = ra_calloc(r, nq ? nq : 1, sizeof(quad_info));
     if (r->oom) return relight_nomem(r);
@@ -1302,6 +1402,7 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     r->dev = rs.dev;
     r->scene = rs.scene;
     r->eps = rs.eps;
+    if (r->opt.log) rtcSetDeviceErrorFunction(r->dev, embree_error, r); /* Embree's errors to our log */
     /* State. */
     r->E = ra_calloc(r, (size_t)nf * 3 + 1, sizeof(float));
     r->X = ra_calloc(r, (size_t)nf * 3 + 1, sizeof(float));
@@ -1336,16 +1437,17 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
         if (!material_used_glossy(r, m)) continue;
         r->beta[m] = ra_calloc(r, (size_t)BETA_RES * BETA_RES * NANG * 3, sizeof(float));
         if (r->oom) return relight_nomem(r);
-        wrt_brdf_table_build(&r->mats[m], r->nthreads, r->beta[m]);
+        brdf_ctx bc = {&r->mats[m], r->beta[m]}; /* on the pool or the caller's hook */
+        parallel_for(r, BETA_RES * BETA_RES, 1e9, brdf_cell_item, &bc);
     }
     /* The final gather on glossy quads (gather.h); WRT_FINAL_GATHER=0 turns it off (the
      * coarse angular synthesis alone: for before/after measurements). */
     const char *fg = getenv("WRT_FINAL_GATHER");
     if (!r->opt.no_gather && !(fg && strcmp(fg, "0") == 0)) {
-        wrt_gather_quad *gqs = calloc(nq ? nq : 1, sizeof *gqs);
+        wrt_gather_quad *gqs = ra_calloc(r, nq ? nq : 1, sizeof *gqs);
         if (!gqs) return relight_nomem(r);
-        r->galb = calloc(g->nmaterials + 1, sizeof *r->galb);
-        if (!r->galb) { free(gqs); return relight_nomem(r); }
+        r->galb = ra_calloc(r, g->nmaterials + 1, sizeof *r->galb);
+        if (!r->galb) { ra_free(r, gqs); return relight_nomem(r); }
         for (uint32_t m = 0; m < g->nmaterials; m++) { /* cosine-weighted mean over w_o of beta_root */
             if (!r->beta[m]) { for (int c = 0; c < 3; c++) r->galb[m][c] = r->mats[m].base_color[c]; continue; }
             double sum[3] = {0, 0, 0};
@@ -1360,15 +1462,16 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
             gqs[q].n = qi->n; gqs[q].t = qi->t; gqs[q].b = qi->b;
             gqs[q].mat = &r->mats[qi->material];
         }
-        wrt_status gs = wrt_gather_create((int)nq, gqs, r->scene, r->origin, r->eps, r->pool, &r->gather);
-        free(gqs);
+        wrt_gather_env genv = {gather_run, gather_alloc, gather_free, r};
+        wrt_status gs = wrt_gather_create((int)nq, gqs, r->scene, r->origin, r->eps, &genv, &r->gather);
+        ra_free(r, gqs);
         if (gs != WRT_OK) return relight_nomem(r);
         if (r->gather) {
-            r->gtex = calloc(nq, sizeof *r->gtex);
-            r->gout = calloc(nq, sizeof *r->gout);
-            r->gres = calloc(nq, sizeof *r->gres);
-            r->gires = calloc(nq, sizeof *r->gires);
-            r->gdiff = calloc(nq, sizeof *r->gdiff);
+            r->gtex = ra_calloc(r, nq, sizeof *r->gtex);
+            r->gout = ra_calloc(r, nq, sizeof *r->gout);
+            r->gres = ra_calloc(r, nq, sizeof *r->gres);
+            r->gires = ra_calloc(r, nq, sizeof *r->gires);
+            r->gdiff = ra_calloc(r, nq, sizeof *r->gdiff);
             if (!r->gtex || !r->gout || !r->gres || !r->gires || !r->gdiff) return relight_nomem(r);
             for (uint32_t q = 0; q < nq; q++) {
                 r->gires[q] = r->gres[q] = wrt_relight_tex_res(r, (int)q);
@@ -1376,7 +1479,7 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
                 r->gout[q] = (float *)r->gtex[q];
                 if (!r->qi[q].glossy) continue;
                 r->gires[q] = 1 << r->qi[q].tex_level;
-                r->gdiff[q] = calloc((size_t)r->gires[q] * r->gires[q] * 3, sizeof(float));
+                r->gdiff[q] = ra_calloc(r, (size_t)r->gires[q] * r->gires[q] * 3, sizeof(float));
                 if (!r->gdiff[q]) return relight_nomem(r);
                 r->gtex[q] = r->gdiff[q];
             }
@@ -1390,23 +1493,25 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (!r) return;
     wrt_pool_destroy(r->pool);
     wrt_gather_destroy(r->gather);
-    if (r->gdiff) for (uint32_t q = 0; q < r->g->nquads; q++) free(r->gdiff[q]);
-    free(r->gtex); free(r->gout); free(r->gres); free(r->gires); free(r->gdiff); free(r->galb);
+    if (r->gdiff) for (uint32_t q = 0; q < r->g->nquads; q++) ra_free(r, r->gdiff[q]);
+    ra_free(r, r->gtex); ra_free(r, r->gout); ra_free(r, r->gres); ra_free(r, r->gires); ra_free(r, r->gdiff); ra_free(r, r->galb);
     if (r->scene) rtcReleaseScene(r->scene);
     if (r->dev) rtcReleaseDevice(r->dev);
-    for (int i = 0; i < r->lights_cap; i++) { /* idx, val: grown in updates (malloc) */
-        free(r->lights[i].idx); free(r->lights[i].val); ra_free(r, r->lights[i].root);
+    for (int i = 0; i < r->lights_cap; i++) {
+        ra_free(r, r->lights[i].idx); ra_free(r, r->lights[i].val); ra_free(r, r->lights[i].root);
     }
     ra_free(r, r->lights);
     if (r->workers)
         for (int t = 0; t < r->nthreads; t++) {
             worker *w = &r->workers[t];
-            /* scratch grown in updates (malloc) */
-            free(w->grid); free(w->pyr); free(w->acc); free(w->wts); free(w->cells); free(w->oidx); free(w->oval);
-            free(w->fpyr); free(w->fgrid); free(w->occ); free(w->pval); free(w->pwav);
+            /* scratch grown in updates */
+            ra_free(r, w->grid); ra_free(r, w->pyr); ra_free(r, w->acc); ra_free(r, w->wts); ra_free(r, w->cells);
+            ra_free(r, w->oidx); ra_free(r, w->oval); ra_free(r, w->fpyr); ra_free(r, w->fgrid); ra_free(r, w->occ);
+            ra_free(r, w->pval); ra_free(r, w->pwav);
             ra_free(r, w->pstate); ra_free(r, w->prefined); ra_free(r, w->pclear); ra_free(r, w->pcells);
         }
     ra_free(r, r->workers);
+    ra_free(r, (void *)r->wbusy);
     if (r->beta) for (uint32_t m = 0; m < r->g->nmaterials; m++) ra_free(r, r->beta[m]);
     ra_free(r, r->beta);
     if (r->qi) for (uint32_t q = 0; q < r->g->nquads; q++) ra_free(r, r->qi[q].known);
@@ -1501,22 +1606,36 @@ static void gather_direct(void *user, wrt_v3 x, wrt_v3 n, double out[3]) {
     }
 }
 
+/* An update that ran out of memory: -1 with a message (on the caller's thread); lights
+ * not projected stay so, and textures are redone at the next update. */
+static int update_nomem(wrt_relight *r, const char *stage, wrt_relight_timings *tm, const wrt_relight_timings *t) {
+    r->redo_all = 1;
+    if (tm) *tm = *t;
+    wrt_fail(WRT_ERR_NOMEM, "relight: out of memory while %s (update abandoned; the next update redoes it)", stage);
+    return -1;
+}
+
 int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     wrt_relight_timings t = {0};
     const wrt_gto *g = r->g;
     uint32_t nq = g->nquads, nf = g->nfuncs;
     int nchanged = 0;
     double t0 = wrt_now();
+    atomic_store(&r->upd_oom, 0);
     for (int i = 0; i < r->nlights; i++) {
         light_state *ls = &r->lights[i];
         if (ls->projected || ls->scale == 0) continue;
-        project_light(r, ls);
+        if (project_light(r, ls) != 0) return update_nomem(r, "projecting a light", tm, &t);
         t.lights_changed++;
     }
     double t1 = wrt_now();
     t.projection = (t1 - t0) * 1e3;
     memset(r->resynth, 0, nq);
-    int lights_dirty = r->e_dirty, eye_moved = r->eye_dirty;
+    int lights_dirty = r->e_dirty || r->redo_all, eye_moved = r->eye_dirty || r->redo_all;
+    if (r->redo_all) { /* the last update failed part way: every texture again */
+        memset(r->resynth, 1, nq);
+        memset(r->tex_nonzero, 1, nq); /* dark quads: cleared again */
+    }
     if (r->e_dirty) {
         r->e_dirty = 0;
         /* E = sum of scaled per-light projections, in light order. */
@@ -1590,6 +1709,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
         work += ldexp(qi->glossy ? 0.3 * qi->nang : 0.015, 2 * qi->tex_level); /* ~3 ns a diffuse texel */
     }
     parallel_for(r, nsynth, work, synth_item, &sc);
+    if (atomic_load(&r->upd_oom)) return update_nomem(r, "synthesizing textures", tm, &t);
     double t4 = wrt_now(), bt = 0;
     for (int tt = 0; tt < r->nthreads; tt++) bt += r->workers[tt].brdf_time;
     int used = r->nthreads < nsynth ? r->nthreads : (nsynth ? nsynth : 1);
@@ -1612,6 +1732,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
         }
         recon_ctx rcx = {list};
         parallel_for(r, nre, rwork, recon_item, &rcx);
+        if (atomic_load(&r->upd_oom)) return update_nomem(r, "smoothing textures", tm, &t);
         t.reconstruction = (wrt_now() - t4) * 1e3;
         t.synthesis += t.reconstruction;
     }
@@ -1624,6 +1745,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
              * incident light, a diffuse approximation of its lobe otherwise. */
             for (uint32_t q = 0; q < nq; q++)
                 if (r->gdiff[q]) synth_diffuse(r, &r->workers[0], (int)q, r->galb[r->qi[q].material], r->gdiff[q]);
+            if (atomic_load(&r->upd_oom)) return update_nomem(r, "gathering glossy light", tm, &t);
             wrt_gather_lights(r->gather, gather_direct, r, r->gtex, r->gires);
         }
         r->glin_dirty = 0;
@@ -1632,6 +1754,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
         t.synthesis += (wrt_now() - t5) * 1e3;
     }
     t.quads_resynthesized = nchanged;
+    r->redo_all = 0;
     if (tm) *tm = t;
     return nchanged;
 }
@@ -1679,7 +1802,7 @@ double wrt_relight_bench(wrt_relight *r, int updates, wrt_relight_timings *mean)
         ls[0].pos = v3(p0.x + rad * cos(a), p0.y, p0.z + rad * sin(a));
         wrt_relight_set_lights(r, ls, sc, r->nlights);
         wrt_relight_timings t;
-        wrt_relight_update(r, &t);
+        if (wrt_relight_update(r, &t) < 0) { ra_free(r, ls); ra_free(r, sc); return -1; }
         sum.projection += t.projection; sum.multiply += t.multiply;
         sum.brdf += t.brdf; sum.synthesis += t.synthesis; sum.reconstruction += t.reconstruction;
         sum.quads_resynthesized += t.quads_resynthesized; sum.lights_changed += t.lights_changed;

@@ -27,9 +27,15 @@ typedef struct wrt_relight_options {
                           * a side, resampled smoothly below (0 = the default, 3) */
     int no_gather;       /* 1: glossy quads show the coarse angular synthesis only, no
                           * final gather (player/gather.h); also WRT_FINAL_GATHER=0 */
-    void *(*alloc)(size_t size, void *user); /* the relighter's arrays (both or neither; */
-    void (*free)(void *p, void *user);        /* NULL: malloc and free). Update-time scratch */
-    void *alloc_user;                         /* still comes from malloc. */
+    void *(*alloc)(size_t size, void *user); /* every block of the relighter (both or neither; */
+    void (*free)(void *p, void *user);        /* NULL: malloc and free), the update's scratch */
+    void *alloc_user;                         /* too (then from the worker threads: thread-safe) */
+    /* Job hook (include/wrt.h, wrt_runtime_options.parallel_for): runs fn(ctx, i) for i in
+     * [0, n) with at most `threads` calls at once; NULL: the relighter's own thread pool. */
+    void (*parallel_for)(void *user, int n, void (*fn)(void *ctx, int i), void *ctx);
+    void *parallel_user;
+    void (*log)(void *user, int level, const char *msg); /* NULL: wrt_log (common/) */
+    void *log_user;
 } wrt_relight_options;
 
 typedef struct wrt_relight_timings { /* milliseconds of the last update */
@@ -51,7 +57,9 @@ wrt_status wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const
 void wrt_relight_set_eye(wrt_relight *r, const double eye[3]);
 
 /* Recomputes what changed since the last call. Returns the number of quads whose
- * texture changed (0: nothing to upload). `t` may be NULL. */
+ * texture changed (0: nothing to upload), or -1 if memory ran out (wrt_last_error says
+ * where; the textures may then be partly updated, and the next update redoes them all).
+ * `t` may be NULL. */
 int wrt_relight_update(wrt_relight *r, wrt_relight_timings *t);
 
 /* Quad q's texture of outgoing indirect radiance (linear RGB floats, res x res texels,

@@ -62,7 +62,8 @@ static wrt_status open_common(const void *data, size_t size, const char *path, c
     if (s) { rt->al.free(rt, rt->al.user); return fail(err, s); }
     wrt_relight_options ro = {.proj_level = o.proj_level, .max_tex_res = o.max_tex_res, .threads = o.threads,
                               .alloc = o.allocator.alloc, .free = o.allocator.free, .alloc_user = o.allocator.user,
-                              .haar_blocks = o.haar_blocks};
+                              .haar_blocks = o.haar_blocks, .parallel_for = o.parallel_for,
+                              .parallel_user = o.parallel_user, .log = o.log, .log_user = o.log_user};
     if ((s = wrt_relight_create(&rt->g, &ro, &rt->rl))) {
         wrt_gto_close(&rt->g);
         rt->al.free(rt, rt->al.user);
@@ -156,10 +157,9 @@ wrt_status wrt_runtime_set_eye(wrt_runtime *rt, const double eye[3], wrt_error *
 }
 
 wrt_status wrt_runtime_update(wrt_runtime *rt, int *changed, wrt_error *err) {
-    (void)err;
     int n = wrt_relight_update(rt->rl, &rt->tm);
-    if (changed) *changed = n;
-    return WRT_OK;
+    if (changed) *changed = n > 0 ? n : 0;
+    return n < 0 ? fail(err, WRT_ERR_NOMEM) : WRT_OK;
 }
 
 int wrt_runtime_quad_count(const wrt_runtime *rt) { return (int)rt->g.nquads; }
