@@ -430,6 +430,23 @@ static light_c light_consts(const wrt_light *l) {
     return c;
 }
 
+/* 1 if nothing blocks the shadow ray from just above x (unit normal n) along the unit
+ * direction dir toward a light at distance d; Embree sets tfar to -inf on a hit. */
+static int light_visible(const wrt_relight *r, wrt_v3 x, wrt_v3 n, wrt_v3 dir, double d) {
+    wrt_v3 o = v3_sub(v3_mad(x, n, r->eps), r->origin);
+    struct RTCRay ray;
+    ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
+    ray.dir_x = (float)dir.x; ray.dir_y = (float)dir.y; ray.dir_z = (float)dir.z;
+    ray.tnear = 0;
+    ray.tfar = (float)(d - 2 * r->eps);
+    ray.time = 0; ray.mask = 0xFFFFFFFFu; ray.id = 0; ray.flags = 0;
+    if (!(ray.tfar > 0)) return 1;
+    struct RTCIntersectContext ic;
+    rtcInitIntersectContext(&ic);
+    rtcOccluded1(r->scene, &ic, &ray);
+    return !(ray.tfar < 0);
+}
+
 /* Direct irradiance (without colour) from light l at x with unit normal n, and the
  * unit direction toward the light; 0 if none arrives (visibility excluded). */
 static double light_irradiance(const light_c *l, wrt_v3 x, wrt_v3 n, wrt_v3 *w, double *dist) {
@@ -492,21 +509,7 @@ static uint32_t eval_cell(const wrt_relight *r, worker *w, const proj_setup *ps,
         double d = 0;
         double e = light_irradiance(ps->lc, x, q->n, &dir, &d);
         if (e == 0) continue;
-        if (rays) { /* shadow ray from just above the surface toward the light */
-            wrt_v3 o = v3_sub(v3_mad(x, q->n, r->eps), r->origin);
-            struct RTCRay ray;
-            ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
-            ray.dir_x = (float)dir.x; ray.dir_y = (float)dir.y; ray.dir_z = (float)dir.z;
-            ray.tnear = 0;
-            ray.tfar = (float)(d - 2 * r->eps);
-            ray.time = 0; ray.mask = 0xFFFFFFFFu; ray.id = 0; ray.flags = 0;
-            if (ray.tfar > 0) {
-                struct RTCIntersectContext ic;
-                rtcInitIntersectContext(&ic);
-                rtcOccluded1(r->scene, &ic, &ray);
-                if (ray.tfar < 0) { vis |= VIS_SHADOWED; continue; } /* occluded: tfar = -inf */
-            }
-        }
+        if (rays && !light_visible(r, x, q->n, dir, d)) { vis |= VIS_SHADOWED; continue; }
         double val = e * (q->parallelogram ? sj : sqrt(quad_jacobian(q, u, v) * inv_pi)) * wgt;
         vis |= VIS_LIT;
         if (root_slot >= 0) out[root_slot] += val;
@@ -1589,19 +1592,7 @@ static void gather_direct(void *user, wrt_v3 x, wrt_v3 n, double out[3]) {
         wrt_v3 dir;
         double d = 0, e = light_irradiance(&lc, x, n, &dir, &d);
         if (e == 0) continue;
-        wrt_v3 o = v3_sub(v3_mad(x, n, r->eps), r->origin);
-        struct RTCRay ray;
-        ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
-        ray.dir_x = (float)dir.x; ray.dir_y = (float)dir.y; ray.dir_z = (float)dir.z;
-        ray.tnear = 0;
-        ray.tfar = (float)(d - 2 * r->eps);
-        ray.time = 0; ray.mask = 0xFFFFFFFFu; ray.id = 0; ray.flags = 0;
-        if (ray.tfar > 0) {
-            struct RTCIntersectContext ic;
-            rtcInitIntersectContext(&ic);
-            rtcOccluded1(r->scene, &ic, &ray);
-            if (ray.tfar < 0) continue;
-        }
+        if (!light_visible(r, x, n, dir, d)) continue;
         for (int c = 0; c < 3; c++) out[c] += ls->scale * ls->light.color[c] * e;
     }
 }
