@@ -226,9 +226,10 @@ static wrt_csc gather_columns(uint32_t n, col_out *out) {
     return m;
 }
 
-wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads) {
+/* The product's context: its inputs, one output record per column of the n x n result, and
+ * each of the t threads' scratch (an accumulator, a marker, a row list and a sort buffer). */
+static mul_ctx mul_ctx_make(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int t) {
     uint32_t n = a->n;
-    int t = wrt_threads_resolve(threads);
     mul_ctx c = {.a = a, .b = b, .drop = drop};
     if (w) { c.row_w = w->row_w; c.col_w = w->col_w; c.power_w = w->power_w; }
     c.out = wrt_xcalloc(n ? n : 1, sizeof *c.out);
@@ -242,11 +243,22 @@ wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_c
         c.mark[i] = wrt_xcalloc((size_t)n + 1, sizeof(uint32_t));
         c.list[i] = wrt_xmalloc(((size_t)n + 1) * sizeof(uint32_t));
     }
+    return c;
+}
+
+/* Frees what mul_ctx_make allocated (the output records' own arrays are the caller's). */
+static void mul_ctx_free(mul_ctx *c, int t) {
+    for (int i = 0; i < t; i++) { free(c->acc[i]); free(c->mark[i]); free(c->list[i]); free(c->tmp[i]); }
+    free(c->acc); free(c->mark); free(c->list); free(c->tmp); free(c->out);
+}
+
+wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads) {
+    uint32_t n = a->n;
+    int t = wrt_threads_resolve(threads);
+    mul_ctx c = mul_ctx_make(a, b, drop, w, t);
     wrt_parallel_for(n, t, mul_column, &c);
-    for (int i = 0; i < t; i++) { free(c.acc[i]); free(c.mark[i]); free(c.list[i]); free(c.tmp[i]); }
-    free(c.acc); free(c.mark); free(c.list); free(c.tmp);
     wrt_csc m = gather_columns(n, c.out);
-    free(c.out);
+    mul_ctx_free(&c, t);
     return m;
 }
 
@@ -267,19 +279,7 @@ uint64_t wrt_csc_mul_estimate(const wrt_csc *a, const wrt_csc *b, double drop, c
     if (stride < 1) stride = 1;
     if (n == 0) return 0;
     int t = wrt_threads_resolve(threads);
-    mul_ctx c = {.a = a, .b = b, .drop = drop};
-    if (w) { c.row_w = w->row_w; c.col_w = w->col_w; c.power_w = w->power_w; }
-    c.out = wrt_xcalloc(n, sizeof *c.out);
-    c.acc = wrt_xcalloc((size_t)t, sizeof *c.acc);
-    c.mark = wrt_xcalloc((size_t)t, sizeof *c.mark);
-    c.list = wrt_xcalloc((size_t)t, sizeof *c.list);
-    c.tmp = wrt_xcalloc((size_t)t, sizeof *c.tmp);
-    for (int i = 0; i < t; i++) {
-        c.tmp[i] = wrt_xmalloc(((size_t)n + 1) * sizeof(uint32_t));
-        c.acc[i] = wrt_xmalloc(((size_t)n * 3 + 1) * sizeof(double));
-        c.mark[i] = wrt_xcalloc((size_t)n + 1, sizeof(uint32_t));
-        c.list[i] = wrt_xmalloc(((size_t)n + 1) * sizeof(uint32_t));
-    }
+    mul_ctx c = mul_ctx_make(a, b, drop, w, t);
     size_t m = ((size_t)n + stride - 1) / stride;
     mul_sample_ctx sc = {&c, stride};
     wrt_parallel_for(m, t, mul_sample_column, &sc);
@@ -292,8 +292,7 @@ uint64_t wrt_csc_mul_estimate(const wrt_csc *a, const wrt_csc *b, double drop, c
         kept += c.out[j].count;
         bs += b->col[j + 1] - b->col[j];
     }
-    for (int i = 0; i < t; i++) { free(c.acc[i]); free(c.mark[i]); free(c.list[i]); free(c.tmp[i]); }
-    free(c.acc); free(c.mark); free(c.list); free(c.tmp); free(c.out);
+    mul_ctx_free(&c, t);
     double scale = bs > 0 ? (double)b->nnz / (double)bs : (double)n / (double)m;
     return (uint64_t)((double)kept * scale + 0.5);
 }
