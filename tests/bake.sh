@@ -19,6 +19,9 @@ tmp=$(mktemp -d /tmp/wrt_bake_XXXXXX)
 trap 'rm -rf "$tmp"' EXIT
 ok() { pass=$((pass + 1)); echo "ok $1"; }
 ko() { fail=$((fail + 1)); echo "FAIL $1"; [ -s "$tmp/err" ] && sed 's/^/    /' "$tmp/err" | head -n 5; }
+skipped=0
+skip() { skipped=$((skipped + 1)); echo "skipped $1"; }
+asan=0; nm "$build/wrt-bake" 2>/dev/null | grep -q __asan_init && asan=1
 check() { local name=$1; shift; if "$@" >"$tmp/out" 2>"$tmp/err"; then ok "$name"; else ko "$name"; fi; }
 expect_exit() {
     local name=$1 code=$2 re=$3; shift 3
@@ -176,7 +179,12 @@ p = subprocess.run(sys.argv[1:-1], stdout=subprocess.DEVNULL, stderr=open(sys.ar
 print(p.returncode, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss // 1024)' \
         "$bake" assets/glossy.gltf -q 9 -o "$tmp/g9.gto" --max-memory 400 --quiet "$tmp/g9")
     set -- $rc
-    if [ "${1:-x}" = 7 ] && [ "${2:-999999}" -le 400 ] && grep -q "budget of 400 MB" "$tmp/g9.err" && [ ! -e "$tmp/g9.gto" ]; then
+    # AddressSanitizer's shadow memory and quarantine count in the process's peak, so
+    # under config=sanitize the refusal is checked but not the peak.
+    if [ "$asan" = 1 ] && [ "${1:-x}" = 7 ] && grep -q "budget of 400 MB" "$tmp/g9.err" && [ ! -e "$tmp/g9.gto" ]; then
+        ok "memory: quality 9 glossy refused at 400 MB (exit 7)"
+        skip "memory: its peak under 400 MB (${2:-?} MB with AddressSanitizer's own memory)"
+    elif [ "${1:-x}" = 7 ] && [ "${2:-999999}" -le 400 ] && grep -q "budget of 400 MB" "$tmp/g9.err" && [ ! -e "$tmp/g9.gto" ]; then
         ok "memory: quality 9 glossy refused at 400 MB (exit 7), peak ${2} MB"
     else
         ko "memory: quality 9 glossy refused at 400 MB (exit ${1:-?}), peak ${2:-?} MB"
@@ -199,5 +207,5 @@ else
     ko "interrupted bake: no output, no temporary (exit $rc)"
 fi
 
-echo "bake: $pass passed, $fail failed"
+if [ $skipped -gt 0 ]; then echo "bake: $pass passed, $fail failed, $skipped skipped"; else echo "bake: $pass passed, $fail failed"; fi
 [ "$fail" -eq 0 ]

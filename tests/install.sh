@@ -21,8 +21,10 @@ done
 ! ldd "$tmp/prefix/lib/libwrt.so" | grep -qiE 'libGL|libEGL|glfw|OpenImageIO'
 check "libwrt.so needs no OpenGL, EGL, GLFW or OpenImageIO" $?
 mkdir -p "$tmp/out" && cp examples/relight.c "$tmp/out/ex.c"
+# A library built with config=sanitize needs its sanitizers' runtime in the program too.
+san=""; nm "$build/libwrt.a" 2>/dev/null | grep -q __asan && san="-fsanitize=address,undefined"
 (cd "$tmp/out" && PKG_CONFIG_PATH="$tmp/prefix/lib/pkgconfig" \
-    cc -std=c11 ex.c $(PKG_CONFIG_PATH="$tmp/prefix/lib/pkgconfig" pkg-config --cflags --libs --static wrt) -o ex) \
+    cc -std=c11 $san ex.c $(PKG_CONFIG_PATH="$tmp/prefix/lib/pkgconfig" pkg-config --cflags --libs --static wrt) -o ex) \
     >"$tmp/cc.log" 2>&1
 check "example builds outside the tree against the installed copy" $?
 [ $fail -eq 0 ] || cat "$tmp/cc.log" "$tmp/install.log"
