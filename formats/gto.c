@@ -745,13 +745,11 @@ static wrt_status prefix_error(const char *path, wrt_status st) {
     return wrt_fail(st, "%s: %s", path, msg);
 }
 
-wrt_status wrt_gto_open(const char *path, wrt_gto *out) {
-    memset(out, 0, sizeof *out);
-    void *map; size_t len;
-    wrt_status st = map_file(path, &map, &len);
-    if (st != WRT_OK) return st;
+/* Validates a mapping of `len` bytes of `path` (NULL when the file is empty) and hands it
+ * to `out`, which then owns it; on failure unmaps it and names the path in the error. */
+static wrt_status adopt_map(void *map, size_t len, const char *path, wrt_gto *out) {
     static const uint64_t empty = 0;
-    st = validate(map ? map : (const void *)&empty, len, out);
+    wrt_status st = validate(map ? map : (const void *)&empty, len, out);
     if (st != WRT_OK) {
         if (map) munmap(map, len);
         memset(out, 0, sizeof *out);
@@ -761,6 +759,14 @@ wrt_status wrt_gto_open(const char *path, wrt_gto *out) {
     out->size = len;
     out->owns_map = 1;
     return WRT_OK;
+}
+
+wrt_status wrt_gto_open(const char *path, wrt_gto *out) {
+    memset(out, 0, sizeof *out);
+    void *map; size_t len;
+    wrt_status st = map_file(path, &map, &len);
+    if (st != WRT_OK) return st;
+    return adopt_map(map, len, path, out);
 }
 
 void wrt_gto_close(wrt_gto *g) {
@@ -1142,17 +1148,7 @@ wrt_status wrt_gto_open_pending(const wrt_gto_pending *p, wrt_gto *out) {
     void *map; size_t len;
     wrt_status st = map_fd(p->fd, p->path, &map, &len);
     if (st != WRT_OK) return st;
-    static const uint64_t empty = 0;
-    st = validate(map ? map : (const void *)&empty, len, out);
-    if (st != WRT_OK) {
-        if (map) munmap(map, len);
-        memset(out, 0, sizeof *out);
-        return prefix_error(p->path, st);
-    }
-    out->map = map;
-    out->size = len;
-    out->owns_map = 1;
-    return WRT_OK;
+    return adopt_map(map, len, p->path, out);
 }
 
 wrt_status wrt_gto_commit(wrt_gto_pending *p) {

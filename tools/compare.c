@@ -540,6 +540,21 @@ static void seam_jumps(const wrt_gto *g, const wrt_runtime *r, double tol, doubl
     *inside = si > 0 ? ji / si : 0;
 }
 
+/* Adds quad q's cells (w: the bake's n x n RGB values) against the reference's for light
+ * li to the area-weighted sums of squared differences, of the reference's variance and of
+ * its squares; sw and sr (may be NULL) get the bake's and the reference's sums. */
+static void add_cell_errors(const wrt_compare_ref *c, int li, int q, double a, const double *w, double *d2,
+                            double *se2, double *r2, double *sw, double *sr) {
+    int nc3 = c->n * c->n * 3;
+    const double *m = c->cell_mean[li] + (size_t)q * nc3, *e = c->cell_se[li] + (size_t)q * nc3;
+    for (int k = 0; k < nc3; k++) {
+        *d2 += a * (w[k] - m[k]) * (w[k] - m[k]);
+        *se2 += a * e[k] * e[k];
+        *r2 += a * m[k] * m[k];
+        if (sw) { *sw += a * w[k]; *sr += a * m[k]; }
+    }
+}
+
 static int cmp_double(const void *a, const void *b) {
     double x = *(const double *)a, y = *(const double *)b;
     return (x > y) - (x < y);
@@ -584,15 +599,7 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
         for (int q = 0; q < s->nquads; q++) {
             double *w = c->wcells[li] + (size_t)q * nc * 3;
             wrt_runtime_quad_cells(r, q, n, w, NULL);
-            const double *m = c->cell_mean[li] + (size_t)q * nc * 3, *e = c->cell_se[li] + (size_t)q * nc * 3;
-            double a = s->quads[q].area;
-            for (int k = 0; k < nc * 3; k++) {
-                d2 += a * (w[k] - m[k]) * (w[k] - m[k]);
-                se2 += a * e[k] * e[k];
-                r2 += a * m[k] * m[k];
-                sw += a * w[k];
-                sr += a * m[k];
-            }
+            add_cell_errors(c, li, q, s->quads[q].area, w, &d2, &se2, &r2, &sw, &sr);
         }
         rel_errors(d2, se2, r2, &lr->cell_rmse, &lr->cell_floor, &lr->cell_debiased);
         /* The same cells of the smooth display (Lambertian quads; the Haar cells elsewhere). */
@@ -601,13 +608,7 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
         for (int q = 0; q < s->nquads; q++) {
             memcpy(w, c->wcells[li] + (size_t)q * nc * 3, (size_t)nc * 3 * sizeof(double));
             display_cells(g, r, q, n, w);
-            const double *m = c->cell_mean[li] + (size_t)q * nc * 3, *e = c->cell_se[li] + (size_t)q * nc * 3;
-            double a = s->quads[q].area;
-            for (int k = 0; k < nc * 3; k++) {
-                d2 += a * (w[k] - m[k]) * (w[k] - m[k]);
-                se2 += a * e[k] * e[k];
-                r2 += a * m[k] * m[k];
-            }
+            add_cell_errors(c, li, q, s->quads[q].area, w, &d2, &se2, &r2, NULL, NULL);
         }
         free(w);
         double fl;
