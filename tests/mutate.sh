@@ -129,9 +129,9 @@ mutation series-stop: the series stops when the last term is 1% of the sum
 
 mutation compress-power: compression hands a column's dropped power to its kept entries twice
   file precompute/sparse.c
-  find acc[3 * i + ch] = v + lost[ch] * fabs(v) / wsum;
-  repl acc[3 * i + ch] = v + 2 * lost[ch] * fabs(v) / wsum;
-  run test_bake test_small_quads_furnace test_coloured_furnace
+  find acc[3 * i + ch] = v + lost * fabs(v) / wsum;
+  repl acc[3 * i + ch] = v + 2 * lost * fabs(v) / wsum;
+  run test_bake test_compression_keeps_power test_small_quads_furnace test_coloured_furnace
   run test_stress test_furnace test_furnace_occluded
   run test_accuracy
 
