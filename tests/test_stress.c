@@ -228,9 +228,16 @@ static void test_furnace(void) {
          * mixed levels left fine sender wavelets delivering net power, the dominant
          * eigenvalue of T was rho (1 + 0.003..0.008), and 1 / (1 - rho) amplified it
          * (+4% at 0.9, +55% at 0.99, a diverging series at 0.999). */
+        /* With one quad a wall every quad sees the same, so the worst quad is the flux;
+         * with 3 x 3 (full size) corner, edge and centre quads differ, and their error is
+         * the distribution within each quad (links stopped at mixed levels: docs/stress.md) */
         char id[80];
+        snprintf(id, sizeof id, "stress-furnace-flux-%g", rho);
+        CHECK_CLAIM(id, mean / truth - 1, CLAIM_FURNACE, "furnace rho %.3f: mean indirect %.7g vs %.7g", rho, mean, truth);
         snprintf(id, sizeof id, "stress-furnace-quad-%g", rho);
-        CHECK_CLAIM(id, worst, CLAIM_FURNACE, "furnace rho %.3f: indirect %.6g .. %.6g, truth %.6g", rho, lo, hi, truth);
+        CHECK_CLAIM(id, worst, n > 1 ? CLAIM_FURNACE_SPLIT_WALLS : CLAIM_FURNACE,
+                    "furnace rho %.3f, %d x %d quads a wall, quality %d: indirect %.6g .. %.6g, truth %.6g", rho, n, n,
+                    quality, lo, hi, truth);
         printf("furnace injected rho %.3f: indirect %.5g .. %.5g vs truth %.5g (worst %.3f%%); bounces %llu, "
                "tail %.3e, energy left %.3e, ratio %.5f\n", rho, lo, hi, truth, 100 * worst,
                (unsigned long long)r.c.bounces, r.c.tail_fraction, r.c.energy_left, r.c.series_ratio);
