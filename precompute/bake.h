@@ -18,6 +18,9 @@ typedef struct wrt_bake_options {
     int quality;           /* 1 (coarse, fast) .. 9 (fine, slow); sets the thresholds below */
     double eps_sender;     /* refine the sender when the kernel's variation over it exceeds this */
     double eps_receiver;   /* same for the receiver */
+    double eps_receiver_coarse; /* the receiver's threshold for cells coarser than the display
+                                 * keeps (levels < WRT_RECON_KEEP; default: eps_receiver,
+                                 * finer from quality 5 on: wrt_bake_defaults) */
     double eps_compress;   /* drop operator entries below this (max over RGB) after each product */
     int max_slevel;        /* deepest spatial level of refinement (cells 2^-l of a quad) */
     int min_slevel;        /* refine every link at least to this level (default 0) */

@@ -43,6 +43,7 @@
 #include <embree3/rtcore.h>
 
 #include "../common/basis.h"
+#include "../common/reconstruct.h"
 #include "dto.h"
 
 /* ---- Lambert's closed form, clipped to the half-space in front of x ---- */
@@ -426,9 +427,16 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     double vr = (swapped ? vs : vq) * pc->rho_max * wrt_node_size(rn);
     double vsn = (swapped ? vq : vs) * pc->rho_max * wrt_node_size(sn);
     int maxl = b->opt.max_slevel, minl = b->opt.min_slevel;
-    /* a link that serves both directions refines both sides by the finer threshold */
-    double eps_r = b->opt.eps_receiver, eps_s = b->opt.eps_sender;
-    if (pc->sym) eps_r = eps_s = fmin(eps_r, eps_s);
+    /* cells coarser than the display keeps (bake.c) split by their own receiver threshold;
+     * a link that serves both directions refines both sides by the finer threshold, each
+     * side's at its own level */
+    double eps_r = rn.level < WRT_RECON_KEEP ? b->opt.eps_receiver_coarse : b->opt.eps_receiver;
+    double eps_s = b->opt.eps_sender;
+    if (pc->sym) {
+        double eps_rs = sn.level < WRT_RECON_KEEP ? b->opt.eps_receiver_coarse : b->opt.eps_receiver;
+        eps_r = fmin(eps_r, eps_s);
+        eps_s = fmin(eps_rs, eps_s);
+    }
     int ref_r = rn.level < maxl && (vr > eps_r || rn.level < minl);
     int ref_s = sn.level < maxl && (vsn > eps_s || sn.level < minl);
     /* glossy: a sender cell should not cover more than one receiver angular cell, nor a

@@ -34,7 +34,10 @@ static void usage(FILE *f) {
         "                         --output is the same)\n"
         "  -q, --quality Q        1 (coarse, fast) .. 9 (fine, slow); default 5. Sets the\n"
         "                         thresholds below consistently\n"
-        "  --eps-receiver E       receiver refinement threshold (form-factor spread)\n"
+        "  --eps-receiver E       receiver refinement threshold (form-factor spread); alone,\n"
+        "                         it sets --eps-receiver-coarse too\n"
+        "  --eps-receiver-coarse E  the same for cells coarser than the display keeps\n"
+        "                         (8 x 8 a quad); finer than --eps-receiver from quality 5\n"
         "  --eps-sender E         sender refinement threshold\n"
         "  --eps-compress E       drop operator entries below E after each product\n"
         "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
@@ -149,10 +152,10 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
 
 static void json_options(FILE *f, const wrt_bake_options *o) {
     fprintf(f,
-        "{\"quality\":%d,\"eps_receiver\":%.6g,\"eps_sender\":%.6g,\"eps_compress\":%.6g,"
+        "{\"quality\":%d,\"eps_receiver\":%.6g,\"eps_receiver_coarse\":%.6g,\"eps_sender\":%.6g,\"eps_compress\":%.6g,"
         "\"max_level\":%d,\"min_level\":%d,\"receiver_samples\":%d,\"gathered\":%d,\"tail\":%d,"
         "\"max_bounces\":%d,\"max_alevel\":%d,\"balance\":%d}",
-        o->quality, o->eps_receiver, o->eps_sender, o->eps_compress, o->max_slevel, o->min_slevel,
+        o->quality, o->eps_receiver, o->eps_receiver_coarse, o->eps_sender, o->eps_compress, o->max_slevel, o->min_slevel,
         o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces, o->max_alevel, !o->no_balance);
 }
 
@@ -185,6 +188,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--info")) { if (!v) ok = 0; else info = v, i++; }
         else if (!strcmp(a, "-q") || !strcmp(a, "--quality")) { ok = parse_int(a, v, 1, 9, &o.quality); i++; }
         else if (!strcmp(a, "--eps-receiver")) { ok = parse_double(a, v, 1e-12, 10, &o.eps_receiver); i++; }
+        else if (!strcmp(a, "--eps-receiver-coarse")) { ok = parse_double(a, v, 1e-12, 10, &o.eps_receiver_coarse); i++; }
         else if (!strcmp(a, "--eps-sender")) { ok = parse_double(a, v, 1e-12, 10, &o.eps_sender); i++; }
         else if (!strcmp(a, "--eps-compress")) { ok = parse_double(a, v, 1e-15, 1, &o.eps_compress); i++; }
         else if (!strcmp(a, "--max-level")) { ok = parse_int(a, v, 1, 10, &o.max_slevel); i++; }

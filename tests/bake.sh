@@ -36,6 +36,15 @@ expect_exit "no output file: exit 1" 1 "no output" "$bake" assets/cornell.gltf
 expect_exit "quality 0 refused: exit 1" 1 "quality.*\[1, 9\]" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --quality 0
 expect_exit "absurd threads refused: exit 1" 1 "threads" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --threads 100000
 expect_exit "NaN threshold refused: exit 1" 1 "eps-compress" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --eps-compress nan
+expect_exit "NaN coarse receiver threshold refused: exit 1" 1 "eps-receiver-coarse" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --eps-receiver-coarse nan
+# The receiver's threshold for the cells the display keeps (coarser than 8 x 8 a quad):
+# 3.3 times finer from quality 5 on, the same below; an explicit --eps-receiver sets both.
+cfg() { "$bake" "$@" --print-config 2>/dev/null | tr -d '\n'; }
+c5=$(cfg -q 5); c4=$(cfg -q 4); ce=$(cfg -q 5 --eps-receiver 0.02); cc=$(cfg -q 5 --eps-receiver-coarse 0.001)
+printf '%s' "$c5" | grep -q '"eps_receiver":0.01,"eps_receiver_coarse":0.003,' && ok "quality 5: receiver 0.01, coarse cells 0.003" || ko "quality 5 config: $c5"
+printf '%s' "$c4" | grep -q '"eps_receiver":0.02,"eps_receiver_coarse":0.02,' && ok "quality 4: one receiver threshold" || ko "quality 4 config: $c4"
+printf '%s' "$ce" | grep -q '"eps_receiver":0.02,"eps_receiver_coarse":0.02,' && ok "--eps-receiver alone sets both" || ko "--eps-receiver config: $ce"
+printf '%s' "$cc" | grep -q '"eps_receiver":0.01,"eps_receiver_coarse":0.001,' && ok "--eps-receiver-coarse alone" || ko "--eps-receiver-coarse config: $cc"
 expect_exit "unknown option: exit 1" 1 "unknown option" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --frobnicate
 expect_exit "memory budget 0 refused: exit 1" 1 "max-memory.*\[1," "$bake" assets/cornell.gltf -o "$tmp/x.gto" --max-memory 0
 expect_exit "min level above max level: exit 1" 1 "deeper" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --min-level 5 --max-level 3
