@@ -4,6 +4,9 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #include "../common/basis.h"
 #include "../common/brdf.h"
@@ -25,7 +28,6 @@ typedef struct gquad {
     int glossy;
     ghit *hits;       /* NPT x NDIR (glossy quads): what each ray sees (at creation) */
     int32_t *cell;    /* NPT x NDIR: slot x RG2 + radiance cell it reads, -1: nothing */
-    float *lin;       /* NPT x NDIR x 3: L_in */
     float *lout;      /* NPT x 3: L_o toward the eye at the points */
     int beta_id;      /* index into g->beta */
 } gquad;
@@ -167,9 +169,8 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
         G->glossy = 1;
         g->glossy[g->nglossy++] = i;
         G->hits = ga(g, (size_t)NPT * NDIR * sizeof(ghit));
-        G->lin = ga(g, ((size_t)NPT * NDIR * 3) * sizeof(float));
         G->lout = ga(g, ((size_t)NPT * 3) * sizeof(float));
-        if (!G->hits || !G->lin || !G->lout) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
+        if (!G->hits || !G->lout) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
         G->beta_id = -1;
         for (int b = 0; b < g->nbeta; b++) if (g->beta_mat[b] == q[i].mat) G->beta_id = b;
         if (G->beta_id < 0) {
@@ -216,7 +217,7 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
 void wrt_gather_destroy(wrt_gather *g) {
     if (!g) return;
     if (g->gq)
-        for (int i = 0; i < g->nq; i++) { gf(g, g->gq[i].hits); gf(g, g->gq[i].cell); gf(g, g->gq[i].lin); gf(g, g->gq[i].lout); }
+        for (int i = 0; i < g->nq; i++) { gf(g, g->gq[i].hits); gf(g, g->gq[i].cell); gf(g, g->gq[i].lout); }
     for (int b = 0; b < g->nbeta; b++) gf(g, g->beta[b]);
     gf(g, g->beta); gf(g, g->beta_mat); gf(g, g->direct); gf(g, g->rad); gf(g, g->slot); gf(g, g->slot_quad); gf(g, g->glossy); gf(g, g->gq); gf(g, g->q);
     gf(g, g);
@@ -236,50 +237,53 @@ static void direct_row(size_t item, void *user) {
     }
 }
 
-/* Bilinear lookup of an n x n RGB grid of cell values at (u, v), clamped at the edges. */
-static void bilerp(const float *t, int n, double u, double v, float out[3]) {
-    double fx = u * n - 0.5, fy = v * n - 0.5;
-    int x0 = (int)floor(fx), y0 = (int)floor(fy);
-    double tx = fx - x0, ty = fy - y0;
-    out[0] = out[1] = out[2] = 0;
-    for (int k = 0; k < 4; k++) {
-        int cx = x0 + (k & 1), cy = y0 + (k >> 1);
-        cx = cx < 0 ? 0 : cx >= n ? n - 1 : cx;
-        cy = cy < 0 ? 0 : cy >= n ? n - 1 : cy;
-        float w = (float)(((k & 1) ? tx : 1 - tx) * ((k >> 1) ? ty : 1 - ty));
-        const float *p = t + ((size_t)cy * n + cx) * 3;
-        for (int c = 0; c < 3; c++) out[c] += w * p[c];
+/* Bilinear resampling of an n x n RGB grid of cell values at the centres of an m x m
+ * grid, clamped at the edges: per axis the two cells and the weight of the second
+ * (axis_table), then per output cell the four weights (double products rounded to
+ * float) and their sum in float in a fixed order. */
+typedef struct axis { int a, b; double t; } axis;
+static axis axis_at(int n, int m, int i) {
+    double f = (i + 0.5) / m * n - 0.5;
+    int x0 = (int)floor(f);
+    axis r = {x0 < 0 ? 0 : x0 >= n ? n - 1 : x0, x0 + 1 < 0 ? 0 : x0 + 1 >= n ? n - 1 : x0 + 1, f - x0};
+    return r;
+}
+static void axis_table(int n, int m, axis *ax) {
+    for (int i = 0; i < m; i++) ax[i] = axis_at(n, m, i);
+}
+static inline void lerp_cell(const float *t, int n, const axis *x, const axis *y, float out[3]) {
+    float w0 = (float)((1 - x->t) * (1 - y->t)), w1 = (float)(x->t * (1 - y->t));
+    float w2 = (float)((1 - x->t) * y->t), w3 = (float)(x->t * y->t);
+    const float *p0 = t + ((size_t)y->a * n + x->a) * 3, *p1 = t + ((size_t)y->a * n + x->b) * 3;
+    const float *p2 = t + ((size_t)y->b * n + x->a) * 3, *p3 = t + ((size_t)y->b * n + x->b) * 3;
+    for (int c = 0; c < 3; c++) {
+        float s = w0 * p0[c];
+        s += w1 * p1[c];
+        s += w2 * p2[c];
+        s += w3 * p3[c];
+        out[c] = s;
     }
 }
 
-/* Row j of slot s's radiance grid: base/pi x direct + the displayed indirect radiance. */
 static void rad_row(size_t item, void *user) {
     wrt_gather *g = user;
     int s = (int)(item / GATHER_RG), j = (int)(item % GATHER_RG), hq = g->slot_quad[s];
     const float *base = g->q[hq].albedo;
     const float *dt = g->direct + (size_t)s * GATHER_DTEX * GATHER_DTEX * 3;
     float *o = g->rad + ((size_t)s * RG2 + (size_t)j * GATHER_RG) * 3;
-    double v = (j + 0.5) / GATHER_RG;
+    axis dx[GATHER_RG], tx[GATHER_RG];
+    axis_table(GATHER_DTEX, GATHER_RG, dx);
+    const float *it = g->tex[hq];
+    int tn = it ? g->tex_res[hq] : 0;
+    if (tn > 0) axis_table(tn, GATHER_RG, tx);
+    axis dy = dx[j], ty = tn > 0 ? tx[j] : dx[j];
+    float kb[3];
+    for (int c = 0; c < 3; c++) kb[c] = (float)(base[c] / M_PI);
     for (int i = 0; i < GATHER_RG; i++) {
-        double u = (i + 0.5) / GATHER_RG;
         float dv[3], iv[3] = {0, 0, 0};
-        bilerp(dt, GATHER_DTEX, u, v, dv);
-        if (g->tex[hq] && g->tex_res[hq] > 0) bilerp(g->tex[hq], g->tex_res[hq], u, v, iv);
-        for (int c = 0; c < 3; c++) o[i * 3 + c] = (float)(base[c] / M_PI) * dv[c] + iv[c];
-    }
-}
-
-static void lin_point(size_t item, void *user) {
-    wrt_gather *g = user;
-    int q = g->glossy[item / NPT];
-    size_t p = item % NPT;
-    const int32_t *cell = g->gq[q].cell + p * NDIR;
-    float *lin = g->gq[q].lin + p * NDIR * 3;
-    for (int a = 0; a < NDIR; a++) {
-        float *l = lin + a * 3;
-        if (cell[a] < 0) { l[0] = l[1] = l[2] = 0; continue; } /* sees nothing (or a back) */
-        const float *rv = g->rad + (size_t)cell[a] * 3;
-        l[0] = rv[0]; l[1] = rv[1]; l[2] = rv[2];
+        lerp_cell(dt, GATHER_DTEX, &dx[i], &dy, dv);
+        if (tn > 0) lerp_cell(it, tn, &tx[i], &ty, iv);
+        for (int c = 0; c < 3; c++) o[i * 3 + c] = kb[c] * dv[c] + iv[c];
     }
 }
 
@@ -289,11 +293,43 @@ void wrt_gather_lights(wrt_gather *g, wrt_gather_direct_fn direct, void *user, c
     g->dfn = direct; g->duser = user; g->tex = tex; g->tex_res = tex_res;
     g->env.run(g->env.user, (size_t)g->nslot * GATHER_DTEX, direct_row, g);
     g->env.run(g->env.user, (size_t)g->nslot * GATHER_RG, rad_row, g);
-    g->env.run(g->env.user, (size_t)g->nglossy * NPT, lin_point, g);
 }
 
 /* ------------------------------------------------------------- eye move ---- */
 
+/* sum over a of lin[a] (sum_k w[k] bt[k][a]), RGB interleaved: lin and bt[k] hold
+ * NDIR x 3 floats. Vectorised over blocks of 4 cells (12 floats: three 4-lane vectors whose
+ * lanes hold the channels 0120, 1201, 2012), folded at the end; the scalar loop below
+ * sums the same terms in cell order (the two differ by float rounding only). */
+static void dot4(const float *lin, const float *const bt[4], const float w[4], float out[3]) {
+#ifdef __SSE2__
+    __m128 acc0 = _mm_setzero_ps(), acc1 = _mm_setzero_ps(), acc2 = _mm_setzero_ps();
+    __m128 w0 = _mm_set1_ps(w[0]), w1 = _mm_set1_ps(w[1]), w2 = _mm_set1_ps(w[2]), w3 = _mm_set1_ps(w[3]);
+    for (int i = 0; i < NDIR * 3; i += 12) {
+        for (int v = 0; v < 3; v++) {
+            int o = i + 4 * v;
+            __m128 t = _mm_add_ps(_mm_add_ps(_mm_mul_ps(w0, _mm_loadu_ps(bt[0] + o)), _mm_mul_ps(w1, _mm_loadu_ps(bt[1] + o))),
+                                  _mm_add_ps(_mm_mul_ps(w2, _mm_loadu_ps(bt[2] + o)), _mm_mul_ps(w3, _mm_loadu_ps(bt[3] + o))));
+            __m128 p = _mm_mul_ps(_mm_loadu_ps(lin + o), t);
+            if (v == 0) acc0 = _mm_add_ps(acc0, p);
+            else if (v == 1) acc1 = _mm_add_ps(acc1, p);
+            else acc2 = _mm_add_ps(acc2, p);
+        }
+    }
+    float a[12];
+    _mm_storeu_ps(a, acc0); _mm_storeu_ps(a + 4, acc1); _mm_storeu_ps(a + 8, acc2);
+    for (int c = 0; c < 3; c++) out[c] = 0;
+    for (int k = 0; k < 12; k++) out[k % 3] += a[k];
+#else
+    out[0] = out[1] = out[2] = 0;
+    for (int i = 0; i < NDIR * 3; i++)
+        out[i % 3] += lin[i] * (w[0] * bt[0][i] + w[1] * bt[1][i] + w[2] * bt[2][i] + w[3] * bt[3][i]);
+#endif
+}
+
+/* L_o at point p of a glossy quad toward the eye: the incident radiance of its NDIR
+ * cells read from the radiance grids (the cell table) into a scratch row, then its sum
+ * against the beta rows of the four outgoing directions around w_o (bilinear). */
 static void lout_point(size_t item, void *user) {
     wrt_gather *g = user;
     int q = g->glossy[item / NPT];
@@ -310,22 +346,24 @@ static void lout_point(size_t item, void *user) {
     double fx = a * GATHER_BRES - 0.5, fy = b * GATHER_BRES - 0.5;
     int x0 = (int)floor(fx), y0 = (int)floor(fy);
     double tx = fx - x0, ty = fy - y0;
-    const float *lin = G->lin + p * NDIR * 3;
-    double s[3] = {0, 0, 0};
+    const float *bt[4];
+    float w[4];
     for (int k = 0; k < 4; k++) {
         int cx = x0 + (k & 1), cy = y0 + (k >> 1);
         cx = cx < 0 ? 0 : cx >= GATHER_BRES ? GATHER_BRES - 1 : cx;
         cy = cy < 0 ? 0 : cy >= GATHER_BRES ? GATHER_BRES - 1 : cy;
-        double w = ((k & 1) ? tx : 1 - tx) * ((k >> 1) ? ty : 1 - ty);
-        if (w == 0) continue;
-        const float *bt = g->beta[G->beta_id] + ((size_t)cy * GATHER_BRES + cx) * NDIR * 3;
-        float acc[3] = {0, 0, 0};
-        for (int i = 0; i < NDIR * 3; i += 3) {
-            acc[0] += lin[i] * bt[i]; acc[1] += lin[i + 1] * bt[i + 1]; acc[2] += lin[i + 2] * bt[i + 2];
-        }
-        for (int c = 0; c < 3; c++) s[c] += w * acc[c];
+        w[k] = (float)(((k & 1) ? tx : 1 - tx) * ((k >> 1) ? ty : 1 - ty));
+        bt[k] = g->beta[G->beta_id] + ((size_t)cy * GATHER_BRES + cx) * NDIR * 3;
     }
-    for (int c = 0; c < 3; c++) lo[c] = (float)s[c];
+    float lin[NDIR * 3];
+    const int32_t *cell = G->cell + p * NDIR;
+    for (int i = 0; i < NDIR; i++) {
+        float *l = lin + i * 3;
+        if (cell[i] < 0) { l[0] = l[1] = l[2] = 0; continue; } /* sees nothing (or a back) */
+        const float *rv = g->rad + (size_t)cell[i] * 3;
+        l[0] = rv[0]; l[1] = rv[1]; l[2] = rv[2];
+    }
+    dot4(lin, bt, w, lo);
 }
 
 static void out_quad(size_t item, void *user) {
@@ -334,8 +372,15 @@ static void out_quad(size_t item, void *user) {
     float *o = g->out[q];
     int n = g->out_res[q];
     if (!o || n <= 0) return;
-    for (int j = 0; j < n; j++)
-        for (int i = 0; i < n; i++) bilerp(g->gq[q].lout, GATHER_PTS, (i + 0.5) / n, (j + 0.5) / n, o + ((size_t)j * n + i) * 3);
+    axis ax[256];
+    if (n <= 256) axis_table(GATHER_PTS, n, ax);
+    for (int j = 0; j < n; j++) {
+        axis y = n <= 256 ? ax[j] : axis_at(GATHER_PTS, n, j);
+        for (int i = 0; i < n; i++) {
+            axis x = n <= 256 ? ax[i] : axis_at(GATHER_PTS, n, i);
+            lerp_cell(g->gq[q].lout, GATHER_PTS, &x, &y, o + ((size_t)j * n + i) * 3);
+        }
+    }
 }
 
 void wrt_gather_eye(wrt_gather *g, const double eye[3], float *const *out, const int *out_res) {
