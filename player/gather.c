@@ -27,11 +27,26 @@ typedef struct ghit { int32_t quad; float u, v; } ghit;
 typedef struct gquad {
     int glossy;
     ghit *hits;       /* NPT x NDIR (glossy quads): what each ray sees (at creation) */
-    int32_t *cell;    /* NPT x NDIR: slot x RG2 + radiance cell it reads, -1: nothing */
+    int32_t *cell;    /* NPT x NDIR: slot x RG2 + radiance cell it reads (nslot x RG2: the
+                       * black cell after the grids, for a ray that sees nothing or a back) */
     float *lout;      /* NPT x 3: L_o toward the eye at the points */
     int beta_id;      /* index into g->beta */
 } gquad;
 
+/* Bilinear resampling of an n x n RGB grid of cell values at the centres of an m x m
+ * grid, clamped at the edges: per axis the two cells and the weight of the second
+ * (axis_table), then per output cell the four weights (double products rounded to
+ * float) and their sum in float in a fixed order. */
+typedef struct axis { int a, b; double t; } axis;
+static axis axis_at(int n, int m, int i) {
+    double f = (i + 0.5) / m * n - 0.5;
+    int x0 = (int)floor(f);
+    axis r = {x0 < 0 ? 0 : x0 >= n ? n - 1 : x0, x0 + 1 < 0 ? 0 : x0 + 1 >= n ? n - 1 : x0 + 1, f - x0};
+    return r;
+}
+static void axis_table(int n, int m, axis *ax) {
+    for (int i = 0; i < m; i++) ax[i] = axis_at(n, m, i);
+}
 struct wrt_gather {
     int nq;
     const wrt_gather_quad *q0;
@@ -41,8 +56,11 @@ struct wrt_gather {
     int32_t *slot;     /* per quad: its slot among the diffuse quads some ray sees, -1 */
     int *slot_quad; int nslot;
     float *direct;     /* nslot x GATHER_DTEX^2 x 3: direct irradiance */
-    float *rad;        /* nslot x RG2 x 3: outgoing radiance (direct + indirect) */
+    float *rad;        /* (nslot x RG2 + 1) x 3 (+ 1 float): outgoing radiance (direct +
+                        * indirect), then a black cell (0) */
     float **beta;      /* per glossy quad's material: GATHER_BRES^2 x NDIR x 3 */
+    axis *dax;  /* GATHER_RG: the direct grid's cells at the radiance grid's */
+    axis *tax;  /* nslot x GATHER_RG: each slot's texture cells at the radiance grid's */
     const wrt_material **beta_mat; int nbeta;
     RTCScene scene; wrt_v3 origin; double eps;
     wrt_gather_env env;
@@ -198,7 +216,7 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
         if (!G->cell) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
         for (size_t e = 0; e < (size_t)NPT * NDIR; e++) {
             const ghit *h = &G->hits[e];
-            if (h->quad < 0 || g->slot[h->quad] < 0) { G->cell[e] = -1; continue; }
+            if (h->quad < 0 || g->slot[h->quad] < 0) { G->cell[e] = g->nslot * RG2; continue; } /* the black cell */
             int cx = (int)(h->u * GATHER_RG), cy = (int)(h->v * GATHER_RG);
             cx = cx < 0 ? 0 : cx >= GATHER_RG ? GATHER_RG - 1 : cx;
             cy = cy < 0 ? 0 : cy >= GATHER_RG ? GATHER_RG - 1 : cy;
@@ -208,8 +226,11 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
         G->hits = NULL;
     }
     g->direct = ga(g, ((size_t)(g->nslot ? g->nslot : 1) * GATHER_DTEX * GATHER_DTEX * 3) * sizeof(float));
-    g->rad = ga(g, ((size_t)(g->nslot ? g->nslot : 1) * RG2 * 3) * sizeof(float));
-    if (!g->direct || !g->rad) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
+    g->rad = ga(g, ((size_t)g->nslot * RG2 + 1) * 3 * sizeof(float) + sizeof(float)); /* + the black cell, + 1 float */
+    g->dax = ga(g, GATHER_RG * sizeof *g->dax);
+    g->tax = ga(g, ((size_t)g->nslot * GATHER_RG + 1) * sizeof *g->tax);
+    if (!g->direct || !g->rad || !g->dax || !g->tax) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
+    for (int i = 0; i < GATHER_RG; i++) g->dax[i] = axis_at(GATHER_DTEX, GATHER_RG, i);
     *out = g;
     return WRT_OK;
 }
@@ -219,7 +240,7 @@ void wrt_gather_destroy(wrt_gather *g) {
     if (g->gq)
         for (int i = 0; i < g->nq; i++) { gf(g, g->gq[i].hits); gf(g, g->gq[i].cell); gf(g, g->gq[i].lout); }
     for (int b = 0; b < g->nbeta; b++) gf(g, g->beta[b]);
-    gf(g, g->beta); gf(g, g->beta_mat); gf(g, g->direct); gf(g, g->rad); gf(g, g->slot); gf(g, g->slot_quad); gf(g, g->glossy); gf(g, g->gq); gf(g, g->q);
+    gf(g, g->beta); gf(g, g->beta_mat); gf(g, g->direct); gf(g, g->rad); gf(g, g->dax); gf(g, g->tax); gf(g, g->slot); gf(g, g->slot_quad); gf(g, g->glossy); gf(g, g->gq); gf(g, g->q);
     gf(g, g);
 }
 
@@ -237,20 +258,6 @@ static void direct_row(size_t item, void *user) {
     }
 }
 
-/* Bilinear resampling of an n x n RGB grid of cell values at the centres of an m x m
- * grid, clamped at the edges: per axis the two cells and the weight of the second
- * (axis_table), then per output cell the four weights (double products rounded to
- * float) and their sum in float in a fixed order. */
-typedef struct axis { int a, b; double t; } axis;
-static axis axis_at(int n, int m, int i) {
-    double f = (i + 0.5) / m * n - 0.5;
-    int x0 = (int)floor(f);
-    axis r = {x0 < 0 ? 0 : x0 >= n ? n - 1 : x0, x0 + 1 < 0 ? 0 : x0 + 1 >= n ? n - 1 : x0 + 1, f - x0};
-    return r;
-}
-static void axis_table(int n, int m, axis *ax) {
-    for (int i = 0; i < m; i++) ax[i] = axis_at(n, m, i);
-}
 static inline void lerp_cell(const float *t, int n, const axis *x, const axis *y, float out[3]) {
     float w0 = (float)((1 - x->t) * (1 - y->t)), w1 = (float)(x->t * (1 - y->t));
     float w2 = (float)((1 - x->t) * y->t), w3 = (float)(x->t * y->t);
@@ -271,12 +278,10 @@ static void rad_row(size_t item, void *user) {
     const float *base = g->q[hq].albedo;
     const float *dt = g->direct + (size_t)s * GATHER_DTEX * GATHER_DTEX * 3;
     float *o = g->rad + ((size_t)s * RG2 + (size_t)j * GATHER_RG) * 3;
-    axis dx[GATHER_RG], tx[GATHER_RG];
-    axis_table(GATHER_DTEX, GATHER_RG, dx);
+    const axis *dx = g->dax, *tx = g->tax + (size_t)s * GATHER_RG;
     const float *it = g->tex[hq];
     int tn = it ? g->tex_res[hq] : 0;
-    if (tn > 0) axis_table(tn, GATHER_RG, tx);
-    axis dy = dx[j], ty = tn > 0 ? tx[j] : dx[j];
+    axis dy = dx[j], ty = tx[j];
     float kb[3];
     for (int c = 0; c < 3; c++) kb[c] = (float)(base[c] / M_PI);
     for (int i = 0; i < GATHER_RG; i++) {
@@ -291,6 +296,10 @@ void wrt_gather_lights(wrt_gather *g, wrt_gather_direct_fn direct, void *user, c
                        const int *tex_res) {
     if (!g) return;
     g->dfn = direct; g->duser = user; g->tex = tex; g->tex_res = tex_res;
+    for (int sl = 0; sl < g->nslot; sl++) {
+        int tn = tex[g->slot_quad[sl]] ? tex_res[g->slot_quad[sl]] : 0;
+        if (tn > 0) axis_table(tn, GATHER_RG, g->tax + (size_t)sl * GATHER_RG);
+    }
     g->env.run(g->env.user, (size_t)g->nslot * GATHER_DTEX, direct_row, g);
     g->env.run(g->env.user, (size_t)g->nslot * GATHER_RG, rad_row, g);
 }
@@ -305,17 +314,18 @@ static void dot4(const float *lin, const float *const bt[4], const float w[4], f
 #ifdef __SSE2__
     __m128 acc0 = _mm_setzero_ps(), acc1 = _mm_setzero_ps(), acc2 = _mm_setzero_ps();
     __m128 w0 = _mm_set1_ps(w[0]), w1 = _mm_set1_ps(w[1]), w2 = _mm_set1_ps(w[2]), w3 = _mm_set1_ps(w[3]);
+#define DOT4_STEP(acc, o)                                                                                    \
+    do {                                                                                                     \
+        __m128 t_ = _mm_add_ps(_mm_add_ps(_mm_mul_ps(w0, _mm_loadu_ps(bt[0] + (o))), _mm_mul_ps(w1, _mm_loadu_ps(bt[1] + (o)))), \
+                               _mm_add_ps(_mm_mul_ps(w2, _mm_loadu_ps(bt[2] + (o))), _mm_mul_ps(w3, _mm_loadu_ps(bt[3] + (o))))); \
+        acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(lin + (o)), t_));                                       \
+    } while (0)
     for (int i = 0; i < NDIR * 3; i += 12) {
-        for (int v = 0; v < 3; v++) {
-            int o = i + 4 * v;
-            __m128 t = _mm_add_ps(_mm_add_ps(_mm_mul_ps(w0, _mm_loadu_ps(bt[0] + o)), _mm_mul_ps(w1, _mm_loadu_ps(bt[1] + o))),
-                                  _mm_add_ps(_mm_mul_ps(w2, _mm_loadu_ps(bt[2] + o)), _mm_mul_ps(w3, _mm_loadu_ps(bt[3] + o))));
-            __m128 p = _mm_mul_ps(_mm_loadu_ps(lin + o), t);
-            if (v == 0) acc0 = _mm_add_ps(acc0, p);
-            else if (v == 1) acc1 = _mm_add_ps(acc1, p);
-            else acc2 = _mm_add_ps(acc2, p);
-        }
+        DOT4_STEP(acc0, i);
+        DOT4_STEP(acc1, i + 4);
+        DOT4_STEP(acc2, i + 8);
     }
+#undef DOT4_STEP
     float a[12];
     _mm_storeu_ps(a, acc0); _mm_storeu_ps(a + 4, acc1); _mm_storeu_ps(a + 8, acc2);
     for (int c = 0; c < 3; c++) out[c] = 0;
@@ -355,13 +365,15 @@ static void lout_point(size_t item, void *user) {
         w[k] = (float)(((k & 1) ? tx : 1 - tx) * ((k >> 1) ? ty : 1 - ty));
         bt[k] = g->beta[G->beta_id] + ((size_t)cy * GATHER_BRES + cx) * NDIR * 3;
     }
-    float lin[NDIR * 3];
+    float lin[NDIR * 3 + 1];
     const int32_t *cell = G->cell + p * NDIR;
-    for (int i = 0; i < NDIR; i++) {
-        float *l = lin + i * 3;
-        if (cell[i] < 0) { l[0] = l[1] = l[2] = 0; continue; } /* sees nothing (or a back) */
-        const float *rv = g->rad + (size_t)cell[i] * 3;
-        l[0] = rv[0]; l[1] = rv[1]; l[2] = rv[2];
+    const float *rad = g->rad;
+    for (int i = 0; i < NDIR; i++) { /* 4 floats a copy: the 4th is the next cell's */
+#ifdef __SSE2__
+        _mm_storeu_ps(lin + i * 3, _mm_loadu_ps(rad + (size_t)cell[i] * 3));
+#else
+        memcpy(lin + i * 3, rad + (size_t)cell[i] * 3, 3 * sizeof(float));
+#endif
     }
     dot4(lin, bt, w, lo);
 }
