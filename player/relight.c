@@ -165,8 +165,16 @@ typedef struct quad_info {
     uint32_t ang_first;             /* into relight.ang_list / ang_start */
 } quad_info;
 
+/* A light's constants, hoisted out of the per-sample loop. */
+typedef struct light_c {
+    wrt_v3 pos, dir;
+    double intensity, range, cos_outer, inv_den;
+    int spot;
+} light_c;
+
 typedef struct light_state {
     wrt_light light;
+    light_c lc;                     /* light_consts(&light), for the gather's direct light */
     float scale;
     int projected;                  /* E below is the projection of `light` */
     uint32_t *idx; float *val;      /* sparse E at scale 1: function index, RGB */
@@ -420,13 +428,6 @@ static int projection_level(const wrt_relight *r, const quad_info *q, double d) 
     }
     return L > cap ? cap : L;
 }
-
-/* A light's constants, hoisted out of the per-sample loop. */
-typedef struct light_c {
-    wrt_v3 pos, dir;
-    double intensity, range, cos_outer, inv_den;
-    int spot;
-} light_c;
 
 static light_c light_consts(const wrt_light *l) {
     light_c c;
@@ -1611,6 +1612,7 @@ wrt_status wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const
         float s = scales ? scales[i] : 1.0f;
         if (i >= r->nlights || !ls->projected || !same_light(&ls->light, &lights[i])) {
             ls->light = lights[i];
+            ls->lc = light_consts(&ls->light);
             ls->projected = 0;
             r->e_dirty = 1;
         }
@@ -1635,9 +1637,8 @@ static void gather_direct(void *user, wrt_v3 x, wrt_v3 n, double out[3]) {
     for (int i = 0; i < r->nlights; i++) {
         const light_state *ls = &r->lights[i];
         if (ls->scale == 0) continue;
-        light_c lc = light_consts(&ls->light);
         wrt_v3 dir;
-        double d = 0, e = light_irradiance(&lc, x, n, &dir, &d);
+        double d = 0, e = light_irradiance(&ls->lc, x, n, &dir, &d);
         if (e == 0) continue;
         if (!light_visible(r, x, n, dir, d)) continue;
         for (int c = 0; c < 3; c++) out[c] += ls->scale * ls->light.color[c] * e;
