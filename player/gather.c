@@ -12,7 +12,7 @@
 #include "../common/brdf.h"
 
 #define GATHER_PTS 16   /* points a side on a glossy quad (cell centres) */
-#define GATHER_PTS_NARROW 32 /* on a narrow lobe's (roughness below GATHER_NARROW) */
+#define GATHER_PTS_NARROW 32 /* at most, on a narrow lobe's (roughness below GATHER_NARROW) */
 #define GATHER_NARROW 0.25
 #define GATHER_DIRS 32  /* incident cells a side of the concentric map */
 #define GATHER_BRES 32  /* outgoing directions a side of the beta table */
@@ -164,8 +164,8 @@ static void beta_row(size_t item, void *user) {
     }
 }
 
-wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, wrt_v3 origin, double eps,
-                             const wrt_gather_env *env, wrt_gather **out) {
+wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_res, RTCScene scene, wrt_v3 origin,
+                             double eps, const wrt_gather_env *env, wrt_gather **out) {
     *out = NULL;
     int ng = 0;
     for (int i = 0; i < nq; i++) ng += is_glossy(q[i].mat);
@@ -173,6 +173,10 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
     wrt_gather *g = env->alloc(env->user, sizeof *g);
     if (!g) return WRT_ERR_NOMEM;
     g->env = *env;
+    /* WRT_GATHER_POINTS=16 or 32: every glossy quad's points a side (before/after figures
+     * and the test that tells the two apart); any other value is not used. */
+    const char *fp = getenv("WRT_GATHER_POINTS");
+    int force_pts = fp && (strcmp(fp, "16") == 0 || strcmp(fp, "32") == 0) ? atoi(fp) : 0;
     g->nq = nq; g->scene = scene; g->origin = origin; g->eps = eps;
     g->q = ga(g, (size_t)nq * sizeof *g->q);
     g->gq = ga(g, ((size_t)nq) * sizeof *g->gq);
@@ -189,11 +193,16 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, w
         gquad *G = &g->gq[i];
         G->glossy = 1;
         g->glossy[g->nglossy++] = i;
-        /* A narrow lobe reflects a sharp image: its points as fine as its texture's texels
-         * (cornell-glossy r0.1, 64 x 64 at 4096 paths a pixel: image rmse 0.303 with 16 a
-         * side, 0.184 with 32, floor 0.135); a wider lobe keeps 16 (r0.3: 0.099 -> 0.063
-         * with 32, floor 0.035, for 4x the gather's cost at every light change). */
-        G->pts = q[i].mat->roughness < GATHER_NARROW ? GATHER_PTS_NARROW : GATHER_PTS;
+        /* A narrow lobe reflects a sharp image: its points one per texel of the texture it
+         * is shown with, 16 to 32 a side (cornell-glossy r0.1, quality 5, texture 32, 64 x
+         * 64 pixels at 4096 paths: image rmse 0.303 with 16 points, 0.184 with 32, 0.213
+         * with 64, floor 0.135; quality 3, texture 16: 0.297 with 16, 0.314 with 32); a
+         * wider lobe keeps 16 (r0.3: 0.099 -> 0.063 with 32, floor 0.035, for 4x the
+         * gather's cost at every light change). */
+        G->pts = GATHER_PTS;
+        if (q[i].mat->roughness < GATHER_NARROW && out_res && out_res[i] > GATHER_PTS)
+            G->pts = out_res[i] < GATHER_PTS_NARROW ? out_res[i] : GATHER_PTS_NARROW;
+        if (force_pts > 0) G->pts = force_pts;
         G->npt = G->pts * G->pts;
         G->hits = ga(g, (size_t)G->npt * NDIR * sizeof(ghit));
         G->lout = ga(g, ((size_t)G->npt * 3) * sizeof(float));

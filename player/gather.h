@@ -3,8 +3,8 @@
  *   L_o(x, w_o) = sum over incident cells a of L_in(x, a) beta(a, w_o),
  *   beta(a, w_o) = integral over cell a of f_r(w_i, w_o) cos(theta_i) dw_i,
  * with a one of GATHER_DIRS x GATHER_DIRS cells of the cosine-weighted concentric map
- * (common/basis.h) and x one of n x n points of the quad (n = 16, 32 for a narrow lobe,
- * gather.c says why). At creation one ray per (point, cell) finds the quad and (u, v)
+ * (common/basis.h) and x one of n x n points of the quad (n = 16; on a narrow lobe one
+ * per texel of its texture, up to 32: gather.c says why). At creation one ray per (point, cell) finds the quad and (u, v)
  * the cell sees (geometry only); beta is tabulated per glossy material at GATHER_BRES x
  * GATHER_BRES outgoing directions.
  * At a light change the radiance L_in reads is rebuilt: a hit quad sends albedo/pi x
@@ -48,9 +48,11 @@ typedef struct wrt_gather_env {
 /* Direct irradiance (RGB, shadows included) at x with unit normal n, from the lights. */
 typedef void (*wrt_gather_direct_fn)(void *user, wrt_v3 x, wrt_v3 n, double out[3]);
 
-/* NULL *out and WRT_OK when no quad is glossy. Errors: WRT_ERR_NOMEM. */
-wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, wrt_v3 origin, double eps,
-                             const wrt_gather_env *env, wrt_gather **out);
+/* NULL *out and WRT_OK when no quad is glossy. out_res[q] (may be NULL): the side of the
+ * texture wrt_gather_eye will write for quad q (a narrow lobe gets a point per texel).
+ * Errors: WRT_ERR_NOMEM. */
+wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_res, RTCScene scene, wrt_v3 origin,
+                             double eps, const wrt_gather_env *env, wrt_gather **out);
 void wrt_gather_destroy(wrt_gather *g); /* NULL: no-op */
 
 /* Rebuilds L_in from the lights (direct) and the quads' displayed textures tex[q] of

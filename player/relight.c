@@ -1511,23 +1511,26 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
             gqs[q].n = qi->n; gqs[q].t = qi->t; gqs[q].b = qi->b;
             gqs[q].mat = &r->mats[qi->material];
         }
+        r->gres = ra_calloc(r, nq ? nq : 1, sizeof *r->gres);
+        r->gires = ra_calloc(r, nq ? nq : 1, sizeof *r->gires);
+        if (!r->gres || !r->gires) { ra_free(r, gqs); return relight_nomem(r); }
+        for (uint32_t q = 0; q < nq; q++) { /* displayed sides; the gather reads gdiff (below) of glossy quads */
+            r->gires[q] = r->gres[q] = wrt_relight_tex_res(r, (int)q);
+            if (r->qi[q].glossy) r->gires[q] = 1 << r->qi[q].tex_level;
+        }
         wrt_gather_env genv = {gather_run, gather_alloc, gather_free, r};
-        wrt_status gs = wrt_gather_create((int)nq, gqs, r->scene, r->origin, r->eps, &genv, &r->gather);
+        wrt_status gs = wrt_gather_create((int)nq, gqs, r->gres, r->scene, r->origin, r->eps, &genv, &r->gather);
         ra_free(r, gqs);
         if (gs != WRT_OK) return relight_nomem(r);
         if (r->gather) {
             r->gtex = ra_calloc(r, nq, sizeof *r->gtex);
             r->gout = ra_calloc(r, nq, sizeof *r->gout);
-            r->gres = ra_calloc(r, nq, sizeof *r->gres);
-            r->gires = ra_calloc(r, nq, sizeof *r->gires);
             r->gdiff = ra_calloc(r, nq, sizeof *r->gdiff);
-            if (!r->gtex || !r->gout || !r->gres || !r->gires || !r->gdiff) return relight_nomem(r);
+            if (!r->gtex || !r->gout || !r->gdiff) return relight_nomem(r);
             for (uint32_t q = 0; q < nq; q++) {
-                r->gires[q] = r->gres[q] = wrt_relight_tex_res(r, (int)q);
                 r->gtex[q] = wrt_relight_tex(r, (int)q);
                 r->gout[q] = (float *)r->gtex[q];
                 if (!r->qi[q].glossy) continue;
-                r->gires[q] = 1 << r->qi[q].tex_level;
                 r->gdiff[q] = ra_calloc(r, (size_t)r->gires[q] * r->gires[q] * 3, sizeof(float));
                 if (!r->gdiff[q]) return relight_nomem(r);
                 r->gtex[q] = r->gdiff[q];
