@@ -3,8 +3,8 @@
  *   L_o(x, w_o) = sum over incident cells a of L_in(x, a) beta(a, w_o),
  *   beta(a, w_o) = integral over cell a of f_r(w_i, w_o) cos(theta_i) dw_i,
  * with a one of GATHER_DIRS x GATHER_DIRS cells of the cosine-weighted concentric map
- * (common/basis.h) and x one of n x n points of the quad (n = 16; on a narrow lobe one
- * per texel of its texture, up to 32: gather.c says why). At creation one ray per (point, cell) finds the quad and (u, v)
+ * (common/basis.h) and x one of n x n points of the quad (n = 16; on a sharp lobe, narrow
+ * or a metal's, one per texel of its texture, up to 32: gather.c says why). At creation one ray per (point, cell) finds the quad and (u, v)
  * the cell sees (geometry only); beta is tabulated per glossy material at GATHER_BRES x
  * GATHER_BRES outgoing directions.
  * At a light change the radiance L_in reads is rebuilt: a hit quad sends albedo/pi x
