@@ -3,18 +3,20 @@
  *   L_o(x, w_o) = sum over incident cells a of L_in(x, a) beta(a, w_o),
  *   beta(a, w_o) = integral over cell a of f_r(w_i, w_o) cos(theta_i) dw_i,
  * with a one of GATHER_DIRS x GATHER_DIRS cells of the cosine-weighted concentric map
- * (common/basis.h) and x one of GATHER_PTS x GATHER_PTS points of the quad. At creation
- * one ray per (point, cell) finds the quad and (u, v) the cell sees (geometry only);
- * beta is tabulated per glossy material at GATHER_BRES x GATHER_BRES outgoing directions.
- * At a light change L_in is rebuilt: a hit quad sends albedo/pi x (direct + indirect
- * irradiance), the direct from the caller's lights (with shadows) on a GATHER_DTEX grid
+ * (common/basis.h) and x one of n x n points of the quad (n = 16; on a sharp lobe, narrow
+ * or a metal's, one per texel of its texture, up to 32: gather.c says why). At creation one ray per (point, cell) finds the quad and (u, v)
+ * the cell sees (geometry only); beta is tabulated per glossy material at GATHER_BRES x
+ * GATHER_BRES outgoing directions.
+ * At a light change the radiance L_in reads is rebuilt: a hit quad sends albedo/pi x
+ * (direct + indirect irradiance), the direct from the caller's lights (with shadows) on a GATHER_DTEX grid
  * of the seen quad, the indirect from the caller's texture of it (albedo/pi x indirect
  * irradiance; a diffuse quad's displayed texture), both resampled onto a GATHER_RG grid
  * whose nearest cell each ray reads (a table made at creation). A diffuse quad's albedo
  * is its base colour (exact); a glossy quad's is the caller's mean directional albedo,
  * a diffuse stand-in for its lobe (exact for uniform incident light; a glossy quad seen
- * in another shows no sharp reflection of its own). At an eye move only the sum over a
- * is redone. Everything is linear in the lights. Loops and memory are the caller's
+ * in another shows no sharp reflection of its own). L_in itself is not stored: each
+ * point reads its cells' radiance through the table when it sums (at a light change and
+ * at an eye move). Everything is linear in the lights. Loops and memory are the caller's
  * (wrt_gather_env: the relighter's job hook or pool, and its allocator). Depends on
  * Embree 3, common/brdf.h and common/basis.h. */
 #ifndef WRT_GATHER_H
@@ -46,9 +48,11 @@ typedef struct wrt_gather_env {
 /* Direct irradiance (RGB, shadows included) at x with unit normal n, from the lights. */
 typedef void (*wrt_gather_direct_fn)(void *user, wrt_v3 x, wrt_v3 n, double out[3]);
 
-/* NULL *out and WRT_OK when no quad is glossy. Errors: WRT_ERR_NOMEM. */
-wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, RTCScene scene, wrt_v3 origin, double eps,
-                             const wrt_gather_env *env, wrt_gather **out);
+/* NULL *out and WRT_OK when no quad is glossy. out_res[q] (may be NULL): the side of the
+ * texture wrt_gather_eye will write for quad q (a narrow lobe gets a point per texel).
+ * Errors: WRT_ERR_NOMEM. */
+wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_res, RTCScene scene, wrt_v3 origin,
+                             double eps, const wrt_gather_env *env, wrt_gather **out);
 void wrt_gather_destroy(wrt_gather *g); /* NULL: no-op */
 
 /* Rebuilds L_in from the lights (direct) and the quads' displayed textures tex[q] of

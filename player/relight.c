@@ -165,8 +165,16 @@ typedef struct quad_info {
     uint32_t ang_first;             /* into relight.ang_list / ang_start */
 } quad_info;
 
+/* A light's constants, hoisted out of the per-sample loop. */
+typedef struct light_c {
+    wrt_v3 pos, dir;
+    double intensity, range, cos_outer, inv_den;
+    int spot;
+} light_c;
+
 typedef struct light_state {
     wrt_light light;
+    light_c lc;                     /* light_consts(&light), for the gather's direct light */
     float scale;
     int projected;                  /* E below is the projection of `light` */
     uint32_t *idx; float *val;      /* sparse E at scale 1: function index, RGB */
@@ -201,8 +209,19 @@ typedef struct out_rec { int worker; size_t start, count; } out_rec;
  * and sine of its angular radius (cos = -1: the light is inside), distance range. */
 typedef struct light_cone { wrt_v3 u; double cosa, sina, dmin, dmax; } light_cone;
 
+/* The operator the multiply reads: the file's, or (with the final gather) a copy of the
+ * entries whose receiver is displayed (r->op_own). */
+typedef struct op_view {
+    const uint64_t *col_start; /* nfuncs + 1 */
+    const uint32_t *rows;
+    const float *vals;         /* nnz x 3 */
+    uint64_t nnz;
+} op_view;
+
 struct wrt_relight {
     const wrt_gto *g;
+    op_view op;
+    void *op_own[3];                /* op's arrays when they are the relighter's copy */
     wrt_relight_options opt;
     int nthreads, max_tex_level;
     int8_t *qlevel;                 /* projection level per quad for the light in progress */
@@ -409,13 +428,6 @@ static int projection_level(const wrt_relight *r, const quad_info *q, double d) 
     }
     return L > cap ? cap : L;
 }
-
-/* A light's constants, hoisted out of the per-sample loop. */
-typedef struct light_c {
-    wrt_v3 pos, dir;
-    double intensity, range, cos_outer, inv_den;
-    int spot;
-} light_c;
 
 static light_c light_consts(const wrt_light *l) {
     light_c c;
@@ -1135,32 +1147,32 @@ typedef struct mul_ctx { const uint32_t *cols; uint32_t ncols; int nchunk; } mul
 static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
     (void)w;
     const mul_ctx *mc = vctx;
-    const wrt_gto *g = r->g;
-    uint32_t nf = g->nfuncs;
+    const op_view *op = &r->op;
+    uint32_t nf = r->g->nfuncs;
     uint32_t lo = (uint32_t)((uint64_t)nf * item / mc->nchunk), hi = (uint32_t)((uint64_t)nf * (item + 1) / mc->nchunk);
     if (lo >= hi) return;
     memset(r->X4 + (size_t)lo * 4, 0, (size_t)(hi - lo) * 4 * sizeof(float));
     for (uint32_t k = 0; k < mc->ncols; k++) {
         uint32_t s = mc->cols[k];
-        uint64_t a = g->col_start[s], b = g->col_start[s + 1];
-        if (a == b || g->rows[b - 1] < lo || g->rows[a] >= hi) continue;
+        uint64_t a = op->col_start[s], b = op->col_start[s + 1];
+        if (a == b || op->rows[b - 1] < lo || op->rows[a] >= hi) continue;
         while (a < b) { /* first entry with row >= lo */
             uint64_t m = a + (b - a) / 2;
-            if (g->rows[m] < lo) a = m + 1; else b = m;
+            if (op->rows[m] < lo) a = m + 1; else b = m;
         }
         const float *e = r->E + (size_t)s * 3;
-        uint64_t end = g->col_start[s + 1], vend = end < g->nnz ? end : g->nnz - 1; /* 4-float loads stay inside */
+        uint64_t end = op->col_start[s + 1], vend = end < op->nnz ? end : op->nnz - 1; /* 4-float loads stay inside */
         uint64_t i = a;
 #ifdef __SSE2__
         __m128 ev = _mm_set_ps(0.0f, e[2], e[1], e[0]);
-        for (; i < vend && g->rows[i] < hi; i++) {
-            float *x = r->X4 + (size_t)g->rows[i] * 4;
-            _mm_store_ps(x, _mm_add_ps(_mm_load_ps(x), _mm_mul_ps(ev, _mm_loadu_ps(g->vals + i * 3))));
+        for (; i < vend && op->rows[i] < hi; i++) {
+            float *x = r->X4 + (size_t)op->rows[i] * 4;
+            _mm_store_ps(x, _mm_add_ps(_mm_load_ps(x), _mm_mul_ps(ev, _mm_loadu_ps(op->vals + i * 3))));
         }
 #endif
-        for (; i < end && g->rows[i] < hi; i++) {
-            float *x = r->X4 + (size_t)g->rows[i] * 4;
-            const float *v = g->vals + i * 3;
+        for (; i < end && op->rows[i] < hi; i++) {
+            float *x = r->X4 + (size_t)op->rows[i] * 4;
+            const float *v = op->vals + i * 3;
             x[0] += e[0] * v[0];
             x[1] += e[1] * v[1];
             x[2] += e[2] * v[2];
@@ -1226,6 +1238,39 @@ static void gather_run(void *user, size_t n, wrt_gather_item_fn fn, void *ctx) {
 static void *gather_alloc(void *user, size_t bytes) { return ra_calloc(user, 1, bytes); }
 static void gather_free(void *user, void *p) { ra_free(user, p); }
 
+/* With the final gather nothing shows the rows of X that are a glossy quad's angular
+ * (non-root) functions: glossy quads are drawn from the gather, which reads every quad's
+ * angular-root functions only (a diffuse quad has no others). The multiply then streams a
+ * copy of the operator without those rows (on the glossy asset 15% of the entries are
+ * kept), in the file's order, so every displayed row of X sums the same terms in the same
+ * order (bit-identical); the others stay 0. Kept as the file's when it would save < 10%.
+ * Returns -1 if there is no memory. */
+static int display_rows_operator(wrt_relight *r) {
+    const wrt_gto *g = r->g;
+    uint32_t nf = g->nfuncs;
+    uint64_t keep = 0;
+    for (uint64_t i = 0; i < g->nnz; i++) keep += r->fn_ang[g->rows[i]] == 0;
+    if (keep >= 0.9 * (double)g->nnz) return 0;
+    uint64_t *cs = ra_calloc(r, (size_t)nf + 1, sizeof *cs);
+    uint32_t *rows = ra_calloc(r, keep ? keep : 1, sizeof *rows);
+    float *vals = ra_calloc(r, (keep ? keep : 1) * 3 + 1, sizeof *vals); /* + 1: 4-float loads */
+    if (!cs || !rows || !vals) { ra_free(r, cs); ra_free(r, rows); ra_free(r, vals); return -1; }
+    uint64_t n = 0;
+    for (uint32_t c = 0; c < nf; c++) {
+        cs[c] = n;
+        for (uint64_t i = g->col_start[c]; i < g->col_start[c + 1]; i++) {
+            if (r->fn_ang[g->rows[i]] != 0) continue;
+            rows[n] = g->rows[i];
+            memcpy(vals + n * 3, g->vals + i * 3, 3 * sizeof *vals);
+            n++;
+        }
+    }
+    cs[nf] = n;
+    r->op.col_start = cs; r->op.rows = rows; r->op.vals = vals; r->op.nnz = n;
+    r->op_own[0] = cs; r->op_own[1] = rows; r->op_own[2] = vals;
+    return 0;
+}
+
 wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out) {
     *out = NULL;
     if (!g) return wrt_fail(WRT_ERR_INVALID_ARG, "relight: no operator");
@@ -1236,6 +1281,7 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     if (!r) return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory");
     memset(r, 0, sizeof *r);
     r->g = g;
+    r->op.col_start = g->col_start; r->op.rows = g->rows; r->op.vals = g->vals; r->op.nnz = g->nnz;
     r->opt = o;
     if (r->opt.proj_level < 0 || r->opt.proj_level > PROJ_MAX_LEVEL) {
         ra_free(r, r);
@@ -1465,27 +1511,31 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
             gqs[q].n = qi->n; gqs[q].t = qi->t; gqs[q].b = qi->b;
             gqs[q].mat = &r->mats[qi->material];
         }
+        r->gres = ra_calloc(r, nq ? nq : 1, sizeof *r->gres);
+        r->gires = ra_calloc(r, nq ? nq : 1, sizeof *r->gires);
+        if (!r->gres || !r->gires) { ra_free(r, gqs); return relight_nomem(r); }
+        for (uint32_t q = 0; q < nq; q++) { /* displayed sides; the gather reads gdiff (below) of glossy quads */
+            r->gires[q] = r->gres[q] = wrt_relight_tex_res(r, (int)q);
+            if (r->qi[q].glossy) r->gires[q] = 1 << r->qi[q].tex_level;
+        }
         wrt_gather_env genv = {gather_run, gather_alloc, gather_free, r};
-        wrt_status gs = wrt_gather_create((int)nq, gqs, r->scene, r->origin, r->eps, &genv, &r->gather);
+        wrt_status gs = wrt_gather_create((int)nq, gqs, r->gres, r->scene, r->origin, r->eps, &genv, &r->gather);
         ra_free(r, gqs);
         if (gs != WRT_OK) return relight_nomem(r);
         if (r->gather) {
             r->gtex = ra_calloc(r, nq, sizeof *r->gtex);
             r->gout = ra_calloc(r, nq, sizeof *r->gout);
-            r->gres = ra_calloc(r, nq, sizeof *r->gres);
-            r->gires = ra_calloc(r, nq, sizeof *r->gires);
             r->gdiff = ra_calloc(r, nq, sizeof *r->gdiff);
-            if (!r->gtex || !r->gout || !r->gres || !r->gires || !r->gdiff) return relight_nomem(r);
+            if (!r->gtex || !r->gout || !r->gdiff) return relight_nomem(r);
             for (uint32_t q = 0; q < nq; q++) {
-                r->gires[q] = r->gres[q] = wrt_relight_tex_res(r, (int)q);
                 r->gtex[q] = wrt_relight_tex(r, (int)q);
                 r->gout[q] = (float *)r->gtex[q];
                 if (!r->qi[q].glossy) continue;
-                r->gires[q] = 1 << r->qi[q].tex_level;
                 r->gdiff[q] = ra_calloc(r, (size_t)r->gires[q] * r->gires[q] * 3, sizeof(float));
                 if (!r->gdiff[q]) return relight_nomem(r);
                 r->gtex[q] = r->gdiff[q];
             }
+            if (display_rows_operator(r) != 0) return relight_nomem(r);
         }
     }
     *out = r;
@@ -1496,6 +1546,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (!r) return;
     wrt_pool_destroy(r->pool);
     wrt_gather_destroy(r->gather);
+    for (int k = 0; k < 3; k++) ra_free(r, r->op_own[k]);
     if (r->gdiff) for (uint32_t q = 0; q < r->g->nquads; q++) ra_free(r, r->gdiff[q]);
     ra_free(r, r->gtex); ra_free(r, r->gout); ra_free(r, r->gres); ra_free(r, r->gires); ra_free(r, r->gdiff); ra_free(r, r->galb);
     if (r->scene) rtcReleaseScene(r->scene);
@@ -1564,6 +1615,7 @@ wrt_status wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const
         float s = scales ? scales[i] : 1.0f;
         if (i >= r->nlights || !ls->projected || !same_light(&ls->light, &lights[i])) {
             ls->light = lights[i];
+            ls->lc = light_consts(&ls->light);
             ls->projected = 0;
             r->e_dirty = 1;
         }
@@ -1588,9 +1640,8 @@ static void gather_direct(void *user, wrt_v3 x, wrt_v3 n, double out[3]) {
     for (int i = 0; i < r->nlights; i++) {
         const light_state *ls = &r->lights[i];
         if (ls->scale == 0) continue;
-        light_c lc = light_consts(&ls->light);
         wrt_v3 dir;
-        double d = 0, e = light_irradiance(&lc, x, n, &dir, &d);
+        double d = 0, e = light_irradiance(&ls->lc, x, n, &dir, &d);
         if (e == 0) continue;
         if (!light_visible(r, x, n, dir, d)) continue;
         for (int c = 0; c < 3; c++) out[c] += ls->scale * ls->light.color[c] * e;
@@ -1644,7 +1695,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
             const float *e = r->E + (size_t)c * 3;
             if (e[0] == 0 && e[1] == 0 && e[2] == 0) continue;
             r->cols[ncols++] = c;
-            entries += (double)(g->col_start[c + 1] - g->col_start[c]);
+            entries += (double)(r->op.col_start[c + 1] - r->op.col_start[c]);
         }
         mul_ctx mc = {r->cols, ncols, 0};
         /* Bound by memory: threads that stream halves of the same columns were measured

@@ -75,7 +75,9 @@ const float *wrt_relight_tex(const wrt_relight *r, int q);
  * (from X), for --stats-json and the tests. */
 void wrt_relight_quad_irradiance(const wrt_relight *r, int q, double direct[3], double indirect[3]);
 
-/* The coefficient vectors themselves (length g->nfuncs, RGB interleaved), for tests. */
+/* The coefficient vectors themselves (length g->nfuncs, RGB interleaved), for tests.
+ * With the final gather (the default when a quad is glossy) the rows of X that are a
+ * glossy quad's non-root angular functions are not computed (0): nothing displays them. */
 const float *wrt_relight_E(const wrt_relight *r);
 const float *wrt_relight_X(const wrt_relight *r);
 

@@ -778,13 +778,17 @@ static void test_bench(void) {
 /* X = Op E against a dense reference product: a random sparse operator (entries of both
  * signs, every quad's functions), two lights of different colours (so each channel of E
  * differs), and the product recomputed here in double precision over every (row, column)
- * of the operator expanded to dense columns, channel by channel. */
-static void test_multiply_dense(void) {
+ * of the operator expanded to dense columns, channel by channel. Without the final gather
+ * every row of X; with it (gather = 1) the rows that are displayed (angular roots: the
+ * relighter multiplies its copy of the operator without a glossy quad's angular rows)
+ * must match it, and the others be 0. */
+static void multiply_dense(int gather) {
     ts_scene s;
     build_room(&s, 2, 2, 60);
     uint32_t nf = s.nf;
     wrt_relight *r;
-    CHECK(wrt_relight_create(&s.g, NULL, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_relight_options o = {.no_gather = !gather};
+    CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
     double eye[3] = {0.5, 0.5, 0.9};
     wrt_relight_set_eye(r, eye);
     wrt_light L[2] = {point_light(0.3, 0.7, 0.6, 2), point_light(0.7, 0.25, 0.4, 1)};
@@ -806,18 +810,35 @@ static void test_multiply_dense(void) {
             for (uint32_t i = 0; i < nf; i++) ref[3 * i + c] += col[i] * e;
         }
     double worst[3] = {0, 0, 0}, mx[3] = {0, 0, 0};
-    for (uint32_t i = 0; i < nf; i++)
+    uint32_t nskip = 0, nonzero_skipped = 0;
+    for (uint32_t i = 0; i < nf; i++) {
+        if (gather && !wrt_fkey_angular_root(s.fkeys[i])) { /* not displayed: not computed */
+            nskip++;
+            nonzero_skipped += X[3 * i] != 0 || X[3 * i + 1] != 0 || X[3 * i + 2] != 0;
+            continue;
+        }
         for (int c = 0; c < 3; c++) {
             mx[c] = fmax(mx[c], fabs(ref[3 * i + c]));
             worst[c] = fmax(worst[c], fabs(X[3 * i + c] - ref[3 * i + c]));
         }
+    }
     for (int c = 0; c < 3; c++)
         CHECK(mx[c] > 0 && worst[c] <= 1e-5 * mx[c], "channel %d: X off the dense product by %.3g of %.3g", c, worst[c], mx[c]);
-    printf("multiply vs dense product: %u functions, %llu entries; worst |X - ref| / max: %.2e %.2e %.2e\n", nf,
-           (unsigned long long)s.g.nnz, worst[0] / mx[0], worst[1] / mx[1], worst[2] / mx[2]);
+    if (gather) {
+        CHECK(nskip > 0 && nskip < nf, "the glossy quads' angular rows are %u of %u", nskip, nf);
+        CHECK(nonzero_skipped == 0, "%u rows that nothing displays are not 0", nonzero_skipped);
+    }
+    printf("multiply vs dense product%s: %u functions (%u rows not displayed), %llu entries; worst |X - ref| / max: "
+           "%.2e %.2e %.2e\n", gather ? " (final gather: displayed rows)" : "", nf, nskip, (unsigned long long)s.g.nnz,
+           worst[0] / mx[0], worst[1] / mx[1], worst[2] / mx[2]);
     free(col); free(ref);
     wrt_relight_destroy(r);
     ts_free(&s);
+}
+
+static void test_multiply_dense(void) {
+    multiply_dense(0);
+    multiply_dense(1);
 }
 
 static double rel_rms(const float *a, const float *b, size_t n) {

@@ -697,6 +697,19 @@ wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const dou
     out->ms_update_min = ms[0];
     out->ms_update_max = ms[updates - 1];
     out->cpu_ms_update_median = cpu[updates / 2];
+    for (int k = 0; k < updates; k++) { /* camera moves, the light where it started */
+        double a = 2 * WRT_PI * (k + 1) / updates;
+        double e[3] = {eye[0] + rad * cos(a), eye[1], eye[2] + rad * sin(a)};
+        double t1 = wrt_now(), c1 = cpu_now();
+        wrt_runtime_set_eye(r, e, NULL);
+        wrt_runtime_update(r, NULL, NULL);
+        ms[k] = (wrt_now() - t1) * 1e3;
+        cpu[k] = (cpu_now() - c1) * 1e3;
+    }
+    qsort(ms, (size_t)updates, sizeof(double), cmp_double);
+    qsort(cpu, (size_t)updates, sizeof(double), cmp_double);
+    out->ms_eye_median = ms[updates / 2];
+    out->cpu_ms_eye_median = cpu[updates / 2];
     free(ms); free(cpu);
     wrt_runtime_close(r);
     return WRT_OK;

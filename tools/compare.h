@@ -98,6 +98,7 @@ typedef struct wrt_compare_result {
     double ms_update_median;        /* wrt_relight_update per light change, milliseconds */
     double ms_update_min, ms_update_max;
     double cpu_ms_update_median;    /* the process's CPU time per light change (all threads) */
+    double ms_eye_median, cpu_ms_eye_median; /* the same per camera move (wall, CPU) */
     double seconds;                 /* wall time of this comparison */
 } wrt_compare_result;
 
@@ -108,7 +109,9 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *r, const wrt_gto *g, wrt_compa
 
 /* Times the player's update per light change without a reference: relights `g` with
  * `light` alone (eye at `eye`), then moves it `updates` times around a circle of 2% of
- * the scene's size and times each set_lights + update (wall and process CPU time).
+ * the scene's size and times each set_lights + update (wall and process CPU time); then
+ * moves the eye `updates` times around a circle of the same radius and times each
+ * set_eye + update (a camera move: glossy quads' view-dependent radiance).
  * Fills the ms_* and cpu_ms_* fields of *out (and nothing else). */
 wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const double eye[3], int updates,
                              int threads, wrt_compare_result *out);

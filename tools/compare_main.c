@@ -297,11 +297,13 @@ static int compare_main(int argc, char **argv, const char **gtos) {
             printf("%s{\"file\":", b ? "," : "");
             wrt_cli_json_str(stdout, gtos[b]);
             printf(",\"bytes\":%zu,\"ms_per_light_change\":%.4f,\"ms_min\":%.4f,\"ms_max\":%.4f,"
-                   "\"cpu_ms_per_light_change\":%.4f,\"bench_updates\":%d}",
+                   "\"cpu_ms_per_light_change\":%.4f,\"ms_per_camera_move\":%.4f,\"cpu_ms_per_camera_move\":%.4f,"
+                   "\"bench_updates\":%d}",
                    g.size, res.ms_update_median, res.ms_update_min, res.ms_update_max, res.cpu_ms_update_median,
-                   o.bench_updates);
-            fprintf(stderr, "wrt-compare: %s: %.2f ms per light change (median; fastest %.2f, CPU %.2f)\n",
-                    gtos[b], res.ms_update_median, res.ms_update_min, res.cpu_ms_update_median);
+                   res.ms_eye_median, res.cpu_ms_eye_median, o.bench_updates);
+            fprintf(stderr, "wrt-compare: %s: %.2f ms per light change (median; fastest %.2f, CPU %.2f), "
+                    "%.2f ms per camera move (CPU %.2f)\n", gtos[b], res.ms_update_median, res.ms_update_min,
+                    res.cpu_ms_update_median, res.ms_eye_median, res.cpu_ms_eye_median);
             wrt_gto_close(&g);
         }
         printf("],\"ok\":%s}\n", bad ? "false" : "true");
@@ -361,10 +363,10 @@ static int compare_main(int argc, char **argv, const char **gtos) {
         printf(",\"bytes\":%zu,\"functions\":%u,\"entries\":%llu,", g.size, g.nfuncs, (unsigned long long)g.nnz);
         json_errors(stdout, &res.mean);
         printf(",\"ms_per_light_change\":%.4f,\"ms_min\":%.4f,\"ms_max\":%.4f,\"cpu_ms_per_light_change\":%.4f,"
-               "\"bench_updates\":%d,"
+               "\"ms_per_camera_move\":%.4f,\"cpu_ms_per_camera_move\":%.4f,\"bench_updates\":%d,"
                "\"seconds\":%.3f,\"within_max_error\":%s,\"per_light\":[",
                res.ms_update_median, res.ms_update_min, res.ms_update_max, res.cpu_ms_update_median,
-               o.bench_updates, res.seconds,
+               res.ms_eye_median, res.cpu_ms_eye_median, o.bench_updates, res.seconds,
                over ? "false" : "true");
         for (int k = 0; k < res.nlights; k++) {
             printf("%s{", k ? "," : "");
