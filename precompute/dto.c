@@ -425,9 +425,11 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     for (int q = 0; q < 4; q++) vq = fmax(vq, qhi[q] - qlo[q]);
     double vr = (swapped ? vs : vq) * pc->rho_max * wrt_node_size(rn);
     double vsn = (swapped ? vq : vs) * pc->rho_max * wrt_node_size(sn);
-    int maxl = b->opt.max_slevel, minl = b->opt.min_slevel;
+    int glossy = pc->lr || pc->ls;
+    int maxl = glossy ? b->opt.max_slevel_glossy : b->opt.max_slevel, minl = b->opt.min_slevel;
     /* a link that serves both directions refines both sides by the finer threshold */
-    double eps_r = b->opt.eps_receiver, eps_s = b->opt.eps_sender;
+    double eps_r = glossy ? b->opt.eps_receiver_glossy : b->opt.eps_receiver;
+    double eps_s = glossy ? b->opt.eps_sender_glossy : b->opt.eps_sender;
     if (pc->sym) eps_r = eps_s = fmin(eps_r, eps_s);
     int ref_r = rn.level < maxl && (vr > eps_r || rn.level < minl);
     int ref_s = sn.level < maxl && (vsn > eps_s || sn.level < minl);

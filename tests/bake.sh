@@ -37,6 +37,7 @@ expect_exit "quality 0 refused: exit 1" 1 "quality.*\[1, 9\]" "$bake" assets/cor
 expect_exit "absurd threads refused: exit 1" 1 "threads" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --threads 100000
 expect_exit "NaN threshold refused: exit 1" 1 "eps-compress" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --eps-compress nan
 expect_exit "unknown option: exit 1" 1 "unknown option" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --frobnicate
+expect_exit "glossy quality above the quality refused: exit 1" 1 "glossy-quality 5 must not exceed the quality \(3\)" "$bake" assets/glossy.gltf -o "$tmp/x.gto" -q 3 --glossy-quality 5
 expect_exit "memory budget 0 refused: exit 1" 1 "max-memory.*\[1," "$bake" assets/cornell.gltf -o "$tmp/x.gto" --max-memory 0
 expect_exit "min level above max level: exit 1" 1 "deeper" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --min-level 5 --max-level 3
 expect_exit "missing scene: exit 2" 2 "nope.gltf" "$bake" "$tmp/nope.gltf" -o "$tmp/x.gto"
