@@ -27,8 +27,9 @@
  *
  * Departures from the paper, by design: direct light on a glossy quad is projected onto
  * the angular functions too (the light direction, spread over one cell of the finest
- * angular level centred on it, evaluated in the angular Haar basis), so it bounces glossily; a quad's texture has 2^(slevel+1) texels a side (capped), so
- * the finest stored wavelet is represented exactly as a texel average; glossy pruning
+ * angular level centred on it, evaluated in the angular Haar basis), so it bounces
+ * glossily; a quad's texture has 2^(slevel+1) texels a side (capped), so the finest
+ * stored wavelet is represented exactly as a texel average; glossy pruning
  * (Figure 5) is done per angular function: one whose BRDF weight beta is below 1e-3 of
  * the root's over every direction the quad sends toward the eye is skipped. */
 #include "relight.h"

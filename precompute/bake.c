@@ -48,8 +48,9 @@ void wrt_bake_defaults(wrt_bake_options *o) {
      * Cornell box, docs/study): a finer angular level blurs the light's own reflection
      * less but places it worse (its direction is a delta truncated to the level's cells),
      * so up to quality 5 the glossy materials keep level 1, and the links that touch a
-     * glossy quad are refined with the thresholds of two qualities lower: the default
-     * then bakes a glossy scene in about the time of a diffuse one of its size. */
+     * glossy quad are refined with the thresholds of quality 3 at qualities 4-5 and of
+     * Q - 2 above (finer ones bought nothing measurable at level 1): the default then
+     * bakes a glossy scene in about the time of a diffuse one of its size. */
     if (o->max_alevel <= 0) o->max_alevel = q <= 5 ? 1 : q <= 7 ? 2 : 3;
     if (o->max_alevel > WRT_MAX_ALEVEL) o->max_alevel = WRT_MAX_ALEVEL;
     if (o->max_memory_mb <= 0) o->max_memory_mb = wrt_bake_memory_default();
