@@ -26,9 +26,10 @@
  * beyond its range are skipped. The same exact zeros and values as tracing every ray.
  *
  * Departures from the paper, by design: direct light on a glossy quad is projected onto
- * the angular functions too (the light direction evaluated in the angular Haar basis),
- * so it bounces glossily; a quad's texture has 2^(slevel+1) texels a side (capped), so
- * the finest stored wavelet is represented exactly as a texel average; glossy pruning
+ * the angular functions too (the light direction, spread over one cell of the finest
+ * angular level centred on it, evaluated in the angular Haar basis), so it bounces
+ * glossily; a quad's texture has 2^(slevel+1) texels a side (capped), so the finest
+ * stored wavelet is represented exactly as a texel average; glossy pruning
  * (Figure 5) is done per angular function: one whose BRDF weight beta is below 1e-3 of
  * the root's over every direction the quad sends toward the eye is skipped. */
 #include "relight.h"
@@ -219,6 +220,7 @@ typedef struct op_view {
 } op_view;
 
 struct wrt_relight {
+    int light_splat;                /* the light's direction spread over one finest angular cell */
     const wrt_gto *g;
     op_view op;
     void *op_own[3];                /* op's arrays when they are the relighter's copy */
@@ -534,17 +536,40 @@ static uint32_t eval_cell(const wrt_relight *r, worker *w, const proj_setup *ps,
             if (ang_cell && id != ang_cell) vis |= VIS_ANGMIX;
             ang_cell = id;
         }
-        for (int al = 0; al < ANG_LEVELS; al++) {
-            int an = 1 << al;
-            int ax = (int)(a * an), ay = (int)(b * an);
-            if (ax > an - 1) ax = an - 1;
-            if (ay > an - 1) ay = an - 1;
-            double su = a * an - ax < 0.5 ? 1.0 : -1.0, sv = b * an - ay < 0.5 ? 1.0 : -1.0;
-            uint32_t kk = haar_index(al, ax, ay, 1);
-            double gv[3] = {an * su, an * sv, an * su * sv};
-            for (int t = 0; t < 3; t++) {
-                int sl = ps->slot_of[kk + t];
-                if (sl >= 0) out[sl] += val * gv[t];
+        /* The light's direction, a delta, spread over one cell of the finest angular level
+         * centred on it (light_splat): its Haar coefficients are then the bilinear blend of
+         * the functions' values at the four nearest finest-cell centres, so the reflected
+         * lobe is centred on the light's direction instead of on its cell's centre. */
+        int nc = 1, ar = ps->ang_res;
+        double ca[4] = {a}, cb[4] = {b}, cw[4] = {1};
+        if (r->light_splat && ar > 0) {
+            double fa = a * ar - 0.5, fb = b * ar - 0.5;
+            int ia = (int)floor(fa), ib = (int)floor(fb);
+            double ta = fa - ia, tb = fb - ib;
+            nc = 4;
+            for (int c = 0; c < 4; c++) {
+                int xa = ia + (c & 1), xb = ib + (c >> 1);
+                xa = xa < 0 ? 0 : xa > ar - 1 ? ar - 1 : xa;
+                xb = xb < 0 ? 0 : xb > ar - 1 ? ar - 1 : xb;
+                ca[c] = (xa + 0.5) / ar; cb[c] = (xb + 0.5) / ar;
+                cw[c] = ((c & 1) ? ta : 1 - ta) * ((c >> 1) ? tb : 1 - tb);
+            }
+        }
+        for (int c = 0; c < nc; c++) {
+            if (cw[c] == 0) continue;
+            double vc = val * cw[c];
+            for (int al = 0; al < ANG_LEVELS; al++) {
+                int an = 1 << al;
+                int ax = (int)(ca[c] * an), ay = (int)(cb[c] * an);
+                if (ax > an - 1) ax = an - 1;
+                if (ay > an - 1) ay = an - 1;
+                double su = ca[c] * an - ax < 0.5 ? 1.0 : -1.0, sv = cb[c] * an - ay < 0.5 ? 1.0 : -1.0;
+                uint32_t kk = haar_index(al, ax, ay, 1);
+                double gv[3] = {an * su, an * sv, an * su * sv};
+                for (int t = 0; t < 3; t++) {
+                    int sl = ps->slot_of[kk + t];
+                    if (sl >= 0) out[sl] += vc * gv[t];
+                }
             }
         }
     }
@@ -1491,6 +1516,8 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
     }
     /* The final gather on glossy quads (gather.h); WRT_FINAL_GATHER=0 turns it off (the
      * coarse angular synthesis alone: for before/after measurements). */
+    const char *ls = getenv("WRT_LIGHT_SPLAT");
+    r->light_splat = !(ls && strcmp(ls, "0") == 0);
     const char *fg = getenv("WRT_FINAL_GATHER");
     if (!r->opt.no_gather && !(fg && strcmp(fg, "0") == 0)) {
         wrt_gather_quad *gqs = ra_calloc(r, nq ? nq : 1, sizeof *gqs);

@@ -25,6 +25,10 @@ typedef struct wrt_bake_options {
     int max_slevel;        /* deepest spatial level of refinement (cells 2^-l of a quad) */
     int min_slevel;        /* refine every link at least to this level (default 0) */
     int max_alevel;        /* cap on the angular level of glossy materials (1..3) */
+    int glossy_quality;    /* the quality whose eps_receiver, eps_sender and max_slevel refine the
+                            * links that touch a glossy quad (default: see wrt_bake_defaults) */
+    double eps_receiver_glossy, eps_sender_glossy; /* resolved from glossy_quality */
+    int max_slevel_glossy;
     int receiver_samples;  /* receiver samples per link, a multiple of 4 (default 16) */
     int threads;           /* 0 = all cores */
     int gathered;          /* 1: store T_fine G instead of G - I */

@@ -426,16 +426,25 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     for (int q = 0; q < 4; q++) vq = fmax(vq, qhi[q] - qlo[q]);
     double vr = (swapped ? vs : vq) * pc->rho_max * wrt_node_size(rn);
     double vsn = (swapped ? vq : vs) * pc->rho_max * wrt_node_size(sn);
-    int maxl = b->opt.max_slevel, minl = b->opt.min_slevel;
-    /* cells coarser than the display keeps (bake.c) split by their own receiver threshold;
-     * a link that serves both directions refines both sides by the finer threshold, each
-     * side's at its own level */
-    double eps_r = rn.level < WRT_RECON_KEEP ? b->opt.eps_receiver_coarse : b->opt.eps_receiver;
-    double eps_s = b->opt.eps_sender;
-    if (pc->sym) {
-        double eps_rs = sn.level < WRT_RECON_KEEP ? b->opt.eps_receiver_coarse : b->opt.eps_receiver;
-        eps_r = fmin(eps_r, eps_s);
-        eps_s = fmin(eps_rs, eps_s);
+    int glossy = pc->lr || pc->ls;
+    int maxl = glossy ? b->opt.max_slevel_glossy : b->opt.max_slevel, minl = b->opt.min_slevel;
+    /* links that touch a glossy surface use the glossy quality's thresholds (one receiver
+     * threshold) when it is below the quality; other links split cells coarser than the
+     * display keeps (bake.c) by their own receiver threshold. A link that serves both
+     * directions refines both sides by the finer threshold, each side's at its own level */
+    double eps_r, eps_s;
+    if (glossy && b->opt.glossy_quality != b->opt.quality) {
+        eps_r = b->opt.eps_receiver_glossy;
+        eps_s = b->opt.eps_sender_glossy;
+        if (pc->sym) eps_r = eps_s = fmin(eps_r, eps_s);
+    } else {
+        eps_r = rn.level < WRT_RECON_KEEP ? b->opt.eps_receiver_coarse : b->opt.eps_receiver;
+        eps_s = b->opt.eps_sender;
+        if (pc->sym) {
+            double eps_rs = sn.level < WRT_RECON_KEEP ? b->opt.eps_receiver_coarse : b->opt.eps_receiver;
+            eps_r = fmin(eps_r, eps_s);
+            eps_s = fmin(eps_rs, eps_s);
+        }
     }
     int ref_r = rn.level < maxl && (vr > eps_r || rn.level < minl);
     int ref_s = sn.level < maxl && (vsn > eps_s || sn.level < minl);

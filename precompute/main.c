@@ -42,7 +42,11 @@ static void usage(FILE *f) {
         "  --eps-compress E       drop operator entries below E after each product\n"
         "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
         "  --min-level L          refine every link at least to level L\n"
-        "  --max-angular-level L  cap on glossy materials' angular level (1..3)\n"
+        "  --max-angular-level L  cap on glossy materials' angular level (1..3; default 1 up\n"
+        "                         to quality 5, 2 at 6-7, 3 from 8)\n"
+        "  --glossy-quality G     refine the links that touch a glossy surface with quality\n"
+        "                         G's thresholds and depth (1..Q; default Q up to 3, 3 at\n"
+        "                         4-5, Q - 2 from 6)\n"
         "  --gathered             store the gathered GTO (T_fine G) instead of G - I\n"
         "  --report-gathered      compute the gathered GTO's link count without storing it\n"
         "  --no-tail              do not add the estimated tail of the series\n"
@@ -154,9 +158,11 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
     fprintf(f,
         "{\"quality\":%d,\"eps_receiver\":%.6g,\"eps_receiver_coarse\":%.6g,\"eps_sender\":%.6g,\"eps_compress\":%.6g,"
         "\"max_level\":%d,\"min_level\":%d,\"receiver_samples\":%d,\"gathered\":%d,\"tail\":%d,"
-        "\"max_bounces\":%d,\"max_alevel\":%d,\"balance\":%d}",
+        "\"max_bounces\":%d,\"max_alevel\":%d,\"glossy_quality\":%d,"
+        "\"eps_receiver_glossy\":%.6g,\"eps_sender_glossy\":%.6g,\"max_level_glossy\":%d,\"balance\":%d}",
         o->quality, o->eps_receiver, o->eps_receiver_coarse, o->eps_sender, o->eps_compress, o->max_slevel, o->min_slevel,
-        o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces, o->max_alevel, !o->no_balance);
+        o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces, o->max_alevel,
+        o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance);
 }
 
 int main(int argc, char **argv) {
@@ -194,6 +200,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--max-level")) { ok = parse_int(a, v, 1, 10, &o.max_slevel); i++; }
         else if (!strcmp(a, "--min-level")) { ok = parse_int(a, v, 0, 10, &o.min_slevel); i++; }
         else if (!strcmp(a, "--max-angular-level")) { ok = parse_int(a, v, 1, 3, &o.max_alevel); i++; }
+        else if (!strcmp(a, "--glossy-quality")) { ok = parse_int(a, v, 1, 9, &o.glossy_quality); i++; }
         else if (!strcmp(a, "--max-memory")) { ok = parse_double(a, v, 1, 1e9, &o.max_memory_mb); i++; }
         else if (!strcmp(a, "--max-bounces")) { ok = parse_int(a, v, 1, 1000000, &o.max_bounces); i++; }
         else if (!strcmp(a, "--threads")) { ok = parse_int(a, v, 1, 64, &o.threads); i++; }
@@ -220,6 +227,11 @@ int main(int argc, char **argv) {
     }
     if (o.min_slevel && o.max_slevel && o.min_slevel > o.max_slevel) {
         fprintf(stderr, "wrt-bake: error: --min-level %d is deeper than --max-level %d\n", o.min_slevel, o.max_slevel);
+        return EXIT_USAGE;
+    }
+    if (o.glossy_quality && o.glossy_quality > (o.quality ? o.quality : 5)) {
+        fprintf(stderr, "wrt-bake: error: --glossy-quality %d must not exceed the quality (%d)\n", o.glossy_quality,
+                o.quality ? o.quality : 5);
         return EXIT_USAGE;
     }
     if (print_config) {

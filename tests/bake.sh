@@ -46,6 +46,7 @@ printf '%s' "$c4" | grep -q '"eps_receiver":0.02,"eps_receiver_coarse":0.02,' &&
 printf '%s' "$ce" | grep -q '"eps_receiver":0.02,"eps_receiver_coarse":0.02,' && ok "--eps-receiver alone sets both" || ko "--eps-receiver config: $ce"
 printf '%s' "$cc" | grep -q '"eps_receiver":0.01,"eps_receiver_coarse":0.001,' && ok "--eps-receiver-coarse alone" || ko "--eps-receiver-coarse config: $cc"
 expect_exit "unknown option: exit 1" 1 "unknown option" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --frobnicate
+expect_exit "glossy quality above the quality refused: exit 1" 1 "glossy-quality 5 must not exceed the quality \(3\)" "$bake" assets/glossy.gltf -o "$tmp/x.gto" -q 3 --glossy-quality 5
 expect_exit "memory budget 0 refused: exit 1" 1 "max-memory.*\[1," "$bake" assets/cornell.gltf -o "$tmp/x.gto" --max-memory 0
 expect_exit "min level above max level: exit 1" 1 "deeper" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --min-level 5 --max-level 3
 expect_exit "missing scene: exit 2" 2 "nope.gltf" "$bake" "$tmp/nope.gltf" -o "$tmp/x.gto"

@@ -11,6 +11,7 @@ static inline wrt_v3 P(double x, double y, double z) { return v3(x, y, z); }
 static inline wrt_bake_options opts(int q, int minl, int maxl) {
     wrt_bake_options o = {0};
     o.quality = q; o.min_slevel = minl; o.max_slevel = maxl;
+    o.glossy_quality = q; /* glossy links refined like the others: the tests set their depth */
     o.threads = 2;
     return o;
 }

@@ -602,6 +602,7 @@ static void test_glossy_sender(void) {
     tsb_quad(&s, P(0, 0, 0), P(0, 1, 0), P(0, 1, 1), P(0, 0, 1), mg);      /* glossy wall x = 0 */
     wrt_bake_result r;
     wrt_bake_options o = opts(5, 1, 5);
+    o.max_alevel = 2; /* angular wavelets below the root on both sides */
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
     CHECK(r.c.entries_angular > 0 && r.c.links_dto_glossy > 0, "glossy links carry angular entries (%llu)",
           (unsigned long long)r.c.entries_angular);

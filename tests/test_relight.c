@@ -697,7 +697,10 @@ static void test_glossy_beta(void) {
         wrt_relight_beta(r, 1, probes[p][0], probes[p][1], 0, b);
         CHECK(wmax < 0.05 * b[2], "wavelet betas small: %g vs root %g", wmax, b[2]);
     }
-    /* Glossy projection: a far light projects onto the angular functions g(a_l, b_l). */
+    /* Glossy projection: a far light projects onto the angular functions averaged over one
+     * cell of the finest angular level (here 4 x 4 cells) centred on its direction
+     * (a_l, b_l): the delta spread over that cell, so that its reflected lobe is centred on
+     * the light's direction; the average is taken here by brute force over the box. */
     double d = 50, th = 0.35, ph = 0.3; /* (a_l, b_l) ~ (0.67, 0.57): away from level-1 cell edges */
     wrt_v3 ldir = v3(sin(th) * cos(ph), sin(th) * sin(ph), cos(th));
     wrt_light l = point_light(0.5 + d * ldir.x, 0.5 + d * ldir.y, d * ldir.z, 2500);
@@ -713,7 +716,11 @@ static void test_glossy_beta(void) {
     for (uint32_t f = s.quads[q].func_first; f < s.quads[q].func_first + s.quads[q].func_count; f++) {
         wrt_fkey k = s.fkeys[f];
         if (wrt_fkey_snode(k).level != 0 || wrt_fkey_stype(k) != 0) continue; /* spatial root */
-        double gv = wrt_haar2(wrt_fkey_anode(k), wrt_fkey_atype(k), la, lb);
+        double gv = 0, hb = 0.25;
+        for (int j = 0; j < 256; j++)
+            for (int i = 0; i < 256; i++)
+                gv += wrt_haar2(wrt_fkey_anode(k), wrt_fkey_atype(k), la + hb * ((i + 0.5) / 256 - 0.5),
+                                lb + hb * ((j + 0.5) / 256 - 0.5)) / (256.0 * 256.0);
         double want = E0 * sqrt(1 / WRT_PI) * gv;
         CHECK_NEAR(E[f * 3], want, 0.02 * E0 * sqrt(1 / WRT_PI) * 2, "angular coefficient %d", wrt_fkey_atype(k));
         checked++;

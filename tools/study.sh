@@ -12,25 +12,30 @@
 # (error against bake time, file bytes and milliseconds per light change, floor shown)
 # and OUT/README.md (the tables). Needs jq and gnuplot (tools/install-deps.sh).
 #
-# usage: tools/study.sh [-b BUILD] [-o OUTDIR] [-q "Q1 Q2 ..."] [-P] [SCENE.gltf ...]
+# usage: tools/study.sh [-b BUILD] [-o OUTDIR] [-q "S1 S2 ..."] [-d S] [-P] [SCENE.gltf ...]
+#   a setting S is a quality, optionally followed by glossy knobs: gN (--glossy-quality N),
+#   aN (--max-angular-level N); e.g. "5", "5g3a2"
+#   -d: the setting whose pictures are drawn (default 5, else the last)
 #   -P: no bakes; redraw the plots and the tables from OUTDIR/*.json
 #   -R: reuse the bakes (and their timings) in BUILD/study/NAME newer than wrt-bake and the
 #       scene, and the comparison if newer than wrt-compare and the bakes, with the same options
 #   default scenes: assets/cornell.gltf assets/maze.gltf assets/glossy.gltf, swept over
 #   1..7, 1..6 and 1..5 (the higher qualities take minutes to hours on 2 cores: see
 #   docs/study/README.md); any other scene over 1..6 unless -q is given.
-#   WRT_STUDY_COMPARE: wrt-compare's reference options (default below).
+#   WRT_STUDY_COMPARE: wrt-compare's reference options (default below);
+#   WRT_STUDY_PICTURE_SPP: the pictures' reference paths per pixel (default 1024).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-build=build; out=docs/study; quals=""; redraw=0; reuse=0
-while getopts "b:o:q:PRh" opt; do
+build=build; out=docs/study; quals=""; redraw=0; reuse=0; picq=""
+while getopts "b:o:q:d:PRh" opt; do
     case $opt in
         b) build=$OPTARG ;;
         o) out=$OPTARG ;;
         q) quals=$OPTARG ;;
+        d) picq=$OPTARG ;;
         P) redraw=1 ;;
         R) reuse=1 ;;
-        *) sed -n '2,22p' "$0"; exit 1 ;;
+        *) sed -n '2,25p' "$0"; exit 1 ;;
     esac
 done
 shift $((OPTIND - 1))
@@ -50,9 +55,26 @@ default_quals() {
     case $(basename "$1" .gltf) in
         cornell) echo "1 2 3 4 5 6 7" ;;
         maze) echo "1 2 3 4 5 6" ;;
-        glossy) echo "1 2 3 4 5" ;;
+        glossy) echo "1 2 3 4 5 6 5g5a2" ;;
+        cornell_glossy) echo "1 2 3 4 5 6 7" ;;
         *) echo "1 2 3 4 5 6" ;;
     esac
+}
+
+# setting_args S: wrt-bake's options for setting S (a quality and glossy knobs, see usage).
+setting_args() {
+    local s=$1 q rest
+    q=${s%%[!0-9]*}; rest=${s#"$q"}
+    [ -n "$q" ] || { echo "study: bad setting '$s'" >&2; exit 1; }
+    printf -- '-q %s' "$q"
+    while [ -n "$rest" ]; do
+        case ${rest:0:1} in
+            g) printf -- ' --glossy-quality %s' "${rest:1:1}" ;;
+            a) printf -- ' --max-angular-level %s' "${rest:1:1}" ;;
+            *) echo "study: bad setting '$s'" >&2; exit 1 ;;
+        esac
+        rest=${rest:2}
+    done
 }
 
 # plot_scene JSON PNG: cell and image error (log) against bake s, MB and ms (log), each
@@ -66,12 +88,12 @@ plot_scene() {
     ylo=$(jq '[.reference.cell_floor, .reference.image_floor, (.rows[] | .cell_rmse, .image_rmse)]
               | map(select(. > 0)) | min / 1.25' "$json")
     yhi=$(jq '[.rows[] | .cell_rmse, .image_rmse] | max * 1.25' "$json")
-    jq -r '.rows[] | "\(.quality) \(.bake_s) \(.bytes / 1e6) \(.cpu_ms_per_light_change) \(.cell_rmse) \(.image_rmse)"' \
+    jq -r '.rows[] | "\(.setting // .quality) \(.bake_s) \(.bytes / 1e6) \(.cpu_ms_per_light_change) \(.cell_rmse) \(.image_rmse)"' \
         "$json" >"$dat"
     gnuplot <<EOF
-set terminal pngcairo size 1500,500 font "sans,11"
+set terminal pngcairo size 1500,500 font "sans,11" noenhanced
 set output "$png.tmp"
-set multiplot title "$name: relative RMSE of the indirect light against the path-traced reference (point labels: quality)"
+set multiplot title "$name: relative RMSE of the indirect light against the path-traced reference (point labels: setting)"
 set logscale xy
 set grid
 set autoscale xfix
@@ -131,11 +153,13 @@ for scene in "${scenes[@]}"; do
             echo "study: reusing $gto" >&2
         else
             rm -f "$work"/bake_q$q.[1-3].json
-            "$build/wrt-bake" "$scene" -o "$gto" -q "$q" --json --quiet >"$work/bake_q$q.1.json"
+            # shellcheck disable=SC2046
+            "$build/wrt-bake" "$scene" -o "$gto" $(setting_args "$q") --json --quiet >"$work/bake_q$q.1.json"
             runs=1
             if jq -e '.seconds.total < 10' "$work/bake_q$q.1.json" >/dev/null; then
                 for r in 2 3; do
-                    "$build/wrt-bake" "$scene" -o "$gto" -q "$q" --json --quiet >"$work/bake_q$q.$r.json"
+                    # shellcheck disable=SC2046
+                    "$build/wrt-bake" "$scene" -o "$gto" $(setting_args "$q") --json --quiet >"$work/bake_q$q.$r.json"
                 done
                 runs=3
             fi
@@ -144,7 +168,7 @@ for scene in "${scenes[@]}"; do
                 "$work"/bake_q$q.[1-3].json >"$work/bake_q$q.json" 2>/dev/null ||
                 jq --argjson runs 1 '. + {runs: $runs}' "$work/bake_q$q.1.json" >"$work/bake_q$q.json"
         fi
-        jq -r '"study: \(.options.quality): \(.seconds.total) s, \(.bytes) bytes (\(.runs) run(s))"' \
+        jq -r --arg s "$q" '"study: \($s): \(.seconds.total) s, \(.bytes) bytes (\(.runs) run(s))"' \
             "$work/bake_q$q.json" >&2
         gtos+=("$gto")
     done
@@ -172,25 +196,25 @@ for scene in "${scenes[@]}"; do
     "$build/wrt-ref" "$scene" --spp 256 --width "$(jq '.reference.image.width' "$work/compare.json")" \
         --height "$(jq '.reference.image.height' "$work/compare.json")" --json --out "$work/pt" >"$work/pt.json"
     # The pictures: the default quality (5, else the last) beside the path tracer, 192 wide.
-    qd=$(for q in $qs; do echo "$q"; done | grep -x 5 || for q in $qs; do echo "$q"; done | tail -n 1)
-    "$build/wrt-compare" "$scene" "$work/q$qd.gto" --lights 1 --cell-paths 100000 --width 192 --spp 1024 \
+    qd=${picq:-$(for q in $qs; do echo "$q"; done | grep -x 5 || for q in $qs; do echo "$q"; done | tail -n 1)}
+    "$build/wrt-compare" "$scene" "$work/q$qd.gto" --lights 1 --cell-paths 100000 --width 192 --spp "${WRT_STUDY_PICTURE_SPP:-1024}" \
         --bench 1 --images "$work/img" >/dev/null
     cp "$work/img_panel.png" "$out/${name}_panel.png"
 
     # One row per quality: the bake's figures and the comparison's.
-    jq -s '.' $(for q in $qs; do echo "$work/bake_q$q.json"; done) >"$work/bakes.json"
+    for q in $qs; do jq --arg s "$q" '. + {setting: $s}' "$work/bake_q$q.json"; done | jq -s '.' >"$work/bakes.json"
     jq --slurpfile b "$work/bakes.json" --slurpfile t "$work/bench.json" --slurpfile pt "$work/pt.json" \
        --arg name "$name" --arg scene "$scene" --arg qd "$qd" \
        --arg nproc "$(nproc)" --arg date "$(date -u +%Y-%m-%dT%H:%MZ)" --arg args "$compare_args" '
       (($pt[0].image.time_s / $pt[0].image.spp)) as $spp_s | .reference.image.spp as $spp_ref |
       {scene: $scene, name: $name, date: $date, cores: ($nproc | tonumber), compare_options: $args,
        lights: .lights, cells_per_side: .cells_per_side, reference: .reference,
-       pictures_quality: ($qd | tonumber), path_tracer_s_per_spp: $spp_s,
+       pictures_setting: $qd, path_tracer_s_per_spp: $spp_s,
        rows: [range(0; .bakes | length) as $i | .bakes[$i] as $c | $b[0][$i] as $k | $t[0].bakes[$i] as $m |
-         {quality: $k.options.quality, bake_runs: $k.runs,
+         {setting: $k.setting, quality: $k.options.quality, bake_runs: $k.runs,
           dto_s: $k.seconds.dto, gto_s: $k.seconds.gto, bake_s: $k.seconds.total,
           links_dto: $k.links.dto, links_gto: $k.links.gto, links_gathered: (if $k.links.gathered > 0 then $k.links.gathered else null end),
-          bytes: $c.bytes, functions: $c.functions, entries: $c.entries,
+          bytes: $c.bytes, peak_mb: $k.memory_mb.peak_rss, functions: $c.functions, entries: $c.entries,
           ms_per_light_change: $m.ms_per_light_change, ms_min: $m.ms_min,
           cpu_ms_per_light_change: $m.cpu_ms_per_light_change,
           cell_rmse: $c.cell_rmse, cell_floor: $c.cell_floor, cell_rmse_debiased: $c.cell_rmse_debiased,
@@ -203,7 +227,7 @@ for scene in "${scenes[@]}"; do
             else null end),
           per_light: $c.per_light}]}' "$work/compare.json" >"$out/$name.json.tmp"
     mv "$out/$name.json.tmp" "$out/$name.json"
-    cols="quality bake_runs dto_s gto_s bake_s links_dto links_gto links_gathered bytes functions entries ms_per_light_change ms_min cpu_ms_per_light_change cell_rmse cell_floor cell_rmse_debiased image_rmse image_floor image_rmse_debiased cell_ratio cell_rmse_smooth cell_rmse_smooth_debiased image_rmse_haar image_rmse_haar_debiased path_tracer_s"
+    cols="setting quality bake_runs dto_s gto_s bake_s links_dto links_gto links_gathered bytes peak_mb functions entries ms_per_light_change ms_min cpu_ms_per_light_change cell_rmse cell_floor cell_rmse_debiased image_rmse image_floor image_rmse_debiased cell_ratio cell_rmse_smooth cell_rmse_smooth_debiased image_rmse_haar image_rmse_haar_debiased path_tracer_s"
     { echo "$cols" | tr ' ' ','
       jq -r --arg cols "$cols" '.rows[] as $r | [($cols | split(" "))[] | $r[.]] | @csv' "$out/$name.json"
     } >"$out/$name.csv.tmp"
@@ -217,8 +241,10 @@ done
 {
     echo "# The accuracy/time study"
     echo
-    echo "Generated by \`tools/study.sh\` (\`make study\`). Per quality: bake time (median of 3 runs"
-    echo "when under 10 s, else 1 run), links, bytes, the player's median milliseconds per light"
+    echo "Generated by \`tools/study.sh\` (\`make study\`). Per setting (a quality; gN: glossy links"
+    echo "refined at quality N, aN: glossy angular level capped at N): bake time (median of 3 runs"
+    echo "when under 10 s, else 1 run), links, bytes, the bake's peak resident memory (\"peak MB\","
+    echo "empty where not recorded), the player's median milliseconds per light"
     echo "change (projection + multiply + texture synthesis, no display), and the relative RMSE"
     echo "of the indirect light against the path-traced reference, mean over the lights, for"
     echo "cell averages of the incident irradiance and for the camera's image; \"floor\" is the"
@@ -243,13 +269,13 @@ done
         echo
         echo "![$n]($n.png)"
         echo
-        echo "Quality $(jq -r '.pictures_quality' "$j"), first light: Haar cells | smooth display | path tracer | error of the smooth display (|difference| / mean, black 0, white 50% and above):"
+        echo "Setting $(jq -r '.pictures_setting // .pictures_quality' "$j"), first light: Haar cells | smooth display | path tracer | error of the smooth display (|difference| / mean, black 0, white 50% and above):"
         echo
         echo "![$n pictures](${n}_panel.png)"
         echo
-        echo "| quality | runs | DTO s | GTO s | bake s | links DTO | links GTO | gathered | MB | ms/light | best ms | CPU ms | cell rmse | floor | debiased | smooth cells debiased | image rmse | floor | debiased | Haar image debiased | path tracer s |"
-        echo "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-        jq -r '.rows[] | "| \(.quality) | \(.bake_runs) | \(.dto_s * 100 | round / 100) | \(.gto_s * 100 | round / 100) | \(.bake_s * 100 | round / 100) | \(.links_dto) | \(.links_gto) | \(.links_gathered // "–") | \(.bytes / 1e4 | round / 100) | \(.ms_per_light_change * 100 | round / 100) | \(.ms_min * 100 | round / 100) | \(.cpu_ms_per_light_change * 100 | round / 100) | \(.cell_rmse * 1000 | round / 1000) | \(.cell_floor * 1000 | round / 1000) | \(.cell_rmse_debiased * 1000 | round / 1000) | \(.cell_rmse_smooth_debiased * 1000 | round / 1000) | \(.image_rmse * 1000 | round / 1000) | \(.image_floor * 1000 | round / 1000) | \(.image_rmse_debiased * 1000 | round / 1000) | \(.image_rmse_haar_debiased * 1000 | round / 1000) | \(if .path_tracer_s then (.path_tracer_s * 100 | round / 100) else "–" end) |"' "$j"
+        echo "| setting | runs | DTO s | GTO s | bake s | links DTO | links GTO | gathered | MB | peak MB | ms/light | best ms | CPU ms | cell rmse | floor | debiased | smooth cells debiased | image rmse | floor | debiased | Haar image debiased | path tracer s |"
+        echo "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        jq -r '.rows[] | "| \(.setting // .quality) | \(.bake_runs) | \(.dto_s * 100 | round / 100) | \(.gto_s * 100 | round / 100) | \(.bake_s * 100 | round / 100) | \(.links_dto) | \(.links_gto) | \(.links_gathered // "–") | \(.bytes / 1e4 | round / 100) | \(.peak_mb // "–") | \(.ms_per_light_change * 100 | round / 100) | \(.ms_min * 100 | round / 100) | \(.cpu_ms_per_light_change * 100 | round / 100) | \(.cell_rmse * 1000 | round / 1000) | \(.cell_floor * 1000 | round / 1000) | \(.cell_rmse_debiased * 1000 | round / 1000) | \(.cell_rmse_smooth_debiased * 1000 | round / 1000) | \(.image_rmse * 1000 | round / 1000) | \(.image_floor * 1000 | round / 1000) | \(.image_rmse_debiased * 1000 | round / 1000) | \(.image_rmse_haar_debiased * 1000 | round / 1000) | \(if .path_tracer_s then (.path_tracer_s * 100 | round / 100) else "–" end) |"' "$j"
     done
 } >"$out/README.md.tmp"
 mv "$out/README.md.tmp" "$out/README.md"
