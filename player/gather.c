@@ -12,7 +12,7 @@
 #include "../common/brdf.h"
 
 #define GATHER_PTS 16   /* points a side on a glossy quad (cell centres) */
-#define GATHER_PTS_NARROW 32 /* at most, on a sharp lobe's (roughness below GATHER_NARROW,
+#define GATHER_PTS_NARROW WRT_GATHER_SHARP_RES /* at most, on a sharp lobe's (roughness below GATHER_NARROW,
                               * or below GATHER_METAL on a metal) */
 #define GATHER_NARROW 0.25
 #define GATHER_METAL 0.5
@@ -104,6 +104,10 @@ static void *ga(const wrt_gather *g, size_t bytes) { return g->env.alloc(g->env.
 static void gf(const wrt_gather *g, void *p) { if (p) g->env.free(g->env.user, p); }
 
 static int is_glossy(const wrt_material *m) { return m && !m->lambertian; }
+
+int wrt_gather_sharp(const wrt_material *m) {
+    return is_glossy(m) && (m->roughness < GATHER_NARROW || (m->roughness < GATHER_METAL && m->metallic >= 0.5));
+}
 
 /* -------------------------------------------------------------- creation ---- */
 
@@ -204,8 +208,7 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_re
          * is a few percent of its reflection and keeps 16 (the glossy asset, r0.3-0.4:
          * 0.103 -> 0.098, floor 0.048, for 1.5x the light change). */
         G->pts = GATHER_PTS;
-        double rough = q[i].mat->roughness;
-        int sharp = rough < GATHER_NARROW || (rough < GATHER_METAL && q[i].mat->metallic >= 0.5);
+        int sharp = wrt_gather_sharp(q[i].mat);
         if (sharp && out_res && out_res[i] > GATHER_PTS)
             G->pts = out_res[i] < GATHER_PTS_NARROW ? out_res[i] : GATHER_PTS_NARROW;
         if (force_pts > 0) G->pts = force_pts;

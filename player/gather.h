@@ -29,6 +29,12 @@
 
 typedef struct wrt_gather wrt_gather;
 
+/* A lobe that reflects a sharp image (narrow, or a metal's moderate one): the gather takes
+ * a point per texel of its quad's texture, up to WRT_GATHER_SHARP_RES a side, and the
+ * caller shows such a quad at that resolution whatever its cells in the file. */
+#define WRT_GATHER_SHARP_RES 32
+int wrt_gather_sharp(const wrt_material *m);
+
 typedef struct wrt_gather_quad {
     wrt_v3 p[4], n, t, b;     /* corners (bilinear in u, v as relight.c), frame */
     const wrt_material *mat;  /* NULL or Lambertian: diffuse; else glossy (gathered) */
