@@ -126,7 +126,7 @@ static void test_reciprocity(void) {
 }
 
 /* Light one level-2 cell of the sender, compare the 16 receiver cells with closed forms. */
-static void distribution_case(int perpendicular, int ex, int ey, double *worst_out) {
+static void distribution_case(int perpendicular, int ex, int ey, int own_thresholds, double tol, double *worst_out) {
     wrt_scene s;
     if (perpendicular) perpendicular_scene(&s, 1.0);
     else facing_scene(&s, 1.0);
@@ -137,7 +137,7 @@ static void distribution_case(int perpendicular, int ex, int ey, double *worst_o
      * cell measured 0.11% (parallel) and 0.23% (perpendicular) instead of 0.03% and 0.09%.
      * That is the power balance's share (balance.c re-derives root rows over more mixed
      * levels): without the balance the cells are within 0.0043% under either threshold. */
-    o.eps_receiver = o.eps_receiver_coarse = 0.16 * ldexp(1.0, -6);
+    if (!own_thresholds) o.eps_receiver = o.eps_receiver_coarse = 0.16 * ldexp(1.0, -6);
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
     double *x = calloc(3 * r.nfuncs, sizeof *x), *y = calloc(3 * r.nfuncs, sizeof *y);
     inject_cell(&r, 1, 1.0, 2, ex, ey, 1.0, x);
@@ -158,7 +158,7 @@ static void distribution_case(int perpendicular, int ex, int ey, double *worst_o
     for (int j = 0; j < 16; j++) {
         double err = fabs(got[j] - truth[j]) / fmax(truth[j], 0.1 * emax);
         worst = fmax(worst, err);
-        CHECK(err <= CLAIM_DIST, "%s: cell %d: %.6f vs closed form %.6f (%.4f%%)", perpendicular ? "perpendicular" : "parallel",
+        CHECK(err <= tol, "%s: cell %d: %.6f vs closed form %.6f (%.4f%%)", perpendicular ? "perpendicular" : "parallel",
               j, got[j], truth[j], 100 * err);
     }
     *worst_out = worst;
@@ -169,12 +169,19 @@ static void distribution_case(int perpendicular, int ex, int ey, double *worst_o
 
 static void test_distribution(void) {
     double w1, w2, w3;
-    distribution_case(0, 1, 2, &w1);
-    distribution_case(1, 0, 1, &w2);
-    distribution_case(1, 2, 3, &w3);
+    distribution_case(0, 1, 2, 0, CLAIM_DIST, &w1);
+    distribution_case(1, 0, 1, 0, CLAIM_DIST, &w2);
+    distribution_case(1, 2, 3, 0, CLAIM_DIST, &w3);
     CHECK_CLAIM("distribution-parallel", w1, CLAIM_DIST, "worst of 16 receiver cells, sender cell (1, 2)");
     CHECK_CLAIM("distribution-perpendicular", fmax(w2, w3), CLAIM_DIST, "worst of 2 x 16 receiver cells, sender cells "
                 "(0, 1): %.4f%%, (2, 3): %.4f%%", 100 * w2, 100 * w3);
+    /* the same cases at quality 7's own thresholds (the finer one for coarse cells) */
+    distribution_case(0, 1, 2, 1, CLAIM_DIST_OWN, &w1);
+    distribution_case(1, 0, 1, 1, CLAIM_DIST_OWN, &w2);
+    distribution_case(1, 2, 3, 1, CLAIM_DIST_OWN, &w3);
+    CHECK_CLAIM("distribution-parallel-own-thresholds", w1, CLAIM_DIST_OWN, "quality 7's thresholds, sender cell (1, 2)");
+    CHECK_CLAIM("distribution-perpendicular-own-thresholds", fmax(w2, w3), CLAIM_DIST_OWN, "quality 7's thresholds, "
+                "sender cells (0, 1): %.4f%%, (2, 3): %.4f%%", 100 * w2, 100 * w3);
 }
 
 /* Uniform irradiance 1 injected on every quad of a closed box of albedo rho, G - I applied:
