@@ -184,6 +184,24 @@ static void test_distribution(void) {
                 "sender cells (0, 1): %.4f%%, (2, 3): %.4f%%", 100 * w2, 100 * w3);
 }
 
+/* Uniform irradiance 1 injected on every quad's root function, G - I applied: each quad's
+ * indirect irradiance per channel, e[3 * q + c] (calloc'd, the caller frees). */
+static double *uniform_response(const wrt_scene *s, const wrt_bake_result *r) {
+    double *x = calloc(3 * r->nfuncs, sizeof *x), *y = calloc(3 * r->nfuncs, sizeof *y);
+    double *e = calloc(3 * (size_t)s->nquads, sizeof *e);
+    for (int q = 0; q < s->nquads; q++) {
+        int64_t f = wrt_fkey_find(r->fkeys, r->nfuncs, root_key(q));
+        for (int c = 0; c < 3; c++) x[3 * f + c] = sqrt(s->quads[q].area / M_PI);
+    }
+    wrt_csc_apply(&r->op, x, y);
+    for (int q = 0; q < s->nquads; q++) {
+        int64_t f = wrt_fkey_find(r->fkeys, r->nfuncs, root_key(q));
+        for (int c = 0; c < 3; c++) e[3 * q + c] = y[3 * f + c] * sqrt(M_PI / s->quads[q].area);
+    }
+    free(x); free(y);
+    return e;
+}
+
 /* Uniform irradiance 1 injected on every quad of a closed box of albedo rho, G - I applied:
  * returns the indirect flux over its truth rho / (1 - rho) x flux in, and the worst quad's
  * relative error in *worst_quad. */
@@ -196,22 +214,15 @@ static double furnace(double rho, int n, int quality, int no_balance, double *wo
     wrt_bake_options o = opts(quality, 0, 0);
     o.no_balance = no_balance;
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
-    double *x = calloc(3 * r.nfuncs, sizeof *x), *y = calloc(3 * r.nfuncs, sizeof *y);
-    double flux_in = 0;
+    double *irr = uniform_response(&s, &r);
+    double flux_in = 0, flux = 0, worst = 0, expect = rho / (1 - rho);
     for (int q = 0; q < s.nquads; q++) {
-        int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(q));
-        for (int c = 0; c < 3; c++) x[3 * f + c] = sqrt(s.quads[q].area / M_PI);
+        double e = irr[3 * q];
         flux_in += s.quads[q].area;
-    }
-    wrt_csc_apply(&r.op, x, y);
-    double flux = 0, worst = 0, expect = rho / (1 - rho);
-    for (int q = 0; q < s.nquads; q++) {
-        int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(q));
-        double e = y[3 * f] * sqrt(M_PI / s.quads[q].area);
         flux += e * s.quads[q].area;
         worst = fmax(worst, fabs(e / expect - 1));
     }
-    free(x); free(y);
+    free(irr);
     tsb_free(&s);
     if (out) *out = r;
     else wrt_bake_result_free(&r);
@@ -257,24 +268,16 @@ static void test_coloured_furnace(void) {
     wrt_bake_result r;
     wrt_bake_options o = opts(4, 0, 0);
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
-    double *x = calloc(3 * r.nfuncs, sizeof *x), *y = calloc(3 * r.nfuncs, sizeof *y);
-    for (int q = 0; q < s.nquads; q++) {
-        int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(q));
-        for (int c = 0; c < 3; c++) x[3 * f + c] = sqrt(s.quads[q].area / M_PI);
-    }
-    wrt_csc_apply(&r.op, x, y);
+    double *irr = uniform_response(&s, &r);
     for (int c = 0; c < 3; c++) {
         double truth = rho[c] / (1 - rho[c]), worst = 0;
-        for (int q = 0; q < s.nquads; q++) {
-            int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(q));
-            worst = fmax(worst, fabs(y[3 * f + c] * sqrt(M_PI / s.quads[q].area) / truth - 1));
-        }
+        for (int q = 0; q < s.nquads; q++) worst = fmax(worst, fabs(irr[3 * q + c] / truth - 1));
         char id[48];
         snprintf(id, sizeof id, "furnace-coloured-channel-%d", c);
         CHECK_CLAIM(id, worst, CLAIM_FURNACE, "albedo %.2f: worst quad vs %.6g (bounces %llu)", rho[c], truth,
                     (unsigned long long)r.c.bounces);
     }
-    free(x); free(y);
+    free(irr);
     wrt_bake_result_free(&r);
     tsb_free(&s);
 }
@@ -304,16 +307,10 @@ static void test_small_quads_furnace(void) {
     wrt_bake_result r;
     wrt_bake_options o = opts(4, 0, 0);
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
-    double *x = calloc(3 * r.nfuncs, sizeof *x), *y = calloc(3 * r.nfuncs, sizeof *y);
-    for (int q = 0; q < s.nquads; q++) {
-        int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(q));
-        for (int c = 0; c < 3; c++) x[3 * f + c] = sqrt(s.quads[q].area / M_PI);
-    }
-    wrt_csc_apply(&r.op, x, y);
+    double *irr = uniform_response(&s, &r);
     double flux = 0, area = 0, worst = 0;
     for (int q = 0; q < s.nquads; q++) {
-        int64_t f = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(q));
-        double e = y[3 * f] * sqrt(M_PI / s.quads[q].area);
+        double e = irr[3 * q];
         worst = fmax(worst, fabs(e / truth - 1));
         flux += e * s.quads[q].area;
         area += s.quads[q].area;
@@ -322,7 +319,7 @@ static void test_small_quads_furnace(void) {
                 "quads, quality 4: %llu entries in G - I, bounces %llu", (unsigned long long)r.op.nnz,
                 (unsigned long long)r.c.bounces);
     CHECK_CLAIM("furnace-small-quads-quad", worst, CLAIM_FURNACE_SMALL_QUADS, "the same box: the worst quad");
-    free(x); free(y);
+    free(irr);
     wrt_bake_result_free(&r);
     tsb_free(&s);
 }
