@@ -104,6 +104,15 @@ typedef struct wrt_gto {
     const char *provenance; size_t provenance_len; /* JSON text, not NUL-terminated */
     uint32_t version_minor;
     int owns_map;              /* 1: close unmaps (wrt_gto_open); 0: caller's memory */
+    /* The first-bounce operator K (version 1.1, GTO_FORMAT.md "The first-bounce operator
+     * K"): one channel, rows = fkeys indices, columns = outgoing functions of glossy
+     * quads. All zero / NULL when the file has none. */
+    uint32_t nkcols;            /* K's columns (0: the file has no first-bounce operator) */
+    uint64_t knnz;
+    const uint64_t *kkeys;      /* nkcols, ascending: outgoing functions of glossy quads */
+    const uint64_t *kcol_start; /* nkcols + 1 */
+    const uint32_t *krows;      /* knnz, fkeys indices, ascending within a column */
+    const float *kvals;         /* knnz, one channel */
 } wrt_gto;
 
 /* Maps and validates `path`: magic, version, byte order, every section's offset and

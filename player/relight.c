@@ -164,6 +164,10 @@ typedef struct quad_info {
     int root_func;                  /* index of (spatial root, angular root), -1 if absent */
     int nang;                       /* angular functions present */
     uint32_t ang_first;             /* into relight.ang_list / ang_start */
+    uint32_t kfirst, kcount;        /* its columns of the first-bounce operator K (g->kkeys) */
+    int kslevel;                    /* deepest spatial level among them (0: none) */
+    int nkang;                      /* angular functions among them: 3 slots (RGB) each */
+    uint32_t kang_first;            /* into relight.kang_list */
 } quad_info;
 
 /* A light's constants, hoisted out of the per-sample loop. */
@@ -180,6 +184,8 @@ typedef struct light_state {
     int projected;                  /* E below is the projection of `light` */
     uint32_t *idx; float *val;      /* sparse E at scale 1: function index, RGB */
     size_t n, cap;
+    uint32_t *kidx; float *kval;    /* sparse c (K's columns) at scale 1: column index, RGB */
+    size_t kn, kcap;
     double *root;                   /* nquads x 3: projected (root, root) coefficient */
     double last_work;               /* its last projection's work (samples and rays, in
                                      * parallel_for's units): an estimate of the next one's */
@@ -192,6 +198,7 @@ typedef struct worker {
     float *fpyr, *fgrid; size_t fpyr_cap, fgrid_cap; /* synthesis pyramid and scratch, x 4 */
     float *wts; int *cells; size_t view_cap; /* glossy per-texel bilinear lookups */
     uint32_t *oidx; float *oval; size_t on, ocap; /* projection output */
+    uint32_t *koidx; float *koval; size_t kon, kocap; /* projection output on K's columns */
     uint32_t *pstate;               /* adaptive projection, per cell of levels 0..max: */
     uint8_t *prefined;              /* VIS bits and angular cell; split or not */
     uint8_t *pclear;                /* no occluder can shade the cell: no rays */
@@ -204,7 +211,7 @@ typedef struct worker {
     long nsamples;                  /* samples and shadow rays of the projection */
 } worker;
 
-typedef struct out_rec { int worker; size_t start, count; } out_rec;
+typedef struct out_rec { int worker; size_t start, count, kstart, kcount; } out_rec;
 
 /* A quad's bounding sphere seen from a light: unit direction to its centre, the cosine
  * and sine of its angular radius (cos = -1: the light is inside), distance range. */
@@ -271,6 +278,13 @@ struct wrt_relight {
     float **gdiff;                  /* per glossy quad: albedo/pi x indirect irradiance */
     float (*galb)[3];               /* per material: mean directional albedo (glossy) */
     int glin_dirty;                 /* the gather's incident light waits for an update */
+    /* The first-bounce operator K (g->nkcols > 0; docs in wrt_relight_update's K path). */
+    uint8_t *kfn_slevel, *kfn_ang;  /* per K column: spatial level, angular index */
+    uint32_t *kfn_spidx;            /* per K column: spatial pyramid slot */
+    uint8_t *kang_list;             /* K's angular indices per quad (qi.kang_first) */
+    float *C;                       /* c summed over the lights: nkcols x 3 */
+    float *Y;                       /* Y = K c: nfuncs x 3 */
+    float *Ep;                      /* E' = E off the quads with K columns, + Y: nfuncs x 3 */
 };
 
 /* ---------------------------------------------------------------- threads ---- */
@@ -410,15 +424,17 @@ static const double cell_samples[4][2] = {{0.375, 0.125}, {0.875, 0.375}, {0.625
 #define LEVEL_OFF(l) ((((size_t)1 << (2 * (l))) - 1) / 3)
 #define PROJ_TREE_CELLS LEVEL_OFF(PROJ_MAX_LEVEL + 1)
 
+/* The deepest spatial level the projection resolves: the quad's functions' and its K
+ * columns' (kslevel is 0 without K). */
 static int projection_cap(const wrt_relight *r, const quad_info *q) {
-    int cap = q->slevel + 1;
+    int cap = (q->slevel > q->kslevel ? q->slevel : q->kslevel) + 1;
     if (cap > PROJ_MAX_LEVEL) cap = PROJ_MAX_LEVEL;
     if (r->opt.proj_level > 0 && r->opt.proj_level < cap) cap = r->opt.proj_level;
     return cap;
 }
 
 static int projection_level(const wrt_relight *r, const quad_info *q, double d) {
-    int cap = q->slevel + 1;
+    int cap = (q->slevel > q->kslevel ? q->slevel : q->kslevel) + 1;
     if (cap > PROJ_MAX_LEVEL) cap = PROJ_MAX_LEVEL;
     int L;
     if (r->opt.proj_level > 0) L = r->opt.proj_level;
@@ -501,7 +517,34 @@ typedef struct proj_setup {
     int nslot, nsamp, grid_n, rays; /* grid_n > 0: n x n samples a cell, else cell_samples */
     int ang_res;                    /* angular cells a side (0: diffuse quad) */
     const int16_t *slot_of;
+    int nkang;                      /* K's angular functions on the quad: 3 slots each, */
+    const uint8_t *kang;            /* after the E slots (nslot - 3 nkang of them) */
+    const float *beta;              /* the quad's material's BRDF table (with K) */
 } proj_setup;
+
+/* K's slots of one sample (K-SPEC, "The maths"): the sample's weight `val` (E_dir V
+ * sqrt(J/pi) x its share of the cell) times btilde_g(w_l), the BRDF table's beta_g at the
+ * light's exact direction (concentric (a, b) in the quad's frame; bilinear between the
+ * table's directions, as wrt_relight_beta), for each of K's angular functions g on the
+ * quad: out[3 k + c]. No light-direction splat: the first bounce of the delta is exact. */
+static void k_sample(const proj_setup *ps, double a, double b, double val, double *out) {
+    double fx = a * BETA_RES - 0.5, fy = b * BETA_RES - 0.5;
+    int x0 = (int)floor(fx), y0 = (int)floor(fy);
+    double tx = fx - x0, ty = fy - y0, wt[4];
+    const float *row[4];
+    for (int k = 0; k < 4; k++) {
+        int cx = x0 + (k & 1), cy = y0 + (k >> 1);
+        cx = cx < 0 ? 0 : cx >= BETA_RES ? BETA_RES - 1 : cx;
+        cy = cy < 0 ? 0 : cy >= BETA_RES ? BETA_RES - 1 : cy;
+        wt[k] = val * ((k & 1) ? tx : 1 - tx) * ((k >> 1) ? ty : 1 - ty);
+        row[k] = ps->beta + (size_t)(cy * BETA_RES + cx) * NANG * 3;
+    }
+    for (int i = 0; i < ps->nkang; i++) {
+        size_t g3 = (size_t)ps->kang[i] * 3;
+        for (int c = 0; c < 3; c++)
+            out[3 * i + c] += wt[0] * row[0][g3 + c] + wt[1] * row[1][g3 + c] + wt[2] * row[2][g3 + c] + wt[3] * row[3][g3 + c];
+    }
+}
 
 /* Cell (i, j) of level l: out[slot] = the level-l scaling coefficient (cell average x
  * 2^-l) of E_dir V g sqrt(J/pi) for each angular slot, from the cell's samples.
@@ -510,7 +553,7 @@ typedef struct proj_setup {
 static uint32_t eval_cell(const wrt_relight *r, worker *w, const proj_setup *ps, int l, int i, int j, int rays, double *out) {
     w->nsamples += ps->nsamp * (1 + rays);
     const quad_info *q = ps->q;
-    int nslot = ps->nslot, angular = nslot > 1, root_slot = ps->slot_of[0];
+    int nslot = ps->nslot, angular = nslot - 3 * ps->nkang > 1, root_slot = ps->slot_of[0];
     for (int s = 0; s < nslot; s++) out[s] = 0;
     double cellw = ldexp(1.0, -l), wgt = cellw / ps->nsamp, inv_pi = 1.0 / WRT_PI;
     double sj = q->parallelogram ? sqrt(q->area * inv_pi) : 0;
@@ -527,9 +570,11 @@ static uint32_t eval_cell(const wrt_relight *r, worker *w, const proj_setup *ps,
         double val = e * (q->parallelogram ? sj : sqrt(quad_jacobian(q, u, v) * inv_pi)) * wgt;
         vis |= VIS_LIT;
         if (root_slot >= 0) out[root_slot] += val;
-        if (!angular) continue;
+        if (!angular && !ps->nkang) continue;
         double loc[3] = {v3_dot(dir, q->t), v3_dot(dir, q->b), v3_dot(dir, q->n)}, a, b;
         wrt_concentric_inv(loc, &a, &b);
+        if (ps->nkang) k_sample(ps, a, b, val, out + nslot - 3 * ps->nkang);
+        if (!angular) continue;
         if (ps->ang_res) { /* where the wavelets of the finest angular level change sign */
             int ar = ps->ang_res, ax = (int)(a * ar), ay = (int)(b * ar);
             uint32_t id = 1 + (uint32_t)((ay < ar ? ay : ar - 1) * ar + (ax < ar ? ax : ar - 1));
@@ -687,6 +732,43 @@ static int find_occluders(wrt_relight *r, worker *w, int a, wrt_v3 l) {
 
 typedef struct proj_ctx { const wrt_light *light; const light_c *lc; double *root; } proj_ctx;
 
+/* The coefficients c of quad q's K columns from the projection's pyramid (w->pyr: levels
+ * above the rule's grid Ld; w->pwav: wavelets of split cells; K's slots from `ebase`, 3
+ * a function), as E's are taken in project_quad, times the light's colour; the non-zero
+ * ones appended to w->koidx / koval (column index, RGB). */
+static void k_extract(wrt_relight *r, worker *w, const quad_info *q, out_rec *rec, const float *col, int ebase,
+                      int nslot, int Ld, int last) {
+    int16_t kslot[NANG];
+    const uint8_t *kang = r->kang_list + q->kang_first;
+    for (int k = 0; k < q->nkang; k++) kslot[kang[k]] = (int16_t)(ebase + 3 * k);
+    for (uint32_t j = q->kfirst; j < q->kfirst + q->kcount; j++) {
+        int sl = kslot[r->kfn_ang[j]], lev = r->kfn_slevel[j];
+        uint32_t sp = r->kfn_spidx[j];
+        const double *cv;
+        if (sp == 0 || lev < Ld) cv = w->pyr + (size_t)sp * nslot + sl;
+        else if (lev < last) { /* a wavelet of a split cell, or zero */
+            uint32_t k = sp - 1, cell = k / 3 - (uint32_t)LEVEL_OFF(lev);
+            if (!w->prefined[LEVEL_OFF(lev) + cell]) continue;
+            cv = w->pwav + ((LEVEL_OFF(lev) + cell) * 3 + k % 3) * nslot + sl;
+        } else continue; /* finer than any split cell: zero */
+        if (cv[0] == 0 && cv[1] == 0 && cv[2] == 0) continue;
+        if (w->kon == w->kocap) {
+            size_t ci = w->kocap, cvc = 3 * w->kocap;
+            uint32_t *ni = grow_keep(r, w->koidx, &ci, w->kocap ? 2 * w->kocap : 1024, sizeof(uint32_t), w->kon);
+            if (!ni) return;
+            w->koidx = ni;
+            float *nv = grow_keep(r, w->koval, &cvc, 3 * ci, sizeof(float), 3 * w->kon);
+            if (!nv) return;
+            w->koval = nv;
+            w->kocap = ci;
+        }
+        w->koidx[w->kon] = j;
+        for (int c = 0; c < 3; c++) w->koval[w->kon * 3 + c] = (float)(cv[c] * col[c]);
+        w->kon++;
+        rec->kcount++;
+    }
+}
+
 /* Projects light ctx->light onto quad qidx's functions (section 5.1), adaptively: every
  * cell of the level rule's grid (r->qlevel) is sampled; cells on a shadow edge are split,
  * level by level, down to the cap. A cell that is not split is a leaf: its function is
@@ -702,6 +784,8 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     rec->worker = (int)(w - r->workers);
     rec->start = w->on;
     rec->count = 0;
+    rec->kstart = w->kon;
+    rec->kcount = 0;
     for (int c = 0; c < 3; c++) ctx->root[qidx * 3 + c] = 0;
     if (gq->func_count == 0 || l->intensity == 0) return;
     /* A light on or behind the quad's plane lights nothing (exactly zero). */
@@ -721,7 +805,9 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     for (int a = 0; a < NANG; a++) slot_of[a] = -1;
     if (q->nang > 0) for (int s = 0; s < q->nang; s++) slot_of[alist[s]] = (int16_t)s;
     else slot_of[0] = 0;
-    proj_setup ps = {q, ctx->lc, nslot, 4, 0, 1, 0, slot_of};
+    int ebase = nslot; /* K's slots after E's: 3 (RGB) per angular function of its columns */
+    nslot += 3 * q->nkang;
+    proj_setup ps = {q, ctx->lc, nslot, 4, 0, 1, 0, slot_of, q->nkang, r->kang_list + q->kang_first, r->beta[q->material]};
     if (q->nang > 1) ps.ang_res = 2 << q->alevel;
     int local_rule = r->opt.proj_level == 0;
     if (r->opt.proj_reference > 0) { /* every cell of the finest grid */
@@ -837,11 +923,12 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
         w->on++;
         rec->count++;
     }
+    if (q->nkang) k_extract(r, w, q, rec, col, ebase, nslot, Ld, last);
 }
 
 /* 0, or -1 if memory ran out (the light stays unprojected). */
 static int project_light(wrt_relight *r, light_state *ls) {
-    for (int t = 0; t < r->nthreads; t++) r->workers[t].on = 0;
+    for (int t = 0; t < r->nthreads; t++) r->workers[t].on = r->workers[t].kon = 0;
     light_c lc = light_consts(&ls->light);
     r->size = 2 * (r->scene_diag + v3_len(v3_sub(ls->light.pos, r->origin)));
     proj_ctx ctx = {&ls->light, &lc, ls->root};
@@ -896,6 +983,30 @@ static int project_light(wrt_relight *r, light_state *ls) {
         k += rec->count;
     }
     ls->n = total;
+    if (r->g->nkcols) { /* c over K's columns, in quad order as E */
+        size_t ktotal = 0;
+        for (uint32_t q = 0; q < r->g->nquads; q++) ktotal += r->recs[q].kcount;
+        if (ktotal > ls->kcap) {
+            size_t ci = ls->kcap, cv = 3 * ls->kcap;
+            uint32_t *ni = grow(r, ls->kidx, &ci, ktotal, sizeof(uint32_t));
+            if (!ni) return -1;
+            ls->kidx = ni;
+            float *nv = grow(r, ls->kval, &cv, 3 * ci, sizeof(float));
+            if (!nv) return -1;
+            ls->kval = nv;
+            ls->kcap = ci;
+        }
+        k = 0;
+        for (uint32_t q = 0; q < r->g->nquads; q++) {
+            const out_rec *rec = &r->recs[q];
+            if (!rec->kcount) continue;
+            const worker *w = &r->workers[rec->worker];
+            memcpy(ls->kidx + k, w->koidx + rec->kstart, rec->kcount * sizeof(uint32_t));
+            memcpy(ls->kval + 3 * k, w->koval + 3 * rec->kstart, rec->kcount * 3 * sizeof(float));
+            k += rec->kcount;
+        }
+        ls->kn = ktotal;
+    }
     ls->projected = 1;
     return 0;
 }
@@ -1185,9 +1296,9 @@ static void recon_item(wrt_relight *r, worker *w, int item, void *vctx) {
 #define MUL_MAX_CHUNKS 256
 #define MUL_PARALLEL_ENTRIES 3e7 /* entries touched above which the multiply is split */
 
-typedef struct mul_ctx { const uint32_t *cols; uint32_t ncols; int nchunk; } mul_ctx;
+typedef struct mul_ctx { const uint32_t *cols; uint32_t ncols; int nchunk; const float *src; } mul_ctx;
 
-/* Rows [lo, hi) of X = Op E: each chunk scans every non-zero column and takes the
+/* Rows [lo, hi) of X = Op E (E: mc->src, r->E or with K r->Ep): each chunk scans every non-zero column and takes the
  * entries of its rows (rows ascend within a column), so each X entry sums its terms in
  * column order whatever the thread count. Single precision, 4 lanes an entry (the
  * operator and X are floats; measured against double sums: ~1e-6 relative). */
@@ -1207,7 +1318,7 @@ static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
             uint64_t m = a + (b - a) / 2;
             if (op->rows[m] < lo) a = m + 1; else b = m;
         }
-        const float *e = r->E + (size_t)s * 3;
+        const float *e = mc->src + (size_t)s * 3;
         uint64_t end = op->col_start[s + 1], vend = end < op->nnz ? end : op->nnz - 1; /* 4-float loads stay inside */
         uint64_t i = a;
 #ifdef __SSE2__
@@ -1316,6 +1427,78 @@ static int display_rows_operator(wrt_relight *r) {
     r->op.col_start = cs; r->op.rows = rows; r->op.vals = vals; r->op.nnz = n;
     r->op_own[0] = cs; r->op_own[1] = rows; r->op_own[2] = vals;
     return 0;
+}
+
+/* The first-bounce operator K (g->nkcols > 0): checks what the relighter relies on (the
+ * reader checks the rest), then per column its spatial level and pyramid slot and its
+ * angular index, per quad its range of columns, deepest spatial level and the angular
+ * functions among them (the projection's K slots). K's angular levels are < 4 (2 bits
+ * in a key), all in the BRDF table (levels 0..3). WRT_ERR_CORRUPT naming the column,
+ * WRT_ERR_NOMEM. */
+static wrt_status setup_first_bounce(wrt_relight *r) {
+    const wrt_gto *g = r->g;
+    uint32_t nk = g->nkcols, nq = g->nquads;
+    if (!g->kkeys || !g->kcol_start || (g->knnz && (!g->krows || !g->kvals)))
+        return wrt_fail(WRT_ERR_CORRUPT, "relight: first-bounce operator: %u columns without their arrays", nk);
+    if (g->kcol_start[0] != 0 || g->kcol_start[nk] != g->knnz)
+        return wrt_fail(WRT_ERR_CORRUPT, "relight: first-bounce operator: column starts do not run from 0 to %llu entries",
+                        (unsigned long long)g->knnz);
+    for (uint32_t j = 0; j < nk; j++) {
+        wrt_fkey k = g->kkeys[j];
+        wrt_node sn = wrt_fkey_snode(k), an = wrt_fkey_anode(k);
+        int st = wrt_fkey_stype(k), at = wrt_fkey_atype(k);
+        uint32_t q = wrt_fkey_quad(k);
+        if (j && k <= g->kkeys[j - 1]) return wrt_fail(WRT_ERR_CORRUPT, "relight: first-bounce operator: column %u: keys not ascending", j);
+        if (q >= nq || !r->qi[q].glossy)
+            return wrt_fail(WRT_ERR_CORRUPT, "relight: first-bounce operator: column %u: quad %u is not a glossy quad", j, q);
+        if (!(sn.x < (1u << sn.level) && sn.y < (1u << sn.level) && (st != 0 || sn.level == 0) && an.x < (1u << an.level) &&
+              an.y < (1u << an.level) && (at != 0 || an.level == 0)))
+            return wrt_fail(WRT_ERR_CORRUPT, "relight: first-bounce operator: column %u: key is not a basis function", j);
+        if (g->kcol_start[j + 1] < g->kcol_start[j])
+            return wrt_fail(WRT_ERR_CORRUPT, "relight: first-bounce operator: column %u: start not monotone", j);
+    }
+    for (uint64_t e = 0; e < g->knnz; e++)
+        if (g->krows[e] >= g->nfuncs)
+            return wrt_fail(WRT_ERR_CORRUPT, "relight: first-bounce operator: entry %llu: row %u outside the %u functions",
+                            (unsigned long long)e, g->krows[e], g->nfuncs);
+    r->kfn_slevel = ra_calloc(r, nk, 1);
+    r->kfn_ang = ra_calloc(r, nk, 1);
+    r->kfn_spidx = ra_calloc(r, nk, sizeof(uint32_t));
+    r->C = ra_calloc(r, (size_t)nk * 3 + 1, sizeof(float));
+    r->Y = ra_calloc(r, (size_t)g->nfuncs * 3 + 1, sizeof(float));
+    r->Ep = ra_calloc(r, (size_t)g->nfuncs * 3 + 1, sizeof(float));
+    if (r->oom) return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory");
+    size_t total = 0;
+    for (uint32_t j = 0; j < nk;) { /* keys ascend: each quad's columns are contiguous */
+        uint32_t q = wrt_fkey_quad(g->kkeys[j]), j1 = j;
+        quad_info *qi = &r->qi[q];
+        uint8_t seen[NANG] = {0};
+        qi->kfirst = j;
+        for (; j1 < nk && wrt_fkey_quad(g->kkeys[j1]) == q; j1++) {
+            wrt_fkey k = g->kkeys[j1];
+            wrt_node sn = wrt_fkey_snode(k), an = wrt_fkey_anode(k);
+            r->kfn_slevel[j1] = sn.level;
+            r->kfn_spidx[j1] = haar_index(sn.level, sn.x, sn.y, wrt_fkey_stype(k));
+            r->kfn_ang[j1] = (uint8_t)haar_index(an.level, an.x, an.y, wrt_fkey_atype(k));
+            if (sn.level > qi->kslevel) qi->kslevel = sn.level;
+            if (!seen[r->kfn_ang[j1]]) { seen[r->kfn_ang[j1]] = 1; qi->nkang++; }
+        }
+        qi->kcount = j1 - j;
+        total += (size_t)qi->nkang;
+        j = j1;
+    }
+    r->kang_list = ra_calloc(r, total + 1, 1);
+    if (r->oom) return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory");
+    total = 0;
+    for (uint32_t q = 0; q < nq; q++) {
+        quad_info *qi = &r->qi[q];
+        if (!qi->kcount) continue;
+        uint8_t seen[NANG] = {0};
+        qi->kang_first = (uint32_t)total;
+        for (uint32_t j = qi->kfirst; j < qi->kfirst + qi->kcount; j++) seen[r->kfn_ang[j]] = 1;
+        for (int a = 0; a < NANG; a++) if (seen[a]) r->kang_list[total++] = (uint8_t)a;
+    }
+    return WRT_OK;
 }
 
 wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out) {
@@ -1483,6 +1666,10 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
             if (al[a] == 0) qi->synth_full = r->ang_full[qi->ang_first + a];
         }
     }
+    if (g->nkcols) {
+        wrt_status ks = setup_first_bounce(r);
+        if (ks != WRT_OK) { wrt_relight_destroy(r); return ks; }
+    }
     /* Embree scene of every quad, in a frame centred on the scene (float precision). */
     r->origin = nq ? v3_scale(v3_add(bmin, bmax), 0.5) : v3(0, 0, 0);
     r->scene_diag = nq ? v3_len(v3_sub(bmax, bmin)) : 1;
@@ -1601,6 +1788,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (r->dev) rtcReleaseDevice(r->dev);
     for (int i = 0; i < r->lights_cap; i++) {
         ra_free(r, r->lights[i].idx); ra_free(r, r->lights[i].val); ra_free(r, r->lights[i].root);
+        ra_free(r, r->lights[i].kidx); ra_free(r, r->lights[i].kval);
     }
     ra_free(r, r->lights);
     if (r->workers)
@@ -1609,7 +1797,7 @@ void wrt_relight_destroy(wrt_relight *r) {
             /* scratch grown in updates */
             ra_free(r, w->grid); ra_free(r, w->pyr); ra_free(r, w->acc); ra_free(r, w->wts); ra_free(r, w->cells);
             ra_free(r, w->oidx); ra_free(r, w->oval); ra_free(r, w->fpyr); ra_free(r, w->fgrid); ra_free(r, w->occ);
-            ra_free(r, w->pval); ra_free(r, w->pwav);
+            ra_free(r, w->pval); ra_free(r, w->pwav); ra_free(r, w->koidx); ra_free(r, w->koval);
             ra_free(r, w->pstate); ra_free(r, w->prefined); ra_free(r, w->pclear); ra_free(r, w->pcells);
         }
     ra_free(r, r->workers);
@@ -1624,6 +1812,8 @@ void wrt_relight_destroy(wrt_relight *r) {
     ra_free(r, r->synth_list);
     wrt_recon_destroy(r->recon); ra_free(r, r->stex); ra_free(r, r->regroup);
     ra_free(r, r->rin); ra_free(r, r->rknown); ra_free(r, r->rout);
+    ra_free(r, r->kfn_slevel); ra_free(r, r->kfn_ang); ra_free(r, r->kfn_spidx); ra_free(r, r->kang_list);
+    ra_free(r, r->C); ra_free(r, r->Y); ra_free(r, r->Ep);
     ra_free(r, r);
 }
 
@@ -1696,6 +1886,39 @@ static void gather_direct(void *user, wrt_v3 x, wrt_v3 n, double out[3]) {
     }
 }
 
+/* The first glossy bounce (K-SPEC): c = the sum over lights of their scaled projections
+ * onto K's columns (cached per light, as E's), Y = K c (one channel K, RGB c; rows summed
+ * in column order), and E' = E with every function of a quad that has K columns set to 0
+ * (its direct light reaches the others through Y instead), plus Y. The multiply then
+ * gives X = Op E' + Y. */
+static void first_bounce(wrt_relight *r) {
+    const wrt_gto *g = r->g;
+    uint32_t nk = g->nkcols, nf = g->nfuncs;
+    memset(r->C, 0, (size_t)nk * 3 * sizeof(float));
+    for (int i = 0; i < r->nlights; i++) {
+        const light_state *ls = &r->lights[i];
+        if (ls->scale == 0 || !ls->projected) continue;
+        for (size_t k = 0; k < ls->kn; k++)
+            for (int c = 0; c < 3; c++) r->C[(size_t)ls->kidx[k] * 3 + c] += ls->scale * ls->kval[k * 3 + c];
+    }
+    memset(r->Y, 0, (size_t)nf * 3 * sizeof(float));
+    for (uint32_t j = 0; j < nk; j++) {
+        const float *cj = r->C + (size_t)j * 3;
+        if (cj[0] == 0 && cj[1] == 0 && cj[2] == 0) continue;
+        for (uint64_t e = g->kcol_start[j]; e < g->kcol_start[j + 1]; e++) {
+            float *y = r->Y + (size_t)g->krows[e] * 3, v = g->kvals[e];
+            y[0] += v * cj[0];
+            y[1] += v * cj[1];
+            y[2] += v * cj[2];
+        }
+    }
+    memcpy(r->Ep, r->E, (size_t)nf * 3 * sizeof(float));
+    for (uint32_t q = 0; q < g->nquads; q++)
+        if (r->qi[q].kcount)
+            memset(r->Ep + (size_t)g->quads[q].func_first * 3, 0, (size_t)g->quads[q].func_count * 3 * sizeof(float));
+    for (size_t k = 0; k < (size_t)nf * 3; k++) r->Ep[k] += r->Y[k];
+}
+
 /* An update that ran out of memory: -1 with a message (on the caller's thread); lights
  * not projected stay so, and textures are redone at the next update. */
 static int update_nomem(wrt_relight *r, const char *stage, wrt_relight_timings *tm, const wrt_relight_timings *t) {
@@ -1736,16 +1959,19 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
             for (size_t k = 0; k < ls->n; k++)
                 for (int c = 0; c < 3; c++) r->E[(size_t)ls->idx[k] * 3 + c] += ls->scale * ls->val[k * 3 + c];
         }
+        /* With K: the first bounce from its quads, Y = K c, and E' = E off them + Y. */
+        const float *src = r->E;
+        if (g->nkcols) { first_bounce(r); src = r->Ep; }
         /* X = Op E over the non-zero sources only, in column order for every row. */
         uint32_t ncols = 0;
         double entries = 0;
         for (uint32_t c = 0; c < nf; c++) {
-            const float *e = r->E + (size_t)c * 3;
+            const float *e = src + (size_t)c * 3;
             if (e[0] == 0 && e[1] == 0 && e[2] == 0) continue;
             r->cols[ncols++] = c;
             entries += (double)(r->op.col_start[c + 1] - r->op.col_start[c]);
         }
-        mul_ctx mc = {r->cols, ncols, 0};
+        mul_ctx mc = {r->cols, ncols, 0, src};
         /* Bound by memory: threads that stream halves of the same columns were measured
          * slower than one on 2 cores (maze 4.2 vs 2.8 ms, glossy 14 vs 11 ms). */
         int nchunk = entries > MUL_PARALLEL_ENTRIES ? r->nthreads : 1;
@@ -1755,6 +1981,11 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
         memcpy(r->Xprev, r->X, (size_t)nf * 3 * sizeof(float)); /* X keeps its address */
         for (size_t f = 0; f < nf; f++)
             for (int c = 0; c < 3; c++) r->X[f * 3 + c] = r->X4[f * 4 + c];
+        if (g->nkcols) /* X = Op E' + Y, on the rows the multiply computes (all but a glossy
+                        * quad's angular rows when the final gather displays it) */
+            for (size_t f = 0; f < nf; f++)
+                if (!r->op_own[0] || r->fn_ang[f] == 0)
+                    for (int c = 0; c < 3; c++) r->X[f * 3 + c] += r->Y[f * 3 + c];
         for (uint32_t q = 0; q < nq; q++) {
             const wrt_gto_quad *gq = &g->quads[q];
             size_t a = (size_t)gq->func_first * 3, n = (size_t)gq->func_count * 3;
@@ -1875,6 +2106,7 @@ void wrt_relight_quad_irradiance(const wrt_relight *r, int q, double direct[3], 
 }
 
 const float *wrt_relight_E(const wrt_relight *r) { return r->E; }
+const float *wrt_relight_Y(const wrt_relight *r) { return r->Y; }
 const float *wrt_relight_X(const wrt_relight *r) { return r->X; }
 
 double wrt_relight_bench(wrt_relight *r, int updates, wrt_relight_timings *mean) {

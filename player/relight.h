@@ -99,6 +99,11 @@ int wrt_relight_angular_index(int level, int x, int y, int type);
  * by any quad). For g = the root, beta is the directional albedo. */
 int wrt_relight_beta(const wrt_relight *r, int m, double a_o, double b_o, int ang, double out[3]);
 
+/* The first glossy bounce Y = K c (length g->nfuncs, RGB interleaved) of the last update,
+ * when the file holds the first-bounce operator K (g->nkcols > 0; X = Op E' + Y, E' = E
+ * off the quads with K columns + Y); NULL without K. For tests. */
+const float *wrt_relight_Y(const wrt_relight *r);
+
 /* Micro-benchmark: moves light 0 around a small circle (2% of the scene diagonal) for
  * `updates` updates, restores it, and returns the mean milliseconds per update (mean
  * timings in *mean if not NULL); -1 if no light is set (or no memory). */
