@@ -10,6 +10,7 @@
 
 #include "common/basis.h"
 #include "common/brdf.h"
+#include "common/brdf_table.h"
 #include "player/relight.h"
 
 /* ------------------------------------------------------------ test scene ---- */
@@ -942,6 +943,437 @@ static void test_adaptive_vs_reference(void) {
     ts_free(&s);
 }
 
+/* ------------------------------------------------ first-bounce operator K ---- */
+
+/* Material m of the test scene as the BRDF code takes it. */
+static wrt_material ts_wmat(const ts_scene *s, int m) {
+    wrt_material w;
+    memset(&w, 0, sizeof w);
+    for (int c = 0; c < 3; c++) w.base_color[c] = s->mats[m].base_color[c];
+    w.metallic = s->mats[m].metallic;
+    w.roughness = s->mats[m].roughness;
+    w.lambertian = s->mats[m].lambertian != 0;
+    return w;
+}
+
+/* A first-bounce operator in memory: its columns are every outgoing function of one quad
+ * with spatial node levels < ls and angular node levels < la, in key order; col_of[sp *
+ * 4^la + a] is the column of spatial pyramid index sp and angular index a (basis.h's
+ * order: wrt_brdf_angular_func decodes both). */
+typedef struct kop {
+    uint64_t *keys; uint32_t n;
+    int *col_of, la;
+    uint64_t *cs; uint32_t *rows; float *vals; uint64_t nnz;
+} kop;
+
+typedef struct kkey_ix { uint64_t key; int ix; } kkey_ix;
+static int cmp_kkey(const void *a, const void *b) {
+    uint64_t x = ((const kkey_ix *)a)->key, y = ((const kkey_ix *)b)->key;
+    return x < y ? -1 : x > y;
+}
+
+static void kop_columns(kop *k, uint32_t q, int ls, int la) {
+    memset(k, 0, sizeof *k);
+    int ns = 1 << (2 * ls), na = 1 << (2 * la);
+    k->la = la;
+    k->n = (uint32_t)(ns * na);
+    kkey_ix *t = malloc(k->n * sizeof *t);
+    for (int sp = 0; sp < ns; sp++)
+        for (int a = 0; a < na; a++) {
+            int sl, sx, sy, st, al, ax, ay, at;
+            wrt_brdf_angular_func(sp, &sl, &sx, &sy, &st);
+            wrt_brdf_angular_func(a, &al, &ax, &ay, &at);
+            wrt_node sn = {(uint8_t)sl, (uint16_t)sx, (uint16_t)sy}, an = {(uint8_t)al, (uint16_t)ax, (uint16_t)ay};
+            t[sp * na + a].key = wrt_fkey_make(q, sn, st, an, at);
+            t[sp * na + a].ix = sp * na + a;
+        }
+    qsort(t, k->n, sizeof *t, cmp_kkey);
+    k->keys = malloc(k->n * sizeof *k->keys);
+    k->col_of = malloc(k->n * sizeof *k->col_of);
+    for (uint32_t j = 0; j < k->n; j++) { k->keys[j] = t[j].key; k->col_of[t[j].ix] = (int)j; }
+    free(t);
+}
+
+static void kop_attach(ts_scene *s, const kop *k) {
+    s->g.nkcols = k->n; s->g.knnz = k->nnz;
+    s->g.kkeys = k->keys; s->g.kcol_start = k->cs; s->g.krows = k->rows; s->g.kvals = k->vals;
+}
+
+static void kop_free(kop *k) { free(k->keys); free(k->col_of); free(k->cs); free(k->rows); free(k->vals); }
+
+/* c_j = int h_s sqrt(J/pi) E(y) btilde_{g_j}(w_l(y)) du dv over quad q (a parallelogram)
+ * by the midpoint rule on an N x N grid, with the light's analytic irradiance (no
+ * occluder) and btilde by brdf_table.h's direct quadrature at the exact direction (not
+ * the table the relighter interpolates): c[3 j + ch]. */
+static void brute_c(const ts_scene *s, const kop *k, int q, const wrt_light *l, int N, double *c) {
+    const wrt_gto_quad *gq = &s->quads[q];
+    wrt_material m = ts_wmat(s, (int)gq->material);
+    wrt_v3 n = v3(gq->n[0], gq->n[1], gq->n[2]), t = v3(gq->t[0], gq->t[1], gq->t[2]), b = v3(gq->b[0], gq->b[1], gq->b[2]);
+    double J = jac(gq, 0.5, 0.5);
+    static double beta[WRT_BRDF_TABLE_NANG * 3];
+    memset(c, 0, (size_t)k->n * 3 * sizeof *c);
+    for (int j = 0; j < N; j++)
+        for (int i = 0; i < N; i++) {
+            double u = (i + 0.5) / N, v = (j + 0.5) / N;
+            wrt_v3 y = bilerp(gq, u, v), wl = v3_norm(v3_sub(l->pos, y));
+            double E = analytic_E(l, y, n);
+            if (E == 0) continue;
+            double loc[3] = {v3_dot(wl, t), v3_dot(wl, b), v3_dot(wl, n)};
+            wrt_brdf_beta_direct(&m, loc, 1, 4, beta);
+            double w = E * sqrt(J / WRT_PI) / ((double)N * N);
+            for (uint32_t col = 0; col < k->n; col++) {
+                wrt_fkey key = k->keys[col];
+                double h = wrt_haar2(wrt_fkey_snode(key), wrt_fkey_stype(key), u, v);
+                if (h == 0) continue;
+                int ai = wrt_relight_angular_index(wrt_fkey_anode(key).level, wrt_fkey_anode(key).x, wrt_fkey_anode(key).y,
+                                                   wrt_fkey_atype(key));
+                for (int ch = 0; ch < 3; ch++) c[3 * col + ch] += w * h * beta[3 * ai + ch] * l->color[ch];
+            }
+        }
+}
+
+static const double k_floor[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+static const double k_wall_x[4][3] = {{1.5, 1, 0.2}, {1.5, 0, 0.2}, {1.5, 0, 1.2}, {1.5, 1, 1.2}};   /* faces -x */
+static const double k_wall_y[4][3] = {{0, 1.5, 0.2}, {1.2, 1.5, 0.2}, {1.2, 1.5, 1.2}, {0, 1.5, 1.2}}; /* faces -y */
+
+/* The projection c over K's columns: a K whose column j is row j of the wall (value 1)
+ * makes Y = K c show c itself, checked against brute_c (a metal floor, roughness 0.3,
+ * level-1 spatial and angular functions); and with Op = 0.5 I, X = Op E' + Y: 0 on the
+ * floor (its direct light replaced by Y, which has no row there), 0.5 (E + Y) + Y on the
+ * wall. */
+static void test_first_bounce_projection(void) {
+    ts_scene s;
+    ts_init(&s);
+    s.mats[2].lambertian = 0; s.mats[2].metallic = 1; s.mats[2].roughness = 0.3f; s.mats[2].alevel = 2;
+    s.mats[2].base_color[0] = 0.9f; s.mats[2].base_color[1] = 0.6f; s.mats[2].base_color[2] = 0.3f;
+    int qf = ts_quad(&s, k_floor, 2, 1, 2), qw = ts_quad(&s, k_wall_x, 0, 3, 0);
+    ts_identity(&s, 0.5f);
+    ts_finish(&s);
+    kop k;
+    kop_columns(&k, (uint32_t)qf, 2, 2);
+    uint32_t w0 = s.quads[qw].func_first;
+    CHECK(k.n == 256 && s.quads[qw].func_count >= k.n, "%u columns, %u wall rows", k.n, s.quads[qw].func_count);
+    k.cs = malloc((k.n + 1) * sizeof *k.cs); k.rows = malloc(k.n * sizeof *k.rows); k.vals = malloc(k.n * sizeof *k.vals);
+    for (uint32_t j = 0; j < k.n; j++) { k.cs[j] = j; k.rows[j] = w0 + j; k.vals[j] = 1; }
+    k.cs[k.n] = k.nnz = k.n;
+    kop_attach(&s, &k);
+    wrt_relight *r;
+    wrt_relight_options o = {.no_gather = 1};
+    CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_light l = point_light(0.25, 0.4, 0.9, 3);
+    l.color[0] = 1; l.color[1] = 0.7f; l.color[2] = 0.4f;
+    wrt_relight_set_lights(r, &l, NULL, 1);
+    wrt_relight_update(r, NULL);
+    const float *Y = wrt_relight_Y(r), *X = wrt_relight_X(r), *E = wrt_relight_E(r);
+    double *cb = malloc((size_t)k.n * 3 * sizeof *cb);
+    brute_c(&s, &k, qf, &l, 48, cb);
+    double cmax[3] = {0, 0, 0}, worst[3] = {0, 0, 0}, root_rel = 0;
+    for (uint32_t j = 0; j < k.n; j++)
+        for (int ch = 0; ch < 3; ch++) cmax[ch] = fmax(cmax[ch], fabs(cb[3 * j + ch]));
+    for (uint32_t j = 0; j < k.n; j++)
+        for (int ch = 0; ch < 3; ch++) {
+            double d = fabs(Y[(size_t)(w0 + j) * 3 + ch] - cb[3 * j + ch]);
+            worst[ch] = fmax(worst[ch], d / cmax[ch]);
+            if (wrt_fkey_snode(k.keys[j]).level == 0 && wrt_fkey_stype(k.keys[j]) == 0 && wrt_fkey_angular_root(k.keys[j]))
+                root_rel = fmax(root_rel, d / fabs(cb[3 * j + ch]));
+        }
+    for (int ch = 0; ch < 3; ch++)
+        CHECK(worst[ch] < 0.01, "channel %d: c off the brute-force projection by %.3g of its largest", ch, worst[ch]);
+    CHECK(root_rel < 0.005, "c of the (root, root) column off by %.3g", root_rel);
+    printf("first-bounce projection: %u columns; c vs brute force (48 x 48, direct btilde): worst %.2e %.2e %.2e of the "
+           "largest, (root, root) %.2e\n", k.n, worst[0], worst[1], worst[2], root_rel);
+    /* X = Op E' + Y with Op = 0.5 I */
+    const wrt_gto_quad *gf = &s.quads[qf], *gw = &s.quads[qw];
+    CHECK(max_abs(E + (size_t)gf->func_first * 3, (size_t)gf->func_count * 3) > 0, "the floor is lit");
+    CHECK(max_abs(X + (size_t)gf->func_first * 3, (size_t)gf->func_count * 3) == 0, "X on the floor: its E is replaced by Y (none)");
+    double xw = 0, xm = 0;
+    for (size_t f = gw->func_first; f < (size_t)gw->func_first + gw->func_count; f++)
+        for (int ch = 0; ch < 3; ch++) {
+            double want = 0.5 * ((double)E[3 * f + ch] + Y[3 * f + ch]) + Y[3 * f + ch];
+            xw = fmax(xw, fabs(X[3 * f + ch] - want));
+            xm = fmax(xm, fabs(want));
+        }
+    CHECK(xm > 0 && xw <= 1e-6 * xm, "X on the wall = 0.5 (E + Y) + Y: off by %.3g of %.3g", xw, xm);
+    free(cb);
+    wrt_relight_destroy(r);
+    kop_free(&k);
+    ts_free(&s);
+}
+
+/* Lambert's closed form: form factor from a point x (unit normal n) to a convex polygon
+ * wholly in front of it. */
+static double ff_point_poly(wrt_v3 x, wrt_v3 n, const wrt_v3 *p, int cnt) {
+    double sum = 0;
+    for (int i = 0; i < cnt; i++) {
+        wrt_v3 a = v3_norm(v3_sub(p[i], x)), b = v3_norm(v3_sub(p[(i + 1) % cnt], x)), c = v3_cross(a, b);
+        double sl = v3_len(c);
+        if (sl < 1e-300) continue;
+        sum += atan2(sl, v3_dot(a, b)) * v3_dot(c, n) / sl;
+    }
+    return fabs(sum) / (2 * WRT_PI);
+}
+
+/* Y = K c against the first bounce computed by brute force. A metal floor (roughness
+ * 0.5) lit by a point light reflects onto a Lambertian wall and a glossy one (incident
+ * angular functions). K is built here by the brute-force method: receiver points (2 x 2
+ * Gauss points in 8 x 8 cells) x sender cells (16 x 16), Lambert's point-to-polygon form
+ * factor, the sender's outgoing Haar value at y -> x, h and sqrt(J) as K-SPEC's formula;
+ * columns: the floor's functions of spatial and angular node levels 0..2. The truth: the
+ * same points and cells with the light's irradiance and the BRDF itself at the exact
+ * directions, pi F f_r(w_l, y -> x) E(y). So Y (the relighter's projection c, the BRDF
+ * table, the product) must agree with (1) K times the brute-force c, closely, and (2)
+ * the exact bounce within what K's levels resolve of the lobe. */
+static void test_first_bounce_brute_force(void) {
+    ts_scene s;
+    ts_init(&s);
+    s.mats[2].lambertian = 0; s.mats[2].metallic = 1; s.mats[2].roughness = 0.5f; s.mats[2].alevel = 1;
+    s.mats[2].base_color[0] = 0.9f; s.mats[2].base_color[1] = 0.6f; s.mats[2].base_color[2] = 0.3f;
+    int qf = ts_quad(&s, k_floor, 2, 2, 1);
+    int qa = ts_quad(&s, k_wall_x, 0, 2, 0), qb = ts_quad(&s, k_wall_y, 1, 2, 1);
+    s.col = calloc(s.nf + 1, sizeof *s.col); s.rows = calloc(1, sizeof *s.rows); s.vals = calloc(4, sizeof *s.vals);
+    ts_finish(&s); /* Op = 0: X = Y */
+    kop k;
+    kop_columns(&k, (uint32_t)qf, 3, 3);
+    wrt_light l = point_light(0.25, 0.4, 0.9, 3);
+    l.color[0] = 1; l.color[1] = 0.7f; l.color[2] = 0.4f;
+    const wrt_gto_quad *gf = &s.quads[qf];
+    wrt_material mf = ts_wmat(&s, 2);
+    wrt_v3 nF = v3(gf->n[0], gf->n[1], gf->n[2]), tF = v3(gf->t[0], gf->t[1], gf->t[2]), bF = v3(gf->b[0], gf->b[1], gf->b[2]);
+    double JS = jac(gf, 0.5, 0.5);
+    uint32_t r0 = s.quads[qa].func_first, nrow = s.nf - r0, na = 1u << (2 * k.la); /* rows: both walls */
+    double *Kd = calloc((size_t)nrow * k.n, sizeof *Kd), *Yt = calloc((size_t)nrow * 3, sizeof *Yt);
+    double *Yl = calloc((size_t)nrow * 3, sizeof *Yl);
+    enum { NR = 8, NS = 16, NO = 8, SUB = 8 };
+    /* What K's angular levels resolve of the lobe: per sender cell, f_r(w_l, .) averaged
+     * over each outgoing cell of level 3 (NO x NO cells of the concentric square, SUB x
+     * SUB points each): sum_g g(w_o) btilde_g(w_l) / pi is that average. */
+    double (*fav)[NO * NO][3] = calloc((size_t)NS * NS, sizeof *fav);
+    for (int cj = 0; cj < NS; cj++)
+        for (int ci = 0; ci < NS; ci++) {
+            wrt_v3 y = bilerp(gf, (ci + 0.5) / NS, (cj + 0.5) / NS), wl = v3_norm(v3_sub(l.pos, y));
+            for (int oc = 0; oc < NO * NO; oc++)
+                for (int q = 0; q < SUB * SUB; q++) {
+                    double d[3], f[3];
+                    wrt_concentric_dir((oc % NO + (q % SUB + 0.5) / SUB) / NO, (oc / NO + (q / SUB + 0.5) / SUB) / NO, d);
+                    wrt_v3 wo = v3_add(v3_add(v3_scale(tF, d[0]), v3_scale(bF, d[1])), v3_scale(nF, d[2]));
+                    wrt_brdf_eval(&mf, nF, wl, v3_norm(wo), f);
+                    for (int ch = 0; ch < 3; ch++) fav[cj * NS + ci][oc][ch] += f[ch] / (SUB * SUB);
+                }
+        }
+    static const double gp[2] = {0.21132486540518713, 0.7886751345948129};
+    double *B = malloc(4 * (size_t)k.n * sizeof *B);
+    for (int wq = qa; wq <= qb; wq++) {
+        const wrt_gto_quad *gw = &s.quads[wq];
+        wrt_v3 nR = v3(gw->n[0], gw->n[1], gw->n[2]), tR = v3(gw->t[0], gw->t[1], gw->t[2]), bR = v3(gw->b[0], gw->b[1], gw->b[2]);
+        double JR = jac(gw, 0.5, 0.5);
+        for (int pj = 0; pj < NR * 2; pj++)
+            for (int pi = 0; pi < NR * 2; pi++) {
+                double u = (pi / 2 + gp[pi & 1]) / NR, v = (pj / 2 + gp[pj & 1]) / NR, wx = 1.0 / (4.0 * NR * NR);
+                wrt_v3 x = bilerp(gw, u, v);
+                double T[4][3] = {{0}}, TL[4][3] = {{0}};
+                memset(B, 0, 4 * (size_t)k.n * sizeof *B);
+                for (int cj = 0; cj < NS; cj++)
+                    for (int ci = 0; ci < NS; ci++) {
+                        double u0 = (double)ci / NS, v0 = (double)cj / NS, h = 1.0 / NS;
+                        wrt_v3 poly[4] = {bilerp(gf, u0, v0), bilerp(gf, u0 + h, v0), bilerp(gf, u0 + h, v0 + h), bilerp(gf, u0, v0 + h)};
+                        wrt_v3 y = bilerp(gf, u0 + 0.5 * h, v0 + 0.5 * h), dir = v3_norm(v3_sub(y, x)), wo = v3_scale(dir, -1);
+                        if (v3_dot(dir, nR) <= 0 || v3_dot(wo, nF) <= 0) continue;
+                        double ff = ff_point_poly(x, nR, poly, 4);
+                        /* receiver's incident angular values (root, then level 0's wavelets) */
+                        double lr[3] = {v3_dot(dir, tR), v3_dot(dir, bR), v3_dot(dir, nR)}, ar, br, gr[4] = {1, 0, 0, 0};
+                        wrt_concentric_inv(lr, &ar, &br);
+                        for (int t = 1; t <= 3; t++) gr[t] = wrt_haar2(wrt_node_root(), t, ar, br);
+                        int nga = s.mats[gw->material].lambertian ? 1 : 4;
+                        /* truth: pi F f_r(w_l, y -> x) E(y) */
+                        wrt_v3 wl = v3_norm(v3_sub(l.pos, y));
+                        double f[3], E = analytic_E(&l, y, nF);
+                        wrt_brdf_eval(&mf, nF, wl, wo, f);
+                        /* K's integrand: h_s(y) g_j(y -> x) F / sqrt(J_S) */
+                        double lo[3] = {v3_dot(wo, tF), v3_dot(wo, bF), v3_dot(wo, nF)}, ao, bo;
+                        wrt_concentric_inv(lo, &ao, &bo);
+                        int oa = (int)(ao * NO), ob = (int)(bo * NO);
+                        const double *fa = fav[cj * NS + ci][(ob < NO ? ob : NO - 1) * NO + (oa < NO ? oa : NO - 1)];
+                        for (int a = 0; a < nga; a++)
+                            for (int ch = 0; ch < 3; ch++) {
+                                T[a][ch] += gr[a] * WRT_PI * ff * f[ch] * E * l.color[ch];
+                                TL[a][ch] += gr[a] * WRT_PI * ff * fa[ch] * E * l.color[ch];
+                            }
+                        for (uint32_t sp = 0; sp < 64; sp++) {
+                            int sl, sx, sy, st;
+                            wrt_brdf_angular_func((int)sp, &sl, &sx, &sy, &st);
+                            wrt_node sn = {(uint8_t)sl, (uint16_t)sx, (uint16_t)sy};
+                            double hs = wrt_haar2(sn, st, u0 + 0.5 * h, v0 + 0.5 * h);
+                            if (hs == 0) continue;
+                            for (uint32_t a = 0; a < na; a++) {
+                                int al, ax, ay, at;
+                                wrt_brdf_angular_func((int)a, &al, &ax, &ay, &at);
+                                wrt_node an = {(uint8_t)al, (uint16_t)ax, (uint16_t)ay};
+                                double gv = wrt_haar2(an, at, ao, bo);
+                                if (gv == 0) continue;
+                                int col = k.col_of[sp * na + a];
+                                for (int ra = 0; ra < nga; ra++) B[(size_t)ra * k.n + col] += gr[ra] * hs * gv * ff / sqrt(JS);
+                            }
+                        }
+                    }
+                for (uint32_t fr = gw->func_first; fr < gw->func_first + gw->func_count; fr++) {
+                    wrt_fkey key = s.fkeys[fr];
+                    double hr = wrt_haar2(wrt_fkey_snode(key), wrt_fkey_stype(key), u, v);
+                    if (hr == 0) continue;
+                    int ra = wrt_fkey_angular_root(key) ? 0 : wrt_fkey_atype(key);
+                    double *krow = Kd + (size_t)(fr - r0) * k.n;
+                    for (uint32_t j = 0; j < k.n; j++) krow[j] += wx * hr * sqrt(JR) * B[(size_t)ra * k.n + j];
+                    for (int ch = 0; ch < 3; ch++) {
+                        Yt[(size_t)(fr - r0) * 3 + ch] += wx * hr * sqrt(JR / WRT_PI) * T[ra][ch];
+                        Yl[(size_t)(fr - r0) * 3 + ch] += wx * hr * sqrt(JR / WRT_PI) * TL[ra][ch];
+                    }
+                }
+            }
+    }
+    /* compressed columns, rows ascending */
+    k.cs = malloc((k.n + 1) * sizeof *k.cs);
+    k.rows = malloc((size_t)nrow * k.n * sizeof *k.rows);
+    k.vals = malloc((size_t)nrow * k.n * sizeof *k.vals);
+    for (uint32_t j = 0; j < k.n; j++) {
+        k.cs[j] = k.nnz;
+        for (uint32_t i = 0; i < nrow; i++) {
+            double v = Kd[(size_t)i * k.n + j];
+            if (v == 0) continue;
+            k.rows[k.nnz] = r0 + i;
+            k.vals[k.nnz++] = (float)v;
+        }
+    }
+    k.cs[k.n] = k.nnz;
+    kop_attach(&s, &k);
+    wrt_relight *r;
+    wrt_relight_options o = {.no_gather = 1};
+    CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_relight_set_lights(r, &l, NULL, 1);
+    wrt_relight_update(r, NULL);
+    const float *Y = wrt_relight_Y(r), *X = wrt_relight_X(r);
+    /* (1) K times the brute-force c */
+    double *cb = malloc((size_t)k.n * 3 * sizeof *cb), *Ykc = calloc((size_t)nrow * 3, sizeof *Ykc);
+    brute_c(&s, &k, qf, &l, 32, cb);
+    for (uint32_t j = 0; j < k.n; j++)
+        for (uint64_t e = k.cs[j]; e < k.cs[j + 1]; e++)
+            for (int ch = 0; ch < 3; ch++) Ykc[(size_t)(k.rows[e] - r0) * 3 + ch] += k.vals[e] * cb[3 * j + ch];
+    for (int wq = qa; wq <= qb; wq++) {
+        const wrt_gto_quad *gw = &s.quads[wq];
+        double d1 = 0, d2 = 0, d3 = 0, m1 = 0, m2 = 0, m3 = 0, dx = 0;
+        for (size_t f = gw->func_first; f < (size_t)gw->func_first + gw->func_count; f++)
+            for (int ch = 0; ch < 3; ch++) {
+                double y = Y[3 * f + ch], a = Ykc[(f - r0) * 3 + ch], t = Yt[(f - r0) * 3 + ch], tl = Yl[(f - r0) * 3 + ch];
+                d1 += (y - a) * (y - a); m1 += a * a;
+                d2 += (y - tl) * (y - tl); m2 += tl * tl;
+                d3 += (y - t) * (y - t); m3 += t * t;
+                dx = fmax(dx, fabs(X[3 * f + ch] - y));
+            }
+        double e1 = sqrt(d1 / m1), e2 = sqrt(d2 / m2), e3 = sqrt(d3 / m3);
+        double root_t = Yt[(gw->func_first - r0) * 3], root_y = Y[(size_t)gw->func_first * 3];
+        const char *name = wq == qa ? "Lambertian wall" : "glossy wall";
+        CHECK(m1 > 0 && e1 < 0.01, "%s: Y off K c (brute-force c) by %.3g (relative rms)", name, e1);
+        CHECK(m2 > 0 && e2 < 0.02, "%s: Y off the brute-force bounce of the lobe at K's level by %.3g (relative rms)", name, e2);
+        CHECK(e3 < 0.1 && fabs(root_y - root_t) < 0.02 * root_t, "%s: Y off the exact bounce by %.3g (relative rms), root %.4g vs %.4g",
+              name, e3, root_y, root_t);
+        CHECK(dx == 0, "%s: Op = 0, so X = Y", name);
+        printf("first bounce, %s: %u functions; Y vs K c (brute-force c) %.2e, vs the brute-force bounce of the lobe at K's "
+               "level %.2e, vs the exact bounce %.2e (relative rms); root %.5g vs exact %.5g\n", name, gw->func_count, e1, e2,
+               e3, root_y, root_t);
+    }
+    printf("first bounce: K %u columns x %u rows, %llu entries\n", k.n, nrow, (unsigned long long)k.nnz);
+    free(cb); free(Ykc); free(B); free(Kd); free(Yt); free(Yl); free(fav);
+    wrt_relight_destroy(r);
+    kop_free(&k);
+    ts_free(&s);
+}
+
+/* Per light, c is projected once: moving one light of two re-projects that light only,
+ * and changing a light's scale re-projects none; X is then the same, to the bit, as a
+ * relighter that starts from those lights (with the final gather: the multiply's copy of
+ * the operator, whose non-displayed rows stay 0 in X, Y included). */
+static void test_first_bounce_cache(void) {
+    ts_scene s;
+    ts_init(&s);
+    s.mats[2].lambertian = 0; s.mats[2].metallic = 1; s.mats[2].roughness = 0.3f; s.mats[2].alevel = 2;
+    int qf = ts_quad(&s, k_floor, 2, 1, 2), qw = ts_quad(&s, k_wall_x, 1, 3, 2);
+    ts_random(&s, 30);
+    ts_finish(&s);
+    kop k;
+    kop_columns(&k, (uint32_t)qf, 2, 2);
+    uint32_t w0 = s.quads[qw].func_first, nw = s.quads[qw].func_count;
+    k.cs = malloc((k.n + 1) * sizeof *k.cs); k.rows = malloc((size_t)k.n * 4 * sizeof *k.rows);
+    k.vals = malloc((size_t)k.n * 4 * sizeof *k.vals);
+    for (uint32_t j = 0; j < k.n; j++) { /* 4 rows a column, on the wall */
+        k.cs[j] = k.nnz;
+        for (uint32_t e = 0; e < 4; e++) { k.rows[k.nnz] = w0 + (j * 7 + e * (nw / 4)) % nw; k.vals[k.nnz++] = (float)(0.1 * (lcg() - 0.2)); }
+        for (uint64_t a = k.cs[j] + 1; a < k.nnz; a++) /* ascending rows */
+            for (uint64_t b = a; b > k.cs[j] && k.rows[b - 1] > k.rows[b]; b--) { uint32_t t = k.rows[b]; k.rows[b] = k.rows[b - 1]; k.rows[b - 1] = t; }
+    }
+    k.cs[k.n] = k.nnz;
+    kop_attach(&s, &k);
+    size_t n3 = (size_t)s.nf * 3;
+    double eye[3] = {0.5, -1, 1.5};
+    wrt_light L[2] = {point_light(0.25, 0.4, 0.9, 3), point_light(0.8, 0.6, 0.7, 2)};
+    float sc[2] = {1, 1};
+    wrt_relight *r;
+    CHECK(wrt_relight_create(&s.g, NULL, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_relight_set_eye(r, eye);
+    wrt_relight_set_lights(r, L, sc, 2);
+    wrt_relight_timings t;
+    wrt_relight_update(r, &t);
+    CHECK(t.lights_changed == 2, "first update: both lights projected (%d)", t.lights_changed);
+    for (int step = 0; step < 2; step++) {
+        if (step == 0) L[1].pos = v3(0.7, 0.55, 0.75);
+        else sc[0] = 0.5f;
+        wrt_relight_set_lights(r, L, sc, 2);
+        wrt_relight_update(r, &t);
+        CHECK(t.lights_changed == (step == 0 ? 1 : 0), "step %d: %d lights re-projected", step, t.lights_changed);
+        wrt_relight *f;
+        CHECK(wrt_relight_create(&s.g, NULL, &f) == WRT_OK, "%s", wrt_last_error());
+        wrt_relight_set_eye(f, eye);
+        wrt_relight_set_lights(f, L, sc, 2);
+        wrt_relight_update(f, NULL);
+        CHECK(memcmp(wrt_relight_X(r), wrt_relight_X(f), n3 * sizeof(float)) == 0, "step %d: X as a fresh relighter's", step);
+        CHECK(memcmp(wrt_relight_Y(r), wrt_relight_Y(f), n3 * sizeof(float)) == 0, "step %d: Y as a fresh relighter's", step);
+        wrt_relight_destroy(f);
+    }
+    const float *X = wrt_relight_X(r), *Y = wrt_relight_Y(r);
+    uint32_t nz = 0, ynz = 0;
+    for (uint32_t f = w0; f < w0 + nw; f++) {
+        ynz += Y[3 * f] != 0;
+        if (!wrt_fkey_angular_root(s.fkeys[f])) nz += X[3 * f] != 0 || X[3 * f + 1] != 0 || X[3 * f + 2] != 0;
+    }
+    CHECK(ynz > 0 && nz == 0, "Y reaches %u wall rows; the %u non-displayed rows of X stay 0", ynz, nz);
+    wrt_relight_destroy(r);
+    kop_free(&k);
+    ts_free(&s);
+}
+
+/* A K the relighter cannot use is refused, naming it: a column on a Lambertian quad, a
+ * row outside the functions. */
+static void test_first_bounce_refused(void) {
+    ts_scene s;
+    ts_init(&s);
+    s.mats[2].lambertian = 0; s.mats[2].metallic = 1; s.mats[2].roughness = 0.3f; s.mats[2].alevel = 1;
+    int qf = ts_quad(&s, k_floor, 2, 1, 1), qw = ts_quad(&s, k_wall_x, 0, 1, 0);
+    ts_identity(&s, 1);
+    ts_finish(&s);
+    for (int bad = 0; bad < 2; bad++) {
+        kop k;
+        kop_columns(&k, (uint32_t)(bad == 0 ? qw : qf), 1, 1);
+        k.cs = malloc((k.n + 1) * sizeof *k.cs); k.rows = malloc(k.n * sizeof *k.rows); k.vals = malloc(k.n * sizeof *k.vals);
+        for (uint32_t j = 0; j < k.n; j++) { k.cs[j] = j; k.rows[j] = bad == 1 && j == 2 ? s.nf : s.quads[qw].func_first; k.vals[j] = 1; }
+        k.cs[k.n] = k.nnz = k.n;
+        kop_attach(&s, &k);
+        wrt_relight *r = NULL;
+        wrt_status st = wrt_relight_create(&s.g, NULL, &r);
+        const char *want = bad == 0 ? "column 0: quad 1 is not a glossy quad" : "entry 2: row";
+        CHECK(st == WRT_ERR_CORRUPT && r == NULL && strstr(wrt_last_error(), want), "case %d: %d, %s", bad, (int)st, wrt_last_error());
+        wrt_relight_destroy(r);
+        kop_free(&k);
+    }
+    ts_free(&s);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(test_far_light_root);
     TEST_RUN(test_cell_irradiance);
@@ -954,6 +1386,10 @@ int main(int argc, char **argv) {
     TEST_RUN(test_multiply_dense);
     TEST_RUN(test_exact_zeros);
     TEST_RUN(test_glossy_beta);
+    TEST_RUN(test_first_bounce_projection);
+    TEST_RUN(test_first_bounce_brute_force);
+    TEST_RUN(test_first_bounce_cache);
+    TEST_RUN(test_first_bounce_refused);
     TEST_RUN(test_bench);
     TEST_END();
 }
