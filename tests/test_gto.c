@@ -293,7 +293,9 @@ static void test_roundtrip(void) {
     wrt_status st = wrt_gto_open(path, &g);
     CHECK(st == WRT_OK, "open: %s", wrt_last_error());
     if (st != WRT_OK) return;
-    CHECK(g.version == WRT_GTO_VERSION && g.version_minor == WRT_GTO_VERSION_MINOR, "version");
+    /* No first-bounce operator: still version 1.0 (1.1 only for files with K). */
+    CHECK(g.version == WRT_GTO_VERSION && g.version_minor == 0, "version %u.%u", g.version, g.version_minor);
+    CHECK(g.nkcols == 0 && g.knnz == 0 && !g.kkeys && !g.kcol_start && !g.krows && !g.kvals, "no K");
     CHECK(g.op_kind == WRT_GTO_OP_GATHERED, "op kind %u", g.op_kind);
     CHECK(g.nquads == 3 && g.nmaterials == 2 && g.nlights == 2 && g.nnames == 2, "counts");
     CHECK(g.nfuncs == 7 && g.nnz == 12, "nfuncs %u nnz %llu", g.nfuncs, (unsigned long long)g.nnz);
@@ -560,7 +562,7 @@ static void test_versions(void) {
     b[F_VERSION_MAJOR] = 2;
     fix_header_sum(b);
     write_raw(tpath("v2.gto"), b, n);
-    expect(wrt_gto_open(tpath("v2.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 2.0 is newer than this reader's version 1.0",
+    expect(wrt_gto_open(tpath("v2.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 2.0 is newer than this reader's version 1.1",
            "newer major");
     b[F_VERSION_MAJOR] = 0;
     fix_header_sum(b);
