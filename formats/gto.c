@@ -213,7 +213,7 @@ typedef struct vctx {
     char err[256];
     uint64_t col;       /* rows: current column */
     uint64_t kcol;      /* krows: current column */
-    uint64_t kq_col;    /* krows: column + 1 whose quad's function range is kq_lo, kq_hi */
+    uint32_t kq;        /* krows: quad + 1 whose function range is [kq_lo, kq_hi) (0: none) */
     uint32_t kq_lo, kq_hi;
 } vctx;
 
@@ -570,9 +570,9 @@ static void check_krows(vctx *v, const uint8_t *base, uint64_t first, uint64_t n
         uint64_t cend = cs[col + 1] < end ? cs[col + 1] : end;
         uint64_t from = e > cs[col] ? e - 1 : e;
         uint32_t q = wrt_fkey_quad(g->kkeys[col]);
-        if (v->kq_col != col + 1) {
+        if (v->kq != q + 1) { /* kkeys are sorted by quad: once per quad */
             fkeys_of_quad(g, q, &v->kq_lo, &v->kq_hi);
-            v->kq_col = col + 1;
+            v->kq = q + 1;
         }
         if (scan_kcolumn(r + from, (size_t)(cend - from), nf, v->kq_lo, v->kq_hi)) {
             for (; e < cend; e++) {
