@@ -118,7 +118,8 @@ typedef struct wrt_gto {
 } wrt_gto;
 
 /* Maps and validates `path`: magic, version, byte order, every section's offset and
- * size against the file length, checksums, and the operator's index ranges.
+ * size against the file length, checksums, and the index ranges of the operator and of
+ * the first-bounce operator K (if present).
  * Errors: WRT_ERR_IO (cannot open), WRT_ERR_NOT_OURS (foreign), WRT_ERR_CORRUPT
  * (truncated, bad offsets, checksum), WRT_ERR_UNSUPPORTED (newer version). */
 /* Reads each byte once (the checksum pass, with the index checks on the data while it
