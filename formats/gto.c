@@ -532,7 +532,8 @@ static void check_kcol_start(vctx *v, const uint8_t *base, uint64_t first, uint6
 /* The index range [lo, hi) of quad q's functions in fkeys (checked ascending). */
 static void fkeys_of_quad(const wrt_gto *g, uint32_t q, uint32_t *lo, uint32_t *hi) {
     for (int side = 0; side < 2; side++) {
-        uint64_t key = (uint64_t)(q + side) << 42; /* the quad is the key's top bits */
+        if ((uint64_t)q + side >= (1u << 22)) { *hi = g->nfuncs; break; } /* the last quad a key holds */
+        uint64_t key = (uint64_t)(q + side) << 42; /* the quad is the key's top bits (22 bits) */
         uint32_t a = 0, b = g->nfuncs;
         while (a < b) {
             uint32_t mid = a + (b - a) / 2;
