@@ -140,6 +140,11 @@ typedef struct wrt_gto_contents {
     const uint8_t *material_alevel; /* per material, may be NULL */
     wrt_gto_stats stats;
     const char *provenance;          /* JSON text */
+    /* the first-bounce operator K (nkcols 0: none) */
+    uint32_t nkcols;
+    const uint64_t *kkeys, *kcol_start;
+    const uint32_t *krows;
+    const float *kvals;
 } wrt_gto_contents;
 
 /* Writes atomically: a temporary (see wrt_gto_write_pending), fsync, rename over
