@@ -494,8 +494,9 @@ static const char *fkey_malformed(uint64_t k) {
     return NULL;
 }
 
-/* kkeys: strictly ascending (across chunks), each on a glossy quad, angular node level
- * <= WRT_MAX_ALEVEL - 1 (L_K <= 3), spatial level <= WRT_MAX_SLEVEL, well formed. */
+/* kkeys: strictly ascending (across chunks), each on a glossy quad, spatial level <=
+ * WRT_MAX_SLEVEL, well formed (any angular node level a key can name, 0..3, is one K may
+ * use: L_K <= WRT_K_MAX_LEVEL). */
 static void check_kkeys(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
     const uint64_t *k = (const uint64_t *)base;
     const wrt_gto *g = v->g;
@@ -514,10 +515,7 @@ static void check_kkeys(vctx *v, const uint8_t *base, uint64_t first, uint64_t n
         if (g->materials[m].lambertian)
             return vbad(v, "kkeys[%" PRIu64 "] names quad %u, whose material %u is Lambertian "
                         "(K's columns are functions of glossy quads)", i, q, m);
-        unsigned al = wrt_fkey_anode(k[i]).level, sl = wrt_fkey_snode(k[i]).level;
-        if (al > WRT_MAX_ALEVEL - 1)
-            return vbad(v, "kkeys[%" PRIu64 "]: angular node level %u, at most %d", i, al,
-                        WRT_MAX_ALEVEL - 1);
+        unsigned sl = wrt_fkey_snode(k[i]).level;
         if (sl > WRT_MAX_SLEVEL)
             return vbad(v, "kkeys[%" PRIu64 "]: spatial level %u, at most %d", i, sl, WRT_MAX_SLEVEL);
         const char *why = fkey_malformed(k[i]);

@@ -168,7 +168,7 @@ typedef struct wrt_gto_contents {
  * strictly ascending with quads < nquads, col_start monotone from 0, rows < nfuncs and
  * ascending within a column, vals finite, material and name indices in range; with K
  * (nkcols > 0) also K's checks (GTO_FORMAT.md): kkeys strictly ascending on glossy
- * quads with angular level <= 2, kcol_start monotone from 0, krows < nfuncs, ascending
+ * quads, kcol_start monotone from 0, krows < nfuncs, ascending
  * within a column and on another quad than the column's, kvals finite.
  * `c->provenance` may be NULL (empty). Same contents give the same bytes. */
 wrt_status wrt_gto_write(const char *path, const wrt_gto_contents *c);

@@ -12,10 +12,6 @@
 #include "../common/brdf_table.h"
 #include "bake.h"
 
-/* The deepest outgoing angular level of the first-bounce operator K (node levels 0..3:
- * basis.h's 2 bits, common/brdf_table.h's 256 functions). */
-#define WRT_K_MAX_LEVEL 4
-
 typedef struct bake_ctx {
     wrt_bake_options opt;
     const wrt_scene *scene;

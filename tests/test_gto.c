@@ -1279,15 +1279,13 @@ static void test_k_bad(void) {
         free(m); free(b0);
     }
     /* kkeys. */
-    wrt_node r = wrt_node_root(), bad_grid = {1, 2, 0}, l11 = {11, 0, 0}, l3 = {3, 5, 1};
+    wrt_node r = wrt_node_root(), bad_grid = {1, 2, 0}, l11 = {11, 0, 0};
     uint64_t k;
     corrupt_index(b, n, S_KKEYS, 8 * 1, &kkeys[0], 8, "section kkeys: kkeys not strictly ascending at index 1", "kkeys repeated");
     k = wrt_fkey_make(3, r, 0, r, 0);
     corrupt_index(b, n, S_KKEYS, 8 * 4, &k, 8, "section kkeys: kkeys[4] names quad 3, but there are 3 quads", "kkeys quad");
     k = wrt_fkey_make(0, r, 0, r, 0);
     corrupt_index(b, n, S_KKEYS, 0, &k, 8, "section kkeys: kkeys[0] names quad 0, whose material 0 is Lambertian", "kkeys Lambertian");
-    k = wrt_fkey_make(1, r, 0, l3, 1);
-    corrupt_index(b, n, S_KKEYS, 8 * 2, &k, 8, "section kkeys: kkeys[2]: angular node level 3, at most 2", "kkeys angular level");
     k = wrt_fkey_make(2, l11, 1, r, 0);
     corrupt_index(b, n, S_KKEYS, 8 * 4, &k, 8, "section kkeys: kkeys[4]: spatial level 11, at most 10", "kkeys spatial level");
     k = wrt_fkey_make(2, wrt_node_child(r, 1, 1), 0, r, 0);
