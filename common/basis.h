@@ -34,6 +34,10 @@
 
 #define WRT_MAX_SLEVEL 10 /* deepest spatial level (1024 x 1024 cells) */
 #define WRT_MAX_ALEVEL 3  /* deepest angular level (8 x 8 direction cells) */
+/* The deepest outgoing angular level of the first-bounce operator K (16 x 16 direction
+ * cells: node levels 0..3, all that a key's 2 bits of angular level can name, and
+ * common/brdf_table.h's 256 functions). */
+#define WRT_K_MAX_LEVEL 4
 
 /* A quadtree node: level and cell indices, packed. */
 typedef struct wrt_node { uint8_t level; uint16_t x, y; } wrt_node;

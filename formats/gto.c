@@ -115,9 +115,13 @@ _Static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE 754 binary32/bin
 enum {
     SEC_QUADS = 1, SEC_MATERIALS, SEC_LIGHTS, SEC_CAMERA, SEC_NAMES, SEC_FKEYS,
     SEC_COL_START, SEC_ROWS, SEC_VALS, SEC_STATS, SEC_PROVENANCE,
+    /* version 1.1: the first-bounce operator K, all four or none */
+    SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS,
     SEC_KNOWN_END
 };
 #define SEC_KNOWN (SEC_KNOWN_END - 1)
+#define SEC_REQUIRED SEC_PROVENANCE /* ids 1 .. this are in every file */
+#define GTO_MINOR_K 1               /* the minor version that added K */
 
 static const struct { const char *name; uint32_t elem_size; } sec_info[SEC_KNOWN_END] = {
     [SEC_QUADS] = {"quads", sizeof(wrt_gto_quad)},
@@ -131,6 +135,10 @@ static const struct { const char *name; uint32_t elem_size; } sec_info[SEC_KNOWN
     [SEC_VALS] = {"vals", 12},
     [SEC_STATS] = {"stats", sizeof(wrt_gto_stats)},
     [SEC_PROVENANCE] = {"provenance", 1},
+    [SEC_KKEYS] = {"kkeys", 8},
+    [SEC_KCOL_START] = {"kcol_start", 8},
+    [SEC_KROWS] = {"krows", 4},
+    [SEC_KVALS] = {"kvals", 4},
 };
 
 static const char *sec_name(uint32_t id) {
@@ -204,6 +212,9 @@ typedef struct vctx {
     int bad;
     char err[256];
     uint64_t col;       /* rows: current column */
+    uint64_t kcol;      /* krows: current column */
+    uint32_t kq;        /* krows: quad + 1 whose function range is [kq_lo, kq_hi) (0: none) */
+    uint32_t kq_lo, kq_hi;
 } vctx;
 
 static void vbad(vctx *v, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
@@ -411,19 +422,24 @@ static void check_fkeys(vctx *v, const uint8_t *base, uint64_t first, uint64_t n
                     q, v->g->nquads);
 }
 
-static void check_col_start(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
-    const uint64_t *c = (const uint64_t *)base;
-    if (first == 0 && c[0] != 0) return vbad(v, "col_start[0] is %" PRIu64 ", not 0", c[0]);
+/* Column starts (col_start, kcol_start): from 0, never decreasing, ending at nnz. */
+static void check_starts(vctx *v, const char *nm, const uint64_t *c, uint64_t first, uint64_t n,
+                         uint64_t ncols, uint64_t nnz) {
+    if (first == 0 && c[0] != 0) return vbad(v, "%s[0] is %" PRIu64 ", not 0", nm, c[0]);
     uint64_t i = first ? first - 1 : 0;
     if (scan_decreasing_u64(c + i, (size_t)(first + n - i))) {
         for (i++; i < first + n; i++)
             if (c[i] < c[i - 1])
-                return vbad(v, "col_start not monotone at column %" PRIu64 " (%" PRIu64
-                            " after %" PRIu64 ")", i, c[i], c[i - 1]);
+                return vbad(v, "%s not monotone at column %" PRIu64 " (%" PRIu64
+                            " after %" PRIu64 ")", nm, i, c[i], c[i - 1]);
     }
-    if (first + n == (uint64_t)v->g->nfuncs + 1 && c[v->g->nfuncs] != v->g->nnz)
-        return vbad(v, "col_start[%u] is %" PRIu64 ", but there are %" PRIu64 " entries",
-                    v->g->nfuncs, c[v->g->nfuncs], v->g->nnz);
+    if (first + n == ncols + 1 && c[ncols] != nnz)
+        return vbad(v, "%s[%" PRIu64 "] is %" PRIu64 ", but there are %" PRIu64 " entries",
+                    nm, ncols, c[ncols], nnz);
+}
+
+static void check_col_start(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    check_starts(v, "col_start", (const uint64_t *)base, first, n, v->g->nfuncs, v->g->nnz);
 }
 
 /* rows: each < nfuncs and strictly ascending within its column. col_start is valid. */
@@ -462,6 +478,129 @@ static void check_vals(vctx *v, const uint8_t *base, uint64_t first, uint64_t n)
     }
 }
 
+/* ---- The first-bounce operator K (version 1.1). Its sections come after the ones
+ * they refer to (quads, materials, fkeys), so those are already checked. ---- */
+
+/* What is wrong with a key's form (NULL: nothing): nodes inside their level's grid, the
+ * scaling function (type 0) on root nodes only, the spare bits zero. Levels are
+ * bounded by the caller. */
+static const char *fkey_malformed(uint64_t k) {
+    wrt_node s = wrt_fkey_snode(k), a = wrt_fkey_anode(k);
+    if ((s.x >> s.level) || (s.y >> s.level)) return "spatial node outside its level's grid";
+    if ((a.x >> a.level) || (a.y >> a.level)) return "angular node outside its level's grid";
+    if (s.level > 0 && wrt_fkey_stype(k) == 0) return "spatial scaling function (type 0) on a non-root node";
+    if (a.level > 0 && wrt_fkey_atype(k) == 0) return "angular scaling function (type 0) on a non-root node";
+    if (k & 63) return "spare bits not zero";
+    return NULL;
+}
+
+/* kkeys: strictly ascending (across chunks), each on a glossy quad, spatial level <=
+ * WRT_MAX_SLEVEL, well formed (any angular node level a key can name, 0..3, is one K may
+ * use: L_K <= WRT_K_MAX_LEVEL). */
+static void check_kkeys(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const uint64_t *k = (const uint64_t *)base;
+    const wrt_gto *g = v->g;
+    uint64_t i = first ? first - 1 : 0;
+    if (scan_not_ascending_u64(k + i, (size_t)(first + n - i))) {
+        for (i++; i < first + n; i++)
+            if (k[i] <= k[i - 1])
+                return vbad(v, "kkeys not strictly ascending at index %" PRIu64
+                            " (0x%016" PRIx64 " after 0x%016" PRIx64 ")", i, k[i], k[i - 1]);
+    }
+    for (i = first; i < first + n; i++) {
+        uint32_t q = wrt_fkey_quad(k[i]);
+        if (q >= g->nquads)
+            return vbad(v, "kkeys[%" PRIu64 "] names quad %u, but there are %u quads", i, q, g->nquads);
+        uint32_t m = g->quads[q].material;
+        if (g->materials[m].lambertian)
+            return vbad(v, "kkeys[%" PRIu64 "] names quad %u, whose material %u is Lambertian "
+                        "(K's columns are functions of glossy quads)", i, q, m);
+        unsigned sl = wrt_fkey_snode(k[i]).level;
+        if (sl > WRT_MAX_SLEVEL)
+            return vbad(v, "kkeys[%" PRIu64 "]: spatial level %u, at most %d", i, sl, WRT_MAX_SLEVEL);
+        const char *why = fkey_malformed(k[i]);
+        if (why) return vbad(v, "kkeys[%" PRIu64 "]: malformed key 0x%016" PRIx64 " (%s)", i, k[i], why);
+    }
+}
+
+static void check_kcol_start(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    check_starts(v, "kcol_start", (const uint64_t *)base, first, n, v->g->nkcols, v->g->knnz);
+}
+
+/* The index range [lo, hi) of quad q's functions in fkeys (checked ascending). */
+static void fkeys_of_quad(const wrt_gto *g, uint32_t q, uint32_t *lo, uint32_t *hi) {
+    for (int side = 0; side < 2; side++) {
+        if ((uint64_t)q + side >= (1u << 22)) { *hi = g->nfuncs; break; } /* the last quad a key holds */
+        uint64_t key = (uint64_t)(q + side) << 42; /* the quad is the key's top bits (22 bits) */
+        uint32_t a = 0, b = g->nfuncs;
+        while (a < b) {
+            uint32_t mid = a + (b - a) / 2;
+            if (g->fkeys[mid] < key) a = mid + 1;
+            else b = mid;
+        }
+        *(side ? hi : lo) = a;
+    }
+}
+
+/* Entries of one K column: any r >= nf, not strictly ascending, or in [lo, hi). */
+static uint32_t scan_kcolumn(const uint32_t *r, size_t n, uint32_t nf, uint32_t lo, uint32_t hi) {
+    uint32_t own = 0, w = hi - lo;
+    size_t i = 0;
+    for (; i + SCAN_BLOCK <= n; i += SCAN_BLOCK) {
+        uint32_t b = 0;
+        for (int j = 0; j < SCAN_BLOCK; j++) b |= r[i + j] - lo < w;
+        own |= b;
+    }
+    for (; i < n; i++) own |= r[i] - lo < w;
+    return own | scan_column(r, n, nf);
+}
+
+/* krows: each < nfuncs, strictly ascending within its column, and a function of
+ * another quad than the column's (K carries light from one quad to another).
+ * kkeys and kcol_start are valid. */
+static void check_krows(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const wrt_gto *g = v->g;
+    const uint32_t *r = (const uint32_t *)base;
+    const uint64_t *cs = g->kcol_start;
+    uint32_t nf = g->nfuncs;
+    uint64_t e = first, end = first + n, col = v->kcol;
+    while (e < end) {
+        while (cs[col + 1] <= e) col++;  /* e < knnz = cs[nkcols], so col < nkcols */
+        uint64_t cend = cs[col + 1] < end ? cs[col + 1] : end;
+        uint64_t from = e > cs[col] ? e - 1 : e;
+        uint32_t q = wrt_fkey_quad(g->kkeys[col]);
+        if (v->kq != q + 1) { /* kkeys are sorted by quad: once per quad */
+            fkeys_of_quad(g, q, &v->kq_lo, &v->kq_hi);
+            v->kq = q + 1;
+        }
+        if (scan_kcolumn(r + from, (size_t)(cend - from), nf, v->kq_lo, v->kq_hi)) {
+            for (; e < cend; e++) {
+                if (r[e] >= nf)
+                    return vbad(v, "krows[%" PRIu64 "] = %u out of range (%u functions) in column %"
+                                PRIu64, e, r[e], nf, col);
+                if (e > cs[col] && r[e] <= r[e - 1])
+                    return vbad(v, "krows not strictly ascending in column %" PRIu64
+                                " at entry %" PRIu64, col, e);
+                if (r[e] >= v->kq_lo && r[e] < v->kq_hi)
+                    return vbad(v, "krows[%" PRIu64 "] = %u in column %" PRIu64 " is a function of "
+                                "quad %u, the column's own quad", e, r[e], col, q);
+            }
+        }
+        e = cend;
+    }
+    v->kcol = col;
+}
+
+static void check_kvals(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const uint32_t *u = (const uint32_t *)base + first;
+    if (scan_nonfinite(u, (size_t)n)) {
+        for (uint64_t j = 0; j < n; j++)
+            if ((u[j] & 0x7f800000u) == 0x7f800000u)
+                return vbad(v, "kvals[%" PRIu64 "] is %s", first + j,
+                            (u[j] & 0x007fffffu) ? "NaN" : "infinite");
+    }
+}
+
 /* What needs a later section: each quad's function range against fkeys. */
 static void check_quad_ranges(vctx *v) {
     const wrt_gto *g = v->g;
@@ -495,6 +634,10 @@ static chunk_check sec_checker(uint32_t id) {
     case SEC_COL_START: return check_col_start;
     case SEC_ROWS: return check_rows;
     case SEC_VALS: return check_vals;
+    case SEC_KKEYS: return check_kkeys;
+    case SEC_KCOL_START: return check_kcol_start;
+    case SEC_KROWS: return check_krows;
+    case SEC_KVALS: return check_kvals;
     default: return NULL;
     }
 }
@@ -610,8 +753,16 @@ static wrt_status parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
     if (prev_end != len)
         return wrt_fail(WRT_ERR_CORRUPT, "last section ends at %" PRIu64 ", file has %zu bytes",
                         prev_end, len);
-    for (uint32_t id = 1; id <= SEC_KNOWN; id++)
+    for (uint32_t id = 1; id <= SEC_REQUIRED; id++)
         if (!L->sec[id]) return wrt_fail(WRT_ERR_CORRUPT, "missing section %s", sec_name(id));
+    /* The first-bounce operator: all four sections or none. */
+    int nk = 0;
+    for (uint32_t id = SEC_KKEYS; id <= SEC_KVALS; id++) nk += L->sec[id] != NULL;
+    if (nk != 0 && nk != SEC_KVALS - SEC_KKEYS + 1)
+        for (uint32_t id = SEC_KKEYS; id <= SEC_KVALS; id++)
+            if (!L->sec[id])
+                return wrt_fail(WRT_ERR_CORRUPT, "missing section %s (the first-bounce sections kkeys, "
+                                "kcol_start, krows and kvals come all four or none)", sec_name(id));
     return WRT_OK;
 }
 
@@ -635,6 +786,20 @@ static wrt_status check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g
     if (S[SEC_VALS]->count != S[SEC_ROWS]->count)
         return wrt_fail(WRT_ERR_CORRUPT, "section vals: %" PRIu64 " entries, rows has %" PRIu64,
                         S[SEC_VALS]->count, S[SEC_ROWS]->count);
+    if (S[SEC_KKEYS]) { /* then all four (parse_layout) */
+        if (S[SEC_KKEYS]->count == 0)
+            return wrt_fail(WRT_ERR_CORRUPT, "section kkeys: 0 columns (the first-bounce sections "
+                            "are written only with a first-bounce operator)");
+        if (S[SEC_KKEYS]->count > UINT32_MAX - 1)
+            return wrt_fail(WRT_ERR_CORRUPT, "section kkeys: %" PRIu64 " elements, too many",
+                            S[SEC_KKEYS]->count);
+        if (S[SEC_KCOL_START]->count != S[SEC_KKEYS]->count + 1)
+            return wrt_fail(WRT_ERR_CORRUPT, "section kcol_start: %" PRIu64 " entries, expected %" PRIu64
+                            " (K's columns + 1)", S[SEC_KCOL_START]->count, S[SEC_KKEYS]->count + 1);
+        if (S[SEC_KVALS]->count != S[SEC_KROWS]->count)
+            return wrt_fail(WRT_ERR_CORRUPT, "section kvals: %" PRIu64 " entries, krows has %" PRIu64,
+                            S[SEC_KVALS]->count, S[SEC_KROWS]->count);
+    }
     /* Every byte outside the sections is header, table or zero padding. */
     uint64_t prev_end = L->h.header_size;
     for (uint32_t i = 0; i < L->h.nsections; i++) {
@@ -667,6 +832,14 @@ static wrt_status check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g
     g->stats = SECPTR(SEC_STATS);
     g->provenance = SECPTR(SEC_PROVENANCE);
     g->provenance_len = (size_t)S[SEC_PROVENANCE]->size;
+    if (S[SEC_KKEYS]) {
+        g->nkcols = (uint32_t)S[SEC_KKEYS]->count;
+        g->knnz = S[SEC_KROWS]->count;
+        g->kkeys = SECPTR(SEC_KKEYS);
+        g->kcol_start = SECPTR(SEC_KCOL_START);
+        g->krows = SECPTR(SEC_KROWS);
+        g->kvals = SECPTR(SEC_KVALS);
+    }
 #undef SECPTR
     return WRT_OK;
 }
@@ -980,6 +1153,17 @@ wrt_status wrt_gto_write_pending(const char *path, const wrt_gto_contents *c, wr
                         path, nnz);
     if (c->op_kind > WRT_GTO_OP_GATHERED)
         return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: unknown operator kind %u", path, c->op_kind);
+    /* The first-bounce operator K: written only when it has columns. */
+    uint32_t nk = c->nkcols;
+    if (nk && (!c->kkeys || !c->kcol_start))
+        return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: K has %u columns but no kkeys or kcol_start",
+                        path, nk);
+    if (nk == UINT32_MAX)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: kkeys: %u columns, too many", path, nk);
+    uint64_t knnz = nk ? c->kcol_start[nk] : 0;
+    if (knnz && (!c->krows || !c->kvals))
+        return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: K has %" PRIu64 " entries but no krows or kvals",
+                        path, knnz);
     uint32_t nq = (uint32_t)sc->nquads;
 
     /* The records. */
@@ -1057,35 +1241,43 @@ wrt_status wrt_gto_write_pending(const char *path, const wrt_gto_contents *c, wr
         {SEC_CAMERA, 1, &cam}, {SEC_NAMES, nn, names}, {SEC_FKEYS, nf, c->fkeys},
         {SEC_COL_START, (uint64_t)nf + 1, col_start}, {SEC_ROWS, nnz, c->rows},
         {SEC_VALS, nnz, c->vals}, {SEC_STATS, 1, &stats}, {SEC_PROVENANCE, strlen(prov), prov},
+        {SEC_KKEYS, nk, c->kkeys}, {SEC_KCOL_START, (uint64_t)nk + 1, c->kcol_start},
+        {SEC_KROWS, knnz, c->krows}, {SEC_KVALS, knnz, c->kvals},
     };
+    /* Without K the file is version 1.0 with its 11 sections, byte for byte as before
+     * K existed: the minor is the lowest that has everything the file holds. */
+    const int nsec = nk ? SEC_KNOWN : SEC_REQUIRED;
 
     static const uint64_t nothing = 0;
-    for (int i = 0; i < SEC_KNOWN; i++)
+    for (int i = 0; i < nsec; i++)
         if (!secs[i].data) secs[i].data = &nothing; /* only for empty sections */
 
     /* Header, table, and the checks the reader will make, on our own input. */
     alignas(8) uint8_t head[sizeof(gto_header) + sizeof(gto_section) * SEC_KNOWN];
+    const uint32_t hsize = (uint32_t)(sizeof(gto_header) + sizeof(gto_section) * (size_t)nsec);
     memset(head, 0, sizeof head);
     gto_header *h = (gto_header *)head;
     gto_section *tab = (gto_section *)(head + sizeof(gto_header));
     memcpy(h->magic, GTO_MAGIC, GTO_MAGIC_LEN);
     h->byte_order = GTO_BOM;
     h->version_major = WRT_GTO_VERSION;
-    h->version_minor = WRT_GTO_VERSION_MINOR;
-    h->nsections = SEC_KNOWN;
-    h->header_size = (uint32_t)sizeof head;
+    h->version_minor = nk ? GTO_MINOR_K : 0;
+    h->nsections = (uint32_t)nsec;
+    h->header_size = hsize;
     h->op_kind = c->op_kind;
 
     wrt_gto view;
     memset(&view, 0, sizeof view);
     view.nquads = nq; view.nmaterials = nm; view.nlights = nl; view.nnames = nn; view.nfuncs = nf;
-    view.nnz = nnz; view.quads = quads; view.fkeys = c->fkeys; view.col_start = col_start;
+    view.nnz = nnz; view.quads = quads; view.materials = mats; view.fkeys = c->fkeys;
+    view.col_start = col_start;
+    view.nkcols = nk; view.knnz = knnz; view.kkeys = c->kkeys; view.kcol_start = c->kcol_start;
     vctx v;
     memset(&v, 0, sizeof v);
     v.g = &view;
-    uint64_t off = sizeof head;
+    uint64_t off = hsize;
     wrt_status st = WRT_OK;
-    for (int i = 0; i < SEC_KNOWN && st == WRT_OK; i++) {
+    for (int i = 0; i < nsec && st == WRT_OK; i++) {
         uint32_t es = sec_info[secs[i].id].elem_size;
         tab[i].id = secs[i].id;
         tab[i].elem_size = es;
@@ -1103,7 +1295,7 @@ wrt_status wrt_gto_write_pending(const char *path, const wrt_gto_contents *c, wr
         if (v.bad) st = wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: quads: %s", path, v.err);
     }
     h->file_size = off;
-    h->header_checksum = wrt_gto_checksum(head, sizeof head);
+    h->header_checksum = wrt_gto_checksum(head, hsize);
 
     /* The temporary: unnamed where the file system allows (O_TMPFILE: nothing is left
      * behind whatever kills us), else named PATH.tmp.PID.XXXXXX and armed for the
@@ -1117,9 +1309,9 @@ wrt_status wrt_gto_write_pending(const char *path, const wrt_gto_contents *c, wr
         mode_t um = umask(0);
         umask(um);
         static const uint8_t zeros[GTO_ALIGN];
-        int bad = fchmod(p->fd, 0666 & ~um) != 0 || write_all(p->fd, head, sizeof head) != 0;
-        uint64_t at = sizeof head;
-        for (int i = 0; i < SEC_KNOWN && !bad; i++) {
+        int bad = fchmod(p->fd, 0666 & ~um) != 0 || write_all(p->fd, head, hsize) != 0;
+        uint64_t at = hsize;
+        for (int i = 0; i < nsec && !bad; i++) {
             bad = write_all(p->fd, zeros, tab[i].offset - at) != 0 ||
                   write_all(p->fd, secs[i].data, tab[i].size) != 0;
             at = tab[i].offset + tab[i].size;
@@ -1408,6 +1600,21 @@ wrt_status wrt_gto_print_info(const char *path, int json, FILE *f) {
     }
     double density = g.nfuncs ? (double)g.nnz / ((double)g.nfuncs * g.nfuncs) : 0;
     const wrt_gto_stats *S = g.stats;
+    /* Figures of the first-bounce operator K, if any. */
+    uint32_t k_quads = 0, k_max_sl = 0, k_max_al = 0, k_max_col = 0;
+    uint64_t k_bytes = 0;
+    if (ok && g.nkcols) {
+        for (uint32_t j = 0; j < g.nkcols; j++) {
+            if (j == 0 || wrt_fkey_quad(g.kkeys[j]) != wrt_fkey_quad(g.kkeys[j - 1])) k_quads++;
+            uint32_t sl = wrt_fkey_snode(g.kkeys[j]).level, al = wrt_fkey_anode(g.kkeys[j]).level;
+            if (sl > k_max_sl) k_max_sl = sl;
+            if (al > k_max_al) k_max_al = al;
+            uint64_t n = g.kcol_start[j + 1] - g.kcol_start[j];
+            if (n > k_max_col) k_max_col = (uint32_t)n;
+        }
+        k_bytes = L.sec[SEC_KKEYS]->size + L.sec[SEC_KCOL_START]->size + L.sec[SEC_KROWS]->size +
+                  L.sec[SEC_KVALS]->size;
+    }
 
     if (json) {
         fputs("{\"file\": ", f);
@@ -1431,14 +1638,22 @@ wrt_status wrt_gto_print_info(const char *path, int json, FILE *f) {
         }
         if (ok) {
             fprintf(f, ", \"counts\": {\"quads\": %u, \"materials\": %u, \"lights\": %u, \"names\": %u, "
-                    "\"functions\": %u, \"entries\": %" PRIu64 "}", g.nquads, g.nmaterials, g.nlights,
-                    g.nnames, g.nfuncs, g.nnz);
+                    "\"functions\": %u, \"entries\": %" PRIu64 ", \"k_columns\": %u, \"k_entries\": %" PRIu64 "}",
+                    g.nquads, g.nmaterials, g.nlights, g.nnames, g.nfuncs, g.nnz, g.nkcols, g.knnz);
             fprintf(f, ", \"operator\": {\"bytes\": %" PRIu64 ", \"density\": %.6g, "
                     "\"mean_entries_per_column\": %.3f, \"max_entries_per_column\": %u, "
                     "\"max_functions_per_quad\": %u, \"angular_functions\": %" PRIu64 ", "
                     "\"max_spatial_level\": %u, \"max_angular_level\": %u}",
                     op_bytes, density, g.nfuncs ? (double)g.nnz / g.nfuncs : 0.0, max_col, max_fpq,
                     nangular, max_sl, max_al);
+            if (g.nkcols)
+                fprintf(f, ", \"first_bounce\": {\"columns\": %u, \"entries\": %" PRIu64 ", \"bytes\": %" PRIu64
+                        ", \"glossy_quads\": %u, \"mean_entries_per_column\": %.3f, \"max_entries_per_column\": %u, "
+                        "\"max_spatial_level\": %u, \"max_angular_node_level\": %u}",
+                        g.nkcols, g.knnz, k_bytes, k_quads, (double)g.knnz / g.nkcols, k_max_col, k_max_sl,
+                        k_max_al);
+            else
+                fputs(", \"first_bounce\": null", f);
             fprintf(f, ", \"stats\": {\"t_dto\": %.6g, \"t_gto\": %.6g, \"t_write\": %.6g, \"t_total\": %.6g, "
                     "\"links_dto\": %" PRIu64 ", \"links_gto\": %" PRIu64 ", \"links_gathered\": %" PRIu64 ", "
                     "\"entries_dto\": %" PRIu64 ", \"entries_op\": %" PRIu64 ", \"rays_traced\": %" PRIu64 ", "
@@ -1478,6 +1693,13 @@ wrt_status wrt_gto_print_info(const char *path, int json, FILE *f) {
             fprintf(f, "            entries per column: mean %.1f, max %u; functions per quad: max %u; "
                     "deepest level: spatial %u, angular %u\n",
                     g.nfuncs ? (double)g.nnz / g.nfuncs : 0.0, max_col, max_fpq, max_sl, max_al);
+            if (g.nkcols)
+                fprintf(f, "first bounce: K, %u columns on %u glossy quad%s, %" PRIu64 " entries, %s; entries "
+                        "per column: mean %.1f, max %u; deepest level: spatial %u, angular node %u\n",
+                        g.nkcols, k_quads, k_quads == 1 ? "" : "s", g.knnz, human_bytes(k_bytes, hb),
+                        (double)g.knnz / g.nkcols, k_max_col, k_max_sl, k_max_al);
+            else
+                fprintf(f, "first bounce: none (no K sections)\n");
             /* only the times the bake recorded (none with --reproducible) */
             if (S->t_dto > 0 || S->t_gto > 0) {
                 fprintf(f, "bake:       DTO %.2f s, GTO %.2f s", S->t_dto, S->t_gto);

@@ -27,7 +27,9 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
  *      WRT_ERR_UNSUPPORTED for it (or add a converter); a minor bump must still open it.
  *   5. Regenerate the golden file of the new version (test_gto --regen) and commit it. */
 #define WRT_GTO_VERSION 1
-#define WRT_GTO_VERSION_MINOR 0
+#define WRT_GTO_VERSION_MINOR 1 /* 1.1: the optional first-bounce operator K (sections 12-15).
+                                 * The writer puts 1 only in files that hold K; a file
+                                 * without K is written as 1.0, byte for byte as before. */
 
 /* On-disk records (all little-endian, naturally aligned, sizes fixed). */
 typedef struct wrt_gto_quad {
@@ -116,7 +118,8 @@ typedef struct wrt_gto {
 } wrt_gto;
 
 /* Maps and validates `path`: magic, version, byte order, every section's offset and
- * size against the file length, checksums, and the operator's index ranges.
+ * size against the file length, checksums, and the index ranges of the operator and of
+ * the first-bounce operator K (if present).
  * Errors: WRT_ERR_IO (cannot open), WRT_ERR_NOT_OURS (foreign), WRT_ERR_CORRUPT
  * (truncated, bad offsets, checksum), WRT_ERR_UNSUPPORTED (newer version). */
 /* Reads each byte once (the checksum pass, with the index checks on the data while it
@@ -149,6 +152,13 @@ typedef struct wrt_gto_contents {
     const uint8_t *material_alevel; /* per material, may be NULL */
     wrt_gto_stats stats;
     const char *provenance;          /* JSON text */
+    /* The first-bounce operator K, compressed columns as the operator (nkcols 0: none;
+     * no K sections are written and the file is version 1.0, as before K existed). */
+    uint32_t nkcols;
+    const uint64_t *kkeys;           /* nkcols, strictly ascending wrt_fkey of glossy quads */
+    const uint64_t *kcol_start;      /* nkcols + 1, from 0; kcol_start[nkcols] = knnz */
+    const uint32_t *krows;           /* knnz fkeys indices, ascending within a column */
+    const float *kvals;              /* knnz, finite */
 } wrt_gto_contents;
 
 /* Writes atomically: a temporary (see wrt_gto_write_pending), fsync, rename over
@@ -156,7 +166,10 @@ typedef struct wrt_gto_contents {
  * On any failure the temporary is removed and `path` is untouched. Checks the
  * contents first as the reader would (WRT_ERR_INVALID_ARG naming what is wrong): fkeys
  * strictly ascending with quads < nquads, col_start monotone from 0, rows < nfuncs and
- * ascending within a column, vals finite, material and name indices in range.
+ * ascending within a column, vals finite, material and name indices in range; with K
+ * (nkcols > 0) also K's checks (GTO_FORMAT.md): kkeys strictly ascending on glossy
+ * quads, kcol_start monotone from 0, krows < nfuncs, ascending
+ * within a column and on another quad than the column's, kvals finite.
  * `c->provenance` may be NULL (empty). Same contents give the same bytes. */
 wrt_status wrt_gto_write(const char *path, const wrt_gto_contents *c);
 

@@ -211,6 +211,51 @@ uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys) {
     return links;
 }
 
+/* K's column keys (the outgoing functions its entries use, sorted) and its matrix, from
+ * the K pairs' entries (value in channel 0; rows already in res->fkeys). */
+typedef struct k_trip { uint64_t col; uint32_t row; float v; } k_trip;
+static int cmp_kt(const void *pa, const void *pb) {
+    const k_trip *a = pa, *b = pb;
+    if (a->col != b->col) return a->col < b->col ? -1 : 1;
+    return a->row < b->row ? -1 : a->row > b->row;
+}
+static void k_assemble(wrt_bake_result *res, const pair_out *out, size_t n, uint64_t nent) {
+    k_trip *t = wrt_xmalloc(nent * sizeof *t);
+    uint64_t m = 0;
+    for (size_t i = 0; i < n; i++)
+        for (size_t k = 0; k < out[i].count; k++) {
+            const pair_entry *e = &out[i].e[k];
+            t[m++] = (k_trip){e->s, (uint32_t)wrt_fkey_find(res->fkeys, res->nfuncs, e->r), e->v[0]};
+        }
+    qsort(t, m, sizeof *t, cmp_kt);
+    /* merge repeats (none are expected: a pair's links are unique and pairs differ) */
+    uint64_t u = 0, ncols = 0;
+    for (uint64_t i = 0; i < m; i++) {
+        if (u && t[u - 1].col == t[i].col && t[u - 1].row == t[i].row) { t[u - 1].v += t[i].v; continue; }
+        ncols += !u || t[u - 1].col != t[i].col;
+        t[u++] = t[i];
+    }
+    res->nkcols = (uint32_t)ncols;
+    res->knnz = u;
+    res->kkeys = wrt_xmalloc((ncols ? ncols : 1) * sizeof *res->kkeys);
+    res->kcol_start = wrt_xmalloc((ncols + 1) * sizeof *res->kcol_start);
+    res->krows = wrt_xmalloc((u ? u : 1) * sizeof *res->krows);
+    res->kvals = wrt_xmalloc((u ? u : 1) * sizeof *res->kvals);
+    uint64_t c = 0;
+    for (uint64_t i = 0; i < u; i++) {
+        if (i == 0 || t[i - 1].col != t[i].col) {
+            res->kkeys[c] = t[i].col;
+            res->kcol_start[c++] = i;
+        }
+        res->krows[i] = t[i].row;
+        res->kvals[i] = t[i].v;
+    }
+    res->kcol_start[c] = u;
+    res->c.entries_k = u;
+    res->c.nkcols = (uint32_t)ncols;
+    free(t);
+}
+
 static void material_rho(const wrt_material *m, double rho[3]) {
     for (int c = 0; c < 3; c++) {
         double base = m->base_color[c];
@@ -262,7 +307,29 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         int l = wrt_brdf_angular_level(&scene->materials[m]);
         b.alevel[m] = (uint8_t)(l > b.opt.max_alevel ? b.opt.max_alevel : l);
     }
+    /* The first-bounce operator K's outgoing level: the material's angular need (its lobe's
+     * width, brdf.h), at most 3, whatever max_alevel caps the incident functions at */
+    b.klevel = wrt_xcalloc((size_t)(scene->nmaterials ? scene->nmaterials : 1), 1);
+    for (int m = 0; m < scene->nmaterials && b.opt.first_bounce_level >= 0; m++) {
+        int l = wrt_brdf_angular_level(&scene->materials[m]);
+        if (b.opt.first_bounce_level > 0 && l > 0) l = b.opt.first_bounce_level;
+        b.klevel[m] = (uint8_t)(l > WRT_K_MAX_LEVEL ? WRT_K_MAX_LEVEL : l);
+    }
     bake_btilde_build(&b);
+    /* K's entries are used once (not multiplied again by the series), so they are dropped
+     * at emission under the series' own threshold, weighted by what the column's
+     * coefficient can be at most: the largest |btilde_g| of its material over all light
+     * directions (the albedo for the root) */
+    b.kbmax = wrt_xcalloc((size_t)(scene->nmaterials ? scene->nmaterials : 1), sizeof *b.kbmax);
+    b.k_floor = b.opt.eps_compress;
+    for (int m = 0; m < scene->nmaterials; m++) {
+        if (!b.klevel[m] || !b.btilde[m]) continue;
+        int ng = 1 << (2 * b.klevel[m]);
+        for (size_t cell = 0; cell < (size_t)WRT_BRDF_TABLE_RES * WRT_BRDF_TABLE_RES; cell++)
+            for (int g = 0; g < ng; g++)
+                for (int ch = 0; ch < 3; ch++)
+                    b.kbmax[m][g] = fmax(b.kbmax[m][g], fabs(b.btilde[m][(cell * WRT_BRDF_TABLE_NANG + g) * 3 + ch]));
+    }
 
     /* Embree (common/rt_scene.h: its ray offset is the bake's too) */
     wrt_v3 *corners = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * 4 * sizeof *corners);
@@ -277,9 +344,11 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     b.ray_eps = rs.eps;
 
     /* pairs */
-    size_t cap = 64, np = 0;
+    size_t cap = 64, np = 0, kcap = 16, nkp = 0;
     int *pr = wrt_xmalloc(cap * sizeof *pr), *ps = wrt_xmalloc(cap * sizeof *ps);
     uint8_t *occl = wrt_xmalloc(cap);
+    int *kpr = wrt_xmalloc(kcap * sizeof *kpr), *kps = wrt_xmalloc(kcap * sizeof *kps);
+    uint8_t *kocc = wrt_xmalloc(kcap);
     for (int r = 0; r < b.nq; r++) {
         for (int s = 0; s < b.nq; s++) {
             if (r == s) continue;
@@ -295,6 +364,14 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             }
             C->pairs_exchange++;
             C->pairs_unoccluded += !oc;
+            if (b.klevel[scene->quads[s].material]) { /* the first-bounce operator K from s to r */
+                if (nkp + 1 >= kcap) {
+                    kcap *= 2;
+                    kpr = wrt_xrealloc(kpr, kcap * sizeof *kpr); kps = wrt_xrealloc(kps, kcap * sizeof *kps);
+                    kocc = wrt_xrealloc(kocc, kcap);
+                }
+                kpr[nkp] = r; kps[nkp] = s; kocc[nkp] = (uint8_t)(oc | 4); nkp++;
+            }
             /* A diffuse-diffuse pair is computed once, for r < s, and both directions are
              * emitted from the same links (reciprocity, see dto.c) */
             int sym = !b.alevel[scene->quads[r].material] && !b.alevel[scene->quads[s].material];
@@ -302,6 +379,17 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             pr[np] = r; ps[np] = s; occl[np] = (uint8_t)(oc | (sym ? 2 : 0)); np++;
         }
     }
+
+    /* K's pairs after T's: the power balance reads T's pairs only (the first npt) */
+    size_t npt = np;
+    if (np + nkp + 1 > cap) {
+        cap = np + nkp + 1;
+        pr = wrt_xrealloc(pr, cap * sizeof *pr); ps = wrt_xrealloc(ps, cap * sizeof *ps);
+        occl = wrt_xrealloc(occl, cap);
+    }
+    memcpy(pr + np, kpr, nkp * sizeof *pr); memcpy(ps + np, kps, nkp * sizeof *ps); memcpy(occl + np, kocc, nkp);
+    np += nkp;
+    free(kpr); free(kps); free(kocc);
 
     /* DTO, pair by pair, in parallel; pairs in order of decreasing expected cost
      * would balance better, but the order does not change the result */
@@ -371,8 +459,13 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     if (st == WRT_OK && atomic_load(&cancel)) st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
 
     /* index the basis functions: every key used, plus each quad's root */
-    uint64_t nent = 0;
+    uint64_t nent = 0, nkent = 0;
     for (size_t i = 0; i < np; i++) {
+        if (job.out[i].kmode) {
+            nkent += job.out[i].count;
+            C->links_k += job.out[i].links;
+            continue;
+        }
         nent += job.out[i].count;
         C->links_dto += job.out[i].links;
         C->entries_angular += job.out[i].angular;
@@ -380,13 +473,14 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         else C->links_dto_diffuse += job.out[i].links;
     }
     if (st == WRT_OK) {
-        uint64_t *keys = wrt_xmalloc((2 * nent + (size_t)b.nq + 1) * sizeof *keys);
+        /* K's rows are basis functions too (a receiver cell finer than T's links reach) */
+        uint64_t *keys = wrt_xmalloc((2 * nent + nkent + (size_t)b.nq + 1) * sizeof *keys);
         uint64_t nk = 0;
         for (int q = 0; q < b.nq; q++) keys[nk++] = wrt_fkey_make((uint32_t)q, wrt_node_root(), 0, wrt_node_root(), 0);
         for (size_t i = 0; i < np; i++)
             for (size_t k = 0; k < job.out[i].count; k++) {
                 keys[nk++] = job.out[i].e[k].r;
-                keys[nk++] = job.out[i].e[k].s;
+                if (!job.out[i].kmode) keys[nk++] = job.out[i].e[k].s;
             }
         wrt_sort_u64(keys, nk);
         uint64_t nu = 0;
@@ -400,7 +494,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             res->fkeys = keys;
             wrt_triplet *tr = wrt_xmalloc((nent ? nent : 1) * sizeof *tr);
             uint64_t t = 0;
-            for (size_t i = 0; i < np; i++)
+            for (size_t i = 0; i < npt; i++)
                 for (size_t k = 0; k < job.out[i].count; k++) {
                     const pair_entry *e = &job.out[i].e[k];
                     tr[t].row = (uint32_t)wrt_fkey_find(keys, res->nfuncs, e->r);
@@ -412,7 +506,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
                 if (b.opt.progress) b.opt.progress("balance", -1, b.opt.progress_user); /* no fraction known */
                 double tb = wrt_now();
                 uint64_t tcap = nent ? nent : 1, t0n = t;
-                C->closed = wrt_balance_run(&b, np, pr, ps, job.out, keys, res->nfuncs, &tr, &t, &tcap);
+                C->closed = wrt_balance_run(&b, npt, pr, ps, job.out, keys, res->nfuncs, &tr, &t, &tcap);
                 C->balance_entries = t - t0n;
                 C->t_balance = wrt_now() - tb;
             }
@@ -427,6 +521,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             C->entries_spatial = res->dto.nnz - C->entries_angular;
             C->nfuncs = res->nfuncs;
             for (uint32_t f = 0; f < res->nfuncs; f++) C->nfuncs_angular += !wrt_fkey_angular_root(res->fkeys[f]);
+            if (nkent) k_assemble(res, job.out + npt, np - npt, nkent);
         }
     }
     for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].leaf); }
@@ -440,7 +535,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     }
     rtcReleaseScene(b.rtc);
     rtcReleaseDevice(b.dev);
-    free(b.quads); free(b.rho);
+    free(b.quads); free(b.rho); free(b.klevel); free(b.kbmax);
     for (int m = 0; m < scene->nmaterials; m++) free(b.btilde[m]);
     free(b.btilde);
     if (st != WRT_OK) {
@@ -457,5 +552,6 @@ void wrt_bake_result_free(wrt_bake_result *res) {
     wrt_csc_free(&res->dto);
     wrt_csc_free(&res->op);
     free(res->material_alevel);
+    free(res->kkeys); free(res->kcol_start); free(res->krows); free(res->kvals);
     memset(res, 0, sizeof *res);
 }

@@ -38,6 +38,10 @@ typedef struct wrt_bake_options {
     int no_tail;           /* 1: do not add the geometric estimate of the series' tail */
     int no_balance;        /* 1: keep T's root rows as the links integrate them (no power balance) */
     double max_memory_mb;  /* memory budget; default half the physical memory (wrt_bake_memory_default) */
+    int first_bounce_level; /* outgoing angular level of the first-bounce operator K of glossy
+                             * materials (1..3; dto.c); 0: default (the material's angular
+                             * need, at most 3); -1: no K (the direct light reflected by a glossy
+                             * quad enters the operator through its incident angular cells) */
     wrt_progress_fn progress;
     void *progress_user;
 } wrt_bake_options;
@@ -76,6 +80,8 @@ typedef struct wrt_bake_counters {
     double t_balance;
     double t_rays;                 /* thread-seconds spent in visibility rays */
     double mem_estimate_mb;        /* the largest memory need the bake estimated before allocating */
+    uint64_t entries_k, links_k;   /* the first-bounce operator K: entries and links */
+    uint32_t nkcols;               /* its columns (outgoing functions of glossy quads) */
 } wrt_bake_counters;
 
 typedef struct wrt_bake_result {
@@ -85,6 +91,12 @@ typedef struct wrt_bake_result {
     wrt_csc op;            /* what is stored: G - I, or T G if gathered */
     int op_kind;           /* WRT_GTO_OP_* */
     uint8_t *material_alevel;
+    /* The first-bounce operator K (dto.c; nkcols 0: none): rows index fkeys, columns kkeys
+     * (sorted outgoing functions of glossy quads), one value per entry. */
+    uint32_t nkcols;
+    uint64_t *kkeys, *kcol_start, knnz;
+    uint32_t *krows;
+    float *kvals;
     wrt_bake_counters c;
 } wrt_bake_result;
 

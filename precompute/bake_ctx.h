@@ -25,6 +25,9 @@ typedef struct bake_ctx {
     double plane_eps;       /* "in front of a plane" tolerance */
     double entry_floor;     /* entries below this are dropped at emission */
     uint8_t *alevel;        /* angular level per material (0: Lambertian) */
+    uint8_t *klevel;        /* outgoing angular level of the first-bounce operator K per material (0: none) */
+    double (*kbmax)[1 << (2 * WRT_K_MAX_LEVEL)];    /* per material: max over directions and channels of |btilde_g| (K's emission) */
+    double k_floor;         /* K's entries with |K| sqrt(A_S/A_R) kbmax_g below this are dropped */
     float **btilde;         /* per glossy material: common/brdf_table.h's table, or NULL */
     atomic_int *cancel;
     /* Memory of the pairs' link tables in flight (dto.c): a table's growth is refused

@@ -34,7 +34,17 @@
  * receiver sample to the centre of each sender quadrant, so the oracle also refines in
  * space until a sender cell covers at most one receiver angular cell (projected solid
  * angle pi 4^-L) and a receiver cell at most one sender angular cell. Diffuse-diffuse
- * links keep one channel and no angular function at all. */
+ * links keep one channel and no angular function at all.
+ *
+ * The first-bounce operator K (flags bit 2, for a glossy sender S): the same links and
+ * integral with btilde_{g_s}(y->x) replaced by the value of the sender's OUTGOING angular
+ * Haar function g_s(M_S^-1(y->x)) at the level bake_ctx.klevel gives S's material, one
+ * channel, no albedo:
+ *   K[r][s] = int int h_r h_s g_r(x<-y) g_s(y->x) V cos cos / (pi d^2) sqrt(J_R J_S)
+ * The player projects the direct light reflected by S onto S's outgoing functions with the
+ * BRDF at the light's exact direction (c_s, RGB), and K c is then the first bounce of that
+ * light, T E_S, without truncating the light's direction to an incident angular cell
+ * (formats/GTO_FORMAT.md, "First-bounce operator"). */
 #include <math.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -83,6 +93,7 @@ typedef struct pair_ctx {
     int r, s;
     int occluded;            /* some quad may lie between R and S */
     int sym;                 /* diffuse pair: links serve both directions (reciprocity) */
+    int kmode;               /* the first-bounce operator K: sender's outgoing functions, no albedo */
     double rho_max;
     int lr, ls;              /* angular levels of receiver and sender (0: diffuse) */
     int nar, nas, nang, nch; /* angular functions per side, their product, channels */
@@ -320,7 +331,7 @@ static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_sa
     double scale = ldexp(1.0, (int)sn.level - (int)rn.level) / ns;
     size_t bi = get_block(pc, rn, sn);
     block *bl = &pc->blocks[bi];
-    if (pc->nch == 1) {
+    if (pc->nch == 1 && !pc->kmode) {
         /* c[i][j] = 2^ls 2^-lr / N sum_k sign_i(qr_k) sqrt(J_R) sum_q sign_j(q) G_kq; with
          * `swapped` the samples were taken on S and the closed form on R: the kernel is
          * symmetric, so the block is the transpose, with the levels exchanged */
@@ -340,8 +351,8 @@ static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_sa
         return;
     }
     const double *srho = b->rho[pc->s];
-    int ridx[1 + 3 * WRT_MAX_ALEVEL];
-    double rval[1 + 3 * WRT_MAX_ALEVEL];
+    int ridx[1 + 3 * WRT_MAX_ALEVEL], sidx[1 + 3 * WRT_K_MAX_LEVEL];
+    double rval[1 + 3 * WRT_MAX_ALEVEL], sval[1 + 3 * WRT_K_MAX_LEVEL];
     double beta[64 * 3];
     for (int k = 0; k < ns; k++) {
         int q = ls->qr[k];
@@ -356,6 +367,26 @@ static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_sa
                 if (loc[2] < 0) loc[2] = 0;
                 wrt_concentric_inv(loc, &a, &bb);
                 nr = angular_values(pc->lr, a, bb, ridx, rval);
+            }
+            if (pc->kmode) {
+                /* K: the sender's outgoing Haar functions at y -> x, one channel */
+                wrt_v3 w = v3_scale(d, -1);
+                double loc[3] = {v3_dot(w, S->t), v3_dot(w, S->b), v3_dot(w, S->n)}, a, bb;
+                if (loc[2] < 0) loc[2] = 0;
+                wrt_concentric_inv(loc, &a, &bb);
+                int nsv = angular_values(pc->ls, a, bb, sidx, sval);
+                for (int i = 0; i < 4; i++) {
+                    double si = wrt_haar_sign(i, q & 1, q >> 1) * ls->jr[k] * scale;
+                    for (int j = 0; j < 4; j++) {
+                        double wij = si * wrt_haar_sign(j, t & 1, t >> 1) * g;
+                        for (int ia = 0; ia < nr; ia++) {
+                            double wa = wij * rval[ia];
+                            double *dst = &BV(pc, bl, i, j, ridx[ia] * pc->nas, 0);
+                            for (int is = 0; is < nsv; is++) dst[sidx[is]] += wa * sval[is];
+                        }
+                    }
+                }
+                continue;
             }
             if (pc->ls) {
                 wrt_v3 w = v3_scale(d, -1);
@@ -522,12 +553,13 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
     pc.rho_max = fmax(rho[0], fmax(rho[1], rho[2]));
     if (sym) pc.rho_max = fmax(pc.rho_max, fmax(rho_r[0], fmax(rho_r[1], rho_r[2])));
     pc.sym = sym;
+    pc.kmode = (flags & 4) != 0;
     pc.lr = b->alevel[b->scene->quads[r].material];
-    pc.ls = b->alevel[b->scene->quads[s].material];
+    pc.ls = pc.kmode ? b->klevel[b->scene->quads[s].material] : b->alevel[b->scene->quads[s].material];
     pc.nar = 1 << (2 * pc.lr);
     pc.nas = 1 << (2 * pc.ls);
     pc.nang = pc.nar * pc.nas;
-    pc.nch = (pc.lr || pc.ls) ? 3 : 1;
+    pc.nch = pc.kmode ? 1 : (pc.lr || pc.ls) ? 3 : 1;
     pc.bsize = 16 * (size_t)pc.nang * pc.nch;
     memset(out, 0, sizeof *out);
     if (pc.rho_max <= 0 && !pc.ls) return;
@@ -546,8 +578,9 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
     push_up(&pc, 1);
     size_t cap = 0;
     double wfloor = sqrt(b->quads[s].area / b->quads[r].area); /* series.c's weighting */
-    wrt_node an[64];
-    int at[64];
+    wrt_node an[1 << (2 * WRT_K_MAX_LEVEL)];
+    int at[1 << (2 * WRT_K_MAX_LEVEL)];
+    const double *kbmax = b->kbmax[b->scene->quads[s].material];
     for (int a = 0; a < pc.nar || a < pc.nas; a++) wrt_angular_func(a, &an[a], &at[a]);
     for (size_t i = 0; i < pc.nblocks; i++) {
         const block *bl = &pc.blocks[i];
@@ -560,7 +593,11 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
                     for (int is = 0; is < pc.nas; is++) {
                         double v[3];
                         int a = ia * pc.nas + is;
-                        if (pc.nch == 1) {
+                        double wk = 1;
+                        if (pc.kmode) {
+                            v[0] = v[1] = v[2] = BV(&pc, bl, ri, sj, a, 0);
+                            wk = kbmax[is];
+                        } else if (pc.nch == 1) {
                             double g = BV(&pc, bl, ri, sj, a, 0);
                             for (int ch = 0; ch < 3; ch++) v[ch] = g * rho[ch];
                         } else {
@@ -571,7 +608,7 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
                             cap = cap ? 2 * cap : 64;
                             out->e = wrt_xrealloc(out->e, cap * sizeof *out->e);
                         }
-                        if (m != 0 && m * wfloor >= b->entry_floor) {
+                        if (m != 0 && (pc.kmode ? m * wfloor * wk >= b->k_floor : m * wfloor >= b->entry_floor)) {
                             pair_entry *e = &out->e[out->count++];
                             e->r = wrt_fkey_make((uint32_t)r, bl->rn, ri, an[ia], at[ia]);
                             e->s = wrt_fkey_make((uint32_t)s, bl->sn, sj, an[is], at[is]);
@@ -599,6 +636,7 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
         out->links += any + anyt;
     }
     out->glossy = pc.lr || pc.ls;
+    out->kmode = pc.kmode;
 done:
     if (b->pool_bytes) atomic_fetch_sub(b->pool_bytes, (unsigned long long)pc.pool_cap * sizeof *pc.pool);
     free(pc.blocks); free(pc.pool); free(pc.hkeys); free(pc.hvals); free(pc.leaf);

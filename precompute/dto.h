@@ -19,12 +19,14 @@ typedef struct pair_out {
     uint64_t links;
     uint64_t angular;      /* entries with an angular wavelet on either side */
     int glossy;            /* the pair touches a glossy quad */
+    int kmode;             /* entries of the first-bounce operator K (columns: s's outgoing functions) */
     int cancelled;
 } pair_out;
 
 /* Refines, integrates and analyses the links from quad s to quad r (dto.c). */
 /* flags: bit 0 an occluder may lie between, bit 1 diffuse pair computed once for both
- * directions (the entries of T[s][r] are emitted too). */
+ * directions (the entries of T[s][r] are emitted too), bit 2 the first-bounce operator K
+ * instead of T (s glossy; one value, copied to the three channels of each entry). */
 void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counters *tc, pair_out *out);
 
 /* The angular function of index idx (common/brdf_table.h's order): node and type. */

@@ -47,6 +47,11 @@ static void usage(FILE *f) {
         "  --glossy-quality G     refine the links that touch a glossy surface with quality\n"
         "                         G's thresholds and depth (1..Q; default Q up to 3, 3 at\n"
         "                         4-5, Q - 2 from 6)\n"
+        "  --first-bounce-level L the direct light a glossy surface reflects enters as its\n"
+        "                         exact lobe, projected on L levels of outgoing directions\n"
+        "                         (the first-bounce operator; 1..3; default the material's\n"
+        "                         need, 3 for roughness 0.3 and below; 0: off, the light's\n"
+        "                         direction is truncated to the incident angular cells)\n"
         "  --gathered             store the gathered GTO (T_fine G) instead of G - I\n"
         "  --report-gathered      compute the gathered GTO's link count without storing it\n"
         "  --no-tail              do not add the estimated tail of the series\n"
@@ -138,7 +143,7 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
         "\"functions\":{\"total\":%u,\"angular\":%u},"
         "\"rays\":{\"traced\":%llu,\"skipped_unoccluded\":%llu,\"skipped_facing\":%llu},\"samples\":%llu,"
         "\"bounces\":%llu,\"energy_left\":%.6g,\"tail_fraction\":%.6g,\"series_ratio\":%.6g,\"balance_entries\":%llu,"
-        "\"closed\":%s",
+        "\"closed\":%s%s",
         (unsigned long long)c->pairs_total, (unsigned long long)c->pairs_exchange,
         (unsigned long long)c->pairs_skipped_facing, (unsigned long long)c->pairs_unoccluded,
         (unsigned long long)c->links_dto, (unsigned long long)c->links_dto_diffuse,
@@ -151,7 +156,11 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
         (unsigned long long)c->rays_traced, (unsigned long long)c->rays_skipped_unoccluded,
         (unsigned long long)c->rays_skipped_facing, (unsigned long long)c->samples,
         (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio,
-        (unsigned long long)c->balance_entries, c->closed ? "true" : "false");
+        (unsigned long long)c->balance_entries, c->closed ? "true" : "false", c->nkcols ? "," : "");
+    /* only where there is one, so that the figures of a bake without glossy quads read as before */
+    if (c->nkcols)
+        fprintf(f, "\"first_bounce\":{\"columns\":%u,\"entries\":%llu,\"links\":%llu}", c->nkcols,
+                (unsigned long long)c->entries_k, (unsigned long long)c->links_k);
 }
 
 static void json_options(FILE *f, const wrt_bake_options *o) {
@@ -201,6 +210,11 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--min-level")) { ok = parse_int(a, v, 0, 10, &o.min_slevel); i++; }
         else if (!strcmp(a, "--max-angular-level")) { ok = parse_int(a, v, 1, 3, &o.max_alevel); i++; }
         else if (!strcmp(a, "--glossy-quality")) { ok = parse_int(a, v, 1, 9, &o.glossy_quality); i++; }
+        else if (!strcmp(a, "--first-bounce-level")) {
+            ok = parse_int(a, v, 0, 4, &o.first_bounce_level);
+            if (ok && o.first_bounce_level == 0) o.first_bounce_level = -1;
+            i++;
+        }
         else if (!strcmp(a, "--max-memory")) { ok = parse_double(a, v, 1, 1e9, &o.max_memory_mb); i++; }
         else if (!strcmp(a, "--max-bounces")) { ok = parse_int(a, v, 1, 1000000, &o.max_bounces); i++; }
         else if (!strcmp(a, "--threads")) { ok = parse_int(a, v, 1, 64, &o.threads); i++; }
@@ -355,6 +369,7 @@ int main(int argc, char **argv) {
         .scene = &s, .fkeys = r.fkeys, .nfuncs = r.nfuncs,
         .col_start = r.op.col, .rows = r.op.row, .vals = r.op.val,
         .op_kind = (uint32_t)r.op_kind, .material_alevel = r.material_alevel, .provenance = prov,
+        .nkcols = r.nkcols, .kkeys = r.kkeys, .kcol_start = r.kcol_start, .krows = r.krows, .kvals = r.kvals,
     };
     gc.stats.links_dto = c->links_dto;
     gc.stats.links_gto = c->links_gto;
@@ -465,6 +480,9 @@ int main(int argc, char **argv) {
         printf("  entries   dto %llu (spatial %llu, angular %llu), stored %llu; functions %u (angular %u)\n",
                (unsigned long long)c->entries_dto, (unsigned long long)c->entries_spatial,
                (unsigned long long)c->entries_angular, (unsigned long long)r.op.nnz, c->nfuncs, c->nfuncs_angular);
+        if (c->nkcols)
+            printf("  first bounce  %u outgoing functions of glossy quads, %llu entries, %llu links\n", c->nkcols,
+                   (unsigned long long)c->entries_k, (unsigned long long)c->links_k);
         printf("  rays      traced %llu, skipped %llu (no occluder) + %llu (facing)\n",
                (unsigned long long)c->rays_traced, (unsigned long long)c->rays_skipped_unoccluded,
                (unsigned long long)c->rays_skipped_facing);

@@ -7,6 +7,7 @@
 
 #include "common/basis.h"
 #include "common/brdf.h"
+#include "common/brdf_table.h"
 #include "ff_closed.h"
 #include "precompute/bake.h"
 #include "bake_helpers.h"
@@ -722,6 +723,137 @@ static void test_glossy_sender_point_light(void) {
     tsb_free(&s);
 }
 
+/* The first-bounce operator K (dto.c): the same wall and point light as above, but the
+ * wall's reflected light projected on its OUTGOING angular functions with the BRDF at the
+ * light's exact direction (c), and the floor's irradiance Y = K c against the same brute
+ * force. btilde_g(w_l) = pi int f_r(w_l, M(a, b)) g(a, b) da db is integrated here by a
+ * midpoint rule over the concentric square with wrt_brdf_eval (not the bake's table).
+ * Also K's root entry (angular roots both sides) is the geometric form factor: closed form. */
+static void k_btilde(const wrt_material *m, wrt_v3 n, wrt_v3 t, wrt_v3 b, wrt_v3 wl, int L, double *out) {
+    int N = 4 << L, ng = 1 << (2 * L);
+    for (int g = 0; g < ng; g++) out[g] = 0;
+    for (int i = 0; i < N * N; i++) {
+        double a = (i % N + 0.5) / N, bb = (i / N + 0.5) / N, d[3], f[3];
+        wrt_concentric_dir(a, bb, d);
+        wrt_v3 wo = v3_add(v3_add(v3_scale(t, d[0]), v3_scale(b, d[1])), v3_scale(n, d[2]));
+        wrt_brdf_eval(m, n, wl, wo, f);
+        for (int g = 0; g < ng; g++) {
+            int lv, x, y, ty;
+            wrt_brdf_angular_func(g, &lv, &x, &y, &ty);
+            wrt_node an = {(uint8_t)lv, (uint16_t)x, (uint16_t)y};
+            out[g] += M_PI * f[0] * wrt_haar2(an, ty, a, bb) / ((double)N * N);
+        }
+    }
+}
+
+static void test_first_bounce_operator(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int md = tsb_material(&s, 0.8, 0.8, 0.8);
+    int mg = tsb_material(&s, 0.9, 0.9, 0.9);
+    s.materials[mg].lambertian = 0; s.materials[mg].roughness = 0.35f; s.materials[mg].metallic = 1;
+    tsb_quad(&s, P(0, 0, 0), P(1, 0, 0), P(1, 1, 0), P(0, 1, 0), md);      /* floor, +z */
+    tsb_quad(&s, P(0, 0, 0), P(0, 1, 0), P(0, 1, 1), P(0, 0, 1), mg);      /* glossy wall x = 0, +x */
+    wrt_bake_result r;
+    wrt_bake_options o = opts(5, 1, 5);
+    o.dto_only = 1; /* incident level 1 (the default's), K at the material's level 3 */
+    o.max_alevel = 1;
+    if (getenv("K_LEVEL")) o.first_bounce_level = atoi(getenv("K_LEVEL"));
+    if (getenv("K_Q")) o.quality = o.glossy_quality = atoi(getenv("K_Q")), o.max_slevel = 0;
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    CHECK(r.nkcols > 0 && r.knnz > 0, "a glossy quad gets a first-bounce operator (%u columns, %llu entries)", r.nkcols,
+          (unsigned long long)r.knnz);
+    int kl = 0;
+    for (uint32_t j = 0; j < r.nkcols; j++) {
+        CHECK(wrt_fkey_quad(r.kkeys[j]) == 1, "K's columns are the glossy wall's functions");
+        if (!wrt_fkey_angular_root(r.kkeys[j])) kl = kl > wrt_fkey_anode(r.kkeys[j]).level + 1 ? kl : wrt_fkey_anode(r.kkeys[j]).level + 1;
+        if (j) CHECK(r.kkeys[j - 1] < r.kkeys[j], "column keys ascending");
+    }
+    if (!getenv("K_LEVEL")) CHECK(kl == 3, "K's outgoing level follows the lobe of roughness 0.35: %d", kl);
+    /* root entry: F(floor <- wall) sqrt(A_floor / A_wall) = the closed-form form factor */
+    double kroot = 0;
+    int64_t rr = wrt_fkey_find(r.fkeys, r.nfuncs, root_key(0));
+    for (uint32_t j = 0; j < r.nkcols; j++)
+        if (r.kkeys[j] == root_key(1))
+            for (uint64_t k = r.kcol_start[j]; k < r.kcol_start[j + 1]; k++)
+                if ((int64_t)r.krows[k] == rr) kroot = r.kvals[k];
+    double fp = ffc_perpendicular(0, 1, 0, 1, 0, 1, 0, 1);
+    CHECK_CLAIM("k-root-form-factor", kroot / fp - 1, CLAIM_FF, "K's root entry %.7f, closed form %.7f", kroot, fp);
+
+    const wrt_quad *W = &s.quads[1];
+    wrt_v3 light = P(0.8, 0.5, 0.9);
+    double I = 1.0;
+    int N = 64, ng = 256;
+    double *c = calloc(r.nkcols, sizeof *c), *y = calloc(3 * r.nfuncs, sizeof *y), bt[256];
+    double *xe = calloc(3 * r.nfuncs, sizeof *xe), *ye = calloc(3 * r.nfuncs, sizeof *ye);
+    int bad = 0;
+    for (int i = 0; i < N * N; i++) {
+        double u = (i % N + 0.5) / N, v = (i / N + 0.5) / N;
+        wrt_v3 p = wrt_quad_point(W, u, v), d = v3_sub(light, p);
+        double d2 = v3_dot(d, d);
+        wrt_v3 dl = v3_scale(d, 1 / sqrt(d2));
+        double cs = v3_dot(dl, W->n);
+        if (cs <= 0) continue;
+        double e = I * cs / d2, loc[3] = {v3_dot(dl, W->t), v3_dot(dl, W->b), cs}, la, lb;
+        wrt_concentric_inv(loc, &la, &lb);
+        for (uint32_t f = 0; f < r.nfuncs; f++) { /* today's path: the light's direction in the incident cells */
+            uint64_t k = r.fkeys[f];
+            if (wrt_fkey_quad(k) != 1) continue;
+            double h = wrt_haar2(wrt_fkey_snode(k), wrt_fkey_stype(k), u, v);
+            if (h != 0) xe[3 * f] += e * h * wrt_haar2(wrt_fkey_anode(k), wrt_fkey_atype(k), la, lb) * sqrt(W->area / M_PI) / ((double)N * N);
+        }
+        k_btilde(&s.materials[mg], W->n, W->t, W->b, dl, kl, bt);
+        for (uint32_t j = 0; j < r.nkcols; j++) {
+            uint64_t k = r.kkeys[j];
+            double h = wrt_haar2(wrt_fkey_snode(k), wrt_fkey_stype(k), u, v);
+            if (h == 0) continue;
+            wrt_node an = wrt_fkey_anode(k);
+            int g = wrt_fkey_angular_root(k) ? 0 : wrt_brdf_angular_index(an.level, an.x, an.y, wrt_fkey_atype(k));
+            if (g < 0 || g >= ng) g = 0, bad++;
+            c[j] += e * h * bt[g] * sqrt(W->area / M_PI) / ((double)N * N);
+        }
+    }
+    CHECK(bad == 0, "K's angular functions within level 3 (%d outside)", bad);
+    for (uint32_t j = 0; j < r.nkcols; j++)
+        for (uint64_t k = r.kcol_start[j]; k < r.kcol_start[j + 1]; k++) y[3 * r.krows[k]] += r.kvals[k] * c[j];
+    wrt_csc_apply(&r.dto, xe, ye);
+    double worst = 0, worst_t = 0, ss = 0, ss_t = 0, st = 0;
+    for (int cell = 0; cell < 16; cell++) {
+        int cx = cell & 3, cy = cell >> 2;
+        double got = cell_irradiance(&r, 0, 1.0, 2, cx, cy, y), truth = 0;
+        double got_t = cell_irradiance(&r, 0, 1.0, 2, cx, cy, ye);
+        int NR = 4, NS = 64;
+        for (int a = 0; a < NR * NR; a++) {
+            wrt_v3 xp = P((cx + (a % NR + 0.5) / NR) * 0.25, (cy + (a / NR + 0.5) / NR) * 0.25, 0);
+            for (int k = 0; k < NS * NS; k++) {
+                wrt_v3 yp = P(0, (k % NS + 0.5) / NS, (k / NS + 0.5) / NS);
+                wrt_v3 d = v3_sub(xp, yp), dl = v3_sub(light, yp);
+                double d2 = v3_dot(d, d), l2 = v3_dot(dl, dl);
+                wrt_v3 wo = v3_scale(d, 1 / sqrt(d2)), wi = v3_scale(dl, 1 / sqrt(l2));
+                double cy_ = wo.x, cx_ = -wo.z, ci = wi.x, f[3];
+                if (cy_ <= 0 || cx_ <= 0 || ci <= 0) continue;
+                wrt_brdf_eval(&s.materials[mg], W->n, wi, wo, f);
+                truth += f[0] * I * ci / l2 * cx_ * cy_ / d2;
+            }
+        }
+        truth /= (double)NR * NR * NS * NS;
+        worst = fmax(worst, fabs(got / truth - 1));
+        worst_t = fmax(worst_t, fabs(got_t / truth - 1));
+        ss += (got - truth) * (got - truth); ss_t += (got_t - truth) * (got_t - truth); st += truth * truth;
+        if (getenv("K_DEBUG")) printf("cell %d %d: K c %.5f truth %.5f (%+.2f%%)\n", cx, cy, got, truth, 100 * (got / truth - 1));
+    }
+    CHECK_CLAIM("k-point-light-cells", worst, CLAIM_K_CELLS, "the floor's 4 x 4 cells lit by the glossy wall's first "
+                "bounce (K c) against brute force: worst %.2f%% (%u columns, %llu entries)", 100 * worst, r.nkcols,
+                (unsigned long long)r.knnz);
+    CHECK_CLAIM("k-point-light-rmse", sqrt(ss / st), CLAIM_K_RMSE, "the same cells' relative rmse %.2f%%; through T, the "
+                "light's direction in the incident level-1 cells: %.2f%% (worst %.2f%%)", 100 * sqrt(ss / st),
+                100 * sqrt(ss_t / st), 100 * worst_t);
+    CHECK(sqrt(ss / st) < 0.5 * sqrt(ss_t / st), "K at least halves the error of the truncated direction");
+    free(c); free(y); free(xe); free(ye);
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+}
+
 /* Glossy receiver under a diffuse wall of uniform radiosity: the incident radiance it
  * stores, averaged over one spatial cell and one angular cell, against ray casting. */
 static void test_glossy_receiver(void) {
@@ -783,6 +915,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_glossy_sender);
     TEST_RUN(test_glossy_sender_point_light);
     TEST_RUN(test_glossy_receiver);
+    TEST_RUN(test_first_bounce_operator);
     TEST_RUN(test_closed_forms_themselves);
     TEST_RUN(test_point_polygon);
     TEST_RUN(test_form_factors);

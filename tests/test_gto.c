@@ -41,8 +41,13 @@ static const char *const sec_names[F_NSEC] = {"quads", "materials", "lights", "c
                                               "provenance"};
 enum { S_QUADS, S_MATERIALS, S_LIGHTS, S_CAMERA, S_NAMES, S_FKEYS, S_COL_START, S_ROWS, S_VALS,
        S_STATS, S_PROVENANCE };
+/* Version 1.1: the first-bounce operator K, ids 12-15 after the 11 above. */
+#define F_NSEC_K 15
+static const char *const k_sec_names[4] = {"kkeys", "kcol_start", "krows", "kvals"};
+enum { S_KKEYS = 11, S_KCOL_START, S_KROWS, S_KVALS };
 
 static const char *golden_path = "tests/data/gto/v1_small.gto";
+static const char *golden_k_path = "tests/data/gto/v1.1_k_small.gto";
 static char tmpdir[256];
 
 /* ---- the synthetic scene and operator ---- */
@@ -59,6 +64,13 @@ static uint32_t rows[32];
 static float vals[32 * 3];
 static uint8_t mat_alevel[2] = {0, 2};
 static wrt_gto_contents contents;
+/* The first-bounce operator of the synthetic scene: 5 columns on the glossy quads 1 and
+ * 2 (material 1), 9 entries; contents_k = contents + K. */
+static uint64_t kkeys[5];
+static uint64_t kcol_start[6];
+static uint32_t krows[16];
+static float kvals[16];
+static wrt_gto_contents contents_k;
 static const char *provenance = "{\"scene\": \"synthetic\", \"hash\": \"0123\", \"n\": [1, 2.5e3, -0.5], \"ok\": true}";
 
 static void set_quad(wrt_quad *q, wrt_v3 p0, wrt_v3 p1, wrt_v3 p2, wrt_v3 p3, int mat, int name) {
@@ -140,6 +152,25 @@ static void build(void) {
     st->entries_dto = 14; st->entries_op = e; st->rays_traced = 1000000007ull; st->rays_skipped = 16;
     st->bounces = 5; st->energy_left = 1e-3;
     contents.provenance = provenance;
+
+    /* K: functions of quad 1 are fkeys index 4, of quad 2 indices 5 and 6; a column's
+     * rows avoid its own quad's. Keys written in ascending order (quad, spatial level,
+     * position, type, angular level, position, type). */
+    wrt_node a10 = wrt_node_child(r, 1, 0);
+    kkeys[0] = wrt_fkey_make(1, r, 0, r, 0);
+    kkeys[1] = wrt_fkey_make(1, r, 0, r, 1);
+    kkeys[2] = wrt_fkey_make(1, r, 0, a10, 3);
+    kkeys[3] = wrt_fkey_make(2, r, 0, r, 0);
+    kkeys[4] = wrt_fkey_make(2, c11, 2, r, 2);
+    static const uint32_t kr[9] = {0, 2, 5, /* col 1 empty */ 1, 6, 0, 3, 4, 4};
+    static const uint64_t ks[6] = {0, 3, 3, 5, 8, 9};
+    memcpy(krows, kr, sizeof kr);
+    memcpy(kcol_start, ks, sizeof ks);
+    for (int i = 0; i < 9; i++) kvals[i] = 0.125f * (float)(i + 1) - 0.5f; /* signed, as Haar entries are */
+    contents_k = contents;
+    contents_k.nkcols = 5;
+    contents_k.kkeys = kkeys; contents_k.kcol_start = kcol_start;
+    contents_k.krows = krows; contents_k.kvals = kvals;
 }
 
 /* ---- file helpers ---- */
@@ -181,10 +212,14 @@ static void fix_section_sum(uint8_t *b, int s) {
     wr64(b, entry(s) + F_E_SUM, wrt_gto_checksum(b + sec_off(b, s), sec_size(b, s)));
 }
 static void fix_header_sum(uint8_t *b) {
-    uint8_t h[F_HEADER + F_NSEC * F_ENTRY];
-    memcpy(h, b, sizeof h);
+    uint32_t ns;
+    memcpy(&ns, b + 28, 4); /* nsections */
+    size_t hn = F_HEADER + (size_t)ns * F_ENTRY;
+    uint8_t h[F_HEADER + 64 * F_ENTRY];
+    if (ns > 64) return;
+    memcpy(h, b, hn);
     wr64(h, F_HEADER_SUM, 0);
-    wr64(b, F_HEADER_SUM, wrt_gto_checksum(h, sizeof h));
+    wr64(b, F_HEADER_SUM, wrt_gto_checksum(h, hn));
 }
 
 /* Opens an image from an exactly sized heap copy (so AddressSanitizer sees overreads). */
@@ -293,7 +328,9 @@ static void test_roundtrip(void) {
     wrt_status st = wrt_gto_open(path, &g);
     CHECK(st == WRT_OK, "open: %s", wrt_last_error());
     if (st != WRT_OK) return;
-    CHECK(g.version == WRT_GTO_VERSION && g.version_minor == WRT_GTO_VERSION_MINOR, "version");
+    /* No first-bounce operator: still version 1.0 (1.1 only for files with K). */
+    CHECK(g.version == WRT_GTO_VERSION && g.version_minor == 0, "version %u.%u", g.version, g.version_minor);
+    CHECK(g.nkcols == 0 && g.knnz == 0 && !g.kkeys && !g.kcol_start && !g.krows && !g.kvals, "no K");
     CHECK(g.op_kind == WRT_GTO_OP_GATHERED, "op kind %u", g.op_kind);
     CHECK(g.nquads == 3 && g.nmaterials == 2 && g.nlights == 2 && g.nnames == 2, "counts");
     CHECK(g.nfuncs == 7 && g.nnz == 12, "nfuncs %u nnz %llu", g.nfuncs, (unsigned long long)g.nnz);
@@ -560,7 +597,7 @@ static void test_versions(void) {
     b[F_VERSION_MAJOR] = 2;
     fix_header_sum(b);
     write_raw(tpath("v2.gto"), b, n);
-    expect(wrt_gto_open(tpath("v2.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 2.0 is newer than this reader's version 1.0",
+    expect(wrt_gto_open(tpath("v2.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 2.0 is newer than this reader's version 1.1",
            "newer major");
     b[F_VERSION_MAJOR] = 0;
     fix_header_sum(b);
@@ -1023,6 +1060,407 @@ static void test_print_info(void) {
     free(text);
 }
 
+
+/* ---- the first-bounce operator K (version 1.1) ---- */
+
+static int write_good_k(const char *path) {
+    wrt_status st = wrt_gto_write(path, &contents_k);
+    CHECK(st == WRT_OK, "write K %s: %s", path, wrt_last_error());
+    return st == WRT_OK;
+}
+
+static uint32_t rd32(const uint8_t *b, size_t o) { uint32_t x; memcpy(&x, b + o, 4); return x; }
+
+/* Written with K: version 1.1, 15 sections, K read back exactly and 64-byte aligned;
+ * the 11 sections of before are the same bytes as in the file without K. */
+static void test_k_roundtrip(void) {
+    build();
+    int asc = 1;
+    for (int j = 1; j < 5; j++) asc &= kkeys[j] > kkeys[j - 1];
+    CHECK(asc, "test data: kkeys ascending");
+    const char *p = tpath("k.gto"), *p0 = tpath("k0.gto");
+    if (!write_good_k(p) || !write_good(p0)) return;
+    wrt_gto g;
+    wrt_status st = wrt_gto_open(p, &g);
+    CHECK(st == WRT_OK, "open K: %s", wrt_last_error());
+    if (st != WRT_OK) return;
+    CHECK(g.version == 1 && g.version_minor == 1, "version %u.%u, expected 1.1", g.version, g.version_minor);
+    CHECK(g.nkcols == 5 && g.knnz == 9, "nkcols %u knnz %llu", g.nkcols, (unsigned long long)g.knnz);
+    CHECK(g.kkeys && memcmp(g.kkeys, kkeys, 5 * 8) == 0, "kkeys");
+    CHECK(g.kcol_start && memcmp(g.kcol_start, kcol_start, 6 * 8) == 0, "kcol_start");
+    CHECK(g.krows && memcmp(g.krows, krows, 9 * 4) == 0, "krows");
+    CHECK(g.kvals && memcmp(g.kvals, kvals, 9 * 4) == 0, "kvals");
+    const void *kp[] = {g.kkeys, g.kcol_start, g.krows, g.kvals};
+    int al = 1;
+    for (int i = 0; i < 4; i++) al &= ((uintptr_t)kp[i] % 64) == 0;
+    CHECK(al, "K sections 64-byte aligned in the mapping");
+    CHECK(g.nfuncs == 7 && g.nnz == 12 && memcmp(g.vals, vals, 12 * 12) == 0 && g.nquads == 3, "the rest as before");
+    wrt_gto_close(&g);
+    /* Bytes: the table has 15 entries with ids 12..15 last; each old section's payload
+     * is the same as in the file without K. */
+    size_t n, n0;
+    uint8_t *b = read_all(p, &n), *b0 = read_all(p0, &n0);
+    CHECK(rd32(b, 28) == F_NSEC_K && rd32(b0, 28) == F_NSEC, "nsections %u and %u", rd32(b, 28), rd32(b0, 28));
+    CHECK(b[14] == 1 && b[15] == 0 && b0[14] == 0 && b0[15] == 0, "minor version bytes 1 (K) and 0 (none)");
+    int ids = 1;
+    for (int s = 0; s < F_NSEC_K; s++) ids &= rd32(b, entry(s)) == (uint32_t)(s + 1);
+    CHECK(ids, "ids 1..15 in order");
+    CHECK(rd64(b, entry(S_KKEYS) + F_E_COUNT) == 5 && rd64(b, entry(S_KCOL_START) + F_E_COUNT) == 6 &&
+          rd64(b, entry(S_KROWS) + F_E_COUNT) == 9 && rd64(b, entry(S_KVALS) + F_E_COUNT) == 9, "K counts in the table");
+    CHECK(rd32(b, entry(S_KKEYS) + 4) == 8 && rd32(b, entry(S_KCOL_START) + 4) == 8 &&
+          rd32(b, entry(S_KROWS) + 4) == 4 && rd32(b, entry(S_KVALS) + 4) == 4, "K element sizes 8, 8, 4, 4");
+    int same = 1;
+    for (int s = 0; s < F_NSEC; s++)
+        same &= sec_size(b, s) == sec_size(b0, s) && memcmp(b + sec_off(b, s), b0 + sec_off(b0, s), sec_size(b, s)) == 0;
+    CHECK(same, "old sections' payloads unchanged by K");
+    CHECK(rd64(b, F_FILE_SIZE) == n && sec_off(b, S_KVALS) + sec_size(b, S_KVALS) == n, "K ends the file");
+    free(b); free(b0);
+
+    /* A column set with no entries at all (knnz 0) is valid. */
+    wrt_gto_contents c = contents_k;
+    static const uint64_t zeros6[6];
+    c.kcol_start = zeros6; c.krows = NULL; c.kvals = NULL;
+    st = wrt_gto_write(tpath("k_empty.gto"), &c);
+    CHECK(st == WRT_OK, "K without entries: %s", wrt_last_error());
+    st = wrt_gto_open(tpath("k_empty.gto"), &g);
+    CHECK(st == WRT_OK && g.nkcols == 5 && g.knnz == 0, "open K without entries: %s", wrt_last_error());
+    wrt_gto_close(&g);
+
+    /* The four sections renumbered to ids this reader does not know (a later minor's):
+     * placed, checksummed and ignored; the file reads as one without K. */
+    b = read_all(p, &n);
+    for (int s = S_KKEYS; s <= S_KVALS; s++) { uint32_t id = (uint32_t)(s + 1 + 10); memcpy(b + entry(s), &id, 4); }
+    fix_header_sum(b);
+    st = open_copy(b, n, &g);
+    CHECK(st == WRT_OK && g.nkcols == 0 && g.kkeys == NULL, "unknown ids ignored: %s", wrt_last_error());
+    free(b);
+}
+
+/* A committed file with K: it opens and today's writer produces it byte for byte. */
+static void test_k_golden(void) {
+    build();
+    wrt_gto g;
+    wrt_status st = wrt_gto_open(golden_k_path, &g);
+    CHECK(st == WRT_OK, "golden K file: %s", wrt_last_error());
+    if (st == WRT_OK) {
+        CHECK(g.version_minor == 1 && g.nkcols == 5 && g.knnz == 9 && g.nfuncs == 7, "golden K counts");
+        wrt_gto_close(&g);
+    }
+    const char *p = tpath("golden_k_now.gto");
+    if (!write_good_k(p)) return;
+    size_t na, nb;
+    uint8_t *x = read_all(golden_k_path, &na), *y = read_all(p, &nb);
+    CHECK(x && na == nb && memcmp(x, y, na) == 0,
+          "the writer no longer produces %s byte for byte: a format change needs a version decision", golden_k_path);
+    free(x); free(y);
+}
+
+/* Each K section: a flipped byte is its checksum error, every flip anywhere is caught,
+ * every prefix is "truncated". */
+static void test_k_damaged(void) {
+    build();
+    const char *p = tpath("k_flip.gto");
+    if (!write_good_k(p)) return;
+    size_t n;
+    uint8_t *b = read_all(p, &n);
+    wrt_gto g;
+    for (int s = S_KKEYS; s <= S_KVALS; s++) {
+        size_t o = sec_off(b, s) + sec_size(b, s) / 2;
+        b[o] ^= 0x10;
+        char want[64], what[64];
+        snprintf(want, sizeof want, "section %s: checksum mismatch", k_sec_names[s - S_KKEYS]);
+        snprintf(what, sizeof what, "flip in %s", k_sec_names[s - S_KKEYS]);
+        expect(open_copy(b, n, &g), WRT_ERR_CORRUPT, want, what);
+        b[o] ^= 0x10;
+    }
+    int undetected = 0, not_trunc = 0;
+    for (size_t o = 0; o < n; o++) {
+        b[o] ^= 0x01;
+        undetected += open_copy(b, n, &g) == WRT_OK;
+        b[o] ^= 0x01;
+    }
+    for (size_t len = 1; len < n; len++)
+        not_trunc += open_copy(b, len, &g) != WRT_ERR_CORRUPT || !strstr(wrt_last_error(), "truncated");
+    CHECK(undetected == 0, "%d flipped bytes of a K file went unnoticed", undetected);
+    CHECK(not_trunc == 0, "%d prefixes of a K file not reported truncated", not_trunc);
+    CHECK(open_copy(b, n, &g) == WRT_OK, "restored: %s", wrt_last_error());
+    free(b);
+}
+
+/* Builds a version-1.1 file from a file without K by the layout of GTO_FORMAT.md alone:
+ * the table grows by four entries (192 bytes, so every old payload moves by 192 and
+ * stays 64-byte aligned) and the K payloads follow, each at the next multiple of 64. */
+static uint8_t *append_k(const uint8_t *b, size_t n, const void *const data[4], const uint64_t count[4], size_t *outn) {
+    static const uint32_t es[4] = {8, 8, 4, 4};
+    const size_t shift = 4 * F_ENTRY, head = F_HEADER + F_NSEC_K * F_ENTRY;
+    uint64_t off[4], end = n + shift;
+    for (int i = 0; i < 4; i++) {
+        off[i] = (end + 63) / 64 * 64;
+        end = off[i] + count[i] * es[i];
+    }
+    uint8_t *c = calloc(end, 1);
+    memcpy(c, b, F_HEADER + F_NSEC * F_ENTRY);
+    memcpy(c + sec_off(b, 0) + shift, b + sec_off(b, 0), n - sec_off(b, 0));
+    uint32_t ns = F_NSEC_K, hs = (uint32_t)head;
+    memcpy(c + 28, &ns, 4);
+    memcpy(c + 24, &hs, 4);
+    c[14] = 1; c[15] = 0; /* minor 1 */
+    wr64(c, F_FILE_SIZE, end);
+    for (int s = 0; s < F_NSEC; s++) wr64(c, entry(s) + F_E_OFFSET, sec_off(b, s) + shift);
+    for (int i = 0; i < 4; i++) {
+        size_t e = entry(S_KKEYS + i);
+        uint32_t id = (uint32_t)(S_KKEYS + i + 1);
+        memcpy(c + e, &id, 4);
+        memcpy(c + e + 4, &es[i], 4);
+        wr64(c, e + F_E_OFFSET, off[i]);
+        wr64(c, e + F_E_SIZE, count[i] * es[i]);
+        wr64(c, e + F_E_COUNT, count[i]);
+        if (count[i]) memcpy(c + off[i], data[i], count[i] * es[i]);
+        fix_section_sum(c, S_KKEYS + i);
+    }
+    fix_header_sum(c);
+    *outn = end;
+    return c;
+}
+
+/* Shrinks section s of a copy by `by` elements (its count and size, the bytes freed
+ * zeroed as padding), fixes the checksums and expects `want`. */
+static void shrink_section(const uint8_t *b, size_t n, int s, uint64_t by, const char *want, const char *what) {
+    uint8_t *c = malloc(n);
+    memcpy(c, b, n);
+    uint64_t cnt = rd64(c, entry(s) + F_E_COUNT), es = rd32(c, entry(s) + 4), sz = sec_size(c, s);
+    memset(c + sec_off(c, s) + sz - by * es, 0, by * es);
+    wr64(c, entry(s) + F_E_COUNT, cnt - by);
+    wr64(c, entry(s) + F_E_SIZE, sz - by * es);
+    fix_section_sum(c, s);
+    fix_header_sum(c);
+    wrt_gto g;
+    expect(open_copy(c, n, &g), WRT_ERR_CORRUPT, want, what);
+    free(c);
+}
+
+/* Every reader check of K, each on a forged copy (checksums made right), with the
+ * section and the index in the message. */
+static void test_k_bad(void) {
+    build();
+    const char *p = tpath("k_bad.gto");
+    if (!write_good_k(p)) return;
+    size_t n;
+    uint8_t *b = read_all(p, &n), *c = malloc(n);
+    wrt_gto g;
+    /* All four or none: kvals renumbered to an unknown id. */
+    memcpy(c, b, n);
+    uint32_t id16 = 16;
+    memcpy(c + entry(S_KVALS), &id16, 4);
+    fix_header_sum(c);
+    expect(open_copy(c, n, &g), WRT_ERR_CORRUPT, "missing section kvals (the first-bounce sections", "kvals missing");
+    memcpy(c, b, n);
+    uint32_t ids[3] = {16, 17, 18};
+    for (int i = 0; i < 3; i++) memcpy(c + entry(S_KCOL_START + i), &ids[i], 4);
+    fix_header_sum(c);
+    expect(open_copy(c, n, &g), WRT_ERR_CORRUPT, "missing section kcol_start", "only kkeys");
+    /* Counts across the K sections. */
+    shrink_section(b, n, S_KKEYS, 1, "section kcol_start: 6 entries, expected 5 (K's columns + 1)", "kcol_start count");
+    shrink_section(b, n, S_KROWS, 1, "section kvals: 9 entries, krows has 8", "kvals count");
+    /* K built by hand from the file without K: the writer's bytes exactly; then with no
+     * columns at all (kcol_start = {0}), which the writer never makes. */
+    {
+        size_t n0, nk;
+        if (!write_good(tpath("k_base.gto"))) return;
+        uint8_t *b0 = read_all(tpath("k_base.gto"), &n0);
+        const void *data[4] = {kkeys, kcol_start, krows, kvals};
+        uint64_t cnt[4] = {5, 6, 9, 9};
+        uint8_t *m = append_k(b0, n0, data, cnt, &nk);
+        CHECK(nk == n && memcmp(m, b, n) == 0, "K appended by the documented layout differs from the writer's file");
+        free(m);
+        uint64_t none[4] = {0, 1, 0, 0};
+        m = append_k(b0, n0, data, none, &nk);
+        expect(open_copy(m, nk, &g), WRT_ERR_CORRUPT, "section kkeys: 0 columns", "no columns");
+        free(m); free(b0);
+    }
+    /* kkeys. */
+    wrt_node r = wrt_node_root(), bad_grid = {1, 2, 0}, l11 = {11, 0, 0};
+    uint64_t k;
+    corrupt_index(b, n, S_KKEYS, 8 * 1, &kkeys[0], 8, "section kkeys: kkeys not strictly ascending at index 1", "kkeys repeated");
+    k = wrt_fkey_make(3, r, 0, r, 0);
+    corrupt_index(b, n, S_KKEYS, 8 * 4, &k, 8, "section kkeys: kkeys[4] names quad 3, but there are 3 quads", "kkeys quad");
+    k = wrt_fkey_make(0, r, 0, r, 0);
+    corrupt_index(b, n, S_KKEYS, 0, &k, 8, "section kkeys: kkeys[0] names quad 0, whose material 0 is Lambertian", "kkeys Lambertian");
+    k = wrt_fkey_make(2, l11, 1, r, 0);
+    corrupt_index(b, n, S_KKEYS, 8 * 4, &k, 8, "section kkeys: kkeys[4]: spatial level 11, at most 10", "kkeys spatial level");
+    k = wrt_fkey_make(2, wrt_node_child(r, 1, 1), 0, r, 0);
+    corrupt_index(b, n, S_KKEYS, 8 * 4, &k, 8, "kkeys[4]: malformed key", "kkeys type 0 off the root");
+    CHECK(strstr(wrt_last_error(), "spatial scaling function (type 0) on a non-root node"), "%s", wrt_last_error());
+    k = wrt_fkey_make(2, bad_grid, 1, r, 0);
+    corrupt_index(b, n, S_KKEYS, 8 * 4, &k, 8, "kkeys[4]: malformed key", "kkeys node off the grid");
+    CHECK(strstr(wrt_last_error(), "spatial node outside its level's grid"), "%s", wrt_last_error());
+    k = wrt_fkey_make(1, r, 0, r, 1) + 32 + 1;
+    corrupt_index(b, n, S_KKEYS, 8 * 1, &k, 8, "kkeys[1]: malformed key", "kkeys spare bits");
+    CHECK(strstr(wrt_last_error(), "spare bits not zero"), "%s", wrt_last_error());
+    k = wrt_fkey_make(1, r, 0, wrt_node_child(r, 0, 1), 0);
+    corrupt_index(b, n, S_KKEYS, 8 * 2, &k, 8, "kkeys[2]: malformed key", "kkeys angular type 0 off the root");
+    CHECK(strstr(wrt_last_error(), "angular scaling function"), "%s", wrt_last_error());
+    /* kcol_start (0, 3, 3, 5, 8, 9). */
+    uint64_t five = 5, one = 1, eight = 8;
+    corrupt_index(b, n, S_KCOL_START, 0, &five, 8, "section kcol_start: kcol_start[0] is 5, not 0", "kcol_start start");
+    corrupt_index(b, n, S_KCOL_START, 8 * 2, &one, 8, "section kcol_start: kcol_start not monotone at column 2 (1 after 3)", "kcol_start decreasing");
+    corrupt_index(b, n, S_KCOL_START, 8 * 5, &eight, 8, "section kcol_start: kcol_start[5] is 8, but there are 9 entries", "kcol_start end");
+    /* krows: column 0 (quad 1) holds 0, 2, 5; column 2 (quad 1) entries 3, 4 hold 1, 6. */
+    uint32_t r7 = 7, r0 = 0, r4 = 4;
+    corrupt_index(b, n, S_KROWS, 0, &r7, 4, "section krows: krows[0] = 7 out of range (7 functions) in column 0", "krows range");
+    corrupt_index(b, n, S_KROWS, 4 * 1, &r0, 4, "section krows: krows not strictly ascending in column 0 at entry 1", "krows unsorted");
+    corrupt_index(b, n, S_KROWS, 4 * 1, &r4, 4, "section krows: krows[1] = 4 in column 0 is a function of quad 1, the column's own quad", "krows own quad");
+    uint32_t r5 = 5;
+    corrupt_index(b, n, S_KROWS, 4 * 7, &r5, 4, "section krows: krows[7] = 5 in column 3 is a function of quad 2, the column's own quad", "krows own quad 2");
+    /* kvals. */
+    float fnan = NAN, finf = -INFINITY;
+    corrupt_index(b, n, S_KVALS, 4 * 3, &fnan, 4, "section kvals: kvals[3] is NaN", "kvals NaN");
+    corrupt_index(b, n, S_KVALS, 4 * 8, &finf, 4, "section kvals: kvals[8] is infinite", "kvals infinite");
+    free(b); free(c);
+}
+
+/* The writer refuses K contents the reader would refuse; no file appears. */
+static void test_k_write_errors(void) {
+    build();
+    const char *q = tpath("k_refused.gto");
+    wrt_gto_contents c = contents_k;
+    uint64_t k2[5];
+    memcpy(k2, kkeys, sizeof k2);
+    uint64_t t = k2[0]; k2[0] = k2[1]; k2[1] = t;
+    c.kkeys = k2;
+    expect(wrt_gto_write(q, &c), WRT_ERR_INVALID_ARG, "kkeys: kkeys not strictly ascending at index 1", "unsorted kkeys");
+    memcpy(k2, kkeys, sizeof k2);
+    k2[0] = wrt_fkey_make(0, wrt_node_root(), 1, wrt_node_root(), 0);
+    expect(wrt_gto_write(q, &c), WRT_ERR_INVALID_ARG, "whose material 0 is Lambertian", "K on a Lambertian quad");
+    c = contents_k;
+    uint32_t r2[9];
+    memcpy(r2, krows, sizeof r2);
+    r2[2] = 4;
+    c.krows = r2;
+    expect(wrt_gto_write(q, &c), WRT_ERR_INVALID_ARG, "the column's own quad", "own-quad row");
+    c = contents_k;
+    float v2[9];
+    memcpy(v2, kvals, sizeof v2);
+    v2[6] = NAN;
+    c.kvals = v2;
+    expect(wrt_gto_write(q, &c), WRT_ERR_INVALID_ARG, "kvals[6] is NaN", "NaN kval");
+    c = contents_k;
+    uint64_t cs2[6];
+    memcpy(cs2, kcol_start, sizeof cs2);
+    cs2[0] = 1;
+    c.kcol_start = cs2;
+    expect(wrt_gto_write(q, &c), WRT_ERR_INVALID_ARG, "kcol_start[0] is 1, not 0", "kcol_start start");
+    c = contents_k;
+    c.kkeys = NULL;
+    expect(wrt_gto_write(q, &c), WRT_ERR_INVALID_ARG, "K has 5 columns but no kkeys", "no kkeys");
+    c = contents_k;
+    c.kvals = NULL;
+    expect(wrt_gto_write(q, &c), WRT_ERR_INVALID_ARG, "K has 9 entries but no krows or kvals", "no kvals");
+    /* K's key check needs the quads' materials: a material out of range is found first. */
+    quads[1].material = 5;
+    expect(wrt_gto_write(q, &contents_k), WRT_ERR_INVALID_ARG, "material 5 out of range", "material");
+    quads[1].material = 1;
+    struct stat sb;
+    CHECK(stat(q, &sb) != 0, "refused write left a file");
+    CHECK(count_tmp_files(tmpdir) == 0, "temporaries left behind");
+}
+
+/* K's checks at the 8192-element chunk boundaries: a column of 10000 entries and 10000
+ * keys, each fault just after (or at) the boundary. */
+static void test_k_chunk_boundaries(void) {
+    build();
+    uint32_t nf = 20001, nk = 10000;
+    uint64_t knz = 10000;
+    uint64_t *f = malloc(nf * 8), *cs = calloc(nf + 1, 8), *kk = malloc(nk * 8), *kc = malloc((nk + 1) * 8);
+    uint32_t *kr = malloc(knz * 4);
+    float *kv = malloc(knz * 4);
+    /* 20000 functions of quad 0 (Lambertian), then quad 1's root. */
+    for (uint32_t i = 0; i < nf - 1; i++) f[i] = wrt_fkey_make(0, wrt_node_root(), 0, wrt_node_root(), 0) + ((uint64_t)i << 6);
+    f[nf - 1] = wrt_fkey_make(1, wrt_node_root(), 0, wrt_node_root(), 0);
+    /* K's columns: type-1 wavelets of level-7 nodes of quad 1, row by row. */
+    for (uint32_t j = 0; j < nk; j++) {
+        wrt_node s = {7, (uint16_t)(j % 128), (uint16_t)(j / 128)};
+        kk[j] = wrt_fkey_make(1, s, 1, wrt_node_root(), 0);
+    }
+    kc[0] = 0;
+    for (uint32_t j = 1; j <= nk; j++) kc[j] = knz; /* column 0 holds everything */
+    for (uint64_t e = 0; e < knz; e++) { kr[e] = (uint32_t)(2 * e); kv[e] = 0.25f; }
+    wrt_gto_contents c = contents;
+    c.fkeys = f; c.nfuncs = nf; c.col_start = cs; c.rows = NULL; c.vals = NULL;
+    c.nkcols = nk; c.kkeys = kk; c.kcol_start = kc; c.krows = kr; c.kvals = kv;
+    const char *p = tpath("k_chunks.gto");
+    if (wrt_gto_write(p, &c) != WRT_OK) { CHECK(0, "write: %s", wrt_last_error()); goto out; }
+    size_t n;
+    uint8_t *b = read_all(p, &n);
+    wrt_gto g;
+    CHECK(open_copy(b, n, &g) == WRT_OK && g.nkcols == nk && g.knnz == knz, "open: %s", wrt_last_error());
+    uint32_t same = 2 * 8191, big = 2 * 20001, own = nf - 1;
+    corrupt_index(b, n, S_KROWS, 4 * 8192, &same, 4, "krows not strictly ascending in column 0 at entry 8192", "krows at boundary");
+    corrupt_index(b, n, S_KROWS, 4 * 8191, &big, 4, "krows[8191] = 40002 out of range", "krows before boundary");
+    corrupt_index(b, n, S_KROWS, 4 * 9999, &own, 4, "krows[9999] = 20000 in column 0 is a function of quad 1", "krows own quad after boundary");
+    corrupt_index(b, n, S_KKEYS, 8 * 8192, &kk[8191], 8, "kkeys not strictly ascending at index 8192", "kkeys at boundary");
+    uint64_t less = knz - 1;
+    corrupt_index(b, n, S_KCOL_START, 8 * 8192, &less, 8, "kcol_start not monotone at column 8192 (9999 after 10000)", "kcol_start at boundary");
+    float nan = NAN;
+    corrupt_index(b, n, S_KVALS, 4 * 8192, &nan, 4, "kvals[8192] is NaN", "kvals at boundary");
+    free(b);
+out:
+    free(f); free(cs); free(kk); free(kc); free(kr); free(kv);
+}
+
+/* --info shows K's sections and counts; a file without K says so. */
+static void test_k_print_info(void) {
+    build();
+    const char *p = tpath("k_info.gto"), *p0 = tpath("k0_info.gto");
+    if (!write_good_k(p) || !write_good(p0)) return;
+    char *text = NULL;
+    size_t tn = 0;
+    FILE *f = open_memstream(&text, &tn);
+    wrt_status st = wrt_gto_print_info(p, 0, f);
+    fclose(f);
+    CHECK(st == WRT_OK, "info: %s", wrt_last_error());
+    CHECK(strstr(text, "version 1.1 (this reader: 1.1)"), "version: %s", text);
+    CHECK(strstr(text, "first bounce: K, 5 columns on 2 glossy quads, 9 entries"), "K line: %s", text);
+    CHECK(strstr(text, "max 3; deepest level: spatial 1, angular node 1"), "K figures: %s", text);
+    CHECK(strstr(text, "kkeys ") && strstr(text, "kcol_start ") && strstr(text, "krows ") && strstr(text, "kvals "),
+          "K sections listed: %s", text);
+    CHECK(strstr(text, "integrity:  ok"), "integrity: %s", text);
+    free(text);
+    f = open_memstream(&text, &tn);
+    st = wrt_gto_print_info(p, 1, f);
+    fclose(f);
+    CHECK(st == WRT_OK && text[0] == '{' && text[tn - 2] == '}', "json object: %s", text);
+    CHECK(strstr(text, "\"k_columns\": 5, \"k_entries\": 9"), "json K counts: %s", text);
+    CHECK(strstr(text, "\"first_bounce\": {\"columns\": 5, \"entries\": 9"), "json first_bounce: %s", text);
+    CHECK(strstr(text, "\"glossy_quads\": 2"), "json glossy quads: %s", text);
+    CHECK(strstr(text, "\"name\": \"kkeys\"") && strstr(text, "\"name\": \"kvals\", \"offset\""), "json K sections: %s", text);
+    CHECK(strstr(text, "\"version\": \"1.1\""), "json version: %s", text);
+    free(text);
+    f = open_memstream(&text, &tn);
+    wrt_gto_print_info(p0, 0, f);
+    fclose(f);
+    CHECK(strstr(text, "version 1.0 (this reader: 1.1)") && strstr(text, "first bounce: none") && !strstr(text, "kkeys"),
+          "no K: %s", text);
+    free(text);
+    f = open_memstream(&text, &tn);
+    wrt_gto_print_info(p0, 1, f);
+    fclose(f);
+    CHECK(strstr(text, "\"k_columns\": 0, \"k_entries\": 0") && strstr(text, "\"first_bounce\": null"), "json no K: %s", text);
+    free(text);
+    /* A K file damaged in krows: the failure names the section. */
+    size_t n;
+    uint8_t *b = read_all(p, &n);
+    b[sec_off(b, S_KROWS) + 5] ^= 0x40;
+    write_raw(tpath("k_info_bad.gto"), b, n);
+    free(b);
+    f = open_memstream(&text, &tn);
+    st = wrt_gto_print_info(tpath("k_info_bad.gto"), 0, f);
+    fclose(f);
+    CHECK(st == WRT_ERR_CORRUPT && strstr(text, "integrity:  FAILED") && strstr(text, "section krows: checksum mismatch"),
+          "K failure: %s", text);
+    free(text);
+}
+
 /* ---- speed ---- */
 
 static void test_open_speed(void) {
@@ -1089,6 +1527,8 @@ static void regen(void) {
     mkdir("tests/data/gto", 0777);
     wrt_status st = wrt_gto_write(golden_path, &contents);
     printf("%s: %s\n", golden_path, st == WRT_OK ? "written" : wrt_last_error());
+    st = wrt_gto_write(golden_k_path, &contents_k);
+    printf("%s: %s\n", golden_k_path, st == WRT_OK ? "written" : wrt_last_error());
 }
 
 int main(int argc, char **argv) {
@@ -1114,6 +1554,13 @@ int main(int argc, char **argv) {
     TEST_RUN(test_pending);
     TEST_RUN(test_check_output);
     TEST_RUN(test_print_info);
+    TEST_RUN(test_k_roundtrip);
+    TEST_RUN(test_k_golden);
+    TEST_RUN(test_k_damaged);
+    TEST_RUN(test_k_bad);
+    TEST_RUN(test_k_write_errors);
+    TEST_RUN(test_k_chunk_boundaries);
+    TEST_RUN(test_k_print_info);
     TEST_RUN(test_open_speed);
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);

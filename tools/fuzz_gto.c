@@ -4,8 +4,9 @@
  * the header checksum made consistent, as a forger would (GTO_FORMAT.md, "Checksums"),
  * so that mutations reach the index and number checks behind the checksums instead of
  * stopping at them. A file that passes is then read in full, every array the reader
- * hands out, the way the player uses it. Built by `make fuzz`; the seeds are
- * tests/data/fuzz_gto and tests/data/gto. */
+ * hands out, the way the player uses it, the first-bounce operator K included. Built
+ * by `make fuzz`; the seeds are tests/data/fuzz_gto and tests/data/gto (which holds a
+ * file with K, v1.1_k_small.gto, so that mutations reach K's checks). */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -51,6 +52,12 @@ static double touch(const wrt_gto *g) {
             s += g->rows[e] + g->vals[3 * e] + g->vals[3 * e + 2];
     }
     for (size_t i = 0; i < g->provenance_len; i++) s += g->provenance[i];
+    /* K: each column's key, its entries' rows looked up in fkeys, as the player does. */
+    for (uint32_t j = 0; j < g->nkcols; j++) {
+        s += (double)g->kkeys[j];
+        for (uint64_t e = g->kcol_start[j]; e < g->kcol_start[j + 1]; e++)
+            s += (double)g->fkeys[g->krows[e]] + g->kvals[e];
+    }
     return s;
 }
 

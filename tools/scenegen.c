@@ -386,12 +386,14 @@ static void scene_maze(sg_scene *s) {
 
 /* Glossy test scene: 3 x 3 m glossy floor (roughness 0.3), glossy back and side
  * walls 2 m high (roughness 0.4, one blue), a diffuse orange box in the middle,
- * one spotlight aimed at the box from the front right. */
-static void scene_glossy(sg_scene *s) {
-    double a = s->opt.albedo;
+ * one spotlight aimed at the box from the front right. With diffuse_walls the walls
+ * are Lambertian (roughness 1): the light they get from the floor's reflection of the
+ * spotlight is then nothing but the floor's first glossy bounce. */
+static void glossy_build(sg_scene *s, int diffuse_walls) {
+    double a = s->opt.albedo, rw = diffuse_walls ? 1 : 0.4;
     int m_floor = add_material(s, "glossy_floor", 0.55, 0.55, 0.55, 0, 0.3);
-    int m_wall = add_material(s, "glossy_wall", a, a, a, 0, 0.4);
-    int m_blue = add_material(s, "glossy_blue", 0.2, 0.3, 0.7, 0, 0.4);
+    int m_wall = add_material(s, "glossy_wall", a, a, a, 0, rw);
+    int m_blue = add_material(s, "glossy_blue", 0.2, 0.3, 0.7, 0, rw);
     int m_box = add_material(s, "orange", 0.8, 0.35, 0.1, 0, 1);
     add_rect(s, add_mesh(s, "floor", m_floor), 1, 0.0, -1.5, 1.5, -1.5, 1.5, +1);
     add_rect(s, add_mesh(s, "back_wall", m_wall), 2, -1.5, -1.5, 1.5, 0.0, 2.0, +1);
@@ -401,6 +403,8 @@ static void scene_glossy(sg_scene *s) {
     add_light(s, "spot", LIGHT_SPOT, v3(1.2, 2.2, 1.4), v3(0, 0.3, 0), 20, 1, 1, 1, 25, 35);
     set_camera(s, v3(0, 1.4, 4.2), v3(0, 0.6, 0), 45);
 }
+static void scene_glossy(sg_scene *s) { glossy_build(s, 0); }
+static void scene_glossy_floor(sg_scene *s) { glossy_build(s, 1); }
 
 /* Two unit squares facing each other across --dist along z, light half-way. */
 static void scene_facing(sg_scene *s) {
@@ -493,6 +497,7 @@ static const sg_entry scenes[] = {
     {"cornell-glossy", scene_cornell_glossy, "test/cornell_glossy.gltf",
      "Cornell box, back wall glossy metal of --roughness"},
     {"glossy-box", scene_glossy_box, "test/glossy_box.gltf", "closed metal cube of --roughness, point light"},
+    {"glossy-floor", scene_glossy_floor, "test/glossy_floor.gltf", "the glossy scene with diffuse walls"},
 };
 #define NSCENES ((int)(sizeof scenes / sizeof scenes[0]))
 
