@@ -184,8 +184,7 @@ typedef struct light_state {
     int projected;                  /* E below is the projection of `light` */
     uint32_t *idx; float *val;      /* sparse E at scale 1: function index, RGB */
     size_t n, cap;
-    uint32_t *kidx; float *kval;    /* sparse c (K's columns) at scale 1: column index, RGB */
-    size_t kn, kcap;
+    float *kc;                      /* c over K's columns at scale 1, RGB (NULL without K) */
     double *root;                   /* nquads x 3: projected (root, root) coefficient */
     double last_work;               /* its last projection's work (samples and rays, in
                                      * parallel_for's units): an estimate of the next one's */
@@ -198,7 +197,6 @@ typedef struct worker {
     float *fpyr, *fgrid; size_t fpyr_cap, fgrid_cap; /* synthesis pyramid and scratch, x 4 */
     float *wts; int *cells; size_t view_cap; /* glossy per-texel bilinear lookups */
     uint32_t *oidx; float *oval; size_t on, ocap; /* projection output */
-    uint32_t *koidx; float *koval; size_t kon, kocap; /* projection output on K's columns */
     uint32_t *pstate;               /* adaptive projection, per cell of levels 0..max: */
     uint8_t *prefined;              /* VIS bits and angular cell; split or not */
     uint8_t *pclear;                /* no occluder can shade the cell: no rays */
@@ -211,7 +209,7 @@ typedef struct worker {
     long nsamples;                  /* samples and shadow rays of the projection */
 } worker;
 
-typedef struct out_rec { int worker; size_t start, count, kstart, kcount; } out_rec;
+typedef struct out_rec { int worker; size_t start, count; } out_rec;
 
 /* A quad's bounding sphere seen from a light: unit direction to its centre, the cosine
  * and sine of its angular radius (cos = -1: the light is inside), distance range. */
@@ -535,7 +533,8 @@ typedef struct proj_setup {
  * light's exact direction (concentric (a, b) in the quad's frame; bilinear between the
  * table's directions, as wrt_relight_beta), for each angular index g < nkang: acc[3 g + c]
  * (single precision, as the table; a cell's few samples). No light-direction splat: the
- * first bounce of the delta is exact. */
+ * first bounce of the delta is exact. (Merging the taps of a cell's samples per table
+ * direction first was measured slower: they seldom share one.) */
 static void k_sample(const proj_setup *ps, double a, double b, double val, float *acc) {
     double fx = a * BETA_RES - 0.5, fy = b * BETA_RES - 0.5;
     int x0 = (int)floor(fx), y0 = (int)floor(fy);
@@ -748,14 +747,14 @@ static int find_occluders(wrt_relight *r, worker *w, int a, wrt_v3 l) {
     return 0;
 }
 
-typedef struct proj_ctx { const wrt_light *light; const light_c *lc; double *root; } proj_ctx;
+typedef struct proj_ctx { const wrt_light *light; const light_c *lc; double *root; float *kc; } proj_ctx;
 
 /* The coefficients c of quad q's K columns from the projection's pyramid (w->pyr: levels
  * above the rule's grid Ld; w->pwav: wavelets of split cells; K's slots from `ebase`, 3
- * a function), as E's are taken in project_quad, times the light's colour; the non-zero
- * ones appended to w->koidx / koval (column index, RGB). */
-static void k_extract(wrt_relight *r, worker *w, const quad_info *q, out_rec *rec, const float *col, int ebase,
-                      int nslot, int Ld, int last) {
+ * a function), as E's are taken in project_quad, times the light's colour, into kc
+ * (the light's c, indexed by column; the quad's range was zeroed). */
+static void k_extract(const wrt_relight *r, const worker *w, const quad_info *q, const float *col, int ebase, int nslot,
+                      int Ld, int last, float *kc) {
     for (uint32_t j = q->kfirst; j < q->kfirst + q->kcount; j++) {
         int sl = ebase + 3 * r->kfn_ang[j], lev = r->kfn_slevel[j];
         uint32_t sp = r->kfn_spidx[j];
@@ -766,21 +765,7 @@ static void k_extract(wrt_relight *r, worker *w, const quad_info *q, out_rec *re
             if (!w->prefined[LEVEL_OFF(lev) + cell]) continue;
             cv = w->pwav + ((LEVEL_OFF(lev) + cell) * 3 + k % 3) * nslot + sl;
         } else continue; /* finer than any split cell: zero */
-        if (cv[0] == 0 && cv[1] == 0 && cv[2] == 0) continue;
-        if (w->kon == w->kocap) {
-            size_t ci = w->kocap, cvc = 3 * w->kocap;
-            uint32_t *ni = grow_keep(r, w->koidx, &ci, w->kocap ? 2 * w->kocap : 1024, sizeof(uint32_t), w->kon);
-            if (!ni) return;
-            w->koidx = ni;
-            float *nv = grow_keep(r, w->koval, &cvc, 3 * ci, sizeof(float), 3 * w->kon);
-            if (!nv) return;
-            w->koval = nv;
-            w->kocap = ci;
-        }
-        w->koidx[w->kon] = j;
-        for (int c = 0; c < 3; c++) w->koval[w->kon * 3 + c] = (float)(cv[c] * col[c]);
-        w->kon++;
-        rec->kcount++;
+        for (int c = 0; c < 3; c++) kc[(size_t)j * 3 + c] = (float)(cv[c] * col[c]);
     }
 }
 
@@ -799,9 +784,8 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     rec->worker = (int)(w - r->workers);
     rec->start = w->on;
     rec->count = 0;
-    rec->kstart = w->kon;
-    rec->kcount = 0;
     for (int c = 0; c < 3; c++) ctx->root[qidx * 3 + c] = 0;
+    if (q->kcount) memset(ctx->kc + (size_t)q->kfirst * 3, 0, (size_t)q->kcount * 3 * sizeof(float));
     if (gq->func_count == 0 || l->intensity == 0) return;
     /* A light on or behind the quad's plane lights nothing (exactly zero). */
     if (v3_dot(v3_sub(l->pos, q->p[0]), q->n) <= 0) return;
@@ -938,15 +922,15 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
         w->on++;
         rec->count++;
     }
-    if (q->nkang) k_extract(r, w, q, rec, col, ebase, nslot, Ld, last);
+    if (q->nkang) k_extract(r, w, q, col, ebase, nslot, Ld, last, ctx->kc);
 }
 
 /* 0, or -1 if memory ran out (the light stays unprojected). */
 static int project_light(wrt_relight *r, light_state *ls) {
-    for (int t = 0; t < r->nthreads; t++) r->workers[t].on = r->workers[t].kon = 0;
+    for (int t = 0; t < r->nthreads; t++) r->workers[t].on = 0;
     light_c lc = light_consts(&ls->light);
     r->size = 2 * (r->scene_diag + v3_len(v3_sub(ls->light.pos, r->origin)));
-    proj_ctx ctx = {&ls->light, &lc, ls->root};
+    proj_ctx ctx = {&ls->light, &lc, ls->root, ls->kc};
     /* Levels first (cheap), so that the loop knows its work; bounding cones. */
     double work = 0;
     for (uint32_t q = 0; q < r->g->nquads; q++) {
@@ -998,30 +982,6 @@ static int project_light(wrt_relight *r, light_state *ls) {
         k += rec->count;
     }
     ls->n = total;
-    if (r->g->nkcols) { /* c over K's columns, in quad order as E */
-        size_t ktotal = 0;
-        for (uint32_t q = 0; q < r->g->nquads; q++) ktotal += r->recs[q].kcount;
-        if (ktotal > ls->kcap) {
-            size_t ci = ls->kcap, cv = 3 * ls->kcap;
-            uint32_t *ni = grow(r, ls->kidx, &ci, ktotal, sizeof(uint32_t));
-            if (!ni) return -1;
-            ls->kidx = ni;
-            float *nv = grow(r, ls->kval, &cv, 3 * ci, sizeof(float));
-            if (!nv) return -1;
-            ls->kval = nv;
-            ls->kcap = ci;
-        }
-        k = 0;
-        for (uint32_t q = 0; q < r->g->nquads; q++) {
-            const out_rec *rec = &r->recs[q];
-            if (!rec->kcount) continue;
-            const worker *w = &r->workers[rec->worker];
-            memcpy(ls->kidx + k, w->koidx + rec->kstart, rec->kcount * sizeof(uint32_t));
-            memcpy(ls->kval + 3 * k, w->koval + 3 * rec->kstart, rec->kcount * 3 * sizeof(float));
-            k += rec->kcount;
-        }
-        ls->kn = ktotal;
-    }
     ls->projected = 1;
     return 0;
 }
@@ -1857,7 +1817,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (r->dev) rtcReleaseDevice(r->dev);
     for (int i = 0; i < r->lights_cap; i++) {
         ra_free(r, r->lights[i].idx); ra_free(r, r->lights[i].val); ra_free(r, r->lights[i].root);
-        ra_free(r, r->lights[i].kidx); ra_free(r, r->lights[i].kval);
+        ra_free(r, r->lights[i].kc);
     }
     ra_free(r, r->lights);
     if (r->workers)
@@ -1866,7 +1826,7 @@ void wrt_relight_destroy(wrt_relight *r) {
             /* scratch grown in updates */
             ra_free(r, w->grid); ra_free(r, w->pyr); ra_free(r, w->acc); ra_free(r, w->wts); ra_free(r, w->cells);
             ra_free(r, w->oidx); ra_free(r, w->oval); ra_free(r, w->fpyr); ra_free(r, w->fgrid); ra_free(r, w->occ);
-            ra_free(r, w->pval); ra_free(r, w->pwav); ra_free(r, w->koidx); ra_free(r, w->koval);
+            ra_free(r, w->pval); ra_free(r, w->pwav);
             ra_free(r, w->pstate); ra_free(r, w->prefined); ra_free(r, w->pclear); ra_free(r, w->pcells);
         }
     ra_free(r, r->workers);
@@ -1903,17 +1863,24 @@ wrt_status wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const
     if (n > r->lights_cap) {
         light_state *nl = ra_calloc(r, (size_t)n, sizeof(light_state));
         double **roots = ra_calloc(r, (size_t)n, sizeof(double *));
-        for (int i = r->lights_cap; i < n && !r->oom; i++) roots[i] = ra_calloc(r, (size_t)r->g->nquads * 3 + 1, sizeof(double));
+        float **kcs = ra_calloc(r, (size_t)n, sizeof(float *)); /* c over K's columns, if any */
+        for (int i = r->lights_cap; i < n && !r->oom; i++) {
+            roots[i] = ra_calloc(r, (size_t)r->g->nquads * 3 + 1, sizeof(double));
+            if (r->g->nkcols) kcs[i] = ra_calloc(r, (size_t)r->g->nkcols * 3, sizeof(float));
+        }
         if (r->oom) {
             r->oom = 0;
             if (roots) for (int i = r->lights_cap; i < n; i++) ra_free(r, roots[i]);
+            if (kcs) for (int i = r->lights_cap; i < n; i++) ra_free(r, kcs[i]);
             ra_free(r, roots);
+            ra_free(r, kcs);
             ra_free(r, nl);
             return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory for %d lights", n);
         }
         if (r->lights_cap) memcpy(nl, r->lights, (size_t)r->lights_cap * sizeof(light_state));
-        for (int i = r->lights_cap; i < n; i++) nl[i].root = roots[i];
+        for (int i = r->lights_cap; i < n; i++) { nl[i].root = roots[i]; nl[i].kc = kcs[i]; }
         ra_free(r, roots);
+        ra_free(r, kcs);
         ra_free(r, r->lights);
         r->lights = nl;
         r->lights_cap = n;
@@ -1969,8 +1936,8 @@ static void first_bounce(wrt_relight *r) {
     for (int i = 0; i < r->nlights; i++) {
         const light_state *ls = &r->lights[i];
         if (ls->scale == 0 || !ls->projected) continue;
-        for (size_t k = 0; k < ls->kn; k++)
-            for (int c = 0; c < 3; c++) r->C[(size_t)ls->kidx[k] * 4 + c] += ls->scale * ls->kval[k * 3 + c];
+        for (size_t j = 0; j < nk; j++)
+            for (int c = 0; c < 3; c++) r->C[j * 4 + c] += ls->scale * ls->kc[j * 3 + c];
     }
     const uint32_t *ks = r->kt_start;
     const kt_entry *kt = r->kt;
