@@ -38,6 +38,10 @@
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define WRT_K_AVX 1 /* Y = K c's rows in fours with AVX where the processor has it */
+#endif
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -290,6 +294,7 @@ struct wrt_relight {
                                     /* with 4 values each in k4_vals (0 where a row has none) */
     float *Y;                       /* Y = K c: nfuncs x 3 */
     float *Y4;                      /* Y being summed: 4 floats a function (RGB, unused) */
+    int k_avx;                      /* the processor has AVX (Y's rows in fours with it) */
     float *Ep;                      /* E' = E off the quads with K columns, + Y: nfuncs x 3 */
 };
 
@@ -1443,6 +1448,10 @@ static wrt_status setup_first_bounce(wrt_relight *r) {
     r->Y = ra_calloc(r, (size_t)g->nfuncs * 3 + 1, sizeof(float));
     r->Ep = ra_calloc(r, (size_t)g->nfuncs * 3 + 1, sizeof(float));
     r->Y4 = ra_calloc(r, (size_t)g->nfuncs * 4 + 4, sizeof(float)); /* malloc: 16-byte aligned */
+#ifdef WRT_K_AVX
+    __builtin_cpu_init();
+    r->k_avx = __builtin_cpu_supports("avx") && !getenv("WRT_NO_AVX"); /* WRT_NO_AVX: tests, A/B */
+#endif
     if (g->knnz > UINT32_MAX) return wrt_fail(WRT_ERR_NOMEM, "relight: first-bounce operator of %llu entries: too large",
                                               (unsigned long long)g->knnz);
     /* K by rows: Y = K c sums each row in registers, in column order (no store per entry).
@@ -1924,6 +1933,69 @@ static void gather_direct(void *user, wrt_v3 x, wrt_v3 n, double out[3]) {
     }
 }
 
+/* Y = K c on the rows in fours (K by rows, r->k4_*): one load of c serves four rows. Each
+ * row sums its even-numbered and its odd-numbered entries apart, then adds the two: the
+ * same operations, in the same order, as the AVX version below, which runs an even and an
+ * odd entry side by side (so Y is the same to the bit with or without AVX). */
+static void k_fours(wrt_relight *r) {
+    const float *C = r->C, *kv = r->k4_vals;
+    const uint32_t *kc = r->k4_cols;
+    for (uint32_t i = 0; i < r->nk4; i++) {
+        float *y = r->Y4 + (size_t)r->k4_row[i] * 4;
+        uint32_t b = r->k4_start[i], end = r->k4_start[i + 1];
+#ifdef __SSE2__
+        __m128 e0 = _mm_setzero_ps(), e1 = e0, e2 = e0, e3 = e0, o0 = e0, o1 = e0, o2 = e0, o3 = e0;
+#define K_FOUR(a0, a1, a2, a3, bb) do { \
+            __m128 cv_ = _mm_load_ps(C + (size_t)kc[bb] * 4), v_ = _mm_load_ps(kv + (size_t)(bb) * 4); \
+            a0 = _mm_add_ps(a0, _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0x00))); \
+            a1 = _mm_add_ps(a1, _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0x55))); \
+            a2 = _mm_add_ps(a2, _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0xAA))); \
+            a3 = _mm_add_ps(a3, _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0xFF))); } while (0)
+        for (; b + 2 <= end; b += 2) {
+            K_FOUR(e0, e1, e2, e3, b);
+            K_FOUR(o0, o1, o2, o3, b + 1);
+        }
+        if (b < end) K_FOUR(e0, e1, e2, e3, b);
+        _mm_store_ps(y, _mm_add_ps(e0, o0)); _mm_store_ps(y + 4, _mm_add_ps(e1, o1));
+        _mm_store_ps(y + 8, _mm_add_ps(e2, o2)); _mm_store_ps(y + 12, _mm_add_ps(e3, o3));
+#else
+        float a[2][4][3] = {{{0}}};
+        for (uint32_t n = 0; b < end; b++, n++)
+            for (int k = 0; k < 4; k++)
+                for (int c = 0; c < 3; c++) a[n & 1][k][c] += C[(size_t)kc[b] * 4 + c] * kv[(size_t)b * 4 + k];
+        for (int k = 0; k < 4; k++) for (int c = 0; c < 3; c++) y[k * 4 + c] = a[0][k][c] + a[1][k][c];
+#endif
+    }
+}
+
+#ifdef WRT_K_AVX
+__attribute__((target("avx"))) static void k_fours_avx(wrt_relight *r) {
+    const float *C = r->C, *kv = r->k4_vals;
+    const uint32_t *kc = r->k4_cols;
+    for (uint32_t i = 0; i < r->nk4; i++) {
+        float *y = r->Y4 + (size_t)r->k4_row[i] * 4;
+        uint32_t b = r->k4_start[i], end = r->k4_start[i + 1];
+        __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps(), a3 = _mm256_setzero_ps();
+        for (; b + 2 <= end; b += 2) { /* low half: entry b (even), high half: b + 1 (odd) */
+            __m256 cv = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_load_ps(C + (size_t)kc[b] * 4)),
+                                             _mm_load_ps(C + (size_t)kc[b + 1] * 4), 1);
+            __m256 v = _mm256_loadu_ps(kv + (size_t)b * 4);
+            a0 = _mm256_add_ps(a0, _mm256_mul_ps(cv, _mm256_permute_ps(v, 0x00)));
+            a1 = _mm256_add_ps(a1, _mm256_mul_ps(cv, _mm256_permute_ps(v, 0x55)));
+            a2 = _mm256_add_ps(a2, _mm256_mul_ps(cv, _mm256_permute_ps(v, 0xAA)));
+            a3 = _mm256_add_ps(a3, _mm256_mul_ps(cv, _mm256_permute_ps(v, 0xFF)));
+        }
+        __m128 e0 = _mm256_castps256_ps128(a0), e1 = _mm256_castps256_ps128(a1), e2 = _mm256_castps256_ps128(a2),
+               e3 = _mm256_castps256_ps128(a3);
+        if (b < end) K_FOUR(e0, e1, e2, e3, b); /* a last, even entry */
+        _mm_store_ps(y, _mm_add_ps(e0, _mm256_extractf128_ps(a0, 1)));
+        _mm_store_ps(y + 4, _mm_add_ps(e1, _mm256_extractf128_ps(a1, 1)));
+        _mm_store_ps(y + 8, _mm_add_ps(e2, _mm256_extractf128_ps(a2, 1)));
+        _mm_store_ps(y + 12, _mm_add_ps(e3, _mm256_extractf128_ps(a3, 1)));
+    }
+}
+#endif
+
 /* The first glossy bounce (K-SPEC): c = the sum over lights of their scaled projections
  * onto K's columns (cached per light, as E's), Y = K c (one channel K, RGB c; rows summed
  * in column order), and E' = E with every function of a quad that has K columns set to 0
@@ -1964,29 +2036,11 @@ static void first_bounce(wrt_relight *r) {
         for (int c = 0; c < 3; c++) y[c] = s0[c] + s1[c];
 #endif
     }
-    for (uint32_t i = 0; i < r->nk4; i++) { /* rows in fours: one load of c, four rows */
-        float *y = r->Y4 + (size_t)r->k4_row[i] * 4;
-        const uint32_t *kc = r->k4_cols;
-        const float *kv = r->k4_vals;
-        uint32_t b = r->k4_start[i], end = r->k4_start[i + 1];
-#ifdef __SSE2__
-        __m128 a0 = _mm_setzero_ps(), a1 = _mm_setzero_ps(), a2 = _mm_setzero_ps(), a3 = _mm_setzero_ps();
-        for (; b < end; b++) {
-            __m128 cv = _mm_load_ps(C + (size_t)kc[b] * 4), v = _mm_load_ps(kv + (size_t)b * 4);
-            a0 = _mm_add_ps(a0, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0x00)));
-            a1 = _mm_add_ps(a1, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0x55)));
-            a2 = _mm_add_ps(a2, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0xAA)));
-            a3 = _mm_add_ps(a3, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0xFF)));
-        }
-        _mm_store_ps(y, a0); _mm_store_ps(y + 4, a1); _mm_store_ps(y + 8, a2); _mm_store_ps(y + 12, a3);
-#else
-        float a[4][3] = {{0}};
-        for (; b < end; b++)
-            for (int k = 0; k < 4; k++)
-                for (int c = 0; c < 3; c++) a[k][c] += C[(size_t)kc[b] * 4 + c] * kv[(size_t)b * 4 + k];
-        for (int k = 0; k < 4; k++) for (int c = 0; c < 3; c++) y[k * 4 + c] = a[k][c];
+#ifdef WRT_K_AVX
+    if (r->k_avx) k_fours_avx(r);
+    else
 #endif
-    }
+        k_fours(r);
     memcpy(r->Ep, r->E, (size_t)nf * 3 * sizeof(float));
     for (uint32_t q = 0; q < g->nquads; q++)
         if (r->qi[q].kcount)
