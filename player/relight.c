@@ -803,16 +803,21 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     }
     int cap = projection_cap(r, q);
     /* Angular slots: the root, plus the quad's angular functions when it has any. */
-    int nslot = q->nang > 0 ? q->nang : 1;
+    /* On a quad with K columns, E's angular functions are not projected: the multiply
+     * reads E' (E off that quad, + Y), so only E's angular root is kept (the quad's
+     * direct irradiance, wrt_relight_quad_irradiance), and no cell is split for the
+     * light crossing an angular cell (c's btilde is smooth in the light's direction). */
+    int eang = q->nang > 0 && !q->kcount;
+    int nslot = eang ? q->nang : 1;
     const uint16_t *alist = r->ang_list + q->ang_first;
     int16_t slot_of[NANG];
     for (int a = 0; a < NANG; a++) slot_of[a] = -1;
-    if (q->nang > 0) for (int s = 0; s < q->nang; s++) slot_of[alist[s]] = (int16_t)s;
+    if (eang) for (int s = 0; s < q->nang; s++) slot_of[alist[s]] = (int16_t)s;
     else slot_of[0] = 0;
     int ebase = nslot; /* K's slots after E's: 3 (RGB) per angular function of its columns */
     nslot += 3 * q->nkang;
     proj_setup ps = {q, ctx->lc, nslot, 4, 0, 1, 0, slot_of, q->nkang, r->beta[q->material]};
-    if (q->nang > 1) ps.ang_res = 2 << q->alevel;
+    if (eang && q->nang > 1) ps.ang_res = 2 << q->alevel;
     int local_rule = r->opt.proj_level == 0;
     if (r->opt.proj_reference > 0) { /* every cell of the finest grid */
         Ld = cap;

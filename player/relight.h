@@ -77,7 +77,9 @@ void wrt_relight_quad_irradiance(const wrt_relight *r, int q, double direct[3], 
 
 /* The coefficient vectors themselves (length g->nfuncs, RGB interleaved), for tests.
  * With the final gather (the default when a quad is glossy) the rows of X that are a
- * glossy quad's non-root angular functions are not computed (0): nothing displays them. */
+ * glossy quad's non-root angular functions are not computed (0): nothing displays them.
+ * With the first-bounce operator K, E's non-root angular functions on a quad that has K
+ * columns are not projected (0): the multiply reads E' instead (wrt_relight_Y). */
 const float *wrt_relight_E(const wrt_relight *r);
 const float *wrt_relight_X(const wrt_relight *r);
 
