@@ -1288,8 +1288,8 @@ static void test_first_bounce_brute_force(void) {
 
 /* Per light, c is projected once: moving one light of two re-projects that light only,
  * and changing a light's scale re-projects none; X is then the same, to the bit, as a
- * relighter that starts from those lights (with the final gather: the multiply's copy of
- * the operator, whose non-displayed rows stay 0 in X, Y included). */
+ * relighter on one thread that starts from those lights (with the final gather: the
+ * multiply's copy of the operator, whose non-displayed rows stay 0 in X, Y included). */
 static void test_first_bounce_cache(void) {
     ts_scene s;
     ts_init(&s);
@@ -1328,7 +1328,8 @@ static void test_first_bounce_cache(void) {
         wrt_relight_update(r, &t);
         CHECK(t.lights_changed == (step == 0 ? 1 : 0), "step %d: %d lights re-projected", step, t.lights_changed);
         wrt_relight *f;
-        CHECK(wrt_relight_create(&s.g, NULL, &f) == WRT_OK, "%s", wrt_last_error());
+        wrt_relight_options one = {.threads = 1}; /* and on one thread (r: every core) */
+        CHECK(wrt_relight_create(&s.g, &one, &f) == WRT_OK, "%s", wrt_last_error());
         wrt_relight_set_eye(f, eye);
         wrt_relight_set_lights(f, L, sc, 2);
         wrt_relight_update(f, NULL);
