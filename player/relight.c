@@ -289,9 +289,10 @@ struct wrt_relight {
     float *C;                       /* c summed over the lights: nkcols x 4 (RGB, unused) */
     uint32_t *kt_start;             /* K by rows (its transpose, columns ascending in a row): */
     kt_entry *kt;                   /* row f is entries [kt_start[f], kt_start[f + 1]), except */
-    uint32_t nk4, *k4_row, *k4_start; /* rows in fours (below): four k4_row[i] .. + 3 are */
-    uint32_t *k4_cols; float *k4_vals; /* entries [k4_start[i], k4_start[i + 1]) of k4_cols, */
-                                    /* with 4 values each in k4_vals (0 where a row has none) */
+    uint32_t nk4, *k4_row, *k4_start; /* rows in fours (below): the k4_n[i] rows from */
+    uint8_t *k4_n;                  /* k4_row[i] are entries [k4_start[i], k4_start[i + 1]) of */
+    uint32_t *k4_cols; float *k4_vals; /* k4_cols, with 4 values each in k4_vals (0 where a
+                                    * row has none, and for rows past k4_n[i]) */
     float *Y;                       /* Y = K c: nfuncs x 3 */
     float *Y4;                      /* Y being summed: 4 floats a function (RGB, unused) */
     int k_avx;                      /* the processor has AVX (Y's rows in fours with it) */
@@ -1460,17 +1461,19 @@ static wrt_status setup_first_bounce(wrt_relight *r) {
     if (g->knnz > UINT32_MAX) return wrt_fail(WRT_ERR_NOMEM, "relight: first-bounce operator of %llu entries: too large",
                                               (unsigned long long)g->knnz);
     /* K by rows: Y = K c sums each row in registers, in column order (no store per entry).
-     * Four consecutive rows of one quad and spatial function (a glossy receiver's incident
-     * angular functions) have nearly the same columns (97% on the glossy asset, where such
-     * rows hold 87% of K's entries): their union is stored once with 4 values an entry,
-     * one load of c serving four rows. Measured on the glossy asset's 1.5 M entries: the
-     * columns' scatter 1.1 ms, rows one by one 0.87 ms, rows in fours (this) see docs. */
+     * Two to four consecutive rows of one quad and spatial node (a glossy receiver's
+     * incident angular functions; a node's wavelets) have nearly the same columns (97% on
+     * the glossy asset, where the fours of glossy receivers hold 87% of K's entries): their
+     * union is stored once with 4 values an entry, one load of c serving the rows. Y on the
+     * glossy asset's 1.5 M entries, one thread: the columns' scatter 1.1 ms, rows one by
+     * one 0.87 ms, fours 0.58 ms, with AVX 0.45 ms, with the nodes' wavelets too 0.42 ms. */
     uint32_t nf = g->nfuncs;
     uint32_t *ts = ra_calloc(r, (size_t)nf + 1, sizeof(uint32_t));
     kt_entry *te = ra_calloc(r, (size_t)g->knnz + 1, sizeof(kt_entry));
     r->kt_start = ra_calloc(r, (size_t)nf + 1, sizeof(uint32_t));
-    r->k4_row = ra_calloc(r, (size_t)nf / 4 + 1, sizeof(uint32_t));
-    r->k4_start = ra_calloc(r, (size_t)nf / 4 + 2, sizeof(uint32_t));
+    r->k4_row = ra_calloc(r, (size_t)nf / 2 + 1, sizeof(uint32_t));
+    r->k4_start = ra_calloc(r, (size_t)nf / 2 + 2, sizeof(uint32_t));
+    r->k4_n = ra_calloc(r, (size_t)nf / 2 + 1, 1);
     uint8_t *in4 = ra_calloc(r, (size_t)nf + 1, 1);
     if (r->oom) { ra_free(r, ts); ra_free(r, te); ra_free(r, in4); return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory"); }
     for (uint64_t e = 0; e < g->knnz; e++) ts[g->krows[e] + 1]++;
@@ -1483,24 +1486,28 @@ static wrt_status setup_first_bounce(wrt_relight *r) {
         }
     for (uint32_t f = nf; f > 0; f--) ts[f] = ts[f - 1];
     ts[0] = 0;
-    /* the fours, and their union's size (a merge of four ascending lists) */
+    /* the fours (2 to 4 consecutive rows of one quad and spatial node: a glossy receiver's
+     * incident angular functions, or a node's three wavelets, with the root's node its
+     * root function) and their union's size (a merge of ascending lists) */
     uint64_t n4 = 0, n1 = 0;
-    for (uint32_t f = 0; f + 4 <= nf;) {
-        int four = ts[f + 1] > ts[f];
-        for (uint32_t k = 1; k < 4 && four; k++) four = (g->fkeys[f + k] >> 16) == (g->fkeys[f] >> 16);
-        if (!four) { f++; continue; }
+    for (uint32_t f = 0; f < nf;) {
+        uint32_t n = 1;
+        while (n < 4 && f + n < nf && (g->fkeys[f + n] >> 18) == (g->fkeys[f] >> 18)) n++;
+        if (n < 2) { f++; continue; }
         r->k4_row[r->nk4] = f;
-        uint32_t p[4] = {ts[f], ts[f + 1], ts[f + 2], ts[f + 3]};
+        r->k4_n[r->nk4] = (uint8_t)n;
+        uint32_t p[4];
+        for (uint32_t k = 0; k < n; k++) p[k] = ts[f + k];
         for (;;) {
             uint32_t m = UINT32_MAX;
-            for (int k = 0; k < 4; k++) if (p[k] < ts[f + k + 1] && te[p[k]].col < m) m = te[p[k]].col;
+            for (uint32_t k = 0; k < n; k++) if (p[k] < ts[f + k + 1] && te[p[k]].col < m) m = te[p[k]].col;
             if (m == UINT32_MAX) break;
-            for (int k = 0; k < 4; k++) if (p[k] < ts[f + k + 1] && te[p[k]].col == m) p[k]++;
+            for (uint32_t k = 0; k < n; k++) if (p[k] < ts[f + k + 1] && te[p[k]].col == m) p[k]++;
             n4++;
         }
         r->k4_start[++r->nk4] = (uint32_t)n4;
-        for (int k = 0; k < 4; k++) in4[f + k] = 1;
-        f += 4;
+        for (uint32_t k = 0; k < n; k++) in4[f + k] = 1;
+        f += n;
     }
     for (uint32_t f = 0; f < nf; f++) if (!in4[f]) n1 += ts[f + 1] - ts[f];
     r->kt = ra_calloc(r, (size_t)n1 + 1, sizeof(kt_entry));
@@ -1515,13 +1522,15 @@ static wrt_status setup_first_bounce(wrt_relight *r) {
     }
     r->kt_start[nf] = (uint32_t)q1;
     for (uint32_t i = 0; i < r->nk4; i++) {
-        uint32_t f = r->k4_row[i], p[4] = {ts[f], ts[f + 1], ts[f + 2], ts[f + 3]}, b = r->k4_start[i];
+        uint32_t f = r->k4_row[i], n = r->k4_n[i], p[4], b = r->k4_start[i];
+        for (uint32_t k = 0; k < n; k++) p[k] = ts[f + k];
         for (;; b++) {
             uint32_t m = UINT32_MAX;
-            for (int k = 0; k < 4; k++) if (p[k] < ts[f + k + 1] && te[p[k]].col < m) m = te[p[k]].col;
+            for (uint32_t k = 0; k < n; k++) if (p[k] < ts[f + k + 1] && te[p[k]].col < m) m = te[p[k]].col;
             if (m == UINT32_MAX) break;
             r->k4_cols[b] = m;
-            for (int k = 0; k < 4; k++) r->k4_vals[(size_t)b * 4 + k] = p[k] < ts[f + k + 1] && te[p[k]].col == m ? te[p[k]++].val : 0;
+            for (uint32_t k = 0; k < 4; k++)
+                r->k4_vals[(size_t)b * 4 + k] = k < n && p[k] < ts[f + k + 1] && te[p[k]].col == m ? te[p[k]++].val : 0;
         }
     }
     ra_free(r, ts); ra_free(r, te); ra_free(r, in4);
@@ -1857,7 +1866,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     ra_free(r, r->rin); ra_free(r, r->rknown); ra_free(r, r->rout);
     ra_free(r, r->kfn_slevel); ra_free(r, r->kfn_ang); ra_free(r, r->kfn_spidx);
     ra_free(r, r->kt_start); ra_free(r, r->kt);
-    ra_free(r, r->k4_row); ra_free(r, r->k4_start); ra_free(r, r->k4_cols); ra_free(r, r->k4_vals);
+    ra_free(r, r->k4_row); ra_free(r, r->k4_start); ra_free(r, r->k4_n); ra_free(r, r->k4_cols); ra_free(r, r->k4_vals);
     ra_free(r, r->C); ra_free(r, r->Y); ra_free(r, r->Y4); ra_free(r, r->Ep);
     ra_free(r, r);
 }
@@ -1961,14 +1970,16 @@ static void k_fours(wrt_relight *r) {
             K_FOUR(o0, o1, o2, o3, b + 1);
         }
         if (b < end) K_FOUR(e0, e1, e2, e3, b);
+        int n = r->k4_n[i]; /* 2 to 4 rows: the next group's rows follow */
         _mm_store_ps(y, _mm_add_ps(e0, o0)); _mm_store_ps(y + 4, _mm_add_ps(e1, o1));
-        _mm_store_ps(y + 8, _mm_add_ps(e2, o2)); _mm_store_ps(y + 12, _mm_add_ps(e3, o3));
+        if (n > 2) _mm_store_ps(y + 8, _mm_add_ps(e2, o2));
+        if (n > 3) _mm_store_ps(y + 12, _mm_add_ps(e3, o3));
 #else
         float a[2][4][3] = {{{0}}};
         for (uint32_t n = 0; b < end; b++, n++)
             for (int k = 0; k < 4; k++)
                 for (int c = 0; c < 3; c++) a[n & 1][k][c] += C[(size_t)kc[b] * 4 + c] * kv[(size_t)b * 4 + k];
-        for (int k = 0; k < 4; k++) for (int c = 0; c < 3; c++) y[k * 4 + c] = a[0][k][c] + a[1][k][c];
+        for (int k = 0; k < r->k4_n[i]; k++) for (int c = 0; c < 3; c++) y[k * 4 + c] = a[0][k][c] + a[1][k][c];
 #endif
     }
 }
@@ -1993,10 +2004,11 @@ __attribute__((target("avx"))) static void k_fours_avx(wrt_relight *r) {
         __m128 e0 = _mm256_castps256_ps128(a0), e1 = _mm256_castps256_ps128(a1), e2 = _mm256_castps256_ps128(a2),
                e3 = _mm256_castps256_ps128(a3);
         if (b < end) K_FOUR(e0, e1, e2, e3, b); /* a last, even entry */
+        int n = r->k4_n[i]; /* 2 to 4 rows: the next group's rows follow */
         _mm_store_ps(y, _mm_add_ps(e0, _mm256_extractf128_ps(a0, 1)));
         _mm_store_ps(y + 4, _mm_add_ps(e1, _mm256_extractf128_ps(a1, 1)));
-        _mm_store_ps(y + 8, _mm_add_ps(e2, _mm256_extractf128_ps(a2, 1)));
-        _mm_store_ps(y + 12, _mm_add_ps(e3, _mm256_extractf128_ps(a3, 1)));
+        if (n > 2) _mm_store_ps(y + 8, _mm_add_ps(e2, _mm256_extractf128_ps(a2, 1)));
+        if (n > 3) _mm_store_ps(y + 12, _mm_add_ps(e3, _mm256_extractf128_ps(a3, 1)));
     }
 }
 #endif
