@@ -31,7 +31,16 @@
  * glossily; a quad's texture has 2^(slevel+1) texels a side (capped), so the finest
  * stored wavelet is represented exactly as a texel average; glossy pruning
  * (Figure 5) is done per angular function: one whose BRDF weight beta is below 1e-3 of
- * the root's over every direction the quad sends toward the eye is skipped. */
+ * the root's over every direction the quad sends toward the eye is skipped.
+ *
+ * The first glossy bounce (a file with the first-bounce operator K, g->nkcols > 0;
+ * formats/GTO_FORMAT.md): on a quad with K columns the same projection also gives, per
+ * light, c over K's columns, the quad's outgoing functions: g(w_l) replaced by the BRDF
+ * table's btilde_g(w_l) at the light's exact direction (RGB, no spread). Per update Y = K c
+ * (K by rows, in groups of rows sharing a spatial node), E' = E with that quad's functions
+ * set to 0, plus Y, and X = Op E' + Y: the direct light a glossy quad reflects reaches the
+ * others with its exact lobe (at K's outgoing level), every later bounce through Op. A
+ * file without K takes the path above unchanged, to the bit. */
 #include "relight.h"
 
 #include <embree3/rtcore.h>
