@@ -521,7 +521,14 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             C->entries_spatial = res->dto.nnz - C->entries_angular;
             C->nfuncs = res->nfuncs;
             for (uint32_t f = 0; f < res->nfuncs; f++) C->nfuncs_angular += !wrt_fkey_angular_root(res->fkeys[f]);
-            if (nkent) k_assemble(res, job.out + npt, np - npt, nkent);
+            if (nkent) {
+                k_assemble(res, job.out + npt, np - npt, nkent);
+                if (!b.opt.no_balance) {
+                    double tb = wrt_now();
+                    C->balance_entries += wrt_balance_k(&b, res);
+                    C->t_balance += wrt_now() - tb;
+                }
+            }
         }
     }
     for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].leaf); }
