@@ -521,7 +521,9 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             C->entries_spatial = res->dto.nnz - C->entries_angular;
             C->nfuncs = res->nfuncs;
             for (uint32_t f = 0; f < res->nfuncs; f++) C->nfuncs_angular += !wrt_fkey_angular_root(res->fkeys[f]);
-            if (nkent) {
+            /* K's triplets, then its arrays (the triplets' 16 bytes an entry, then 8) */
+            if (nkent) st = wrt_bake_memory_check(&b.opt, C, nkent * 24, "the first-bounce operator K");
+            if (nkent && st == WRT_OK) {
                 k_assemble(res, job.out + npt, np - npt, nkent);
                 if (!b.opt.no_balance) {
                     double tb = wrt_now();
