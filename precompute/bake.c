@@ -95,8 +95,8 @@ wrt_status wrt_bake_memory_check(const wrt_bake_options *o, wrt_bake_counters *c
     if (total <= o->max_memory_mb) return WRT_OK;
     return wrt_fail(WRT_ERR_NOMEM,
                     "the bake would need about %.0f MB (%s: %.0f MB more than the %.0f MB in use), over the "
-                    "memory budget of %.0f MB (--max-memory; default half the physical memory): lower --quality "
-                    "or --max-angular-level, or raise --max-memory",
+                    "memory budget of %.0f MB (--max-memory; default half the physical memory): lower --quality, "
+                    "--max-angular-level or --first-bounce-level, or raise --max-memory",
                     total, what, (double)need * mb, (double)wrt_bake_rss_bytes() * mb, o->max_memory_mb);
 }
 
@@ -453,8 +453,8 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         st = wrt_fail(WRT_ERR_NOMEM,
                       "the bake would need at least %.0f MB (the links of the transport operator T being refined: "
                       "%.0f MB more than the %.0f MB in use), over the memory budget of %.0f MB (--max-memory; "
-                      "default half the physical memory): lower --quality or --max-angular-level, or raise "
-                      "--max-memory", (double)rss0 * mb + need, need, (double)rss0 * mb, b.opt.max_memory_mb);
+                      "default half the physical memory): lower --quality, --max-angular-level or "
+                      "--first-bounce-level, or raise --max-memory", (double)rss0 * mb + need, need, (double)rss0 * mb, b.opt.max_memory_mb);
     }
     if (st == WRT_OK && atomic_load(&cancel)) st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
 
