@@ -95,8 +95,8 @@ wrt_status wrt_bake_memory_check(const wrt_bake_options *o, wrt_bake_counters *c
     if (total <= o->max_memory_mb) return WRT_OK;
     return wrt_fail(WRT_ERR_NOMEM,
                     "the bake would need about %.0f MB (%s: %.0f MB more than the %.0f MB in use), over the "
-                    "memory budget of %.0f MB (--max-memory; default half the physical memory): lower --quality "
-                    "or --max-angular-level, or raise --max-memory",
+                    "memory budget of %.0f MB (--max-memory; default half the physical memory): lower --quality, "
+                    "--max-angular-level or --first-bounce-level, or raise --max-memory",
                     total, what, (double)need * mb, (double)wrt_bake_rss_bytes() * mb, o->max_memory_mb);
 }
 
@@ -453,8 +453,8 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         st = wrt_fail(WRT_ERR_NOMEM,
                       "the bake would need at least %.0f MB (the links of the transport operator T being refined: "
                       "%.0f MB more than the %.0f MB in use), over the memory budget of %.0f MB (--max-memory; "
-                      "default half the physical memory): lower --quality or --max-angular-level, or raise "
-                      "--max-memory", (double)rss0 * mb + need, need, (double)rss0 * mb, b.opt.max_memory_mb);
+                      "default half the physical memory): lower --quality, --max-angular-level or "
+                      "--first-bounce-level, or raise --max-memory", (double)rss0 * mb + need, need, (double)rss0 * mb, b.opt.max_memory_mb);
     }
     if (st == WRT_OK && atomic_load(&cancel)) st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
 
@@ -521,7 +521,16 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             C->entries_spatial = res->dto.nnz - C->entries_angular;
             C->nfuncs = res->nfuncs;
             for (uint32_t f = 0; f < res->nfuncs; f++) C->nfuncs_angular += !wrt_fkey_angular_root(res->fkeys[f]);
-            if (nkent) k_assemble(res, job.out + npt, np - npt, nkent);
+            /* K's triplets, then its arrays (the triplets' 16 bytes an entry, then 8) */
+            if (nkent) st = wrt_bake_memory_check(&b.opt, C, nkent * 24, "the first-bounce operator K");
+            if (nkent && st == WRT_OK) {
+                k_assemble(res, job.out + npt, np - npt, nkent);
+                if (!b.opt.no_balance) {
+                    double tb = wrt_now();
+                    C->balance_entries += wrt_balance_k(&b, res);
+                    C->t_balance += wrt_now() - tb;
+                }
+            }
         }
     }
     for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].leaf); }

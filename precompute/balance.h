@@ -23,5 +23,8 @@ double *wrt_power_weights(const bake_ctx *b, const uint64_t *fkeys, uint32_t nf)
 /* The power balance of glossy senders (balance.c), on the assembled T: returns the
  * number of entries adjusted. */
 uint64_t wrt_balance_glossy(const bake_ctx *b, const uint64_t *fkeys, uint32_t nf, wrt_csc *T);
+/* The same for the first-bounce operator K's columns (res->kkeys, kvals adjusted in
+ * place; res->fkeys indexed): returns the number of entries adjusted. */
+uint64_t wrt_balance_k(const bake_ctx *b, wrt_bake_result *res);
 
 #endif
