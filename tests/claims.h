@@ -46,6 +46,7 @@
  * its power balance: worst cell 13.2% (the level-3 outgoing cells flatten the lobe's
  * peak; 5.5% at level 4), rmse 3.9% (the incident level-1 path: worst 51%, rmse 30%);
  * the balanced root entry 0.25% from the closed form (the balance's rays) */
+/* README: "a metal wall's reflection of a point light on the floor beside it within 4.5% of brute force over 4 x 4 cells (15% on the worst cell)" */
 #define CLAIM_K_CELLS 0.15
 #define CLAIM_K_RMSE 0.045
 #define CLAIM_K_BALANCED_ROOT 1e-2
