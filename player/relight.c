@@ -1430,6 +1430,8 @@ static int display_rows_operator(wrt_relight *r) {
  * functions among them (the projection's K slots). K's angular levels are < 4 (2 bits
  * in a key), all in the BRDF table (levels 0..3). WRT_ERR_CORRUPT naming the column,
  * WRT_ERR_NOMEM. */
+_Static_assert(WRT_BRDF_TABLE_LEVELS >= 4 && NANG == WRT_BRDF_TABLE_NANG,
+               "a key's angular node level (2 bits, 0..3) must be in the BRDF table: L_K <= 4 is covered");
 static wrt_status setup_first_bounce(wrt_relight *r) {
     const wrt_gto *g = r->g;
     uint32_t nk = g->nkcols, nq = g->nquads;
