@@ -782,11 +782,14 @@ static void test_first_bounce_operator(void) {
     CHECK(r.nkcols > 0 && r.knnz > 0, "a glossy quad gets a first-bounce operator (%u columns, %llu entries)", r.nkcols,
           (unsigned long long)r.knnz);
     int kl = 0;
+    uint32_t off_quad = 0, unsorted = 0;
     for (uint32_t j = 0; j < r.nkcols; j++) {
-        CHECK(wrt_fkey_quad(r.kkeys[j]) == 1, "K's columns are the glossy wall's functions");
+        off_quad += wrt_fkey_quad(r.kkeys[j]) != 1;
         if (!wrt_fkey_angular_root(r.kkeys[j])) kl = kl > wrt_fkey_anode(r.kkeys[j]).level + 1 ? kl : wrt_fkey_anode(r.kkeys[j]).level + 1;
-        if (j) CHECK(r.kkeys[j - 1] < r.kkeys[j], "column keys ascending");
+        unsorted += j && r.kkeys[j - 1] >= r.kkeys[j];
     }
+    CHECK(off_quad == 0 && unsorted == 0, "K's columns are the glossy wall's functions, ascending (%u off the wall, %u out "
+          "of order)", off_quad, unsorted);
     if (!getenv("K_LEVEL")) CHECK(kl == 3, "K's outgoing level follows the lobe of roughness 0.35: %d", kl);
     /* with the power balance (balance.c): the root's power from rays, near the closed form */
     double kroot = k_root_entry(&r);
