@@ -94,6 +94,7 @@ typedef struct pair_ctx {
     int occluded;            /* some quad may lie between R and S */
     int sym;                 /* diffuse pair: links serve both directions (reciprocity) */
     int kmode;               /* the first-bounce operator K: sender's outgoing functions, no albedo */
+    double *kval; int *kidx; uint8_t *kseen; int nk; /* K: k_directions' scratch, nang each */
     double rho_max;
     int lr, ls;              /* angular levels of receiver and sender (0: diffuse) */
     int nar, nas, nang, nch; /* angular functions per side, their product, channels */
@@ -326,16 +327,17 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
     return any_geom && !any_vis;
 }
 
-/* K: the mean of the sender's outgoing angular functions over the directions in which x
- * sees sender quadrant t of cell sn, weighted by the form factor: the quadrant is split
- * (up to 4 times) while a part of it spans more than a quarter of an outgoing cell of
- * K's level (form factor 4^-L / 4), each part taking the direction to its centre. One
- * direction for the whole quadrant (T's rule) put a shared edge's grazing directions
- * where the quadrant's centre is: a metal wall's reflection on the floor beside it came
- * out 2-9% low at level 4 (test_bake). Returns the functions touched (their indices in
- * idx[], values in val[] by index; val is zeroed on those only). */
-static void k_dir_add(const pair_ctx *pc, wrt_v3 x, const wrt_v3 poly[4], int depth, double *val, uint8_t *seen,
-                      double *fsum) {
+/* K: the mean of (receiver incident function x sender outgoing function) over the
+ * directions in which x sees sender quadrant t of cell sn, weighted by the form factor:
+ * the quadrant is split (up to 4 times) while a part of it spans more than a quarter of
+ * an angular cell of K's level (form factor 4^-L / 4), each part taking the direction to
+ * its centre on both sides. One direction for the whole quadrant (T's rule) put a shared
+ * edge's grazing directions where the quadrant's centre is: a metal wall's reflection on
+ * the floor beside it came out 2-9% low at level 4 (test_bake), and a glossy receiver's
+ * incident functions beside an edge it shares with the sender a block of entries 17% low.
+ * Accumulates into pc->kval by the block's angular index (receiver index x nas + sender
+ * index), listing the indices touched in pc->kidx. */
+static void k_dir_add(pair_ctx *pc, wrt_v3 x, const wrt_v3 poly[4], int depth, double *fsum) {
     const wrt_quad *R = &pc->b->quads[pc->r], *S = &pc->b->quads[pc->s];
     double f = wrt_ff_point_polygon(x, R->n, poly, 4);
     if (f <= 0) return;
@@ -344,7 +346,7 @@ static void k_dir_add(const pair_ctx *pc, wrt_v3 x, const wrt_v3 poly[4], int de
         wrt_v3 m23 = v3_scale(v3_add(poly[2], poly[3]), 0.5), m30 = v3_scale(v3_add(poly[3], poly[0]), 0.5);
         wrt_v3 mc = v3_scale(v3_add(m01, m23), 0.5);
         wrt_v3 sp[4][4] = {{poly[0], m01, mc, m30}, {m01, poly[1], m12, mc}, {mc, m12, poly[2], m23}, {m30, mc, m23, poly[3]}};
-        for (int c = 0; c < 4; c++) k_dir_add(pc, x, sp[c], depth + 1, val, seen, fsum);
+        for (int c = 0; c < 4; c++) k_dir_add(pc, x, sp[c], depth + 1, fsum);
         return;
     }
     wrt_v3 y = v3_scale(v3_add(v3_add(poly[0], poly[1]), v3_add(poly[2], poly[3])), 0.25);
@@ -352,32 +354,36 @@ static void k_dir_add(const pair_ctx *pc, wrt_v3 x, const wrt_v3 poly[4], int de
     double loc[3] = {v3_dot(wdir, S->t), v3_dot(wdir, S->b), v3_dot(wdir, S->n)}, a, bb;
     if (loc[2] < 0) loc[2] = 0;
     wrt_concentric_inv(loc, &a, &bb);
-    int idx[1 + 3 * WRT_K_MAX_LEVEL];
-    double v[1 + 3 * WRT_K_MAX_LEVEL];
-    int n = angular_values(pc->ls, a, bb, idx, v);
-    for (int i = 0; i < n; i++) {
-        val[idx[i]] += f * v[i];
-        seen[idx[i]] = 1;
+    int sidx[1 + 3 * WRT_K_MAX_LEVEL], ridx[1 + 3 * WRT_MAX_ALEVEL];
+    double sv[1 + 3 * WRT_K_MAX_LEVEL], rv[1 + 3 * WRT_MAX_ALEVEL];
+    int ns = angular_values(pc->ls, a, bb, sidx, sv), nr = 1;
+    ridx[0] = 0; rv[0] = 1;
+    if (pc->lr) { /* the receiver's incident functions at the direction x -> y */
+        double rl[3] = {-v3_dot(wdir, R->t), -v3_dot(wdir, R->b), -v3_dot(wdir, R->n)}, ra, rb;
+        if (rl[2] < 0) rl[2] = 0;
+        wrt_concentric_inv(rl, &ra, &rb);
+        nr = angular_values(pc->lr, ra, rb, ridx, rv);
     }
+    for (int i = 0; i < nr; i++)
+        for (int j = 0; j < ns; j++) {
+            int ai = ridx[i] * pc->nas + sidx[j];
+            if (!pc->kseen[ai]) { pc->kseen[ai] = 1; pc->kidx[pc->nk++] = ai; }
+            pc->kval[ai] += f * rv[i] * sv[j];
+        }
     *fsum += f;
 }
 
-static int k_directions(const pair_ctx *pc, wrt_v3 x, wrt_node sn, int t, double *val, int *idx) {
+/* The directions of sender quadrant t seen from x: the number of angular indices in
+ * pc->kidx, their normalised values in pc->kval (cleared by the caller after use). */
+static int k_directions(pair_ctx *pc, wrt_v3 x, wrt_node sn, int t) {
     const wrt_quad *S = &pc->b->quads[pc->s];
     wrt_v3 poly[4];
     wrt_cell_poly(S, wrt_node_child(sn, t & 1, t >> 1), poly);
-    uint8_t seen[1 << (2 * WRT_K_MAX_LEVEL)];
-    memset(seen, 0, (size_t)pc->nas);
-    for (int g = 0; g < pc->nas; g++) val[g] = 0;
     double fsum = 0;
-    k_dir_add(pc, x, poly, 0, val, seen, &fsum);
-    int n = 0;
-    for (int g = 0; g < pc->nas; g++)
-        if (seen[g]) {
-            val[g] = fsum > 0 ? val[g] / fsum : 0;
-            idx[n++] = g;
-        }
-    return n;
+    pc->nk = 0;
+    k_dir_add(pc, x, poly, 0, &fsum);
+    for (int i = 0; i < pc->nk; i++) pc->kval[pc->kidx[i]] = fsum > 0 ? pc->kval[pc->kidx[i]] / fsum : 0;
+    return pc->nk;
 }
 
 /* Adds the leaf's integral to its block. */
@@ -407,8 +413,8 @@ static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_sa
         return;
     }
     const double *srho = b->rho[pc->s];
-    int ridx[1 + 3 * WRT_MAX_ALEVEL], sidx[1 << (2 * WRT_K_MAX_LEVEL)];
-    double rval[1 + 3 * WRT_MAX_ALEVEL], sval[1 << (2 * WRT_K_MAX_LEVEL)];
+    int ridx[1 + 3 * WRT_MAX_ALEVEL];
+    double rval[1 + 3 * WRT_MAX_ALEVEL];
     double beta[64 * 3];
     for (int k = 0; k < ns; k++) {
         int q = ls->qr[k];
@@ -427,20 +433,16 @@ static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_sa
             if (pc->kmode) {
                 /* K: the sender's outgoing Haar functions at y -> x, one channel, over the
                  * directions in which x sees the quadrant (k_directions) */
-                double kv[1 << (2 * WRT_K_MAX_LEVEL)];
-                int nsv = k_directions(pc, ls->x[k], sn, t, kv, sidx);
-                for (int is = 0; is < nsv; is++) sval[is] = kv[sidx[is]];
+                int nk = k_directions(pc, ls->x[k], sn, t);
                 for (int i = 0; i < 4; i++) {
                     double si = wrt_haar_sign(i, q & 1, q >> 1) * ls->jr[k] * scale;
                     for (int j = 0; j < 4; j++) {
                         double wij = si * wrt_haar_sign(j, t & 1, t >> 1) * g;
-                        for (int ia = 0; ia < nr; ia++) {
-                            double wa = wij * rval[ia];
-                            double *dst = &BV(pc, bl, i, j, ridx[ia] * pc->nas, 0);
-                            for (int is = 0; is < nsv; is++) dst[sidx[is]] += wa * sval[is];
-                        }
+                        double *dst = &BV(pc, bl, i, j, 0, 0);
+                        for (int e = 0; e < nk; e++) dst[pc->kidx[e]] += wij * pc->kval[pc->kidx[e]];
                     }
                 }
+                for (int e = 0; e < nk; e++) { pc->kval[pc->kidx[e]] = 0; pc->kseen[pc->kidx[e]] = 0; }
                 continue;
             }
             if (pc->ls) {
@@ -616,6 +618,11 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
     pc.nang = pc.nar * pc.nas;
     pc.nch = pc.kmode ? 1 : (pc.lr || pc.ls) ? 3 : 1;
     pc.bsize = 16 * (size_t)pc.nang * pc.nch;
+    if (pc.kmode) {
+        pc.kval = wrt_xcalloc((size_t)pc.nang, sizeof *pc.kval);
+        pc.kidx = wrt_xmalloc((size_t)pc.nang * sizeof *pc.kidx);
+        pc.kseen = wrt_xcalloc((size_t)pc.nang, 1);
+    }
     memset(out, 0, sizeof *out);
     if (pc.rho_max <= 0 && !pc.ls) return;
     if (pc.ls) pc.rho_max = fmax(pc.rho_max, 1e-3);
@@ -695,4 +702,5 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
 done:
     if (b->pool_bytes) atomic_fetch_sub(b->pool_bytes, (unsigned long long)pc.pool_cap * sizeof *pc.pool);
     free(pc.blocks); free(pc.pool); free(pc.hkeys); free(pc.hvals); free(pc.leaf);
+    free(pc.kval); free(pc.kidx); free(pc.kseen);
 }
