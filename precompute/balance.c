@@ -581,6 +581,17 @@ static int angular_index(wrt_node n, int t) {
 }
 
 
+/* The value of the spatial function (sn, st) on tree leaf f (the function is piecewise
+ * constant on the leaves): 0 where f is outside its support, and for the scaling function
+ * only the root's (1 everywhere). */
+static double leaf_value(wrt_node sn, int st, wrt_node f) {
+    if (f.level <= sn.level) return st == 0 && sn.level == 0 ? 1 : 0;
+    if ((f.x >> (f.level - sn.level)) != sn.x || (f.y >> (f.level - sn.level)) != sn.y) return 0;
+    if (!st) return sn.level ? 0 : 1;
+    int d = f.level - sn.level - 1;
+    return ldexp(1.0, sn.level) * wrt_haar_sign(st, (f.x >> d) & 1, (f.y >> d) & 1);
+}
+
 static void balance_glossy_sender(size_t si, int th, void *user) {
     (void)th;
     gbal_ctx *c = user;
@@ -646,21 +657,9 @@ static void balance_glossy_sender(size_t si, int th, void *user) {
         if (g >= na) continue;
         double want[3] = {0, 0, 0};
         for (size_t li = 0; li < nl; li++) {
-            wrt_node f = wrt_node_unpack(leaves[li]);
-            if (f.level <= sn.level) {
-                if (!(st == 0 && sn.level == 0)) continue;
-            } else if ((f.x >> (f.level - sn.level)) != sn.x || (f.y >> (f.level - sn.level)) != sn.y) {
-                continue;
-            }
-            double hv = 1;
-            if (st) {
-                int d = f.level - sn.level - 1;
-                int cx = (f.x >> d) & 1, cy = (f.y >> d) & 1;
-                hv = ldexp(1.0, sn.level) * wrt_haar_sign(st, cx, cy);
-            } else if (sn.level) {
-                continue;
-            }
-            for (int ch = 0; ch < 3; ch++) want[ch] += hv * V[(li * na + g) * 3 + ch];
+            double hv = leaf_value(sn, st, wrt_node_unpack(leaves[li]));
+            if (hv != 0)
+                for (int ch = 0; ch < 3; ch++) want[ch] += hv * V[(li * na + g) * 3 + ch];
         }
         double have[3] = {0, 0, 0}, wsum = 0;
         for (uint64_t k = T->col[j]; k < T->col[j + 1]; k++) {
@@ -770,22 +769,7 @@ static void balance_k_sender(size_t si, int th, void *user) {
         int st = wrt_fkey_stype(key), g = angular_index(wrt_fkey_anode(key), wrt_fkey_atype(key));
         if (g >= na) continue;
         double want = 0;
-        for (size_t li = 0; li < nl; li++) {
-            wrt_node f = wrt_node_unpack(leaves[li]);
-            if (f.level <= sn.level) {
-                if (!(st == 0 && sn.level == 0)) continue;
-            } else if ((f.x >> (f.level - sn.level)) != sn.x || (f.y >> (f.level - sn.level)) != sn.y) {
-                continue;
-            }
-            double hv = 1;
-            if (st) {
-                int d = f.level - sn.level - 1;
-                hv = ldexp(1.0, sn.level) * wrt_haar_sign(st, (f.x >> d) & 1, (f.y >> d) & 1);
-            } else if (sn.level) {
-                continue;
-            }
-            want += hv * V[li * na + g];
-        }
+        for (size_t li = 0; li < nl; li++) want += leaf_value(sn, st, wrt_node_unpack(leaves[li])) * V[li * na + g];
         double have = 0, wsum = 0;
         for (uint64_t k = res->kcol_start[j]; k < res->kcol_start[j + 1]; k++) {
             double pwr = c->pw[res->krows[k]];
