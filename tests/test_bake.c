@@ -647,6 +647,30 @@ static void test_glossy_sender(void) {
     tsb_free(&s);
 }
 
+/* Brute force for the two tests below: the irradiance that the unit wall x = 0 (normal n,
+ * material m), lit by a point light of intensity I at `light`, reflects onto cell
+ * (level, cx, cy) of the unit floor z = 0: the integral over the wall of
+ * f(w_l, y->x) E_dir(y) cos_y cos_x / d^2 with wrt_brdf_eval only, nr x nr points in the
+ * cell, ns x ns on the wall. */
+static double wall_reflection(const wrt_material *m, wrt_v3 n, wrt_v3 light, double I, int level, int cx, int cy,
+                              int nr, int ns) {
+    double sz = ldexp(1.0, -level), truth = 0;
+    for (int a = 0; a < nr * nr; a++) {
+        wrt_v3 xp = P((cx + (a % nr + 0.5) / nr) * sz, (cy + (a / nr + 0.5) / nr) * sz, 0);
+        for (int k = 0; k < ns * ns; k++) {
+            wrt_v3 yp = P(0, (k % ns + 0.5) / ns, (k / ns + 0.5) / ns);
+            wrt_v3 d = v3_sub(xp, yp), dl = v3_sub(light, yp);
+            double d2 = v3_dot(d, d), l2 = v3_dot(dl, dl);
+            wrt_v3 wo = v3_scale(d, 1 / sqrt(d2)), wi = v3_scale(dl, 1 / sqrt(l2));
+            double cy_ = wo.x, cx_ = -wo.z, ci = wi.x, f[3];
+            if (cy_ <= 0 || cx_ <= 0 || ci <= 0) continue;
+            wrt_brdf_eval(m, n, wi, wo, f);
+            truth += f[0] * I * ci / l2 * cx_ * cy_ / d2;
+        }
+    }
+    return truth / ((double)nr * nr * ns * ns);
+}
+
 /* Glossy sender lit by a point light: the light's direction is a delta, so the sender's
  * reflected light is the BRDF averaged over the light's angular cell (the truncation of
  * the delta's expansion); at the BRDF's own level (3 here) that stays within 10% per cell.
@@ -697,22 +721,8 @@ static void test_glossy_sender_point_light(void) {
     double worst = 0;
     for (int cell = 0; cell < 4; cell++) {
         int cx = cell & 1, cy = cell >> 1;
-        double got = cell_irradiance(&r, 0, 1.0, 1, cx, cy, y), truth = 0;
-        int NR = 6, NS = 48;
-        for (int a = 0; a < NR * NR; a++) {
-            wrt_v3 xp = P((cx + (a % NR + 0.5) / NR) * 0.5, (cy + (a / NR + 0.5) / NR) * 0.5, 0);
-            for (int k = 0; k < NS * NS; k++) {
-                wrt_v3 yp = P(0, (k % NS + 0.5) / NS, (k / NS + 0.5) / NS);
-                wrt_v3 d = v3_sub(xp, yp), dl = v3_sub(light, yp);
-                double d2 = v3_dot(d, d), l2 = v3_dot(dl, dl);
-                wrt_v3 wo = v3_scale(d, 1 / sqrt(d2)), wi = v3_scale(dl, 1 / sqrt(l2));
-                double cy_ = wo.x, cx_ = -wo.z, ci = wi.x, f[3];
-                if (cy_ <= 0 || cx_ <= 0 || ci <= 0) continue;
-                wrt_brdf_eval(&s.materials[mg], W->n, wi, wo, f);
-                truth += f[0] * I * ci / l2 * cx_ * cy_ / d2;
-            }
-        }
-        truth /= (double)NR * NR * NS * NS;
+        double got = cell_irradiance(&r, 0, 1.0, 1, cx, cy, y);
+        double truth = wall_reflection(&s.materials[mg], W->n, light, I, 1, cx, cy, 6, 48);
         double err = fabs(got / truth - 1);
         worst = fmax(worst, err);
         CHECK(err < 0.10, "glossy sender under a point light, cell %d: %.5f vs brute force %.5f", cell, got, truth);
@@ -838,21 +848,7 @@ static void test_first_bounce_operator(void) {
         int cx = cell & 3, cy = cell >> 2;
         double got = cell_irradiance(&r, 0, 1.0, 2, cx, cy, y), truth = 0;
         double got_t = cell_irradiance(&r, 0, 1.0, 2, cx, cy, ye);
-        int NR = 4, NS = 64;
-        for (int a = 0; a < NR * NR; a++) {
-            wrt_v3 xp = P((cx + (a % NR + 0.5) / NR) * 0.25, (cy + (a / NR + 0.5) / NR) * 0.25, 0);
-            for (int k = 0; k < NS * NS; k++) {
-                wrt_v3 yp = P(0, (k % NS + 0.5) / NS, (k / NS + 0.5) / NS);
-                wrt_v3 d = v3_sub(xp, yp), dl = v3_sub(light, yp);
-                double d2 = v3_dot(d, d), l2 = v3_dot(dl, dl);
-                wrt_v3 wo = v3_scale(d, 1 / sqrt(d2)), wi = v3_scale(dl, 1 / sqrt(l2));
-                double cy_ = wo.x, cx_ = -wo.z, ci = wi.x, f[3];
-                if (cy_ <= 0 || cx_ <= 0 || ci <= 0) continue;
-                wrt_brdf_eval(&s.materials[mg], W->n, wi, wo, f);
-                truth += f[0] * I * ci / l2 * cx_ * cy_ / d2;
-            }
-        }
-        truth /= (double)NR * NR * NS * NS;
+        truth = wall_reflection(&s.materials[mg], W->n, light, I, 2, cx, cy, 4, 64);
         worst = fmax(worst, fabs(got / truth - 1));
         worst_t = fmax(worst_t, fabs(got_t / truth - 1));
         ss += (got - truth) * (got - truth); ss_t += (got_t - truth) * (got_t - truth); st += truth * truth;
