@@ -766,6 +766,19 @@ static wrt_status parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
     return WRT_OK;
 }
 
+/* A compressed-column operator's four sections: one column start per key and one past
+ * the end, one value per row entry (the operator's and K's). */
+static wrt_status check_csc_counts(const gto_section *const *S, uint32_t keys, uint32_t col_start,
+                                   uint32_t rows, uint32_t vals, const char *columns) {
+    if (S[col_start]->count != S[keys]->count + 1)
+        return wrt_fail(WRT_ERR_CORRUPT, "section %s: %" PRIu64 " entries, expected %" PRIu64 " (%s + 1)",
+                        sec_name(col_start), S[col_start]->count, S[keys]->count + 1, columns);
+    if (S[vals]->count != S[rows]->count)
+        return wrt_fail(WRT_ERR_CORRUPT, "section %s: %" PRIu64 " entries, %s has %" PRIu64,
+                        sec_name(vals), S[vals]->count, sec_name(rows), S[rows]->count);
+    return WRT_OK;
+}
+
 /* Stage 2: counts that must agree across sections, and zero padding. */
 static wrt_status check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     const gto_section *const *S = L->sec;
@@ -780,12 +793,8 @@ static wrt_status check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g
     if (S[SEC_STATS]->count != 1)
         return wrt_fail(WRT_ERR_CORRUPT, "section stats: %" PRIu64 " records, expected 1",
                         S[SEC_STATS]->count);
-    if (S[SEC_COL_START]->count != S[SEC_FKEYS]->count + 1)
-        return wrt_fail(WRT_ERR_CORRUPT, "section col_start: %" PRIu64 " entries, expected %" PRIu64
-                        " (functions + 1)", S[SEC_COL_START]->count, S[SEC_FKEYS]->count + 1);
-    if (S[SEC_VALS]->count != S[SEC_ROWS]->count)
-        return wrt_fail(WRT_ERR_CORRUPT, "section vals: %" PRIu64 " entries, rows has %" PRIu64,
-                        S[SEC_VALS]->count, S[SEC_ROWS]->count);
+    wrt_status st = check_csc_counts(S, SEC_FKEYS, SEC_COL_START, SEC_ROWS, SEC_VALS, "functions");
+    if (st != WRT_OK) return st;
     if (S[SEC_KKEYS]) { /* then all four (parse_layout) */
         if (S[SEC_KKEYS]->count == 0)
             return wrt_fail(WRT_ERR_CORRUPT, "section kkeys: 0 columns (the first-bounce sections "
@@ -793,12 +802,8 @@ static wrt_status check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g
         if (S[SEC_KKEYS]->count > UINT32_MAX - 1)
             return wrt_fail(WRT_ERR_CORRUPT, "section kkeys: %" PRIu64 " elements, too many",
                             S[SEC_KKEYS]->count);
-        if (S[SEC_KCOL_START]->count != S[SEC_KKEYS]->count + 1)
-            return wrt_fail(WRT_ERR_CORRUPT, "section kcol_start: %" PRIu64 " entries, expected %" PRIu64
-                            " (K's columns + 1)", S[SEC_KCOL_START]->count, S[SEC_KKEYS]->count + 1);
-        if (S[SEC_KVALS]->count != S[SEC_KROWS]->count)
-            return wrt_fail(WRT_ERR_CORRUPT, "section kvals: %" PRIu64 " entries, krows has %" PRIu64,
-                            S[SEC_KVALS]->count, S[SEC_KROWS]->count);
+        st = check_csc_counts(S, SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS, "K's columns");
+        if (st != WRT_OK) return st;
     }
     /* Every byte outside the sections is header, table or zero padding. */
     uint64_t prev_end = L->h.header_size;
