@@ -680,15 +680,25 @@ static void balance_glossy_sender(size_t si, int th, void *user) {
     free(cap); free(V); free(B); free(tree); free(leaves);
 }
 
-uint64_t wrt_balance_glossy(const bake_ctx *b, const uint64_t *fkeys, uint32_t nf, wrt_csc *T) {
+/* Runs a balance's per-sender function over the quads in parallel, each sender counting
+ * the columns it changed in (*changed)[sender] (an array this allocates and frees in
+ * ctx); returns the total (the glossy balance's and K's). */
+static uint64_t balance_senders(const bake_ctx *b, wrt_parallel_fn fn, void *ctx, uint64_t **changed) {
     int nq = b->nq;
+    *changed = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof **changed);
+    wrt_parallel_for((size_t)nq, b->opt.threads, fn, ctx);
+    uint64_t n = 0;
+    for (int s = 0; s < nq; s++) n += (*changed)[s];
+    free(*changed);
+    *changed = NULL;
+    return n;
+}
+
+uint64_t wrt_balance_glossy(const bake_ctx *b, const uint64_t *fkeys, uint32_t nf, wrt_csc *T) {
     double *pw = wrt_power_weights(b, fkeys, nf);
     gbal_ctx c = {.b = b, .fkeys = fkeys, .nf = nf, .T = T, .pw = pw};
-    c.changed = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof *c.changed);
-    wrt_parallel_for((size_t)nq, b->opt.threads, balance_glossy_sender, &c);
-    uint64_t n = 0;
-    for (int s = 0; s < nq; s++) n += c.changed[s];
-    free(c.changed); free(pw);
+    uint64_t n = balance_senders(b, balance_glossy_sender, &c, &c.changed);
+    free(pw);
     return n;
 }
 
@@ -789,13 +799,9 @@ static void balance_k_sender(size_t si, int th, void *user) {
 }
 
 uint64_t wrt_balance_k(const bake_ctx *b, wrt_bake_result *res) {
-    int nq = b->nq;
     double *pw = wrt_power_weights(b, res->fkeys, res->nfuncs);
     kbal_ctx c = {.b = b, .pw = pw, .res = res};
-    c.changed = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof *c.changed);
-    wrt_parallel_for((size_t)nq, b->opt.threads, balance_k_sender, &c);
-    uint64_t n = 0;
-    for (int s = 0; s < nq; s++) n += c.changed[s];
-    free(c.changed); free(pw);
+    uint64_t n = balance_senders(b, balance_k_sender, &c, &c.changed);
+    free(pw);
     return n;
 }
