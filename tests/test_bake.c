@@ -647,6 +647,19 @@ static void test_glossy_sender(void) {
     tsb_free(&s);
 }
 
+/* The scene of the tests below: a diffuse unit floor z = 0 (quad 0, albedo 0.8) and a
+ * glossy metal unit wall x = 0 (quad 1, 0.9, roughness 0.35) facing +x; returns the
+ * wall's material. */
+static int floor_and_glossy_wall(wrt_scene *s) {
+    tsb_init(s);
+    int md = tsb_material(s, 0.8, 0.8, 0.8);
+    int mg = tsb_material(s, 0.9, 0.9, 0.9);
+    s->materials[mg].lambertian = 0; s->materials[mg].roughness = 0.35f; s->materials[mg].metallic = 1;
+    tsb_quad(s, P(0, 0, 0), P(1, 0, 0), P(1, 1, 0), P(0, 1, 0), md);      /* floor, +z */
+    tsb_quad(s, P(0, 0, 0), P(0, 1, 0), P(0, 1, 1), P(0, 0, 1), mg);      /* glossy wall x = 0, +x */
+    return mg;
+}
+
 /* Brute force for the two tests below: the irradiance that the unit wall x = 0 (normal n,
  * material m), lit by a point light of intensity I at `light`, reflects onto cell
  * (level, cx, cy) of the unit floor z = 0: the integral over the wall of
@@ -679,12 +692,7 @@ static double wall_reflection(const wrt_material *m, wrt_v3 n, wrt_v3 light, dou
  * integral over S of f(w_l, y->x) E_dir(y) cos_y cos_x / d^2 with wrt_brdf_eval only. */
 static void test_glossy_sender_point_light(void) {
     wrt_scene s;
-    tsb_init(&s);
-    int md = tsb_material(&s, 0.8, 0.8, 0.8);
-    int mg = tsb_material(&s, 0.9, 0.9, 0.9);
-    s.materials[mg].lambertian = 0; s.materials[mg].roughness = 0.35f; s.materials[mg].metallic = 1;
-    tsb_quad(&s, P(0, 0, 0), P(1, 0, 0), P(1, 1, 0), P(0, 1, 0), md);      /* floor, +z */
-    tsb_quad(&s, P(0, 0, 0), P(0, 1, 0), P(0, 1, 1), P(0, 0, 1), mg);      /* glossy wall x = 0, +x */
+    int mg = floor_and_glossy_wall(&s);
     wrt_bake_result r;
     wrt_bake_options o = opts(6, 1, 5);
     o.dto_only = 1;
@@ -769,12 +777,7 @@ static double k_root_entry(const wrt_bake_result *r) {
 
 static void test_first_bounce_operator(void) {
     wrt_scene s;
-    tsb_init(&s);
-    int md = tsb_material(&s, 0.8, 0.8, 0.8);
-    int mg = tsb_material(&s, 0.9, 0.9, 0.9);
-    s.materials[mg].lambertian = 0; s.materials[mg].roughness = 0.35f; s.materials[mg].metallic = 1;
-    tsb_quad(&s, P(0, 0, 0), P(1, 0, 0), P(1, 1, 0), P(0, 1, 0), md);      /* floor, +z */
-    tsb_quad(&s, P(0, 0, 0), P(0, 1, 0), P(0, 1, 1), P(0, 0, 1), mg);      /* glossy wall x = 0, +x */
+    int mg = floor_and_glossy_wall(&s);
     wrt_bake_result r;
     wrt_bake_options o = opts(5, 1, 5);
     o.dto_only = 1; /* incident level 1 (the default's), K at the material's level 3 */
