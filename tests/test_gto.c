@@ -438,6 +438,18 @@ static void test_deterministic(void) {
     free(x); free(y);
 }
 
+/* Today's writer (`write`, into the test folder as `now`) produces the committed file
+ * `golden` byte for byte (the golden tests of each version). */
+static void writer_reproduces(const char *golden, const char *now, int (*write)(const char *)) {
+    const char *p = tpath(now);
+    if (!write(p)) return;
+    size_t na, nb;
+    uint8_t *x = read_all(golden, &na), *y = read_all(p, &nb);
+    CHECK(x && na == nb && memcmp(x, y, na) == 0,
+          "the writer no longer produces %s byte for byte: a format change needs a version decision", golden);
+    free(x); free(y);
+}
+
 /* A committed file of version 1.0: it must stay readable, and today's writer must
  * still produce exactly it (a change here is a format change: see the checklist). */
 static void test_golden(void) {
@@ -449,13 +461,7 @@ static void test_golden(void) {
         CHECK(g.nquads == 3 && g.nfuncs == 7 && g.nnz == 12 && g.version == 1, "golden counts");
         wrt_gto_close(&g);
     }
-    const char *p = tpath("golden_now.gto");
-    if (!write_good(p)) return;
-    size_t na, nb;
-    uint8_t *x = read_all(golden_path, &na), *y = read_all(p, &nb);
-    CHECK(x && na == nb && memcmp(x, y, na) == 0,
-          "the writer no longer produces %s byte for byte: a format change needs a version decision", golden_path);
-    free(x); free(y);
+    writer_reproduces(golden_path, "golden_now.gto", write_good);
 }
 
 /* ---- broken files ---- */
@@ -1146,13 +1152,7 @@ static void test_k_golden(void) {
         CHECK(g.version_minor == 1 && g.nkcols == 5 && g.knnz == 9 && g.nfuncs == 7, "golden K counts");
         wrt_gto_close(&g);
     }
-    const char *p = tpath("golden_k_now.gto");
-    if (!write_good_k(p)) return;
-    size_t na, nb;
-    uint8_t *x = read_all(golden_k_path, &na), *y = read_all(p, &nb);
-    CHECK(x && na == nb && memcmp(x, y, na) == 0,
-          "the writer no longer produces %s byte for byte: a format change needs a version decision", golden_k_path);
-    free(x); free(y);
+    writer_reproduces(golden_k_path, "golden_k_now.gto", write_good_k);
 }
 
 /* Each K section: a flipped byte is its checksum error, every flip anywhere is caught,
