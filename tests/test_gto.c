@@ -438,6 +438,17 @@ static void test_deterministic(void) {
     free(x); free(y);
 }
 
+/* A fresh copy of a good file for a test to damage: build(), `write` into the test
+ * folder as `name`, its bytes read back (NULL, the failure checked, if either fails). */
+static uint8_t *written(const char *name, int (*write)(const char *), size_t *n) {
+    build();
+    const char *p = tpath(name);
+    if (!write(p)) return NULL;
+    uint8_t *b = read_all(p, n);
+    if (!b) CHECK(0, "read back %s", p);
+    return b;
+}
+
 /* Today's writer (`write`, into the test folder as `now`) produces the committed file
  * `golden` byte for byte (the golden tests of each version). */
 static void writer_reproduces(const char *golden, const char *now, int (*write)(const char *)) {
@@ -520,11 +531,9 @@ static void test_empty(void) {
 }
 
 static void test_truncated(void) {
-    build();
-    const char *p = tpath("trunc_src.gto");
-    if (!write_good(p)) return;
     size_t n;
-    uint8_t *b = read_all(p, &n);
+    uint8_t *b = written("trunc_src.gto", write_good, &n);
+    if (!b) return;
     wrt_gto g;
     int bad_status = 0, bad_msg = 0;
     for (size_t len = 1; len < n; len++) {
@@ -551,11 +560,9 @@ static void test_truncated(void) {
 }
 
 static void test_flipped_bytes(void) {
-    build();
-    const char *p = tpath("flip_src.gto");
-    if (!write_good(p)) return;
     size_t n;
-    uint8_t *b = read_all(p, &n);
+    uint8_t *b = written("flip_src.gto", write_good, &n);
+    if (!b) return;
     wrt_gto g;
     /* One byte in the middle of each section: its checksum, named. */
     for (int s = 0; s < F_NSEC; s++) {
@@ -594,11 +601,9 @@ static void test_flipped_bytes(void) {
 }
 
 static void test_versions(void) {
-    build();
-    const char *p = tpath("ver_src.gto");
-    if (!write_good(p)) return;
     size_t n;
-    uint8_t *b = read_all(p, &n);
+    uint8_t *b = written("ver_src.gto", write_good, &n);
+    if (!b) return;
     wrt_gto g;
     b[F_VERSION_MAJOR] = 2;
     fix_header_sum(b);
@@ -628,11 +633,10 @@ static void test_versions(void) {
 }
 
 static void test_bad_offsets(void) {
-    build();
-    const char *p = tpath("off_src.gto");
-    if (!write_good(p)) return;
     size_t n;
-    uint8_t *b = read_all(p, &n), *c = malloc(n);
+    uint8_t *b = written("off_src.gto", write_good, &n);
+    if (!b) return;
+    uint8_t *c = malloc(n);
     wrt_gto g;
     /* A section pointing past the end, the header checksum made right. */
     memcpy(c, b, n);
@@ -689,11 +693,9 @@ static void corrupt_index(uint8_t *b, size_t n, int s, size_t at, const void *va
 }
 
 static void test_bad_indices(void) {
-    build();
-    const char *p = tpath("idx_src.gto");
-    if (!write_good(p)) return;
     size_t n;
-    uint8_t *b = read_all(p, &n);
+    uint8_t *b = written("idx_src.gto", write_good, &n);
+    if (!b) return;
     uint32_t r7 = 7, r0 = 0;
     corrupt_index(b, n, S_ROWS, 4 * 5, &r7, 4, "rows[5] = 7 out of range (7 functions) in column 3", "row out of range");
     /* Column 0 holds rows 0, 2, 4: make the second 0. */
@@ -727,11 +729,9 @@ static void test_bad_indices(void) {
 /* Every number handed out is checked, with consistent checksums (a forged file), and
  * --info's integrity line reports it. */
 static void test_bad_numbers(void) {
-    build();
-    const char *p = tpath("num_src.gto");
-    if (!write_good(p)) return;
     size_t n;
-    uint8_t *b = read_all(p, &n);
+    uint8_t *b = written("num_src.gto", write_good, &n);
+    if (!b) return;
     float fnan = NAN, finf = INFINITY, two = 2, neg = -1;
     double dnan = NAN, dzero = 0;
     corrupt_index(b, n, S_MATERIALS, 104 + 64 + 4, &fnan, 4, "material 1: base_color[1] nan is not in [0, 1]", "material NaN");
@@ -1158,11 +1158,9 @@ static void test_k_golden(void) {
 /* Each K section: a flipped byte is its checksum error, every flip anywhere is caught,
  * every prefix is "truncated". */
 static void test_k_damaged(void) {
-    build();
-    const char *p = tpath("k_flip.gto");
-    if (!write_good_k(p)) return;
     size_t n;
-    uint8_t *b = read_all(p, &n);
+    uint8_t *b = written("k_flip.gto", write_good_k, &n);
+    if (!b) return;
     wrt_gto g;
     for (int s = S_KKEYS; s <= S_KVALS; s++) {
         size_t o = sec_off(b, s) + sec_size(b, s) / 2;
@@ -1242,11 +1240,10 @@ static void shrink_section(const uint8_t *b, size_t n, int s, uint64_t by, const
 /* Every reader check of K, each on a forged copy (checksums made right), with the
  * section and the index in the message. */
 static void test_k_bad(void) {
-    build();
-    const char *p = tpath("k_bad.gto");
-    if (!write_good_k(p)) return;
     size_t n;
-    uint8_t *b = read_all(p, &n), *c = malloc(n);
+    uint8_t *b = written("k_bad.gto", write_good_k, &n);
+    if (!b) return;
+    uint8_t *c = malloc(n);
     wrt_gto g;
     /* All four or none: kvals renumbered to an unknown id. */
     memcpy(c, b, n);
