@@ -684,6 +684,28 @@ static double wall_reflection(const wrt_material *m, wrt_v3 n, wrt_v3 light, dou
     return truth / ((double)nr * nr * ns * ns);
 }
 
+/* Sample i of an N x N midpoint grid on the quad W lit by a point light of intensity I
+ * at `light`: the point's (u, v), its irradiance e, the light's direction dl and that
+ * direction's concentric coordinates (a, b) in W's frame; 0 where the light is behind W
+ * (the two tests below project E onto the wall's functions with it). */
+typedef struct wall_sample {
+    double u, v, e, a, b;
+    wrt_v3 dl;
+} wall_sample;
+
+static int wall_light_sample(const wrt_quad *W, wrt_v3 light, double I, int i, int N, wall_sample *w) {
+    w->u = (i % N + 0.5) / N, w->v = (i / N + 0.5) / N;
+    wrt_v3 p = wrt_quad_point(W, w->u, w->v), d = v3_sub(light, p);
+    double d2 = v3_dot(d, d);
+    w->dl = v3_scale(d, 1 / sqrt(d2));
+    double c = v3_dot(w->dl, W->n);
+    if (c <= 0) return 0;
+    double loc[3] = {v3_dot(w->dl, W->t), v3_dot(w->dl, W->b), c};
+    w->e = I * c / d2;
+    wrt_concentric_inv(loc, &w->a, &w->b);
+    return 1;
+}
+
 /* Glossy sender lit by a point light: the light's direction is a delta, so the sender's
  * reflected light is the BRDF averaged over the light's angular cell (the truncation of
  * the delta's expansion); at the BRDF's own level (3 here) that stays within 10% per cell.
@@ -708,14 +730,9 @@ static void test_glossy_sender_point_light(void) {
     for (uint32_t f = 0; f < r.nfuncs; f++)
         if (wrt_fkey_quad(r.fkeys[f]) == 1) wf[nw++] = f;
     for (int i = 0; i < N * N; i++) {
-        double u = (i % N + 0.5) / N, v = (i / N + 0.5) / N;
-        wrt_v3 p = wrt_quad_point(W, u, v), d = v3_sub(light, p);
-        double d2 = v3_dot(d, d);
-        wrt_v3 dl = v3_scale(d, 1 / sqrt(d2));
-        double c = v3_dot(dl, W->n);
-        if (c <= 0) continue;
-        double e = I * c / d2, loc[3] = {v3_dot(dl, W->t), v3_dot(dl, W->b), c}, a, b;
-        wrt_concentric_inv(loc, &a, &b);
+        wall_sample w;
+        if (!wall_light_sample(W, light, I, i, N, &w)) continue;
+        double u = w.u, v = w.v, e = w.e, a = w.a, b = w.b;
         for (uint32_t t = 0; t < nw; t++) {
             uint32_t f = wf[t];
             uint64_t k = r.fkeys[f];
@@ -817,14 +834,10 @@ static void test_first_bounce_operator(void) {
     double *xe = calloc(3 * r.nfuncs, sizeof *xe), *ye = calloc(3 * r.nfuncs, sizeof *ye);
     int bad = 0;
     for (int i = 0; i < N * N; i++) {
-        double u = (i % N + 0.5) / N, v = (i / N + 0.5) / N;
-        wrt_v3 p = wrt_quad_point(W, u, v), d = v3_sub(light, p);
-        double d2 = v3_dot(d, d);
-        wrt_v3 dl = v3_scale(d, 1 / sqrt(d2));
-        double cs = v3_dot(dl, W->n);
-        if (cs <= 0) continue;
-        double e = I * cs / d2, loc[3] = {v3_dot(dl, W->t), v3_dot(dl, W->b), cs}, la, lb;
-        wrt_concentric_inv(loc, &la, &lb);
+        wall_sample w;
+        if (!wall_light_sample(W, light, I, i, N, &w)) continue;
+        double u = w.u, v = w.v, e = w.e, la = w.a, lb = w.b;
+        wrt_v3 dl = w.dl;
         for (uint32_t f = 0; f < r.nfuncs; f++) { /* today's path: the light's direction in the incident cells */
             uint64_t k = r.fkeys[f];
             if (wrt_fkey_quad(k) != 1) continue;
