@@ -999,6 +999,19 @@ static void kop_attach(ts_scene *s, const kop *k) {
     s->g.kkeys = k->keys; s->g.kcol_start = k->cs; s->g.krows = k->rows; s->g.kvals = k->vals;
 }
 
+/* Room for K's compressed columns: per_column entries a column at the most. */
+static void kop_alloc(kop *k, size_t per_column) {
+    k->cs = malloc((k->n + 1) * sizeof *k->cs);
+    k->rows = malloc(per_column * k->n * sizeof *k->rows);
+    k->vals = malloc(per_column * k->n * sizeof *k->vals);
+}
+
+/* Material m made a glossy metal of the given roughness and angular level (the K tests'
+ * floor). */
+static void ts_metal(ts_scene *s, int m, float roughness, int alevel) {
+    s->mats[m].lambertian = 0; s->mats[m].metallic = 1; s->mats[m].roughness = roughness; s->mats[m].alevel = alevel;
+}
+
 static void kop_free(kop *k) { free(k->keys); free(k->col_of); free(k->cs); free(k->rows); free(k->vals); }
 
 /* c_j = int h_s sqrt(J/pi) E(y) btilde_{g_j}(w_l(y)) du dv over quad q (a parallelogram)
@@ -1044,7 +1057,7 @@ static const double k_wall_y[4][3] = {{0, 1.5, 0.2}, {1.2, 1.5, 0.2}, {1.2, 1.5,
 static void first_bounce_projection(int ls, int la, int wl) {
     ts_scene s;
     ts_init(&s);
-    s.mats[2].lambertian = 0; s.mats[2].metallic = 1; s.mats[2].roughness = 0.3f; s.mats[2].alevel = 2;
+    ts_metal(&s, 2, 0.3f, 2);
     s.mats[2].base_color[0] = 0.9f; s.mats[2].base_color[1] = 0.6f; s.mats[2].base_color[2] = 0.3f;
     int qf = ts_quad(&s, k_floor, 2, 1, 2), qw = ts_quad(&s, k_wall_x, 0, wl, 0);
     ts_identity(&s, 0.5f);
@@ -1053,7 +1066,7 @@ static void first_bounce_projection(int ls, int la, int wl) {
     kop_columns(&k, (uint32_t)qf, ls, la);
     uint32_t w0 = s.quads[qw].func_first;
     CHECK(s.quads[qw].func_count >= k.n, "%u columns, %u wall rows", k.n, s.quads[qw].func_count);
-    k.cs = malloc((k.n + 1) * sizeof *k.cs); k.rows = malloc(k.n * sizeof *k.rows); k.vals = malloc(k.n * sizeof *k.vals);
+    kop_alloc(&k, 1);
     for (uint32_t j = 0; j < k.n; j++) { k.cs[j] = j; k.rows[j] = w0 + j; k.vals[j] = 1; }
     k.cs[k.n] = k.nnz = k.n;
     kop_attach(&s, &k);
@@ -1131,7 +1144,7 @@ static double ff_point_poly(wrt_v3 x, wrt_v3 n, const wrt_v3 *p, int cnt) {
 static void test_first_bounce_brute_force(void) {
     ts_scene s;
     ts_init(&s);
-    s.mats[2].lambertian = 0; s.mats[2].metallic = 1; s.mats[2].roughness = 0.5f; s.mats[2].alevel = 1;
+    ts_metal(&s, 2, 0.5f, 1);
     s.mats[2].base_color[0] = 0.9f; s.mats[2].base_color[1] = 0.6f; s.mats[2].base_color[2] = 0.3f;
     int qf = ts_quad(&s, k_floor, 2, 2, 1);
     int qa = ts_quad(&s, k_wall_x, 0, 2, 0), qb = ts_quad(&s, k_wall_y, 1, 2, 1);
@@ -1235,9 +1248,7 @@ static void test_first_bounce_brute_force(void) {
             }
     }
     /* compressed columns, rows ascending */
-    k.cs = malloc((k.n + 1) * sizeof *k.cs);
-    k.rows = malloc((size_t)nrow * k.n * sizeof *k.rows);
-    k.vals = malloc((size_t)nrow * k.n * sizeof *k.vals);
+    kop_alloc(&k, nrow);
     for (uint32_t j = 0; j < k.n; j++) {
         k.cs[j] = k.nnz;
         for (uint32_t i = 0; i < nrow; i++) {
@@ -1298,15 +1309,14 @@ static void test_first_bounce_brute_force(void) {
 static void test_first_bounce_cache(void) {
     ts_scene s;
     ts_init(&s);
-    s.mats[2].lambertian = 0; s.mats[2].metallic = 1; s.mats[2].roughness = 0.3f; s.mats[2].alevel = 2;
+    ts_metal(&s, 2, 0.3f, 2);
     int qf = ts_quad(&s, k_floor, 2, 1, 2), qw = ts_quad(&s, k_wall_x, 1, 3, 2);
     ts_random(&s, 30);
     ts_finish(&s);
     kop k;
     kop_columns(&k, (uint32_t)qf, 2, 2);
     uint32_t w0 = s.quads[qw].func_first, nw = s.quads[qw].func_count;
-    k.cs = malloc((k.n + 1) * sizeof *k.cs); k.rows = malloc((size_t)k.n * 4 * sizeof *k.rows);
-    k.vals = malloc((size_t)k.n * 4 * sizeof *k.vals);
+    kop_alloc(&k, 4);
     for (uint32_t j = 0; j < k.n; j++) { /* 4 rows a column, on the wall */
         k.cs[j] = k.nnz;
         for (uint32_t e = 0; e < 4; e++) { k.rows[k.nnz] = w0 + (j * 7 + e * (nw / 4)) % nw; k.vals[k.nnz++] = (float)(0.1 * (lcg() - 0.2)); }
@@ -1369,14 +1379,14 @@ static void test_first_bounce_cache(void) {
 static void test_first_bounce_refused(void) {
     ts_scene s;
     ts_init(&s);
-    s.mats[2].lambertian = 0; s.mats[2].metallic = 1; s.mats[2].roughness = 0.3f; s.mats[2].alevel = 1;
+    ts_metal(&s, 2, 0.3f, 1);
     int qf = ts_quad(&s, k_floor, 2, 1, 1), qw = ts_quad(&s, k_wall_x, 0, 1, 0);
     ts_identity(&s, 1);
     ts_finish(&s);
     for (int bad = 0; bad < 2; bad++) {
         kop k;
         kop_columns(&k, (uint32_t)(bad == 0 ? qw : qf), 1, 1);
-        k.cs = malloc((k.n + 1) * sizeof *k.cs); k.rows = malloc(k.n * sizeof *k.rows); k.vals = malloc(k.n * sizeof *k.vals);
+        kop_alloc(&k, 1);
         for (uint32_t j = 0; j < k.n; j++) { k.cs[j] = j; k.rows[j] = bad == 1 && j == 2 ? s.nf : s.quads[qw].func_first; k.vals[j] = 1; }
         k.cs[k.n] = k.nnz = k.n;
         kop_attach(&s, &k);
