@@ -90,8 +90,10 @@ plot_scene() {
     ylo=$(jq '[.reference.cell_floor, .reference.image_floor, (.rows[] | .cell_rmse, .image_rmse)]
               | map(select(. > 0)) | min / 1.25' "$json")
     yhi=$(jq '[.rows[] | .cell_rmse, .image_rmse] | max * 1.25' "$json")
+    # a setting with knobs (5k0, 5g3a2) is drawn as its own point: a blank line before it
+    # breaks the quality sweep's line there (gnuplot), so the sweep is not joined to it
     jq -r '.rows[] | "\(.setting // .quality) \(.bake_s) \(.bytes / 1e6) \(.cpu_ms_per_light_change) \(.cell_rmse) \(.image_rmse)"' \
-        "$json" >"$dat"
+        "$json" | awk '$1 !~ /^[0-9]+$/ { print "" } { print }' >"$dat"
     gnuplot <<EOF
 set terminal pngcairo size 1500,500 font "sans,11" noenhanced
 set output "$png.tmp"
