@@ -661,6 +661,30 @@ static double cpu_now(void) {
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
+/* The timed updates: `updates` moves around a circle (angle a), each followed by an
+ * update; wall and CPU milliseconds of each, sorted. */
+typedef struct bench_ctx { wrt_light light; wrt_v3 p0; double rad, eye[3]; } bench_ctx;
+static void bench_light(wrt_runtime *r, double a, bench_ctx *c) {
+    c->light.pos = v3(c->p0.x + c->rad * cos(a), c->p0.y, c->p0.z + c->rad * sin(a));
+    set_light(r, &c->light);
+}
+static void bench_eye(wrt_runtime *r, double a, bench_ctx *c) {
+    double e[3] = {c->eye[0] + c->rad * cos(a), c->eye[1], c->eye[2] + c->rad * sin(a)};
+    wrt_runtime_set_eye(r, e, NULL);
+}
+static void time_circle(wrt_runtime *r, int updates, void (*move)(wrt_runtime *, double, bench_ctx *), bench_ctx *c,
+                        double *ms, double *cpu) {
+    for (int k = 0; k < updates; k++) {
+        double t1 = wrt_now(), c1 = cpu_now();
+        move(r, 2 * WRT_PI * (k + 1) / updates, c);
+        wrt_runtime_update(r, NULL, NULL);
+        ms[k] = (wrt_now() - t1) * 1e3;
+        cpu[k] = (cpu_now() - c1) * 1e3;
+    }
+    qsort(ms, (size_t)updates, sizeof(double), cmp_double);
+    qsort(cpu, (size_t)updates, sizeof(double), cmp_double);
+}
+
 wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const double eye[3], int updates,
                              int threads, wrt_compare_result *out) {
     if (updates < 1) return wrt_fail(WRT_ERR_INVALID_ARG, "compare: %d timed updates", updates);
@@ -679,35 +703,14 @@ wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const dou
             hi = v3(fmax(hi.x, p[0]), fmax(hi.y, p[1]), fmax(hi.z, p[2]));
         }
     double *ms = wrt_xmalloc((size_t)updates * sizeof(double)), *cpu = wrt_xmalloc((size_t)updates * sizeof(double));
-    wrt_light l = *light;
-    wrt_v3 p0 = l.pos;
     double rad = 0.02 * v3_len(v3_sub(hi, lo));
-    for (int k = 0; k < updates; k++) {
-        double a = 2 * WRT_PI * (k + 1) / updates;
-        l.pos = v3(p0.x + rad * cos(a), p0.y, p0.z + rad * sin(a));
-        double t1 = wrt_now(), c1 = cpu_now();
-        set_light(r, &l);
-        wrt_runtime_update(r, NULL, NULL);
-        ms[k] = (wrt_now() - t1) * 1e3;
-        cpu[k] = (cpu_now() - c1) * 1e3;
-    }
-    qsort(ms, (size_t)updates, sizeof(double), cmp_double);
-    qsort(cpu, (size_t)updates, sizeof(double), cmp_double);
+    bench_ctx bc = {.light = *light, .p0 = light->pos, .rad = rad, .eye = {eye[0], eye[1], eye[2]}};
+    time_circle(r, updates, bench_light, &bc, ms, cpu);
     out->ms_update_median = ms[updates / 2];
     out->ms_update_min = ms[0];
     out->ms_update_max = ms[updates - 1];
     out->cpu_ms_update_median = cpu[updates / 2];
-    for (int k = 0; k < updates; k++) { /* camera moves, the light where it started */
-        double a = 2 * WRT_PI * (k + 1) / updates;
-        double e[3] = {eye[0] + rad * cos(a), eye[1], eye[2] + rad * sin(a)};
-        double t1 = wrt_now(), c1 = cpu_now();
-        wrt_runtime_set_eye(r, e, NULL);
-        wrt_runtime_update(r, NULL, NULL);
-        ms[k] = (wrt_now() - t1) * 1e3;
-        cpu[k] = (cpu_now() - c1) * 1e3;
-    }
-    qsort(ms, (size_t)updates, sizeof(double), cmp_double);
-    qsort(cpu, (size_t)updates, sizeof(double), cmp_double);
+    time_circle(r, updates, bench_eye, &bc, ms, cpu); /* camera moves, the light where it started */
     out->ms_eye_median = ms[updates / 2];
     out->cpu_ms_eye_median = cpu[updates / 2];
     free(ms); free(cpu);
