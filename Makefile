@@ -215,7 +215,7 @@ stress: deps
 # The mutation run (tests/mutate.sh): deliberate faults in the core numerics, one at a
 # time, built into $(BUILD)/mutate; prints "N caught, N survived". MUTATIONS="id ..." selects.
 mutate: deps
-	@bash tests/mutate.sh $(BUILD) $(MUTATIONS)
+	@bash tests/mutate.sh --build $(BUILD) $(if $(MUTATE_MIN_SCORE),--min-score $(MUTATE_MIN_SCORE)) $(MUTATIONS)
 
 DEMO_SCENE ?= assets/cornell.gltf
 demo: deps

@@ -13,17 +13,26 @@
 # restored even when the run is interrupted (trap); a restored file is touched so that
 # the next build recompiles it.
 #
-# Usage: tests/mutate.sh [BUILD] [--check] [--list] [ID...]
-#   --check  only verify that every snippet matches exactly once (seconds)
-#   --list   print the table's ids and descriptions
-#   ID...    run only these faults
+# Usage: tests/mutate.sh [--build DIR] [--check] [--list] [--min-score PCT] [ID...]
+#   --build DIR      the build folder (default build); it need not exist yet
+#   --check          only verify that every snippet matches exactly once (seconds)
+#   --list           print the table's ids and descriptions
+#   --min-score PCT  fail unless at least PCT% of the faults run are caught (CI: 90)
+#   ID...            run only these faults; an id the table does not have is refused
+# A first argument that names an existing folder is taken as --build (older callers).
+# A run in which no fault ran fails: "0 caught, 0 survived" is never a pass.
 set -u
 cd "$(dirname "$0")/.."
-build=build; check_only=0; list_only=0; only=()
-for a in "$@"; do
+build=build; check_only=0; list_only=0; min_score=0; only=()
+while [ $# -gt 0 ]; do
+    a=$1; shift
     case "$a" in
     --check) check_only=1 ;;
     --list) list_only=1 ;;
+    --build) [ $# -gt 0 ] || { echo "mutate: --build needs a folder" >&2; exit 1; }; build=$1; shift ;;
+    --min-score)
+        [[ "${1:-}" =~ ^[0-9]+$ ]] && [ "$1" -le 100 ] || { echo "mutate: --min-score needs a percentage 0..100, got '${1:-}'" >&2; exit 1; }
+        min_score=$1; shift ;;
     -*) echo "mutate: unknown option $a" >&2; exit 1 ;;
     *) if [ -d "$a" ] && [ ${#only[@]} -eq 0 ] && [ "$build" = build ]; then build=$a; else only+=("$a"); fi ;;
     esac
@@ -289,6 +298,13 @@ if [ $list_only -eq 1 ]; then
     exit 0
 fi
 
+# every id asked for must be in the table (a typo, or a folder name, would run nothing)
+for x in "${only[@]}"; do
+    known=0
+    for ((i = 0; i < total; i++)); do [ "${ids[i]}" = "$x" ] && known=1; done
+    [ $known -eq 1 ] || { echo "mutate: no fault named '$x' (--list shows them; a build folder is given with --build)" >&2; exit 1; }
+done
+
 selected() {
     [ ${#only[@]} -eq 0 ] && return 0
     local x; for x in "${only[@]}"; do [ "$x" = "$1" ] && return 0; done; return 1
@@ -363,4 +379,10 @@ echo "mutate: $(( $(date +%s) - t_all )) s"
 [ $broken -eq 0 ] || echo "$broken faults did not build or apply"
 [ ${#survivors[@]} -eq 0 ] || echo "survivors: ${survivors[*]}"
 echo "$caught caught, $survived survived"
-[ $survived -eq 0 ] && [ $broken -eq 0 ]
+ran=$((caught + survived))
+[ $ran -gt 0 ] || { echo "mutate: no fault ran"; exit 1; }
+score=$((100 * caught / ran))
+echo "mutate: score $score% ($caught of $ran caught; required ${min_score}%)"
+[ $broken -eq 0 ] || exit 1
+[ $score -ge "$min_score" ] || exit 1
+[ "$min_score" -gt 0 ] || [ $survived -eq 0 ]
