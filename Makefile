@@ -54,7 +54,7 @@ ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(REF_OBJ) $(CORE_OBJ)
 
 # The runtime library (include/wrt.h): the base, the .gto reader and the relighting core;
 # no loader, no image I/O, no OpenGL.
-LIB_SRC := $(wildcard common/*.c) formats/gto.c player/relight.c player/gather.c player/wrt_runtime.c
+LIB_SRC := $(wildcard common/*.c) formats/gto_read.c formats/gto_check.c player/relight.c player/gather.c player/wrt_runtime.c
 LIB_OBJ := $(call obj,$(LIB_SRC))
 PIC_OBJ := $(patsubst %.c,$(BUILD)/pic/%.o,$(LIB_SRC))
 LIBWRT := $(BUILD)/libwrt.a $(BUILD)/libwrt.so
@@ -179,7 +179,7 @@ $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $$(foreach p,$$(call test_parts,$$*),$(
 # the committed seeds, copied into build/fuzz/corpus-* (which grow as they run).
 FUZZ_SECONDS ?= 60
 FUZZ_SCENE_C := tools/fuzz_scene.c common/wrt_common.c formats/scene.c
-FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c formats/gto.c
+FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c formats/gto_read.c formats/gto_check.c
 FUZZ_SAN := -fsanitize=address,undefined -fno-sanitize-recover=all
 FUZZ_CC = clang -std=c11 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -D_GNU_SOURCE
 fuzz: build/fuzz/fuzz_scene build/fuzz/fuzz_gto
