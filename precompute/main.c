@@ -14,7 +14,7 @@
 #include "../cli/cli.h"
 #include "../formats/gto.h"
 #include "../formats/scene.h"
-#include "../tools/compare.h"
+#include "../verify/compare.h"
 #include "bake.h"
 
 enum { EXIT_USAGE = 1, EXIT_INPUT = 2, EXIT_OUTPUT = 3, EXIT_CANCEL = 4, EXIT_ACCURACY = 5, EXIT_INTERNAL = 7 };
