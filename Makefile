@@ -43,18 +43,23 @@ LIBS_GL := -lglfw -lEGL -lGL
 CORE_SRC := $(wildcard common/*.c) $(wildcard formats/*.c) $(wildcard formats/*.cpp) $(wildcard cli/*.c)
 BAKE_SRC := $(filter-out precompute/main.c,$(wildcard precompute/*.c))
 PLAY_SRC := $(filter-out player/main.c,$(wildcard player/*.c) $(wildcard player/*.cpp))
-REF_SRC := $(filter-out tools/ref_main.c tools/scenegen.c tools/fuzz_%.c tools/compare%.c,$(wildcard tools/*.c))
+# The verification (the path tracer and the comparison): above the bake and the runtime,
+# used only by programs (wrt-ref, wrt-compare, and wrt-bake's --max-error in its main.c).
+VERIFY_SRC := $(wildcard verify/*.c)
+RUNTIME_SRC := player/relight.c player/gather.c player/wrt_runtime.c
 
 obj = $(patsubst %.cpp,$(BUILD)/obj/%.o,$(patsubst %.c,$(BUILD)/obj/%.o,$(1)))
 CORE_OBJ := $(call obj,$(CORE_SRC))
 BAKE_OBJ := $(call obj,$(BAKE_SRC))
 PLAY_OBJ := $(call obj,$(PLAY_SRC))
-REF_OBJ := $(call obj,$(REF_SRC))
-ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(REF_OBJ) $(CORE_OBJ)
+VERIFY_OBJ := $(call obj,$(VERIFY_SRC))
+REF_OBJ := $(call obj,verify/reference.c)
+RUNTIME_OBJ := $(call obj,$(RUNTIME_SRC))
+ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(VERIFY_OBJ) $(CORE_OBJ)
 
 # The runtime library (include/wrt.h): the base, the .gto reader and the relighting core;
 # no loader, no image I/O, no OpenGL.
-LIB_SRC := $(wildcard common/*.c) formats/gto.c player/relight.c player/gather.c player/wrt_runtime.c
+LIB_SRC := $(wildcard common/*.c) formats/gto_read.c formats/gto_check.c player/relight.c player/gather.c player/wrt_runtime.c
 LIB_OBJ := $(call obj,$(LIB_SRC))
 PIC_OBJ := $(patsubst %.c,$(BUILD)/pic/%.o,$(LIB_SRC))
 LIBWRT := $(BUILD)/libwrt.a $(BUILD)/libwrt.so
@@ -121,7 +126,9 @@ $(BUILD)/obj/%.o: %.cpp | $(BUILD)/.deps-checked
 	@$(if $(Q),echo "  CXX     $<")
 	$(Q)$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
-$(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(call obj,player/relight.c player/gather.c player/wrt_runtime.c tools/reference.c tools/compare.c) $(CORE_OBJ)
+# wrt-bake: the bake library, and for --max-error (its main.c only) the verification
+# with the runtime it measures.
+$(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(VERIFY_OBJ) $(RUNTIME_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE) $(LIBS_IMG)
 
@@ -133,7 +140,7 @@ $(BUILD)/wrt-ref: $(call obj,tools/ref_main.c) $(REF_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
-$(BUILD)/wrt-compare: $(call obj,tools/compare_main.c tools/compare.c player/relight.c player/gather.c player/wrt_runtime.c) $(REF_OBJ) $(CORE_OBJ)
+$(BUILD)/wrt-compare: $(call obj,tools/compare_main.c) $(VERIFY_OBJ) $(RUNTIME_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
@@ -147,9 +154,9 @@ PART_common := $(wildcard common/*.c)
 PART_formats := $(wildcard formats/*.c) $(wildcard formats/*.cpp)
 PART_cli := $(wildcard cli/*.c)
 PART_bake := $(BAKE_SRC)
-PART_runtime := player/relight.c player/gather.c player/wrt_runtime.c
+PART_runtime := $(RUNTIME_SRC)
 PART_display := $(filter-out player/main.c $(PART_runtime),$(wildcard player/*.c))
-PART_verify := tools/reference.c tools/compare.c
+PART_verify := $(VERIFY_SRC)
 ALL_PARTS := display cli verify bake runtime formats common
 TEST_PARTS_test_brdf := common
 TEST_PARTS_test_gto := formats common
@@ -179,7 +186,7 @@ $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $$(foreach p,$$(call test_parts,$$*),$(
 # the committed seeds, copied into build/fuzz/corpus-* (which grow as they run).
 FUZZ_SECONDS ?= 60
 FUZZ_SCENE_C := tools/fuzz_scene.c common/wrt_common.c formats/scene.c
-FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c formats/gto.c
+FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c formats/gto_read.c formats/gto_check.c
 FUZZ_SAN := -fsanitize=address,undefined -fno-sanitize-recover=all
 FUZZ_CC = clang -std=c11 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -D_GNU_SOURCE
 fuzz: build/fuzz/fuzz_scene build/fuzz/fuzz_gto

@@ -1,7 +1,7 @@
 /* gto.h: the .gto file, wrt's baked light transport, and its reader and writer.
  * Byte layout, alignment, version rules and checksums are specified in
  * formats/GTO_FORMAT.md; the structs here are that layout (little-endian, checked
- * by static asserts in gto.c). The player maps the file and uses these arrays in
+ * by static asserts in gto_layout.h). The player maps the file and uses these arrays in
  * place: nothing is parsed. Depends on common/scene_types.h (not on the loader). */
 #ifndef WRT_GTO_H
 #define WRT_GTO_H
@@ -22,7 +22,7 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
  *   1. Decide major or minor by the rule above; a struct size or field meaning that
  *      changes is a major bump; a new section or a used reserved slot is a minor bump.
  *   2. Bump WRT_GTO_VERSION (and reset WRT_GTO_VERSION_MINOR to 0) or bump the minor.
- *   3. Update the static asserts in gto.c and the tables in GTO_FORMAT.md.
+ *   3. Update the static asserts in gto_layout.h and the tables in GTO_FORMAT.md.
  *   4. Keep tests/data/gto/v1_small.gto: a major bump makes the test expect
  *      WRT_ERR_UNSUPPORTED for it (or add a converter); a minor bump must still open it.
  *   5. Regenerate the golden file of the new version (test_gto --regen) and commit it. */

@@ -3,12 +3,12 @@
  * exchange light (and whether an occluder can lie between them), the DTO computed pair
  * by pair on all cores with results merged in pair order (identical output whatever the
  * thread count), the basis functions indexed, then the series (series.c).
- * Depends on Embree 3, dto.c, series.c, sparse.c. */
+ * Depends on Embree 3, dto.c, balance.c, series.c, sparse.c, budget.c (memory) and
+ * links.c (function keys); none of them calls back into it. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
 #include <unistd.h>
 
 #include "../common/basis.h"
@@ -19,6 +19,8 @@
 #include "dto.h"
 #include "balance.h"
 #include "series.h"
+#include "budget.h"
+#include "links.h"
 
 void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->quality <= 0) o->quality = 5;
@@ -65,39 +67,6 @@ void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->max_alevel <= 0) o->max_alevel = q <= 5 ? 1 : q <= 7 ? 2 : 3;
     if (o->max_alevel > WRT_MAX_ALEVEL) o->max_alevel = WRT_MAX_ALEVEL;
     if (o->max_memory_mb <= 0) o->max_memory_mb = wrt_bake_memory_default();
-}
-
-double wrt_bake_memory_default(void) {
-    long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
-    if (pages <= 0 || size <= 0) return 4096;
-    return 0.5 * (double)pages * (double)size / (1024.0 * 1024.0);
-}
-
-uint64_t wrt_bake_rss_bytes(void) {
-    FILE *f = fopen("/proc/self/statm", "r");
-    unsigned long long total = 0, res = 0;
-    int n = f ? fscanf(f, "%llu %llu", &total, &res) : 0;
-    if (f) fclose(f);
-    long size = sysconf(_SC_PAGESIZE);
-    return n == 2 && size > 0 ? (uint64_t)res * (uint64_t)size : 0;
-}
-
-uint64_t wrt_bake_peak_rss_bytes(void) {
-    struct rusage ru;
-    if (getrusage(RUSAGE_SELF, &ru) != 0) return 0;
-    return (uint64_t)ru.ru_maxrss * 1024u; /* kilobytes on Linux */
-}
-
-wrt_status wrt_bake_memory_check(const wrt_bake_options *o, wrt_bake_counters *c, uint64_t need, const char *what) {
-    double mb = 1.0 / (1024.0 * 1024.0);
-    double total = ((double)wrt_bake_rss_bytes() + (double)need) * mb;
-    if (total > c->mem_estimate_mb) c->mem_estimate_mb = total;
-    if (total <= o->max_memory_mb) return WRT_OK;
-    return wrt_fail(WRT_ERR_NOMEM,
-                    "the bake would need about %.0f MB (%s: %.0f MB more than the %.0f MB in use), over the "
-                    "memory budget of %.0f MB (--max-memory; default half the physical memory): lower --quality, "
-                    "--max-angular-level or --first-bounce-level, or raise --max-memory",
-                    total, what, (double)need * mb, (double)wrt_bake_rss_bytes() * mb, o->max_memory_mb);
 }
 
 /* The shared angular BRDF table (common/brdf_table.h) of every glossy material. */
@@ -173,42 +142,6 @@ static void dto_one(size_t i, int th, void *user) {
     dto_job *j = user;
     wrt_dto_pair(j->b, j->pr[i], j->ps[i], j->occl[i], &j->tc[th], &j->out[i]);
     atomic_fetch_add(&j->done, 1);
-}
-
-int64_t wrt_fkey_find(const uint64_t *fkeys, uint32_t n, uint64_t key) {
-    uint32_t lo = 0, hi = n;
-    while (lo < hi) {
-        uint32_t mid = lo + (hi - lo) / 2;
-        if (fkeys[mid] < key) lo = mid + 1;
-        else hi = mid;
-    }
-    return (lo < n && fkeys[lo] == key) ? (int64_t)lo : -1;
-}
-
-
-/* The link of a function: its key without the wavelet types. */
-static uint64_t support_of(uint64_t k) { return k & ~((3ULL << 16) | (3ULL << 6)); }
-
-typedef struct link_pair { uint64_t r, s; } link_pair;
-static int cmp_lp(const void *pa, const void *pb) {
-    const link_pair *a = pa, *b = pb;
-    if (a->r != b->r) return a->r < b->r ? -1 : 1;
-    return a->s < b->s ? -1 : a->s > b->s;
-}
-
-uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys) {
-    if (!m->nnz) return 0;
-    link_pair *lp = wrt_xmalloc(m->nnz * sizeof *lp);
-    uint64_t k = 0;
-    for (uint32_t j = 0; j < m->n; j++)
-        for (uint64_t i = m->col[j]; i < m->col[j + 1]; i++)
-            lp[k++] = (link_pair){support_of(fkeys[m->row[i]]), support_of(fkeys[j])};
-    qsort(lp, k, sizeof *lp, cmp_lp);
-    uint64_t links = 0;
-    for (uint64_t i = 0; i < k; i++)
-        if (i == 0 || lp[i].r != lp[i - 1].r || lp[i].s != lp[i - 1].s) links++;
-    free(lp);
-    return links;
 }
 
 /* K's column keys (the outgoing functions its entries use, sorted) and its matrix, from
@@ -432,7 +365,8 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
          * the glossy asset are its heaviest: 3x the final figure): it refuses only from
          * there on, what is already computed at any time; the figure recorded is the last */
         double keep = C->mem_estimate_mb;
-        mst = wrt_bake_memory_check(&b.opt, C, done >= 0.1 ? need : known, "the transport operator T");
+        mst = wrt_bake_memory_check(b.opt.max_memory_mb, &C->mem_estimate_mb, done >= 0.1 ? need : known,
+                                    "the transport operator T");
         if (start + n < np) C->mem_estimate_mb = keep;
         if (mst != WRT_OK) break;
     }
@@ -522,7 +456,9 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             C->nfuncs = res->nfuncs;
             for (uint32_t f = 0; f < res->nfuncs; f++) C->nfuncs_angular += !wrt_fkey_angular_root(res->fkeys[f]);
             /* K's triplets, then its arrays (the triplets' 16 bytes an entry, then 8) */
-            if (nkent) st = wrt_bake_memory_check(&b.opt, C, nkent * 24, "the first-bounce operator K");
+            if (nkent)
+                st = wrt_bake_memory_check(b.opt.max_memory_mb, &C->mem_estimate_mb, nkent * 24,
+                                           "the first-bounce operator K");
             if (nkent && st == WRT_OK) {
                 k_assemble(res, job.out + npt, np - npt, nkent);
                 if (!b.opt.no_balance) {

@@ -8,6 +8,8 @@
 
 #include "../formats/scene.h"
 #include "sparse.h"
+#include "budget.h" /* the memory budget, which main.c reports */
+#include "links.h"  /* wrt_fkey_find, wrt_count_links */
 
 /* Progress: phase name ("dto", "balance", "gto") and fraction done, or < 0 when no
  * fraction is known; return 0 to cancel. */
@@ -104,21 +106,6 @@ typedef struct wrt_bake_result {
  * leaves *res empty. */
 wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt, wrt_bake_result *res);
 void wrt_bake_result_free(wrt_bake_result *res);
-
-/* The default memory budget in MB: half the physical memory. */
-double wrt_bake_memory_default(void);
-/* The process's resident memory now and at its peak (getrusage), in bytes (0 if unknown). */
-uint64_t wrt_bake_rss_bytes(void);
-uint64_t wrt_bake_peak_rss_bytes(void);
-/* Refuses (WRT_ERR_NOMEM, a message naming the figures) when `need` bytes more than
- * what is resident now would pass the budget; records the largest estimate in *c. */
-wrt_status wrt_bake_memory_check(const wrt_bake_options *o, wrt_bake_counters *c, uint64_t need, const char *what);
-
-/* Counts links (groups of entries sharing the four supports) of a matrix over fkeys. */
-uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys);
-
-/* Index of a key in the sorted fkeys, or -1. */
-int64_t wrt_fkey_find(const uint64_t *fkeys, uint32_t n, uint64_t key);
 
 /* Unoccluded form factor from a point x with unit normal n to a planar polygon
  * (vertices in order), clipped to the half-space in front of x: 

@@ -41,6 +41,7 @@
 #include "../common/threads.h"
 #include "../common/brdf_table.h"
 #include "balance.h"
+#include "links.h"
 
 #define GL2 0.28867513459481287 /* 2 x 2 Gauss-Legendre: centre +- GL2 x side */
 

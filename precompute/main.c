@@ -1,7 +1,10 @@
-/* main.c: the wrt-bake command line. Parses options, loads the scene, runs the bake
- * (bake.h) with a progress bar on a terminal, writes the .gto atomically, prints the
- * summary (text or --json). Also --scan (what the bake will see) and --info (inspect a
- * .gto). Only this file exits. */
+/* main.c: the wrt-bake command line. Parses options (cli/cli.h's number parsers and exit
+ * codes), loads the scene, runs the bake (bake.h) with a progress bar on a terminal,
+ * writes the .gto to a pending temporary, checks it against the path tracer for
+ * --max-error (verify/compare.h: the only place the bake reaches the verification, after
+ * the bake library has returned), renames it over the target and prints the summary
+ * (text or --json); main() and bake() call these stages in order. Also --scan (what the
+ * bake will see) and --info (inspect a .gto). Only this file exits. */
 #include <errno.h>
 #include <limits.h>
 #include <signal.h>
@@ -14,10 +17,8 @@
 #include "../cli/cli.h"
 #include "../formats/gto.h"
 #include "../formats/scene.h"
-#include "../tools/compare.h"
+#include "../verify/compare.h"
 #include "bake.h"
-
-enum { EXIT_USAGE = 1, EXIT_INPUT = 2, EXIT_OUTPUT = 3, EXIT_CANCEL = 4, EXIT_ACCURACY = 5, EXIT_INTERNAL = 7 };
 
 static void usage(FILE *f) {
     fprintf(f,
@@ -79,30 +80,6 @@ static void usage(FILE *f) {
     wrt_cli_exit_table(f);
 }
 
-static int parse_int(const char *opt, const char *s, int lo, int hi, int *out) {
-    char *end;
-    errno = 0;
-    long v = strtol(s ? s : "", &end, 10);
-    if (!s || errno || *end || end == s || v < lo || v > hi) {
-        fprintf(stderr, "wrt-bake: error: %s needs an integer in [%d, %d], got '%s'\n", opt, lo, hi, s ? s : "");
-        return 0;
-    }
-    *out = (int)v;
-    return 1;
-}
-
-static int parse_double(const char *opt, const char *s, double lo, double hi, double *out) {
-    char *end;
-    errno = 0;
-    double v = strtod(s ? s : "", &end);
-    if (!s || errno || *end || end == s || !(v >= lo && v <= hi)) {
-        fprintf(stderr, "wrt-bake: error: %s needs a number in [%g, %g], got '%s'\n", opt, lo, hi, s ? s : "");
-        return 0;
-    }
-    *out = v;
-    return 1;
-}
-
 /* One line per phase on a terminal (cli/cli.h); the bake's "gto" phase is the series. */
 static int progress_cb(const char *phase, double done, void *user) {
     (void)user;
@@ -119,7 +96,7 @@ static void interrupt_exit(int sig) {
     static const char msg[] = "\nwrt-bake: interrupted; nothing written, the output is as it was\n";
     ssize_t w = write(2, msg, sizeof msg - 1);
     (void)w;
-    _exit(EXIT_CANCEL);
+    _exit(WRT_EXIT_INTERRUPTED);
 }
 
 static void install_interrupt_exit(void) {
@@ -174,328 +151,447 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
         o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance);
 }
 
-int main(int argc, char **argv) {
-    const char *scene_path = NULL, *out_path = NULL, *scan = NULL, *info = NULL;
-    int json = 0, force_progress = 0, quiet = 0, print_config = 0, timings = 0, drop_bad = 0;
+/* ---------------------------------------------------------------- the command line */
+
+/* The command line, parsed. */
+typedef struct bake_args {
+    const char *scene_path, *out_path, *scan, *info;
+    int json, force_progress, quiet, print_config, timings, drop_bad;
+    double max_error;   /* < 0: no accuracy check */
+    int check_paths;
+    wrt_bake_options o;
+} bake_args;
+
+/* What parse_args and the early stages return when the program goes on. */
+#define GO_ON (-1)
+
+/* cli.h's number parsers, for the int and double fields of the options. */
+static int opt_int(const char *opt, const char *val, long lo, long hi, int *out) {
+    long n;
+    if (!wrt_cli_int("wrt-bake", opt, val, lo, hi, &n)) return 0;
+    *out = (int)n;
+    return 1;
+}
+
+static int opt_num(const char *opt, const char *val, double lo, double hi, double *out) {
+    return wrt_cli_num("wrt-bake", opt, val, lo, hi, out);
+}
+
+/* A file name option's value. */
+static int opt_str(const char *opt, const char *val, const char **out) {
+    if (!val) {
+        fprintf(stderr, "wrt-bake: error: %s needs a value\n", opt);
+        return 0;
+    }
+    *out = val;
+    return 1;
+}
+
+/* An option given twice is refused (`-o a -o b` would silently take the last). */
+static int given_twice(const char *a, const char **seen, int *nseen, int max) {
+    if (a[0] != '-' || !a[1]) return 0;
+    const char *canon = (!strcmp(a, "-o") || !strcmp(a, "--out")) ? "--output" : !strcmp(a, "-q") ? "--quality" : a;
+    for (int k = 0; k < *nseen; k++)
+        if (!strcmp(seen[k], canon)) {
+            fprintf(stderr, "wrt-bake: error: %s given twice\n", a);
+            return 1;
+        }
+    if (*nseen < max) seen[(*nseen)++] = canon;
+    return 0;
+}
+
+/* Options that constrain each other. */
+static int check_args(const bake_args *A) {
+    const wrt_bake_options *o = &A->o;
+    if (o->min_slevel && o->max_slevel && o->min_slevel > o->max_slevel) {
+        fprintf(stderr, "wrt-bake: error: --min-level %d is deeper than --max-level %d\n", o->min_slevel, o->max_slevel);
+        return WRT_EXIT_USAGE;
+    }
+    if (o->glossy_quality && o->glossy_quality > (o->quality ? o->quality : 5)) {
+        fprintf(stderr, "wrt-bake: error: --glossy-quality %d must not exceed the quality (%d)\n", o->glossy_quality,
+                o->quality ? o->quality : 5);
+        return WRT_EXIT_USAGE;
+    }
+    return GO_ON;
+}
+
+/* Fills *A from argv; returns GO_ON, or the exit code (0 after --help, --version). */
+static int parse_args(int argc, char **argv, bake_args *A) {
     const char *seen[64];
     int nseen = 0;
-    double max_error = -1;
-    int check_paths = 1000000;
-    wrt_bake_options o = {0};
-    install_interrupt_exit(); /* first: a signal from here on exits 4, writing nothing */
+    memset(A, 0, sizeof *A);
+    A->max_error = -1;
+    A->check_paths = 1000000;
+    wrt_bake_options *o = &A->o;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         int ok = 1;
-        /* An option given twice is refused (`-o a -o b` would silently take the last). */
-        if (a[0] == '-' && a[1]) {
-            const char *canon = (!strcmp(a, "-o") || !strcmp(a, "--out")) ? "--output" : !strcmp(a, "-q") ? "--quality" : a;
-            for (int k = 0; k < nseen; k++)
-                if (!strcmp(seen[k], canon)) {
-                    fprintf(stderr, "wrt-bake: error: %s given twice\n", a);
-                    return EXIT_USAGE;
-                }
-            if (nseen < (int)(sizeof seen / sizeof *seen)) seen[nseen++] = canon;
-        }
+        if (given_twice(a, seen, &nseen, (int)(sizeof seen / sizeof *seen))) return WRT_EXIT_USAGE;
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
         else if (!strcmp(a, "--version")) { wrt_cli_version("wrt-bake"); return 0; }
-        else if (!strcmp(a, "-o") || !strcmp(a, "--out") || !strcmp(a, "--output")) { if (!v) ok = 0; else out_path = v, i++; }
-        else if (!strcmp(a, "--scan")) { if (!v) ok = 0; else scan = v, i++; }
-        else if (!strcmp(a, "--info")) { if (!v) ok = 0; else info = v, i++; }
-        else if (!strcmp(a, "-q") || !strcmp(a, "--quality")) { ok = parse_int(a, v, 1, 9, &o.quality); i++; }
-        else if (!strcmp(a, "--eps-receiver")) { ok = parse_double(a, v, 1e-12, 10, &o.eps_receiver); i++; }
-        else if (!strcmp(a, "--eps-receiver-coarse")) { ok = parse_double(a, v, 1e-12, 10, &o.eps_receiver_coarse); i++; }
-        else if (!strcmp(a, "--eps-sender")) { ok = parse_double(a, v, 1e-12, 10, &o.eps_sender); i++; }
-        else if (!strcmp(a, "--eps-compress")) { ok = parse_double(a, v, 1e-15, 1, &o.eps_compress); i++; }
-        else if (!strcmp(a, "--max-level")) { ok = parse_int(a, v, 1, 10, &o.max_slevel); i++; }
-        else if (!strcmp(a, "--min-level")) { ok = parse_int(a, v, 0, 10, &o.min_slevel); i++; }
-        else if (!strcmp(a, "--max-angular-level")) { ok = parse_int(a, v, 1, 3, &o.max_alevel); i++; }
-        else if (!strcmp(a, "--glossy-quality")) { ok = parse_int(a, v, 1, 9, &o.glossy_quality); i++; }
+        else if (!strcmp(a, "-o") || !strcmp(a, "--out") || !strcmp(a, "--output")) { ok = opt_str(a, v, &A->out_path); i++; }
+        else if (!strcmp(a, "--scan")) { ok = opt_str(a, v, &A->scan); i++; }
+        else if (!strcmp(a, "--info")) { ok = opt_str(a, v, &A->info); i++; }
+        else if (!strcmp(a, "-q") || !strcmp(a, "--quality")) { ok = opt_int(a, v, 1, 9, &o->quality); i++; }
+        else if (!strcmp(a, "--eps-receiver")) { ok = opt_num(a, v, 1e-12, 10, &o->eps_receiver); i++; }
+        else if (!strcmp(a, "--eps-receiver-coarse")) { ok = opt_num(a, v, 1e-12, 10, &o->eps_receiver_coarse); i++; }
+        else if (!strcmp(a, "--eps-sender")) { ok = opt_num(a, v, 1e-12, 10, &o->eps_sender); i++; }
+        else if (!strcmp(a, "--eps-compress")) { ok = opt_num(a, v, 1e-15, 1, &o->eps_compress); i++; }
+        else if (!strcmp(a, "--max-level")) { ok = opt_int(a, v, 1, 10, &o->max_slevel); i++; }
+        else if (!strcmp(a, "--min-level")) { ok = opt_int(a, v, 0, 10, &o->min_slevel); i++; }
+        else if (!strcmp(a, "--max-angular-level")) { ok = opt_int(a, v, 1, 3, &o->max_alevel); i++; }
+        else if (!strcmp(a, "--glossy-quality")) { ok = opt_int(a, v, 1, 9, &o->glossy_quality); i++; }
         else if (!strcmp(a, "--first-bounce-level")) {
-            ok = parse_int(a, v, 0, 4, &o.first_bounce_level);
-            if (ok && o.first_bounce_level == 0) o.first_bounce_level = -1;
+            ok = opt_int(a, v, 0, 4, &o->first_bounce_level);
+            if (ok && o->first_bounce_level == 0) o->first_bounce_level = -1;
             i++;
         }
-        else if (!strcmp(a, "--max-memory")) { ok = parse_double(a, v, 1, 1e9, &o.max_memory_mb); i++; }
-        else if (!strcmp(a, "--max-bounces")) { ok = parse_int(a, v, 1, 1000000, &o.max_bounces); i++; }
-        else if (!strcmp(a, "--threads")) { ok = parse_int(a, v, 1, 64, &o.threads); i++; }
-        else if (!strcmp(a, "--max-error")) { ok = parse_double(a, v, 0, 100, &max_error); i++; }
-        else if (!strcmp(a, "--check-paths")) { ok = parse_int(a, v, 1000, 1000000000, &check_paths); i++; }
-        else if (!strcmp(a, "--gathered")) o.gathered = 1;
-        else if (!strcmp(a, "--report-gathered")) o.report_gathered = 1;
-        else if (!strcmp(a, "--no-tail")) o.no_tail = 1;
-        else if (!strcmp(a, "--no-balance")) o.no_balance = 1;
-        else if (!strcmp(a, "--drop-bad")) drop_bad = 1;
-        else if (!strcmp(a, "--reproducible")) timings = 0;
-        else if (!strcmp(a, "--provenance-timings")) timings = 1;
-        else if (!strcmp(a, "--json")) json = 1;
-        else if (!strcmp(a, "--progress")) force_progress = 1;
-        else if (!strcmp(a, "--quiet")) quiet = 1;
-        else if (!strcmp(a, "--print-config")) print_config = 1;
-        else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-bake: error: unknown option '%s' (see --help)\n", a); return EXIT_USAGE; }
-        else if (!scene_path) scene_path = a;
-        else { fprintf(stderr, "wrt-bake: error: unexpected argument '%s'\n", a); return EXIT_USAGE; }
-        if (!ok) {
-            if (!v) fprintf(stderr, "wrt-bake: error: %s needs a value\n", a);
-            return EXIT_USAGE;
-        }
+        else if (!strcmp(a, "--max-memory")) { ok = opt_num(a, v, 1, 1e9, &o->max_memory_mb); i++; }
+        else if (!strcmp(a, "--max-bounces")) { ok = opt_int(a, v, 1, 1000000, &o->max_bounces); i++; }
+        else if (!strcmp(a, "--threads")) { ok = opt_int(a, v, 1, 64, &o->threads); i++; }
+        else if (!strcmp(a, "--max-error")) { ok = opt_num(a, v, 0, 100, &A->max_error); i++; }
+        else if (!strcmp(a, "--check-paths")) { ok = opt_int(a, v, 1000, 1000000000, &A->check_paths); i++; }
+        else if (!strcmp(a, "--gathered")) o->gathered = 1;
+        else if (!strcmp(a, "--report-gathered")) o->report_gathered = 1;
+        else if (!strcmp(a, "--no-tail")) o->no_tail = 1;
+        else if (!strcmp(a, "--no-balance")) o->no_balance = 1;
+        else if (!strcmp(a, "--drop-bad")) A->drop_bad = 1;
+        else if (!strcmp(a, "--reproducible")) A->timings = 0;
+        else if (!strcmp(a, "--provenance-timings")) A->timings = 1;
+        else if (!strcmp(a, "--json")) A->json = 1;
+        else if (!strcmp(a, "--progress")) A->force_progress = 1;
+        else if (!strcmp(a, "--quiet")) A->quiet = 1;
+        else if (!strcmp(a, "--print-config")) A->print_config = 1;
+        else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-bake: error: unknown option '%s' (see --help)\n", a); return WRT_EXIT_USAGE; }
+        else if (!A->scene_path) A->scene_path = a;
+        else { fprintf(stderr, "wrt-bake: error: unexpected argument '%s'\n", a); return WRT_EXIT_USAGE; }
+        if (!ok) return WRT_EXIT_USAGE;
     }
-    if (o.min_slevel && o.max_slevel && o.min_slevel > o.max_slevel) {
-        fprintf(stderr, "wrt-bake: error: --min-level %d is deeper than --max-level %d\n", o.min_slevel, o.max_slevel);
-        return EXIT_USAGE;
-    }
-    if (o.glossy_quality && o.glossy_quality > (o.quality ? o.quality : 5)) {
-        fprintf(stderr, "wrt-bake: error: --glossy-quality %d must not exceed the quality (%d)\n", o.glossy_quality,
-                o.quality ? o.quality : 5);
-        return EXIT_USAGE;
-    }
-    if (print_config) {
-        wrt_bake_defaults(&o);
-        json_options(stdout, &o);
-        putchar('\n');
-        return 0;
-    }
-    if (info) {
-        if (access(info, R_OK) != 0) { /* one message, not a report of a file that is not there */
-            fprintf(stderr, "wrt-bake: error: %s: %s\n", info, strerror(errno));
-            return EXIT_INPUT;
-        }
-        wrt_status st = wrt_gto_print_info(info, json, stdout);
-        if (st != WRT_OK) {
-            fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-            return EXIT_INPUT; /* a .gto that cannot be read is bad input, missing or not */
-        }
-        return 0;
-    }
-    wrt_load_options lo = {.drop_bad = drop_bad};
-    if (scan) {
-        /* a baked file given by mistake: say so rather than show the glTF parser's error */
-        struct stat sst;
-        FILE *sf = stat(scan, &sst) == 0 && S_ISREG(sst.st_mode) ? fopen(scan, "rb") : NULL; /* no FIFO waits */
-        char magic[8] = {0};
-        if (sf) {
-            size_t got = fread(magic, 1, sizeof magic, sf);
-            fclose(sf);
-            if (got == sizeof magic && !memcmp(magic, "\x89WRT\r\n\x1a\n", sizeof magic)) { /* .gto magic */
-                fprintf(stderr, "wrt-bake: error: %s is a baked .gto file, not a scene: use --info to inspect it\n",
-                        scan);
-                return EXIT_INPUT;
-            }
-        }
-        wrt_scene s;
-        wrt_status st = wrt_scene_load(scan, &lo, &s);
-        if (st != WRT_OK) {
-            fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-            return EXIT_INPUT;
-        }
-        wrt_scene_print_summary(&s, json, stdout);
-        wrt_scene_free(&s);
-        return 0;
-    }
-    if (!scene_path) { usage(stderr); return EXIT_USAGE; }
-    if (!out_path) { fprintf(stderr, "wrt-bake: error: no output file (-o OUT.gto)\n"); return EXIT_USAGE; }
-    wrt_cli_progress_enable(!quiet && (force_progress || isatty(2)));
+    return check_args(A);
+}
 
-    /* The output, checked before any work: not the scene (same file, also through a
-     * link), not a directory, in a folder where a file can be made. */
-    const char *inputs[1] = {scene_path};
-    wrt_status cst = wrt_gto_check_output(out_path, inputs, 1);
+/* ---------------------------------------------------------------- the modes */
+
+/* --info FILE.gto */
+static int run_info(const bake_args *A) {
+    const char *info = A->info;
+    if (access(info, R_OK) != 0) { /* one message, not a report of a file that is not there */
+        fprintf(stderr, "wrt-bake: error: %s: %s\n", info, strerror(errno));
+        return WRT_EXIT_INPUT;
+    }
+    wrt_status st = wrt_gto_print_info(info, A->json, stdout);
+    if (st != WRT_OK) {
+        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+        return WRT_EXIT_INPUT; /* a .gto that cannot be read is bad input, missing or not */
+    }
+    return 0;
+}
+
+/* --scan SCENE */
+static int run_scan(const bake_args *A, const wrt_load_options *lo) {
+    const char *scan = A->scan;
+    /* a baked file given by mistake: say so rather than show the glTF parser's error */
+    struct stat sst;
+    FILE *sf = stat(scan, &sst) == 0 && S_ISREG(sst.st_mode) ? fopen(scan, "rb") : NULL; /* no FIFO waits */
+    char magic[8] = {0};
+    if (sf) {
+        size_t got = fread(magic, 1, sizeof magic, sf);
+        fclose(sf);
+        if (got == sizeof magic && !memcmp(magic, "\x89WRT\r\n\x1a\n", sizeof magic)) { /* .gto magic */
+            fprintf(stderr, "wrt-bake: error: %s is a baked .gto file, not a scene: use --info to inspect it\n",
+                    scan);
+            return WRT_EXIT_INPUT;
+        }
+    }
+    wrt_scene s;
+    wrt_status st = wrt_scene_load(scan, lo, &s);
+    if (st != WRT_OK) {
+        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+        return WRT_EXIT_INPUT;
+    }
+    wrt_scene_print_summary(&s, A->json, stdout);
+    wrt_scene_free(&s);
+    return 0;
+}
+
+/* ---------------------------------------------------------------- the bake's stages */
+
+/* The output, checked before any work: not the scene (same file, also through a
+ * link), not a directory, in a folder where a file can be made. */
+static int check_output(const bake_args *A) {
+    const char *inputs[1] = {A->scene_path};
+    wrt_status cst = wrt_gto_check_output(A->out_path, inputs, 1);
     if (cst != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-        return cst == WRT_ERR_INVALID_ARG ? EXIT_USAGE : EXIT_OUTPUT;
+        return cst == WRT_ERR_INVALID_ARG ? WRT_EXIT_USAGE : WRT_EXIT_OUTPUT;
     }
-    double t0 = wrt_now();
-    wrt_scene s;
+    return GO_ON;
+}
+
+/* Loads the scene into *s; GO_ON, or the exit code with nothing left to free. */
+static int load_scene(const bake_args *A, const wrt_load_options *lo, wrt_scene *s) {
+    const char *out_path = A->out_path, *scene_path = A->scene_path;
     wrt_cli_progress("load", -1);
-    wrt_status st = wrt_scene_load(scene_path, &lo, &s);
+    wrt_status st = wrt_scene_load(scene_path, lo, s);
     wrt_cli_progress_end();
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-        return EXIT_INPUT;
+        return WRT_EXIT_INPUT;
     }
     /* ... nor any file the scene read (external buffers and images). */
-    if (s.files && s.files[0]) {
+    if (s->files && s->files[0]) {
         const char *ins[64];
         int nin = 0;
-        for (char *l = s.files; *l && nin < 64;) {
+        for (char *l = s->files; *l && nin < 64;) {
             char *nl = strchr(l, '\n');
             if (nl) *nl = 0;
             ins[nin++] = l;
             if (!nl) break;
             l = nl + 1;
         }
-        cst = wrt_gto_check_output(out_path, ins, nin);
+        wrt_status cst = wrt_gto_check_output(out_path, ins, nin);
         for (int k = 0; k < nin - 1; k++) ((char *)ins[k])[strlen(ins[k])] = '\n';
         if (cst != WRT_OK) {
             fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-            wrt_scene_free(&s);
-            return cst == WRT_ERR_INVALID_ARG ? EXIT_USAGE : EXIT_OUTPUT;
+            wrt_scene_free(s);
+            return cst == WRT_ERR_INVALID_ARG ? WRT_EXIT_USAGE : WRT_EXIT_OUTPUT;
         }
     }
-    if (s.nquads == 0) {
+    if (s->nquads == 0) {
         fprintf(stderr, "wrt-bake: error: %s: the scene has no quads\n", scene_path);
-        wrt_scene_free(&s);
-        return EXIT_INPUT;
+        wrt_scene_free(s);
+        return WRT_EXIT_INPUT;
     }
-    o.progress = progress_cb;
-    wrt_bake_result r;
-    st = wrt_bake_run(&s, &o, &r);
+    return GO_ON;
+}
+
+/* The bake itself (bake.h); then A->o holds the options it used. GO_ON, or the exit
+ * code with the scene freed. */
+static int run_bake(bake_args *A, wrt_scene *s, wrt_bake_result *r) {
+    A->o.progress = progress_cb;
+    wrt_status st = wrt_bake_run(s, &A->o, r);
     wrt_cli_progress_end();
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-        wrt_scene_free(&s);
-        return st == WRT_ERR_CANCELLED ? EXIT_CANCEL : st == WRT_ERR_NOMEM ? EXIT_INTERNAL : EXIT_INPUT;
+        wrt_scene_free(s);
+        return st == WRT_ERR_CANCELLED ? WRT_EXIT_INTERRUPTED : st == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT;
     }
-    wrt_bake_defaults(&o);
-    const wrt_bake_counters *c = &r.c;
+    wrt_bake_defaults(&A->o);
+    return GO_ON;
+}
 
-    /* provenance: one JSON object */
+/* The provenance the file records: one JSON object (malloc'd). */
+static char *provenance_json(const bake_args *A, const wrt_scene *s, const wrt_bake_counters *c) {
     char *prov = NULL;
     size_t prov_len = 0;
     FILE *pf = open_memstream(&prov, &prov_len);
     fprintf(pf, "{\"tool\":\"wrt-bake\",\"version\":\"%s\",\"source\":\"", WRT_VERSION_STRING);
-    for (const char *p = scene_path; *p; p++) {
+    for (const char *p = A->scene_path; *p; p++) {
         if (*p == '"' || *p == '\\') fputc('\\', pf);
         if ((unsigned char)*p >= 0x20) fputc(*p, pf);
     }
-    fprintf(pf, "\",\"source_hash\":\"%016llx\",\"options\":", (unsigned long long)s.source_hash);
-    json_options(pf, &o);
+    fprintf(pf, "\",\"source_hash\":\"%016llx\",\"options\":", (unsigned long long)s->source_hash);
+    json_options(pf, &A->o);
     fprintf(pf, ",");
     json_counters(pf, c);
-    if (timings) fprintf(pf, ",\"seconds\":{\"dto\":%.3f,\"gto\":%.3f}", c->t_dto, c->t_gto);
+    if (A->timings) fprintf(pf, ",\"seconds\":{\"dto\":%.3f,\"gto\":%.3f}", c->t_dto, c->t_gto);
     fprintf(pf, "}");
     fclose(pf);
+    return prov;
+}
 
+/* The file is written to a private temporary in the target's folder (unnamed where
+ * the file system allows); with --max-error it is checked there and only renamed
+ * over the target when it passes: a rejected or interrupted bake leaves the target
+ * as it was and no file behind. GO_ON, or the exit code. */
+static int write_pending(const bake_args *A, const wrt_scene *s, const wrt_bake_result *r, wrt_gto_pending *pend,
+                         double *t_write) {
+    const wrt_bake_counters *c = &r->c;
+    char *prov = provenance_json(A, s, c);
     wrt_gto_contents gc = {
-        .scene = &s, .fkeys = r.fkeys, .nfuncs = r.nfuncs,
-        .col_start = r.op.col, .rows = r.op.row, .vals = r.op.val,
-        .op_kind = (uint32_t)r.op_kind, .material_alevel = r.material_alevel, .provenance = prov,
-        .nkcols = r.nkcols, .kkeys = r.kkeys, .kcol_start = r.kcol_start, .krows = r.krows, .kvals = r.kvals,
+        .scene = s, .fkeys = r->fkeys, .nfuncs = r->nfuncs,
+        .col_start = r->op.col, .rows = r->op.row, .vals = r->op.val,
+        .op_kind = (uint32_t)r->op_kind, .material_alevel = r->material_alevel, .provenance = prov,
+        .nkcols = r->nkcols, .kkeys = r->kkeys, .kcol_start = r->kcol_start, .krows = r->krows, .kvals = r->kvals,
     };
     gc.stats.links_dto = c->links_dto;
     gc.stats.links_gto = c->links_gto;
     gc.stats.links_gathered = c->links_gathered;
     gc.stats.entries_dto = c->entries_dto;
-    gc.stats.entries_op = r.op.nnz;
+    gc.stats.entries_op = r->op.nnz;
     gc.stats.rays_traced = c->rays_traced;
     gc.stats.rays_skipped = c->rays_skipped_unoccluded + c->rays_skipped_facing;
     gc.stats.bounces = c->bounces;
     gc.stats.energy_left = c->energy_left;
-    if (timings) { gc.stats.t_dto = c->t_dto; gc.stats.t_gto = c->t_gto; }
-    /* The file is written to a private temporary in the target's folder (unnamed where
-     * the file system allows); with --max-error it is checked there and only renamed
-     * over the target when it passes: a rejected or interrupted bake leaves the target
-     * as it was and no file behind. */
+    if (A->timings) { gc.stats.t_dto = c->t_dto; gc.stats.t_gto = c->t_gto; }
     double tw = wrt_now();
-    wrt_gto_pending pend;
     wrt_cli_progress("write", -1);
-    st = wrt_gto_write_pending(out_path, &gc, &pend);
+    wrt_status st = wrt_gto_write_pending(A->out_path, &gc, pend);
     wrt_cli_progress_end();
-    double t_write = wrt_now() - tw;
+    *t_write = wrt_now() - tw;
     free(prov);
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-        wrt_bake_result_free(&r);
-        wrt_scene_free(&s);
-        return EXIT_OUTPUT;
+        return WRT_EXIT_OUTPUT;
     }
-    double check_error = -1, check_floor = -1, t_check = 0;
-    if (max_error >= 0) {
-        double tc = wrt_now();
-        wrt_light lights[2];
-        int nl = wrt_compare_default_lights(&s, 2, lights);
-        wrt_compare_options co = {.cells = 4, .cell_paths = check_paths, .width = -1, .bench_updates = 1,
-                                  .threads = o.threads};
-        wrt_compare_ref *ref = NULL;
-        wrt_gto g;
-        wrt_compare_result cr;
-        st = wrt_compare_ref_create(&s, lights, nl, &co, &ref);
-        if (st == WRT_OK) st = wrt_gto_open_pending(&pend, &g);
-        if (st == WRT_OK) {
-            st = wrt_compare_gto(ref, &g, &cr);
-            wrt_gto_close(&g);
-        }
-        wrt_compare_ref_destroy(ref);
-        t_check = wrt_now() - tc;
-        if (st != WRT_OK) {
-            fprintf(stderr, "wrt-bake: error: accuracy check failed to run: %s\n", wrt_last_error());
-            wrt_gto_discard(&pend);
-            wrt_bake_result_free(&r);
-            wrt_scene_free(&s);
-            return EXIT_OUTPUT;
-        }
-        check_error = cr.mean.cell_rmse;
-        check_floor = cr.mean.cell_floor;
-        if (check_error > max_error) {
-            fprintf(stderr, "wrt-bake: error: accuracy not met: relative RMSE of the indirect light %.4f "
-                    "(reference noise %.4f) exceeds --max-error %.4f; %s not written\n",
-                    check_error, check_floor, max_error, out_path);
-            wrt_gto_discard(&pend);
-            wrt_bake_result_free(&r);
-            wrt_scene_free(&s);
-            return EXIT_ACCURACY;
-        }
-    }
-    tw = wrt_now();
-    st = wrt_gto_commit(&pend);
-    t_write += wrt_now() - tw;
-    if (st != WRT_OK) {
-        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-        wrt_bake_result_free(&r);
-        wrt_scene_free(&s);
-        return EXIT_OUTPUT;
-    }
-    double t_total = wrt_now() - t0;
-    long long bytes = -1;
-    struct stat ob;
-    if (stat(out_path, &ob) == 0) bytes = (long long)ob.st_size;
+    return GO_ON;
+}
 
-    if (json) {
-        printf("{\"scene\":\"%s\",\"output\":\"%s\",\"quads\":%d,\"bytes\":%lld,", scene_path, out_path, s.nquads, bytes);
-        printf("\"seconds\":{\"dto\":%.4f,\"balance\":%.4f,\"gto\":%.4f,\"write\":%.4f,\"total\":%.4f,"
-               "\"rays_thread\":%.4f},", c->t_dto, c->t_balance, c->t_gto, t_write, t_total, c->t_rays);
-        if (max_error >= 0)
-            printf("\"check\":{\"cell_rmse\":%.6g,\"floor\":%.6g,\"max_error\":%.6g,\"seconds\":%.3f},",
-                   check_error, check_floor, max_error, t_check);
-        printf("\"memory_mb\":{\"peak_rss\":%.1f,\"estimated\":%.1f,\"budget\":%.0f},",
-               (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), c->mem_estimate_mb, o.max_memory_mb);
-        printf("\"operator\":\"%s\",\"options\":", r.op_kind == WRT_GTO_OP_GATHERED ? "gathered" : "indirect");
-        json_options(stdout, &o);
-        printf(",");
-        json_counters(stdout, c);
-        printf("}\n");
-    } else {
-        printf("baked %s -> %s (%lld bytes, %s operator)\n", scene_path, out_path, bytes,
-               r.op_kind == WRT_GTO_OP_GATHERED ? "gathered" : "indirect");
-        printf("  time      dto %.2f s, gto %.2f s, write %.2f s, total %.2f s\n", c->t_dto, c->t_gto, t_write, t_total);
-        printf("  memory    peak %.1f MB resident (largest estimate %.1f MB, budget %.0f MB)\n",
-               (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), c->mem_estimate_mb, o.max_memory_mb);
-        printf("  quads     %d; pairs %llu exchanging of %llu (%llu skipped facing, %llu with no occluder)\n",
-               s.nquads, (unsigned long long)c->pairs_exchange, (unsigned long long)c->pairs_total,
-               (unsigned long long)c->pairs_skipped_facing, (unsigned long long)c->pairs_unoccluded);
-        char gath[32] = "not computed";
-        if (o.gathered || o.report_gathered) snprintf(gath, sizeof gath, "%llu", (unsigned long long)c->links_gathered);
-        printf("  links     dto %llu, gto %llu, gathered %s (leaves %llu, invisible %llu)\n",
-               (unsigned long long)c->links_dto, (unsigned long long)c->links_gto, gath,
-               (unsigned long long)c->links_leaf, (unsigned long long)c->links_invisible);
-        printf("  entries   dto %llu (spatial %llu, angular %llu), stored %llu; functions %u (angular %u)\n",
-               (unsigned long long)c->entries_dto, (unsigned long long)c->entries_spatial,
-               (unsigned long long)c->entries_angular, (unsigned long long)r.op.nnz, c->nfuncs, c->nfuncs_angular);
-        if (c->nkcols)
-            printf("  first bounce  %u outgoing functions of glossy quads, %llu entries, %llu links\n", c->nkcols,
-                   (unsigned long long)c->entries_k, (unsigned long long)c->links_k);
-        printf("  rays      traced %llu, skipped %llu (no occluder) + %llu (facing)\n",
-               (unsigned long long)c->rays_traced, (unsigned long long)c->rays_skipped_unoccluded,
-               (unsigned long long)c->rays_skipped_facing);
-        if (max_error >= 0)
-            printf("  check     relative RMSE %.4f against the reference (its noise %.4f), limit %.4f, %.1f s\n",
-                   check_error, check_floor, max_error, t_check);
-        printf("  series    %llu bounces, energy left %.2e, tail added %.2e (ratio %.4f)\n",
-               (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio);
-        if (!o.no_balance)
-            printf("  balance   %llu power entries set, %.2f s; the scene is %s\n", (unsigned long long)c->balance_entries,
-                   c->t_balance, c->closed ? "closed (no light escapes)" : "open");
+/* --max-error: the pending file against the path tracer (verify/compare.h), the only
+ * use of the verification in wrt-bake, after the bake library has returned. */
+typedef struct accuracy { double error, floor, seconds; } accuracy;
+
+/* GO_ON, or the exit code with the pending file discarded. */
+static int check_accuracy(const bake_args *A, const wrt_scene *s, wrt_gto_pending *pend, accuracy *acc) {
+    double tc = wrt_now();
+    wrt_light lights[2];
+    int nl = wrt_compare_default_lights(s, 2, lights);
+    wrt_compare_options co = {.cells = 4, .cell_paths = A->check_paths, .width = -1, .bench_updates = 1,
+                              .threads = A->o.threads};
+    wrt_compare_ref *ref = NULL;
+    wrt_gto g;
+    wrt_compare_result cr;
+    wrt_status st = wrt_compare_ref_create(s, lights, nl, &co, &ref);
+    if (st == WRT_OK) st = wrt_gto_open_pending(pend, &g);
+    if (st == WRT_OK) {
+        st = wrt_compare_gto(ref, &g, &cr);
+        wrt_gto_close(&g);
+    }
+    wrt_compare_ref_destroy(ref);
+    acc->seconds = wrt_now() - tc;
+    if (st != WRT_OK) {
+        fprintf(stderr, "wrt-bake: error: accuracy check failed to run: %s\n", wrt_last_error());
+        wrt_gto_discard(pend);
+        return WRT_EXIT_OUTPUT;
+    }
+    acc->error = cr.mean.cell_rmse;
+    acc->floor = cr.mean.cell_floor;
+    if (acc->error > A->max_error) {
+        fprintf(stderr, "wrt-bake: error: accuracy not met: relative RMSE of the indirect light %.4f "
+                "(reference noise %.4f) exceeds --max-error %.4f; %s not written\n",
+                acc->error, acc->floor, A->max_error, A->out_path);
+        wrt_gto_discard(pend);
+        return WRT_EXIT_ACCURACY;
+    }
+    return GO_ON;
+}
+
+/* ---------------------------------------------------------------- the summary */
+
+/* What the summary reports beyond the bake's counters. */
+typedef struct bake_times { double t_write, t_total; long long bytes; accuracy acc; } bake_times;
+
+static void print_json_summary(const bake_args *A, const wrt_scene *s, const wrt_bake_result *r, const bake_times *T) {
+    const wrt_bake_counters *c = &r->c;
+    const wrt_bake_options *o = &A->o;
+    printf("{\"scene\":\"%s\",\"output\":\"%s\",\"quads\":%d,\"bytes\":%lld,", A->scene_path, A->out_path, s->nquads,
+           T->bytes);
+    printf("\"seconds\":{\"dto\":%.4f,\"balance\":%.4f,\"gto\":%.4f,\"write\":%.4f,\"total\":%.4f,"
+           "\"rays_thread\":%.4f},", c->t_dto, c->t_balance, c->t_gto, T->t_write, T->t_total, c->t_rays);
+    if (A->max_error >= 0)
+        printf("\"check\":{\"cell_rmse\":%.6g,\"floor\":%.6g,\"max_error\":%.6g,\"seconds\":%.3f},",
+               T->acc.error, T->acc.floor, A->max_error, T->acc.seconds);
+    printf("\"memory_mb\":{\"peak_rss\":%.1f,\"estimated\":%.1f,\"budget\":%.0f},",
+           (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), c->mem_estimate_mb, o->max_memory_mb);
+    printf("\"operator\":\"%s\",\"options\":", r->op_kind == WRT_GTO_OP_GATHERED ? "gathered" : "indirect");
+    json_options(stdout, o);
+    printf(",");
+    json_counters(stdout, c);
+    printf("}\n");
+}
+
+static void print_text_summary(const bake_args *A, const wrt_scene *s, const wrt_bake_result *r, const bake_times *T) {
+    const wrt_bake_counters *c = &r->c;
+    const wrt_bake_options *o = &A->o;
+    printf("baked %s -> %s (%lld bytes, %s operator)\n", A->scene_path, A->out_path, T->bytes,
+           r->op_kind == WRT_GTO_OP_GATHERED ? "gathered" : "indirect");
+    printf("  time      dto %.2f s, gto %.2f s, write %.2f s, total %.2f s\n", c->t_dto, c->t_gto, T->t_write,
+           T->t_total);
+    printf("  memory    peak %.1f MB resident (largest estimate %.1f MB, budget %.0f MB)\n",
+           (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), c->mem_estimate_mb, o->max_memory_mb);
+    printf("  quads     %d; pairs %llu exchanging of %llu (%llu skipped facing, %llu with no occluder)\n",
+           s->nquads, (unsigned long long)c->pairs_exchange, (unsigned long long)c->pairs_total,
+           (unsigned long long)c->pairs_skipped_facing, (unsigned long long)c->pairs_unoccluded);
+    char gath[32] = "not computed";
+    if (o->gathered || o->report_gathered) snprintf(gath, sizeof gath, "%llu", (unsigned long long)c->links_gathered);
+    printf("  links     dto %llu, gto %llu, gathered %s (leaves %llu, invisible %llu)\n",
+           (unsigned long long)c->links_dto, (unsigned long long)c->links_gto, gath,
+           (unsigned long long)c->links_leaf, (unsigned long long)c->links_invisible);
+    printf("  entries   dto %llu (spatial %llu, angular %llu), stored %llu; functions %u (angular %u)\n",
+           (unsigned long long)c->entries_dto, (unsigned long long)c->entries_spatial,
+           (unsigned long long)c->entries_angular, (unsigned long long)r->op.nnz, c->nfuncs, c->nfuncs_angular);
+    if (c->nkcols)
+        printf("  first bounce  %u outgoing functions of glossy quads, %llu entries, %llu links\n", c->nkcols,
+               (unsigned long long)c->entries_k, (unsigned long long)c->links_k);
+    printf("  rays      traced %llu, skipped %llu (no occluder) + %llu (facing)\n",
+           (unsigned long long)c->rays_traced, (unsigned long long)c->rays_skipped_unoccluded,
+           (unsigned long long)c->rays_skipped_facing);
+    if (A->max_error >= 0)
+        printf("  check     relative RMSE %.4f against the reference (its noise %.4f), limit %.4f, %.1f s\n",
+               T->acc.error, T->acc.floor, A->max_error, T->acc.seconds);
+    printf("  series    %llu bounces, energy left %.2e, tail added %.2e (ratio %.4f)\n",
+           (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio);
+    if (!o->no_balance)
+        printf("  balance   %llu power entries set, %.2f s; the scene is %s\n", (unsigned long long)c->balance_entries,
+               c->t_balance, c->closed ? "closed (no light escapes)" : "open");
+}
+
+/* ---------------------------------------------------------------- main */
+
+/* Load, bake, write pending, check (--max-error), commit, report. */
+static int bake(bake_args *A, const wrt_load_options *lo) {
+    int rc = check_output(A);
+    if (rc != GO_ON) return rc;
+    bake_times T = {.acc = {-1, -1, 0}};
+    double t0 = wrt_now();
+    wrt_scene s;
+    rc = load_scene(A, lo, &s);
+    if (rc != GO_ON) return rc;
+    wrt_bake_result r;
+    rc = run_bake(A, &s, &r);
+    if (rc != GO_ON) return rc;
+    wrt_gto_pending pend;
+    rc = write_pending(A, &s, &r, &pend, &T.t_write);
+    if (rc == GO_ON && A->max_error >= 0) rc = check_accuracy(A, &s, &pend, &T.acc);
+    if (rc == GO_ON) {
+        double tw = wrt_now();
+        wrt_status st = wrt_gto_commit(&pend);
+        T.t_write += wrt_now() - tw;
+        if (st != WRT_OK) {
+            fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+            rc = WRT_EXIT_OUTPUT;
+        }
+    }
+    if (rc == GO_ON) {
+        T.t_total = wrt_now() - t0;
+        T.bytes = -1;
+        struct stat ob;
+        if (stat(A->out_path, &ob) == 0) T.bytes = (long long)ob.st_size;
+        if (A->json) print_json_summary(A, &s, &r, &T);
+        else print_text_summary(A, &s, &r, &T);
+        rc = 0;
     }
     wrt_bake_result_free(&r);
     wrt_scene_free(&s);
-    return 0;
+    return rc;
+}
+
+int main(int argc, char **argv) {
+    install_interrupt_exit(); /* first: a signal from here on exits 4, writing nothing */
+    bake_args A;
+    int rc = parse_args(argc, argv, &A);
+    if (rc != GO_ON) return rc;
+    if (A.print_config) {
+        wrt_bake_defaults(&A.o);
+        json_options(stdout, &A.o);
+        putchar('\n');
+        return 0;
+    }
+    if (A.info) return run_info(&A);
+    wrt_load_options lo = {.drop_bad = A.drop_bad};
+    if (A.scan) return run_scan(&A, &lo);
+    if (!A.scene_path) { usage(stderr); return WRT_EXIT_USAGE; }
+    if (!A.out_path) { fprintf(stderr, "wrt-bake: error: no output file (-o OUT.gto)\n"); return WRT_EXIT_USAGE; }
+    wrt_cli_progress_enable(!A.quiet && (A.force_progress || isatty(2)));
+    return bake(&A, &lo);
 }

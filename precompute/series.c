@@ -22,6 +22,8 @@
 #include "../formats/gto.h"
 #include "series.h"
 #include "balance.h"
+#include "budget.h"
+#include "links.h"
 
 /* Memory before each product: an upper bound on the product's entries from the column
  * counts (column j of P T has at most the sum of the counts of P's columns that T's
@@ -46,12 +48,12 @@ static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, c
     if ((double)wrt_bake_rss_bytes() + need <= 0.25 * b->opt.max_memory_mb * 1024.0 * 1024.0) {
         /* within a quarter of the budget even at the bound: no sample needed (the
          * sample costs a sixteenth of a product: 6% of a maze bake's series) */
-        return wrt_bake_memory_check(&b->opt, C, (uint64_t)need, what);
+        return wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, (uint64_t)need, what);
     }
     uint64_t est = wrt_csc_mul_estimate(P, T, eps, W, 16, b->opt.threads);
     /* 1.25: the sample's spread, measured on the glossy asset (see the commit message) */
     need = per * 1.25 * (2 * (double)est + (double)S->nnz + (double)est);
-    return wrt_bake_memory_check(&b->opt, C, (uint64_t)need, what);
+    return wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, (uint64_t)need, what);
 }
 
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {

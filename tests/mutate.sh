@@ -224,14 +224,14 @@ mutation brdf-table-scale: the shared angular BRDF table 2% high
   run test_bake test_glossy_power_balance
 
 mutation gto-section-checksum: the reader ignores a section's checksum
-  file formats/gto.c
+  file formats/gto_read.c
   find if (sum != s->checksum)
   repl if (0 && sum != s->checksum)
   run test_gto test_flipped_bytes test_checksum
   run tests/play.sh
 
 mutation gto-header-checksum: the reader ignores the header's checksum
-  file formats/gto.c
+  file formats/gto_read.c
   find if (sum != h->header_checksum)
   repl if (0 && sum != h->header_checksum)
   run test_gto test_flipped_bytes test_checksum

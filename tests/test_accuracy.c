@@ -1,5 +1,5 @@
-/* test_accuracy.c: the bake and the player against the path tracer (tools/reference.h,
- * through tools/compare.h, the measurement of the accuracy study) on assets/cornell.gltf,
+/* test_accuracy.c: the bake and the player against the path tracer (verify/reference.h,
+ * through verify/compare.h, the measurement of the accuracy study) on assets/cornell.gltf,
  * an open scene, at the default quality, with COLOURED lights and coloured walls (its red
  * and green walls, the back wall tinted blue), so that a fault mixing channels anywhere
  * (the bake's albedos, the balance, the tail, the projection's light colour, the
@@ -16,7 +16,7 @@
 #include "formats/gto.h"
 #include "precompute/bake.h"
 #include "test.h"
-#include "tools/compare.h"
+#include "verify/compare.h"
 
 static char tmpdir[256];
 

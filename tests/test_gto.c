@@ -1,4 +1,4 @@
-/* test_gto.c: the .gto file (formats/gto.c). Writes a small synthetic scene and operator,
+/* test_gto.c: the .gto file (formats/gto_*.c). Writes a small synthetic scene and operator,
  * reads it back field by field, and feeds the reader every kind of broken file: foreign,
  * empty, each truncation, each flipped byte, a newer version, a section pointing past
  * the end and bad indices behind fixed-up checksums. The layout constants below are

@@ -1,4 +1,4 @@
-/* test_reference.c: the reference path tracer (tools/reference.c) against closed forms
+/* test_reference.c: the reference path tracer (verify/reference.c) against closed forms
  * and against a numerical integral computed here: the direct irradiance of a point
  * light over a plane (I h / (h^2 + x^2)^(3/2)), spot and range falloff, shadows and
  * one-sided surfaces, the furnace (a closed cube of albedo rho around a point light
@@ -6,7 +6,7 @@
  * squares by a dense midpoint rule, a rendered pixel, and thread-count independence.
  * Scenes are built in memory. */
 #include "test.h"
-#include "tools/reference.h"
+#include "verify/reference.h"
 
 #include <stdlib.h>
 

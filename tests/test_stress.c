@@ -6,7 +6,7 @@
  * glossy and mirror furnaces (the albedo bound), lights on a surface, at a vertex and
  * outside a closed box (zero where physics says zero), coplanar and back-facing quads
  * (no transfer, no rays), a thin wall between two rooms (the reference path tracer of
- * tools/reference.h in the dark room) and degenerate files through wrt-bake (exit code 2).
+ * verify/reference.h in the dark room) and degenerate files through wrt-bake (exit code 2).
  * Every case checks the bake's T and G - I and the player's E, X and textures for NaN,
  * Inf and negative energy. Each case prints its measured figure next to its truth.
  * Fast sizes by default; WRT_STRESS_FULL=1 (`make stress`) runs the full sizes. */
@@ -25,7 +25,7 @@
 #include "claims.h"
 #include "scene_build.h"
 #include "test.h"
-#include "tools/reference.h"
+#include "verify/reference.h"
 
 static int full;             /* WRT_STRESS_FULL=1 */
 

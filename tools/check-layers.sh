@@ -5,7 +5,9 @@
 #   1 common/         math, BRDF, BRDF table, threads, scene types
 #   2 formats/        glTF loader, .gto reader/writer, images
 #   3 precompute/     the bake (library part)      | 3 runtime: player/relight.*, player/gather.*, player/wrt_runtime.c
-#   4 verification:   tools/reference.*, tools/compare.* (the runtime only through include/wrt.h)
+#   4 verify/         the path tracer and the comparison (the runtime only through include/wrt.h);
+#                     precompute/ and the runtime do not see it: only programs (wrt-bake's main.c
+#                     for --max-error, wrt-ref, wrt-compare) do
 #   4 cli/            the programs' command-line helpers (options, exit codes, progress)
 #   5 programs:       */main.c, tools/*_main.c, tools/scenegen.c, tools/fuzz_*.c, player/render.*,
 #                     player/platform*, examples/ (each program sees only its own files below 5)
@@ -20,7 +22,7 @@ def part(p):
     if p.startswith('formats/'): return (2, 'formats')
     if p.startswith('precompute/') and not p.endswith('main.c'): return (3, 'precompute')
     if re.match(r'player/(relight\.[ch]|gather\.[ch]|wrt_runtime\.c)$', p): return (3, 'runtime')
-    if re.match(r'tools/(reference|compare)\.[ch]$', p): return (4, 'verification')
+    if p.startswith('verify/'): return (4, 'verification')
     if p.startswith('cli/'): return (4, 'cli')
     if p.startswith('precompute/'): return (5, 'wrt-bake')
     if p.startswith('player/'): return (5, 'wrt-play')
@@ -28,7 +30,7 @@ def part(p):
     if p.startswith('tools/'): return (5, 'tool:' + os.path.basename(p))
     return None
 bad = 0
-for d in ['include', 'common', 'formats', 'precompute', 'player', 'cli', 'tools', 'examples']:
+for d in ['include', 'common', 'formats', 'precompute', 'player', 'verify', 'cli', 'tools', 'examples']:
     for root, _, files in os.walk(d):
         for f in files:
             if not re.search(r'\.(c|h|cpp)$', f): continue

@@ -1,11 +1,11 @@
 /* compare_main.c: wrt-compare, how far bakes are from the path-traced reference
- * (tools/compare.h). Loads the scene, path-traces the reference once for a few light
+ * (verify/compare.h). Loads the scene, path-traces the reference once for a few light
  * positions, compares every .gto given with it, and prints one JSON object on stdout
  * (progress on stderr). With --max-error E it is the pipeline's accuracy check: exit
  * code 5 when a bake's cell-average error (mean over the lights, reference noise
  * included, so the check errs on the safe side) exceeds E. The measurement of the
  * accuracy/time study (paper section 6). */
-#include "tools/compare.h"
+#include "verify/compare.h"
 #include "cli/cli.h"
 
 #include "formats/image.h"

@@ -1,4 +1,4 @@
-/* fuzz_gto.c: libFuzzer target for the .gto reader (formats/gto.c). Each input is
+/* fuzz_gto.c: libFuzzer target for the .gto reader (formats/gto_read.c, gto_check.c). Each input is
  * validated twice from an exactly sized, 8-byte aligned heap copy (so AddressSanitizer
  * sees any read past the end): once as given, and once with every section checksum and
  * the header checksum made consistent, as a forger would (GTO_FORMAT.md, "Checksums"),

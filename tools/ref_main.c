@@ -1,5 +1,5 @@
 /* ref_main.c: wrt-ref, the command-line front end of the reference path tracer
- * (tools/reference.h). Loads a quad-based glTF scene (formats/scene.h), optionally
+ * (verify/reference.h). Loads a quad-based glTF scene (formats/scene.h), optionally
  * replaces its lights by one given on the command line, and renders direct, indirect
  * and combined images of the radiance toward the camera plus the standard error of the
  * indirect part (OpenEXR through formats/image.h when the tree has it, plus a PNG of
@@ -7,7 +7,7 @@
  * cell averages over a quad. Prints the figures (time, samples, rays, mean standard
  * error) as text or one JSON object. The reference for the comparisons of the paper's
  * section 6 (Kontkanen et al. 2006). */
-#include "tools/reference.h"
+#include "verify/reference.h"
 #include "cli/cli.h"
 
 /* The OpenImageIO shim is optional at build time so that this tool stands alone. */

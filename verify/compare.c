@@ -7,13 +7,13 @@
  * (sub x sub per pixel, the reference's camera model) find a quad and its (u,v) with
  * Embree, and the player's texture (player/relight.h) is sampled there bilinearly, as
  * the display's GL_LINEAR filter does, clamped to the quad's own texels. Depends on
- * tools/reference.h, player/relight.h, common/basis.h, Embree 3. Paper section 6. */
-#include "tools/compare.h"
+ * verify/reference.h, player/relight.h, common/basis.h, Embree 3. Paper section 6. */
+#include "verify/compare.h"
 
 #include "common/basis.h"
 #include "include/wrt.h"
 #include "common/rt_scene.h"
-#include "tools/reference.h"
+#include "verify/reference.h"
 
 #include <embree3/rtcore.h>
 #include <math.h>
@@ -190,7 +190,7 @@ static void quad_uv(const wrt_quad *q, wrt_v3 x, double *uo, double *vo) {
     *vo = v < 0 ? 0 : v > 1 ? 1 : v;
 }
 
-/* The camera of the reference's images (tools/reference.c, wrt_ref_render). */
+/* The camera of the reference's images (verify/reference.c, wrt_ref_render). */
 typedef struct cam { wrt_v3 pos, fwd, right, up; } cam;
 
 static int make_cam(const wrt_camera *c, int w, int h, cam *out) {

@@ -1,5 +1,5 @@
 /* compare.h: measures how far a bake (.gto) is from the path-traced reference
- * (tools/reference.h) for the scene it was baked from, for a few light positions:
+ * (verify/reference.h) for the scene it was baked from, for a few light positions:
  * the relative RMSE of the indirect incident irradiance over cell averages (every quad
  * cut into an n x n grid of (u,v) cells; the wavelet cell average is the exact average
  * of the Haar reconstruction from X, the reference's the Monte Carlo cell average), the
@@ -8,7 +8,7 @@
  * and the reference's own error floor in the same units. Also times the player's update
  * per light change. This is the measurement behind the accuracy/time study (the paper's
  * section 6, Figures 6-9: error against precomputation time, memory and run time).
- * Depends on tools/reference.h, player/relight.h, formats/gto.h, formats/scene.h, Embree 3.
+ * Depends on verify/reference.h, player/relight.h, formats/gto.h, formats/scene.h, Embree 3.
  *
  * Units. For one light, with w_c the cell's area (pixels: 1), W the wavelet value, R the
  * reference's, s its standard error, summed over cells (or valid pixels) and channels:

@@ -1,0 +1,173 @@
+/* gto_layout.h: the .gto file's on-disk layout and what the reader, the writer and the
+ * inspector share inside formats/ (internal: nothing outside formats/ includes it). The
+ * header and section-table records with static asserts on their sizes and offsets, the
+ * section ids and their element sizes, and the three stages of validation: the layout
+ * (header and table, gto_read.c), the payload's content checks and checksum (gto_check.c,
+ * also run by the writer on its own input) and the mapping of a file. The layout is
+ * specified in GTO_FORMAT.md; the public records are the structs of gto.h. Depends on
+ * gto.h and wrt_common. */
+#ifndef WRT_GTO_LAYOUT_H
+#define WRT_GTO_LAYOUT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "gto.h"
+
+#if !defined(__BYTE_ORDER__) || __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
+#error "the .gto file is little-endian and is used in place: a big-endian port needs a converting reader"
+#endif
+
+/* ------------------------------------------------------------------------------------
+ * Layout: header, section table, sections. See GTO_FORMAT.md.
+ * ---------------------------------------------------------------------------------- */
+
+#define GTO_MAGIC "\x89WRT\r\n\x1a\n"
+#define GTO_MAGIC_LEN 8
+#define GTO_BOM 0x01020304u         /* written natively: bytes 04 03 02 01 */
+#define GTO_BOM_SWAPPED 0x04030201u
+#define GTO_ALIGN 64u
+#define GTO_MAX_SECTIONS 64u
+
+typedef struct gto_header {
+    uint8_t magic[8];
+    uint32_t byte_order;
+    uint16_t version_major, version_minor;
+    uint64_t file_size;
+    uint32_t header_size;   /* 64 + 48 * nsections */
+    uint32_t nsections;
+    uint32_t op_kind;
+    uint32_t flags;         /* 0 in version 1.0 */
+    uint64_t header_checksum;
+    uint8_t reserved[16];
+} gto_header;
+
+typedef struct gto_section {
+    uint32_t id, elem_size;
+    uint64_t offset, size, count, checksum;
+    uint32_t flags, reserved; /* 0 in version 1.0 */
+} gto_section;
+
+_Static_assert(sizeof(gto_header) == 64, "header is 64 bytes");
+_Static_assert(offsetof(gto_header, byte_order) == 8, "layout");
+_Static_assert(offsetof(gto_header, version_major) == 12, "layout");
+_Static_assert(offsetof(gto_header, version_minor) == 14, "layout");
+_Static_assert(offsetof(gto_header, file_size) == 16, "layout");
+_Static_assert(offsetof(gto_header, header_size) == 24, "layout");
+_Static_assert(offsetof(gto_header, nsections) == 28, "layout");
+_Static_assert(offsetof(gto_header, op_kind) == 32, "layout");
+_Static_assert(offsetof(gto_header, header_checksum) == 40, "layout");
+_Static_assert(sizeof(gto_section) == 48, "section entry is 48 bytes");
+_Static_assert(offsetof(gto_section, offset) == 8, "layout");
+_Static_assert(offsetof(gto_section, size) == 16, "layout");
+_Static_assert(offsetof(gto_section, count) == 24, "layout");
+_Static_assert(offsetof(gto_section, checksum) == 32, "layout");
+
+_Static_assert(sizeof(wrt_gto_quad) == 168, "quad record");
+_Static_assert(offsetof(wrt_gto_quad, n) == 96, "layout");
+_Static_assert(offsetof(wrt_gto_quad, area) == 132, "layout");
+_Static_assert(offsetof(wrt_gto_quad, material) == 136, "layout");
+_Static_assert(offsetof(wrt_gto_quad, func_first) == 144, "layout");
+_Static_assert(offsetof(wrt_gto_quad, func_count) == 148, "layout");
+_Static_assert(offsetof(wrt_gto_quad, flags) == 152, "layout");
+_Static_assert(offsetof(wrt_gto_quad, slevel) == 156, "layout");
+_Static_assert(offsetof(wrt_gto_quad, reserved) == 164, "layout");
+_Static_assert(sizeof(wrt_gto_material) == 104, "material record");
+_Static_assert(offsetof(wrt_gto_material, base_color) == 64, "layout");
+_Static_assert(offsetof(wrt_gto_material, emissive) == 84, "layout");
+_Static_assert(offsetof(wrt_gto_material, lambertian) == 96, "layout");
+_Static_assert(offsetof(wrt_gto_material, alevel) == 100, "layout");
+_Static_assert(sizeof(wrt_gto_light) == 144, "light record");
+_Static_assert(offsetof(wrt_gto_light, type) == 64, "layout");
+_Static_assert(offsetof(wrt_gto_light, pos) == 80, "layout");
+_Static_assert(offsetof(wrt_gto_light, dir) == 104, "layout");
+_Static_assert(offsetof(wrt_gto_light, intensity) == 128, "layout");
+_Static_assert(offsetof(wrt_gto_light, outer_cone) == 140, "layout");
+_Static_assert(sizeof(wrt_gto_camera) == 104, "camera record");
+_Static_assert(offsetof(wrt_gto_camera, yfov) == 72, "layout");
+_Static_assert(offsetof(wrt_gto_camera, zfar) == 96, "layout");
+_Static_assert(sizeof(wrt_gto_stats) == 152, "stats record");
+_Static_assert(offsetof(wrt_gto_stats, links_dto) == 32, "layout");
+_Static_assert(offsetof(wrt_gto_stats, entries_dto) == 56, "layout");
+_Static_assert(offsetof(wrt_gto_stats, rays_traced) == 72, "layout");
+_Static_assert(offsetof(wrt_gto_stats, bounces) == 88, "layout");
+_Static_assert(offsetof(wrt_gto_stats, energy_left) == 96, "layout");
+_Static_assert(offsetof(wrt_gto_stats, reserved) == 104, "layout");
+_Static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE 754 binary32/binary64");
+
+enum {
+    SEC_QUADS = 1, SEC_MATERIALS, SEC_LIGHTS, SEC_CAMERA, SEC_NAMES, SEC_FKEYS,
+    SEC_COL_START, SEC_ROWS, SEC_VALS, SEC_STATS, SEC_PROVENANCE,
+    /* version 1.1: the first-bounce operator K, all four or none */
+    SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS,
+    SEC_KNOWN_END
+};
+#define SEC_KNOWN (SEC_KNOWN_END - 1)
+#define SEC_REQUIRED SEC_PROVENANCE /* ids 1 .. this are in every file */
+#define GTO_MINOR_K 1               /* the minor version that added K */
+
+/* Name and element size of each known section id (gto_check.c). */
+typedef struct gto_sec_desc { const char *name; uint32_t elem_size; } gto_sec_desc;
+extern const gto_sec_desc gto_sec_info[SEC_KNOWN_END];
+
+static inline const char *gto_sec_name(uint32_t id) {
+    return (id >= 1 && id <= SEC_KNOWN) ? gto_sec_info[id].name : "unknown";
+}
+
+static inline uint64_t gto_align_up(uint64_t x) { return (x + GTO_ALIGN - 1) & ~(uint64_t)(GTO_ALIGN - 1); }
+
+/* ------------------------------------------------------------------------------------
+ * Content checks (gto_check.c), shared by the reader (on the mapping) and the writer (on
+ * its input). A chunk checker records the first problem in the context and keeps quiet
+ * after it; the caller reports it only once the section's checksum is known to be right.
+ * ---------------------------------------------------------------------------------- */
+
+typedef struct vctx {
+    const wrt_gto *g;   /* counts and pointers of the sections checked so far */
+    int bad;
+    char err[256];
+    uint64_t col;       /* rows: current column */
+    uint64_t kcol;      /* krows: current column */
+    uint32_t kq;        /* krows: quad + 1 whose function range is [kq_lo, kq_hi) (0: none) */
+    uint32_t kq_lo, kq_hi;
+} vctx;
+
+/* Checks elements [first, first + n) of a section whose payload starts at `base`. */
+typedef void (*chunk_check)(vctx *v, const uint8_t *base, uint64_t first, uint64_t n);
+
+/* The checker of a section id (NULL: none). */
+chunk_check gto_sec_checker(uint32_t id);
+/* One pass over a section: checksum and checks, 8192 elements at a time. Returns the
+ * checksum; v->bad tells whether a check failed. */
+uint64_t gto_scan_section(const uint8_t *p, uint64_t count, uint32_t elem, chunk_check fn, vctx *v);
+/* What needs a later section: each quad's function range against fkeys. */
+void gto_check_quad_ranges(vctx *v);
+
+/* ------------------------------------------------------------------------------------
+ * Reading (gto_read.c): three stages, then the mapping.
+ * ---------------------------------------------------------------------------------- */
+
+/* Where each section is, once the table has been checked (0 if absent). */
+typedef struct gto_layout {
+    gto_header h;
+    const gto_section *table;
+    const gto_section *sec[SEC_KNOWN_END];
+} gto_layout;
+
+/* Stage 1: the header and the section table, no payload byte read. */
+wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L);
+/* Stage 2: counts that must agree across sections, and zero padding; fills g's counts
+ * and pointers. */
+wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g);
+/* Stage 3: the single pass over the payload. */
+wrt_status gto_check_payload(const uint8_t *b, const gto_layout *L, const wrt_gto *g);
+
+/* Maps the whole of an open regular file read-only. *map is NULL for an empty file. */
+wrt_status gto_map_fd(int fd, const char *path, void **map, size_t *len);
+/* Maps a whole file read-only (a FIFO or device is refused without blocking). */
+wrt_status gto_map_file(const char *path, void **map, size_t *len);
+/* Validates a mapping of `len` bytes of `path` (NULL when the file is empty) and hands it
+ * to `out`, which then owns it; on failure unmaps it and names the path in the error. */
+wrt_status gto_adopt_map(void *map, size_t len, const char *path, wrt_gto *out);
+
+#endif

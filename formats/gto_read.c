@@ -1,0 +1,304 @@
+/* gto_read.c: maps and validates a .gto file, the baked light transport operator (the
+ * sparse gathered or indirect GTO of Kontkanen et al. 2006, section 4.4, with the quads,
+ * materials, lights and camera the run-time of section 5 needs). The reader checks the
+ * header and every section's place against the file length before it touches a byte of
+ * payload (stage 1), then the counts that must agree across sections (stage 2), then
+ * reads each payload byte once (stage 3: a section's checksum and its index checks run
+ * together, chunk by chunk, gto_check.c). The only part of the .gto code in the runtime
+ * library (with gto_check.c): no writer, no signal handlers. The layout is specified in
+ * GTO_FORMAT.md and gto_layout.h. Depends on gto_layout.h, wrt_common and POSIX (mmap). */
+#include "gto_layout.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <stdalign.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* ------------------------------------------------------------------------------------
+ * Reader
+ * ---------------------------------------------------------------------------------- */
+
+/* Stage 1: the header and the section table, no payload byte read. */
+wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
+    memset(L, 0, sizeof *L);
+    if (len == 0) return wrt_fail(WRT_ERR_CORRUPT, "empty file (0 bytes)");
+    size_t m = len < GTO_MAGIC_LEN ? len : GTO_MAGIC_LEN;
+    if (memcmp(b, GTO_MAGIC, m) != 0) return wrt_fail(WRT_ERR_NOT_OURS, "not a .gto file (bad magic)");
+    if (len < sizeof(gto_header))
+        return wrt_fail(WRT_ERR_CORRUPT, "truncated: expected at least %zu bytes of header, found %zu",
+                        sizeof(gto_header), len);
+    memcpy(&L->h, b, sizeof L->h);
+    const gto_header *h = &L->h;
+    if (h->byte_order == GTO_BOM_SWAPPED)
+        return wrt_fail(WRT_ERR_UNSUPPORTED, "big-endian file; this reader reads little-endian only");
+    if (h->byte_order != GTO_BOM)
+        return wrt_fail(WRT_ERR_CORRUPT, "bad byte-order mark 0x%08x", h->byte_order);
+    if (h->version_major > WRT_GTO_VERSION)
+        return wrt_fail(WRT_ERR_UNSUPPORTED,
+                        "file version %u.%u is newer than this reader's version %d.%d",
+                        h->version_major, h->version_minor, WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR);
+    if (h->version_major < WRT_GTO_VERSION)
+        return wrt_fail(WRT_ERR_UNSUPPORTED,
+                        "file version %u.%u is older than this reader's version %d.%d",
+                        h->version_major, h->version_minor, WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR);
+    if (h->file_size > len)
+        return wrt_fail(WRT_ERR_CORRUPT, "truncated: expected %" PRIu64 " bytes, found %zu",
+                        h->file_size, len);
+    if (h->file_size < len)
+        return wrt_fail(WRT_ERR_CORRUPT, "trailing data: expected %" PRIu64 " bytes, found %zu",
+                        h->file_size, len);
+    if (h->nsections == 0 || h->nsections > GTO_MAX_SECTIONS)
+        return wrt_fail(WRT_ERR_CORRUPT, "bad section count %u", h->nsections);
+    if (h->header_size != sizeof(gto_header) + sizeof(gto_section) * h->nsections)
+        return wrt_fail(WRT_ERR_CORRUPT, "header size %u does not match %u sections",
+                        h->header_size, h->nsections);
+    if (h->header_size > len)
+        return wrt_fail(WRT_ERR_CORRUPT, "section table (%u bytes) beyond end of file (%zu bytes)",
+                        h->header_size, len);
+    {
+        alignas(8) uint8_t buf[sizeof(gto_header) + sizeof(gto_section) * GTO_MAX_SECTIONS];
+        memcpy(buf, b, h->header_size);
+        memset(buf + offsetof(gto_header, header_checksum), 0, 8);
+        uint64_t sum = wrt_gto_checksum(buf, h->header_size);
+        if (sum != h->header_checksum)
+            return wrt_fail(WRT_ERR_CORRUPT, "header checksum mismatch (stored 0x%016" PRIx64
+                            ", computed 0x%016" PRIx64 ")", h->header_checksum, sum);
+    }
+    L->table = (const gto_section *)(b + sizeof(gto_header));
+    if (h->op_kind > WRT_GTO_OP_GATHERED)
+        return wrt_fail(WRT_ERR_UNSUPPORTED, "unknown operator kind %u", h->op_kind);
+    uint64_t prev_end = h->header_size;
+    uint32_t prev_id = 0;
+    for (uint32_t i = 0; i < h->nsections; i++) {
+        const gto_section *s = &L->table[i];
+        const char *nm = gto_sec_name(s->id);
+        if (s->id <= prev_id)
+            return wrt_fail(WRT_ERR_CORRUPT, "section table entry %u (id %u, %s) out of order or repeated",
+                            i, s->id, nm);
+        prev_id = s->id;
+        if (s->offset > len || s->size > len - s->offset)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 " + size %" PRIu64
+                            " beyond end of file (%zu bytes)", nm, s->offset, s->size, len);
+        if (s->offset % GTO_ALIGN)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 " not %u-byte aligned",
+                            nm, s->offset, GTO_ALIGN);
+        if (s->offset != gto_align_up(prev_end))
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 ", expected %" PRIu64
+                            " (sections follow each other)", nm, s->offset, gto_align_up(prev_end));
+        if (s->id <= SEC_KNOWN && s->elem_size != gto_sec_info[s->id].elem_size)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: element size %u, expected %u", nm,
+                            s->elem_size, gto_sec_info[s->id].elem_size);
+        if (s->elem_size == 0 || s->count > s->size / s->elem_size ||
+            s->count * s->elem_size != s->size)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: size %" PRIu64 " is not %" PRIu64
+                            " elements of %u bytes", nm, s->size, s->count, s->elem_size);
+        if (s->id <= SEC_KNOWN) L->sec[s->id] = s;
+        prev_end = s->offset + s->size;
+    }
+    if (prev_end != len)
+        return wrt_fail(WRT_ERR_CORRUPT, "last section ends at %" PRIu64 ", file has %zu bytes",
+                        prev_end, len);
+    for (uint32_t id = 1; id <= SEC_REQUIRED; id++)
+        if (!L->sec[id]) return wrt_fail(WRT_ERR_CORRUPT, "missing section %s", gto_sec_name(id));
+    /* The first-bounce operator: all four sections or none. */
+    int nk = 0;
+    for (uint32_t id = SEC_KKEYS; id <= SEC_KVALS; id++) nk += L->sec[id] != NULL;
+    if (nk != 0 && nk != SEC_KVALS - SEC_KKEYS + 1)
+        for (uint32_t id = SEC_KKEYS; id <= SEC_KVALS; id++)
+            if (!L->sec[id])
+                return wrt_fail(WRT_ERR_CORRUPT, "missing section %s (the first-bounce sections kkeys, "
+                                "kcol_start, krows and kvals come all four or none)", gto_sec_name(id));
+    return WRT_OK;
+}
+
+/* A compressed-column operator's four sections: one column start per key and one past
+ * the end, one value per row entry (the operator's and K's). */
+static wrt_status check_csc_counts(const gto_section *const *S, uint32_t keys, uint32_t col_start,
+                                   uint32_t rows, uint32_t vals, const char *columns) {
+    if (S[col_start]->count != S[keys]->count + 1)
+        return wrt_fail(WRT_ERR_CORRUPT, "section %s: %" PRIu64 " entries, expected %" PRIu64 " (%s + 1)",
+                        gto_sec_name(col_start), S[col_start]->count, S[keys]->count + 1, columns);
+    if (S[vals]->count != S[rows]->count)
+        return wrt_fail(WRT_ERR_CORRUPT, "section %s: %" PRIu64 " entries, %s has %" PRIu64,
+                        gto_sec_name(vals), S[vals]->count, gto_sec_name(rows), S[rows]->count);
+    return WRT_OK;
+}
+
+/* Stage 2: counts that must agree across sections, and zero padding. */
+wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
+    const gto_section *const *S = L->sec;
+    static const uint32_t u32_counted[] = {SEC_QUADS, SEC_MATERIALS, SEC_LIGHTS, SEC_NAMES, SEC_FKEYS};
+    for (size_t i = 0; i < sizeof u32_counted / sizeof *u32_counted; i++)
+        if (S[u32_counted[i]]->count > UINT32_MAX - 1)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: %" PRIu64 " elements, too many",
+                            gto_sec_name(u32_counted[i]), S[u32_counted[i]]->count);
+    if (S[SEC_CAMERA]->count != 1)
+        return wrt_fail(WRT_ERR_CORRUPT, "section camera: %" PRIu64 " records, expected 1",
+                        S[SEC_CAMERA]->count);
+    if (S[SEC_STATS]->count != 1)
+        return wrt_fail(WRT_ERR_CORRUPT, "section stats: %" PRIu64 " records, expected 1",
+                        S[SEC_STATS]->count);
+    wrt_status st = check_csc_counts(S, SEC_FKEYS, SEC_COL_START, SEC_ROWS, SEC_VALS, "functions");
+    if (st != WRT_OK) return st;
+    if (S[SEC_KKEYS]) { /* then all four (gto_parse_layout) */
+        if (S[SEC_KKEYS]->count == 0)
+            return wrt_fail(WRT_ERR_CORRUPT, "section kkeys: 0 columns (the first-bounce sections "
+                            "are written only with a first-bounce operator)");
+        if (S[SEC_KKEYS]->count > UINT32_MAX - 1)
+            return wrt_fail(WRT_ERR_CORRUPT, "section kkeys: %" PRIu64 " elements, too many",
+                            S[SEC_KKEYS]->count);
+        st = check_csc_counts(S, SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS, "K's columns");
+        if (st != WRT_OK) return st;
+    }
+    /* Every byte outside the sections is header, table or zero padding. */
+    uint64_t prev_end = L->h.header_size;
+    for (uint32_t i = 0; i < L->h.nsections; i++) {
+        const gto_section *s = &L->table[i];
+        for (uint64_t o = prev_end; o < s->offset; o++)
+            if (b[o])
+                return wrt_fail(WRT_ERR_CORRUPT, "non-zero padding byte at %" PRIu64 " before section %s",
+                                o, gto_sec_name(s->id));
+        prev_end = s->offset + s->size;
+    }
+    g->version = L->h.version_major;
+    g->version_minor = L->h.version_minor;
+    g->op_kind = L->h.op_kind;
+    g->nquads = (uint32_t)S[SEC_QUADS]->count;
+    g->nmaterials = (uint32_t)S[SEC_MATERIALS]->count;
+    g->nlights = (uint32_t)S[SEC_LIGHTS]->count;
+    g->nnames = (uint32_t)S[SEC_NAMES]->count;
+    g->nfuncs = (uint32_t)S[SEC_FKEYS]->count;
+    g->nnz = S[SEC_ROWS]->count;
+#define SECPTR(id) ((const void *)(b + S[id]->offset))
+    g->quads = SECPTR(SEC_QUADS);
+    g->materials = SECPTR(SEC_MATERIALS);
+    g->lights = SECPTR(SEC_LIGHTS);
+    g->camera = SECPTR(SEC_CAMERA);
+    g->names = SECPTR(SEC_NAMES);
+    g->fkeys = SECPTR(SEC_FKEYS);
+    g->col_start = SECPTR(SEC_COL_START);
+    g->rows = SECPTR(SEC_ROWS);
+    g->vals = SECPTR(SEC_VALS);
+    g->stats = SECPTR(SEC_STATS);
+    g->provenance = SECPTR(SEC_PROVENANCE);
+    g->provenance_len = (size_t)S[SEC_PROVENANCE]->size;
+    if (S[SEC_KKEYS]) {
+        g->nkcols = (uint32_t)S[SEC_KKEYS]->count;
+        g->knnz = S[SEC_KROWS]->count;
+        g->kkeys = SECPTR(SEC_KKEYS);
+        g->kcol_start = SECPTR(SEC_KCOL_START);
+        g->krows = SECPTR(SEC_KROWS);
+        g->kvals = SECPTR(SEC_KVALS);
+    }
+#undef SECPTR
+    return WRT_OK;
+}
+
+/* Stage 3: the single pass over the payload. */
+wrt_status gto_check_payload(const uint8_t *b, const gto_layout *L, const wrt_gto *g) {
+    vctx v;
+    memset(&v, 0, sizeof v);
+    v.g = g;
+    for (uint32_t i = 0; i < L->h.nsections; i++) {
+        const gto_section *s = &L->table[i];
+        uint64_t sum = gto_scan_section(b + s->offset, s->count, s->elem_size, gto_sec_checker(s->id), &v);
+        if (sum != s->checksum)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: checksum mismatch (stored 0x%016" PRIx64
+                            ", computed 0x%016" PRIx64 ")", gto_sec_name(s->id), s->checksum, sum);
+        if (v.bad) return wrt_fail(WRT_ERR_CORRUPT, "section %s: %s", gto_sec_name(s->id), v.err);
+    }
+    gto_check_quad_ranges(&v);
+    if (v.bad) return wrt_fail(WRT_ERR_CORRUPT, "section quads: %s", v.err);
+    return WRT_OK;
+}
+
+static wrt_status validate(const uint8_t *b, size_t len, wrt_gto *out) {
+    gto_layout L;
+    wrt_status st = gto_parse_layout(b, len, &L);
+    if (st == WRT_OK) st = gto_check_counts(b, &L, out);
+    if (st == WRT_OK) st = gto_check_payload(b, &L, out);
+    return st;
+}
+
+wrt_status wrt_gto_open_memory(const void *data, size_t size, wrt_gto *out) {
+    memset(out, 0, sizeof *out);
+    if (!data && size) return wrt_fail(WRT_ERR_INVALID_ARG, "no data");
+    if ((uintptr_t)data % 8) return wrt_fail(WRT_ERR_INVALID_ARG, ".gto image not 8-byte aligned");
+    wrt_status st = validate(data, size, out);
+    if (st != WRT_OK) { memset(out, 0, sizeof *out); return st; }
+    out->map = (void *)data;
+    out->size = size;
+    out->owns_map = 0;
+    return WRT_OK;
+}
+
+/* Maps the whole of an open regular file read-only. *map is NULL for an empty file. */
+wrt_status gto_map_fd(int fd, const char *path, void **map, size_t *len) {
+    *map = NULL; *len = 0;
+    struct stat st;
+    if (fstat(fd, &st) != 0) return wrt_fail(WRT_ERR_IO, "%s: cannot stat: %s", path, strerror(errno));
+    if (!S_ISREG(st.st_mode))
+        return wrt_fail(WRT_ERR_NOT_OURS, "%s: not a regular file (%s)", path,
+                        S_ISDIR(st.st_mode) ? "a directory" : S_ISFIFO(st.st_mode) ? "a FIFO"
+                        : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "a device" : "a special file");
+    if ((uint64_t)st.st_size > SIZE_MAX) return wrt_fail(WRT_ERR_IO, "%s: too large", path);
+    *len = (size_t)st.st_size;
+    if (*len) {
+        void *p = mmap(NULL, *len, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+        if (p == MAP_FAILED) return wrt_fail(WRT_ERR_IO, "%s: cannot map: %s", path, strerror(errno));
+        *map = p;
+    }
+    return WRT_OK;
+}
+
+/* Maps a whole file read-only. O_NONBLOCK: a FIFO or device is refused by the fstat
+ * that follows instead of blocking the open. */
+wrt_status gto_map_file(const char *path, void **map, size_t *len) {
+    *map = NULL; *len = 0;
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
+    if (fd < 0) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    wrt_status st = gto_map_fd(fd, path, map, len);
+    close(fd);
+    return st;
+}
+
+static wrt_status prefix_error(const char *path, wrt_status st) {
+    char msg[1024];
+    snprintf(msg, sizeof msg, "%s", wrt_last_error());
+    return wrt_fail(st, "%s: %s", path, msg);
+}
+
+/* Validates a mapping of `len` bytes of `path` (NULL when the file is empty) and hands it
+ * to `out`, which then owns it; on failure unmaps it and names the path in the error. */
+wrt_status gto_adopt_map(void *map, size_t len, const char *path, wrt_gto *out) {
+    static const uint64_t empty = 0;
+    wrt_status st = validate(map ? map : (const void *)&empty, len, out);
+    if (st != WRT_OK) {
+        if (map) munmap(map, len);
+        memset(out, 0, sizeof *out);
+        return prefix_error(path, st);
+    }
+    out->map = map;
+    out->size = len;
+    out->owns_map = 1;
+    return WRT_OK;
+}
+
+wrt_status wrt_gto_open(const char *path, wrt_gto *out) {
+    memset(out, 0, sizeof *out);
+    void *map; size_t len;
+    wrt_status st = gto_map_file(path, &map, &len);
+    if (st != WRT_OK) return st;
+    return gto_adopt_map(map, len, path, out);
+}
+
+void wrt_gto_close(wrt_gto *g) {
+    if (!g) return;
+    if (g->owns_map && g->map) munmap(g->map, g->size);
+    memset(g, 0, sizeof *g);
+}

@@ -1,0 +1,20 @@
+/* budget.h: the bake's memory budget (budget.c): resident memory, the default budget
+ * and the check before an allocation. Depends on wrt_common only. */
+#ifndef WRT_BUDGET_H
+#define WRT_BUDGET_H
+
+#include <stdint.h>
+
+#include "../common/wrt_common.h"
+
+/* The default memory budget in MB: half the physical memory. */
+double wrt_bake_memory_default(void);
+/* The process's resident memory now and at its peak (getrusage), in bytes (0 if unknown). */
+uint64_t wrt_bake_rss_bytes(void);
+uint64_t wrt_bake_peak_rss_bytes(void);
+/* Refuses (WRT_ERR_NOMEM, a message naming the figures) when `need` bytes more than
+ * what is resident now would pass `budget_mb`; records the largest total (MB) in
+ * *largest_mb. `what` names the stage in the message. */
+wrt_status wrt_bake_memory_check(double budget_mb, double *largest_mb, uint64_t need, const char *what);
+
+#endif
