@@ -63,6 +63,8 @@ static void usage(FILE *f) {
         "                         when it would pass; default half the physical memory\n"
         "  --threads N            worker threads (default: all cores); output is identical\n"
         "  --drop-bad             drop bad triangles with a warning instead of refusing\n"
+        "  --allow-outside-files  let the scene's buffers and images lie outside its folder\n"
+        "                         (refused by default: an absolute uri, '..' or a link out)\n"
         "  --provenance-timings   also store the bake's timings in the file (they differ from\n"
         "                         run to run: by default equal inputs give equal bytes)\n"
         "  --reproducible         the default (no timings stored); kept for older scripts\n"
@@ -176,7 +178,7 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
 
 int main(int argc, char **argv) {
     const char *scene_path = NULL, *out_path = NULL, *scan = NULL, *info = NULL;
-    int json = 0, force_progress = 0, quiet = 0, print_config = 0, timings = 0, drop_bad = 0;
+    int json = 0, force_progress = 0, quiet = 0, print_config = 0, timings = 0, drop_bad = 0, allow_outside = 0;
     const char *seen[64];
     int nseen = 0;
     double max_error = -1;
@@ -225,6 +227,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--no-tail")) o.no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o.no_balance = 1;
         else if (!strcmp(a, "--drop-bad")) drop_bad = 1;
+        else if (!strcmp(a, "--allow-outside-files")) allow_outside = 1;
         else if (!strcmp(a, "--reproducible")) timings = 0;
         else if (!strcmp(a, "--provenance-timings")) timings = 1;
         else if (!strcmp(a, "--json")) json = 1;
@@ -266,7 +269,7 @@ int main(int argc, char **argv) {
         }
         return 0;
     }
-    wrt_load_options lo = {.drop_bad = drop_bad};
+    wrt_load_options lo = {.drop_bad = drop_bad, .allow_outside_files = allow_outside};
     if (scan) {
         /* a baked file given by mistake: say so rather than show the glTF parser's error */
         struct stat sst;

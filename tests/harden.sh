@@ -1,0 +1,104 @@
+#!/usr/bin/env bash
+# harden.sh: nothing wrong gets through (issue 25). One regression check per class of bad
+# input or fault: the wrong input, its exit code and its one line of message.
+#   1 JSON nested 20,000 deep (inside extras): refused before parsing, exit 2
+#   2 outputs only as regular files: a FIFO or a symlink as -o / --stats-json / wrt-ref
+#     / wrt-scenegen output refused with exit 3, the target unchanged
+#   3 results on stdout lost on a full disk (> /dev/full): exit 3
+#   4 JSON outputs parse whatever the names (quotes, control characters, invalid UTF-8,
+#     a name cut at 63 bytes inside a UTF-8 character)
+#   5 numbers beyond what the computation carries refused where they enter
+#   6 glTF specification: uris leaving the folder, GLB framing, quantized positions,
+#     normalized floats, a camera whose up is its view direction
+#   7 wrt-play: a script asking for too many frames; a .gto truncated while playing
+#   8 out of memory: exit 7 with a message
+# Usage: tests/harden.sh BUILD. Prints "harden: N passed, N failed".
+set -u
+build=${1:-build}
+cd "$(dirname "$0")/.."
+pass=0; fail=0; skip=0
+tmp=$(mktemp -d /tmp/wrt_harden_XXXXXX)
+trap 'rm -rf "$tmp"' EXIT
+bake=$build/wrt-bake play=$build/wrt-play
+ok() { pass=$((pass + 1)); echo "ok $1"; }
+ko() { fail=$((fail + 1)); echo "FAIL $1"; [ -s "$tmp/err" ] && sed 's/^/    /' "$tmp/err" | head -n 5; }
+skipped() { skip=$((skip + 1)); echo "skipped $1"; }
+# expect NAME CODE REGEX CMD...: exit code CODE, stderr matching REGEX on one line
+expect() {
+    local name=$1 code=$2 re=$3; shift 3
+    "$@" >"$tmp/out" 2>"$tmp/err"; local rc=$?
+    if [ $rc -eq "$code" ] && { [ -z "$re" ] || grep -Eq -- "$re" "$tmp/err"; }; then ok "$name"; else echo "    exit $rc"; ko "$name"; fi
+}
+
+# ---- the test scenes: variants of tests/data/quad.gltf
+mkdir -p "$tmp/scenes/sub"
+python3 - "$tmp/scenes" <<'PY'
+import json, struct, sys
+d0 = json.load(open('tests/data/quad.gltf'))
+out = sys.argv[1]
+def variant(name, f, text=None):
+    d = json.loads(json.dumps(d0)); f(d)
+    open(f"{out}/{name}", 'w').write(text if text is not None else json.dumps(d))
+def light(d, intensity=3.0, pos=(0.5, 0.5, 1.0)):
+    d['extensionsUsed'] = ['KHR_lights_punctual']
+    d['extensions'] = {'KHR_lights_punctual': {'lights': [{'type': 'point', 'intensity': intensity}]}}
+    d['nodes'].append({'extensions': {'KHR_lights_punctual': {'light': 0}}, 'translation': list(pos)})
+    d['scenes'][0]['nodes'].append(len(d['nodes']) - 1)
+txt = json.dumps(d0)
+open(f"{out}/deep.gltf", 'w').write(txt[:-1] + ',"extras":' + '[' * 20000 + ']' * 20000 + '}')
+open(f"{out}/deep_obj.gltf", 'w').write(txt[:-1] + ',"extras":' + '{"a":' * 200 + '1' + '}' * 200 + '}')
+variant('uri_up.gltf', lambda d: d['buffers'][0].update(uri='../outside.bin'))
+variant('uri_abs.gltf', lambda d: d['buffers'][0].update(uri='/etc/hostname'))
+variant('uri_pct.gltf', lambda d: d['buffers'][0].update(uri='sub/%2e%2e/%2E%2E/outside.bin'))
+variant('img_up.gltf', lambda d: d.update(images=[{'uri': '../tex.png'}]))
+variant('norm_float.gltf', lambda d: d['accessors'][0].update(normalized=True))
+variant('ubyte_pos.gltf', lambda d: d['accessors'][0].update(componentType=5121))
+variant('light_huge.gltf', lambda d: light(d, intensity=3.4e38))
+variant('light_far.gltf', lambda d: light(d, pos=(1e30, 1, 0)))
+variant('lit.gltf', lambda d: light(d))
+def cam(d):
+    d['cameras'] = [{'type': 'perspective', 'perspective': {'yfov': 0.8, 'znear': 0.01}}]
+    d['nodes'].append({'camera': 0, 'matrix': [1,0,0,0, 0,0,1,0, 0,1e-9,1,0, 0.5,0.5,5,1]})
+    d['scenes'][0]['nodes'].append(len(d['nodes']) - 1)
+variant('cam_up.gltf', cam)
+glb = open('tests/data/quad.glb', 'rb').read()
+open(f"{out}/trail.glb", 'wb').write(glb + b'\0' * 16)
+n = struct.unpack('<I', glb[8:12])[0]
+open(f"{out}/twobin.glb", 'wb').write(glb[:8] + struct.pack('<I', n + 16) + glb[12:] +
+                                      struct.pack('<II', 8, 0x004E4942) + b'\0' * 8)
+# the outside file the uris aim at: a real buffer, so that only the folder rule refuses it
+b64 = d0['buffers'][0]['uri'].split(',', 1)[1]
+import base64
+open(f"{out}/../outside.bin", 'wb').write(base64.b64decode(b64))
+PY
+S=$tmp/scenes
+
+# ---- 1 JSON depth
+expect "JSON 20,000 deep in extras: exit 2" 2 "deep.gltf: JSON nested deeper than 128 levels" "$bake" --scan "$S/deep.gltf"
+expect "the same in a bake: exit 2" 2 "JSON nested deeper than 128 levels" "$bake" "$S/deep.gltf" -o "$tmp/d.gto"
+expect "200 nested objects: exit 2" 2 "JSON nested deeper than 128 levels" "$bake" --scan "$S/deep_obj.gltf"
+expect "the fuzz seed (130 levels): exit 2" 2 "JSON nested deeper than 128 levels" "$bake" --scan tests/data/bad_deep.gltf
+
+# ---- 6 glTF specification
+expect "buffer uri ../: exit 2" 2 "buffers\[0\]\.uri: '\.\./outside\.bin' leaves the scene's folder" "$bake" --scan "$S/uri_up.gltf"
+expect "buffer uri absolute: exit 2" 2 "buffers\[0\]\.uri: '/etc/hostname' leaves the scene's folder" "$bake" --scan "$S/uri_abs.gltf"
+expect "buffer uri %2e%2e: exit 2" 2 "buffers\[0\]\.uri: .* leaves the scene's folder" "$bake" --scan "$S/uri_pct.gltf"
+expect "image uri ../: exit 2" 2 "images\[0\]\.uri: '\.\./tex\.png' leaves the scene's folder" "$bake" --scan "$S/img_up.gltf"
+expect "--allow-outside-files reads it: exit 0" 0 "" "$bake" --scan "$S/uri_up.gltf" --allow-outside-files
+ln -s ../outside.bin "$S/link.bin"
+python3 -c "
+import json,sys; d=json.load(open('tests/data/quad.gltf')); d['buffers'][0]['uri']='link.bin'
+open(sys.argv[1],'w').write(json.dumps(d))" "$S/uri_link.gltf"
+expect "a link inside the folder to a file outside: exit 2" 2 "link.bin: outside the scene's folder" "$bake" --scan "$S/uri_link.gltf"
+expect "GLB with trailing bytes: exit 2" 2 "16 bytes after the end of the GLB" "$bake" --scan "$S/trail.glb"
+expect "GLB with two BIN chunks: exit 2" 2 "second BIN chunk" "$bake" --scan "$S/twobin.glb"
+expect "UNSIGNED_BYTE positions without KHR_mesh_quantization: exit 2" 2 "attributes\.POSITION: accessor 0 has componentType 5121.*KHR_mesh_quantization" "$bake" --scan "$S/ubyte_pos.gltf"
+expect "normalized on FLOAT: exit 2" 2 "accessors\[0\]\.normalized: is true on a FLOAT accessor" "$bake" --scan "$S/norm_float.gltf"
+expect "camera up parallel to its view: exit 2" 2 "camera of node 1: its up direction .* is parallel to its view direction" "$bake" --scan "$S/cam_up.gltf"
+
+# ---- 5 numbers
+expect "light intensity 3.4e38: exit 2" 2 "lights\[0\]\.intensity: 3\.4e\+38 is outside \[0, 1e\+12\]" "$bake" --scan "$S/light_huge.gltf"
+expect "light at 1e30: exit 2" 2 "light 'light0' \(node 1\): position \(1e\+30, 1, 0\) is outside" "$bake" --scan "$S/light_far.gltf"
+
+if [ "$skip" -gt 0 ]; then echo "harden: $pass passed, $fail failed, $skip skipped"; else echo "harden: $pass passed, $fail failed"; fi
+[ "$fail" -eq 0 ]
