@@ -30,25 +30,41 @@ wrt_status wrt_output_check(const char *path) {
                     kind_of(st.st_mode));
 }
 
+int wrt_output_tmpfile(const char *path, const char *suffix, char **tmp) {
+    static _Atomic unsigned counter;
+    *tmp = NULL;
+    if (!suffix) suffix = "";
+    size_t n = strlen(path) + strlen(suffix) + 48;
+    char *name = malloc(n);
+    if (!name) {
+        wrt_fail(WRT_ERR_NOMEM, "%s: out of memory", path);
+        return -1;
+    }
+    for (int tries = 0; tries < 100; tries++) {
+        snprintf(name, n, "%s.tmp.%ld.%u%s", path, (long)getpid(), counter++, suffix);
+        int fd = open(name, O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+        if (fd >= 0) {
+            *tmp = name;
+            return fd;
+        }
+        if (errno != EEXIST) break;
+    }
+    int e = errno;
+    free(name);
+    wrt_fail(WRT_ERR_IO, "%s: cannot create a temporary file beside it: %s", path, strerror(e));
+    return -1;
+}
+
 wrt_status wrt_output_begin(const char *path, const char *mode, wrt_output *o) {
     memset(o, 0, sizeof *o);
     wrt_status st = wrt_output_check(path);
     if (st != WRT_OK) return st;
-    size_t n = strlen(path) + 16;
-    o->tmp = malloc(n);
     o->path = strdup(path);
-    if (!o->tmp || !o->path) {
-        wrt_output_abort(o);
-        return wrt_fail(WRT_ERR_NOMEM, "%s: out of memory", path);
-    }
-    snprintf(o->tmp, n, "%s.tmp.XXXXXX", path);
-    int fd = mkostemp(o->tmp, O_CLOEXEC); /* O_EXCL: never opens through a link */
+    if (!o->path) return wrt_fail(WRT_ERR_NOMEM, "%s: out of memory", path);
+    int fd = wrt_output_tmpfile(path, "", &o->tmp); /* O_EXCL: never opens through a link */
     if (fd < 0) {
-        int e = errno;
-        free(o->tmp);
-        o->tmp = NULL;
         wrt_output_abort(o);
-        return wrt_fail(WRT_ERR_IO, "%s: cannot create a temporary file beside it: %s", path, strerror(e));
+        return WRT_ERR_IO;
     }
     o->f = fdopen(fd, mode ? mode : "w");
     if (!o->f) {

@@ -18,6 +18,12 @@
  * regular files" (or a symbolic link, a device, a socket, a directory). */
 wrt_status wrt_output_check(const char *path);
 
+/* Creates a new temporary beside `path`, named PATH.tmp.PID.N`suffix` (suffix may be ""),
+ * with O_CREAT | O_EXCL | O_NOFOLLOW and mode 0666 less the umask (as the target would
+ * get); *tmp receives its name (malloc'ed). Returns the open descriptor, or -1 with a
+ * message (WRT_ERR_IO) and *tmp NULL. */
+int wrt_output_tmpfile(const char *path, const char *suffix, char **tmp);
+
 /* An output in progress: a temporary PATH.tmp.XXXXXX made with O_EXCL (never through a
  * link) in the target's folder. */
 typedef struct wrt_output {

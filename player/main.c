@@ -16,6 +16,8 @@
 #include <unistd.h>
 
 #include "../cli/cli.h"
+#include "../common/outfile.h"
+#include "../common/text.h"
 #include "../formats/gto.h"
 #include "../formats/image.h"
 #include "overlay.h"
@@ -337,13 +339,12 @@ static void json_str(FILE *f, const char *s, size_t max) {
 }
 
 static int write_stats(app *a, const char *path) {
-    char tmp[4096];
-    snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid());
-    FILE *f = fopen(tmp, "w");
-    if (!f) {
-        fprintf(stderr, "wrt-play: cannot write %s: %s\n", tmp, strerror(errno));
+    wrt_output out; /* a regular file only, through a temporary (common/outfile.h) */
+    if (wrt_output_begin(path, "w", &out) != WRT_OK) {
+        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         return EXIT_OUTPUT;
     }
+    FILE *f = out.f;
     fprintf(f, "{\n  \"file\": ");
     json_str(f, a->o->file, 4096);
     fprintf(f, ",\n  \"nquads\": %u,\n  \"lights\": [", a->g.nquads);
@@ -372,13 +373,8 @@ static int write_stats(app *a, const char *path) {
                 dir[0], dir[1], dir[2], ind[0], ind[1], ind[2]);
     }
     fprintf(f, "\n  ]\n}\n");
-    int bad_write = ferror(f);
-    bad_write |= fflush(f) != 0;
-    bad_write |= fsync(fileno(f)) != 0;
-    bad_write |= fclose(f) != 0;
-    if (bad_write || rename(tmp, path) != 0) {
-        fprintf(stderr, "wrt-play: cannot write %s\n", path);
-        unlink(tmp);
+    if (wrt_output_commit(&out) != WRT_OK) {
+        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         return EXIT_OUTPUT;
     }
     return 0;

@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "../cli/cli.h"
+#include "../common/outfile.h"
 #include "../formats/gto.h"
 #include "../formats/scene.h"
 #include "../tools/compare.h"
@@ -301,7 +302,8 @@ int main(int argc, char **argv) {
     /* The output, checked before any work: not the scene (same file, also through a
      * link), not a directory, in a folder where a file can be made. */
     const char *inputs[1] = {scene_path};
-    wrt_status cst = wrt_gto_check_output(out_path, inputs, 1);
+    wrt_status cst = wrt_output_check(out_path); /* a regular file or nothing (common/outfile.h) */
+    if (cst == WRT_OK) cst = wrt_gto_check_output(out_path, inputs, 1);
     if (cst != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return cst == WRT_ERR_INVALID_ARG ? EXIT_USAGE : EXIT_OUTPUT;

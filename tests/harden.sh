@@ -100,5 +100,34 @@ expect "camera up parallel to its view: exit 2" 2 "camera of node 1: its up dire
 expect "light intensity 3.4e38: exit 2" 2 "lights\[0\]\.intensity: 3\.4e\+38 is outside \[0, 1e\+12\]" "$bake" --scan "$S/light_huge.gltf"
 expect "light at 1e30: exit 2" 2 "light 'light0' \(node 1\): position \(1e\+30, 1, 0\) is outside" "$bake" --scan "$S/light_far.gltf"
 
+# ---- 2 outputs only as regular files: a FIFO and a link, each refused (exit 3), unchanged
+"$bake" assets/cornell.gltf -q 1 -o "$tmp/c.gto" --quiet >/dev/null 2>"$tmp/err" && ok "bake the Cornell box" || ko "bake the Cornell box"
+echo precious >"$tmp/target"
+# special TOOL-NAME CODE REGEX CMD-WITH-@OUT@...: runs the command with @OUT@ replaced by a
+# FIFO, then by a symlink to $tmp/target; both refused, the FIFO still a FIFO, the link
+# still a link, the target's bytes unchanged
+special() {
+    local name=$1 code=$2 re=$3 suffix=$4; shift 4
+    local f=$tmp/fifo$suffix l=$tmp/link$suffix
+    rm -f "$f" "$l"; mkfifo "$f"; ln -s "$tmp/target" "$l"
+    local args=() a
+    for a in "$@"; do args+=("${a//@OUT@/$f}"); done
+    expect "$name: a FIFO refused, exit $code" "$code" "fifo.*is a FIFO: outputs are only written as regular files" timeout 60 "${args[@]}"
+    [ -p "$f" ] && ok "$name: the FIFO is still a FIFO" || ko "$name: the FIFO is still a FIFO"
+    args=()
+    for a in "$@"; do args+=("${a//@OUT@/$l}"); done
+    expect "$name: a symlink refused, exit $code" "$code" "link.*is a symbolic link: outputs are only written as regular files" timeout 60 "${args[@]}"
+    [ -L "$l" ] && [ "$(cat "$tmp/target")" = precious ] && ok "$name: the link and its target unchanged" || ko "$name: the link and its target unchanged"
+    rm -f "$f" "$l"
+}
+special "wrt-bake -o" 3 "" .gto "$bake" tests/data/quad.gltf -o @OUT@ --quiet
+special "wrt-play -o" 3 "" .png "$play" "$tmp/c.gto" --headless --width 32 --height 24 -o @OUT@
+special "wrt-play --stats-json" 3 "" .json "$play" "$tmp/c.gto" --headless --width 32 --height 24 --stats-json @OUT@
+special "wrt-scenegen -o" 3 "" .gltf "$build/wrt-scenegen" cornell -o @OUT@
+rm -f "$tmp/r_both.png"; mkfifo "$tmp/r_both.png"
+expect "wrt-ref: a FIFO among its outputs refused, exit 3" 3 "r_both.png: is a FIFO" timeout 60 "$build/wrt-ref" assets/cornell.gltf --width 8 --height 8 --spp 1 -o "$tmp/r"
+[ -p "$tmp/r_both.png" ] && ok "wrt-ref: the FIFO is still a FIFO" || ko "wrt-ref: the FIFO is still a FIFO"
+ls "$tmp" | grep -q '\.tmp\.' && ko "no temporary left behind" || ok "no temporary left behind"
+
 if [ "$skip" -gt 0 ]; then echo "harden: $pass passed, $fail failed, $skip skipped"; else echo "harden: $pass passed, $fail failed"; fi
 [ "$fail" -eq 0 ]
