@@ -8,6 +8,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "../common/text.h"
 #include "../formats/gto.h"
 
 void wrt_cli_exit_table(FILE *f) {
@@ -218,15 +219,45 @@ void wrt_tonemap_rgb8(const float *rgb, size_t npixels, float exposure_ev, uint8
     }
 }
 
-void wrt_cli_json_str(FILE *f, const char *s) {
-    fputc('"', f);
-    for (; *s; s++) {
-        unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\') fprintf(f, "\\%c", c);
-        else if (c < 0x20) fprintf(f, "\\u%04x", c);
-        else fputc(c, f);
+void wrt_cli_json_str(FILE *f, const char *s) { wrt_json_str(f, s); } /* common/text.h */
+
+void wrt_cli_print_safe(FILE *f, const char *s, size_t max) {
+    const unsigned char *p = (const unsigned char *)(s ? s : "");
+    size_t len = strnlen((const char *)p, max);
+    for (size_t i = 0; i < len;) {
+        unsigned char c = p[i];
+        size_t n = c < 0x80 ? 1 : wrt_utf8_seq(p + i, len - i);
+        if (c < 0x20 || c == 0x7f || n == 0) {
+            fprintf(f, "\\x%02x", c);
+            i++;
+        } else if (n == 2 && c == 0xC2 && p[i + 1] < 0xA0) { /* C1 controls (U+0080..U+009F), e.g. CSI */
+            fprintf(f, "\\x%02x\\x%02x", c, p[i + 1]);
+            i += 2;
+        } else {
+            fwrite(p + i, 1, n, f);
+            i += n;
+        }
     }
-    fputc('"', f);
+}
+
+/* ---------------------------------------------------------------- stdout */
+
+static const char *stdout_tool = "wrt";
+
+static void check_stdout(void) {
+    errno = 0;
+    int bad = fflush(stdout) != 0;
+    int e = errno;
+    bad |= ferror(stdout) != 0;
+    if (!bad) return;
+    fprintf(stderr, "%s: error: cannot write the results to standard output: %s\n", stdout_tool,
+            e ? strerror(e) : "an earlier write failed");
+    _exit(WRT_EXIT_OUTPUT);
+}
+
+void wrt_cli_check_stdout_at_exit(const char *tool) {
+    stdout_tool = tool ? tool : "wrt";
+    atexit(check_stdout);
 }
 
 /* ---------------------------------------------------------------- progress */

@@ -178,6 +178,7 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
 }
 
 int main(int argc, char **argv) {
+    wrt_cli_check_stdout_at_exit("wrt-bake"); /* results lost on stdout: exit 3 */
     const char *scene_path = NULL, *out_path = NULL, *scan = NULL, *info = NULL;
     int json = 0, force_progress = 0, quiet = 0, print_config = 0, timings = 0, drop_bad = 0, allow_outside = 0;
     const char *seen[64];

@@ -129,5 +129,20 @@ expect "wrt-ref: a FIFO among its outputs refused, exit 3" 3 "r_both.png: is a F
 [ -p "$tmp/r_both.png" ] && ok "wrt-ref: the FIFO is still a FIFO" || ko "wrt-ref: the FIFO is still a FIFO"
 ls "$tmp" | grep -q '\.tmp\.' && ko "no temporary left behind" || ok "no temporary left behind"
 
+# ---- 3 results on stdout lost (a full disk): exit 3, said on stderr
+full() {
+    local name="$1 > /dev/full: exit 3"; shift
+    "$@" >/dev/full 2>"$tmp/err"; local rc=$?
+    if [ $rc -eq 3 ] && grep -q "cannot write the results to standard output" "$tmp/err"; then ok "$name"; else echo "    exit $rc"; ko "$name"; fi
+}
+full "wrt-bake --scan" "$bake" --scan assets/cornell.gltf
+full "wrt-bake --scan --json" "$bake" --scan assets/cornell.gltf --json
+full "wrt-bake --info --json" "$bake" --info "$tmp/c.gto" --json
+full "wrt-bake --json (a bake)" "$bake" tests/data/quad.gltf -o "$tmp/q.gto" --json --quiet
+full "wrt-play --bench" "$play" "$tmp/c.gto" --headless --width 16 --height 16 --bench 2
+full "wrt-ref --json" "$build/wrt-ref" assets/cornell.gltf --width 8 --height 8 --spp 1 -o "$tmp/rr" --json
+full "wrt-scenegen --help" "$build/wrt-scenegen" --help
+full "wrt-compare --version" "$build/wrt-compare" --version
+
 if [ "$skip" -gt 0 ]; then echo "harden: $pass passed, $fail failed, $skip skipped"; else echo "harden: $pass passed, $fail failed"; fi
 [ "$fail" -eq 0 ]
