@@ -152,6 +152,7 @@ PART_display := $(filter-out player/main.c $(PART_runtime),$(wildcard player/*.c
 PART_verify := tools/reference.c tools/compare.c
 ALL_PARTS := display cli verify bake runtime formats common
 TEST_PARTS_test_brdf := common
+TEST_PARTS_test_text := common
 TEST_PARTS_test_gto := formats common
 TEST_PARTS_test_image := formats common
 TEST_PARTS_test_scene := formats common

@@ -327,15 +327,19 @@ static int save_picture(app *a, const char *path) {
     return 0;
 }
 
-static void json_str(FILE *f, const char *s, size_t max) {
-    fputc('"', f);
-    for (size_t i = 0; i < max && s[i]; i++) {
-        unsigned char c = (unsigned char)s[i];
-        if (c == '"' || c == '\\') fprintf(f, "\\%c", c);
-        else if (c < 0x20) fprintf(f, "\\u%04x", c);
-        else fputc(c, f);
+/* Strings and numbers through the one JSON writer (common/text.h): valid JSON whatever
+ * the names hold, null for a number that is not finite. */
+static void json_str(FILE *f, const char *s, size_t max) { wrt_json_strn(f, s, max); }
+
+/* ", "KEY": [a, b, c]" (n > 1) or ", "KEY": a" (n == 1). */
+static void json_key_nums(FILE *f, const char *key, const double *v, int n, int digits) {
+    fprintf(f, ", \"%s\": ", key);
+    if (n > 1) fputc('[', f);
+    for (int i = 0; i < n; i++) {
+        if (i) fputs(", ", f);
+        wrt_json_num(f, v[i], digits);
     }
-    fputc('"', f);
+    if (n > 1) fputc(']', f);
 }
 
 static int write_stats(app *a, const char *path) {
@@ -352,11 +356,14 @@ static int write_stats(app *a, const char *path) {
         const wrt_light *l = &a->lights[i];
         fprintf(f, "%s\n    {\"name\": ", i ? "," : "");
         json_str(f, l->name, sizeof l->name);
-        fprintf(f, ", \"type\": \"%s\", \"pos\": [%.17g, %.17g, %.17g], \"dir\": [%.9g, %.9g, %.9g], "
-                   "\"intensity\": %.9g, \"scale\": %.9g}",
-                l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->pos.x, l->pos.y, l->pos.z,
-                l->dir.x, l->dir.y, l->dir.z, l->intensity,
-                i < WRT_RENDER_MAX_LIGHTS ? a->scales[i] : 0.0f);
+        fprintf(f, ", \"type\": \"%s\"", l->type == WRT_LIGHT_SPOT ? "spot" : "point");
+        double pos[3] = {l->pos.x, l->pos.y, l->pos.z}, dir[3] = {l->dir.x, l->dir.y, l->dir.z};
+        double in = l->intensity, sc = i < WRT_RENDER_MAX_LIGHTS ? a->scales[i] : 0.0f;
+        json_key_nums(f, "pos", pos, 3, 17);
+        json_key_nums(f, "dir", dir, 3, 9);
+        json_key_nums(f, "intensity", &in, 1, 9);
+        json_key_nums(f, "scale", &sc, 1, 9);
+        fputc('}', f);
     }
     fprintf(f, "\n  ],\n  \"quads\": [");
     for (uint32_t q = 0; q < a->g.nquads; q++) {
@@ -366,11 +373,14 @@ static int write_stats(app *a, const char *path) {
         wrt_runtime_quad_irradiance(a->rl, (int)q, dir, ind);
         fprintf(f, "%s\n    {\"quad\": %u, \"mesh\": ", q ? "," : "", q);
         json_str(f, Q->name < a->g.nnames ? a->g.names[Q->name] : "", 64);
-        fprintf(f, ", \"material\": %u, \"area\": %.9g, \"centroid\": [%.17g, %.17g, %.17g], "
-                   "\"normal\": [%.9g, %.9g, %.9g], \"direct\": [%.9g, %.9g, %.9g], "
-                   "\"indirect\": [%.9g, %.9g, %.9g]}",
-                Q->material, Q->area, c[0], c[1], c[2], Q->n[0], Q->n[1], Q->n[2],
-                dir[0], dir[1], dir[2], ind[0], ind[1], ind[2]);
+        double area = Q->area, nrm[3] = {Q->n[0], Q->n[1], Q->n[2]};
+        fprintf(f, ", \"material\": %u", Q->material);
+        json_key_nums(f, "area", &area, 1, 9);
+        json_key_nums(f, "centroid", c, 3, 17);
+        json_key_nums(f, "normal", nrm, 3, 9);
+        json_key_nums(f, "direct", dir, 3, 9);
+        json_key_nums(f, "indirect", ind, 3, 9);
+        fputc('}', f);
     }
     fprintf(f, "\n  ]\n}\n");
     if (wrt_output_commit(&out) != WRT_OK) {
@@ -627,8 +637,10 @@ static int run_bench(app *a) {
             if (k == 6) med_frame = m;
             printf("%s\"%s\": %.3f", k ? ", " : "", names[k], m);
         }
-        printf("}, \"fps\": %.2f, \"fps_mean\": %.2f, \"renderer\": \"%s\"}\n",
-               med_frame > 0 ? 1e3 / med_frame : 0.0, n / total, wrt_render_gl_info());
+        printf("}, \"fps\": %.2f, \"fps_mean\": %.2f, \"renderer\": ", med_frame > 0 ? 1e3 / med_frame : 0.0,
+               n / total);
+        wrt_json_str(stdout, wrt_render_gl_info());
+        printf("}\n");
     }
     for (int k = 0; k < 7; k++) free(col[k]);
     return rc;

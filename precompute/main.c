@@ -13,6 +13,7 @@
 
 #include "../cli/cli.h"
 #include "../common/outfile.h"
+#include "../common/text.h"
 #include "../formats/gto.h"
 #include "../formats/scene.h"
 #include "../tools/compare.h"
@@ -358,12 +359,9 @@ int main(int argc, char **argv) {
     char *prov = NULL;
     size_t prov_len = 0;
     FILE *pf = open_memstream(&prov, &prov_len);
-    fprintf(pf, "{\"tool\":\"wrt-bake\",\"version\":\"%s\",\"source\":\"", WRT_VERSION_STRING);
-    for (const char *p = scene_path; *p; p++) {
-        if (*p == '"' || *p == '\\') fputc('\\', pf);
-        if ((unsigned char)*p >= 0x20) fputc(*p, pf);
-    }
-    fprintf(pf, "\",\"source_hash\":\"%016llx\",\"options\":", (unsigned long long)s.source_hash);
+    fprintf(pf, "{\"tool\":\"wrt-bake\",\"version\":\"%s\",\"source\":", WRT_VERSION_STRING);
+    wrt_json_str(pf, scene_path); /* common/text.h: valid JSON whatever the path holds */
+    fprintf(pf, ",\"source_hash\":\"%016llx\",\"options\":", (unsigned long long)s.source_hash);
     json_options(pf, &o);
     fprintf(pf, ",");
     json_counters(pf, c);
@@ -456,7 +454,11 @@ int main(int argc, char **argv) {
     if (stat(out_path, &ob) == 0) bytes = (long long)ob.st_size;
 
     if (json) {
-        printf("{\"scene\":\"%s\",\"output\":\"%s\",\"quads\":%d,\"bytes\":%lld,", scene_path, out_path, s.nquads, bytes);
+        printf("{\"scene\":");
+        wrt_json_str(stdout, scene_path);
+        printf(",\"output\":");
+        wrt_json_str(stdout, out_path);
+        printf(",\"quads\":%d,\"bytes\":%lld,", s.nquads, bytes);
         printf("\"seconds\":{\"dto\":%.4f,\"balance\":%.4f,\"gto\":%.4f,\"write\":%.4f,\"total\":%.4f,"
                "\"rays_thread\":%.4f},", c->t_dto, c->t_balance, c->t_gto, t_write, t_total, c->t_rays);
         if (max_error >= 0)

@@ -144,5 +144,32 @@ full "wrt-ref --json" "$build/wrt-ref" assets/cornell.gltf --width 8 --height 8 
 full "wrt-scenegen --help" "$build/wrt-scenegen" --help
 full "wrt-compare --version" "$build/wrt-compare" --version
 
+# ---- 4 JSON outputs parse whatever the names (and the paths) hold
+hostile=$tmp/$'we"ird\\ name\x01.gltf'
+python3 - "$hostile" <<'PY'
+import json, sys
+d = json.load(open('assets/cornell.gltf'))
+nasty = ['quote " back \\ slash', 'esc \x1b[31m red \x07 bell', 'new\nline\ttab\x7f',
+         'a' * 62 + '\u00e9' + 'tail', 'b' * 61 + '\u20ac' + 'tail', 'c' * 60 + '\U0001F600' + 'tail']
+k = 0
+def name(o):
+    global k
+    o['name'] = nasty[k % len(nasty)] + str(k); k += 1
+for key in ('nodes', 'meshes', 'materials'):
+    for o in d.get(key, []): name(o)
+for l in d['extensions']['KHR_lights_punctual']['lights']: name(l)
+d['materials'][0]['name'] = 'a' * 62 + '\u00e9' + 'tail'   # cut at 63 bytes inside the e-acute
+open(sys.argv[1], 'w').write(json.dumps(d))
+PY
+parses() { if python3 -m json.tool "$2" >/dev/null 2>"$tmp/err"; then ok "$1 parses"; else ko "$1 parses"; fi; }
+"$bake" --scan "$hostile" --json >"$tmp/scan.json" 2>"$tmp/err"; parses "--scan --json of hostile names" "$tmp/scan.json"
+python3 -c "
+import json,sys; d=json.load(open(sys.argv[1])); n=d['materials'][0]['name']
+sys.exit(0 if n == 'a' * 62 else 1)" "$tmp/scan.json" && ok "a name cut at 63 bytes ends at a character boundary (62 bytes)" || ko "a name cut at 63 bytes ends at a character boundary (62 bytes)"
+"$bake" "$hostile" -o "$tmp/h.gto" -q 1 --quiet --json >"$tmp/bake.json" 2>"$tmp/err"; parses "a bake's --json (the path holds a quote, a backslash, a control character)" "$tmp/bake.json"
+"$bake" --info "$tmp/h.gto" --json >"$tmp/info.json" 2>"$tmp/err"; parses "--info --json of that bake" "$tmp/info.json"
+"$play" "$tmp/h.gto" --headless --width 16 --height 16 --stats-json "$tmp/stats.json" 2>"$tmp/err"; parses "wrt-play --stats-json of that bake" "$tmp/stats.json"
+"$play" "$tmp/h.gto" --headless --width 16 --height 16 --bench 2 >"$tmp/bench.json" 2>"$tmp/err"; parses "wrt-play --bench" "$tmp/bench.json"
+
 if [ "$skip" -gt 0 ]; then echo "harden: $pass passed, $fail failed, $skip skipped"; else echo "harden: $pass passed, $fail failed"; fi
 [ "$fail" -eq 0 ]
