@@ -8,6 +8,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "../common/limits.h"
 #include "../common/text.h"
 #include "../formats/gto.h"
 
@@ -55,7 +56,9 @@ int wrt_cli_num(const char *tool, const char *opt, const char *val, double lo, d
 }
 
 int wrt_cli_vec3(const char *tool, const char *opt, const char *val, double out[3]) {
-    if (!val || !wrt_parse_vec3(val, out)) return bad(tool, opt, val, "three numbers X,Y,Z");
+    /* positions, directions and colours alike: within what the computation can carry */
+    if (!val || !wrt_parse_vec3(val, out) || !wrt_coord3_ok(out[0], out[1], out[2]))
+        return bad(tool, opt, val, "three numbers X,Y,Z, each within +-1e9 (common/limits.h)");
     return 1;
 }
 
@@ -105,10 +108,12 @@ int wrt_cli_lights_option(const char *tool, wrt_cli_lights *L, int argc, char **
             ok = bad(tool, a, v, "IN,OUT radians with 0 <= IN < OUT <= pi/2");
         else { L->cone[0] = c[0]; L->cone[1] = c[1]; L->has_cone = 1; }
     } else if (!strcmp(a, "--light-intensity")) {
-        ok = L->has_intensity = wrt_cli_num(tool, a, v, 0, 1e30, &L->intensity);
+        ok = L->has_intensity = wrt_cli_num(tool, a, v, 0, WRT_MAX_INTENSITY, &L->intensity);
     } else if (!strcmp(a, "--light-color")) {
         ok = wrt_cli_vec3(tool, a, v, L->color);
-        if (ok && !(L->color[0] >= 0 && L->color[1] >= 0 && L->color[2] >= 0)) ok = bad(tool, a, v, "R,G,B >= 0");
+        if (ok && !(L->color[0] >= 0 && L->color[1] >= 0 && L->color[2] >= 0 && L->color[0] <= WRT_MAX_COLOR &&
+                    L->color[1] <= WRT_MAX_COLOR && L->color[2] <= WRT_MAX_COLOR))
+            ok = bad(tool, a, v, "R,G,B each in [0, 1000] (common/limits.h)");
         L->has_color = ok;
     } else if (!strcmp(a, "--light-scale")) {
         ok = v != NULL;
@@ -120,7 +125,7 @@ int wrt_cli_lights_option(const char *tool, wrt_cli_lights *L, int argc, char **
         } else {
             char full[64];
             snprintf(full, sizeof full, "%s (the factor)", a);
-            ok = wrt_cli_num(tool, full, end + 1, 0, 1e30, &s);
+            ok = wrt_cli_num(tool, full, end + 1, 0, WRT_MAX_LIGHT_SCALE, &s);
         }
         if (ok) { L->scale[n - 1] = (float)s; L->scaled[n - 1] = 1; name_light(L, n); }
     } else if (!strcmp(a, "--lights-off")) {

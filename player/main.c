@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include "../cli/cli.h"
+#include "../common/limits.h"
 #include "../common/outfile.h"
 #include "../common/text.h"
 #include "../formats/gto.h"
@@ -494,6 +495,7 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
         }
         cur.t = t;
         while ((tok = strtok_r(NULL, " \t\r\n", &save))) {
+            const char *key = tok;
             double *dst = NULL;
             int nv = 3;
             if (!strcmp(tok, "light_pos")) dst = cur.lpos;
@@ -507,7 +509,13 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
             }
             for (int k = 0; k < nv; k++) {
                 tok = strtok_r(NULL, " \t\r\n", &save);
-                if (!tok || !parse_num(tok, -1e300, 1e300, &dst[k])) goto bad_line;
+                /* within what the computation can carry (common/limits.h) */
+                if (!tok || (nv == 1 ? !parse_num(tok, 0, WRT_MAX_INTENSITY, &dst[k])
+                                     : !parse_num(tok, -WRT_MAX_COORD, WRT_MAX_COORD, &dst[k]))) {
+                    fprintf(stderr, "wrt-play: %s:%d: %s needs %s\n", path, lineno, key,
+                            nv == 1 ? "an intensity in [0, 1e12] cd" : "three numbers, each within +-1e9");
+                    goto fail;
+                }
             }
         }
         if (n == cap) {

@@ -171,5 +171,27 @@ sys.exit(0 if n == 'a' * 62 else 1)" "$tmp/scan.json" && ok "a name cut at 63 by
 "$play" "$tmp/h.gto" --headless --width 16 --height 16 --stats-json "$tmp/stats.json" 2>"$tmp/err"; parses "wrt-play --stats-json of that bake" "$tmp/stats.json"
 "$play" "$tmp/h.gto" --headless --width 16 --height 16 --bench 2 >"$tmp/bench.json" 2>"$tmp/err"; parses "wrt-play --bench" "$tmp/bench.json"
 
+# ---- 5 numbers on the command line (and in a script) beyond what the computation carries
+P=("$play" "$tmp/c.gto" --headless --width 16 --height 16 -o "$tmp/n.png")
+expect "--light-color 1e38,1,1: exit 1" 1 "bad value for --light-color: '1e38,1,1'.*within" "${P[@]}" --light-color 1e38,1,1
+expect "--light-intensity 3.4e38: exit 1" 1 "bad value for --light-intensity: '3.4e38' \(a number in \[0, 1e\+12\]\)" "${P[@]}" --light-intensity 3.4e38
+expect "--light-pos 1e30,0,0: exit 1" 1 "bad value for --light-pos: '1e30,0,0'" "${P[@]}" --light-pos 1e30,0,0
+expect "--light-scale 1=1e30: exit 1" 1 "bad value for --light-scale \(the factor\): '1e30'" "${P[@]}" --light-scale 1=1e30
+expect "--camera-pos 1e30,0,0: exit 1" 1 "bad value for --camera-pos: '1e30,0,0'" "${P[@]}" --camera-pos 1e30,0,0
+expect "wrt-ref --light-color 1e38,1,1: exit 1" 1 "bad value for --light-color" "$build/wrt-ref" assets/cornell.gltf --width 8 --height 8 --spp 1 -o "$tmp/r2" --light-color 1e38,1,1
+printf '0 light_pos 0 1 0\n1 light_intensity 3.4e38\n' >"$tmp/s_int.txt"
+expect "a script's light_intensity 3.4e38: exit 2" 2 "s_int.txt:2: light_intensity needs an intensity in \[0, 1e12\]" "$play" "$tmp/c.gto" --headless --width 16 --height 16 --script "$tmp/s_int.txt" --out-pattern "$tmp/f%d.png"
+printf '0 light_pos 0 1e30 0\n' >"$tmp/s_pos.txt"
+expect "a script's light_pos 0 1e30 0: exit 2" 2 "s_pos.txt:1: light_pos needs three numbers, each within" "$play" "$tmp/c.gto" --headless --width 16 --height 16 --script "$tmp/s_pos.txt" --out-pattern "$tmp/f%d.png"
+P2=("$play" "$tmp/c.gto" --headless --width 16 --height 16 -o "$tmp/n.exr")
+expect "the largest values allowed still give a picture: exit 0" 0 "" "${P2[@]}" --light-intensity 1e12 --light-color 1000,1000,1000 --light-scale 1=1000
+"$build/tests/test_image" --stats "$tmp/n.exr" >"$tmp/stats.txt" 2>"$tmp/err"
+python3 - "$tmp/stats.txt" <<'PY' && ok "that picture is finite everywhere (EXR mean, min, max)" || ko "that picture is finite everywhere (EXR mean, min, max)"
+import math, re, sys
+t = open(sys.argv[1]).read().split(':', 1)[1]
+v = [float(x) for x in re.findall(r'(?<![0-9x])[-+]?(?:[0-9.]+(?:e[-+]?[0-9]+)?|nan|inf)', t)]
+sys.exit(0 if len(v) >= 7 and all(math.isfinite(x) for x in v) and max(v) > 0 else 1)
+PY
+
 if [ "$skip" -gt 0 ]; then echo "harden: $pass passed, $fail failed, $skip skipped"; else echo "harden: $pass passed, $fail failed"; fi
 [ "$fail" -eq 0 ]
