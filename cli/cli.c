@@ -232,7 +232,7 @@ void wrt_cli_print_safe(FILE *f, const char *s, size_t max) {
     for (size_t i = 0; i < len;) {
         unsigned char c = p[i];
         size_t n = c < 0x80 ? 1 : wrt_utf8_seq(p + i, len - i);
-        if (c < 0x20 || c == 0x7f || n == 0) {
+        if ((c < 0x20 && c != '\n' && c != '\t') || c == 0x7f || n == 0) {
             fprintf(f, "\\x%02x", c);
             i++;
         } else if (n == 2 && c == 0xC2 && p[i + 1] < 0xA0) { /* C1 controls (U+0080..U+009F), e.g. CSI */
@@ -243,6 +243,18 @@ void wrt_cli_print_safe(FILE *f, const char *s, size_t max) {
             i += n;
         }
     }
+}
+
+int wrt_cli_print_safely(FILE *out, int (*print)(void *user, FILE *f), void *user) {
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *m = open_memstream(&buf, &len);
+    if (!m) return print(user, out); /* no memory for the copy: as it is */
+    int r = print(user, m);
+    fclose(m);
+    wrt_cli_print_safe(out, buf, len);
+    free(buf);
+    return r;
 }
 
 /* ---------------------------------------------------------------- stdout */

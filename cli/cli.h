@@ -85,9 +85,13 @@ void wrt_cli_json_str(FILE *f, const char *s);
 void wrt_cli_check_stdout_at_exit(const char *tool);
 
 /* Writes text that came from a file (names, provenance) for a terminal: control
- * characters (escape sequences included) and DEL are shown as \xNN, bytes that are not
- * UTF-8 as \xNN too, so a file cannot drive the terminal. At most `max` bytes of s. */
+ * characters (escape sequences included) other than newline and tab, DEL, C1 controls
+ * and bytes that are not UTF-8 are shown as \xNN, so a file cannot drive the terminal.
+ * At most `max` bytes of s (a NUL ends it earlier). */
 void wrt_cli_print_safe(FILE *f, const char *s, size_t max);
+/* Runs print(user, f) into memory, then writes what it printed to `out` through
+ * wrt_cli_print_safe. Returns print's result. For reports that print names from files. */
+int wrt_cli_print_safely(FILE *out, int (*print)(void *user, FILE *f), void *user);
 
 /* ---- progress on a terminal ----
  * One line per phase: "  dto      [#######.......]  48%   3.1 s  ~3.4 s left"; a new

@@ -178,6 +178,19 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
         o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance);
 }
 
+/* --info and --scan print text from the file (provenance, names): through
+ * wrt_cli_print_safely, so that escape codes in it cannot drive the terminal. */
+struct report_args { const char *path; const wrt_scene *scene; int json; };
+static int print_info(void *u, FILE *f) {
+    const struct report_args *a = u;
+    return (int)wrt_gto_print_info(a->path, a->json, f);
+}
+static int print_summary(void *u, FILE *f) {
+    const struct report_args *a = u;
+    wrt_scene_print_summary(a->scene, a->json, f);
+    return 0;
+}
+
 int main(int argc, char **argv) {
     wrt_cli_check_stdout_at_exit("wrt-bake"); /* results lost on stdout: exit 3 */
     const char *scene_path = NULL, *out_path = NULL, *scan = NULL, *info = NULL;
@@ -265,7 +278,8 @@ int main(int argc, char **argv) {
             fprintf(stderr, "wrt-bake: error: %s: %s\n", info, strerror(errno));
             return EXIT_INPUT;
         }
-        wrt_status st = wrt_gto_print_info(info, json, stdout);
+        struct report_args ia = {info, NULL, json};
+        wrt_status st = (wrt_status)wrt_cli_print_safely(stdout, print_info, &ia); /* no raw escapes */
         if (st != WRT_OK) {
             fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
             return EXIT_INPUT; /* a .gto that cannot be read is bad input, missing or not */
@@ -293,7 +307,8 @@ int main(int argc, char **argv) {
             fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
             return EXIT_INPUT;
         }
-        wrt_scene_print_summary(&s, json, stdout);
+        struct report_args sa = {NULL, &s, json};
+        wrt_cli_print_safely(stdout, print_summary, &sa); /* names' escape codes shown as \xNN */
         wrt_scene_free(&s);
         return 0;
     }
@@ -304,8 +319,8 @@ int main(int argc, char **argv) {
     /* The output, checked before any work: not the scene (same file, also through a
      * link), not a directory, in a folder where a file can be made. */
     const char *inputs[1] = {scene_path};
-    wrt_status cst = wrt_output_check(out_path); /* a regular file or nothing (common/outfile.h) */
-    if (cst == WRT_OK) cst = wrt_gto_check_output(out_path, inputs, 1);
+    wrt_status cst = wrt_gto_check_output(out_path, inputs, 1);
+    if (cst == WRT_OK) cst = wrt_output_check(out_path); /* a regular file or nothing (common/outfile.h) */
     if (cst != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return cst == WRT_ERR_INVALID_ARG ? EXIT_USAGE : EXIT_OUTPUT;

@@ -193,5 +193,13 @@ v = [float(x) for x in re.findall(r'(?<![0-9x])[-+]?(?:[0-9.]+(?:e[-+]?[0-9]+)?|
 sys.exit(0 if len(v) >= 7 and all(math.isfinite(x) for x in v) and max(v) > 0 else 1)
 PY
 
+# ---- 6 text from a file (names, provenance) printed for a terminal: no raw control bytes
+noctl() { if LC_ALL=C grep -q $'[\x01-\x08\x0b-\x1f\x7f]' "$2"; then ko "$1"; else ok "$1"; fi; }
+"$bake" --scan "$hostile" >"$tmp/scan.txt" 2>"$tmp/err"
+grep -q 'esc \\x1b\[31m red \\x07 bell' "$tmp/scan.txt" && ok "--scan shows an escape code in a name as \\x1b" || ko "--scan shows an escape code in a name as \\x1b"
+noctl "--scan prints no raw control character" "$tmp/scan.txt"
+"$bake" --info "$tmp/h.gto" >"$tmp/info.txt" 2>"$tmp/err"
+noctl "--info prints no raw control character" "$tmp/info.txt"
+
 if [ "$skip" -gt 0 ]; then echo "harden: $pass passed, $fail failed, $skip skipped"; else echo "harden: $pass passed, $fail failed"; fi
 [ "$fail" -eq 0 ]
