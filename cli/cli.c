@@ -8,6 +8,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "../common/limits.h"
+#include "../common/text.h"
 #include "../formats/gto.h"
 
 void wrt_cli_exit_table(FILE *f) {
@@ -54,7 +56,9 @@ int wrt_cli_num(const char *tool, const char *opt, const char *val, double lo, d
 }
 
 int wrt_cli_vec3(const char *tool, const char *opt, const char *val, double out[3]) {
-    if (!val || !wrt_parse_vec3(val, out)) return bad(tool, opt, val, "three numbers X,Y,Z");
+    /* positions, directions and colours alike: within what the computation can carry */
+    if (!val || !wrt_parse_vec3(val, out) || !wrt_coord3_ok(out[0], out[1], out[2]))
+        return bad(tool, opt, val, "three numbers X,Y,Z, each within +-1e9 (common/limits.h)");
     return 1;
 }
 
@@ -104,10 +108,12 @@ int wrt_cli_lights_option(const char *tool, wrt_cli_lights *L, int argc, char **
             ok = bad(tool, a, v, "IN,OUT radians with 0 <= IN < OUT <= pi/2");
         else { L->cone[0] = c[0]; L->cone[1] = c[1]; L->has_cone = 1; }
     } else if (!strcmp(a, "--light-intensity")) {
-        ok = L->has_intensity = wrt_cli_num(tool, a, v, 0, 1e30, &L->intensity);
+        ok = L->has_intensity = wrt_cli_num(tool, a, v, 0, WRT_MAX_INTENSITY, &L->intensity);
     } else if (!strcmp(a, "--light-color")) {
         ok = wrt_cli_vec3(tool, a, v, L->color);
-        if (ok && !(L->color[0] >= 0 && L->color[1] >= 0 && L->color[2] >= 0)) ok = bad(tool, a, v, "R,G,B >= 0");
+        if (ok && !(L->color[0] >= 0 && L->color[1] >= 0 && L->color[2] >= 0 && L->color[0] <= WRT_MAX_COLOR &&
+                    L->color[1] <= WRT_MAX_COLOR && L->color[2] <= WRT_MAX_COLOR))
+            ok = bad(tool, a, v, "R,G,B each in [0, 1000] (common/limits.h)");
         L->has_color = ok;
     } else if (!strcmp(a, "--light-scale")) {
         ok = v != NULL;
@@ -119,7 +125,7 @@ int wrt_cli_lights_option(const char *tool, wrt_cli_lights *L, int argc, char **
         } else {
             char full[64];
             snprintf(full, sizeof full, "%s (the factor)", a);
-            ok = wrt_cli_num(tool, full, end + 1, 0, 1e30, &s);
+            ok = wrt_cli_num(tool, full, end + 1, 0, WRT_MAX_LIGHT_SCALE, &s);
         }
         if (ok) { L->scale[n - 1] = (float)s; L->scaled[n - 1] = 1; name_light(L, n); }
     } else if (!strcmp(a, "--lights-off")) {
@@ -218,15 +224,57 @@ void wrt_tonemap_rgb8(const float *rgb, size_t npixels, float exposure_ev, uint8
     }
 }
 
-void wrt_cli_json_str(FILE *f, const char *s) {
-    fputc('"', f);
-    for (; *s; s++) {
-        unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\') fprintf(f, "\\%c", c);
-        else if (c < 0x20) fprintf(f, "\\u%04x", c);
-        else fputc(c, f);
+void wrt_cli_json_str(FILE *f, const char *s) { wrt_json_str(f, s); } /* common/text.h */
+
+void wrt_cli_print_safe(FILE *f, const char *s, size_t max) {
+    const unsigned char *p = (const unsigned char *)(s ? s : "");
+    size_t len = strnlen((const char *)p, max);
+    for (size_t i = 0; i < len;) {
+        unsigned char c = p[i];
+        size_t n = c < 0x80 ? 1 : wrt_utf8_seq(p + i, len - i);
+        if ((c < 0x20 && c != '\n' && c != '\t') || c == 0x7f || n == 0) {
+            fprintf(f, "\\x%02x", c);
+            i++;
+        } else if (n == 2 && c == 0xC2 && p[i + 1] < 0xA0) { /* C1 controls (U+0080..U+009F), e.g. CSI */
+            fprintf(f, "\\x%02x\\x%02x", c, p[i + 1]);
+            i += 2;
+        } else {
+            fwrite(p + i, 1, n, f);
+            i += n;
+        }
     }
-    fputc('"', f);
+}
+
+int wrt_cli_print_safely(FILE *out, int (*print)(void *user, FILE *f), void *user) {
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *m = open_memstream(&buf, &len);
+    if (!m) return print(user, out); /* no memory for the copy: as it is */
+    int r = print(user, m);
+    fclose(m);
+    wrt_cli_print_safe(out, buf, len);
+    free(buf);
+    return r;
+}
+
+/* ---------------------------------------------------------------- stdout */
+
+static const char *stdout_tool = "wrt";
+
+static void check_stdout(void) {
+    errno = 0;
+    int bad = fflush(stdout) != 0;
+    int e = errno;
+    bad |= ferror(stdout) != 0;
+    if (!bad) return;
+    fprintf(stderr, "%s: error: cannot write the results to standard output: %s\n", stdout_tool,
+            e ? strerror(e) : "an earlier write failed");
+    _exit(WRT_EXIT_OUTPUT);
+}
+
+void wrt_cli_check_stdout_at_exit(const char *tool) {
+    stdout_tool = tool ? tool : "wrt";
+    atexit(check_stdout);
 }
 
 /* ---------------------------------------------------------------- progress */

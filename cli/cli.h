@@ -77,6 +77,22 @@ void wrt_tonemap_rgb8(const float *rgb, size_t npixels, float exposure_ev, uint8
 /* A JSON string literal, quotes, backslashes and control characters escaped. */
 void wrt_cli_json_str(FILE *f, const char *s);
 
+/* Results written to stdout must not be lost silently (a full disk, a closed pipe):
+ * registers an exit handler that flushes stdout and, if that or any earlier write
+ * failed, prints "TOOL: error: cannot write the results to standard output: REASON" and
+ * ends the process with WRT_EXIT_OUTPUT (3). Call once, first thing in main; `tool`
+ * must stay valid (a string literal). */
+void wrt_cli_check_stdout_at_exit(const char *tool);
+
+/* Writes text that came from a file (names, provenance) for a terminal: control
+ * characters (escape sequences included) other than newline and tab, DEL, C1 controls
+ * and bytes that are not UTF-8 are shown as \xNN, so a file cannot drive the terminal.
+ * At most `max` bytes of s (a NUL ends it earlier). */
+void wrt_cli_print_safe(FILE *f, const char *s, size_t max);
+/* Runs print(user, f) into memory, then writes what it printed to `out` through
+ * wrt_cli_print_safe. Returns print's result. For reports that print names from files. */
+int wrt_cli_print_safely(FILE *out, int (*print)(void *user, FILE *f), void *user);
+
 /* ---- progress on a terminal ----
  * One line per phase: "  dto      [#######.......]  48%   3.1 s  ~3.4 s left"; a new
  * phase (or wrt_cli_progress_end) ends the previous line with its total time on a line

@@ -9,6 +9,7 @@
  * before tinygltf sees it. Every exception is caught at the boundary. Depends on
  * tinygltf 2.7, nlohmann json and stb_image (Debian packages). This is the scene-input
  * stage that precedes the paper's precomputation (Kontkanen et al. 2006, section 3). */
+#include <cctype>
 #include <cerrno>
 #include <cfloat>
 #include <cmath>
@@ -30,6 +31,10 @@
 #include <tiny_gltf.h>
 
 #include "gltf_shim.h"
+extern "C" {
+#include "../common/limits.h"
+#include "../common/text.h"
+}
 
 namespace {
 
@@ -37,6 +42,11 @@ namespace {
 const double kMaxTexels = 64.0 * 1024 * 1024;
 const size_t kMaxSceneTriangles = 50u * 1000u * 1000u;
 const size_t kMaxSceneVertices = 150u * 1000u * 1000u;
+/* Deepest JSON nesting (arrays and objects) accepted. A glTF needs about 8 levels; the
+ * JSON parsers below recurse per level, so a file nested thousands deep (in `extras`,
+ * where anything goes) would overflow the stack: the depth is counted on the raw text
+ * before any parser sees it. */
+const size_t kMaxJsonDepth = 128;
 
 /* An error with its status; thrown inside the shim, turned into wrt_fail at the boundary. */
 struct shim_error {
@@ -57,7 +67,7 @@ void copy_name(char dst[64], const std::string &src, const char *fallback, size_
     if (src.empty()) {
         snprintf(dst, 64, "%s%zu", fallback, index);
     } else {
-        snprintf(dst, 64, "%s", src.c_str());
+        wrt_utf8_copy(dst, 64, src.c_str()); /* cut at a character boundary */
     }
 }
 
@@ -322,8 +332,34 @@ bool fs_exists(const std::string &path, void *) {
 
 std::string fs_expand(const std::string &path, void *) { return path; }
 
+/* What the file callbacks know: the files read, the scene's folder (resolved) and
+ * whether files outside it may be read. */
+struct fs_context {
+    std::vector<std::string> files;
+    std::string base_real; /* realpath of the scene's folder, "" if it has none */
+    bool allow_outside = false;
+};
+
+/* The second line of defence behind the uri check of the strict pass: the file, links
+ * resolved, must lie inside the scene's folder (also resolved). */
+bool inside_base(const fs_context &c, const std::string &path) {
+    if (c.allow_outside) return true;
+    if (c.base_real.empty()) return false;
+    char *r = realpath(path.c_str(), nullptr);
+    if (!r) return false;
+    std::string rp = r;
+    free(r);
+    const std::string &b = c.base_real;
+    return rp.size() > b.size() && rp.compare(0, b.size(), b) == 0 && (b == "/" || rp[b.size()] == '/');
+}
+
 bool fs_read(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *user) {
-    if (user) static_cast<std::vector<std::string> *>(user)->push_back(path); /* an input */
+    fs_context *ctx = static_cast<fs_context *>(user);
+    if (ctx && !inside_base(*ctx, path)) {
+        if (err) *err += path + ": outside the scene's folder (refused unless --allow-outside-files)\n";
+        return false;
+    }
+    if (ctx) ctx->files.push_back(path); /* an input */
     FILE *f = fopen(path.c_str(), "rb");
     if (!f) {
         if (err) *err += "cannot open " + path + ": " + strerror(errno) + "\n";
@@ -580,18 +616,68 @@ void check_glb(const unsigned char *b, size_t size, const char *label) {
     if (type0 != 0x4E4F534Au || len0 == 0 || uint64_t(len0) + 20 > length)
         throw make_error(WRT_ERR_PARSE, "%s: GLB JSON chunk (length %u) is missing or runs past the end",
                          label, len0);
+    if (length < size)
+        throw make_error(WRT_ERR_PARSE,
+                         "%s: %zu bytes after the end of the GLB (its header says %u bytes, the file has "
+                         "%zu): trailing data is not allowed",
+                         label, size - length, length, size);
+    /* After the JSON chunk: at most one BIN chunk, first, then chunks of other types
+     * (which readers ignore), each inside the file, ending exactly at `length`. */
     uint64_t at = 20ull + len0;
-    if (at < length) {
+    int nbin = 0;
+    for (int k = 1; at < length; k++) {
         if (at + 8 > length)
-            throw make_error(WRT_ERR_PARSE, "%s: GLB BIN chunk header truncated", label);
+            throw make_error(WRT_ERR_PARSE, "%s: GLB chunk %d header truncated at offset %llu", label, k,
+                             (unsigned long long)at);
         uint32_t len1, type1;
         memcpy(&len1, b + at, 4);
         memcpy(&type1, b + at + 4, 4);
-        if (type1 != 0x004E4942u || at + 8 + len1 > length)
+        if (at + 8 + len1 > length)
             throw make_error(WRT_ERR_PARSE,
-                             "%s: GLB BIN chunk (length %u at offset %llu) is not BIN or runs past "
-                             "the end (%u bytes)",
-                             label, len1, (unsigned long long)at, length);
+                             "%s: GLB %s %d (length %u at offset %llu) runs past the end (%u bytes)",
+                             label, k == 1 ? "BIN chunk, chunk" : "chunk", k, len1, (unsigned long long)at,
+                             length);
+        if (type1 == 0x004E4942u) {
+            if (k != 1 || ++nbin > 1)
+                throw make_error(WRT_ERR_PARSE,
+                                 "%s: GLB chunk %d at offset %llu is a second BIN chunk or not the "
+                                 "second chunk (the specification allows one BIN chunk, right after JSON)",
+                                 label, k, (unsigned long long)at);
+        } else if (type1 == 0x4E4F534Au) {
+            throw make_error(WRT_ERR_PARSE, "%s: GLB chunk %d at offset %llu is a second JSON chunk", label, k,
+                             (unsigned long long)at);
+        } else if (k == 1) {
+            throw make_error(WRT_ERR_PARSE,
+                             "%s: GLB BIN chunk (length %u at offset %llu) is not BIN (type 0x%08x)", label,
+                             len1, (unsigned long long)at, type1);
+        }
+        at += 8ull + len1;
+    }
+}
+
+/* The nesting depth of JSON text, counted before any parser sees it (strings skipped,
+ * escapes included). Throws when it passes kMaxJsonDepth. */
+void check_json_depth(const char *t, size_t n, const char *label) {
+    size_t depth = 0;
+    bool in_str = false;
+    for (size_t i = 0; i < n; i++) {
+        char c = t[i];
+        if (in_str) {
+            if (c == '\\') i++;
+            else if (c == '"') in_str = false;
+            continue;
+        }
+        if (c == '"') {
+            in_str = true;
+        } else if (c == '[' || c == '{') {
+            if (++depth > kMaxJsonDepth)
+                throw make_error(WRT_ERR_PARSE,
+                                 "%s: JSON nested deeper than %zu levels (at byte %zu of the JSON text); "
+                                 "refused before parsing",
+                                 label, kMaxJsonDepth, i);
+        } else if ((c == ']' || c == '}') && depth > 0) {
+            depth--;
+        }
     }
 }
 
@@ -679,6 +765,7 @@ typedef nlohmann::json json;
 struct strict_check {
     const json &root;
     const char *label;
+    bool allow_outside = false;
     std::string warnings;
     std::vector<std::pair<std::string, size_t>> ignored; /* path pattern, how many */
 
@@ -851,6 +938,15 @@ struct strict_check {
         }
     }
 
+    void images() {
+        const json *is = array_member(root, "images", "");
+        if (!is) return;
+        for (size_t i = 0; i < is->size(); i++) {
+            std::string p = at("images", i);
+            local_uri(object((*is)[i], p), p);
+        }
+    }
+
     void textures() {
         const json *ts = array_member(root, "textures", "");
         if (!ts) return;
@@ -883,7 +979,7 @@ struct strict_check {
             if (type != "point" && type != "spot" && type != "directional")
                 fail(at(p, "type"), "'%.40s' is not point, spot or directional", type.c_str());
             if (const json *v = member(l, "color")) numbers(*v, at(p, "color"), 3, 0, 1);
-            if (const json *v = member(l, "intensity")) number(*v, at(p, "intensity"), 0, FLT_MAX);
+            if (const json *v = member(l, "intensity")) number(*v, at(p, "intensity"), 0, WRT_MAX_INTENSITY);
             if (const json *v = member(l, "range")) number(*v, at(p, "range"), 0, FLT_MAX, true);
             const json *sp = member(l, "spot");
             if (type == "spot") {
@@ -991,6 +1087,52 @@ struct strict_check {
         }
     }
 
+    /* POSITION is FLOAT unless the file declares KHR_mesh_quantization (which allows
+     * BYTE, UNSIGNED_BYTE, SHORT and UNSIGNED_SHORT, normalized or not). */
+    void position_type(long long ai, const std::string &path) {
+        const json &a = root["accessors"][size_t(ai)];
+        const json *ct = a.is_object() ? member(a, "componentType") : nullptr;
+        if (!ct || !ct->is_number() || ct->get<double>() == 5126) return; /* accessors() reports the rest */
+        bool quantized = false;
+        if (const json *eu = member(root, "extensionsUsed"))
+            if (eu->is_array())
+                for (const json &e : *eu) quantized = quantized || (e.is_string() && e.get<std::string>() == "KHR_mesh_quantization");
+        if (!quantized)
+            fail(path, "accessor %lld has componentType %.0f, not FLOAT (5126): integer positions need the "
+                 "KHR_mesh_quantization extension in extensionsUsed", ai, ct->get<double>());
+    }
+
+    /* A buffer's or image's uri must stay inside the scene's folder: no absolute path,
+     * no ".." segment (also percent-encoded), no scheme other than data:, unless the
+     * caller allows it. */
+    void local_uri(const json &o, const std::string &path) {
+        const json *u = member(o, "uri");
+        if (!u) return;
+        const std::string &uri = string(*u, at(path, "uri"));
+        if (uri.compare(0, 5, "data:") == 0 || allow_outside) return;
+        std::string d; /* percent-decoded */
+        for (size_t i = 0; i < uri.size(); i++) {
+            if (uri[i] == '%' && i + 2 < uri.size() && isxdigit((unsigned char)uri[i + 1]) &&
+                isxdigit((unsigned char)uri[i + 2])) {
+                d += char(strtol(uri.substr(i + 1, 2).c_str(), nullptr, 16));
+                i += 2;
+            } else {
+                d += uri[i];
+            }
+        }
+        bool bad = d.empty() || d[0] == '/' || d[0] == '\\' || d.find(':') != std::string::npos ||
+                   d.find('\\') != std::string::npos || d.find('\0') != std::string::npos;
+        for (size_t i = 0; !bad && i < d.size();) {
+            size_t j = d.find('/', i);
+            if (j == std::string::npos) j = d.size();
+            if (d.compare(i, j - i, "..") == 0) bad = true;
+            i = j + 1;
+        }
+        if (bad)
+            fail(at(path, "uri"), "'%.80s' leaves the scene's folder (an absolute path, a scheme or a '..'); "
+                 "refused unless --allow-outside-files", uri.c_str());
+    }
+
     void meshes() {
         const json *ms = array_member(root, "meshes", "");
         if (!ms) return;
@@ -1009,7 +1151,8 @@ struct strict_check {
                 if (!at_) fail(at(pp, "attributes"), "is missing (required)");
                 object(*at_, at(pp, "attributes"));
                 for (auto it = at_->begin(); it != at_->end(); ++it) {
-                    ref(it.value(), at(at(pp, "attributes"), it.key().c_str()), "accessors");
+                    long long ai = ref(it.value(), at(at(pp, "attributes"), it.key().c_str()), "accessors");
+                    if (it.key() == "POSITION") position_type(ai, at(at(pp, "attributes"), "POSITION"));
                     if (it.key() != "POSITION") ignore("meshes[*].primitives[*].attributes." + it.key());
                 }
                 ignore_others(pr, "meshes[*].primitives[*]", {"mode", "material", "indices", "attributes"});
@@ -1036,7 +1179,12 @@ struct strict_check {
             const json *t = member(a, "type");
             if (!t) fail(at(p, "type"), "is missing (required)");
             string(*t, at(p, "type"));
-            if (const json *v = member(a, "normalized")) boolean(*v, at(p, "normalized"));
+            if (const json *v = member(a, "normalized")) {
+                boolean(*v, at(p, "normalized"));
+                if (v->get<bool>() && (c == 5126 || c == 5125))
+                    fail(at(p, "normalized"), "is true on a %s accessor (the specification allows it only "
+                         "on 8- and 16-bit integer components)", c == 5126 ? "FLOAT" : "UNSIGNED_INT");
+            }
         }
     }
 
@@ -1063,6 +1211,7 @@ struct strict_check {
             for (size_t i = 0; i < bufs->size(); i++) {
                 std::string p = at("buffers", i);
                 const json &b = object((*bufs)[i], p);
+                local_uri(b, p);
                 const json *bl = member(b, "byteLength");
                 if (!bl) fail(at(p, "byteLength"), "is missing (required)");
                 integer(*bl, at(p, "byteLength"), 1, INT64_MAX / 2);
@@ -1091,6 +1240,7 @@ struct strict_check {
         buffer_views();
         materials();
         textures();
+        images();
         cameras();
         lights();
         for (auto it = root.begin(); it != root.end(); ++it) {
@@ -1173,7 +1323,7 @@ void fill(const tinygltf::Model &model, const char *label, wrt_gltf_data *out, r
 }
 
 wrt_status read_impl(const void *data, size_t size, const char *base_dir, const char *label,
-                     wrt_gltf_data *out) {
+                     int allow_outside, wrt_gltf_data *out) {
     if (!data || size == 0) throw make_error(WRT_ERR_PARSE, "%s: empty input", label);
     if (size > 0xFFFFFFF0u) throw make_error(WRT_ERR_UNSUPPORTED, "%s: larger than 4 GiB", label);
     const unsigned char *b = static_cast<const unsigned char *>(data);
@@ -1187,12 +1337,14 @@ wrt_status read_impl(const void *data, size_t size, const char *base_dir, const 
         text += 20;
         text_len = len0;
     }
+    check_json_depth(text, text_len, label);
     std::string strict_warnings, ignored;
     {
         nlohmann::json j = nlohmann::json::parse(text, text + text_len, nullptr, false);
         if (!j.is_discarded()) { /* malformed JSON is left to tinygltf's parser error */
             check_references(j, label);
             strict_check sc(j, label);
+            sc.allow_outside = allow_outside != 0;
             sc.run();
             strict_warnings = sc.warnings;
             ignored = sc.ignored_text();
@@ -1200,12 +1352,17 @@ wrt_status read_impl(const void *data, size_t size, const char *base_dir, const 
     }
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(decode_image, nullptr);
-    std::vector<std::string> files_read;
-    tinygltf::FsCallbacks fs = {fs_exists, fs_expand, fs_read, fs_write, &files_read};
+    fs_context fsc;
+    fsc.allow_outside = allow_outside != 0;
+    std::string dir = base_dir ? base_dir : "";
+    if (char *r = realpath(dir.empty() ? "." : dir.c_str(), nullptr)) {
+        fsc.base_real = r;
+        free(r);
+    }
+    tinygltf::FsCallbacks fs = {fs_exists, fs_expand, fs_read, fs_write, &fsc};
     loader.SetFsCallbacks(fs);
     tinygltf::Model model;
     std::string err, warn;
-    std::string dir = base_dir ? base_dir : "";
     bool ok = glb ? loader.LoadBinaryFromMemory(&model, &err, &warn, b, unsigned(size), dir)
                   : loader.LoadASCIIFromString(&model, &err, &warn, reinterpret_cast<const char *>(b),
                                                unsigned(size), dir);
@@ -1228,7 +1385,7 @@ wrt_status read_impl(const void *data, size_t size, const char *base_dir, const 
     out->ignored = strdup(ignored.c_str());
     if (!out->warnings || !out->ignored) throw std::bad_alloc();
     std::string files;
-    for (const std::string &f : files_read) files += f + '\n';
+    for (const std::string &f : fsc.files) files += f + '\n';
     out->files = strdup(files.c_str());
     if (!out->files) throw std::bad_alloc();
     return WRT_OK;
@@ -1237,12 +1394,12 @@ wrt_status read_impl(const void *data, size_t size, const char *base_dir, const 
 } // namespace
 
 extern "C" wrt_status wrt_gltf_read(const void *data, size_t size, const char *base_dir,
-                                    const char *label, wrt_gltf_data *out) {
+                                    const char *label, int allow_outside, wrt_gltf_data *out) {
     if (!out) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_gltf_read: out is NULL");
     memset(out, 0, sizeof *out);
     if (!label) label = "<memory>";
     try {
-        return read_impl(data, size, base_dir, label, out);
+        return read_impl(data, size, base_dir, label, allow_outside, out);
     } catch (const shim_error &e) {
         wrt_gltf_free(out);
         return wrt_fail(e.status, "%s", e.msg.c_str());

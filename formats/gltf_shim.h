@@ -73,13 +73,16 @@ typedef struct wrt_gltf_data {
 } wrt_gltf_data;
 
 /* Parses `size` bytes (JSON text, or GLB when they start with "glTF"). External
- * buffers and images are resolved against `base_dir` ("" = current directory).
+ * buffers and images are resolved against `base_dir` ("" = current directory) and must
+ * lie inside it (links resolved) unless `allow_outside`: a uri that is absolute, has a
+ * scheme or a ".." segment is refused with its JSON path. JSON nested deeper than 128
+ * levels is refused before it is parsed.
  * `label` (the file name) prefixes every error message. On failure returns
  * WRT_ERR_PARSE / WRT_ERR_UNSUPPORTED / WRT_ERR_IO with wrt_last_error() naming
  * what and where, and leaves *out zeroed. Free with wrt_gltf_free. Thread-safe
  * (no shared state). */
 wrt_status wrt_gltf_read(const void *data, size_t size, const char *base_dir, const char *label,
-                         wrt_gltf_data *out);
+                         int allow_outside, wrt_gltf_data *out);
 void wrt_gltf_free(wrt_gltf_data *d);
 
 #ifdef __cplusplus

@@ -11,6 +11,7 @@
 /* wrt_common.h is a C header without linkage braces: give it C linkage here. */
 extern "C" {
 #include "image.h"
+#include "../common/outfile.h"
 }
 
 #include <OpenImageIO/imageio.h>
@@ -37,18 +38,32 @@ static std::string ext_of(const char *path) {
 static wrt_status write_any(const char *path, const void *px, TypeDesc type, int w, int h) {
     if (!path || !px || w <= 0 || h <= 0 || (int64_t)w * h > (int64_t)1 << 28)
         return wrt_fail(WRT_ERR_INVALID_ARG, "image %s: bad size %dx%d", path ? path : "(null)", w, h);
+    /* A regular file only (common/outfile.h): a link, FIFO or device is refused. */
+    if (wrt_output_check(path) != WRT_OK) return WRT_ERR_IO;
     std::string tmp;
     try {
-        tmp = std::string(path) + ".tmp" + std::to_string((long)getpid()) + ext_of(path);
+        /* The temporary is made here with O_EXCL (never through a link planted at its
+         * name); the image writer then fills that regular file. */
+        std::string ext = ext_of(path);
+        char *name = nullptr;
+        int fd = wrt_output_tmpfile(path, ext.c_str(), &name);
+        if (fd < 0) return WRT_ERR_IO;
+        close(fd);
+        tmp = name;
+        free(name);
         std::unique_ptr<ImageOutput> out = ImageOutput::create(path);
         if (!out) {
             std::string e = geterror();
+            unlink(tmp.c_str());
             return wrt_fail(WRT_ERR_IO, "%s: no writer for this file type: %s", path, e.c_str());
         }
         ImageSpec spec(w, h, 3, type);
         if (type == TypeDesc::FLOAT) spec.attribute("compression", "zip");
-        if (!out->open(tmp, spec))
-            return wrt_fail(WRT_ERR_IO, "%s: cannot open for writing: %s", tmp.c_str(), out->geterror().c_str());
+        if (!out->open(tmp, spec)) {
+            std::string e = out->geterror();
+            unlink(tmp.c_str());
+            return wrt_fail(WRT_ERR_IO, "%s: cannot open for writing: %s", tmp.c_str(), e.c_str());
+        }
         bool ok = out->write_image(type, px);
         ok = out->close() && ok;
         if (!ok) {
@@ -56,11 +71,18 @@ static wrt_status write_any(const char *path, const void *px, TypeDesc type, int
             unlink(tmp.c_str());
             return wrt_fail(WRT_ERR_IO, "%s: write failed: %s", path, e.c_str());
         }
+        if (wrt_output_check(path) != WRT_OK) { /* it became a link or a FIFO while we wrote */
+            unlink(tmp.c_str());
+            return WRT_ERR_IO;
+        }
         if (rename(tmp.c_str(), path) != 0) {
             unlink(tmp.c_str());
             return wrt_fail(WRT_ERR_IO, "%s: cannot rename the temporary file over it", path);
         }
         return WRT_OK;
+    } catch (const std::bad_alloc &) {
+        if (!tmp.empty()) unlink(tmp.c_str());
+        return wrt_fail(WRT_ERR_NOMEM, "%s: out of memory while writing", path);
     } catch (const std::exception &e) {
         if (!tmp.empty()) unlink(tmp.c_str());
         return wrt_fail(WRT_ERR_IO, "%s: %s", path, e.what());
@@ -105,6 +127,8 @@ extern "C" wrt_status wrt_image_read(const char *path, float **rgb, int *width, 
         *width = w;
         *height = h;
         return WRT_OK;
+    } catch (const std::bad_alloc &) {
+        return wrt_fail(WRT_ERR_NOMEM, "%s: out of memory while reading", path);
     } catch (const std::exception &e) {
         return wrt_fail(WRT_ERR_IO, "%s: %s", path, e.what());
     } catch (...) {

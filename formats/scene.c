@@ -17,6 +17,8 @@
 #define _POSIX_C_SOURCE 200809L
 #include "scene.h"
 #include "gltf_shim.h"
+#include "../common/limits.h"
+#include "../common/text.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -29,7 +31,7 @@
 #include <string.h>
 
 #define WRT_WELD_REL 1e-6        /* vertex match tolerance, relative to the scene diagonal */
-#define WRT_HUGE_COORD 1e15      /* coordinates beyond this are treated as non-finite */
+#define WRT_HUGE_COORD WRT_MAX_COORD /* coordinates beyond this are treated as non-finite (common/limits.h) */
 #define WRT_COLLINEAR_REL 1e-7   /* |cross| / size^2 under this is collinear */
 #define WRT_PARALLELOGRAM_REL 1e-5
 #define WRT_MAX_EDGE_FAN 8       /* edges shared by more triangles are not paired across */
@@ -486,7 +488,7 @@ static void convert_materials(const wrt_gltf_data *g, int need_default, wrt_scen
         const wrt_gltf_material *m = &g->materials[i];
         wrt_material *o = &s->materials[i];
         int changed = 0;
-        snprintf(o->name, sizeof o->name, "%s", m->name);
+        wrt_utf8_copy(o->name, sizeof o->name, m->name);
         for (int c = 0; c < 3; c++) {
             double bc = m->base_color[c] * (m->has_base_tex ? m->base_tex_mean[c] : 1.0);
             o->base_color[c] = clamp01(bc, &changed);
@@ -531,9 +533,17 @@ static wrt_status convert_lights(const wrt_gltf_data *g, wrt_scene *s, const cha
         if (l->intensity < 0 || l->range < 0 || l->color[0] < 0 || l->color[1] < 0 || l->color[2] < 0)
             return wrt_fail(WRT_ERR_PARSE, "%s: light '%s' (node %d) has a negative intensity, range or color",
                             label, l->name, l->node);
+        if (!wrt_coord3_ok(l->pos[0], l->pos[1], l->pos[2]))
+            return wrt_fail(WRT_ERR_PARSE,
+                            "%s: light '%s' (node %d): position (%g, %g, %g) is outside +-%g, what the "
+                            "computation can carry (common/limits.h)",
+                            label, l->name, l->node, l->pos[0], l->pos[1], l->pos[2], WRT_MAX_COORD);
+        if (l->intensity > WRT_MAX_INTENSITY)
+            return wrt_fail(WRT_ERR_PARSE, "%s: light '%s' (node %d): intensity %g is above %g cd (common/limits.h)",
+                            label, l->name, l->node, l->intensity, WRT_MAX_INTENSITY);
         wrt_light *o = &s->lights[s->nlights++];
         o->type = l->type == WRT_GLTF_LIGHT_SPOT ? WRT_LIGHT_SPOT : WRT_LIGHT_POINT;
-        snprintf(o->name, sizeof o->name, "%s", l->name);
+        wrt_utf8_copy(o->name, sizeof o->name, l->name);
         o->pos = v3(l->pos[0], l->pos[1], l->pos[2]);
         o->dir = v3(l->dir[0], l->dir[1], l->dir[2]);
         for (int c = 0; c < 3; c++) o->color[c] = (float)l->color[c];
@@ -565,9 +575,22 @@ static wrt_status make_camera(const wrt_gltf_data *g, wrt_scene *s, const char *
             !isfinite(gc->zfar))
             return wrt_fail(WRT_ERR_PARSE, "%s: camera of node %d: yfov %g or transform not usable",
                             label, gc->node, gc->yfov);
+        if (!wrt_coord3_ok(gc->pos[0], gc->pos[1], gc->pos[2]))
+            return wrt_fail(WRT_ERR_PARSE,
+                            "%s: camera of node %d: position (%g, %g, %g) is outside +-%g, what the "
+                            "computation can carry (common/limits.h)",
+                            label, gc->node, gc->pos[0], gc->pos[1], gc->pos[2], WRT_MAX_COORD);
         c->pos = v3(gc->pos[0], gc->pos[1], gc->pos[2]);
         c->dir = v3(gc->dir[0], gc->dir[1], gc->dir[2]);
         c->up = v3(gc->up[0], gc->up[1], gc->up[2]);
+        /* A view needs an up that is not along the view direction (else the picture is
+         * black): the node's +Y and -Z, after a skewing matrix, may be nearly parallel. */
+        double sin_up = v3_len(v3_cross(v3_norm(c->dir), v3_norm(c->up)));
+        if (!(sin_up > 1e-4))
+            return wrt_fail(WRT_ERR_PARSE,
+                            "%s: camera of node %d: its up direction (the node's +Y) is parallel to its "
+                            "view direction (-Z): no picture can be framed",
+                            label, gc->node);
         c->yfov = gc->yfov;
         c->aspect = gc->aspect > 0 ? gc->aspect : 0;
         c->znear = gc->znear > 0 ? gc->znear : 0.01;
@@ -592,13 +615,13 @@ static wrt_status make_camera(const wrt_gltf_data *g, wrt_scene *s, const char *
 
 static wrt_status load_common(const void *data, size_t size, const char *base_dir, const char *label,
                               const wrt_load_options *opt, wrt_scene *out) {
-    wrt_load_options defaults = {0, 0};
+    wrt_load_options defaults = {0, 0, 0};
     if (!opt) opt = &defaults;
     double planar_tol = opt->planar_tol > 0 ? opt->planar_tol : 1e-4;
     if (!isfinite(planar_tol) || planar_tol >= 1)
         return wrt_fail(WRT_ERR_INVALID_ARG, "planar_tol %g must be in (0, 1)", opt->planar_tol);
     wrt_gltf_data g;
-    wrt_status st = wrt_gltf_read(data, size, base_dir, label, &g);
+    wrt_status st = wrt_gltf_read(data, size, base_dir, label, opt->allow_outside_files, &g);
     if (st != WRT_OK) return st;
     if (g.warnings && g.warnings[0]) {
         for (char *w = g.warnings; *w; w++)
@@ -805,15 +828,8 @@ void wrt_scene_free(wrt_scene *s) {
 
 /* ------------------------------------------------------------------ summary */
 
-static void json_string(FILE *f, const char *s) {
-    fputc('"', f);
-    for (const unsigned char *c = (const unsigned char *)s; *c; c++) {
-        if (*c == '"' || *c == '\\') fprintf(f, "\\%c", *c);
-        else if (*c < 0x20 || *c == 0x7f) fprintf(f, "\\u%04x", *c);
-        else fputc(*c, f);
-    }
-    fputc('"', f);
-}
+/* Strings through the one JSON writer (common/text.h): valid JSON whatever the names. */
+static void json_string(FILE *f, const char *s) { wrt_json_str(f, s); }
 
 /* Numbers in JSON must be finite. */
 static void json_num(FILE *f, double x) {

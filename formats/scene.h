@@ -42,6 +42,7 @@ typedef struct wrt_scene {
 typedef struct wrt_load_options {
     int drop_bad;        /* 0: refuse a scene with any problem; 1: drop bad triangles with a warning */
     double planar_tol;   /* relative tolerance for planarity (0 = default 1e-4) */
+    int allow_outside_files; /* 1: buffers and images may lie outside the scene's folder */
 } wrt_load_options;
 
 /* Loads a .gltf or .glb. On failure returns a status with wrt_last_error() naming

@@ -9,13 +9,18 @@
  * player/platform.h. */
 #include <ctype.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "../cli/cli.h"
+#include "../common/limits.h"
+#include "../common/outfile.h"
+#include "../common/text.h"
 #include "../formats/gto.h"
 #include "../formats/image.h"
 #include "overlay.h"
@@ -219,6 +224,8 @@ typedef struct stage_ms {
 typedef struct app {
     options *o;
     wrt_gto g;
+    void *gto_mem;       /* the file's bytes, private (read_gto) */
+    struct stat gto_st;  /* the file as it was read: a change is noticed in the window */
     wrt_platform *plat;
     wrt_runtime *rl;
     wrt_render *rd;
@@ -229,6 +236,61 @@ typedef struct app {
     wrt_render_mode mode;
     int relit_once;
 } app;
+
+/* Reads the .gto into private memory and validates it there (wrt_gto_open_memory). It is
+ * not mapped: a file replaced or truncated while the player runs (a new bake copied over
+ * it, a truncate) cannot pull pages from under the runtime, which a shared mapping would
+ * turn into SIGBUS or garbage. *mem receives the bytes (free after wrt_gto_close), *sb
+ * the file's stat. O_NONBLOCK: a FIFO or device is refused by fstat, not waited on. */
+static wrt_status read_gto(const char *path, wrt_gto *g, void **mem, struct stat *sb) {
+    memset(g, 0, sizeof *g);
+    *mem = NULL;
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
+    if (fd < 0) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    if (fstat(fd, sb) != 0) {
+        int e = errno;
+        close(fd);
+        return wrt_fail(WRT_ERR_IO, "%s: cannot stat: %s", path, strerror(e));
+    }
+    if (!S_ISREG(sb->st_mode)) {
+        close(fd);
+        return wrt_fail(WRT_ERR_NOT_OURS, "%s: not a regular file (%s)", path,
+                        S_ISDIR(sb->st_mode) ? "a directory" : S_ISFIFO(sb->st_mode) ? "a FIFO"
+                        : S_ISCHR(sb->st_mode) || S_ISBLK(sb->st_mode) ? "a device" : "a special file");
+    }
+    size_t len = (size_t)sb->st_size, got = 0;
+    unsigned char *buf = malloc(len + 8); /* malloc's alignment (16) is what the reader needs (8) */
+    if (!buf) {
+        close(fd);
+        return wrt_fail(WRT_ERR_NOMEM, "%s: out of memory reading %zu bytes", path, len);
+    }
+    memset(buf, 0, 8);
+    while (got < len) {
+        ssize_t r = read(fd, buf + got, len - got);
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0) break;
+        got += (size_t)r;
+    }
+    close(fd);
+    if (got != len) { /* truncated while we read: validated as the bytes we have */
+        len = got;
+    }
+    wrt_status st = wrt_gto_open_memory(buf, len, g);
+    if (st != WRT_OK) {
+        char msg[1024];
+        snprintf(msg, sizeof msg, "%s", wrt_last_error());
+        free(buf);
+        return wrt_fail(st, "%s: %s", path, msg);
+    }
+    *mem = buf;
+    return WRT_OK;
+}
+
+static void close_gto(wrt_gto *g, void **mem) {
+    wrt_gto_close(g);
+    free(*mem);
+    *mem = NULL;
+}
 
 static void quad_centroid(const wrt_gto_quad *q, double c[3]) {
     for (int k = 0; k < 3; k++) c[k] = 0.25 * (q->p[0][k] + q->p[1][k] + q->p[2][k] + q->p[3][k]);
@@ -325,25 +387,28 @@ static int save_picture(app *a, const char *path) {
     return 0;
 }
 
-static void json_str(FILE *f, const char *s, size_t max) {
-    fputc('"', f);
-    for (size_t i = 0; i < max && s[i]; i++) {
-        unsigned char c = (unsigned char)s[i];
-        if (c == '"' || c == '\\') fprintf(f, "\\%c", c);
-        else if (c < 0x20) fprintf(f, "\\u%04x", c);
-        else fputc(c, f);
+/* Strings and numbers through the one JSON writer (common/text.h): valid JSON whatever
+ * the names hold, null for a number that is not finite. */
+static void json_str(FILE *f, const char *s, size_t max) { wrt_json_strn(f, s, max); }
+
+/* ", "KEY": [a, b, c]" (n > 1) or ", "KEY": a" (n == 1). */
+static void json_key_nums(FILE *f, const char *key, const double *v, int n, int digits) {
+    fprintf(f, ", \"%s\": ", key);
+    if (n > 1) fputc('[', f);
+    for (int i = 0; i < n; i++) {
+        if (i) fputs(", ", f);
+        wrt_json_num(f, v[i], digits);
     }
-    fputc('"', f);
+    if (n > 1) fputc(']', f);
 }
 
 static int write_stats(app *a, const char *path) {
-    char tmp[4096];
-    snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid());
-    FILE *f = fopen(tmp, "w");
-    if (!f) {
-        fprintf(stderr, "wrt-play: cannot write %s: %s\n", tmp, strerror(errno));
+    wrt_output out; /* a regular file only, through a temporary (common/outfile.h) */
+    if (wrt_output_begin(path, "w", &out) != WRT_OK) {
+        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         return EXIT_OUTPUT;
     }
+    FILE *f = out.f;
     fprintf(f, "{\n  \"file\": ");
     json_str(f, a->o->file, 4096);
     fprintf(f, ",\n  \"nquads\": %u,\n  \"lights\": [", a->g.nquads);
@@ -351,11 +416,14 @@ static int write_stats(app *a, const char *path) {
         const wrt_light *l = &a->lights[i];
         fprintf(f, "%s\n    {\"name\": ", i ? "," : "");
         json_str(f, l->name, sizeof l->name);
-        fprintf(f, ", \"type\": \"%s\", \"pos\": [%.17g, %.17g, %.17g], \"dir\": [%.9g, %.9g, %.9g], "
-                   "\"intensity\": %.9g, \"scale\": %.9g}",
-                l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->pos.x, l->pos.y, l->pos.z,
-                l->dir.x, l->dir.y, l->dir.z, l->intensity,
-                i < WRT_RENDER_MAX_LIGHTS ? a->scales[i] : 0.0f);
+        fprintf(f, ", \"type\": \"%s\"", l->type == WRT_LIGHT_SPOT ? "spot" : "point");
+        double pos[3] = {l->pos.x, l->pos.y, l->pos.z}, dir[3] = {l->dir.x, l->dir.y, l->dir.z};
+        double in = l->intensity, sc = i < WRT_RENDER_MAX_LIGHTS ? a->scales[i] : 0.0f;
+        json_key_nums(f, "pos", pos, 3, 17);
+        json_key_nums(f, "dir", dir, 3, 9);
+        json_key_nums(f, "intensity", &in, 1, 9);
+        json_key_nums(f, "scale", &sc, 1, 9);
+        fputc('}', f);
     }
     fprintf(f, "\n  ],\n  \"quads\": [");
     for (uint32_t q = 0; q < a->g.nquads; q++) {
@@ -365,20 +433,18 @@ static int write_stats(app *a, const char *path) {
         wrt_runtime_quad_irradiance(a->rl, (int)q, dir, ind);
         fprintf(f, "%s\n    {\"quad\": %u, \"mesh\": ", q ? "," : "", q);
         json_str(f, Q->name < a->g.nnames ? a->g.names[Q->name] : "", 64);
-        fprintf(f, ", \"material\": %u, \"area\": %.9g, \"centroid\": [%.17g, %.17g, %.17g], "
-                   "\"normal\": [%.9g, %.9g, %.9g], \"direct\": [%.9g, %.9g, %.9g], "
-                   "\"indirect\": [%.9g, %.9g, %.9g]}",
-                Q->material, Q->area, c[0], c[1], c[2], Q->n[0], Q->n[1], Q->n[2],
-                dir[0], dir[1], dir[2], ind[0], ind[1], ind[2]);
+        double area = Q->area, nrm[3] = {Q->n[0], Q->n[1], Q->n[2]};
+        fprintf(f, ", \"material\": %u", Q->material);
+        json_key_nums(f, "area", &area, 1, 9);
+        json_key_nums(f, "centroid", c, 3, 17);
+        json_key_nums(f, "normal", nrm, 3, 9);
+        json_key_nums(f, "direct", dir, 3, 9);
+        json_key_nums(f, "indirect", ind, 3, 9);
+        fputc('}', f);
     }
     fprintf(f, "\n  ]\n}\n");
-    int bad_write = ferror(f);
-    bad_write |= fflush(f) != 0;
-    bad_write |= fsync(fileno(f)) != 0;
-    bad_write |= fclose(f) != 0;
-    if (bad_write || rename(tmp, path) != 0) {
-        fprintf(stderr, "wrt-play: cannot write %s\n", path);
-        unlink(tmp);
+    if (wrt_output_commit(&out) != WRT_OK) {
+        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         return EXIT_OUTPUT;
     }
     return 0;
@@ -488,6 +554,7 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
         }
         cur.t = t;
         while ((tok = strtok_r(NULL, " \t\r\n", &save))) {
+            const char *key = tok;
             double *dst = NULL;
             int nv = 3;
             if (!strcmp(tok, "light_pos")) dst = cur.lpos;
@@ -501,7 +568,13 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
             }
             for (int k = 0; k < nv; k++) {
                 tok = strtok_r(NULL, " \t\r\n", &save);
-                if (!tok || !parse_num(tok, -1e300, 1e300, &dst[k])) goto bad_line;
+                /* within what the computation can carry (common/limits.h) */
+                if (!tok || (nv == 1 ? !parse_num(tok, 0, WRT_MAX_INTENSITY, &dst[k])
+                                     : !parse_num(tok, -WRT_MAX_COORD, WRT_MAX_COORD, &dst[k]))) {
+                    fprintf(stderr, "wrt-play: %s:%d: %s needs %s\n", path, lineno, key,
+                            nv == 1 ? "an intensity in [0, 1e12] cd" : "three numbers, each within +-1e9");
+                    goto fail;
+                }
             }
         }
         if (n == cap) {
@@ -544,13 +617,23 @@ static void apply_keyframe(app *a, const keyframe *k0, const keyframe *k1, doubl
     l->intensity = (float)(k0->lint + (k1->lint - k0->lint) * s);
 }
 
+/* The most pictures one --script run writes. */
+#define WRT_PLAY_MAX_FRAMES 100000
+
 static int run_script(app *a) {
     keyframe *kf = NULL;
     int n = 0, rc = read_script(a, a->o->script, &kf, &n);
     if (rc) return rc;
-    int frames = n;
     double fps = a->o->script_fps;
-    if (fps > 0) frames = (int)floor((kf[n - 1].t - kf[0].t) * fps + 1e-9) + 1;
+    /* bounded: a keyframe at t = 1e6 with --script-fps 1000 asked for 10^9 pictures */
+    double want = fps > 0 ? floor((kf[n - 1].t - kf[0].t) * fps + 1e-9) + 1 : n;
+    if (!(want <= WRT_PLAY_MAX_FRAMES)) {
+        fprintf(stderr, "wrt-play: %s: the keyframes ask for %.4g frames (t %g to %g s%s); at most %d\n",
+                a->o->script, want, kf[0].t, kf[n - 1].t, fps > 0 ? " at --script-fps" : "", WRT_PLAY_MAX_FRAMES);
+        free(kf);
+        return EXIT_INPUT;
+    }
+    int frames = (int)want;
     char path[4096];
     if (!format_frame(a->o->pattern, 0, path, sizeof path)) {
         fprintf(stderr, "wrt-play: --out-pattern '%s' needs exactly one %%d or %%0Nd\n", a->o->pattern);
@@ -631,8 +714,10 @@ static int run_bench(app *a) {
             if (k == 6) med_frame = m;
             printf("%s\"%s\": %.3f", k ? ", " : "", names[k], m);
         }
-        printf("}, \"fps\": %.2f, \"fps_mean\": %.2f, \"renderer\": \"%s\"}\n",
-               med_frame > 0 ? 1e3 / med_frame : 0.0, n / total, wrt_render_gl_info());
+        printf("}, \"fps\": %.2f, \"fps_mean\": %.2f, \"renderer\": ", med_frame > 0 ? 1e3 / med_frame : 0.0,
+               n / total);
+        wrt_json_str(stdout, wrt_render_gl_info());
+        printf("}\n");
     }
     for (int k = 0; k < 7; k++) free(col[k]);
     return rc;
@@ -715,7 +800,9 @@ static int save_window(app *a, const char *path) {
  * renderer; the camera stays, the lights too if the file has as many. */
 static int win_reload(app *a, win_state *w) {
     wrt_gto g2;
-    wrt_status s = wrt_gto_open(a->o->file, &g2);
+    void *mem2;
+    struct stat st2;
+    wrt_status s = read_gto(a->o->file, &g2, &mem2, &st2);
     if (s) {
         say(w, "reload failed, keeping the old file: %s", wrt_last_error());
         return 0;
@@ -725,8 +812,10 @@ static int win_reload(app *a, win_state *w) {
     a->rd = NULL;
     a->rl = NULL;
     int same_lights = g2.nlights == a->g.nlights;
-    wrt_gto_close(&a->g);
+    close_gto(&a->g, &a->gto_mem);
     a->g = g2;
+    a->gto_mem = mem2;
+    a->gto_st = st2;
     wrt_runtime_options ro = {.max_tex_res = a->o->max_tex_res, .threads = a->o->threads};
     wrt_error err;
     if (wrt_runtime_open_memory(a->g.map, a->g.size, &ro, &a->rl, &err)) {
@@ -887,8 +976,9 @@ static int run_window(app *a) {
     /* yaw and the lights' up/down keys turn and move about the world's up, glTF's +Y,
      * whatever the camera's roll or tilt */
     wrt_v3 up = v3(0, 1, 0);
-    double last = wrt_now(), title_at = 0;
+    double last = wrt_now(), title_at = 0, stat_at = 0;
     int frame = 0, rc = 0, was_idle = -1, dirty = 1;
+    struct stat seen = a->gto_st; /* the file as last noticed */
     stage_ms t;
     memset(&t, 0, sizeof t);
     for (;;) {
@@ -897,6 +987,19 @@ static int run_window(app *a) {
         if (in.close_requested) break;
         double now = wrt_now(), dt = fmin(now - last, 0.1);
         last = now;
+        /* A new bake copied over the file: say so (once per change); the data read at the
+         * start stays in use until F5 reads the new file. */
+        if (now - stat_at > 1) {
+            struct stat st;
+            stat_at = now;
+            if (stat(a->o->file, &st) == 0 &&
+                (st.st_ino != seen.st_ino || st.st_size != seen.st_size || st.st_mtim.tv_sec != seen.st_mtim.tv_sec ||
+                 st.st_mtim.tv_nsec != seen.st_mtim.tv_nsec)) {
+                seen = st;
+                say(&w, "%s changed on disk: F5 reads it (this view keeps the data read before)", a->o->file);
+                dirty = 1;
+            }
+        }
         double speed = size * 0.3 * dt * (in.down[WRT_KEY_SHIFT] ? 4 : 1);
         int quit = 0, shot = 0, changed = in.nevents > 0 || in.mouse_dx != 0 || in.mouse_dy != 0;
         wrt_light *sl = &a->lights[w.sel];
@@ -1042,13 +1145,14 @@ const char *__asan_default_options(void);
 const char *__asan_default_options(void) { return "detect_leaks=0"; }
 
 int main(int argc, char **argv) {
+    wrt_cli_check_stdout_at_exit("wrt-play"); /* results lost on stdout: exit 3 */
     options o;
     if (!parse_args(argc, argv, &o)) return EXIT_USAGE;
     app a;
     memset(&a, 0, sizeof a);
     a.o = &o;
     a.mode = o.mode;
-    wrt_status s = wrt_gto_open(o.file, &a.g);
+    wrt_status s = read_gto(o.file, &a.g, &a.gto_mem, &a.gto_st);
     if (s) {
         fprintf(stderr, "wrt-play: %s: %s: %s\n", o.file, wrt_status_str(s), wrt_last_error());
         return EXIT_INPUT;
@@ -1058,7 +1162,7 @@ int main(int argc, char **argv) {
     int rc = setup_view(&a) ? setup_lights(&a) : EXIT_USAGE;
     if (rc) {
         free(a.lights);
-        wrt_gto_close(&a.g);
+        close_gto(&a.g, &a.gto_mem);
         return rc;
     }
     if (o.headless) s = wrt_platform_egl_create(&a.plat);
@@ -1066,7 +1170,7 @@ int main(int argc, char **argv) {
     if (s) {
         fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
         free(a.lights);
-        wrt_gto_close(&a.g);
+        close_gto(&a.g, &a.gto_mem);
         return EXIT_GL;
     }
     if (a.plat->has_window && a.plat->fb_width > 0) {
@@ -1117,6 +1221,6 @@ done:
     wrt_runtime_close(a.rl);
     free(a.lights);
     wrt_platform_destroy(a.plat);
-    wrt_gto_close(&a.g);
+    close_gto(&a.g, &a.gto_mem);
     return rc;
 }

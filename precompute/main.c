@@ -15,6 +15,8 @@
 #include <unistd.h>
 
 #include "../cli/cli.h"
+#include "../common/outfile.h"
+#include "../common/text.h"
 #include "../formats/gto.h"
 #include "../formats/scene.h"
 #include "../verify/compare.h"
@@ -64,6 +66,8 @@ static void usage(FILE *f) {
         "                         when it would pass; default half the physical memory\n"
         "  --threads N            worker threads (default: all cores); output is identical\n"
         "  --drop-bad             drop bad triangles with a warning instead of refusing\n"
+        "  --allow-outside-files  let the scene's buffers and images lie outside its folder\n"
+        "                         (refused by default: an absolute uri, '..' or a link out)\n"
         "  --provenance-timings   also store the bake's timings in the file (they differ from\n"
         "                         run to run: by default equal inputs give equal bytes)\n"
         "  --reproducible         the default (no timings stored); kept for older scripts\n"
@@ -156,7 +160,7 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
 /* The command line, parsed. */
 typedef struct bake_args {
     const char *scene_path, *out_path, *scan, *info;
-    int json, force_progress, quiet, print_config, timings, drop_bad;
+    int json, force_progress, quiet, print_config, timings, drop_bad, allow_outside;
     double max_error;   /* < 0: no accuracy check */
     int check_paths;
     wrt_bake_options o;
@@ -256,6 +260,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--no-tail")) o->no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o->no_balance = 1;
         else if (!strcmp(a, "--drop-bad")) A->drop_bad = 1;
+        else if (!strcmp(a, "--allow-outside-files")) A->allow_outside = 1;
         else if (!strcmp(a, "--reproducible")) A->timings = 0;
         else if (!strcmp(a, "--provenance-timings")) A->timings = 1;
         else if (!strcmp(a, "--json")) A->json = 1;
@@ -272,6 +277,19 @@ static int parse_args(int argc, char **argv, bake_args *A) {
 
 /* ---------------------------------------------------------------- the modes */
 
+/* --info and --scan print text from the file (provenance, names): through
+ * wrt_cli_print_safely, so that escape codes in it cannot drive the terminal. */
+struct report_args { const char *path; const wrt_scene *scene; int json; };
+static int print_info(void *u, FILE *f) {
+    const struct report_args *a = u;
+    return (int)wrt_gto_print_info(a->path, a->json, f);
+}
+static int print_summary(void *u, FILE *f) {
+    const struct report_args *a = u;
+    wrt_scene_print_summary(a->scene, a->json, f);
+    return 0;
+}
+
 /* --info FILE.gto */
 static int run_info(const bake_args *A) {
     const char *info = A->info;
@@ -279,7 +297,8 @@ static int run_info(const bake_args *A) {
         fprintf(stderr, "wrt-bake: error: %s: %s\n", info, strerror(errno));
         return WRT_EXIT_INPUT;
     }
-    wrt_status st = wrt_gto_print_info(info, A->json, stdout);
+    struct report_args ia = {info, NULL, A->json};
+    wrt_status st = (wrt_status)wrt_cli_print_safely(stdout, print_info, &ia); /* no raw escapes */
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return WRT_EXIT_INPUT; /* a .gto that cannot be read is bad input, missing or not */
@@ -309,7 +328,8 @@ static int run_scan(const bake_args *A, const wrt_load_options *lo) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return WRT_EXIT_INPUT;
     }
-    wrt_scene_print_summary(&s, A->json, stdout);
+    struct report_args sa = {NULL, &s, A->json};
+    wrt_cli_print_safely(stdout, print_summary, &sa); /* names' escape codes shown as \xNN */
     wrt_scene_free(&s);
     return 0;
 }
@@ -321,6 +341,7 @@ static int run_scan(const bake_args *A, const wrt_load_options *lo) {
 static int check_output(const bake_args *A) {
     const char *inputs[1] = {A->scene_path};
     wrt_status cst = wrt_gto_check_output(A->out_path, inputs, 1);
+    if (cst == WRT_OK) cst = wrt_output_check(A->out_path); /* a regular file or nothing (common/outfile.h) */
     if (cst != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return cst == WRT_ERR_INVALID_ARG ? WRT_EXIT_USAGE : WRT_EXIT_OUTPUT;
@@ -385,12 +406,9 @@ static char *provenance_json(const bake_args *A, const wrt_scene *s, const wrt_b
     char *prov = NULL;
     size_t prov_len = 0;
     FILE *pf = open_memstream(&prov, &prov_len);
-    fprintf(pf, "{\"tool\":\"wrt-bake\",\"version\":\"%s\",\"source\":\"", WRT_VERSION_STRING);
-    for (const char *p = A->scene_path; *p; p++) {
-        if (*p == '"' || *p == '\\') fputc('\\', pf);
-        if ((unsigned char)*p >= 0x20) fputc(*p, pf);
-    }
-    fprintf(pf, "\",\"source_hash\":\"%016llx\",\"options\":", (unsigned long long)s->source_hash);
+    fprintf(pf, "{\"tool\":\"wrt-bake\",\"version\":\"%s\",\"source\":", WRT_VERSION_STRING);
+    wrt_json_str(pf, A->scene_path); /* common/text.h: valid JSON whatever the path holds */
+    fprintf(pf, ",\"source_hash\":\"%016llx\",\"options\":", (unsigned long long)s->source_hash);
     json_options(pf, &A->o);
     fprintf(pf, ",");
     json_counters(pf, c);
@@ -484,8 +502,11 @@ typedef struct bake_times { double t_write, t_total; long long bytes; accuracy a
 static void print_json_summary(const bake_args *A, const wrt_scene *s, const wrt_bake_result *r, const bake_times *T) {
     const wrt_bake_counters *c = &r->c;
     const wrt_bake_options *o = &A->o;
-    printf("{\"scene\":\"%s\",\"output\":\"%s\",\"quads\":%d,\"bytes\":%lld,", A->scene_path, A->out_path, s->nquads,
-           T->bytes);
+    printf("{\"scene\":");
+    wrt_json_str(stdout, A->scene_path);
+    printf(",\"output\":");
+    wrt_json_str(stdout, A->out_path);
+    printf(",\"quads\":%d,\"bytes\":%lld,", s->nquads, T->bytes);
     printf("\"seconds\":{\"dto\":%.4f,\"balance\":%.4f,\"gto\":%.4f,\"write\":%.4f,\"total\":%.4f,"
            "\"rays_thread\":%.4f},", c->t_dto, c->t_balance, c->t_gto, T->t_write, T->t_total, c->t_rays);
     if (A->max_error >= 0)
@@ -577,6 +598,7 @@ static int bake(bake_args *A, const wrt_load_options *lo) {
 }
 
 int main(int argc, char **argv) {
+    wrt_cli_check_stdout_at_exit("wrt-bake"); /* results lost on stdout: exit 3 */
     install_interrupt_exit(); /* first: a signal from here on exits 4, writing nothing */
     bake_args A;
     int rc = parse_args(argc, argv, &A);
@@ -588,7 +610,7 @@ int main(int argc, char **argv) {
         return 0;
     }
     if (A.info) return run_info(&A);
-    wrt_load_options lo = {.drop_bad = A.drop_bad};
+    wrt_load_options lo = {.drop_bad = A.drop_bad, .allow_outside_files = A.allow_outside};
     if (A.scan) return run_scan(&A, &lo);
     if (!A.scene_path) { usage(stderr); return WRT_EXIT_USAGE; }
     if (!A.out_path) { fprintf(stderr, "wrt-bake: error: no output file (-o OUT.gto)\n"); return WRT_EXIT_USAGE; }

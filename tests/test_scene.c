@@ -109,7 +109,7 @@ static char *gltf_text(const spec *sp) {
 }
 
 static wrt_status load_text(const char *text, int drop_bad, wrt_scene *s) {
-    wrt_load_options opt = {drop_bad, 0};
+    wrt_load_options opt = {.drop_bad = drop_bad};
     return wrt_scene_load_memory(text, strlen(text), tmpdir, &opt, s);
 }
 

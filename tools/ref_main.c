@@ -9,6 +9,7 @@
  * section 6 (Kontkanen et al. 2006). */
 #include "verify/reference.h"
 #include "cli/cli.h"
+#include "common/outfile.h"
 
 /* The OpenImageIO shim is optional at build time so that this tool stands alone. */
 #if defined(__has_include)
@@ -56,21 +57,12 @@ static void usage(FILE *f) {
 
 /* Writes a little-endian PFM (bottom row first) through a temporary file. */
 static wrt_status write_pfm(const char *path, const float *rgb, int w, int h) {
-    char tmp[4096];
-    if (snprintf(tmp, sizeof tmp, "%s.tmp", path) >= (int)sizeof tmp)
-        return wrt_fail(WRT_ERR_INVALID_ARG, "%s: path too long", path);
-    FILE *f = fopen(tmp, "wb");
-    if (!f) return wrt_fail(WRT_ERR_IO, "%s: %s", tmp, strerror(errno));
-    int ok = fprintf(f, "PF\n%d %d\n-1.0\n", w, h) > 0;
-    for (int y = h - 1; y >= 0 && ok; y--)
-        ok = fwrite(rgb + (size_t)3 * w * y, sizeof(float), (size_t)3 * w, f) == (size_t)3 * w;
-    ok = (fflush(f) == 0) && ok;
-    ok = (fclose(f) == 0) && ok;
-    if (!ok || rename(tmp, path) != 0) {
-        remove(tmp);
-        return wrt_fail(WRT_ERR_IO, "%s: write failed", path);
-    }
-    return WRT_OK;
+    wrt_output o; /* a regular file only, through a temporary (common/outfile.h) */
+    wrt_status st = wrt_output_begin(path, "wb", &o);
+    if (st != WRT_OK) return st;
+    fprintf(o.f, "PF\n%d %d\n-1.0\n", w, h);
+    for (int y = h - 1; y >= 0; y--) fwrite(rgb + (size_t)3 * w * y, sizeof(float), (size_t)3 * w, o.f);
+    return wrt_output_commit(&o);
 }
 
 typedef struct point_list { wrt_v3 *p; int *quad; double *uv; int n; } point_list;
@@ -155,6 +147,7 @@ static double mean_of_f(const float *v, size_t n) {
 static const char *T = "wrt-ref";
 
 int main(int argc, char **argv) {
+    wrt_cli_check_stdout_at_exit("wrt-ref"); /* results lost on stdout: exit 3 */
     const char *scene_path = NULL, *out_prefix = "ref", *points_path = NULL;
     double exposure = 0;
     int pfm = 0;

@@ -15,6 +15,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "cli/cli.h"
 #include "common/wrt_common.h"
+#include "common/outfile.h"
 
 #include <errno.h>
 #include <stdarg.h>
@@ -764,21 +765,11 @@ static void write_gltf(const sg_scene *s, sbuf *out) {
 
 /* Writes `text` to `path` through a temporary file renamed over it. */
 static wrt_status write_file(const char *path, const char *text, size_t n) {
-    char tmp[4096];
-    if (snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid()) >= (int)sizeof tmp)
-        return wrt_fail(WRT_ERR_INVALID_ARG, "%s: path too long", path);
-    FILE *f = fopen(tmp, "wb");
-    if (!f) return wrt_fail(WRT_ERR_IO, "%s: %s", tmp, strerror(errno));
-    int ok = fwrite(text, 1, n, f) == n;
-    ok = (fflush(f) == 0) && ok;
-    ok = (fsync(fileno(f)) == 0) && ok;
-    ok = (fclose(f) == 0) && ok;
-    if (!ok || rename(tmp, path) != 0) {
-        int e = errno;
-        remove(tmp);
-        return wrt_fail(WRT_ERR_IO, "%s: %s", path, strerror(e));
-    }
-    return WRT_OK;
+    wrt_output o; /* a regular file only, through a temporary (common/outfile.h) */
+    wrt_status st = wrt_output_begin(path, "wb", &o);
+    if (st != WRT_OK) return st;
+    fwrite(text, 1, n, o.f);
+    return wrt_output_commit(&o);
 }
 
 static void free_scene(sg_scene *s) {
@@ -860,6 +851,7 @@ static int mkdir_p(const char *dir) {
 }
 
 int main(int argc, char **argv) {
+    wrt_cli_check_stdout_at_exit("wrt-scenegen"); /* results lost on stdout: exit 3 */
     sg_options opt = sg_defaults();
     const char *scene = NULL, *out = NULL, *all = NULL;
     for (int i = 1; i < argc; i++) {
