@@ -52,9 +52,10 @@ PLAY_OBJ := $(call obj,$(PLAY_SRC))
 REF_OBJ := $(call obj,$(REF_SRC))
 ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(REF_OBJ) $(CORE_OBJ)
 
-# The runtime library (include/wrt.h): the base, the .gto reader and the relighting core;
-# no loader, no image I/O, no OpenGL.
-LIB_SRC := $(wildcard common/*.c) formats/gto.c player/relight.c player/gather.c player/wrt_runtime.c
+# The runtime library (include/wrt.h): the base, the .gto reader and the relighting core
+# (player/relight*.c, the final gather, the API); no loader, no image I/O, no OpenGL.
+RUNTIME_SRC := $(sort $(wildcard player/relight*.c)) player/gather.c player/wrt_runtime.c
+LIB_SRC := $(wildcard common/*.c) formats/gto.c $(RUNTIME_SRC)
 LIB_OBJ := $(call obj,$(LIB_SRC))
 PIC_OBJ := $(patsubst %.c,$(BUILD)/pic/%.o,$(LIB_SRC))
 LIBWRT := $(BUILD)/libwrt.a $(BUILD)/libwrt.so
@@ -121,7 +122,7 @@ $(BUILD)/obj/%.o: %.cpp | $(BUILD)/.deps-checked
 	@$(if $(Q),echo "  CXX     $<")
 	$(Q)$(CXX) $(CPPFLAGS) $(CXXFLAGS) -c $< -o $@
 
-$(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(call obj,player/relight.c player/gather.c player/wrt_runtime.c tools/reference.c tools/compare.c) $(CORE_OBJ)
+$(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(call obj,$(RUNTIME_SRC) tools/reference.c tools/compare.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE) $(LIBS_IMG)
 
@@ -133,7 +134,7 @@ $(BUILD)/wrt-ref: $(call obj,tools/ref_main.c) $(REF_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
-$(BUILD)/wrt-compare: $(call obj,tools/compare_main.c tools/compare.c player/relight.c player/gather.c player/wrt_runtime.c) $(REF_OBJ) $(CORE_OBJ)
+$(BUILD)/wrt-compare: $(call obj,tools/compare_main.c tools/compare.c $(RUNTIME_SRC)) $(REF_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
@@ -147,7 +148,7 @@ PART_common := $(wildcard common/*.c)
 PART_formats := $(wildcard formats/*.c) $(wildcard formats/*.cpp)
 PART_cli := $(wildcard cli/*.c)
 PART_bake := $(BAKE_SRC)
-PART_runtime := player/relight.c player/gather.c player/wrt_runtime.c
+PART_runtime := $(RUNTIME_SRC)
 PART_display := $(filter-out player/main.c $(PART_runtime),$(wildcard player/*.c))
 PART_verify := tools/reference.c tools/compare.c
 ALL_PARTS := display cli verify bake runtime formats common

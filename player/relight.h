@@ -26,7 +26,14 @@ typedef struct wrt_relight_options {
     int recon_keep;      /* the bake's cell averages kept as computed down to 2^keep cells
                           * a side, resampled smoothly below (0 = the default, 3) */
     int no_gather;       /* 1: glossy quads show the coarse angular synthesis only, no
-                          * final gather (player/gather.h); also WRT_FINAL_GATHER=0 */
+                          * final gather (player/gather.h); for before/after figures */
+    int no_light_splat;  /* 1: the light's direction on a glossy quad truncated to its
+                          * finest angular cell instead of spread over one cell centred
+                          * on it (a bake without K; before/after figures) */
+    int gather_points;   /* 16 or 32: every glossy quad's final-gather points a side;
+                          * 0 (the default): a point per texel on a sharp lobe, else 16 */
+    int no_avx;          /* 1: K's rows in fours without AVX (the same sums to the bit;
+                          * for the test that says so, and A/B timings) */
     void *(*alloc)(size_t size, void *user); /* every block of the relighter (both or neither; */
     void (*free)(void *p, void *user);        /* NULL: malloc and free), the update's scratch */
     void *alloc_user;                         /* too (then from the worker threads: thread-safe) */
@@ -44,6 +51,16 @@ typedef struct wrt_relight_timings { /* milliseconds of the last update */
     int quads_resynthesized;
     int lights_changed;
 } wrt_relight_timings;
+
+/* The before/after knobs (no_gather, no_light_splat, gather_points, no_avx) for the
+ * relighters a program creates through a layer whose options do not carry them yet
+ * (wrt_runtime_options, include/wrt.h; wrt-compare's --no-final-gather, --no-light-splat,
+ * --gather-points): a zero knob of the options passed to wrt_relight_create takes the
+ * value set here (the other fields of `o` are not read). Call it at the program's start,
+ * before any relighter exists; not thread-safe. Transitional: once the runtime's options
+ * carry the knobs, the program sets them there and this call goes. No environment
+ * variable is read. */
+void wrt_relight_set_program_knobs(const wrt_relight_options *o);
 
 /* `g` must outlive the relighter (it points into the mapping). */
 wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out);

@@ -1,4 +1,4 @@
-/* test_relight.c: tests of the run-time core (player/relight.c, paper section 5) on
+/* test_relight.c: tests of the run-time core (player/relight*.c, paper section 5) on
  * operators built in memory: projection against the analytic irradiance I cos / d^2,
  * a projection -> identity operator -> synthesis round trip, linearity in the lights,
  * exact zeros (light behind, spot away), the glossy BRDF table against an independent
@@ -1352,11 +1352,10 @@ static void test_first_bounce_cache(void) {
         CHECK(memcmp(wrt_relight_Y(r), wrt_relight_Y(f), n3 * sizeof(float)) == 0, "step %d: Y as a fresh relighter's", step);
         wrt_relight_destroy(f);
     }
-    /* Y's rows in fours with AVX or without (WRT_NO_AVX): the same sums in the same order */
-    setenv("WRT_NO_AVX", "1", 1);
+    /* Y's rows in fours with AVX or without (options.no_avx): the same sums in the same order */
     wrt_relight *ns;
-    CHECK(wrt_relight_create(&s.g, NULL, &ns) == WRT_OK, "%s", wrt_last_error());
-    unsetenv("WRT_NO_AVX");
+    wrt_relight_options noavx = {.no_avx = 1};
+    CHECK(wrt_relight_create(&s.g, &noavx, &ns) == WRT_OK, "%s", wrt_last_error());
     wrt_relight_set_eye(ns, eye);
     wrt_relight_set_lights(ns, L, sc, 2);
     wrt_relight_update(ns, NULL);
