@@ -27,29 +27,37 @@ static int same_light(const wrt_light *a, const wrt_light *b) {
            a->outer_cone == b->outer_cone;
 }
 
+/* A new light slot's arrays: its roots, its c over K's columns (with K) and room for its
+ * projection (each function at most once), so that no update allocates. -1: no memory
+ * (what was made is freed). */
+static int light_slot_init(wrt_relight *r, light_state *ls) {
+    size_t nf = (size_t)r->g->nfuncs + 1;
+    ls->root = relight_calloc(r, (size_t)r->g->nquads * 3 + 1, sizeof(double));
+    if (r->g->nkcols) ls->kc = relight_calloc(r, (size_t)r->g->nkcols * 3, sizeof(float));
+    ls->idx = relight_calloc(r, nf, sizeof *ls->idx);
+    ls->val = relight_calloc(r, 3 * nf, sizeof *ls->val);
+    ls->cap = nf;
+    if (!r->oom) return 0;
+    relight_free(r, ls->root); relight_free(r, ls->kc); relight_free(r, ls->idx); relight_free(r, ls->val);
+    memset(ls, 0, sizeof *ls);
+    return -1;
+}
+
 wrt_status wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const float *scales, int n) {
     if (n < 0) n = 0;
     if (n > r->lights_cap) {
         light_state *nl = relight_calloc(r, (size_t)n, sizeof(light_state));
-        double **roots = relight_calloc(r, (size_t)n, sizeof(double *));
-        float **kcs = relight_calloc(r, (size_t)n, sizeof(float *)); /* c over K's columns, if any */
-        for (int i = r->lights_cap; i < n && !r->oom; i++) {
-            roots[i] = relight_calloc(r, (size_t)r->g->nquads * 3 + 1, sizeof(double));
-            if (r->g->nkcols) kcs[i] = relight_calloc(r, (size_t)r->g->nkcols * 3, sizeof(float));
-        }
-        if (r->oom) {
+        int made = r->lights_cap;
+        while (nl && made < n && light_slot_init(r, &nl[made]) == 0) made++;
+        if (made < n) {
             r->oom = 0;
-            if (roots) for (int i = r->lights_cap; i < n; i++) relight_free(r, roots[i]);
-            if (kcs) for (int i = r->lights_cap; i < n; i++) relight_free(r, kcs[i]);
-            relight_free(r, roots);
-            relight_free(r, kcs);
+            for (int i = r->lights_cap; i < made; i++) {
+                relight_free(r, nl[i].root); relight_free(r, nl[i].kc); relight_free(r, nl[i].idx); relight_free(r, nl[i].val);
+            }
             relight_free(r, nl);
             return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory for %d lights", n);
         }
         if (r->lights_cap) memcpy(nl, r->lights, (size_t)r->lights_cap * sizeof(light_state));
-        for (int i = r->lights_cap; i < n; i++) { nl[i].root = roots[i]; nl[i].kc = kcs[i]; }
-        relight_free(r, roots);
-        relight_free(r, kcs);
         relight_free(r, r->lights);
         r->lights = nl;
         r->lights_cap = n;
@@ -141,7 +149,7 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     if (nchanged < 0) return update_nomem(r, "synthesizing textures", tm, &t);
     if (r->sm.recon) { /* smooth display of every group that changed (reconstruct.h) */
         double t4 = wrt_now();
-        if ((nchanged = relight_smooth(r)) < 0) return update_nomem(r, "smoothing textures", tm, &t);
+        nchanged = relight_smooth(r);
         t.reconstruction = (wrt_now() - t4) * 1e3;
         t.synthesis += t.reconstruction;
     }

@@ -98,6 +98,8 @@ typedef struct worker {
     uint16_t *pcells;               /* cells sampled, level by level */
     double *pval; size_t pval_cap;  /* scaling coefficients of those cells, x slots */
     double *pwav; size_t pwav_cap;  /* wavelets of split cells, x 3 x slots */
+    float *rbuf;                    /* the smooth display's scratch (made at creation, the
+                                     * largest group's: an update allocates nothing) */
     double brdf_time;
     long nsamples;                  /* samples and shadow rays of the projection */
 } worker;
@@ -348,9 +350,9 @@ void relight_first_bounce(wrt_relight *r);
 int relight_synthesize(wrt_relight *r, wrt_relight_timings *t);
 void relight_synth_diffuse(wrt_relight *r, worker *w, int qidx, const float *base, float *tex);
 
-/* relight_smooth.c: the smooth display's groups and texture layout (recomputes the texel
- * offsets and *tex_total); per update, the groups that changed: returns the number of
- * quads whose smooth texture changed, or -1 if memory ran out. */
+/* relight_smooth.c: the smooth display's groups, texture layout (recomputes the texel
+ * offsets and *tex_total) and scratch; per update, the groups that changed: returns the
+ * number of quads whose smooth texture changed (it allocates nothing). */
 wrt_status relight_setup_smooth(wrt_relight *r, size_t *tex_total);
 int relight_smooth(wrt_relight *r);
 
