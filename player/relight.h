@@ -67,7 +67,8 @@ wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, 
 void wrt_relight_destroy(wrt_relight *r); /* NULL is a no-op */
 
 /* Sets the lights (copied). scales[i] multiplies light i (0 switches it off); scales may
- * be NULL (all 1). Only lights that changed are re-projected at the next update.
+ * be NULL (all 1). Only lights that changed are re-projected at the next update. More
+ * lights than ever before allocate each new one's arrays (about 16 bytes a function).
  * Errors: WRT_ERR_NOMEM (the lights are then as before). */
 wrt_status wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const float *scales, int n);
 /* Sets the eye position; only glossy quads depend on it. */
@@ -76,7 +77,8 @@ void wrt_relight_set_eye(wrt_relight *r, const double eye[3]);
 /* Recomputes what changed since the last call. Returns the number of quads whose
  * texture changed (0: nothing to upload), or -1 if memory ran out (wrt_last_error says
  * where; the textures may then be partly updated, and the next update redoes them all).
- * `t` may be NULL. */
+ * `t` may be NULL. Allocates nothing: the scratch is made by wrt_relight_create and a
+ * light's by wrt_relight_set_lights when the count grows (test_relight checks it). */
 int wrt_relight_update(wrt_relight *r, wrt_relight_timings *t);
 
 /* Quad q's texture of outgoing indirect radiance (linear RGB floats, res x res texels,
