@@ -46,7 +46,7 @@ PLAY_SRC := $(filter-out player/main.c,$(wildcard player/*.c) $(wildcard player/
 # The verification (the path tracer and the comparison): above the bake and the runtime,
 # used only by programs (wrt-ref, wrt-compare, and wrt-bake's --max-error in its main.c).
 VERIFY_SRC := $(wildcard verify/*.c)
-RUNTIME_SRC := player/relight.c player/gather.c player/wrt_runtime.c
+RUNTIME_SRC := $(sort $(wildcard player/relight*.c)) player/gather.c player/wrt_runtime.c
 
 obj = $(patsubst %.cpp,$(BUILD)/obj/%.o,$(patsubst %.c,$(BUILD)/obj/%.o,$(1)))
 CORE_OBJ := $(call obj,$(CORE_SRC))
@@ -57,9 +57,9 @@ REF_OBJ := $(call obj,verify/reference.c)
 RUNTIME_OBJ := $(call obj,$(RUNTIME_SRC))
 ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(VERIFY_OBJ) $(CORE_OBJ)
 
-# The runtime library (include/wrt.h): the base, the .gto reader and the relighting core;
-# no loader, no image I/O, no OpenGL.
-LIB_SRC := $(wildcard common/*.c) formats/gto_read.c formats/gto_check.c player/relight.c player/gather.c player/wrt_runtime.c
+# The runtime library (include/wrt.h): the base, the .gto reader and the relighting core
+# (player/relight*.c, the final gather, the API); no loader, no image I/O, no OpenGL.
+LIB_SRC := $(wildcard common/*.c) formats/gto_read.c formats/gto_check.c $(RUNTIME_SRC)
 LIB_OBJ := $(call obj,$(LIB_SRC))
 PIC_OBJ := $(patsubst %.c,$(BUILD)/pic/%.o,$(LIB_SRC))
 LIBWRT := $(BUILD)/libwrt.a $(BUILD)/libwrt.so

@@ -1,5 +1,5 @@
 /* brdf_table.h: the one angular table of a glossy material, shared by the bake (the
- * links' BRDF factor, precompute/dto.c) and the runtime (synthesis, player/relight.c),
+ * links' BRDF factor, precompute/dto.c) and the runtime (synthesis, player/relight_synth.c),
  * so both project the BRDF the same way.
  *
  * For an outgoing direction w_o and every angular Haar function g of node levels

@@ -263,18 +263,36 @@ static inline float minmod3(float a, float b, float c) {
     return 0;
 }
 
+size_t wrt_recon_scratch(const wrt_recon *rc, int gr, int L, int Lo, int nc) {
+    int nm;
+    wrt_recon_members(rc, gr, &nm);
+    size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
+    size_t full = ((size_t)1 << (2 * Lo)) * nc;
+    size_t ext_n = (((size_t)1 << Lo) + 2) * (((size_t)1 << Lo) + 2) * nc;
+    return (size_t)nm * (pyr_n + 2 * full) + ext_n;
+}
+
 int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
                   const uint8_t *const *known, float *const *out, const wrt_recon_params *prm) {
+    int nm;
+    wrt_recon_members(rc, gr, &nm);
+    if (nm == 0) return 0;
+    float *buf = rc_alloc(&rc->al, wrt_recon_scratch(rc, gr, L, Lo, nc) * sizeof(float));
+    if (!buf) return -1;
+    wrt_recon_run_in(rc, gr, L, Lo, nc, in, known, out, prm, buf);
+    rc_free(&rc->al, buf);
+    return 0;
+}
+
+void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
+                      const uint8_t *const *known, float *const *out, const wrt_recon_params *prm, float *buf) {
     int keep = prm ? prm->keep : WRT_RECON_KEEP, limit = prm ? prm->limit : 1;
     float sharp = prm ? prm->sharp : WRT_RECON_SHARP;
     int nm;
     const int *mem = wrt_recon_members(rc, gr, &nm);
-    if (nm == 0) return 0;
+    if (nm == 0) return;
     size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
     size_t full = ((size_t)1 << (2 * Lo)) * nc;
-    size_t ext_n = (((size_t)1 << Lo) + 2) * (((size_t)1 << Lo) + 2) * nc;
-    float *buf = rc_alloc(&rc->al, ((size_t)nm * (pyr_n + 2 * full) + ext_n) * sizeof(float));
-    if (!buf) return -1;
     float *ext = buf + (size_t)nm * (pyr_n + 2 * full);
     /* Pyramids of the input: level l at offset (4^l - 1)/3 cells. */
     for (int s = 0; s < nm; s++) {
@@ -439,6 +457,4 @@ int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const floa
     }
 #undef CUR
 #undef NXT
-    rc_free(&rc->al, buf);
-    return 0;
 }

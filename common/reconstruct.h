@@ -86,4 +86,10 @@ typedef struct wrt_recon_params { int keep; float sharp; int limit; } wrt_recon_
 int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
                   const uint8_t *const *known, float *const *out, const wrt_recon_params *p);
 
+/* The same with the caller's scratch (no allocation): buf holds at least
+ * wrt_recon_scratch(rc, gr, L, Lo, nc) floats, not read before written. */
+size_t wrt_recon_scratch(const wrt_recon *rc, int gr, int L, int Lo, int nc);
+void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
+                      const uint8_t *const *known, float *const *out, const wrt_recon_params *p, float *buf);
+
 #endif

@@ -171,7 +171,7 @@ static void beta_row(size_t item, void *user) {
 }
 
 wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_res, RTCScene scene, wrt_v3 origin,
-                             double eps, const wrt_gather_env *env, wrt_gather **out) {
+                             double eps, int points, const wrt_gather_env *env, wrt_gather **out) {
     *out = NULL;
     int ng = 0;
     for (int i = 0; i < nq; i++) ng += is_glossy(q[i].mat);
@@ -179,10 +179,9 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_re
     wrt_gather *g = env->alloc(env->user, sizeof *g);
     if (!g) return WRT_ERR_NOMEM;
     g->env = *env;
-    /* WRT_GATHER_POINTS=16 or 32: every glossy quad's points a side (before/after figures
-     * and the test that tells the two apart); any other value is not used. */
-    const char *fp = getenv("WRT_GATHER_POINTS");
-    int force_pts = fp && (strcmp(fp, "16") == 0 || strcmp(fp, "32") == 0) ? atoi(fp) : 0;
+    /* points = 16 or 32: every glossy quad's points a side (before/after figures and the
+     * test that tells the two apart); 0: chosen per quad. */
+    int force_pts = points == 16 || points == 32 ? points : 0;
     g->nq = nq; g->scene = scene; g->origin = origin; g->eps = eps;
     g->q = ga(g, (size_t)nq * sizeof *g->q);
     g->gq = ga(g, ((size_t)nq) * sizeof *g->gq);

@@ -1,5 +1,5 @@
 /* gather.h: the last bounce on glossy quads at the display's resolution (a final
- * gather, guide/primer.md section 9). What the eye sees on a glossy surface,
+ * gather, docs/glossy/gather_runtime.md). What the eye sees on a glossy surface,
  *   L_o(x, w_o) = sum over incident cells a of L_in(x, a) beta(a, w_o),
  *   beta(a, w_o) = integral over cell a of f_r(w_i, w_o) cos(theta_i) dw_i,
  * with a one of GATHER_DIRS x GATHER_DIRS cells of the cosine-weighted concentric map
@@ -36,7 +36,7 @@ typedef struct wrt_gather wrt_gather;
 int wrt_gather_sharp(const wrt_material *m);
 
 typedef struct wrt_gather_quad {
-    wrt_v3 p[4], n, t, b;     /* corners (bilinear in u, v as relight.c), frame */
+    wrt_v3 p[4], n, t, b;     /* corners (bilinear in u, v as relight_internal.h), frame */
     const wrt_material *mat;  /* NULL or Lambertian: diffuse; else glossy (gathered) */
     float albedo[3];          /* what a ray that sees it gets: albedo/pi x direct + tex */
 } wrt_gather_quad;
@@ -56,9 +56,10 @@ typedef void (*wrt_gather_direct_fn)(void *user, wrt_v3 x, wrt_v3 n, double out[
 
 /* NULL *out and WRT_OK when no quad is glossy. out_res[q] (may be NULL): the side of the
  * texture wrt_gather_eye will write for quad q (a narrow lobe gets a point per texel).
- * Errors: WRT_ERR_NOMEM. */
+ * points: 16 or 32 gives every glossy quad that many points a side (before/after
+ * figures); 0 (or any other value): chosen per quad. Errors: WRT_ERR_NOMEM. */
 wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_res, RTCScene scene, wrt_v3 origin,
-                             double eps, const wrt_gather_env *env, wrt_gather **out);
+                             double eps, int points, const wrt_gather_env *env, wrt_gather **out);
 void wrt_gather_destroy(wrt_gather *g); /* NULL: no-op */
 
 /* Rebuilds L_in from the lights (direct) and the quads' displayed textures tex[q] of

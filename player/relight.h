@@ -26,7 +26,14 @@ typedef struct wrt_relight_options {
     int recon_keep;      /* the bake's cell averages kept as computed down to 2^keep cells
                           * a side, resampled smoothly below (0 = the default, 3) */
     int no_gather;       /* 1: glossy quads show the coarse angular synthesis only, no
-                          * final gather (player/gather.h); also WRT_FINAL_GATHER=0 */
+                          * final gather (player/gather.h); for before/after figures */
+    int no_light_splat;  /* 1: the light's direction on a glossy quad truncated to its
+                          * finest angular cell instead of spread over one cell centred
+                          * on it (a bake without K; before/after figures) */
+    int gather_points;   /* 16 or 32: every glossy quad's final-gather points a side;
+                          * 0 (the default): a point per texel on a sharp lobe, else 16 */
+    int no_avx;          /* 1: K's rows in fours without AVX (the same sums to the bit;
+                          * for the test that says so, and A/B timings) */
     void *(*alloc)(size_t size, void *user); /* every block of the relighter (both or neither; */
     void (*free)(void *p, void *user);        /* NULL: malloc and free), the update's scratch */
     void *alloc_user;                         /* too (then from the worker threads: thread-safe) */
@@ -45,12 +52,23 @@ typedef struct wrt_relight_timings { /* milliseconds of the last update */
     int lights_changed;
 } wrt_relight_timings;
 
+/* The before/after knobs (no_gather, no_light_splat, gather_points, no_avx) for the
+ * relighters a program creates through a layer whose options do not carry them yet
+ * (wrt_runtime_options, include/wrt.h; wrt-compare's --no-final-gather, --no-light-splat,
+ * --gather-points): a zero knob of the options passed to wrt_relight_create takes the
+ * value set here (the other fields of `o` are not read). Call it at the program's start,
+ * before any relighter exists; not thread-safe. Transitional: once the runtime's options
+ * carry the knobs, the program sets them there and this call goes. No environment
+ * variable is read. */
+void wrt_relight_set_program_knobs(const wrt_relight_options *o);
+
 /* `g` must outlive the relighter (it points into the mapping). */
 wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out);
 void wrt_relight_destroy(wrt_relight *r); /* NULL is a no-op */
 
 /* Sets the lights (copied). scales[i] multiplies light i (0 switches it off); scales may
- * be NULL (all 1). Only lights that changed are re-projected at the next update.
+ * be NULL (all 1). Only lights that changed are re-projected at the next update. More
+ * lights than ever before allocate each new one's arrays (about 16 bytes a function).
  * Errors: WRT_ERR_NOMEM (the lights are then as before). */
 wrt_status wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const float *scales, int n);
 /* Sets the eye position; only glossy quads depend on it. */
@@ -59,7 +77,8 @@ void wrt_relight_set_eye(wrt_relight *r, const double eye[3]);
 /* Recomputes what changed since the last call. Returns the number of quads whose
  * texture changed (0: nothing to upload), or -1 if memory ran out (wrt_last_error says
  * where; the textures may then be partly updated, and the next update redoes them all).
- * `t` may be NULL. */
+ * `t` may be NULL. Allocates nothing: the scratch is made by wrt_relight_create and a
+ * light's by wrt_relight_set_lights when the count grows (test_relight checks it). */
 int wrt_relight_update(wrt_relight *r, wrt_relight_timings *t);
 
 /* Quad q's texture of outgoing indirect radiance (linear RGB floats, res x res texels,

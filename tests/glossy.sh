@@ -19,19 +19,21 @@ ko() { fail=$((fail + 1)); echo "FAIL $1"; }
 figure() {
     python3 -c 'import json,sys; print("%.4f" % json.load(open(sys.argv[1]))["bakes"][0][sys.argv[2]])' "$1" "$2"
 }
-# gate_pair LABEL KEY GATE VAR ON WITH OFF WITHOUT WRT-COMPARE-ARGS...: wrt-compare with
-# VAR=ON, whose KEY must be at most GATE, then with VAR=OFF, whose KEY must be above it
-# (the gate tells the two apart); WITH and WITHOUT name the two runs in the messages.
+# gate_pair LABEL KEY GATE WITH OFF-FLAGS WITHOUT WRT-COMPARE-ARGS...: wrt-compare as it
+# is, whose KEY must be at most GATE, then with OFF-FLAGS (a display knob off), whose KEY
+# must be above it (the gate tells the two apart); WITH and WITHOUT name the two runs.
 gate_pair() {
-    local label=$1 key=$2 gate=$3 var=$4 on=$5 with=$6 off=$7 without=$8 name=${2//_/ } v e
-    shift 8
-    for v in "$on" "$off"; do
-        if ! env "$var=$v" "$build/wrt-compare" "$@" >"$tmp/gate.json" 2>"$tmp/err"; then
-            ko "$label: compare ($var=$v)"; sed 's/^/    /' "$tmp/err" | head -n 5
+    local label=$1 key=$2 gate=$3 with=$4 off=$5 without=$6 name=${2//_/ } v e
+    shift 6
+    for v in on "$off"; do
+        local extra=()
+        [ "$v" = on ] || read -r -a extra <<<"$v"
+        if ! "$build/wrt-compare" "$@" "${extra[@]}" >"$tmp/gate.json" 2>"$tmp/err"; then
+            ko "$label: compare (${extra[*]:-as it is})"; sed 's/^/    /' "$tmp/err" | head -n 5
             continue
         fi
         e=$(figure "$tmp/gate.json" "$key")
-        if [ "$v" = "$on" ]; then
+        if [ "$v" = on ]; then
             awk -v e="$e" -v t="$gate" 'BEGIN { exit !(e <= t) }' &&
                 ok "$label: $name $e <= $gate $with" || ko "$label: $name $e > $gate $with"
         else
@@ -75,30 +77,30 @@ fi
 # 0.3, quality 3) as the eye sees it, against the path tracer's image (64 x 64, 1024
 # paths a pixel, seed 1). Measured: image rmse 0.133 with the gather (0.105 since a metal's
 # lobe is shown at 32 x 32 texels; reference noise
-# 0.069), 0.413 without it (WRT_FINAL_GATHER=0); the gate is the measured figure + 1 point,
+# 0.069), 0.413 without it (--no-final-gather); the gate is the measured figure + 1 point,
 # and the run without the gather must fail it (the gate tells the two apart).
 gate=0.143
 if "$build/wrt-scenegen" cornell-glossy --roughness 0.3 -o "$tmp/cg.gltf" >/dev/null 2>"$tmp/err" &&
    "$build/wrt-bake" "$tmp/cg.gltf" -q 3 -o "$tmp/cg.gto" --quiet >/dev/null 2>"$tmp/err"; then
-    gate_pair "glossy Cornell r0.3" image_rmse "$gate" WRT_FINAL_GATHER 1 "with the final gather" \
-        0 "without the gather" "$tmp/cg.gltf" "$tmp/cg.gto" --lights 1 --width 64 --spp 1024 \
+    gate_pair "glossy Cornell r0.3" image_rmse "$gate" "with the final gather" \
+        --no-final-gather "without the gather" "$tmp/cg.gltf" "$tmp/cg.gto" --lights 1 --width 64 --spp 1024 \
         --cell-paths 200000 --bench 1
 else
     ko "glossy Cornell r0.3: scene and bake"; sed 's/^/    /' "$tmp/err" | head -n 5
 fi
 # The light's direction on a glossy quad, spread over one cell of the finest angular level
-# (player/relight.c, eval_cell) instead of truncated to its cell: the reflected lobe is
+# (player/relight_project.c, eval_cell) instead of truncated to its cell: the reflected lobe is
 # centred on the light's direction. Cell averages of the glossy Cornell box (roughness
 # 0.3, quality 3; 1 000 000 reference paths, seed 1): measured 0.0739 with the spread,
-# 0.0885 without (WRT_LIGHT_SPLAT=0; reference noise 0.031); gate: measured + 1 point,
+# 0.0885 without (--no-light-splat; reference noise 0.031); gate: measured + 1 point,
 # and the run without it must fail the gate. The spread is the direct light's projection
 # on a glossy quad's incident angular functions, which a bake with the first-bounce
 # operator K replaces (Y = K c, the light's exact direction): so a bake without K.
 gate3=0.084
 if [ -s "$tmp/cg.gto" ] &&
    "$build/wrt-bake" "$tmp/cg.gltf" -q 3 --first-bounce-level 0 -o "$tmp/cg0.gto" --quiet >/dev/null 2>"$tmp/err"; then
-    gate_pair "glossy Cornell r0.3" cell_rmse "$gate3" WRT_LIGHT_SPLAT 1 "with the light's direction spread" \
-        0 "with the direction truncated" "$tmp/cg.gltf" "$tmp/cg0.gto" --lights 1 --no-image \
+    gate_pair "glossy Cornell r0.3" cell_rmse "$gate3" "with the light's direction spread" \
+        --no-light-splat "with the direction truncated" "$tmp/cg.gltf" "$tmp/cg0.gto" --lights 1 --no-image \
         --cell-paths 1000000 --bench 1
 fi
 # The gather where glossy quads see glossy quads (assets/glossy.gltf: glossy floor and
@@ -120,13 +122,13 @@ fi
 # side): the gather takes a point per texel (32 x 32) instead of 16 x 16, so the sharp
 # reflection the path tracer shows survives (64 x 64 image, 1024 paths a pixel, seed 1;
 # the reference's own noise is 0.235 here). Measured: image rmse 0.261 with 32 points,
-# 0.349 with 16 (WRT_GATHER_POINTS=16); the gate is the first + 1 point, and 16 points
+# 0.349 with 16 (--gather-points 16); the gate is the first + 1 point, and 16 points
 # must fail it.
 gate3=0.271
 if "$build/wrt-scenegen" cornell-glossy --roughness 0.1 -o "$tmp/c1.gltf" >/dev/null 2>"$tmp/err" &&
    "$build/wrt-bake" "$tmp/c1.gltf" -q 5 -o "$tmp/c1.gto" --quiet >/dev/null 2>"$tmp/err"; then
-    gate_pair "glossy Cornell r0.1" image_rmse "$gate3" WRT_GATHER_POINTS auto "with a gather point per texel" \
-        16 "with 16 x 16 points" "$tmp/c1.gltf" "$tmp/c1.gto" --lights 1 --width 64 --spp 1024 \
+    gate_pair "glossy Cornell r0.1" image_rmse "$gate3" "with a gather point per texel" \
+        "--gather-points 16" "with 16 x 16 points" "$tmp/c1.gltf" "$tmp/c1.gto" --lights 1 --width 64 --spp 1024 \
         --cell-paths 200000 --bench 1
 else
     ko "glossy Cornell r0.1: scene and bake"; sed 's/^/    /' "$tmp/err" | head -n 5

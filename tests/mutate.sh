@@ -151,26 +151,26 @@ mutation sparse-apply-channel: the bake's sparse multiply uses channel 0 of x fo
   run test_bake test_coloured_furnace
 
 mutation projection-falloff: the projection's point light falls off as 1 / d^2.1
-  file player/relight.c
+  file player/relight_internal.h
   find double e = l->intensity * cosx * inv_d / d2;
   repl double e = l->intensity * cosx * inv_d / pow(d2, 1.05);
   run test_relight test_far_light_root test_cell_irradiance
 
 mutation projection-spot: the spot cone's falloff linear, not squared
-  file player/relight.c
+  file player/relight_internal.h
   find e *= s * s;
   repl e *= s;
   run test_relight test_mean_irradiance test_exact_zeros
 
 mutation projection-colour: the light's colour applied as channel 0 to every channel of E
-  file player/relight.c
+  file player/relight_project.c
   find for (int c = 0; c < 3; c++) w->oval[w->on * 3 + c] = (float)(cv * col[c]);
   repl for (int c = 0; c < 3; c++) w->oval[w->on * 3 + c] = (float)(cv * col[0]);
   run test_relight test_multiply_dense
   run test_accuracy
 
 mutation multiply-channel-0: the player's multiply uses channel 0 of E for all three channels
-  file player/relight.c
+  file player/relight_multiply.c
   find __m128 ev = _mm_set_ps(0.0f, e[2], e[1], e[0]);
   repl __m128 ev = _mm_set_ps(0.0f, e[0], e[0], e[0]);
   find x[1] += e[1] * v[1];
@@ -181,13 +181,13 @@ mutation multiply-channel-0: the player's multiply uses channel 0 of E for all t
   run test_accuracy
 
 mutation multiply-last-entry: the player's multiply drops each column's last entry
-  file player/relight.c
-  find for (; i < end && g->rows[i] < hi; i++) {
-  repl for (; i + 1 < end && g->rows[i] < hi; i++) {
+  file player/relight_multiply.c
+  find uint64_t end = op->col_start[s + 1], vend = end < op->nnz ? end : op->nnz - 1; /* 4-float loads stay inside */
+  repl uint64_t end = op->col_start[s + 1] - 1, vend = end < op->nnz ? end : op->nnz - 1; /* 4-float loads stay inside */
   run test_relight test_multiply_dense
 
 mutation synthesis-albedo: diffuse synthesis radiance rho E / pi off by 2%
-  file player/relight.c
+  file player/relight_synth.c
   find double k = q->parallelogram ? ldexp(1.0, Lt) * sqrt(WRT_PI / q->area) / WRT_PI : 1;
   repl double k = q->parallelogram ? ldexp(1.0, Lt) * sqrt(WRT_PI / q->area) / (1.02 * WRT_PI) : 1;
   run test_relight test_round_trip test_mean_irradiance

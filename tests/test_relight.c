@@ -1,4 +1,4 @@
-/* test_relight.c: tests of the run-time core (player/relight.c, paper section 5) on
+/* test_relight.c: tests of the run-time core (player/relight*.c, paper section 5) on
  * operators built in memory: projection against the analytic irradiance I cos / d^2,
  * a projection -> identity operator -> synthesis round trip, linearity in the lights,
  * exact zeros (light behind, spot away), the glossy BRDF table against an independent
@@ -6,6 +6,7 @@
  * brdf.h and the test harness. */
 #include "test.h"
 
+#include <stdatomic.h>
 #include <stdlib.h>
 
 #include "common/basis.h"
@@ -1352,11 +1353,10 @@ static void test_first_bounce_cache(void) {
         CHECK(memcmp(wrt_relight_Y(r), wrt_relight_Y(f), n3 * sizeof(float)) == 0, "step %d: Y as a fresh relighter's", step);
         wrt_relight_destroy(f);
     }
-    /* Y's rows in fours with AVX or without (WRT_NO_AVX): the same sums in the same order */
-    setenv("WRT_NO_AVX", "1", 1);
+    /* Y's rows in fours with AVX or without (options.no_avx): the same sums in the same order */
     wrt_relight *ns;
-    CHECK(wrt_relight_create(&s.g, NULL, &ns) == WRT_OK, "%s", wrt_last_error());
-    unsetenv("WRT_NO_AVX");
+    wrt_relight_options noavx = {.no_avx = 1};
+    CHECK(wrt_relight_create(&s.g, &noavx, &ns) == WRT_OK, "%s", wrt_last_error());
     wrt_relight_set_eye(ns, eye);
     wrt_relight_set_lights(ns, L, sc, 2);
     wrt_relight_update(ns, NULL);
@@ -1400,6 +1400,98 @@ static void test_first_bounce_refused(void) {
     ts_free(&s);
 }
 
+/* ---------------------------------------------------- steady-state memory ---- */
+
+/* A counting allocator (the relighter's hooks; updates call it from worker threads). */
+typedef struct counting { atomic_long blocks, bytes; } counting;
+static void *count_alloc(size_t n, void *user) {
+    counting *c = user;
+    atomic_fetch_add(&c->blocks, 1);
+    atomic_fetch_add(&c->bytes, (long)n);
+    return malloc(n);
+}
+static void count_free(void *p, void *user) { (void)user; free(p); }
+
+/* Ten updates after the first, each with light 0 moved a little (the same lights, nothing
+ * grows) and every other one with the eye moved too: no block from the allocator. The
+ * textures are then those of a fresh relighter (no hooks, one thread) given the last
+ * lights and eye at once: reusing the scratch changes nothing. */
+static void steady_updates(const char *what, const wrt_gto *g, wrt_light *L, int nl, double eye[3]) {
+    counting cnt = {0};
+    wrt_relight_options o = {.threads = 2, .alloc = count_alloc, .free = count_free, .alloc_user = &cnt};
+    wrt_relight *r;
+    CHECK(wrt_relight_create(g, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    wrt_relight_set_eye(r, eye);
+    wrt_relight_set_lights(r, L, NULL, nl);
+    CHECK(wrt_relight_update(r, NULL) > 0, "%s: first update draws", what);
+    long b0 = atomic_load(&cnt.blocks), by0 = atomic_load(&cnt.bytes);
+    wrt_v3 p0 = L[0].pos;
+    int drawn = 0;
+    for (int k = 0; k < 10; k++) {
+        L[0].pos = v3(p0.x + 0.02 * cos(0.7 * k), p0.y + 0.01 * sin(1.3 * k), p0.z + 0.02 * sin(0.7 * k));
+        wrt_relight_set_lights(r, L, NULL, nl);
+        if (k % 2) { eye[0] += 0.01; wrt_relight_set_eye(r, eye); }
+        wrt_relight_timings t;
+        int n = wrt_relight_update(r, &t);
+        CHECK(n >= 0 && t.lights_changed == 1, "%s: update %d: %d quads, %d lights projected", what, k, n, t.lights_changed);
+        drawn += n;
+    }
+    long nb = atomic_load(&cnt.blocks) - b0, nby = atomic_load(&cnt.bytes) - by0;
+    CHECK(nb == 0, "%s: 10 steady updates (%d quads redrawn): %ld allocations, %ld bytes (0 expected)", what, drawn, nb, nby);
+    printf("  %s: 10 steady updates, %d quads redrawn: %ld allocations, %ld bytes\n", what, drawn, nb, nby);
+    wrt_relight *f;
+    wrt_relight_options one = {.threads = 1};
+    CHECK(wrt_relight_create(g, &one, &f) == WRT_OK, "%s", wrt_last_error());
+    wrt_relight_set_eye(f, eye);
+    wrt_relight_set_lights(f, L, NULL, nl);
+    wrt_relight_update(f, NULL);
+    int same = 1;
+    for (uint32_t q = 0; q < g->nquads; q++) {
+        int res = wrt_relight_tex_res(r, (int)q);
+        same &= res == wrt_relight_tex_res(f, (int)q) &&
+                memcmp(wrt_relight_tex(r, (int)q), wrt_relight_tex(f, (int)q), (size_t)res * res * 3 * sizeof(float)) == 0;
+    }
+    CHECK(same, "%s: every texture as a fresh relighter's, to the bit", what);
+    L[0].pos = p0;
+    wrt_relight_destroy(f);
+    wrt_relight_destroy(r);
+}
+
+static void test_steady_update_no_alloc(void) {
+    ts_scene s; /* a room: Lambertian walls (smooth display), a glossy quad (final gather) */
+    build_room(&s, 3, 2, 40);
+    wrt_light L[2] = {point_light(0.3, 0.7, 0.6, 2), point_light(0.8, 0.2, 0.3, 1)};
+    L[1].type = WRT_LIGHT_SPOT;
+    L[1].dir = v3_norm(v3(-1, 0.5, -0.2));
+    L[1].inner_cone = 0.3f; L[1].outer_cone = 0.7f;
+    double eye[3] = {0.5, 0.5, 0.9};
+    steady_updates("room", &s.g, L, 2, eye);
+    ts_free(&s);
+    /* the first-bounce operator K: a glossy metal floor's columns onto a wall */
+    ts_init(&s);
+    ts_metal(&s, 2, 0.3f, 2);
+    int qf = ts_quad(&s, k_floor, 2, 1, 2), qw = ts_quad(&s, k_wall_x, 1, 3, 2);
+    ts_random(&s, 30);
+    ts_finish(&s);
+    kop k;
+    kop_columns(&k, (uint32_t)qf, 2, 2);
+    uint32_t w0 = s.quads[qw].func_first, nw = s.quads[qw].func_count;
+    kop_alloc(&k, 2);
+    for (uint32_t j = 0; j < k.n; j++) {
+        k.cs[j] = k.nnz;
+        uint32_t a = w0 + (j * 5) % nw, b = w0 + (j * 5 + nw / 2) % nw;
+        k.rows[k.nnz] = a < b ? a : b; k.vals[k.nnz++] = 0.05f;
+        k.rows[k.nnz] = a < b ? b : a; k.vals[k.nnz++] = 0.03f;
+    }
+    k.cs[k.n] = k.nnz;
+    kop_attach(&s, &k);
+    wrt_light K[1] = {point_light(0.25, 0.4, 0.9, 3)};
+    double keye[3] = {0.5, -1, 1.5};
+    steady_updates("first bounce", &s.g, K, 1, keye);
+    kop_free(&k);
+    ts_free(&s);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(test_far_light_root);
     TEST_RUN(test_cell_irradiance);
@@ -1416,6 +1508,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_first_bounce_brute_force);
     TEST_RUN(test_first_bounce_cache);
     TEST_RUN(test_first_bounce_refused);
+    TEST_RUN(test_steady_update_no_alloc);
     TEST_RUN(test_bench);
     TEST_END();
 }

@@ -9,6 +9,7 @@
 #include "cli/cli.h"
 
 #include "formats/image.h"
+#include "player/relight.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -49,6 +50,11 @@ static void usage(FILE *f) {
             "  --max-error E       exit 5 if a bake's cell rmse exceeds E (pipeline check)\n"
             "  --per-quad          add each quad's mean indirect irradiance (first light), wavelet\n"
             "                      and reference, to each bake's figures\n"
+            "Display of glossy quads, for before/after figures (default: the player's):\n"
+            "  --no-final-gather   the coarse angular synthesis only, no final gather\n"
+            "  --no-light-splat    the light's direction truncated to its angular cell, not\n"
+            "                      spread over one cell centred on it (a bake without K)\n"
+            "  --gather-points N   16 or 32 gather points a side on every glossy quad\n"
             "  --version, -h, --help\n"
             "\n");
     wrt_cli_exit_table(f);
@@ -163,7 +169,7 @@ static const char *T = "wrt-compare";
 static int takes_value(const char *a) {
     static const char *const names[] = {"--lights", "--light-pos", "--cells", "--cell-paths", "--pilot", "--width",
                                         "--spp", "--sub", "--bench", "--threads", "--seed", "--images", "-o",
-                                        "--out", "--exposure", "--max-error", "--closeup"};
+                                        "--out", "--exposure", "--max-error", "--closeup", "--gather-points"};
     for (size_t k = 0; k < sizeof names / sizeof *names; k++)
         if (!strcmp(a, names[k])) return 1;
     return 0;
@@ -180,6 +186,7 @@ static int compare_main(int argc, char **argv, const char **gtos) {
     double explicit_pos[WRT_COMPARE_MAX_LIGHTS][3];
     double max_error = -1, exposure = 0;
     wrt_compare_options o = {0};
+    wrt_relight_options knobs = {0}; /* the display's before/after knobs */
     wrt_cli_lights L;
     wrt_cli_lights_init(&L);
     for (int i = 1; i < argc; i++) {
@@ -196,6 +203,8 @@ static int compare_main(int argc, char **argv, const char **gtos) {
         else if (!strcmp(a, "--no-image")) { o.width = -1; takes = 0; }
         else if (!strcmp(a, "--per-quad")) { per_quad = 1; takes = 0; }
         else if (!strcmp(a, "--bench-only")) { bench_only = 1; takes = 0; }
+        else if (!strcmp(a, "--no-final-gather")) { knobs.no_gather = 1; takes = 0; }
+        else if (!strcmp(a, "--no-light-splat")) { knobs.no_light_splat = 1; takes = 0; }
         else if (a[0] == '-' && a[1] && !takes_value(a)) {
             fprintf(stderr, "wrt-compare: unknown option %s (see --help)\n", a);
             return WRT_EXIT_USAGE;
@@ -223,6 +232,10 @@ static int compare_main(int argc, char **argv, const char **gtos) {
             has_closeup = 1;
         }
         else if (!strcmp(a, "--max-error")) ok = parse_double(v, &max_error) && max_error >= 0;
+        else if (!strcmp(a, "--gather-points")) {
+            ok = parse_long(v, 16, 32, &x) && (x == 16 || x == 32);
+            knobs.gather_points = (int)x;
+        }
         else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-compare: unknown option %s (see --help)\n", a); return 1; }
         else {
             takes = 0;
@@ -236,6 +249,7 @@ static int compare_main(int argc, char **argv, const char **gtos) {
         fprintf(stderr, "wrt-compare: needs a scene and at least one .gto (see --help)\n");
         return 1;
     }
+    wrt_relight_set_program_knobs(&knobs); /* the runtime's options do not carry them yet */
 
     wrt_scene scene;
     if (wrt_scene_load(scene_path, NULL, &scene) != WRT_OK) {
