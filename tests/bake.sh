@@ -14,20 +14,11 @@ build=${1:-build}
 cd "$(dirname "$0")/.."
 bake=$build/wrt-bake
 gen=$build/wrt-scenegen
-pass=0; fail=0
+. tests/lib.sh bake
+lib_ko_shows_err=1 # a failure shows what the command said
 tmp=$(mktemp -d /tmp/wrt_bake_XXXXXX)
 trap 'rm -rf "$tmp"' EXIT
-ok() { pass=$((pass + 1)); echo "ok $1"; }
-ko() { fail=$((fail + 1)); echo "FAIL $1"; [ -s "$tmp/err" ] && sed 's/^/    /' "$tmp/err" | head -n 5; }
-skipped=0
-skip() { skipped=$((skipped + 1)); echo "skipped $1"; }
 asan=0; nm "$build/wrt-bake" 2>/dev/null | grep -q __asan_init && asan=1
-check() { local name=$1; shift; if "$@" >"$tmp/out" 2>"$tmp/err"; then ok "$name"; else ko "$name"; fi; }
-expect_exit() {
-    local name=$1 code=$2 re=$3; shift 3
-    "$@" >"$tmp/out" 2>"$tmp/err"; local rc=$?
-    if [ $rc -eq "$code" ] && grep -Eqi -- "$re" "$tmp/err"; then ok "$name"; else echo "    exit $rc: $(head -c 300 "$tmp/err")"; fail=$((fail + 1)); echo "FAIL $name"; fi
-}
 jnum() { tr -d '\n' < "$2" | grep -o "\"$1\":[0-9.e+-]*" | head -n 1 | cut -d: -f2; }
 
 check "--help" "$bake" --help
@@ -205,7 +196,7 @@ print(p.returncode, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss // 10
     # under config=sanitize the refusal is checked but not the peak.
     if [ "$asan" = 1 ] && [ "${1:-x}" = 7 ] && grep -q "budget of 400 MB" "$tmp/g9.err" && [ ! -e "$tmp/g9.gto" ]; then
         ok "memory: quality 9 glossy refused at 400 MB (exit 7)"
-        skip "memory: its peak under 400 MB (${2:-?} MB with AddressSanitizer's own memory)"
+        skipped "memory: its peak under 400 MB (${2:-?} MB with AddressSanitizer's own memory)"
     elif [ "${1:-x}" = 7 ] && [ "${2:-999999}" -le 400 ] && grep -q "budget of 400 MB" "$tmp/g9.err" && [ ! -e "$tmp/g9.gto" ]; then
         ok "memory: quality 9 glossy refused at 400 MB (exit 7), peak ${2} MB"
     else
@@ -229,5 +220,4 @@ else
     ko "interrupted bake: no output, no temporary (exit $rc)"
 fi
 
-if [ $skipped -gt 0 ]; then echo "bake: $pass passed, $fail failed, $skipped skipped"; else echo "bake: $pass passed, $fail failed"; fi
-[ "$fail" -eq 0 ]
+summary

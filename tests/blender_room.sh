@@ -10,9 +10,7 @@ set -u
 build=${1:-build}
 cd "$(dirname "$0")/.."
 bake=$build/wrt-bake
-pass=0; fail=0
-ok() { pass=$((pass + 1)); echo "ok $1"; }
-ko() { fail=$((fail + 1)); echo "FAIL $1"; }
+. tests/lib.sh blender_room
 tmp=$(mktemp -d /tmp/wrt_room_XXXXXX)
 trap 'rm -rf "$tmp"' EXIT
 scene=tests/data/blender_room.gltf
@@ -53,5 +51,4 @@ sys.exit(0 if all(g for g, _ in res) else 1)
 PY
 rc=$?
 n=4; if [ $rc -eq 0 ]; then pass=$((pass + n)); else fail=$((fail + 1)); fi
-echo "blender_room: $pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+summary

@@ -9,9 +9,7 @@
 set -u
 cd "$(dirname "$0")/.."
 h=tests/claims.h; doc=docs/claims.md
-pass=0; fail=0
-ok() { pass=$((pass + 1)); }
-ko() { fail=$((fail + 1)); echo "FAIL $1"; }
+. tests/lib.sh claims
 
 # claims.h as lines "NAME<TAB>VALUE<TAB>PHRASE"
 claims() {
@@ -62,5 +60,4 @@ while IFS=$'\t' read -r name val phrase; do
     if grep -qF -- "\`$name = $val\`" "$doc" 2>/dev/null; then ok; else ko "$doc does not list $name = $val"; fi
 done < <(claims)
 [ "$n" -gt 0 ] && ok || ko "no claims read from $h"
-echo "claims: $pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+summary

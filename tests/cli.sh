@@ -7,11 +7,10 @@
 set -u
 build=${1:-build}
 cd "$(dirname "$0")/.."
-pass=0; fail=0
+. tests/lib.sh cli
+lib_ko_shows_err=1 # a failure shows what the command said
 tmp=$(mktemp -d /tmp/wrt_cli_XXXXXX)
 trap 'rm -rf "$tmp"' EXIT
-ok() { pass=$((pass + 1)); echo "ok $1"; }
-ko() { fail=$((fail + 1)); echo "FAIL $1"; [ -s "$tmp/err" ] && sed 's/^/    /' "$tmp/err" | head -n 5; }
 # expect NAME CODE REGEX CMD...: exit code CODE and stderr (or stdout) matching REGEX
 expect() {
     local name=$1 code=$2 re=$3; shift 3
@@ -83,5 +82,4 @@ grep -q "0\.00 s" "$tmp/info" && ko "--info shows no 0.00 s" || ok "--info shows
 # no display: exit 6
 expect "wrt-play without a display: exit 6" 6 "display|window" env -u DISPLAY -u WAYLAND_DISPLAY "$build/wrt-play" "$gto"
 
-echo "cli: $pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+summary

@@ -8,35 +8,31 @@
 set -u
 build=${1:-build}
 cd "$(dirname "$0")/.."
-pass=0; fail=0
-check() { # check NAME CONDITION-RESULT(0 ok)
-    if [ "$2" -eq 0 ]; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: $1"; fi
-}
+. tests/lib.sh compare.sh
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 scene=assets/test/facing.gltf
 "$build/wrt-bake" "$scene" -o "$tmp/f.gto" -q 2 --quiet >/dev/null 2>&1
-check "bake" $?
+check_status "bake" $?
 args=(--lights 2 --cell-paths 200000 --width 32 --spp 64 --bench 3)
 "$build/wrt-compare" "$scene" "$tmp/f.gto" "${args[@]}" >"$tmp/out.json" 2>"$tmp/err.txt"
-check "compare exits 0" $?
+check_status "compare exits 0" $?
 json=$(cat "$tmp/out.json")
 for key in scene lights reference cell_floor image_floor bakes cell_rmse cell_rmse_debiased image_rmse \
            image_rmse_debiased ms_per_light_change per_light bytes ok; do
-    grep -q "\"$key\":" <<<"$json"; check "key $key" $?
+    grep -q "\"$key\":" <<<"$json"; check_status "key $key" $?
 done
 # The first number after a key, as awk reads it.
 num() { grep -o "\"$1\":[-0-9.eE+naif]*" <<<"$json" | head -n 1 | cut -d: -f2; }
 cell=$(num cell_rmse); img=$(num image_rmse); deb=$(num cell_rmse_debiased); ifl=$(num image_floor); fl=$(grep -o '"bakes":\[{.*' <<<"$json" | grep -o '"cell_floor":[-0-9.eE+]*' | head -n 1 | cut -d: -f2)
-awk -v c="$deb" 'BEGIN{exit !(c == c + 0 && c >= 0 && c <= 0.03)}'; check "cell rmse debiased $deb <= 0.03 (measured 0.019)" $?
-awk -v c="$img" -v f="$ifl" 'BEGIN{exit !(c == c + 0 && c >= 0 && c <= 1.1 * f + 0.05)}'; check "image rmse $img within the reference's noise $ifl" $?
-awk -v c="$cell" -v f="$fl" 'BEGIN{exit !(f > 0 && f < c)}'; check "cell floor $fl below the error $cell" $?
+awk -v c="$deb" 'BEGIN{exit !(c == c + 0 && c >= 0 && c <= 0.03)}'; check_status "cell rmse debiased $deb <= 0.03 (measured 0.019)" $?
+awk -v c="$img" -v f="$ifl" 'BEGIN{exit !(c == c + 0 && c >= 0 && c <= 1.1 * f + 0.05)}'; check_status "image rmse $img within the reference's noise $ifl" $?
+awk -v c="$cell" -v f="$fl" 'BEGIN{exit !(f > 0 && f < c)}'; check_status "cell floor $fl below the error $cell" $?
 "$build/wrt-compare" "$scene" "$tmp/f.gto" "${args[@]}" --no-image --max-error 1e-9 >"$tmp/strict.json" 2>/dev/null
-rc=$?; [ $rc -eq 5 ]; check "--max-error 1e-9 exits 5 (got $rc)" $?
-grep -q '"within_max_error":false' "$tmp/strict.json"; check "strict JSON says not within" $?
+rc=$?; [ $rc -eq 5 ]; check_status "--max-error 1e-9 exits 5 (got $rc)" $?
+grep -q '"within_max_error":false' "$tmp/strict.json"; check_status "strict JSON says not within" $?
 "$build/wrt-compare" "$scene" "$tmp/f.gto" "${args[@]}" --no-image --max-error 0.9 >/dev/null 2>&1
-rc=$?; [ $rc -eq 0 ]; check "--max-error 0.9 exits 0 (got $rc)" $?
+rc=$?; [ $rc -eq 0 ]; check_status "--max-error 0.9 exits 0 (got $rc)" $?
 "$build/wrt-compare" assets/cornell.gltf "$tmp/f.gto" --no-image --cell-paths 1000 --lights 1 >/dev/null 2>&1
-rc=$?; [ $rc -eq 2 ]; check "a bake of another scene is refused with 2 (got $rc)" $?
-echo "compare.sh: $pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+rc=$?; [ $rc -eq 2 ]; check_status "a bake of another scene is refused with 2 (got $rc)" $?
+summary

@@ -10,11 +10,9 @@
 set -u
 build=${1:-build}
 cd "$(dirname "$0")/.."
-pass=0; fail=0
+. tests/lib.sh glossy
 tmp=$(mktemp -d /tmp/wrt_glossy_XXXXXX)
 trap 'rm -rf "$tmp"' EXIT
-ok() { pass=$((pass + 1)); echo "ok $1"; }
-ko() { fail=$((fail + 1)); echo "FAIL $1"; }
 # figure FILE KEY: the first bake's KEY in wrt-compare's JSON, to 4 decimals
 figure() {
     python3 -c 'import json,sys; print("%.4f" % json.load(open(sys.argv[1]))["bakes"][0][sys.argv[2]])' "$1" "$2"
@@ -156,5 +154,4 @@ if "$build/wrt-scenegen" glossy-floor -o "$tmp/gf.gltf" >/dev/null 2>"$tmp/err" 
 else
     ko "glossy floor: scene, bakes and compare"; sed 's/^/    /' "$tmp/err" | head -n 5
 fi
-echo "glossy: $pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+summary

@@ -14,13 +14,11 @@ bake=$build/wrt-bake
 gen=$build/wrt-scenegen
 moments=3
 [ "${WRT_KILL_FULL:-0}" = 1 ] && moments=10
-pass=0; fail=0
+. tests/lib.sh kill
 tmp=$(mktemp -d /tmp/wrt_kill_XXXXXX)
 trap 'rm -rf "$tmp"' EXIT
-ok() { pass=$((pass + 1)); echo "ok $1"; }
-ko() { fail=$((fail + 1)); echo "FAIL $1"; }
 mkdir -p "$tmp/w" "$tmp/keep"
-"$gen" maze --out "$tmp/w/maze.gltf" >/dev/null 2>&1 || { echo "kill: 0 passed, 1 failed"; exit 1; }
+"$gen" maze --out "$tmp/w/maze.gltf" >/dev/null 2>&1 || { ko "wrt-scenegen maze"; summary; exit 1; }
 # The older output: a coarser bake of the same scene, and a copy kept elsewhere.
 "$bake" "$tmp/w/maze.gltf" -o "$tmp/w/out.gto" -q 1 --quiet >/dev/null 2>&1
 cp "$tmp/w/out.gto" "$tmp/keep/older.gto"
@@ -65,5 +63,4 @@ for mode in plain check; do
         done
     done
 done
-echo "kill: $pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+summary

@@ -14,24 +14,14 @@ cd "$(dirname "$0")/.."
 play=$build/wrt-play
 bake=$build/wrt-bake
 img=$build/tests/test_image
-pass=0; fail=0; skip=0
+. tests/lib.sh play
+lib_ko_shows_err=1 # a failure shows what the command said
 tmp=$(mktemp -d /tmp/wrt_play_XXXXXX)
 trap 'rm -rf "$tmp"' EXIT
 
-ok() { pass=$((pass + 1)); echo "ok $1"; }
-skipped() { skip=$((skip + 1)); echo "skipped $1"; }
-ko() { fail=$((fail + 1)); echo "FAIL $1"; [ -s "$tmp/err" ] && sed 's/^/    /' "$tmp/err" | head -n 5; }
-check() { local name=$1; shift; if "$@" >"$tmp/out" 2>"$tmp/err"; then ok "$name"; else ko "$name"; fi; }
-# expect_exit NAME CODE MESSAGE_REGEX CMD...: exit code CODE and stderr matching the regex
-expect_exit() {
-    local name=$1 code=$2 re=$3; shift 3
-    "$@" >"$tmp/out" 2>"$tmp/err"; local rc=$?
-    if [ $rc -eq "$code" ] && grep -Eqi -- "$re" "$tmp/err"; then ok "$name"; else echo "    exit $rc"; ko "$name"; fi
-}
-
 if [ ! -x "$play" ] || [ ! -x "$img" ]; then
-    echo "FAIL $play or $img not built"
-    echo "play: 0 passed, 1 failed"
+    ko "$play or $img not built"
+    summary
     exit 1
 fi
 
@@ -166,5 +156,4 @@ KEYS
     done
 fi
 
-if [ "$skip" -gt 0 ]; then echo "play: $pass passed, $fail failed, $skip skipped"; else echo "play: $pass passed, $fail failed"; fi
-[ "$fail" -eq 0 ]
+summary

@@ -11,40 +11,36 @@
 set -u
 build=${1:-build}
 cd "$(dirname "$0")/.."
-pass=0; fail=0
-check() { # check NAME CONDITION-RESULT(0 ok)
-    if [ "$2" -eq 0 ]; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: $1"; fi
-}
+. tests/lib.sh reconstruct.sh
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 # The first number after a key in the first bake's figures (its means).
 num() { grep -o '"bakes":\[{.*' "$1" | grep -o "\"$2\":[-0-9.eE+naif]*" | head -n 1 | cut -d: -f2; }
 
 "$build/wrt-bake" assets/cornell.gltf -o "$tmp/c.gto" --quiet >/dev/null 2>&1
-check "bake cornell" $?
+check_status "bake cornell" $?
 "$build/wrt-compare" assets/cornell.gltf "$tmp/c.gto" --lights 2 --cell-paths 100000 --width 48 --spp 1024 \
     --cells 8 --bench 1 >"$tmp/c.json" 2>/dev/null
-check "compare cornell" $?
+check_status "compare cornell" $?
 s=$(num "$tmp/c.json" image_rmse_debiased); h=$(num "$tmp/c.json" image_rmse_haar_debiased)
 echo "cornell: smooth image error $s (debiased), Haar blocks $h"
 awk -v s="$s" 'BEGIN{exit !(s == s + 0 && s >= 0 && s <= 0.0252 + 0.01)}'
-check "smooth image error $s within a point of the measured 0.0252" $?
+check_status "smooth image error $s within a point of the measured 0.0252" $?
 awk -v s="$s" -v h="$h" 'BEGIN{exit !(h == h + 0 && h >= s + 0.005)}'
-check "Haar blocks' image error $h at least half a point above the smooth display's $s" $?
+check_status "Haar blocks' image error $h at least half a point above the smooth display's $s" $?
 
 "$build/wrt-scenegen" cornell --res 2 --out "$tmp/r2.gltf" >/dev/null 2>&1
-check "scenegen --res 2" $?
+check_status "scenegen --res 2" $?
 "$build/wrt-bake" "$tmp/r2.gltf" -o "$tmp/r2.gto" -q 2 --quiet >/dev/null 2>&1
-check "bake cornell --res 2" $?
+check_status "bake cornell --res 2" $?
 "$build/wrt-compare" "$tmp/r2.gltf" "$tmp/r2.gto" --lights 1 --cell-paths 20000 --width 16 --spp 16 --bench 1 \
     >"$tmp/r2.json" 2>/dev/null
-check "compare cornell --res 2" $?
+check_status "compare cornell --res 2" $?
 a=$(num "$tmp/r2.json" seam_across); i=$(num "$tmp/r2.json" seam_inside)
 ha=$(num "$tmp/r2.json" seam_across_haar); hi=$(num "$tmp/r2.json" seam_inside_haar)
 echo "cornell --res 2: jump across shared edges $a, inside quads $i; Haar blocks $ha and $hi"
 awk -v a="$a" -v i="$i" 'BEGIN{exit !(a == a + 0 && i > 0 && a <= 1e-6 * i)}'
-check "no seam: jump across shared edges $a against $i inside" $?
+check_status "no seam: jump across shared edges $a against $i inside" $?
 awk -v a="$ha" -v i="$hi" 'BEGIN{exit !(a == a + 0 && a > 1.5 * i)}'
-check "the Haar blocks show seams ($ha across, $hi inside): the measure sees them" $?
-echo "reconstruct.sh: $pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+check_status "the Haar blocks show seams ($ha across, $hi inside): the measure sees them" $?
+summary

@@ -30,7 +30,7 @@ for t in "$build"/tests/test_*; do
     printf '%-40s %4d passed, %d failed%s\n' "$(basename "$t")" "$p" "$f" "$([ "$k" -gt 0 ] && echo ", $k skipped")"
 done
 for s in tests/*.sh; do
-    case "$(basename "$s")" in run.sh|mutate.sh) continue ;; esac   # mutate.sh: `make mutate`
+    case "$(basename "$s")" in run.sh|mutate.sh|lib.sh) continue ;; esac   # mutate.sh: `make mutate`; lib.sh: the helpers
     out=$(bash "$s" "$build" 2>&1); rc=$?
     [ -n "$logs" ] && printf '%s\n' "$out" >"$logs/$(basename "$s" .sh).out"
     line=$(printf '%s\n' "$out" | grep -E '[0-9]+ passed, [0-9]+ failed' | tail -n 1)

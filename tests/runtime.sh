@@ -4,9 +4,10 @@
 set -u
 build=${1:-build}
 cd "$(dirname "$0")/.."
+. tests/lib.sh runtime.sh
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 "$build/wrt-bake" assets/test/facing.gltf -o "$tmp/a.gto" -q 2 --quiet >/dev/null 2>&1 &&
 "$build/wrt-scenegen" maze --cells 2 --seed 3 --out "$tmp/m.gltf" >/dev/null 2>&1 &&
-"$build/wrt-bake" "$tmp/m.gltf" -o "$tmp/b.gto" -q 2 --quiet >/dev/null 2>&1 || { echo "FAIL: bakes"; echo "runtime.sh: 0 passed, 1 failed"; exit 1; }
+"$build/wrt-bake" "$tmp/m.gltf" -o "$tmp/b.gto" -q 2 --quiet >/dev/null 2>&1 || { ko "bakes"; summary; exit 1; }
 "$build/tests/runtime_instances" "$tmp/a.gto" "$tmp/b.gto"

@@ -14,12 +14,11 @@ cd "$(dirname "$0")/.."
 gen=$build/wrt-scenegen
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-pass=0; fail=0
-ok() { pass=$((pass + 1)); }
-bad() { fail=$((fail + 1)); echo "FAIL $*"; }
+. tests/lib.sh scenegen
+bad() { ko "$*"; }  # several words
 
 if [ ! -x "$gen" ]; then
-    make -s -j2 "$gen" >/dev/null 2>&1 || { bad "cannot build $gen"; echo "scenegen: $pass passed, $fail failed"; exit 1; }
+    make -s -j2 "$gen" >/dev/null 2>&1 || { bad "cannot build $gen"; summary; exit 1; }
 fi
 
 cat >"$tmp/check.py" <<'EOF'
@@ -225,7 +224,7 @@ for e in errs[:8]: print("%s: %s" % (path, e))
 sys.exit(1 if errs else 0)
 EOF
 
-check() {  # check NAME FILE key=value...
+check_gltf() {  # check_gltf NAME FILE key=value...
     local name=$1; shift
     if out=$(python3 "$tmp/check.py" "$@" 2>&1); then ok; else bad "$name: $out"; fi
 }
@@ -236,23 +235,23 @@ run() {  # run NAME OUT SCENE options...: generate, counting a failure to run
 
 # default set: counts, validity, scene promises
 if "$gen" --all "$tmp/all" >"$tmp/all.txt" 2>&1; then ok; else bad "--all: $(cat "$tmp/all.txt")"; fi
-check cornell "$tmp/all/cornell.gltf" quads=15 lights=1 mode=room type=point camdir=0,0,-1 \
+check_gltf cornell "$tmp/all/cornell.gltf" quads=15 lights=1 mode=room type=point camdir=0,0,-1 \
     bbox=-0.5,0,-0.5,0.5,1,0.5 albedo=0.75 lookat_bbox=1
-check maze "$tmp/all/maze.gltf" quads=365 lights=3 mode=sheet type=spot spotdown=1 lookat_bbox=1
-check glossy "$tmp/all/glossy.gltf" quads=9 lights=1 mode=room type=spot lookat_bbox=1 \
+check_gltf maze "$tmp/all/maze.gltf" quads=365 lights=3 mode=sheet type=spot spotdown=1 lookat_bbox=1
+check_gltf glossy "$tmp/all/glossy.gltf" quads=9 lights=1 mode=room type=spot lookat_bbox=1 \
     ldir0=-1.2,-1.9,-1.4 glossy=glossy_floor:0.3,glossy_wall:0.4,orange:1
-check facing "$tmp/all/test/facing.gltf" quads=2 lights=1 mode=facing gap=1 light0=0,0,0.5
-check perpendicular "$tmp/all/test/perpendicular.gltf" quads=2 lights=1 mode=hinge angle=90
-check furnace "$tmp/all/test/furnace.gltf" quads=6 lights=1 mode=inward light0=0,0,0 \
+check_gltf facing "$tmp/all/test/facing.gltf" quads=2 lights=1 mode=facing gap=1 light0=0,0,0.5
+check_gltf perpendicular "$tmp/all/test/perpendicular.gltf" quads=2 lights=1 mode=hinge angle=90
+check_gltf furnace "$tmp/all/test/furnace.gltf" quads=6 lights=1 mode=inward light0=0,0,0 \
     bbox=-0.5,-0.5,-0.5,0.5,0.5,0.5
-check tworooms "$tmp/all/test/tworooms.gltf" quads=12 lights=1 mode=inward
-check grazing "$tmp/all/test/grazing.gltf" quads=2 lights=0 mode=hinge angle=1
-check cornell-glossy "$tmp/all/test/cornell_glossy.gltf" quads=15 lights=1 mode=room type=point camdir=0,0,-1 \
+check_gltf tworooms "$tmp/all/test/tworooms.gltf" quads=12 lights=1 mode=inward
+check_gltf grazing "$tmp/all/test/grazing.gltf" quads=2 lights=0 mode=hinge angle=1
+check_gltf cornell-glossy "$tmp/all/test/cornell_glossy.gltf" quads=15 lights=1 mode=room type=point camdir=0,0,-1 \
     bbox=-0.5,0,-0.5,0.5,1,0.5 lookat_bbox=1 glossy=glossy_metal:0.3,white:1
-check glossy-box "$tmp/all/test/glossy_box.gltf" quads=6 lights=1 mode=inward \
+check_gltf glossy-box "$tmp/all/test/glossy_box.gltf" quads=6 lights=1 mode=inward \
     bbox=-0.5,-0.5,-0.5,0.5,0.5,0.5 glossy=metal:0.3
 "$gen" cornell-glossy --roughness 0.05 -o "$tmp/cg05.gltf" >/dev/null 2>&1
-check cornell-glossy-0.05 "$tmp/cg05.gltf" quads=15 lights=1 mode=room type=point glossy=glossy_metal:0.05
+check_gltf cornell-glossy-0.05 "$tmp/cg05.gltf" quads=15 lights=1 mode=room type=point glossy=glossy_metal:0.05
 
 # the committed assets are what the generator writes now
 for f in cornell maze glossy test/facing test/perpendicular test/furnace test/tworooms test/grazing \
@@ -266,33 +265,33 @@ if diff -r -q "$tmp/all" "$tmp/again" >/dev/null; then ok; else bad "two runs di
 
 # options
 run scale+offset "$tmp/c2.gltf" cornell --scale 2 --offset 100,-50,3 --albedo 0.5
-check scale+offset "$tmp/c2.gltf" quads=15 mode=room bbox=99,-50,2,101,-48,4 light0=100,-48.3,3 \
+check_gltf scale+offset "$tmp/c2.gltf" quads=15 mode=room bbox=99,-50,2,101,-48,4 light0=100,-48.3,3 \
     intensity=10 camera=100,-49,6.8 albedo=0.5 lookat_bbox=1
 run cornell-res2 "$tmp/c3.gltf" cornell --res 2
-check cornell-res2 "$tmp/c3.gltf" quads=60 mode=room
+check_gltf cornell-res2 "$tmp/c3.gltf" quads=60 mode=room
 run cornell-spot "$tmp/c4.gltf" cornell --light spot --intensity 7
-check cornell-spot "$tmp/c4.gltf" lights=1 type=spot ldir0=0,-1,0 intensity=7
+check_gltf cornell-spot "$tmp/c4.gltf" lights=1 type=spot ldir0=0,-1,0 intensity=7
 run cornell-nolight "$tmp/c5.gltf" cornell --light none
-check cornell-nolight "$tmp/c5.gltf" lights=0
+check_gltf cornell-nolight "$tmp/c5.gltf" lights=0
 if grep -q KHR_lights_punctual "$tmp/c5.gltf"; then bad "unlit scene still declares KHR_lights_punctual"; else ok; fi
 run furnace-res3 "$tmp/f3.gltf" furnace --res 3 --albedo 0.3 --offset 5,5,5
-check furnace-res3 "$tmp/f3.gltf" quads=54 mode=inward light0=5,5,5 albedo=0.3 bbox=4.5,4.5,4.5,5.5,5.5,5.5
+check_gltf furnace-res3 "$tmp/f3.gltf" quads=54 mode=inward light0=5,5,5 albedo=0.3 bbox=4.5,4.5,4.5,5.5,5.5,5.5
 run maze-res3 "$tmp/m2.gltf" maze --res 3 --offset 0.1,0.2,0.3 --scale 1.7
-check maze-res3 "$tmp/m2.gltf" quads=3285 mode=sheet spotdown=1
+check_gltf maze-res3 "$tmp/m2.gltf" quads=3285 mode=sheet spotdown=1
 run maze-small "$tmp/m3.gltf" maze --cells 3 --seed 7
-check maze-small "$tmp/m3.gltf" mode=sheet lights=3
+check_gltf maze-small "$tmp/m3.gltf" mode=sheet lights=3
 run maze-seed "$tmp/m4.gltf" maze --seed 2
 if cmp -s "$tmp/m4.gltf" "$tmp/all/maze.gltf"; then bad "--seed changes nothing"; else ok; fi
 run facing-dist "$tmp/fa.gltf" facing --dist 0.01 --scale 3
-check facing-dist "$tmp/fa.gltf" mode=facing gap=0.03
+check_gltf facing-dist "$tmp/fa.gltf" mode=facing gap=0.03
 run grazing-30 "$tmp/g30.gltf" grazing --angle 30 --res 4 --light point
-check grazing-30 "$tmp/g30.gltf" quads=32 lights=1 mode=hinge angle=30
+check_gltf grazing-30 "$tmp/g30.gltf" quads=32 lights=1 mode=hinge angle=30
 run grazing-179 "$tmp/g179.gltf" grazing --angle 179.5 --offset -3,2,1
-check grazing-179 "$tmp/g179.gltf" mode=hinge angle=179.5
+check_gltf grazing-179 "$tmp/g179.gltf" mode=hinge angle=179.5
 run tworooms-thick "$tmp/t2.gltf" tworooms --thick 0.001 --res 2
-check tworooms-thick "$tmp/t2.gltf" quads=48 mode=inward
+check_gltf tworooms-thick "$tmp/t2.gltf" quads=48 mode=inward
 run glossy-res "$tmp/gl.gltf" glossy --res 3 --scale 0.5
-check glossy-res "$tmp/gl.gltf" quads=81 mode=room intensity=5
+check_gltf glossy-res "$tmp/gl.gltf" quads=81 mode=room intensity=5
 
 # bad arguments are refused with status 1 (bad command line) and write nothing
 for args in "cornell --res 0" "cornell --albedo 1.5" "nosuch" "cornell --offset 1,2" "cornell --light blue" \
@@ -309,5 +308,4 @@ if [ -x "$build/wrt-bake" ]; then
     done
 fi
 
-echo "scenegen: $pass passed, $fail failed"
-[ "$fail" -eq 0 ]
+summary
