@@ -6,8 +6,9 @@
 # that does not exist yet for a fault id (a fresh clone once ran "0 caught, 0 survived"
 # and passed). Prints "N passed, N failed".
 cd "$(dirname "$0")/.."
-pass=0; fail=0
-check() { if [ "$1" = 0 ]; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: $2"; fi; }
+. tests/lib.sh mutation_table.sh
+# check STATUS WHAT: counts one check, naming WHAT when it failed
+check() { if [ "$1" = 0 ]; then ok; else ko "$2"; fi; }
 out=$(bash tests/mutate.sh --check 2>&1); rc=$?
 check $rc "mutate --check: $out"
 n=$(sed -nE 's/^mutate --check: ([0-9]+) faults.*/\1/p' <<<"$out")
@@ -19,5 +20,4 @@ out=$(bash tests/mutate.sh "$nodir" 2>&1); rc=$?
 out=$(bash tests/mutate.sh --build "$nodir" --min-score 101 2>&1); rc=$?
 [ $rc -eq 1 ] && grep -q "percentage" <<<"$out"; check $? "--min-score 101 was not refused (rc $rc): $out"
 rm -rf "$nodir"
-echo "mutation_table.sh: $pass passed, $fail failed"
-[ $fail -eq 0 ]
+summary
