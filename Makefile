@@ -64,7 +64,8 @@ TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
 .PHONY: all deps demo test tests stress study fuzz clean assets bench mutate install
-all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/tests/runtime_instances
+all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/tests/runtime_instances \
+     $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core
 
 deps:
 	@bash tools/install-deps.sh
@@ -105,6 +106,14 @@ $(BUILD)/tests/runtime_instances: tests/runtime_instances.c $(BUILD)/libwrt.a in
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -D_GNU_SOURCE -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
 
+# The public API's tests: runtime_api through the header and libwrt.a alone;
+# runtime_core the same calls beside the relighting core they wrap (tests/runtime.sh).
+$(BUILD)/tests/runtime_api: tests/runtime_api.c $(BUILD)/libwrt.a include/wrt.h
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -D_GNU_SOURCE -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
+TEST_PARTS_runtime_core := runtime formats common
+
 # make install PREFIX=DIR: the header, both libraries and wrt.pc (pkg-config).
 PREFIX ?= /usr/local
 install: $(LIBWRT)
@@ -113,7 +122,7 @@ install: $(LIBWRT)
 	install -m 644 $(BUILD)/libwrt.a $(DESTDIR)$(PREFIX)/lib/libwrt.a
 	install -m 755 $(BUILD)/libwrt.so $(DESTDIR)$(PREFIX)/lib/libwrt.so.1
 	ln -sf libwrt.so.1 $(DESTDIR)$(PREFIX)/lib/libwrt.so
-	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|'"$$(sed -n 's/#define WRT_VERSION_STRING "\(.*\)"/\1/p' common/wrt_common.h)"'|' \
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|'"$$(sed -n 's/^\#define WRT_VERSION_STRING "\(.*\)"/\1/p' include/wrt.h)"'|' \
 	    tools/wrt.pc.in > $(DESTDIR)$(PREFIX)/lib/pkgconfig/wrt.pc
 
 $(BUILD)/obj/%.o: %.cpp | $(BUILD)/.deps-checked

@@ -11,7 +11,7 @@
 
 #include "../include/wrt.h"
 
-#define WRT_VERSION_STRING "0.1.0"
+/* WRT_VERSION_STRING and the other version macros: include/wrt.h. */
 #define WRT_PI 3.14159265358979323846
 
 /* Every fallible function returns a wrt_status (include/wrt.h, the public header, defines
