@@ -54,10 +54,18 @@ ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(REF_OBJ) $(CORE_OBJ)
 
 # The runtime library (include/wrt.h): the base, the .gto reader and the relighting core;
 # no loader, no image I/O, no OpenGL.
+# Its objects are compiled with hidden visibility, one section per function and datum:
+# only the API (WRT_API in include/wrt.h, listed by tools/api-symbols.sh) is exported, and what the API
+# cannot reach (the .gto writer, its signal handlers, the aborting wrt_xmalloc) is
+# dropped by --gc-sections. libwrt.a is one object, partially linked from the same
+# objects with the API as roots and every other symbol made local (tools/link-static-lib.sh):
+# nothing of wrt but the API can clash with an embedder's symbols (tests/exports.sh
+# checks both libraries).
 LIB_SRC := $(wildcard common/*.c) formats/gto.c player/relight.c player/gather.c player/wrt_runtime.c
 LIB_OBJ := $(call obj,$(LIB_SRC))
 PIC_OBJ := $(patsubst %.c,$(BUILD)/pic/%.o,$(LIB_SRC))
 LIBWRT := $(BUILD)/libwrt.a $(BUILD)/libwrt.so
+PIC_FLAGS := -fPIC -fvisibility=hidden -ffunction-sections -fdata-sections
 
 PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-scenegen $(BUILD)/wrt-compare
 TEST_SRC := $(wildcard tests/test_*.c)
@@ -81,18 +89,19 @@ $(BUILD)/obj/%.o: %.c | $(BUILD)/.deps-checked
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
 
-$(BUILD)/pic/%.o: %.c | $(BUILD)/.deps-checked
+# (Makefile: a change of PIC_FLAGS must rebuild the library's objects.)
+$(BUILD)/pic/%.o: %.c Makefile | $(BUILD)/.deps-checked
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $< (PIC)")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -fPIC -c $< -o $@
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $(PIC_FLAGS) -c $< -o $@
 
-$(BUILD)/libwrt.a: $(LIB_OBJ)
+$(BUILD)/libwrt.a: $(PIC_OBJ) include/wrt.h tools/link-static-lib.sh
 	@$(if $(Q),echo "  AR      $@")
-	$(Q)rm -f $@ && ar rcs $@ $^
+	$(Q)bash tools/link-static-lib.sh $@ include/wrt.h $(PIC_OBJ)
 
 $(BUILD)/libwrt.so: $(PIC_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
-	$(Q)$(CC) -shared -Wl,-soname,libwrt.so.1 $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
+	$(Q)$(CC) -shared -Wl,-soname,libwrt.so.1 -Wl,--gc-sections $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
 
 # The example, built against the library as an embedder would.
 $(BUILD)/examples/relight: examples/relight.c $(BUILD)/libwrt.a include/wrt.h
@@ -114,16 +123,20 @@ $(BUILD)/tests/runtime_api: tests/runtime_api.c $(BUILD)/libwrt.a include/wrt.h
 	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -D_GNU_SOURCE -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
 TEST_PARTS_runtime_core := runtime formats common
 
-# make install PREFIX=DIR: the header, both libraries and wrt.pc (pkg-config).
+# make install PREFIX=DIR: the header, both libraries, wrt.pc and wrt-so.pc (pkg-config:
+# wrt.pc gives libwrt.a with --static, libwrt.so without; tools/wrt.pc.in says how).
 PREFIX ?= /usr/local
+WRT_VERSION_TEXT = $$(sed -n 's/^\#define WRT_VERSION_STRING "\(.*\)"/\1/p' include/wrt.h)
 install: $(LIBWRT)
 	install -d $(DESTDIR)$(PREFIX)/include $(DESTDIR)$(PREFIX)/lib/pkgconfig
 	install -m 644 include/wrt.h $(DESTDIR)$(PREFIX)/include/wrt.h
 	install -m 644 $(BUILD)/libwrt.a $(DESTDIR)$(PREFIX)/lib/libwrt.a
 	install -m 755 $(BUILD)/libwrt.so $(DESTDIR)$(PREFIX)/lib/libwrt.so.1
 	ln -sf libwrt.so.1 $(DESTDIR)$(PREFIX)/lib/libwrt.so
-	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|'"$$(sed -n 's/^\#define WRT_VERSION_STRING "\(.*\)"/\1/p' include/wrt.h)"'|' \
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|'"$(WRT_VERSION_TEXT)"'|' \
 	    tools/wrt.pc.in > $(DESTDIR)$(PREFIX)/lib/pkgconfig/wrt.pc
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|'"$(WRT_VERSION_TEXT)"'|' \
+	    tools/wrt-so.pc.in > $(DESTDIR)$(PREFIX)/lib/pkgconfig/wrt-so.pc
 
 $(BUILD)/obj/%.o: %.cpp | $(BUILD)/.deps-checked
 	@mkdir -p $(dir $@)
