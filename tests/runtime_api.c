@@ -172,7 +172,8 @@ static void test_handles(const char *path) {
     CHECK(wrt_runtime_quad_texture(NULL, 0, &res) == NULL && res == 0, "texture of NULL");
     /* NULL out-pointers */
     CHECK(wrt_runtime_open_file(path, NULL, NULL, &err) == WRT_ERR_INVALID_ARG, "open with out NULL");
-    CHECK(wrt_runtime_open_file(NULL, NULL, (wrt_runtime **)&res, &err) == WRT_ERR_INVALID_ARG, "open of a NULL path");
+    wrt_runtime *none = (wrt_runtime *)&err;
+    CHECK(wrt_runtime_open_file(NULL, NULL, &none, &err) == WRT_ERR_INVALID_ARG && none == NULL, "open of a NULL path");
     /* not a runtime: a zeroed block */
     static uint64_t junk[512];
     wrt_runtime *fake = (wrt_runtime *)junk;
