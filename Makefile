@@ -57,19 +57,28 @@ REF_OBJ := $(call obj,verify/reference.c)
 RUNTIME_OBJ := $(call obj,$(RUNTIME_SRC))
 ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(VERIFY_OBJ) $(CORE_OBJ)
 
-# The runtime library (include/wrt.h): the base, the .gto reader and the relighting core
-# (player/relight*.c, the final gather, the API); no loader, no image I/O, no OpenGL.
+# The runtime library (include/wrt.h): the base, the .gto reader and the relighting core;
+# no loader, no image I/O, no OpenGL.
+# Its objects are compiled with hidden visibility, one section per function and datum:
+# only the API (WRT_API in include/wrt.h, listed by tools/api-symbols.sh) is exported, and what the API
+# cannot reach (the .gto writer, its signal handlers, the aborting wrt_xmalloc) is
+# dropped by --gc-sections. libwrt.a is one object, partially linked from the same
+# objects with the API as roots and every other symbol made local (tools/link-static-lib.sh):
+# nothing of wrt but the API can clash with an embedder's symbols (tests/exports.sh
+# checks both libraries).
 LIB_SRC := $(wildcard common/*.c) formats/gto_read.c formats/gto_check.c $(RUNTIME_SRC)
 LIB_OBJ := $(call obj,$(LIB_SRC))
 PIC_OBJ := $(patsubst %.c,$(BUILD)/pic/%.o,$(LIB_SRC))
 LIBWRT := $(BUILD)/libwrt.a $(BUILD)/libwrt.so
+PIC_FLAGS := -fPIC -fvisibility=hidden -ffunction-sections -fdata-sections
 
 PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-scenegen $(BUILD)/wrt-compare
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
 .PHONY: all deps demo test tests stress study fuzz clean assets bench mutate install
-all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/tests/runtime_instances
+all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/tests/runtime_instances \
+     $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core
 
 deps:
 	@bash tools/install-deps.sh
@@ -85,18 +94,19 @@ $(BUILD)/obj/%.o: %.c | $(BUILD)/.deps-checked
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -c $< -o $@
 
-$(BUILD)/pic/%.o: %.c | $(BUILD)/.deps-checked
+# (Makefile: a change of PIC_FLAGS must rebuild the library's objects.)
+$(BUILD)/pic/%.o: %.c Makefile | $(BUILD)/.deps-checked
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $< (PIC)")
-	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -fPIC -c $< -o $@
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $(PIC_FLAGS) -c $< -o $@
 
-$(BUILD)/libwrt.a: $(LIB_OBJ)
+$(BUILD)/libwrt.a: $(PIC_OBJ) include/wrt.h tools/link-static-lib.sh
 	@$(if $(Q),echo "  AR      $@")
-	$(Q)rm -f $@ && ar rcs $@ $^
+	$(Q)bash tools/link-static-lib.sh $@ include/wrt.h $(PIC_OBJ)
 
 $(BUILD)/libwrt.so: $(PIC_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
-	$(Q)$(CC) -shared -Wl,-soname,libwrt.so.1 $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
+	$(Q)$(CC) -shared -Wl,-soname,libwrt.so.1 -Wl,--gc-sections $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
 
 # The example, built against the library as an embedder would.
 $(BUILD)/examples/relight: examples/relight.c $(BUILD)/libwrt.a include/wrt.h
@@ -110,16 +120,28 @@ $(BUILD)/tests/runtime_instances: tests/runtime_instances.c $(BUILD)/libwrt.a in
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -D_GNU_SOURCE -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
 
-# make install PREFIX=DIR: the header, both libraries and wrt.pc (pkg-config).
+# The public API's tests: runtime_api through the header and libwrt.a alone;
+# runtime_core the same calls beside the relighting core they wrap (tests/runtime.sh).
+$(BUILD)/tests/runtime_api: tests/runtime_api.c $(BUILD)/libwrt.a include/wrt.h
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -D_GNU_SOURCE -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
+TEST_PARTS_runtime_core := runtime formats common
+
+# make install PREFIX=DIR: the header, both libraries, wrt.pc and wrt-so.pc (pkg-config:
+# wrt.pc gives libwrt.a with --static, libwrt.so without; tools/wrt.pc.in says how).
 PREFIX ?= /usr/local
+WRT_VERSION_TEXT = $$(sed -n 's/^\#define WRT_VERSION_STRING "\(.*\)"/\1/p' include/wrt.h)
 install: $(LIBWRT)
 	install -d $(DESTDIR)$(PREFIX)/include $(DESTDIR)$(PREFIX)/lib/pkgconfig
 	install -m 644 include/wrt.h $(DESTDIR)$(PREFIX)/include/wrt.h
 	install -m 644 $(BUILD)/libwrt.a $(DESTDIR)$(PREFIX)/lib/libwrt.a
 	install -m 755 $(BUILD)/libwrt.so $(DESTDIR)$(PREFIX)/lib/libwrt.so.1
 	ln -sf libwrt.so.1 $(DESTDIR)$(PREFIX)/lib/libwrt.so
-	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|'"$$(sed -n 's/#define WRT_VERSION_STRING "\(.*\)"/\1/p' common/wrt_common.h)"'|' \
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|'"$(WRT_VERSION_TEXT)"'|' \
 	    tools/wrt.pc.in > $(DESTDIR)$(PREFIX)/lib/pkgconfig/wrt.pc
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|'"$(WRT_VERSION_TEXT)"'|' \
+	    tools/wrt-so.pc.in > $(DESTDIR)$(PREFIX)/lib/pkgconfig/wrt-so.pc
 
 $(BUILD)/obj/%.o: %.cpp | $(BUILD)/.deps-checked
 	@mkdir -p $(dir $@)

@@ -48,7 +48,7 @@ void wrt_log(int level, const char *fmt, ...) {
     vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
     if (log_sink) {
-        log_sink(level, buf, log_user);
+        log_sink(log_user, level, buf);
         return;
     }
     if (level > log_verbosity) return;

@@ -11,7 +11,7 @@
 
 #include "../include/wrt.h"
 
-#define WRT_VERSION_STRING "0.1.0"
+/* WRT_VERSION_STRING and the other version macros: include/wrt.h. */
 #define WRT_PI 3.14159265358979323846
 
 /* Every fallible function returns a wrt_status (include/wrt.h, the public header, defines
@@ -26,8 +26,9 @@ const char *wrt_last_error(void);
 void wrt_clear_error(void);
 
 /* Logging. Levels: 0 error, 1 warning, 2 info, 3 debug. Default sink writes
- * "wrt: warning: ..." to stderr for levels <= the verbosity (default 1). */
-typedef void (*wrt_log_sink)(int level, const char *msg, void *user);
+ * "wrt: warning: ..." to stderr for levels <= the verbosity (default 1). A sink takes
+ * the user pointer first, as every callback in wrt (include/wrt.h). */
+typedef void (*wrt_log_sink)(void *user, int level, const char *msg);
 void wrt_log_set_sink(wrt_log_sink sink, void *user); /* NULL restores the default */
 void wrt_log_set_verbosity(int level);
 void wrt_log(int level, const char *fmt, ...) __attribute__((format(printf, 2, 3)));

@@ -14,17 +14,9 @@ int main(int argc, char **argv) {
         fprintf(stderr, "%s: %s\n", argv[1], err.message);
         return 2;
     }
-    /* The scene's box, from the quads' corners: to place the eye and a light. */
-    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
-    for (int q = 0; q < wrt_runtime_quad_count(rt); q++) {
-        double p[4][3];
-        wrt_runtime_quad_corners(rt, q, p);
-        for (int k = 0; k < 4; k++)
-            for (int c = 0; c < 3; c++) {
-                if (p[k][c] < lo[c]) lo[c] = p[k][c];
-                if (p[k][c] > hi[c]) hi[c] = p[k][c];
-            }
-    }
+    /* The scene's box (of every quad's corners): to place the eye and a light. */
+    double lo[3], hi[3];
+    wrt_runtime_get_bounds(rt, lo, hi, NULL);
     wrt_runtime_light light = {0}; /* zero: a white point light, on */
     if (wrt_runtime_light_count(rt) > 0) {
         wrt_runtime_get_light(rt, 0, &light, NULL);
@@ -43,7 +35,7 @@ int main(int argc, char **argv) {
     /* One line per quad: index and mean outgoing indirect radiance (linear RGB). */
     for (int q = 0; q < wrt_runtime_quad_count(rt); q++) {
         float m[3];
-        wrt_runtime_quad_mean(rt, q, m);
+        wrt_runtime_quad_mean(rt, q, m, NULL);
         printf("%d %.6g %.6g %.6g\n", q, m[0], m[1], m[2]);
     }
     wrt_runtime_close(rt);

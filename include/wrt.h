@@ -4,28 +4,68 @@
  * transport operator and turns the result into one texture of outgoing indirect
  * radiance per quad (linear RGB floats); draw your direct light as you like and add it.
  *
- *   wrt_runtime *rt;
- *   wrt_error err;
- *   if (wrt_runtime_open_file("scene.gto", NULL, &rt, &err)) { puts(err.message); return 1; }
- *   wrt_runtime_light l;
- *   wrt_runtime_get_light(rt, 0, &l);          // the file's first light (or fill one in)
- *   l.position[1] -= 0.2;
- *   wrt_runtime_set_lights(rt, &l, 1, &err);
- *   wrt_runtime_set_eye(rt, eye);              // glossy quads need the eye
- *   wrt_runtime_update(rt, NULL, &err);
- *   for (int q = 0; q < wrt_runtime_quad_count(rt); q++) {
- *       int res; const float *tex = wrt_runtime_quad_texture(rt, q, &res);  // res x res x RGB
- *   }
- *   wrt_runtime_close(rt);
+ * Example (tests/install.sh extracts the lines between the markers and compiles them
+ * against the installed header and libwrt.a, so it stays true):
  *
- * Build: cc app.c $(pkg-config --cflags --libs wrt)  (add --static for libwrt.a).
+ * WRT_EXAMPLE_BEGIN
+ *   #include <stdio.h>
+ *   #include <wrt.h>
+ *   int main(int argc, char **argv) {
+ *       wrt_runtime *rt;
+ *       wrt_error err;
+ *       if (argc < 2 || wrt_runtime_open_file(argv[1], NULL, &rt, &err)) {
+ *           fprintf(stderr, "%s\n", argc < 2 ? "usage: app FILE.gto" : err.message);
+ *           return 1;
+ *       }
+ *       wrt_runtime_light l = {0};              // zero: a white point light at the origin, on
+ *       if (wrt_runtime_light_count(rt) > 0)
+ *           wrt_runtime_get_light(rt, 0, &l, &err); // the file's first light (name, range too)
+ *       l.position[1] -= 0.2;
+ *       double eye[3] = {0, 1, 3};
+ *       if (wrt_runtime_set_lights(rt, &l, 1, &err) || wrt_runtime_set_eye(rt, eye, &err) ||
+ *           wrt_runtime_update(rt, NULL, &err)) {    // glossy quads need the eye
+ *           fprintf(stderr, "%s\n", err.message);
+ *           wrt_runtime_close(rt);
+ *           return 1;
+ *       }
+ *       for (int q = 0; q < wrt_runtime_quad_count(rt); q++) {
+ *           int res;
+ *           const float *tex = wrt_runtime_quad_texture(rt, q, &res); // res x res x RGB
+ *           wrt_runtime_quad src;                    // where it came from in the glTF
+ *           wrt_runtime_get_quad(rt, q, &src, NULL);
+ *           printf("quad %d: mesh %d, %d x %d texels, first %g\n", q, src.mesh, res, res, tex[0]);
+ *       }
+ *       return wrt_runtime_close(rt) == WRT_OK ? 0 : 1;
+ *   }
+ * WRT_EXAMPLE_END
+ *
+ * Build: cc app.c $(pkg-config --cflags --libs wrt), or with `pkg-config --static` for
+ * libwrt.a (then libwrt.so is not needed at run time; wrt.pc puts libwrt.a first and
+ * links libwrt.so --as-needed, so that the archive takes every reference).
  *
  * Rules. Every call that can fail returns a wrt_status (WRT_OK = 0) and, if `err` is not
  * NULL, fills it with the status and a message naming what failed; nothing aborts or
  * exits, out of memory included (an update that runs out returns WRT_ERR_NOMEM; the
  * textures may then be partly updated, and the next update redoes them all). Option
- * structs are zero-initialised for the defaults (wrt_runtime_defaults shows them).
- * Results do not depend on the thread count or on a job hook.
+ * structs are zero-initialised for the defaults (wrt_runtime_defaults shows them); their
+ * first field, `size`, lets them grow without breaking callers built against an older
+ * header. Results do not depend on the thread count or on a job hook. Only the functions
+ * declared here (WRT_API) are exported by libwrt.so, and libwrt.a holds one object whose
+ * only global symbols are these: nothing else of wrt can clash with your symbols.
+ *
+ * Handles. A runtime handle carries a magic number, set at open and cleared at close.
+ * Every call checks it: a NULL handle, a handle that is not a runtime and a handle used
+ * after wrt_runtime_close (close included: a double close) give WRT_ERR_INVALID_ARG ("not
+ * a live runtime") instead of a crash, the count getters -1, wrt_runtime_quad_texture
+ * NULL. After close the handle's memory goes back to your allocator: the check is sure as
+ * long as that memory has not been handed out again (keep it, as a debugging allocator
+ * does, to make it sure always). A NULL out-pointer gives WRT_ERR_INVALID_ARG.
+ *
+ * Bounds. What the computation carries, checked where values enter (WRT_ERR_INVALID_ARG
+ * naming the value): positions (lights, eye) and light ranges finite, each coordinate
+ * within +-WRT_MAX_COORD metres; a light's intensity finite, >= 0, and intensity x its
+ * largest colour channel at most WRT_MAX_INTENSITY candela (so radiance stays far inside
+ * float range even a micrometre from a surface); colour channels finite and >= 0.
  *
  * Threads. The runtime keeps its state in its handle: any number of runtimes may live
  * in one process and each gives exactly what it gives alone. One runtime is used by one
@@ -39,12 +79,14 @@
  * update's worker threads (or your hook's threads) at once, so they must be thread-safe.
  * Without a job hook each runtime keeps its own pool of `threads` - 1 worker threads,
  * parked between updates; with one it starts no thread of its own. Embree (the ray
- * tracer used for shadow rays) builds its scene at open on threads of its own.
+ * tracer used for shadow rays) builds its scene at open on threads of its own. Opening
+ * a file with glossy materials traces the final gather's rays and tabulates their BRDFs
+ * at open: seconds for a large glossy scene (about 10 s for the glossy asset on 2 cores).
  *
  * Quads. A quad's texture covers its parameter square: texel (i, j) of res x res covers
  * u in [i/res, (i+1)/res), v in [j/res, (j+1)/res), row j after row j-1, where the point
  * at (u, v) is (1-u)(1-v) p0 + u(1-v) p1 + u v p2 + (1-u) v p3 for the quad's corners
- * p0..p3 (wrt_runtime_quad_corners). Units: radiance in the lights' units (candela for
+ * p0..p3 (wrt_runtime_get_quad). Units: radiance in the lights' units (candela for
  * intensity, metres for positions: W/(m^2 sr) for a light of 1 W/sr). */
 #ifndef WRT_H
 #define WRT_H
@@ -55,7 +97,25 @@
 extern "C" {
 #endif
 
-#define WRT_API_VERSION 1
+/* What libwrt exports: every function declared with it, nothing else (the library is
+ * built with -fvisibility=hidden; tests/exports.sh checks `nm -D` against this header). */
+#if defined(__GNUC__) || defined(__clang__)
+#define WRT_API __attribute__((visibility("default")))
+#else
+#define WRT_API
+#endif
+
+/* The library's version (the tools' --version and the .gto provenance print the same
+ * string), and the version of this header's API: 2 since the options' `size`, the
+ * user-first allocator and the status-returning accessors. Compare the macros with
+ * wrt_version() and wrt_api_version() at run time to catch a program built against
+ * another header than the library it runs with. */
+#define WRT_VERSION_MAJOR 0
+#define WRT_VERSION_MINOR 1
+#define WRT_VERSION_PATCH 0
+#define WRT_VERSION_STRING "0.1.0"
+#define WRT_VERSION (WRT_VERSION_MAJOR * 10000 + WRT_VERSION_MINOR * 100 + WRT_VERSION_PATCH)
+#define WRT_API_VERSION 2
 
 /* What every fallible call returns (shared by all of wrt's tools and libraries). */
 typedef enum wrt_status {
@@ -66,7 +126,7 @@ typedef enum wrt_status {
     WRT_ERR_UNSUPPORTED, /* valid, but a version or feature we do not support */
     WRT_ERR_PARSE,       /* malformed input (glTF JSON, buffers, accessors) */
     WRT_ERR_GEOMETRY,    /* geometry we refuse: unpaired triangles, non-planar/degenerate quads, NaN */
-    WRT_ERR_INVALID_ARG, /* absurd option or argument */
+    WRT_ERR_INVALID_ARG, /* absurd option or argument, NULL out-pointer, dead handle */
     WRT_ERR_NOMEM,
     WRT_ERR_CANCELLED,   /* a progress callback asked to stop */
     WRT_ERR_ACCURACY,    /* a required accuracy was not met */
@@ -74,8 +134,14 @@ typedef enum wrt_status {
     WRT_STATUS_COUNT
 } wrt_status;
 
-/* Short constant text for a status ("ok", "i/o error", ...). */
-const char *wrt_status_str(wrt_status s);
+/* Short constant text for a status ("ok", "i/o error", ...). Thread-safe. */
+WRT_API const char *wrt_status_str(wrt_status s);
+
+/* The library's WRT_VERSION, WRT_VERSION_STRING and WRT_API_VERSION as it was built
+ * (constant; thread-safe). */
+WRT_API int wrt_version(void);
+WRT_API const char *wrt_version_string(void);
+WRT_API int wrt_api_version(void);
 
 /* What went wrong, filled by a failing call (when not NULL). */
 typedef struct wrt_error {
@@ -83,21 +149,30 @@ typedef struct wrt_error {
     char message[256];
 } wrt_error;
 
-/* Memory. alloc(size, user) returns memory aligned for any type, or NULL (the call then
- * fails with WRT_ERR_NOMEM); free(p, user) releases it. All zero: malloc and free.
- * Used for the runtime's handle, every array it keeps (operator indexing, textures,
- * coefficient vectors, BRDF tables, lights) and the scratch its workers grow during an
- * update (called from those threads at once: must be thread-safe). Embree's scene and
- * the thread pool's control block keep their own (malloc). */
+/* Memory. alloc(user, size) returns memory aligned for any type, or NULL (the call then
+ * fails with WRT_ERR_NOMEM); free(user, p) releases it (p may be NULL). Both NULL: malloc
+ * and free; one of them NULL: refused (WRT_ERR_INVALID_ARG). Used for the runtime's
+ * handle, every array it keeps (operator indexing, textures, coefficient vectors, BRDF
+ * tables, lights) and the scratch its workers grow during an update (called from those
+ * threads at once: must be thread-safe). Embree's scene and the thread pool's control
+ * block keep their own (malloc). The user pointer comes first in every callback of this
+ * header (allocator, job hook, log). */
 typedef struct wrt_allocator {
-    void *(*alloc)(size_t size, void *user);
-    void (*free)(void *p, void *user);
+    void *(*alloc)(void *user, size_t size);
+    void (*free)(void *user, void *p);
     void *user;
 } wrt_allocator;
 
 typedef struct wrt_runtime_options {
-    int threads;        /* worker threads of an update: 0 = all cores, 1 = the caller's thread only */
-    int max_tex_res;    /* cap on a quad's texture side in texels, a power of two: 0 = 64 */
+    /* sizeof(wrt_runtime_options) as the caller's header has it, so that the struct can
+     * grow: fields beyond `size` bytes are taken as zero (their default). 0 means this
+     * header's layout (API version 2, the first with `size`): a library that adds
+     * fields reads only these from a caller that left size at 0. A size smaller than
+     * the version-2 layout, or larger than the library knows, is refused
+     * (WRT_ERR_INVALID_ARG, naming both sizes). */
+    size_t size;
+    int threads;        /* worker threads of an update: 0 = all cores, 1 = the caller's thread only, at most 64 */
+    int max_tex_res;    /* cap on a quad's texture side in texels, a power of two up to 1024: 0 = 64 */
     int proj_level;     /* spatial level of the direct light's projection: 0 = chosen per quad */
     wrt_allocator allocator;
     int haar_blocks;    /* 1: textures show the bake's Haar cells as blocks, without the smooth
@@ -118,28 +193,33 @@ typedef struct wrt_runtime_options {
     void *log_user;
 } wrt_runtime_options;
 
-/* Fills the zero fields of *o with the defaults. */
-void wrt_runtime_defaults(wrt_runtime_options *o);
+/* Fills the zero fields of *o with the defaults (o->size as above; a size 0 stays 0).
+ * Errors: WRT_ERR_INVALID_ARG (o NULL, or its size refused). */
+WRT_API wrt_status wrt_runtime_defaults(wrt_runtime_options *o);
 
 typedef struct wrt_runtime wrt_runtime;
 
 /* Opens and validates a .gto file (mapped read-only; every section's bounds and
- * checksums are checked). `opt` may be NULL. On failure *out is NULL.
+ * checksums are checked). `opt` may be NULL (the defaults). On failure *out is NULL.
  * Errors: WRT_ERR_IO, WRT_ERR_NOT_OURS, WRT_ERR_CORRUPT, WRT_ERR_UNSUPPORTED,
- * WRT_ERR_INVALID_ARG, WRT_ERR_NOMEM. */
-wrt_status wrt_runtime_open_file(const char *path, const wrt_runtime_options *opt, wrt_runtime **out,
-                                 wrt_error *err);
+ * WRT_ERR_INVALID_ARG (options, NULL path or out), WRT_ERR_NOMEM. */
+WRT_API wrt_status wrt_runtime_open_file(const char *path, const wrt_runtime_options *opt, wrt_runtime **out,
+                                         wrt_error *err);
 /* The same for a file image the caller holds (mapped or read): `data` must be 8-byte
  * aligned and stay valid and unchanged until wrt_runtime_close. */
-wrt_status wrt_runtime_open_memory(const void *data, size_t size, const wrt_runtime_options *opt,
-                                   wrt_runtime **out, wrt_error *err);
-/* Releases everything (and unmaps a file it opened). NULL is a no-op. */
-void wrt_runtime_close(wrt_runtime *rt);
+WRT_API wrt_status wrt_runtime_open_memory(const void *data, size_t size, const wrt_runtime_options *opt,
+                                           wrt_runtime **out, wrt_error *err);
+/* Releases everything (and unmaps a file it opened). NULL: a no-op (WRT_OK). A handle
+ * already closed, or not a runtime: WRT_ERR_INVALID_ARG, nothing released. */
+WRT_API wrt_status wrt_runtime_close(wrt_runtime *rt);
 
 enum { WRT_LIGHT_KIND_POINT = 0, WRT_LIGHT_KIND_SPOT = 1 };
+#define WRT_MAX_LIGHTS 64
+#define WRT_MAX_COORD 1e9      /* metres: bound on each coordinate of a light or the eye */
+#define WRT_MAX_INTENSITY 1e20 /* candela: bound on intensity x the largest colour channel */
 
 /* A light (KHR_lights_punctual's model). Zero-initialised: a white point light of
- * intensity 0 at the origin, on. */
+ * intensity 0 at the origin, unbounded, on. */
 typedef struct wrt_runtime_light {
     int kind;               /* WRT_LIGHT_KIND_POINT or _SPOT */
     double position[3];
@@ -149,44 +229,113 @@ typedef struct wrt_runtime_light {
     float inner_cone;       /* spot: radians from the axis at full intensity (0..outer) */
     float outer_cone;       /* spot: radians from the axis where it reaches 0 (0 = pi/4) */
     int off;                /* 1: switched off (contributes nothing) */
+    float range;            /* metres: glTF's range, beyond which the light gives nothing (its
+                             * falloff windowed by (1 - (d/range)^4)^2, KHR_lights_punctual's
+                             * recommendation); 0 = unbounded */
+    char name[64];          /* the glTF light's name from wrt_runtime_get_light ("" if none);
+                             * ignored by wrt_runtime_set_lights */
 } wrt_runtime_light;
 
-/* The lights stored in the file (as baked from the glTF scene). */
-int wrt_runtime_light_count(const wrt_runtime *rt);
-wrt_status wrt_runtime_get_light(const wrt_runtime *rt, int index, wrt_runtime_light *out, wrt_error *err);
+/* The lights stored in the file (as baked from the glTF scene): count (-1: not a live
+ * handle) and each one, name and range included, ready for wrt_runtime_set_lights.
+ * Errors: WRT_ERR_INVALID_ARG (handle, index, out NULL). */
+WRT_API int wrt_runtime_light_count(const wrt_runtime *rt);
+WRT_API wrt_status wrt_runtime_get_light(const wrt_runtime *rt, int index, wrt_runtime_light *out, wrt_error *err);
 
-/* Sets the lights (copied; n >= 0, at most 64). Only lights that changed are
- * re-projected at the next update. Errors: WRT_ERR_INVALID_ARG (non-finite values,
- * negative intensity, cones out of range, too many), WRT_ERR_NOMEM. */
-wrt_status wrt_runtime_set_lights(wrt_runtime *rt, const wrt_runtime_light *lights, int n, wrt_error *err);
+/* Sets the lights (copied; n in 0..WRT_MAX_LIGHTS). Only lights that changed are
+ * re-projected at the next update. Errors: WRT_ERR_INVALID_ARG (kind, non-finite or
+ * negative values, values past the bounds above, a spot's axis or cones, too many),
+ * WRT_ERR_NOMEM; the lights are then as before. */
+WRT_API wrt_status wrt_runtime_set_lights(wrt_runtime *rt, const wrt_runtime_light *lights, int n, wrt_error *err);
 /* Sets the eye (world position); only glossy quads depend on it, and they stay black
- * until it is set. Errors: WRT_ERR_INVALID_ARG (non-finite). */
-wrt_status wrt_runtime_set_eye(wrt_runtime *rt, const double eye[3], wrt_error *err);
+ * until it is set. Errors: WRT_ERR_INVALID_ARG (NULL, non-finite, past WRT_MAX_COORD). */
+WRT_API wrt_status wrt_runtime_set_eye(wrt_runtime *rt, const double eye[3], wrt_error *err);
 
 /* Recomputes what changed since the last update. *changed (if not NULL) receives the
- * number of quads whose texture changed (0: nothing to upload). Errors: WRT_ERR_NOMEM
- * (then *changed is 0, and the next successful update redoes every texture). */
-wrt_status wrt_runtime_update(wrt_runtime *rt, int *changed, wrt_error *err);
+ * number of quads whose texture changed (0: nothing to upload). Errors:
+ * WRT_ERR_INVALID_ARG (handle), WRT_ERR_NOMEM (then *changed is 0, and the next
+ * successful update redoes every texture). */
+WRT_API wrt_status wrt_runtime_update(wrt_runtime *rt, int *changed, wrt_error *err);
 
-/* The scene's quads: count, corners (p[4][3], world space), and after an update each
- * one's texture of outgoing indirect radiance (res x res x RGB, see "Quads" above;
- * valid until the next update) and its mean over the quad (area-weighted, RGB). */
-int wrt_runtime_quad_count(const wrt_runtime *rt);
-void wrt_runtime_quad_corners(const wrt_runtime *rt, int q, double p[4][3]);
-const float *wrt_runtime_quad_texture(const wrt_runtime *rt, int q, int *res);
-void wrt_runtime_quad_mean(const wrt_runtime *rt, int q, float rgb[3]);
+/* ---- The scene, for drawing it from the library alone ---- */
+
+/* A material (glTF metallic-roughness, as the bake used it). */
+typedef struct wrt_runtime_material {
+    char name[64];
+    float base_color[3];    /* linear RGB: baseColorFactor x the mean of baseColorTexture */
+    float metallic, roughness;
+    float emissive[3];      /* reported, not emitted by the bake */
+    int lambertian;         /* 1: pure diffuse (roughness 1, metallic 0): albedo base_color */
+} wrt_runtime_material;
+/* Count (-1: not a live handle) and each material. Errors: WRT_ERR_INVALID_ARG. */
+WRT_API int wrt_runtime_material_count(const wrt_runtime *rt);
+WRT_API wrt_status wrt_runtime_get_material(const wrt_runtime *rt, int index, wrt_runtime_material *out,
+                                            wrt_error *err);
+
+/* The glTF camera the bake read (from_file 0: the scene had none; the other fields are
+ * then zero and the caller frames the scene itself, e.g. from wrt_runtime_get_bounds). */
+typedef struct wrt_runtime_camera {
+    int from_file;
+    double position[3], direction[3], up[3]; /* direction: unit view direction; up: unit */
+    double yfov;            /* radians */
+    double aspect;          /* 0: from the viewport */
+    double znear, zfar;     /* zfar 0: infinite */
+} wrt_runtime_camera;
+WRT_API wrt_status wrt_runtime_get_camera(const wrt_runtime *rt, wrt_runtime_camera *out, wrt_error *err);
+
+/* The axis-aligned box of every quad's corners (world space, metres). Errors:
+ * WRT_ERR_INVALID_ARG. */
+WRT_API wrt_status wrt_runtime_get_bounds(const wrt_runtime *rt, double lo[3], double hi[3], wrt_error *err);
+
+/* A quad and where it came from in the glTF scene the bake read: the quad-to-source map,
+ * so that an engine can put the results on its own meshes. The .gto files of format 1.x
+ * store the mesh of every quad (and its name) but not its node, primitive, triangles or
+ * whether it is a double-sided twin: those fields are then -1 ("not stored in this
+ * file"), never a guess. A twin is the back of a quad whose material is doubleSided,
+ * set back by 1e-4 of the scene's diagonal and facing the other way. */
+typedef struct wrt_runtime_quad {
+    double corners[4][3];   /* p0..p3, world space (see "Quads" above) */
+    double normal[3];       /* unit: normalize((p1-p0) x (p3-p0)), glTF's front side */
+    double area;            /* m^2 */
+    int material;           /* index for wrt_runtime_get_material */
+    int parallelogram;      /* 1: affine in (u, v) */
+    int node;               /* glTF node index; -1: not stored */
+    int mesh;               /* glTF mesh index; -1: none */
+    char mesh_name[64];     /* that mesh's name ("" if none) */
+    int primitive;          /* index within the mesh's primitives; -1: not stored */
+    int triangles[2];       /* the primitive's two triangles (index / 3 of its indices); -1: not stored */
+    int twin;               /* 1: the back twin of quad twin_of, 0: not a twin, -1: not stored */
+    int twin_of;            /* the front quad of a twin, else -1 */
+} wrt_runtime_quad;
+
+/* The scene's quads: count (-1: not a live handle) and each one. Errors:
+ * WRT_ERR_INVALID_ARG (handle, index, out NULL). */
+WRT_API int wrt_runtime_quad_count(const wrt_runtime *rt);
+WRT_API wrt_status wrt_runtime_get_quad(const wrt_runtime *rt, int q, wrt_runtime_quad *out, wrt_error *err);
+/* Just the corners (p[4][3], world space). Errors: WRT_ERR_INVALID_ARG. */
+WRT_API wrt_status wrt_runtime_quad_corners(const wrt_runtime *rt, int q, double p[4][3], wrt_error *err);
+
+/* ---- Results, after an update ---- */
+
+/* Quad q's texture of outgoing indirect radiance (res x res x RGB, see "Quads" above;
+ * valid until the next update or close). NULL and *res 0 for a bad handle or index. */
+WRT_API const float *wrt_runtime_quad_texture(const wrt_runtime *rt, int q, int *res);
+/* Its mean over the quad (area-weighted, RGB). Errors: WRT_ERR_INVALID_ARG. */
+WRT_API wrt_status wrt_runtime_quad_mean(const wrt_runtime *rt, int q, float rgb[3], wrt_error *err);
 
 /* Cell averages of quad q's incident indirect irradiance (W/m^2 per W/sr of the lights)
  * on an n x n grid of (u, v) cells, exact for the Haar reconstruction: out[(j n + i) 3 + c]
  * for cell (i, j). n in 1..1024. Errors: WRT_ERR_INVALID_ARG. */
-wrt_status wrt_runtime_quad_cells(const wrt_runtime *rt, int q, int n, double *out, wrt_error *err);
+WRT_API wrt_status wrt_runtime_quad_cells(const wrt_runtime *rt, int q, int n, double *out, wrt_error *err);
 
 /* Mean incident irradiance over quad q (RGB), direct (from the light's projection) and
- * indirect, for the current lights. */
-void wrt_runtime_quad_irradiance(const wrt_runtime *rt, int q, double direct[3], double indirect[3]);
+ * indirect, for the current lights. Errors: WRT_ERR_INVALID_ARG. */
+WRT_API wrt_status wrt_runtime_quad_irradiance(const wrt_runtime *rt, int q, double direct[3], double indirect[3],
+                                               wrt_error *err);
 
-/* Milliseconds of the last update's stages (projection, multiply, brdf, synthesis). */
-void wrt_runtime_timings(const wrt_runtime *rt, double ms[4]);
+/* Milliseconds of the last update's stages (projection, multiply, brdf, synthesis).
+ * Errors: WRT_ERR_INVALID_ARG. */
+WRT_API wrt_status wrt_runtime_timings(const wrt_runtime *rt, double ms[4], wrt_error *err);
 
 #ifdef __cplusplus
 }

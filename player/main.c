@@ -316,6 +316,7 @@ static int run_frame(app *a, stage_ms *t) {
             rls[i].intensity = a->scales[i] != 1 ? l->intensity * a->scales[i] : l->intensity;
             rls[i].inner_cone = l->inner_cone;
             rls[i].outer_cone = l->outer_cone;
+            rls[i].range = l->range;
             rls[i].off = a->scales[i] == 0;
         }
         int changed = 0;
@@ -323,7 +324,7 @@ static int run_frame(app *a, stage_ms *t) {
         wrt_runtime_set_eye(a->rl, a->view.eye, NULL);
         wrt_runtime_update(a->rl, &changed, NULL);
         t->relit = changed > 0 || !a->relit_once;
-        wrt_runtime_timings(a->rl, ms);
+        wrt_runtime_timings(a->rl, ms, NULL);
         t->projection = ms[0];
         t->multiply = ms[1];
         t->brdf = ms[2];
@@ -430,7 +431,7 @@ static int write_stats(app *a, const char *path) {
         const wrt_gto_quad *Q = &a->g.quads[q];
         double c[3], dir[3], ind[3];
         quad_centroid(Q, c);
-        wrt_runtime_quad_irradiance(a->rl, (int)q, dir, ind);
+        wrt_runtime_quad_irradiance(a->rl, (int)q, dir, ind, NULL);
         fprintf(f, "%s\n    {\"quad\": %u, \"mesh\": ", q ? "," : "", q);
         json_str(f, Q->name < a->g.nnames ? a->g.names[Q->name] : "", 64);
         double area = Q->area, nrm[3] = {Q->n[0], Q->n[1], Q->n[2]};

@@ -1,7 +1,11 @@
 /* wrt_runtime.c: the public runtime API (include/wrt.h) over the relighting core
- * (relight.h) and the .gto reader (formats/gto.h). Keeps no global state. */
+ * (relight.h) and the .gto reader (formats/gto.h): options read by their size, handles
+ * checked by their magic, every value that enters checked against the header's bounds,
+ * and the scene's lights, materials, camera, bounds and quad-to-source map read from
+ * the file. Keeps no global state. */
 #include "../include/wrt.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -10,20 +14,33 @@
 #include "../common/basis.h"
 #include "relight.h"
 
-#define MAX_LIGHTS 64
+/* A live handle's magic ("WRTRTIME"); cleared at close, so that a use after close or
+ * a double close is caught (include/wrt.h, "Handles"). */
+#define RT_MAGIC 0x454d495454525457ull
 
 struct wrt_runtime {
+    uint64_t magic;
     wrt_allocator al;
     wrt_gto g;
     wrt_relight *rl;
-    wrt_light lights[MAX_LIGHTS];
-    float scales[MAX_LIGHTS];
-    int nlights;
+    double lo[3], hi[3];   /* the box of every quad's corners */
     wrt_relight_timings tm;
 };
 
-static void *sys_alloc(size_t n, void *u) { (void)u; return malloc(n); }
-static void sys_free(void *p, void *u) { (void)u; free(p); }
+/* The options' layout of API version 2, the first with `size`: what size 0 means. */
+#define OPTIONS_V2_SIZE sizeof(wrt_runtime_options)
+
+int wrt_version(void) { return WRT_VERSION; }
+const char *wrt_version_string(void) { return WRT_VERSION_STRING; }
+int wrt_api_version(void) { return WRT_API_VERSION; }
+
+static void *sys_alloc(void *u, size_t n) { (void)u; return malloc(n); }
+static void sys_free(void *u, void *p) { (void)u; free(p); }
+
+/* The relighting core's allocator hooks (player/relight.h) take the user pointer last;
+ * these forward to the caller's, whose user pointer comes first. */
+static void *core_alloc(size_t n, void *u) { const wrt_allocator *a = u; return a->alloc(a->user, n); }
+static void core_free(void *p, void *u) { const wrt_allocator *a = u; a->free(a->user, p); }
 
 static wrt_status fail(wrt_error *err, wrt_status s) {
     if (err) {
@@ -33,68 +50,116 @@ static wrt_status fail(wrt_error *err, wrt_status s) {
     return s;
 }
 
-void wrt_runtime_defaults(wrt_runtime_options *o) {
-    if (o->threads < 0) o->threads = 0;
-    if (o->max_tex_res <= 0) o->max_tex_res = 64;
-    if (!o->allocator.alloc || !o->allocator.free) {
-        o->allocator.alloc = sys_alloc;
-        o->allocator.free = sys_free;
-        o->allocator.user = NULL;
-    }
+static int live(const wrt_runtime *rt) { return rt && rt->magic == RT_MAGIC; }
+
+/* WRT_ERR_INVALID_ARG for a NULL or dead handle, naming the call. */
+static wrt_status dead(wrt_error *err, const char *fn, const wrt_runtime *rt) {
+    return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: %s", fn,
+                              rt ? "not a live runtime (closed, or not from wrt_runtime_open_*)" : "runtime is NULL"));
+}
+
+/* Copies the caller's options into *o by their `size` (0: the version-2 layout); the
+ * fields beyond it stay zero. */
+static wrt_status read_options(const wrt_runtime_options *opt, wrt_runtime_options *o, const char *fn) {
+    memset(o, 0, sizeof *o);
+    if (!opt) return WRT_OK;
+    size_t sz = opt->size ? opt->size : OPTIONS_V2_SIZE;
+    if (sz < OPTIONS_V2_SIZE || sz > sizeof *o)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "%s: options.size %zu is not one this library knows (0, or %zu "
+                        "as in its header: API version %d)", fn, opt->size, sizeof *o, WRT_API_VERSION);
+    memcpy(o, opt, sz);
+    return WRT_OK;
+}
+
+wrt_status wrt_runtime_defaults(wrt_runtime_options *o) {
+    if (!o) return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_defaults: options are NULL");
+    wrt_runtime_options d;
+    wrt_status s = read_options(o, &d, "wrt_runtime_defaults");
+    if (s) return s;
+    if (!d.allocator.alloc != !d.allocator.free)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_defaults: allocator has alloc or free but not both");
+    if (d.threads < 0) d.threads = 0;
+    if (d.max_tex_res <= 0) d.max_tex_res = 64;
+    if (!d.allocator.alloc) d.allocator = (wrt_allocator){sys_alloc, sys_free, NULL};
+    memcpy(o, &d, o->size ? o->size : OPTIONS_V2_SIZE);
+    return WRT_OK;
 }
 
 static wrt_status open_common(const void *data, size_t size, const char *path, const wrt_runtime_options *opt,
                               wrt_runtime **out, wrt_error *err) {
     if (!out) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_open: out is NULL"));
     *out = NULL;
-    wrt_runtime_options o = {0};
-    if (opt) o = *opt;
+    wrt_runtime_options o;
+    wrt_status s = read_options(opt, &o, "wrt_runtime_open");
+    if (s) return fail(err, s);
     if (o.max_tex_res < 0 || (o.max_tex_res & (o.max_tex_res - 1)) || o.max_tex_res > 1024 || o.threads > 64 ||
         o.proj_level < 0 || o.proj_level > WRT_MAX_SLEVEL)
         return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_open: options out of range (max_tex_res %d, "
                                   "threads %d, proj_level %d)", o.max_tex_res, o.threads, o.proj_level));
-    wrt_runtime_defaults(&o);
-    wrt_runtime *rt = o.allocator.alloc(sizeof *rt, o.allocator.user);
+    if ((s = wrt_runtime_defaults(&o))) return fail(err, s);
+    wrt_runtime *rt = o.allocator.alloc(o.allocator.user, sizeof *rt);
     if (!rt) return fail(err, wrt_fail(WRT_ERR_NOMEM, "wrt_runtime_open: out of memory"));
     memset(rt, 0, sizeof *rt);
     rt->al = o.allocator;
-    wrt_status s = path ? wrt_gto_open(path, &rt->g) : wrt_gto_open_memory(data, size, &rt->g);
-    if (s) { rt->al.free(rt, rt->al.user); return fail(err, s); }
+    s = path ? wrt_gto_open(path, &rt->g) : wrt_gto_open_memory(data, size, &rt->g);
+    if (s) { rt->al.free(rt->al.user, rt); return fail(err, s); }
+    for (int c = 0; c < 3; c++) { rt->lo[c] = rt->g.nquads ? HUGE_VAL : 0; rt->hi[c] = rt->g.nquads ? -HUGE_VAL : 0; }
+    for (uint32_t q = 0; q < rt->g.nquads; q++)
+        for (int k = 0; k < 4; k++)
+            for (int c = 0; c < 3; c++) {
+                rt->lo[c] = fmin(rt->lo[c], rt->g.quads[q].p[k][c]);
+                rt->hi[c] = fmax(rt->hi[c], rt->g.quads[q].p[k][c]);
+            }
     wrt_relight_options ro = {.proj_level = o.proj_level, .max_tex_res = o.max_tex_res, .threads = o.threads,
-                              .alloc = o.allocator.alloc, .free = o.allocator.free, .alloc_user = o.allocator.user,
+                              .alloc = core_alloc, .free = core_free, .alloc_user = &rt->al,
                               .haar_blocks = o.haar_blocks, .parallel_for = o.parallel_for,
                               .parallel_user = o.parallel_user, .log = o.log, .log_user = o.log_user};
     if ((s = wrt_relight_create(&rt->g, &ro, &rt->rl))) {
         wrt_gto_close(&rt->g);
-        rt->al.free(rt, rt->al.user);
+        rt->al.free(rt->al.user, rt);
         return fail(err, s);
     }
+    rt->magic = RT_MAGIC;
     *out = rt;
     return WRT_OK;
 }
 
 wrt_status wrt_runtime_open_file(const char *path, const wrt_runtime_options *opt, wrt_runtime **out, wrt_error *err) {
+    if (out) *out = NULL;
     if (!path) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_open_file: path is NULL"));
     return open_common(NULL, 0, path, opt, out, err);
 }
 
 wrt_status wrt_runtime_open_memory(const void *data, size_t size, const wrt_runtime_options *opt, wrt_runtime **out,
                                    wrt_error *err) {
+    if (out) *out = NULL;
     if (!data || ((uintptr_t)data & 7))
         return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_open_memory: data is NULL or not 8-byte aligned"));
     return open_common(data, size, NULL, opt, out, err);
 }
 
-void wrt_runtime_close(wrt_runtime *rt) {
-    if (!rt) return;
+wrt_status wrt_runtime_close(wrt_runtime *rt) {
+    if (!rt) return WRT_OK;
+    if (!live(rt)) return dead(NULL, "wrt_runtime_close", rt);
+    rt->magic = 0;
     wrt_relight_destroy(rt->rl);
     wrt_gto_close(&rt->g);
-    rt->al.free(rt, rt->al.user);
+    wrt_allocator al = rt->al;
+    al.free(al.user, rt);
+    return WRT_OK;
 }
 
-int wrt_runtime_light_count(const wrt_runtime *rt) { return (int)rt->g.nlights; }
+int wrt_runtime_light_count(const wrt_runtime *rt) { return live(rt) ? (int)rt->g.nlights : -1; }
+
+/* A 64-byte name from the file (terminated within 64 bytes: the reader checked). */
+static void copy_name(char dst[64], const char *src) {
+    memset(dst, 0, 64);
+    if (src) memcpy(dst, src, strnlen(src, 63));
+}
 
 wrt_status wrt_runtime_get_light(const wrt_runtime *rt, int i, wrt_runtime_light *out, wrt_error *err) {
+    if (!live(rt)) return dead(err, "wrt_runtime_get_light", rt);
+    if (!out) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_get_light: out is NULL"));
     if (i < 0 || i >= (int)rt->g.nlights)
         return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_get_light: no light %d (the file has %u)", i,
                                   rt->g.nlights));
@@ -109,66 +174,174 @@ wrt_status wrt_runtime_get_light(const wrt_runtime *rt, int i, wrt_runtime_light
     out->intensity = l->intensity;
     out->inner_cone = l->inner_cone;
     out->outer_cone = l->outer_cone;
+    out->range = l->range;
+    copy_name(out->name, l->name);
     return WRT_OK;
+}
+
+static int coord_ok(double x) { return isfinite(x) && fabs(x) <= WRT_MAX_COORD; }
+
+/* What is wrong with light l ("" if nothing), for the message. */
+static const char *light_problem(const wrt_runtime_light *l) {
+    int spot = l->kind == WRT_LIGHT_KIND_SPOT;
+    if (l->kind != WRT_LIGHT_KIND_POINT && !spot) return "kind is neither point nor spot";
+    if (!coord_ok(l->position[0]) || !coord_ok(l->position[1]) || !coord_ok(l->position[2]))
+        return "position not finite or beyond WRT_MAX_COORD (1e9 m)";
+    float cmax = 0;
+    for (int c = 0; c < 3; c++) {
+        if (!isfinite(l->color[c]) || l->color[c] < 0 || l->color[c] > (float)WRT_MAX_INTENSITY)
+            return "colour channel not finite, negative or beyond WRT_MAX_INTENSITY";
+        cmax = fmaxf(cmax, l->color[c]);
+    }
+    if (cmax == 0) cmax = 1; /* black: white */
+    if (!isfinite(l->intensity) || l->intensity < 0 || l->intensity > (float)WRT_MAX_INTENSITY ||
+        l->intensity * cmax > (float)WRT_MAX_INTENSITY)
+        return "intensity not finite, negative, or (times its largest colour channel) beyond WRT_MAX_INTENSITY "
+               "(1e20 cd)";
+    if (!isfinite(l->range) || l->range < 0) return "range not finite or negative";
+    if (spot) {
+        float outer = l->outer_cone > 0 ? l->outer_cone : (float)(WRT_PI / 4);
+        double m = fmax(fabs(l->direction[0]), fmax(fabs(l->direction[1]), fabs(l->direction[2])));
+        if (!isfinite(m) || !(m > 0)) return "spot axis not finite or zero";
+        if (!(outer <= WRT_PI / 2) || !(l->inner_cone >= 0) || !(l->inner_cone < outer))
+            return "spot cones not 0 <= inner < outer <= pi/2";
+    }
+    return "";
 }
 
 wrt_status wrt_runtime_set_lights(wrt_runtime *rt, const wrt_runtime_light *in, int n, wrt_error *err) {
-    if (n < 0 || n > MAX_LIGHTS || (n && !in))
-        return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_set_lights: %d lights (0..%d)", n, MAX_LIGHTS));
-    wrt_light ls[MAX_LIGHTS];
-    float sc[MAX_LIGHTS];
+    if (!live(rt)) return dead(err, "wrt_runtime_set_lights", rt);
+    if (n < 0 || n > WRT_MAX_LIGHTS || (n && !in))
+        return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_set_lights: %d lights%s (0..%d)", n,
+                                  n && !in ? " from NULL" : "", WRT_MAX_LIGHTS));
+    wrt_light ls[WRT_MAX_LIGHTS];
+    float sc[WRT_MAX_LIGHTS];
     for (int i = 0; i < n; i++) {
         const wrt_runtime_light *l = &in[i];
-        wrt_v3 p = v3(l->position[0], l->position[1], l->position[2]);
-        wrt_v3 d = v3(l->direction[0], l->direction[1], l->direction[2]);
-        float outer = l->outer_cone > 0 ? l->outer_cone : (float)(WRT_PI / 4);
+        const char *why = light_problem(l);
+        if (why[0])
+            return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_set_lights: light %d: %s", i, why));
         int spot = l->kind == WRT_LIGHT_KIND_SPOT;
-        if ((l->kind != WRT_LIGHT_KIND_POINT && !spot) || !v3_finite(p) || !isfinite(l->intensity) ||
-            l->intensity < 0 || !isfinite(l->color[0] + l->color[1] + l->color[2]) ||
-            l->color[0] < 0 || l->color[1] < 0 || l->color[2] < 0 ||
-            (spot && (!v3_finite(d) || v3_len(d) == 0 || !(outer <= WRT_PI / 2) || !(l->inner_cone >= 0) ||
-                      !(l->inner_cone < outer))))
-            return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_set_lights: light %d is invalid (kind, a "
-                                      "non-finite or negative value, or a spot's axis or cones)", i));
         memset(&ls[i], 0, sizeof ls[i]);
         ls[i].type = spot ? WRT_LIGHT_SPOT : WRT_LIGHT_POINT;
-        ls[i].pos = p;
-        ls[i].dir = spot ? v3_norm(d) : v3(0, 0, -1);
+        ls[i].pos = v3(l->position[0], l->position[1], l->position[2]);
+        if (spot) { /* scaled first, so that no length overflows or underflows */
+            double m = fmax(fabs(l->direction[0]), fmax(fabs(l->direction[1]), fabs(l->direction[2])));
+            ls[i].dir = v3_norm(v3(l->direction[0] / m, l->direction[1] / m, l->direction[2] / m));
+        } else
+            ls[i].dir = v3(0, 0, -1);
         int black = l->color[0] == 0 && l->color[1] == 0 && l->color[2] == 0;
         for (int c = 0; c < 3; c++) ls[i].color[c] = black ? 1.0f : l->color[c];
         ls[i].intensity = l->intensity;
+        ls[i].range = l->range;
         ls[i].inner_cone = spot ? l->inner_cone : 0;
-        ls[i].outer_cone = spot ? outer : (float)(WRT_PI / 4);
+        ls[i].outer_cone = spot ? (l->outer_cone > 0 ? l->outer_cone : (float)(WRT_PI / 4)) : (float)(WRT_PI / 4);
         sc[i] = l->off ? 0.0f : 1.0f;
     }
     wrt_status s = wrt_relight_set_lights(rt->rl, ls, sc, n);
-    if (s) return fail(err, s);
-    memcpy(rt->lights, ls, (size_t)n * sizeof *ls);
-    memcpy(rt->scales, sc, (size_t)n * sizeof *sc);
-    rt->nlights = n;
-    return WRT_OK;
+    return s ? fail(err, s) : WRT_OK;
 }
 
 wrt_status wrt_runtime_set_eye(wrt_runtime *rt, const double eye[3], wrt_error *err) {
-    if (!eye || !isfinite(eye[0]) || !isfinite(eye[1]) || !isfinite(eye[2]))
-        return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_set_eye: not a finite position"));
+    if (!live(rt)) return dead(err, "wrt_runtime_set_eye", rt);
+    if (!eye || !coord_ok(eye[0]) || !coord_ok(eye[1]) || !coord_ok(eye[2]))
+        return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_set_eye: %s", eye ? "position not finite or "
+                                  "beyond WRT_MAX_COORD (1e9 m)" : "eye is NULL"));
     wrt_relight_set_eye(rt->rl, eye);
     return WRT_OK;
 }
 
 wrt_status wrt_runtime_update(wrt_runtime *rt, int *changed, wrt_error *err) {
+    if (changed) *changed = 0;
+    if (!live(rt)) return dead(err, "wrt_runtime_update", rt);
     int n = wrt_relight_update(rt->rl, &rt->tm);
     if (changed) *changed = n > 0 ? n : 0;
     return n < 0 ? fail(err, WRT_ERR_NOMEM) : WRT_OK;
 }
 
-int wrt_runtime_quad_count(const wrt_runtime *rt) { return (int)rt->g.nquads; }
+int wrt_runtime_material_count(const wrt_runtime *rt) { return live(rt) ? (int)rt->g.nmaterials : -1; }
 
-void wrt_runtime_quad_corners(const wrt_runtime *rt, int q, double p[4][3]) {
+wrt_status wrt_runtime_get_material(const wrt_runtime *rt, int i, wrt_runtime_material *out, wrt_error *err) {
+    if (!live(rt)) return dead(err, "wrt_runtime_get_material", rt);
+    if (!out || i < 0 || i >= (int)rt->g.nmaterials)
+        return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_get_material: %s %d (the file has %u)",
+                                  out ? "no material" : "out is NULL; material", i, rt->g.nmaterials));
+    const wrt_gto_material *m = &rt->g.materials[i];
+    memset(out, 0, sizeof *out);
+    copy_name(out->name, m->name);
+    for (int c = 0; c < 3; c++) { out->base_color[c] = m->base_color[c]; out->emissive[c] = m->emissive[c]; }
+    out->metallic = m->metallic;
+    out->roughness = m->roughness;
+    out->lambertian = m->lambertian != 0;
+    return WRT_OK;
+}
+
+wrt_status wrt_runtime_get_camera(const wrt_runtime *rt, wrt_runtime_camera *out, wrt_error *err) {
+    if (!live(rt)) return dead(err, "wrt_runtime_get_camera", rt);
+    if (!out) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_get_camera: out is NULL"));
+    memset(out, 0, sizeof *out);
+    const wrt_gto_camera *c = rt->g.camera;
+    if (!c || (c->yfov == 0 && c->aspect == 0 && c->znear == 0 && c->zfar == 0)) return WRT_OK; /* none */
+    out->from_file = 1;
+    for (int k = 0; k < 3; k++) { out->position[k] = c->pos[k]; out->direction[k] = c->dir[k]; out->up[k] = c->up[k]; }
+    out->yfov = c->yfov;
+    out->aspect = c->aspect;
+    out->znear = c->znear;
+    out->zfar = c->zfar;
+    return WRT_OK;
+}
+
+wrt_status wrt_runtime_get_bounds(const wrt_runtime *rt, double lo[3], double hi[3], wrt_error *err) {
+    if (!live(rt)) return dead(err, "wrt_runtime_get_bounds", rt);
+    if (!lo || !hi) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_get_bounds: lo or hi is NULL"));
+    for (int c = 0; c < 3; c++) { lo[c] = rt->lo[c]; hi[c] = rt->hi[c]; }
+    return WRT_OK;
+}
+
+int wrt_runtime_quad_count(const wrt_runtime *rt) { return live(rt) ? (int)rt->g.nquads : -1; }
+
+/* Handle, index and out-pointer of a per-quad call. */
+static wrt_status quad_args(const wrt_runtime *rt, int q, const void *out, const char *fn, wrt_error *err) {
+    if (!live(rt)) return dead(err, fn, rt);
+    if (q < 0 || q >= (int)rt->g.nquads)
+        return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: no quad %d (the file has %u)", fn, q, rt->g.nquads));
+    if (!out) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: out is NULL", fn));
+    return WRT_OK;
+}
+
+wrt_status wrt_runtime_get_quad(const wrt_runtime *rt, int q, wrt_runtime_quad *out, wrt_error *err) {
+    wrt_status s = quad_args(rt, q, out, "wrt_runtime_get_quad", err);
+    if (s) return s;
+    const wrt_gto_quad *gq = &rt->g.quads[q];
+    memset(out, 0, sizeof *out);
+    memcpy(out->corners, gq->p, sizeof out->corners);
+    wrt_v3 p0 = v3(gq->p[0][0], gq->p[0][1], gq->p[0][2]), p1 = v3(gq->p[1][0], gq->p[1][1], gq->p[1][2]),
+           p3 = v3(gq->p[3][0], gq->p[3][1], gq->p[3][2]);
+    wrt_v3 n = v3_norm(v3_cross(v3_sub(p1, p0), v3_sub(p3, p0)));
+    out->normal[0] = n.x; out->normal[1] = n.y; out->normal[2] = n.z;
+    out->area = gq->area;
+    out->material = (int)gq->material;
+    out->parallelogram = (gq->flags & 1) != 0;
+    /* .gto 1.x: a quad's `name` is the index of its glTF mesh in the names table (the
+     * mesh names); node, primitive, triangles and the twin flag are not stored. */
+    out->mesh = gq->name == WRT_GTO_NO_NAME ? -1 : (int)gq->name;
+    if (out->mesh >= 0) copy_name(out->mesh_name, rt->g.names[out->mesh]);
+    out->node = out->primitive = out->triangles[0] = out->triangles[1] = -1;
+    out->twin = -1;
+    out->twin_of = -1;
+    return WRT_OK;
+}
+
+wrt_status wrt_runtime_quad_corners(const wrt_runtime *rt, int q, double p[4][3], wrt_error *err) {
+    wrt_status s = quad_args(rt, q, p, "wrt_runtime_quad_corners", err);
+    if (s) return s;
     memcpy(p, rt->g.quads[q].p, sizeof(double) * 12);
+    return WRT_OK;
 }
 
 const float *wrt_runtime_quad_texture(const wrt_runtime *rt, int q, int *res) {
+    if (res) *res = 0;
+    if (!live(rt) || q < 0 || q >= (int)rt->g.nquads) return NULL;
     if (res) *res = wrt_relight_tex_res(rt->rl, q);
     return wrt_relight_tex(rt->rl, q);
 }
@@ -182,7 +355,9 @@ static wrt_quad quad_of(const wrt_gto_quad *gq) {
     return wq;
 }
 
-void wrt_runtime_quad_mean(const wrt_runtime *rt, int q, float rgb[3]) {
+wrt_status wrt_runtime_quad_mean(const wrt_runtime *rt, int q, float rgb[3], wrt_error *err) {
+    wrt_status s = quad_args(rt, q, rgb, "wrt_runtime_quad_mean", err);
+    if (s) return s;
     int res = wrt_relight_tex_res(rt->rl, q);
     const float *tex = wrt_relight_tex(rt->rl, q);
     wrt_quad wq = quad_of(&rt->g.quads[q]);
@@ -194,12 +369,14 @@ void wrt_runtime_quad_mean(const wrt_runtime *rt, int q, float rgb[3]) {
             wsum += w;
         }
     for (int c = 0; c < 3; c++) rgb[c] = wsum > 0 ? (float)(acc[c] / wsum) : 0.0f;
+    return WRT_OK;
 }
 
 /* Each Haar function's exact average over each cell it overlaps, times sqrt(pi/J) (exact
  * for a parallelogram; for a general quad its cell mean by 8 x 8 midpoints, an
  * approximation since J varies within the cell). */
 wrt_status wrt_runtime_quad_cells(const wrt_runtime *rt, int q, int n, double *out, wrt_error *err) {
+    if (!live(rt)) return dead(err, "wrt_runtime_quad_cells", rt);
     if (q < 0 || q >= (int)rt->g.nquads || n < 1 || n > 1024 || !out)
         return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_quad_cells: quad %d, n %d", q, n));
     const wrt_gto *g = &rt->g;
@@ -248,10 +425,17 @@ wrt_status wrt_runtime_quad_cells(const wrt_runtime *rt, int q, int n, double *o
     return WRT_OK;
 }
 
-void wrt_runtime_quad_irradiance(const wrt_runtime *rt, int q, double direct[3], double indirect[3]) {
+wrt_status wrt_runtime_quad_irradiance(const wrt_runtime *rt, int q, double direct[3], double indirect[3],
+                                       wrt_error *err) {
+    wrt_status s = quad_args(rt, q, direct && indirect ? direct : NULL, "wrt_runtime_quad_irradiance", err);
+    if (s) return s;
     wrt_relight_quad_irradiance(rt->rl, q, direct, indirect);
+    return WRT_OK;
 }
 
-void wrt_runtime_timings(const wrt_runtime *rt, double ms[4]) {
+wrt_status wrt_runtime_timings(const wrt_runtime *rt, double ms[4], wrt_error *err) {
+    if (!live(rt)) return dead(err, "wrt_runtime_timings", rt);
+    if (!ms) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_timings: ms is NULL"));
     ms[0] = rt->tm.projection; ms[1] = rt->tm.multiply; ms[2] = rt->tm.brdf; ms[3] = rt->tm.synthesis;
+    return WRT_OK;
 }

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # tests/install.sh BUILD: the runtime library as an embedder gets it. `make install` into a
 # temporary PREFIX; the installed libwrt.so needs no OpenGL; examples/relight.c copied out
-# of the tree and built against the installed copy alone with pkg-config --static; run on
+# of the tree and built against the installed copy alone with pkg-config --static (no
+# libwrt.so NEEDED) and without (libwrt.so.1 NEEDED); the header's example, extracted
+# from between its markers, compiled and run the same way; run on
 # a scene it has never seen (a maze of 3 x 3 corridors, seed 7, generated and baked here):
 # one line per quad, every value finite, some light reaches some quad, and the same
 # numbers as the in-tree build of the example. Prints "N passed, N failed".
@@ -27,6 +29,19 @@ san=""; nm "$build/libwrt.a" 2>/dev/null | grep -q __asan && san="-fsanitize=add
     >"$tmp/cc.log" 2>&1
 check_status "example builds outside the tree against the installed copy" $?
 [ $fail -eq 0 ] || cat "$tmp/cc.log" "$tmp/install.log"
+# --static is a static link of libwrt: libwrt.so not NEEDED; without it, the shared one
+! readelf -d "$tmp/out/ex" 2>/dev/null | grep NEEDED | grep -q 'libwrt\.so'
+check_status "pkg-config --static: libwrt.so not NEEDED ($(readelf -d "$tmp/out/ex" 2>/dev/null | grep -c NEEDED) NEEDED entries)" $?
+(cd "$tmp/out" && cc -std=c11 $san ex.c $(PKG_CONFIG_PATH="$tmp/prefix/lib/pkgconfig" pkg-config --cflags --libs wrt) \
+    -o ex_so) >"$tmp/cc_so.log" 2>&1 && readelf -d "$tmp/out/ex_so" | grep NEEDED | grep -q 'libwrt\.so\.1'
+check_status "pkg-config without --static: linked with libwrt.so.1" $?
+# the header's example, between its markers, compiled against the installed copy
+sed -n '/WRT_EXAMPLE_BEGIN/,/WRT_EXAMPLE_END/{/WRT_EXAMPLE_/d;p}' "$tmp/prefix/include/wrt.h" |
+    sed -E 's/^ \*( {0,3})//' >"$tmp/out/hdr.c"
+[ "$(grep -c main "$tmp/out/hdr.c")" -ge 1 ]; check_status "the header's example extracted ($(wc -l <"$tmp/out/hdr.c") lines)" $?
+(cd "$tmp/out" && cc -std=c11 -Wall -Wextra -Werror $san hdr.c \
+    $(PKG_CONFIG_PATH="$tmp/prefix/lib/pkgconfig" pkg-config --cflags --libs --static wrt) -o hdr) >"$tmp/hdr.log" 2>&1
+check_status "the header's example compiles (-Wall -Wextra -Werror, static): $(head -c 300 "$tmp/hdr.log")" $?
 "$build/wrt-scenegen" maze --cells 3 --seed 7 --out "$tmp/m.gltf" >/dev/null 2>&1 &&
     "$build/wrt-bake" "$tmp/m.gltf" -o "$tmp/m.gto" -q 2 --quiet >/dev/null 2>&1
 check_status "bake a fresh scene" $?
@@ -40,4 +55,9 @@ awk '{for (i = 2; i <= 4; i++) if ($i != $i + 0 || $i < 0) bad = 1; if ($2 + $3 
 check_status "finite, non-negative, some quad lit" $?
 "$build/examples/relight" "$tmp/m.gto" >"$tmp/ex2.txt" 2>/dev/null && cmp -s "$tmp/ex.txt" "$tmp/ex2.txt"
 check_status "installed and in-tree builds print the same numbers" $?
+"$tmp/out/ex_so" "$tmp/m.gto" >"$tmp/ex3.txt" 2>/dev/null && cmp -s "$tmp/ex.txt" "$tmp/ex3.txt"
+check_status "the shared library prints the same numbers" $?
+"$tmp/out/hdr" "$tmp/m.gto" >"$tmp/hdr.txt" 2>"$tmp/hdr.err"
+hl=$(grep -c '^quad [0-9]*: mesh [0-9]*, [0-9]* x [0-9]* texels' "$tmp/hdr.txt")
+[ -n "$nq" ] && [ "$hl" -eq "$nq" ]; check_status "the header's example runs: a line per quad ($hl of $nq)" $?
 summary

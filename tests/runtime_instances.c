@@ -76,14 +76,14 @@ static void *run_job(void *p) {
 /* A counting allocator (thread-safe: the update's workers call it at once); with
  * fail_at > 0, attempt number fail_at fails. */
 typedef struct counter { atomic_long attempts, allocs, frees; long fail_at; } counter;
-static void *c_alloc(size_t n, void *u) {
+static void *c_alloc(void *u, size_t n) {
     counter *c = u;
     long k = atomic_fetch_add(&c->attempts, 1) + 1;
     if (c->fail_at > 0 && k == c->fail_at) return NULL;
     atomic_fetch_add(&c->allocs, 1);
     return malloc(n);
 }
-static void c_free(void *p, void *u) { if (p) atomic_fetch_add(&((counter *)u)->frees, 1); free(p); }
+static void c_free(void *u, void *p) { if (p) atomic_fetch_add(&((counter *)u)->frees, 1); free(p); }
 
 /* Job hooks: all items on the calling thread, in order; or on the calling thread and one
  * thread of the hook's own, items taken from a shared counter. */

@@ -66,7 +66,7 @@ static inline int test_selected(int argc, char **argv, const char *name) {
 
 /* Capturing logger: collects every message logged since test_capture_begin(). */
 static char test_log[16384];
-static inline void test_log_sink(int level, const char *msg, void *user) {
+static inline void test_log_sink(void *user, int level, const char *msg) {
     (void)level; (void)user;
     size_t n = strlen(test_log);
     snprintf(test_log + n, sizeof test_log - n, "%s\n", msg);

@@ -17,7 +17,7 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-static void quiet(int level, const char *msg, void *user) { (void)level; (void)msg; (void)user; }
+static void quiet(void *user, int level, const char *msg) { (void)level; (void)msg; (void)user; }
 
 static uint64_t rd64(const uint8_t *b, size_t o) { uint64_t x; memcpy(&x, b + o, 8); return x; }
 static uint32_t rd32(const uint8_t *b, size_t o) { uint32_t x; memcpy(&x, b + o, 4); return x; }

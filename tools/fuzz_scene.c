@@ -12,7 +12,7 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-static void quiet(int level, const char *msg, void *user) { (void)level; (void)msg; (void)user; }
+static void quiet(void *user, int level, const char *msg) { (void)level; (void)msg; (void)user; }
 
 static void load(const void *p, size_t n, int drop_bad) {
     wrt_load_options opt = {.drop_bad = drop_bad};

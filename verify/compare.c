@@ -380,6 +380,7 @@ static wrt_runtime_light runtime_light(const wrt_light *l) {
     o.intensity = l->intensity;
     o.inner_cone = l->inner_cone;
     o.outer_cone = l->outer_cone;
+    o.range = l->range;
     return o;
 }
 

@@ -1,0 +1,442 @@
+/* tests/runtime_api.c FACING.gto RANGED.gto: the library's boundary through its public
+ * header and libwrt.a alone. FACING is assets/test/facing.gltf baked (two unit squares
+ * facing each other at z = 0 and z = 1, a point light at z = 0.5), RANGED the same scene
+ * with the light's glTF range set to 0.75 (tests/runtime.sh makes both). Checks:
+ *  - the version query against the header's macros; the options' size (0, sizeof, one
+ *    too large, too small) and the allocator's both-or-neither rule;
+ *  - handles: NULL, not a runtime, used after close, closed twice, NULL out-pointers and
+ *    bad indices give a status (or -1 / NULL), never a crash;
+ *  - bounds on what enters: a position of 1e308, an intensity of 3.4e38, a colour that
+ *    takes the intensity past the bound, a bad range, and the bounds themselves accepted;
+ *    a spot axis of length 1e300 gives bitwise what its unit axis gives;
+ *  - the getters against the glTF file itself (lights with name and range, materials,
+ *    camera, bounds, the quad-to-source map: mesh index and name, normal, area);
+ *  - range: get_light then set_lights keeps it; a range short of every quad gives exact
+ *    zeros, a huge one bitwise the unbounded light, and 0.75 scales each quad's mean
+ *    direct irradiance by what brute-force integration of the glTF window gives;
+ *  - allocations of a steady-state update, counted through the public allocator, on
+ *    FACING and on each MORE file (at 46ed865: two blocks an update on FACING, the smooth
+ *    display's scratch, one per group of quads, from common/reconstruct.c's
+ *    wrt_recon_run).
+ * Prints "N passed, N failed" (", N skipped" while the update still allocates). */
+#include <wrt.h>
+
+#include <math.h>
+#include <stdatomic.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* 1 once the relighting core's steady-state update is allocation-free (the wt-relight
+ * work): the allocation check below is then a hard assertion. While 0, a non-zero count
+ * is reported as "skipped: expected to fail until merge", and zero passes. */
+#ifndef EXPECT_ALLOCATION_FREE_UPDATE
+#define EXPECT_ALLOCATION_FREE_UPDATE 0
+#endif
+
+static int passed, failed, skipped;
+#define CHECK(c, ...) do { if (c) passed++; else { failed++; fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__); \
+    fprintf(stderr, __VA_ARGS__); fputc('\n', stderr); } } while (0)
+
+/* ---- allocators: counting (sizes of the first blocks kept), and quarantining (free
+ * keeps the block, so that reading a closed handle is defined for this test) ---- */
+typedef struct counter { atomic_long allocs, frees, bytes; atomic_int nsizes; size_t sizes[64]; int record; } counter;
+static void *c_alloc(void *u, size_t n) {
+    counter *c = u;
+    atomic_fetch_add(&c->allocs, 1);
+    atomic_fetch_add(&c->bytes, (long)n);
+    if (c->record) {
+        int k = atomic_fetch_add(&c->nsizes, 1);
+        if (k < 64) c->sizes[k] = n;
+    }
+    return malloc(n);
+}
+static void c_free(void *u, void *p) { if (p) atomic_fetch_add(&((counter *)u)->frees, 1); free(p); }
+
+typedef struct quarantine { void *kept[4096]; int n; } quarantine;
+static void *q_alloc(void *u, size_t n) { (void)u; return malloc(n); }
+static void q_free(void *u, void *p) {
+    quarantine *q = u;
+    if (!p) return;
+    if (q->n < 4096) q->kept[q->n++] = p; else free(p);
+}
+static void q_release(quarantine *q) { for (int i = 0; i < q->n; i++) free(q->kept[i]); q->n = 0; }
+
+static int near(double a, double b, double tol) { return fabs(a - b) <= tol; }
+
+/* Every quad's texture, concatenated (malloc'd; *n floats). */
+static float *grab(wrt_runtime *rt, size_t *n) {
+    size_t total = 0;
+    int nq = wrt_runtime_quad_count(rt);
+    for (int q = 0; q < nq; q++) { int res; wrt_runtime_quad_texture(rt, q, &res); total += (size_t)res * res * 3; }
+    float *t = malloc(total * sizeof(float) + 1), *p = t;
+    for (int q = 0; q < nq; q++) {
+        int res;
+        const float *x = wrt_runtime_quad_texture(rt, q, &res);
+        memcpy(p, x, (size_t)res * res * 3 * sizeof(float));
+        p += (size_t)res * res * 3;
+    }
+    *n = total;
+    return t;
+}
+
+/* Relights with one light and returns the textures. */
+static float *relight(wrt_runtime *rt, const wrt_runtime_light *l, size_t *n) {
+    wrt_error err;
+    double eye[3] = {2.5, 0.8, 1.5};
+    wrt_status s;
+    if ((s = wrt_runtime_set_lights(rt, l, 1, &err)) || (s = wrt_runtime_set_eye(rt, eye, &err)) ||
+        (s = wrt_runtime_update(rt, NULL, &err))) {
+        fprintf(stderr, "relight: %s\n", err.message);
+        *n = 0;
+        return NULL;
+    }
+    return grab(rt, n);
+}
+
+static int same(const float *a, size_t na, const float *b, size_t nb) {
+    return a && b && na == nb && !memcmp(a, b, na * sizeof(float));
+}
+
+/* glTF's range window (KHR_lights_punctual): clamp(1 - (d/r)^4, 0, 1)^2, r = 0: 1. */
+static double window(double d, double r) {
+    if (r <= 0) return 1;
+    double t = d / r, w = 1 - t * t * t * t;
+    w = w < 0 ? 0 : w > 1 ? 1 : w;
+    return w * w;
+}
+
+/* Mean irradiance over the unit square at z = z0 (|x|, |y| <= 0.5) from a unit point light
+ * at (0, 0, 0.5), with range r: brute force, 600 x 600 midpoints. */
+static double square_irradiance(double z0, double r) {
+    const int n = 600;
+    double acc = 0, h = 0.5 - z0, ah = fabs(h);
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) {
+            double x = -0.5 + (i + 0.5) / n, y = -0.5 + (j + 0.5) / n;
+            double d2 = x * x + y * y + h * h, d = sqrt(d2);
+            acc += (ah / d) / d2 * window(d, r);
+        }
+    return acc / ((double)n * n);
+}
+
+static void test_version(void) {
+    CHECK(wrt_version() == WRT_VERSION && WRT_VERSION == 100, "wrt_version %d, header %d", wrt_version(), WRT_VERSION);
+    CHECK(!strcmp(wrt_version_string(), WRT_VERSION_STRING) && !strcmp(WRT_VERSION_STRING, "0.1.0"),
+          "wrt_version_string '%s'", wrt_version_string());
+    CHECK(wrt_api_version() == WRT_API_VERSION && WRT_API_VERSION == 2, "wrt_api_version %d", wrt_api_version());
+    CHECK(!strcmp(wrt_status_str(WRT_ERR_INVALID_ARG), "invalid argument") &&
+          !strcmp(wrt_status_str((wrt_status)99), "unknown status"), "wrt_status_str");
+}
+
+static void test_options(const char *path) {
+    wrt_error err;
+    wrt_runtime *rt = (wrt_runtime *)&err;
+    wrt_runtime_options o = {.size = sizeof o, .threads = 1};
+    CHECK(wrt_runtime_open_file(path, &o, &rt, &err) == WRT_OK && rt, "size = sizeof: %s", err.message);
+    CHECK(wrt_runtime_close(rt) == WRT_OK, "close");
+    o.size = 0;
+    CHECK(wrt_runtime_open_file(path, &o, &rt, &err) == WRT_OK && rt, "size 0: %s", err.message);
+    wrt_runtime_close(rt);
+    o.size = sizeof o + 8;
+    rt = (wrt_runtime *)&err;
+    wrt_status s = wrt_runtime_open_file(path, &o, &rt, &err);
+    CHECK(s == WRT_ERR_INVALID_ARG && rt == NULL && strstr(err.message, "size"), "size too large: %d '%s'", s,
+          err.message);
+    o.size = sizeof(int);
+    s = wrt_runtime_open_file(path, &o, &rt, &err);
+    CHECK(s == WRT_ERR_INVALID_ARG && rt == NULL, "size too small: %d '%s'", s, err.message);
+    wrt_runtime_options d = {0};
+    CHECK(wrt_runtime_defaults(&d) == WRT_OK && d.max_tex_res == 64 && d.threads == 0 && d.allocator.alloc &&
+          d.allocator.free && d.size == 0, "defaults: max_tex_res %d, threads %d", d.max_tex_res, d.threads);
+    CHECK(wrt_runtime_defaults(NULL) == WRT_ERR_INVALID_ARG, "defaults(NULL)");
+    d = (wrt_runtime_options){.size = sizeof d + 1};
+    CHECK(wrt_runtime_defaults(&d) == WRT_ERR_INVALID_ARG, "defaults with a size too large");
+    counter c = {0};
+    wrt_runtime_options half = {.allocator = {c_alloc, NULL, &c}};
+    s = wrt_runtime_open_file(path, &half, &rt, &err);
+    CHECK(s == WRT_ERR_INVALID_ARG && rt == NULL && c.allocs == 0, "allocator with alloc only: %d '%s'", s, err.message);
+}
+
+static void test_handles(const char *path) {
+    wrt_error err;
+    wrt_status s;
+    /* NULL handle */
+    CHECK(wrt_runtime_update(NULL, NULL, &err) == WRT_ERR_INVALID_ARG && strstr(err.message, "NULL"),
+          "update(NULL): '%s'", err.message);
+    CHECK(wrt_runtime_close(NULL) == WRT_OK, "close(NULL) is a no-op");
+    CHECK(wrt_runtime_quad_count(NULL) == -1 && wrt_runtime_light_count(NULL) == -1 &&
+          wrt_runtime_material_count(NULL) == -1, "counts of NULL: -1");
+    int res = 7;
+    CHECK(wrt_runtime_quad_texture(NULL, 0, &res) == NULL && res == 0, "texture of NULL");
+    /* NULL out-pointers */
+    CHECK(wrt_runtime_open_file(path, NULL, NULL, &err) == WRT_ERR_INVALID_ARG, "open with out NULL");
+    wrt_runtime *none = (wrt_runtime *)&err;
+    CHECK(wrt_runtime_open_file(NULL, NULL, &none, &err) == WRT_ERR_INVALID_ARG && none == NULL, "open of a NULL path");
+    /* not a runtime: a zeroed block */
+    static uint64_t junk[512];
+    wrt_runtime *fake = (wrt_runtime *)junk;
+    CHECK(wrt_runtime_update(fake, NULL, &err) == WRT_ERR_INVALID_ARG && strstr(err.message, "not a live runtime"),
+          "not a runtime: '%s'", err.message);
+    CHECK(wrt_runtime_close(fake) == WRT_ERR_INVALID_ARG, "close of a non-runtime");
+    /* a live one, with a quarantining allocator: after close its memory stays ours */
+    static quarantine qa;
+    wrt_runtime_options o = {.threads = 1, .allocator = {q_alloc, q_free, &qa}};
+    wrt_runtime *rt;
+    if (wrt_runtime_open_file(path, &o, &rt, &err)) { CHECK(0, "open: %s", err.message); return; }
+    int nq = wrt_runtime_quad_count(rt);
+    double p[4][3], d3[3], i3[3], ms[4];
+    float m3[3];
+    wrt_runtime_light l;
+    wrt_runtime_quad qd;
+    wrt_runtime_material mat;
+    wrt_runtime_camera cam;
+    CHECK(wrt_runtime_get_light(rt, 0, NULL, &err) == WRT_ERR_INVALID_ARG, "get_light out NULL");
+    CHECK(wrt_runtime_get_light(rt, 1, &l, &err) == WRT_ERR_INVALID_ARG && strstr(err.message, "no light 1"),
+          "get_light index: '%s'", err.message);
+    CHECK(wrt_runtime_get_quad(rt, 0, NULL, &err) == WRT_ERR_INVALID_ARG, "get_quad out NULL");
+    CHECK(wrt_runtime_get_quad(rt, nq, &qd, &err) == WRT_ERR_INVALID_ARG && wrt_runtime_get_quad(rt, -1, &qd, NULL),
+          "get_quad index");
+    CHECK(wrt_runtime_quad_corners(rt, nq, p, &err) == WRT_ERR_INVALID_ARG, "corners index");
+    CHECK(wrt_runtime_quad_mean(rt, -1, m3, &err) == WRT_ERR_INVALID_ARG && wrt_runtime_quad_mean(rt, 0, NULL, NULL),
+          "mean index / NULL");
+    CHECK(wrt_runtime_quad_irradiance(rt, nq, d3, i3, &err) == WRT_ERR_INVALID_ARG &&
+          wrt_runtime_quad_irradiance(rt, 0, NULL, i3, NULL), "irradiance index / NULL");
+    CHECK(wrt_runtime_quad_texture(rt, nq, &res) == NULL && res == 0, "texture index");
+    CHECK(wrt_runtime_get_material(rt, 0, NULL, &err) && wrt_runtime_get_material(rt, 99, &mat, &err),
+          "get_material NULL / index");
+    CHECK(wrt_runtime_get_camera(rt, NULL, &err) == WRT_ERR_INVALID_ARG, "get_camera NULL");
+    CHECK(wrt_runtime_get_bounds(rt, NULL, d3, &err) == WRT_ERR_INVALID_ARG, "get_bounds NULL");
+    CHECK(wrt_runtime_timings(rt, NULL, &err) == WRT_ERR_INVALID_ARG, "timings NULL");
+    CHECK(wrt_runtime_set_eye(rt, NULL, &err) == WRT_ERR_INVALID_ARG, "set_eye NULL");
+    CHECK(wrt_runtime_set_lights(rt, NULL, 1, &err) == WRT_ERR_INVALID_ARG, "set_lights NULL array");
+    CHECK(wrt_runtime_update(rt, NULL, &err) == WRT_OK, "update before close: %s", err.message);
+    /* use after close, double close */
+    CHECK(wrt_runtime_close(rt) == WRT_OK, "close");
+    int changed = 5;
+    s = wrt_runtime_update(rt, &changed, &err);
+    CHECK(s == WRT_ERR_INVALID_ARG && changed == 0 && strstr(err.message, "not a live runtime"),
+          "update after close: %d '%s'", s, err.message);
+    CHECK(wrt_runtime_set_lights(rt, &l, 0, &err) == WRT_ERR_INVALID_ARG, "set_lights after close");
+    CHECK(wrt_runtime_get_quad(rt, 0, &qd, &err) == WRT_ERR_INVALID_ARG, "get_quad after close");
+    CHECK(wrt_runtime_get_camera(rt, &cam, &err) == WRT_ERR_INVALID_ARG, "get_camera after close");
+    CHECK(wrt_runtime_quad_cells(rt, 0, 2, ms, &err) == WRT_ERR_INVALID_ARG, "quad_cells after close");
+    CHECK(wrt_runtime_timings(rt, ms, &err) == WRT_ERR_INVALID_ARG, "timings after close");
+    CHECK(wrt_runtime_quad_count(rt) == -1 && wrt_runtime_quad_texture(rt, 0, &res) == NULL, "getters after close");
+    int freed = qa.n;
+    CHECK(wrt_runtime_close(rt) == WRT_ERR_INVALID_ARG && qa.n == freed, "double close: a status, nothing freed twice");
+    q_release(&qa);
+}
+
+static void test_bounds(const char *path) {
+    wrt_error err;
+    wrt_runtime *rt;
+    wrt_runtime_options o = {.threads = 1};
+    if (wrt_runtime_open_file(path, &o, &rt, &err)) { CHECK(0, "open: %s", err.message); return; }
+    wrt_runtime_light base = {0};
+    base.position[2] = 0.5;
+    base.intensity = 1;
+    struct { const char *what; wrt_runtime_light l; int ok; } cases[12];
+    int n = 0;
+#define CASE(w, ok_, ...) do { cases[n].what = w; cases[n].l = base; { wrt_runtime_light *L = &cases[n].l; __VA_ARGS__; } \
+    cases[n++].ok = ok_; } while (0)
+    CASE("position 1e308", 0, L->position[0] = 1e308);
+    CASE("position -1.0001e9", 0, L->position[1] = -1.0001e9);
+    CASE("position 1e9 (the bound)", 1, L->position[1] = 1e9);
+    CASE("intensity 3.4e38", 0, L->intensity = 3.4e38f);
+    CASE("intensity 1e20 (the bound)", 1, L->intensity = 1e20f);
+    CASE("intensity 1e20 x colour 2", 0, L->intensity = 1e20f; L->color[0] = 2; L->color[1] = 1; L->color[2] = 1);
+    CASE("colour 1e30 at intensity 0", 0, L->intensity = 0; L->color[2] = 1e30f);
+    CASE("range -1", 0, L->range = -1);
+    CASE("range NaN", 0, L->range = NAN);
+    CASE("range 1e30", 1, L->range = 1e30f);
+    CASE("spot axis 0", 0, L->kind = WRT_LIGHT_KIND_SPOT);
+    CASE("spot axis 1e308", 1, L->kind = WRT_LIGHT_KIND_SPOT; L->direction[2] = -1e308);
+    for (int i = 0; i < n; i++) {
+        err.message[0] = 0;
+        wrt_status s = wrt_runtime_set_lights(rt, &cases[i].l, 1, &err);
+        CHECK(cases[i].ok ? s == WRT_OK : s == WRT_ERR_INVALID_ARG && strstr(err.message, "light 0"),
+              "%s: %s (status %d, '%s')", cases[i].what, cases[i].ok ? "accepted" : "refused", s, err.message);
+    }
+    double far[3] = {0, 1e308, 0}, edge[3] = {0, 0, -1e9};
+    CHECK(wrt_runtime_set_eye(rt, far, &err) == WRT_ERR_INVALID_ARG && strstr(err.message, "WRT_MAX_COORD"),
+          "eye at 1e308: '%s'", err.message);
+    CHECK(wrt_runtime_set_eye(rt, edge, &err) == WRT_OK, "eye at -1e9 accepted");
+    /* a spot's axis of any length: bitwise what its unit axis gives */
+    wrt_runtime_light a = base, b = base;
+    a.kind = b.kind = WRT_LIGHT_KIND_SPOT;
+    a.direction[2] = -1e300;
+    b.direction[2] = -1;
+    a.outer_cone = b.outer_cone = 0.6f;
+    size_t na, nb;
+    float *ta = relight(rt, &a, &na), *tb = relight(rt, &b, &nb);
+    int lit = 0;
+    for (size_t i = 0; tb && i < nb; i++) lit |= tb[i] > 0;
+    CHECK(same(ta, na, tb, nb) && lit, "spot axis (0,0,-1e300) gives bitwise the unit axis' textures (lit: %d)", lit);
+    free(ta); free(tb);
+    wrt_runtime_close(rt);
+}
+
+static void test_getters(const char *path) {
+    wrt_error err;
+    wrt_runtime *rt;
+    wrt_runtime_options o = {.threads = 1};
+    if (wrt_runtime_open_file(path, &o, &rt, &err)) { CHECK(0, "open: %s", err.message); return; }
+    /* assets/test/facing.gltf: one light "light", point, white, intensity 1 at (0, 0, 0.5) */
+    wrt_runtime_light l;
+    CHECK(wrt_runtime_light_count(rt) == 1 && wrt_runtime_get_light(rt, 0, &l, &err) == WRT_OK, "one light");
+    CHECK(!strcmp(l.name, "light") && l.kind == WRT_LIGHT_KIND_POINT && l.position[0] == 0 && l.position[1] == 0 &&
+          l.position[2] == 0.5 && l.intensity == 1 && l.color[0] == 1 && l.color[2] == 1 && l.range == 0 && !l.off,
+          "light: '%s' kind %d at (%g, %g, %g), intensity %g, range %g", l.name, l.kind, l.position[0],
+          l.position[1], l.position[2], l.intensity, l.range);
+    /* material "grey": base colour 0.75, metallic 0, roughness 1 */
+    wrt_runtime_material m;
+    CHECK(wrt_runtime_material_count(rt) == 1 && wrt_runtime_get_material(rt, 0, &m, &err) == WRT_OK, "one material");
+    CHECK(!strcmp(m.name, "grey") && near(m.base_color[0], 0.75, 1e-7) && near(m.base_color[2], 0.75, 1e-7) &&
+          m.metallic == 0 && m.roughness == 1 && m.lambertian == 1,
+          "material '%s' (%g %g %g) metallic %g roughness %g", m.name, m.base_color[0], m.base_color[1],
+          m.base_color[2], m.metallic, m.roughness);
+    /* camera at (2.5, 0.8, 1.5), yfov 0.7853982, znear 0.01, zfar 1000 */
+    wrt_runtime_camera c;
+    CHECK(wrt_runtime_get_camera(rt, &c, &err) == WRT_OK && c.from_file && near(c.position[0], 2.5, 1e-6) &&
+          near(c.position[1], 0.8, 1e-6) && near(c.position[2], 1.5, 1e-6) && near(c.yfov, 0.7853982, 1e-6) &&
+          near(c.znear, 0.01, 1e-9) && near(c.zfar, 1000, 1e-9) &&
+          near(c.direction[0] * c.direction[0] + c.direction[1] * c.direction[1] + c.direction[2] * c.direction[2], 1, 1e-9),
+          "camera at (%g, %g, %g), yfov %g", c.position[0], c.position[1], c.position[2], c.yfov);
+    /* bounds: the two squares, [-0.5, 0.5]^2 x [0, 1] */
+    double lo[3], hi[3];
+    CHECK(wrt_runtime_get_bounds(rt, lo, hi, &err) == WRT_OK && lo[0] == -0.5 && lo[1] == -0.5 && lo[2] == 0 &&
+          hi[0] == 0.5 && hi[1] == 0.5 && hi[2] == 1, "bounds (%g %g %g) - (%g %g %g)", lo[0], lo[1], lo[2], hi[0],
+          hi[1], hi[2]);
+    /* the quad-to-source map: square_a (mesh 0) at z = 0 facing +z, square_b (mesh 1) at
+     * z = 1 facing -z (its vertex normals), each of area 1; node, primitive, triangles and
+     * twin are not in a .gto 1.x: -1 */
+    int nq = wrt_runtime_quad_count(rt), seen[2] = {0, 0}, map_ok = nq == 2;
+    for (int q = 0; q < nq; q++) {
+        wrt_runtime_quad qd;
+        if (wrt_runtime_get_quad(rt, q, &qd, &err)) { map_ok = 0; continue; }
+        double z = qd.corners[0][2];
+        int want = z == 0 ? 0 : 1;
+        for (int k = 0; k < 4; k++) map_ok &= qd.corners[k][2] == z;
+        map_ok &= qd.mesh == want && !strcmp(qd.mesh_name, want ? "square_b" : "square_a");
+        map_ok &= near(qd.normal[2], want ? -1 : 1, 1e-12) && near(qd.area, 1, 1e-6) && qd.material == 0;
+        map_ok &= qd.node == -1 && qd.primitive == -1 && qd.triangles[0] == -1 && qd.triangles[1] == -1 &&
+                  qd.twin == -1 && qd.twin_of == -1;
+        double p[4][3];
+        map_ok &= wrt_runtime_quad_corners(rt, q, p, NULL) == WRT_OK && !memcmp(p, qd.corners, sizeof p);
+        seen[want]++;
+        printf("quad %d: mesh %d '%s', z %g, normal z %g, area %g\n", q, qd.mesh, qd.mesh_name, z, qd.normal[2], qd.area);
+    }
+    CHECK(map_ok && seen[0] == 1 && seen[1] == 1, "quad-to-source map: each square's mesh, name, normal, area");
+    wrt_runtime_close(rt);
+}
+
+static void test_range(const char *facing, const char *ranged) {
+    wrt_error err;
+    wrt_runtime *rt;
+    wrt_runtime_options o = {.threads = 1};
+    if (wrt_runtime_open_file(ranged, &o, &rt, &err)) { CHECK(0, "open: %s", err.message); return; }
+    wrt_runtime_light l;
+    CHECK(wrt_runtime_get_light(rt, 0, &l, &err) == WRT_OK && l.range == 0.75f, "the file's range: %g", l.range);
+    size_t n0, n1, n2, n3;
+    float *got = relight(rt, &l, &n0); /* get_light then set_lights */
+    double dir_r[2][3], ind[3], dir_u[2][3];
+    for (int q = 0; q < 2; q++) wrt_runtime_quad_irradiance(rt, q, dir_r[q], ind, NULL);
+    wrt_runtime_light u = l;
+    u.range = 0;
+    float *unb = relight(rt, &u, &n1);
+    for (int q = 0; q < 2; q++) wrt_runtime_quad_irradiance(rt, q, dir_u[q], ind, NULL);
+    CHECK(got && unb && !same(got, n0, unb, n1), "get_light then set_lights keeps the range (the result differs from "
+          "the unbounded light's)");
+    /* each square's mean direct irradiance, ranged over unbounded, against brute force */
+    for (int q = 0; q < 2; q++) {
+        wrt_runtime_quad qd;
+        wrt_runtime_get_quad(rt, q, &qd, NULL);
+        double z0 = qd.corners[0][2];
+        double want = square_irradiance(z0, 0.75) / square_irradiance(z0, 0), have = dir_r[q][0] / dir_u[q][0];
+        printf("quad %d (z %g): ranged / unbounded direct irradiance %.5f, brute force %.5f\n", q, z0, have, want);
+        CHECK(fabs(have - want) <= 0.01 * want, "quad %d: ranged / unbounded %.5f, brute force %.5f", q, have, want);
+    }
+    /* a range short of every quad (nearest point 0.5 away): exact zeros */
+    wrt_runtime_light s = l;
+    s.range = 0.45f;
+    float *shortr = relight(rt, &s, &n2);
+    int zero = shortr != NULL;
+    for (size_t i = 0; shortr && i < n2; i++) zero &= shortr[i] == 0;
+    CHECK(zero, "range 0.45: every texel exactly 0");
+    /* a huge range: bitwise the unbounded light */
+    s.range = 1e30f;
+    float *huge = relight(rt, &s, &n3);
+    CHECK(same(huge, n3, unb, n1), "range 1e30: bitwise the unbounded light");
+    free(got); free(unb); free(shortr); free(huge);
+    wrt_runtime_close(rt);
+    /* the unranged file's light, given the range by hand: the same as the ranged file's */
+    if (wrt_runtime_open_file(facing, &o, &rt, &err)) { CHECK(0, "open: %s", err.message); return; }
+    wrt_runtime_get_light(rt, 0, &u, NULL);
+    u.range = 0.75f;
+    size_t nf;
+    float *byhand = relight(rt, &u, &nf);
+    wrt_runtime_close(rt);
+    wrt_runtime_open_file(ranged, &o, &rt, &err);
+    float *again = relight(rt, &l, &n0);
+    CHECK(same(byhand, nf, again, n0), "range set by hand on the unranged file: bitwise the ranged file's light");
+    free(byhand); free(again);
+    wrt_runtime_close(rt);
+}
+
+/* 10 updates with a moving light after the first: allocations through the public hooks. */
+static void test_steady_allocations(const char *path) {
+    counter c = {0};
+    wrt_error err;
+    wrt_runtime *rt;
+    wrt_runtime_options o = {.threads = 2, .allocator = {c_alloc, c_free, &c}};
+    if (wrt_runtime_open_file(path, &o, &rt, &err)) { CHECK(0, "open: %s", err.message); return; }
+    wrt_runtime_light l;
+    wrt_runtime_get_light(rt, 0, &l, NULL);
+    double eye[3] = {2.5, 0.8, 1.5};
+    wrt_runtime_set_eye(rt, eye, NULL);
+    wrt_status s = wrt_runtime_set_lights(rt, &l, 1, &err);
+    if (!s) s = wrt_runtime_update(rt, NULL, &err);
+    CHECK(s == WRT_OK, "first update: %s", err.message);
+    long a0 = atomic_load(&c.allocs), b0 = atomic_load(&c.bytes);
+    c.record = 1;
+    int changed_all = 1;
+    for (int k = 1; k <= 10 && !s; k++) {
+        wrt_runtime_light m = l;
+        m.position[0] += 0.02 * cos(k);
+        m.position[1] += 0.02 * sin(k);
+        int changed = 0;
+        if (!(s = wrt_runtime_set_lights(rt, &m, 1, &err))) s = wrt_runtime_update(rt, &changed, &err);
+        changed_all &= changed > 0;
+    }
+    long na = atomic_load(&c.allocs) - a0, nb = atomic_load(&c.bytes) - b0;
+    CHECK(s == WRT_OK && changed_all, "10 updates with a moving light, each changing textures");
+    printf("%s: steady state: %ld allocations (%ld bytes) through the allocator in 10 updates after the first", path, na, nb);
+    int ns = atomic_load(&c.nsizes);
+    for (int i = 0; i < ns && i < 12; i++) printf("%s%zu", i ? ", " : "; sizes: ", c.sizes[i]);
+    printf("%s\n", ns > 12 ? ", ..." : "");
+    if (na == 0 || EXPECT_ALLOCATION_FREE_UPDATE)
+        CHECK(na == 0, "a steady-state update allocates nothing: %ld allocations in 10 updates", na);
+    else {
+        skipped++;
+        printf("skipped: expected to fail until merge (the allocation-free update of wt-relight): a steady-state "
+               "update allocated %ld blocks in 10 updates; EXPECT_ALLOCATION_FREE_UPDATE=1 makes it an assertion\n", na);
+    }
+    wrt_runtime_close(rt);
+    CHECK(c.allocs == c.frees, "allocator: %ld blocks, %ld freed", (long)c.allocs, (long)c.frees);
+}
+
+int main(int argc, char **argv) {
+    if (argc < 3) { fprintf(stderr, "usage: %s FACING.gto RANGED.gto [MORE.gto ...]\n", argv[0]); return 1; }
+    test_version();
+    test_options(argv[1]);
+    test_handles(argv[1]);
+    test_bounds(argv[1]);
+    test_getters(argv[1]);
+    test_range(argv[1], argv[2]);
+    for (int i = 1; i < argc; i++) if (i != 2) test_steady_allocations(argv[i]);
+    if (skipped) printf("%s: %d passed, %d failed, %d skipped\n", argv[0], passed, failed, skipped);
+    else printf("%s: %d passed, %d failed\n", argv[0], passed, failed);
+    return failed != 0;
+}
