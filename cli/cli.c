@@ -108,7 +108,7 @@ int wrt_cli_lights_option(const char *tool, wrt_cli_lights *L, int argc, char **
             ok = bad(tool, a, v, "IN,OUT radians with 0 <= IN < OUT <= pi/2");
         else { L->cone[0] = c[0]; L->cone[1] = c[1]; L->has_cone = 1; }
     } else if (!strcmp(a, "--light-intensity")) {
-        ok = L->has_intensity = wrt_cli_num(tool, a, v, 0, WRT_MAX_INTENSITY, &L->intensity);
+        ok = L->has_intensity = wrt_cli_num(tool, a, v, 0, WRT_MAX_LIGHT_INTENSITY, &L->intensity);
     } else if (!strcmp(a, "--light-color")) {
         ok = wrt_cli_vec3(tool, a, v, L->color);
         if (ok && !(L->color[0] >= 0 && L->color[1] >= 0 && L->color[2] >= 0 && L->color[0] <= WRT_MAX_COLOR &&

@@ -8,21 +8,24 @@
  *                            power 1.4e38: the kernel terms (cos cos / r^2, and the r^4 of
  *                            unnormalized dot products) stay below FLT_MAX (3.4e38) even
  *                            where the runtime computes them in single precision.
- *   WRT_MAX_INTENSITY  1e12  candela of a point or spot light (a 100 W bulb is ~140 cd,
+ *   WRT_MAX_LIGHT_INTENSITY 1e12 candela of a point or spot light (a 100 W bulb is ~140 cd,
  *                            the sun seen from 1 m ~3e27 cd is not a punctual light).
  *   WRT_MAX_COLOR      1e3   a colour channel given on a command line (glTF's are [0, 1]).
  *   WRT_MAX_LIGHT_SCALE 1e3  a --light-scale factor.
  *   So a light's radiant factor intensity x colour x scale is at most 1e18, and the
  *   irradiance it gives, 1e18 / d^2, stays below FLT_MAX for every distance d > 1e-10,
- *   with a margin of 1e9 for the sums over the operator's columns.
+ *   with a margin of 1e9 for the sums over the operator's columns. The library (include/wrt.h)
+ *   takes the same WRT_MAX_COORD and bounds intensity x colour by its WRT_MAX_INTENSITY, 1e20,
+ *   which every scene and command-line light within these bounds stays under.
  */
 #ifndef WRT_LIMITS_H
 #define WRT_LIMITS_H
 
 #include <math.h>
 
-#define WRT_MAX_COORD 1e9
-#define WRT_MAX_INTENSITY 1e12
+#include "../include/wrt.h" /* WRT_MAX_COORD (1e9) and the library's WRT_MAX_INTENSITY (1e20, intensity x colour) */
+
+#define WRT_MAX_LIGHT_INTENSITY 1e12
 #define WRT_MAX_COLOR 1e3
 #define WRT_MAX_LIGHT_SCALE 1e3
 

@@ -979,7 +979,7 @@ struct strict_check {
             if (type != "point" && type != "spot" && type != "directional")
                 fail(at(p, "type"), "'%.40s' is not point, spot or directional", type.c_str());
             if (const json *v = member(l, "color")) numbers(*v, at(p, "color"), 3, 0, 1);
-            if (const json *v = member(l, "intensity")) number(*v, at(p, "intensity"), 0, WRT_MAX_INTENSITY);
+            if (const json *v = member(l, "intensity")) number(*v, at(p, "intensity"), 0, WRT_MAX_LIGHT_INTENSITY);
             if (const json *v = member(l, "range")) number(*v, at(p, "range"), 0, FLT_MAX, true);
             const json *sp = member(l, "spot");
             if (type == "spot") {

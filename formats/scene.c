@@ -538,9 +538,9 @@ static wrt_status convert_lights(const wrt_gltf_data *g, wrt_scene *s, const cha
                             "%s: light '%s' (node %d): position (%g, %g, %g) is outside +-%g, what the "
                             "computation can carry (common/limits.h)",
                             label, l->name, l->node, l->pos[0], l->pos[1], l->pos[2], WRT_MAX_COORD);
-        if (l->intensity > WRT_MAX_INTENSITY)
+        if (l->intensity > WRT_MAX_LIGHT_INTENSITY)
             return wrt_fail(WRT_ERR_PARSE, "%s: light '%s' (node %d): intensity %g is above %g cd (common/limits.h)",
-                            label, l->name, l->node, l->intensity, WRT_MAX_INTENSITY);
+                            label, l->name, l->node, l->intensity, WRT_MAX_LIGHT_INTENSITY);
         wrt_light *o = &s->lights[s->nlights++];
         o->type = l->type == WRT_GLTF_LIGHT_SPOT ? WRT_LIGHT_SPOT : WRT_LIGHT_POINT;
         wrt_utf8_copy(o->name, sizeof o->name, l->name);

@@ -570,7 +570,7 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
             for (int k = 0; k < nv; k++) {
                 tok = strtok_r(NULL, " \t\r\n", &save);
                 /* within what the computation can carry (common/limits.h) */
-                if (!tok || (nv == 1 ? !parse_num(tok, 0, WRT_MAX_INTENSITY, &dst[k])
+                if (!tok || (nv == 1 ? !parse_num(tok, 0, WRT_MAX_LIGHT_INTENSITY, &dst[k])
                                      : !parse_num(tok, -WRT_MAX_COORD, WRT_MAX_COORD, &dst[k]))) {
                     fprintf(stderr, "wrt-play: %s:%d: %s needs %s\n", path, lineno, key,
                             nv == 1 ? "an intensity in [0, 1e12] cd" : "three numbers, each within +-1e9");

@@ -18,7 +18,7 @@
  *    FACING and on each MORE file (at 46ed865: two blocks an update on FACING, the smooth
  *    display's scratch, one per group of quads, from common/reconstruct.c's
  *    wrt_recon_run).
- * Prints "N passed, N failed" (", N skipped" while the update still allocates). */
+ * Prints "N passed, N failed". */
 #include <wrt.h>
 
 #include <math.h>
@@ -27,13 +27,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-/* 1 once the relighting core's steady-state update is allocation-free (the wt-relight
- * work): the allocation check below is then a hard assertion. While 0, a non-zero count
- * is reported as "skipped: expected to fail until merge", and zero passes. */
-#ifndef EXPECT_ALLOCATION_FREE_UPDATE
-#define EXPECT_ALLOCATION_FREE_UPDATE 0
-#endif
 
 static int passed, failed, skipped;
 #define CHECK(c, ...) do { if (c) passed++; else { failed++; fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__); \
@@ -416,13 +409,7 @@ static void test_steady_allocations(const char *path) {
     int ns = atomic_load(&c.nsizes);
     for (int i = 0; i < ns && i < 12; i++) printf("%s%zu", i ? ", " : "; sizes: ", c.sizes[i]);
     printf("%s\n", ns > 12 ? ", ..." : "");
-    if (na == 0 || EXPECT_ALLOCATION_FREE_UPDATE)
-        CHECK(na == 0, "a steady-state update allocates nothing: %ld allocations in 10 updates", na);
-    else {
-        skipped++;
-        printf("skipped: expected to fail until merge (the allocation-free update of wt-relight): a steady-state "
-               "update allocated %ld blocks in 10 updates; EXPECT_ALLOCATION_FREE_UPDATE=1 makes it an assertion\n", na);
-    }
+    CHECK(na == 0, "a steady-state update allocates nothing: %ld allocations in 10 updates", na);
     wrt_runtime_close(rt);
     CHECK(c.allocs == c.frees, "allocator: %ld blocks, %ld freed", (long)c.allocs, (long)c.frees);
 }
