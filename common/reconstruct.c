@@ -23,8 +23,8 @@ struct wrt_recon {
     wrt_recon_allocator al;      /* alloc NULL: malloc and free */
 };
 
-static void *rc_alloc(const wrt_recon_allocator *al, size_t n) { return al->alloc ? al->alloc(n ? n : 1, al->user) : malloc(n ? n : 1); }
-static void rc_free(const wrt_recon_allocator *al, void *p) { if (p) { if (al->alloc) al->free(p, al->user); else free(p); } }
+static void *rc_alloc(const wrt_recon_allocator *al, size_t n) { return al->alloc ? al->alloc(al->user, n ? n : 1) : malloc(n ? n : 1); }
+static void rc_free(const wrt_recon_allocator *al, void *p) { if (p) { if (al->alloc) al->free(al->user, p); else free(p); } }
 
 /* ------------------------------------------------------------ adjacency ---- */
 

@@ -45,8 +45,8 @@ wrt_recon *wrt_recon_create(int n, const double (*corners)[4][3], const uint32_t
 /* The same with the caller's allocator (alloc NULL: malloc and free), used for the
  * adjacency and for wrt_recon_run's scratch (then from the threads that run it). */
 typedef struct wrt_recon_allocator {
-    void *(*alloc)(size_t size, void *user);
-    void (*free)(void *p, void *user);
+    void *(*alloc)(void *user, size_t size); /* the user pointer first, as everywhere in wrt */
+    void (*free)(void *user, void *p);
     void *user;
 } wrt_recon_allocator;
 wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uint32_t *material,

@@ -191,6 +191,14 @@ typedef struct wrt_runtime_options {
      * worker threads: thread-safe). NULL: wrt's process-wide log (stderr). */
     void (*log)(void *user, int level, const char *message);
     void *log_user;
+    /* The glossy display's before/after switches (0: the default display). Every knob
+     * that changes a result is a field here; the library reads no environment variable. */
+    int no_final_gather; /* 1: glossy quads show the coarse angular synthesis only, no final gather */
+    int no_light_splat;  /* 1: a light's direction on a glossy quad truncated to its finest
+                          * angular cell instead of spread over one cell centred on it */
+    int gather_points;   /* 0: the default (a point per texel on a sharp lobe, else 16); 16 or 32:
+                          * final-gather points a side on every glossy quad; others refused */
+    int no_avx;          /* 1: the first-bounce rows summed without AVX (same sums; A/B timings) */
 } wrt_runtime_options;
 
 /* Fills the zero fields of *o with the defaults (o->size as above; a size 0 stays 0).

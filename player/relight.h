@@ -34,8 +34,8 @@ typedef struct wrt_relight_options {
                           * 0 (the default): a point per texel on a sharp lobe, else 16 */
     int no_avx;          /* 1: K's rows in fours without AVX (the same sums to the bit;
                           * for the test that says so, and A/B timings) */
-    void *(*alloc)(size_t size, void *user); /* every block of the relighter (both or neither; */
-    void (*free)(void *p, void *user);        /* NULL: malloc and free), the update's scratch */
+    void *(*alloc)(void *user, size_t size); /* every block of the relighter (both or neither; */
+    void (*free)(void *user, void *p);        /* NULL: malloc and free), the update's scratch */
     void *alloc_user;                         /* too (then from the worker threads: thread-safe) */
     /* Job hook (include/wrt.h, wrt_runtime_options.parallel_for): runs fn(ctx, i) for i in
      * [0, n) with at most `threads` calls at once; NULL: the relighter's own thread pool. */
@@ -51,16 +51,6 @@ typedef struct wrt_relight_timings { /* milliseconds of the last update */
     int quads_resynthesized;
     int lights_changed;
 } wrt_relight_timings;
-
-/* The before/after knobs (no_gather, no_light_splat, gather_points, no_avx) for the
- * relighters a program creates through a layer whose options do not carry them yet
- * (wrt_runtime_options, include/wrt.h; wrt-compare's --no-final-gather, --no-light-splat,
- * --gather-points): a zero knob of the options passed to wrt_relight_create takes the
- * value set here (the other fields of `o` are not read). Call it at the program's start,
- * before any relighter exists; not thread-safe. Transitional: once the runtime's options
- * carry the knobs, the program sets them there and this call goes. No environment
- * variable is read. */
-void wrt_relight_set_program_knobs(const wrt_relight_options *o);
 
 /* `g` must outlive the relighter (it points into the mapping). */
 wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out);

@@ -69,13 +69,13 @@ void *relight_calloc(wrt_relight *r, size_t count, size_t size) {
     if (size && count > SIZE_MAX / size) { r->oom = 1; return NULL; }
     size_t n = count * size;
     if (!n) n = 1;
-    void *p = r->opt.alloc ? r->opt.alloc(n, r->opt.alloc_user) : malloc(n);
+    void *p = r->opt.alloc ? r->opt.alloc(r->opt.alloc_user, n) : malloc(n);
     if (!p) { r->oom = 1; return NULL; }
     return memset(p, 0, n);
 }
 void relight_free(const wrt_relight *r, void *p) {
     if (!p) return;
-    if (r->opt.alloc && r->opt.free) r->opt.free(p, r->opt.alloc_user);
+    if (r->opt.alloc && r->opt.free) r->opt.free(r->opt.alloc_user, p);
     else free(p);
 }
 
@@ -87,7 +87,7 @@ void *relight_grow_keep(wrt_relight *r, void *p, size_t *cap, size_t need, size_
     if (need <= *cap) return p;
     size_t c = *cap ? *cap : 64;
     while (c < need) c *= 2;
-    void *np = c > SIZE_MAX / elem ? NULL : r->opt.alloc ? r->opt.alloc(c * elem, r->opt.alloc_user) : malloc(c * elem);
+    void *np = c > SIZE_MAX / elem ? NULL : r->opt.alloc ? r->opt.alloc(r->opt.alloc_user, c * elem) : malloc(c * elem);
     if (!np) { atomic_store(&r->upd_oom, 1); return NULL; }
     if (keep && p) memcpy(np, p, keep * elem);
     relight_free(r, p);

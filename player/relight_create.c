@@ -39,33 +39,15 @@ static void brdf_cell_item(wrt_relight *r, worker *w, int item, void *vctx) {
     wrt_brdf_table_build_cell(bc->m, item, bc->tab);
 }
 
-/* wrt_relight_set_program_knobs's values (relight.h): zero until a program sets them. */
-static wrt_relight_options program_knobs;
-
-void wrt_relight_set_program_knobs(const wrt_relight_options *o) {
-    wrt_relight_options k = {0};
-    if (o) {
-        k.no_gather = o->no_gather;
-        k.no_light_splat = o->no_light_splat;
-        k.gather_points = o->gather_points;
-        k.no_avx = o->no_avx;
-    }
-    program_knobs = k;
-}
-
 /* The relighter itself (*out), its options checked, the thread pool or the job hook's
  * worker slots. WRT_ERR_INVALID_ARG, WRT_ERR_NOMEM (nothing is left allocated). */
 static wrt_status create_base(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out) {
     wrt_relight_options o = {0};
     if (opt) o = *opt;
-    if (!o.no_gather) o.no_gather = program_knobs.no_gather;
-    if (!o.no_light_splat) o.no_light_splat = program_knobs.no_light_splat;
-    if (!o.gather_points) o.gather_points = program_knobs.gather_points;
-    if (!o.no_avx) o.no_avx = program_knobs.no_avx;
     if (o.gather_points != 0 && o.gather_points != 16 && o.gather_points != 32)
         return wrt_fail(WRT_ERR_INVALID_ARG, "relight: gather points %d: 0 (chosen per quad), 16 or 32", o.gather_points);
     if (!o.alloc != !o.free) return wrt_fail(WRT_ERR_INVALID_ARG, "relight: an allocator needs both alloc and free");
-    wrt_relight *r = o.alloc ? o.alloc(sizeof *r, o.alloc_user) : malloc(sizeof *r);
+    wrt_relight *r = o.alloc ? o.alloc(o.alloc_user, sizeof *r) : malloc(sizeof *r);
     if (!r) return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory");
     memset(r, 0, sizeof *r);
     r->g = g;

@@ -39,8 +39,6 @@ static void sys_free(void *u, void *p) { (void)u; free(p); }
 
 /* The relighting core's allocator hooks (player/relight.h) take the user pointer last;
  * these forward to the caller's, whose user pointer comes first. */
-static void *core_alloc(size_t n, void *u) { const wrt_allocator *a = u; return a->alloc(a->user, n); }
-static void core_free(void *p, void *u) { const wrt_allocator *a = u; a->free(a->user, p); }
 
 static wrt_status fail(wrt_error *err, wrt_status s) {
     if (err) {
@@ -111,9 +109,11 @@ static wrt_status open_common(const void *data, size_t size, const char *path, c
                 rt->hi[c] = fmax(rt->hi[c], rt->g.quads[q].p[k][c]);
             }
     wrt_relight_options ro = {.proj_level = o.proj_level, .max_tex_res = o.max_tex_res, .threads = o.threads,
-                              .alloc = core_alloc, .free = core_free, .alloc_user = &rt->al,
+                              .alloc = rt->al.alloc, .free = rt->al.free, .alloc_user = rt->al.user,
                               .haar_blocks = o.haar_blocks, .parallel_for = o.parallel_for,
-                              .parallel_user = o.parallel_user, .log = o.log, .log_user = o.log_user};
+                              .parallel_user = o.parallel_user, .log = o.log, .log_user = o.log_user,
+                              .no_gather = o.no_final_gather, .no_light_splat = o.no_light_splat,
+                              .gather_points = o.gather_points, .no_avx = o.no_avx};
     if ((s = wrt_relight_create(&rt->g, &ro, &rt->rl))) {
         wrt_gto_close(&rt->g);
         rt->al.free(rt->al.user, rt);

@@ -1404,13 +1404,13 @@ static void test_first_bounce_refused(void) {
 
 /* A counting allocator (the relighter's hooks; updates call it from worker threads). */
 typedef struct counting { atomic_long blocks, bytes; } counting;
-static void *count_alloc(size_t n, void *user) {
+static void *count_alloc(void *user, size_t n) {
     counting *c = user;
     atomic_fetch_add(&c->blocks, 1);
     atomic_fetch_add(&c->bytes, (long)n);
     return malloc(n);
 }
-static void count_free(void *p, void *user) { (void)user; free(p); }
+static void count_free(void *user, void *p) { (void)user; free(p); }
 
 /* Ten updates after the first, each with light 0 moved a little (the same lights, nothing
  * grows) and every other one with the eye moved too: no block from the allocator. The

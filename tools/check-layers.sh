@@ -49,10 +49,6 @@ for d in ['include', 'common', 'formats', 'precompute', 'player', 'verify', 'cli
                 ok = it[1] == me[1] or it[0] < me[0]
                 if it[1] == 'runtime' and me[1] != 'runtime': ok = False  # only through include/wrt.h
                 if it[0] == 5 and it[1] != me[1]: ok = False
-                # transitional: wrt-compare's display knobs (--no-final-gather, --no-light-splat,
-                # --gather-points) reach the relighter through wrt_relight_set_program_knobs until
-                # include/wrt.h's runtime options carry them; then this exception goes
-                if src == 'tools/compare_main.c' and tgt == 'player/relight.h': ok = True
                 if not ok:
                     print(f'{src}:{n}: {me[1]} (layer {me[0]}) includes {tgt} ({it[1]}, layer {it[0]})')
                     bad = 1

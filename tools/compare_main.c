@@ -9,7 +9,6 @@
 #include "cli/cli.h"
 
 #include "formats/image.h"
-#include "player/relight.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -186,7 +185,6 @@ static int compare_main(int argc, char **argv, const char **gtos) {
     double explicit_pos[WRT_COMPARE_MAX_LIGHTS][3];
     double max_error = -1, exposure = 0;
     wrt_compare_options o = {0};
-    wrt_relight_options knobs = {0}; /* the display's before/after knobs */
     wrt_cli_lights L;
     wrt_cli_lights_init(&L);
     for (int i = 1; i < argc; i++) {
@@ -203,8 +201,8 @@ static int compare_main(int argc, char **argv, const char **gtos) {
         else if (!strcmp(a, "--no-image")) { o.width = -1; takes = 0; }
         else if (!strcmp(a, "--per-quad")) { per_quad = 1; takes = 0; }
         else if (!strcmp(a, "--bench-only")) { bench_only = 1; takes = 0; }
-        else if (!strcmp(a, "--no-final-gather")) { knobs.no_gather = 1; takes = 0; }
-        else if (!strcmp(a, "--no-light-splat")) { knobs.no_light_splat = 1; takes = 0; }
+        else if (!strcmp(a, "--no-final-gather")) { o.no_final_gather = 1; takes = 0; }
+        else if (!strcmp(a, "--no-light-splat")) { o.no_light_splat = 1; takes = 0; }
         else if (a[0] == '-' && a[1] && !takes_value(a)) {
             fprintf(stderr, "wrt-compare: unknown option %s (see --help)\n", a);
             return WRT_EXIT_USAGE;
@@ -234,7 +232,7 @@ static int compare_main(int argc, char **argv, const char **gtos) {
         else if (!strcmp(a, "--max-error")) ok = parse_double(v, &max_error) && max_error >= 0;
         else if (!strcmp(a, "--gather-points")) {
             ok = parse_long(v, 16, 32, &x) && (x == 16 || x == 32);
-            knobs.gather_points = (int)x;
+            o.gather_points = (int)x;
         }
         else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-compare: unknown option %s (see --help)\n", a); return 1; }
         else {
@@ -249,7 +247,6 @@ static int compare_main(int argc, char **argv, const char **gtos) {
         fprintf(stderr, "wrt-compare: needs a scene and at least one .gto (see --help)\n");
         return 1;
     }
-    wrt_relight_set_program_knobs(&knobs); /* the runtime's options do not carry them yet */
 
     wrt_scene scene;
     if (wrt_scene_load(scene_path, NULL, &scene) != WRT_OK) {
@@ -301,7 +298,7 @@ static int compare_main(int argc, char **argv, const char **gtos) {
                 continue;
             }
             if ((int)g.nquads != scene.nquads ||
-                wrt_compare_bench(&g, &lights[0], eye, o.bench_updates, o.threads, &res) != WRT_OK) {
+                wrt_compare_bench(&g, &lights[0], eye, o.bench_updates, &o, &res) != WRT_OK) {
                 fprintf(stderr, "wrt-compare: %s: %s\n", gtos[b],
                         (int)g.nquads != scene.nquads ? "not baked from this scene" : wrt_last_error());
                 wrt_gto_close(&g);

@@ -390,10 +390,13 @@ static wrt_status set_light(wrt_runtime *r, const wrt_light *l) {
 }
 
 /* The runtime on the bake's bytes (already mapped and checked by the caller). */
-static wrt_status open_runtime(const wrt_gto *g, int threads, int haar_blocks, wrt_runtime **r) {
+static wrt_status open_runtime(const wrt_gto *g, const wrt_compare_options *o, int haar_blocks, wrt_runtime **r) {
     wrt_runtime_options ro = {0};
-    ro.threads = threads;
+    ro.threads = o->threads;
     ro.haar_blocks = haar_blocks;
+    ro.no_final_gather = o->no_final_gather;
+    ro.no_light_splat = o->no_light_splat;
+    ro.gather_points = o->gather_points;
     return wrt_runtime_open_memory(g->map, g->size, &ro, r, NULL);
 }
 
@@ -578,9 +581,9 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
                 return wrt_fail(WRT_ERR_INVALID_ARG, "compare: quad %d of the bake differs from the scene's: not baked from it", q);
         }
     wrt_runtime *r, *rh; /* rh: the same bake shown as Haar blocks, for the before/after figures */
-    wrt_status st = open_runtime(g, c->opt.threads, 0, &r);
+    wrt_status st = open_runtime(g, &c->opt, 0, &r);
     if (st != WRT_OK) return st;
-    st = open_runtime(g, c->opt.threads, 1, &rh);
+    st = open_runtime(g, &c->opt, 1, &rh);
     if (st != WRT_OK) { wrt_runtime_close(r); return st; }
     double eye[3] = {s->camera.pos.x, s->camera.pos.y, s->camera.pos.z};
     wrt_runtime_set_eye(r, eye, NULL);
@@ -651,7 +654,7 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *cc, const wrt_gto *g, wrt_comp
     }
     wrt_runtime_close(r);
     wrt_runtime_close(rh);
-    st = wrt_compare_bench(g, &c->lights[0], eye, c->opt.bench_updates, c->opt.threads, out);
+    st = wrt_compare_bench(g, &c->lights[0], eye, c->opt.bench_updates, &c->opt, out);
     out->seconds = wrt_now() - t0;
     return st;
 }
@@ -687,10 +690,10 @@ static void time_circle(wrt_runtime *r, int updates, void (*move)(wrt_runtime *,
 }
 
 wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const double eye[3], int updates,
-                             int threads, wrt_compare_result *out) {
+                             const wrt_compare_options *o, wrt_compare_result *out) {
     if (updates < 1) return wrt_fail(WRT_ERR_INVALID_ARG, "compare: %d timed updates", updates);
     wrt_runtime *r;
-    wrt_status st = open_runtime(g, threads, 0, &r);
+    wrt_status st = open_runtime(g, o, 0, &r);
     if (st != WRT_OK) return st;
     if ((st = wrt_runtime_set_eye(r, eye, NULL)) || (st = set_light(r, light)) || (st = wrt_runtime_update(r, NULL, NULL))) {
         wrt_runtime_close(r);

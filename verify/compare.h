@@ -41,6 +41,8 @@ typedef struct wrt_compare_options {
     int bench_updates;  /* timed light changes for the median (0 = 21) */
     int threads;        /* 0 = all cores */
     uint64_t seed;      /* 0 = 1 */
+    /* the glossy display's before/after switches, passed to the runtime (include/wrt.h) */
+    int no_final_gather, no_light_splat, gather_points;
 } wrt_compare_options;
 
 /* Fills the zero fields of *o with the defaults above. */
@@ -114,7 +116,7 @@ wrt_status wrt_compare_gto(const wrt_compare_ref *r, const wrt_gto *g, wrt_compa
  * set_eye + update (a camera move: glossy quads' view-dependent radiance).
  * Fills the ms_* and cpu_ms_* fields of *out (and nothing else). */
 wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const double eye[3], int updates,
-                             int threads, wrt_compare_result *out);
+                             const wrt_compare_options *o, wrt_compare_result *out);
 
 /* For tests and pictures: the last comparison's wavelet (wavelet = 1; 2: the Haar cells
  * as blocks) and reference (0) indirect images of light `light` (width x height RGB, top
