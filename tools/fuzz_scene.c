@@ -15,7 +15,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 static void quiet(int level, const char *msg, void *user) { (void)level; (void)msg; (void)user; }
 
 static void load(const void *p, size_t n, int drop_bad) {
-    wrt_load_options opt = {drop_bad, 0};
+    wrt_load_options opt = {drop_bad, 0, 0};
     wrt_scene s;
     if (wrt_scene_load_memory(p, n, "/nonexistent-wrt-fuzz", &opt, &s) == WRT_OK) wrt_scene_free(&s);
 }
