@@ -16,6 +16,7 @@
 #include "../formats/scene.h"
 #include "../tools/compare.h"
 #include "bake.h"
+#include "scan.h"
 
 enum { EXIT_USAGE = 1, EXIT_INPUT = 2, EXIT_OUTPUT = 3, EXIT_CANCEL = 4, EXIT_ACCURACY = 5, EXIT_INTERNAL = 7 };
 
@@ -282,12 +283,13 @@ int main(int argc, char **argv) {
             }
         }
         wrt_scene s;
+        lo.report_only = 1; /* a scene that can be read is reported, never refused */
         wrt_status st = wrt_scene_load(scan, &lo, &s);
         if (st != WRT_OK) {
             fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
             return EXIT_INPUT;
         }
-        wrt_scene_print_summary(&s, json, stdout);
+        wrt_scan_print(&s, &o, drop_bad, json, stdout);
         wrt_scene_free(&s);
         return 0;
     }
