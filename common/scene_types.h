@@ -21,9 +21,19 @@ typedef struct wrt_quad {
     int parallelogram;  /* 1 if affine (constant Jacobian) */
     int material;       /* index into scene materials */
     int mesh, prim;     /* glTF mesh and primitive index it came from */
-    int tri[2];         /* the two triangle indices within the primitive */
+    int tri[2];         /* WRT_ELEM_QUAD: the two triangle indices within the primitive;
+                           WRT_ELEM_TRIANGLE: tri[0] the triangle, tri[1] = -1 */
     int name;           /* index into scene->names (mesh name) */
+    int kind;           /* WRT_ELEM_QUAD (0, two triangles paired) or WRT_ELEM_TRIANGLE */
+    int part;           /* WRT_ELEM_TRIANGLE: which of the triangle's three quads (0..2), else 0 */
+    int node;           /* glTF node that placed the mesh (-1 if unknown) */
 } wrt_quad;
+
+/* Element kinds. A triangle that does not pair into a planar convex quad is cut into
+ * three planar convex quads through its centroid and edge midpoints: part k has the
+ * corners V_k, (V_k + V_k+1)/2, the centroid, (V_k+2 + V_k)/2, with V_0..V_2 the
+ * triangle's corners in its front-face winding (docs/triangles.md). */
+enum { WRT_ELEM_QUAD = 0, WRT_ELEM_TRIANGLE = 1 };
 
 typedef struct wrt_material {
     char name[64];

@@ -21,6 +21,7 @@
 #include <exception>
 #include <new>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <sys/stat.h>
@@ -484,6 +485,13 @@ struct reader {
                                      label, mi, pi, i / 3, k, p.indices, i, pv.count);
             }
             q.idx[i] = uint32_t(k);
+        }
+        /* glTF: a node whose world transform has a negative determinant turns its
+         * triangles' front faces clockwise; swapping two corners keeps the rest of the
+         * loader on counter-clockwise fronts. */
+        if (mat_det3(world) < 0) {
+            q.mirrored = 1;
+            for (size_t t = 0; t < ntri; t++) std::swap(q.idx[3 * t + 1], q.idx[3 * t + 2]);
         }
     }
 

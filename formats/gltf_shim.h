@@ -24,8 +24,12 @@ typedef struct wrt_gltf_prim {
     int material;          /* -1: none (the glTF default material applies) */
     double *pos;           /* 3 * npos doubles, world space */
     size_t npos;
-    uint32_t *idx;         /* 3 * ntri vertex indices, each < npos (generated if non-indexed) */
+    uint32_t *idx;         /* 3 * ntri vertex indices, each < npos (generated if non-indexed);
+                              in the world's front-face winding (see mirrored) */
     size_t ntri;
+    int mirrored;          /* 1: the node's world transform has a negative determinant; glTF
+                              then flips the winding, so each triangle's 2nd and 3rd indices
+                              are swapped here and the front faces stay counter-clockwise */
 } wrt_gltf_prim;
 
 /* A material's raw values; texture means are over all texels, in linear space

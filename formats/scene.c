@@ -262,14 +262,79 @@ static const char *problem_name(int kind) {
     case WRT_PROBLEM_DEGENERATE: return "degenerate";
     case WRT_PROBLEM_NONCONVEX: return "non-convex";
     case WRT_PROBLEM_NONFINITE: return "non-finite";
+    case WRT_PROBLEM_SLIVER: return "sliver";
     default: return "problem";
     }
 }
 
-/* Pairs one primitive's triangles into quads (appended to ql) and reports every
- * triangle left over (appended to pl). */
+static const char *single_name(int why) {
+    switch (why) {
+    case WRT_SINGLE_ALONE: return "no neighbour";
+    case WRT_SINGLE_TAKEN: return "neighbours taken";
+    case WRT_SINGLE_NONPLANAR: return "non-planar";
+    case WRT_SINGLE_NONCONVEX: return "non-convex";
+    case WRT_SINGLE_WINDING: return "opposite winding";
+    case WRT_SINGLE_FAN: return "edge fan";
+    default: return "?";
+    }
+}
+
+/* Why triangle t found no partner, from what its neighbours said. */
+static int single_reason(const tri_info *in) {
+    if (in->ncand > 0) return WRT_SINGLE_TAKEN;
+    switch (in->fail_kind) {
+    case WRT_PROBLEM_NONPLANAR: return WRT_SINGLE_NONPLANAR;
+    case WRT_PROBLEM_NONCONVEX:
+    case WRT_PROBLEM_DEGENERATE: return WRT_SINGLE_NONCONVEX;
+    case WRT_PROBLEM_UNPAIRED: return in->fail_with >= 0 ? WRT_SINGLE_WINDING : WRT_SINGLE_FAN;
+    default: return WRT_SINGLE_ALONE;
+    }
+}
+
+wrt_status wrt_triangle_quads(wrt_v3 a, wrt_v3 b, wrt_v3 c, wrt_quad out[3]) {
+    wrt_v3 v[3] = {a, b, c}, g = v3_scale(v3_add(v3_add(a, b), c), 1.0 / 3.0);
+    for (int k = 0; k < 3; k++) {
+        wrt_quad *q = &out[k];
+        memset(q, 0, sizeof *q);
+        q->p[0] = v[k];
+        q->p[1] = v3_scale(v3_add(v[k], v[(k + 1) % 3]), 0.5);
+        q->p[2] = g;
+        q->p[3] = v3_scale(v3_add(v[(k + 2) % 3], v[k]), 0.5);
+        q->kind = WRT_ELEM_TRIANGLE;
+        q->part = k;
+        q->tri[1] = -1;
+        q->node = -1;
+        wrt_status st = wrt_quad_finish(q);
+        if (st != WRT_OK) return st;
+    }
+    return WRT_OK;
+}
+
+/* Appends triangle t of p as its three quads (wrt_triangle_quads). Returns 0, or -1
+ * (nothing appended) if a part is degenerate, which the sliver test makes rare. */
+static int add_triangle_parts(const wrt_gltf_prim *p, int t, int material, quad_list *ql) {
+    const uint32_t *ix = &p->idx[3 * (size_t)t];
+    wrt_quad parts[3];
+    if (wrt_triangle_quads(pos_at(p, ix[0]), pos_at(p, ix[1]), pos_at(p, ix[2]), parts) != WRT_OK) return -1;
+    for (int k = 0; k < 3; k++) {
+        wrt_quad *q = add_quad(ql);
+        *q = parts[k];
+        q->material = material;
+        q->mesh = p->mesh;
+        q->prim = p->prim;
+        q->tri[0] = t;
+        q->name = p->mesh;
+        q->node = p->node;
+    }
+    return 0;
+}
+
+/* Pairs one primitive's triangles into quads (appended to ql); every other usable
+ * triangle becomes three quads of its own (add_triangle_parts), counted in s by
+ * reason. Triangles that are degenerate, slivers (narrowest height under
+ * WRT_SLIVER_REL x diag) or not finite are appended to pl and left out. */
 static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, double planar_tol,
-                           int material, quad_list *ql, problem_list *pl) {
+                           double diag, int material, quad_list *ql, problem_list *pl, wrt_scene *sc) {
     size_t ntri = p->ntri;
     if (ntri == 0) return;
     uint32_t *rep = wrt_xmalloc(p->npos * sizeof *rep);
@@ -284,7 +349,9 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
         if (r[0] == UINT32_MAX || r[1] == UINT32_MAX || r[2] == UINT32_MAX) {
             int bad = r[0] == UINT32_MAX ? 0 : r[1] == UINT32_MAX ? 1 : 2;
             add_problem(pl, WRT_PROBLEM_NONFINITE, p->mesh, p->prim, ti,
-                        "vertex %u has a NaN, infinite or huge coordinate", ix[bad]);
+                        "vertex %u has a NaN, infinite or huge coordinate "
+                        "(meshes[%d].primitives[%d].attributes.POSITION element %u, node %d)",
+                        ix[bad], p->mesh, p->prim, ix[bad], p->node);
             info[t].bad = 1;
             continue;
         }
@@ -301,6 +368,14 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
         if (!(v3_len(cr) > WRT_COLLINEAR_REL * l2)) {
             add_problem(pl, WRT_PROBLEM_DEGENERATE, p->mesh, p->prim, ti,
                         "zero area: collinear corners");
+            info[t].bad = 1;
+            continue;
+        }
+        double height = v3_len(cr) / sqrt(l2); /* the narrowest: over the longest edge */
+        if (!(height >= WRT_SLIVER_REL * diag)) {
+            add_problem(pl, WRT_PROBLEM_SLIVER, p->mesh, p->prim, ti,
+                        "sliver: narrowest height %.3g, under %g of the scene diagonal %.3g", height,
+                        WRT_SLIVER_REL, diag);
             info[t].bad = 1;
             continue;
         }
@@ -418,46 +493,40 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
             eval_pair(&ctx, ti, s, q, &value, &para);
             wrt_quad *quad = add_quad(ql);
             for (int i = 0; i < 4; i++) quad->p[i] = q[i];
-            if (wrt_quad_finish(quad) != WRT_OK) {
-                ql->n--;
-                add_problem(pl, WRT_PROBLEM_DEGENERATE, p->mesh, p->prim, ti,
-                            "degenerate quad with triangle %d", s);
-                add_problem(pl, WRT_PROBLEM_DEGENERATE, p->mesh, p->prim, s,
-                            "degenerate quad with triangle %d", ti);
+            if (wrt_quad_finish(quad) == WRT_OK) {
+                quad->material = material;
+                quad->mesh = p->mesh;
+                quad->prim = p->prim;
+                quad->tri[0] = ti;
+                quad->tri[1] = s;
+                quad->name = p->mesh;
+                quad->kind = WRT_ELEM_QUAD;
+                quad->node = p->node;
+                sc->npaired++;
                 continue;
             }
-            quad->material = material;
-            quad->mesh = p->mesh;
-            quad->prim = p->prim;
-            quad->tri[0] = ti;
-            quad->tri[1] = s;
-            quad->name = p->mesh;
+            /* eval_pair accepted it but the quad is degenerate (cannot happen with the
+             * same thresholds): the two stay triangles */
+            ql->n--;
+            int two[2] = {ti, s};
+            for (int k = 0; k < 2; k++) {
+                if (add_triangle_parts(p, two[k], material, ql) == 0) {
+                    sc->nsingle++;
+                    sc->why_single[WRT_SINGLE_NONCONVEX]++;
+                } else {
+                    add_problem(pl, WRT_PROBLEM_DEGENERATE, p->mesh, p->prim, two[k],
+                                "zero area: its three quads are degenerate");
+                }
+            }
             continue;
         }
-        const tri_info *in = &info[t];
-        if (in->ncand > 0)
-            add_problem(pl, WRT_PROBLEM_UNPAIRED, p->mesh, p->prim, ti,
-                        "unpaired: every adjacent partner was paired with another triangle");
-        else if (in->fail_kind == WRT_PROBLEM_NONPLANAR)
-            add_problem(pl, WRT_PROBLEM_NONPLANAR, p->mesh, p->prim, ti,
-                        "non-planar quad with triangle %d (off-plane distance %.3g of its size)",
-                        in->fail_with, in->fail_value);
-        else if (in->fail_kind == WRT_PROBLEM_NONCONVEX)
-            add_problem(pl, WRT_PROBLEM_NONCONVEX, p->mesh, p->prim, ti,
-                        "non-convex quad with triangle %d", in->fail_with);
-        else if (in->fail_kind == WRT_PROBLEM_DEGENERATE)
+        if (add_triangle_parts(p, ti, material, ql) == 0) {
+            sc->nsingle++;
+            sc->why_single[single_reason(&info[t])]++;
+        } else {
             add_problem(pl, WRT_PROBLEM_DEGENERATE, p->mesh, p->prim, ti,
-                        "degenerate quad with triangle %d (collinear corners or same vertices)",
-                        in->fail_with);
-        else if (in->fail_kind == WRT_PROBLEM_UNPAIRED && in->fail_with >= 0)
-            add_problem(pl, WRT_PROBLEM_UNPAIRED, p->mesh, p->prim, ti,
-                        "unpaired: winding opposite to adjacent triangle %d", in->fail_with);
-        else if (in->fail_kind == WRT_PROBLEM_UNPAIRED)
-            add_problem(pl, WRT_PROBLEM_UNPAIRED, p->mesh, p->prim, ti,
-                        "unpaired: an edge is shared by %.0f triangles", in->fail_value);
-        else
-            add_problem(pl, WRT_PROBLEM_UNPAIRED, p->mesh, p->prim, ti,
-                        "unpaired: no adjacent triangle shares an edge");
+                        "zero area: its three quads are degenerate");
+        }
     }
     free(stack);
     free(mate);
@@ -659,8 +728,9 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
     for (size_t i = 0; i < g.nprims; i++) {
         const wrt_gltf_prim *p = &g.prims[i];
         int material = p->material >= 0 ? p->material : s->nmaterials - 1;
-        pair_primitive(p, lo, eps, planar_tol, material, &ql, &pl);
+        pair_primitive(p, lo, eps, planar_tol, diag, material, &ql, &pl, s);
         ntri += p->ntri;
+        s->nmirrored += p->mirrored;
     }
     s->quads = ql.v;
     s->nquads = ql.n;
@@ -668,29 +738,43 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
     s->nproblems = pl.n;
     s->ntriangles = (int)ntri;
 
-    if (pl.n > 0) {
+    /* Non-finite triangles refuse the scene (unless drop_bad); degenerate ones and
+     * slivers are dropped and counted, with one warning naming the first few. */
+    for (int pass = 0; pass < 2; pass++) {
         char buf[700];
         size_t used = 0;
-        int shown = pl.n < 3 ? pl.n : 3;
-        for (int i = 0; i < shown && used < sizeof buf; i++) {
+        int n = 0, shown = 0;
+        for (int i = 0; i < pl.n; i++) {
             const wrt_problem *pr = &pl.v[i];
+            if ((pr->kind == WRT_PROBLEM_NONFINITE) != (pass == 0)) continue;
+            n++;
+            if (shown == 3 || used >= sizeof buf) continue;
             const char *mname = pr->mesh >= 0 && pr->mesh < s->nnames ? s->names[pr->mesh] : "?";
             int w = snprintf(buf + used, sizeof buf - used, "%smesh %d '%s' primitive %d triangle %d: %s (%s)",
-                             i ? "; " : "", pr->mesh, mname, pr->prim, pr->tri, pr->what,
+                             shown ? "; " : "", pr->mesh, mname, pr->prim, pr->tri, pr->what,
                              problem_name(pr->kind));
             if (w < 0) break;
             used += (size_t)w;
+            shown++;
         }
-        if (!opt->drop_bad) {
-            st = wrt_fail(WRT_ERR_GEOMETRY, "%s: %d bad triangle%s refused: %s%s", label, pl.n,
-                          pl.n == 1 ? "" : "s", buf,
-                          pl.n > shown ? "; ..." : "");
+        if (pass == 0) s->nnonfinite = n;
+        else s->ndropped = n;
+        if (n == 0 || opt->report_only) continue;
+        if (pass == 0 && !opt->drop_bad) {
+            st = wrt_fail(WRT_ERR_GEOMETRY, "%s: %d bad triangle%s refused: %s%s", label, n,
+                          n == 1 ? "" : "s", buf, n > shown ? "; ..." : "");
             wrt_gltf_free(&g);
             wrt_scene_free(s);
             return st;
         }
-        wrt_log(WRT_LOG_WARN, "%s: dropped %d bad triangle%s: %s%s", label, pl.n,
-                pl.n == 1 ? "" : "s", buf, pl.n > shown ? "; ..." : "");
+        if (pass == 0)
+            wrt_log(WRT_LOG_WARN, "%s: dropped %d bad triangle%s: %s%s", label, n, n == 1 ? "" : "s", buf,
+                    n > shown ? "; ..." : "");
+        else
+            wrt_log(WRT_LOG_WARN,
+                    "%s: dropped %d degenerate triangle%s (zero area, or narrower than %g of the scene "
+                    "diagonal): %s%s",
+                    label, n, n == 1 ? "" : "s", WRT_SLIVER_REL, buf, n > shown ? "; ..." : "");
     }
 
     /* doubleSided (glTF: no back-face culling, both sides lit): each such quad gets a
@@ -715,6 +799,9 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
         b->tri[0] = f->tri[0];
         b->tri[1] = f->tri[1];
         b->name = f->name;
+        b->kind = f->kind;
+        b->part = f->part;
+        b->node = f->node;
         if (wrt_quad_finish(b) != WRT_OK) ql.n--; /* cannot happen: f was finished */
         else s->ntwins++;
     }
@@ -736,7 +823,7 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
                 hi = v3(fmax(hi.x, c.x), fmax(hi.y, c.y), fmax(hi.z, c.z));
             }
     } else {
-        wrt_log(WRT_LOG_WARN, "%s: the scene has no quads", label);
+        if (!opt->report_only) wrt_log(WRT_LOG_WARN, "%s: the scene has no quads", label);
     }
     s->bbox_min = lo;
     s->bbox_max = hi;
@@ -872,6 +959,13 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
     if (json) {
         fprintf(f, "{\"quads\":%d,\"parallelograms\":%d,\"triangles\":%d,\"emissive\":%d,", s->nquads,
                 npara, s->ntriangles, s->nemissive);
+        fprintf(f, "\"elements\":{\"paired\":%d,\"triangles\":%d,\"triangle_quads\":%d,\"twins\":%d},",
+                s->npaired, s->nsingle, 3 * s->nsingle, s->ntwins);
+        fputs("\"triangles_alone\":{", f);
+        for (int k = 0; k < WRT_SINGLE_NREASONS; k++)
+            fprintf(f, "%s\"%s\":%d", k ? "," : "", single_name(k), s->why_single[k]);
+        fprintf(f, "},\"dropped\":%d,\"non_finite\":%d,\"mirrored_instances\":%d,", s->ndropped,
+                s->nnonfinite, s->nmirrored);
         fprintf(f, "\"source_hash\":\"%016llx\",\"bbox\":{\"min\":", (unsigned long long)s->source_hash);
         json_v3(f, s->bbox_min);
         fputs(",\"max\":", f);
@@ -946,6 +1040,27 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
     for (int i = 0; i < s->nmaterials; i++) ndiffuse += s->materials[i].lambertian;
     fprintf(f, "scene: %d quads (%d parallelograms, %d general convex) from %d triangles\n", s->nquads,
             npara, s->nquads - npara, s->ntriangles);
+    fprintf(f, "elements: %d quads from triangle pairs, %d triangles as 3 quads each (%d quads)", s->npaired,
+            s->nsingle, 3 * s->nsingle);
+    if (s->ntwins) fprintf(f, ", %d double-sided twins", s->ntwins);
+    fputc('\n', f);
+    if (s->nsingle) {
+        fputs("triangles on their own, why:", f);
+        for (int k = 0, first = 1; k < WRT_SINGLE_NREASONS; k++)
+            if (s->why_single[k]) {
+                fprintf(f, "%s %s %d", first ? "" : ",", single_name(k), s->why_single[k]);
+                first = 0;
+            }
+        fputc('\n', f);
+    }
+    fprintf(f, "dropped: %d triangles (zero area, or narrower than %g of the scene diagonal)\n", s->ndropped,
+            WRT_SLIVER_REL);
+    if (s->nnonfinite)
+        fprintf(f, "non-finite: %d triangles, which refuse the scene unless --drop-bad drops them\n",
+                s->nnonfinite);
+    if (s->nmirrored)
+        fprintf(f, "mirrored: %d mesh instances placed by a negative-determinant transform (winding flipped)\n",
+                s->nmirrored);
     fprintf(f, "bbox: (%g, %g, %g) - (%g, %g, %g)\n", s->bbox_min.x, s->bbox_min.y, s->bbox_min.z,
             s->bbox_max.x, s->bbox_max.y, s->bbox_max.z);
     fprintf(f, "materials: %d (%d diffuse, %d glossy), %d emissive (reported only)\n", s->nmaterials,

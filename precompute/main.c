@@ -21,6 +21,7 @@
 #include "../formats/scene.h"
 #include "../verify/compare.h"
 #include "bake.h"
+#include "scan.h"
 
 static void usage(FILE *f) {
     fprintf(f,
@@ -279,14 +280,14 @@ static int parse_args(int argc, char **argv, bake_args *A) {
 
 /* --info and --scan print text from the file (provenance, names): through
  * wrt_cli_print_safely, so that escape codes in it cannot drive the terminal. */
-struct report_args { const char *path; const wrt_scene *scene; int json; };
+struct report_args { const char *path; const wrt_scene *scene; int json; const bake_args *A; };
 static int print_info(void *u, FILE *f) {
     const struct report_args *a = u;
     return (int)wrt_gto_print_info(a->path, a->json, f);
 }
 static int print_summary(void *u, FILE *f) {
     const struct report_args *a = u;
-    wrt_scene_print_summary(a->scene, a->json, f);
+    wrt_scan_print(a->scene, &a->A->o, a->A->drop_bad, a->json, f);
     return 0;
 }
 
@@ -297,7 +298,7 @@ static int run_info(const bake_args *A) {
         fprintf(stderr, "wrt-bake: error: %s: %s\n", info, strerror(errno));
         return WRT_EXIT_INPUT;
     }
-    struct report_args ia = {info, NULL, A->json};
+    struct report_args ia = {info, NULL, A->json, A};
     wrt_status st = (wrt_status)wrt_cli_print_safely(stdout, print_info, &ia); /* no raw escapes */
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
@@ -323,12 +324,14 @@ static int run_scan(const bake_args *A, const wrt_load_options *lo) {
         }
     }
     wrt_scene s;
-    wrt_status st = wrt_scene_load(scan, lo, &s);
+    wrt_load_options slo = *lo;
+    slo.report_only = 1; /* a scene that can be read is reported, never refused */
+    wrt_status st = wrt_scene_load(scan, &slo, &s);
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return WRT_EXIT_INPUT;
     }
-    struct report_args sa = {NULL, &s, A->json};
+    struct report_args sa = {NULL, &s, A->json, A};
     wrt_cli_print_safely(stdout, print_summary, &sa); /* names' escape codes shown as \xNN */
     wrt_scene_free(&s);
     return 0;

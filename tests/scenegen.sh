@@ -255,7 +255,7 @@ check_gltf cornell-glossy-0.05 "$tmp/cg05.gltf" quads=15 lights=1 mode=room type
 
 # the committed assets are what the generator writes now
 for f in cornell maze glossy test/facing test/perpendicular test/furnace test/tworooms test/grazing \
-         test/cornell_glossy test/glossy_box; do
+         test/cornell_glossy test/glossy_box test/cornell_shapes test/icosphere; do
     if cmp -s "$tmp/all/$f.gltf" "assets/$f.gltf"; then ok; else bad "assets/$f.gltf is stale (run make assets)"; fi
 done
 
@@ -306,6 +306,28 @@ if [ -x "$build/wrt-bake" ]; then
     for f in "$tmp"/all/*.gltf "$tmp"/all/test/*.gltf "$tmp/m2.gltf" "$tmp/g179.gltf"; do
         if out=$("$build/wrt-bake" --scan "$f" 2>&1); then ok; else bad "wrt-bake --scan $f: $(tail -n 3 <<<"$out")"; fi
     done
+fi
+
+# the triangle scenes (issue 21): every triangle loads, nothing dropped; the sphere's caps,
+# the bevelled box's corners and the icosphere's faces become triangle elements, the
+# rest pairs into quads (counts by construction: sphere 16 x 8, cylinder 12 sides,
+# bevelled box 30 triangles, icosphere 20 x 4^res)
+if [ -x "$build/wrt-bake" ]; then
+    "$build/wrt-bake" --scan "$tmp/all/test/cornell_shapes.gltf" --json >"$tmp/shapes.json" 2>&1
+    "$gen" icosphere --res 2 -o "$tmp/ico2.gltf" >/dev/null 2>&1
+    "$build/wrt-bake" --scan "$tmp/ico2.gltf" --json >"$tmp/ico2.json" 2>&1
+    if python3 - "$tmp/shapes.json" "$tmp/ico2.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1])); i = json.load(open(sys.argv[2]))
+e = s["elements"]
+# 5 walls + sphere (16 x 6 band quads + 32 cap triangles) + cylinder (12 sides + 6 cap quads)
+# + bevelled box (13 flat faces as pairs + 4 corner triangles)
+ok = (s["triangles"] == 10 + 224 + 36 + 30 and e["paired"] == 5 + 96 + 18 + 13 and e["triangles"] == 32 + 4
+      and s["dropped"] == 0 and s["non_finite"] == 0 and s["problems"] == []
+      and i["elements"]["triangles"] == 320 and i["quads"] == 960 and i["dropped"] == 0)
+sys.exit(0 if ok else 1)
+PY
+    then ok; else bad "cornell-shapes / icosphere scans: $(head -c 400 "$tmp/shapes.json")"; fi
 fi
 
 summary

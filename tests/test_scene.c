@@ -900,45 +900,21 @@ static void bad_geometry(void) {
     t = gltf_text(&sp);
     expect_fail("Inf", t, WRT_ERR_GEOMETRY, "triangle 1: vertex 3 has a NaN, infinite", NULL);
     free(t);
-    const float bent[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0.5f};
-    sp.pos = bent;
-    t = gltf_text(&sp);
-    expect_fail("non-planar", t, WRT_ERR_GEOMETRY, "triangle 0: non-planar quad with triangle 1", "2 bad triangles");
-    free(t);
-    const float flat[] = {0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0, 0};
-    sp.pos = flat;
-    t = gltf_text(&sp);
-    expect_fail("zero area", t, WRT_ERR_GEOMETRY, "triangle 0: zero area", "triangle 1: zero area");
-    free(t);
-    const float dart[] = {0, 0, 0, 2, 0, 0, 0.5f, 0.5f, 0, 0, 2, 0};
-    sp.pos = dart;
-    t = gltf_text(&sp);
-    expect_fail("non-convex", t, WRT_ERR_GEOMETRY, "triangle 0: non-convex quad with triangle 1", NULL);
-    free(t);
-    const uint32_t one[] = {0, 1, 2};
-    spec sp1 = {.pos = unit_square, .nv = 4, .idx = one, .ni = 3, .prim_extra = 0};
-    t = gltf_text(&sp1);
-    expect_fail("single triangle", t, WRT_ERR_GEOMETRY, "triangle 0: unpaired", "1 bad triangle refused");
-    free(t);
-    const uint32_t flipped[] = {0, 1, 2, 0, 3, 2};
-    spec spf = {.pos = unit_square, .nv = 4, .idx = flipped, .ni = 6, .prim_extra = 0};
-    t = gltf_text(&spf);
-    expect_fail("opposite windings", t, WRT_ERR_GEOMETRY, "winding opposite", NULL);
-    free(t);
-
-    /* a quad plus a stray triangle: refused by default, dropped with drop_bad */
-    const float pos[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 5, 5, 5, 6, 5, 5, 5, 6, 5};
-    const uint32_t idx[] = {0, 1, 2, 0, 2, 3, 4, 5, 6};
-    spec sp3 = {.pos = pos, .nv = 7, .idx = idx, .ni = 9, .prim_extra = 0};
-    t = gltf_text(&sp3);
-    expect_fail("stray triangle", t, WRT_ERR_GEOMETRY, "triangle 2: unpaired", NULL);
+    /* a stray NaN triangle beside a good quad: refused by default, dropped with drop_bad */
+    const float posn[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 5, 5, 5, 6, NAN, 5, 5, 6, 5};
+    const uint32_t idxn[] = {0, 1, 2, 0, 2, 3, 4, 5, 6};
+    spec spn = {.pos = posn, .nv = 7, .idx = idxn, .ni = 9, .prim_extra = 0};
+    t = gltf_text(&spn);
+    expect_fail("stray NaN triangle", t, WRT_ERR_GEOMETRY, "triangle 2: vertex 5 has a NaN",
+                "meshes[0].primitives[0].attributes.POSITION element 5");
     wrt_scene s;
     test_capture_begin();
     wrt_status st = load_text(t, 1, &s);
     test_capture_end();
     CHECK(st == WRT_OK, "%s", wrt_last_error());
-    CHECK(s.nquads == 1 && s.nproblems == 1, "kept %d quads, %d problems", s.nquads, s.nproblems);
-    CHECK(s.nproblems == 1 && s.problems[0].tri == 2 && s.problems[0].kind == WRT_PROBLEM_UNPAIRED, "problem");
+    CHECK(s.nquads == 1 && s.nproblems == 1 && s.nnonfinite == 1, "kept %d quads, %d problems", s.nquads,
+          s.nproblems);
+    CHECK(s.nproblems == 1 && s.problems[0].tri == 2 && s.problems[0].kind == WRT_PROBLEM_NONFINITE, "problem");
     CHECK(strstr(test_log, "dropped 1 bad triangle") != NULL, "%s", test_log);
     CHECK_NEAR(s.bbox_max.x, 1, 0, "bbox of kept geometry");
     char *buf = NULL;
@@ -946,11 +922,151 @@ static void bad_geometry(void) {
     FILE *f = open_memstream(&buf, &len);
     wrt_scene_print_summary(&s, 1, f);
     fclose(f);
-    CHECK(strstr(buf, "\"problems\":[{\"kind\":\"unpaired\",\"mesh\":0,\"primitive\":0,\"triangle\":2,") != NULL,
+    CHECK(strstr(buf, "\"problems\":[{\"kind\":\"non-finite\",\"mesh\":0,\"primitive\":0,\"triangle\":2,") != NULL,
           "%s", buf);
     free(buf);
     wrt_scene_free(&s);
     free(t);
+}
+
+/* Checks that s holds, from element `first` on, triangle `tri` (corners a, b, c in their
+ * front-face winding) as three quads through its centroid and edge midpoints. */
+static void check_triangle_parts(const wrt_scene *s, int first, int tri, wrt_v3 a, wrt_v3 b, wrt_v3 c) {
+    CHECK(first + 3 <= s->nquads, "triangle %d: %d quads", tri, s->nquads);
+    if (first + 3 > s->nquads) return;
+    wrt_v3 v[3] = {a, b, c}, g = v3_scale(v3_add(v3_add(a, b), c), 1.0 / 3);
+    wrt_v3 n = v3_norm(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+    double area = 0.5 * v3_len(v3_cross(v3_sub(b, a), v3_sub(c, a))), sum = 0;
+    for (int k = 0; k < 3; k++) {
+        const wrt_quad *q = &s->quads[first + k];
+        CHECK(q->kind == WRT_ELEM_TRIANGLE && q->part == k && q->tri[0] == tri && q->tri[1] == -1,
+              "triangle %d part %d: kind %d part %d tri %d/%d", tri, k, q->kind, q->part, q->tri[0], q->tri[1]);
+        wrt_v3 want[4] = {v[k], v3_scale(v3_add(v[k], v[(k + 1) % 3]), 0.5), g,
+                          v3_scale(v3_add(v[(k + 2) % 3], v[k]), 0.5)};
+        for (int i = 0; i < 4; i++)
+            CHECK(v3_len(v3_sub(q->p[i], want[i])) < 1e-6, "triangle %d part %d corner %d", tri, k, i);
+        CHECK(v3_dot(q->n, n) > 1 - 1e-9, "triangle %d part %d faces the triangle's front", tri, k);
+        CHECK(!q->parallelogram, "a part is a general quad");
+        /* each part is a third of the triangle: two of the six triangles the medians cut */
+        CHECK_NEAR(q->area, area / 3, 1e-6 * area, "triangle %d part %d area", tri, k);
+        double mean = 0;
+        for (int i = 0; i < 16; i++)
+            for (int j = 0; j < 16; j++) mean += wrt_quad_jacobian(q, (i + 0.5) / 16, (j + 0.5) / 16) / 256;
+        CHECK_NEAR(mean, area / 3, 1e-9 * area, "triangle %d part %d: the Jacobian integrates to its area", tri, k);
+        sum += q->area;
+    }
+    CHECK_NEAR(sum, area, 1e-6 * area, "triangle %d: parts cover it", tri);
+}
+
+/* Triangles that do not pair become elements of their own (issue 21): lone, non-planar,
+ * non-convex or wound against their neighbour; degenerate ones and slivers are dropped
+ * with a warning and counted, not refused. */
+static void triangle_elements(void) {
+    wrt_scene s;
+    const uint32_t one[] = {0, 1, 2};
+    spec sp1 = {.pos = unit_square, .nv = 4, .idx = one, .ni = 3, .prim_extra = 0};
+    CHECK(load_spec(&sp1, 0, &s) == WRT_OK, "single triangle: %s", wrt_last_error());
+    CHECK(s.nquads == 3 && s.nsingle == 1 && s.npaired == 0 && s.why_single[WRT_SINGLE_ALONE] == 1 &&
+              s.nproblems == 0,
+          "single triangle: %d quads, %d single", s.nquads, s.nsingle);
+    check_triangle_parts(&s, 0, 0, v3(0, 0, 0), v3(1, 0, 0), v3(1, 1, 0));
+    wrt_scene_free(&s);
+
+    const float bent[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0.5f};
+    spec sp = {.pos = bent, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "non-planar pair: %s", wrt_last_error());
+    CHECK(s.nquads == 6 && s.nsingle == 2 && s.why_single[WRT_SINGLE_NONPLANAR] == 2, "non-planar: %d quads", s.nquads);
+    check_triangle_parts(&s, 0, 0, v3(0, 0, 0), v3(1, 0, 0), v3(1, 1, 0));
+    check_triangle_parts(&s, 3, 1, v3(0, 0, 0), v3(1, 1, 0), v3(0, 1, 0.5));
+    wrt_scene_free(&s);
+
+    const float dart[] = {0, 0, 0, 2, 0, 0, 0.5f, 0.5f, 0, 0, 2, 0};
+    sp.pos = dart;
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "non-convex pair: %s", wrt_last_error());
+    CHECK(s.nquads == 6 && s.why_single[WRT_SINGLE_NONCONVEX] == 2, "non-convex: %d quads", s.nquads);
+    check_triangle_parts(&s, 3, 1, v3(0, 0, 0), v3(0.5, 0.5, 0), v3(0, 2, 0));
+    wrt_scene_free(&s);
+
+    const uint32_t flipped[] = {0, 1, 2, 0, 3, 2};
+    spec spf = {.pos = unit_square, .nv = 4, .idx = flipped, .ni = 6, .prim_extra = 0};
+    CHECK(load_spec(&spf, 0, &s) == WRT_OK, "opposite windings: %s", wrt_last_error());
+    CHECK(s.nquads == 6 && s.why_single[WRT_SINGLE_WINDING] == 2, "opposite windings: %d quads", s.nquads);
+    check_triangle_parts(&s, 3, 1, v3(0, 0, 0), v3(0, 1, 0), v3(1, 1, 0)); /* faces -z */
+    CHECK(s.nquads == 6 && s.quads[0].n.z > 0.999 && s.quads[3].n.z < -0.999, "one up, one down");
+    wrt_scene_free(&s);
+
+    /* a quad plus a stray triangle: the quad as before, then the triangle's three parts */
+    const float pos[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 5, 5, 5, 6, 5, 5, 5, 6, 5};
+    const uint32_t idx[] = {0, 1, 2, 0, 2, 3, 4, 5, 6};
+    spec sp3 = {.pos = pos, .nv = 7, .idx = idx, .ni = 9, .prim_extra = 0};
+    CHECK(load_spec(&sp3, 0, &s) == WRT_OK, "stray triangle: %s", wrt_last_error());
+    CHECK(s.nquads == 4 && s.npaired == 1 && s.nsingle == 1 && s.quads[0].kind == WRT_ELEM_QUAD &&
+              s.quads[0].tri[0] == 0 && s.quads[0].tri[1] == 1,
+          "stray triangle: %d quads", s.nquads);
+    check_triangle_parts(&s, 1, 2, v3(5, 5, 5), v3(6, 5, 5), v3(5, 6, 5));
+    wrt_scene_free(&s);
+
+    /* zero area (corners coincide or are collinear): dropped, counted, one warning */
+    const float flat[] = {0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0, 0};
+    sp.pos = flat;
+    test_capture_begin();
+    CHECK(load_spec(&sp, 0, &s) == WRT_OK, "zero area: %s", wrt_last_error());
+    test_capture_end();
+    CHECK(s.nquads == 0 && s.ndropped == 2 && s.nproblems == 2 && s.problems[0].kind == WRT_PROBLEM_DEGENERATE,
+          "zero area: %d quads %d dropped", s.nquads, s.ndropped);
+    CHECK(strstr(test_log, "dropped 2 degenerate triangles") && strstr(test_log, "triangle 0: zero area"),
+          "%s", test_log);
+    wrt_scene_free(&s);
+
+    /* a sliver: a triangle 1e-6 high beside a unit square (diagonal ~ 1.4): its height is
+     * under WRT_SLIVER_REL x diagonal = 1.4e-5; the square stays */
+    const float sliv[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 0.5f, 1e-6f, 1};
+    spec sps = {.pos = sliv, .nv = 7, .idx = idx, .ni = 9, .prim_extra = 0};
+    test_capture_begin();
+    CHECK(load_spec(&sps, 0, &s) == WRT_OK, "sliver: %s", wrt_last_error());
+    test_capture_end();
+    CHECK(s.nquads == 1 && s.ndropped == 1 && s.nproblems == 1 && s.problems[0].kind == WRT_PROBLEM_SLIVER &&
+              s.problems[0].tri == 2,
+          "sliver: %d quads %d dropped", s.nquads, s.ndropped);
+    CHECK(strstr(test_log, "triangle 2: sliver: narrowest height 1e-06") != NULL, "%s", test_log);
+    wrt_scene_free(&s);
+    /* ... and a triangle 1e-4 high is kept (three quads) */
+    const float thin[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 0.5f, 1e-4f, 1};
+    sps.pos = thin;
+    CHECK(load_spec(&sps, 0, &s) == WRT_OK && s.nquads == 4 && s.ndropped == 0, "thin kept: %d quads", s.nquads);
+    wrt_scene_free(&s);
+
+    /* report_only (--scan): a NaN triangle is counted, nothing is refused or logged */
+    const float nan_pos[] = {0, 0, 0, 1, 0, 0, NAN, 1, 0, 0, 1, 0};
+    spec spn = {.pos = nan_pos, .nv = 4, .idx = square_idx, .ni = 6, .prim_extra = 0};
+    char *t = gltf_text(&spn);
+    wrt_load_options ro = {.report_only = 1};
+    test_capture_begin();
+    CHECK(wrt_scene_load_memory(t, strlen(t), tmpdir, &ro, &s) == WRT_OK, "report_only: %s", wrt_last_error());
+    test_capture_end();
+    CHECK(s.nnonfinite == 2 && s.nquads == 0 && test_log[0] == 0, "report_only: %d non-finite, log '%s'",
+          s.nnonfinite, test_log);
+    wrt_scene_free(&s);
+    free(t);
+}
+
+/* glTF: a node whose world transform has a negative determinant flips the winding, so
+ * a mirrored mesh still faces the way it faced before the mirror (here +z). */
+static void mirrored_nodes(void) {
+    const float pos[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 2, 1, 0, 2, 0, 1, 2};
+    const uint32_t idx[] = {0, 1, 2, 0, 2, 3, 4, 5, 6};
+    const char *nodes[] = {"[{\"mesh\":0,\"scale\":[-1,1,1]}]", "[{\"mesh\":0,\"scale\":[1,1,-1]}]",
+                           "[{\"scale\":[-2,1,1],\"children\":[1]},{\"mesh\":0,\"scale\":[1,-1,1]}]"};
+    const double zsign[] = {1, -1, 1}; /* the mirror of z turns the plane's normal with it */
+    for (int c = 0; c < 3; c++) {
+        spec sp = {.pos = pos, .nv = 7, .idx = idx, .ni = 9, .nodes = nodes[c]};
+        wrt_scene s;
+        CHECK(load_spec(&sp, 0, &s) == WRT_OK, "mirror %d: %s", c, wrt_last_error());
+        CHECK(s.nquads == 4 && s.nmirrored == (c < 2), "mirror %d: %d quads, %d mirrored", c, s.nquads, s.nmirrored);
+        for (int q = 0; q < s.nquads; q++)
+            CHECK(s.quads[q].n.z * zsign[c] > 0.999999, "mirror %d element %d faces %g", c, q, s.quads[q].n.z);
+        wrt_scene_free(&s);
+    }
 }
 
 /* The committed files under tests/data (also the fuzzing seeds). */
@@ -963,8 +1079,10 @@ static void data_files(void) {
         {"bad_count.gltf", WRT_ERR_PARSE, "count 2147483648"},
         {"bad_index.gltf", WRT_ERR_PARSE, "triangle 1: index 7"},
         {"bad_cycle.gltf", WRT_ERR_PARSE, "reached twice"},
-        {"bad_nonplanar.gltf", WRT_ERR_GEOMETRY, "non-planar"},
-        {"bad_unpaired.gltf", WRT_ERR_GEOMETRY, "triangle 0: unpaired"},
+        {"bad_nan.gltf", WRT_ERR_GEOMETRY, "has a NaN"},
+        /* loadable since issue 21: two triangles of their own, and a lone triangle */
+        {"bad_nonplanar.gltf", WRT_OK, ""},
+        {"bad_unpaired.gltf", WRT_OK, ""},
         {"bad_truncated.glb", WRT_ERR_PARSE, "truncated"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
@@ -985,6 +1103,10 @@ static void data_files(void) {
             CHECK(s.nquads == 2 && fabs(s.quads[0].p[0].y + 1) < 1e-6, "floor at y=-1");
             CHECK(s.nquads == 2 && fabs(s.quads[0].area - 9) < 1e-5, "floor area (2*1.5)^2 = %g", s.quads[0].area);
             CHECK(s.nquads == 2 && s.quads[0].n.y > 0.999999, "floor faces up");
+        } else if (strcmp(cases[i].name, "bad_nonplanar.gltf") == 0) {
+            CHECK(s.nquads == 6 && s.nsingle == 2, "%s: two triangles, %d quads", path, s.nquads);
+        } else if (strcmp(cases[i].name, "bad_unpaired.gltf") == 0) {
+            CHECK(s.nquads == 3 && s.nsingle == 1, "%s: one triangle, %d quads", path, s.nquads);
         } else {
             CHECK(s.nquads == 1, "%s: one quad", path);
         }
@@ -1025,6 +1147,8 @@ int main(int argc, char **argv) {
     TEST_RUN(bad_json);
     TEST_RUN(bad_accessors);
     TEST_RUN(bad_geometry);
+    TEST_RUN(triangle_elements);
+    TEST_RUN(mirrored_nodes);
     TEST_RUN(strict_fields);
     TEST_RUN(strict_warnings_and_ignored);
     TEST_RUN(double_sided);

@@ -980,7 +980,9 @@ static void bad_file(const char *file, const char *word) {
 }
 
 static void test_bad_input(void) {
-    bad_file("bad_nonplanar.gltf", "non-planar");
+    /* bad_nonplanar.gltf bakes since issue 21 (two triangle elements); a zero-area or
+     * collinear mesh loses all its triangles (dropped with a warning), leaving nothing */
+    bad_file("bad_index.gltf", "index 7");
     bad_file("bad_zeroarea.gltf", "zero area");
     bad_file("bad_collinear.gltf", "collinear");
     bad_file("bad_nan.gltf", "NaN");

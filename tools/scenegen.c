@@ -75,6 +75,8 @@ typedef struct sg_mesh {
     int material;
     float *pos, *nrm; /* 4 vertices per quad, xyz each */
     int nquads, cap;
+    float *tpos, *tnrm; /* 3 vertices per triangle (after the quads' in the file), xyz each */
+    int ntris, tcap;
 } sg_mesh;
 
 typedef struct sg_light {
@@ -181,6 +183,33 @@ static void push_quad(sg_scene *s, sg_mesh *m, wrt_v3 a, wrt_v3 b, wrt_v3 c, wrt
         nn[3 * k + 2] = (float)n.z;
     }
     m->nquads++;
+}
+
+/* A triangle a b c (counter-clockwise seen from its front) with a normal per vertex
+ * (the smooth surface's, for a curved mesh). */
+static void push_tri(sg_scene *s, sg_mesh *m, wrt_v3 a, wrt_v3 b, wrt_v3 c, wrt_v3 na, wrt_v3 nb, wrt_v3 nc) {
+    if (m->ntris == m->tcap) {
+        m->tcap = m->tcap ? 2 * m->tcap : 16;
+        m->tpos = wrt_xrealloc(m->tpos, (size_t)m->tcap * 9 * sizeof(float));
+        m->tnrm = wrt_xrealloc(m->tnrm, (size_t)m->tcap * 9 * sizeof(float));
+    }
+    float *pp = m->tpos + (size_t)m->ntris * 9, *nn = m->tnrm + (size_t)m->ntris * 9;
+    wrt_v3 p[3] = {a, b, c}, n[3] = {na, nb, nc};
+    for (int k = 0; k < 3; k++) {
+        put_point(s, pp + 3 * k, p[k]);
+        wrt_v3 u = v3_norm(n[k]);
+        nn[3 * k + 0] = (float)u.x;
+        nn[3 * k + 1] = (float)u.y;
+        nn[3 * k + 2] = (float)u.z;
+    }
+    m->ntris++;
+}
+
+/* A planar face a b c d as two triangles (a b c, a c d), as a mesh exporter writes it. */
+static void push_tri_quad(sg_scene *s, sg_mesh *m, wrt_v3 a, wrt_v3 b, wrt_v3 c, wrt_v3 d) {
+    wrt_v3 n = v3_cross(v3_sub(b, a), v3_sub(d, a));
+    push_tri(s, m, a, b, c, n, n, n);
+    push_tri(s, m, a, c, d, n, n, n);
 }
 
 /* Adds the planar convex quad with corners p0..p3 (in order around it) to mesh
@@ -478,6 +507,166 @@ static void scene_grazing(sg_scene *s) {
     set_camera(s, v3(1.2, 1.0, 2.6), v3(0.4, 0.1, 0.5), 45);
 }
 
+/* ------------------------------------------------- triangle meshes (issue 21) */
+
+/* A UV sphere of radius r about c, `seg` segments around and `rings` rings, outward:
+ * the bands' faces are planar trapezoids (they pair back into quads), the two caps
+ * fans of triangles. Normals: the sphere's, per vertex. */
+static void add_uv_sphere(sg_scene *s, int mesh, wrt_v3 c, double r, int seg, int rings) {
+    sg_mesh *m = &s->meshes[mesh];
+    for (int j = 0; j < rings; j++)
+        for (int i = 0; i < seg; i++) {
+            wrt_v3 d[4];
+            int ii[4] = {i, i + 1, i + 1, i}, jj[4] = {j, j, j + 1, j + 1};
+            for (int k = 0; k < 4; k++) {
+                double th = WRT_PI * jj[k] / rings, ph = 2 * WRT_PI * (ii[k] % seg) / seg;
+                d[k] = v3(sin(th) * cos(ph), cos(th), -sin(th) * sin(ph));
+            }
+            wrt_v3 p[4];
+            for (int k = 0; k < 4; k++) p[k] = v3_add(c, v3_scale(d[k], r));
+            /* from the top (theta 0) down; counter-clockwise seen from outside: 0 3 2 1 */
+            if (j == 0) push_tri(s, m, p[0], p[3], p[2], d[0], d[3], d[2]);
+            else if (j == rings - 1) push_tri(s, m, p[0], p[3], p[1], d[0], d[3], d[1]);
+            else {
+                push_tri(s, m, p[0], p[3], p[2], d[0], d[3], d[2]);
+                push_tri(s, m, p[0], p[2], p[1], d[0], d[2], d[1]);
+            }
+        }
+}
+
+/* A cylinder standing on y = 0 about (cx, cz), radius r, height h, `seg` sides and a
+ * top cap (a fan), outward; no bottom (it stands on the floor). Side normals are the
+ * cylinder's, per vertex; the cap's is +y. */
+static void add_cylinder(sg_scene *s, int mesh, double cx, double cz, double r, double h, int seg) {
+    sg_mesh *m = &s->meshes[mesh];
+    wrt_v3 top = v3(cx, h, cz), up = v3(0, 1, 0);
+    for (int i = 0; i < seg; i++) {
+        double a0 = 2 * WRT_PI * i / seg, a1 = 2 * WRT_PI * ((i + 1) % seg) / seg;
+        wrt_v3 n0 = v3(cos(a0), 0, -sin(a0)), n1 = v3(cos(a1), 0, -sin(a1));
+        wrt_v3 b0 = v3(cx + r * n0.x, 0, cz + r * n0.z), b1 = v3(cx + r * n1.x, 0, cz + r * n1.z);
+        wrt_v3 t0 = v3(b0.x, h, b0.z), t1 = v3(b1.x, h, b1.z);
+        push_tri(s, m, b0, b1, t1, n0, n1, n1);
+        push_tri(s, m, b0, t1, t0, n0, n1, n0);
+        push_tri(s, m, top, t0, t1, up, up, up);
+    }
+}
+
+/* A box w x h x d standing on y = 0 about (cx, cz), turned by `deg` about +Y, its edges
+ * chamfered by `bev` (one bevel segment): 5 shrunk faces, 8 edge strips and 4 corner
+ * triangles at the top, the vertical edges' strips down to the floor; no bottom. All
+ * faces flat, written as triangles. */
+static void add_bevel_box(sg_scene *s, int mesh, double cx, double cz, double w, double h, double d, double bev,
+                          double deg) {
+    sg_mesh *m = &s->meshes[mesh];
+    double a = deg * WRT_PI / 180.0, ca = cos(a), sa = sin(a);
+    double hx = w / 2, hz = d / 2;
+#define BB(x, y, z) v3(cx + ca * (x) + sa * (z), (y), cz - sa * (x) + ca * (z))
+    /* the top face */
+    push_tri_quad(s, m, BB(-hx + bev, h, hz - bev), BB(hx - bev, h, hz - bev), BB(hx - bev, h, -hz + bev),
+                  BB(-hx + bev, h, -hz + bev));
+    /* around: for each side k (outward normal along x or z), its face, its top strip,
+     * the vertical strip after it and the top corner triangle after it */
+    double sx[4] = {0, 1, 0, -1}, sz[4] = {1, 0, -1, 0};
+    for (int k = 0; k < 4; k++) {
+        int k1 = (k + 1) % 4;
+        /* side k spans from corner (k) to corner (k+1) going counter-clockwise seen from +y */
+        double nx = sx[k], nz = sz[k], tx = -nz, tz = nx; /* tangent: along the side, ccw from above is -t */
+        double ext = (nx != 0) ? hx : hz, half = (nx != 0) ? hz : hx;
+        /* face corners: the face lies at distance ext, spans +-(half - bev) along t, y from 0 to h - bev */
+        wrt_v3 f0 = BB(nx * ext + tx * (half - bev), 0, nz * ext + tz * (half - bev));
+        wrt_v3 f1 = BB(nx * ext - tx * (half - bev), 0, nz * ext - tz * (half - bev));
+        wrt_v3 f2 = BB(nx * ext - tx * (half - bev), h - bev, nz * ext - tz * (half - bev));
+        wrt_v3 f3 = BB(nx * ext + tx * (half - bev), h - bev, nz * ext + tz * (half - bev));
+        wrt_v3 n = v3_cross(v3_sub(f1, f0), v3_sub(f3, f0));
+        if (v3_dot(n, v3_sub(f0, v3(cx, f0.y, cz))) < 0) { wrt_v3 t = f1; f1 = f0; f0 = t; t = f2; f2 = f3; f3 = t; }
+        push_tri_quad(s, m, f0, f1, f2, f3);
+        /* top strip: from the face's top edge to the top face's edge */
+        wrt_v3 g0 = BB(nx * (ext - bev) + tx * (half - bev), h, nz * (ext - bev) + tz * (half - bev));
+        wrt_v3 g1 = BB(nx * (ext - bev) - tx * (half - bev), h, nz * (ext - bev) - tz * (half - bev));
+        /* f3 and f2 sit under g0 and g1 in the same order as f0, f1 (after a possible swap) */
+        wrt_v3 top0 = v3_len(v3_sub(g0, f3)) < v3_len(v3_sub(g1, f3)) ? g0 : g1;
+        wrt_v3 top1 = top0.x == g0.x && top0.z == g0.z ? g1 : g0;
+        push_tri_quad(s, m, f3, f2, top1, top0);
+        (void)k1;
+    }
+    /* the four vertical corner strips and the top corner triangles */
+    double cxs[4] = {1, 1, -1, -1}, czs[4] = {1, -1, -1, 1};
+    for (int k = 0; k < 4; k++) {
+        double X = cxs[k] * hx, Z = czs[k] * hz;
+        wrt_v3 p0 = BB(X, 0, Z - czs[k] * bev), p1 = BB(X - cxs[k] * bev, 0, Z);
+        wrt_v3 q0 = BB(X, h - bev, Z - czs[k] * bev), q1 = BB(X - cxs[k] * bev, h - bev, Z);
+        wrt_v3 tp = BB(X - cxs[k] * bev, h, Z - czs[k] * bev);
+        wrt_v3 out = v3_sub(BB(X, 0, Z), v3(cx, 0, cz));
+        wrt_v3 n = v3_cross(v3_sub(p1, p0), v3_sub(q0, p0));
+        if (v3_dot(n, out) < 0) { wrt_v3 t = p0; p0 = p1; p1 = t; t = q0; q0 = q1; q1 = t; }
+        push_tri_quad(s, m, p0, p1, q1, q0);
+        wrt_v3 tn = v3_cross(v3_sub(q1, q0), v3_sub(tp, q0));
+        if (tn.y > 0) push_tri(s, m, q0, q1, tp, tn, tn, tn);
+        else push_tri(s, m, q1, q0, tp, v3_scale(tn, -1), v3_scale(tn, -1), v3_scale(tn, -1));
+    }
+#undef BB
+}
+
+/* The Cornell box's room (no boxes) holding a UV sphere (16 x 8), a cylinder (12 sides)
+ * and a bevelled box, all made of triangles, under the same point light. */
+static void scene_cornell_shapes(sg_scene *s) {
+    double a = s->opt.albedo;
+    int white = add_material(s, "white", a, a, a, 0, 1);
+    int red = add_material(s, "red", 0.63, 0.065, 0.05, 0, 1);
+    int green = add_material(s, "green", 0.14, 0.45, 0.09, 0, 1);
+    int blue = add_material(s, "blue", 0.2, 0.3, 0.7, 0, 1);
+    add_rect(s, add_mesh(s, "floor", white), 1, 0.0, -0.5, 0.5, -0.5, 0.5, +1);
+    add_rect(s, add_mesh(s, "ceiling", white), 1, 1.0, -0.5, 0.5, -0.5, 0.5, -1);
+    add_rect(s, add_mesh(s, "back_wall", white), 2, -0.5, -0.5, 0.5, 0.0, 1.0, +1);
+    add_rect(s, add_mesh(s, "left_wall", red), 0, -0.5, 0.0, 1.0, -0.5, 0.5, +1);
+    add_rect(s, add_mesh(s, "right_wall", green), 0, 0.5, 0.0, 1.0, -0.5, 0.5, -1);
+    add_uv_sphere(s, add_mesh(s, "sphere", white), v3(-0.2, 0.18, 0.1), 0.18, 16, 8);
+    add_cylinder(s, add_mesh(s, "cylinder", blue), 0.22, -0.2, 0.12, 0.45, 12);
+    add_bevel_box(s, add_mesh(s, "bevel_box", white), 0.2, 0.22, 0.22, 0.22, 0.22, 0.03, -20);
+    add_light(s, "ceiling_light", LIGHT_POINT, v3(0, 0.85, 0), v3(0, 0, 0), 2.5, 1, 1, 1, 60, 80);
+    set_camera(s, v3(0, 0.5, 1.9), v3(0, 0.5, 0), 39.3);
+}
+
+/* A closed icosphere of radius 1 about the origin, 20 x 4^--res triangles facing
+ * inwards, --albedo, a point light at the centre: the furnace of triangles (indirect
+ * flux 4 pi I rho / (1 - rho)). */
+static void scene_icosphere(sg_scene *s) {
+    double a = s->opt.albedo;
+    int m = add_material(s, "grey", a, a, a, 0, 1);
+    int mesh = add_mesh(s, "icosphere", m);
+    const double t = (1 + sqrt(5.0)) / 2;
+    static const int ff[20][3] = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                  {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
+                                  {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+    const double vv[12][3] = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                              {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+    int sub = s->opt.res > 6 ? 6 : s->opt.res, ntri = 20;
+    wrt_v3 *tri = wrt_xmalloc((size_t)ntri * 3 * sizeof *tri);
+    for (int f = 0; f < 20; f++)
+        for (int k = 0; k < 3; k++) tri[3 * f + k] = v3_norm(v3(vv[ff[f][k]][0], vv[ff[f][k]][1], vv[ff[f][k]][2]));
+    for (int l = 0; l < sub; l++) {
+        wrt_v3 *nt = wrt_xmalloc((size_t)ntri * 12 * sizeof *nt);
+        for (int f = 0; f < ntri; f++) {
+            wrt_v3 p = tri[3 * f], q = tri[3 * f + 1], r = tri[3 * f + 2];
+            wrt_v3 pq = v3_norm(v3_add(p, q)), qr = v3_norm(v3_add(q, r)), rp = v3_norm(v3_add(r, p));
+            wrt_v3 o[12] = {p, pq, rp, pq, q, qr, rp, qr, r, pq, qr, rp};
+            memcpy(&nt[12 * f], o, sizeof o);
+        }
+        free(tri);
+        tri = nt;
+        ntri *= 4;
+    }
+    for (int f = 0; f < ntri; f++) {
+        wrt_v3 p = tri[3 * f], q = tri[3 * f + 1], r = tri[3 * f + 2];
+        wrt_v3 in0 = v3_scale(p, -1), in1 = v3_scale(q, -1), in2 = v3_scale(r, -1);
+        if (v3_dot(v3_cross(v3_sub(q, p), v3_sub(r, p)), p) > 0) push_tri(s, &s->meshes[mesh], p, r, q, in0, in2, in1);
+        else push_tri(s, &s->meshes[mesh], p, q, r, in0, in1, in2);
+    }
+    free(tri);
+    add_light(s, "light", LIGHT_POINT, v3(0, 0, 0), v3(0, -1, 0), 1, 1, 1, 1, 45, 60);
+    set_camera(s, v3(0, 0, 0.6), v3(0, 0, -1), 70);
+}
+
 typedef struct sg_entry {
     const char *name;
     void (*build)(sg_scene *);
@@ -499,6 +688,10 @@ static const sg_entry scenes[] = {
      "Cornell box, back wall glossy metal of --roughness"},
     {"glossy-box", scene_glossy_box, "test/glossy_box.gltf", "closed metal cube of --roughness, point light"},
     {"glossy-floor", scene_glossy_floor, "test/glossy_floor.gltf", "the glossy scene with diffuse walls"},
+    {"cornell-shapes", scene_cornell_shapes, "test/cornell_shapes.gltf",
+     "Cornell room with a UV sphere, a cylinder and a bevelled box made of triangles"},
+    {"icosphere", scene_icosphere, "test/icosphere.gltf",
+     "closed icosphere of 20 x 4^--res inward triangles, light at the centre"},
 };
 #define NSCENES ((int)(sizeof scenes / sizeof scenes[0]))
 
@@ -636,25 +829,27 @@ static void write_gltf(const sg_scene *s, sbuf *out) {
     /* per mesh: POSITION, NORMAL, indices; one buffer view each */
     for (int i = 0; i < s->nmeshes; i++) {
         const sg_mesh *m = &s->meshes[i];
-        size_t nv = (size_t)m->nquads * 4;
+        size_t nqv = (size_t)m->nquads * 4, nv = nqv + (size_t)m->ntris * 3;
         float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
         for (size_t v = 0; v < nv; v++)
             for (int c = 0; c < 3; c++) {
-                float x = m->pos[3 * v + c];
+                float x = v < nqv ? m->pos[3 * v + c] : m->tpos[3 * (v - nqv) + c];
                 if (v == 0 || x < lo[c]) lo[c] = x;
                 if (v == 0 || x > hi[c]) hi[c] = x;
             }
         for (int part = 0; part < 3; part++) {
             size_t off = bin.n;
             if (part < 2) {
-                const float *src = part == 0 ? m->pos : m->nrm;
-                for (size_t k = 0; k < 3 * nv; k++) bb_f32(&bin, src[k]);
+                const float *src = part == 0 ? m->pos : m->nrm, *tsrc = part == 0 ? m->tpos : m->tnrm;
+                for (size_t k = 0; k < 3 * nqv; k++) bb_f32(&bin, src[k]);
+                for (size_t k = 0; k < 3 * (nv - nqv); k++) bb_f32(&bin, tsrc[k]);
             } else {
                 for (uint32_t q = 0; q < (uint32_t)m->nquads; q++) {
                     uint32_t b = 4 * q;
                     bb_u32(&bin, b); bb_u32(&bin, b + 1); bb_u32(&bin, b + 2);
                     bb_u32(&bin, b); bb_u32(&bin, b + 2); bb_u32(&bin, b + 3);
                 }
+                for (uint32_t k = 0; k < 3 * (uint32_t)m->ntris; k++) bb_u32(&bin, (uint32_t)nqv + k);
             }
             sb_printf(&views, "%s\n    {\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu,\"target\":%d}",
                       nacc ? "," : "", off, bin.n - off, part < 2 ? 34962 : 34963);
@@ -671,7 +866,7 @@ static void write_gltf(const sg_scene *s, sbuf *out) {
                 sb_printf(&acc, "}");
             } else {
                 sb_printf(&acc, ",\n    {\"bufferView\":%d,\"componentType\":5125,\"count\":%zu,\"type\":\"SCALAR\"}",
-                          nacc, (size_t)m->nquads * 6);
+                          nacc, (size_t)m->nquads * 6 + (size_t)m->ntris * 3);
             }
             nacc++;
         }
@@ -776,6 +971,8 @@ static void free_scene(sg_scene *s) {
     for (int i = 0; i < s->nmeshes; i++) {
         free(s->meshes[i].pos);
         free(s->meshes[i].nrm);
+        free(s->meshes[i].tpos);
+        free(s->meshes[i].tnrm);
     }
 }
 
@@ -790,12 +987,12 @@ static wrt_status generate(const sg_entry *e, const sg_options *opt, const char 
         s.lights[i].type = opt->light == LIGHT_SPOT ? LIGHT_SPOT : LIGHT_POINT;
     sbuf text = {0};
     write_gltf(&s, &text);
-    int nq = 0;
-    for (int i = 0; i < s.nmeshes; i++) nq += s.meshes[i].nquads;
+    int nq = 0, nt = 0;
+    for (int i = 0; i < s.nmeshes; i++) nq += s.meshes[i].nquads, nt += s.meshes[i].ntris;
     wrt_status st = write_file(path, text.p, text.n);
     if (st == WRT_OK)
         printf("%s: %s, %d quads, %d triangles, %d lights, %zu bytes\n", path, e->name, nq,
-               2 * nq, s.nlights, text.n);
+               2 * nq + nt, s.nlights, text.n);
     free(text.p);
     free_scene(&s);
     return st;

@@ -1,0 +1,28 @@
+/* scan.h: what `wrt-bake --scan` reports before anything is baked: the scene summary
+ * (formats/scene.h), the elements by kind, what would be dropped or refused and why,
+ * and an estimate of the bake's time, peak memory and file size at the chosen quality
+ * from a simple model fitted to measured bakes (scan.c says which). */
+#ifndef WRT_SCAN_H
+#define WRT_SCAN_H
+
+#include <stdio.h>
+#include "bake.h"
+#include "../formats/scene.h"
+
+typedef struct wrt_scan_estimate {
+    int quality;        /* the quality the estimate is for (1..9) */
+    int elements;       /* quads the bake would see (pairs, triangles' parts, twins) */
+    double seconds;     /* CPU seconds (user + system; wall on 2 idle cores: about half) */
+    double memory_mb;   /* peak resident memory */
+    double bytes;       /* size of the .gto */
+} wrt_scan_estimate;
+
+/* The estimate for scene s under options o (zero fields: defaults). Pure. */
+wrt_scan_estimate wrt_scan_estimate_cost(const wrt_scene *s, const wrt_bake_options *o);
+
+/* Prints the scan of s (loaded with report_only) to f: the summary, then what the bake
+ * would drop or refuse given drop_bad, then the estimate. With json, one JSON object
+ * (the summary's members plus "refused" and "estimate"). */
+void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad, int json, FILE *f);
+
+#endif

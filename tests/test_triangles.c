@@ -1,0 +1,417 @@
+/* test_triangles.c: triangles as elements (issue 21, docs/triangles.md), against truths
+ * that do not depend on the bake's code.
+ *
+ * - Form factors between two triangles, each cut into its three quads by
+ *   wrt_triangle_quads (what the loader does with a triangle that does not pair):
+ *   a triangle and its parallel twin at distance d, and two triangles sharing an edge at
+ *   90 degrees. The bake's answer is read from its direct transport operator: the
+ *   sender's three quads get uniform irradiance 1 (albedo 1, so radiosity 1) projected
+ *   onto every spatial function the bake made, the operator is applied, and the flux
+ *   arriving on the receiver's quads is summed. The truth is Lambert's closed form for a
+ *   point and a polygon, written again here, integrated over the receiver triangle by
+ *   composite Gauss-Legendre rules graded towards the shared edge and its ends; that
+ *   integration is itself checked on unit squares against the sum-of-corners closed forms
+ *   (tests/ff_closed.h).
+ * - A furnace: a closed icosphere of triangles facing inwards, albedo 0.9, a point light
+ *   at its centre, lit through the runtime (projection, operator): the indirect flux must
+ *   be 4 pi I rho / (1 - rho) (all light is caught, every bounce too).
+ * Links: bake, runtime, formats, common. */
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "common/basis.h"
+#include "formats/gto.h"
+#include "formats/scene.h"
+#include "player/relight.h"
+#include "precompute/bake.h"
+#include "bake_helpers.h"
+#include "ff_closed.h"
+#include "scene_build.h"
+#include "test.h"
+
+static char tmpdir[256];
+
+/* ------------------------------------------------------------ the truth ---- */
+
+/* Gauss-Legendre nodes and weights on [0, 1], n points (Newton on P_n). */
+static void gauss01(int n, double *x, double *w) {
+    for (int i = 0; i < n; i++) {
+        double z = cos(M_PI * (i + 0.75) / (n + 0.5)), dp = 1;
+        for (int it = 0; it < 100; it++) {
+            double p0 = 1, p1 = z;
+            for (int k = 2; k <= n; k++) {
+                double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
+                p0 = p1;
+                p1 = p2;
+            }
+            if (n == 1) { p1 = z; p0 = 1; }
+            dp = n * (z * p1 - p0) / (z * z - 1);
+            double dz = p1 / dp;
+            z -= dz;
+            if (fabs(dz) < 1e-16) break;
+        }
+        x[i] = 0.5 * (1 - z);
+        w[i] = 1.0 / ((1 - z * z) * dp * dp);
+    }
+}
+
+/* Lambert: the form factor from a point x with unit normal n to the polygon v[0..m-1]
+ * wholly above x's tangent plane: (1 / 2 pi) sum over edges of the angle the edge
+ * subtends times the cosine between n and the edge's plane normal. */
+static double lambert(wrt_v3 x, wrt_v3 n, const wrt_v3 *v, int m) {
+    double s = 0;
+    for (int k = 0; k < m; k++) {
+        wrt_v3 a = v3_sub(v[k], x), b = v3_sub(v[(k + 1) % m], x);
+        wrt_v3 c = v3_cross(a, b);
+        double lc = v3_len(c);
+        if (!(lc > 0)) continue;
+        double ang = atan2(lc, v3_dot(a, b));
+        s += ang * v3_dot(c, n) / lc;
+    }
+    return fabs(s) / (2 * M_PI);
+}
+
+/* Breakpoints on [0, 1] graded geometrically (ratio 0.15, 18 levels) towards the ends
+ * where `grade` says (bit 0: towards 0, bit 1: towards 1). Returns the count. */
+static int graded(int grade, double *t) {
+    int n = 0;
+    double lo[20], hi[20];
+    int nl = 0, nh = 0;
+    if (grade & 1) for (int i = 18; i >= 1; i--) lo[nl++] = 0.5 * pow(0.15, i);
+    if (grade & 2) for (int i = 1; i <= 18; i++) hi[nh++] = 1 - 0.5 * pow(0.15, i);
+    t[n++] = 0;
+    for (int i = 0; i < nl; i++) t[n++] = lo[i];
+    for (int i = 1; i < 8; i++) t[n++] = i / 8.0;
+    for (int i = nh - 1; i >= 0; i--) t[n++] = hi[i];
+    t[n++] = 1;
+    return n;
+}
+
+/* The form factor from the patch P(s,t) = (1-t)[(1-s) e0 + s e1] + t[(1-s) f0 + s f1]
+ * (a triangle when f0 = f1, a parallelogram when f1 - f0 = e1 - e0), normal n, to the
+ * polygon v[0..m-1]: the area-weighted mean of lambert() over the patch. The edge t = 0
+ * (e0 e1) is where a sender sharing it makes the integrand non-smooth; the rules are
+ * graded towards it and towards both its ends. */
+static double ff_patch_polygon(wrt_v3 e0, wrt_v3 e1, wrt_v3 f0, wrt_v3 f1, wrt_v3 n, const wrt_v3 *v, int m) {
+    enum { G = 12 };
+    double gx[G], gw[G], ts[64], ss[64];
+    gauss01(G, gx, gw);
+    int nt = graded(1, ts), ns = graded(3, ss);
+    double sum = 0, area = 0;
+    for (int it = 0; it + 1 < nt; it++)
+        for (int a = 0; a < G; a++) {
+            double t = ts[it] + (ts[it + 1] - ts[it]) * gx[a], wt = (ts[it + 1] - ts[it]) * gw[a];
+            for (int is = 0; is + 1 < ns; is++)
+                for (int b = 0; b < G; b++) {
+                    double s = ss[is] + (ss[is + 1] - ss[is]) * gx[b], ws = (ss[is + 1] - ss[is]) * gw[b];
+                    wrt_v3 pe = v3_add(v3_scale(e0, 1 - s), v3_scale(e1, s));
+                    wrt_v3 pf = v3_add(v3_scale(f0, 1 - s), v3_scale(f1, s));
+                    wrt_v3 x = v3_add(v3_scale(pe, 1 - t), v3_scale(pf, t));
+                    wrt_v3 ds = v3_add(v3_scale(v3_sub(e1, e0), 1 - t), v3_scale(v3_sub(f1, f0), t));
+                    wrt_v3 dt = v3_sub(pf, pe);
+                    double J = v3_len(v3_cross(ds, dt)), w = wt * ws * J;
+                    sum += w * lambert(x, n, v, m);
+                    area += w;
+                }
+        }
+    return sum / area;
+}
+
+/* The integration, checked on unit squares against the sum-of-corners closed forms. */
+static void test_truth_itself(void) {
+    wrt_v3 ceiling[4] = {P(0, 0, 1), P(0, 1, 1), P(1, 1, 1), P(1, 0, 1)};
+    double f = ff_patch_polygon(P(0, 0, 0), P(1, 0, 0), P(0, 1, 0), P(1, 1, 0), P(0, 0, 1), ceiling, 4);
+    double c = ffc_parallel(0, 1, 0, 1, 0, 1, 0, 1, 1);
+    printf("truth check, facing unit squares: integrated %.10f, closed form %.10f (%.2e)\n", f, c, f / c - 1);
+    CHECK(fabs(f / c - 1) < 1e-7, "facing squares: %.10f vs %.10f", f, c);
+    wrt_v3 wall[4] = {P(0, 0, 0), P(0, 1, 0), P(0, 1, 1), P(0, 0, 1)};
+    /* the floor's edge x = 0 is shared with the wall: t = 0 there */
+    f = ff_patch_polygon(P(0, 0, 0), P(0, 1, 0), P(1, 0, 0), P(1, 1, 0), P(0, 0, 1), wall, 4);
+    c = ffc_perpendicular(0, 1, 0, 1, 0, 1, 0, 1);
+    printf("truth check, unit squares at 90 degrees: integrated %.10f, closed form %.10f (%.2e)\n", f, c, f / c - 1);
+    CHECK(fabs(f / c - 1) < 1e-6, "perpendicular squares: %.10f vs %.10f", f, c);
+    CHECK(fabs(c - 0.2000438) < 1e-6, "classic value 0.2000: %.7f", c);
+}
+
+/* ------------------------------------------------------------ the bake ----- */
+
+/* Appends the triangle (a, b, c) as its three quads. */
+static void add_triangle(wrt_scene *s, wrt_v3 a, wrt_v3 b, wrt_v3 c, int mat, int tri) {
+    wrt_quad parts[3];
+    CHECK(wrt_triangle_quads(a, b, c, parts) == WRT_OK, "triangle %d: %s", tri, wrt_last_error());
+    for (int k = 0; k < 3; k++) {
+        wrt_quad *q = &parts[k];
+        tsb_quad(s, q->p[0], q->p[1], q->p[2], q->p[3], mat);
+        wrt_quad *o = &s->quads[s->nquads - 1];
+        *o = *q;
+        o->material = mat;
+        o->tri[0] = tri;
+    }
+}
+
+/* m = int h(u,v) sqrt(J(u,v)) du dv over quad q for the spatial Haar function (node,
+ * type): the flux functional of the basis (E(u,v) = sqrt(pi / J) sum c_h h(u,v), so the
+ * flux is sqrt(pi) sum c_h m_h) and, over sqrt(pi), the coefficient of uniform
+ * irradiance 1. J is affine on a planar quad: 6 x 6 Gauss points per quadrant. */
+static double haar_sqrtj(const wrt_quad *q, wrt_node n, int type) {
+    enum { G = 6 };
+    double gx[G], gw[G];
+    gauss01(G, gx, gw);
+    double size = wrt_node_size(n), h = 0.5 * size, sum = 0;
+    for (int cy = 0; cy < 2; cy++)
+        for (int cx = 0; cx < 2; cx++) {
+            double sign = type == 0 ? 1 : wrt_haar_sign(type, cx, cy);
+            double u0 = wrt_node_x0(n) + cx * h, v0 = wrt_node_y0(n) + cy * h;
+            for (int i = 0; i < G; i++)
+                for (int j = 0; j < G; j++)
+                    sum += sign * gw[i] * gw[j] * h * h * sqrt(wrt_quad_jacobian(q, u0 + h * gx[i], v0 + h * gx[j]));
+        }
+    return sum / size; /* the Haar function's value is 2^l = 1 / size */
+}
+
+/* The bake's form factor from the receiver triangle (quads r0 .. r0+2) to the sender
+ * (s0 .. s0+2): uniform radiosity 1 on the sender, the flux on the receiver over its
+ * area. */
+static double baked_ff(const wrt_scene *s, const wrt_bake_result *r, int r0, int s0) {
+    double *x = calloc(3 * r->nfuncs, sizeof *x), *y = calloc(3 * r->nfuncs, sizeof *y), *m = calloc(r->nfuncs, sizeof *m);
+    for (uint32_t f = 0; f < r->nfuncs; f++) {
+        uint64_t k = r->fkeys[f];
+        if (!wrt_fkey_angular_root(k)) continue;
+        m[f] = haar_sqrtj(&s->quads[wrt_fkey_quad(k)], wrt_fkey_snode(k), wrt_fkey_stype(k));
+        int q = (int)wrt_fkey_quad(k);
+        if (q >= s0 && q < s0 + 3) for (int c = 0; c < 3; c++) x[3 * f + c] = m[f] / sqrt(M_PI);
+    }
+    wrt_csc_apply(&r->dto, x, y);
+    double flux = 0, area = 0;
+    for (uint32_t f = 0; f < r->nfuncs; f++) {
+        int q = (int)wrt_fkey_quad(r->fkeys[f]);
+        if (q >= r0 && q < r0 + 3) flux += sqrt(M_PI) * y[3 * f] * m[f];
+    }
+    for (int q = r0; q < r0 + 3; q++) area += s->quads[q].area;
+    free(x); free(y); free(m);
+    return flux / area;
+}
+
+/* One pair of triangles: the receiver (a0 a1 a2), the sender (b0 b1 b2); baked at
+ * `quality` both ways, compared with the integrated truth both ways. Returns the worst
+ * relative error. */
+static double triangle_pair(const char *what, wrt_v3 a0, wrt_v3 a1, wrt_v3 a2, wrt_v3 b0, wrt_v3 b1, wrt_v3 b2,
+                            int quality, int shared) {
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, 1, 1, 1);
+    add_triangle(&s, a0, a1, a2, m, 0);
+    add_triangle(&s, b0, b1, b2, m, 1);
+    wrt_bake_result r;
+    wrt_bake_options o = opts(quality, 0, 0);
+    double t0 = wrt_now();
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s: %s", what, wrt_last_error());
+    double tb = wrt_now() - t0;
+    wrt_v3 A[3] = {a0, a1, a2}, B[3] = {b0, b1, b2};
+    wrt_v3 na = v3_norm(v3_cross(v3_sub(a1, a0), v3_sub(a2, a0)));
+    wrt_v3 nb = v3_norm(v3_cross(v3_sub(b1, b0), v3_sub(b2, b0)));
+    /* a shared edge is a0 a1 = b1 b0 by the callers' convention: t = 0 on it */
+    double tab = ff_patch_polygon(a0, a1, a2, a2, na, B, 3);
+    double tba = ff_patch_polygon(b0, b1, b2, b2, nb, A, 3);
+    double fab = baked_ff(&s, &r, 0, 3), fba = baked_ff(&s, &r, 3, 0);
+    double e1 = fab / tab - 1, e2 = fba / tba - 1;
+    printf("%s, quality %d: F_ab baked %.7f truth %.7f (%+.4f%%), F_ba baked %.7f truth %.7f (%+.4f%%); %u functions, "
+           "dto %llu entries, %.2f s\n", what, quality, fab, tab, 100 * e1, fba, tba, 100 * e2, r.nfuncs,
+           (unsigned long long)r.dto.nnz, tb);
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+    return fmax(fabs(e1), fabs(e2));
+}
+
+/* Within 0.1% at quality 7; the default quality 5 is within 0.3% (measured 0.21% for
+ * the twin at d = 1, 0.15% for the shared edge: the links between triangles' quads stop
+ * coarser than between parallelograms, whose form factors quality 5 gives within 0.02%). */
+static void test_triangle_form_factors(void) {
+    static const int qualities[2] = {7, 5};
+    static const double tol[2] = {1e-3, 3e-3};
+    for (int k = 0; k < 2; k++) {
+        int Q = qualities[k];
+        /* a right triangle (legs 1) and its twin at distance d = 1 and 0.5, facing */
+        for (int i = 0; i < 2; i++) {
+            double d = i ? 0.5 : 1.0;
+            char what[64];
+            snprintf(what, sizeof what, "parallel twin at d = %g", d);
+            double e = triangle_pair(what, P(0, 0, 0), P(1, 0, 0), P(0, 1, 0), P(0, 0, d), P(0, 1, d), P(1, 0, d), Q, 0);
+            CHECK(e <= tol[k], "%s, quality %d: worst %.4f%% over %.1f%%", what, Q, 100 * e, 100 * tol[k]);
+        }
+        /* sharing the edge (0,0,0)-(0,1,0): the floor triangle (normal +z) and the wall
+         * (x = 0, normal +x), at 90 degrees */
+        double e = triangle_pair("shared edge at 90 degrees", P(0, 1, 0), P(0, 0, 0), P(1, 0.5, 0), P(0, 0, 0),
+                                 P(0, 1, 0), P(0, 0.5, 1), Q, 1);
+        CHECK(e <= tol[k], "shared edge, quality %d: worst %.4f%% over %.1f%%", Q, 100 * e, 100 * tol[k]);
+    }
+}
+
+
+/* ------------------------------------------------------------ the furnace -- */
+
+/* An icosphere of radius 1 about the origin, `sub` times subdivided (20 * 4^sub
+ * triangles), each triangle wound to face the centre, added as its three quads. */
+static void icosphere(wrt_scene *s, int sub, int mat) {
+    const double t = (1 + sqrt(5.0)) / 2;
+    double vv[12][3] = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                        {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+    static const int ff[20][3] = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                  {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
+                                  {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+    int ntri = 20;
+    wrt_v3 *tri = malloc((size_t)ntri * 3 * sizeof *tri);
+    for (int f = 0; f < 20; f++)
+        for (int k = 0; k < 3; k++) {
+            const double *p = vv[ff[f][k]];
+            tri[3 * f + k] = v3_norm(v3(p[0], p[1], p[2]));
+        }
+    for (int l = 0; l < sub; l++) {
+        wrt_v3 *nt = malloc((size_t)ntri * 12 * sizeof *nt);
+        for (int f = 0; f < ntri; f++) {
+            wrt_v3 a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
+            wrt_v3 ab = v3_norm(v3_add(a, b)), bc = v3_norm(v3_add(b, c)), ca = v3_norm(v3_add(c, a));
+            wrt_v3 out[12] = {a, ab, ca, ab, b, bc, ca, bc, c, ab, bc, ca};
+            memcpy(&nt[12 * f], out, sizeof out);
+        }
+        free(tri);
+        tri = nt;
+        ntri *= 4;
+    }
+    for (int f = 0; f < ntri; f++) {
+        wrt_v3 a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
+        wrt_v3 n = v3_cross(v3_sub(b, a), v3_sub(c, a));
+        if (v3_dot(n, a) > 0) add_triangle(s, a, c, b, mat, f); /* outward: turn it inward */
+        else add_triangle(s, a, b, c, mat, f);
+    }
+    free(tri);
+}
+
+/* A point light of intensity 1 at the centre of a closed icosphere of albedo rho: the
+ * direct flux is 4 pi and the indirect flux 4 pi rho / (1 - rho). Lit through the
+ * runtime (the .gto written and mapped, the light projected, the operator applied); the
+ * fluxes are summed with the exact flux functional of each basis function
+ * (haar_sqrtj), and each element's mean indirect irradiance is compared with the
+ * sphere's mean. Returns the relative error of the indirect flux. */
+static double icosphere_furnace(int sub, int quality, double rho, double *worst_out) {
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, rho, rho, rho);
+    icosphere(&s, sub, m);
+    wrt_bake_result r;
+    wrt_bake_options o = opts(quality, 0, 0);
+    double t0 = wrt_now();
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "icosphere: %s", wrt_last_error());
+    double tb = wrt_now() - t0;
+    char path[512];
+    snprintf(path, sizeof path, "%s/ico%d.gto", tmpdir, sub);
+    for (int q = 0; q < s.nquads; q++) s.quads[q].name = -1;
+    wrt_gto_contents gc = {.scene = &s, .fkeys = r.fkeys, .nfuncs = r.nfuncs, .col_start = r.op.col,
+                           .rows = r.op.row, .vals = r.op.val, .op_kind = (uint32_t)r.op_kind,
+                           .material_alevel = r.material_alevel};
+    CHECK(wrt_gto_write(path, &gc) == WRT_OK, "gto write: %s", wrt_last_error());
+    wrt_gto g;
+    wrt_relight *rl = NULL;
+    double err = 1, worst = 1;
+    if (wrt_gto_open(path, &g) == WRT_OK) {
+        wrt_relight_options ro = {.threads = 2, .max_tex_res = 16};
+        CHECK(wrt_relight_create(&g, &ro, &rl) == WRT_OK, "relight: %s", wrt_last_error());
+        wrt_light l;
+        memset(&l, 0, sizeof l);
+        l.type = WRT_LIGHT_POINT;
+        l.color[0] = l.color[1] = l.color[2] = 1;
+        l.intensity = 1;
+        l.dir = v3(0, 0, -1);
+        wrt_relight_set_lights(rl, &l, NULL, 1);
+        double eye[3] = {0, 0, 0};
+        wrt_relight_set_eye(rl, eye);
+        wrt_relight_update(rl, NULL);
+        const float *E = wrt_relight_E(rl), *X = wrt_relight_X(rl);
+        double *fd = calloc((size_t)s.nquads, sizeof *fd), *fi = calloc((size_t)s.nquads, sizeof *fi);
+        double *mh = calloc(r.nfuncs, sizeof *mh); /* each function's flux functional */
+        double direct = 0, indirect = 0, rt_indirect = 0, area = 0;
+        for (uint32_t f = 0; f < r.nfuncs; f++) {
+            uint64_t k = r.fkeys[f];
+            if (!wrt_fkey_angular_root(k)) continue;
+            int q = (int)wrt_fkey_quad(k);
+            mh[f] = sqrt(M_PI) * haar_sqrtj(&s.quads[q], wrt_fkey_snode(k), wrt_fkey_stype(k));
+            fd[q] += mh[f] * E[3 * f];
+            fi[q] += mh[f] * X[3 * f];
+        }
+        for (int q = 0; q < s.nquads; q++) {
+            direct += fd[q];
+            indirect += fi[q];
+            area += s.quads[q].area;
+            double d3[3], i3[3];
+            wrt_relight_quad_irradiance(rl, q, d3, i3);
+            rt_indirect += i3[0] * s.quads[q].area;
+        }
+        /* the series summed here from the DTO itself, to tell the operator's losses apart */
+        {
+            double *xv = calloc(3 * r.nfuncs, sizeof *xv), *yv = calloc(3 * r.nfuncs, sizeof *yv), acc = 0;
+            for (size_t k = 0; k < 3 * (size_t)r.nfuncs; k++) xv[k] = E[k];
+            for (int it = 0; it < 300; it++) { /* 0.9^300 = 2e-14 */
+                memset(yv, 0, 3 * r.nfuncs * sizeof *yv);
+                wrt_csc_apply(&r.dto, xv, yv);
+                for (uint32_t f = 0; f < r.nfuncs; f++) acc += mh[f] * yv[3 * f];
+                double *t = xv; xv = yv; yv = t;
+            }
+            double want = 4 * M_PI * rho / (1 - rho);
+            printf("the series summed from the DTO: indirect flux %.6f vs %.6f (%+.4f%%)\n", acc, want,
+                   100 * (acc / want - 1));
+            CHECK(fabs(acc / want - 1) <= 1e-3, "the DTO's series: indirect flux off by %.4f%%", 100 * (acc / want - 1));
+            free(xv); free(yv);
+        }
+        double want = 4 * M_PI * rho / (1 - rho), mean = indirect / area;
+        worst = 0;
+        int wq = 0;
+        for (int q = 0; q < s.nquads; q++) {
+            double e = fabs(fi[q] / s.quads[q].area / mean - 1);
+            if (e > worst) { worst = e; wq = q; }
+        }
+        err = indirect / want - 1;
+        CHECK(r.c.closed, "the balance finds the icosphere closed");
+        printf("icosphere %d triangles (%d elements), quality %d, albedo %.2f: direct flux %.6f vs 4 pi %.6f "
+               "(%+.4f%%), indirect %.6f vs 4 pi rho/(1-rho) %.6f (%+.4f%%); the runtime's root-only means give "
+               "%+.4f%%; worst element (%d, part %d) %.4f%% from the mean; bake %.1f s, %u functions, G-I %llu "
+               "entries\n",
+               s.nquads / 3, s.nquads, quality, rho, direct, 4 * M_PI, 100 * (direct / (4 * M_PI) - 1), indirect, want,
+               100 * err, 100 * (rt_indirect / want - 1), wq, s.quads[wq].part, 100 * worst, tb, r.nfuncs,
+               (unsigned long long)r.op.nnz);
+        CHECK(fabs(direct / (4 * M_PI) - 1) <= 1e-3, "direct flux %.6f vs 4 pi", direct);
+        free(fd);
+        free(fi);
+        free(mh);
+        wrt_relight_destroy(rl);
+        wrt_gto_close(&g);
+    }
+    unlink(path);
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+    *worst_out = worst;
+    return err;
+}
+
+/* 80 triangles (240 elements) at quality 5. The transport itself conserves power: the
+ * series summed from the DTO gives 4 pi rho / (1 - rho) within 0.1% (measured +0.007% on
+ * 20 triangles). The baked global operator G - I loses some: -0.14% on 20 triangles,
+ * -0.58% on 80 (the series' compression, eps compress 6.25e-5, drops more small entries
+ * as elements multiply; the elements stay within 0.03% of each other), held here at 1%
+ * and reported in docs/triangles.md. */
+static void test_icosphere_furnace(void) {
+    double worst, e = icosphere_furnace(1, 5, 0.9, &worst);
+    CHECK(fabs(e) <= 1e-2, "icosphere furnace: indirect flux off by %.4f%%", 100 * e);
+    CHECK(worst <= 1e-3, "icosphere furnace: the worst element %.4f%% from the mean", 100 * worst);
+}
+
+int main(int argc, char **argv) {
+    setvbuf(stdout, NULL, _IOLBF, 0);
+    snprintf(tmpdir, sizeof tmpdir, "/tmp/wrt_tri_XXXXXX");
+    if (!mkdtemp(tmpdir)) { perror("mkdtemp"); return 2; }
+    TEST_RUN(test_truth_itself);
+    TEST_RUN(test_triangle_form_factors);
+    TEST_RUN(test_icosphere_furnace);
+    rmdir(tmpdir);
+    TEST_END();
+}
