@@ -684,7 +684,7 @@ static wrt_status make_camera(const wrt_gltf_data *g, wrt_scene *s, const char *
 
 static wrt_status load_common(const void *data, size_t size, const char *base_dir, const char *label,
                               const wrt_load_options *opt, wrt_scene *out) {
-    wrt_load_options defaults = {0, 0, 0};
+    wrt_load_options defaults = {0};
     if (!opt) opt = &defaults;
     double planar_tol = opt->planar_tol > 0 ? opt->planar_tol : 1e-4;
     if (!isfinite(planar_tol) || planar_tol >= 1)

@@ -235,6 +235,12 @@ mutation gto-header-checksum: the reader ignores the header's checksum
   find if (sum != h->header_checksum)
   repl if (0 && sum != h->header_checksum)
   run test_gto test_flipped_bytes test_checksum
+
+mutation triangle-centroid: a triangle's three quads meet 3% off its centroid (they no longer tile it)
+  file formats/scene.c
+  find wrt_v3 v[3] = {a, b, c}, g = v3_scale(v3_add(v3_add(a, b), c), 1.0 / 3.0);
+  repl wrt_v3 v[3] = {a, b, c}, g = v3_scale(v3_add(v3_add(a, b), c), 1.0 / 3.09);
+  run test_triangles test_triangle_form_factors test_icosphere_furnace
 EOF
 
 # ------------------------------------------------------------------ machinery ----
