@@ -19,27 +19,23 @@ ko() { fail=$((fail + 1)); echo "FAIL $1"; }
 figure() {
     python3 -c 'import json,sys; print("%.4f" % json.load(open(sys.argv[1]))["bakes"][0][sys.argv[2]])' "$1" "$2"
 }
-# gate_pair LABEL KEY GATE VAR ON WITH OFF WITHOUT WRT-COMPARE-ARGS...: wrt-compare with
-# VAR=ON, whose KEY must be at most GATE, then with VAR=OFF, whose KEY must be above it
-# (the gate tells the two apart); WITH and WITHOUT name the two runs in the messages.
+# gate_pair LABEL KEY GATE VAR ON WITH OFF WITHOUT SCENE GTO WRT-COMPARE-ARGS...: one
+# wrt-compare (one reference) of GTO twice, first with VAR=ON, whose KEY must be at most
+# GATE, then with VAR=OFF (--env), whose KEY must be above it (the gate tells the two
+# apart); WITH and WITHOUT name the two runs in the messages.
 gate_pair() {
-    local label=$1 key=$2 gate=$3 var=$4 on=$5 with=$6 off=$7 without=$8 name=${2//_/ } v e
-    shift 8
-    for v in "$on" "$off"; do
-        if ! env "$var=$v" "$build/wrt-compare" "$@" >"$tmp/gate.json" 2>"$tmp/err"; then
-            ko "$label: compare ($var=$v)"; sed 's/^/    /' "$tmp/err" | head -n 5
-            continue
-        fi
-        e=$(figure "$tmp/gate.json" "$key")
-        if [ "$v" = "$on" ]; then
-            awk -v e="$e" -v t="$gate" 'BEGIN { exit !(e <= t) }' &&
-                ok "$label: $name $e <= $gate $with" || ko "$label: $name $e > $gate $with"
-        else
-            awk -v e="$e" -v t="$gate" 'BEGIN { exit !(e > t) }' &&
-                ok "$label: $name $e > $gate $without (the gate discriminates)" ||
-                ko "$label: $name $e <= $gate $without (the gate does not discriminate)"
-        fi
-    done
+    local label=$1 key=$2 gate=$3 var=$4 on=$5 with=$6 off=$7 without=$8 scene=$9 gto=${10} name=${2//_/ } e0 e1
+    shift 10
+    if ! "$build/wrt-compare" "$scene" --env "$var=$on" "$gto" --env "$var=$off" "$gto" "$@" >"$tmp/gate.json" 2>"$tmp/err"; then
+        ko "$label: compare ($var=$on, then $var=$off)"; sed 's/^/    /' "$tmp/err" | head -n 5
+        return
+    fi
+    read -r e0 e1 < <(python3 -c 'import json,sys; b=json.load(open(sys.argv[1]))["bakes"]; k=sys.argv[2]; print("%.4f %.4f" % (b[0][k], b[1][k]))' "$tmp/gate.json" "$key")
+    awk -v e="$e0" -v t="$gate" 'BEGIN { exit !(e <= t) }' &&
+        ok "$label: $name $e0 <= $gate $with" || ko "$label: $name $e0 > $gate $with"
+    awk -v e="$e1" -v t="$gate" 'BEGIN { exit !(e > t) }' &&
+        ok "$label: $name $e1 > $gate $without (the gate discriminates)" ||
+        ko "$label: $name $e1 <= $gate $without (the gate does not discriminate)"
 }
 
 if "$build/wrt-scenegen" glossy-box --roughness 0.05 -o "$tmp/box.gltf" >/dev/null 2>"$tmp/err" &&
