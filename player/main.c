@@ -118,6 +118,8 @@ static int parse_args(int argc, char **argv, options *o) {
     o->msaa = 4;
     o->supersample = 1;
     wrt_cli_lights_init(&o->lights);
+    const char *seen[64];
+    int nseen = 0;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -126,7 +128,17 @@ static int parse_args(int argc, char **argv, options *o) {
         int lr = wrt_cli_lights_option(T, &o->lights, argc, argv, &i);
         if (lr < 0) return 0;
         if (lr > 0) continue;
-#define NEED() do { if (!v) { fprintf(stderr, "wrt-play: %s needs a value\n", a); return 0; } i++; } while (0)
+        /* An option given twice is refused (`-o a -o b` would silently take the last), as in wrt-bake. */
+        if (a[0] == '-' && a[1]) {
+            const char *canon = !strcmp(a, "-o") ? "--out" : !strcmp(a, "-h") ? "--help" : a;
+            for (int k = 0; k < nseen; k++)
+                if (!strcmp(seen[k], canon)) {
+                    fprintf(stderr, "wrt-play: error: %s given twice\n", a);
+                    return 0;
+                }
+            if (nseen < (int)(sizeof seen / sizeof *seen)) seen[nseen++] = canon;
+        }
+#define NEED() do { if (!v) { fprintf(stderr, "wrt-play: error: %s needs a value\n", a); return 0; } i++; } while (0)
 #define INT(lo, hi, dst) do { if (!wrt_cli_int(T, a, v, lo, hi, &n)) return 0; i++; dst = (int)n; } while (0)
 #define NUM(lo, hi, dst) do { if (!wrt_cli_num(T, a, v, lo, hi, &x)) return 0; i++; dst = x; } while (0)
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) { usage(stdout); exit(0); }
@@ -149,7 +161,7 @@ static int parse_args(int argc, char **argv, options *o) {
         else if (!strcmp(a, "--shadow-res")) INT(16, 8192, o->shadow_res);
         else if (!strcmp(a, "--msaa")) {
             INT(1, 8, o->msaa);
-            if (o->msaa & (o->msaa - 1)) { fprintf(stderr, "wrt-play: bad value for --msaa: '%s' (1, 2, 4 or 8)\n", v); return 0; }
+            if (o->msaa & (o->msaa - 1)) { fprintf(stderr, "wrt-play: error: bad value for --msaa: '%s' (1, 2, 4 or 8)\n", v); return 0; }
         }
         else if (!strcmp(a, "--supersample")) INT(1, 4, o->supersample);
         else if (!strcmp(a, "--exposure")) { double e; NUM(-64, 64, e); o->exposure = (float)e; }
@@ -158,26 +170,26 @@ static int parse_args(int argc, char **argv, options *o) {
         else if (!strcmp(a, "--camera-pos")) { if (!wrt_cli_vec3(T, a, v, o->cam_pos)) return 0; i++; o->has_cam_pos = 1; }
         else if (!strcmp(a, "--camera-target")) { if (!wrt_cli_vec3(T, a, v, o->cam_target)) return 0; i++; o->has_cam_target = 1; }
         else if (a[0] == '-' && a[1]) {
-            fprintf(stderr, "wrt-play: unknown option %s (see --help)\n", a);
+            fprintf(stderr, "wrt-play: error: unknown option %s (see --help)\n", a);
             return 0;
         } else if (!o->file) o->file = a;
         else {
-            fprintf(stderr, "wrt-play: more than one input file ('%s', '%s')\n", o->file, a);
+            fprintf(stderr, "wrt-play: error: more than one input file ('%s', '%s')\n", o->file, a);
             return 0;
         }
 #undef NEED
 #undef INT
 #undef NUM
     }
-    if (!o->file) { fprintf(stderr, "wrt-play: no input file (see --help)\n"); return 0; }
+    if (!o->file) { fprintf(stderr, "wrt-play: error: no input file (see --help)\n"); return 0; }
     if (o->has_cam_pos && o->has_cam_target && o->cam_pos[0] == o->cam_target[0] &&
         o->cam_pos[1] == o->cam_target[1] && o->cam_pos[2] == o->cam_target[2]) {
-        fprintf(stderr, "wrt-play: --camera-pos equals --camera-target: the camera has no view direction\n");
+        fprintf(stderr, "wrt-play: error: --camera-pos equals --camera-target: the camera has no view direction\n");
         return 0;
     }
-    if (o->script && !o->pattern) { fprintf(stderr, "wrt-play: --script needs --out-pattern\n"); return 0; }
+    if (o->script && !o->pattern) { fprintf(stderr, "wrt-play: error: --script needs --out-pattern\n"); return 0; }
     if (o->headless && !o->out && !o->script && !o->stats && !o->bench) {
-        fprintf(stderr, "wrt-play: --headless needs -o/--out, --script, --stats-json or --bench\n");
+        fprintf(stderr, "wrt-play: error: --headless needs -o/--out, --script, --stats-json or --bench\n");
         return 0;
     }
     return 1;
@@ -319,7 +331,7 @@ static int save_picture(app *a, const char *path) {
     }
     free(lin);
     if (s) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         return EXIT_OUTPUT;
     }
     return 0;
@@ -341,7 +353,7 @@ static int write_stats(app *a, const char *path) {
     snprintf(tmp, sizeof tmp, "%s.tmp%ld", path, (long)getpid());
     FILE *f = fopen(tmp, "w");
     if (!f) {
-        fprintf(stderr, "wrt-play: cannot write %s: %s\n", tmp, strerror(errno));
+        fprintf(stderr, "wrt-play: error: cannot write %s: %s\n", tmp, strerror(errno));
         return EXIT_OUTPUT;
     }
     fprintf(f, "{\n  \"file\": ");
@@ -377,7 +389,7 @@ static int write_stats(app *a, const char *path) {
     bad_write |= fsync(fileno(f)) != 0;
     bad_write |= fclose(f) != 0;
     if (bad_write || rename(tmp, path) != 0) {
-        fprintf(stderr, "wrt-play: cannot write %s\n", path);
+        fprintf(stderr, "wrt-play: error: cannot write %s\n", path);
         unlink(tmp);
         return EXIT_OUTPUT;
     }
@@ -442,7 +454,7 @@ static int setup_view(app *a) {
     double d2 = 0;
     for (int k = 0; k < 3; k++) d2 += (a->view.target[k] - a->view.eye[k]) * (a->view.target[k] - a->view.eye[k]);
     if (!(d2 > 0)) {
-        fprintf(stderr, "wrt-play: the camera's position (%g, %g, %g) equals its target: no view direction\n",
+        fprintf(stderr, "wrt-play: error: the camera's position (%g, %g, %g) equals its target: no view direction\n",
                 a->view.eye[0], a->view.eye[1], a->view.eye[2]);
         return 0;
     }
@@ -459,7 +471,7 @@ typedef struct keyframe {
 static int read_script(app *a, const char *path, keyframe **out, int *count) {
     FILE *f = fopen(path, "r");
     if (!f) {
-        fprintf(stderr, "wrt-play: cannot read the script %s: %s\n", path, strerror(errno));
+        fprintf(stderr, "wrt-play: error: cannot read the script %s: %s\n", path, strerror(errno));
         return EXIT_INPUT;
     }
     keyframe cur;
@@ -483,7 +495,7 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
         double t;
         if (!parse_num(tok, -1e12, 1e12, &t)) goto bad_line;
         if (n > 0 && t < kf[n - 1].t) {
-            fprintf(stderr, "wrt-play: %s:%d: times must not decrease\n", path, lineno);
+            fprintf(stderr, "wrt-play: error: %s:%d: times must not decrease\n", path, lineno);
             goto fail;
         }
         cur.t = t;
@@ -496,7 +508,7 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
             else if (!strcmp(tok, "camera_target")) dst = cur.ctarget;
             else if (!strcmp(tok, "light_intensity")) { dst = &cur.lint; nv = 1; }
             else {
-                fprintf(stderr, "wrt-play: %s:%d: unknown key '%s'\n", path, lineno, tok);
+                fprintf(stderr, "wrt-play: error: %s:%d: unknown key '%s'\n", path, lineno, tok);
                 goto fail;
             }
             for (int k = 0; k < nv; k++) {
@@ -511,12 +523,12 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
         kf[n++] = cur;
         continue;
     bad_line:
-        fprintf(stderr, "wrt-play: %s:%d: expected 't key values...' (see --help)\n", path, lineno);
+        fprintf(stderr, "wrt-play: error: %s:%d: expected 't key values...' (see --help)\n", path, lineno);
         goto fail;
     }
     fclose(f);
     if (n == 0) {
-        fprintf(stderr, "wrt-play: %s: no keyframes\n", path);
+        fprintf(stderr, "wrt-play: error: %s: no keyframes\n", path);
         free(kf);
         return EXIT_INPUT;
     }
@@ -553,7 +565,7 @@ static int run_script(app *a) {
     if (fps > 0) frames = (int)floor((kf[n - 1].t - kf[0].t) * fps + 1e-9) + 1;
     char path[4096];
     if (!format_frame(a->o->pattern, 0, path, sizeof path)) {
-        fprintf(stderr, "wrt-play: --out-pattern '%s' needs exactly one %%d or %%0Nd\n", a->o->pattern);
+        fprintf(stderr, "wrt-play: error: --out-pattern '%s' needs exactly one %%d or %%0Nd\n", a->o->pattern);
         free(kf);
         return EXIT_USAGE;
     }
@@ -707,7 +719,7 @@ static int save_window(app *a, const char *path) {
     wrt_render_read_window(a->o->width, a->o->height, b);
     wrt_status s = wrt_image_write_rgb8(path, b, a->o->width, a->o->height);
     free(b);
-    if (s) fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+    if (s) fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
     return s ? EXIT_OUTPUT : 0;
 }
 
@@ -730,12 +742,12 @@ static int win_reload(app *a, win_state *w) {
     wrt_runtime_options ro = {.max_tex_res = a->o->max_tex_res, .threads = a->o->threads};
     wrt_error err;
     if (wrt_runtime_open_memory(a->g.map, a->g.size, &ro, &a->rl, &err)) {
-        fprintf(stderr, "wrt-play: %s\n", err.message);
+        fprintf(stderr, "wrt-play: error: %s\n", err.message);
         return EXIT_RUNTIME;
     }
     wrt_render_options rdo = {a->o->width, a->o->height, a->o->shadow_res, a->o->msaa};
     if ((s = wrt_render_create(&a->g, &rdo, &a->rd))) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         return s == WRT_ERR_GL ? EXIT_GL : EXIT_RUNTIME;
     }
     a->relit_once = 0;
@@ -877,7 +889,7 @@ static int run_window(app *a) {
     w.exposure = a->o->exposure;
     w.sel = chosen_light(a) < nshown(a) ? chosen_light(a) : 0;
     if (wrt_overlay_create(&w.ov)) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         return EXIT_GL;
     }
     win_reset_lights(a, &w);
@@ -1050,7 +1062,9 @@ int main(int argc, char **argv) {
     a.mode = o.mode;
     wrt_status s = wrt_gto_open(o.file, &a.g);
     if (s) {
-        fprintf(stderr, "wrt-play: %s: %s: %s\n", o.file, wrt_status_str(s), wrt_last_error());
+        const char *e = wrt_last_error(); /* named once: some of the reader's messages name it */
+        if (!strncmp(e, o.file, strlen(o.file))) fprintf(stderr, "wrt-play: error: %s\n", e);
+        else fprintf(stderr, "wrt-play: error: %s: %s\n", o.file, e);
         return EXIT_INPUT;
     }
     /* the view and the lights first: a light the file does not have is refused before
@@ -1064,7 +1078,7 @@ int main(int argc, char **argv) {
     if (o.headless) s = wrt_platform_egl_create(&a.plat);
     else s = wrt_platform_glfw_create(o.width, o.height, "wrt-play", &a.plat);
     if (s) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         free(a.lights);
         wrt_gto_close(&a.g);
         return EXIT_GL;
@@ -1075,14 +1089,14 @@ int main(int argc, char **argv) {
     }
     wrt_runtime_options ro = {.max_tex_res = o.max_tex_res, .threads = o.threads};
     if ((s = wrt_runtime_open_memory(a.g.map, a.g.size, &ro, &a.rl, NULL))) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         rc = EXIT_RUNTIME;
         goto done;
     }
     int ss = o.headless ? o.supersample : 1;
     wrt_render_options rdo = {o.width * ss, o.height * ss, o.shadow_res, o.msaa};
     if ((s = wrt_render_create(&a.g, &rdo, &a.rd))) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         rc = s == WRT_ERR_GL ? EXIT_GL : EXIT_USAGE;
         goto done;
     }

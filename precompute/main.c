@@ -174,6 +174,16 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
         o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance);
 }
 
+/* 1 if path is a regular file that starts with the .gto magic (a FIFO is not opened). */
+static int is_gto_file(const char *path) {
+    struct stat sst;
+    FILE *sf = stat(path, &sst) == 0 && S_ISREG(sst.st_mode) ? fopen(path, "rb") : NULL;
+    char magic[8] = {0};
+    size_t got = sf ? fread(magic, 1, sizeof magic, sf) : 0;
+    if (sf) fclose(sf);
+    return got == sizeof magic && !memcmp(magic, "\x89WRT\r\n\x1a\n", sizeof magic);
+}
+
 int main(int argc, char **argv) {
     const char *scene_path = NULL, *out_path = NULL, *scan = NULL, *info = NULL;
     int json = 0, force_progress = 0, quiet = 0, print_config = 0, timings = 0, drop_bad = 0;
@@ -269,17 +279,9 @@ int main(int argc, char **argv) {
     wrt_load_options lo = {.drop_bad = drop_bad};
     if (scan) {
         /* a baked file given by mistake: say so rather than show the glTF parser's error */
-        struct stat sst;
-        FILE *sf = stat(scan, &sst) == 0 && S_ISREG(sst.st_mode) ? fopen(scan, "rb") : NULL; /* no FIFO waits */
-        char magic[8] = {0};
-        if (sf) {
-            size_t got = fread(magic, 1, sizeof magic, sf);
-            fclose(sf);
-            if (got == sizeof magic && !memcmp(magic, "\x89WRT\r\n\x1a\n", sizeof magic)) { /* .gto magic */
-                fprintf(stderr, "wrt-bake: error: %s is a baked .gto file, not a scene: use --info to inspect it\n",
-                        scan);
-                return EXIT_INPUT;
-            }
+        if (is_gto_file(scan)) {
+            fprintf(stderr, "wrt-bake: error: %s is a baked .gto file, not a scene: use --info to inspect it\n", scan);
+            return EXIT_INPUT;
         }
         wrt_scene s;
         wrt_status st = wrt_scene_load(scan, &lo, &s);
@@ -292,6 +294,10 @@ int main(int argc, char **argv) {
         return 0;
     }
     if (!scene_path) { usage(stderr); return EXIT_USAGE; }
+    if (is_gto_file(scene_path)) { /* not the JSON parser's complaint about its bytes */
+        fprintf(stderr, "wrt-bake: error: %s: this is a .gto file; bake a .gltf, or use --info\n", scene_path);
+        return EXIT_INPUT;
+    }
     if (!out_path) { fprintf(stderr, "wrt-bake: error: no output file (-o OUT.gto)\n"); return EXIT_USAGE; }
     wrt_cli_progress_enable(!quiet && (force_progress || isatty(2)));
 
