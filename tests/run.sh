@@ -59,5 +59,8 @@ for s in tests/*.sh; do
 done
 [ ${#failed_names[@]} -eq 0 ] || echo "failing: ${failed_names[*]}"
 c0=$t0_cpu; w0=$t0_wall; echo "suite time:$(took)"
+# the suite's CPU and wall seconds, for tools/readme_times.sh (README "Timings": make test)
+[ -z "${2:-}" ] && [ -d "$build" ] && awk -v c=$(( $(cpu_ticks) - c0 )) -v hz="$hz" -v w0="$w0" -v w1="$EPOCHREALTIME" \
+    'BEGIN { printf "%.1f %.1f\n", c / hz, w1 - w0 }' >"$build/suite-time.txt"
 if [ "$skip" -gt 0 ]; then echo "$pass passed, $fail failed, $skip skipped"; else echo "$pass passed, $fail failed"; fi
 [ "$fail" -eq 0 ]
