@@ -36,7 +36,7 @@ static void usage(FILE *f) {
     fprintf(f,
         "usage: wrt-play FILE.gto [options]\n"
         "Relights a scene baked by wrt-bake (Wavelet Radiance Transport) in real time, in a\n"
-        "window or headless into pictures. In the window (H or F1 shows these keys on screen):\n"
+        "window or headless into pictures. In the window (H shows the overlay, F1 these keys in it):\n"
         "  mouse (left button) look       W A S D move, Q E down/up, Shift faster\n"
         "  Tab / 1-9 select a light       arrows or I J K L move it, U O lower/raise it\n"
         "  Space switch it on/off         + - brighter/dimmer, C cycle its colour\n"
@@ -652,16 +652,17 @@ static int run_bench(app *a) {
 
 /* ---------------------------------------------------------------- window */
 
-/* The colours C cycles through; the first is the light's own colour from the file. */
+/* The colours C cycles through; the first is the light's own colour from the file, shown
+ * as "own" (C skips a colour the same as it, so each press changes the light). */
 static const struct { const char *name; float rgb[3]; } colours[] = {
-    {"file", {1, 1, 1}}, {"white", {1, 1, 1}}, {"warm", {1.0f, 0.72f, 0.45f}}, {"cool", {0.62f, 0.78f, 1.0f}},
+    {"own", {1, 1, 1}}, {"white", {1, 1, 1}}, {"warm", {1.0f, 0.72f, 0.45f}}, {"cool", {0.62f, 0.78f, 1.0f}},
     {"red", {1.0f, 0.25f, 0.2f}}, {"green", {0.3f, 1.0f, 0.35f}}, {"blue", {0.3f, 0.45f, 1.0f}},
 };
 #define NCOLOURS ((int)(sizeof colours / sizeof colours[0]))
 
 typedef struct win_state {
     wrt_overlay *ov;
-    int sel, overlay_on;
+    int sel, overlay_on, keys_on; /* keys_on: the overlay lists the keys (F1) */
     float exposure;
     float saved_scale[WRT_RENDER_MAX_LIGHTS]; /* what Space restores */
     float file_colour[WRT_RENDER_MAX_LIGHTS][3];
@@ -784,7 +785,7 @@ static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch
             for (int k = 1; k <= 8; k++) {
                 double q[3], qx[2];
                 for (int d = 0; d < 3; d++) q[d] = p[d] + (&a->lights[i].dir.x)[d] * len * k / 8;
-                if (wrt_render_project(a->rd, &a->view, q, qx))
+                if (wrt_render_visible(a->rd, &a->view, q, qx)) /* depth-tested: not through walls */
                     wrt_overlay_rect(ov, (float)qx[0] - sc, (float)qx[1] - sc, 2.0f * sc, 2.0f * sc, c);
             }
         }
@@ -822,19 +823,20 @@ static void draw_overlay(app *a, win_state *w) {
         wrt_overlay_draw(ov);
         return;
     }
+    draw_markers(a, w, ov, sc, ch); /* first: the panel and its text go over them */
     char buf[8192];
     size_t n = 0;
 #define ADD(...) n += (size_t)snprintf(buf + n, n < sizeof buf ? sizeof buf - n : 0, __VA_ARGS__)
     const char *base = strrchr(a->o->file, '/');
     ADD("WRT-PLAY  %s  %u quads  [%s]  exposure %+.1f EV  MSAA %dx\n", base ? base + 1 : a->o->file, a->g.nquads,
         wrt_render_mode_name(a->mode), w->exposure, wrt_render_samples(a->rd));
-    ADD("%.1f fps  frame %.1f ms  draw %.1f ms", w->fps, w->frame_ms, w->relight.draw);
+    ADD("%.1f fps  frame %.1f ms  draw %.1f", w->fps, w->frame_ms, w->relight.draw);
     if (w->relit_any)
-        ADD("  last relight: proj %.1f mul %.1f brdf %.1f synth %.1f upload %.1f ms\n", w->relight.projection,
+        ADD("  relight: proj %.1f mul %.1f brdf %.1f syn %.1f up %.1f\n", w->relight.projection,
             w->relight.multiply, w->relight.brdf, w->relight.synthesis, w->relight.upload);
     else
         ADD("\n");
-    ADD("\nLIGHTS  (Tab/1-9 select, Space on/off, +/- intensity, C colour)\n");
+    ADD("LIGHTS  (Tab/1-9 select, Space on/off, +/- intensity, C colour)\n");
     for (int i = 0; i < nshown(a); i++) {
         const wrt_light *l = &a->lights[i];
         ADD("%c %d %-5s %-16.16s %-3s %9.4g cd x%-5.3g (%.2f, %.2f, %.2f) %s\n", i == w->sel ? '>' : ' ', i + 1,
@@ -843,9 +845,12 @@ static void draw_overlay(app *a, win_state *w) {
             colours[w->colour[i]].name);
     }
     if (a->nlights > WRT_RENDER_MAX_LIGHTS) ADD("  (%d more not shown)\n", a->nlights - WRT_RENDER_MAX_LIGHTS);
-    ADD("\nKEYS  mouse (left button) look   W A S D  Q E  move   Shift faster\n"
-        "      arrows / I J K L  U O  move the light   [ ] exposure   T both/direct/indirect\n"
-        "      R reset   F5 reload   F12 screenshot   P print options   H hide   Esc quit\n");
+    if (w->keys_on)
+        ADD("\nKEYS  mouse (left button) look   W A S D  Q E  move   Shift faster\n"
+            "      arrows / I J K L  U O  move the light   [ ] exposure   T both/direct/indirect\n"
+            "      R reset   F5 reload   F12 screenshot   P print options   H hide   Esc quit\n");
+    else
+        ADD("F1 keys   H hide\n");
     if (w->status_until > now) ADD("\n%s\n", w->status);
 #undef ADD
     float tw, th;
@@ -854,7 +859,7 @@ static void draw_overlay(app *a, win_state *w) {
     /* the text, the selected light's line in yellow */
     float y = 8;
     char *line = buf;
-    int lineno = 0, first_light_line = 4;
+    int lineno = 0, first_light_line = 3;
     while (line && *line) {
         char *nl = strchr(line, '\n');
         if (nl) *nl = 0;
@@ -866,7 +871,6 @@ static void draw_overlay(app *a, win_state *w) {
         lineno++;
         line = nl ? nl + 1 : NULL;
     }
-    draw_markers(a, w, ov, sc, ch); /* over the panel: a light behind it stays visible */
     wrt_overlay_draw(ov);
 }
 
@@ -931,12 +935,15 @@ static int run_window(app *a) {
                 else w.saved_scale[w.sel] = fminf(fmaxf(w.saved_scale[w.sel] * f, 1e-4f), 1e4f);
             } else if (k == WRT_KEY_C && !in.events[e].repeat) {
                 int c = (w.colour[w.sel] + 1) % NCOLOURS;
+                while (c != 0 && !memcmp(colours[c].rgb, w.file_colour[w.sel], sizeof colours[c].rgb))
+                    c = (c + 1) % NCOLOURS; /* the same as its own: no visible change */
                 w.colour[w.sel] = c;
                 memcpy(sl->color, c == 0 ? w.file_colour[w.sel] : colours[c].rgb, sizeof sl->color);
             } else if (k == WRT_KEY_LBRACKET) w.exposure = fmaxf(w.exposure - 0.5f, -20);
             else if (k == WRT_KEY_RBRACKET) w.exposure = fminf(w.exposure + 0.5f, 20);
             else if (k == WRT_KEY_T && !in.events[e].repeat) a->mode = (wrt_render_mode)((a->mode + 1) % WRT_MODE_COUNT);
-            else if ((k == WRT_KEY_H || k == WRT_KEY_F1) && !in.events[e].repeat) w.overlay_on = !w.overlay_on;
+            else if (k == WRT_KEY_H && !in.events[e].repeat) w.overlay_on = !w.overlay_on;
+            else if (k == WRT_KEY_F1 && !in.events[e].repeat) { w.keys_on = !w.keys_on; w.overlay_on = 1; }
             else if (k == WRT_KEY_R && !in.events[e].repeat) {
                 (void)setup_view(a); /* checked at the start */
                 free(a->lights);
@@ -1023,16 +1030,16 @@ static int run_window(app *a) {
         if (was_idle == 0 && since > 0) w.fps = w.fps > 0 ? 0.8 * w.fps + 0.2 / since : 1 / since;
         w.last_draw = now;
         wrt_render_present(a->rd, a->o->width, a->o->height, w.exposure);
-        draw_overlay(a, &w);
-        frame++;
-        int last_frame = a->o->frames > 0 && frame >= a->o->frames;
-        if (last_frame && a->o->screenshot) rc = save_window(a, a->o->screenshot);
-        if (shot) {
+        if (shot) { /* F12: the picture, before the overlay is drawn over it */
             char path[64];
             do snprintf(path, sizeof path, "wrt-play-%04d.png", ++w.shots);
             while (access(path, F_OK) == 0 && w.shots < 9999);
             if (save_window(a, path) == 0) say(&w, "saved %s", path);
         }
+        draw_overlay(a, &w);
+        frame++;
+        int last_frame = a->o->frames > 0 && frame >= a->o->frames;
+        if (last_frame && a->o->screenshot) rc = save_window(a, a->o->screenshot);
         p->swap(p);
         if (now - title_at > 0.25 || last_frame || was_idle != idle) {
             win_title(a, &w, idle);
