@@ -90,7 +90,7 @@ wrt_status wrt_overlay_create(wrt_overlay **out) {
     int tw = NGLYPH * CELL_W, th = CELL_H;
     unsigned char *px = wrt_xcalloc((size_t)tw * th, 1);
     for (int g = 0; g < NGLYPH; g++)
-        for (int r = 0; r < 7; r++)
+        for (int r = 0; r < 8; r++)
             for (int b = 0; b < 5; b++)
                 if (wrt_font[g][r] & (1 << (4 - b))) px[(size_t)(r + 1) * tw + g * CELL_W + b] = 255;
     glCreateTextures(GL_TEXTURE_2D, 1, &o->tex);
