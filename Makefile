@@ -76,7 +76,7 @@ PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-sc
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
-.PHONY: all deps demo test tests stress study fuzz clean assets bench mutate install
+.PHONY: all deps demo test tests stress study fuzz clean assets bench timings mutate install
 all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/tests/runtime_instances \
      $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core
 
@@ -262,6 +262,11 @@ study: deps
 
 bench: all
 	bash tools/bench.sh
+	bash tools/readme_times.sh $(BUILD)
+
+# The README's timings (its "Timings" table) measured again: CPU within a factor 2.
+timings: all
+	bash tools/readme_times.sh $(BUILD)
 
 clean:
 	rm -rf build

@@ -26,8 +26,8 @@ void wrt_cli_version(const char *tool) {
 }
 
 static int bad(const char *tool, const char *opt, const char *val, const char *want) {
-    if (!val) fprintf(stderr, "%s: %s needs a value (%s)\n", tool, opt, want);
-    else fprintf(stderr, "%s: bad value for %s: '%s' (%s)\n", tool, opt, val, want);
+    if (!val) fprintf(stderr, "%s: error: %s needs a value (%s)\n", tool, opt, want);
+    else fprintf(stderr, "%s: error: bad value for %s: '%s' (%s)\n", tool, opt, val, want);
     return 0;
 }
 
@@ -154,13 +154,13 @@ int wrt_cli_lights_apply(const char *tool, const wrt_cli_lights *L, wrt_light *l
     int which = L->which ? L->which : 1;
     for (int k = 0; k < WRT_CLI_MAX_LIGHTS; k++) {
         if (!L->scaled[k] || k < n) continue;
-        fprintf(stderr, "%s: %s %d: the scene has %d light%s (lights are numbered from 1)\n", tool,
+        fprintf(stderr, "%s: error: %s %d: the scene has %d light%s (lights are numbered from 1)\n", tool,
                 L->scale[k] == 0 ? "--lights-off" : "--light-scale", k + 1, n, n == 1 ? "" : "s");
         return WRT_EXIT_USAGE;
     }
     int per_light = L->has_pos || L->has_dir || L->has_cone || L->has_intensity || L->has_color;
     if ((L->which || per_light) && which > n) {
-        fprintf(stderr, "%s: --light %d: the scene has %d light%s (lights are numbered from 1)\n", tool, which, n,
+        fprintf(stderr, "%s: error: --light %d: the scene has %d light%s (lights are numbered from 1)\n", tool, which, n,
                 n == 1 ? "" : "s");
         return WRT_EXIT_USAGE;
     }
@@ -168,7 +168,7 @@ int wrt_cli_lights_apply(const char *tool, const wrt_cli_lights *L, wrt_light *l
         wrt_light *l = &lights[which - 1];
         if (L->has_dir && l->type != WRT_LIGHT_SPOT && !L->has_cone) {
             fprintf(stderr,
-                    "%s: --light-dir: light %d ('%s') is a point light, which shines every way; add "
+                    "%s: error: --light-dir: light %d ('%s') is a point light, which shines every way; add "
                     "--light-cone IN,OUT to make it a spot light\n",
                     tool, which, l->name);
             return WRT_EXIT_USAGE;

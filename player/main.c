@@ -41,7 +41,7 @@ static void usage(FILE *f) {
     fprintf(f,
         "usage: wrt-play FILE.gto [options]\n"
         "Relights a scene baked by wrt-bake (Wavelet Radiance Transport) in real time, in a\n"
-        "window or headless into pictures. In the window (H or F1 shows these keys on screen):\n"
+        "window or headless into pictures. In the window (H shows the overlay, F1 these keys in it):\n"
         "  mouse (left button) look       W A S D move, Q E down/up, Shift faster\n"
         "  Tab / 1-9 select a light       arrows or I J K L move it, U O lower/raise it\n"
         "  Space switch it on/off         + - brighter/dimmer, C cycle its colour\n"
@@ -123,6 +123,8 @@ static int parse_args(int argc, char **argv, options *o) {
     o->msaa = 4;
     o->supersample = 1;
     wrt_cli_lights_init(&o->lights);
+    const char *seen[64];
+    int nseen = 0;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -131,7 +133,17 @@ static int parse_args(int argc, char **argv, options *o) {
         int lr = wrt_cli_lights_option(T, &o->lights, argc, argv, &i);
         if (lr < 0) return 0;
         if (lr > 0) continue;
-#define NEED() do { if (!v) { fprintf(stderr, "wrt-play: %s needs a value\n", a); return 0; } i++; } while (0)
+        /* An option given twice is refused (`-o a -o b` would silently take the last), as in wrt-bake. */
+        if (a[0] == '-' && a[1]) {
+            const char *canon = !strcmp(a, "-o") ? "--out" : !strcmp(a, "-h") ? "--help" : a;
+            for (int k = 0; k < nseen; k++)
+                if (!strcmp(seen[k], canon)) {
+                    fprintf(stderr, "wrt-play: error: %s given twice\n", a);
+                    return 0;
+                }
+            if (nseen < (int)(sizeof seen / sizeof *seen)) seen[nseen++] = canon;
+        }
+#define NEED() do { if (!v) { fprintf(stderr, "wrt-play: error: %s needs a value\n", a); return 0; } i++; } while (0)
 #define INT(lo, hi, dst) do { if (!wrt_cli_int(T, a, v, lo, hi, &n)) return 0; i++; dst = (int)n; } while (0)
 #define NUM(lo, hi, dst) do { if (!wrt_cli_num(T, a, v, lo, hi, &x)) return 0; i++; dst = x; } while (0)
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) { usage(stdout); exit(0); }
@@ -154,7 +166,7 @@ static int parse_args(int argc, char **argv, options *o) {
         else if (!strcmp(a, "--shadow-res")) INT(16, 8192, o->shadow_res);
         else if (!strcmp(a, "--msaa")) {
             INT(1, 8, o->msaa);
-            if (o->msaa & (o->msaa - 1)) { fprintf(stderr, "wrt-play: bad value for --msaa: '%s' (1, 2, 4 or 8)\n", v); return 0; }
+            if (o->msaa & (o->msaa - 1)) { fprintf(stderr, "wrt-play: error: bad value for --msaa: '%s' (1, 2, 4 or 8)\n", v); return 0; }
         }
         else if (!strcmp(a, "--supersample")) INT(1, 4, o->supersample);
         else if (!strcmp(a, "--exposure")) { double e; NUM(-64, 64, e); o->exposure = (float)e; }
@@ -163,26 +175,26 @@ static int parse_args(int argc, char **argv, options *o) {
         else if (!strcmp(a, "--camera-pos")) { if (!wrt_cli_vec3(T, a, v, o->cam_pos)) return 0; i++; o->has_cam_pos = 1; }
         else if (!strcmp(a, "--camera-target")) { if (!wrt_cli_vec3(T, a, v, o->cam_target)) return 0; i++; o->has_cam_target = 1; }
         else if (a[0] == '-' && a[1]) {
-            fprintf(stderr, "wrt-play: unknown option %s (see --help)\n", a);
+            fprintf(stderr, "wrt-play: error: unknown option %s (see --help)\n", a);
             return 0;
         } else if (!o->file) o->file = a;
         else {
-            fprintf(stderr, "wrt-play: more than one input file ('%s', '%s')\n", o->file, a);
+            fprintf(stderr, "wrt-play: error: more than one input file ('%s', '%s')\n", o->file, a);
             return 0;
         }
 #undef NEED
 #undef INT
 #undef NUM
     }
-    if (!o->file) { fprintf(stderr, "wrt-play: no input file (see --help)\n"); return 0; }
+    if (!o->file) { fprintf(stderr, "wrt-play: error: no input file (see --help)\n"); return 0; }
     if (o->has_cam_pos && o->has_cam_target && o->cam_pos[0] == o->cam_target[0] &&
         o->cam_pos[1] == o->cam_target[1] && o->cam_pos[2] == o->cam_target[2]) {
-        fprintf(stderr, "wrt-play: --camera-pos equals --camera-target: the camera has no view direction\n");
+        fprintf(stderr, "wrt-play: error: --camera-pos equals --camera-target: the camera has no view direction\n");
         return 0;
     }
-    if (o->script && !o->pattern) { fprintf(stderr, "wrt-play: --script needs --out-pattern\n"); return 0; }
+    if (o->script && !o->pattern) { fprintf(stderr, "wrt-play: error: --script needs --out-pattern\n"); return 0; }
     if (o->headless && !o->out && !o->script && !o->stats && !o->bench) {
-        fprintf(stderr, "wrt-play: --headless needs -o/--out, --script, --stats-json or --bench\n");
+        fprintf(stderr, "wrt-play: error: --headless needs -o/--out, --script, --stats-json or --bench\n");
         return 0;
     }
     return 1;
@@ -382,7 +394,7 @@ static int save_picture(app *a, const char *path) {
     }
     free(lin);
     if (s) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         return EXIT_OUTPUT;
     }
     return 0;
@@ -406,7 +418,7 @@ static void json_key_nums(FILE *f, const char *key, const double *v, int n, int 
 static int write_stats(app *a, const char *path) {
     wrt_output out; /* a regular file only, through a temporary (common/outfile.h) */
     if (wrt_output_begin(path, "w", &out) != WRT_OK) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         return EXIT_OUTPUT;
     }
     FILE *f = out.f;
@@ -445,7 +457,7 @@ static int write_stats(app *a, const char *path) {
     }
     fprintf(f, "\n  ]\n}\n");
     if (wrt_output_commit(&out) != WRT_OK) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         return EXIT_OUTPUT;
     }
     return 0;
@@ -509,7 +521,7 @@ static int setup_view(app *a) {
     double d2 = 0;
     for (int k = 0; k < 3; k++) d2 += (a->view.target[k] - a->view.eye[k]) * (a->view.target[k] - a->view.eye[k]);
     if (!(d2 > 0)) {
-        fprintf(stderr, "wrt-play: the camera's position (%g, %g, %g) equals its target: no view direction\n",
+        fprintf(stderr, "wrt-play: error: the camera's position (%g, %g, %g) equals its target: no view direction\n",
                 a->view.eye[0], a->view.eye[1], a->view.eye[2]);
         return 0;
     }
@@ -526,7 +538,7 @@ typedef struct keyframe {
 static int read_script(app *a, const char *path, keyframe **out, int *count) {
     FILE *f = fopen(path, "r");
     if (!f) {
-        fprintf(stderr, "wrt-play: cannot read the script %s: %s\n", path, strerror(errno));
+        fprintf(stderr, "wrt-play: error: cannot read the script %s: %s\n", path, strerror(errno));
         return EXIT_INPUT;
     }
     keyframe cur;
@@ -550,7 +562,7 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
         double t;
         if (!parse_num(tok, -1e12, 1e12, &t)) goto bad_line;
         if (n > 0 && t < kf[n - 1].t) {
-            fprintf(stderr, "wrt-play: %s:%d: times must not decrease\n", path, lineno);
+            fprintf(stderr, "wrt-play: error: %s:%d: times must not decrease\n", path, lineno);
             goto fail;
         }
         cur.t = t;
@@ -564,7 +576,7 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
             else if (!strcmp(tok, "camera_target")) dst = cur.ctarget;
             else if (!strcmp(tok, "light_intensity")) { dst = &cur.lint; nv = 1; }
             else {
-                fprintf(stderr, "wrt-play: %s:%d: unknown key '%s'\n", path, lineno, tok);
+                fprintf(stderr, "wrt-play: error: %s:%d: unknown key '%s'\n", path, lineno, tok);
                 goto fail;
             }
             for (int k = 0; k < nv; k++) {
@@ -572,7 +584,7 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
                 /* within what the computation can carry (common/limits.h) */
                 if (!tok || (nv == 1 ? !parse_num(tok, 0, WRT_MAX_LIGHT_INTENSITY, &dst[k])
                                      : !parse_num(tok, -WRT_MAX_COORD, WRT_MAX_COORD, &dst[k]))) {
-                    fprintf(stderr, "wrt-play: %s:%d: %s needs %s\n", path, lineno, key,
+                    fprintf(stderr, "wrt-play: error: %s:%d: %s needs %s\n", path, lineno, key,
                             nv == 1 ? "an intensity in [0, 1e12] cd" : "three numbers, each within +-1e9");
                     goto fail;
                 }
@@ -585,12 +597,12 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
         kf[n++] = cur;
         continue;
     bad_line:
-        fprintf(stderr, "wrt-play: %s:%d: expected 't key values...' (see --help)\n", path, lineno);
+        fprintf(stderr, "wrt-play: error: %s:%d: expected 't key values...' (see --help)\n", path, lineno);
         goto fail;
     }
     fclose(f);
     if (n == 0) {
-        fprintf(stderr, "wrt-play: %s: no keyframes\n", path);
+        fprintf(stderr, "wrt-play: error: %s: no keyframes\n", path);
         free(kf);
         return EXIT_INPUT;
     }
@@ -629,7 +641,7 @@ static int run_script(app *a) {
     /* bounded: a keyframe at t = 1e6 with --script-fps 1000 asked for 10^9 pictures */
     double want = fps > 0 ? floor((kf[n - 1].t - kf[0].t) * fps + 1e-9) + 1 : n;
     if (!(want <= WRT_PLAY_MAX_FRAMES)) {
-        fprintf(stderr, "wrt-play: %s: the keyframes ask for %.4g frames (t %g to %g s%s); at most %d\n",
+        fprintf(stderr, "wrt-play: error: %s: the keyframes ask for %.4g frames (t %g to %g s%s); at most %d\n",
                 a->o->script, want, kf[0].t, kf[n - 1].t, fps > 0 ? " at --script-fps" : "", WRT_PLAY_MAX_FRAMES);
         free(kf);
         return EXIT_INPUT;
@@ -637,7 +649,7 @@ static int run_script(app *a) {
     int frames = (int)want;
     char path[4096];
     if (!format_frame(a->o->pattern, 0, path, sizeof path)) {
-        fprintf(stderr, "wrt-play: --out-pattern '%s' needs exactly one %%d or %%0Nd\n", a->o->pattern);
+        fprintf(stderr, "wrt-play: error: --out-pattern '%s' needs exactly one %%d or %%0Nd\n", a->o->pattern);
         free(kf);
         return EXIT_USAGE;
     }
@@ -726,16 +738,17 @@ static int run_bench(app *a) {
 
 /* ---------------------------------------------------------------- window */
 
-/* The colours C cycles through; the first is the light's own colour from the file. */
+/* The colours C cycles through; the first is the light's own colour from the file, shown
+ * as "own" (C skips a colour the same as it, so each press changes the light). */
 static const struct { const char *name; float rgb[3]; } colours[] = {
-    {"file", {1, 1, 1}}, {"white", {1, 1, 1}}, {"warm", {1.0f, 0.72f, 0.45f}}, {"cool", {0.62f, 0.78f, 1.0f}},
+    {"own", {1, 1, 1}}, {"white", {1, 1, 1}}, {"warm", {1.0f, 0.72f, 0.45f}}, {"cool", {0.62f, 0.78f, 1.0f}},
     {"red", {1.0f, 0.25f, 0.2f}}, {"green", {0.3f, 1.0f, 0.35f}}, {"blue", {0.3f, 0.45f, 1.0f}},
 };
 #define NCOLOURS ((int)(sizeof colours / sizeof colours[0]))
 
 typedef struct win_state {
     wrt_overlay *ov;
-    int sel, overlay_on;
+    int sel, overlay_on, keys_on; /* keys_on: the overlay lists the keys (F1) */
     float exposure;
     float saved_scale[WRT_RENDER_MAX_LIGHTS]; /* what Space restores */
     float file_colour[WRT_RENDER_MAX_LIGHTS][3];
@@ -793,7 +806,7 @@ static int save_window(app *a, const char *path) {
     wrt_render_read_window(a->o->width, a->o->height, b);
     wrt_status s = wrt_image_write_rgb8(path, b, a->o->width, a->o->height);
     free(b);
-    if (s) fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+    if (s) fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
     return s ? EXIT_OUTPUT : 0;
 }
 
@@ -820,12 +833,12 @@ static int win_reload(app *a, win_state *w) {
     wrt_runtime_options ro = {.max_tex_res = a->o->max_tex_res, .threads = a->o->threads};
     wrt_error err;
     if (wrt_runtime_open_memory(a->g.map, a->g.size, &ro, &a->rl, &err)) {
-        fprintf(stderr, "wrt-play: %s\n", err.message);
+        fprintf(stderr, "wrt-play: error: %s\n", err.message);
         return EXIT_RUNTIME;
     }
     wrt_render_options rdo = {a->o->width, a->o->height, a->o->shadow_res, a->o->msaa};
     if ((s = wrt_render_create(&a->g, &rdo, &a->rd))) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         return s == WRT_ERR_GL ? EXIT_GL : EXIT_RUNTIME;
     }
     a->relit_once = 0;
@@ -862,7 +875,7 @@ static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch
             for (int k = 1; k <= 8; k++) {
                 double q[3], qx[2];
                 for (int d = 0; d < 3; d++) q[d] = p[d] + (&a->lights[i].dir.x)[d] * len * k / 8;
-                if (wrt_render_project(a->rd, &a->view, q, qx))
+                if (wrt_render_visible(a->rd, &a->view, q, qx)) /* depth-tested: not through walls */
                     wrt_overlay_rect(ov, (float)qx[0] - sc, (float)qx[1] - sc, 2.0f * sc, 2.0f * sc, c);
             }
         }
@@ -900,19 +913,20 @@ static void draw_overlay(app *a, win_state *w) {
         wrt_overlay_draw(ov);
         return;
     }
+    draw_markers(a, w, ov, sc, ch); /* first: the panel and its text go over them */
     char buf[8192];
     size_t n = 0;
 #define ADD(...) n += (size_t)snprintf(buf + n, n < sizeof buf ? sizeof buf - n : 0, __VA_ARGS__)
     const char *base = strrchr(a->o->file, '/');
     ADD("WRT-PLAY  %s  %u quads  [%s]  exposure %+.1f EV  MSAA %dx\n", base ? base + 1 : a->o->file, a->g.nquads,
         wrt_render_mode_name(a->mode), w->exposure, wrt_render_samples(a->rd));
-    ADD("%.1f fps  frame %.1f ms  draw %.1f ms", w->fps, w->frame_ms, w->relight.draw);
+    ADD("%.1f fps  frame %.1f ms  draw %.1f", w->fps, w->frame_ms, w->relight.draw);
     if (w->relit_any)
-        ADD("  last relight: proj %.1f mul %.1f brdf %.1f synth %.1f upload %.1f ms\n", w->relight.projection,
+        ADD("  relight: proj %.1f mul %.1f brdf %.1f syn %.1f up %.1f\n", w->relight.projection,
             w->relight.multiply, w->relight.brdf, w->relight.synthesis, w->relight.upload);
     else
         ADD("\n");
-    ADD("\nLIGHTS  (Tab/1-9 select, Space on/off, +/- intensity, C colour)\n");
+    ADD("LIGHTS  (Tab/1-9 select, Space on/off, +/- intensity, C colour)\n");
     for (int i = 0; i < nshown(a); i++) {
         const wrt_light *l = &a->lights[i];
         ADD("%c %d %-5s %-16.16s %-3s %9.4g cd x%-5.3g (%.2f, %.2f, %.2f) %s\n", i == w->sel ? '>' : ' ', i + 1,
@@ -921,9 +935,12 @@ static void draw_overlay(app *a, win_state *w) {
             colours[w->colour[i]].name);
     }
     if (a->nlights > WRT_RENDER_MAX_LIGHTS) ADD("  (%d more not shown)\n", a->nlights - WRT_RENDER_MAX_LIGHTS);
-    ADD("\nKEYS  mouse (left button) look   W A S D  Q E  move   Shift faster\n"
-        "      arrows / I J K L  U O  move the light   [ ] exposure   T both/direct/indirect\n"
-        "      R reset   F5 reload   F12 screenshot   P print options   H hide   Esc quit\n");
+    if (w->keys_on)
+        ADD("\nKEYS  mouse (left button) look   W A S D  Q E  move   Shift faster\n"
+            "      arrows / I J K L  U O  move the light   [ ] exposure   T both/direct/indirect\n"
+            "      R reset   F5 reload   F12 screenshot   P print options   H hide   Esc quit\n");
+    else
+        ADD("F1 keys   H hide\n");
     if (w->status_until > now) ADD("\n%s\n", w->status);
 #undef ADD
     float tw, th;
@@ -932,7 +949,7 @@ static void draw_overlay(app *a, win_state *w) {
     /* the text, the selected light's line in yellow */
     float y = 8;
     char *line = buf;
-    int lineno = 0, first_light_line = 4;
+    int lineno = 0, first_light_line = 3;
     while (line && *line) {
         char *nl = strchr(line, '\n');
         if (nl) *nl = 0;
@@ -944,7 +961,6 @@ static void draw_overlay(app *a, win_state *w) {
         lineno++;
         line = nl ? nl + 1 : NULL;
     }
-    draw_markers(a, w, ov, sc, ch); /* over the panel: a light behind it stays visible */
     wrt_overlay_draw(ov);
 }
 
@@ -967,7 +983,7 @@ static int run_window(app *a) {
     w.exposure = a->o->exposure;
     w.sel = chosen_light(a) < nshown(a) ? chosen_light(a) : 0;
     if (wrt_overlay_create(&w.ov)) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         return EXIT_GL;
     }
     win_reset_lights(a, &w);
@@ -1023,12 +1039,15 @@ static int run_window(app *a) {
                 else w.saved_scale[w.sel] = fminf(fmaxf(w.saved_scale[w.sel] * f, 1e-4f), 1e4f);
             } else if (k == WRT_KEY_C && !in.events[e].repeat) {
                 int c = (w.colour[w.sel] + 1) % NCOLOURS;
+                while (c != 0 && !memcmp(colours[c].rgb, w.file_colour[w.sel], sizeof colours[c].rgb))
+                    c = (c + 1) % NCOLOURS; /* the same as its own: no visible change */
                 w.colour[w.sel] = c;
                 memcpy(sl->color, c == 0 ? w.file_colour[w.sel] : colours[c].rgb, sizeof sl->color);
             } else if (k == WRT_KEY_LBRACKET) w.exposure = fmaxf(w.exposure - 0.5f, -20);
             else if (k == WRT_KEY_RBRACKET) w.exposure = fminf(w.exposure + 0.5f, 20);
             else if (k == WRT_KEY_T && !in.events[e].repeat) a->mode = (wrt_render_mode)((a->mode + 1) % WRT_MODE_COUNT);
-            else if ((k == WRT_KEY_H || k == WRT_KEY_F1) && !in.events[e].repeat) w.overlay_on = !w.overlay_on;
+            else if (k == WRT_KEY_H && !in.events[e].repeat) w.overlay_on = !w.overlay_on;
+            else if (k == WRT_KEY_F1 && !in.events[e].repeat) { w.keys_on = !w.keys_on; w.overlay_on = 1; }
             else if (k == WRT_KEY_R && !in.events[e].repeat) {
                 (void)setup_view(a); /* checked at the start */
                 free(a->lights);
@@ -1115,16 +1134,16 @@ static int run_window(app *a) {
         if (was_idle == 0 && since > 0) w.fps = w.fps > 0 ? 0.8 * w.fps + 0.2 / since : 1 / since;
         w.last_draw = now;
         wrt_render_present(a->rd, a->o->width, a->o->height, w.exposure);
-        draw_overlay(a, &w);
-        frame++;
-        int last_frame = a->o->frames > 0 && frame >= a->o->frames;
-        if (last_frame && a->o->screenshot) rc = save_window(a, a->o->screenshot);
-        if (shot) {
+        if (shot) { /* F12: the picture, before the overlay is drawn over it */
             char path[64];
             do snprintf(path, sizeof path, "wrt-play-%04d.png", ++w.shots);
             while (access(path, F_OK) == 0 && w.shots < 9999);
             if (save_window(a, path) == 0) say(&w, "saved %s", path);
         }
+        draw_overlay(a, &w);
+        frame++;
+        int last_frame = a->o->frames > 0 && frame >= a->o->frames;
+        if (last_frame && a->o->screenshot) rc = save_window(a, a->o->screenshot);
         p->swap(p);
         if (now - title_at > 0.25 || last_frame || was_idle != idle) {
             win_title(a, &w, idle);
@@ -1155,7 +1174,9 @@ int main(int argc, char **argv) {
     a.mode = o.mode;
     wrt_status s = read_gto(o.file, &a.g, &a.gto_mem, &a.gto_st);
     if (s) {
-        fprintf(stderr, "wrt-play: %s: %s: %s\n", o.file, wrt_status_str(s), wrt_last_error());
+        const char *e = wrt_last_error(); /* named once: some of the reader's messages name it */
+        if (!strncmp(e, o.file, strlen(o.file))) fprintf(stderr, "wrt-play: error: %s\n", e);
+        else fprintf(stderr, "wrt-play: error: %s: %s\n", o.file, e);
         return EXIT_INPUT;
     }
     /* the view and the lights first: a light the file does not have is refused before
@@ -1169,7 +1190,7 @@ int main(int argc, char **argv) {
     if (o.headless) s = wrt_platform_egl_create(&a.plat);
     else s = wrt_platform_glfw_create(o.width, o.height, "wrt-play", &a.plat);
     if (s) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         free(a.lights);
         close_gto(&a.g, &a.gto_mem);
         return EXIT_GL;
@@ -1180,14 +1201,14 @@ int main(int argc, char **argv) {
     }
     wrt_runtime_options ro = {.max_tex_res = o.max_tex_res, .threads = o.threads};
     if ((s = wrt_runtime_open_memory(a.g.map, a.g.size, &ro, &a.rl, NULL))) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         rc = EXIT_RUNTIME;
         goto done;
     }
     int ss = o.headless ? o.supersample : 1;
     wrt_render_options rdo = {o.width * ss, o.height * ss, o.shadow_res, o.msaa};
     if ((s = wrt_render_create(&a.g, &rdo, &a.rd))) {
-        fprintf(stderr, "wrt-play: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         rc = s == WRT_ERR_GL ? EXIT_GL : EXIT_USAGE;
         goto done;
     }

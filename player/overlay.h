@@ -1,5 +1,5 @@
 /* overlay.h: the window's on-screen overlay: filled rectangles and text in a small
- * built-in 5x7 bitmap font, in pixels from the top-left corner, drawn over whatever the
+ * built-in 5x7 bitmap font (cli/font.h), in pixels from the top-left corner, drawn over whatever the
  * current framebuffer holds (alpha blended). Batched: begin, add, draw once per frame.
  * Depends on OpenGL 4.5 core (a current context, see platform.h), wrt_common.h.
  * Not thread-safe: call from the thread whose context is current. */
@@ -18,15 +18,16 @@ void wrt_overlay_destroy(wrt_overlay *o); /* NULL is a no-op */
 void wrt_overlay_begin(wrt_overlay *o, int fb_w, int fb_h);
 void wrt_overlay_rect(wrt_overlay *o, float x, float y, float w, float h, const float rgba[4]);
 /* Text at (x, y) (top-left of the first cell), each font pixel `scale` pixels wide; a
- * character cell is 6 x 9 font pixels; '\n' starts a new line. Lower case is drawn as
- * upper case. Returns the width of the widest line in pixels. */
+ * character cell is 6 x 9 font pixels (cli/font.h); '\n' starts a new line. Returns
+ * the width of the widest line in pixels. */
 float wrt_overlay_text(wrt_overlay *o, float x, float y, int scale, const float rgba[4], const char *s);
 /* Width and height in pixels the text would take. */
 void wrt_overlay_measure(const char *s, int scale, float *w, float *h);
 /* Draws the batch into the current framebuffer (viewport fb_w x fb_h). */
 void wrt_overlay_draw(wrt_overlay *o);
 
-/* The font's 7 rows of 5 bits (bit 4 = leftmost) for a character (blank if it has none). */
+/* The font's 8 rows of 5 bits (bit 4 = leftmost; the 8th below the baseline) for a
+ * character (blank if it has none). */
 const unsigned char *wrt_overlay_glyph(int c);
 
 #endif

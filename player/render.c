@@ -731,15 +731,23 @@ int wrt_render_upload(wrt_render *r) {
 /* ---------------------------------------------------------------- drawing */
 
 /* The view-projection matrix of v (positions relative to r->origin) and the eye. */
+/* The near and far planes for an eye at `eye` (relative to the origin): the scene's
+ * bounding sphere between them. */
+static void near_far(const wrt_render *r, const double eye[3], double *zn, double *zf) {
+    double de = v3_len(v3(eye[0], eye[1], eye[2]));
+    *zf = (de + r->radius) * 1.05;
+    *zn = fmax(*zf * 1e-5, (de - r->radius) * 0.5);
+    if (*zn > *zf * 0.5) *zn = *zf * 1e-5;
+}
+
 static void view_projection(const wrt_render *r, const wrt_view *v, double vp[16], double eye[3]) {
     double at[3], view[16], proj[16];
     for (int k = 0; k < 3; k++) {
         eye[k] = v->eye[k] - r->origin[k];
         at[k] = v->target[k] - r->origin[k];
     }
-    double de = v3_len(v3(eye[0], eye[1], eye[2]));
-    double zf = (de + r->radius) * 1.05, zn = fmax(zf * 1e-5, (de - r->radius) * 0.5);
-    if (zn > zf * 0.5) zn = zf * 1e-5;
+    double zn, zf;
+    near_far(r, eye, &zn, &zf);
     mat_look_at(eye, at, v->up, view);
     mat_perspective(v->yfov > 0 ? v->yfov : WRT_PI / 4, (double)r->width / r->height, zn, zf, proj);
     mat_mul(proj, view, vp);
@@ -754,6 +762,25 @@ int wrt_render_project(const wrt_render *r, const wrt_view *v, const double p[3]
     px[0] = (q[0] / q[3] * 0.5 + 0.5) * r->width;
     px[1] = (0.5 - q[1] / q[3] * 0.5) * r->height;
     return 1;
+}
+
+int wrt_render_visible(const wrt_render *r, const wrt_view *v, const double p[3], double px[2]) {
+    double vp[16], eye[3], q[4];
+    view_projection(r, v, vp, eye);
+    double x[4] = {p[0] - r->origin[0], p[1] - r->origin[1], p[2] - r->origin[2], 1};
+    for (int i = 0; i < 4; i++) q[i] = vp[i] * x[0] + vp[4 + i] * x[1] + vp[8 + i] * x[2] + vp[12 + i] * x[3];
+    if (!(q[3] > 1e-9)) return 0;
+    px[0] = (q[0] / q[3] * 0.5 + 0.5) * r->width;
+    px[1] = (0.5 - q[1] / q[3] * 0.5) * r->height;
+    int ix = (int)floor(px[0]), iy = r->height - 1 - (int)floor(px[1]);
+    if (ix < 0 || iy < 0 || ix >= r->width || iy >= r->height) return 1; /* outside the picture: nothing hides it */
+    float d = 1;
+    glGetTextureSubImage(r->depth, 0, ix, iy, 0, 1, 1, 1, GL_DEPTH_COMPONENT, GL_FLOAT, sizeof d, &d);
+    if (!(d < 1)) return 1; /* nothing drawn there */
+    double zn, zf;
+    near_far(r, eye, &zn, &zf);
+    double zs = 2 * zn * zf / (zf + zn - (2.0 * d - 1) * (zf - zn)); /* the surface's distance along the view */
+    return q[3] <= zs * 1.002;
 }
 
 int wrt_render_samples(const wrt_render *r) { return r->samples; }
@@ -822,7 +849,7 @@ void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode) {
     glDrawElements(GL_TRIANGLES, (GLsizei)(r->g->nquads * 6), GL_UNSIGNED_INT, NULL);
     if (r->ms_fbo)
         glBlitNamedFramebuffer(r->ms_fbo, r->fbo, 0, 0, r->width, r->height, 0, 0, r->width, r->height,
-                               GL_COLOR_BUFFER_BIT, GL_NEAREST);
+                               GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT, GL_NEAREST); /* depth: wrt_render_visible */
 }
 
 void wrt_render_present(wrt_render *r, int fb_w, int fb_h, float exposure_ev) {

@@ -68,6 +68,10 @@ void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode);
 /* Where world point p lands in the picture: pixels from the top-left corner; 0 if it
  * is behind the eye. */
 int wrt_render_project(const wrt_render *r, const wrt_view *v, const double p[3], double px[2]);
+/* As wrt_render_project, and 1 only if nothing drawn in the last picture (its depth
+ * buffer) lies in front of p: the overlay's marks in the scene, not through its walls.
+ * Reads one depth value back from the GPU (a short stall): for a few points a frame. */
+int wrt_render_visible(const wrt_render *r, const wrt_view *v, const double p[3], double px[2]);
 /* The samples per pixel in use (1 = no MSAA). */
 int wrt_render_samples(const wrt_render *r);
 /* Tone maps the picture into the current default framebuffer (a window) of fb_w x fb_h. */

@@ -307,21 +307,23 @@ static int run_info(const bake_args *A) {
     return 0;
 }
 
+/* 1 if path is a regular file that starts with the .gto magic (a FIFO is not opened). */
+static int is_gto_file(const char *path) {
+    struct stat sst;
+    FILE *sf = stat(path, &sst) == 0 && S_ISREG(sst.st_mode) ? fopen(path, "rb") : NULL;
+    char magic[8] = {0};
+    size_t got = sf ? fread(magic, 1, sizeof magic, sf) : 0;
+    if (sf) fclose(sf);
+    return got == sizeof magic && !memcmp(magic, "\x89WRT\r\n\x1a\n", sizeof magic);
+}
+
 /* --scan SCENE */
 static int run_scan(const bake_args *A, const wrt_load_options *lo) {
     const char *scan = A->scan;
     /* a baked file given by mistake: say so rather than show the glTF parser's error */
-    struct stat sst;
-    FILE *sf = stat(scan, &sst) == 0 && S_ISREG(sst.st_mode) ? fopen(scan, "rb") : NULL; /* no FIFO waits */
-    char magic[8] = {0};
-    if (sf) {
-        size_t got = fread(magic, 1, sizeof magic, sf);
-        fclose(sf);
-        if (got == sizeof magic && !memcmp(magic, "\x89WRT\r\n\x1a\n", sizeof magic)) { /* .gto magic */
-            fprintf(stderr, "wrt-bake: error: %s is a baked .gto file, not a scene: use --info to inspect it\n",
-                    scan);
-            return WRT_EXIT_INPUT;
-        }
+    if (is_gto_file(scan)) {
+        fprintf(stderr, "wrt-bake: error: %s is a baked .gto file, not a scene: use --info to inspect it\n", scan);
+        return WRT_EXIT_INPUT;
     }
     wrt_scene s;
     wrt_load_options slo = *lo;
@@ -616,6 +618,10 @@ int main(int argc, char **argv) {
     wrt_load_options lo = {.drop_bad = A.drop_bad, .allow_outside_files = A.allow_outside};
     if (A.scan) return run_scan(&A, &lo);
     if (!A.scene_path) { usage(stderr); return WRT_EXIT_USAGE; }
+    if (is_gto_file(A.scene_path)) { /* not the JSON parser's complaint about its bytes */
+        fprintf(stderr, "wrt-bake: error: %s: this is a .gto file; bake a .gltf, or use --info\n", A.scene_path);
+        return WRT_EXIT_INPUT;
+    }
     if (!A.out_path) { fprintf(stderr, "wrt-bake: error: no output file (-o OUT.gto)\n"); return WRT_EXIT_USAGE; }
     wrt_cli_progress_enable(!A.quiet && (A.force_progress || isatty(2)));
     return bake(&A, &lo);

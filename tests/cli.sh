@@ -21,7 +21,12 @@ expect() {
 tools=(wrt-bake wrt-play wrt-ref wrt-compare wrt-scenegen)
 for t in "${tools[@]}"; do
     [ -x "$build/$t" ] || { ko "$build/$t not built"; continue; }
-    expect "$t --version" 0 "^$t [0-9]+\.[0-9]+\.[0-9]+ \(\.gto version [0-9]+\)" "$build/$t" --version
+    if [ "$t" = wrt-scenegen ]; then  # it writes glTF and never a .gto: no .gto version
+        expect "$t --version" 0 "^$t [0-9]+\.[0-9]+\.[0-9]+ \(writes glTF 2\.0\)$" "$build/$t" --version
+        grep -q "gto" "$tmp/out" && ko "$t --version names no .gto version" || ok "$t --version names no .gto version"
+    else
+        expect "$t --version" 0 "^$t [0-9]+\.[0-9]+\.[0-9]+ \(\.gto version [0-9]+\)" "$build/$t" --version
+    fi
     "$build/$t" --help >"$tmp/help" 2>&1
     # the table, the same lines in every tool
     if grep -q "exit codes (the same in every wrt tool)" "$tmp/help" &&
@@ -79,6 +84,37 @@ expect "--scan of a .gto: exit 2, named" 2 "is a baked .gto file, not a scene" "
 grep -q '^provenance: wrt-bake .* from assets/cornell.gltf' "$tmp/info" && ! grep -q '{' "$tmp/info" &&
     ok "--info: provenance as text, no raw JSON" || ko "--info: provenance as text, no raw JSON"
 grep -q "0\.00 s" "$tmp/info" && ko "--info shows no 0.00 s" || ok "--info shows no 0.00 s"
+# Messages: each wrong input below gets its exit code and one line on stderr, starting
+# "TOOL: error:" and saying what is wrong (the same prefix in every tool).
+# one_line NAME CODE TOOL REGEX ARGS...
+one_line() {
+    local name=$1 code=$2 tool=$3 re=$4; shift 4
+    "$build/$tool" "$@" >"$tmp/out" 2>"$tmp/err"; local rc=$? n
+    n=$(wc -l <"$tmp/err")
+    if [ $rc -eq "$code" ] && [ "$n" -eq 1 ] && grep -Eq -- "^$tool: error: $re" "$tmp/err"; then
+        ok "$name: exit $code, one line: $(cat "$tmp/err")"
+    else
+        echo "    exit $rc, $n lines"; ko "$name"
+    fi
+}
+one_line "wrt-bake of a .gto" 2 wrt-bake "$gto: this is a \.gto file; bake a \.gltf, or use --info$" "$gto" -o "$tmp/y.gto"
+one_line "wrt-bake of a .gto, no -o" 2 wrt-bake "$gto: this is a \.gto file" "$gto"
+one_line "wrt-scenegen without -o" 1 wrt-scenegen "no output file: wrt-scenegen cornell -o FILE\.gltf$" cornell
+one_line "wrt-scenegen -o without a scene" 1 wrt-scenegen "no scene name before -o $tmp/s.gltf" -o "$tmp/s.gltf"
+one_line "wrt-scenegen unknown scene" 1 wrt-scenegen "unknown scene nope" nope -o "$tmp/s.gltf"
+one_line "wrt-play -o given twice" 1 wrt-play "-o given twice$" "$gto" --headless -o "$tmp/x.png" -o "$tmp/y.png"
+one_line "wrt-play --out after -o" 1 wrt-play "--out given twice$" "$gto" --headless -o "$tmp/x.png" --out "$tmp/y.png"
+one_line "wrt-play missing file, named once" 2 wrt-play "$tmp/nope\.gto: cannot open: No such file or directory$" \
+    "$tmp/nope.gto" --headless -o "$tmp/x.png"
+[ "$(grep -o "nope\.gto" "$tmp/err" | wc -l)" -eq 1 ] && ok "wrt-play names the missing file once" || ko "wrt-play names the missing file once"
+printf 'not a gto at all' >"$tmp/foreign.gto"
+one_line "wrt-play foreign file, named" 2 wrt-play "$tmp/foreign\.gto: not a \.gto file" "$tmp/foreign.gto" --headless -o "$tmp/x.png"
+one_line "wrt-ref bad value" 1 wrt-ref "bad value for --spp: '0'" "$scene" --spp 0
+one_line "wrt-ref no scene" 1 wrt-ref "no scene" --spp 4
+one_line "wrt-compare unknown option" 1 wrt-compare "unknown option --frobnicate" "$scene" "$gto" --frobnicate
+one_line "wrt-play light out of range" 1 wrt-play "--light 2: the scene has 1 light" "$gto" --headless -o "$tmp/x.png" --light 2 --light-pos 0,0.5,0
+one_line "wrt-bake unknown option" 1 wrt-bake "unknown option '--frobnicate'" "$scene" -o "$tmp/x.gto" --frobnicate
+
 # no display: exit 6
 expect "wrt-play without a display: exit 6" 6 "display|window" env -u DISPLAY -u WAYLAND_DISPLAY "$build/wrt-play" "$gto"
 

@@ -137,13 +137,41 @@ KEYS
         else
             cat "$tmp/win.log"; ko "window: F12 saved two screenshots"
         fi
+        # F12 saves the picture without the overlay: saved with the overlay on, then after H
+        # hid it, the two pictures' means agree within 0.5% (the overlay moves the mean by
+        # more than 1%, checked above); the confirmation names the file as it is written
+        cat >"$tmp/f12.sh" <<KEYS
+#!/bin/bash
+cd "$tmp" && rm -f wrt-play-*.png
+"$PWD/$play" "$gto" "\${@}" >"$tmp/f12.log" 2>&1 &
+pid=\$!
+for i in \$(seq 50); do wid=\$(xdotool search --name wrt-play 2>/dev/null | head -n 1); [ -n "\$wid" ] && break; sleep 0.2; done
+sleep 3
+xdotool key --window "\$wid" F12; sleep 2
+xdotool key --window "\$wid" h; sleep 1
+xdotool key --window "\$wid" F12; sleep 2
+xdotool key --window "\$wid" Escape
+wait \$pid
+KEYS
+        timeout 90 xvfb-run -a -s "-screen 0 800x600x24" bash "$tmp/f12.sh" "${W[@]}" >/dev/null 2>&1
+        if [ -f "$tmp/wrt-play-0001.png" ] && [ -f "$tmp/wrt-play-0002.png" ]; then
+            m2=$("$img" --stats "$tmp/wrt-play-0001.png" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+            m3=$("$img" --stats "$tmp/wrt-play-0002.png" | sed -E 's/.*mean ([0-9.e+-]+).*/\1/')
+            awk -v a="$m2" -v b="$m3" 'BEGIN { d = (a - b) / b; exit !(d < 0.005 && d > -0.005) }' &&
+                ok "F12 saves without the overlay (mean $m2 with the overlay shown, $m3 hidden)" ||
+                ko "F12 saves without the overlay (mean $m2 with the overlay shown, $m3 hidden)"
+            grep -q "^wrt-play: saved wrt-play-0001.png$" "$tmp/f12.log" && ok "F12 names the file it wrote" ||
+                ko "F12 names the file it wrote: $(cat "$tmp/f12.log")"
+        else
+            cat "$tmp/f12.log"; ko "window: F12 with the overlay saved a screenshot"
+        fi
     fi
 
     # truncated copies: a clear message and exit 2, never a crash
     size=$(stat -c %s "$gto")
     for cut in 0 7 64 $((size / 2)) $((size - 1)); do
         head -c "$cut" "$gto" >"$tmp/cut.gto"
-        expect_exit "truncated to $cut bytes: exit 2" 2 "trunc|corrupt|short|small|not" "$play" "$tmp/cut.gto" --headless --out "$tmp/x.png"
+        expect_exit "truncated to $cut bytes: exit 2" 2 "trunc|corrupt|short|small|empty|not" "$play" "$tmp/cut.gto" --headless --out "$tmp/x.png"
     done
     # one byte complemented in the header, the middle (operator values) and near the end
     # (provenance): each caught by its section's checksum, exit 2 and a message

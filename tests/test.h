@@ -8,6 +8,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <time.h>
 #include "common/wrt_common.h"
 
 static int test_passed, test_failed, test_case_failed, test_skipped;
@@ -46,11 +47,13 @@ static const char *test_current = "";
     CHECK(claim_e_ <= claim_t_, "claim %s: error %.4f%% above its tolerance %.4f%%", id, 100 * claim_e_, 100 * claim_t_); \
     } while (0)
 
-/* Runs a case if argv selects it (no argument: all cases). */
+/* Runs a case if argv selects it (no argument: all cases); prints its wall and CPU
+ * seconds (all threads of the process). */
 #define TEST_RUN(fn) do { \
     if (test_selected(argc, argv, #fn)) { \
-        test_current = #fn; test_case_failed = 0; double t0_ = wrt_now(); fn(); \
-        fprintf(stderr, "%s %s (%.2f s)\n", test_case_failed ? "not ok" : "ok", #fn, wrt_now() - t0_); \
+        test_current = #fn; test_case_failed = 0; double t0_ = wrt_now(); clock_t c0_ = clock(); fn(); \
+        fprintf(stderr, "%s %s (%.2f s, cpu %.2f s)\n", test_case_failed ? "not ok" : "ok", #fn, wrt_now() - t0_, \
+                (double)(clock() - c0_) / CLOCKS_PER_SEC); \
     } } while (0)
 
 #define TEST_END() do { \

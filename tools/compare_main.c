@@ -8,12 +8,15 @@
 #include "verify/compare.h"
 #include "cli/cli.h"
 
+#include "cli/font.h"
 #include "formats/image.h"
 
 #include <errno.h>
+#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static void usage(FILE *f) {
     fprintf(f,
@@ -41,7 +44,8 @@ static void usage(FILE *f) {
             "  --threads N         0 = all cores (default)\n"
             "  --seed S            reference seed (default 1)\n"
             "  -o, --out PREFIX    write PREFIX_{wavelet,haar,reference}.exr/.png and\n"
-            "                      PREFIX_panel.png (Haar | smooth | reference | error map)\n"
+            "                      PREFIX_panel.png (Haar | smooth | reference | error map,\n"
+            "                      labelled, each at least 320 pixels wide)\n"
             "                      of the first position and the last bake (--images is the same)\n"
             "  --closeup X,Y,S     with --out: PREFIX_closeup.png, the S x S pixels at X, Y of\n"
             "                      the Haar and the smooth display, 4x enlarged\n"
@@ -104,8 +108,39 @@ static int write_png(const char *prefix, const char *name, const uint8_t *px, in
     char path[4096];
     snprintf(path, sizeof path, "%s_%s.png", prefix, name);
     if (wrt_image_write_rgb8(path, px, w, h) == WRT_OK) return 0;
-    fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+    fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
     return WRT_EXIT_OUTPUT;
+}
+
+/* PREFIX_panel.png from the four w x h pictures side by side in `panel`: each enlarged
+ * by a whole factor (nearest pixel) to at least PANEL_MIN_W pixels wide, 4 pixels apart
+ * on dark grey, under a bar naming it. */
+#define PANEL_MIN_W 320
+static int write_labelled_panel(const char *prefix, const uint8_t *panel, int w, int h) {
+    static const char *const label[4] = {"Haar cells", "smooth display", "path tracer", "error, 0 to 50% of mean"};
+    int k = w >= PANEL_MIN_W ? 1 : (PANEL_MIN_W + w - 1) / w, gap = 4, fs = 2, bar = WRT_FONT_CELL_H * fs + 6;
+    int pw = w * k, W = 4 * pw + 3 * gap, H = bar + h * k;
+    uint8_t *out = wrt_xmalloc((size_t)W * H * 3);
+    memset(out, 40, (size_t)W * H * 3);
+    static const uint8_t white[3] = {235, 235, 235};
+    for (int s = 0; s < 4; s++) {
+        int x0 = s * (pw + gap), tw, th;
+        /* the label, shortened to the picture's width */
+        char text[64];
+        snprintf(text, sizeof text, "%s", label[s]);
+        wrt_font_measure(text, fs, &tw, &th);
+        while (tw > pw && strlen(text) > 1) {
+            text[strlen(text) - 1] = 0;
+            wrt_font_measure(text, fs, &tw, &th);
+        }
+        wrt_font_draw_rgb8(out, W, H, x0 + (pw - tw) / 2, 3, fs, white, text);
+        for (int y = 0; y < h * k; y++)
+            for (int x = 0; x < pw; x++)
+                memcpy(out + ((size_t)(bar + y) * W + x0 + x) * 3, panel + ((size_t)(y / k) * 4 * w + (size_t)s * w + x / k) * 3, 3);
+    }
+    int rc = write_png(prefix, "panel", out, W, H);
+    free(out);
+    return rc;
 }
 
 /* The first light's images as EXR (linear) and PNG (the tone curve of every tool's PNG,
@@ -113,7 +148,7 @@ static int write_png(const char *prefix, const char *name, const uint8_t *px, in
  * (wavelet: smooth; haar: the Haar cells as blocks), the reference, and
  * PREFIX_panel.png: haar | wavelet | reference | error heat map of the smooth display
  * (|wavelet - reference| over RGB relative to the reference's mean: black 0, white 50%
- * and above); with `closeup` (X, Y, S) PREFIX_closeup.png, the Haar and smooth panels'
+ * and above), labelled and enlarged (write_labelled_panel); with `closeup` (X, Y, S) PREFIX_closeup.png, the Haar and smooth panels'
  * S x S pixels at X, Y enlarged 4 times. Returns 0 or WRT_EXIT_OUTPUT. */
 static int write_images(const char *prefix, const wrt_compare_ref *c, int w, int h, double exposure,
                         const double *closeup) {
@@ -130,7 +165,7 @@ static int write_images(const char *prefix, const wrt_compare_ref *c, int w, int
         char path[4096];
         snprintf(path, sizeof path, "%s_%s.exr", prefix, name[k]);
         if (wrt_image_write_exr(path, img[k], w, h) != WRT_OK) {
-            fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+            fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
             rc = WRT_EXIT_OUTPUT;
         }
         wrt_tonemap_rgb8(img[k], n, (float)exposure, px);
@@ -145,7 +180,7 @@ static int write_images(const char *prefix, const wrt_compare_ref *c, int w, int
             for (int ch = 0; ch < 3; ch++) d += fabs(img[0][p + ch] - img[1][p + ch]) / 3;
             heat(mean > 0 ? d / mean / 0.5 : 0, panel + ((size_t)y * 4 * w + 3 * (size_t)w + x) * 3);
         }
-    if (write_png(prefix, "panel", panel, 4 * w, h)) rc = WRT_EXIT_OUTPUT;
+    if (write_labelled_panel(prefix, panel, w, h)) rc = WRT_EXIT_OUTPUT;
     if (closeup) {
         int x0 = (int)closeup[0], y0 = (int)closeup[1], sz = (int)closeup[2], k = 4, cw = 2 * sz * k + k;
         uint8_t *cu = wrt_xcalloc((size_t)cw * sz * k * 3, 1);
@@ -164,6 +199,78 @@ static int write_images(const char *prefix, const wrt_compare_ref *c, int w, int
 }
 
 static const char *T = "wrt-compare";
+
+/* The value of a string KEY in a bake's provenance JSON (flat: "KEY":"VALUE"), or "". */
+static void provenance_str(const wrt_gto *g, const char *key, char *out, size_t n) {
+    char pat[64];
+    int pl = snprintf(pat, sizeof pat, "\"%s\":\"", key);
+    out[0] = 0;
+    if (!g->provenance || pl <= 0 || (size_t)pl >= sizeof pat) return;
+    for (size_t i = 0; i + (size_t)pl <= g->provenance_len; i++) {
+        if (memcmp(g->provenance + i, pat, (size_t)pl)) continue;
+        size_t k = 0;
+        for (i += (size_t)pl; i < g->provenance_len && g->provenance[i] != '"' && k + 1 < n; i++) out[k++] = g->provenance[i];
+        out[k] = 0;
+        return;
+    }
+}
+
+/* What can be checked before the reference is path-traced (which takes seconds to
+ * minutes): each .gto opens and passes the reader's checks, holds the scene's quads
+ * (count, then every corner to 1e-6 of the scene's size), and the images' folder takes
+ * a new file. A bake whose source file's hash differs from the scene's but whose quads
+ * match gets a note (the scene was edited or rewritten after the bake: its materials may
+ * differ). Returns 0 or the exit code, having said why. */
+static int check_inputs(const wrt_scene *s, const char *scene_path, const char **gtos, int ngto, const char *images) {
+    double size = v3_len(v3_sub(s->bbox_max, s->bbox_min));
+    char scene_hash[32];
+    snprintf(scene_hash, sizeof scene_hash, "%016llx", (unsigned long long)s->source_hash);
+    for (int b = 0; b < ngto; b++) {
+        wrt_gto g;
+        if (wrt_gto_open(gtos[b], &g) != WRT_OK) {
+            fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
+            return WRT_EXIT_INPUT;
+        }
+        int bad = -1;
+        if ((int)g.nquads != s->nquads) {
+            fprintf(stderr, "wrt-compare: error: %s has %u quads, the scene %s has %d: it was not baked from this scene\n",
+                    gtos[b], g.nquads, scene_path, s->nquads);
+            wrt_gto_close(&g);
+            return WRT_EXIT_INPUT;
+        }
+        for (int q = 0; q < s->nquads && bad < 0; q++)
+            for (int k = 0; k < 4; k++) {
+                const double *p = g.quads[q].p[k];
+                wrt_v3 d = v3_sub(v3(p[0], p[1], p[2]), s->quads[q].p[k]);
+                if (!(v3_len(d) <= 1e-6 * (size > 0 ? size : 1))) { bad = q; break; }
+            }
+        if (bad >= 0) {
+            fprintf(stderr, "wrt-compare: error: %s: quad %d (numbered from 0) is not where the scene %s has it: "
+                    "it was not baked from this scene\n", gtos[b], bad, scene_path);
+            wrt_gto_close(&g);
+            return WRT_EXIT_INPUT;
+        }
+        char hash[32];
+        provenance_str(&g, "source_hash", hash, sizeof hash);
+        if (hash[0] && strcmp(hash, scene_hash))
+            fprintf(stderr, "wrt-compare: note: %s was baked from another version of %s (source hash %s, now %s); "
+                    "its quads match\n", gtos[b], scene_path, hash, scene_hash);
+        wrt_gto_close(&g);
+    }
+    if (images) {
+        char dir[PATH_MAX];
+        snprintf(dir, sizeof dir, "%s", images);
+        char *slash = strrchr(dir, '/');
+        if (!slash) snprintf(dir, sizeof dir, ".");
+        else if (slash == dir) dir[1] = 0;
+        else *slash = 0;
+        if (access(dir, W_OK | X_OK) != 0) {
+            fprintf(stderr, "wrt-compare: error: -o %s: cannot write in the folder %s: %s\n", images, dir, strerror(errno));
+            return WRT_EXIT_OUTPUT;
+        }
+    }
+    return 0;
+}
 
 static int takes_value(const char *a) {
     static const char *const names[] = {"--lights", "--light-pos", "--cells", "--cell-paths", "--pilot", "--width",
@@ -204,10 +311,10 @@ static int compare_main(int argc, char **argv, const char **gtos) {
         else if (!strcmp(a, "--no-final-gather")) { o.no_final_gather = 1; takes = 0; }
         else if (!strcmp(a, "--no-light-splat")) { o.no_light_splat = 1; takes = 0; }
         else if (a[0] == '-' && a[1] && !takes_value(a)) {
-            fprintf(stderr, "wrt-compare: unknown option %s (see --help)\n", a);
+            fprintf(stderr, "wrt-compare: error: unknown option %s (see --help)\n", a);
             return WRT_EXIT_USAGE;
         }
-        else if (a[0] == '-' && a[1] && !v) { fprintf(stderr, "wrt-compare: %s needs a value\n", a); return WRT_EXIT_USAGE; }
+        else if (a[0] == '-' && a[1] && !v) { fprintf(stderr, "wrt-compare: error: %s needs a value\n", a); return WRT_EXIT_USAGE; }
         else if (!strcmp(a, "--lights")) { ok = parse_long(v, 1, WRT_COMPARE_MAX_LIGHTS, &x); nlights_req = (int)x; }
         else if (!strcmp(a, "--light-pos")) {
             ok = nexplicit < WRT_COMPARE_MAX_LIGHTS && wrt_parse_vec3(v, explicit_pos[nexplicit]);
@@ -234,24 +341,29 @@ static int compare_main(int argc, char **argv, const char **gtos) {
             ok = parse_long(v, 16, 32, &x) && (x == 16 || x == 32);
             o.gather_points = (int)x;
         }
-        else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-compare: unknown option %s (see --help)\n", a); return 1; }
+        else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-compare: error: unknown option %s (see --help)\n", a); return 1; }
         else {
             takes = 0;
             if (!scene_path) scene_path = a;
             else gtos[ngto++] = a;
         }
-        if (!ok) { fprintf(stderr, "wrt-compare: bad value for %s: '%s' (see --help)\n", a, v ? v : ""); return 1; }
+        if (!ok) { fprintf(stderr, "wrt-compare: error: bad value for %s: '%s' (see --help)\n", a, v ? v : ""); return 1; }
         i += takes;
     }
     if (!scene_path || ngto == 0) {
-        fprintf(stderr, "wrt-compare: needs a scene and at least one .gto (see --help)\n");
+        fprintf(stderr, "wrt-compare: error: needs a scene and at least one .gto (see --help)\n");
         return 1;
     }
 
     wrt_scene scene;
     if (wrt_scene_load(scene_path, NULL, &scene) != WRT_OK) {
-        fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
         return 2;
+    }
+    int crc = check_inputs(&scene, scene_path, gtos, ngto, bench_only ? NULL : images);
+    if (crc) {
+        wrt_scene_free(&scene);
+        return crc;
     }
     /* the light compared: --light N's (default 1), with the command line's changes, put
      * first, where wrt_compare_default_lights takes it from */
@@ -259,7 +371,7 @@ static int compare_main(int argc, char **argv, const char **gtos) {
         int which = L.which ? L.which : 1;
         for (int k = 0; k < WRT_CLI_MAX_LIGHTS; k++)
             if (L.scaled[k] && k != which - 1 && k < scene.nlights) {
-                fprintf(stderr, "wrt-compare: %s %d: the comparison uses light %d only\n",
+                fprintf(stderr, "wrt-compare: error: %s %d: the comparison uses light %d only\n",
                         L.scale[k] == 0 ? "--lights-off" : "--light-scale", k + 1, which);
                 wrt_scene_free(&scene);
                 return WRT_EXIT_USAGE;
@@ -293,13 +405,13 @@ static int compare_main(int argc, char **argv, const char **gtos) {
             wrt_gto g;
             wrt_compare_result res = {0};
             if (wrt_gto_open(gtos[b], &g) != WRT_OK) {
-                fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+                fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
                 bad = 1;
                 continue;
             }
             if ((int)g.nquads != scene.nquads ||
                 wrt_compare_bench(&g, &lights[0], eye, o.bench_updates, &o, &res) != WRT_OK) {
-                fprintf(stderr, "wrt-compare: %s: %s\n", gtos[b],
+                fprintf(stderr, "wrt-compare: error: %s: %s\n", gtos[b],
                         (int)g.nquads != scene.nquads ? "not baked from this scene" : wrt_last_error());
                 wrt_gto_close(&g);
                 bad = 1;
@@ -326,7 +438,7 @@ static int compare_main(int argc, char **argv, const char **gtos) {
     wrt_compare_ref *ref;
     wrt_status st = wrt_compare_ref_create(&scene, lights, nl, &o, &ref);
     if (st != WRT_OK) {
-        fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
         wrt_scene_free(&scene);
         return st == WRT_ERR_INVALID_ARG ? 1 : 2;
     }
@@ -352,23 +464,28 @@ static int compare_main(int argc, char **argv, const char **gtos) {
     for (int b = 0; b < ngto; b++) {
         wrt_gto g;
         if (wrt_gto_open(gtos[b], &g) != WRT_OK) {
-            fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
+            fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
             failed = 1;
             continue;
         }
         wrt_compare_result res;
         st = wrt_compare_gto(ref, &g, &res);
         if (st != WRT_OK) {
-            fprintf(stderr, "wrt-compare: %s: %s\n", gtos[b], wrt_last_error());
+            fprintf(stderr, "wrt-compare: error: %s: %s\n", gtos[b], wrt_last_error());
             wrt_gto_close(&g);
             failed = 1;
             continue;
         }
         int over = max_error >= 0 && !(res.mean.cell_rmse <= max_error);
         exceeded |= over;
-        fprintf(stderr, "wrt-compare: %s: cell rmse %.4f (floor %.4f), image rmse %.4f (floor %.4f), %.2f ms/light%s\n",
-                gtos[b], res.mean.cell_rmse, res.mean.cell_floor, res.mean.image_rmse, res.mean.image_floor,
-                res.ms_update_median, over ? "  ACCURACY NOT MET" : "");
+        /* raw: the rmse against the path tracer, its noise included; debiased: that noise
+         * (the floor) taken out, the figure the README quotes */
+        fprintf(stderr, "wrt-compare: %s: cell error %.4f raw, %.4f debiased (floor %.4f)", gtos[b], res.mean.cell_rmse,
+                res.mean.cell_debiased, res.mean.cell_floor);
+        if (info.width > 0)
+            fprintf(stderr, "; image error %.4f raw, %.4f debiased (floor %.4f)", res.mean.image_rmse,
+                    res.mean.image_debiased, res.mean.image_floor);
+        fprintf(stderr, "; %.2f ms per light change%s\n", res.ms_update_median, over ? "; ACCURACY NOT MET" : "");
         printf("%s{\"file\":", b ? "," : "");
         wrt_cli_json_str(stdout, gtos[b]);
         printf(",\"bytes\":%zu,\"functions\":%u,\"entries\":%llu,", g.size, g.nfuncs, (unsigned long long)g.nnz);

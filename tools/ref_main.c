@@ -177,31 +177,31 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--threads")) INT(0, 256, threads);
         else if (!strcmp(a, "--seed")) { if (!wrt_cli_int(T, a, v, 0, 1L << 62, &n)) return WRT_EXIT_USAGE; seed = n; i++; }
         else if (!strcmp(a, "-o") || !strcmp(a, "--out") || !strcmp(a, "--points")) {
-            if (!v) { fprintf(stderr, "wrt-ref: %s needs a value\n", a); return WRT_EXIT_USAGE; }
+            if (!v) { fprintf(stderr, "wrt-ref: error: %s needs a value\n", a); return WRT_EXIT_USAGE; }
             if (!strcmp(a, "--points")) points_path = v; else out_prefix = v;
             i++;
         } else if (!strcmp(a, "--cells")) {
             if (!v || sscanf(v, "%d,%d", &cell_quad, &cell_n) != 2 || cell_quad < 0 || cell_n < 1 || cell_n > 4096) {
-                fprintf(stderr, "wrt-ref: bad value for --cells: '%s' (QUAD,N with N in [1, 4096])\n", v ? v : "");
+                fprintf(stderr, "wrt-ref: error: bad value for --cells: '%s' (QUAD,N with N in [1, 4096])\n", v ? v : "");
                 return WRT_EXIT_USAGE;
             }
             i++;
         }
-        else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-ref: unknown option %s (see --help)\n", a); return WRT_EXIT_USAGE; }
+        else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-ref: error: unknown option %s (see --help)\n", a); return WRT_EXIT_USAGE; }
         else if (!scene_path) scene_path = a;
-        else { fprintf(stderr, "wrt-ref: more than one scene ('%s', '%s')\n", scene_path, a); return WRT_EXIT_USAGE; }
+        else { fprintf(stderr, "wrt-ref: error: more than one scene ('%s', '%s')\n", scene_path, a); return WRT_EXIT_USAGE; }
 #undef INT
     }
-    if (!scene_path) { fprintf(stderr, "wrt-ref: no scene (see --help)\n"); return WRT_EXIT_USAGE; }
+    if (!scene_path) { fprintf(stderr, "wrt-ref: error: no scene (see --help)\n"); return WRT_EXIT_USAGE; }
 
     wrt_scene scene;
     wrt_status st = wrt_scene_load(scene_path, NULL, &scene);
     if (st != WRT_OK) {
-        fprintf(stderr, "wrt-ref: %s: %s\n", wrt_status_str(st), wrt_last_error());
+        fprintf(stderr, "wrt-ref: error: %s: %s\n", wrt_status_str(st), wrt_last_error());
         return WRT_EXIT_INPUT;
     }
     if (cell_quad >= scene.nquads) {
-        fprintf(stderr, "wrt-ref: --cells quad %d, the scene has %d (numbered from 0)\n", cell_quad, scene.nquads);
+        fprintf(stderr, "wrt-ref: error: --cells quad %d, the scene has %d (numbered from 0)\n", cell_quad, scene.nquads);
         wrt_scene_free(&scene);
         return WRT_EXIT_USAGE;
     }
@@ -228,7 +228,7 @@ int main(int argc, char **argv) {
 
     wrt_ref *ref = wrt_ref_create(&scene);
     if (!ref) {
-        fprintf(stderr, "wrt-ref: %s\n", wrt_last_error());
+        fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error());
         free(lights);
         wrt_scene_free(&scene);
         return WRT_EXIT_INTERNAL;
@@ -264,12 +264,12 @@ int main(int argc, char **argv) {
                 if (st == WRT_OK && written[nwritten][0]) nwritten++;
             }
         } else {
-            fprintf(stderr, "wrt-ref: %s\n", wrt_last_error());
+            fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error());
             rc = st == WRT_ERR_INVALID_ARG ? WRT_EXIT_USAGE : WRT_EXIT_INTERNAL;
             st = WRT_OK;
         }
         free(d); free(ind); free(both); free(se);
-        if (st != WRT_OK) { fprintf(stderr, "wrt-ref: %s\n", wrt_last_error()); rc = WRT_EXIT_OUTPUT; }
+        if (st != WRT_OK) { fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error()); rc = WRT_EXIT_OUTPUT; }
     }
     if (points_path && rc == 0) {
         point_list pl;
@@ -295,7 +295,7 @@ int main(int argc, char **argv) {
         }
         free(pl.p); free(pl.quad); free(pl.uv);
         if (st != WRT_OK) {
-            fprintf(stderr, "wrt-ref: %s\n", wrt_last_error());
+            fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error());
             rc = st == WRT_ERR_IO || st == WRT_ERR_PARSE ? WRT_EXIT_INPUT : WRT_EXIT_INTERNAL;
         }
     }
@@ -315,7 +315,7 @@ int main(int argc, char **argv) {
                        c / cell_n, d[3 * c], d[3 * c + 1], d[3 * c + 2], ind[3 * c],
                        ind[3 * c + 1], ind[3 * c + 2], se[3 * c], se[3 * c + 1], se[3 * c + 2]);
         } else {
-            fprintf(stderr, "wrt-ref: %s\n", wrt_last_error());
+            fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error());
             rc = WRT_EXIT_INTERNAL;
         }
         free(d); free(ind); free(se);

@@ -1055,9 +1055,9 @@ int main(int argc, char **argv) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         double x;
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
-        if (!strcmp(a, "--version")) { wrt_cli_version("wrt-scenegen"); return 0; }
+        if (!strcmp(a, "--version")) { printf("wrt-scenegen %s (writes glTF 2.0)\n", WRT_VERSION_STRING); return 0; } /* no .gto */
         if (a[0] != '-') {
-            if (scene) { fprintf(stderr, "wrt-scenegen: two scene names: %s, %s\n", scene, a); return WRT_EXIT_USAGE; }
+            if (scene) { fprintf(stderr, "wrt-scenegen: error: two scene names: %s, %s\n", scene, a); return WRT_EXIT_USAGE; }
             scene = a;
             continue;
         }
@@ -1066,8 +1066,8 @@ int main(int argc, char **argv) {
                                             "--roughness"};
         int is_known = 0;
         for (size_t k = 0; k < sizeof known / sizeof *known; k++) is_known |= !strcmp(a, known[k]);
-        if (!is_known) { fprintf(stderr, "wrt-scenegen: unknown option %s (see --help)\n", a); return WRT_EXIT_USAGE; }
-        if (!v) { fprintf(stderr, "wrt-scenegen: %s needs a value\n", a); return WRT_EXIT_USAGE; }
+        if (!is_known) { fprintf(stderr, "wrt-scenegen: error: unknown option %s (see --help)\n", a); return WRT_EXIT_USAGE; }
+        if (!v) { fprintf(stderr, "wrt-scenegen: error: %s needs a value\n", a); return WRT_EXIT_USAGE; }
         i++;
         int ok = 1;
         if (!strcmp(a, "--out") || !strcmp(a, "-o")) out = v;
@@ -1094,34 +1094,36 @@ int main(int argc, char **argv) {
             if (ok) { opt.offset.z = strtod(e2 + 1, &e3); ok = *e3 == 0 && v3_finite(opt.offset); }
             ok = ok && fabs(opt.offset.x) < 1e9 && fabs(opt.offset.y) < 1e9 && fabs(opt.offset.z) < 1e9;
         } else {
-            fprintf(stderr, "wrt-scenegen: unknown option %s (see --help)\n", a);
+            fprintf(stderr, "wrt-scenegen: error: unknown option %s (see --help)\n", a);
             return WRT_EXIT_USAGE;
         }
-        if (!ok) { fprintf(stderr, "wrt-scenegen: bad value for %s: %s\n", a, v); return WRT_EXIT_USAGE; }
+        if (!ok) { fprintf(stderr, "wrt-scenegen: error: bad value for %s: %s\n", a, v); return WRT_EXIT_USAGE; }
     }
     if (all) {
-        if (scene || out) { fprintf(stderr, "wrt-scenegen: --all takes no scene or --out\n"); return WRT_EXIT_USAGE; }
+        if (scene || out) { fprintf(stderr, "wrt-scenegen: error: --all takes no scene or --out\n"); return WRT_EXIT_USAGE; }
         char path[4096];
         snprintf(path, sizeof path, "%s/test", all);
-        if (!mkdir_p(path)) { fprintf(stderr, "wrt-scenegen: cannot create %s: %s\n", path, strerror(errno)); return WRT_EXIT_OUTPUT; }
+        if (!mkdir_p(path)) { fprintf(stderr, "wrt-scenegen: error: cannot create %s: %s\n", path, strerror(errno)); return WRT_EXIT_OUTPUT; }
         for (int i = 0; i < NSCENES; i++) {
             snprintf(path, sizeof path, "%s/%s", all, scenes[i].file);
             if (generate(&scenes[i], &opt, path) != WRT_OK) {
-                fprintf(stderr, "wrt-scenegen: %s\n", wrt_last_error());
+                fprintf(stderr, "wrt-scenegen: error: %s\n", wrt_last_error());
                 return WRT_EXIT_OUTPUT;
             }
         }
         return 0;
     }
-    if (!scene || !out) { usage(stderr); return WRT_EXIT_USAGE; }
+    if (!scene && !out) { usage(stderr); return WRT_EXIT_USAGE; }
+    if (!scene) { fprintf(stderr, "wrt-scenegen: error: no scene name before -o %s (see --help for the list)\n", out); return WRT_EXIT_USAGE; }
+    if (!out) { fprintf(stderr, "wrt-scenegen: error: no output file: wrt-scenegen %s -o FILE.gltf\n", scene); return WRT_EXIT_USAGE; }
     for (int i = 0; i < NSCENES; i++)
         if (!strcmp(scenes[i].name, scene)) {
             if (generate(&scenes[i], &opt, out) != WRT_OK) {
-                fprintf(stderr, "wrt-scenegen: %s\n", wrt_last_error());
+                fprintf(stderr, "wrt-scenegen: error: %s\n", wrt_last_error());
                 return WRT_EXIT_OUTPUT;
             }
             return 0;
         }
-    fprintf(stderr, "wrt-scenegen: unknown scene %s (see --help)\n", scene);
+    fprintf(stderr, "wrt-scenegen: error: unknown scene %s (see --help)\n", scene);
     return WRT_EXIT_USAGE;
 }
