@@ -1145,7 +1145,7 @@ const char *__asan_default_options(void);
 const char *__asan_default_options(void) { return "detect_leaks=0"; }
 
 int main(int argc, char **argv) {
-    wrt_cli_check_stdout_at_exit("wrt-play"); /* results lost on stdout: exit 3 */
+    wrt_cli_init("wrt-play"); /* stdout checked at exit (3), out of memory: exit 7 */
     options o;
     if (!parse_args(argc, argv, &o)) return EXIT_USAGE;
     app a;

@@ -192,7 +192,7 @@ static int print_summary(void *u, FILE *f) {
 }
 
 int main(int argc, char **argv) {
-    wrt_cli_check_stdout_at_exit("wrt-bake"); /* results lost on stdout: exit 3 */
+    wrt_cli_init("wrt-bake"); /* stdout checked at exit (3), out of memory: exit 7 */
     const char *scene_path = NULL, *out_path = NULL, *scan = NULL, *info = NULL;
     int json = 0, force_progress = 0, quiet = 0, print_config = 0, timings = 0, drop_bad = 0, allow_outside = 0;
     const char *seen[64];
@@ -282,7 +282,7 @@ int main(int argc, char **argv) {
         wrt_status st = (wrt_status)wrt_cli_print_safely(stdout, print_info, &ia); /* no raw escapes */
         if (st != WRT_OK) {
             fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-            return EXIT_INPUT; /* a .gto that cannot be read is bad input, missing or not */
+            return st == WRT_ERR_NOMEM ? EXIT_INTERNAL : EXIT_INPUT; /* a .gto that cannot be read is bad input */
         }
         return 0;
     }
@@ -305,7 +305,7 @@ int main(int argc, char **argv) {
         wrt_status st = wrt_scene_load(scan, &lo, &s);
         if (st != WRT_OK) {
             fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-            return EXIT_INPUT;
+            return st == WRT_ERR_NOMEM ? EXIT_INTERNAL : EXIT_INPUT; /* the C++ reader's bad_alloc: 7 */
         }
         struct report_args sa = {NULL, &s, json};
         wrt_cli_print_safely(stdout, print_summary, &sa); /* names' escape codes shown as \xNN */
@@ -332,7 +332,7 @@ int main(int argc, char **argv) {
     wrt_cli_progress_end();
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-        return EXIT_INPUT;
+        return st == WRT_ERR_NOMEM ? EXIT_INTERNAL : EXIT_INPUT; /* the C++ reader's bad_alloc: 7 */
     }
     /* ... nor any file the scene read (external buffers and images). */
     if (s.files && s.files[0]) {

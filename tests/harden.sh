@@ -232,5 +232,35 @@ sed 's/"file": "[^"]*"//' "$tmp/ref_stats.json" >"$tmp/b.json" 2>/dev/null
 [ -s "$tmp/a.json" ] && cmp -s "$tmp/a.json" "$tmp/b.json" && ok "its --stats-json equals an untouched run's" || ko "its --stats-json equals an untouched run's"
 expect "the truncated file is refused when opened: exit 2" 2 "short.gto" bash -c "head -c 100 '$tmp/c.gto' >'$tmp/short.gto'; '$play' '$tmp/short.gto' --headless -o '$tmp/s.png'"
 
+# ---- 8 out of memory (ulimit -v): exit 7 with a message, never abort() or a crash
+if [[ "$build" == *sanitize* ]]; then
+    skipped "out of memory under ulimit -v: AddressSanitizer needs terabytes of address space"
+else
+    python3 - "$tmp/big.gltf" <<'PY'
+import base64, json, sys
+d = json.load(open('tests/data/quad.gltf'))
+raw = base64.b64decode(d['buffers'][0]['uri'].split(',')[1]) + b'\0' * (40 << 20)
+d['buffers'][0].update(uri='data:application/octet-stream;base64,' + base64.b64encode(raw).decode(), byteLength=len(raw))
+open(sys.argv[1], 'w').write(json.dumps(d))
+PY
+    n7=0; nbad=0
+    # limits in KiB: from where the loader itself cannot map the libraries to where a
+    # quality-3 Cornell box bakes (about 230 MB of address space with Embree's threads)
+    for kb in 50000 70000 100000 150000 190000 200000 210000 400000; do
+        ( ulimit -v $kb; exec "$bake" assets/cornell.gltf -o "$tmp/oom.gto" -q 3 --quiet ) >/dev/null 2>"$tmp/err"; rc=$?
+        line=$(head -n 1 "$tmp/err")
+        case $rc in
+            0) ;;
+            7) if grep -q "out of memory" "$tmp/err" && [ "$(wc -l <"$tmp/err")" -eq 1 ]; then n7=$((n7 + 1)); else nbad=$((nbad + 1)); echo "    $kb KiB: exit 7 but '$line'"; fi ;;
+            127) echo "    $kb KiB: the dynamic loader cannot map the libraries (before main)" ;;
+            *) nbad=$((nbad + 1)); echo "    $kb KiB: exit $rc: $line" ;;
+        esac
+    done
+    [ $nbad -eq 0 ] && [ $n7 -ge 2 ] && ok "bake under ulimit -v: exit 7 with one 'out of memory' line each time ($n7 limits), or 0" || ko "bake under ulimit -v: exit 7 with one 'out of memory' line each time ($n7 limits), or 0"
+    ( ulimit -v 150000; exec "$bake" --scan "$tmp/big.gltf" ) >/dev/null 2>"$tmp/err"; rc=$?
+    [ $rc -eq 7 ] && grep -q "big.gltf: out of memory while reading glTF\|out of memory allocating" "$tmp/err" && ok "a 56 MB glTF under 150 MB: exit 7 (the C++ reader's bad_alloc caught)" || { echo "    exit $rc"; ko "a 56 MB glTF under 150 MB: exit 7 (the C++ reader's bad_alloc caught)"; }
+    ls "$tmp" | grep -q 'oom\.gto\.tmp' && ko "no temporary left after an out-of-memory exit" || ok "no temporary left after an out-of-memory exit"
+fi
+
 if [ "$skip" -gt 0 ]; then echo "harden: $pass passed, $fail failed, $skip skipped"; else echo "harden: $pass passed, $fail failed"; fi
 [ "$fail" -eq 0 ]

@@ -410,7 +410,7 @@ static int compare_main(int argc, char **argv, const char **gtos) {
 }
 
 int main(int argc, char **argv) {
-    wrt_cli_check_stdout_at_exit("wrt-compare"); /* results lost on stdout: exit 3 */
+    wrt_cli_init("wrt-compare"); /* stdout checked at exit (3), out of memory: exit 7 */
     const char **gtos = wrt_xcalloc((size_t)argc, sizeof(char *));
     int rc = compare_main(argc, argv, gtos);
     free(gtos);

@@ -147,7 +147,7 @@ static double mean_of_f(const float *v, size_t n) {
 static const char *T = "wrt-ref";
 
 int main(int argc, char **argv) {
-    wrt_cli_check_stdout_at_exit("wrt-ref"); /* results lost on stdout: exit 3 */
+    wrt_cli_init("wrt-ref"); /* stdout checked at exit (3), out of memory: exit 7 */
     const char *scene_path = NULL, *out_prefix = "ref", *points_path = NULL;
     double exposure = 0;
     int pfm = 0;
