@@ -5,7 +5,7 @@
 #include "tests/test.h"
 #include "common/outfile.h"
 #include "common/text.h"
-#include "tools/json_check.h"
+#include "tests/json_check.h"
 
 #include <errno.h>
 #include <stdlib.h>

@@ -3,14 +3,14 @@
  * then once more wrapped in a GLB container whose JSON chunk is the input and whose BIN
  * chunk repeats its last bytes, so both readers see every input. External files resolve
  * against a folder that does not exist. Every scene that loads has its JSON summary
- * checked (tools/json_check.h). Built by `make fuzz`; the seeds are tests/data. */
+ * checked (tests/json_check.h). Built by `make fuzz`; the seeds are tests/data. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "common/wrt_common.h"
 #include "formats/scene.h"
-#include "tools/json_check.h"
+#include "tests/json_check.h"
 
 #include <stdio.h>
 
