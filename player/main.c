@@ -1155,7 +1155,7 @@ int main(int argc, char **argv) {
     wrt_status s = read_gto(o.file, &a.g, &a.gto_mem, &a.gto_st);
     if (s) {
         fprintf(stderr, "wrt-play: %s: %s: %s\n", o.file, wrt_status_str(s), wrt_last_error());
-        return EXIT_INPUT;
+        return s == WRT_ERR_NOMEM ? EXIT_RUNTIME : EXIT_INPUT; /* out of memory: 7 */
     }
     /* the view and the lights first: a light the file does not have is refused before
      * any window opens */

@@ -238,9 +238,10 @@ static int compare_main(int argc, char **argv, const char **gtos) {
     }
 
     wrt_scene scene;
-    if (wrt_scene_load(scene_path, NULL, &scene) != WRT_OK) {
+    wrt_status lst = wrt_scene_load(scene_path, NULL, &scene);
+    if (lst != WRT_OK) {
         fprintf(stderr, "wrt-compare: %s\n", wrt_last_error());
-        return 2;
+        return lst == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT;
     }
     /* the light compared: --light N's (default 1), with the command line's changes, put
      * first, where wrt_compare_default_lights takes it from */

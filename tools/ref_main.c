@@ -198,7 +198,7 @@ int main(int argc, char **argv) {
     wrt_status st = wrt_scene_load(scene_path, NULL, &scene);
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-ref: %s: %s\n", wrt_status_str(st), wrt_last_error());
-        return WRT_EXIT_INPUT;
+        return st == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT;
     }
     if (cell_quad >= scene.nquads) {
         fprintf(stderr, "wrt-ref: --cells quad %d, the scene has %d (numbered from 0)\n", cell_quad, scene.nquads);
