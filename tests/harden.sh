@@ -170,6 +170,9 @@ sys.exit(0 if n == 'a' * 62 else 1)" "$tmp/scan.json" && ok "a name cut at 63 by
 "$bake" --info "$tmp/h.gto" --json >"$tmp/info.json" 2>"$tmp/err"; parses "--info --json of that bake" "$tmp/info.json"
 "$play" "$tmp/h.gto" --headless --width 16 --height 16 --stats-json "$tmp/stats.json" 2>"$tmp/err"; parses "wrt-play --stats-json of that bake" "$tmp/stats.json"
 "$play" "$tmp/h.gto" --headless --width 16 --height 16 --bench 2 >"$tmp/bench.json" 2>"$tmp/err"; parses "wrt-play --bench" "$tmp/bench.json"
+# a scene where no light is exchanged (one quad): ratios of zero energies stay numbers
+"$bake" tests/data/quad.gltf -o "$tmp/q1.gto" -q 1 --quiet --json >"$tmp/q1.json" 2>"$tmp/err"; parses "a one-quad bake's --json" "$tmp/q1.json"
+"$bake" --info "$tmp/q1.gto" --json >"$tmp/q1i.json" 2>"$tmp/err"; parses "its --info --json" "$tmp/q1i.json"
 
 # ---- 5 numbers on the command line (and in a script) beyond what the computation carries
 P=("$play" "$tmp/c.gto" --headless --width 16 --height 16 -o "$tmp/n.png")
