@@ -272,9 +272,19 @@ static void check_stdout(void) {
     _exit(WRT_EXIT_OUTPUT);
 }
 
-void wrt_cli_check_stdout_at_exit(const char *tool) {
+static void oom_exit(size_t bytes) {
+    char msg[160]; /* no allocation on this path */
+    int n = snprintf(msg, sizeof msg, "%s: error: out of memory allocating %zu bytes\n", stdout_tool, bytes);
+    ssize_t w = write(2, msg, n > 0 ? (size_t)n : 0);
+    (void)w;
+    wrt_gto_remove_temporaries();
+    _exit(WRT_EXIT_INTERNAL);
+}
+
+void wrt_cli_init(const char *tool) {
     stdout_tool = tool ? tool : "wrt";
     atexit(check_stdout);
+    wrt_set_oom_handler(oom_exit);
 }
 
 /* ---------------------------------------------------------------- progress */

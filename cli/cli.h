@@ -77,12 +77,15 @@ void wrt_tonemap_rgb8(const float *rgb, size_t npixels, float exposure_ev, uint8
 /* A JSON string literal, quotes, backslashes and control characters escaped. */
 void wrt_cli_json_str(FILE *f, const char *s);
 
-/* Results written to stdout must not be lost silently (a full disk, a closed pipe):
- * registers an exit handler that flushes stdout and, if that or any earlier write
- * failed, prints "TOOL: error: cannot write the results to standard output: REASON" and
- * ends the process with WRT_EXIT_OUTPUT (3). Call once, first thing in main; `tool`
- * must stay valid (a string literal). */
-void wrt_cli_check_stdout_at_exit(const char *tool);
+/* What every program sets up first thing in main (`tool` must stay valid: a literal):
+ *  - results written to stdout must not be lost silently (a full disk, a closed pipe):
+ *    an exit handler flushes stdout and, if that or any earlier write failed, prints
+ *    "TOOL: error: cannot write the results to standard output: REASON" and ends the
+ *    process with WRT_EXIT_OUTPUT (3);
+ *  - out of memory in wrt_xmalloc and friends (any thread): "TOOL: error: out of memory
+ *    allocating N bytes", the temporaries being written removed, exit WRT_EXIT_INTERNAL
+ *    (7), never abort(). */
+void wrt_cli_init(const char *tool);
 
 /* Writes text that came from a file (names, provenance) for a terminal: control
  * characters (escape sequences included) other than newline and tab, DEL, C1 controls

@@ -28,9 +28,19 @@ wrt_status wrt_rt_scene_build(const wrt_v3 *corners, int nq, wrt_v3 origin, cons
     s->origin = origin;
     s->eps = wrt_ray_eps(corners, (size_t)(nq > 0 ? nq : 0) * 4, origin);
     s->dev = rtcNewDevice(device_config);
-    if (!s->dev) return wrt_fail(WRT_ERR_UNSUPPORTED, "Embree: cannot create a device (error %d)", (int)rtcGetDeviceError(NULL));
+    /* A device that cannot be made (its thread pool, its memory) is a resource failure
+     * of this machine, not bad input: out of memory (the programs' exit 7). */
+    if (!s->dev) {
+        int e = (int)rtcGetDeviceError(NULL);
+        return wrt_fail(WRT_ERR_NOMEM, "Embree: cannot create a device (error %d%s)", e,
+                        e == RTC_ERROR_OUT_OF_MEMORY ? ": out of memory" : "");
+    }
     rtcSetDeviceErrorFunction(s->dev, log_error, NULL);
     s->scene = rtcNewScene(s->dev);
+    if (!s->scene) {
+        wrt_rt_scene_release(s);
+        return wrt_fail(WRT_ERR_NOMEM, "Embree: cannot create a scene (out of memory)");
+    }
     if (flags & WRT_RT_ROBUST) rtcSetSceneFlags(s->scene, RTC_SCENE_FLAG_ROBUST);
     if (flags & WRT_RT_HIGH_QUALITY) rtcSetSceneBuildQuality(s->scene, RTC_BUILD_QUALITY_HIGH);
     if (nq > 0) {
@@ -54,9 +64,11 @@ wrt_status wrt_rt_scene_build(const wrt_v3 *corners, int nq, wrt_v3 origin, cons
         rtcReleaseGeometry(g);
     }
     rtcCommitScene(s->scene);
-    if (rtcGetDeviceError(s->dev) != RTC_ERROR_NONE) {
+    enum RTCError err = rtcGetDeviceError(s->dev);
+    if (err != RTC_ERROR_NONE) {
         wrt_rt_scene_release(s);
-        return wrt_fail(WRT_ERR_UNSUPPORTED, "Embree: the scene build failed");
+        if (err == RTC_ERROR_OUT_OF_MEMORY) return wrt_fail(WRT_ERR_NOMEM, "Embree: out of memory building the scene");
+        return wrt_fail(WRT_ERR_UNSUPPORTED, "Embree: the scene build failed (error %d)", (int)err);
     }
     return WRT_OK;
 }

@@ -56,7 +56,12 @@ void wrt_log(int level, const char *fmt, ...) {
     fprintf(stderr, "wrt: %s: %s\n", names[level < 0 ? 0 : level > 3 ? 3 : level], buf);
 }
 
+static wrt_oom_handler oom_handler;
+
+void wrt_set_oom_handler(wrt_oom_handler h) { oom_handler = h; }
+
 static void oom(size_t n) {
+    if (oom_handler) oom_handler(n); /* does not return */
     fprintf(stderr, "wrt: error: out of memory allocating %zu bytes\n", n);
     abort();
 }

@@ -37,8 +37,11 @@ void wrt_log(int level, const char *fmt, ...) __attribute__((format(printf, 2, 3
 #define WRT_LOG_INFO 2
 #define WRT_LOG_DEBUG 3
 
-/* Allocation that never returns NULL for n > 0 (aborts with a message on
- * exhaustion: out-of-memory is not a recoverable condition in this program). */
+/* Allocation that never returns NULL for n > 0: on exhaustion it calls the out-of-memory
+ * handler, which must not return (default: a message and abort(); the programs install
+ * one that exits with their documented code 7, cli/cli.h). */
+typedef void (*wrt_oom_handler)(size_t bytes);
+void wrt_set_oom_handler(wrt_oom_handler h); /* NULL restores the default; set before threads start */
 void *wrt_xmalloc(size_t n);
 void *wrt_xcalloc(size_t count, size_t size);
 void *wrt_xrealloc(void *p, size_t n);

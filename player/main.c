@@ -1165,7 +1165,7 @@ const char *__asan_default_options(void);
 const char *__asan_default_options(void) { return "detect_leaks=0"; }
 
 int main(int argc, char **argv) {
-    wrt_cli_check_stdout_at_exit("wrt-play"); /* results lost on stdout: exit 3 */
+    wrt_cli_init("wrt-play"); /* stdout checked at exit (3), out of memory: exit 7 */
     options o;
     if (!parse_args(argc, argv, &o)) return EXIT_USAGE;
     app a;
@@ -1177,7 +1177,7 @@ int main(int argc, char **argv) {
         const char *e = wrt_last_error(); /* named once: some of the reader's messages name it */
         if (!strncmp(e, o.file, strlen(o.file))) fprintf(stderr, "wrt-play: error: %s\n", e);
         else fprintf(stderr, "wrt-play: error: %s: %s\n", o.file, e);
-        return EXIT_INPUT;
+        return s == WRT_ERR_NOMEM ? EXIT_RUNTIME : EXIT_INPUT; /* out of memory: 7 */
     }
     /* the view and the lights first: a light the file does not have is refused before
      * any window opens */

@@ -302,7 +302,7 @@ static int run_info(const bake_args *A) {
     wrt_status st = (wrt_status)wrt_cli_print_safely(stdout, print_info, &ia); /* no raw escapes */
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-        return WRT_EXIT_INPUT; /* a .gto that cannot be read is bad input, missing or not */
+        return st == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT; /* a .gto that cannot be read is bad input */
     }
     return 0;
 }
@@ -331,7 +331,7 @@ static int run_scan(const bake_args *A, const wrt_load_options *lo) {
     wrt_status st = wrt_scene_load(scan, &slo, &s);
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-        return WRT_EXIT_INPUT;
+        return st == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT; /* the C++ reader's bad_alloc: 7 */
     }
     struct report_args sa = {NULL, &s, A->json, A};
     wrt_cli_print_safely(stdout, print_summary, &sa); /* names' escape codes shown as \xNN */
@@ -362,7 +362,7 @@ static int load_scene(const bake_args *A, const wrt_load_options *lo, wrt_scene 
     wrt_cli_progress_end();
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
-        return WRT_EXIT_INPUT;
+        return st == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT; /* the C++ reader's bad_alloc: 7 */
     }
     /* ... nor any file the scene read (external buffers and images). */
     if (s->files && s->files[0]) {
@@ -603,7 +603,7 @@ static int bake(bake_args *A, const wrt_load_options *lo) {
 }
 
 int main(int argc, char **argv) {
-    wrt_cli_check_stdout_at_exit("wrt-bake"); /* results lost on stdout: exit 3 */
+    wrt_cli_init("wrt-bake"); /* stdout checked at exit (3), out of memory: exit 7 */
     install_interrupt_exit(); /* first: a signal from here on exits 4, writing nothing */
     bake_args A;
     int rc = parse_args(argc, argv, &A);

@@ -170,6 +170,9 @@ sys.exit(0 if n == 'a' * 62 else 1)" "$tmp/scan.json" && ok "a name cut at 63 by
 "$bake" --info "$tmp/h.gto" --json >"$tmp/info.json" 2>"$tmp/err"; parses "--info --json of that bake" "$tmp/info.json"
 "$play" "$tmp/h.gto" --headless --width 16 --height 16 --stats-json "$tmp/stats.json" 2>"$tmp/err"; parses "wrt-play --stats-json of that bake" "$tmp/stats.json"
 "$play" "$tmp/h.gto" --headless --width 16 --height 16 --bench 2 >"$tmp/bench.json" 2>"$tmp/err"; parses "wrt-play --bench" "$tmp/bench.json"
+# a scene where no light is exchanged (one quad): ratios of zero energies stay numbers
+"$bake" tests/data/quad.gltf -o "$tmp/q1.gto" -q 1 --quiet --json >"$tmp/q1.json" 2>"$tmp/err"; parses "a one-quad bake's --json" "$tmp/q1.json"
+"$bake" --info "$tmp/q1.gto" --json >"$tmp/q1i.json" 2>"$tmp/err"; parses "its --info --json" "$tmp/q1i.json"
 
 # ---- 5 numbers on the command line (and in a script) beyond what the computation carries
 P=("$play" "$tmp/c.gto" --headless --width 16 --height 16 -o "$tmp/n.png")
@@ -231,6 +234,36 @@ sed 's/"file": "[^"]*"//' "$tmp/live_stats.json" >"$tmp/a.json" 2>/dev/null
 sed 's/"file": "[^"]*"//' "$tmp/ref_stats.json" >"$tmp/b.json" 2>/dev/null
 [ -s "$tmp/a.json" ] && cmp -s "$tmp/a.json" "$tmp/b.json" && ok "its --stats-json equals an untouched run's" || ko "its --stats-json equals an untouched run's"
 expect "the truncated file is refused when opened: exit 2" 2 "short.gto" bash -c "head -c 100 '$tmp/c.gto' >'$tmp/short.gto'; '$play' '$tmp/short.gto' --headless -o '$tmp/s.png'"
+
+# ---- 8 out of memory (ulimit -v): exit 7 with a message, never abort() or a crash
+if [[ "$build" == *sanitize* ]]; then
+    skipped "out of memory under ulimit -v: AddressSanitizer needs terabytes of address space"
+else
+    python3 - "$tmp/big.gltf" <<'PY'
+import base64, json, sys
+d = json.load(open('tests/data/quad.gltf'))
+raw = base64.b64decode(d['buffers'][0]['uri'].split(',')[1]) + b'\0' * (40 << 20)
+d['buffers'][0].update(uri='data:application/octet-stream;base64,' + base64.b64encode(raw).decode(), byteLength=len(raw))
+open(sys.argv[1], 'w').write(json.dumps(d))
+PY
+    n7=0; nbad=0
+    # limits in KiB: from where the loader itself cannot map the libraries to where a
+    # quality-3 Cornell box bakes (about 230 MB of address space with Embree's threads)
+    for kb in 50000 70000 100000 150000 190000 200000 210000 400000; do
+        ( ulimit -v $kb; exec "$bake" assets/cornell.gltf -o "$tmp/oom.gto" -q 3 --quiet ) >/dev/null 2>"$tmp/err"; rc=$?
+        line=$(head -n 1 "$tmp/err")
+        case $rc in
+            0) ;;
+            7) if grep -q "out of memory" "$tmp/err" && [ "$(wc -l <"$tmp/err")" -eq 1 ]; then n7=$((n7 + 1)); else nbad=$((nbad + 1)); echo "    $kb KiB: exit 7 but '$line'"; fi ;;
+            127) echo "    $kb KiB: the dynamic loader cannot map the libraries (before main)" ;;
+            *) nbad=$((nbad + 1)); echo "    $kb KiB: exit $rc: $line" ;;
+        esac
+    done
+    [ $nbad -eq 0 ] && [ $n7 -ge 2 ] && ok "bake under ulimit -v: exit 7 with one 'out of memory' line each time ($n7 limits), or 0" || ko "bake under ulimit -v: exit 7 with one 'out of memory' line each time ($n7 limits), or 0"
+    ( ulimit -v 150000; exec "$bake" --scan "$tmp/big.gltf" ) >/dev/null 2>"$tmp/err"; rc=$?
+    [ $rc -eq 7 ] && grep -q "big.gltf: out of memory while reading glTF\|out of memory allocating" "$tmp/err" && ok "a 56 MB glTF under 150 MB: exit 7 (the C++ reader's bad_alloc caught)" || { echo "    exit $rc"; ko "a 56 MB glTF under 150 MB: exit 7 (the C++ reader's bad_alloc caught)"; }
+    ls "$tmp" | grep -q 'oom\.gto\.tmp' && ko "no temporary left after an out-of-memory exit" || ok "no temporary left after an out-of-memory exit"
+fi
 
 if [ "$skip" -gt 0 ]; then echo "harden: $pass passed, $fail failed, $skip skipped"; else echo "harden: $pass passed, $fail failed"; fi
 [ "$fail" -eq 0 ]

@@ -5,6 +5,7 @@
 #include "tests/test.h"
 #include "common/outfile.h"
 #include "common/text.h"
+#include "tests/json_check.h"
 
 #include <errno.h>
 #include <stdlib.h>
@@ -43,6 +44,27 @@ static void test_json_escapes(void) {
     CHECK(!strcmp(o, "\"x\\ufffd\\ufffd\""), "%s", o);
     lit(NULL, 5, o, sizeof o);
     CHECK(!strcmp(o, "\"\""), "%s", o);
+}
+
+/* The checker the fuzz target relies on, against hand-made truths. */
+static void test_json_checker(void) {
+    static const char *good[] = {"{}", "[]", " {\"a\": [1, -2.5e+3, 0, true, false, null, \"\\u00e9\\n\"]} ",
+                                 "\"\xc3\xa9\"", "0.5", "[[[]]]"};
+    static const char *bad[] = {"", "{", "{\"a\" 1}", "[1,]", "[01]", "[.5]", "[1.]", "[inf]", "[nan]", "[-]",
+                                "\"\x01\"", "\"\xc3\"", "\"\\x41\"", "\"\\u12\"", "{} {}", "[1] x",
+                                "{1: 2}", "tru", "\"abc"};
+    for (size_t i = 0; i < sizeof good / sizeof *good; i++) CHECK(json_check(good[i], strlen(good[i])), "good %zu: %s", i, good[i]);
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) CHECK(!json_check(bad[i], strlen(bad[i])), "bad %zu: %s", i, bad[i]);
+    /* what the writer makes of every byte value passes the checker */
+    char s[256], *buf = NULL;
+    for (int i = 0; i < 255; i++) s[i] = (char)(i + 1);
+    s[255] = 0;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    wrt_json_str(f, s);
+    fclose(f);
+    CHECK(json_check(buf, len), "the writer's output of bytes 1..255 is JSON: %s", buf);
+    free(buf);
 }
 
 static void test_json_numbers(void) {
@@ -138,6 +160,7 @@ static void test_outputs_regular_only(void) {
 
 int main(int argc, char **argv) {
     TEST_RUN(test_json_escapes);
+    TEST_RUN(test_json_checker);
     TEST_RUN(test_json_numbers);
     TEST_RUN(test_utf8_cut);
     TEST_RUN(test_outputs_regular_only);

@@ -356,9 +356,10 @@ static int compare_main(int argc, char **argv, const char **gtos) {
     }
 
     wrt_scene scene;
-    if (wrt_scene_load(scene_path, NULL, &scene) != WRT_OK) {
+    wrt_status lst = wrt_scene_load(scene_path, NULL, &scene);
+    if (lst != WRT_OK) {
         fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
-        return 2;
+        return lst == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT;
     }
     int crc = check_inputs(&scene, scene_path, gtos, ngto, bench_only ? NULL : images);
     if (crc) {
@@ -538,7 +539,7 @@ static int compare_main(int argc, char **argv, const char **gtos) {
 }
 
 int main(int argc, char **argv) {
-    wrt_cli_check_stdout_at_exit("wrt-compare"); /* results lost on stdout: exit 3 */
+    wrt_cli_init("wrt-compare"); /* stdout checked at exit (3), out of memory: exit 7 */
     const char **gtos = wrt_xcalloc((size_t)argc, sizeof(char *));
     int rc = compare_main(argc, argv, gtos);
     free(gtos);

@@ -2,22 +2,41 @@
  * shim). Each input is loaded as given (JSON text, or GLB when it starts with "glTF"),
  * then once more wrapped in a GLB container whose JSON chunk is the input and whose BIN
  * chunk repeats its last bytes, so both readers see every input. External files resolve
- * against a folder that does not exist. Built by `make fuzz`; the seeds are tests/data. */
+ * against a folder that does not exist. Every scene that loads has its JSON summary
+ * checked (tests/json_check.h). Built by `make fuzz`; the seeds are tests/data. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "common/wrt_common.h"
 #include "formats/scene.h"
+#include "tests/json_check.h"
+
+#include <stdio.h>
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
 static void quiet(void *user, int level, const char *msg) { (void)level; (void)msg; (void)user; }
 
+/* A scene that loads is summarized as JSON (the --scan --json writer), which must parse
+ * whatever names the input gave it: a crash for the fuzzer if not. */
 static void load(const void *p, size_t n, int drop_bad) {
     wrt_load_options opt = {.drop_bad = drop_bad};
     wrt_scene s;
-    if (wrt_scene_load_memory(p, n, "/nonexistent-wrt-fuzz", &opt, &s) == WRT_OK) wrt_scene_free(&s);
+    if (wrt_scene_load_memory(p, n, "/nonexistent-wrt-fuzz", &opt, &s) != WRT_OK) return;
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (f) {
+        wrt_scene_print_summary(&s, 1, f);
+        fclose(f);
+        if (!json_check(buf, len)) {
+            fprintf(stderr, "fuzz_scene: the JSON summary does not parse:\n%s\n", buf);
+            abort();
+        }
+        free(buf);
+    }
+    wrt_scene_free(&s);
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {

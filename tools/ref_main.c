@@ -147,7 +147,7 @@ static double mean_of_f(const float *v, size_t n) {
 static const char *T = "wrt-ref";
 
 int main(int argc, char **argv) {
-    wrt_cli_check_stdout_at_exit("wrt-ref"); /* results lost on stdout: exit 3 */
+    wrt_cli_init("wrt-ref"); /* stdout checked at exit (3), out of memory: exit 7 */
     const char *scene_path = NULL, *out_prefix = "ref", *points_path = NULL;
     double exposure = 0;
     int pfm = 0;
@@ -198,7 +198,7 @@ int main(int argc, char **argv) {
     wrt_status st = wrt_scene_load(scene_path, NULL, &scene);
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-ref: error: %s: %s\n", wrt_status_str(st), wrt_last_error());
-        return WRT_EXIT_INPUT;
+        return st == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT;
     }
     if (cell_quad >= scene.nquads) {
         fprintf(stderr, "wrt-ref: error: --cells quad %d, the scene has %d (numbered from 0)\n", cell_quad, scene.nquads);

@@ -1048,7 +1048,7 @@ static int mkdir_p(const char *dir) {
 }
 
 int main(int argc, char **argv) {
-    wrt_cli_check_stdout_at_exit("wrt-scenegen"); /* results lost on stdout: exit 3 */
+    wrt_cli_init("wrt-scenegen"); /* stdout checked at exit (3), out of memory: exit 7 */
     sg_options opt = sg_defaults();
     const char *scene = NULL, *out = NULL, *all = NULL;
     for (int i = 1; i < argc; i++) {
