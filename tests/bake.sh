@@ -211,7 +211,14 @@ fi
 # An interrupted bake leaves nothing behind and exits 4.
 "$bake" "$tmp/maze.gltf" -o "$tmp/int.gto" --quality 6 --quiet >/dev/null 2>&1 &
 pid=$!
-sleep 1.5
+# once its handler is installed (SIGTERM, bit 15 of /proc's SigCgt; at most 30 s: a loaded
+# machine can take more than a second to load the shared libraries), then half a second on
+for _ in $(seq 300); do
+    cgt=$(awk '/^SigCgt:/ {print $2}' /proc/$pid/status 2>/dev/null)
+    [ -n "$cgt" ] && [ $(( 0x$cgt >> 14 & 1 )) -eq 1 ] && break
+    sleep 0.1
+done
+sleep 0.5
 kill -TERM $pid 2>/dev/null  # (background jobs of a script ignore SIGINT)
 wait $pid; rc=$?
 if [ $rc -eq 4 ] && [ ! -e "$tmp/int.gto" ] && [ -z "$(ls "$tmp" | grep -F '.tmp.')" ]; then
