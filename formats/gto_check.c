@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "../common/basis.h"
+#include "../common/limits.h"
 
 const gto_sec_desc gto_sec_info[SEC_KNOWN_END] = {
     [SEC_QUADS] = {"quads", sizeof(wrt_gto_quad)},
@@ -116,8 +117,8 @@ static void check_quads_local(vctx *v, const uint8_t *base, uint64_t first, uint
                         v->g->nnames);
         for (int k = 0; k < 4; k++)
             for (int j = 0; j < 3; j++)
-                if (!isfinite(q[i].p[k][j]))
-                    return vbad(v, "quad %" PRIu64 ": corner %d is not finite", i, k);
+                if (!wrt_in_bound(q[i].p[k][j], WRT_MAX_COORD)) /* common/limits.h: what the runtime carries */
+                    return vbad(v, "quad %" PRIu64 ": corner %d is not finite or beyond %g", i, k, WRT_MAX_COORD);
         const float *f[3] = {q[i].n, q[i].t, q[i].b};
         for (int k = 0; k < 3; k++) {
             double l = sqrt((double)f[k][0] * f[k][0] + (double)f[k][1] * f[k][1] + (double)f[k][2] * f[k][2]);
@@ -175,6 +176,12 @@ static void check_lights(vctx *v, const uint8_t *base, uint64_t first, uint64_t 
             !isfinite(l[i].range))
             return vbad(v, "light %" PRIu64 ": intensity %g or range %g is not finite and >= 0", i,
                         (double)l[i].intensity, (double)l[i].range);
+        /* finite, now within what the runtime carries */
+        if (!wrt_in_bound(l[i].pos[0], WRT_MAX_COORD) || !wrt_in_bound(l[i].pos[1], WRT_MAX_COORD) ||
+            !wrt_in_bound(l[i].pos[2], WRT_MAX_COORD) || !(l[i].intensity <= WRT_MAX_LIGHT_INTENSITY) ||
+            !(l[i].color[0] <= WRT_MAX_COLOR && l[i].color[1] <= WRT_MAX_COLOR && l[i].color[2] <= WRT_MAX_COLOR))
+            return vbad(v, "light %" PRIu64 ": position beyond %g, intensity above %g or a colour channel above %g "
+                        "(common/limits.h)", i, WRT_MAX_COORD, WRT_MAX_LIGHT_INTENSITY, WRT_MAX_COLOR);
         if (!(l[i].inner_cone >= 0) || !(l[i].outer_cone >= l[i].inner_cone) ||
             !(l[i].outer_cone <= (float)(WRT_PI / 2) * 1.0001f))
             return vbad(v, "light %" PRIu64 ": cone angles %g / %g not 0 <= inner <= outer <= pi/2", i,
@@ -265,18 +272,32 @@ static uint32_t scan_column(const uint32_t *r, size_t n, uint32_t nf) {
     return bad | (mx >= nf);
 }
 
-/* Any float (as bits) with an all-ones exponent (NaN or infinity): adding one to the
- * exponent field carries into the sign bit exactly then. */
+/* The largest magnitude an operator value may have: 2^48 (2.8e14). A light's radiant
+ * factor is at most 1e18 (common/limits.h), so one product stays below 3e32 and the sums a
+ * light change makes stay inside float range; a forged file's 3e38, finite but absurd,
+ * would turn into infinities and NaN pixels. Legitimate entries are transport
+ * coefficients: about 1 in a room, 1e6 where areas differ by 1e12. */
+#define GTO_MAX_VALUE_EXP 48
+#define GTO_MAX_VALUE ((double)(1ull << GTO_MAX_VALUE_EXP))
+/* Any float (as bits) whose exponent is at least 127 + 48 (|x| >= 2^48, infinity or NaN
+ * included): adding 256 - (127 + 48) to the exponent field carries into the sign bit
+ * exactly then. */
+#define GTO_BIG_CARRY ((uint32_t)(256 - (127 + GTO_MAX_VALUE_EXP)) << 23)
 static uint32_t scan_nonfinite(const uint32_t *u, size_t n) {
     uint32_t acc = 0;
     size_t i = 0;
     for (; i + SCAN_BLOCK <= n; i += SCAN_BLOCK) {
         uint32_t a = 0;
-        for (int j = 0; j < SCAN_BLOCK; j++) a |= (u[i + j] & 0x7f800000u) + 0x00800000u;
+        for (int j = 0; j < SCAN_BLOCK; j++) a |= (u[i + j] & 0x7f800000u) + GTO_BIG_CARRY;
         acc |= a;
     }
-    for (; i < n; i++) acc |= (u[i] & 0x7f800000u) + 0x00800000u;
+    for (; i < n; i++) acc |= (u[i] & 0x7f800000u) + GTO_BIG_CARRY;
     return acc >> 31;
+}
+/* What is wrong with a value scan_nonfinite flagged, or NULL. */
+static const char *value_problem(uint32_t u) {
+    if ((u & 0x7f800000u) == 0x7f800000u) return (u & 0x007fffffu) ? "NaN" : "infinite";
+    return ((u & 0x7f800000u) + GTO_BIG_CARRY) >> 31 ? "beyond 2^48 (2.8e14), more than any transport coefficient" : NULL;
 }
 
 static void check_fkeys(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
@@ -345,9 +366,8 @@ static void check_vals(vctx *v, const uint8_t *base, uint64_t first, uint64_t n)
     const uint32_t *u = (const uint32_t *)base + 3 * first;
     if (scan_nonfinite(u, (size_t)(3 * n))) {
         for (uint64_t j = 0; j < 3 * n; j++)
-            if ((u[j] & 0x7f800000u) == 0x7f800000u)
-                return vbad(v, "vals[%" PRIu64 "] channel %d is %s", first + j / 3, (int)(j % 3),
-                            (u[j] & 0x007fffffu) ? "NaN" : "infinite");
+            if (value_problem(u[j]))
+                return vbad(v, "vals[%" PRIu64 "] channel %d is %s", first + j / 3, (int)(j % 3), value_problem(u[j]));
     }
 }
 
@@ -468,9 +488,7 @@ static void check_kvals(vctx *v, const uint8_t *base, uint64_t first, uint64_t n
     const uint32_t *u = (const uint32_t *)base + first;
     if (scan_nonfinite(u, (size_t)n)) {
         for (uint64_t j = 0; j < n; j++)
-            if ((u[j] & 0x7f800000u) == 0x7f800000u)
-                return vbad(v, "kvals[%" PRIu64 "] is %s", first + j,
-                            (u[j] & 0x007fffffu) ? "NaN" : "infinite");
+            if (value_problem(u[j])) return vbad(v, "kvals[%" PRIu64 "] is %s", first + j, value_problem(u[j]));
     }
 }
 

@@ -13,6 +13,7 @@
 #include <sys/mman.h>
 
 #include "../common/basis.h"
+#include "../common/text.h"
 
 /* ------------------------------------------------------------------------------------
  * Inspection
@@ -120,18 +121,8 @@ static int is_json_object(const char *s, size_t n) {
     return p && js_ws(p, e) == e;
 }
 
-static void put_jstr(FILE *f, const char *s, size_t n) {
-    fputc('"', f);
-    for (size_t i = 0; i < n; i++) {
-        unsigned char ch = (unsigned char)s[i];
-        if (ch == '"' || ch == '\\') fprintf(f, "\\%c", ch);
-        else if (ch == '\n') fputs("\\n", f);
-        else if (ch == '\t') fputs("\\t", f);
-        else if (ch < 0x20 || ch == 0x7f) fprintf(f, "\\u%04x", ch);
-        else fputc(ch, f);
-    }
-    fputc('"', f);
-}
+/* common/text.h's one JSON writer: escapes, and invalid UTF-8 from a forged file as U+FFFD */
+static void put_jstr(FILE *f, const char *s, size_t n) { wrt_json_strn(f, s, n); }
 
 /* "512 B", "3.4 kB", "12.5 MB", "1.20 GB". */
 static const char *human_bytes(uint64_t n, char buf[32]) {

@@ -9,6 +9,7 @@
  * sigaction). */
 #include "gto_layout.h"
 #include "scene.h"
+#include "../common/outfile.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -530,6 +531,15 @@ wrt_status wrt_gto_commit(wrt_gto_pending *p) {
     }
     if (close(p->fd) != 0) { st = WRT_ERR_IO; e = errno; }
     p->fd = -1;
+    /* the target checked again right before the rename: a FIFO, device or link put there
+     * during the bake is refused, not replaced (common/outfile.h) */
+    if (st == WRT_OK && wrt_output_check(p->path) != WRT_OK) {
+        unlink(p->tmp);
+        tmp_disarm(p->slot);
+        p->slot = -1;
+        wrt_gto_discard(p);
+        return WRT_ERR_IO;
+    }
     if (st == WRT_OK && rename(p->tmp, p->path) != 0) { st = WRT_ERR_IO; e = errno; }
     if (st != WRT_OK) {
         unlink(p->tmp);

@@ -711,6 +711,25 @@ static void test_bad_indices(void) {
     float nan = NAN, inf = INFINITY;
     corrupt_index(b, n, S_VALS, 12 * 4 + 4, &nan, 4, "vals[4] channel 1 is NaN", "NaN value");
     corrupt_index(b, n, S_VALS, 12 * 11 + 8, &inf, 4, "vals[11] channel 2 is infinite", "infinite value");
+    /* finite but absurd, checksums made consistent: what the computation cannot carry */
+    float huge = 3e38f, just = 2.7e14f, over = 2.9e14f;
+    corrupt_index(b, n, S_VALS, 12 * 3, &huge, 4, "vals[3] channel 0 is beyond 2^48", "value 3e38");
+    corrupt_index(b, n, S_VALS, 12 * 3 + 4, &over, 4, "vals[3] channel 1 is beyond 2^48", "value 2.9e14");
+    {   /* the bound is not too tight: a value just under it is read */
+        uint8_t *c = malloc(n);
+        memcpy(c, b, n);
+        memcpy(c + sec_off(c, S_VALS) + 12 * 3 + 4, &just, 4);
+        fix_section_sum(c, S_VALS);
+        fix_header_sum(c);
+        wrt_gto g;
+        wrt_status st = wrt_gto_open_memory(c, n, &g);
+        CHECK(st == WRT_OK, "a value of 2.7e14, under 2^48, is read: %s", st ? wrt_last_error() : "");
+        if (st == WRT_OK) wrt_gto_close(&g);
+        free(c);
+    }
+    double dfar = 1e30;
+    corrupt_index(b, n, S_QUADS, 8, &dfar, 8, "quad 0: corner 0 is not finite or beyond 1e+09", "corner 1e30");
+    corrupt_index(b, n, S_LIGHTS, 80, &dfar, 8, "light 0: position beyond 1e+09", "light position 1e30");
     uint32_t m9 = 9, ff = 5, fc = 9;
     corrupt_index(b, n, S_QUADS, 168 + 136, &m9, 4, "quad 1: material 9 out of range (2 materials)", "material index");
     corrupt_index(b, n, S_QUADS, 168 + 140, &m9, 4, "quad 1: name 9 out of range", "name index");
@@ -1034,7 +1053,7 @@ static void test_print_info(void) {
         f = open_memstream(&text, &tn);
         wrt_gto_print_info(tpath("info_text.gto"), 1, f);
         fclose(f);
-        CHECK(strstr(text, "\"provenance\": \"built by hand\\n\\\"v2\\\"\""), "escaped provenance: %s", text);
+        CHECK(strstr(text, "\"provenance\": \"built by hand\\u000a\\\"v2\\\"\""), "escaped provenance: %s", text);
         free(text);
     }
     c.provenance = "{\"a\": [1, 2,]}";
