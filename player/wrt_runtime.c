@@ -100,7 +100,8 @@ wrt_status wrt_runtime_get_light(const wrt_runtime *rt, int i, wrt_runtime_light
                                   rt->g.nlights));
     const wrt_gto_light *l = &rt->g.lights[i];
     memset(out, 0, sizeof *out);
-    out->kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT : WRT_LIGHT_KIND_POINT;
+    out->kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT
+                : l->type == WRT_LIGHT_DIRECTIONAL ? WRT_LIGHT_KIND_DIRECTIONAL : WRT_LIGHT_KIND_POINT;
     for (int c = 0; c < 3; c++) {
         out->position[c] = l->pos[c];
         out->direction[c] = l->dir[c];
@@ -122,8 +123,9 @@ wrt_status wrt_runtime_set_lights(wrt_runtime *rt, const wrt_runtime_light *in, 
         wrt_v3 p = v3(l->position[0], l->position[1], l->position[2]);
         wrt_v3 d = v3(l->direction[0], l->direction[1], l->direction[2]);
         float outer = l->outer_cone > 0 ? l->outer_cone : (float)(WRT_PI / 4);
-        int spot = l->kind == WRT_LIGHT_KIND_SPOT;
-        if ((l->kind != WRT_LIGHT_KIND_POINT && !spot) || !v3_finite(p) || !isfinite(l->intensity) ||
+        int spot = l->kind == WRT_LIGHT_KIND_SPOT, sun = l->kind == WRT_LIGHT_KIND_DIRECTIONAL;
+        if ((l->kind != WRT_LIGHT_KIND_POINT && !spot && !sun) || (sun && (!v3_finite(d) || v3_len(d) == 0)) ||
+            (!sun && !v3_finite(p)) || !isfinite(l->intensity) ||
             l->intensity < 0 || !isfinite(l->color[0] + l->color[1] + l->color[2]) ||
             l->color[0] < 0 || l->color[1] < 0 || l->color[2] < 0 ||
             (spot && (!v3_finite(d) || v3_len(d) == 0 || !(outer <= WRT_PI / 2) || !(l->inner_cone >= 0) ||
@@ -131,9 +133,9 @@ wrt_status wrt_runtime_set_lights(wrt_runtime *rt, const wrt_runtime_light *in, 
             return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_set_lights: light %d is invalid (kind, a "
                                       "non-finite or negative value, or a spot's axis or cones)", i));
         memset(&ls[i], 0, sizeof ls[i]);
-        ls[i].type = spot ? WRT_LIGHT_SPOT : WRT_LIGHT_POINT;
-        ls[i].pos = p;
-        ls[i].dir = spot ? v3_norm(d) : v3(0, 0, -1);
+        ls[i].type = spot ? WRT_LIGHT_SPOT : sun ? WRT_LIGHT_DIRECTIONAL : WRT_LIGHT_POINT;
+        ls[i].pos = sun ? v3(0, 0, 0) : p;
+        ls[i].dir = spot || sun ? v3_norm(d) : v3(0, 0, -1);
         int black = l->color[0] == 0 && l->color[1] == 0 && l->color[2] == 0;
         for (int c = 0; c < 3; c++) ls[i].color[c] = black ? 1.0f : l->color[c];
         ls[i].intensity = l->intensity;

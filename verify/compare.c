@@ -103,6 +103,7 @@ int wrt_compare_default_lights(const wrt_scene *s, int count, wrt_light *out) {
     if (s->nlights > 0) {
         base = s->lights[0];
         out[k++] = base;
+        if (base.type == WRT_LIGHT_DIRECTIONAL) return k; /* a sun has no position to move */
     } else {
         memset(&base, 0, sizeof base);
         base.type = WRT_LIGHT_POINT;
@@ -373,7 +374,8 @@ void wrt_compare_ref_get_info(const wrt_compare_ref *c, wrt_compare_ref_info *in
 static wrt_runtime_light runtime_light(const wrt_light *l) {
     wrt_runtime_light o;
     memset(&o, 0, sizeof o);
-    o.kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT : WRT_LIGHT_KIND_POINT;
+    o.kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT
+             : l->type == WRT_LIGHT_DIRECTIONAL ? WRT_LIGHT_KIND_DIRECTIONAL : WRT_LIGHT_KIND_POINT;
     o.position[0] = l->pos.x; o.position[1] = l->pos.y; o.position[2] = l->pos.z;
     o.direction[0] = l->dir.x; o.direction[1] = l->dir.y; o.direction[2] = l->dir.z;
     for (int c = 0; c < 3; c++) o.color[c] = l->color[c];
