@@ -665,9 +665,13 @@ static double cpu_now(void) {
 
 /* The timed updates: `updates` moves around a circle (angle a), each followed by an
  * update; wall and CPU milliseconds of each, sorted. */
-typedef struct bench_ctx { wrt_light light; wrt_v3 p0; double rad, eye[3]; } bench_ctx;
+typedef struct bench_ctx { wrt_light light; wrt_v3 p0, d0; double rad, eye[3]; } bench_ctx;
 static void bench_light(wrt_runtime *r, double a, bench_ctx *c) {
-    c->light.pos = v3(c->p0.x + c->rad * cos(a), c->p0.y, c->p0.z + c->rad * sin(a));
+    if (c->light.type == WRT_LIGHT_DIRECTIONAL) { /* a sun turns about +Y, by 0.1 a radians */
+        double t = 0.1 * a, ct = cos(t), st = sin(t);
+        c->light.dir = v3(ct * c->d0.x + st * c->d0.z, c->d0.y, -st * c->d0.x + ct * c->d0.z);
+    } else
+        c->light.pos = v3(c->p0.x + c->rad * cos(a), c->p0.y, c->p0.z + c->rad * sin(a));
     set_light(r, &c->light);
 }
 static void bench_eye(wrt_runtime *r, double a, bench_ctx *c) {
@@ -706,7 +710,7 @@ wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const dou
         }
     double *ms = wrt_xmalloc((size_t)updates * sizeof(double)), *cpu = wrt_xmalloc((size_t)updates * sizeof(double));
     double rad = 0.02 * v3_len(v3_sub(hi, lo));
-    bench_ctx bc = {.light = *light, .p0 = light->pos, .rad = rad, .eye = {eye[0], eye[1], eye[2]}};
+    bench_ctx bc = {.light = *light, .p0 = light->pos, .d0 = light->dir, .rad = rad, .eye = {eye[0], eye[1], eye[2]}};
     time_circle(r, updates, bench_light, &bc, ms, cpu);
     out->ms_update_median = ms[updates / 2];
     out->ms_update_min = ms[0];
