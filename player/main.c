@@ -935,8 +935,9 @@ static void draw_overlay(app *a, win_state *w) {
     }
     if (a->nlights > WRT_RENDER_MAX_LIGHTS) ADD("  (%d more not shown)\n", a->nlights - WRT_RENDER_MAX_LIGHTS);
     ADD("\nKEYS  mouse (left button) look   W A S D  Q E  move   Shift faster\n"
-        "      arrows / I J K L  U O  move the light   [ ] exposure   T both/direct/indirect\n"
-        "      R reset   F5 reload   F12 screenshot   P print options   H hide   Esc quit\n");
+        "      arrows / I J K L  U O  %s   [ ] exposure   T both/direct/indirect\n"
+        "      R reset   F5 reload   F12 screenshot   P print options   H hide   Esc quit\n",
+        w->sel < a->nlights && a->lights[w->sel].type == WRT_LIGHT_DIRECTIONAL ? "turn the sun  " : "move the light");
     if (w->status_until > now) ADD("\n%s\n", w->status);
 #undef ADD
     float tw, th;
@@ -1098,10 +1099,11 @@ static int run_window(app *a) {
         if (in.down[WRT_KEY_O]) lm = v3_add(lm, up);
         if (in.down[WRT_KEY_U]) lm = v3_sub(lm, up);
         if (v3_len(lm) > 0 && sl->type == WRT_LIGHT_DIRECTIONAL) {
-            /* a sun turns: left/right about up (azimuth), up/down and U O its elevation */
+            /* a sun turns: left/right about up (azimuth), up/down and O/U raise/lower it */
             changed = 1;
             double turn = 0.8 * dt * (in.down[WRT_KEY_SHIFT] ? 4 : 1); /* radians */
-            double az = turn * v3_dot(lm, right), el = turn * (v3_dot(lm, hf) + v3_dot(lm, up));
+            /* up / O raise the sun: its light then travels more steeply down */
+            double az = turn * v3_dot(lm, right), el = -turn * (v3_dot(lm, hf) + v3_dot(lm, up));
             wrt_v3 d = sl->dir, side = v3_cross(up, d);
             d = v3_add(v3_scale(d, cos(az)), v3_add(v3_scale(side, sin(az)), v3_scale(up, v3_dot(up, d) * (1 - cos(az)))));
             wrt_v3 axis = v3_cross(d, up);
