@@ -166,7 +166,17 @@ int wrt_cli_lights_apply(const char *tool, const wrt_cli_lights *L, wrt_light *l
     }
     if (per_light) {
         wrt_light *l = &lights[which - 1];
-        if (L->has_dir && l->type != WRT_LIGHT_SPOT && !L->has_cone) {
+        if (l->type == WRT_LIGHT_DIRECTIONAL && (L->has_pos || L->has_cone)) {
+            fprintf(stderr, "%s: %s: light %d ('%s') is a directional light (a sun), which has no %s; "
+                    "--light-dir turns it\n", tool, L->has_pos ? "--light-pos" : "--light-cone", which, l->name,
+                    L->has_pos ? "position" : "cone");
+            return WRT_EXIT_USAGE;
+        }
+        if (L->has_dir && l->type == WRT_LIGHT_DIRECTIONAL && !(v3_len(v3(L->dir[0], L->dir[1], L->dir[2])) > 0)) {
+            fprintf(stderr, "%s: --light-dir: a zero direction for the directional light %d\n", tool, which);
+            return WRT_EXIT_USAGE;
+        }
+        if (L->has_dir && l->type == WRT_LIGHT_POINT && !L->has_cone) {
             fprintf(stderr,
                     "%s: error: --light-dir: light %d ('%s') is a point light, which shines every way; add "
                     "--light-cone IN,OUT to make it a spot light\n",
@@ -198,9 +208,10 @@ void wrt_cli_lights_help(FILE *f) {
             "  --light N               the light the options below change (default 1; lights are\n"
             "                          numbered from 1, as --scan lists them)\n"
             "  --light-pos X,Y,Z       move it\n"
-            "  --light-dir X,Y,Z       aim a spot light (a point light needs --light-cone too)\n"
+            "  --light-dir X,Y,Z       aim a spot light (a point light needs --light-cone too),\n"
+            "                          or turn a sun: the way its light travels\n"
             "  --light-cone IN,OUT     make it a spot light with these cone angles (radians)\n"
-            "  --light-intensity I     its intensity in candela\n"
+            "  --light-intensity I     its intensity in candela (lux for a sun)\n"
             "  --light-color R,G,B     its colour, linear RGB\n"
             "  --light-scale N=S       multiply light N by S (repeatable)\n"
             "  --lights-off N[,M..]    switch lights off\n"

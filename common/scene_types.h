@@ -1,6 +1,6 @@
 /* scene_types.h: what a scene is made of, shared by every layer (the loader fills
  * it, the bake reads it, the runtime and the path tracer light it): quads, glTF
- * metallic-roughness materials, KHR_lights_punctual point and spot lights, a camera,
+ * metallic-roughness materials, KHR_lights_punctual point, spot and directional lights, a camera,
  * all in world space. Depends on wrt_common.h only.
  *
  * Quad parameterization (documented in README.md): corners p[0..3] in order around
@@ -45,19 +45,27 @@ typedef struct wrt_material {
     int has_texture;
 } wrt_material;
 
-typedef enum { WRT_LIGHT_POINT = 0, WRT_LIGHT_SPOT = 1 } wrt_light_type;
+/* A directional light (KHR_lights_punctual's `directional`, a sun) has no position and no
+ * range: it sends light along `dir` from infinitely far, irradiance `intensity` (lux) on a
+ * surface facing it. */
+typedef enum { WRT_LIGHT_POINT = 0, WRT_LIGHT_SPOT = 1, WRT_LIGHT_DIRECTIONAL = 2 } wrt_light_type;
 
 typedef struct wrt_light {
     wrt_light_type type;
     char name[64];
-    wrt_v3 pos;
-    wrt_v3 dir;          /* unit; spot axis = node's -Z */
+    wrt_v3 pos;          /* (0, 0, 0) for a directional light */
+    wrt_v3 dir;          /* unit; spot axis or the direction a sun's light travels = node's -Z */
     float color[3];      /* linear RGB, default 1,1,1 */
-    float intensity;     /* candela (point, spot) */
-    float range;         /* 0 = infinite */
+    float intensity;     /* candela (point, spot), lux (directional) */
+    float range;         /* 0 = infinite (always 0 for a directional light) */
     float inner_cone;    /* radians, default 0 */
     float outer_cone;    /* radians, default pi/4 */
 } wrt_light;
+
+/* "point", "spot" or "directional", as KHR_lights_punctual names them. */
+static inline const char *wrt_light_type_name(wrt_light_type t) {
+    return t == WRT_LIGHT_SPOT ? "spot" : t == WRT_LIGHT_DIRECTIONAL ? "directional" : "point";
+}
 
 typedef struct wrt_camera {
     wrt_v3 pos, dir, up; /* dir: unit view direction (-Z of node), up: unit (+Y of node) */

@@ -515,11 +515,11 @@ struct reader {
                              "%s: nodes[%zu]: light %d's world transform has zero scale (determinant "
                              "%g): no position frame or direction",
                              label, node, li, det);
-        if (det < 0 && o.type == WRT_GLTF_LIGHT_SPOT)
+        if (det < 0 && (o.type == WRT_GLTF_LIGHT_SPOT || o.type == WRT_GLTF_LIGHT_DIRECTIONAL))
             throw make_error(WRT_ERR_PARSE,
-                             "%s: nodes[%zu]: spot light %d's world transform has a negative scale "
-                             "(determinant %g): it mirrors the spot's direction",
-                             label, node, li, det);
+                             "%s: nodes[%zu]: %s light %d's world transform has a negative scale "
+                             "(determinant %g): it mirrors the light's direction",
+                             label, node, o.type == WRT_GLTF_LIGHT_SPOT ? "spot" : "directional", li, det);
         const double origin[3] = {0, 0, 0}, minus_z[3] = {0, 0, -1};
         mat_point(world, origin, o.pos);
         mat_dir(world, minus_z, o.dir);

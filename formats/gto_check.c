@@ -164,9 +164,9 @@ static void check_lights(vctx *v, const uint8_t *base, uint64_t first, uint64_t 
     const wrt_gto_light *l = (const wrt_gto_light *)base;
     for (uint64_t i = first; i < first + n; i++) {
         if (!has_nul64(l[i].name)) return vbad(v, "light %" PRIu64 ": name not terminated", i);
-        if (l[i].type > WRT_LIGHT_SPOT)
+        if (l[i].type > WRT_LIGHT_DIRECTIONAL)
             return vbad(v, "light %" PRIu64 ": unknown type %u", i, l[i].type);
-        if (!fin3d(l[i].pos) || !fin3d(l[i].dir) || (l[i].type == WRT_LIGHT_SPOT && !unit3d(l[i].dir)))
+        if (!fin3d(l[i].pos) || !fin3d(l[i].dir) || (l[i].type != WRT_LIGHT_POINT && !unit3d(l[i].dir)))
             return vbad(v, "light %" PRIu64 ": position or direction not finite (or not unit)", i);
         for (int c = 0; c < 3; c++)
             if (!(l[i].color[c] >= 0) || !isfinite(l[i].color[c]))

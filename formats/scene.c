@@ -589,12 +589,12 @@ static wrt_status convert_lights(const wrt_gltf_data *g, wrt_scene *s, const cha
     s->lights = wrt_xcalloc(g->nlights ? g->nlights : 1, sizeof *s->lights);
     for (size_t i = 0; i < g->nlights; i++) {
         const wrt_gltf_light *l = &g->lights[i];
-        if (l->type == WRT_GLTF_LIGHT_DIRECTIONAL || l->type == WRT_GLTF_LIGHT_OTHER) {
-            wrt_log(WRT_LOG_WARN, "%s: light '%s' (node %d): %s lights are not supported, skipped",
-                    label, l->name, l->node,
-                    l->type == WRT_GLTF_LIGHT_DIRECTIONAL ? "directional" : "unknown-type");
+        if (l->type == WRT_GLTF_LIGHT_OTHER) {
+            wrt_log(WRT_LOG_WARN, "%s: light '%s' (node %d): unknown-type lights are not supported, skipped",
+                    label, l->name, l->node);
             continue;
         }
+        int sun = l->type == WRT_GLTF_LIGHT_DIRECTIONAL;
         if (!finite3(l->pos) || !finite3(l->dir) || !finite3(l->color) || !isfinite(l->intensity) ||
             !isfinite(l->range) || !isfinite(l->inner_cone) || !isfinite(l->outer_cone))
             return wrt_fail(WRT_ERR_PARSE, "%s: light '%s' (node %d) has a non-finite value", label,
@@ -602,22 +602,29 @@ static wrt_status convert_lights(const wrt_gltf_data *g, wrt_scene *s, const cha
         if (l->intensity < 0 || l->range < 0 || l->color[0] < 0 || l->color[1] < 0 || l->color[2] < 0)
             return wrt_fail(WRT_ERR_PARSE, "%s: light '%s' (node %d) has a negative intensity, range or color",
                             label, l->name, l->node);
-        if (!wrt_coord3_ok(l->pos[0], l->pos[1], l->pos[2]))
+        if (!sun && !wrt_coord3_ok(l->pos[0], l->pos[1], l->pos[2]))
             return wrt_fail(WRT_ERR_PARSE,
                             "%s: light '%s' (node %d): position (%g, %g, %g) is outside +-%g, what the "
                             "computation can carry (common/limits.h)",
                             label, l->name, l->node, l->pos[0], l->pos[1], l->pos[2], WRT_MAX_COORD);
         if (l->intensity > WRT_MAX_LIGHT_INTENSITY)
-            return wrt_fail(WRT_ERR_PARSE, "%s: light '%s' (node %d): intensity %g is above %g cd (common/limits.h)",
-                            label, l->name, l->node, l->intensity, WRT_MAX_LIGHT_INTENSITY);
+            return wrt_fail(WRT_ERR_PARSE, "%s: light '%s' (node %d): intensity %g is above %g %s (common/limits.h)",
+                            label, l->name, l->node, l->intensity, WRT_MAX_LIGHT_INTENSITY, sun ? "lux" : "cd");
+        /* A sun's direction is its node's -Z; a node whose matrix collapses it has none. */
+        if (sun && !(fabs(v3_len(v3(l->dir[0], l->dir[1], l->dir[2])) - 1) < 1e-6))
+            return wrt_fail(WRT_ERR_PARSE, "%s: light '%s' (node %d): directional light without a direction "
+                            "(the node's -Z axis is degenerate)", label, l->name, l->node);
         wrt_light *o = &s->lights[s->nlights++];
-        o->type = l->type == WRT_GLTF_LIGHT_SPOT ? WRT_LIGHT_SPOT : WRT_LIGHT_POINT;
+        o->type = sun ? WRT_LIGHT_DIRECTIONAL : l->type == WRT_GLTF_LIGHT_SPOT ? WRT_LIGHT_SPOT : WRT_LIGHT_POINT;
         wrt_utf8_copy(o->name, sizeof o->name, l->name);
-        o->pos = v3(l->pos[0], l->pos[1], l->pos[2]);
+        o->pos = sun ? v3(0, 0, 0) : v3(l->pos[0], l->pos[1], l->pos[2]); /* a sun has no position */
         o->dir = v3(l->dir[0], l->dir[1], l->dir[2]);
         for (int c = 0; c < 3; c++) o->color[c] = (float)l->color[c];
         o->intensity = (float)l->intensity;
-        o->range = (float)l->range;
+        o->range = sun ? 0.0f : (float)l->range; /* the specification: range does not apply to a sun */
+        if (sun && l->range > 0)
+            wrt_log(WRT_LOG_WARN, "%s: directional light '%s': range %g ignored (KHR_lights_punctual: it does "
+                    "not apply to directional lights)", label, l->name, l->range);
         double inner = l->inner_cone, outer = l->outer_cone;
         if (o->type == WRT_LIGHT_SPOT) {
             if (!(outer > 0 && outer <= WRT_PI / 2 && inner >= 0 && inner < outer)) {
@@ -989,7 +996,7 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
         fputs("],\"lights\":[", f);
         for (int i = 0; i < s->nlights; i++) {
             const wrt_light *l = &s->lights[i];
-            fprintf(f, "%s{\"type\":\"%s\",\"name\":", i ? "," : "", l->type == WRT_LIGHT_SPOT ? "spot" : "point");
+            fprintf(f, "%s{\"type\":\"%s\",\"name\":", i ? "," : "", wrt_light_type_name(l->type));
             json_string(f, l->name);
             fputs(",\"position\":", f);
             json_v3(f, l->pos);
@@ -1074,9 +1081,13 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
     fprintf(f, "lights: %d (numbered from 1, as --light N and --light-scale N=S take them)\n", s->nlights);
     for (int i = 0; i < s->nlights; i++) {
         const wrt_light *l = &s->lights[i];
-        fprintf(f, "  [%d] %-5s %-16s at (%g, %g, %g) dir (%.3f, %.3f, %.3f) intensity %g cd color (%.3f, %.3f, %.3f)",
-                i + 1, l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, l->pos.x, l->pos.y, l->pos.z,
-                l->dir.x, l->dir.y, l->dir.z, l->intensity, l->color[0], l->color[1], l->color[2]);
+        if (l->type == WRT_LIGHT_DIRECTIONAL)
+            fprintf(f, "  [%d] %-5s %-16s dir (%.3f, %.3f, %.3f) intensity %g lux color (%.3f, %.3f, %.3f)", i + 1, "sun",
+                    l->name, l->dir.x, l->dir.y, l->dir.z, l->intensity, l->color[0], l->color[1], l->color[2]);
+        else
+            fprintf(f, "  [%d] %-5s %-16s at (%g, %g, %g) dir (%.3f, %.3f, %.3f) intensity %g cd color (%.3f, %.3f, %.3f)",
+                    i + 1, l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, l->pos.x, l->pos.y, l->pos.z,
+                    l->dir.x, l->dir.y, l->dir.z, l->intensity, l->color[0], l->color[1], l->color[2]);
         if (l->type == WRT_LIGHT_SPOT)
             fprintf(f, " cone %.3f/%.3f rad", l->inner_cone, l->outer_cone);
         if (l->range > 0) fprintf(f, " range %g", l->range);

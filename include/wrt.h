@@ -221,7 +221,7 @@ WRT_API wrt_status wrt_runtime_open_memory(const void *data, size_t size, const 
  * already closed, or not a runtime: WRT_ERR_INVALID_ARG, nothing released. */
 WRT_API wrt_status wrt_runtime_close(wrt_runtime *rt);
 
-enum { WRT_LIGHT_KIND_POINT = 0, WRT_LIGHT_KIND_SPOT = 1 };
+enum { WRT_LIGHT_KIND_POINT = 0, WRT_LIGHT_KIND_SPOT = 1, WRT_LIGHT_KIND_DIRECTIONAL = 2 };
 #define WRT_MAX_LIGHTS 64
 #define WRT_MAX_COORD 1e9      /* metres: bound on each coordinate of a light or the eye */
 #define WRT_MAX_INTENSITY 1e20 /* candela: bound on intensity x the largest colour channel */
@@ -229,11 +229,12 @@ enum { WRT_LIGHT_KIND_POINT = 0, WRT_LIGHT_KIND_SPOT = 1 };
 /* A light (KHR_lights_punctual's model). Zero-initialised: a white point light of
  * intensity 0 at the origin, unbounded, on. */
 typedef struct wrt_runtime_light {
-    int kind;               /* WRT_LIGHT_KIND_POINT or _SPOT */
-    double position[3];
-    double direction[3];    /* spot axis (need not be unit length; ignored for a point light) */
+    int kind;               /* WRT_LIGHT_KIND_POINT, _SPOT or _DIRECTIONAL (a sun) */
+    double position[3];     /* ignored for a directional light */
+    double direction[3];    /* spot axis, or the way a sun's light travels (need not be unit
+                             * length; ignored for a point light) */
     float color[3];         /* linear RGB; all zero means white */
-    float intensity;        /* candela */
+    float intensity;        /* candela; lux for a directional light (irradiance facing it) */
     float inner_cone;       /* spot: radians from the axis at full intensity (0..outer) */
     float outer_cone;       /* spot: radians from the axis where it reaches 0 (0 = pi/4) */
     int off;                /* 1: switched off (contributes nothing) */

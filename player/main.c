@@ -43,7 +43,7 @@ static void usage(FILE *f) {
         "Relights a scene baked by wrt-bake (Wavelet Radiance Transport) in real time, in a\n"
         "window or headless into pictures. In the window (H shows the overlay, F1 these keys in it):\n"
         "  mouse (left button) look       W A S D move, Q E down/up, Shift faster\n"
-        "  Tab / 1-9 select a light       arrows or I J K L move it, U O lower/raise it\n"
+        "  Tab / 1-9 select a light       arrows or I J K L move it, U O lower/raise it (a sun: turn it)\n"
         "  Space switch it on/off         + - brighter/dimmer, C cycle its colour\n"
         "  [ ] exposure -/+ 1/2 stop      T both/direct/indirect, R reset view and lights\n"
         "  F5 reload the .gto             F12 screenshot (wrt-play-N.png), P print as options\n"
@@ -62,8 +62,9 @@ static void usage(FILE *f) {
         "  --direct-only | --indirect-only   show one part (default: both)\n"
         "  --stats-json FILE     per quad: area, centroid, normal, mesh name, mean direct and\n"
         "                        indirect incident irradiance (RGB) for the current lights\n"
-        "  --bench N             move light 1 along a fixed circle for N frames; print one JSON\n"
-        "                        object with the median milliseconds of each stage and the fps\n"
+        "  --bench N             move light 1 along a fixed circle (turn a sun 2 degrees a frame)\n"
+        "                        for N frames; print one JSON object with the median\n"
+        "                        milliseconds of each stage and the fps\n"
         "  --frames N            window: quit after N frames; --screenshot IMG saves the last one\n"
         "  --no-overlay          window: start with the on-screen overlay hidden\n"
         "  --script FILE --out-pattern PATTERN   render one frame per keyframe (see below) to\n"
@@ -321,7 +322,8 @@ static int run_frame(app *a, stage_ms *t) {
         for (int i = 0; i < n; i++) { /* the runtime's lights: a scale folds into the intensity */
             const wrt_light *l = &a->lights[i];
             memset(&rls[i], 0, sizeof rls[i]);
-            rls[i].kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT : WRT_LIGHT_KIND_POINT;
+            rls[i].kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT
+                          : l->type == WRT_LIGHT_DIRECTIONAL ? WRT_LIGHT_KIND_DIRECTIONAL : WRT_LIGHT_KIND_POINT;
             rls[i].position[0] = l->pos.x; rls[i].position[1] = l->pos.y; rls[i].position[2] = l->pos.z;
             rls[i].direction[0] = l->dir.x; rls[i].direction[1] = l->dir.y; rls[i].direction[2] = l->dir.z;
             for (int c = 0; c < 3; c++) rls[i].color[c] = l->color[c];
@@ -429,7 +431,7 @@ static int write_stats(app *a, const char *path) {
         const wrt_light *l = &a->lights[i];
         fprintf(f, "%s\n    {\"name\": ", i ? "," : "");
         json_str(f, l->name, sizeof l->name);
-        fprintf(f, ", \"type\": \"%s\"", l->type == WRT_LIGHT_SPOT ? "spot" : "point");
+        fprintf(f, ", \"type\": \"%s\"", wrt_light_type_name(l->type));
         double pos[3] = {l->pos.x, l->pos.y, l->pos.z}, dir[3] = {l->dir.x, l->dir.y, l->dir.z};
         double in = l->intensity, sc = i < WRT_RENDER_MAX_LIGHTS ? a->scales[i] : 0.0f;
         json_key_nums(f, "pos", pos, 3, 17);
@@ -697,6 +699,7 @@ static int run_bench(app *a) {
     double lo[3], hi[3];
     wrt_render_scene_bounds(&a->g, lo, hi);
     double radius = 0.05 * v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
+    wrt_v3 d0 = l->dir, h0 = v3_sub(d0, v3_scale(up, v3_dot(d0, up))); /* a sun's direction, horizontal part */
     /* one warm-up frame: the first relight projects every light and uploads every quad */
     stage_ms t;
     int rc = run_frame(a, &t);
@@ -704,7 +707,12 @@ static int run_bench(app *a) {
     double t0 = wrt_now();
     for (int i = 0; i < n && !rc; i++) {
         double ang = 2 * WRT_PI * (i + 1) / (n < 8 ? 8 : n);
-        l->pos = v3_add(c, v3_add(v3_scale(e1, radius * cos(ang) - radius), v3_scale(e2, radius * sin(ang))));
+        if (l->type == WRT_LIGHT_DIRECTIONAL) /* a sun turns: its direction about up, 2 degrees a frame */
+            l->dir = v3_norm(v3_add(v3_scale(up, v3_dot(d0, up)),
+                                    v3_add(v3_scale(h0, cos(2 * WRT_PI / 180 * (i + 1))),
+                                           v3_scale(v3_cross(up, h0), sin(2 * WRT_PI / 180 * (i + 1))))));
+        else
+            l->pos = v3_add(c, v3_add(v3_scale(e1, radius * cos(ang) - radius), v3_scale(e2, radius * sin(ang))));
         rc = run_frame(a, &t);
         col[0][i] = t.projection;
         col[1][i] = t.multiply;
@@ -774,7 +782,7 @@ static void light_bounds(app *a, win_state *w) {
         w->box_hi[k] -= 1e-3 * size;
     }
     for (int i = 0; i < a->nlights; i++)
-        for (int k = 0; k < 3; k++) {
+        for (int k = 0; k < 3 && a->lights[i].type != WRT_LIGHT_DIRECTIONAL; k++) { /* a sun has no position */
             double p = (&a->lights[i].pos.x)[k];
             if (p < w->box_lo[k]) w->box_lo[k] = p;
             if (p > w->box_hi[k]) w->box_hi[k] = p;
@@ -862,6 +870,10 @@ static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch
      * selected one, its number beside it, a dotted axis for a spot */
     for (int i = 0; i < nshown(a); i++) {
         double p[3] = {a->lights[i].pos.x, a->lights[i].pos.y, a->lights[i].pos.z}, px[2];
+        if (a->lights[i].type == WRT_LIGHT_DIRECTIONAL) /* a sun: where it comes from, at the box's edge */
+            for (int k = 0; k < 3; k++)
+                p[k] = 0.5 * (w->box_lo[k] + w->box_hi[k]) - (&a->lights[i].dir.x)[k] * 0.5 *
+                       v3_len(v3(w->box_hi[0] - w->box_lo[0], w->box_hi[1] - w->box_lo[1], w->box_hi[2] - w->box_lo[2]));
         if (!wrt_render_project(a->rd, &a->view, p, px)) continue;
         float x = (float)px[0], y = (float)px[1], r = 6.0f * sc;
         int on = a->scales[i] != 0;
@@ -929,16 +941,19 @@ static void draw_overlay(app *a, win_state *w) {
     ADD("LIGHTS  (Tab/1-9 select, Space on/off, +/- intensity, C colour)\n");
     for (int i = 0; i < nshown(a); i++) {
         const wrt_light *l = &a->lights[i];
-        ADD("%c %d %-5s %-16.16s %-3s %9.4g cd x%-5.3g (%.2f, %.2f, %.2f) %s\n", i == w->sel ? '>' : ' ', i + 1,
-            l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, a->scales[i] != 0 ? "on" : "OFF", l->intensity,
-            a->scales[i] != 0 ? a->scales[i] : w->saved_scale[i], l->pos.x, l->pos.y, l->pos.z,
-            colours[w->colour[i]].name);
+        int sun = l->type == WRT_LIGHT_DIRECTIONAL; /* a sun: its direction, in lux */
+        wrt_v3 shown = sun ? l->dir : l->pos;
+        ADD("%c %d %-5s %-16.16s %-3s %9.4g %s x%-5.3g %s(%.2f, %.2f, %.2f) %s\n", i == w->sel ? '>' : ' ', i + 1,
+            sun ? "sun" : l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, a->scales[i] != 0 ? "on" : "OFF",
+            l->intensity, sun ? "lx" : "cd", a->scales[i] != 0 ? a->scales[i] : w->saved_scale[i], sun ? "dir " : "",
+            shown.x, shown.y, shown.z, colours[w->colour[i]].name);
     }
     if (a->nlights > WRT_RENDER_MAX_LIGHTS) ADD("  (%d more not shown)\n", a->nlights - WRT_RENDER_MAX_LIGHTS);
     if (w->keys_on)
         ADD("\nKEYS  mouse (left button) look   W A S D  Q E  move   Shift faster\n"
-            "      arrows / I J K L  U O  move the light   [ ] exposure   T both/direct/indirect\n"
-            "      R reset   F5 reload   F12 screenshot   P print options   H hide   Esc quit\n");
+            "      arrows / I J K L  U O  %s   [ ] exposure   T both/direct/indirect\n"
+            "      R reset   F5 reload   F12 screenshot   P print options   H hide   Esc quit\n",
+            w->sel < a->nlights && a->lights[w->sel].type == WRT_LIGHT_DIRECTIONAL ? "turn the sun  " : "move the light");
     else
         ADD("F1 keys   H hide\n");
     if (w->status_until > now) ADD("\n%s\n", w->status);
@@ -1103,7 +1118,22 @@ static int run_window(app *a) {
         if (in.down[WRT_KEY_LEFT] || in.down[WRT_KEY_J]) lm = v3_sub(lm, right);
         if (in.down[WRT_KEY_O]) lm = v3_add(lm, up);
         if (in.down[WRT_KEY_U]) lm = v3_sub(lm, up);
-        if (v3_len(lm) > 0) {
+        if (v3_len(lm) > 0 && sl->type == WRT_LIGHT_DIRECTIONAL) {
+            /* a sun turns: left/right about up (azimuth), up/down and O/U raise/lower it */
+            changed = 1;
+            double turn = 0.8 * dt * (in.down[WRT_KEY_SHIFT] ? 4 : 1); /* radians */
+            /* up / O raise the sun: its light then travels more steeply down */
+            double az = turn * v3_dot(lm, right), el = -turn * (v3_dot(lm, hf) + v3_dot(lm, up));
+            wrt_v3 d = sl->dir, side = v3_cross(up, d);
+            d = v3_add(v3_scale(d, cos(az)), v3_add(v3_scale(side, sin(az)), v3_scale(up, v3_dot(up, d) * (1 - cos(az)))));
+            wrt_v3 axis = v3_cross(d, up);
+            if (v3_len(axis) > 1e-6) {
+                axis = v3_norm(axis);
+                wrt_v3 d2 = v3_add(v3_scale(d, cos(el)), v3_scale(v3_cross(axis, d), sin(el)));
+                if (fabs(v3_dot(d2, up)) < 0.999) d = d2; /* not through the poles */
+            }
+            sl->dir = v3_norm(d);
+        } else if (v3_len(lm) > 0) {
             changed = 1;
             wrt_v3 np = v3_mad(sl->pos, lm, fmax(speed, size * 0.005) * 0.5);
             double c[3] = {np.x, np.y, np.z};

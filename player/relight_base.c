@@ -199,7 +199,8 @@ light_c relight_light_consts(const wrt_light *l) {
     c.pos = l->pos;
     c.dir = l->dir;
     c.intensity = l->intensity;
-    c.range = l->range;
+    c.sun = l->type == WRT_LIGHT_DIRECTIONAL;
+    c.range = c.sun ? 0 : l->range;
     c.spot = l->type == WRT_LIGHT_SPOT;
     c.cos_outer = cos(l->outer_cone);
     double den = cos(l->inner_cone) - c.cos_outer;

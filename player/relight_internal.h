@@ -67,6 +67,7 @@ typedef struct light_c {
     wrt_v3 pos, dir;
     double intensity, range, cos_outer, inv_den;
     int spot;
+    int sun;                        /* directional: light along dir, no position, no falloff */
 } light_c;
 
 typedef struct light_state {
@@ -244,8 +245,16 @@ static inline double quad_jacobian(const quad_info *q, double u, double v) {
 }
 
 /* Direct irradiance (without colour) from light l at x with unit normal n, and the
- * unit direction toward the light; 0 if none arrives (visibility excluded). */
+ * unit direction toward the light; 0 if none arrives (visibility excluded). A sun gives
+ * intensity x cos toward -dir at distance +inf (its shadow ray leaves the scene). */
 static inline double light_irradiance(const light_c *l, wrt_v3 x, wrt_v3 n, wrt_v3 *w, double *dist) {
+    if (l->sun) {
+        double cosx = -v3_dot(l->dir, n);
+        if (cosx <= 0) return 0;
+        *w = v3_scale(l->dir, -1);
+        *dist = INFINITY;
+        return l->intensity * cosx;
+    }
     wrt_v3 dl = v3_sub(l->pos, x);
     double d2 = v3_dot(dl, dl);
     if (!(d2 > 0)) return 0;
@@ -271,7 +280,8 @@ static inline double light_irradiance(const light_c *l, wrt_v3 x, wrt_v3 n, wrt_
 }
 
 /* 1 if nothing blocks the shadow ray from just above x (unit normal n) along the unit
- * direction dir toward a light at distance d; Embree sets tfar to -inf on a hit. */
+ * direction dir toward a light at distance d (+inf for a sun: the ray must escape the
+ * scene); Embree sets tfar to -inf on a hit. */
 static inline int light_visible(const wrt_relight *r, wrt_v3 x, wrt_v3 n, wrt_v3 dir, double d) {
     wrt_v3 o = v3_sub(v3_mad(x, n, r->rt.eps), r->rt.origin);
     struct RTCRay ray;

@@ -24,6 +24,11 @@
  * cell: bounding cones from the light, then a separation test against the pyramid from
  * the light to the quad (and to each coarse cell); quads wholly outside a spot's cone or
  * beyond its range are skipped. The same exact zeros and values as tracing every ray.
+ * A directional light (sun) is the same with the light at infinity: E = intensity x cos
+ * toward -dir, no falloff and no range; its shadow rays must leave the scene; cells are
+ * never split for distance (a planar quad's lit irradiance is constant), so its grid is
+ * the 8 x 8 one and only shadow edges split cells, down to the cap; the pyramids become
+ * prisms along its direction and the cones cylinders.
  *
  * Departures from the paper, by design: direct light on a glossy quad is projected onto
  * the angular functions too (the light direction, spread over one cell of the finest
@@ -235,6 +240,7 @@ static int needs_refine(const worker *w, int Ld, int l, int x, int y) {
  * its distance to the light, so that 1/d^2 and the cosine change by at most ~1/8
  * across it. Geometry and the light's position only. */
 static int too_close(const proj_setup *ps, int l, int i, int j) {
+    if (ps->lc->sun) return 0; /* no falloff: a planar quad's irradiance is constant where lit */
     const quad_info *q = ps->q;
     double h = ldexp(1.0, -l), u0 = i * h, v0 = j * h;
     wrt_v3 c00 = quad_point(q, u0, v0), c11 = quad_point(q, u0 + h, v0 + h);
@@ -257,9 +263,29 @@ static int all_below(const wrt_v3 *pts, int n, wrt_v3 o, wrt_v3 nrm, double size
     return 1;
 }
 
+/* 1 if quad b cannot meet the prism swept by the convex planar polygon c[0..3] (normal n)
+ * toward a sun in unit direction s (on its front): the pyramid below with its apex at
+ * infinity. */
+static int prism_clear(const wrt_v3 c[4], wrt_v3 n, wrt_v3 s, const quad_info *b, double size) {
+    if (all_below(b->p, 4, c[0], n, size)) return 1; /* b on or behind the polygon's plane */
+    wrt_v3 mid = v3_scale(v3_add(v3_add(c[0], c[1]), v3_add(c[2], c[3])), 0.25);
+    for (int k = 0; k < 4; k++) { /* the sides: planes through an edge and s, normals inward */
+        wrt_v3 sn = v3_cross(v3_sub(c[(k + 1) & 3], c[k]), s);
+        if (v3_dot(sn, v3_sub(mid, c[k])) < 0) sn = v3_scale(sn, -1);
+        if (all_below(b->p, 4, c[k], sn, size)) return 1;
+    }
+    /* b's plane leaves the polygon below it, and the sun's direction does not rise above it */
+    if (all_below(c, 4, b->p[0], b->n, size) && v3_dot(s, b->n) <= 0) return 1;
+    wrt_v3 nb = v3_scale(b->n, -1);
+    if (all_below(c, 4, b->p[0], nb, size) && v3_dot(s, nb) <= 0) return 1;
+    return 0;
+}
+
 /* 1 if quad b cannot meet the pyramid of light l and the convex planar polygon c[0..3]
- * (normal n, light on its front). */
-static int pyramid_clear(const wrt_v3 c[4], wrt_v3 n, wrt_v3 l, const quad_info *b, double size) {
+ * (normal n, light on its front); for a sun, the prism (prism_clear). */
+static int pyramid_clear(const wrt_v3 c[4], wrt_v3 n, const light_c *lc, const quad_info *b, double size) {
+    if (lc->sun) return prism_clear(c, n, v3_scale(lc->dir, -1), b, size);
+    wrt_v3 l = lc->pos;
     /* b on or behind the polygon's plane, or beyond the light's parallel plane */
     if (all_below(b->p, 4, c[0], n, size) || all_below(b->p, 4, l, v3_scale(n, -1), size)) return 1;
     /* the pyramid's sides: inward normals (e_k - l) x (e_k+1 - l) for a ccw polygon */
@@ -277,7 +303,7 @@ static int pyramid_clear(const wrt_v3 c[4], wrt_v3 n, wrt_v3 l, const quad_info 
 
 /* Cell (i, j) of level l of quad q: 1 if none of the quad's possible occluders can
  * shade it. */
-static int cell_clear(const wrt_relight *r, const worker *w, const quad_info *q, wrt_v3 l, int lv, int i, int j) {
+static int cell_clear(const wrt_relight *r, const worker *w, const quad_info *q, const light_c *l, int lv, int i, int j) {
     double h = ldexp(1.0, -lv), u0 = i * h, v0 = j * h;
     wrt_v3 c[4] = {quad_point(q, u0, v0), quad_point(q, u0 + h, v0), quad_point(q, u0 + h, v0 + h), quad_point(q, u0, v0 + h)};
     for (int k = 0; k < w->nocc; k++)
@@ -286,8 +312,9 @@ static int cell_clear(const wrt_relight *r, const worker *w, const quad_info *q,
 }
 
 /* The quads that may shade some point of quad a (into w->occ): bounding cones from the
- * light first, then the pyramid tests. -1 if there is no memory for the list. */
-static int find_occluders(wrt_relight *r, worker *w, int a, wrt_v3 l) {
+ * light first (for a sun: bounding cylinders along its direction), then the pyramid
+ * tests. -1 if there is no memory for the list. */
+static int find_occluders(wrt_relight *r, worker *w, int a, const light_c *l) {
     uint32_t nq = r->g->nquads;
     w->nocc = 0;
     uint32_t *occ = relight_grow(r, w->occ, &w->nocc_cap, nq + 1, sizeof(uint32_t));
@@ -301,6 +328,11 @@ static int find_occluders(wrt_relight *r, worker *w, int a, wrt_v3 l) {
         if (cb->dmin >= ca->dmax) continue; /* entirely farther than a */
         /* radii in [0, pi/2]: their sum in [0, pi], where cos decreases */
         if (ca->cosa > -1 && cb->cosa > -1 && v3_dot(ca->u, cb->u) < ca->cosa * cb->cosa - ca->sina * cb->sina) continue;
+        if (l->sun) { /* the two bounding spheres' shadows along the sun's direction are apart */
+            wrt_v3 dc = v3_sub(r->qi[b].centre, qa->centre);
+            wrt_v3 perp = v3_sub(dc, v3_scale(l->dir, v3_dot(dc, l->dir)));
+            if (v3_len(perp) >= qa->radius + r->qi[b].radius) continue;
+        }
         if (pyramid_clear(qa->p, qa->n, l, &r->qi[b], r->proj.size)) continue;
         w->occ[w->nocc++] = b;
     }
@@ -344,7 +376,7 @@ static int proj_begin(wrt_relight *r, worker *w, int qidx, const proj_ctx *ctx) 
     if (q->kcount) memset(ctx->kc + (size_t)q->kfirst * 3, 0, (size_t)q->kcount * 3 * sizeof(float));
     if (r->g->quads[qidx].func_count == 0 || l->intensity == 0) return -1;
     /* A light on or behind the quad's plane lights nothing (exactly zero). */
-    if (v3_dot(v3_sub(l->pos, q->p[0]), q->n) <= 0) return -1;
+    if (ctx->lc->sun ? v3_dot(l->dir, q->n) >= 0 : v3_dot(v3_sub(l->pos, q->p[0]), q->n) <= 0) return -1;
     int Ld = r->proj.qlevel[qidx];
     if (Ld < 0) return -1; /* beyond the light's range */
     if (l->type == WRT_LIGHT_SPOT && r->proj.cones[qidx].cosa > -1) { /* wholly outside the spot's cone */
@@ -388,7 +420,7 @@ static size_t push_children(worker *w, size_t nc, int n, int x, int y) {
  * cap (r->opt.proj_reference: every cell of the grid Ld, no split). lstart[lv] is where
  * level lv's cells start in w->pcells; *last the deepest level sampled. Returns the VIS
  * bits of every sample together. */
-static int proj_sample_tree(const wrt_relight *r, worker *w, const proj_setup *ps, wrt_v3 lpos, int Ld, int cap,
+static int proj_sample_tree(const wrt_relight *r, worker *w, const proj_setup *ps, int Ld, int cap,
                             int local_rule, size_t lstart[PROJ_MAX_LEVEL + 2], int *last) {
     const quad_info *q = ps->q;
     int nslot = ps->nslot;
@@ -406,7 +438,7 @@ static int proj_sample_tree(const wrt_relight *r, worker *w, const proj_setup *p
             int c = w->pcells[k], x = c % n, y = c / n;
             /* clear of occluders: its parent is, or (near the top) the test says so */
             int clear = !ps->rays || (lv > Ld && w->pclear[LEVEL_OFF(lv - 1) + (size_t)(y / 2) * (n / 2) + x / 2]) ||
-                        (lv <= PROJ_MIN_LEVEL + 1 && r->opt.proj_reference == 0 && cell_clear(r, w, q, lpos, lv, x, y));
+                        (lv <= PROJ_MIN_LEVEL + 1 && r->opt.proj_reference == 0 && cell_clear(r, w, q, ps->lc, lv, x, y));
             w->pclear[off + c] = (uint8_t)clear;
             if (local_rule && lv < cap && too_close(ps, lv, x, y)) { /* split unseen */
                 w->prefined[off + c] = 1;
@@ -526,12 +558,12 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
     memset(w->prefined + LEVEL_OFF(Ld), 0, LEVEL_OFF(cap + 1) - LEVEL_OFF(Ld));
     /* Quads that may shade this one; none: no rays at all. */
     if (r->opt.proj_reference == 0) {
-        if (find_occluders(r, w, qidx, l->pos) != 0) return;
+        if (find_occluders(r, w, qidx, ctx->lc) != 0) return;
         if (w->nocc == 0) ps.rays = 0;
     }
     size_t lstart[PROJ_MAX_LEVEL + 2];
     int last;
-    int any = proj_sample_tree(r, w, &ps, l->pos, Ld, cap, local_rule, lstart, &last);
+    int any = proj_sample_tree(r, w, &ps, Ld, cap, local_rule, lstart, &last);
     if (!(any & VIS_LIT)) return;
     proj_combine(w, nslot, Ld, last, lstart);
     /* Levels above the rule's grid: plain Haar analysis of that grid. */
@@ -548,7 +580,8 @@ static void project_quad(wrt_relight *r, worker *w, int qidx, void *vctx) {
 int relight_project_light(wrt_relight *r, light_state *ls) {
     for (int t = 0; t < r->nthreads; t++) r->workers[t].on = 0;
     light_c lc = relight_light_consts(&ls->light);
-    r->proj.size = 2 * (r->rt.scene_diag + v3_len(v3_sub(ls->light.pos, r->rt.origin)));
+    int sun = lc.sun; /* no position: the culling tests only compare points of the scene */
+    r->proj.size = 2 * (r->rt.scene_diag + (sun ? 0 : v3_len(v3_sub(ls->light.pos, r->rt.origin))));
     proj_ctx ctx = {&ls->light, &lc, ls->root, ls->kc};
     /* Levels first (cheap), so that the loop knows its work; bounding cones. */
     double work = 0;
@@ -559,13 +592,21 @@ int relight_project_light(wrt_relight *r, light_state *ls) {
         double D = v3_len(dc);
         cn->dmin = D > qi->radius ? D - qi->radius : 0;
         cn->dmax = D + qi->radius;
-        if (D > qi->radius) {
+        if (sun) { /* distance along the sun's light (signed), no cone: find_occluders' cylinders */
+            double t = v3_dot(v3_sub(qi->centre, r->rt.origin), ls->light.dir);
+            cn->dmin = t - qi->radius;
+            cn->dmax = t + qi->radius;
+            cn->u = v3(0, 0, 1); cn->sina = 0; cn->cosa = -1;
+        } else if (D > qi->radius) {
             cn->u = v3_scale(dc, 1.0 / D);
             cn->sina = qi->radius / D;
             cn->cosa = sqrt(1 - cn->sina * cn->sina);
         } else { cn->u = v3(0, 0, 1); cn->sina = 0; cn->cosa = -1; } /* the light is inside */
-        double dmin = relight_quad_dist(&r->qi[q], ls->light.pos);
-        int L = ls->light.range > 0 && dmin >= ls->light.range ? -1 : projection_level(r, &r->qi[q], dmin);
+        /* A sun: no falloff, so the rule's distance is infinite and the level is the
+         * coarsest the rule allows (PROJ_MIN_LEVEL's grid); only shadow edges split cells,
+         * down to the cap (the finest level the quad's functions have). */
+        double dmin = sun ? INFINITY : relight_quad_dist(&r->qi[q], ls->light.pos);
+        int L = !sun && ls->light.range > 0 && dmin >= ls->light.range ? -1 : projection_level(r, &r->qi[q], dmin);
         if (L >= 0) work += ldexp(r->opt.proj_reference > 0 ? 4096.0 : 4.0, 2 * L);
         if (L >= 0 && r->opt.proj_level == 0) { /* the rule is applied cell by cell from here */
             int cap = relight_projection_cap(r, &r->qi[q]);

@@ -8,6 +8,11 @@
  * a window, a full-screen triangle tone mapping the float picture. All geometry is kept
  * relative to the centre of the scene's bounding box (double on the CPU, float on the
  * GPU) so that scenes far from the origin keep their precision.
+ * A directional light (sun) has no position: its shadow map is orthographic, along its
+ * direction over the scene's bounding sphere, one layer of a 2D-array depth texture
+ * 4 times as fine as the cube faces (a sun's map spans the whole scene; made only when a
+ * sun is lit, else 1 x 1); its direct light is intensity (lux) x colour x cos, no
+ * falloff, no range.
  * Depends on OpenGL 4.5 core (prototypes from libGL), formats/gto.h. */
 #define GL_GLEXT_PROTOTYPES 1
 #include "render.h"
@@ -47,11 +52,13 @@ static const char *scene_fs =
     "in vec3 v_pos; in vec2 v_uv;\n"
     "flat in vec3 v_nrm; flat in vec4 v_base; flat in vec2 v_rough; flat in vec4 v_rect;\n"
     "uniform int u_nlights;\n"
-    "uniform vec4 u_lpos[MAXL];\n"  /* position, far distance of its shadow map */
-    "uniform vec4 u_lcol[MAXL];\n"  /* colour * intensity * scale, type (0 point, 1 spot) */
+    "uniform vec4 u_lpos[MAXL];\n"  /* position, far distance of its shadow map (sun: its half-width) */
+    "uniform vec4 u_lcol[MAXL];\n"  /* colour * intensity * scale, type (0 point, 1 spot, 2 sun) */
     "uniform vec4 u_ldir[MAXL];\n"  /* spot axis, range (0 infinite) */
     "uniform vec4 u_lcone[MAXL];\n" /* cos outer, cos inner, shadow layer, enabled */
     "uniform samplerCubeArrayShadow u_shadow;\n"
+    "uniform sampler2DArrayShadow u_sun;\n"
+    "uniform float u_sun_texel;\n" /* 2 / the sun maps' size */
     "uniform sampler2D u_atlas;\n"
     "uniform vec2 u_atlas_size;\n"
     "uniform vec3 u_eye;\n"
@@ -89,6 +96,19 @@ static const char *scene_fs =
     "  float ref = 0.5 * ((f + nr) / (f - nr) - 2.0 * f * nr / ((f - nr) * max(ma, nr))) + 0.5;\n"
     "  return texture(u_shadow, vec4(q, u_lcone[i].z), ref);\n"
     "}\n"
+    /* a sun: orthographic map over the sphere of radius R about the scene's centre, its
+     * frame as sun_view_projection's */
+    "float lit_sun(int i, vec3 p, vec3 n) {\n"
+    "  vec3 d = u_ldir[i].xyz;\n"
+    "  float R = u_lpos[i].w, texel = R * u_sun_texel;\n"
+    "  vec3 up0 = abs(d.y) < 0.99 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0);\n"
+    "  vec3 rt = normalize(cross(d, up0)), up = cross(rt, d);\n"
+    "  float cosl = max(dot(n, -d), 0.05);\n"
+    "  vec3 q = p + n * (texel * 1.5);\n"
+    "  float s = 0.5 * dot(q, rt) / R + 0.5, t = 0.5 * dot(q, up) / R + 0.5;\n"
+    "  float ref = 0.5 * (dot(q, d) - texel * (0.5 + 0.5 / cosl)) / R + 0.5;\n"
+    "  return texture(u_sun, vec4(s, t, u_lcone[i].z, ref));\n"
+    "}\n"
     "void main() {\n"
     "  vec3 n = v_nrm;\n"
     "  vec3 v = u_eye - v_pos;\n"
@@ -98,6 +118,13 @@ static const char *scene_fs =
     "  if (dot(n, v) > 0.0) {\n"
     "    if (u_mode != 2) for (int i = 0; i < u_nlights; i++) {\n"
     "      if (u_lcone[i].w == 0.0) continue;\n"
+    "      if (u_lcol[i].w > 1.5) {\n" /* a sun */
+    "        vec3 ls = -u_ldir[i].xyz;\n"
+    "        float nls = dot(n, ls);\n"
+    "        if (nls <= 0.0) continue;\n"
+    "        c += lit_sun(i, v_pos, n) * nls * u_lcol[i].rgb * brdf(n, ls, v);\n"
+    "        continue;\n"
+    "      }\n"
     "      vec3 l = u_lpos[i].xyz - v_pos;\n"
     "      float d2 = dot(l, l), d = sqrt(d2);\n"
     "      l /= d;\n"
@@ -175,6 +202,8 @@ struct wrt_render {
     GLuint ms_fbo, ms_color, ms_depth;
     GLuint shadow_tex, shadow_fbo;
     int shadow_res, shadow_layers;
+    GLuint sun_tex;          /* the suns' orthographic maps, one layer per light index */
+    int sun_res, sun_layers; /* 1 x 1 x 1 until a sun is drawn */
     int nlights;
     wrt_light lights[WRT_RENDER_MAX_LIGHTS];
     float scales[WRT_RENDER_MAX_LIGHTS];
@@ -329,7 +358,8 @@ void wrt_render_default_view(const wrt_gto *g, wrt_view *v) {
 
 void wrt_render_light_from_gto(const wrt_gto_light *in, wrt_light *out) {
     memset(out, 0, sizeof *out);
-    out->type = in->type == WRT_LIGHT_SPOT ? WRT_LIGHT_SPOT : WRT_LIGHT_POINT;
+    out->type = in->type == WRT_LIGHT_SPOT ? WRT_LIGHT_SPOT
+                : in->type == WRT_LIGHT_DIRECTIONAL ? WRT_LIGHT_DIRECTIONAL : WRT_LIGHT_POINT;
     memcpy(out->name, in->name, sizeof out->name);
     out->name[sizeof out->name - 1] = 0;
     out->pos = v3(in->pos[0], in->pos[1], in->pos[2]);
@@ -456,6 +486,24 @@ static void make_shadow_maps(wrt_render *r, int layers) {
     for (int i = 0; i < WRT_RENDER_MAX_LIGHTS; i++) r->shadow_dirty[i] = 1;
 }
 
+/* The suns' maps: `layers` layers of res x res (the texture is made again when it grows). */
+static void make_sun_maps(wrt_render *r, int res, int layers) {
+    if (r->sun_tex && res == r->sun_res && layers <= r->sun_layers) return;
+    if (r->sun_tex) glDeleteTextures(1, &r->sun_tex);
+    r->sun_res = res;
+    r->sun_layers = layers < 1 ? 1 : layers;
+    glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &r->sun_tex);
+    glTextureStorage3D(r->sun_tex, 1, GL_DEPTH_COMPONENT32F, res, res, r->sun_layers);
+    glTextureParameteri(r->sun_tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTextureParameteri(r->sun_tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTextureParameteri(r->sun_tex, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
+    glTextureParameteri(r->sun_tex, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
+    glTextureParameteri(r->sun_tex, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTextureParameteri(r->sun_tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    for (int i = 0; i < WRT_RENDER_MAX_LIGHTS; i++)
+        if (r->lights[i].type == WRT_LIGHT_DIRECTIONAL) r->shadow_dirty[i] = 1;
+}
+
 wrt_status wrt_render_create(const wrt_gto *g, const wrt_render_options *opt, wrt_render **out) {
     *out = NULL;
     int w = opt && opt->width > 0 ? opt->width : 640, h = opt && opt->height > 0 ? opt->height : 480;
@@ -504,6 +552,7 @@ wrt_status wrt_render_create(const wrt_gto *g, const wrt_render_options *opt, wr
     r->layout_dirty = 1;
     glCreateFramebuffers(1, &r->shadow_fbo);
     make_shadow_maps(r, 1);
+    make_sun_maps(r, 1, 1);
     *out = r;
     return WRT_OK;
 }
@@ -526,6 +575,7 @@ void wrt_render_destroy(wrt_render *r) {
     glDeleteTextures(1, &r->ms_color);
     glDeleteTextures(1, &r->ms_depth);
     glDeleteTextures(1, &r->shadow_tex);
+    glDeleteTextures(1, &r->sun_tex);
     glDeleteTextures(1, &r->atlas);
     if (r->tex)
         for (uint32_t q = 0; q < r->g->nquads; q++) free(r->tex[q]);
@@ -558,6 +608,12 @@ void wrt_render_set_lights(wrt_render *r, const wrt_light *lights, const float *
         int moved = i >= r->nlights || r->lights[i].pos.x != lights[i].pos.x ||
                     r->lights[i].pos.y != lights[i].pos.y || r->lights[i].pos.z != lights[i].pos.z ||
                     (r->scales[i] == 0) != (s == 0);
+        /* a sun's map follows its direction; a change of type redraws the map */
+        if (i < r->nlights && (r->lights[i].type != lights[i].type ||
+                               (lights[i].type == WRT_LIGHT_DIRECTIONAL &&
+                                (r->lights[i].dir.x != lights[i].dir.x || r->lights[i].dir.y != lights[i].dir.y ||
+                                 r->lights[i].dir.z != lights[i].dir.z))))
+            moved = 1;
         if (moved) r->shadow_dirty[i] = 1;
         r->lights[i] = lights[i];
         r->scales[i] = s;
@@ -565,10 +621,23 @@ void wrt_render_set_lights(wrt_render *r, const wrt_light *lights, const float *
     r->nlights = n;
 }
 
-/* Distance from the light to the farthest corner of the scene: the shadow map's far plane. */
+/* Distance from the light to the farthest corner of the scene: the shadow map's far plane
+ * (a sun: the half-width and half-depth of its orthographic map, about the scene's centre). */
 static double light_far(const wrt_render *r, const wrt_light *l) {
+    if (l->type == WRT_LIGHT_DIRECTIONAL) return r->radius * 1.01 + 1e-9;
     double d = v3_len(v3_sub(l->pos, v3(r->origin[0], r->origin[1], r->origin[2]))) + r->radius;
     return d * 1.01 + 1e-9;
+}
+
+/* A sun's orthographic view-projection (column-major), points relative to the scene's
+ * centre: x, y along the frame lit_sun builds from the direction d, depth along d (nearer
+ * the sun, smaller), all over [-R, R]. */
+static void sun_view_projection(wrt_v3 d, double R, float vpf[16]) {
+    wrt_v3 up0 = fabs(d.y) < 0.99 ? v3(0, 1, 0) : v3(1, 0, 0);
+    wrt_v3 rt = v3_norm(v3_cross(d, up0)), up = v3_cross(rt, d);
+    double m[16] = {rt.x / R, up.x / R, d.x / R, 0, rt.y / R, up.y / R, d.y / R, 0,
+                    rt.z / R, up.z / R, d.z / R, 0, 0, 0, 0, 1};
+    mat_to_float(m, vpf);
 }
 
 static void draw_shadow_maps(wrt_render *r) {
@@ -594,6 +663,19 @@ static void draw_shadow_maps(wrt_render *r) {
         double zf = light_far(r, l), zn = zf * SHADOW_NEAR; /* as in the scene shader */
         double proj[16], view[16], vp[16];
         float vpf[16];
+        if (l->type == WRT_LIGHT_DIRECTIONAL) { /* one orthographic map */
+            int res = r->shadow_res * 4 < 4096 ? r->shadow_res * 4 : 4096;
+            make_sun_maps(r, res, r->nlights);
+            sun_view_projection(v3_norm(l->dir), zf, vpf);
+            glUniformMatrix4fv(loc(r->prog_shadow, "u_vp"), 1, GL_FALSE, vpf);
+            glNamedFramebufferTextureLayer(r->shadow_fbo, GL_DEPTH_ATTACHMENT, r->sun_tex, 0, i);
+            glViewport(0, 0, res, res);
+            glClear(GL_DEPTH_BUFFER_BIT);
+            glDrawElements(GL_TRIANGLES, (GLsizei)(r->g->nquads * 6), GL_UNSIGNED_INT, NULL);
+            glViewport(0, 0, r->shadow_res, r->shadow_res);
+            r->shadow_dirty[i] = 0;
+            continue;
+        }
         mat_perspective(WRT_PI / 2, 1.0, zn, zf, proj);
         for (int f = 0; f < 6; f++) {
             double at[3] = {p[0] + dirs[f][0], p[1] + dirs[f][1], p[2] + dirs[f][2]};
@@ -823,12 +905,12 @@ void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode) {
         lpos[i][2] = (float)(l->pos.z - r->origin[2]);
         lpos[i][3] = (float)light_far(r, l);
         for (int k = 0; k < 3; k++) lcol[i][k] = l->color[k] * s;
-        lcol[i][3] = l->type == WRT_LIGHT_SPOT ? 1.0f : 0.0f;
+        lcol[i][3] = l->type == WRT_LIGHT_SPOT ? 1.0f : l->type == WRT_LIGHT_DIRECTIONAL ? 2.0f : 0.0f;
         wrt_v3 d = v3_norm(l->dir);
         ldir[i][0] = (float)d.x;
         ldir[i][1] = (float)d.y;
         ldir[i][2] = (float)d.z;
-        ldir[i][3] = l->range > 0 ? l->range : 0.0f;
+        ldir[i][3] = l->range > 0 && l->type != WRT_LIGHT_DIRECTIONAL ? l->range : 0.0f;
         lcone[i][0] = cosf(l->outer_cone);
         lcone[i][1] = cosf(l->inner_cone);
         lcone[i][2] = (float)i;
@@ -842,6 +924,9 @@ void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode) {
     }
     glBindTextureUnit(0, r->shadow_tex);
     glUniform1i(loc(p, "u_shadow"), 0);
+    glBindTextureUnit(2, r->sun_tex);
+    glUniform1i(loc(p, "u_sun"), 2);
+    glUniform1f(loc(p, "u_sun_texel"), 2.0f / (float)r->sun_res);
     glBindTextureUnit(1, r->atlas);
     glUniform1i(loc(p, "u_atlas"), 1);
     glUniform2f(loc(p, "u_atlas_size"), (float)(r->atlas_w ? r->atlas_w : 1), (float)(r->atlas_h ? r->atlas_h : 1));

@@ -165,7 +165,8 @@ wrt_status wrt_runtime_get_light(const wrt_runtime *rt, int i, wrt_runtime_light
                                   rt->g.nlights));
     const wrt_gto_light *l = &rt->g.lights[i];
     memset(out, 0, sizeof *out);
-    out->kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT : WRT_LIGHT_KIND_POINT;
+    out->kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT
+                : l->type == WRT_LIGHT_DIRECTIONAL ? WRT_LIGHT_KIND_DIRECTIONAL : WRT_LIGHT_KIND_POINT;
     for (int c = 0; c < 3; c++) {
         out->position[c] = l->pos[c];
         out->direction[c] = l->dir[c];
@@ -183,10 +184,14 @@ static int coord_ok(double x) { return isfinite(x) && fabs(x) <= WRT_MAX_COORD; 
 
 /* What is wrong with light l ("" if nothing), for the message. */
 static const char *light_problem(const wrt_runtime_light *l) {
-    int spot = l->kind == WRT_LIGHT_KIND_SPOT;
-    if (l->kind != WRT_LIGHT_KIND_POINT && !spot) return "kind is neither point nor spot";
-    if (!coord_ok(l->position[0]) || !coord_ok(l->position[1]) || !coord_ok(l->position[2]))
+    int spot = l->kind == WRT_LIGHT_KIND_SPOT, sun = l->kind == WRT_LIGHT_KIND_DIRECTIONAL;
+    if (l->kind != WRT_LIGHT_KIND_POINT && !spot && !sun) return "kind is neither point, spot nor directional";
+    if (!sun && (!coord_ok(l->position[0]) || !coord_ok(l->position[1]) || !coord_ok(l->position[2])))
         return "position not finite or beyond WRT_MAX_COORD (1e9 m)";
+    if (sun) { /* no position: the way its light travels */
+        double m = fmax(fabs(l->direction[0]), fmax(fabs(l->direction[1]), fabs(l->direction[2])));
+        if (!isfinite(m) || !(m > 0)) return "directional light's direction not finite or zero";
+    }
     float cmax = 0;
     for (int c = 0; c < 3; c++) {
         if (!isfinite(l->color[c]) || l->color[c] < 0 || l->color[c] > (float)WRT_MAX_INTENSITY)
@@ -221,11 +226,11 @@ wrt_status wrt_runtime_set_lights(wrt_runtime *rt, const wrt_runtime_light *in, 
         const char *why = light_problem(l);
         if (why[0])
             return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_set_lights: light %d: %s", i, why));
-        int spot = l->kind == WRT_LIGHT_KIND_SPOT;
+        int spot = l->kind == WRT_LIGHT_KIND_SPOT, sun = l->kind == WRT_LIGHT_KIND_DIRECTIONAL;
         memset(&ls[i], 0, sizeof ls[i]);
-        ls[i].type = spot ? WRT_LIGHT_SPOT : WRT_LIGHT_POINT;
-        ls[i].pos = v3(l->position[0], l->position[1], l->position[2]);
-        if (spot) { /* scaled first, so that no length overflows or underflows */
+        ls[i].type = spot ? WRT_LIGHT_SPOT : sun ? WRT_LIGHT_DIRECTIONAL : WRT_LIGHT_POINT;
+        ls[i].pos = sun ? v3(0, 0, 0) : v3(l->position[0], l->position[1], l->position[2]); /* a sun has none */
+        if (spot || sun) { /* scaled first, so that no length overflows or underflows */
             double m = fmax(fabs(l->direction[0]), fmax(fabs(l->direction[1]), fabs(l->direction[2])));
             ls[i].dir = v3_norm(v3(l->direction[0] / m, l->direction[1] / m, l->direction[2] / m));
         } else

@@ -71,6 +71,23 @@ done
 expect "wrt-play: a spot made with --light-cone and aimed: exit 0" 0 "" "${play[@]}" --light-dir 0,-1,0 --light-cone 0.3,0.5
 expect "wrt-ref: the same spot: exit 0" 0 "wrote" "${ref[@]}" --light-dir 0,-1,0 --light-cone 0.3,0.5
 expect "wrt-play --msaa 3: exit 1" 1 "bad value for --msaa" "${play[@]}" --msaa 3
+# a directional light (sun): --light-dir turns it, a position or a cone is refused
+sun=assets/sun_room.gltf
+"$build/wrt-bake" "$sun" -o "$tmp/s.gto" -q 1 --quiet >/dev/null 2>"$tmp/err" && ok "bake $sun" || ko "bake $sun"
+"$build/wrt-bake" --scan "$sun" | grep -q "^  \[1\] sun .*intensity 10 lux" && ok "--scan lists the sun in lux" || ko "--scan lists the sun in lux"
+splay=("$build/wrt-play" "$tmp/s.gto" --headless --width 64 --height 48 -o "$tmp/sx.png")
+sref=("$build/wrt-ref" "$sun" --width 16 --height 16 --spp 1 -o "$tmp/rs")
+for tool in splay sref; do
+    eval "cmd=(\"\${$tool[@]}\")"
+    expect "$tool --light-pos on a sun: exit 1" 1 "directional light.*no position" "${cmd[@]}" --light-pos 0,1,0
+    expect "$tool --light-cone on a sun: exit 1" 1 "directional light.*no cone" "${cmd[@]}" --light-cone 0.3,0.5
+done
+expect "wrt-ref: a sun turned: exit 0" 0 "wrote" "${sref[@]}" --light-dir 0.9,-0.5,0.3
+splay=("${splay[@]:0:$((${#splay[@]} - 2))}")   # its own -o below (an option given twice is refused)
+expect "wrt-play: the sun as baked: exit 0" 0 "" "${splay[@]}" -o "$tmp/s0.png"
+expect "wrt-play: the sun turned: exit 0" 0 "" "${splay[@]}" -o "$tmp/s1.png" --light-dir 0.9,-0.5,0.3
+[ -s "$tmp/s0.png" ] && ! cmp -s "$tmp/s0.png" "$tmp/s1.png" && ok "--light-dir turns the sun (another picture)" ||
+    ko "--light-dir turns the sun (another picture)"
 # a light switched off by number 1 (the first, as --scan numbers it) gives a black picture
 "$build/wrt-bake" --scan "$scene" | grep -q "^  \[1\] point" && ok "--scan numbers lights from 1" || ko "--scan numbers lights from 1"
 if [ -x "$build/tests/test_image" ]; then

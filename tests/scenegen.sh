@@ -126,7 +126,7 @@ for nd in g["nodes"]:
     if "rotation" in nd and abs(math.sqrt(sum(x*x for x in nd["rotation"])) - 1) > 1e-6: err("rotation not unit")
 if sorted(lnodes) != list(range(len(lights))): err("every light needs exactly one node")
 for L in lights:
-    if L["type"] not in ("point", "spot") or L["intensity"] <= 0: err("bad light %s" % L)
+    if L["type"] not in ("point", "spot", "directional") or L["intensity"] <= 0: err("bad light %s" % L)
     if L["type"] == "spot":
         s = L["spot"]
         if not (0 <= s["innerConeAngle"] < s["outerConeAngle"] <= math.pi / 2): err("bad spot cone")
@@ -187,6 +187,7 @@ if mode == "room":  # meshes named *box face outwards, the rest look into the ro
             if dot(n, sub(centroid(q), c)) <= 0: err("%s: a face looks into the box" % name); break
         elif dot(n, sub(bc, centroid(q))) <= 0: err("%s: a face looks out of the room" % name); break
     for i in range(len(lights)):
+        if lights[i]["type"] == "directional": continue  # a sun has no position
         p = lnodes[i]["translation"]
         if not all(blo[c] < p[c] < bhi[c] for c in (0, 2)): err("light %d outside the room" % i)
 if mode == "sheet":  # maze: one oriented surface, open only along its outer bottom rim
@@ -250,11 +251,13 @@ check_gltf cornell-glossy "$tmp/all/test/cornell_glossy.gltf" quads=15 lights=1 
     bbox=-0.5,0,-0.5,0.5,1,0.5 lookat_bbox=1 glossy=glossy_metal:0.3,white:1
 check_gltf glossy-box "$tmp/all/test/glossy_box.gltf" quads=6 lights=1 mode=inward \
     bbox=-0.5,-0.5,-0.5,0.5,0.5,0.5 glossy=metal:0.3
+check_gltf sun-room "$tmp/all/sun_room.gltf" quads=14 lights=1 mode=room type=directional \
+    ldir0=1,-0.8,-0.3 bbox=-1,0,-1,1,1.5,1 lookat_bbox=1
 "$gen" cornell-glossy --roughness 0.05 -o "$tmp/cg05.gltf" >/dev/null 2>&1
 check_gltf cornell-glossy-0.05 "$tmp/cg05.gltf" quads=15 lights=1 mode=room type=point glossy=glossy_metal:0.05
 
 # the committed assets are what the generator writes now
-for f in cornell maze glossy test/facing test/perpendicular test/furnace test/tworooms test/grazing \
+for f in cornell maze glossy sun_room test/facing test/perpendicular test/furnace test/tworooms test/grazing \
          test/cornell_glossy test/glossy_box test/cornell_shapes test/icosphere; do
     if cmp -s "$tmp/all/$f.gltf" "assets/$f.gltf"; then ok; else bad "assets/$f.gltf is stale (run make assets)"; fi
 done

@@ -110,6 +110,22 @@ static void test_direct_closed_form(void) {
     CHECK(worst < 1e-6, "spot light: worst error %.3g", worst);
     CHECK(dir[6] > 0 && dir[9] == 0, "spot: inside %g, outside %g", dir[6], dir[9]);
 
+    /* a sun (directional, lux) travelling along (0.3, 0.4, -1): I cos everywhere, no
+     * falloff, its range ignored; the point whose ray toward it crosses the blocker at
+     * (10, 10, 1) gets 0 */
+    wrt_light sun = point_light(v3(0, 0, 0), 7);
+    sun.type = WRT_LIGHT_DIRECTIONAL;
+    sun.dir = v3_norm(v3(0.3, 0.4, -1));
+    sun.range = 1;
+    pts[6] = v3(10.3, 10.4, 0);
+    CHECK(wrt_ref_irradiance(r, &sun, 1, pts, qs, 7, 1, 1, 2, 1, dir, NULL, NULL) == WRT_OK, "run");
+    worst = 0;
+    double want_sun = 7 / v3_len(v3(0.3, 0.4, -1));
+    for (int i = 0; i < 6; i++) worst = fmax(worst, fabs(dir[3 * i] / want_sun - 1));
+    CHECK(worst < 1e-6, "sun: worst relative error %.3g", worst);
+    CHECK(dir[18] == 0, "point in the blocker's sun shadow gets %g", dir[18]);
+    pts[6] = v3(20, 20, 0);
+
     /* a light below the plane lights its back side: nothing arrives at the front */
     wrt_light below = point_light(v3(0, 0, -h), I);
     CHECK(wrt_ref_irradiance(r, &below, 1, pts, qs, 3, 1, 1, 2, 1, dir, NULL, NULL) == WRT_OK, "run");

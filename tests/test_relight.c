@@ -453,6 +453,115 @@ static void test_shadow_refine(void) {
     ts_free(&s);
 }
 
+static wrt_light sun_light(wrt_v3 dir, float lux) {
+    wrt_light l = point_light(0, 0, 0, lux);
+    l.type = WRT_LIGHT_DIRECTIONAL;
+    l.dir = v3_norm(dir);
+    return l;
+}
+
+/* A sun (directional light) on an unoccluded unit quad, 40 degrees off its normal: the
+ * closed form E = I cos(theta) everywhere, so the root coefficient is E sqrt(A/pi), the
+ * mean direct irradiance E, every Haar texel rho/pi E, and every wavelet exactly 0 (the
+ * projection is constant), to float precision. A sun behind the quad gives exactly 0. */
+static void test_sun_closed_form(void) {
+    ts_scene s;
+    ts_init(&s);
+    ts_quad(&s, unit_quad, 0, 3, 0);
+    ts_identity(&s, 1);
+    ts_finish(&s);
+    wrt_relight *r;
+    wrt_relight_options o = {.haar_blocks = 1};
+    CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    double th = 40 * WRT_PI / 180, I = 7;
+    wrt_light l = sun_light(v3(-sin(th) * 0.6, -sin(th) * 0.8, -cos(th)), (float)I);
+    double E0 = (float)I * cos(th);
+    wrt_relight_set_lights(r, &l, NULL, 1);
+    CHECK(wrt_relight_update(r, NULL) > 0, "first update changes textures");
+    const float *E = wrt_relight_E(r);
+    int nonzero = 0;
+    for (uint32_t f = 1; f < s.nf; f++) nonzero += E[3 * f] != 0;
+    CHECK(nonzero == 0, "%d wavelet coefficients of a constant irradiance are not 0", nonzero);
+    CHECK_NEAR(E[0], E0 * sqrt(1 / WRT_PI), 1e-6 * E0, "root coefficient = I cos sqrt(A/pi)");
+    double dir[3], ind[3];
+    wrt_relight_quad_irradiance(r, 0, dir, ind);
+    for (int c = 0; c < 3; c++) CHECK_NEAR(dir[c], E0, 1e-6 * E0, "mean direct irradiance = I cos, channel %d", c);
+    const float *tex = wrt_relight_tex(r, 0);
+    int res = wrt_relight_tex_res(r, 0), bad = 0;
+    for (int t = 0; t < res * res; t++)
+        for (int c = 0; c < 3; c++) bad += fabs(tex[t * 3 + c] - s.mats[0].base_color[c] / WRT_PI * E0) > 1e-6 * E0;
+    CHECK(bad == 0, "%d texels off rho/pi I cos", bad);
+    printf("sun on an unoccluded quad: mean direct %.9g vs I cos %.9g (%.2g relative)\n", dir[0], E0,
+           fabs(dir[0] / E0 - 1));
+    /* from behind (its light travels along +z, the quad faces +z): nothing */
+    l.dir = v3_norm(v3(0.1, 0.2, 1));
+    wrt_relight_set_lights(r, &l, NULL, 1);
+    wrt_relight_update(r, NULL);
+    wrt_relight_quad_irradiance(r, 0, dir, ind);
+    CHECK(dir[0] == 0 && wrt_relight_E(r)[0] == 0, "a sun behind the quad lights it: %g", dir[0]);
+    wrt_relight_destroy(r);
+    ts_free(&s);
+}
+
+/* Shadows of a sun: a receiver wholly under a large occluder gets exactly 0; under an
+ * occluder covering half of it (the sun tilted, so the shadow edge is the occluder's
+ * edge moved by 0.1 along x) texels well inside the shadow are 0 and those well outside
+ * are rho/pi I cos; and the adaptive projection (prism culling, edge refinement) gives
+ * the E of sampling every finest cell (options.proj_reference). */
+static void test_sun_shadow(void) {
+    for (int k = 0; k < 2; k++) {
+        ts_scene s;
+        ts_init(&s);
+        ts_quad(&s, unit_quad, 0, 3, 0);
+        const double big[4][3] = {{-2, -2, 0.5}, {-2, 3, 0.5}, {3, 3, 0.5}, {3, -2, 0.5}};  /* faces -z */
+        const double half[4][3] = {{-1, -1, 0.5}, {-1, 2, 0.5}, {0.4, 2, 0.5}, {0.4, -1, 0.5}};
+        ts_quad(&s, k ? half : big, 0, 0, 0);
+        const double aside[4][3] = {{5, 0, 0}, {6, 0, 0}, {6, 1, 0}, {5, 1, 0}}; /* out of the prism */
+        ts_quad(&s, aside, 0, 0, 0);
+        ts_identity(&s, 1);
+        ts_finish(&s);
+        size_t n3 = (size_t)s.nf * 3;
+        wrt_relight *r, *rr;
+        wrt_relight_options o = {.haar_blocks = 1}, oref = {.haar_blocks = 1, .proj_reference = 1};
+        CHECK(wrt_relight_create(&s.g, &o, &r) == WRT_OK, "%s", wrt_last_error());
+        CHECK(wrt_relight_create(&s.g, &oref, &rr) == WRT_OK, "%s", wrt_last_error());
+        wrt_v3 d = v3(0.2, 0, -1); /* x moves 0.2 per unit of height */
+        double I = 3, E0 = (float)I * (1 / v3_len(d));
+        wrt_light l = sun_light(d, (float)I);
+        wrt_relight_set_lights(r, &l, NULL, 1);
+        wrt_relight_update(r, NULL);
+        wrt_relight_set_lights(rr, &l, NULL, 1);
+        wrt_relight_update(rr, NULL);
+        double dir[3], ind[3];
+        wrt_relight_quad_irradiance(r, 0, dir, ind);
+        if (!k) CHECK(dir[0] == 0, "receiver under a large occluder: %g", dir[0]);
+        else {
+            const float *tex = wrt_relight_tex(r, 0);
+            int res = wrt_relight_tex_res(r, 0), bad_in = 0, bad_out = 0;
+            for (int j = 0; j < res; j++)
+                for (int i = 0; i < res; i++) {
+                    double u = (i + 0.5) / res, got = tex[((size_t)j * res + i) * 3];
+                    if (u < 0.45) bad_in += got != 0;
+                    else if (u > 0.55) bad_out += fabs(got - s.mats[0].base_color[0] / WRT_PI * E0) > 1e-6 * E0;
+                }
+            CHECK(bad_in == 0, "%d shadowed texels lit", bad_in);
+            CHECK(bad_out == 0, "%d lit texels off rho/pi I cos", bad_out);
+            /* the mean: lit for u > 0.5, within the edge cells' sampling (1/16 of a cell) */
+            CHECK_NEAR(dir[0], 0.5 * E0, E0 / 16 / 16, "half-lit mean");
+        }
+        const float *Ea = wrt_relight_E(r), *Er = wrt_relight_E(rr);
+        double md = 0, mx = 0;
+        for (size_t i = 0; i < n3; i++) { md = fmax(md, fabs(Ea[i] - Er[i])); mx = fmax(mx, fabs(Er[i])); }
+        CHECK(md <= 1e-6 * (mx > 0 ? mx : E0), "%s: adaptive E off the every-cell projection by %g (max %g)",
+              k ? "half shadow" : "full shadow", md, mx);
+        printf("sun shadow (%s): mean direct %.6g, adaptive vs every-cell max |dE| %.3g\n",
+               k ? "half" : "full", dir[0], md);
+        wrt_relight_destroy(r);
+        wrt_relight_destroy(rr);
+        ts_free(&s);
+    }
+}
+
 /* A small room of quads with a pseudo-random operator. */
 static void build_room(ts_scene *s, int div, int slevel, int per_col) {
     ts_init(s);
@@ -1499,6 +1608,8 @@ int main(int argc, char **argv) {
     TEST_RUN(test_mean_irradiance);
     TEST_RUN(test_shadow);
     TEST_RUN(test_shadow_refine);
+    TEST_RUN(test_sun_closed_form);
+    TEST_RUN(test_sun_shadow);
     TEST_RUN(test_adaptive_vs_reference);
     TEST_RUN(test_linearity);
     TEST_RUN(test_multiply_dense);

@@ -469,21 +469,35 @@ static void lights_and_camera(void) {
                "{\"translation\":[0,0,5],\"camera\":0},"
                "{\"translation\":[0.5,0.5,2],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}},"
                "{\"translation\":[0,1,2],\"extensions\":{\"KHR_lights_punctual\":{\"light\":1}}},"
-               "{\"extensions\":{\"KHR_lights_punctual\":{\"light\":2}}}]";
+               "{\"translation\":[3,4,5],\"rotation\":[0.6,0,0,0.8],"
+               "\"extensions\":{\"KHR_lights_punctual\":{\"light\":2}}}]";
     sp.top = "\"cameras\":[{\"type\":\"perspective\",\"perspective\":{\"yfov\":0.7,\"znear\":0.1,\"aspectRatio\":1.5}}],"
              "\"extensionsUsed\":[\"KHR_lights_punctual\"],\"extensions\":{\"KHR_lights_punctual\":{\"lights\":["
              "{\"type\":\"point\"},"
              "{\"type\":\"spot\",\"color\":[1,0.5,0.25],\"intensity\":30,\"range\":10,"
              "\"spot\":{\"innerConeAngle\":0.2,\"outerConeAngle\":0.5}},"
-             "{\"type\":\"directional\",\"name\":\"sun\"}]}},";
+             "{\"type\":\"directional\",\"name\":\"sun\",\"intensity\":7,\"range\":3,\"color\":[1,0.9,0.8]}]}},";
     wrt_scene s;
     test_capture_begin();
     wrt_status st = load_spec(&sp, 0, &s);
     test_capture_end();
     CHECK(st == WRT_OK, "%s", wrt_last_error());
-    CHECK(strstr(test_log, "directional") && strstr(test_log, "sun"), "directional skipped: %s", test_log);
-    CHECK(s.nlights == 2, "nlights %d", s.nlights);
-    if (s.nlights == 2) {
+    /* the sun's range does not apply (KHR_lights_punctual): dropped with a warning */
+    CHECK(strstr(test_log, "range 3 ignored") && strstr(test_log, "sun"), "sun's range: %s", test_log);
+    CHECK(s.nlights == 3, "nlights %d", s.nlights);
+    if (s.nlights == 3) {
+        /* rotation about +x by 2 atan2(0.6, 0.8) = 73.74 deg: -Z goes to (0, sin, -cos) with
+         * cos = 0.8^2 - 0.6^2 = 0.28, sin = 2 0.6 0.8 = 0.96 */
+        const wrt_light *sun = &s.lights[2];
+        CHECK(sun->type == WRT_LIGHT_DIRECTIONAL, "directional, type %d", sun->type);
+        CHECK_NEAR(sun->dir.x, 0, 1e-12, "sun dir x");
+        CHECK_NEAR(sun->dir.y, 0.96, 1e-12, "sun dir y");
+        CHECK_NEAR(sun->dir.z, -0.28, 1e-12, "sun dir z");
+        CHECK(sun->pos.x == 0 && sun->pos.y == 0 && sun->pos.z == 0, "a sun has no position");
+        CHECK(sun->range == 0, "a sun has no range: %g", sun->range);
+        CHECK_NEAR(sun->intensity, 7, 0, "sun lux");
+        CHECK_NEAR(sun->color[2], 0.8, 1e-7, "sun colour");
+        CHECK(!strcmp(sun->name, "sun"), "sun name %s", sun->name);
         CHECK(s.lights[0].type == WRT_LIGHT_POINT, "point");
         CHECK_NEAR(s.lights[0].pos.z, 2, 0, "point z");
         CHECK_NEAR(s.lights[0].intensity, 1, 0, "default intensity");
@@ -510,12 +524,14 @@ static void lights_and_camera(void) {
     CHECK(strstr(buf, "\"type\":\"spot\",\"name\":\"light1\",\"position\":[0,1,2],\"direction\":[0,0,-1],"
                       "\"color\":[1,0.5,0.25],\"intensity\":30,\"range\":10,\"inner_cone\":0.2,"
                       "\"outer_cone\":0.5}") != NULL, "%s", buf);
+    CHECK(strstr(buf, "{\"type\":\"directional\",\"name\":\"sun\",\"position\":[0,0,0]") != NULL, "%s", buf);
     free(buf);
     f = open_memstream(&buf, &len);
     wrt_scene_print_summary(&s, 0, f);
     fclose(f);
     CHECK(strstr(buf, "1 quads (1 parallelograms") != NULL, "%s", buf);
     CHECK(strstr(buf, "spot") != NULL && strstr(buf, "intensity 30 cd") != NULL, "%s", buf);
+    CHECK(strstr(buf, "[3] sun   sun              dir (0.000, 0.960, -0.280) intensity 7 lux") != NULL, "%s", buf);
     free(buf);
     wrt_scene_free(&s);
 
@@ -778,6 +794,8 @@ static void strict_fields(void) {
                 WRT_ERR_PARSE, "nodes[1]: light 0's world transform has zero scale", NULL);
     strict_case("negative scale spot", LIGHTS("{\"type\":\"spot\",\"spot\":{}}"), NULL, LIGHT_NODE("\"scale\":[1,1,-1],"),
                 WRT_ERR_PARSE, "nodes[1]: spot light 0's world transform has a negative scale", NULL);
+    strict_case("negative scale sun", LIGHTS("{\"type\":\"directional\"}"), NULL, LIGHT_NODE("\"scale\":[1,1,-1],"),
+                WRT_ERR_PARSE, "nodes[1]: directional light 0's world transform has a negative scale", NULL);
     strict_case("matrix and TRS", NULL, NULL,
                 "[{\"mesh\":0,\"matrix\":[1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1],\"translation\":[1,0,0]}]", WRT_ERR_PARSE,
                 "nodes[0]: has both matrix and translation", NULL);

@@ -454,7 +454,7 @@ static int compare_main(int argc, char **argv, const char **gtos) {
     printf(",\"quads\":%d,\"cells_per_side\":%d,\"lights\":[", scene.nquads, o.cells);
     for (int k = 0; k < nl; k++)
         printf("%s{\"type\":\"%s\",\"pos\":[%.6g,%.6g,%.6g],\"intensity\":%.6g}", k ? "," : "",
-               lights[k].type == WRT_LIGHT_SPOT ? "spot" : "point", lights[k].pos.x, lights[k].pos.y,
+               wrt_light_type_name(lights[k].type), lights[k].pos.x, lights[k].pos.y,
                lights[k].pos.z, lights[k].intensity);
     printf("],\"reference\":{\"seconds\":%.3f,\"rays\":%llu,\"cell_paths_per_light\":%ld,\"pilot\":%d,"
            "\"image\":{\"width\":%d,\"height\":%d,\"spp\":%d,\"sub\":%d,\"valid_pixels\":%d},"

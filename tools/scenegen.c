@@ -3,8 +3,9 @@
  * made only of quads, each stored as two indexed triangles (0,1,2)+(0,2,3) sharing
  * the 0-2 diagonal, corners counter-clockwise seen from the front so that the glTF
  * front face looks into the room. Materials are glTF metallic-roughness factors,
- * lights are KHR_lights_punctual point or spot lights (intensity in candela, the
- * spot's axis is its node's -Z), plus one perspective camera. Units are metres,
+ * lights are KHR_lights_punctual point, spot or directional lights (intensity in
+ * candela, in lux for a directional one; the spot's axis and the sun's direction are
+ * the node's -Z), plus one perspective camera. Units are metres,
  * +Y is up. Scenes: the Cornell box, the maze and the glossy test scene of the
  * paper's section 6 (Table 1, Figure 10), and small test scenes for the bake
  * (facing, perpendicular, furnace, tworooms, grazing). Every surface is an
@@ -27,7 +28,7 @@
 
 /* ---------------------------------------------------------------- options */
 
-enum { LIGHT_DEFAULT = -1, LIGHT_NONE = 0, LIGHT_POINT = 1, LIGHT_SPOT = 2 };
+enum { LIGHT_DEFAULT = -1, LIGHT_NONE = 0, LIGHT_POINT = 1, LIGHT_SPOT = 2, LIGHT_SUN = 3 };
 
 typedef struct sg_options {
     int res;          /* subdivisions per quad edge (every surface) */
@@ -81,10 +82,10 @@ typedef struct sg_mesh {
 
 typedef struct sg_light {
     char name[64];
-    int type; /* LIGHT_POINT or LIGHT_SPOT */
+    int type; /* LIGHT_POINT, LIGHT_SPOT or LIGHT_SUN (directional: no position, lux) */
     wrt_v3 pos, dir;
     double rgb[3];
-    double intensity; /* candela at scale 1 */
+    double intensity; /* candela at scale 1; lux for a sun (independent of the scale) */
     double inner, outer; /* spot cone half-angles, radians */
 } sg_light;
 
@@ -506,6 +507,30 @@ static void scene_grazing(sg_scene *s) {
     s->nlights = s->opt.light == LIGHT_DEFAULT ? 0 : s->nlights; /* default: unlit */
     set_camera(s, v3(1.2, 1.0, 2.6), v3(0.4, 0.1, 0.5), 45);
 }
+/* A closed room 2 x 1.5 x 2 m (x in [-1,1], y in [0,1.5], z in [-1,1]) with a window
+ * 0.8 m wide and 0.6 m high in its -x wall (y in [0.7,1.3], z in [-0.4,0.4]), that wall
+ * made of the four rectangles around the hole; a white box on the floor, lit only by a
+ * sun of 10 lux shining in through the window and down (its light travels along
+ * (1, -0.8, -0.3)), so its patch lands on the floor and the box. The camera stands
+ * inside by the +z wall. */
+static void scene_sun_room(sg_scene *s) {
+    double a = s->opt.albedo;
+    int white = add_material(s, "white", a, a, a, 0, 1);
+    int floor_m = add_material(s, "floor", 0.55, 0.42, 0.3, 0, 1);
+    add_rect(s, add_mesh(s, "floor", floor_m), 1, 0.0, -1, 1, -1, 1, +1);
+    add_rect(s, add_mesh(s, "ceiling", white), 1, 1.5, -1, 1, -1, 1, -1);
+    add_rect(s, add_mesh(s, "back_wall", white), 2, -1, -1, 1, 0, 1.5, +1);
+    add_rect(s, add_mesh(s, "front_wall", white), 2, 1, -1, 1, 0, 1.5, -1);
+    add_rect(s, add_mesh(s, "right_wall", white), 0, 1, 0, 1.5, -1, 1, -1);
+    int win = add_mesh(s, "window_wall", white);
+    add_rect(s, win, 0, -1, 0, 1.5, -1, -0.4, +1);
+    add_rect(s, win, 0, -1, 0, 1.5, 0.4, 1, +1);
+    add_rect(s, win, 0, -1, 0, 0.7, -0.4, 0.4, +1);
+    add_rect(s, win, 0, -1, 1.3, 1.5, -0.4, 0.4, +1);
+    add_block(s, add_mesh(s, "box", white), 0.35, 0.0, 0.3, 0.3, 0.4, 20);
+    add_light(s, "sun", LIGHT_SUN, v3(-2, 2.6, 0.3), v3(-1, 1.8, 0), 10, 1, 0.95, 0.85, 0, 0);
+    set_camera(s, v3(0.7, 1.1, 0.9), v3(-0.4, 0.45, -0.5), 75);
+}
 
 /* ------------------------------------------------- triangle meshes (issue 21) */
 
@@ -692,6 +717,7 @@ static const sg_entry scenes[] = {
      "Cornell room with a UV sphere, a cylinder and a bevelled box made of triangles"},
     {"icosphere", scene_icosphere, "test/icosphere.gltf",
      "closed icosphere of 20 x 4^--res inward triangles, light at the centre"},
+    {"sun-room", scene_sun_room, "sun_room.gltf", "closed room lit by a sun through a window"},
 };
 #define NSCENES ((int)(sizeof scenes / sizeof scenes[0]))
 
@@ -881,9 +907,10 @@ static void write_gltf(const sg_scene *s, sbuf *out) {
         for (int i = 0; i < nl; i++) {
             const sg_light *l = &s->lights[i];
             double inten = s->opt.intensity > 0 ? s->opt.intensity
-                                                 : l->intensity * s->opt.scale * s->opt.scale;
+                           : l->type == LIGHT_SUN   ? l->intensity /* lux: no falloff, no scaling */
+                                                    : l->intensity * s->opt.scale * s->opt.scale;
             sb_printf(out, "%s\n    {\"name\":\"%s\",\"type\":\"%s\",\"color\":", i ? "," : "",
-                      l->name, l->type == LIGHT_SPOT ? "spot" : "point");
+                      l->name, l->type == LIGHT_SPOT ? "spot" : l->type == LIGHT_SUN ? "directional" : "point");
             sb_vec(out, l->rgb, 3);
             sb_printf(out, ",\"intensity\":");
             sb_num(out, inten);
@@ -909,7 +936,7 @@ static void write_gltf(const sg_scene *s, sbuf *out) {
         const sg_light *l = &s->lights[i];
         wrt_v3 p = world(s, l->pos);
         double t[3] = {p.x, p.y, p.z}, q[4];
-        if (l->type == LIGHT_SPOT) look_quat(l->dir, v3(0, 1, 0), q);
+        if (l->type == LIGHT_SPOT || l->type == LIGHT_SUN) look_quat(l->dir, v3(0, 1, 0), q);
         else { q[0] = q[1] = q[2] = 0; q[3] = 1; }
         sb_printf(out, ",\n    {\"name\":\"%s\",\"translation\":", l->name);
         sb_vec(out, t, 3);
@@ -1013,7 +1040,7 @@ static void usage(FILE *f) {
             "  --angle A        grazing: opening angle in degrees (default 1)\n"
             "  --thick T        tworooms: thickness of the shared wall (default 0.02)\n"
             "  --light none|point|spot  change the lights' type or remove them\n"
-            "  --intensity I    every light's intensity in candela (after scaling)\n"
+            "  --intensity I    every light's intensity in candela, lux for a sun (after scaling)\n"
             "  --cells N        maze: corridors per side (default 6)\n"
             "  --seed N         maze: layout seed (default 1)\n"
             "  --roughness R    cornell-glossy, glossy-box: the metal's roughness (default 0.3)\n"

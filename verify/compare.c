@@ -103,6 +103,7 @@ int wrt_compare_default_lights(const wrt_scene *s, int count, wrt_light *out) {
     if (s->nlights > 0) {
         base = s->lights[0];
         out[k++] = base;
+        if (base.type == WRT_LIGHT_DIRECTIONAL) return k; /* a sun has no position to move */
     } else {
         memset(&base, 0, sizeof base);
         base.type = WRT_LIGHT_POINT;
@@ -373,7 +374,8 @@ void wrt_compare_ref_get_info(const wrt_compare_ref *c, wrt_compare_ref_info *in
 static wrt_runtime_light runtime_light(const wrt_light *l) {
     wrt_runtime_light o;
     memset(&o, 0, sizeof o);
-    o.kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT : WRT_LIGHT_KIND_POINT;
+    o.kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT
+             : l->type == WRT_LIGHT_DIRECTIONAL ? WRT_LIGHT_KIND_DIRECTIONAL : WRT_LIGHT_KIND_POINT;
     o.position[0] = l->pos.x; o.position[1] = l->pos.y; o.position[2] = l->pos.z;
     o.direction[0] = l->dir.x; o.direction[1] = l->dir.y; o.direction[2] = l->dir.z;
     for (int c = 0; c < 3; c++) o.color[c] = l->color[c];
@@ -667,9 +669,13 @@ static double cpu_now(void) {
 
 /* The timed updates: `updates` moves around a circle (angle a), each followed by an
  * update; wall and CPU milliseconds of each, sorted. */
-typedef struct bench_ctx { wrt_light light; wrt_v3 p0; double rad, eye[3]; } bench_ctx;
+typedef struct bench_ctx { wrt_light light; wrt_v3 p0, d0; double rad, eye[3]; } bench_ctx;
 static void bench_light(wrt_runtime *r, double a, bench_ctx *c) {
-    c->light.pos = v3(c->p0.x + c->rad * cos(a), c->p0.y, c->p0.z + c->rad * sin(a));
+    if (c->light.type == WRT_LIGHT_DIRECTIONAL) { /* a sun turns about +Y, by 0.1 a radians */
+        double t = 0.1 * a, ct = cos(t), st = sin(t);
+        c->light.dir = v3(ct * c->d0.x + st * c->d0.z, c->d0.y, -st * c->d0.x + ct * c->d0.z);
+    } else
+        c->light.pos = v3(c->p0.x + c->rad * cos(a), c->p0.y, c->p0.z + c->rad * sin(a));
     set_light(r, &c->light);
 }
 static void bench_eye(wrt_runtime *r, double a, bench_ctx *c) {
@@ -708,7 +714,7 @@ wrt_status wrt_compare_bench(const wrt_gto *g, const wrt_light *light, const dou
         }
     double *ms = wrt_xmalloc((size_t)updates * sizeof(double)), *cpu = wrt_xmalloc((size_t)updates * sizeof(double));
     double rad = 0.02 * v3_len(v3_sub(hi, lo));
-    bench_ctx bc = {.light = *light, .p0 = light->pos, .rad = rad, .eye = {eye[0], eye[1], eye[2]}};
+    bench_ctx bc = {.light = *light, .p0 = light->pos, .d0 = light->dir, .rad = rad, .eye = {eye[0], eye[1], eye[2]}};
     time_circle(r, updates, bench_light, &bc, ms, cpu);
     out->ms_update_median = ms[updates / 2];
     out->ms_update_min = ms[0];

@@ -53,7 +53,8 @@ void wrt_compare_defaults(wrt_compare_options *o);
  * scene's bounding box, away from its walls, skipping a position enclosed by the back of
  * surfaces (inside a closed block, where it would light nothing). A scene without a light gets a white point
  * light of intensity diag^2 (diag: the box diagonal) at those positions. Returns the
- * number written (<= count, <= WRT_COMPARE_MAX_LIGHTS). Deterministic. */
+ * number written (<= count, <= WRT_COMPARE_MAX_LIGHTS; 1 when the first light is a sun,
+ * which has no position to move). Deterministic. */
 int wrt_compare_default_lights(const wrt_scene *s, int count, wrt_light *out);
 
 /* The reference for one scene and a set of lights (each light alone), computed once and

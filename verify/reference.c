@@ -176,10 +176,39 @@ static int visible(ref_thread *th, wrt_v3 o, wrt_v3 target) {
     return ray.tfar >= 0; /* Embree sets tfar to -inf on a hit */
 }
 
+/* 1 if the ray from o along unit direction d leaves the scene (a sun's shadow ray). */
+static int escapes(ref_thread *th, wrt_v3 o, wrt_v3 d) {
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRay ray;
+    memset(&ray, 0, sizeof ray);
+    ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
+    ray.dir_x = (float)d.x; ray.dir_y = (float)d.y; ray.dir_z = (float)d.z;
+    ray.tnear = 0;
+    ray.tfar = INFINITY;
+    ray.mask = 0xFFFFFFFFu;
+    rtcOccluded1(th->r->rtc, &ctx, &ray);
+    th->rays++;
+    return ray.tfar >= 0;
+}
+
+/* 1 if light l is seen from o (toward wl, the unit direction to it). */
+static int light_seen(ref_thread *th, wrt_v3 o, const wrt_light *l, wrt_v3 wl) {
+    return l->type == WRT_LIGHT_DIRECTIONAL ? escapes(th, o, wl) : visible(th, o, l->pos);
+}
+
 /* Unshadowed irradiance (per unit area normal to n) from light l at x, and the unit
- * direction *wl toward it; 0 behind the surface. */
+ * direction *wl toward it; 0 behind the surface. A directional light (sun): intensity x
+ * cos toward -dir, no falloff, no range. */
 static int light_irradiance(const wrt_light *l, wrt_v3 x, wrt_v3 n, wrt_v3 *wl, double e[3]) {
     e[0] = e[1] = e[2] = 0;
+    if (l->type == WRT_LIGHT_DIRECTIONAL) {
+        *wl = v3_scale(v3_norm(l->dir), -1);
+        double mu = v3_dot(n, *wl), s = l->intensity * mu;
+        if (!(mu > 0) || !(s > 0)) return 0;
+        for (int c = 0; c < 3; c++) e[c] = s * l->color[c];
+        return 1;
+    }
     wrt_v3 d = v3_sub(l->pos, x);
     double r2 = v3_dot(d, d);
     if (!(r2 > 0)) return 0;
@@ -218,7 +247,7 @@ static void direct_irradiance(ref_thread *th, wrt_v3 x, wrt_v3 n, double e[3]) {
         double el[3];
         wrt_v3 wl;
         if (!light_irradiance(&th->lights[i], x, n, &wl, el)) continue;
-        if (!visible(th, o, th->lights[i].pos)) continue;
+        if (!light_seen(th, o, &th->lights[i], wl)) continue;
         for (int c = 0; c < 3; c++) e[c] += el[c];
     }
 }
@@ -233,7 +262,7 @@ static void direct_radiance(ref_thread *th, const ref_quad *q, wrt_v3 x, wrt_v3 
         if (!light_irradiance(&th->lights[i], x, q->n, &wl, el)) continue;
         wrt_brdf_eval(q->m, q->n, wl, wo, f);
         if (f[0] == 0 && f[1] == 0 && f[2] == 0) continue;
-        if (!visible(th, o, th->lights[i].pos)) continue;
+        if (!light_seen(th, o, &th->lights[i], wl)) continue;
         for (int c = 0; c < 3; c++) out[c] += f[c] * el[c];
     }
 }

@@ -9,6 +9,9 @@
  * times for a spot clamp((cos - cos_outer) / (cos_inner - cos_outer), 0, 1)^2 with cos
  * the angle between the spot axis and the direction from the light to the point, and
  * times glTF's recommended range window clamp(1 - (r / range)^4, 0, 1)^2 when range > 0.
+ * A directional light (sun) of intensity I (lux) travelling along unit d gives I c mu,
+ * mu = max(0, -d . n), no falloff and no range; its shadow ray toward -d must leave the
+ * scene.
  * Surfaces reflect only on their front (normal) side; a ray reaching the back of a quad
  * is absorbed. Lights are not hit by rays (they are points).
  *
