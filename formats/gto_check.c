@@ -183,6 +183,7 @@ static void check_lights(vctx *v, const uint8_t *base, uint64_t first, uint64_t 
             return vbad(v, "light %" PRIu64 ": position beyond %g, intensity above %g or a colour channel above %g "
                         "(common/limits.h)", i, WRT_MAX_COORD, WRT_MAX_LIGHT_INTENSITY, WRT_MAX_COLOR);
         if (!(l[i].inner_cone >= 0) || !(l[i].outer_cone >= l[i].inner_cone) ||
+            (l[i].type == WRT_LIGHT_SPOT && !(l[i].outer_cone > l[i].inner_cone)) || /* the runtime's rule */
             !(l[i].outer_cone <= (float)(WRT_PI / 2) * 1.0001f))
             return vbad(v, "light %" PRIu64 ": cone angles %g / %g not 0 <= inner <= outer <= pi/2", i,
                         (double)l[i].inner_cone, (double)l[i].outer_cone);

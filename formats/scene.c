@@ -638,6 +638,10 @@ static wrt_status convert_lights(const wrt_gltf_data *g, wrt_scene *s, const cha
         }
         o->inner_cone = (float)inner;
         o->outer_cone = (float)outer;
+        if (o->type == WRT_LIGHT_SPOT && !(o->inner_cone < o->outer_cone)) /* as every later stage needs them */
+            return wrt_fail(WRT_ERR_PARSE, "%s: spot light '%s' (node %d): cone angles inner %.9g and outer %.9g are "
+                            "equal in single precision (the falloff divides by their cosines' difference)",
+                            label, l->name, l->node, inner, outer);
     }
     return WRT_OK;
 }

@@ -334,9 +334,14 @@ static int run_frame(app *a, stage_ms *t) {
             rls[i].off = a->scales[i] == 0;
         }
         int changed = 0;
-        wrt_runtime_set_lights(a->rl, rls, n, NULL);
-        wrt_runtime_set_eye(a->rl, a->view.eye, NULL);
-        wrt_runtime_update(a->rl, &changed, NULL);
+        wrt_error err = {0};
+        wrt_status st = wrt_runtime_set_lights(a->rl, rls, n, &err);
+        if (!st) st = wrt_runtime_set_eye(a->rl, a->view.eye, &err);
+        if (!st) st = wrt_runtime_update(a->rl, &changed, &err);
+        if (st) { /* never ignored: a light the runtime refuses would leave the indirect light at 0 */
+            fprintf(stderr, "wrt-play: error: %s\n", err.message);
+            return st == WRT_ERR_NOMEM ? EXIT_RUNTIME : EXIT_INPUT;
+        }
         t->relit = changed > 0 || !a->relit_once;
         wrt_runtime_timings(a->rl, ms, NULL);
         t->projection = ms[0];
