@@ -199,6 +199,305 @@ static void material_rho(const wrt_material *m, double rho[3]) {
     }
 }
 
+/* The pairs of quads the operators are computed for: T's first (npt of them), then K's */
+typedef struct pair_list {
+    int *pr, *ps;
+    uint8_t *occl;
+    size_t np, npt;
+} pair_list;
+
+/* Stage 1: the local frame (the bounding box centre at the origin), the quads in it and
+ * their albedos */
+static wrt_status bake_frame(bake_ctx *b, const wrt_scene *scene) {
+    /* local frame: translate to the bounding box centre */
+    wrt_v3 centre = v3_scale(v3_add(scene->bbox_min, scene->bbox_max), 0.5);
+    b->scene_size = v3_len(v3_sub(scene->bbox_max, scene->bbox_min));
+    if (!(b->scene_size > 0) || !isfinite(b->scene_size))
+        return wrt_fail(WRT_ERR_GEOMETRY, "scene has no extent (bounding box diagonal %g)", b->scene_size);
+    b->plane_eps = 1e-7 * b->scene_size;
+    b->entry_floor = 0.1 * b->opt.eps_compress; /* far below what the series keeps */
+    b->quads = wrt_xmalloc((size_t)(b->nq ? b->nq : 1) * sizeof *b->quads);
+    b->rho = wrt_xmalloc((size_t)(b->nq ? b->nq : 1) * sizeof *b->rho);
+    int nglossy = 0;
+    for (int i = 0; i < b->nq; i++) {
+        b->quads[i] = scene->quads[i];
+        for (int k = 0; k < 4; k++) b->quads[i].p[k] = v3_sub(scene->quads[i].p[k], centre);
+        const wrt_material *m = &scene->materials[scene->quads[i].material];
+        material_rho(m, b->rho[i]);
+        nglossy += !m->lambertian;
+    }
+    (void)nglossy;
+    return WRT_OK;
+}
+
+/* Stage 2: each material's angular levels (T's incident functions, K's outgoing ones) and
+ * K's tables */
+static void bake_materials(bake_ctx *b, const wrt_scene *scene, wrt_bake_result *res) {
+    res->material_alevel = wrt_xcalloc((size_t)(scene->nmaterials ? scene->nmaterials : 1), 1);
+    b->alevel = res->material_alevel;
+    for (int m = 0; m < scene->nmaterials; m++) {
+        int l = wrt_brdf_angular_level(&scene->materials[m]);
+        b->alevel[m] = (uint8_t)(l > b->opt.max_alevel ? b->opt.max_alevel : l);
+    }
+    /* The first-bounce operator K's outgoing level: the material's angular need (its lobe's
+     * width, brdf.h), at most 3, whatever max_alevel caps the incident functions at */
+    b->klevel = wrt_xcalloc((size_t)(scene->nmaterials ? scene->nmaterials : 1), 1);
+    for (int m = 0; m < scene->nmaterials && b->opt.first_bounce_level >= 0; m++) {
+        int l = wrt_brdf_angular_level(&scene->materials[m]);
+        if (b->opt.first_bounce_level > 0 && l > 0) l = b->opt.first_bounce_level;
+        b->klevel[m] = (uint8_t)(l > WRT_K_MAX_LEVEL ? WRT_K_MAX_LEVEL : l);
+    }
+    bake_btilde_build(b);
+    /* K's entries are used once (not multiplied again by the series), so they are dropped
+     * at emission under the series' own threshold, weighted by what the column's
+     * coefficient can be at most: the largest |btilde_g| of its material over all light
+     * directions (the albedo for the root) */
+    b->kbmax = wrt_xcalloc((size_t)(scene->nmaterials ? scene->nmaterials : 1), sizeof *b->kbmax);
+    b->k_floor = b->opt.eps_compress;
+    for (int m = 0; m < scene->nmaterials; m++) {
+        if (!b->klevel[m] || !b->btilde[m]) continue;
+        int ng = 1 << (2 * b->klevel[m]);
+        for (size_t cell = 0; cell < (size_t)WRT_BRDF_TABLE_RES * WRT_BRDF_TABLE_RES; cell++)
+            for (int g = 0; g < ng; g++)
+                for (int ch = 0; ch < 3; ch++)
+                    b->kbmax[m][g] = fmax(b->kbmax[m][g], fabs(b->btilde[m][(cell * WRT_BRDF_TABLE_NANG + g) * 3 + ch]));
+    }
+
+}
+
+/* Stage 3: the Embree scene of the quads */
+static wrt_status bake_embree(bake_ctx *b) {
+    /* Embree (common/rt_scene.h: its ray offset is the bake's too) */
+    wrt_v3 *corners = wrt_xmalloc((size_t)(b->nq ? b->nq : 1) * 4 * sizeof *corners);
+    for (int i = 0; i < b->nq; i++)
+        for (int k = 0; k < 4; k++) corners[4 * i + k] = b->quads[i].p[k];
+    wrt_rt_scene rs;
+    wrt_status est = wrt_rt_scene_build(corners, b->nq, v3(0, 0, 0), "threads=1", WRT_RT_ROBUST, &rs);
+    free(corners);
+    if (est != WRT_OK) { free(b->quads); free(b->rho); return est; }
+    b->dev = rs.dev;
+    b->rtc = rs.scene;
+    b->ray_eps = rs.eps;
+
+    return WRT_OK;
+}
+
+/* Stage 4: the pairs that exchange light, T's then K's */
+static void bake_pairs(const bake_ctx *b, const wrt_scene *scene, wrt_bake_counters *C, pair_list *pl) {
+    /* pairs */
+    size_t cap = 64, np = 0, kcap = 16, nkp = 0;
+    int *pr = wrt_xmalloc(cap * sizeof *pr), *ps = wrt_xmalloc(cap * sizeof *ps);
+    uint8_t *occl = wrt_xmalloc(cap);
+    int *kpr = wrt_xmalloc(kcap * sizeof *kpr), *kps = wrt_xmalloc(kcap * sizeof *kps);
+    uint8_t *kocc = wrt_xmalloc(kcap);
+    for (int r = 0; r < b->nq; r++) {
+        for (int s = 0; s < b->nq; s++) {
+            if (r == s) continue;
+            C->pairs_total++;
+            if (!can_exchange(b, &b->quads[r], &b->quads[s])) { C->pairs_skipped_facing++; continue; }
+            int oc = 0;
+            for (int o = 0; o < b->nq && !oc; o++)
+                if (o != r && o != s && may_occlude(b, &b->quads[r], &b->quads[s], &b->quads[o])) oc = 1;
+            if (np + 1 >= cap) {
+                cap *= 2;
+                pr = wrt_xrealloc(pr, cap * sizeof *pr); ps = wrt_xrealloc(ps, cap * sizeof *ps);
+                occl = wrt_xrealloc(occl, cap);
+            }
+            C->pairs_exchange++;
+            C->pairs_unoccluded += !oc;
+            if (b->klevel[scene->quads[s].material]) { /* the first-bounce operator K from s to r */
+                if (nkp + 1 >= kcap) {
+                    kcap *= 2;
+                    kpr = wrt_xrealloc(kpr, kcap * sizeof *kpr); kps = wrt_xrealloc(kps, kcap * sizeof *kps);
+                    kocc = wrt_xrealloc(kocc, kcap);
+                }
+                kpr[nkp] = r; kps[nkp] = s; kocc[nkp] = (uint8_t)(oc | 4); nkp++;
+            }
+            /* A diffuse-diffuse pair is computed once, for r < s, and both directions are
+             * emitted from the same links (reciprocity, see dto.c) */
+            int sym = !b->alevel[scene->quads[r].material] && !b->alevel[scene->quads[s].material];
+            if (sym && r > s) continue;
+            pr[np] = r; ps[np] = s; occl[np] = (uint8_t)(oc | (sym ? 2 : 0)); np++;
+        }
+    }
+
+    /* K's pairs after T's: the power balance reads T's pairs only (the first npt) */
+    size_t npt = np;
+    if (np + nkp + 1 > cap) {
+        cap = np + nkp + 1;
+        pr = wrt_xrealloc(pr, cap * sizeof *pr); ps = wrt_xrealloc(ps, cap * sizeof *ps);
+        occl = wrt_xrealloc(occl, cap);
+    }
+    memcpy(pr + np, kpr, nkp * sizeof *pr); memcpy(ps + np, kps, nkp * sizeof *ps); memcpy(occl + np, kocc, nkp);
+    np += nkp;
+    free(kpr); free(kps); free(kocc);
+
+    pl->pr = pr; pl->ps = ps; pl->occl = occl; pl->np = np; pl->npt = npt;
+}
+
+/* Stage 5: the DTO's links and entries, pair by pair in parallel, with the memory check
+ * after every chunk; the threads' counters summed; the status so far */
+static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *pl, dto_job *job,
+                           atomic_ullong *pool_bytes, atomic_ullong *pool_refused) {
+    int *pr = pl->pr, *ps = pl->ps;
+    uint8_t *occl = pl->occl;
+    size_t np = pl->np;
+    /* DTO, pair by pair, in parallel; pairs in order of decreasing expected cost
+     * would balance better, but the order does not change the result */
+    int nt = wrt_threads_resolve(b->opt.threads);
+    *job = (dto_job){.b = b, .pr = pr, .ps = ps, .occl = occl, .total = np};
+    atomic_init(&job->done, 0);
+    job->out = wrt_xcalloc(np ? np : 1, sizeof *job->out);
+    job->tc = wrt_xcalloc((size_t)nt, sizeof *job->tc);
+    /* run in chunks so the progress callback can be called between them */
+    size_t chunk = np / 50 + 1;
+    wrt_status mst = WRT_OK;
+    /* the pairs' link tables may use what the budget leaves beside what is resident now */
+    atomic_init(pool_bytes, 0);
+    atomic_init(pool_refused, 0);
+    b->pool_bytes = pool_bytes;
+    b->pool_refused = pool_refused;
+    uint64_t rss0 = wrt_bake_rss_bytes();
+    b->pool_limit = b->opt.max_memory_mb * 1024.0 * 1024.0 - (double)rss0;
+    if (b->pool_limit < 0) b->pool_limit = 0;
+    if (b->opt.progress) b->opt.progress("dto", 0, b->opt.progress_user);
+    for (size_t start = 0; start < np; start += chunk) {
+        size_t n = np - start < chunk ? np - start : chunk;
+        dto_job sub = *job;
+        sub.pr = pr + start; sub.ps = ps + start; sub.occl = occl + start; sub.out = job->out + start;
+        wrt_parallel_for(n, nt, dto_one, &sub);
+        if (b->opt.progress && !b->opt.progress("dto", (double)(start + n) / (double)np, b->opt.progress_user))
+            atomic_store(b->cancel, 1);
+        if (atomic_load(b->cancel)) break;
+        /* Memory: the entries so far, extrapolated over the pairs left (the pairs run in
+         * scene order, so a glossy wall late in the list is seen only when reached: the
+         * check repeats after every chunk), then their conversion to triplets, keys and
+         * the matrix, which needs about 60 bytes per entry beside the entries' 32. */
+        uint64_t ent = 0;
+        for (size_t i = 0; i < start + n; i++) ent += job->out[i].count;
+        double done = (double)(start + n) / (double)np, left = (1 - done) / done;
+        uint64_t need = (uint64_t)((double)ent * left * sizeof(pair_entry) + (double)ent * (1 + left) * 60.0);
+        uint64_t known = (uint64_t)((double)ent * 60.0);
+        /* the extrapolation from under a tenth of the pairs is noise (the first pairs of
+         * the glossy asset are its heaviest: 3x the final figure): it refuses only from
+         * there on, what is already computed at any time; the figure recorded is the last */
+        double keep = C->mem_estimate_mb;
+        mst = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, done >= 0.1 ? need : known,
+                                    "the transport operator T");
+        if (start + n < np) C->mem_estimate_mb = keep;
+        if (mst != WRT_OK) break;
+    }
+    for (int t = 0; t < nt; t++) {
+        C->samples += job->tc[t].samples;
+        C->rays_traced += job->tc[t].rays_traced;
+        C->rays_skipped_facing += job->tc[t].rays_skipped_facing;
+        C->rays_skipped_unoccluded += job->tc[t].rays_skipped_unoccluded;
+        C->links_refined += job->tc[t].links_refined;
+        C->links_leaf += job->tc[t].links_leaf;
+        C->links_invisible += job->tc[t].links_invisible;
+        C->t_rays += job->tc[t].t_rays;
+    }
+    wrt_status st = mst;
+    if (st == WRT_OK && atomic_load(pool_refused)) {
+        double mb = 1.0 / (1024.0 * 1024.0), need = (double)atomic_load(pool_refused) * mb;
+        C->mem_estimate_mb = (double)rss0 * mb + need;
+        st = wrt_fail(WRT_ERR_NOMEM,
+                      "the bake would need at least %.0f MB (the links of the transport operator T being refined: "
+                      "%.0f MB more than the %.0f MB in use), over the memory budget of %.0f MB (--max-memory; "
+                      "default half the physical memory): lower --quality, --max-angular-level or "
+                      "--first-bounce-level, or raise --max-memory", (double)rss0 * mb + need, need, (double)rss0 * mb, b->opt.max_memory_mb);
+    }
+    if (st == WRT_OK && atomic_load(b->cancel)) st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
+
+    return st;
+}
+
+/* Stage 6: the basis functions indexed, T assembled and balanced, K assembled and
+ * balanced; the status */
+static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const pair_list *pl, const dto_job *job,
+                                wrt_status st, wrt_bake_result *res) {
+    const int *pr = pl->pr, *ps = pl->ps;
+    size_t np = pl->np, npt = pl->npt;
+    /* index the basis functions: every key used, plus each quad's root */
+    uint64_t nent = 0, nkent = 0;
+    for (size_t i = 0; i < np; i++) {
+        if (job->out[i].kmode) {
+            nkent += job->out[i].count;
+            C->links_k += job->out[i].links;
+            continue;
+        }
+        nent += job->out[i].count;
+        C->links_dto += job->out[i].links;
+        C->entries_angular += job->out[i].angular;
+        if (job->out[i].glossy) C->links_dto_glossy += job->out[i].links;
+        else C->links_dto_diffuse += job->out[i].links;
+    }
+    if (st == WRT_OK) {
+        /* K's rows are basis functions too (a receiver cell finer than T's links reach) */
+        uint64_t *keys = wrt_xmalloc((2 * nent + nkent + (size_t)b->nq + 1) * sizeof *keys);
+        uint64_t nk = 0;
+        for (int q = 0; q < b->nq; q++) keys[nk++] = wrt_fkey_make((uint32_t)q, wrt_node_root(), 0, wrt_node_root(), 0);
+        for (size_t i = 0; i < np; i++)
+            for (size_t k = 0; k < job->out[i].count; k++) {
+                keys[nk++] = job->out[i].e[k].r;
+                if (!job->out[i].kmode) keys[nk++] = job->out[i].e[k].s;
+            }
+        wrt_sort_u64(keys, nk);
+        uint64_t nu = 0;
+        for (uint64_t i = 0; i < nk; i++)
+            if (nu == 0 || keys[nu - 1] != keys[i]) keys[nu++] = keys[i];
+        if (nu > UINT32_MAX - 1) {
+            st = wrt_fail(WRT_ERR_INVALID_ARG, "too many basis functions (%llu)", (unsigned long long)nu);
+            free(keys);
+        } else {
+            res->nfuncs = (uint32_t)nu;
+            res->fkeys = keys;
+            wrt_triplet *tr = wrt_xmalloc((nent ? nent : 1) * sizeof *tr);
+            uint64_t t = 0;
+            for (size_t i = 0; i < npt; i++)
+                for (size_t k = 0; k < job->out[i].count; k++) {
+                    const pair_entry *e = &job->out[i].e[k];
+                    tr[t].row = (uint32_t)wrt_fkey_find(keys, res->nfuncs, e->r);
+                    tr[t].col = (uint32_t)wrt_fkey_find(keys, res->nfuncs, e->s);
+                    memcpy(tr[t].v, e->v, sizeof e->v);
+                    t++;
+                }
+            if (!b->opt.no_balance) {
+                if (b->opt.progress) b->opt.progress("balance", -1, b->opt.progress_user); /* no fraction known */
+                double tb = wrt_now();
+                uint64_t tcap = nent ? nent : 1, t0n = t;
+                C->closed = wrt_balance_run(b, npt, pr, ps, job->out, keys, res->nfuncs, &tr, &t, &tcap);
+                C->balance_entries = t - t0n;
+                C->t_balance = wrt_now() - tb;
+            }
+            res->dto = wrt_csc_from_triplets(res->nfuncs, tr, t);
+            free(tr);
+            if (!b->opt.no_balance) {
+                double tb = wrt_now();
+                C->balance_entries += wrt_balance_glossy(b, keys, res->nfuncs, &res->dto);
+                C->t_balance += wrt_now() - tb;
+            }
+            C->entries_dto = res->dto.nnz;
+            C->entries_spatial = res->dto.nnz - C->entries_angular;
+            C->nfuncs = res->nfuncs;
+            for (uint32_t f = 0; f < res->nfuncs; f++) C->nfuncs_angular += !wrt_fkey_angular_root(res->fkeys[f]);
+            /* K's triplets, then its arrays (the triplets' 16 bytes an entry, then 8) */
+            if (nkent)
+                st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, nkent * 24,
+                                           "the first-bounce operator K");
+            if (nkent && st == WRT_OK) {
+                k_assemble(res, job->out + npt, np - npt, nkent);
+                if (!b->opt.no_balance) {
+                    double tb = wrt_now();
+                    C->balance_entries += wrt_balance_k(b, res);
+                    C->t_balance += wrt_now() - tb;
+                }
+            }
+        }
+    }
+    return st;
+}
+
 wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, wrt_bake_result *res) {
     memset(res, 0, sizeof *res);
     bake_ctx b = {.scene = scene, .nq = scene->nquads};
@@ -216,259 +515,21 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     wrt_bake_counters *C = &res->c;
     double t0 = wrt_now();
 
-    /* local frame: translate to the bounding box centre */
-    wrt_v3 centre = v3_scale(v3_add(scene->bbox_min, scene->bbox_max), 0.5);
-    b.scene_size = v3_len(v3_sub(scene->bbox_max, scene->bbox_min));
-    if (!(b.scene_size > 0) || !isfinite(b.scene_size))
-        return wrt_fail(WRT_ERR_GEOMETRY, "scene has no extent (bounding box diagonal %g)", b.scene_size);
-    b.plane_eps = 1e-7 * b.scene_size;
-    b.entry_floor = 0.1 * b.opt.eps_compress; /* far below what the series keeps */
-    b.quads = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * sizeof *b.quads);
-    b.rho = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * sizeof *b.rho);
-    int nglossy = 0;
-    for (int i = 0; i < b.nq; i++) {
-        b.quads[i] = scene->quads[i];
-        for (int k = 0; k < 4; k++) b.quads[i].p[k] = v3_sub(scene->quads[i].p[k], centre);
-        const wrt_material *m = &scene->materials[scene->quads[i].material];
-        material_rho(m, b.rho[i]);
-        nglossy += !m->lambertian;
-    }
-    (void)nglossy;
-    res->material_alevel = wrt_xcalloc((size_t)(scene->nmaterials ? scene->nmaterials : 1), 1);
-    b.alevel = res->material_alevel;
-    for (int m = 0; m < scene->nmaterials; m++) {
-        int l = wrt_brdf_angular_level(&scene->materials[m]);
-        b.alevel[m] = (uint8_t)(l > b.opt.max_alevel ? b.opt.max_alevel : l);
-    }
-    /* The first-bounce operator K's outgoing level: the material's angular need (its lobe's
-     * width, brdf.h), at most 3, whatever max_alevel caps the incident functions at */
-    b.klevel = wrt_xcalloc((size_t)(scene->nmaterials ? scene->nmaterials : 1), 1);
-    for (int m = 0; m < scene->nmaterials && b.opt.first_bounce_level >= 0; m++) {
-        int l = wrt_brdf_angular_level(&scene->materials[m]);
-        if (b.opt.first_bounce_level > 0 && l > 0) l = b.opt.first_bounce_level;
-        b.klevel[m] = (uint8_t)(l > WRT_K_MAX_LEVEL ? WRT_K_MAX_LEVEL : l);
-    }
-    bake_btilde_build(&b);
-    /* K's entries are used once (not multiplied again by the series), so they are dropped
-     * at emission under the series' own threshold, weighted by what the column's
-     * coefficient can be at most: the largest |btilde_g| of its material over all light
-     * directions (the albedo for the root) */
-    b.kbmax = wrt_xcalloc((size_t)(scene->nmaterials ? scene->nmaterials : 1), sizeof *b.kbmax);
-    b.k_floor = b.opt.eps_compress;
-    for (int m = 0; m < scene->nmaterials; m++) {
-        if (!b.klevel[m] || !b.btilde[m]) continue;
-        int ng = 1 << (2 * b.klevel[m]);
-        for (size_t cell = 0; cell < (size_t)WRT_BRDF_TABLE_RES * WRT_BRDF_TABLE_RES; cell++)
-            for (int g = 0; g < ng; g++)
-                for (int ch = 0; ch < 3; ch++)
-                    b.kbmax[m][g] = fmax(b.kbmax[m][g], fabs(b.btilde[m][(cell * WRT_BRDF_TABLE_NANG + g) * 3 + ch]));
-    }
-
-    /* Embree (common/rt_scene.h: its ray offset is the bake's too) */
-    wrt_v3 *corners = wrt_xmalloc((size_t)(b.nq ? b.nq : 1) * 4 * sizeof *corners);
-    for (int i = 0; i < b.nq; i++)
-        for (int k = 0; k < 4; k++) corners[4 * i + k] = b.quads[i].p[k];
-    wrt_rt_scene rs;
-    wrt_status est = wrt_rt_scene_build(corners, b.nq, v3(0, 0, 0), "threads=1", WRT_RT_ROBUST, &rs);
-    free(corners);
-    if (est != WRT_OK) { free(b.quads); free(b.rho); return est; }
-    b.dev = rs.dev;
-    b.rtc = rs.scene;
-    b.ray_eps = rs.eps;
-
-    /* pairs */
-    size_t cap = 64, np = 0, kcap = 16, nkp = 0;
-    int *pr = wrt_xmalloc(cap * sizeof *pr), *ps = wrt_xmalloc(cap * sizeof *ps);
-    uint8_t *occl = wrt_xmalloc(cap);
-    int *kpr = wrt_xmalloc(kcap * sizeof *kpr), *kps = wrt_xmalloc(kcap * sizeof *kps);
-    uint8_t *kocc = wrt_xmalloc(kcap);
-    for (int r = 0; r < b.nq; r++) {
-        for (int s = 0; s < b.nq; s++) {
-            if (r == s) continue;
-            C->pairs_total++;
-            if (!can_exchange(&b, &b.quads[r], &b.quads[s])) { C->pairs_skipped_facing++; continue; }
-            int oc = 0;
-            for (int o = 0; o < b.nq && !oc; o++)
-                if (o != r && o != s && may_occlude(&b, &b.quads[r], &b.quads[s], &b.quads[o])) oc = 1;
-            if (np + 1 >= cap) {
-                cap *= 2;
-                pr = wrt_xrealloc(pr, cap * sizeof *pr); ps = wrt_xrealloc(ps, cap * sizeof *ps);
-                occl = wrt_xrealloc(occl, cap);
-            }
-            C->pairs_exchange++;
-            C->pairs_unoccluded += !oc;
-            if (b.klevel[scene->quads[s].material]) { /* the first-bounce operator K from s to r */
-                if (nkp + 1 >= kcap) {
-                    kcap *= 2;
-                    kpr = wrt_xrealloc(kpr, kcap * sizeof *kpr); kps = wrt_xrealloc(kps, kcap * sizeof *kps);
-                    kocc = wrt_xrealloc(kocc, kcap);
-                }
-                kpr[nkp] = r; kps[nkp] = s; kocc[nkp] = (uint8_t)(oc | 4); nkp++;
-            }
-            /* A diffuse-diffuse pair is computed once, for r < s, and both directions are
-             * emitted from the same links (reciprocity, see dto.c) */
-            int sym = !b.alevel[scene->quads[r].material] && !b.alevel[scene->quads[s].material];
-            if (sym && r > s) continue;
-            pr[np] = r; ps[np] = s; occl[np] = (uint8_t)(oc | (sym ? 2 : 0)); np++;
-        }
-    }
-
-    /* K's pairs after T's: the power balance reads T's pairs only (the first npt) */
-    size_t npt = np;
-    if (np + nkp + 1 > cap) {
-        cap = np + nkp + 1;
-        pr = wrt_xrealloc(pr, cap * sizeof *pr); ps = wrt_xrealloc(ps, cap * sizeof *ps);
-        occl = wrt_xrealloc(occl, cap);
-    }
-    memcpy(pr + np, kpr, nkp * sizeof *pr); memcpy(ps + np, kps, nkp * sizeof *ps); memcpy(occl + np, kocc, nkp);
-    np += nkp;
-    free(kpr); free(kps); free(kocc);
-
-    /* DTO, pair by pair, in parallel; pairs in order of decreasing expected cost
-     * would balance better, but the order does not change the result */
-    int nt = wrt_threads_resolve(b.opt.threads);
-    dto_job job = {.b = &b, .pr = pr, .ps = ps, .occl = occl, .total = np};
-    atomic_init(&job.done, 0);
-    job.out = wrt_xcalloc(np ? np : 1, sizeof *job.out);
-    job.tc = wrt_xcalloc((size_t)nt, sizeof *job.tc);
-    /* run in chunks so the progress callback can be called between them */
-    size_t chunk = np / 50 + 1;
-    wrt_status mst = WRT_OK;
-    /* the pairs' link tables may use what the budget leaves beside what is resident now */
+    wrt_status fst = bake_frame(&b, scene);
+    if (fst != WRT_OK) return fst;
+    bake_materials(&b, scene, res);
+    wrt_status est = bake_embree(&b);
+    if (est != WRT_OK) return est;
+    pair_list pl;
+    bake_pairs(&b, scene, C, &pl);
+    /* the DTO's link pool (bake_ctx.h), counted across its threads */
     atomic_ullong pool_bytes, pool_refused;
-    atomic_init(&pool_bytes, 0);
-    atomic_init(&pool_refused, 0);
-    b.pool_bytes = &pool_bytes;
-    b.pool_refused = &pool_refused;
-    uint64_t rss0 = wrt_bake_rss_bytes();
-    b.pool_limit = b.opt.max_memory_mb * 1024.0 * 1024.0 - (double)rss0;
-    if (b.pool_limit < 0) b.pool_limit = 0;
-    if (b.opt.progress) b.opt.progress("dto", 0, b.opt.progress_user);
-    for (size_t start = 0; start < np; start += chunk) {
-        size_t n = np - start < chunk ? np - start : chunk;
-        dto_job sub = job;
-        sub.pr = pr + start; sub.ps = ps + start; sub.occl = occl + start; sub.out = job.out + start;
-        wrt_parallel_for(n, nt, dto_one, &sub);
-        if (b.opt.progress && !b.opt.progress("dto", (double)(start + n) / (double)np, b.opt.progress_user))
-            atomic_store(&cancel, 1);
-        if (atomic_load(&cancel)) break;
-        /* Memory: the entries so far, extrapolated over the pairs left (the pairs run in
-         * scene order, so a glossy wall late in the list is seen only when reached: the
-         * check repeats after every chunk), then their conversion to triplets, keys and
-         * the matrix, which needs about 60 bytes per entry beside the entries' 32. */
-        uint64_t ent = 0;
-        for (size_t i = 0; i < start + n; i++) ent += job.out[i].count;
-        double done = (double)(start + n) / (double)np, left = (1 - done) / done;
-        uint64_t need = (uint64_t)((double)ent * left * sizeof(pair_entry) + (double)ent * (1 + left) * 60.0);
-        uint64_t known = (uint64_t)((double)ent * 60.0);
-        /* the extrapolation from under a tenth of the pairs is noise (the first pairs of
-         * the glossy asset are its heaviest: 3x the final figure): it refuses only from
-         * there on, what is already computed at any time; the figure recorded is the last */
-        double keep = C->mem_estimate_mb;
-        mst = wrt_bake_memory_check(b.opt.max_memory_mb, &C->mem_estimate_mb, done >= 0.1 ? need : known,
-                                    "the transport operator T");
-        if (start + n < np) C->mem_estimate_mb = keep;
-        if (mst != WRT_OK) break;
-    }
-    for (int t = 0; t < nt; t++) {
-        C->samples += job.tc[t].samples;
-        C->rays_traced += job.tc[t].rays_traced;
-        C->rays_skipped_facing += job.tc[t].rays_skipped_facing;
-        C->rays_skipped_unoccluded += job.tc[t].rays_skipped_unoccluded;
-        C->links_refined += job.tc[t].links_refined;
-        C->links_leaf += job.tc[t].links_leaf;
-        C->links_invisible += job.tc[t].links_invisible;
-        C->t_rays += job.tc[t].t_rays;
-    }
-    wrt_status st = mst;
-    if (st == WRT_OK && atomic_load(&pool_refused)) {
-        double mb = 1.0 / (1024.0 * 1024.0), need = (double)atomic_load(&pool_refused) * mb;
-        C->mem_estimate_mb = (double)rss0 * mb + need;
-        st = wrt_fail(WRT_ERR_NOMEM,
-                      "the bake would need at least %.0f MB (the links of the transport operator T being refined: "
-                      "%.0f MB more than the %.0f MB in use), over the memory budget of %.0f MB (--max-memory; "
-                      "default half the physical memory): lower --quality, --max-angular-level or "
-                      "--first-bounce-level, or raise --max-memory", (double)rss0 * mb + need, need, (double)rss0 * mb, b.opt.max_memory_mb);
-    }
-    if (st == WRT_OK && atomic_load(&cancel)) st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
-
-    /* index the basis functions: every key used, plus each quad's root */
-    uint64_t nent = 0, nkent = 0;
-    for (size_t i = 0; i < np; i++) {
-        if (job.out[i].kmode) {
-            nkent += job.out[i].count;
-            C->links_k += job.out[i].links;
-            continue;
-        }
-        nent += job.out[i].count;
-        C->links_dto += job.out[i].links;
-        C->entries_angular += job.out[i].angular;
-        if (job.out[i].glossy) C->links_dto_glossy += job.out[i].links;
-        else C->links_dto_diffuse += job.out[i].links;
-    }
-    if (st == WRT_OK) {
-        /* K's rows are basis functions too (a receiver cell finer than T's links reach) */
-        uint64_t *keys = wrt_xmalloc((2 * nent + nkent + (size_t)b.nq + 1) * sizeof *keys);
-        uint64_t nk = 0;
-        for (int q = 0; q < b.nq; q++) keys[nk++] = wrt_fkey_make((uint32_t)q, wrt_node_root(), 0, wrt_node_root(), 0);
-        for (size_t i = 0; i < np; i++)
-            for (size_t k = 0; k < job.out[i].count; k++) {
-                keys[nk++] = job.out[i].e[k].r;
-                if (!job.out[i].kmode) keys[nk++] = job.out[i].e[k].s;
-            }
-        wrt_sort_u64(keys, nk);
-        uint64_t nu = 0;
-        for (uint64_t i = 0; i < nk; i++)
-            if (nu == 0 || keys[nu - 1] != keys[i]) keys[nu++] = keys[i];
-        if (nu > UINT32_MAX - 1) {
-            st = wrt_fail(WRT_ERR_INVALID_ARG, "too many basis functions (%llu)", (unsigned long long)nu);
-            free(keys);
-        } else {
-            res->nfuncs = (uint32_t)nu;
-            res->fkeys = keys;
-            wrt_triplet *tr = wrt_xmalloc((nent ? nent : 1) * sizeof *tr);
-            uint64_t t = 0;
-            for (size_t i = 0; i < npt; i++)
-                for (size_t k = 0; k < job.out[i].count; k++) {
-                    const pair_entry *e = &job.out[i].e[k];
-                    tr[t].row = (uint32_t)wrt_fkey_find(keys, res->nfuncs, e->r);
-                    tr[t].col = (uint32_t)wrt_fkey_find(keys, res->nfuncs, e->s);
-                    memcpy(tr[t].v, e->v, sizeof e->v);
-                    t++;
-                }
-            if (!b.opt.no_balance) {
-                if (b.opt.progress) b.opt.progress("balance", -1, b.opt.progress_user); /* no fraction known */
-                double tb = wrt_now();
-                uint64_t tcap = nent ? nent : 1, t0n = t;
-                C->closed = wrt_balance_run(&b, npt, pr, ps, job.out, keys, res->nfuncs, &tr, &t, &tcap);
-                C->balance_entries = t - t0n;
-                C->t_balance = wrt_now() - tb;
-            }
-            res->dto = wrt_csc_from_triplets(res->nfuncs, tr, t);
-            free(tr);
-            if (!b.opt.no_balance) {
-                double tb = wrt_now();
-                C->balance_entries += wrt_balance_glossy(&b, keys, res->nfuncs, &res->dto);
-                C->t_balance += wrt_now() - tb;
-            }
-            C->entries_dto = res->dto.nnz;
-            C->entries_spatial = res->dto.nnz - C->entries_angular;
-            C->nfuncs = res->nfuncs;
-            for (uint32_t f = 0; f < res->nfuncs; f++) C->nfuncs_angular += !wrt_fkey_angular_root(res->fkeys[f]);
-            /* K's triplets, then its arrays (the triplets' 16 bytes an entry, then 8) */
-            if (nkent)
-                st = wrt_bake_memory_check(b.opt.max_memory_mb, &C->mem_estimate_mb, nkent * 24,
-                                           "the first-bounce operator K");
-            if (nkent && st == WRT_OK) {
-                k_assemble(res, job.out + npt, np - npt, nkent);
-                if (!b.opt.no_balance) {
-                    double tb = wrt_now();
-                    C->balance_entries += wrt_balance_k(&b, res);
-                    C->t_balance += wrt_now() - tb;
-                }
-            }
-        }
-    }
+    dto_job job;
+    wrt_status st = bake_dto(&b, C, &pl, &job, &pool_bytes, &pool_refused);
+    st = bake_assemble(&b, C, &pl, &job, st, res);
+    int *pr = pl.pr, *ps = pl.ps;
+    uint8_t *occl = pl.occl;
+    size_t np = pl.np;
     for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].leaf); }
     free(job.out); free(job.tc); free(pr); free(ps); free(occl);
     C->t_dto = wrt_now() - t0;

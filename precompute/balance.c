@@ -224,18 +224,28 @@ static double walk_inside(const walk_ctx *w, wrt_node n, int inside) {
     return ch[0] + ch[1] + ch[2] + ch[3];
 }
 
-static void balance_sender(size_t si, int th, void *user) {
-    (void)th;
-    bal_ctx *c = user;
-    const bake_ctx *b = c->b;
-    int s = (int)si;
-    c->res[s] = NULL; c->nres[s] = 0;
-    if (!c->nrefs[s]) return;
-    const wrt_quad *Sq = &b->quads[s];
-    const double *rho = b->rho[s];
+/* One sender quad's balance in the making, shared by the stages of balance_sender */
+typedef struct sender_data {
+    bal_ctx *c;
+    const bake_ctx *b;
+    int s;
+    const wrt_quad *Sq;
+    const double *rho;
     size_t nt, nl;
     uint32_t *tree, *leaves;
-    sender_tree(c->fkeys, c->nf, s, 1, &tree, &nt, &leaves, &nl);
+    int *rloc, *recv, nrecv;
+    uint8_t *rkeep, *has;
+    size_t ncol;
+    double *addv, *v, *tc, *cur, *wp, *nw;
+} sender_data;
+
+/* Stage 1: the sender's receivers (each once; rloc maps a quad to its place) and the
+ * per-receiver arrays */
+static void sender_receivers(sender_data *d) {
+    bal_ctx *c = d->c;
+    const bake_ctx *b = d->b;
+    int s = d->s;
+    size_t nt = d->nt, nl = d->nl;
     /* receivers */
     int *rloc = wrt_xmalloc((size_t)b->nq * sizeof *rloc);
     for (int q = 0; q < b->nq; q++) rloc[q] = -1;
@@ -250,6 +260,21 @@ static void balance_sender(size_t si, int th, void *user) {
     size_t ncol = 1 + 3 * nt;
     double *addv = wrt_xcalloc((size_t)nrecv * ncol, sizeof *addv); /* occluded pairs: what the links miss */
     double *v = wrt_xcalloc((size_t)nrecv * nl, sizeof *v);  /* per receiver: best rule */
+    d->rloc = rloc; d->recv = recv; d->nrecv = nrecv; d->rkeep = rkeep; d->ncol = ncol; d->addv = addv; d->v = v;
+}
+
+/* Stage 2: per receiver, the value of each leaf under the sender (unoccluded pairs), or
+ * what the links miss inside their cells (occluded ones) */
+static void sender_leaf_values(sender_data *d) {
+    bal_ctx *c = d->c;
+    const bake_ctx *b = d->b;
+    int s = d->s;
+    const wrt_quad *Sq = d->Sq;
+    size_t nt = d->nt, nl = d->nl, ncol = d->ncol;
+    const uint32_t *tree = d->tree, *leaves = d->leaves;
+    const int *rloc = d->rloc;
+    uint8_t *rkeep = d->rkeep;
+    double *addv = d->addv, *v = d->v;
     uint32_t *stack = wrt_xmalloc((4 * (size_t)WRT_MAX_SLEVEL * 4 + 8) * sizeof *stack);
     for (size_t i = 0; i < c->nrefs[s]; i++) {
         src_ref rf = c->refs[s][i];
@@ -322,6 +347,14 @@ static void balance_sender(size_t si, int th, void *user) {
         }
     }
     free(stack);
+}
+
+/* Stage 3: the Haar analysis of the leaf values over the sender's tree, per receiver */
+static void sender_analysis(sender_data *d) {
+    size_t nt = d->nt, nl = d->nl, ncol = d->ncol;
+    const uint32_t *tree = d->tree, *leaves = d->leaves;
+    int nrecv = d->nrecv;
+    const double *v = d->v;
     /* Haar analysis over the tree: per receiver and for the total. Columns: the root and
      * the three wavelets of each tree cell. Sums over cells are built bottom-up through a
      * map cell -> sum (tree cells and leaves, sorted). */
@@ -364,6 +397,18 @@ static void balance_sender(size_t si, int th, void *user) {
         }
     }
     free(sum); free(all);
+    d->tc = tc;
+}
+
+/* Stage 4: the root entries the pairs emitted, and the power of the wavelet rows */
+static void sender_emitted(sender_data *d) {
+    bal_ctx *c = d->c;
+    const bake_ctx *b = d->b;
+    int s = d->s;
+    size_t nt = d->nt, ncol = d->ncol;
+    const uint32_t *tree = d->tree;
+    const int *rloc = d->rloc;
+    int nrecv = d->nrecv;
     /* the root entries the pairs emitted */
     double *cur = wrt_xcalloc((size_t)nrecv * ncol * 3, sizeof *cur);
     double *wp = wrt_xcalloc((size_t)nrecv * ncol * 3, sizeof *wp); /* wavelet rows' power */
@@ -402,6 +447,19 @@ static void balance_sender(size_t si, int th, void *user) {
             for (int ch = 0; ch < 3; ch++) cur[(ri * ncol + j) * 3 + ch] += e->v[ch];
         }
     }
+    d->cur = cur; d->wp = wp; d->has = has;
+}
+
+/* Stage 5: the new root entries from the analysis (occluded pairs keep the links' own) */
+static void sender_new_entries(sender_data *d) {
+    const bake_ctx *b = d->b;
+    const wrt_quad *Sq = d->Sq;
+    const double *rho = d->rho;
+    size_t ncol = d->ncol;
+    const int *recv = d->recv;
+    int nrecv = d->nrecv;
+    const uint8_t *rkeep = d->rkeep, *has = d->has;
+    const double *tc = d->tc, *addv = d->addv, *cur = d->cur;
     /* new root entries: rho_s times the analysis, dropped under the entry floor; where an
      * occluder may lie between, the links' own entries stay (see the top) */
     double *nw = wrt_xcalloc((size_t)nrecv * ncol * 3, sizeof *nw);
@@ -421,6 +479,22 @@ static void balance_sender(size_t si, int th, void *user) {
             if (m * wfloor >= floor_) for (int ch = 0; ch < 3; ch++) o[ch] = rho[ch] * t;
         }
     }
+    d->nw = nw;
+}
+
+/* Stage 6: in a closed scene, each column's power made what its function emits */
+static void sender_power(sender_data *d) {
+    bal_ctx *c = d->c;
+    const bake_ctx *b = d->b;
+    const wrt_quad *Sq = d->Sq;
+    const double *rho = d->rho;
+    size_t ncol = d->ncol;
+    const uint32_t *tree = d->tree;
+    const int *recv = d->recv;
+    int nrecv = d->nrecv;
+    const uint8_t *rkeep = d->rkeep;
+    const double *tc = d->tc, *wp = d->wp;
+    double *nw = d->nw;
     /* in a closed scene, each column's power over all receivers made what the function
      * emits: the difference spread over its kept root entries in proportion to their
      * power. (In an open one the per-receiver values stand: pulling them toward a
@@ -465,6 +539,18 @@ static void balance_sender(size_t si, int th, void *user) {
             for (int ch = 0; ch < 3; ch++) o[ch] += (want[ch] - have[ch]) * share / wr;
         }
     }
+    free(wroot);
+}
+
+/* Stage 7: the new entries as deltas against the emitted ones, the sender's result */
+static void sender_deltas(sender_data *d) {
+    bal_ctx *c = d->c;
+    int s = d->s;
+    size_t ncol = d->ncol;
+    const uint32_t *tree = d->tree;
+    const int *recv = d->recv;
+    int nrecv = d->nrecv;
+    const double *nw = d->nw, *cur = d->cur;
     /* deltas against the emitted entries */
     size_t cap = 64, ne = 0;
     wrt_triplet *res = wrt_xmalloc(cap * sizeof *res);
@@ -488,9 +574,27 @@ static void balance_sender(size_t si, int th, void *user) {
             ne++;
         }
     }
-    free(cur); free(wp); free(has); free(nw); free(wroot); free(rkeep); free(addv);
     c->res[s] = res; c->nres[s] = ne;
-    free(tc); free(v); free(recv); free(rloc); free(leaves); free(tree);
+}
+
+static void balance_sender(size_t si, int th, void *user) {
+    (void)th;
+    bal_ctx *c = user;
+    const bake_ctx *b = c->b;
+    int s = (int)si;
+    c->res[s] = NULL; c->nres[s] = 0;
+    if (!c->nrefs[s]) return;
+    sender_data d = {.c = c, .b = b, .s = s, .Sq = &b->quads[s], .rho = b->rho[s]};
+    sender_tree(c->fkeys, c->nf, s, 1, &d.tree, &d.nt, &d.leaves, &d.nl);
+    sender_receivers(&d);
+    sender_leaf_values(&d);
+    sender_analysis(&d);
+    sender_emitted(&d);
+    sender_new_entries(&d);
+    sender_power(&d);
+    sender_deltas(&d);
+    free(d.cur); free(d.wp); free(d.has); free(d.nw); free(d.rkeep); free(d.addv);
+    free(d.tc); free(d.v); free(d.recv); free(d.rloc); free(d.leaves); free(d.tree);
 }
 
 

@@ -56,11 +56,25 @@ static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, c
     return wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, (uint64_t)need, what);
 }
 
-wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
-    wrt_bake_counters *C = &res->c;
-    const wrt_csc *T = &res->dto;
-    double eps = b->opt.eps_compress;
-    int threads = b->opt.threads;
+/* The series' working state, shared by its stages */
+typedef struct {
+    const bake_ctx *b;
+    wrt_bake_result *res;
+    wrt_bake_counters *C;
+    const wrt_csc *T;
+    double eps;
+    int threads;
+    double *rw, *cw, *pw;
+    wrt_csc_weights W;
+    wrt_csc S, P;
+    double rc[3], ratio;
+} series_state;
+
+/* Stage 1: the compression weights and the first term (S = P = T, P compressed) */
+static void series_setup(series_state *s) {
+    const bake_ctx *b = s->b;
+    wrt_bake_result *res = s->res;
+    const wrt_csc *T = s->T;
     double *rw = wrt_xmalloc(((size_t)T->n + 1) * sizeof *rw), *cw = wrt_xmalloc(((size_t)T->n + 1) * sizeof *cw);
     for (uint32_t i = 0; i < T->n; i++) {
         double a = b->quads[wrt_fkey_quad(res->fkeys[i])].area;
@@ -70,9 +84,23 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     /* power weights (irradiance x area per unit coefficient: sqrt(A) on a parallelogram's
      * root, 0 on its wavelets): compression keeps each column's power */
     double *pw = wrt_power_weights(b, res->fkeys, T->n);
-    wrt_csc_weights W = {rw, cw, pw};
-    wrt_csc S = wrt_csc_copy(T), P = wrt_csc_copy(T);
-    wrt_csc_compress(&P, eps, &W);
+    s->rw = rw; s->cw = cw; s->pw = pw;
+    s->W = (wrt_csc_weights){rw, cw, pw};
+    s->S = wrt_csc_copy(T);
+    s->P = wrt_csc_copy(T);
+    wrt_csc_compress(&s->P, s->eps, &s->W);
+}
+
+/* Stage 2: the bounces, each term the previous one times T, with the power iteration that
+ * measures the tail's ratio; stops as described at the top of the file */
+static wrt_status series_bounces(series_state *s) {
+    const bake_ctx *b = s->b;
+    wrt_bake_counters *C = s->C;
+    const wrt_csc *T = s->T;
+    double eps = s->eps;
+    int threads = s->threads;
+    double *pw = s->pw;
+    double *rc = s->rc;
     /* The tail's ratio is measured by power iteration on a smooth start vector (each quad's
      * root coefficient, i.e. a uniform irradiance), per channel, as the ratio of the
      * power (sum of sqrt(A) x root coefficient) of successive terms. Norms of the whole
@@ -92,19 +120,19 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     double vp_prev[3] = {0, 0, 0};
     for (uint32_t i = 0; i < n; i++)
         for (int ch = 0; ch < 3; ch++) vp_prev[ch] += pw[i] * y[3 * i + ch];
-    double rc[3] = {0, 0, 0}, rc_prev[3] = {-1, -1, -1};
+    double rc_prev[3] = {-1, -1, -1};
     double ratio = 0;
     int stable = 0;
     C->bounces = 1;
-    while ((int)C->bounces < b->opt.max_bounces && P.nnz) {
-        wrt_status mst = series_memory_check(b, C, &P, T, &S, eps, &W, (int)C->bounces + 1);
+    while ((int)C->bounces < b->opt.max_bounces && s->P.nnz) {
+        wrt_status mst = series_memory_check(b, C, &s->P, T, &s->S, eps, &s->W, (int)C->bounces + 1);
         if (mst != WRT_OK) {
             char msg[1024];
             snprintf(msg, sizeof msg, "%s", wrt_last_error());
-            wrt_csc_free(&P); wrt_csc_free(&S); free(rw); free(cw); free(pw); free(x); free(y);
+            free(x); free(y);
             return wrt_fail(mst, "%s", msg);
         }
-        wrt_csc N = wrt_csc_mul(&P, T, eps, &W, threads);
+        wrt_csc N = wrt_csc_mul(&s->P, T, eps, &s->W, threads);
         if (!N.nnz) {
             /* every entry of the next term fell under the threshold, but together they
              * still carry ratio / (1 - ratio) of the last term (0.2% of the total at
@@ -112,13 +140,13 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
             wrt_csc_free(&N);
             break;
         }
-        wrt_csc_free(&P);
-        P = N;
+        wrt_csc_free(&s->P);
+        s->P = N;
         C->bounces++;
-        wrt_csc S2 = wrt_csc_add(&S, &P, 1.0);
-        wrt_csc_free(&S);
-        S = S2;
-        double pn = wrt_csc_norm(&P), sn = wrt_csc_norm(&S);
+        wrt_csc S2 = wrt_csc_add(&s->S, &s->P, 1.0);
+        wrt_csc_free(&s->S);
+        s->S = S2;
+        double pn = wrt_csc_norm(&s->P), sn = wrt_csc_norm(&s->S);
         /* next iterate: x = y / its power, y = T x */
         double vs = fmax(vp_prev[0], fmax(vp_prev[1], vp_prev[2]));
         for (size_t i = 0; i < 3 * (size_t)n; i++) x[i] = vs > 0 ? y[i] / vs : 0;
@@ -149,63 +177,101 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
          * at the latest (it often stops sooner, when the tail can be added) */
         double done = C->energy_left > 0 ? log(C->energy_left) / log(1e-6) : 1;
         if (b->opt.progress && !b->opt.progress("gto", fmin(1.0, fmax(done, 0.0)), b->opt.progress_user)) {
-            wrt_csc_free(&P); wrt_csc_free(&S); free(rw); free(cw); free(pw); free(x); free(y);
+            free(x); free(y);
             return wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
         }
         if (C->energy_left < 1e-6) break;
         if (!b->opt.no_tail && stable >= 3 && C->bounces >= 8) break;
     }
     free(x); free(y);
+    s->ratio = ratio;
+    return WRT_OK;
+}
+
+/* Stage 3: refuse a diverging series, else add the geometric tail and compress the sum */
+static wrt_status series_tail(series_state *s) {
+    const bake_ctx *b = s->b;
+    wrt_bake_counters *C = s->C;
+    const double *rc = s->rc;
+    double ratio = s->ratio;
     C->series_ratio = ratio;
     /* Terms that keep growing (the ratio settled at or above 1, or still above 1 at the
      * cap) mean the discrete operator's dominant eigenvalue is >= 1: the sum so far is
      * a truncation of a divergent series, not an approximation of G - I. */
-    if (P.nnz && ratio >= 1 && C->energy_left >= 1e-6) {
+    if (s->P.nnz && ratio >= 1 && C->energy_left >= 1e-6) {
         double rmax = 0;
         for (int q = 0; q < b->nq; q++) rmax = fmax(rmax, fmax(b->rho[q][0], fmax(b->rho[q][1], b->rho[q][2])));
-        wrt_csc_free(&P); wrt_csc_free(&S); free(rw); free(cw); free(pw);
         return wrt_fail(WRT_ERR_ACCURACY,
                         "the light transport series diverges: each bounce multiplies the light by %.4f after %llu "
                         "bounces (largest albedo %.4f; the discretised transport gains energy: lower the albedo or "
                         "raise the quality)", ratio, (unsigned long long)C->bounces, rmax);
     }
-    if (!b->opt.no_tail && P.nnz && ratio > 0 && ratio < 1) {
+    if (!b->opt.no_tail && s->P.nnz && ratio > 0 && ratio < 1) {
         double k[3];
         for (int ch = 0; ch < 3; ch++) k[ch] = rc[ch] > 0 && rc[ch] < 1 ? rc[ch] / (1 - rc[ch]) : 0;
-        wrt_csc S2 = wrt_csc_add3(&S, &P, k);
+        wrt_csc S2 = wrt_csc_add3(&s->S, &s->P, k);
         double sn = wrt_csc_norm(&S2);
-        C->tail_fraction = sn > 0 ? fmax(k[0], fmax(k[1], k[2])) * wrt_csc_norm(&P) / sn : 0;
-        wrt_csc_free(&S);
-        S = S2;
+        C->tail_fraction = sn > 0 ? fmax(k[0], fmax(k[1], k[2])) * wrt_csc_norm(&s->P) / sn : 0;
+        wrt_csc_free(&s->S);
+        s->S = S2;
     }
-    wrt_csc_free(&P);
-    wrt_csc_compress(&S, eps, &W);
-    C->entries_gto = S.nnz;
-    C->links_gto = wrt_count_links(&S, res->fkeys);
+    wrt_csc_free(&s->P);
+    wrt_csc_compress(&s->S, s->eps, &s->W);
+    C->entries_gto = s->S.nnz;
+    C->links_gto = wrt_count_links(&s->S, s->res->fkeys);
+    return WRT_OK;
+}
+
+/* Stage 4: the gathered operator, with its memory check */
+static wrt_status series_gathered(series_state *s) {
+    const bake_ctx *b = s->b;
+    wrt_bake_counters *C = s->C;
+    const wrt_csc *T = s->T;
     /* gathered: T + T S, computed when stored or when its figures are asked for */
     if (b->opt.gathered || b->opt.report_gathered) {
         /* T S: the same check, with T on the left (column j of T S gathers T's columns) */
-        wrt_status mst = series_memory_check(b, C, T, &S, &S, eps, &W, 0);
+        wrt_status mst = series_memory_check(b, C, T, &s->S, &s->S, s->eps, &s->W, 0);
         if (mst != WRT_OK) {
             char msg[1024];
             snprintf(msg, sizeof msg, "%s", wrt_last_error());
-            wrt_csc_free(&S); free(rw); free(cw); free(pw);
             return wrt_fail(mst, "%s", msg);
         }
-        wrt_csc TS = wrt_csc_mul(T, &S, eps, &W, threads);
+        wrt_csc TS = wrt_csc_mul(T, &s->S, s->eps, &s->W, s->threads);
         wrt_csc Gg = wrt_csc_add(&TS, T, 1.0);
         wrt_csc_free(&TS);
         C->entries_gathered = Gg.nnz;
-        C->links_gathered = wrt_count_links(&Gg, res->fkeys);
+        C->links_gathered = wrt_count_links(&Gg, s->res->fkeys);
         if (b->opt.gathered) {
-            wrt_csc_free(&S);
-            S = Gg;
+            wrt_csc_free(&s->S);
+            s->S = Gg;
         } else {
             wrt_csc_free(&Gg);
         }
     }
-    res->op = S;
+    return WRT_OK;
+}
+
+wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
+    series_state s = {.b = b, .res = res, .C = &res->c, .T = &res->dto, .eps = b->opt.eps_compress,
+                      .threads = b->opt.threads};
+    series_setup(&s);
+    wrt_status st = series_bounces(&s);
+    if (st != WRT_OK) {
+        wrt_csc_free(&s.P); wrt_csc_free(&s.S); free(s.rw); free(s.cw); free(s.pw);
+        return st;
+    }
+    st = series_tail(&s);
+    if (st != WRT_OK) {
+        wrt_csc_free(&s.P); wrt_csc_free(&s.S); free(s.rw); free(s.cw); free(s.pw);
+        return st;
+    }
+    st = series_gathered(&s);
+    if (st != WRT_OK) {
+        wrt_csc_free(&s.S); free(s.rw); free(s.cw); free(s.pw);
+        return st;
+    }
+    res->op = s.S;
     res->op_kind = b->opt.gathered ? WRT_GTO_OP_GATHERED : WRT_GTO_OP_INDIRECT;
-    free(rw); free(cw); free(pw);
+    free(s.rw); free(s.cw); free(s.pw);
     return WRT_OK;
 }

@@ -281,158 +281,268 @@ static int takes_value(const char *a) {
     return 0;
 }
 
-/* The whole program but the array of .gto paths, which main owns, so that every way out
- * of here (there are many) leaves nothing allocated behind. */
-static int compare_main(int argc, char **argv, const char **gtos) {
-    const char *scene_path = NULL, *images = NULL;
-    double closeup[3] = {0, 0, 0};
-    int has_closeup = 0;
-    int per_quad = 0, bench_only = 0;
-    int ngto = 0, nlights_req = 5, nexplicit = 0;
+/* The command line's settings */
+typedef struct {
+    const char *scene_path, *images;
+    double closeup[3];
+    int has_closeup;
+    int per_quad, bench_only;
+    int ngto, nlights_req, nexplicit;
     double explicit_pos[WRT_COMPARE_MAX_LIGHTS][3];
-    double max_error = -1, exposure = 0;
-    wrt_compare_options o = {0};
+    double max_error, exposure;
+    wrt_compare_options o;
     wrt_cli_lights L;
-    wrt_cli_lights_init(&L);
+} cmp_args;
+
+/* Stage 1: the command line (the .gto paths into gtos); -1 to go on, else the exit code */
+static int cmp_parse(int argc, char **argv, const char **gtos, cmp_args *A) {
+    wrt_compare_options *o = &A->o;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         long x;
         int ok = 1, takes = 1;
         if (strcmp(a, "--light-pos")) {
-            int lr = wrt_cli_lights_option(T, &L, argc, argv, &i);
+            int lr = wrt_cli_lights_option(T, &A->L, argc, argv, &i);
             if (lr < 0) return WRT_EXIT_USAGE;
             if (lr > 0) continue;
         }
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
         else if (!strcmp(a, "--version")) { wrt_cli_version(T); return 0; }
-        else if (!strcmp(a, "--no-image")) { o.width = -1; takes = 0; }
-        else if (!strcmp(a, "--per-quad")) { per_quad = 1; takes = 0; }
-        else if (!strcmp(a, "--bench-only")) { bench_only = 1; takes = 0; }
-        else if (!strcmp(a, "--no-final-gather")) { o.no_final_gather = 1; takes = 0; }
-        else if (!strcmp(a, "--no-light-splat")) { o.no_light_splat = 1; takes = 0; }
+        else if (!strcmp(a, "--no-image")) { o->width = -1; takes = 0; }
+        else if (!strcmp(a, "--per-quad")) { A->per_quad = 1; takes = 0; }
+        else if (!strcmp(a, "--bench-only")) { A->bench_only = 1; takes = 0; }
+        else if (!strcmp(a, "--no-final-gather")) { o->no_final_gather = 1; takes = 0; }
+        else if (!strcmp(a, "--no-light-splat")) { o->no_light_splat = 1; takes = 0; }
         else if (a[0] == '-' && a[1] && !takes_value(a)) {
             fprintf(stderr, "wrt-compare: error: unknown option %s (see --help)\n", a);
             return WRT_EXIT_USAGE;
         }
         else if (a[0] == '-' && a[1] && !v) { fprintf(stderr, "wrt-compare: error: %s needs a value\n", a); return WRT_EXIT_USAGE; }
-        else if (!strcmp(a, "--lights")) { ok = parse_long(v, 1, WRT_COMPARE_MAX_LIGHTS, &x); nlights_req = (int)x; }
+        else if (!strcmp(a, "--lights")) { ok = parse_long(v, 1, WRT_COMPARE_MAX_LIGHTS, &x); A->nlights_req = (int)x; }
         else if (!strcmp(a, "--light-pos")) {
-            ok = nexplicit < WRT_COMPARE_MAX_LIGHTS && wrt_parse_vec3(v, explicit_pos[nexplicit]);
-            nexplicit += ok;
+            ok = A->nexplicit < WRT_COMPARE_MAX_LIGHTS && wrt_parse_vec3(v, A->explicit_pos[A->nexplicit]);
+            A->nexplicit += ok;
         }
-        else if (!strcmp(a, "--cells")) { ok = parse_long(v, 1, 64, &x); o.cells = (int)x; }
-        else if (!strcmp(a, "--cell-paths")) ok = parse_long(v, 1, 1L << 40, &o.cell_paths);
-        else if (!strcmp(a, "--pilot")) { ok = parse_long(v, 2, 1 << 20, &x); o.pilot = (int)x; }
-        else if (!strcmp(a, "--width")) { ok = parse_long(v, 1, 4096, &x); o.width = (int)x; }
-        else if (!strcmp(a, "--spp")) { ok = parse_long(v, 2, 1 << 24, &x); o.spp = (int)x; }
-        else if (!strcmp(a, "--sub")) { ok = parse_long(v, 1, 16, &x); o.sub = (int)x; }
-        else if (!strcmp(a, "--bench")) { ok = parse_long(v, 1, 100000, &x); o.bench_updates = (int)x; }
-        else if (!strcmp(a, "--threads")) { ok = parse_long(v, 0, 256, &x); o.threads = (int)x; }
-        else if (!strcmp(a, "--seed")) { ok = parse_long(v, 1, 1L << 62, &x); o.seed = (uint64_t)x; }
-        else if (!strcmp(a, "--images") || !strcmp(a, "-o") || !strcmp(a, "--out")) images = v;
-        else if (!strcmp(a, "--exposure")) ok = parse_double(v, &exposure) && fabs(exposure) <= 64;
+        else if (!strcmp(a, "--cells")) { ok = parse_long(v, 1, 64, &x); o->cells = (int)x; }
+        else if (!strcmp(a, "--cell-paths")) ok = parse_long(v, 1, 1L << 40, &o->cell_paths);
+        else if (!strcmp(a, "--pilot")) { ok = parse_long(v, 2, 1 << 20, &x); o->pilot = (int)x; }
+        else if (!strcmp(a, "--width")) { ok = parse_long(v, 1, 4096, &x); o->width = (int)x; }
+        else if (!strcmp(a, "--spp")) { ok = parse_long(v, 2, 1 << 24, &x); o->spp = (int)x; }
+        else if (!strcmp(a, "--sub")) { ok = parse_long(v, 1, 16, &x); o->sub = (int)x; }
+        else if (!strcmp(a, "--bench")) { ok = parse_long(v, 1, 100000, &x); o->bench_updates = (int)x; }
+        else if (!strcmp(a, "--threads")) { ok = parse_long(v, 0, 256, &x); o->threads = (int)x; }
+        else if (!strcmp(a, "--seed")) { ok = parse_long(v, 1, 1L << 62, &x); o->seed = (uint64_t)x; }
+        else if (!strcmp(a, "--images") || !strcmp(a, "-o") || !strcmp(a, "--out")) A->images = v;
+        else if (!strcmp(a, "--exposure")) ok = parse_double(v, &A->exposure) && fabs(A->exposure) <= 64;
         else if (!strcmp(a, "--closeup")) {
+            double *closeup = A->closeup;
             ok = wrt_parse_vec3(v, closeup) && closeup[0] >= 0 && closeup[1] >= 0 && closeup[2] >= 1 &&
                  closeup[0] == floor(closeup[0]) && closeup[1] == floor(closeup[1]) && closeup[2] == floor(closeup[2]);
-            has_closeup = 1;
+            A->has_closeup = 1;
         }
-        else if (!strcmp(a, "--max-error")) ok = parse_double(v, &max_error) && max_error >= 0;
+        else if (!strcmp(a, "--max-error")) ok = parse_double(v, &A->max_error) && A->max_error >= 0;
         else if (!strcmp(a, "--gather-points")) {
             ok = parse_long(v, 16, 32, &x) && (x == 16 || x == 32);
-            o.gather_points = (int)x;
+            o->gather_points = (int)x;
         }
         else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-compare: error: unknown option %s (see --help)\n", a); return 1; }
         else {
             takes = 0;
-            if (!scene_path) scene_path = a;
-            else gtos[ngto++] = a;
+            if (!A->scene_path) A->scene_path = a;
+            else gtos[A->ngto++] = a;
         }
         if (!ok) { fprintf(stderr, "wrt-compare: error: bad value for %s: '%s' (see --help)\n", a, v ? v : ""); return 1; }
         i += takes;
     }
-    if (!scene_path || ngto == 0) {
+    if (!A->scene_path || A->ngto == 0) {
         fprintf(stderr, "wrt-compare: error: needs a scene and at least one .gto (see --help)\n");
         return 1;
     }
+    return -1;
+}
 
-    wrt_scene scene;
-    wrt_status lst = wrt_scene_load(scene_path, NULL, &scene);
+/* Stage 2: the scene, the inputs' checks and the lights compared (*nl of them); -1 to
+ * go on, else the exit code (the scene freed) */
+static int cmp_load(cmp_args *A, const char **gtos, wrt_scene *scene, wrt_light *lights, int *nl) {
+    const char *scene_path = A->scene_path;
+    wrt_cli_lights *L = &A->L;
+    wrt_status lst = wrt_scene_load(scene_path, NULL, scene);
     if (lst != WRT_OK) {
         fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
         return lst == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT;
     }
-    int crc = check_inputs(&scene, scene_path, gtos, ngto, bench_only ? NULL : images);
+    int crc = check_inputs(scene, scene_path, gtos, A->ngto, A->bench_only ? NULL : A->images);
     if (crc) {
-        wrt_scene_free(&scene);
+        wrt_scene_free(scene);
         return crc;
     }
     /* the light compared: --light N's (default 1), with the command line's changes, put
      * first, where wrt_compare_default_lights takes it from */
-    if (wrt_cli_lights_any(&L)) {
-        int which = L.which ? L.which : 1;
+    if (wrt_cli_lights_any(L)) {
+        int which = L->which ? L->which : 1;
         for (int k = 0; k < WRT_CLI_MAX_LIGHTS; k++)
-            if (L.scaled[k] && k != which - 1 && k < scene.nlights) {
+            if (L->scaled[k] && k != which - 1 && k < scene->nlights) {
                 fprintf(stderr, "wrt-compare: error: %s %d: the comparison uses light %d only\n",
-                        L.scale[k] == 0 ? "--lights-off" : "--light-scale", k + 1, which);
-                wrt_scene_free(&scene);
+                        L->scale[k] == 0 ? "--lights-off" : "--light-scale", k + 1, which);
+                wrt_scene_free(scene);
                 return WRT_EXIT_USAGE;
             }
-        int arc = wrt_cli_lights_apply(T, &L, scene.lights, scene.nlights, NULL);
+        int arc = wrt_cli_lights_apply(T, L, scene->lights, scene->nlights, NULL);
         if (arc) {
-            wrt_scene_free(&scene);
+            wrt_scene_free(scene);
             return arc;
         }
-        wrt_light t = scene.lights[0];
-        scene.lights[0] = scene.lights[which - 1];
-        scene.lights[which - 1] = t;
+        wrt_light t = scene->lights[0];
+        scene->lights[0] = scene->lights[which - 1];
+        scene->lights[which - 1] = t;
     }
-    wrt_light lights[WRT_COMPARE_MAX_LIGHTS];
-    int nl;
+    int nexplicit = A->nexplicit;
     if (nexplicit > 0) {
-        wrt_compare_default_lights(&scene, 1, lights);
+        wrt_compare_default_lights(scene, 1, lights);
         for (int k = 1; k < nexplicit; k++) lights[k] = lights[0];
-        for (int k = 0; k < nexplicit; k++) lights[k].pos = v3(explicit_pos[k][0], explicit_pos[k][1], explicit_pos[k][2]);
-        nl = nexplicit;
-    } else nl = wrt_compare_default_lights(&scene, nlights_req, lights);
+        for (int k = 0; k < nexplicit; k++) lights[k].pos = v3(A->explicit_pos[k][0], A->explicit_pos[k][1], A->explicit_pos[k][2]);
+        *nl = nexplicit;
+    } else *nl = wrt_compare_default_lights(scene, A->nlights_req, lights);
+    return -1;
+}
 
-    if (bench_only) {
-        wrt_compare_defaults(&o);
-        double eye[3] = {scene.camera.pos.x, scene.camera.pos.y, scene.camera.pos.z};
-        int bad = 0;
-        printf("{\"scene\":");
-        wrt_cli_json_str(stdout, scene_path);
-        printf(",\"bakes\":[");
-        for (int b = 0; b < ngto; b++) {
-            wrt_gto g;
-            wrt_compare_result res = {0};
-            if (wrt_gto_open(gtos[b], &g) != WRT_OK) {
-                fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
-                bad = 1;
-                continue;
-            }
-            if ((int)g.nquads != scene.nquads ||
-                wrt_compare_bench(&g, &lights[0], eye, o.bench_updates, &o, &res) != WRT_OK) {
-                fprintf(stderr, "wrt-compare: error: %s: %s\n", gtos[b],
-                        (int)g.nquads != scene.nquads ? "not baked from this scene" : wrt_last_error());
-                wrt_gto_close(&g);
-                bad = 1;
-                continue;
-            }
-            printf("%s{\"file\":", b ? "," : "");
-            wrt_cli_json_str(stdout, gtos[b]);
-            printf(",\"bytes\":%zu,\"ms_per_light_change\":%.4f,\"ms_min\":%.4f,\"ms_max\":%.4f,"
-                   "\"cpu_ms_per_light_change\":%.4f,\"ms_per_camera_move\":%.4f,\"cpu_ms_per_camera_move\":%.4f,"
-                   "\"bench_updates\":%d}",
-                   g.size, res.ms_update_median, res.ms_update_min, res.ms_update_max, res.cpu_ms_update_median,
-                   res.ms_eye_median, res.cpu_ms_eye_median, o.bench_updates);
-            fprintf(stderr, "wrt-compare: %s: %.2f ms per light change (median; fastest %.2f, CPU %.2f), "
-                    "%.2f ms per camera move (CPU %.2f)\n", gtos[b], res.ms_update_median, res.ms_update_min,
-                    res.cpu_ms_update_median, res.ms_eye_median, res.cpu_ms_eye_median);
-            wrt_gto_close(&g);
+/* Stage 3 (--bench-only): time the light changes of each bake, no reference; the exit code */
+static int cmp_bench_only(cmp_args *A, const char **gtos, const wrt_scene *scene, const wrt_light *lights) {
+    wrt_compare_options *o = &A->o;
+    int ngto = A->ngto;
+    wrt_compare_defaults(o);
+    double eye[3] = {scene->camera.pos.x, scene->camera.pos.y, scene->camera.pos.z};
+    int bad = 0;
+    printf("{\"scene\":");
+    wrt_cli_json_str(stdout, A->scene_path);
+    printf(",\"bakes\":[");
+    for (int b = 0; b < ngto; b++) {
+        wrt_gto g;
+        wrt_compare_result res = {0};
+        if (wrt_gto_open(gtos[b], &g) != WRT_OK) {
+            fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
+            bad = 1;
+            continue;
         }
-        printf("],\"ok\":%s}\n", bad ? "false" : "true");
+        if ((int)g.nquads != scene->nquads ||
+            wrt_compare_bench(&g, &lights[0], eye, o->bench_updates, o, &res) != WRT_OK) {
+            fprintf(stderr, "wrt-compare: error: %s: %s\n", gtos[b],
+                    (int)g.nquads != scene->nquads ? "not baked from this scene" : wrt_last_error());
+            wrt_gto_close(&g);
+            bad = 1;
+            continue;
+        }
+        printf("%s{\"file\":", b ? "," : "");
+        wrt_cli_json_str(stdout, gtos[b]);
+        printf(",\"bytes\":%zu,\"ms_per_light_change\":%.4f,\"ms_min\":%.4f,\"ms_max\":%.4f,"
+               "\"cpu_ms_per_light_change\":%.4f,\"ms_per_camera_move\":%.4f,\"cpu_ms_per_camera_move\":%.4f,"
+               "\"bench_updates\":%d}",
+               g.size, res.ms_update_median, res.ms_update_min, res.ms_update_max, res.cpu_ms_update_median,
+               res.ms_eye_median, res.cpu_ms_eye_median, o->bench_updates);
+        fprintf(stderr, "wrt-compare: %s: %.2f ms per light change (median; fastest %.2f, CPU %.2f), "
+                "%.2f ms per camera move (CPU %.2f)\n", gtos[b], res.ms_update_median, res.ms_update_min,
+                res.cpu_ms_update_median, res.ms_eye_median, res.cpu_ms_eye_median);
+        wrt_gto_close(&g);
+    }
+    printf("],\"ok\":%s}\n", bad ? "false" : "true");
+    return bad ? 2 : 0;
+}
+
+/* Stage 4b (--per-quad): each quad's mean against the reference's, as JSON */
+static void cmp_per_quad(const wrt_compare_ref *ref, const wrt_scene *scene, const wrt_compare_options *o) {
+    printf(",\"quads\":[");
+    for (int q = 0; q < scene->nquads; q++) {
+        const double *w = wrt_compare_cells(ref, 0, q, 1, NULL), *m = wrt_compare_cells(ref, 0, q, 0, NULL);
+        double mw[3] = {0, 0, 0}, mr[3] = {0, 0, 0}, d2 = 0, r2 = 0;
+        for (int k = 0; k < o->cells * o->cells; k++)
+            for (int c = 0; c < 3; c++) {
+                mw[c] += w[k * 3 + c] / (o->cells * o->cells);
+                mr[c] += m[k * 3 + c] / (o->cells * o->cells);
+                d2 += (w[k * 3 + c] - m[k * 3 + c]) * (w[k * 3 + c] - m[k * 3 + c]);
+                r2 += m[k * 3 + c] * m[k * 3 + c];
+            }
+        printf("%s{\"quad\":%d,\"material\":%d,\"area\":%.5g,\"wavelet\":[%.5g,%.5g,%.5g],"
+               "\"reference\":[%.5g,%.5g,%.5g],\"cell_rmse\":%.5g}",
+               q ? "," : "", q, scene->quads[q].material, scene->quads[q].area, mw[0], mw[1], mw[2], mr[0],
+               mr[1], mr[2], r2 > 0 ? sqrt(d2 / r2) : 0);
+    }
+    printf("]");
+}
+
+/* Stage 4: one bake against the reference, its JSON object and its line of text; sets
+ * *failed, *exceeded and *failed_output as the bake requires */
+static void cmp_one_bake(const cmp_args *A, const char *path, int b, wrt_compare_ref *ref,
+                         const wrt_compare_ref_info *info, const wrt_scene *scene, int *failed, int *exceeded,
+                         int *failed_output) {
+    const wrt_compare_options *o = &A->o;
+    double max_error = A->max_error;
+    wrt_gto g;
+    if (wrt_gto_open(path, &g) != WRT_OK) {
+        fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
+        *failed = 1;
+        return;
+    }
+    wrt_compare_result res;
+    wrt_status st = wrt_compare_gto(ref, &g, &res);
+    if (st != WRT_OK) {
+        fprintf(stderr, "wrt-compare: error: %s: %s\n", path, wrt_last_error());
+        wrt_gto_close(&g);
+        *failed = 1;
+        return;
+    }
+    int over = max_error >= 0 && !(res.mean.cell_rmse <= max_error);
+    *exceeded |= over;
+    /* raw: the rmse against the path tracer, its noise included; debiased: that noise
+     * (the floor) taken out, the figure the README quotes */
+    fprintf(stderr, "wrt-compare: %s: cell error %.4f raw, %.4f debiased (floor %.4f)", path, res.mean.cell_rmse,
+            res.mean.cell_debiased, res.mean.cell_floor);
+    if (info->width > 0)
+        fprintf(stderr, "; image error %.4f raw, %.4f debiased (floor %.4f)", res.mean.image_rmse,
+                res.mean.image_debiased, res.mean.image_floor);
+    fprintf(stderr, "; %.2f ms per light change%s\n", res.ms_update_median, over ? "; ACCURACY NOT MET" : "");
+    printf("%s{\"file\":", b ? "," : "");
+    wrt_cli_json_str(stdout, path);
+    printf(",\"bytes\":%zu,\"functions\":%u,\"entries\":%llu,", g.size, g.nfuncs, (unsigned long long)g.nnz);
+    json_errors(stdout, &res.mean);
+    printf(",\"ms_per_light_change\":%.4f,\"ms_min\":%.4f,\"ms_max\":%.4f,\"cpu_ms_per_light_change\":%.4f,"
+           "\"ms_per_camera_move\":%.4f,\"cpu_ms_per_camera_move\":%.4f,\"bench_updates\":%d,"
+           "\"seconds\":%.3f,\"within_max_error\":%s,\"per_light\":[",
+           res.ms_update_median, res.ms_update_min, res.ms_update_max, res.cpu_ms_update_median,
+           res.ms_eye_median, res.cpu_ms_eye_median, o->bench_updates, res.seconds,
+           over ? "false" : "true");
+    for (int k = 0; k < res.nlights; k++) {
+        printf("%s{", k ? "," : "");
+        json_errors(stdout, &res.light[k]);
+        printf("}");
+    }
+    printf("]");
+    if (A->per_quad) cmp_per_quad(ref, scene, o);
+    printf("}");
+    if (A->images && write_images(A->images, ref, info->width, info->height, A->exposure,
+                                  A->has_closeup ? A->closeup : NULL))
+        *failed_output = 1;
+    wrt_gto_close(&g);
+}
+
+/* The whole program but the array of .gto paths, which main owns, so that every way out
+ * of here (there are many) leaves nothing allocated behind. */
+static int compare_main(int argc, char **argv, const char **gtos) {
+    cmp_args A = {.nlights_req = 5, .max_error = -1};
+    wrt_cli_lights_init(&A.L);
+    int prc = cmp_parse(argc, argv, gtos, &A);
+    if (prc >= 0) return prc;
+    wrt_compare_options o = A.o;
+
+    wrt_scene scene;
+    wrt_light lights[WRT_COMPARE_MAX_LIGHTS];
+    int nl = 0;
+    int lrc = cmp_load(&A, gtos, &scene, lights, &nl);
+    if (lrc >= 0) return lrc;
+
+    if (A.bench_only) {
+        int brc = cmp_bench_only(&A, gtos, &scene, lights);
         wrt_scene_free(&scene);
-        return bad ? 2 : 0;
+        return brc;
     }
 
     fprintf(stderr, "wrt-compare: reference for %d light(s)...\n", nl);
@@ -446,11 +556,12 @@ static int compare_main(int argc, char **argv, const char **gtos) {
     wrt_compare_ref_info info;
     wrt_compare_ref_get_info(ref, &info);
     wrt_compare_defaults(&o);
+    A.o = o;
     fprintf(stderr, "wrt-compare: reference %.1f s, cell floor %.4f, image floor %.4f\n", info.seconds,
             info.cell_floor, info.image_floor);
 
     printf("{\"scene\":");
-    wrt_cli_json_str(stdout, scene_path);
+    wrt_cli_json_str(stdout, A.scene_path);
     printf(",\"quads\":%d,\"cells_per_side\":%d,\"lights\":[", scene.nquads, o.cells);
     for (int k = 0; k < nl; k++)
         printf("%s{\"type\":\"%s\",\"pos\":[%.6g,%.6g,%.6g],\"intensity\":%.6g}", k ? "," : "",
@@ -462,73 +573,10 @@ static int compare_main(int argc, char **argv, const char **gtos) {
            info.seconds, (unsigned long long)info.rays, info.cell_paths, o.pilot, info.width, info.height,
            info.spp, o.sub, info.valid_pixels, info.cell_floor, info.image_floor);
     int failed = 0, exceeded = 0, failed_output = 0;
-    for (int b = 0; b < ngto; b++) {
-        wrt_gto g;
-        if (wrt_gto_open(gtos[b], &g) != WRT_OK) {
-            fprintf(stderr, "wrt-compare: error: %s\n", wrt_last_error());
-            failed = 1;
-            continue;
-        }
-        wrt_compare_result res;
-        st = wrt_compare_gto(ref, &g, &res);
-        if (st != WRT_OK) {
-            fprintf(stderr, "wrt-compare: error: %s: %s\n", gtos[b], wrt_last_error());
-            wrt_gto_close(&g);
-            failed = 1;
-            continue;
-        }
-        int over = max_error >= 0 && !(res.mean.cell_rmse <= max_error);
-        exceeded |= over;
-        /* raw: the rmse against the path tracer, its noise included; debiased: that noise
-         * (the floor) taken out, the figure the README quotes */
-        fprintf(stderr, "wrt-compare: %s: cell error %.4f raw, %.4f debiased (floor %.4f)", gtos[b], res.mean.cell_rmse,
-                res.mean.cell_debiased, res.mean.cell_floor);
-        if (info.width > 0)
-            fprintf(stderr, "; image error %.4f raw, %.4f debiased (floor %.4f)", res.mean.image_rmse,
-                    res.mean.image_debiased, res.mean.image_floor);
-        fprintf(stderr, "; %.2f ms per light change%s\n", res.ms_update_median, over ? "; ACCURACY NOT MET" : "");
-        printf("%s{\"file\":", b ? "," : "");
-        wrt_cli_json_str(stdout, gtos[b]);
-        printf(",\"bytes\":%zu,\"functions\":%u,\"entries\":%llu,", g.size, g.nfuncs, (unsigned long long)g.nnz);
-        json_errors(stdout, &res.mean);
-        printf(",\"ms_per_light_change\":%.4f,\"ms_min\":%.4f,\"ms_max\":%.4f,\"cpu_ms_per_light_change\":%.4f,"
-               "\"ms_per_camera_move\":%.4f,\"cpu_ms_per_camera_move\":%.4f,\"bench_updates\":%d,"
-               "\"seconds\":%.3f,\"within_max_error\":%s,\"per_light\":[",
-               res.ms_update_median, res.ms_update_min, res.ms_update_max, res.cpu_ms_update_median,
-               res.ms_eye_median, res.cpu_ms_eye_median, o.bench_updates, res.seconds,
-               over ? "false" : "true");
-        for (int k = 0; k < res.nlights; k++) {
-            printf("%s{", k ? "," : "");
-            json_errors(stdout, &res.light[k]);
-            printf("}");
-        }
-        printf("]");
-        if (per_quad) {
-            printf(",\"quads\":[");
-            for (int q = 0; q < scene.nquads; q++) {
-                const double *w = wrt_compare_cells(ref, 0, q, 1, NULL), *m = wrt_compare_cells(ref, 0, q, 0, NULL);
-                double mw[3] = {0, 0, 0}, mr[3] = {0, 0, 0}, d2 = 0, r2 = 0;
-                for (int k = 0; k < o.cells * o.cells; k++)
-                    for (int c = 0; c < 3; c++) {
-                        mw[c] += w[k * 3 + c] / (o.cells * o.cells);
-                        mr[c] += m[k * 3 + c] / (o.cells * o.cells);
-                        d2 += (w[k * 3 + c] - m[k * 3 + c]) * (w[k * 3 + c] - m[k * 3 + c]);
-                        r2 += m[k * 3 + c] * m[k * 3 + c];
-                    }
-                printf("%s{\"quad\":%d,\"material\":%d,\"area\":%.5g,\"wavelet\":[%.5g,%.5g,%.5g],"
-                       "\"reference\":[%.5g,%.5g,%.5g],\"cell_rmse\":%.5g}",
-                       q ? "," : "", q, scene.quads[q].material, scene.quads[q].area, mw[0], mw[1], mw[2], mr[0],
-                       mr[1], mr[2], r2 > 0 ? sqrt(d2 / r2) : 0);
-            }
-            printf("]");
-        }
-        printf("}");
-        if (images && write_images(images, ref, info.width, info.height, exposure, has_closeup ? closeup : NULL))
-            failed_output = 1;
-        wrt_gto_close(&g);
-    }
+    for (int b = 0; b < A.ngto; b++)
+        cmp_one_bake(&A, gtos[b], b, ref, &info, &scene, &failed, &exceeded, &failed_output);
     printf("],\"max_error\":");
-    if (max_error >= 0) printf("%.6g", max_error);
+    if (A.max_error >= 0) printf("%.6g", A.max_error);
     else printf("null");
     printf(",\"ok\":%s}\n", failed || exceeded ? "false" : "true");
     wrt_compare_ref_destroy(ref);

@@ -146,71 +146,88 @@ static double mean_of_f(const float *v, size_t n) {
 
 static const char *T = "wrt-ref";
 
-int main(int argc, char **argv) {
-    wrt_cli_init("wrt-ref"); /* stdout checked at exit (3), out of memory: exit 7 */
-    const char *scene_path = NULL, *out_prefix = "ref", *points_path = NULL;
-    double exposure = 0;
-    int pfm = 0;
-    int spp = 64, width = 256, height = 256, image = 1;
-    int samples = 1024, max_bounces = 0, threads = 0, json = 0, cell_quad = -1, cell_n = 0;
-    long long seed = 1;
+/* The command line's settings */
+typedef struct {
+    const char *scene_path, *out_prefix, *points_path;
+    double exposure;
+    int pfm;
+    int spp, width, height, image;
+    int samples, max_bounces, threads, json, cell_quad, cell_n;
+    long long seed;
     wrt_cli_lights L;
-    wrt_cli_lights_init(&L);
+} ref_opts;
+
+/* What the renders measured and wrote, for the report */
+typedef struct {
+    double t_image, t_points, t_cells;
+    double img_se, img_ind, img_dir;
+    double pt_se, pt_ind, cell_se, cell_ind;
+    int npoints;
+    char written[6][4200];
+    int nwritten;
+} ref_figures;
+
+/* Stage 1: the command line; -1 to go on, else the exit code */
+static int ref_parse(int argc, char **argv, ref_opts *o) {
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         long n;
-        int lr = wrt_cli_lights_option(T, &L, argc, argv, &i);
+        int lr = wrt_cli_lights_option(T, &o->L, argc, argv, &i);
         if (lr < 0) return WRT_EXIT_USAGE;
         if (lr > 0) continue;
 #define INT(lo, hi, dst) do { if (!wrt_cli_int(T, a, v, lo, hi, &n)) return WRT_EXIT_USAGE; dst = (int)n; i++; } while (0)
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
         else if (!strcmp(a, "--version")) { wrt_cli_version(T); return 0; }
-        else if (!strcmp(a, "--json")) json = 1;
-        else if (!strcmp(a, "--no-image")) image = 0;
-        else if (!strcmp(a, "--pfm")) pfm = 1;
-        else if (!strcmp(a, "--exposure")) { if (!wrt_cli_num(T, a, v, -64, 64, &exposure)) return WRT_EXIT_USAGE; i++; }
-        else if (!strcmp(a, "--spp")) INT(1, 1 << 24, spp);
-        else if (!strcmp(a, "--width")) INT(1, 16384, width);
-        else if (!strcmp(a, "--height")) INT(1, 16384, height);
-        else if (!strcmp(a, "--samples")) INT(1, 1 << 30, samples);
-        else if (!strcmp(a, "--max-bounces")) INT(0, 100000, max_bounces);
-        else if (!strcmp(a, "--threads")) INT(0, 256, threads);
-        else if (!strcmp(a, "--seed")) { if (!wrt_cli_int(T, a, v, 0, 1L << 62, &n)) return WRT_EXIT_USAGE; seed = n; i++; }
+        else if (!strcmp(a, "--json")) o->json = 1;
+        else if (!strcmp(a, "--no-image")) o->image = 0;
+        else if (!strcmp(a, "--pfm")) o->pfm = 1;
+        else if (!strcmp(a, "--exposure")) { if (!wrt_cli_num(T, a, v, -64, 64, &o->exposure)) return WRT_EXIT_USAGE; i++; }
+        else if (!strcmp(a, "--spp")) INT(1, 1 << 24, o->spp);
+        else if (!strcmp(a, "--width")) INT(1, 16384, o->width);
+        else if (!strcmp(a, "--height")) INT(1, 16384, o->height);
+        else if (!strcmp(a, "--samples")) INT(1, 1 << 30, o->samples);
+        else if (!strcmp(a, "--max-bounces")) INT(0, 100000, o->max_bounces);
+        else if (!strcmp(a, "--threads")) INT(0, 256, o->threads);
+        else if (!strcmp(a, "--seed")) { if (!wrt_cli_int(T, a, v, 0, 1L << 62, &n)) return WRT_EXIT_USAGE; o->seed = n; i++; }
         else if (!strcmp(a, "-o") || !strcmp(a, "--out") || !strcmp(a, "--points")) {
             if (!v) { fprintf(stderr, "wrt-ref: error: %s needs a value\n", a); return WRT_EXIT_USAGE; }
-            if (!strcmp(a, "--points")) points_path = v; else out_prefix = v;
+            if (!strcmp(a, "--points")) o->points_path = v; else o->out_prefix = v;
             i++;
         } else if (!strcmp(a, "--cells")) {
-            if (!v || sscanf(v, "%d,%d", &cell_quad, &cell_n) != 2 || cell_quad < 0 || cell_n < 1 || cell_n > 4096) {
+            if (!v || sscanf(v, "%d,%d", &o->cell_quad, &o->cell_n) != 2 || o->cell_quad < 0 || o->cell_n < 1 || o->cell_n > 4096) {
                 fprintf(stderr, "wrt-ref: error: bad value for --cells: '%s' (QUAD,N with N in [1, 4096])\n", v ? v : "");
                 return WRT_EXIT_USAGE;
             }
             i++;
         }
         else if (a[0] == '-' && a[1]) { fprintf(stderr, "wrt-ref: error: unknown option %s (see --help)\n", a); return WRT_EXIT_USAGE; }
-        else if (!scene_path) scene_path = a;
-        else { fprintf(stderr, "wrt-ref: error: more than one scene ('%s', '%s')\n", scene_path, a); return WRT_EXIT_USAGE; }
+        else if (!o->scene_path) o->scene_path = a;
+        else { fprintf(stderr, "wrt-ref: error: more than one scene ('%s', '%s')\n", o->scene_path, a); return WRT_EXIT_USAGE; }
 #undef INT
     }
-    if (!scene_path) { fprintf(stderr, "wrt-ref: error: no scene (see --help)\n"); return WRT_EXIT_USAGE; }
+    if (!o->scene_path) { fprintf(stderr, "wrt-ref: error: no scene (see --help)\n"); return WRT_EXIT_USAGE; }
+    return -1;
+}
 
-    wrt_scene scene;
-    wrt_status st = wrt_scene_load(scene_path, NULL, &scene);
+/* Stage 2: the scene and its lights with the command line's changes; -1 to go on, else
+ * the exit code (nothing left allocated) */
+static int ref_load(const ref_opts *o, wrt_scene *scene, wrt_light **lights_out, int *nlights_out) {
+    wrt_status st = wrt_scene_load(o->scene_path, NULL, scene);
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-ref: error: %s: %s\n", wrt_status_str(st), wrt_last_error());
         return st == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT;
     }
-    if (cell_quad >= scene.nquads) {
-        fprintf(stderr, "wrt-ref: error: --cells quad %d, the scene has %d (numbered from 0)\n", cell_quad, scene.nquads);
-        wrt_scene_free(&scene);
+    if (o->cell_quad >= scene->nquads) {
+        fprintf(stderr, "wrt-ref: error: --cells quad %d, the scene has %d (numbered from 0)\n", o->cell_quad, scene->nquads);
+        wrt_scene_free(scene);
         return WRT_EXIT_USAGE;
     }
     /* the scene's lights with the command line's changes; a scene without lights gets a
      * white point light of 1 cd where --light-pos puts it */
-    int nlights = scene.nlights;
+    int nlights = scene->nlights;
     wrt_light *lights = wrt_xcalloc((size_t)(nlights ? nlights : 1), sizeof *lights);
-    if (nlights) memcpy(lights, scene.lights, (size_t)nlights * sizeof *lights);
-    else if (L.has_pos) {
+    if (nlights) memcpy(lights, scene->lights, (size_t)nlights * sizeof *lights);
+    else if (o->L.has_pos) {
         lights[0].type = WRT_LIGHT_POINT;
         lights[0].intensity = 1;
         lights[0].outer_cone = (float)(WRT_PI / 4);
@@ -218,13 +235,165 @@ int main(int argc, char **argv) {
         snprintf(lights[0].name, sizeof lights[0].name, "command line");
         nlights = 1;
     }
-    int arc = wrt_cli_lights_apply(T, &L, lights, nlights, NULL);
+    int arc = wrt_cli_lights_apply(T, &o->L, lights, nlights, NULL);
     if (arc) {
         free(lights);
-        wrt_scene_free(&scene);
+        wrt_scene_free(scene);
         return arc;
     }
-    if (nlights == 0) wrt_log(WRT_LOG_WARN, "%s has no lights: everything is black", scene_path);
+    if (nlights == 0) wrt_log(WRT_LOG_WARN, "%s has no lights: everything is black", o->scene_path);
+    *lights_out = lights;
+    *nlights_out = nlights;
+    return -1;
+}
+
+/* Stage 3: the images and their files; returns the exit code so far */
+static int ref_image(const ref_opts *o, wrt_ref *ref, const wrt_scene *scene, const wrt_light *lights, int nlights,
+                     ref_figures *f) {
+    int rc = 0;
+    size_t n = (size_t)o->width * o->height * 3;
+    float *d = wrt_xmalloc(n * sizeof(float)), *ind = wrt_xmalloc(n * sizeof(float));
+    float *both = wrt_xmalloc(n * sizeof(float)), *se = wrt_xmalloc(n * sizeof(float));
+    double t0 = wrt_now();
+    wrt_status st = wrt_ref_render(ref, lights, nlights, &scene->camera, o->width, o->height, o->spp, o->max_bounces,
+                                   o->threads, (uint64_t)o->seed, d, ind, both, se);
+    f->t_image = wrt_now() - t0;
+    if (st == WRT_OK) {
+        f->img_se = mean_of_f(se, n); f->img_ind = mean_of_f(ind, n); f->img_dir = mean_of_f(d, n);
+        const char *names[4] = {"direct", "indirect", "both", "stderr"};
+        const float *imgs[4] = {d, ind, both, se};
+        for (int k = 0; k < 4 && st == WRT_OK; k++) {
+            st = write_image(o->out_prefix, names[k], o->pfm, imgs[k], o->width, o->height, f->written[k],
+                             sizeof f->written[k]);
+            if (st == WRT_OK) f->nwritten++;
+        }
+        for (int k = 0; k < 2 && st == WRT_OK && !o->pfm; k++) {
+            st = write_png(o->out_prefix, k ? "direct" : "both", k ? d : both, o->width, o->height, o->exposure,
+                           f->written[f->nwritten], sizeof f->written[f->nwritten]);
+            if (st == WRT_OK && f->written[f->nwritten][0]) f->nwritten++;
+        }
+    } else {
+        fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error());
+        rc = st == WRT_ERR_INVALID_ARG ? WRT_EXIT_USAGE : WRT_EXIT_INTERNAL;
+        st = WRT_OK;
+    }
+    free(d); free(ind); free(both); free(se);
+    if (st != WRT_OK) { fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error()); rc = WRT_EXIT_OUTPUT; }
+    return rc;
+}
+
+/* Stage 4: irradiance at the points of --points; returns the exit code so far */
+static int ref_points(const ref_opts *o, wrt_ref *ref, const wrt_scene *scene, const wrt_light *lights, int nlights,
+                      ref_figures *f) {
+    int rc = 0;
+    point_list pl;
+    wrt_status st = read_points(o->points_path, scene, &pl);
+    if (st == WRT_OK && pl.n > 0) {
+        double *d = wrt_xmalloc(sizeof(double) * 3 * pl.n), *ind = wrt_xmalloc(sizeof(double) * 3 * pl.n);
+        double *se = wrt_xmalloc(sizeof(double) * 3 * pl.n);
+        double t0 = wrt_now();
+        st = wrt_ref_irradiance(ref, lights, nlights, pl.p, pl.quad, pl.n, o->samples, o->max_bounces,
+                                o->threads, (uint64_t)o->seed, d, ind, se);
+        f->t_points = wrt_now() - t0;
+        if (st == WRT_OK) {
+            f->npoints = pl.n;
+            f->pt_se = mean_of(se, 3 * (size_t)pl.n); f->pt_ind = mean_of(ind, 3 * (size_t)pl.n);
+            if (!o->json) printf("# quad u v  direct_rgb  indirect_rgb  indirect_stderr_rgb\n");
+            for (int i = 0; i < pl.n && !o->json; i++)
+                printf("%d %.6f %.6f  %.9g %.9g %.9g  %.9g %.9g %.9g  %.3g %.3g %.3g\n",
+                       pl.quad[i], pl.uv[2 * i], pl.uv[2 * i + 1], d[3 * i], d[3 * i + 1],
+                       d[3 * i + 2], ind[3 * i], ind[3 * i + 1], ind[3 * i + 2], se[3 * i],
+                       se[3 * i + 1], se[3 * i + 2]);
+        }
+        free(d); free(ind); free(se);
+    }
+    free(pl.p); free(pl.quad); free(pl.uv);
+    if (st != WRT_OK) {
+        fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error());
+        rc = st == WRT_ERR_IO || st == WRT_ERR_PARSE ? WRT_EXIT_INPUT : WRT_EXIT_INTERNAL;
+    }
+    return rc;
+}
+
+/* Stage 5: cell averages over the quad of --cells; returns the exit code so far */
+static int ref_cells(const ref_opts *o, wrt_ref *ref, const wrt_light *lights, int nlights, ref_figures *f) {
+    int rc = 0;
+    int cell_n = o->cell_n;
+    size_t n = (size_t)cell_n * cell_n * 3;
+    double *d = wrt_xmalloc(sizeof(double) * n), *ind = wrt_xmalloc(sizeof(double) * n);
+    double *se = wrt_xmalloc(sizeof(double) * n);
+    double t0 = wrt_now();
+    wrt_status st = wrt_ref_cell_irradiance(ref, lights, nlights, o->cell_quad, cell_n, o->samples, o->max_bounces,
+                                            o->threads, (uint64_t)o->seed, d, ind, se);
+    f->t_cells = wrt_now() - t0;
+    if (st == WRT_OK) {
+        f->cell_se = mean_of(se, n); f->cell_ind = mean_of(ind, n);
+        if (!o->json) printf("# cell i j  direct_rgb  indirect_rgb  indirect_stderr_rgb (quad %d)\n", o->cell_quad);
+        for (int c = 0; c < cell_n * cell_n && !o->json; c++)
+            printf("%d %d  %.9g %.9g %.9g  %.9g %.9g %.9g  %.3g %.3g %.3g\n", c % cell_n,
+                   c / cell_n, d[3 * c], d[3 * c + 1], d[3 * c + 2], ind[3 * c],
+                   ind[3 * c + 1], ind[3 * c + 2], se[3 * c], se[3 * c + 1], se[3 * c + 2]);
+    } else {
+        fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error());
+        rc = WRT_EXIT_INTERNAL;
+    }
+    free(d); free(ind); free(se);
+    return rc;
+}
+
+/* Stage 6: the figures, as one JSON object or a line of text and the files written */
+static void ref_report(const ref_opts *o, const wrt_scene *scene, int nlights, const ref_figures *f, uint64_t rays,
+                       int rc) {
+    double t_all = f->t_image + f->t_points + f->t_cells;
+    if (o->json) {
+        printf("{\"scene\":");
+        wrt_cli_json_str(stdout, o->scene_path);
+        printf(",\"quads\":%d,\"lights\":%d,\"threads\":%d,\"seed\":%lld,"
+               "\"max_bounces\":%d,\"time_s\":%.4f,\"rays\":%llu,\"mrays_per_s\":%.3f",
+               scene->nquads, nlights, o->threads, o->seed, o->max_bounces, t_all,
+               (unsigned long long)rays, t_all > 0 ? rays / t_all / 1e6 : 0.0);
+        if (o->image)
+            printf(",\"image\":{\"width\":%d,\"height\":%d,\"spp\":%d,\"time_s\":%.4f,"
+                   "\"mean_direct\":%.6g,\"mean_indirect\":%.6g,\"mean_indirect_stderr\":%.6g,"
+                   "\"files\":[",
+                   o->width, o->height, o->spp, f->t_image, f->img_dir, f->img_ind, f->img_se);
+        for (int k = 0; o->image && k < f->nwritten; k++) {
+            if (k) putchar(',');
+            wrt_cli_json_str(stdout, f->written[k]);
+        }
+        if (o->image) printf("]}");
+        if (o->points_path)
+            printf(",\"points\":{\"count\":%d,\"samples\":%d,\"time_s\":%.4f,\"mean_indirect\":%.6g,"
+                   "\"mean_indirect_stderr\":%.6g}",
+                   f->npoints, o->samples, f->t_points, f->pt_ind, f->pt_se);
+        if (o->cell_n > 0)
+            printf(",\"cells\":{\"quad\":%d,\"n\":%d,\"samples\":%d,\"time_s\":%.4f,"
+                   "\"mean_indirect\":%.6g,\"mean_indirect_stderr\":%.6g}",
+                   o->cell_quad, o->cell_n, o->samples, f->t_cells, f->cell_ind, f->cell_se);
+        printf(",\"ok\":%s}\n", rc == 0 ? "true" : "false");
+    } else {
+        fprintf(stderr, "wrt-ref: %.3f s, %llu rays (%.2f Mrays/s)", t_all,
+                (unsigned long long)rays, t_all > 0 ? rays / t_all / 1e6 : 0.0);
+        if (o->image) fprintf(stderr, "; image %dx%d, %d spp, mean indirect %.4g +- %.2g (mean se)",
+                              o->width, o->height, o->spp, f->img_ind, f->img_se);
+        fprintf(stderr, "\n");
+        for (int k = 0; k < f->nwritten; k++) fprintf(stderr, "wrote %s\n", f->written[k]);
+    }
+}
+
+int main(int argc, char **argv) {
+    wrt_cli_init("wrt-ref"); /* stdout checked at exit (3), out of memory: exit 7 */
+    ref_opts o = {.out_prefix = "ref", .spp = 64, .width = 256, .height = 256, .image = 1, .samples = 1024,
+                  .cell_quad = -1, .seed = 1};
+    wrt_cli_lights_init(&o.L);
+    int prc = ref_parse(argc, argv, &o);
+    if (prc >= 0) return prc;
+
+    wrt_scene scene;
+    wrt_light *lights = NULL;
+    int nlights = 0;
+    int lrc = ref_load(&o, &scene, &lights, &nlights);
+    if (lrc >= 0) return lrc;
 
     wrt_ref *ref = wrt_ref_create(&scene);
     if (!ref) {
@@ -234,128 +403,11 @@ int main(int argc, char **argv) {
         return WRT_EXIT_INTERNAL;
     }
     int rc = 0;
-    double t_image = 0, t_points = 0, t_cells = 0;
-    double img_se = 0, img_ind = 0, img_dir = 0;
-    double pt_se = 0, pt_ind = 0, cell_se = 0, cell_ind = 0;
-    int npoints = 0;
-    char written[6][4200];
-    int nwritten = 0;
-
-    if (image) {
-        size_t n = (size_t)width * height * 3;
-        float *d = wrt_xmalloc(n * sizeof(float)), *ind = wrt_xmalloc(n * sizeof(float));
-        float *both = wrt_xmalloc(n * sizeof(float)), *se = wrt_xmalloc(n * sizeof(float));
-        double t0 = wrt_now();
-        st = wrt_ref_render(ref, lights, nlights, &scene.camera, width, height, spp, max_bounces,
-                            threads, (uint64_t)seed, d, ind, both, se);
-        t_image = wrt_now() - t0;
-        if (st == WRT_OK) {
-            img_se = mean_of_f(se, n); img_ind = mean_of_f(ind, n); img_dir = mean_of_f(d, n);
-            const char *names[4] = {"direct", "indirect", "both", "stderr"};
-            const float *imgs[4] = {d, ind, both, se};
-            for (int k = 0; k < 4 && st == WRT_OK; k++) {
-                st = write_image(out_prefix, names[k], pfm, imgs[k], width, height, written[k],
-                                 sizeof written[k]);
-                if (st == WRT_OK) nwritten++;
-            }
-            for (int k = 0; k < 2 && st == WRT_OK && !pfm; k++) {
-                st = write_png(out_prefix, k ? "direct" : "both", k ? d : both, width, height, exposure,
-                               written[nwritten], sizeof written[nwritten]);
-                if (st == WRT_OK && written[nwritten][0]) nwritten++;
-            }
-        } else {
-            fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error());
-            rc = st == WRT_ERR_INVALID_ARG ? WRT_EXIT_USAGE : WRT_EXIT_INTERNAL;
-            st = WRT_OK;
-        }
-        free(d); free(ind); free(both); free(se);
-        if (st != WRT_OK) { fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error()); rc = WRT_EXIT_OUTPUT; }
-    }
-    if (points_path && rc == 0) {
-        point_list pl;
-        st = read_points(points_path, &scene, &pl);
-        if (st == WRT_OK && pl.n > 0) {
-            double *d = wrt_xmalloc(sizeof(double) * 3 * pl.n), *ind = wrt_xmalloc(sizeof(double) * 3 * pl.n);
-            double *se = wrt_xmalloc(sizeof(double) * 3 * pl.n);
-            double t0 = wrt_now();
-            st = wrt_ref_irradiance(ref, lights, nlights, pl.p, pl.quad, pl.n, samples, max_bounces,
-                                    threads, (uint64_t)seed, d, ind, se);
-            t_points = wrt_now() - t0;
-            if (st == WRT_OK) {
-                npoints = pl.n;
-                pt_se = mean_of(se, 3 * (size_t)pl.n); pt_ind = mean_of(ind, 3 * (size_t)pl.n);
-                if (!json) printf("# quad u v  direct_rgb  indirect_rgb  indirect_stderr_rgb\n");
-                for (int i = 0; i < pl.n && !json; i++)
-                    printf("%d %.6f %.6f  %.9g %.9g %.9g  %.9g %.9g %.9g  %.3g %.3g %.3g\n",
-                           pl.quad[i], pl.uv[2 * i], pl.uv[2 * i + 1], d[3 * i], d[3 * i + 1],
-                           d[3 * i + 2], ind[3 * i], ind[3 * i + 1], ind[3 * i + 2], se[3 * i],
-                           se[3 * i + 1], se[3 * i + 2]);
-            }
-            free(d); free(ind); free(se);
-        }
-        free(pl.p); free(pl.quad); free(pl.uv);
-        if (st != WRT_OK) {
-            fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error());
-            rc = st == WRT_ERR_IO || st == WRT_ERR_PARSE ? WRT_EXIT_INPUT : WRT_EXIT_INTERNAL;
-        }
-    }
-    if (cell_n > 0 && rc == 0) {
-        size_t n = (size_t)cell_n * cell_n * 3;
-        double *d = wrt_xmalloc(sizeof(double) * n), *ind = wrt_xmalloc(sizeof(double) * n);
-        double *se = wrt_xmalloc(sizeof(double) * n);
-        double t0 = wrt_now();
-        st = wrt_ref_cell_irradiance(ref, lights, nlights, cell_quad, cell_n, samples, max_bounces,
-                                     threads, (uint64_t)seed, d, ind, se);
-        t_cells = wrt_now() - t0;
-        if (st == WRT_OK) {
-            cell_se = mean_of(se, n); cell_ind = mean_of(ind, n);
-            if (!json) printf("# cell i j  direct_rgb  indirect_rgb  indirect_stderr_rgb (quad %d)\n", cell_quad);
-            for (int c = 0; c < cell_n * cell_n && !json; c++)
-                printf("%d %d  %.9g %.9g %.9g  %.9g %.9g %.9g  %.3g %.3g %.3g\n", c % cell_n,
-                       c / cell_n, d[3 * c], d[3 * c + 1], d[3 * c + 2], ind[3 * c],
-                       ind[3 * c + 1], ind[3 * c + 2], se[3 * c], se[3 * c + 1], se[3 * c + 2]);
-        } else {
-            fprintf(stderr, "wrt-ref: error: %s\n", wrt_last_error());
-            rc = WRT_EXIT_INTERNAL;
-        }
-        free(d); free(ind); free(se);
-    }
-    double t_all = t_image + t_points + t_cells;
-    uint64_t rays = wrt_ref_rays(ref);
-    if (json) {
-        printf("{\"scene\":");
-        wrt_cli_json_str(stdout, scene_path);
-        printf(",\"quads\":%d,\"lights\":%d,\"threads\":%d,\"seed\":%lld,"
-               "\"max_bounces\":%d,\"time_s\":%.4f,\"rays\":%llu,\"mrays_per_s\":%.3f",
-               scene.nquads, nlights, threads, seed, max_bounces, t_all,
-               (unsigned long long)rays, t_all > 0 ? rays / t_all / 1e6 : 0.0);
-        if (image)
-            printf(",\"image\":{\"width\":%d,\"height\":%d,\"spp\":%d,\"time_s\":%.4f,"
-                   "\"mean_direct\":%.6g,\"mean_indirect\":%.6g,\"mean_indirect_stderr\":%.6g,"
-                   "\"files\":[",
-                   width, height, spp, t_image, img_dir, img_ind, img_se);
-        for (int k = 0; image && k < nwritten; k++) {
-            if (k) putchar(',');
-            wrt_cli_json_str(stdout, written[k]);
-        }
-        if (image) printf("]}");
-        if (points_path)
-            printf(",\"points\":{\"count\":%d,\"samples\":%d,\"time_s\":%.4f,\"mean_indirect\":%.6g,"
-                   "\"mean_indirect_stderr\":%.6g}",
-                   npoints, samples, t_points, pt_ind, pt_se);
-        if (cell_n > 0)
-            printf(",\"cells\":{\"quad\":%d,\"n\":%d,\"samples\":%d,\"time_s\":%.4f,"
-                   "\"mean_indirect\":%.6g,\"mean_indirect_stderr\":%.6g}",
-                   cell_quad, cell_n, samples, t_cells, cell_ind, cell_se);
-        printf(",\"ok\":%s}\n", rc == 0 ? "true" : "false");
-    } else {
-        fprintf(stderr, "wrt-ref: %.3f s, %llu rays (%.2f Mrays/s)", t_all,
-                (unsigned long long)rays, t_all > 0 ? rays / t_all / 1e6 : 0.0);
-        if (image) fprintf(stderr, "; image %dx%d, %d spp, mean indirect %.4g +- %.2g (mean se)",
-                           width, height, spp, img_ind, img_se);
-        fprintf(stderr, "\n");
-        for (int k = 0; k < nwritten; k++) fprintf(stderr, "wrote %s\n", written[k]);
-    }
+    ref_figures f = {0};
+    if (o.image) rc = ref_image(&o, ref, &scene, lights, nlights, &f);
+    if (o.points_path && rc == 0) rc = ref_points(&o, ref, &scene, lights, nlights, &f);
+    if (o.cell_n > 0 && rc == 0) rc = ref_cells(&o, ref, lights, nlights, &f);
+    ref_report(&o, &scene, nlights, &f, wrt_ref_rays(ref), rc);
     wrt_ref_destroy(ref);
     free(lights);
     wrt_scene_free(&scene);
