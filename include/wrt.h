@@ -107,7 +107,8 @@ extern "C" {
 
 /* The library's version (the tools' --version and the .gto provenance print the same
  * string), and the version of this header's API: 2 since the options' `size`, the
- * user-first allocator and the status-returning accessors. Compare the macros with
+ * user-first allocator and the status-returning accessors; 3 since wrt_runtime_quad's
+ * kind, part and (u, v) fields (it grew: rebuild callers) and the atlas helper. Compare the macros with
  * wrt_version() and wrt_api_version() at run time to catch a program built against
  * another header than the library it runs with. */
 #define WRT_VERSION_MAJOR 0
@@ -115,7 +116,7 @@ extern "C" {
 #define WRT_VERSION_PATCH 0
 #define WRT_VERSION_STRING "0.1.0"
 #define WRT_VERSION (WRT_VERSION_MAJOR * 10000 + WRT_VERSION_MINOR * 100 + WRT_VERSION_PATCH)
-#define WRT_API_VERSION 2
+#define WRT_API_VERSION 3
 
 /* What every fallible call returns (shared by all of wrt's tools and libraries). */
 typedef enum wrt_status {
@@ -296,24 +297,45 @@ WRT_API wrt_status wrt_runtime_get_camera(const wrt_runtime *rt, wrt_runtime_cam
 WRT_API wrt_status wrt_runtime_get_bounds(const wrt_runtime *rt, double lo[3], double hi[3], wrt_error *err);
 
 /* A quad and where it came from in the glTF scene the bake read: the quad-to-source map,
- * so that an engine can put the results on its own meshes. The .gto files of format 1.x
- * store the mesh of every quad (and its name) but not its node, primitive, triangles or
- * whether it is a double-sided twin: those fields are then -1 ("not stored in this
- * file"), never a guess. A twin is the back of a quad whose material is doubleSided,
- * set back by 1e-4 of the scene's diagonal and facing the other way. */
+ * so that an engine can put the results on its own meshes. The bake makes each quad
+ * either from two triangles of one primitive that share an edge (kind
+ * WRT_QUAD_KIND_PAIR: its corners are those triangles' four vertices) or from one
+ * triangle cut in three through its centroid and edge midpoints (WRT_QUAD_KIND_TRIANGLE,
+ * part k = 0..2: corners V_k, (V_k + V_k+1)/2, the centroid, (V_k+2 + V_k)/2, with
+ * V_0..V_2 the triangle's vertices in its front-face winding). A twin is the back of a
+ * quad whose material is doubleSided, set back by 1e-4 of the scene's diagonal and
+ * facing the other way: same node, mesh, primitive and triangles as its front, corners
+ * p0 p3 p2 p1 of the front's (moved back), so its texture is the front's mirrored in u
+ * and v swapped. Files written before .gto version 1.2 (and those written without the
+ * map) store only the mesh: the other source fields are then -1 ("not stored in this
+ * file"), never a guess. */
+enum { WRT_QUAD_KIND_PAIR = 0, WRT_QUAD_KIND_TRIANGLE = 1 };
 typedef struct wrt_runtime_quad {
     double corners[4][3];   /* p0..p3, world space (see "Quads" above) */
     double normal[3];       /* unit: normalize((p1-p0) x (p3-p0)), glTF's front side */
     double area;            /* m^2 */
     int material;           /* index for wrt_runtime_get_material */
     int parallelogram;      /* 1: affine in (u, v) */
-    int node;               /* glTF node index; -1: not stored */
+    int node;               /* glTF node that placed the mesh; -1: not stored */
     int mesh;               /* glTF mesh index; -1: none */
     char mesh_name[64];     /* that mesh's name ("" if none) */
     int primitive;          /* index within the mesh's primitives; -1: not stored */
-    int triangles[2];       /* the primitive's two triangles (index / 3 of its indices); -1: not stored */
+    int triangles[2];       /* the primitive's triangles (t: indices 3t, 3t+1, 3t+2 of its index
+                             * list, or of its vertices if it has none): a pair's two; a triangle
+                             * kind's one and -1; -1 -1: not stored */
     int twin;               /* 1: the back twin of quad twin_of, 0: not a twin, -1: not stored */
-    int twin_of;            /* the front quad of a twin, else -1 */
+    int twin_of;            /* the front quad of a twin (a lower index), else -1 */
+    /* Since API version 3. */
+    int kind;               /* WRT_QUAD_KIND_PAIR or _TRIANGLE; -1: not stored */
+    int part;               /* WRT_QUAD_KIND_TRIANGLE: which third (0..2); else 0 (-1: not stored) */
+    int has_uv;             /* 1: uv holds the primitive's TEXCOORD_0; 0: the primitive has none
+                             * (or the file does not store it) */
+    float uv[4][2];         /* TEXCOORD_0 at corners p0..p3 (glTF's convention: v down the image).
+                             * A pair's corners are vertices, so their TEXCOORD_0 as stored (where
+                             * the two triangles' vertices differ across a UV seam, the first
+                             * triangle's); a triangle's midpoints and centroid interpolate its
+                             * vertices' linearly. Texel (i, j) of the quad's texture sits at
+                             * the bilinear blend of these four, like the point. 0 when !has_uv. */
 } wrt_runtime_quad;
 
 /* The scene's quads: count (-1: not a live handle) and each one. Errors:

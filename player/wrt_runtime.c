@@ -323,12 +323,26 @@ wrt_status wrt_runtime_get_quad(const wrt_runtime *rt, int q, wrt_runtime_quad *
     out->material = (int)gq->material;
     out->parallelogram = (gq->flags & 1) != 0;
     /* .gto 1.x: a quad's `name` is the index of its glTF mesh in the names table (the
-     * mesh names); node, primitive, triangles and the twin flag are not stored. */
+     * mesh names); the rest comes from the source map (1.2), else is "not stored". */
     out->mesh = gq->name == WRT_GTO_NO_NAME ? -1 : (int)gq->name;
     if (out->mesh >= 0) copy_name(out->mesh_name, rt->g.names[out->mesh]);
     out->node = out->primitive = out->triangles[0] = out->triangles[1] = -1;
-    out->twin = -1;
+    out->twin = out->kind = out->part = -1;
     out->twin_of = -1;
+    const wrt_gto_srcmap *m = rt->g.srcmap ? &rt->g.srcmap[q] : NULL;
+    if (m) { /* checked at open: indices >= -1, kind and part in range, twin_of earlier */
+        out->node = m->node;
+        out->mesh = m->mesh;
+        out->primitive = m->prim;
+        out->triangles[0] = m->tri[0];
+        out->triangles[1] = m->tri[1];
+        out->kind = (int)m->kind;
+        out->part = (int)m->part;
+        out->twin = (m->flags & WRT_GTO_SRC_TWIN) != 0;
+        out->twin_of = m->twin_of;
+        out->has_uv = (m->flags & WRT_GTO_SRC_UV) != 0;
+        if (out->has_uv) memcpy(out->uv, m->uv, sizeof out->uv);
+    }
     return WRT_OK;
 }
 

@@ -118,7 +118,7 @@ static void test_version(void) {
     CHECK(wrt_version() == WRT_VERSION && WRT_VERSION == 100, "wrt_version %d, header %d", wrt_version(), WRT_VERSION);
     CHECK(!strcmp(wrt_version_string(), WRT_VERSION_STRING) && !strcmp(WRT_VERSION_STRING, "0.1.0"),
           "wrt_version_string '%s'", wrt_version_string());
-    CHECK(wrt_api_version() == WRT_API_VERSION && WRT_API_VERSION == 2, "wrt_api_version %d", wrt_api_version());
+    CHECK(wrt_api_version() == WRT_API_VERSION && WRT_API_VERSION == 3, "wrt_api_version %d", wrt_api_version());
     CHECK(!strcmp(wrt_status_str(WRT_ERR_INVALID_ARG), "invalid argument") &&
           !strcmp(wrt_status_str((wrt_status)99), "unknown status"), "wrt_status_str");
 }
@@ -303,8 +303,8 @@ static void test_getters(const char *path) {
           hi[0] == 0.5 && hi[1] == 0.5 && hi[2] == 1, "bounds (%g %g %g) - (%g %g %g)", lo[0], lo[1], lo[2], hi[0],
           hi[1], hi[2]);
     /* the quad-to-source map: square_a (mesh 0) at z = 0 facing +z, square_b (mesh 1) at
-     * z = 1 facing -z (its vertex normals), each of area 1; node, primitive, triangles and
-     * twin are not in a .gto 1.x: -1 */
+     * z = 1 facing -z (its vertex normals), each of area 1; the .gto 1.2 source map: node
+     * k places mesh k, primitive 0, its triangles 0 and 1 paired, not a twin, no TEXCOORD_0 */
     int nq = wrt_runtime_quad_count(rt), seen[2] = {0, 0}, map_ok = nq == 2;
     for (int q = 0; q < nq; q++) {
         wrt_runtime_quad qd;
@@ -314,14 +314,16 @@ static void test_getters(const char *path) {
         for (int k = 0; k < 4; k++) map_ok &= qd.corners[k][2] == z;
         map_ok &= qd.mesh == want && !strcmp(qd.mesh_name, want ? "square_b" : "square_a");
         map_ok &= near(qd.normal[2], want ? -1 : 1, 1e-12) && near(qd.area, 1, 1e-6) && qd.material == 0;
-        map_ok &= qd.node == -1 && qd.primitive == -1 && qd.triangles[0] == -1 && qd.triangles[1] == -1 &&
-                  qd.twin == -1 && qd.twin_of == -1;
+        map_ok &= qd.node == want && qd.primitive == 0 && qd.triangles[0] + qd.triangles[1] == 1 &&
+                  qd.triangles[0] * qd.triangles[1] == 0 && qd.twin == 0 && qd.twin_of == -1 &&
+                  qd.kind == WRT_QUAD_KIND_PAIR && qd.part == 0 && qd.has_uv == 0;
         double p[4][3];
         map_ok &= wrt_runtime_quad_corners(rt, q, p, NULL) == WRT_OK && !memcmp(p, qd.corners, sizeof p);
         seen[want]++;
-        printf("quad %d: mesh %d '%s', z %g, normal z %g, area %g\n", q, qd.mesh, qd.mesh_name, z, qd.normal[2], qd.area);
+        printf("quad %d: node %d mesh %d '%s' primitive %d triangles %d %d, z %g, normal z %g, area %g\n", q, qd.node,
+               qd.mesh, qd.mesh_name, qd.primitive, qd.triangles[0], qd.triangles[1], z, qd.normal[2], qd.area);
     }
-    CHECK(map_ok && seen[0] == 1 && seen[1] == 1, "quad-to-source map: each square's mesh, name, normal, area");
+    CHECK(map_ok && seen[0] == 1 && seen[1] == 1, "quad-to-source map: each square's node, mesh, name, primitive, triangles, normal, area");
     wrt_runtime_close(rt);
 }
 
