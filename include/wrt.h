@@ -363,6 +363,40 @@ WRT_API wrt_status wrt_runtime_quad_cells(const wrt_runtime *rt, int q, int n, d
 WRT_API wrt_status wrt_runtime_quad_irradiance(const wrt_runtime *rt, int q, double direct[3], double indirect[3],
                                                wrt_error *err);
 
+/* ---- A lightmap atlas: every quad's texture in one texture, ready to upload ---- */
+
+/* Where quad q's texture lies in the atlas: its res x res texels at columns [x, x+res)
+ * and rows [y, y+res), texel (i, j) of the quad's texture at column x+i, row y+j (so u
+ * runs along a row and v down the rows); around them a border of 1 texel that repeats
+ * the edge texels (corners included), so bilinear filtering up to half a texel outside
+ * the quad's square reads its own edge, never a neighbour. A point (u, v) of the quad
+ * samples the atlas at ((x + u res) / width, (y + v res) / height). */
+typedef struct wrt_atlas_rect {
+    int x, y;   /* the first texel of the quad's own res x res block */
+    int res;    /* the quad's texture side (fixed from open to close) */
+} wrt_atlas_rect;
+
+/* Packs the quads' tiles ((res + 2) squares with their borders) into rows of `width`
+ * texels: largest first, then by quad index, left to right, a new row when one is full.
+ * Deterministic: the same file and options give the same layout. width 0: the smallest
+ * power of two that holds the widest tile and is at least the square root of the tiles'
+ * total area. rects: wrt_runtime_quad_count(rt) entries (yours). *width_out and
+ * *height_out (may be NULL) receive the atlas's size; texels no tile covers are 0 after
+ * a fill. No allocation. Errors: WRT_ERR_INVALID_ARG (handle, NULL rects, width
+ * negative or narrower than the widest tile (res + 2), an atlas past 2^31 texels). */
+WRT_API wrt_status wrt_runtime_atlas_layout(const wrt_runtime *rt, int width, wrt_atlas_rect *rects, int *width_out,
+                                            int *height_out, wrt_error *err);
+/* Writes the textures of the last update into `rgb` (width x height RGB floats, rows of
+ * `width`, row 0 first; `nfloats` >= width * height * 3) by a layout of
+ * wrt_runtime_atlas_layout for this runtime: each quad's block, its border, and 0 where
+ * no tile lies. Allocates nothing, reads only the runtime (no update between layout and
+ * fill is needed: the sizes do not change). Linear in the textures: the atlas of two
+ * lights is the sum of each's exactly when the textures are (see wrt_runtime_quad_texture).
+ * Errors: WRT_ERR_INVALID_ARG (handle, NULL pointers, nfloats too small, a rect that is
+ * not the quad's size or does not fit with its border). */
+WRT_API wrt_status wrt_runtime_atlas_fill(const wrt_runtime *rt, const wrt_atlas_rect *rects, int width, int height,
+                                          float *rgb, size_t nfloats, wrt_error *err);
+
 /* Milliseconds of the last update's stages (projection, multiply, brdf, synthesis).
  * Errors: WRT_ERR_INVALID_ARG. */
 WRT_API wrt_status wrt_runtime_timings(const wrt_runtime *rt, double ms[4], wrt_error *err);

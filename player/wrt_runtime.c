@@ -453,3 +453,84 @@ wrt_status wrt_runtime_timings(const wrt_runtime *rt, double ms[4], wrt_error *e
     ms[0] = rt->tm.projection; ms[1] = rt->tm.multiply; ms[2] = rt->tm.brdf; ms[3] = rt->tm.synthesis;
     return WRT_OK;
 }
+
+/* ---- the atlas ---- */
+
+wrt_status wrt_runtime_atlas_layout(const wrt_runtime *rt, int width, wrt_atlas_rect *rects, int *width_out,
+                                    int *height_out, wrt_error *err) {
+    const char *fn = "wrt_runtime_atlas_layout";
+    if (!live(rt)) return dead(err, fn, rt);
+    if (!rects) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: rects is NULL", fn));
+    int nq = (int)rt->g.nquads, widest = 0;
+    double area = 0;
+    for (int q = 0; q < nq; q++) {
+        int t = wrt_relight_tex_res(rt->rl, q) + 2;
+        if (t > widest) widest = t;
+        area += (double)t * t;
+    }
+    if (width < 0 || (width > 0 && width < widest))
+        return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: width %d, the widest tile needs %d (texture side + 2)",
+                                  fn, width, widest));
+    if (width == 0) {
+        width = 1;
+        while (width < widest || (double)width * width < area) width *= 2;
+    }
+    /* The order without a sort buffer (no allocation): the res is a power of two up to
+     * 1024, so one pass per size, largest first, places the quads of that size by index. */
+    long long x = 0, y = 0, row_h = 0;
+    for (int lvl = 12; lvl >= 0; lvl--)
+        for (int q = 0; q < nq; q++) {
+            int res = wrt_relight_tex_res(rt->rl, q);
+            if (res != 1 << lvl) continue;
+            int t = res + 2;
+            if (x + t > width) { y += row_h; x = 0; row_h = 0; }
+            rects[q].x = (int)x + 1;
+            rects[q].y = (int)y + 1;
+            rects[q].res = res;
+            x += t;
+            if (t > row_h) row_h = t;
+            if (y + row_h > (1LL << 31) / width)
+                return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: the atlas exceeds 2^31 texels at width %d", fn,
+                                          width));
+        }
+    if (width_out) *width_out = width;
+    if (height_out) *height_out = (int)(y + row_h);
+    return WRT_OK;
+}
+
+wrt_status wrt_runtime_atlas_fill(const wrt_runtime *rt, const wrt_atlas_rect *rects, int width, int height,
+                                  float *rgb, size_t nfloats, wrt_error *err) {
+    const char *fn = "wrt_runtime_atlas_fill";
+    if (!live(rt)) return dead(err, fn, rt);
+    if (!rects || !rgb) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: rects or rgb is NULL", fn));
+    if (width <= 0 || height <= 0 || (size_t)width * (size_t)height > nfloats / 3)
+        return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: %d x %d RGB texels need %zu floats, the buffer has %zu",
+                                  fn, width, height, (size_t)(width > 0 ? width : 0) * (size_t)(height > 0 ? height : 0) * 3,
+                                  nfloats));
+    int nq = (int)rt->g.nquads;
+    for (int q = 0; q < nq; q++) {
+        const wrt_atlas_rect *r = &rects[q];
+        if (r->res != wrt_relight_tex_res(rt->rl, q) || r->x < 1 || r->y < 1 || r->x > width - 1 - r->res ||
+            r->y > height - 1 - r->res || !wrt_relight_tex(rt->rl, q))
+            return fail(err, wrt_fail(WRT_ERR_INVALID_ARG,
+                                      "%s: quad %d's rect (%d, %d) of side %d is not its texture (side %d) inside a "
+                                      "%d x %d atlas with a border of 1",
+                                      fn, q, r->x, r->y, r->res, wrt_relight_tex_res(rt->rl, q), width, height));
+    }
+    memset(rgb, 0, (size_t)width * (size_t)height * 3 * sizeof *rgb);
+    for (int q = 0; q < nq; q++) {
+        const wrt_atlas_rect *r = &rects[q];
+        const float *tex = wrt_relight_tex(rt->rl, q);
+        int res = r->res;
+        /* rows -1 .. res and columns -1 .. res of the tile, clamped into the texture */
+        for (int j = -1; j <= res; j++) {
+            int sj = j < 0 ? 0 : j >= res ? res - 1 : j;
+            float *dst = rgb + ((size_t)(r->y + j) * (size_t)width + (size_t)(r->x - 1)) * 3;
+            const float *src = tex + (size_t)sj * (size_t)res * 3;
+            memcpy(dst, src, 3 * sizeof *dst);
+            memcpy(dst + 3, src, (size_t)res * 3 * sizeof *dst);
+            memcpy(dst + 3 * (size_t)(res + 1), src + 3 * (size_t)(res - 1), 3 * sizeof *dst);
+        }
+    }
+    return WRT_OK;
+}
