@@ -103,4 +103,11 @@ print("atlas %d x %d, %d quads, %d lit, %s" % (w, h, len(rects), lit, "; ".join(
 sys.exit(1 if bad or lit == 0 or len(rects) != 88 else 0)
 PY
 check_status "the PFM atlas: 88 blocks inside and apart, borders replicate edges, light in it" $?
+# a triangle that pairs with nothing: three quads, parts 0..2 of triangle 0 (no light
+# reaches a lone triangle, so the engine's own superposition verdict is not asked for)
+"$build/wrt-bake" tests/data/bad_unpaired.gltf -o "$tmp/tri.gto" -q 2 --quiet >/dev/null 2>&1 &&
+    { "$tmp/out/engine" "$tmp/tri.gto" "$tmp/tri.pfm" >"$tmp/tri.txt" 2>&1; [ "$(grep -c 'kind triangle part' "$tmp/tri.txt")" -eq 3 ]; }
+check_status "a lone triangle: three quads of kind triangle" $?
+m=$(python3 tests/srcmap_check.py tests/data/bad_unpaired.gltf "$tmp/tri.txt")
+check_status "its map agrees with the glTF: $m" $?
 summary

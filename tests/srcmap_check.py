@@ -4,8 +4,8 @@
 # an edge) and its uv their TEXCOORD_0; a triangle's part k has the corners V_k, the edge
 # midpoints and the centroid; a twin names an earlier front with the same source, its
 # corners reversed (p0 p3 p2 p1, set back by less than 1e-3) and so its uv; every triangle
-# of every placed primitive is covered exactly once by the fronts. Handles nodes that are
-# pure translations (as tests/data/blender_room.gltf's). Exit 1 on any disagreement.
+# of every placed primitive is covered exactly once by the fronts. Handles root nodes
+# with translation, rotation and scale. Exit 1 on any disagreement.
 import base64, json, struct, sys, os
 gltf_path, txt = sys.argv[1], sys.argv[2]
 j = json.load(open(gltf_path))
@@ -43,13 +43,16 @@ for q in quads:
         continue
     node = j["nodes"][q["node"]]
     if node.get("mesh") != q["mesh"]: bad.append("quad %d: node %d places mesh %s" % (q["idx"], q["node"], node.get("mesh"))); continue
-    t = node.get("translation", [0, 0, 0])
-    if node.get("rotation", [0, 0, 0, 1]) != [0, 0, 0, 1] or node.get("scale", [1, 1, 1]) != [1, 1, 1] or "matrix" in node:
-        bad.append("node %d not a pure translation (the check handles only that)" % q["node"]); continue
+    t = node.get("translation", [0, 0, 0]); qx, qy, qz, qw = node.get("rotation", [0, 0, 0, 1]); sc = node.get("scale", [1, 1, 1])
+    R = [[1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw)],
+         [2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw)],
+         [2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)]]
+    if "matrix" in node or any(q["node"] in nd.get("children", []) for nd in j["nodes"]):
+        bad.append("node %d: a matrix or a parent (the check handles root TRS nodes only)" % q["node"]); continue
     pr = j["meshes"][q["mesh"]]["primitives"][q["prim"]]
     pos = acc(pr["attributes"]["POSITION"]); ind = [i[0] for i in acc(pr["indices"])]
     uvs = acc(pr["attributes"]["TEXCOORD_0"]) if "TEXCOORD_0" in pr["attributes"] else None
-    world = lambda v: tuple(pos[v][i] + t[i] for i in range(3))
+    world = lambda v: tuple(t[i] + sum(R[i][k] * sc[k] * pos[v][k] for k in range(3)) for i in range(3))
     if q["kind"] == "pair":
         verts = [ind[3 * tr + i] for tr in q["tris"] for i in range(3)]
         for k in range(4):
@@ -64,6 +67,10 @@ for q in quads:
         g = tuple(sum(x) / 3 for x in zip(*V))
         want = [V[k], mid(V[k], V[(k + 1) % 3]), g, mid(V[(k + 2) % 3], V[k])]
         if not all(close(want[i], q["p"][i]) for i in range(4)): bad.append("quad %d: not part %d of triangle %d" % (q["idx"], k, tr))
+        if uvs and q["uv"]:
+            U = [uvs[ind[3 * tr + i]] for i in range(3)]
+            wuv = [U[k], mid(U[k], U[(k + 1) % 3]), tuple(sum(x) / 3 for x in zip(*U)), mid(U[(k + 2) % 3], U[k])]
+            if not all(close(wuv[i], q["uv"][i]) for i in range(4)): bad.append("quad %d: uv not part %d of triangle %d's" % (q["idx"], k, tr))
         covered.add((q["node"], q["prim"], tr))
     if (uvs is None) != (q["uv"] is None): bad.append("quad %d: uv presence differs from the glTF" % q["idx"])
 alltris = {(n, p, tr) for n, nd in enumerate(j["nodes"]) if "mesh" in nd
