@@ -334,8 +334,10 @@ typedef struct wrt_runtime_quad {
                              * A pair's corners are vertices, so their TEXCOORD_0 as stored (where
                              * the two triangles' vertices differ across a UV seam, the first
                              * triangle's); a triangle's midpoints and centroid interpolate its
-                             * vertices' linearly. Texel (i, j) of the quad's texture sits at
-                             * the bilinear blend of these four, like the point. 0 when !has_uv. */
+                             * vertices' linearly. The point (u, v) of the quad has the TEXCOORD
+                             * (1-u)(1-v) uv0 + u(1-v) uv1 + u v uv2 + (1-u) v uv3: exactly glTF's
+                             * where both are affine (a parallelogram mapped to a parallelogram),
+                             * else close to glTF's per-triangle interpolation. 0 when !has_uv. */
 } wrt_runtime_quad;
 
 /* The scene's quads: count (-1: not a live handle) and each one. Errors:
