@@ -191,7 +191,9 @@ typedef struct wrt_gto_contents {
  * ascending within a column, vals finite, material and name indices in range; with K
  * (nkcols > 0) also K's checks (GTO_FORMAT.md): kkeys strictly ascending on glossy
  * quads, kcol_start monotone from 0, krows < nfuncs, ascending
- * within a column and on another quad than the column's, kvals finite.
+ * within a column and on another quad than the column's, kvals finite; with the source
+ * map (no_srcmap 0) its checks (GTO_FORMAT.md: kinds, parts, twins naming an earlier
+ * front of the same triangles, finite uv).
  * `c->provenance` may be NULL (empty). Same contents give the same bytes. */
 wrt_status wrt_gto_write(const char *path, const wrt_gto_contents *c);
 
