@@ -77,7 +77,7 @@ TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
 .PHONY: all deps demo test tests stress study fuzz clean assets bench timings mutate install
-all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/tests/runtime_instances \
+all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/examples/engine $(BUILD)/tests/runtime_instances \
      $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core
 
 deps:
@@ -108,8 +108,8 @@ $(BUILD)/libwrt.so: $(PIC_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CC) -shared -Wl,-soname,libwrt.so.1 -Wl,--gc-sections $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
 
-# The example, built against the library as an embedder would.
-$(BUILD)/examples/relight: examples/relight.c $(BUILD)/libwrt.a include/wrt.h
+# The examples, built against the library as an embedder would.
+$(BUILD)/examples/%: examples/%.c $(BUILD)/libwrt.a include/wrt.h
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)

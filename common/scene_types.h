@@ -27,6 +27,12 @@ typedef struct wrt_quad {
     int kind;           /* WRT_ELEM_QUAD (0, two triangles paired) or WRT_ELEM_TRIANGLE */
     int part;           /* WRT_ELEM_TRIANGLE: which of the triangle's three quads (0..2), else 0 */
     int node;           /* glTF node that placed the mesh (-1 if unknown) */
+    int twin;           /* 1: the back twin of a double-sided material's quad twin_of
+                           (zero-initialised: not a twin) */
+    int twin_of;        /* with twin: the index of its front quad, which precedes it */
+    int has_uv;         /* 1: uv holds the primitive's TEXCOORD_0 at each corner */
+    float uv[4][2];     /* TEXCOORD_0 at p0..p3 (a triangle element's midpoints and centroid
+                           interpolated linearly, as glTF does across a triangle) */
 } wrt_quad;
 
 /* Element kinds. A triangle that does not pair into a planar convex quad is cut into

@@ -223,7 +223,7 @@ accessor_view check_accessor(const tinygltf::Model &model, int ai, const char *w
                          a.componentType);
     if (a.type != want_type)
         throw make_error(WRT_ERR_PARSE, "%s has type %d, expected %s", where, a.type,
-                         want_type == TINYGLTF_TYPE_VEC3 ? "VEC3" : "SCALAR");
+                         want_type == TINYGLTF_TYPE_VEC3 ? "VEC3" : want_type == TINYGLTF_TYPE_VEC2 ? "VEC2" : "SCALAR");
     if (a.count == 0) throw make_error(WRT_ERR_PARSE, "%s has count 0", where);
     if (a.bufferView < 0 || size_t(a.bufferView) >= model.bufferViews.size())
         throw make_error(WRT_ERR_PARSE, "%s refers to bufferView %d, which does not exist (%zu)", where,
@@ -239,7 +239,7 @@ accessor_view check_accessor(const tinygltf::Model &model, int ai, const char *w
                          "%s: bufferView %d (offset %zu, length %zu) runs past the end of buffer %d "
                          "(%zu bytes; truncated or missing data?)",
                          where, a.bufferView, bv.byteOffset, bv.byteLength, bv.buffer, blen);
-    size_t ncomp = want_type == TINYGLTF_TYPE_VEC3 ? 3 : 1;
+    size_t ncomp = want_type == TINYGLTF_TYPE_VEC3 ? 3 : want_type == TINYGLTF_TYPE_VEC2 ? 2 : 1;
     size_t esize = ncomp * component_size(a.componentType);
     size_t stride = bv.byteStride ? bv.byteStride : esize;
     if (stride < esize)
@@ -404,6 +404,7 @@ struct reader {
         for (wrt_gltf_prim &p : prims) {
             free(p.pos);
             free(p.idx);
+            free(p.uv);
         }
     }
 
@@ -485,6 +486,31 @@ struct reader {
                                      label, mi, pi, i / 3, k, p.indices, i, pv.count);
             }
             q.idx[i] = uint32_t(k);
+        }
+        /* TEXCOORD_0 (glTF: FLOAT, or normalized UNSIGNED_BYTE / UNSIGNED_SHORT), one per
+         * vertex, for the quad-to-source map's (u, v) frames */
+        auto tc = p.attributes.find("TEXCOORD_0");
+        if (tc != p.attributes.end()) {
+            accessor_view tv = check_accessor(
+                model, tc->second, "TEXCOORD_0", TINYGLTF_TYPE_VEC2,
+                {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                 TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT},
+                mi, pi, label);
+            if (tv.count != pv.count)
+                throw make_error(WRT_ERR_PARSE,
+                                 "%s: mesh %zu primitive %zu: TEXCOORD_0 has %zu elements, POSITION %zu",
+                                 label, mi, pi, tv.count, pv.count);
+            q.uv = static_cast<float *>(malloc(pv.count * 2 * sizeof(float)));
+            if (!q.uv) throw std::bad_alloc();
+            size_t cs = component_size(tv.ct);
+            for (size_t v = 0; v < tv.count; v++)
+                for (size_t c = 0; c < 2; c++)
+                    q.uv[2 * v + c] = float(read_component(tv.base + v * tv.stride + c * cs, tv.ct, tv.normalized));
+            for (size_t i = 0; i < 2 * tv.count && q.uv; i++)
+                if (!std::isfinite(q.uv[i])) { /* unusable: the map says "no (u, v)" */
+                    free(q.uv);
+                    q.uv = nullptr;
+                }
         }
         /* glTF: a node whose world transform has a negative determinant turns its
          * triangles' front faces clockwise; swapping two corners keeps the rest of the
@@ -1161,7 +1187,7 @@ struct strict_check {
                 for (auto it = at_->begin(); it != at_->end(); ++it) {
                     long long ai = ref(it.value(), at(at(pp, "attributes"), it.key().c_str()), "accessors");
                     if (it.key() == "POSITION") position_type(ai, at(at(pp, "attributes"), "POSITION"));
-                    if (it.key() != "POSITION") ignore("meshes[*].primitives[*].attributes." + it.key());
+                    if (it.key() != "POSITION" && it.key() != "TEXCOORD_0") ignore("meshes[*].primitives[*].attributes." + it.key());
                 }
                 ignore_others(pr, "meshes[*].primitives[*]", {"mode", "material", "indices", "attributes"});
             }
@@ -1428,6 +1454,7 @@ extern "C" void wrt_gltf_free(wrt_gltf_data *d) {
     for (size_t i = 0; i < d->nprims; i++) {
         free(d->prims[i].pos);
         free(d->prims[i].idx);
+        free(d->prims[i].uv);
     }
     free(d->prims);
     free(d->materials);

@@ -27,6 +27,7 @@ typedef struct wrt_gltf_prim {
     uint32_t *idx;         /* 3 * ntri vertex indices, each < npos (generated if non-indexed);
                               in the world's front-face winding (see mirrored) */
     size_t ntri;
+    float *uv;             /* 2 * npos floats: TEXCOORD_0 per vertex; NULL if the primitive has none */
     int mirrored;          /* 1: the node's world transform has a negative determinant; glTF
                               then flips the winding, so each triangle's 2nd and 3rd indices
                               are swapped here and the front faces stay counter-clockwise */

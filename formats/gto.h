@@ -27,9 +27,10 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
  *      WRT_ERR_UNSUPPORTED for it (or add a converter); a minor bump must still open it.
  *   5. Regenerate the golden file of the new version (test_gto --regen) and commit it. */
 #define WRT_GTO_VERSION 1
-#define WRT_GTO_VERSION_MINOR 1 /* 1.1: the optional first-bounce operator K (sections 12-15).
-                                 * The writer puts 1 only in files that hold K; a file
-                                 * without K is written as 1.0, byte for byte as before. */
+#define WRT_GTO_VERSION_MINOR 2 /* 1.1: the optional first-bounce operator K (sections 12-15).
+                                 * 1.2: the optional quad-to-source map (section 16).
+                                 * The writer puts the lowest minor that has what the file
+                                 * holds: a file with neither is 1.0, byte for byte as before. */
 
 /* On-disk records (all little-endian, naturally aligned, sizes fixed). */
 typedef struct wrt_gto_quad {
@@ -69,6 +70,21 @@ typedef struct wrt_gto_camera {
 } wrt_gto_camera; /* 104 bytes */
 
 #define WRT_GTO_NO_NAME 0xFFFFFFFFu
+
+/* The quad-to-source map (version 1.2, section srcmap): one record per quad, where it
+ * came from in the glTF scene. -1 in an index: not known (a scene built in code). */
+typedef struct wrt_gto_srcmap {
+    int32_t node, mesh, prim; /* glTF node, mesh, primitive within the mesh */
+    int32_t tri[2];      /* triangles (index / 3 in the primitive's indices); kind 1: tri[1] = -1 */
+    uint32_t kind;       /* WRT_ELEM_QUAD (two triangles) or WRT_ELEM_TRIANGLE (one of its 3 quads) */
+    uint32_t part;       /* WRT_ELEM_TRIANGLE: 0..2, else 0 */
+    uint32_t flags;      /* WRT_GTO_SRC_TWIN, WRT_GTO_SRC_UV; other bits 0 */
+    int32_t twin_of;     /* with WRT_GTO_SRC_TWIN: the front quad (< this quad), else -1 */
+    uint32_t reserved;   /* 0 */
+    float uv[4][2];      /* with WRT_GTO_SRC_UV: TEXCOORD_0 at p0..p3 (finite), else 0 */
+} wrt_gto_srcmap; /* 72 bytes */
+#define WRT_GTO_SRC_TWIN 1u /* the back twin of a double-sided quad */
+#define WRT_GTO_SRC_UV 2u   /* uv holds the primitive's TEXCOORD_0 */
 
 /* Figures of the bake, stored in the file and printed by `wrt-bake --info`. */
 typedef struct wrt_gto_stats {
@@ -115,6 +131,9 @@ typedef struct wrt_gto {
     const uint64_t *kcol_start; /* nkcols + 1 */
     const uint32_t *krows;      /* knnz, fkeys indices, ascending within a column */
     const float *kvals;         /* knnz, one channel */
+    /* The quad-to-source map (version 1.2): nquads records, NULL when the file has none
+     * (1.0 and 1.1 files, or written with no_srcmap). */
+    const wrt_gto_srcmap *srcmap;
 } wrt_gto;
 
 /* Maps and validates `path`: magic, version, byte order, every section's offset and
@@ -159,6 +178,9 @@ typedef struct wrt_gto_contents {
     const uint64_t *kcol_start;      /* nkcols + 1, from 0; kcol_start[nkcols] = knnz */
     const uint32_t *krows;           /* knnz fkeys indices, ascending within a column */
     const float *kvals;              /* knnz, finite */
+    /* 0: the quad-to-source map is written from the scene's quads (section srcmap, version
+     * 1.2); 1: not (the file is then as before version 1.2). */
+    int no_srcmap;
 } wrt_gto_contents;
 
 /* Writes atomically: a temporary (see wrt_gto_write_pending), fsync, rename over
@@ -169,7 +191,9 @@ typedef struct wrt_gto_contents {
  * ascending within a column, vals finite, material and name indices in range; with K
  * (nkcols > 0) also K's checks (GTO_FORMAT.md): kkeys strictly ascending on glossy
  * quads, kcol_start monotone from 0, krows < nfuncs, ascending
- * within a column and on another quad than the column's, kvals finite.
+ * within a column and on another quad than the column's, kvals finite; with the source
+ * map (no_srcmap 0) its checks (GTO_FORMAT.md: kinds, parts, twins naming an earlier
+ * front of the same triangles, finite uv).
  * `c->provenance` may be NULL (empty). Same contents give the same bytes. */
 wrt_status wrt_gto_write(const char *path, const wrt_gto_contents *c);
 

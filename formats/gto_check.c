@@ -32,6 +32,7 @@ const gto_sec_desc gto_sec_info[SEC_KNOWN_END] = {
     [SEC_KCOL_START] = {"kcol_start", 8},
     [SEC_KROWS] = {"krows", 4},
     [SEC_KVALS] = {"kvals", 4},
+    [SEC_SRCMAP] = {"srcmap", sizeof(wrt_gto_srcmap)},
 };
 
 /* ------------------------------------------------------------------------------------
@@ -514,6 +515,48 @@ void gto_check_quad_ranges(vctx *v) {
         return vbad(v, "quads cover %" PRIu64 " functions, but there are %u", next, g->nfuncs);
 }
 
+/* ---- The quad-to-source map (version 1.2): one record per quad (the count is checked
+ * with the layout). A twin names an earlier quad, whose record is then already checked:
+ * a front that is not a twin itself and comes from the same triangles. ---- */
+static void check_srcmap(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const wrt_gto_srcmap *all = (const wrt_gto_srcmap *)base;
+    for (uint64_t q = first; q < first + n; q++) {
+        const wrt_gto_srcmap *r = &all[q];
+        if (r->node < -1 || r->mesh < -1 || r->prim < -1 || r->tri[0] < -1 || r->tri[1] < -1)
+            return vbad(v, "srcmap[%" PRIu64 "]: negative index (node %d, mesh %d, primitive %d, triangles %d %d)",
+                        q, r->node, r->mesh, r->prim, r->tri[0], r->tri[1]);
+        if (r->kind > WRT_ELEM_TRIANGLE)
+            return vbad(v, "srcmap[%" PRIu64 "]: unknown element kind %u", q, r->kind);
+        if (r->part > (r->kind == WRT_ELEM_TRIANGLE ? 2u : 0u))
+            return vbad(v, "srcmap[%" PRIu64 "]: part %u of a %s", q, r->part,
+                        r->kind == WRT_ELEM_TRIANGLE ? "triangle (0..2)" : "paired quad (0)");
+        if (r->kind == WRT_ELEM_TRIANGLE && r->tri[1] != -1)
+            return vbad(v, "srcmap[%" PRIu64 "]: a triangle's quad with a second triangle %d", q, r->tri[1]);
+        if (r->flags & ~(WRT_GTO_SRC_TWIN | WRT_GTO_SRC_UV) || r->reserved)
+            return vbad(v, "srcmap[%" PRIu64 "]: unknown flags 0x%x or reserved %u not zero", q, r->flags,
+                        r->reserved);
+        if (r->flags & WRT_GTO_SRC_TWIN) {
+            if (r->twin_of < 0 || (uint64_t)r->twin_of >= q)
+                return vbad(v, "srcmap[%" PRIu64 "]: twin of quad %d, not an earlier quad", q, r->twin_of);
+            const wrt_gto_srcmap *f = &all[r->twin_of];
+            if (f->flags & WRT_GTO_SRC_TWIN)
+                return vbad(v, "srcmap[%" PRIu64 "]: twin of quad %d, itself a twin", q, r->twin_of);
+            if (f->node != r->node || f->mesh != r->mesh || f->prim != r->prim || f->tri[0] != r->tri[0] ||
+                f->tri[1] != r->tri[1] || f->kind != r->kind || f->part != r->part)
+                return vbad(v, "srcmap[%" PRIu64 "]: twin of quad %d, which comes from other triangles", q,
+                            r->twin_of);
+        } else if (r->twin_of != -1) {
+            return vbad(v, "srcmap[%" PRIu64 "]: not a twin but twin_of %d (expected -1)", q, r->twin_of);
+        }
+        for (int k = 0; k < 8; k++) {
+            float x = r->uv[k / 2][k % 2];
+            if ((r->flags & WRT_GTO_SRC_UV) ? !isfinite(x) : x != 0.0f)
+                return vbad(v, "srcmap[%" PRIu64 "]: uv of corner %d %s", q, k / 2,
+                            (r->flags & WRT_GTO_SRC_UV) ? "not finite" : "not zero without the uv flag");
+        }
+    }
+}
+
 chunk_check gto_sec_checker(uint32_t id) {
     switch (id) {
     case SEC_QUADS: return check_quads_local;
@@ -530,6 +573,7 @@ chunk_check gto_sec_checker(uint32_t id) {
     case SEC_KCOL_START: return check_kcol_start;
     case SEC_KROWS: return check_krows;
     case SEC_KVALS: return check_kvals;
+    case SEC_SRCMAP: return check_srcmap;
     default: return NULL;
     }
 }

@@ -154,6 +154,8 @@ typedef struct gto_info {
     /* the first-bounce operator K, if any */
     uint32_t k_quads, k_max_sl, k_max_al, k_max_col;
     uint64_t k_bytes;
+    /* the quad-to-source map, if any */
+    uint32_t src_twins, src_uv, src_tri;
 } gto_info;
 
 /* The three stages of the reader one by one, timed, keeping what each found. */
@@ -200,6 +202,12 @@ static void info_figures(gto_info *I) {
         I->k_bytes = L->sec[SEC_KKEYS]->size + L->sec[SEC_KCOL_START]->size + L->sec[SEC_KROWS]->size +
                      L->sec[SEC_KVALS]->size;
     }
+    if (I->ok && g->srcmap)
+        for (uint32_t q = 0; q < g->nquads; q++) {
+            I->src_twins += (g->srcmap[q].flags & WRT_GTO_SRC_TWIN) != 0;
+            I->src_uv += (g->srcmap[q].flags & WRT_GTO_SRC_UV) != 0;
+            I->src_tri += g->srcmap[q].kind == WRT_ELEM_TRIANGLE;
+        }
 }
 
 /* --info --json: the figures of a sound file (after the header and the sections). */
@@ -223,6 +231,11 @@ static void json_figures(FILE *f, const gto_info *I) {
                 I->k_max_al);
     else
         fputs(", \"first_bounce\": null", f);
+    if (g->srcmap)
+        fprintf(f, ", \"source_map\": {\"twins\": %u, \"with_uv\": %u, \"triangle_quads\": %u}", I->src_twins,
+                I->src_uv, I->src_tri);
+    else
+        fputs(", \"source_map\": null", f);
     fprintf(f, ", \"stats\": {\"t_dto\": %.6g, \"t_gto\": %.6g, \"t_write\": %.6g, \"t_total\": %.6g, "
             "\"links_dto\": %" PRIu64 ", \"links_gto\": %" PRIu64 ", \"links_gathered\": %" PRIu64 ", "
             "\"entries_dto\": %" PRIu64 ", \"entries_op\": %" PRIu64 ", \"rays_traced\": %" PRIu64 ", "
@@ -299,6 +312,11 @@ static void text_figures(FILE *f, const gto_info *I) {
                 (double)g->knnz / g->nkcols, I->k_max_col, I->k_max_sl, I->k_max_al);
     else
         fprintf(f, "first bounce: none (no K sections)\n");
+    if (g->srcmap)
+        fprintf(f, "source map: %u quads, %u double-sided twins, %u from triangles cut in three, %u with "
+                "TEXCOORD_0\n", g->nquads, I->src_twins, I->src_tri, I->src_uv);
+    else
+        fprintf(f, "source map: none (no srcmap section)\n");
     /* only the times the bake recorded (none with --reproducible) */
     if (S->t_dto > 0 || S->t_gto > 0) {
         fprintf(f, "bake:       DTO %.2f s, GTO %.2f s", S->t_dto, S->t_gto);

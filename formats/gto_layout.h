@@ -93,6 +93,14 @@ _Static_assert(offsetof(wrt_gto_stats, rays_traced) == 72, "layout");
 _Static_assert(offsetof(wrt_gto_stats, bounces) == 88, "layout");
 _Static_assert(offsetof(wrt_gto_stats, energy_left) == 96, "layout");
 _Static_assert(offsetof(wrt_gto_stats, reserved) == 104, "layout");
+_Static_assert(sizeof(wrt_gto_srcmap) == 72, "srcmap record");
+_Static_assert(offsetof(wrt_gto_srcmap, tri) == 12, "layout");
+_Static_assert(offsetof(wrt_gto_srcmap, kind) == 20, "layout");
+_Static_assert(offsetof(wrt_gto_srcmap, part) == 24, "layout");
+_Static_assert(offsetof(wrt_gto_srcmap, flags) == 28, "layout");
+_Static_assert(offsetof(wrt_gto_srcmap, twin_of) == 32, "layout");
+_Static_assert(offsetof(wrt_gto_srcmap, reserved) == 36, "layout");
+_Static_assert(offsetof(wrt_gto_srcmap, uv) == 40, "layout");
 _Static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE 754 binary32/binary64");
 
 enum {
@@ -100,11 +108,14 @@ enum {
     SEC_COL_START, SEC_ROWS, SEC_VALS, SEC_STATS, SEC_PROVENANCE,
     /* version 1.1: the first-bounce operator K, all four or none */
     SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS,
+    /* version 1.2: the quad-to-source map, optional */
+    SEC_SRCMAP,
     SEC_KNOWN_END
 };
 #define SEC_KNOWN (SEC_KNOWN_END - 1)
 #define SEC_REQUIRED SEC_PROVENANCE /* ids 1 .. this are in every file */
 #define GTO_MINOR_K 1               /* the minor version that added K */
+#define GTO_MINOR_SRCMAP 2          /* the minor version that added the quad-to-source map */
 
 /* Name and element size of each known section id (gto_check.c). */
 typedef struct gto_sec_desc { const char *name; uint32_t elem_size; } gto_sec_desc;

@@ -155,6 +155,9 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
         st = check_csc_counts(S, SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS, "K's columns");
         if (st != WRT_OK) return st;
     }
+    if (S[SEC_SRCMAP] && S[SEC_SRCMAP]->count != S[SEC_QUADS]->count)
+        return wrt_fail(WRT_ERR_CORRUPT, "section srcmap: %" PRIu64 " records, expected %" PRIu64 " (one per quad)",
+                        S[SEC_SRCMAP]->count, S[SEC_QUADS]->count);
     /* Every byte outside the sections is header, table or zero padding. */
     uint64_t prev_end = L->h.header_size;
     for (uint32_t i = 0; i < L->h.nsections; i++) {
@@ -195,6 +198,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
         g->krows = SECPTR(SEC_KROWS);
         g->kvals = SECPTR(SEC_KVALS);
     }
+    if (S[SEC_SRCMAP]) g->srcmap = SECPTR(SEC_SRCMAP);
 #undef SECPTR
     return WRT_OK;
 }

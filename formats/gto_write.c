@@ -250,10 +250,11 @@ typedef struct gto_records {
     char (*names)[64];
     wrt_gto_camera cam;
     wrt_gto_stats stats;
+    wrt_gto_srcmap *srcmap; /* NULL: not written (no_srcmap) */
 } gto_records;
 
 static void free_records(gto_records *R) {
-    free(R->quads); free(R->mats); free(R->lights); free(R->names);
+    free(R->quads); free(R->mats); free(R->lights); free(R->names); free(R->srcmap);
 }
 
 /* Each quad's function range and deepest levels from the keys, then its geometry. */
@@ -287,6 +288,18 @@ static wrt_status build_quads(const char *path, const wrt_gto_contents *c, gto_r
         r->material = (uint32_t)s->material; /* negative -> huge -> refused by the check */
         r->name = (s->name < 0) ? WRT_GTO_NO_NAME : (uint32_t)s->name;
         r->flags = s->parallelogram ? 1u : 0u;
+    }
+    if (!c->no_srcmap) { /* the quad-to-source map: what the loader knows, as it knows it */
+        wrt_gto_srcmap *m = R->srcmap = wrt_xcalloc(nq ? nq : 1, sizeof *m);
+        for (uint32_t q = 0; q < nq; q++) {
+            const wrt_quad *s = &sc->quads[q];
+            m[q].node = s->node; m[q].mesh = s->mesh; m[q].prim = s->prim;
+            m[q].tri[0] = s->tri[0]; m[q].tri[1] = s->tri[1];
+            m[q].kind = (uint32_t)s->kind; m[q].part = (uint32_t)s->part;
+            m[q].twin_of = s->twin ? s->twin_of : -1;
+            m[q].flags = (s->twin ? WRT_GTO_SRC_TWIN : 0u) | (s->has_uv ? WRT_GTO_SRC_UV : 0u);
+            if (s->has_uv) memcpy(m[q].uv, s->uv, sizeof m[q].uv);
+        }
     }
     return WRT_OK;
 }
@@ -355,12 +368,17 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
         {SEC_COL_START, (uint64_t)nf + 1, col_start}, {SEC_ROWS, nnz, c->rows},
         {SEC_VALS, nnz, c->vals}, {SEC_STATS, 1, &R->stats}, {SEC_PROVENANCE, strlen(prov), prov},
         {SEC_KKEYS, nk, c->kkeys}, {SEC_KCOL_START, (uint64_t)nk + 1, c->kcol_start},
-        {SEC_KROWS, knnz, c->krows}, {SEC_KVALS, knnz, c->kvals},
+        {SEC_KROWS, knnz, c->krows}, {SEC_KVALS, knnz, c->kvals}, {SEC_SRCMAP, R->nq, R->srcmap},
     };
-    memcpy(P->secs, secs, sizeof secs);
-    /* Without K the file is version 1.0 with its 11 sections, byte for byte as before
-     * K existed: the minor is the lowest that has everything the file holds. */
-    P->nsec = nk ? SEC_KNOWN : SEC_REQUIRED;
+    /* Without K and the source map the file is version 1.0 with its 11 sections, byte
+     * for byte as before they existed: the minor is the lowest that has everything the
+     * file holds (plan_header). */
+    P->nsec = 0;
+    for (int i = 0; i < SEC_KNOWN; i++) {
+        uint32_t id = secs[i].id;
+        if ((id >= SEC_KKEYS && id <= SEC_KVALS && !nk) || (id == SEC_SRCMAP && !R->srcmap)) continue;
+        P->secs[P->nsec++] = secs[i];
+    }
 
     static const uint64_t nothing = 0;
     for (int i = 0; i < P->nsec; i++)
@@ -380,7 +398,7 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     memcpy(h->magic, GTO_MAGIC, GTO_MAGIC_LEN);
     h->byte_order = GTO_BOM;
     h->version_major = WRT_GTO_VERSION;
-    h->version_minor = nk ? GTO_MINOR_K : 0;
+    h->version_minor = R->srcmap ? GTO_MINOR_SRCMAP : nk ? GTO_MINOR_K : 0;
     h->nsections = (uint32_t)nsec;
     h->header_size = hsize;
     h->op_kind = c->op_kind;

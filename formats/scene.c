@@ -310,12 +310,50 @@ wrt_status wrt_triangle_quads(wrt_v3 a, wrt_v3 b, wrt_v3 c, wrt_quad out[3]) {
     return WRT_OK;
 }
 
+/* TEXCOORD_0 of triangle t's three quads (the triangle's corners, its edge midpoints and
+ * its centroid, interpolated linearly as glTF interpolates across a triangle). */
+static void triangle_parts_uv(const wrt_gltf_prim *p, int t, wrt_quad q[3]) {
+    if (!p->uv) return;
+    const uint32_t *ix = &p->idx[3 * (size_t)t];
+    for (int k = 0; k < 3; k++) {
+        const float *a = &p->uv[2 * ix[k]], *b = &p->uv[2 * ix[(k + 1) % 3]], *c = &p->uv[2 * ix[(k + 2) % 3]];
+        for (int d = 0; d < 2; d++) {
+            q[k].uv[0][d] = a[d];
+            q[k].uv[1][d] = 0.5f * (a[d] + b[d]);
+            q[k].uv[2][d] = (a[d] + b[d] + c[d]) / 3.0f;
+            q[k].uv[3][d] = 0.5f * (c[d] + a[d]);
+        }
+        q[k].has_uv = 1;
+    }
+}
+
+/* TEXCOORD_0 of a quad paired from triangles t and s: each corner is a vertex of t (or,
+ * for the one t lacks, of s) at exactly that position; across a UV seam t's wins. */
+static void pair_uv(const wrt_gltf_prim *p, int t, int s, wrt_quad *q) {
+    if (!p->uv) return;
+    for (int i = 0; i < 4; i++) {
+        int found = 0;
+        for (int j = 0; j < 6 && !found; j++) {
+            uint32_t v = p->idx[3 * (size_t)(j < 3 ? t : s) + (size_t)(j % 3)];
+            wrt_v3 x = pos_at(p, v);
+            if (x.x == q->p[i].x && x.y == q->p[i].y && x.z == q->p[i].z) {
+                q->uv[i][0] = p->uv[2 * v];
+                q->uv[i][1] = p->uv[2 * v + 1];
+                found = 1;
+            }
+        }
+        if (!found) return; /* cannot happen: eval_pair takes corners from t and s */
+    }
+    q->has_uv = 1;
+}
+
 /* Appends triangle t of p as its three quads (wrt_triangle_quads). Returns 0, or -1
  * (nothing appended) if a part is degenerate, which the sliver test makes rare. */
 static int add_triangle_parts(const wrt_gltf_prim *p, int t, int material, quad_list *ql) {
     const uint32_t *ix = &p->idx[3 * (size_t)t];
     wrt_quad parts[3];
     if (wrt_triangle_quads(pos_at(p, ix[0]), pos_at(p, ix[1]), pos_at(p, ix[2]), parts) != WRT_OK) return -1;
+    triangle_parts_uv(p, t, parts);
     for (int k = 0; k < 3; k++) {
         wrt_quad *q = add_quad(ql);
         *q = parts[k];
@@ -502,6 +540,7 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
                 quad->name = p->mesh;
                 quad->kind = WRT_ELEM_QUAD;
                 quad->node = p->node;
+                pair_uv(p, ti, s, quad);
                 sc->npaired++;
                 continue;
             }
@@ -813,6 +852,11 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
         b->kind = f->kind;
         b->part = f->part;
         b->node = f->node;
+        b->twin = 1;
+        b->twin_of = i;
+        b->has_uv = f->has_uv; /* the corners run p0 p3 p2 p1: so do their (u, v) */
+        for (int c = 0; c < 4; c++)
+            for (int d = 0; d < 2; d++) b->uv[c][d] = f->uv[(4 - c) % 4][d];
         if (wrt_quad_finish(b) != WRT_OK) ql.n--; /* cannot happen: f was finished */
         else s->ntwins++;
     }

@@ -107,7 +107,8 @@ extern "C" {
 
 /* The library's version (the tools' --version and the .gto provenance print the same
  * string), and the version of this header's API: 2 since the options' `size`, the
- * user-first allocator and the status-returning accessors. Compare the macros with
+ * user-first allocator and the status-returning accessors; 3 since wrt_runtime_quad's
+ * kind, part and (u, v) fields (it grew: rebuild callers) and the atlas helper. Compare the macros with
  * wrt_version() and wrt_api_version() at run time to catch a program built against
  * another header than the library it runs with. */
 #define WRT_VERSION_MAJOR 0
@@ -115,7 +116,7 @@ extern "C" {
 #define WRT_VERSION_PATCH 0
 #define WRT_VERSION_STRING "0.1.0"
 #define WRT_VERSION (WRT_VERSION_MAJOR * 10000 + WRT_VERSION_MINOR * 100 + WRT_VERSION_PATCH)
-#define WRT_API_VERSION 2
+#define WRT_API_VERSION 3
 
 /* What every fallible call returns (shared by all of wrt's tools and libraries). */
 typedef enum wrt_status {
@@ -297,24 +298,47 @@ WRT_API wrt_status wrt_runtime_get_camera(const wrt_runtime *rt, wrt_runtime_cam
 WRT_API wrt_status wrt_runtime_get_bounds(const wrt_runtime *rt, double lo[3], double hi[3], wrt_error *err);
 
 /* A quad and where it came from in the glTF scene the bake read: the quad-to-source map,
- * so that an engine can put the results on its own meshes. The .gto files of format 1.x
- * store the mesh of every quad (and its name) but not its node, primitive, triangles or
- * whether it is a double-sided twin: those fields are then -1 ("not stored in this
- * file"), never a guess. A twin is the back of a quad whose material is doubleSided,
- * set back by 1e-4 of the scene's diagonal and facing the other way. */
+ * so that an engine can put the results on its own meshes. The bake makes each quad
+ * either from two triangles of one primitive that share an edge (kind
+ * WRT_QUAD_KIND_PAIR: its corners are those triangles' four vertices) or from one
+ * triangle cut in three through its centroid and edge midpoints (WRT_QUAD_KIND_TRIANGLE,
+ * part k = 0..2: corners V_k, (V_k + V_k+1)/2, the centroid, (V_k+2 + V_k)/2, with
+ * V_0..V_2 the triangle's vertices in its front-face winding). A twin is the back of a
+ * quad whose material is doubleSided, set back by 1e-4 of the scene's diagonal and
+ * facing the other way: same node, mesh, primitive and triangles as its front, corners
+ * p0 p3 p2 p1 of the front's (moved back), so its texture is the front's mirrored in u
+ * and v swapped. Files written before .gto version 1.2 (and those written without the
+ * map) store only the mesh: the other source fields are then -1 ("not stored in this
+ * file"), never a guess. */
+enum { WRT_QUAD_KIND_PAIR = 0, WRT_QUAD_KIND_TRIANGLE = 1 };
 typedef struct wrt_runtime_quad {
     double corners[4][3];   /* p0..p3, world space (see "Quads" above) */
     double normal[3];       /* unit: normalize((p1-p0) x (p3-p0)), glTF's front side */
     double area;            /* m^2 */
     int material;           /* index for wrt_runtime_get_material */
     int parallelogram;      /* 1: affine in (u, v) */
-    int node;               /* glTF node index; -1: not stored */
+    int node;               /* glTF node that placed the mesh; -1: not stored */
     int mesh;               /* glTF mesh index; -1: none */
     char mesh_name[64];     /* that mesh's name ("" if none) */
     int primitive;          /* index within the mesh's primitives; -1: not stored */
-    int triangles[2];       /* the primitive's two triangles (index / 3 of its indices); -1: not stored */
+    int triangles[2];       /* the primitive's triangles (t: indices 3t, 3t+1, 3t+2 of its index
+                             * list, or of its vertices if it has none): a pair's two; a triangle
+                             * kind's one and -1; -1 -1: not stored */
     int twin;               /* 1: the back twin of quad twin_of, 0: not a twin, -1: not stored */
-    int twin_of;            /* the front quad of a twin, else -1 */
+    int twin_of;            /* the front quad of a twin (a lower index), else -1 */
+    /* Since API version 3. */
+    int kind;               /* WRT_QUAD_KIND_PAIR or _TRIANGLE; -1: not stored */
+    int part;               /* WRT_QUAD_KIND_TRIANGLE: which third (0..2); else 0 (-1: not stored) */
+    int has_uv;             /* 1: uv holds the primitive's TEXCOORD_0; 0: the primitive has none
+                             * (or the file does not store it) */
+    float uv[4][2];         /* TEXCOORD_0 at corners p0..p3 (glTF's convention: v down the image).
+                             * A pair's corners are vertices, so their TEXCOORD_0 as stored (where
+                             * the two triangles' vertices differ across a UV seam, the first
+                             * triangle's); a triangle's midpoints and centroid interpolate its
+                             * vertices' linearly. The point (u, v) of the quad has the TEXCOORD
+                             * (1-u)(1-v) uv0 + u(1-v) uv1 + u v uv2 + (1-u) v uv3: exactly glTF's
+                             * where both are affine (a parallelogram mapped to a parallelogram),
+                             * else close to glTF's per-triangle interpolation. 0 when !has_uv. */
 } wrt_runtime_quad;
 
 /* The scene's quads: count (-1: not a live handle) and each one. Errors:
@@ -341,6 +365,40 @@ WRT_API wrt_status wrt_runtime_quad_cells(const wrt_runtime *rt, int q, int n, d
  * indirect, for the current lights. Errors: WRT_ERR_INVALID_ARG. */
 WRT_API wrt_status wrt_runtime_quad_irradiance(const wrt_runtime *rt, int q, double direct[3], double indirect[3],
                                                wrt_error *err);
+
+/* ---- A lightmap atlas: every quad's texture in one texture, ready to upload ---- */
+
+/* Where quad q's texture lies in the atlas: its res x res texels at columns [x, x+res)
+ * and rows [y, y+res), texel (i, j) of the quad's texture at column x+i, row y+j (so u
+ * runs along a row and v down the rows); around them a border of 1 texel that repeats
+ * the edge texels (corners included), so bilinear filtering up to half a texel outside
+ * the quad's square reads its own edge, never a neighbour. A point (u, v) of the quad
+ * samples the atlas at ((x + u res) / width, (y + v res) / height). */
+typedef struct wrt_atlas_rect {
+    int x, y;   /* the first texel of the quad's own res x res block */
+    int res;    /* the quad's texture side (fixed from open to close) */
+} wrt_atlas_rect;
+
+/* Packs the quads' tiles ((res + 2) squares with their borders) into rows of `width`
+ * texels: largest first, then by quad index, left to right, a new row when one is full.
+ * Deterministic: the same file and options give the same layout. width 0: the smallest
+ * power of two that holds the widest tile and is at least the square root of the tiles'
+ * total area. rects: wrt_runtime_quad_count(rt) entries (yours). *width_out and
+ * *height_out (may be NULL) receive the atlas's size; texels no tile covers are 0 after
+ * a fill. No allocation. Errors: WRT_ERR_INVALID_ARG (handle, NULL rects, width
+ * negative or narrower than the widest tile (res + 2), an atlas past 2^31 texels). */
+WRT_API wrt_status wrt_runtime_atlas_layout(const wrt_runtime *rt, int width, wrt_atlas_rect *rects, int *width_out,
+                                            int *height_out, wrt_error *err);
+/* Writes the textures of the last update into `rgb` (width x height RGB floats, rows of
+ * `width`, row 0 first; `nfloats` >= width * height * 3) by a layout of
+ * wrt_runtime_atlas_layout for this runtime: each quad's block, its border, and 0 where
+ * no tile lies. Allocates nothing, reads only the runtime (no update between layout and
+ * fill is needed: the sizes do not change). Linear in the textures: the atlas of two
+ * lights is the sum of each's exactly when the textures are (see wrt_runtime_quad_texture).
+ * Errors: WRT_ERR_INVALID_ARG (handle, NULL pointers, nfloats too small, a rect that is
+ * not the quad's size or does not fit with its border). */
+WRT_API wrt_status wrt_runtime_atlas_fill(const wrt_runtime *rt, const wrt_atlas_rect *rects, int width, int height,
+                                          float *rgb, size_t nfloats, wrt_error *err);
 
 /* Milliseconds of the last update's stages (projection, multiply, brdf, synthesis).
  * Errors: WRT_ERR_INVALID_ARG. */

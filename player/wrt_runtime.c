@@ -328,12 +328,26 @@ wrt_status wrt_runtime_get_quad(const wrt_runtime *rt, int q, wrt_runtime_quad *
     out->material = (int)gq->material;
     out->parallelogram = (gq->flags & 1) != 0;
     /* .gto 1.x: a quad's `name` is the index of its glTF mesh in the names table (the
-     * mesh names); node, primitive, triangles and the twin flag are not stored. */
+     * mesh names); the rest comes from the source map (1.2), else is "not stored". */
     out->mesh = gq->name == WRT_GTO_NO_NAME ? -1 : (int)gq->name;
     if (out->mesh >= 0) copy_name(out->mesh_name, rt->g.names[out->mesh]);
     out->node = out->primitive = out->triangles[0] = out->triangles[1] = -1;
-    out->twin = -1;
+    out->twin = out->kind = out->part = -1;
     out->twin_of = -1;
+    const wrt_gto_srcmap *m = rt->g.srcmap ? &rt->g.srcmap[q] : NULL;
+    if (m) { /* checked at open: indices >= -1, kind and part in range, twin_of earlier */
+        out->node = m->node;
+        out->mesh = m->mesh;
+        out->primitive = m->prim;
+        out->triangles[0] = m->tri[0];
+        out->triangles[1] = m->tri[1];
+        out->kind = (int)m->kind;
+        out->part = (int)m->part;
+        out->twin = (m->flags & WRT_GTO_SRC_TWIN) != 0;
+        out->twin_of = m->twin_of;
+        out->has_uv = (m->flags & WRT_GTO_SRC_UV) != 0;
+        if (out->has_uv) memcpy(out->uv, m->uv, sizeof out->uv);
+    }
     return WRT_OK;
 }
 
@@ -442,5 +456,86 @@ wrt_status wrt_runtime_timings(const wrt_runtime *rt, double ms[4], wrt_error *e
     if (!live(rt)) return dead(err, "wrt_runtime_timings", rt);
     if (!ms) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_timings: ms is NULL"));
     ms[0] = rt->tm.projection; ms[1] = rt->tm.multiply; ms[2] = rt->tm.brdf; ms[3] = rt->tm.synthesis;
+    return WRT_OK;
+}
+
+/* ---- the atlas ---- */
+
+wrt_status wrt_runtime_atlas_layout(const wrt_runtime *rt, int width, wrt_atlas_rect *rects, int *width_out,
+                                    int *height_out, wrt_error *err) {
+    const char *fn = "wrt_runtime_atlas_layout";
+    if (!live(rt)) return dead(err, fn, rt);
+    if (!rects) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: rects is NULL", fn));
+    int nq = (int)rt->g.nquads, widest = 0;
+    double area = 0;
+    for (int q = 0; q < nq; q++) {
+        int t = wrt_relight_tex_res(rt->rl, q) + 2;
+        if (t > widest) widest = t;
+        area += (double)t * t;
+    }
+    if (width < 0 || (width > 0 && width < widest))
+        return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: width %d, the widest tile needs %d (texture side + 2)",
+                                  fn, width, widest));
+    if (width == 0) {
+        width = 1;
+        while (width < widest || (double)width * width < area) width *= 2;
+    }
+    /* The order without a sort buffer (no allocation): the res is a power of two up to
+     * 1024, so one pass per size, largest first, places the quads of that size by index. */
+    long long x = 0, y = 0, row_h = 0;
+    for (int lvl = 12; lvl >= 0; lvl--)
+        for (int q = 0; q < nq; q++) {
+            int res = wrt_relight_tex_res(rt->rl, q);
+            if (res != 1 << lvl) continue;
+            int t = res + 2;
+            if (x + t > width) { y += row_h; x = 0; row_h = 0; }
+            rects[q].x = (int)x + 1;
+            rects[q].y = (int)y + 1;
+            rects[q].res = res;
+            x += t;
+            if (t > row_h) row_h = t;
+            if (y + row_h > (1LL << 31) / width)
+                return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: the atlas exceeds 2^31 texels at width %d", fn,
+                                          width));
+        }
+    if (width_out) *width_out = width;
+    if (height_out) *height_out = (int)(y + row_h);
+    return WRT_OK;
+}
+
+wrt_status wrt_runtime_atlas_fill(const wrt_runtime *rt, const wrt_atlas_rect *rects, int width, int height,
+                                  float *rgb, size_t nfloats, wrt_error *err) {
+    const char *fn = "wrt_runtime_atlas_fill";
+    if (!live(rt)) return dead(err, fn, rt);
+    if (!rects || !rgb) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: rects or rgb is NULL", fn));
+    if (width <= 0 || height <= 0 || (size_t)width * (size_t)height > nfloats / 3)
+        return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "%s: %d x %d RGB texels need %zu floats, the buffer has %zu",
+                                  fn, width, height, (size_t)(width > 0 ? width : 0) * (size_t)(height > 0 ? height : 0) * 3,
+                                  nfloats));
+    int nq = (int)rt->g.nquads;
+    for (int q = 0; q < nq; q++) {
+        const wrt_atlas_rect *r = &rects[q];
+        if (r->res != wrt_relight_tex_res(rt->rl, q) || r->x < 1 || r->y < 1 || r->x > width - 1 - r->res ||
+            r->y > height - 1 - r->res || !wrt_relight_tex(rt->rl, q))
+            return fail(err, wrt_fail(WRT_ERR_INVALID_ARG,
+                                      "%s: quad %d's rect (%d, %d) of side %d is not its texture (side %d) inside a "
+                                      "%d x %d atlas with a border of 1",
+                                      fn, q, r->x, r->y, r->res, wrt_relight_tex_res(rt->rl, q), width, height));
+    }
+    memset(rgb, 0, (size_t)width * (size_t)height * 3 * sizeof *rgb);
+    for (int q = 0; q < nq; q++) {
+        const wrt_atlas_rect *r = &rects[q];
+        const float *tex = wrt_relight_tex(rt->rl, q);
+        int res = r->res;
+        /* rows -1 .. res and columns -1 .. res of the tile, clamped into the texture */
+        for (int j = -1; j <= res; j++) {
+            int sj = j < 0 ? 0 : j >= res ? res - 1 : j;
+            float *dst = rgb + ((size_t)(r->y + j) * (size_t)width + (size_t)(r->x - 1)) * 3;
+            const float *src = tex + (size_t)sj * (size_t)res * 3;
+            memcpy(dst, src, 3 * sizeof *dst);
+            memcpy(dst + 3, src, (size_t)res * 3 * sizeof *dst);
+            memcpy(dst + 3 * (size_t)(res + 1), src + 3 * (size_t)(res - 1), 3 * sizeof *dst);
+        }
+    }
     return WRT_OK;
 }

@@ -118,7 +118,7 @@ static void test_version(void) {
     CHECK(wrt_version() == WRT_VERSION && WRT_VERSION == 100, "wrt_version %d, header %d", wrt_version(), WRT_VERSION);
     CHECK(!strcmp(wrt_version_string(), WRT_VERSION_STRING) && !strcmp(WRT_VERSION_STRING, "0.1.0"),
           "wrt_version_string '%s'", wrt_version_string());
-    CHECK(wrt_api_version() == WRT_API_VERSION && WRT_API_VERSION == 2, "wrt_api_version %d", wrt_api_version());
+    CHECK(wrt_api_version() == WRT_API_VERSION && WRT_API_VERSION == 3, "wrt_api_version %d", wrt_api_version());
     CHECK(!strcmp(wrt_status_str(WRT_ERR_INVALID_ARG), "invalid argument") &&
           !strcmp(wrt_status_str((wrt_status)99), "unknown status"), "wrt_status_str");
 }
@@ -303,8 +303,8 @@ static void test_getters(const char *path) {
           hi[0] == 0.5 && hi[1] == 0.5 && hi[2] == 1, "bounds (%g %g %g) - (%g %g %g)", lo[0], lo[1], lo[2], hi[0],
           hi[1], hi[2]);
     /* the quad-to-source map: square_a (mesh 0) at z = 0 facing +z, square_b (mesh 1) at
-     * z = 1 facing -z (its vertex normals), each of area 1; node, primitive, triangles and
-     * twin are not in a .gto 1.x: -1 */
+     * z = 1 facing -z (its vertex normals), each of area 1; the .gto 1.2 source map: node
+     * k places mesh k, primitive 0, its triangles 0 and 1 paired, not a twin, no TEXCOORD_0 */
     int nq = wrt_runtime_quad_count(rt), seen[2] = {0, 0}, map_ok = nq == 2;
     for (int q = 0; q < nq; q++) {
         wrt_runtime_quad qd;
@@ -314,14 +314,16 @@ static void test_getters(const char *path) {
         for (int k = 0; k < 4; k++) map_ok &= qd.corners[k][2] == z;
         map_ok &= qd.mesh == want && !strcmp(qd.mesh_name, want ? "square_b" : "square_a");
         map_ok &= near(qd.normal[2], want ? -1 : 1, 1e-12) && near(qd.area, 1, 1e-6) && qd.material == 0;
-        map_ok &= qd.node == -1 && qd.primitive == -1 && qd.triangles[0] == -1 && qd.triangles[1] == -1 &&
-                  qd.twin == -1 && qd.twin_of == -1;
+        map_ok &= qd.node == want && qd.primitive == 0 && qd.triangles[0] + qd.triangles[1] == 1 &&
+                  qd.triangles[0] * qd.triangles[1] == 0 && qd.twin == 0 && qd.twin_of == -1 &&
+                  qd.kind == WRT_QUAD_KIND_PAIR && qd.part == 0 && qd.has_uv == 0;
         double p[4][3];
         map_ok &= wrt_runtime_quad_corners(rt, q, p, NULL) == WRT_OK && !memcmp(p, qd.corners, sizeof p);
         seen[want]++;
-        printf("quad %d: mesh %d '%s', z %g, normal z %g, area %g\n", q, qd.mesh, qd.mesh_name, z, qd.normal[2], qd.area);
+        printf("quad %d: node %d mesh %d '%s' primitive %d triangles %d %d, z %g, normal z %g, area %g\n", q, qd.node,
+               qd.mesh, qd.mesh_name, qd.primitive, qd.triangles[0], qd.triangles[1], z, qd.normal[2], qd.area);
     }
-    CHECK(map_ok && seen[0] == 1 && seen[1] == 1, "quad-to-source map: each square's mesh, name, normal, area");
+    CHECK(map_ok && seen[0] == 1 && seen[1] == 1, "quad-to-source map: each square's node, mesh, name, primitive, triangles, normal, area");
     wrt_runtime_close(rt);
 }
 
@@ -414,6 +416,79 @@ static void test_steady_allocations(const char *path) {
     CHECK(c.allocs == c.frees, "allocator: %ld blocks, %ld freed", (long)c.allocs, (long)c.frees);
 }
 
+/* The atlas: the layout is deterministic, tiles inside and apart; the fill puts each
+ * quad's texture bit for bit in its block, repeats its edge texels in the border, leaves
+ * 0 elsewhere, writes nothing past width x height x 3 and allocates nothing; bad
+ * arguments are refused with a message. */
+static void test_atlas(const char *path) {
+    counter c = {0};
+    wrt_error err;
+    wrt_runtime *rt;
+    wrt_runtime_options o = {.threads = 1, .allocator = {c_alloc, c_free, &c}};
+    if (wrt_runtime_open_file(path, &o, &rt, &err)) { CHECK(0, "open: %s", err.message); return; }
+    int nq = wrt_runtime_quad_count(rt), w = 0, h = 0, w2 = 0, h2 = 0;
+    wrt_atlas_rect *r = calloc((size_t)nq, sizeof *r), *r2 = calloc((size_t)nq, sizeof *r2);
+    CHECK(wrt_runtime_atlas_layout(rt, 0, r, &w, &h, &err) == WRT_OK && wrt_runtime_atlas_layout(rt, 0, r2, &w2, &h2, NULL) == WRT_OK &&
+          w == w2 && h == h2 && !memcmp(r, r2, (size_t)nq * sizeof *r), "layout: deterministic, %d x %d for %d quads", w, h, nq);
+    unsigned char *cover = calloc((size_t)w * h, 1);
+    int inside = 1, apart = 1;
+    for (int q = 0; q < nq; q++) {
+        int res;
+        wrt_runtime_quad_texture(rt, q, &res);
+        inside &= r[q].res == res && r[q].x >= 1 && r[q].y >= 1 && r[q].x + res + 1 <= w && r[q].y + res + 1 <= h;
+        if (!inside) break;
+        for (int j = r[q].y - 1; j <= r[q].y + res; j++)
+            for (int i = r[q].x - 1; i <= r[q].x + res; i++) apart &= !cover[(size_t)j * w + i]++;
+    }
+    CHECK(inside && apart, "tiles (texture + border of 1) inside the atlas and apart");
+    wrt_runtime_light l;
+    wrt_runtime_get_light(rt, 0, &l, NULL);
+    size_t n;
+    free(relight(rt, &l, &n));
+    size_t nf = (size_t)w * h * 3;
+    float *rgb = malloc((nf + 3) * sizeof *rgb);
+    for (size_t i = 0; i < nf + 3; i++) rgb[i] = -7.0f;
+    long a0 = atomic_load(&c.allocs);
+    CHECK(wrt_runtime_atlas_fill(rt, r, w, h, rgb, nf, &err) == WRT_OK, "fill: %s", err.message);
+    CHECK(atomic_load(&c.allocs) == a0, "fill allocates nothing");
+    CHECK(rgb[nf] == -7.0f && rgb[nf + 1] == -7.0f && rgb[nf + 2] == -7.0f, "nothing written past the atlas");
+    int exact = 1, border = 1, zero = 1;
+    double peak = 0;
+    for (int q = 0; q < nq && inside; q++) {
+        int res;
+        const float *t = wrt_runtime_quad_texture(rt, q, &res);
+        for (int j = -1; j <= res; j++)
+            for (int i = -1; i <= res; i++) {
+                int si = i < 0 ? 0 : i >= res ? res - 1 : i, sj = j < 0 ? 0 : j >= res ? res - 1 : j;
+                const float *a = rgb + ((size_t)(r[q].y + j) * w + (size_t)(r[q].x + i)) * 3, *b = t + ((size_t)sj * res + si) * 3;
+                int eq = !memcmp(a, b, 3 * sizeof *a);
+                if (i == si && j == sj) exact &= eq; else border &= eq;
+                if (a[0] > peak) peak = a[0];
+            }
+    }
+    for (size_t k = 0; k < (size_t)w * h; k++)
+        if (!cover[k]) zero &= rgb[3 * k] == 0 && rgb[3 * k + 1] == 0 && rgb[3 * k + 2] == 0;
+    CHECK(exact && border && zero && peak > 0, "fill: blocks bit for bit (peak %g), borders repeat edges, 0 between", peak);
+    /* refusals */
+    wrt_status st = wrt_runtime_atlas_layout(rt, 2, r2, NULL, NULL, &err);
+    CHECK(st == WRT_ERR_INVALID_ARG && strstr(err.message, "widest tile"), "width 2 refused: %s", err.message);
+    st = wrt_runtime_atlas_fill(rt, r, w, h, rgb, nf - 1, &err);
+    CHECK(st == WRT_ERR_INVALID_ARG && strstr(err.message, "the buffer has"), "short buffer refused: %s", err.message);
+    r2[0] = r[0];
+    r2[0].res *= 2;
+    memcpy(r2 + 1, r + 1, (size_t)(nq - 1) * sizeof *r2);
+    st = wrt_runtime_atlas_fill(rt, r2, w, h, rgb, nf, &err);
+    CHECK(st == WRT_ERR_INVALID_ARG && strstr(err.message, "quad 0's rect"), "a rect of the wrong size refused: %s", err.message);
+    r2[0] = r[0];
+    r2[0].x = w - r[0].res;
+    st = wrt_runtime_atlas_fill(rt, r2, w, h, rgb, nf, &err);
+    CHECK(st == WRT_ERR_INVALID_ARG, "a rect whose border leaves the atlas refused: %s", err.message);
+    CHECK(wrt_runtime_atlas_fill(rt, NULL, w, h, rgb, nf, &err) == WRT_ERR_INVALID_ARG &&
+          wrt_runtime_atlas_layout(NULL, 0, r, NULL, NULL, &err) == WRT_ERR_INVALID_ARG, "NULL rects, NULL handle refused");
+    free(rgb); free(cover); free(r); free(r2);
+    wrt_runtime_close(rt);
+}
+
 int main(int argc, char **argv) {
     if (argc < 3) { fprintf(stderr, "usage: %s FACING.gto RANGED.gto [MORE.gto ...]\n", argv[0]); return 1; }
     test_version();
@@ -423,6 +498,7 @@ int main(int argc, char **argv) {
     test_getters(argv[1]);
     test_range(argv[1], argv[2]);
     for (int i = 1; i < argc; i++) if (i != 2) test_steady_allocations(argv[i]);
+    for (int i = 1; i < argc; i++) if (i != 2) test_atlas(argv[i]);
     if (skipped) printf("%s: %d passed, %d failed, %d skipped\n", argv[0], passed, failed, skipped);
     else printf("%s: %d passed, %d failed\n", argv[0], passed, failed);
     return failed != 0;

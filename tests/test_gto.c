@@ -48,6 +48,11 @@ enum { S_KKEYS = 11, S_KCOL_START, S_KROWS, S_KVALS };
 
 static const char *golden_path = "tests/data/gto/v1_small.gto";
 static const char *golden_k_path = "tests/data/gto/v1.1_k_small.gto";
+static const char *golden_s_path = "tests/data/gto/v1.2_srcmap_small.gto";
+/* Version 1.2: the quad-to-source map, id 16, after the 11 (no K here). */
+#define S_SRCMAP 11
+#define F_NSEC_S 12
+#define F_SRC_REC 72
 static char tmpdir[256];
 
 /* ---- the synthetic scene and operator ---- */
@@ -71,6 +76,7 @@ static uint64_t kcol_start[6];
 static uint32_t krows[16];
 static float kvals[16];
 static wrt_gto_contents contents_k;
+static wrt_gto_contents contents_s; /* contents with the quad-to-source map (1.2) */
 static const char *provenance = "{\"scene\": \"synthetic\", \"hash\": \"0123\", \"n\": [1, 2.5e3, -0.5], \"ok\": true}";
 
 static void set_quad(wrt_quad *q, wrt_v3 p0, wrt_v3 p1, wrt_v3 p2, wrt_v3 p3, int mat, int name) {
@@ -152,6 +158,7 @@ static void build(void) {
     st->entries_dto = 14; st->entries_op = e; st->rays_traced = 1000000007ull; st->rays_skipped = 16;
     st->bounces = 5; st->energy_left = 1e-3;
     contents.provenance = provenance;
+    contents.no_srcmap = 1; /* the 1.0 and 1.1 files, byte for byte */
 
     /* K: functions of quad 1 are fkeys index 4, of quad 2 indices 5 and 6; a column's
      * rows avoid its own quad's. Keys written in ascending order (quad, spatial level,
@@ -171,6 +178,21 @@ static void build(void) {
     contents_k.nkcols = 5;
     contents_k.kkeys = kkeys; contents_k.kcol_start = kcol_start;
     contents_k.krows = krows; contents_k.kvals = kvals;
+
+    /* The source map: quad 0 paired from triangles 4 and 1 of node 3's mesh 0 primitive
+     * 2, with TEXCOORD_0; quad 1 the third part of triangle 5 of node 0's mesh 1, without;
+     * quad 2 (whatever its corners) the back twin of quad 1. */
+    quads[0].node = 3; quads[0].mesh = 0; quads[0].prim = 2; quads[0].tri[0] = 4; quads[0].tri[1] = 1;
+    quads[0].kind = WRT_ELEM_QUAD; quads[0].has_uv = 1;
+    static const float uv0[4][2] = {{0, 0}, {0.5f, 0}, {0.5f, 0.25f}, {-1.5f, 1e3f}};
+    memcpy(quads[0].uv, uv0, sizeof uv0);
+    for (int q = 1; q < 3; q++) {
+        quads[q].node = 0; quads[q].mesh = 1; quads[q].prim = 0; quads[q].tri[0] = 5; quads[q].tri[1] = -1;
+        quads[q].kind = WRT_ELEM_TRIANGLE; quads[q].part = 2;
+    }
+    quads[2].twin = 1; quads[2].twin_of = 1;
+    contents_s = contents;
+    contents_s.no_srcmap = 0;
 }
 
 /* ---- file helpers ---- */
@@ -608,7 +630,7 @@ static void test_versions(void) {
     b[F_VERSION_MAJOR] = 2;
     fix_header_sum(b);
     write_raw(tpath("v2.gto"), b, n);
-    expect(wrt_gto_open(tpath("v2.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 2.0 is newer than this reader's version 1.1",
+    expect(wrt_gto_open(tpath("v2.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 2.0 is newer than this reader's version 1.2",
            "newer major");
     b[F_VERSION_MAJOR] = 0;
     fix_header_sum(b);
@@ -1264,14 +1286,14 @@ static void test_k_bad(void) {
     if (!b) return;
     uint8_t *c = malloc(n);
     wrt_gto g;
-    /* All four or none: kvals renumbered to an unknown id. */
+    /* All four or none: kvals renumbered to an unknown id (17 on: 16 is the source map). */
     memcpy(c, b, n);
-    uint32_t id16 = 16;
-    memcpy(c + entry(S_KVALS), &id16, 4);
+    uint32_t id17 = 17;
+    memcpy(c + entry(S_KVALS), &id17, 4);
     fix_header_sum(c);
     expect(open_copy(c, n, &g), WRT_ERR_CORRUPT, "missing section kvals (the first-bounce sections", "kvals missing");
     memcpy(c, b, n);
-    uint32_t ids[3] = {16, 17, 18};
+    uint32_t ids[3] = {17, 18, 19};
     for (int i = 0; i < 3; i++) memcpy(c + entry(S_KCOL_START + i), &ids[i], 4);
     fix_header_sum(c);
     expect(open_copy(c, n, &g), WRT_ERR_CORRUPT, "missing section kcol_start", "only kkeys");
@@ -1435,7 +1457,7 @@ static void test_k_print_info(void) {
     wrt_status st = wrt_gto_print_info(p, 0, f);
     fclose(f);
     CHECK(st == WRT_OK, "info: %s", wrt_last_error());
-    CHECK(strstr(text, "version 1.1 (this reader: 1.1)"), "version: %s", text);
+    CHECK(strstr(text, "version 1.1 (this reader: 1.2)"), "version: %s", text);
     CHECK(strstr(text, "first bounce: K, 5 columns on 2 glossy quads, 9 entries"), "K line: %s", text);
     CHECK(strstr(text, "max 3; deepest level: spatial 1, angular node 1"), "K figures: %s", text);
     CHECK(strstr(text, "kkeys ") && strstr(text, "kcol_start ") && strstr(text, "krows ") && strstr(text, "kvals "),
@@ -1455,7 +1477,7 @@ static void test_k_print_info(void) {
     f = open_memstream(&text, &tn);
     wrt_gto_print_info(p0, 0, f);
     fclose(f);
-    CHECK(strstr(text, "version 1.0 (this reader: 1.1)") && strstr(text, "first bounce: none") && !strstr(text, "kkeys"),
+    CHECK(strstr(text, "version 1.0 (this reader: 1.2)") && strstr(text, "first bounce: none") && !strstr(text, "kkeys"),
           "no K: %s", text);
     free(text);
     f = open_memstream(&text, &tn);
@@ -1537,6 +1559,153 @@ static void test_open_speed(void) {
     free(k); free(cs); free(r); free(v);
 }
 
+/* ---- the quad-to-source map (version 1.2) ---- */
+
+static int write_good_s(const char *path) {
+    wrt_status st = wrt_gto_write(path, &contents_s);
+    CHECK(st == WRT_OK, "write %s: %s", path, wrt_last_error());
+    return st == WRT_OK;
+}
+
+/* Written from the scene's quads, read back field by field; version 1.2 with 12
+ * sections; a file without the map (1.0, 1.1, or no_srcmap) has none. */
+static void test_srcmap_roundtrip(void) {
+    build();
+    const char *p = tpath("s.gto");
+    if (!write_good_s(p)) return;
+    wrt_gto g;
+    wrt_status st = wrt_gto_open(p, &g);
+    CHECK(st == WRT_OK, "open: %s", wrt_last_error());
+    if (st != WRT_OK) return;
+    CHECK(g.version == 1 && g.version_minor == 2 && g.srcmap, "version %u.%u, map %p", g.version, g.version_minor,
+          (const void *)g.srcmap);
+    if (g.srcmap) {
+        const wrt_gto_srcmap *m = g.srcmap;
+        CHECK(m[0].node == 3 && m[0].mesh == 0 && m[0].prim == 2 && m[0].tri[0] == 4 && m[0].tri[1] == 1 &&
+              m[0].kind == 0 && m[0].part == 0 && m[0].flags == WRT_GTO_SRC_UV && m[0].twin_of == -1 &&
+              m[0].uv[2][1] == 0.25f && m[0].uv[3][0] == -1.5f && m[0].uv[3][1] == 1e3f,
+              "quad 0: node %d mesh %d prim %d tri %d %d flags %u uv3 %g %g", m[0].node, m[0].mesh, m[0].prim,
+              m[0].tri[0], m[0].tri[1], m[0].flags, m[0].uv[3][0], m[0].uv[3][1]);
+        CHECK(m[1].node == 0 && m[1].mesh == 1 && m[1].tri[0] == 5 && m[1].tri[1] == -1 && m[1].kind == 1 &&
+              m[1].part == 2 && m[1].flags == 0 && m[1].twin_of == -1 && m[1].uv[0][0] == 0,
+              "quad 1: kind %u part %u flags %u twin_of %d", m[1].kind, m[1].part, m[1].flags, m[1].twin_of);
+        CHECK(m[2].flags == WRT_GTO_SRC_TWIN && m[2].twin_of == 1 && m[2].part == 2,
+              "quad 2: flags %u twin_of %d", m[2].flags, m[2].twin_of);
+    }
+    wrt_gto_close(&g);
+    size_t n;
+    uint8_t *b = read_all(p, &n);
+    if (b) {
+        CHECK(rd32(b, 28) == F_NSEC_S && b[14] == 2 && rd32(b, entry(S_SRCMAP)) == 16 &&
+              rd32(b, entry(S_SRCMAP) + 4) == F_SRC_REC && rd64(b, entry(S_SRCMAP) + F_E_COUNT) == 3 &&
+              sec_off(b, S_SRCMAP) + sec_size(b, S_SRCMAP) == n,
+              "layout: %u sections, minor %u, srcmap id %u, %u-byte records", rd32(b, 28), b[14],
+              rd32(b, entry(S_SRCMAP)), rd32(b, entry(S_SRCMAP) + 4));
+        free(b);
+    }
+    const char *olds[2] = {golden_path, golden_k_path};
+    for (int i = 0; i < 2; i++) {
+        st = wrt_gto_open(olds[i], &g);
+        CHECK(st == WRT_OK && g.srcmap == NULL && g.version_minor == (uint32_t)i, "%s opens without a map: %s",
+              olds[i], st == WRT_OK ? "ok" : wrt_last_error());
+        if (st == WRT_OK) wrt_gto_close(&g);
+    }
+}
+
+static void test_srcmap_golden(void) {
+    build();
+    wrt_gto g;
+    wrt_status st = wrt_gto_open(golden_s_path, &g);
+    CHECK(st == WRT_OK && g.srcmap && g.srcmap[2].twin_of == 1, "golden 1.2 file: %s",
+          st == WRT_OK ? "ok" : wrt_last_error());
+    if (st == WRT_OK) wrt_gto_close(&g);
+    writer_reproduces(golden_s_path, "s_golden_now.gto", write_good_s);
+}
+
+/* A damaged map is refused with the section and the quad named: a flipped byte (the
+ * checksum), a count that is not one per quad, and each content check behind fixed-up
+ * checksums. */
+static void test_srcmap_bad(void) {
+    size_t n;
+    uint8_t *b = written("s_bad.gto", write_good_s, &n);
+    if (!b) return;
+    wrt_gto g;
+    for (size_t at = 0; at < sec_size(b, S_SRCMAP); at += 37) {
+        uint8_t *c = malloc(n);
+        memcpy(c, b, n);
+        c[sec_off(c, S_SRCMAP) + at] ^= 0x10;
+        char what[64];
+        snprintf(what, sizeof what, "srcmap byte %zu flipped", at);
+        expect(open_copy(c, n, &g), WRT_ERR_CORRUPT, "section srcmap: checksum mismatch", what);
+        free(c);
+    }
+    { /* one record short (the map ends the file, so the file is one record shorter) */
+        uint8_t *c = malloc(n);
+        memcpy(c, b, n);
+        wr64(c, entry(S_SRCMAP) + F_E_COUNT, 2);
+        wr64(c, entry(S_SRCMAP) + F_E_SIZE, 2 * F_SRC_REC);
+        wr64(c, F_FILE_SIZE, n - F_SRC_REC);
+        fix_section_sum(c, S_SRCMAP);
+        fix_header_sum(c);
+        expect(open_copy(c, n - F_SRC_REC, &g), WRT_ERR_CORRUPT, "section srcmap: 2 records, expected 3 (one per quad)",
+               "a record short");
+        free(c);
+    }
+    size_t r0 = 0, r1 = F_SRC_REC, r2 = 2 * F_SRC_REC;
+    int32_t m2 = -2, big = 7, one = 1;
+    uint32_t u2 = 2, u1 = 1, u8 = 8, twin = WRT_GTO_SRC_TWIN, nan_bits = 0x7fc00000u;
+    float x = 0.5f;
+    corrupt_index(b, n, S_SRCMAP, r0 + 4, &m2, 4, "srcmap[0]: negative index (node 3, mesh -2", "mesh -2");
+    corrupt_index(b, n, S_SRCMAP, r1 + 20, &u2, 4, "srcmap[1]: unknown element kind 2", "kind 2");
+    corrupt_index(b, n, S_SRCMAP, r1 + 24, &u8, 4, "srcmap[1]: part 8 of a triangle (0..2)", "part 8");
+    corrupt_index(b, n, S_SRCMAP, r0 + 24, &u1, 4, "srcmap[0]: part 1 of a paired quad (0)", "pair part 1");
+    corrupt_index(b, n, S_SRCMAP, r1 + 16, &big, 4, "srcmap[1]: a triangle's quad with a second triangle 7",
+                  "triangle with tri[1]");
+    corrupt_index(b, n, S_SRCMAP, r0 + 28, &u8, 4, "srcmap[0]: unknown flags 0x8", "flag bit 3");
+    corrupt_index(b, n, S_SRCMAP, r0 + 36, &u1, 4, "reserved 1 not zero", "reserved");
+    corrupt_index(b, n, S_SRCMAP, r2 + 32, &big, 4, "srcmap[2]: twin of quad 7, not an earlier quad", "twin_of 7");
+    corrupt_index(b, n, S_SRCMAP, r2 + 32, &m2, 4, "srcmap[2]: twin of quad -2, not an earlier quad", "twin_of -2");
+    int32_t two = 2;
+    corrupt_index(b, n, S_SRCMAP, r2 + 32, &two, 4, "srcmap[2]: twin of quad 2, not an earlier quad", "own twin");
+    corrupt_index(b, n, S_SRCMAP, r1 + 28, &twin, 4, "srcmap[1]: twin of quad -1", "twin flag without front");
+    corrupt_index(b, n, S_SRCMAP, r0 + 32, &one, 4, "srcmap[0]: not a twin but twin_of 1 (expected -1)", "twin_of set");
+    corrupt_index(b, n, S_SRCMAP, r2 + 12, &big, 4, "srcmap[2]: twin of quad 1, which comes from other triangles",
+                  "twin from another triangle");
+    corrupt_index(b, n, S_SRCMAP, r0 + 40 + 4 * 5, &nan_bits, 4, "srcmap[0]: uv of corner 2 not finite", "NaN uv");
+    corrupt_index(b, n, S_SRCMAP, r1 + 40 + 4 * 7, &x, 4, "srcmap[1]: uv of corner 3 not zero without the uv flag",
+                  "uv without flag");
+    /* a twin whose front is a twin: quad 1 made a twin of quad 0 (same source as 0) first */
+    {
+        uint8_t *c = malloc(n);
+        memcpy(c, b, n);
+        memcpy(c + sec_off(c, S_SRCMAP) + r1, c + sec_off(c, S_SRCMAP) + r0, F_SRC_REC);
+        uint32_t fl = WRT_GTO_SRC_TWIN;
+        int32_t zero = 0;
+        memcpy(c + sec_off(c, S_SRCMAP) + r1 + 28, &fl, 4);
+        memcpy(c + sec_off(c, S_SRCMAP) + r1 + 32, &zero, 4);
+        memset(c + sec_off(c, S_SRCMAP) + r1 + 40, 0, 32);
+        fix_section_sum(c, S_SRCMAP);
+        fix_header_sum(c);
+        expect(open_copy(c, n, &g), WRT_ERR_CORRUPT, "srcmap[2]: twin of quad 1, itself a twin", "twin of a twin");
+        free(c);
+    }
+    /* the writer refuses what the reader would */
+    build();
+    quads[1].kind = 5;
+    expect(wrt_gto_write(tpath("s_refused.gto"), &contents_s), WRT_ERR_INVALID_ARG,
+           "srcmap: srcmap[1]: unknown element kind 5", "writer: bad kind");
+    build();
+    quads[2].twin_of = 2;
+    expect(wrt_gto_write(tpath("s_refused.gto"), &contents_s), WRT_ERR_INVALID_ARG,
+           "srcmap[2]: twin of quad 2, not an earlier quad", "writer: own twin");
+    /* truncated at every length: never a crash, always refused */
+    int refused = 1;
+    for (size_t len = 0; len < n; len++)
+        refused &= open_copy(b, len, &g) != WRT_OK;
+    CHECK(refused, "every truncation refused");
+    free(b);
+}
+
 static void regen(void) {
     build();
     mkdir("tests/data", 0777);
@@ -1545,6 +1714,8 @@ static void regen(void) {
     printf("%s: %s\n", golden_path, st == WRT_OK ? "written" : wrt_last_error());
     st = wrt_gto_write(golden_k_path, &contents_k);
     printf("%s: %s\n", golden_k_path, st == WRT_OK ? "written" : wrt_last_error());
+    st = wrt_gto_write(golden_s_path, &contents_s);
+    printf("%s: %s\n", golden_s_path, st == WRT_OK ? "written" : wrt_last_error());
 }
 
 int main(int argc, char **argv) {
@@ -1577,6 +1748,9 @@ int main(int argc, char **argv) {
     TEST_RUN(test_k_write_errors);
     TEST_RUN(test_k_chunk_boundaries);
     TEST_RUN(test_k_print_info);
+    TEST_RUN(test_srcmap_roundtrip);
+    TEST_RUN(test_srcmap_golden);
+    TEST_RUN(test_srcmap_bad);
     TEST_RUN(test_open_speed);
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
