@@ -16,7 +16,7 @@
 #include <unistd.h>
 
 /* Every stored node's averages kept, slopes limited (the module's parts one at a time). */
-static const wrt_recon_params all = {99, 0, 1};
+static const wrt_recon_params all = {99, 0, 1, 0};
 
 static uint64_t rng = 88172645463325252ull;
 static double rnd(void) { /* xorshift, uniform in [0, 1) */
