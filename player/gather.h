@@ -50,9 +50,10 @@ typedef struct wrt_gather_env {
     void (*free)(void *user, void *p);
     void *user;
     /* Optional (NULL: none): called by wrt_gather_create on the calling thread after each
-     * piece of its work (a few milliseconds: a BRDF table's rows or a few points' rays),
-     * with the fraction of the creation done, rising to 1; returning 0 cancels it. */
+     * piece of its work (`piece` points' rays, or as many rows of a BRDF table), with the
+     * fraction of the creation done, rising to 1; returning 0 cancels it. */
     int (*progress)(void *user, double fraction);
+    int piece;  /* points (or table rows) a piece: a few for each thread of `run`; 0: 8 */
 } wrt_gather_env;
 
 /* Direct irradiance (RGB, shadows included) at x with unit normal n, from the lights. */
