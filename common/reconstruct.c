@@ -286,8 +286,12 @@ int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const floa
 
 void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
                       const uint8_t *const *known, float *const *out, const wrt_recon_params *prm, float *buf) {
-    int keep = prm ? prm->keep : WRT_RECON_KEEP, limit = prm ? prm->limit : 1;
+    int keep = prm ? prm->keep : WRT_RECON_KEEP, limit = prm ? prm->limit : 1, linear = prm ? prm->linear : 0;
     float sharp = prm ? prm->sharp : WRT_RECON_SHARP;
+    if (linear) { /* a choice from the mask and `keep` alone */
+        limit = 0;
+        sharp = 0;
+    }
     int nm;
     const int *mem = wrt_recon_members(rc, gr, &nm);
     if (nm == 0) return;
@@ -450,8 +454,9 @@ void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const 
             }
         }
     }
-    /* Light is never negative: the prediction can undershoot beside a sharp edge. */
-    for (int s = 0; s < nm; s++) {
+    /* Light is never negative: the prediction can undershoot beside a sharp edge (the
+     * linear display keeps the undershoot: a clamp does not superpose). */
+    for (int s = 0; s < nm && !linear; s++) {
         float *o = out[mem[s]];
         for (size_t k = 0; k < full; k++) o[k] = o[k] < 0 ? 0 : o[k];
     }

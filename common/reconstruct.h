@@ -72,8 +72,13 @@ static inline uint32_t wrt_recon_node(int l, int x, int y) {
  * details are sharp: a child differs from the node's average by more than `sharp` times
  * it (0: never); the rest are predicted. `limit` 1: the prediction's slopes are limited
  * (monotonized central: no child beyond its neighbours' range, so a dark cell beside a lit
- * one stays dark, and linear functions are still reproduced exactly). */
-typedef struct wrt_recon_params { int keep; float sharp; int limit; } wrt_recon_params;
+ * one stays dark, and linear functions are still reproduced exactly). `linear` 1: the
+ * output is a fixed linear function of the input (the sum of two inputs' outputs is the
+ * output of their sum, to float rounding): `limit` and `sharp` are ignored (no limiter; a
+ * node keeps its children's averages if it holds a function and lies above `keep`, a
+ * choice from `known` alone) and negative texels are kept, not clamped to 0. The default (0) is
+ * not linear: the limiter, the sharpness test and the clamp all depend on the data. */
+typedef struct wrt_recon_params { int keep; float sharp; int limit; int linear; } wrt_recon_params;
 #define WRT_RECON_KEEP 3
 #define WRT_RECON_SHARP 0.5f
 

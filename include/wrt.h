@@ -81,7 +81,8 @@
  * parked between updates; with one it starts no thread of its own. Embree (the ray
  * tracer used for shadow rays) builds its scene at open on threads of its own. Opening
  * a file with glossy materials traces the final gather's rays and tabulates their BRDFs
- * at open: seconds for a large glossy scene (about 10 s for the glossy asset on 2 cores).
+ * at open: seconds for a large glossy scene (about 10 s for the glossy asset on 2 cores);
+ * wrt_runtime_options.progress (API 3) reports that work and can cancel it.
  *
  * Quads. A quad's texture covers its parameter square: texel (i, j) of res x res covers
  * u in [i/res, (i+1)/res), v in [j/res, (j+1)/res), row j after row j-1, where the point
@@ -108,7 +109,8 @@ extern "C" {
 /* The library's version (the tools' --version and the .gto provenance print the same
  * string), and the version of this header's API: 2 since the options' `size`, the
  * user-first allocator and the status-returning accessors; 3 since wrt_runtime_quad's
- * kind, part and (u, v) fields (it grew: rebuild callers) and the atlas helper. Compare the macros with
+ * kind, part and (u, v) fields (it grew: rebuild callers), the atlas helper, and the
+ * options' linear_display and progress. Compare the macros with
  * wrt_version() and wrt_api_version() at run time to catch a program built against
  * another header than the library it runs with. */
 #define WRT_VERSION_MAJOR 0
@@ -166,11 +168,12 @@ typedef struct wrt_allocator {
 
 typedef struct wrt_runtime_options {
     /* sizeof(wrt_runtime_options) as the caller's header has it, so that the struct can
-     * grow: fields beyond `size` bytes are taken as zero (their default). 0 means this
-     * header's layout (API version 2, the first with `size`): a library that adds
-     * fields reads only these from a caller that left size at 0. A size smaller than
-     * the version-2 layout, or larger than the library knows, is refused
-     * (WRT_ERR_INVALID_ARG, naming both sizes). */
+     * grow: fields beyond `size` bytes are taken as zero (their default). 0 means the
+     * layout of API version 2, the first with `size` (the fields up to no_avx): the
+     * fields added since (API 3: linear_display, progress, progress_user) are read only
+     * when `size` covers them, so set size = sizeof(wrt_runtime_options) to use them. A
+     * size smaller than the version-2 layout, or larger than the library knows, is
+     * refused (WRT_ERR_INVALID_ARG, naming both sizes). */
     size_t size;
     int threads;        /* worker threads of an update: 0 = all cores, 1 = the caller's thread only, at most 64 */
     int max_tex_res;    /* cap on a quad's texture side in texels, a power of two up to 1024: 0 = 64 */
@@ -200,6 +203,29 @@ typedef struct wrt_runtime_options {
     int gather_points;   /* 0: the default (a point per texel on a sharp lobe, else 16); 16 or 32:
                           * final-gather points a side on every glossy quad; others refused */
     int no_avx;          /* 1: the first-bounce rows summed without AVX (same sums; A/B timings) */
+    /* Superposition. 1: the linear display: the smooth reconstruction is one fixed linear
+     * operator per quad group (no slope limiter, the bake's finer averages kept or
+     * predicted by a choice made from the file alone, negative undershoots kept, not
+     * clamped), so the textures of two lights set together equal the sum of each
+     * light's alone to float rounding (measured: 1.2e-6 of the peak texel at most on the
+     * Cornell box, quality 5), and an engine may keep a texture per light and add them. A texel may then be
+     * slightly negative beside a shadow edge: clamp the sum, not the terms. 0 (the
+     * default): the display limits its slopes and keeps sharp details depending on the
+     * values, and clamps at 0: the textures do NOT superpose (two lights together differ
+     * from the sum of each alone by up to 3.4% of the peak texel on the Cornell box, and
+     * by far more of a single texel's own value). Either way wrt_runtime_quad_mean, wrt_runtime_quad_cells and
+     * wrt_runtime_quad_irradiance superpose (to float rounding), and so do the textures
+     * with haar_blocks. Image error against the path tracer: README, "Accuracy and cost". */
+    int linear_display;
+    /* Progress of the open (optional): wrt_runtime_open_file and _memory call
+     * progress(progress_user, fraction) on the calling thread with the fraction of the
+     * open done, never decreasing, at least every 100 ms or so of its work (the BRDF
+     * tables and the final gather's rays of a glossy file, in pieces of a few
+     * milliseconds) and last with exactly 1. Returning 0 cancels: the open frees
+     * everything it made and returns WRT_ERR_CANCELLED (*out NULL). A file without
+     * glossy quads opens in milliseconds and gets one call, with 1. NULL: no calls. */
+    int (*progress)(void *user, double fraction);
+    void *progress_user;
 } wrt_runtime_options;
 
 /* Fills the zero fields of *o with the defaults (o->size as above; a size 0 stays 0).
@@ -211,7 +237,8 @@ typedef struct wrt_runtime wrt_runtime;
 /* Opens and validates a .gto file (mapped read-only; every section's bounds and
  * checksums are checked). `opt` may be NULL (the defaults). On failure *out is NULL.
  * Errors: WRT_ERR_IO, WRT_ERR_NOT_OURS, WRT_ERR_CORRUPT, WRT_ERR_UNSUPPORTED,
- * WRT_ERR_INVALID_ARG (options, NULL path or out), WRT_ERR_NOMEM. */
+ * WRT_ERR_INVALID_ARG (options, NULL path or out), WRT_ERR_NOMEM, WRT_ERR_CANCELLED
+ * (options.progress returned 0: everything the open made is freed). */
 WRT_API wrt_status wrt_runtime_open_file(const char *path, const wrt_runtime_options *opt, wrt_runtime **out,
                                          wrt_error *err);
 /* The same for a file image the caller holds (mapped or read): `data` must be 8-byte

@@ -23,6 +23,10 @@
 #define GATHER_RG 64    /* outgoing-radiance grid a side on it (what a gather entry reads) */
 
 #define NDIR (GATHER_DIRS * GATHER_DIRS)
+/* A beta row's cost (NDIR x 9 BRDF values) in rays, for the creation's progress: with it
+ * the glossy asset's progress runs even in time (2 threads: 0.30 at 2.8 s, 0.65 at 6.9 s,
+ * 1 at 9.6 s). */
+#define BETA_ROW_RAYS 2000.0
 
 typedef struct ghit { int32_t quad; float u, v; } ghit;
 #define RG2 (GATHER_RG * GATHER_RG)
@@ -111,10 +115,11 @@ int wrt_gather_sharp(const wrt_material *m) {
 
 /* -------------------------------------------------------------- creation ---- */
 
-typedef struct trace_ctx { wrt_gather *g; int gq; } trace_ctx;
+typedef struct trace_ctx { wrt_gather *g; int gq; size_t first; } trace_ctx; /* first: a chunk's first point */
 
 static void trace_point(size_t item, void *user) {
     trace_ctx *tc = user;
+    item += tc->first;
     wrt_gather *g = tc->g;
     const wrt_gather_quad *q = &g->q[tc->gq];
     int n = g->gq[tc->gq].pts, pi = (int)item % n, pj = (int)item / n;
@@ -145,11 +150,12 @@ static void trace_point(size_t item, void *user) {
     }
 }
 
-typedef struct beta_ctx { wrt_gather *g; int b; } beta_ctx;
+typedef struct beta_ctx { wrt_gather *g; int b; size_t first; } beta_ctx; /* first: a chunk's first row */
 
 /* beta(a, w_o) = int_cell f_r cos dw = pi int_cell f_r da db (cosine-weighted map). */
 static void beta_row(size_t item, void *user) {
     beta_ctx *bc = user;
+    item += bc->first;
     const wrt_material *m = bc->g->beta_mat[bc->b];
     float *out = bc->g->beta[bc->b] + item * NDIR * 3;
     double od[3];
@@ -222,14 +228,38 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_re
             g->beta_mat[g->nbeta] = q[i].mat;
             g->beta[g->nbeta] = ga(g, (size_t)GATHER_BRES * GATHER_BRES * NDIR * 3 * sizeof(float));
             if (!g->beta[g->nbeta]) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
-            beta_ctx bc = {g, g->nbeta};
-            g->env.run(g->env.user, (size_t)GATHER_BRES * GATHER_BRES, beta_row, &bc);
             g->nbeta++;
         }
-        trace_ctx tc = {g, i};
-        g->env.run(g->env.user, (size_t)G->npt, trace_point, &tc);
-        for (size_t k = 0; k < (size_t)G->npt * NDIR; k++) {
-            int hq = G->hits[k].quad;
+    }
+    /* The work, in pieces of a few milliseconds between calls of env->progress: the
+     * BRDF tables' rows, then each glossy quad's points (the same results as in one loop:
+     * each item writes its own row or point, and the slots are numbered in quad order). */
+    size_t piece = env->piece > 0 ? (size_t)env->piece : 8;
+    double total = (double)g->nbeta * GATHER_BRES * GATHER_BRES * BETA_ROW_RAYS, done = 0;
+    for (int k = 0; k < g->nglossy; k++) total += (double)g->gq[g->glossy[k]].npt * NDIR;
+    for (int b = 0; b < g->nbeta; b++)
+        for (size_t r0 = 0; r0 < (size_t)GATHER_BRES * GATHER_BRES; r0 += piece) {
+            size_t n = (size_t)GATHER_BRES * GATHER_BRES - r0 < piece ? (size_t)GATHER_BRES * GATHER_BRES - r0 : piece;
+            beta_ctx bc = {g, b, r0};
+            g->env.run(g->env.user, n, beta_row, &bc);
+            done += (double)n * BETA_ROW_RAYS;
+            if (env->progress && !env->progress(env->user, done / total)) { wrt_gather_destroy(g); return WRT_ERR_CANCELLED; }
+        }
+    for (int k = 0; k < g->nglossy; k++) {
+        int i = g->glossy[k];
+        gquad *G = &g->gq[i];
+        for (size_t p0 = 0; p0 < (size_t)G->npt; p0 += piece) {
+            size_t n = (size_t)G->npt - p0 < piece ? (size_t)G->npt - p0 : piece;
+            trace_ctx tc = {g, i, p0};
+            g->env.run(g->env.user, n, trace_point, &tc);
+            done += (double)n * NDIR;
+            if (env->progress && !env->progress(env->user, k + 1 == g->nglossy && p0 + n == (size_t)G->npt ? 1.0 : done / total)) {
+                wrt_gather_destroy(g);
+                return WRT_ERR_CANCELLED;
+            }
+        }
+        for (size_t k2 = 0; k2 < (size_t)G->npt * NDIR; k2++) {
+            int hq = G->hits[k2].quad;
             if (hq < 0 || g->slot[hq] >= 0) continue;
             g->slot[hq] = g->nslot;
             g->slot_quad[g->nslot++] = hq;

@@ -49,6 +49,11 @@ typedef struct wrt_gather_env {
     void *(*alloc)(void *user, size_t bytes);
     void (*free)(void *user, void *p);
     void *user;
+    /* Optional (NULL: none): called by wrt_gather_create on the calling thread after each
+     * piece of its work (`piece` points' rays, or as many rows of a BRDF table), with the
+     * fraction of the creation done, rising to 1; returning 0 cancels it. */
+    int (*progress)(void *user, double fraction);
+    int piece;  /* points (or table rows) a piece: a few for each thread of `run`; 0: 8 */
 } wrt_gather_env;
 
 /* Direct irradiance (RGB, shadows included) at x with unit normal n, from the lights. */
@@ -57,7 +62,8 @@ typedef void (*wrt_gather_direct_fn)(void *user, wrt_v3 x, wrt_v3 n, double out[
 /* NULL *out and WRT_OK when no quad is glossy. out_res[q] (may be NULL): the side of the
  * texture wrt_gather_eye will write for quad q (a narrow lobe gets a point per texel).
  * points: 16 or 32 gives every glossy quad that many points a side (before/after
- * figures); 0 (or any other value): chosen per quad. Errors: WRT_ERR_NOMEM. */
+ * figures); 0 (or any other value): chosen per quad. Errors: WRT_ERR_NOMEM, WRT_ERR_CANCELLED
+ * (env->progress returned 0: everything freed). */
 wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_res, RTCScene scene, wrt_v3 origin,
                              double eps, int points, const wrt_gather_env *env, wrt_gather **out);
 void wrt_gather_destroy(wrt_gather *g); /* NULL: no-op */

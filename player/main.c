@@ -79,6 +79,8 @@ static void usage(FILE *f) {
         "Other:\n"
         "  --threads N           relighting threads (0 = all cores)\n"
         "  --max-tex-res N       cap on a quad's texture resolution (default 64)\n"
+        "  --linear-display      the linear smooth display: textures superpose across lights\n"
+        "                        (no slope limiter, no clamp; see wrt.h, linear_display)\n"
         "  --shadow-res N        shadow cube map face size (default 512)\n"
         "  --version, -h, --help\n"
         "\n"
@@ -97,6 +99,7 @@ static void usage(FILE *f) {
 typedef struct options {
     const char *file, *out, *script, *pattern, *stats, *screenshot;
     int headless, width, height, bench, frames, threads, max_tex_res, shadow_res, msaa, no_overlay, supersample;
+    int linear_display;
     wrt_render_mode mode;
     float exposure;
     double script_fps;
@@ -151,6 +154,7 @@ static int parse_args(int argc, char **argv, options *o) {
         else if (!strcmp(a, "--version")) { wrt_cli_version(T); exit(0); }
         else if (!strcmp(a, "--headless")) o->headless = 1;
         else if (!strcmp(a, "--no-overlay")) o->no_overlay = 1;
+        else if (!strcmp(a, "--linear-display")) o->linear_display = 1;
         else if (!strcmp(a, "--direct-only")) o->mode = WRT_MODE_DIRECT;
         else if (!strcmp(a, "--indirect-only")) o->mode = WRT_MODE_INDIRECT;
         else if (!strcmp(a, "-o") || !strcmp(a, "--out")) { NEED(); o->out = v; }
@@ -823,6 +827,21 @@ static int save_window(app *a, const char *path) {
     return s ? EXIT_OUTPUT : 0;
 }
 
+/* The open's progress (wrt_runtime_options.progress): a line on stderr, redrawn when the
+ * percentage changes, only when stderr is a terminal (a glossy file takes seconds: the
+ * final gather's rays). Never cancels. */
+typedef struct open_progress { int shown; } open_progress;
+static int show_progress(void *user, double fraction) {
+    open_progress *p = user;
+    int pct = (int)(fraction * 100);
+    if (pct == p->shown) return 1;
+    if (p->shown < 0 && (fraction < 0.05 || fraction >= 1)) return 1; /* quick stages: no line */
+    p->shown = pct;
+    fprintf(stderr, "\rwrt-play: opening: %3d%%%s", pct, fraction >= 1 ? "\n" : "");
+    fflush(stderr);
+    return 1;
+}
+
 /* F5: maps the file again (after a new bake) and rebuilds the relighting and the
  * renderer; the camera stays, the lights too if the file has as many. */
 static int win_reload(app *a, win_state *w) {
@@ -843,7 +862,10 @@ static int win_reload(app *a, win_state *w) {
     a->g = g2;
     a->gto_mem = mem2;
     a->gto_st = st2;
-    wrt_runtime_options ro = {.max_tex_res = a->o->max_tex_res, .threads = a->o->threads};
+    open_progress op = {-1};
+    wrt_runtime_options ro = {.size = sizeof ro, .max_tex_res = a->o->max_tex_res, .threads = a->o->threads,
+                              .linear_display = a->o->linear_display, .progress_user = &op};
+    if (isatty(2)) ro.progress = show_progress;
     wrt_error err;
     if (wrt_runtime_open_memory(a->g.map, a->g.size, &ro, &a->rl, &err)) {
         fprintf(stderr, "wrt-play: error: %s\n", err.message);
@@ -1234,7 +1256,10 @@ int main(int argc, char **argv) {
         o.width = a.plat->fb_width;
         o.height = a.plat->fb_height;
     }
-    wrt_runtime_options ro = {.max_tex_res = o.max_tex_res, .threads = o.threads};
+    open_progress op = {-1};
+    wrt_runtime_options ro = {.size = sizeof ro, .max_tex_res = o.max_tex_res, .threads = o.threads,
+                              .linear_display = o.linear_display, .progress_user = &op};
+    if (isatty(2)) ro.progress = show_progress;
     if ((s = wrt_runtime_open_memory(a.g.map, a.g.size, &ro, &a.rl, NULL))) {
         fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         rc = EXIT_RUNTIME;

@@ -34,6 +34,9 @@ typedef struct wrt_relight_options {
                           * 0 (the default): a point per texel on a sharp lobe, else 16 */
     int no_avx;          /* 1: K's rows in fours without AVX (the same sums to the bit;
                           * for the test that says so, and A/B timings) */
+    int linear_display;  /* 1: the smooth reconstruction is a fixed linear operator
+                          * (wrt_recon_params.linear: no limiter, no sharpness test, no
+                          * clamp), so textures superpose across lights; 0: the default */
     void *(*alloc)(void *user, size_t size); /* every block of the relighter (both or neither; */
     void (*free)(void *user, void *p);        /* NULL: malloc and free), the update's scratch */
     void *alloc_user;                         /* too (then from the worker threads: thread-safe) */
@@ -43,6 +46,12 @@ typedef struct wrt_relight_options {
     void *parallel_user;
     void (*log)(void *user, int level, const char *msg); /* NULL: wrt_log (common/) */
     void *log_user;
+    /* Progress of wrt_relight_create (include/wrt.h, wrt_runtime_options.progress): called
+     * on the creating thread with the fraction done, never decreasing, after every piece of
+     * a few milliseconds of the long stages (BRDF tables, the final gather's rays) and last
+     * with 1; returning 0 cancels the creation (WRT_ERR_CANCELLED, everything freed). */
+    int (*progress)(void *user, double fraction);
+    void *progress_user;
 } wrt_relight_options;
 
 typedef struct wrt_relight_timings { /* milliseconds of the last update */
@@ -52,7 +61,8 @@ typedef struct wrt_relight_timings { /* milliseconds of the last update */
     int lights_changed;
 } wrt_relight_timings;
 
-/* `g` must outlive the relighter (it points into the mapping). */
+/* `g` must outlive the relighter (it points into the mapping). Errors: WRT_ERR_INVALID_ARG,
+ * WRT_ERR_NOMEM, WRT_ERR_CANCELLED (options.progress returned 0). */
 wrt_status wrt_relight_create(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out);
 void wrt_relight_destroy(wrt_relight *r); /* NULL is a no-op */
 

@@ -47,6 +47,15 @@ static void hook_item(void *user, int item) {
     }
 }
 
+/* Creation's progress (relight_internal.h). */
+int relight_progress(wrt_relight *r, double fraction) {
+    if (!r->opt.progress) return 1;
+    if (!(fraction > r->prog_last)) fraction = r->prog_last; /* never falls (NaN too) */
+    if (fraction > 1) fraction = 1;
+    r->prog_last = fraction;
+    return r->opt.progress(r->opt.progress_user, fraction) != 0;
+}
+
 /* Runs fn over items 0..n-1 on up to nthreads threads (one if `work` is small; with a job
  * hook, every loop of 2 items or more goes to the hook); returns the number of threads
  * used. Results must not depend on which worker ran an item (callers write per item, or

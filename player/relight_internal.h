@@ -212,6 +212,7 @@ struct wrt_relight {
     int oom;                        /* an allocation failed */
     atomic_int upd_oom;             /* an allocation of the update's scratch failed */
     int redo_all;                   /* an update failed part way: the next one redoes every quad */
+    double prog_last;               /* creation: the last fraction given to options.progress */
     /* the parts */
     rl_proj proj;
     rl_mul mul;
@@ -298,6 +299,15 @@ static inline int light_visible(const wrt_relight *r, wrt_v3 x, wrt_v3 n, wrt_v3
 }
 
 /* ------------------------------------------------------ relight_base.c ---- */
+
+/* Creation's progress (options.progress): reports `fraction` (raised to the last one
+ * reported, so that it never falls); 0 if the caller cancels. No callback: 1. */
+int relight_progress(wrt_relight *r, double fraction);
+/* Where the creation's long stages lie in its progress: the BRDF tables from
+ * PROGRESS_TABLES to PROGRESS_GATHER, the final gather's tables and rays from there to 1
+ * (the shares of the glossy asset's open time, measured on 2 cores: README). */
+#define PROGRESS_TABLES 0.02
+#define PROGRESS_GATHER 0.33
 
 /* A parallel loop's item: fn(r, the worker whose scratch it may use, item, ctx). */
 typedef void (*job_fn)(wrt_relight *r, worker *w, int item, void *ctx);

@@ -27,8 +27,9 @@ struct wrt_runtime {
     wrt_relight_timings tm;
 };
 
-/* The options' layout of API version 2, the first with `size`: what size 0 means. */
-#define OPTIONS_V2_SIZE sizeof(wrt_runtime_options)
+/* The options' layout of API version 2, the first with `size`: what size 0 means (the
+ * fields of API 3 on need a size that covers them). */
+#define OPTIONS_V2_SIZE offsetof(wrt_runtime_options, linear_display)
 
 int wrt_version(void) { return WRT_VERSION; }
 const char *wrt_version_string(void) { return WRT_VERSION_STRING; }
@@ -113,7 +114,9 @@ static wrt_status open_common(const void *data, size_t size, const char *path, c
                               .haar_blocks = o.haar_blocks, .parallel_for = o.parallel_for,
                               .parallel_user = o.parallel_user, .log = o.log, .log_user = o.log_user,
                               .no_gather = o.no_final_gather, .no_light_splat = o.no_light_splat,
-                              .gather_points = o.gather_points, .no_avx = o.no_avx};
+                              .gather_points = o.gather_points, .no_avx = o.no_avx,
+                              .linear_display = o.linear_display, .progress = o.progress,
+                              .progress_user = o.progress_user};
     if ((s = wrt_relight_create(&rt->g, &ro, &rt->rl))) {
         wrt_gto_close(&rt->g);
         rt->al.free(rt->al.user, rt);

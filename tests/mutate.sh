@@ -241,6 +241,18 @@ mutation triangle-centroid: a triangle's three quads meet 3% off its centroid (t
   find wrt_v3 v[3] = {a, b, c}, g = v3_scale(v3_add(v3_add(a, b), c), 1.0 / 3.0);
   repl wrt_v3 v[3] = {a, b, c}, g = v3_scale(v3_add(v3_add(a, b), c), 1.0 / 3.09);
   run test_triangles test_triangle_form_factors test_icosphere_furnace
+
+mutation linear-display-limited: the linear display keeps the slope limiter (data-dependent again)
+  file common/reconstruct.c
+  find limit = 0;
+  repl limit = 1;
+  run test_reconstruct test_linear_superposes
+
+mutation open-cancel-ignored: the open goes on when the progress callback returns 0
+  file player/relight_base.c
+  find return r->opt.progress(r->opt.progress_user, fraction) != 0;
+  repl (void)r->opt.progress(r->opt.progress_user, fraction); return 1;
+  run tests/runtime.sh
 EOF
 
 # ------------------------------------------------------------------ machinery ----
@@ -332,7 +344,8 @@ fi
 targets_for() {
     local prog=$1
     case "$prog" in
-    tests/*.sh) echo "$B/wrt-bake $B/wrt-play $B/wrt-compare $B/wrt-scenegen $B/tests/test_image $B/tests/test_play" ;;
+    tests/*.sh) echo "$B/wrt-bake $B/wrt-play $B/wrt-compare $B/wrt-scenegen $B/tests/test_image $B/tests/test_play" \
+                     "$B/tests/runtime_api $B/tests/runtime_core $B/tests/runtime_instances" ;; # runtime.sh's too
     *) echo "$B/tests/$prog $B/wrt-bake" ;;
     esac
 }

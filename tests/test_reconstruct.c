@@ -16,7 +16,7 @@
 #include <unistd.h>
 
 /* Every stored node's averages kept, slopes limited (the module's parts one at a time). */
-static const wrt_recon_params all = {99, 0, 1};
+static const wrt_recon_params all = {99, 0, 1, 0};
 
 static uint64_t rng = 88172645463325252ull;
 static double rnd(void) { /* xorshift, uniform in [0, 1) */
@@ -227,6 +227,66 @@ static void test_continuous_across_edges(void) {
     wrt_recon_destroy(rc);
 }
 
+/* The linear display (wrt_recon_params.linear): on four coplanar quads with blocky light
+ * of dark and bright cells (where the default's limiter, sharpness test and clamp act),
+ * the output of A + B is the output of A plus that of B to float rounding, each quad's
+ * mean is kept, and the default's output of A + B is not the sum (so the check can
+ * fail). */
+static void test_linear_superposes(void) {
+    double d[4][4][3] = {{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}},
+                         {{1, 0, 0}, {2, 0, 0}, {2, 1, 0}, {1, 1, 0}},
+                         {{1, 2, 0}, {0, 2, 0}, {0, 1, 0}, {1, 1, 0}},
+                         {{1, 1, 0}, {2, 1, 0}, {2, 2, 0}, {1, 2, 0}}};
+    uint32_t m[4] = {7, 7, 7, 7};
+    wrt_recon *rc = wrt_recon_create(4, (const double (*)[4][3])d, m);
+    int L = 4, Lo = 5, n = 1 << L, no = 1 << Lo, nc = 3;
+    float *in[3][4], *out[3][4];
+    uint8_t *k[4];
+    for (int q = 0; q < 4; q++) {
+        for (int c = 0; c < 3; c++) {
+            in[c][q] = malloc((size_t)n * n * nc * sizeof(float));
+            out[c][q] = malloc((size_t)no * no * nc * sizeof(float));
+        }
+        for (int i = 0; i < n * n * nc; i++) {
+            in[0][q][i] = rnd() < 0.3 ? 0.0f : (float)(rnd() * 10);    /* A: dark and bright cells */
+            in[1][q][i] = rnd() < 0.5 ? (float)(0.1 * rnd()) : 5.0f;   /* B: a shadow-like pattern */
+            in[2][q][i] = in[0][q][i] + in[1][q][i];
+        }
+        k[q] = random_known(L, 2, 0.5);
+    }
+    const wrt_recon_params linear = {WRT_RECON_KEEP, WRT_RECON_SHARP, 1, 1}, dflt = {WRT_RECON_KEEP, WRT_RECON_SHARP, 1, 0};
+    double dev[2], worst_mean = 0;
+    for (int mode = 0; mode < 2; mode++) {
+        for (int c = 0; c < 3; c++)
+            CHECK(wrt_recon_run(rc, 0, L, Lo, nc, (const float *const *)in[c], (const uint8_t *const *)k, out[c],
+                                mode ? &dflt : &linear) == 0, "run");
+        double peak = 0, worst = 0;
+        for (int q = 0; q < 4; q++)
+            for (int i = 0; i < no * no * nc; i++) {
+                peak = fmax(peak, fabs(out[2][q][i]));
+                worst = fmax(worst, fabs((double)out[2][q][i] - out[0][q][i] - out[1][q][i]));
+            }
+        dev[mode] = worst / peak;
+        if (mode == 0)
+            for (int q = 0; q < 4; q++)
+                for (int ch = 0; ch < nc; ch++) {
+                    double si = 0, so = 0;
+                    for (int i = 0; i < n * n; i++) si += in[2][q][i * nc + ch] / (n * n);
+                    for (int i = 0; i < no * no; i++) so += out[2][q][i * nc + ch] / (no * no);
+                    worst_mean = fmax(worst_mean, fabs(so - si) / si);
+                }
+    }
+    printf("  A + B against A and B apart: linear %.3g of the peak, default %.3g\n", dev[0], dev[1]);
+    CHECK(dev[0] < 1e-6, "linear display: A + B differs from the sum by %g of the peak", dev[0]);
+    CHECK(dev[1] > 1e-3, "the default display superposes (%g): the check cannot fail", dev[1]);
+    CHECK(worst_mean < 1e-5, "linear display: a quad's mean moved by %g of itself", worst_mean);
+    for (int q = 0; q < 4; q++) {
+        for (int c = 0; c < 3; c++) { free(in[c][q]); free(out[c][q]); }
+        free(k[q]);
+    }
+    wrt_recon_destroy(rc);
+}
+
 /* No smoothing across a crease, between materials, back to back, or across a shared
  * edge a wall stands on: a dark quad stays exactly dark beside a bright one, and the
  * same pair with no wall does share light (so the check can fail). */
@@ -422,6 +482,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_known_averages_kept);
     TEST_RUN(test_linear_reproduced);
     TEST_RUN(test_continuous_across_edges);
+    TEST_RUN(test_linear_superposes);
     TEST_RUN(test_no_light_across);
     TEST_RUN(test_two_rooms_dark);
     TEST_RUN(test_box_no_seams);

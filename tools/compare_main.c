@@ -58,6 +58,8 @@ static void usage(FILE *f) {
             "  --no-light-splat    the light's direction truncated to its angular cell, not\n"
             "                      spread over one cell centred on it (a bake without K)\n"
             "  --gather-points N   16 or 32 gather points a side on every glossy quad\n"
+            "  --linear-display    the linear smooth display (textures superpose across lights;\n"
+            "                      no slope limiter, no clamp: libwrt's linear_display)\n"
             "  --version, -h, --help\n"
             "\n");
     wrt_cli_exit_table(f);
@@ -313,6 +315,7 @@ static int cmp_parse(int argc, char **argv, const char **gtos, cmp_args *A) {
         else if (!strcmp(a, "--bench-only")) { A->bench_only = 1; takes = 0; }
         else if (!strcmp(a, "--no-final-gather")) { o->no_final_gather = 1; takes = 0; }
         else if (!strcmp(a, "--no-light-splat")) { o->no_light_splat = 1; takes = 0; }
+        else if (!strcmp(a, "--linear-display")) { o->linear_display = 1; takes = 0; }
         else if (a[0] == '-' && a[1] && !takes_value(a)) {
             fprintf(stderr, "wrt-compare: error: unknown option %s (see --help)\n", a);
             return WRT_EXIT_USAGE;

@@ -393,12 +393,13 @@ static wrt_status set_light(wrt_runtime *r, const wrt_light *l) {
 
 /* The runtime on the bake's bytes (already mapped and checked by the caller). */
 static wrt_status open_runtime(const wrt_gto *g, const wrt_compare_options *o, int haar_blocks, wrt_runtime **r) {
-    wrt_runtime_options ro = {0};
+    wrt_runtime_options ro = {.size = sizeof ro};
     ro.threads = o->threads;
     ro.haar_blocks = haar_blocks;
     ro.no_final_gather = o->no_final_gather;
     ro.no_light_splat = o->no_light_splat;
     ro.gather_points = o->gather_points;
+    ro.linear_display = o->linear_display;
     return wrt_runtime_open_memory(g->map, g->size, &ro, r, NULL);
 }
 

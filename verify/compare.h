@@ -43,6 +43,7 @@ typedef struct wrt_compare_options {
     uint64_t seed;      /* 0 = 1 */
     /* the glossy display's before/after switches, passed to the runtime (include/wrt.h) */
     int no_final_gather, no_light_splat, gather_points;
+    int linear_display; /* the runtime's linear display (wrt.h) instead of the default smooth one */
 } wrt_compare_options;
 
 /* Fills the zero fields of *o with the defaults above. */
