@@ -497,6 +497,8 @@ static void test_atlas(const char *path) {
           wrt_runtime_atlas_layout(NULL, 0, r, NULL, NULL, &err) == WRT_ERR_INVALID_ARG, "NULL rects, NULL handle refused");
     free(rgb); free(cover); free(r); free(r2);
     wrt_runtime_close(rt);
+}
+
 /* ---- superposition: quad textures of lights A and B set together against the sum of
  * each alone. Returns the largest texel deviation over the pair's peak texel (all quads,
  * RGB); -1 on failure. The eye is set, so glossy quads are drawn too. */
