@@ -1,5 +1,5 @@
-/* dto.c: the Direct Transport Operator T by hierarchical refinement (paper 4.3, primer
- * sections 3-4), for one ordered pair of quads at a time.
+/* dto.c: the Direct Transport Operator T by hierarchical refinement (paper 4.3;
+ * docs/algorithm.md), for one ordered pair of quads at a time.
  *
  * A link couples a receiver cell (spatial quadtree node of quad R) with a sender cell
  * (node of quad S). The oracle samples the kernel on the link's support and refines

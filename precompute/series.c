@@ -1,4 +1,4 @@
-/* series.c: the Global Transport Operator by a Neumann series (paper 4.4, primer 5).
+/* series.c: the Global Transport Operator by a Neumann series (paper 4.4; docs/algorithm.md).
  * S = T + T^2 + ... (= G - I, the indirect part the player needs), each term the previous
  * one times T, with non-linear compression (entries below eps_compress dropped) after
  * every product. The series stops when a term is empty after compression, when its norm
