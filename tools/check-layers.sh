@@ -9,7 +9,7 @@
 #                     precompute/ and the runtime do not see it: only programs (wrt-bake's main.c
 #                     for --max-error, wrt-ref, wrt-compare) do
 #   4 cli/            the programs' command-line helpers (options, exit codes, progress)
-#   5 programs:       */main.c, tools/*_main.c, tools/scenegen.c, tools/fuzz_*.c, player/render.*,
+#   5 programs:       */main.c, tools/*_main.c, tools/scenegen*.[ch], tools/fuzz_*.c, player/render.*,
 #                     player/platform*, examples/ (each program sees only its own files below 5)
 # A file may include files of lower layers, or of its own part; precompute and the runtime
 # do not see each other; above layer 3 the runtime is seen only through include/wrt.h.
@@ -27,6 +27,7 @@ def part(p):
     if p.startswith('precompute/'): return (5, 'wrt-bake')
     if p.startswith('player/'): return (5, 'wrt-play')
     if p.startswith('examples/'): return (5, 'example')
+    if re.match(r'tools/scenegen(_[a-z]+)?\.[ch]$', p): return (5, 'tool:scenegen')
     if p.startswith('tools/'): return (5, 'tool:' + os.path.basename(p))
     return None
 bad = 0
