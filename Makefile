@@ -42,7 +42,9 @@ LIBS_GL := -lglfw -lEGL -lGL
 # Sources: every .c/.cpp in a part's folder, except its programs' main files.
 CORE_SRC := $(wildcard common/*.c) $(wildcard formats/*.c) $(wildcard formats/*.cpp) $(wildcard cli/*.c)
 BAKE_SRC := $(filter-out precompute/main.c,$(wildcard precompute/*.c))
-PLAY_SRC := $(filter-out player/main.c,$(wildcard player/*.c) $(wildcard player/*.cpp))
+# wrt-play's own files (its main, its command line, its scripted runs) are the program, not the display part.
+PLAY_MAIN := player/main.c player/options.c player/headless.c
+PLAY_SRC := $(filter-out $(PLAY_MAIN),$(wildcard player/*.c) $(wildcard player/*.cpp))
 # The verification (the path tracer and the comparison): above the bake and the runtime,
 # used only by programs (wrt-ref, wrt-compare, and wrt-bake's --max-error in its main.c).
 VERIFY_SRC := $(wildcard verify/*.c)
@@ -157,7 +159,7 @@ $(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(VERIFY_OBJ) $(RUN
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
 
-$(BUILD)/wrt-play: $(call obj,player/main.c) $(PLAY_OBJ) $(CORE_OBJ)
+$(BUILD)/wrt-play: $(call obj,$(PLAY_MAIN)) $(PLAY_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
 
@@ -180,7 +182,7 @@ PART_formats := $(wildcard formats/*.c) $(wildcard formats/*.cpp)
 PART_cli := $(wildcard cli/*.c)
 PART_bake := $(BAKE_SRC)
 PART_runtime := $(RUNTIME_SRC)
-PART_display := $(filter-out player/main.c $(PART_runtime),$(wildcard player/*.c))
+PART_display := $(filter-out $(PLAY_MAIN) $(PART_runtime),$(wildcard player/*.c))
 PART_verify := $(VERIFY_SRC)
 ALL_PARTS := display cli verify bake runtime formats common
 TEST_PARTS_test_brdf := common

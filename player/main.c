@@ -4,7 +4,9 @@
  * radiance synthesized into per-quad textures) and shows it with player/render.c
  * (direct light with shadow maps + the indirect textures), in a GLFW window or headless
  * (EGL) into image files, a scripted sequence of frames, per-quad statistics or a
- * benchmark. Command line and exit codes: see usage() below. The only file that exits.
+ * benchmark. Command line and exit codes: see usage() in options.c, which parses them;
+ * the scripted frames and the benchmark are run by headless.c. The only file that exits
+ * (with options.c, for --help and --version).
  * Depends on formats/gto.h, formats/image.h, include/wrt.h (the runtime), player/render.h,
  * player/platform.h. */
 #include <ctype.h>
@@ -27,232 +29,12 @@
 #include "platform.h"
 #include "../include/wrt.h"
 #include "render.h"
-
-/* The exit codes of every tool (cli/cli.h). */
-enum {
-    EXIT_USAGE = WRT_EXIT_USAGE,      /* bad command line, a light the file does not have */
-    EXIT_INPUT = WRT_EXIT_INPUT,      /* the .gto (or script) cannot be read: missing, truncated, corrupt, foreign, newer */
-    EXIT_OUTPUT = WRT_EXIT_OUTPUT,    /* an output file cannot be written */
-    EXIT_GL = WRT_EXIT_GL,            /* no OpenGL 4.5 context, no window, shader or framebuffer failure */
-    EXIT_RUNTIME = WRT_EXIT_INTERNAL  /* the relighting core failed */
-};
-
-static void usage(FILE *f) {
-    fprintf(f,
-        "usage: wrt-play FILE.gto [options]\n"
-        "Relights a scene baked by wrt-bake (Wavelet Radiance Transport) in real time, in a\n"
-        "window or headless into pictures. In the window (H shows the overlay, F1 these keys in it):\n"
-        "  mouse (left button) look       W A S D move, Q E down/up, Shift faster\n"
-        "  Tab / 1-9 select a light       arrows or I J K L move it, U O lower/raise it (a sun: turn it)\n"
-        "  Space switch it on/off         + - brighter/dimmer, C cycle its colour\n"
-        "  [ ] exposure -/+ 1/2 stop      T both/direct/indirect, R reset view and lights\n"
-        "  F5 reload the .gto             F12 screenshot (wrt-play-N.png), P print as options\n"
-        "  Esc quit\n"
-        "\n"
-        "Output:\n"
-        "  --headless            no window (EGL surfaceless); needs -o, --script, --stats-json or --bench\n"
-        "  -o, --out IMG         write the picture: .exr = linear radiance (float RGB),\n"
-        "                        anything else (.png) = tone mapped 8-bit sRGB\n"
-        "  --width W --height H  picture or window size (default 640 x 480)\n"
-        "  --exposure EV         exposure in stops (default 0): x 2^EV, then Reinhard x/(1+x),\n"
-        "                        then sRGB; the same curve as wrt-ref's and wrt-compare's PNGs\n"
-        "  --msaa N              samples per pixel of the rasterizer: 1, 2, 4 or 8 (default 4)\n"
-        "  --supersample N       headless pictures: render N x N times the pixels and average\n"
-        "                        them (smooths shadow edges too; N = 1..4, default 1)\n"
-        "  --direct-only | --indirect-only   show one part (default: both)\n"
-        "  --stats-json FILE     per quad: area, centroid, normal, mesh name, mean direct and\n"
-        "                        indirect incident irradiance (RGB) for the current lights\n"
-        "  --bench N             move light 1 along a fixed circle (turn a sun 2 degrees a frame)\n"
-        "                        for N frames; print one JSON object with the median\n"
-        "                        milliseconds of each stage and the fps\n"
-        "  --frames N            window: quit after N frames; --screenshot IMG saves the last one\n"
-        "  --no-overlay          window: start with the on-screen overlay hidden\n"
-        "  --script FILE --out-pattern PATTERN   render one frame per keyframe (see below) to\n"
-        "                        PATTERN with one %%d or %%0Nd, e.g. frame_%%04d.png\n"
-        "  --script-fps F        instead, sample the keyframes (linear interpolation in t) at F frames/s\n"
-        "\n"
-        "Camera:\n"
-        "  --camera-pos X,Y,Z --camera-target X,Y,Z --fov DEG (vertical)\n"
-        "Lights (default: the file's):\n");
-    wrt_cli_lights_help(f);
-    fprintf(f,
-        "Other:\n"
-        "  --threads N           relighting threads (0 = all cores)\n"
-        "  --max-tex-res N       cap on a quad's texture resolution (default 64)\n"
-        "  --linear-display      the linear smooth display: textures superpose across lights\n"
-        "                        (no slope limiter, no clamp; see wrt.h, linear_display)\n"
-        "  --shadow-res N        shadow cube map face size (default 512)\n"
-        "  --version, -h, --help\n"
-        "\n"
-        "Script: one keyframe per line, '#' starts a comment. A line is a time t in seconds\n"
-        "followed by any of the keys below with their values (they change light 1 or the one\n"
-        "--light names); a key left out keeps its previous value:\n"
-        "  t light_pos X Y Z light_dir X Y Z light_intensity I camera_pos X Y Z camera_target X Y Z\n"
-        "e.g.  0.0 light_pos 0 1.9 0 camera_pos 0 1 3.5 camera_target 0 1 0\n"
-        "      1.0 light_pos 0.5 1.9 0\n"
-        "\n");
-    wrt_cli_exit_table(f);
-}
-
-/* ---------------------------------------------------------------- options */
-
-typedef struct options {
-    const char *file, *out, *script, *pattern, *stats, *screenshot;
-    int headless, width, height, bench, frames, threads, max_tex_res, shadow_res, msaa, no_overlay, supersample;
-    int linear_display;
-    wrt_render_mode mode;
-    float exposure;
-    double script_fps;
-    int has_cam_pos, has_cam_target, has_fov;
-    double cam_pos[3], cam_target[3], fov;
-    wrt_cli_lights lights;
-} options;
-
-static int parse_num(const char *s, double lo, double hi, double *out) {
-    char *end;
-    errno = 0;
-    double v = strtod(s, &end);
-    if (end == s || *end || errno || !(v >= lo && v <= hi)) return 0;
-    *out = v;
-    return 1;
-}
+#include "options.h"
+#include "play.h"
 
 static const char *T = "wrt-play";
 
-static int parse_args(int argc, char **argv, options *o) {
-    memset(o, 0, sizeof *o);
-    o->width = 640;
-    o->height = 480;
-    o->max_tex_res = 64;
-    o->msaa = 4;
-    o->supersample = 1;
-    wrt_cli_lights_init(&o->lights);
-    const char *seen[64];
-    int nseen = 0;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        long n;
-        double x;
-        int lr = wrt_cli_lights_option(T, &o->lights, argc, argv, &i);
-        if (lr < 0) return 0;
-        if (lr > 0) continue;
-        /* An option given twice is refused (`-o a -o b` would silently take the last), as in wrt-bake. */
-        if (a[0] == '-' && a[1]) {
-            const char *canon = !strcmp(a, "-o") ? "--out" : !strcmp(a, "-h") ? "--help" : a;
-            for (int k = 0; k < nseen; k++)
-                if (!strcmp(seen[k], canon)) {
-                    fprintf(stderr, "wrt-play: error: %s given twice\n", a);
-                    return 0;
-                }
-            if (nseen < (int)(sizeof seen / sizeof *seen)) seen[nseen++] = canon;
-        }
-#define NEED() do { if (!v) { fprintf(stderr, "wrt-play: error: %s needs a value\n", a); return 0; } i++; } while (0)
-#define INT(lo, hi, dst) do { if (!wrt_cli_int(T, a, v, lo, hi, &n)) return 0; i++; dst = (int)n; } while (0)
-#define NUM(lo, hi, dst) do { if (!wrt_cli_num(T, a, v, lo, hi, &x)) return 0; i++; dst = x; } while (0)
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) { usage(stdout); exit(0); }
-        else if (!strcmp(a, "--version")) { wrt_cli_version(T); exit(0); }
-        else if (!strcmp(a, "--headless")) o->headless = 1;
-        else if (!strcmp(a, "--no-overlay")) o->no_overlay = 1;
-        else if (!strcmp(a, "--linear-display")) o->linear_display = 1;
-        else if (!strcmp(a, "--direct-only")) o->mode = WRT_MODE_DIRECT;
-        else if (!strcmp(a, "--indirect-only")) o->mode = WRT_MODE_INDIRECT;
-        else if (!strcmp(a, "-o") || !strcmp(a, "--out")) { NEED(); o->out = v; }
-        else if (!strcmp(a, "--script")) { NEED(); o->script = v; }
-        else if (!strcmp(a, "--out-pattern")) { NEED(); o->pattern = v; }
-        else if (!strcmp(a, "--stats-json")) { NEED(); o->stats = v; }
-        else if (!strcmp(a, "--screenshot")) { NEED(); o->screenshot = v; }
-        else if (!strcmp(a, "--width")) INT(1, 16384, o->width);
-        else if (!strcmp(a, "--height")) INT(1, 16384, o->height);
-        else if (!strcmp(a, "--bench")) INT(1, 1000000, o->bench);
-        else if (!strcmp(a, "--frames")) INT(1, 1000000000, o->frames);
-        else if (!strcmp(a, "--threads")) INT(0, 1024, o->threads);
-        else if (!strcmp(a, "--max-tex-res")) INT(1, 1024, o->max_tex_res);
-        else if (!strcmp(a, "--shadow-res")) INT(16, 8192, o->shadow_res);
-        else if (!strcmp(a, "--msaa")) {
-            INT(1, 8, o->msaa);
-            if (o->msaa & (o->msaa - 1)) { fprintf(stderr, "wrt-play: error: bad value for --msaa: '%s' (1, 2, 4 or 8)\n", v); return 0; }
-        }
-        else if (!strcmp(a, "--supersample")) INT(1, 4, o->supersample);
-        else if (!strcmp(a, "--exposure")) { double e; NUM(-64, 64, e); o->exposure = (float)e; }
-        else if (!strcmp(a, "--script-fps")) NUM(1e-3, 1e4, o->script_fps);
-        else if (!strcmp(a, "--fov")) { NUM(1, 179, o->fov); o->has_fov = 1; }
-        else if (!strcmp(a, "--camera-pos")) { if (!wrt_cli_vec3(T, a, v, o->cam_pos)) return 0; i++; o->has_cam_pos = 1; }
-        else if (!strcmp(a, "--camera-target")) { if (!wrt_cli_vec3(T, a, v, o->cam_target)) return 0; i++; o->has_cam_target = 1; }
-        else if (a[0] == '-' && a[1]) {
-            fprintf(stderr, "wrt-play: error: unknown option %s (see --help)\n", a);
-            return 0;
-        } else if (!o->file) o->file = a;
-        else {
-            fprintf(stderr, "wrt-play: error: more than one input file ('%s', '%s')\n", o->file, a);
-            return 0;
-        }
-#undef NEED
-#undef INT
-#undef NUM
-    }
-    if (!o->file) { fprintf(stderr, "wrt-play: error: no input file (see --help)\n"); return 0; }
-    if (o->has_cam_pos && o->has_cam_target && o->cam_pos[0] == o->cam_target[0] &&
-        o->cam_pos[1] == o->cam_target[1] && o->cam_pos[2] == o->cam_target[2]) {
-        fprintf(stderr, "wrt-play: error: --camera-pos equals --camera-target: the camera has no view direction\n");
-        return 0;
-    }
-    if (o->script && !o->pattern) { fprintf(stderr, "wrt-play: error: --script needs --out-pattern\n"); return 0; }
-    if (o->headless && !o->out && !o->script && !o->stats && !o->bench) {
-        fprintf(stderr, "wrt-play: error: --headless needs -o/--out, --script, --stats-json or --bench\n");
-        return 0;
-    }
-    return 1;
-}
-
-/* Expands a pattern with one %d / %0Nd (and %% for a percent sign); 0 if malformed. */
-static int format_frame(const char *pat, int frame, char *out, size_t n) {
-    size_t o = 0;
-    int used = 0;
-    for (const char *p = pat; *p; p++) {
-        char piece[32];
-        if (*p != '%') { piece[0] = *p; piece[1] = 0; }
-        else if (p[1] == '%') { strcpy(piece, "%"); p++; }
-        else {
-            p++;
-            int zero = 0, width = 0;
-            if (*p == '0') { zero = 1; p++; }
-            while (isdigit((unsigned char)*p) && width < 100) width = width * 10 + (*p++ - '0');
-            if (*p != 'd' || used || width > 20) return 0;
-            used = 1;
-            snprintf(piece, sizeof piece, zero ? "%0*d" : "%*d", width, frame);
-        }
-        size_t l = strlen(piece);
-        if (o + l + 1 > n) return 0;
-        memcpy(out + o, piece, l);
-        o += l;
-    }
-    out[o] = 0;
-    return used;
-}
-
 /* ---------------------------------------------------------------- the application */
-
-typedef struct stage_ms {
-    double projection, multiply, brdf, synthesis, upload, draw, frame;
-    int relit; /* the frame relit (a light or the eye moved) */
-} stage_ms;
-
-typedef struct app {
-    options *o;
-    wrt_gto g;
-    void *gto_mem;       /* the file's bytes, private (read_gto) */
-    struct stat gto_st;  /* the file as it was read: a change is noticed in the window */
-    wrt_platform *plat;
-    wrt_runtime *rl;
-    wrt_render *rd;
-    wrt_light *lights;
-    int nlights;
-    float scales[WRT_RENDER_MAX_LIGHTS];
-    wrt_view view;
-    wrt_render_mode mode;
-    int relit_once;
-} app;
 
 /* Reads the .gto into private memory and validates it there (wrt_gto_open_memory). It is
  * not mapped: a file replaced or truncated while the player runs (a new bake copied over
@@ -314,7 +96,7 @@ static void quad_centroid(const wrt_gto_quad *q, double c[3]) {
 }
 
 /* One frame: relight what changed, upload the textures that changed, draw. */
-static int run_frame(app *a, stage_ms *t) {
+int run_frame(app *a, stage_ms *t) {
     memset(t, 0, sizeof *t);
     double t0 = wrt_now();
     int n = a->nlights < WRT_RENDER_MAX_LIGHTS ? a->nlights : WRT_RENDER_MAX_LIGHTS;
@@ -373,7 +155,7 @@ static int run_frame(app *a, stage_ms *t) {
     return 0;
 }
 
-static int save_picture(app *a, const char *path) {
+int save_picture(app *a, const char *path) {
     int w = a->o->width, h = a->o->height, ss = a->o->headless ? a->o->supersample : 1;
     float *lin = wrt_xmalloc((size_t)w * h * 3 * sizeof(float));
     if (ss > 1) {
@@ -476,13 +258,13 @@ static int write_stats(app *a, const char *path) {
 
 /* ---------------------------------------------------------------- lights and view */
 
-static void scene_up(const app *a, wrt_v3 *up) {
+void scene_up(const app *a, wrt_v3 *up) {
     *up = v3_norm(v3(a->view.up[0], a->view.up[1], a->view.up[2]));
     if (!(v3_len(*up) > 0.5)) *up = v3(0, 1, 0);
 }
 
 /* The light the command line's --light names (0-based), which scripts and --bench move. */
-static int chosen_light(const app *a) { return a->o->lights.which ? a->o->lights.which - 1 : 0; }
+int chosen_light(const app *a) { return a->o->lights.which ? a->o->lights.which - 1 : 0; }
 
 static int setup_lights(app *a) {
     const options *o = a->o;
@@ -537,220 +319,6 @@ static int setup_view(app *a) {
         return 0;
     }
     return 1;
-}
-
-/* ---------------------------------------------------------------- script */
-
-typedef struct keyframe {
-    double t;
-    double lpos[3], ldir[3], lint, cpos[3], ctarget[3];
-} keyframe;
-
-static int read_script(app *a, const char *path, keyframe **out, int *count) {
-    FILE *f = fopen(path, "r");
-    if (!f) {
-        fprintf(stderr, "wrt-play: error: cannot read the script %s: %s\n", path, strerror(errno));
-        return EXIT_INPUT;
-    }
-    keyframe cur;
-    memset(&cur, 0, sizeof cur);
-    for (int k = 0; k < 3; k++) {
-        cur.lpos[k] = (&a->lights[chosen_light(a)].pos.x)[k];
-        cur.ldir[k] = (&a->lights[chosen_light(a)].dir.x)[k];
-        cur.cpos[k] = a->view.eye[k];
-        cur.ctarget[k] = a->view.target[k];
-    }
-    cur.lint = a->lights[chosen_light(a)].intensity;
-    keyframe *kf = NULL;
-    int n = 0, cap = 0, lineno = 0;
-    char line[4096];
-    while (fgets(line, sizeof line, f)) {
-        lineno++;
-        char *hash = strchr(line, '#');
-        if (hash) *hash = 0;
-        char *save = NULL, *tok = strtok_r(line, " \t\r\n", &save);
-        if (!tok) continue;
-        double t;
-        if (!parse_num(tok, -1e12, 1e12, &t)) goto bad_line;
-        if (n > 0 && t < kf[n - 1].t) {
-            fprintf(stderr, "wrt-play: error: %s:%d: times must not decrease\n", path, lineno);
-            goto fail;
-        }
-        cur.t = t;
-        while ((tok = strtok_r(NULL, " \t\r\n", &save))) {
-            const char *key = tok;
-            double *dst = NULL;
-            int nv = 3;
-            if (!strcmp(tok, "light_pos")) dst = cur.lpos;
-            else if (!strcmp(tok, "light_dir")) dst = cur.ldir;
-            else if (!strcmp(tok, "camera_pos")) dst = cur.cpos;
-            else if (!strcmp(tok, "camera_target")) dst = cur.ctarget;
-            else if (!strcmp(tok, "light_intensity")) { dst = &cur.lint; nv = 1; }
-            else {
-                fprintf(stderr, "wrt-play: error: %s:%d: unknown key '%s'\n", path, lineno, tok);
-                goto fail;
-            }
-            for (int k = 0; k < nv; k++) {
-                tok = strtok_r(NULL, " \t\r\n", &save);
-                /* within what the computation can carry (common/limits.h) */
-                if (!tok || (nv == 1 ? !parse_num(tok, 0, WRT_MAX_LIGHT_INTENSITY, &dst[k])
-                                     : !parse_num(tok, -WRT_MAX_COORD, WRT_MAX_COORD, &dst[k]))) {
-                    fprintf(stderr, "wrt-play: error: %s:%d: %s needs %s\n", path, lineno, key,
-                            nv == 1 ? "an intensity in [0, 1e12] cd" : "three numbers, each within +-1e9");
-                    goto fail;
-                }
-            }
-        }
-        if (n == cap) {
-            cap = cap ? 2 * cap : 16;
-            kf = wrt_xrealloc(kf, (size_t)cap * sizeof *kf);
-        }
-        kf[n++] = cur;
-        continue;
-    bad_line:
-        fprintf(stderr, "wrt-play: error: %s:%d: expected 't key values...' (see --help)\n", path, lineno);
-        goto fail;
-    }
-    fclose(f);
-    if (n == 0) {
-        fprintf(stderr, "wrt-play: error: %s: no keyframes\n", path);
-        free(kf);
-        return EXIT_INPUT;
-    }
-    *out = kf;
-    *count = n;
-    return 0;
-fail:
-    fclose(f);
-    free(kf);
-    return EXIT_INPUT;
-}
-
-static void apply_keyframe(app *a, const keyframe *k0, const keyframe *k1, double s) {
-    wrt_light *l = &a->lights[chosen_light(a)];
-    double lp[3], ld[3];
-    for (int k = 0; k < 3; k++) {
-        lp[k] = k0->lpos[k] + (k1->lpos[k] - k0->lpos[k]) * s;
-        ld[k] = k0->ldir[k] + (k1->ldir[k] - k0->ldir[k]) * s;
-        a->view.eye[k] = k0->cpos[k] + (k1->cpos[k] - k0->cpos[k]) * s;
-        a->view.target[k] = k0->ctarget[k] + (k1->ctarget[k] - k0->ctarget[k]) * s;
-    }
-    l->pos = v3(lp[0], lp[1], lp[2]);
-    wrt_v3 d = v3_norm(v3(ld[0], ld[1], ld[2]));
-    if (v3_len(d) > 0.5) l->dir = d;
-    l->intensity = (float)(k0->lint + (k1->lint - k0->lint) * s);
-}
-
-/* The most pictures one --script run writes. */
-#define WRT_PLAY_MAX_FRAMES 100000
-
-static int run_script(app *a) {
-    keyframe *kf = NULL;
-    int n = 0, rc = read_script(a, a->o->script, &kf, &n);
-    if (rc) return rc;
-    double fps = a->o->script_fps;
-    /* bounded: a keyframe at t = 1e6 with --script-fps 1000 asked for 10^9 pictures */
-    double want = fps > 0 ? floor((kf[n - 1].t - kf[0].t) * fps + 1e-9) + 1 : n;
-    if (!(want <= WRT_PLAY_MAX_FRAMES)) {
-        fprintf(stderr, "wrt-play: error: %s: the keyframes ask for %.4g frames (t %g to %g s%s); at most %d\n",
-                a->o->script, want, kf[0].t, kf[n - 1].t, fps > 0 ? " at --script-fps" : "", WRT_PLAY_MAX_FRAMES);
-        free(kf);
-        return EXIT_INPUT;
-    }
-    int frames = (int)want;
-    char path[4096];
-    if (!format_frame(a->o->pattern, 0, path, sizeof path)) {
-        fprintf(stderr, "wrt-play: error: --out-pattern '%s' needs exactly one %%d or %%0Nd\n", a->o->pattern);
-        free(kf);
-        return EXIT_USAGE;
-    }
-    for (int i = 0; i < frames && !rc; i++) {
-        if (fps > 0) {
-            double t = kf[0].t + i / fps;
-            int j = 0;
-            while (j + 1 < n && kf[j + 1].t <= t) j++;
-            if (j + 1 < n && kf[j + 1].t > kf[j].t) apply_keyframe(a, &kf[j], &kf[j + 1], (t - kf[j].t) / (kf[j + 1].t - kf[j].t));
-            else apply_keyframe(a, &kf[j], &kf[j], 0);
-        } else {
-            apply_keyframe(a, &kf[i], &kf[i], 0);
-        }
-        stage_ms t;
-        if ((rc = run_frame(a, &t))) break;
-        format_frame(a->o->pattern, i, path, sizeof path);
-        rc = save_picture(a, path);
-    }
-    if (!rc) fprintf(stderr, "wrt-play: wrote %d frames\n", frames);
-    free(kf);
-    return rc;
-}
-
-/* ---------------------------------------------------------------- bench */
-
-static int cmp_double(const void *x, const void *y) {
-    double a = *(const double *)x, b = *(const double *)y;
-    return a < b ? -1 : a > b;
-}
-
-static double median(double *v, int n) {
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-static int run_bench(app *a) {
-    int n = a->o->bench;
-    double *col[7];
-    for (int k = 0; k < 7; k++) col[k] = wrt_xmalloc((size_t)n * sizeof(double));
-    wrt_light *l = &a->lights[chosen_light(a)];
-    wrt_v3 c = l->pos, up, e1, e2;
-    scene_up(a, &up);
-    e1 = v3_norm(v3_cross(up, fabs(up.x) < 0.9 ? v3(1, 0, 0) : v3(0, 0, 1)));
-    e2 = v3_cross(up, e1);
-    double lo[3], hi[3];
-    wrt_render_scene_bounds(&a->g, lo, hi);
-    double radius = 0.05 * v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
-    wrt_v3 d0 = l->dir, h0 = v3_sub(d0, v3_scale(up, v3_dot(d0, up))); /* a sun's direction, horizontal part */
-    /* one warm-up frame: the first relight projects every light and uploads every quad */
-    stage_ms t;
-    int rc = run_frame(a, &t);
-    double first = t.frame;
-    double t0 = wrt_now();
-    for (int i = 0; i < n && !rc; i++) {
-        double ang = 2 * WRT_PI * (i + 1) / (n < 8 ? 8 : n);
-        if (l->type == WRT_LIGHT_DIRECTIONAL) /* a sun turns: its direction about up, 2 degrees a frame */
-            l->dir = v3_norm(v3_add(v3_scale(up, v3_dot(d0, up)),
-                                    v3_add(v3_scale(h0, cos(2 * WRT_PI / 180 * (i + 1))),
-                                           v3_scale(v3_cross(up, h0), sin(2 * WRT_PI / 180 * (i + 1))))));
-        else
-            l->pos = v3_add(c, v3_add(v3_scale(e1, radius * cos(ang) - radius), v3_scale(e2, radius * sin(ang))));
-        rc = run_frame(a, &t);
-        col[0][i] = t.projection;
-        col[1][i] = t.multiply;
-        col[2][i] = t.brdf;
-        col[3][i] = t.synthesis;
-        col[4][i] = t.upload;
-        col[5][i] = t.draw;
-        col[6][i] = t.frame;
-    }
-    double total = wrt_now() - t0;
-    if (!rc) {
-        const char *names[7] = {"projection", "multiply", "brdf", "synthesis", "upload", "draw", "frame"};
-        printf("{\"frames\": %d, \"width\": %d, \"height\": %d, \"mode\": \"%s\", \"quads\": %u, "
-               "\"funcs\": %u, \"nnz\": %llu, \"threads\": %d, \"msaa\": %d, \"first_frame_ms\": %.3f, \"median_ms\": {",
-               n, a->o->width, a->o->height, wrt_render_mode_name(a->mode), a->g.nquads, a->g.nfuncs,
-               (unsigned long long)a->g.nnz, a->o->threads, wrt_render_samples(a->rd), first);
-        double med_frame = 0;
-        for (int k = 0; k < 7; k++) {
-            double m = median(col[k], n);
-            if (k == 6) med_frame = m;
-            printf("%s\"%s\": %.3f", k ? ", " : "", names[k], m);
-        }
-        printf("}, \"fps\": %.2f, \"fps_mean\": %.2f, \"renderer\": ", med_frame > 0 ? 1e3 / med_frame : 0.0,
-               n / total);
-        wrt_json_str(stdout, wrt_render_gl_info());
-        printf("}\n");
-    }
-    for (int k = 0; k < 7; k++) free(col[k]);
-    return rc;
 }
 
 /* ---------------------------------------------------------------- window */

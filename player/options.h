@@ -1,0 +1,26 @@
+/* options.h: wrt-play's command line, shared by main.c (which runs it) and options.c
+ * (which parses it and prints the usage). Internal to the program. Depends on
+ * cli/cli.h (the lights options) and player/render.h (the render modes). */
+#ifndef WRT_PLAY_OPTIONS_H
+#define WRT_PLAY_OPTIONS_H
+
+#include "../cli/cli.h"
+#include "render.h"
+
+typedef struct options {
+    const char *file, *out, *script, *pattern, *stats, *screenshot;
+    int headless, width, height, bench, frames, threads, max_tex_res, shadow_res, msaa, no_overlay, supersample;
+    int linear_display;
+    wrt_render_mode mode;
+    float exposure;
+    double script_fps;
+    int has_cam_pos, has_cam_target, has_fov;
+    double cam_pos[3], cam_target[3], fov;
+    wrt_cli_lights lights;
+} options;
+
+/* Parses argv into *o (defaults first); 0 after printing the error on a bad command
+ * line. --help and --version print and exit(0). */
+int parse_args(int argc, char **argv, options *o);
+
+#endif

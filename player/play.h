@@ -1,0 +1,58 @@
+/* play.h: what wrt-play's main.c (the application, its window, main) shares with
+ * headless.c (the scripted frames and the benchmark): the exit codes, the application
+ * state, one frame's stage times and the functions headless.c calls back. Internal to
+ * the program. Depends on cli/cli.h, formats/gto.h, include/wrt.h (the runtime),
+ * player/platform.h, player/render.h and player/options.h. */
+#ifndef WRT_PLAY_PLAY_H
+#define WRT_PLAY_PLAY_H
+
+#include <sys/stat.h>
+
+#include "../cli/cli.h"
+#include "../formats/gto.h"
+#include "../include/wrt.h"
+#include "platform.h"
+#include "render.h"
+#include "options.h"
+
+/* The exit codes of every tool (cli/cli.h). */
+enum {
+    EXIT_USAGE = WRT_EXIT_USAGE,      /* bad command line, a light the file does not have */
+    EXIT_INPUT = WRT_EXIT_INPUT,      /* the .gto (or script) cannot be read: missing, truncated, corrupt, foreign, newer */
+    EXIT_OUTPUT = WRT_EXIT_OUTPUT,    /* an output file cannot be written */
+    EXIT_GL = WRT_EXIT_GL,            /* no OpenGL 4.5 context, no window, shader or framebuffer failure */
+    EXIT_RUNTIME = WRT_EXIT_INTERNAL  /* the relighting core failed */
+};
+
+typedef struct stage_ms {
+    double projection, multiply, brdf, synthesis, upload, draw, frame;
+    int relit; /* the frame relit (a light or the eye moved) */
+} stage_ms;
+
+typedef struct app {
+    options *o;
+    wrt_gto g;
+    void *gto_mem;       /* the file's bytes, private (read_gto) */
+    struct stat gto_st;  /* the file as it was read: a change is noticed in the window */
+    wrt_platform *plat;
+    wrt_runtime *rl;
+    wrt_render *rd;
+    wrt_light *lights;
+    int nlights;
+    float scales[WRT_RENDER_MAX_LIGHTS];
+    wrt_view view;
+    wrt_render_mode mode;
+    int relit_once;
+} app;
+
+/* main.c */
+int run_frame(app *a, stage_ms *t);            /* one frame: relight what changed, upload, draw */
+int save_picture(app *a, const char *path);    /* the headless picture to a file */
+void scene_up(const app *a, wrt_v3 *up);       /* the view's up direction */
+int chosen_light(const app *a);                /* the light --light names (0-based) */
+
+/* headless.c */
+int run_script(app *a);  /* --script: one picture per frame of the keyframed sequence */
+int run_bench(app *a);   /* --bench: frame times */
+
+#endif
