@@ -225,11 +225,13 @@ fuzz: build/fuzz/fuzz_scene build/fuzz/fuzz_gto
 	build/fuzz/fuzz_scene -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -rss_limit_mb=2048 build/fuzz/corpus-scene 2>&1 | tail -n 3
 	build/fuzz/fuzz_gto -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -rss_limit_mb=2048 build/fuzz/corpus-gto 2>&1 | tail -n 3
 
-build/fuzz/fuzz_scene: $(FUZZ_SCENE_C) formats/gltf_shim.cpp $(wildcard formats/*.h common/*.h)
+build/fuzz/fuzz_scene: $(FUZZ_SCENE_C) formats/gltf_shim.cpp formats/gltf_strict.cpp $(wildcard formats/*.h common/*.h)
 	@mkdir -p build/fuzz/obj-scene
 	for f in $(FUZZ_SCENE_C); do $(FUZZ_CC) -c $$f -o build/fuzz/obj-scene/$$(basename $$f .c).o || exit 1; done
 	clang++ -std=c++17 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -I/usr/include/stb -w -D_GNU_SOURCE \
 	  -c formats/gltf_shim.cpp -o build/fuzz/obj-scene/gltf_shim.o
+	clang++ -std=c++17 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -w -D_GNU_SOURCE \
+	  -c formats/gltf_strict.cpp -o build/fuzz/obj-scene/gltf_strict.o
 	clang++ -fsanitize=fuzzer $(FUZZ_SAN) build/fuzz/obj-scene/*.o -o $@ -lm
 
 build/fuzz/fuzz_gto: $(FUZZ_GTO_C) $(wildcard formats/*.h common/*.h)
