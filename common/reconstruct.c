@@ -76,32 +76,8 @@ wrt_recon *wrt_recon_create(int n, const double (*corners)[4][3], const uint32_t
     return wrt_recon_create_with(n, corners, material, NULL);
 }
 
-wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uint32_t *material,
-                                 const wrt_recon_allocator *alloc) {
-    wrt_recon_allocator al = {0};
-    if (alloc && alloc->alloc && alloc->free) al = *alloc;
-    wrt_recon *rc = rc_alloc(&al, sizeof *rc);
-    if (!rc) return NULL;
-    memset(rc, 0, sizeof *rc);
-    rc->al = al;
-    rc->n = n;
-    size_t m = n > 0 ? (size_t)n : 1;
-    rc->nb = rc_alloc(&al, m * sizeof *rc->nb);
-    rc->nbe = rc_alloc(&al, m * sizeof *rc->nbe);
-    rc->flip = rc_alloc(&al, m * sizeof *rc->flip);
-    rc->group = rc_alloc(&al, m * sizeof(int));
-    rc->slot = rc_alloc(&al, m * sizeof(int));
-    rc->gfirst = rc_alloc(&al, (m + 1) * sizeof(int));
-    rc->gquads = rc_alloc(&al, m * sizeof(int));
-    rc->around = rc_alloc(&al, m * sizeof *rc->around);
-    v3 *nrm = rc_alloc(&al, m * sizeof(v3));
-    int *stack = rc_alloc(&al, m * sizeof(int));
-    if (!rc->nb || !rc->nbe || !rc->flip || !rc->group || !rc->slot || !rc->gfirst || !rc->gquads ||
-        !rc->around || !nrm || !stack) {
-        rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc);
-        return NULL;
-    }
-    /* Tolerance: 1e-6 of the scene's size. */
+/* Stage 1 of the create: the tolerance, 1e-6 of the scene's size. */
+static double recon_tolerance(int n, const double (*corners)[4][3]) {
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int q = 0; q < n; q++)
         for (int k = 0; k < 4; k++)
@@ -112,6 +88,12 @@ wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uin
     double size = n > 0 ? sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
                                (hi[2] - lo[2]) * (hi[2] - lo[2])) : 1;
     double tol = 1e-6 * (size > 0 ? size : 1);
+    return tol;
+}
+
+/* Stage 2: each quad edge's smooth neighbour (same material, coplanar, a shared edge), mutual. */
+static void recon_neighbours(wrt_recon *rc, int n, const double (*corners)[4][3], const uint32_t *material, v3 *nrm,
+                             double tol) {
     for (int q = 0; q < n; q++) {
         nrm[q] = quad_normal(corners[q]);
         for (int e = 0; e < 4; e++) rc->nb[q][e] = -1, rc->nbe[q][e] = 0, rc->flip[q][e] = 0;
@@ -143,7 +125,10 @@ wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uin
             int o = rc->nb[q][e];
             if (o >= 0 && rc->nb[o][rc->nbe[q][e]] != q) rc->nb[q][e] = -1;
         }
-    /* Groups: connected components, numbered by their smallest quad. */
+}
+
+/* Stage 3: groups, the connected components, numbered by their smallest quad; returns their count. */
+static int recon_components(wrt_recon *rc, int n, int *stack) {
     for (int q = 0; q < n; q++) rc->group[q] = -1;
     int ng = 0;
     for (int q = 0; q < n; q++) {
@@ -160,21 +145,11 @@ wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uin
         }
         ng++;
     }
-    rc->ngroups = ng;
-    int *cnt = rc_alloc(&al, ((size_t)ng + 1) * sizeof(int));
-    if (!cnt) { rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc); return NULL; }
-    memset(cnt, 0, ((size_t)ng + 1) * sizeof(int));
-    for (int q = 0; q < n; q++) cnt[rc->group[q] + 1]++;
-    rc->gfirst[0] = 0;
-    for (int g = 0; g < ng; g++) rc->gfirst[g + 1] = rc->gfirst[g] + cnt[g + 1];
-    memset(cnt, 0, ((size_t)ng + 1) * sizeof(int));
-    for (int q = 0; q < n; q++) {
-        int g = rc->group[q];
-        rc->slot[q] = cnt[g];
-        rc->gquads[rc->gfirst[g] + cnt[g]++] = q;
-    }
-    rc_free(&al, cnt);
-    /* Quads around each corner: walk the smooth edges that end at it. */
+    return ng;
+}
+
+/* Stage 4 (after the group lists): the quads around each corner, walking the smooth edges. */
+static void recon_corner_sets(wrt_recon *rc, int n) {
     for (int q = 0; q < n; q++)
         for (int k = 0; k < 4; k++) {
             corner_set *cs = &rc->around[q][k];
@@ -196,6 +171,52 @@ wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uin
                     t = cs->corner[b]; cs->corner[b] = cs->corner[b - 1]; cs->corner[b - 1] = t;
                 }
         }
+}
+
+wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uint32_t *material,
+                                 const wrt_recon_allocator *alloc) {
+    wrt_recon_allocator al = {0};
+    if (alloc && alloc->alloc && alloc->free) al = *alloc;
+    wrt_recon *rc = rc_alloc(&al, sizeof *rc);
+    if (!rc) return NULL;
+    memset(rc, 0, sizeof *rc);
+    rc->al = al;
+    rc->n = n;
+    size_t m = n > 0 ? (size_t)n : 1;
+    rc->nb = rc_alloc(&al, m * sizeof *rc->nb);
+    rc->nbe = rc_alloc(&al, m * sizeof *rc->nbe);
+    rc->flip = rc_alloc(&al, m * sizeof *rc->flip);
+    rc->group = rc_alloc(&al, m * sizeof(int));
+    rc->slot = rc_alloc(&al, m * sizeof(int));
+    rc->gfirst = rc_alloc(&al, (m + 1) * sizeof(int));
+    rc->gquads = rc_alloc(&al, m * sizeof(int));
+    rc->around = rc_alloc(&al, m * sizeof *rc->around);
+    v3 *nrm = rc_alloc(&al, m * sizeof(v3));
+    int *stack = rc_alloc(&al, m * sizeof(int));
+    if (!rc->nb || !rc->nbe || !rc->flip || !rc->group || !rc->slot || !rc->gfirst || !rc->gquads ||
+        !rc->around || !nrm || !stack) {
+        rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc);
+        return NULL;
+    }
+    double tol = recon_tolerance(n, corners);
+    recon_neighbours(rc, n, corners, material, nrm, tol);
+    int ng = recon_components(rc, n, stack);
+    rc->ngroups = ng;
+    /* Each group's members, in quad order, and each quad's slot in its group. */
+    int *cnt = rc_alloc(&al, ((size_t)ng + 1) * sizeof(int));
+    if (!cnt) { rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc); return NULL; }
+    memset(cnt, 0, ((size_t)ng + 1) * sizeof(int));
+    for (int q = 0; q < n; q++) cnt[rc->group[q] + 1]++;
+    rc->gfirst[0] = 0;
+    for (int g = 0; g < ng; g++) rc->gfirst[g + 1] = rc->gfirst[g] + cnt[g + 1];
+    memset(cnt, 0, ((size_t)ng + 1) * sizeof(int));
+    for (int q = 0; q < n; q++) {
+        int g = rc->group[q];
+        rc->slot[q] = cnt[g];
+        rc->gquads[rc->gfirst[g] + cnt[g]++] = q;
+    }
+    rc_free(&al, cnt);
+    recon_corner_sets(rc, n);
     rc_free(&al, nrm);
     rc_free(&al, stack);
     return rc;
