@@ -371,14 +371,10 @@ static int add_triangle_parts(const wrt_gltf_prim *p, int t, int material, quad_
  * triangle becomes three quads of its own (add_triangle_parts), counted in s by
  * reason. Triangles that are degenerate, slivers (narrowest height under
  * WRT_SLIVER_REL x diag) or not finite are appended to pl and left out. */
-static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, double planar_tol,
-                           double diag, int material, quad_list *ql, problem_list *pl, wrt_scene *sc) {
-    size_t ntri = p->ntri;
-    if (ntri == 0) return;
-    uint32_t *rep = wrt_xmalloc(p->npos * sizeof *rep);
-    match_vertices(p, origin, eps, rep);
-    tri_info *info = wrt_xcalloc(ntri, sizeof *info);
-    edge_entry *edges = wrt_xmalloc(3 * ntri * sizeof *edges);
+/* Stage 1 of the pairing: each triangle checked (problems to pl, bad ones marked) and its
+ * edges listed by their matched vertices; returns the number of edges. */
+static size_t pair_classify(const wrt_gltf_prim *p, size_t ntri, const uint32_t *rep, double diag, tri_info *info,
+                            edge_entry *edges, problem_list *pl) {
     size_t nedges = 0;
     for (size_t t = 0; t < ntri; t++) {
         const uint32_t *ix = &p->idx[3 * t];
@@ -427,9 +423,12 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
             nedges++;
         }
     }
-    qsort(edges, nedges, sizeof *edges, cmp_edge);
+    return nedges;
+}
 
-    pair_ctx ctx = {p, rep, info, planar_tol};
+/* Stage 2: the candidate pairs along each shared edge, both ways (failures noted in info). */
+static cand *pair_candidates(pair_ctx *ctx_in, const edge_entry *edges, size_t nedges, tri_info *info, size_t *ncands_out) {
+    pair_ctx ctx = *ctx_in;
     cand *cands = NULL;
     size_t ncands = 0, capc = 0;
     for (size_t i = 0; i < nedges;) {
@@ -476,12 +475,17 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
         }
         i = j;
     }
+    *ncands_out = ncands;
+    return cands;
+}
+
+/* Stage 3: the matching, forced pairs (one free candidate) first; mate[t] is t's pair or -1. */
+static void pair_match(cand *cands, size_t ncands, size_t ntri, tri_info *info, int *mate) {
     if (ncands) qsort(cands, ncands, sizeof *cands, cmp_cand);
     size_t *first = wrt_xcalloc(ntri + 1, sizeof *first);
     for (size_t i = 0; i < ncands; i++) first[cands[i].t + 1]++;
     for (size_t t = 0; t < ntri; t++) first[t + 1] += first[t];
     int *deg = wrt_xcalloc(ntri, sizeof *deg);
-    int *mate = wrt_xmalloc(ntri * sizeof *mate);
     int *stack = wrt_xmalloc(ntri * sizeof *stack);
     size_t nstack = 0;
     for (size_t t = 0; t < ntri; t++) {
@@ -518,7 +522,15 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
                 if (--deg[o] == 1) stack[nstack++] = o;
             }
     }
+    free(stack);
+    free(deg);
+    free(first);
+}
 
+/* Stage 4: the quads, paired ones first where they finish, every other good triangle as three. */
+static void pair_emit(const wrt_gltf_prim *p, pair_ctx *ctx_in, size_t ntri, tri_info *info, const int *mate, int material,
+                      quad_list *ql, problem_list *pl, wrt_scene *sc) {
+    pair_ctx ctx = *ctx_in;
     for (size_t t = 0; t < ntri; t++) {
         int ti = (int)t;
         if (info[t].bad) continue;
@@ -567,10 +579,27 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
                         "zero area: its three quads are degenerate");
         }
     }
-    free(stack);
+}
+
+static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, double planar_tol,
+                           double diag, int material, quad_list *ql, problem_list *pl, wrt_scene *sc) {
+    size_t ntri = p->ntri;
+    if (ntri == 0) return;
+    uint32_t *rep = wrt_xmalloc(p->npos * sizeof *rep);
+    match_vertices(p, origin, eps, rep);
+    tri_info *info = wrt_xcalloc(ntri, sizeof *info);
+    edge_entry *edges = wrt_xmalloc(3 * ntri * sizeof *edges);
+    size_t nedges = pair_classify(p, ntri, rep, diag, info, edges, pl);
+    qsort(edges, nedges, sizeof *edges, cmp_edge);
+
+    pair_ctx ctx = {p, rep, info, planar_tol};
+    size_t ncands = 0;
+    cand *cands = pair_candidates(&ctx, edges, nedges, info, &ncands);
+    int *mate = wrt_xmalloc(ntri * sizeof *mate);
+    pair_match(cands, ncands, ntri, info, mate);
+
+    pair_emit(p, &ctx, ntri, info, mate, material, ql, pl, sc);
     free(mate);
-    free(deg);
-    free(first);
     free(cands);
     free(edges);
     free(info);
