@@ -761,30 +761,13 @@ static wrt_status make_camera(const wrt_gltf_data *g, wrt_scene *s, const char *
     return WRT_OK;
 }
 
-static wrt_status load_common(const void *data, size_t size, const char *base_dir, const char *label,
-                              const wrt_load_options *opt, wrt_scene *out) {
-    wrt_load_options defaults = {0};
-    if (!opt) opt = &defaults;
-    double planar_tol = opt->planar_tol > 0 ? opt->planar_tol : 1e-4;
-    if (!isfinite(planar_tol) || planar_tol >= 1)
-        return wrt_fail(WRT_ERR_INVALID_ARG, "planar_tol %g must be in (0, 1)", opt->planar_tol);
-    wrt_gltf_data g;
-    wrt_status st = wrt_gltf_read(data, size, base_dir, label, opt->allow_outside_files, &g);
-    if (st != WRT_OK) return st;
-    if (g.warnings && g.warnings[0]) {
-        for (char *w = g.warnings; *w; w++)
-            if (*w == '\n') *w = ' ';
-        wrt_log(WRT_LOG_WARN, "%s: %s", label, g.warnings);
-    }
-    wrt_scene *s = out;
-    s->source_hash = wrt_hash64(data, size, WRT_HASH_SEED);
-
-    /* scene extent over every usable vertex: the scale of the matching tolerance */
+/* Load stage 1: the scene extent over every usable vertex, the scale of the matching tolerance
+ * (need_default: a primitive without a material). */
+static void scene_extent(const wrt_gltf_data *g, wrt_v3 *lo_out, wrt_v3 *hi_out, int *need_default) {
     wrt_v3 lo = v3(DBL_MAX, DBL_MAX, DBL_MAX), hi = v3(-DBL_MAX, -DBL_MAX, -DBL_MAX);
-    int need_default = 0;
-    for (size_t i = 0; i < g.nprims; i++) {
-        const wrt_gltf_prim *p = &g.prims[i];
-        if (p->material < 0) need_default = 1;
+    for (size_t i = 0; i < g->nprims; i++) {
+        const wrt_gltf_prim *p = &g->prims[i];
+        if (p->material < 0) *need_default = 1;
         for (size_t v = 0; v < p->npos; v++) {
             const double *c = &p->pos[3 * v];
             if (!coord_ok(c)) continue;
@@ -793,30 +776,15 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
         }
     }
     if (lo.x > hi.x) lo = hi = v3(0, 0, 0);
-    double diag = v3_len(v3_sub(hi, lo));
-    double eps = diag > 0 ? WRT_WELD_REL * diag : 1.0;
+    *lo_out = lo;
+    *hi_out = hi;
+}
 
-    convert_materials(&g, need_default, s, label);
-    s->nnames = (int)g.nmeshes;
-    s->names = wrt_xcalloc(g.nmeshes ? g.nmeshes : 1, sizeof *s->names);
-    for (size_t i = 0; i < g.nmeshes; i++) memcpy(s->names[i], g.mesh_names[i], 64);
-
-    quad_list ql = {0};
-    problem_list pl = {0};
-    size_t ntri = 0;
-    for (size_t i = 0; i < g.nprims; i++) {
-        const wrt_gltf_prim *p = &g.prims[i];
-        int material = p->material >= 0 ? p->material : s->nmaterials - 1;
-        pair_primitive(p, lo, eps, planar_tol, diag, material, &ql, &pl, s);
-        ntri += p->ntri;
-        s->nmirrored += p->mirrored;
-    }
-    s->quads = ql.v;
-    s->nquads = ql.n;
-    s->problems = pl.v;
-    s->nproblems = pl.n;
-    s->ntriangles = (int)ntri;
-
+/* Load stage 2: the problem triangles counted and reported; refuses the scene (freeing g and
+ * s) for non-finite ones unless opt allows them. */
+static wrt_status scene_report_problems(problem_list pl, wrt_gltf_data *g, const wrt_load_options *opt,
+                                        const char *label, wrt_scene *s) {
+    wrt_status st;
     /* Non-finite triangles refuse the scene (unless drop_bad); degenerate ones and
      * slivers are dropped and counted, with one warning naming the first few. */
     for (int pass = 0; pass < 2; pass++) {
@@ -842,7 +810,7 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
         if (pass == 0 && !opt->drop_bad) {
             st = wrt_fail(WRT_ERR_GEOMETRY, "%s: %d bad triangle%s refused: %s%s", label, n,
                           n == 1 ? "" : "s", buf, n > shown ? "; ..." : "");
-            wrt_gltf_free(&g);
+            wrt_gltf_free(g);
             wrt_scene_free(s);
             return st;
         }
@@ -855,18 +823,22 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
                     "diagonal): %s%s",
                     label, n, n == 1 ? "" : "s", WRT_SLIVER_REL, buf, n > shown ? "; ..." : "");
     }
+    return WRT_OK;
+}
 
+/* Load stage 3: the back-to-back twins of doubleSided quads, appended to ql. */
+static void scene_add_twins(quad_list *ql, const wrt_gltf_data *g, double diag, wrt_scene *s) {
     /* doubleSided (glTF: no back-face culling, both sides lit): each such quad gets a
      * back-to-back twin facing the other way, set back by WRT_TWIN_GAP of the scene's
      * diagonal so that a ray meets the side it comes from first (two coincident faces
      * would be hit in arbitrary order). Every part of the method then treats the two
      * sides as the one-sided quads it knows. */
-    int nfront = ql.n;
+    int nfront = ql->n;
     for (int i = 0; i < nfront; i++) {
-        int m = ql.v[i].material;
-        if (m < 0 || m >= (int)g.nmaterials || !g.materials[m].double_sided) continue;
-        wrt_quad *b = add_quad(&ql);
-        const wrt_quad *f = &ql.v[i]; /* after add_quad: it may move the array */
+        int m = ql->v[i].material;
+        if (m < 0 || m >= (int)g->nmaterials || !g->materials[m].double_sided) continue;
+        wrt_quad *b = add_quad(ql);
+        const wrt_quad *f = &ql->v[i]; /* after add_quad: it may move the array */
         wrt_v3 back = v3_scale(f->n, -WRT_TWIN_GAP * (diag > 0 ? diag : 1.0));
         b->p[0] = v3_add(f->p[0], back);
         b->p[1] = v3_add(f->p[3], back);
@@ -886,17 +858,13 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
         b->has_uv = f->has_uv; /* the corners run p0 p3 p2 p1: so do their (u, v) */
         for (int c = 0; c < 4; c++)
             for (int d = 0; d < 2; d++) b->uv[c][d] = f->uv[(4 - c) % 4][d];
-        if (wrt_quad_finish(b) != WRT_OK) ql.n--; /* cannot happen: f was finished */
+        if (wrt_quad_finish(b) != WRT_OK) ql->n--; /* cannot happen: f was finished */
         else s->ntwins++;
     }
-    s->quads = ql.v;
-    s->nquads = ql.n;
-    s->ignored = wrt_xmalloc(strlen(g.ignored ? g.ignored : "") + 1);
-    strcpy(s->ignored, g.ignored ? g.ignored : "");
-    s->files = wrt_xmalloc(strlen(g.files ? g.files : "") + 1);
-    strcpy(s->files, g.files ? g.files : "");
+}
 
-    /* bounding box of the kept geometry */
+/* Load stage 4: the bounding box of the kept geometry (lo, hi: the extent, for no quads). */
+static void scene_bbox(wrt_scene *s, wrt_v3 lo, wrt_v3 hi, const wrt_load_options *opt, const char *label) {
     if (s->nquads > 0) {
         lo = v3(DBL_MAX, DBL_MAX, DBL_MAX);
         hi = v3(-DBL_MAX, -DBL_MAX, -DBL_MAX);
@@ -911,6 +879,65 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
     }
     s->bbox_min = lo;
     s->bbox_max = hi;
+}
+
+static wrt_status load_common(const void *data, size_t size, const char *base_dir, const char *label,
+                              const wrt_load_options *opt, wrt_scene *out) {
+    wrt_load_options defaults = {0};
+    if (!opt) opt = &defaults;
+    double planar_tol = opt->planar_tol > 0 ? opt->planar_tol : 1e-4;
+    if (!isfinite(planar_tol) || planar_tol >= 1)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "planar_tol %g must be in (0, 1)", opt->planar_tol);
+    wrt_gltf_data g;
+    wrt_status st = wrt_gltf_read(data, size, base_dir, label, opt->allow_outside_files, &g);
+    if (st != WRT_OK) return st;
+    if (g.warnings && g.warnings[0]) {
+        for (char *w = g.warnings; *w; w++)
+            if (*w == '\n') *w = ' ';
+        wrt_log(WRT_LOG_WARN, "%s: %s", label, g.warnings);
+    }
+    wrt_scene *s = out;
+    s->source_hash = wrt_hash64(data, size, WRT_HASH_SEED);
+
+    wrt_v3 lo, hi;
+    int need_default = 0;
+    scene_extent(&g, &lo, &hi, &need_default);
+    double diag = v3_len(v3_sub(hi, lo));
+    double eps = diag > 0 ? WRT_WELD_REL * diag : 1.0;
+
+    convert_materials(&g, need_default, s, label);
+    s->nnames = (int)g.nmeshes;
+    s->names = wrt_xcalloc(g.nmeshes ? g.nmeshes : 1, sizeof *s->names);
+    for (size_t i = 0; i < g.nmeshes; i++) memcpy(s->names[i], g.mesh_names[i], 64);
+
+    quad_list ql = {0};
+    problem_list pl = {0};
+    size_t ntri = 0;
+    for (size_t i = 0; i < g.nprims; i++) {
+        const wrt_gltf_prim *p = &g.prims[i];
+        int material = p->material >= 0 ? p->material : s->nmaterials - 1;
+        pair_primitive(p, lo, eps, planar_tol, diag, material, &ql, &pl, s);
+        ntri += p->ntri;
+        s->nmirrored += p->mirrored;
+    }
+    s->quads = ql.v;
+    s->nquads = ql.n;
+    s->problems = pl.v;
+    s->nproblems = pl.n;
+    s->ntriangles = (int)ntri;
+
+    st = scene_report_problems(pl, &g, opt, label, s);
+    if (st != WRT_OK) return st;
+
+    scene_add_twins(&ql, &g, diag, s);
+    s->quads = ql.v;
+    s->nquads = ql.n;
+    s->ignored = wrt_xmalloc(strlen(g.ignored ? g.ignored : "") + 1);
+    strcpy(s->ignored, g.ignored ? g.ignored : "");
+    s->files = wrt_xmalloc(strlen(g.files ? g.files : "") + 1);
+    strcpy(s->files, g.files ? g.files : "");
+
+    scene_bbox(s, lo, hi, opt, label);
 
     st = convert_lights(&g, s, label);
     if (st == WRT_OK) st = make_camera(&g, s, label);
