@@ -76,32 +76,8 @@ wrt_recon *wrt_recon_create(int n, const double (*corners)[4][3], const uint32_t
     return wrt_recon_create_with(n, corners, material, NULL);
 }
 
-wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uint32_t *material,
-                                 const wrt_recon_allocator *alloc) {
-    wrt_recon_allocator al = {0};
-    if (alloc && alloc->alloc && alloc->free) al = *alloc;
-    wrt_recon *rc = rc_alloc(&al, sizeof *rc);
-    if (!rc) return NULL;
-    memset(rc, 0, sizeof *rc);
-    rc->al = al;
-    rc->n = n;
-    size_t m = n > 0 ? (size_t)n : 1;
-    rc->nb = rc_alloc(&al, m * sizeof *rc->nb);
-    rc->nbe = rc_alloc(&al, m * sizeof *rc->nbe);
-    rc->flip = rc_alloc(&al, m * sizeof *rc->flip);
-    rc->group = rc_alloc(&al, m * sizeof(int));
-    rc->slot = rc_alloc(&al, m * sizeof(int));
-    rc->gfirst = rc_alloc(&al, (m + 1) * sizeof(int));
-    rc->gquads = rc_alloc(&al, m * sizeof(int));
-    rc->around = rc_alloc(&al, m * sizeof *rc->around);
-    v3 *nrm = rc_alloc(&al, m * sizeof(v3));
-    int *stack = rc_alloc(&al, m * sizeof(int));
-    if (!rc->nb || !rc->nbe || !rc->flip || !rc->group || !rc->slot || !rc->gfirst || !rc->gquads ||
-        !rc->around || !nrm || !stack) {
-        rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc);
-        return NULL;
-    }
-    /* Tolerance: 1e-6 of the scene's size. */
+/* Stage 1 of the create: the tolerance, 1e-6 of the scene's size. */
+static double recon_tolerance(int n, const double (*corners)[4][3]) {
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int q = 0; q < n; q++)
         for (int k = 0; k < 4; k++)
@@ -112,6 +88,12 @@ wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uin
     double size = n > 0 ? sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
                                (hi[2] - lo[2]) * (hi[2] - lo[2])) : 1;
     double tol = 1e-6 * (size > 0 ? size : 1);
+    return tol;
+}
+
+/* Stage 2: each quad edge's smooth neighbour (same material, coplanar, a shared edge), mutual. */
+static void recon_neighbours(wrt_recon *rc, int n, const double (*corners)[4][3], const uint32_t *material, v3 *nrm,
+                             double tol) {
     for (int q = 0; q < n; q++) {
         nrm[q] = quad_normal(corners[q]);
         for (int e = 0; e < 4; e++) rc->nb[q][e] = -1, rc->nbe[q][e] = 0, rc->flip[q][e] = 0;
@@ -143,7 +125,10 @@ wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uin
             int o = rc->nb[q][e];
             if (o >= 0 && rc->nb[o][rc->nbe[q][e]] != q) rc->nb[q][e] = -1;
         }
-    /* Groups: connected components, numbered by their smallest quad. */
+}
+
+/* Stage 3: groups, the connected components, numbered by their smallest quad; returns their count. */
+static int recon_components(wrt_recon *rc, int n, int *stack) {
     for (int q = 0; q < n; q++) rc->group[q] = -1;
     int ng = 0;
     for (int q = 0; q < n; q++) {
@@ -160,21 +145,11 @@ wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uin
         }
         ng++;
     }
-    rc->ngroups = ng;
-    int *cnt = rc_alloc(&al, ((size_t)ng + 1) * sizeof(int));
-    if (!cnt) { rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc); return NULL; }
-    memset(cnt, 0, ((size_t)ng + 1) * sizeof(int));
-    for (int q = 0; q < n; q++) cnt[rc->group[q] + 1]++;
-    rc->gfirst[0] = 0;
-    for (int g = 0; g < ng; g++) rc->gfirst[g + 1] = rc->gfirst[g] + cnt[g + 1];
-    memset(cnt, 0, ((size_t)ng + 1) * sizeof(int));
-    for (int q = 0; q < n; q++) {
-        int g = rc->group[q];
-        rc->slot[q] = cnt[g];
-        rc->gquads[rc->gfirst[g] + cnt[g]++] = q;
-    }
-    rc_free(&al, cnt);
-    /* Quads around each corner: walk the smooth edges that end at it. */
+    return ng;
+}
+
+/* Stage 4 (after the group lists): the quads around each corner, walking the smooth edges. */
+static void recon_corner_sets(wrt_recon *rc, int n) {
     for (int q = 0; q < n; q++)
         for (int k = 0; k < 4; k++) {
             corner_set *cs = &rc->around[q][k];
@@ -196,6 +171,52 @@ wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uin
                     t = cs->corner[b]; cs->corner[b] = cs->corner[b - 1]; cs->corner[b - 1] = t;
                 }
         }
+}
+
+wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uint32_t *material,
+                                 const wrt_recon_allocator *alloc) {
+    wrt_recon_allocator al = {0};
+    if (alloc && alloc->alloc && alloc->free) al = *alloc;
+    wrt_recon *rc = rc_alloc(&al, sizeof *rc);
+    if (!rc) return NULL;
+    memset(rc, 0, sizeof *rc);
+    rc->al = al;
+    rc->n = n;
+    size_t m = n > 0 ? (size_t)n : 1;
+    rc->nb = rc_alloc(&al, m * sizeof *rc->nb);
+    rc->nbe = rc_alloc(&al, m * sizeof *rc->nbe);
+    rc->flip = rc_alloc(&al, m * sizeof *rc->flip);
+    rc->group = rc_alloc(&al, m * sizeof(int));
+    rc->slot = rc_alloc(&al, m * sizeof(int));
+    rc->gfirst = rc_alloc(&al, (m + 1) * sizeof(int));
+    rc->gquads = rc_alloc(&al, m * sizeof(int));
+    rc->around = rc_alloc(&al, m * sizeof *rc->around);
+    v3 *nrm = rc_alloc(&al, m * sizeof(v3));
+    int *stack = rc_alloc(&al, m * sizeof(int));
+    if (!rc->nb || !rc->nbe || !rc->flip || !rc->group || !rc->slot || !rc->gfirst || !rc->gquads ||
+        !rc->around || !nrm || !stack) {
+        rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc);
+        return NULL;
+    }
+    double tol = recon_tolerance(n, corners);
+    recon_neighbours(rc, n, corners, material, nrm, tol);
+    int ng = recon_components(rc, n, stack);
+    rc->ngroups = ng;
+    /* Each group's members, in quad order, and each quad's slot in its group. */
+    int *cnt = rc_alloc(&al, ((size_t)ng + 1) * sizeof(int));
+    if (!cnt) { rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc); return NULL; }
+    memset(cnt, 0, ((size_t)ng + 1) * sizeof(int));
+    for (int q = 0; q < n; q++) cnt[rc->group[q] + 1]++;
+    rc->gfirst[0] = 0;
+    for (int g = 0; g < ng; g++) rc->gfirst[g + 1] = rc->gfirst[g] + cnt[g + 1];
+    memset(cnt, 0, ((size_t)ng + 1) * sizeof(int));
+    for (int q = 0; q < n; q++) {
+        int g = rc->group[q];
+        rc->slot[q] = cnt[g];
+        rc->gquads[rc->gfirst[g] + cnt[g]++] = q;
+    }
+    rc_free(&al, cnt);
+    recon_corner_sets(rc, n);
     rc_free(&al, nrm);
     rc_free(&al, stack);
     return rc;
@@ -284,21 +305,11 @@ int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const floa
     return 0;
 }
 
-void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
-                      const uint8_t *const *known, float *const *out, const wrt_recon_params *prm, float *buf) {
-    int keep = prm ? prm->keep : WRT_RECON_KEEP, limit = prm ? prm->limit : 1, linear = prm ? prm->linear : 0;
-    float sharp = prm ? prm->sharp : WRT_RECON_SHARP;
-    if (linear) { /* a choice from the mask and `keep` alone */
-        limit = 0;
-        sharp = 0;
-    }
-    int nm;
-    const int *mem = wrt_recon_members(rc, gr, &nm);
-    if (nm == 0) return;
-    size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
-    size_t full = ((size_t)1 << (2 * Lo)) * nc;
-    float *ext = buf + (size_t)nm * (pyr_n + 2 * full);
-    /* Pyramids of the input: level l at offset (4^l - 1)/3 cells. */
+#define CUR(s) (buf + (size_t)nm * pyr_n + (size_t)(s) * 2 * full + (size_t)cur_half * full)
+#define NXT(s) (buf + (size_t)nm * pyr_n + (size_t)(s) * 2 * full + (size_t)(1 - cur_half) * full)
+
+/* Stage 1: pyramids of the input: level l at offset (4^l - 1)/3 cells. */
+static void recon_pyramids(int nm, const int *mem, int L, int nc, const float *const *in, float *buf, size_t pyr_n) {
     for (int s = 0; s < nm; s++) {
         float *pyr = buf + (size_t)s * pyr_n;
         size_t offL = (((size_t)1 << (2 * L)) - 1) / 3 * nc;
@@ -314,112 +325,115 @@ void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const 
                     }
         }
     }
-#define CUR(s) (buf + (size_t)nm * pyr_n + (size_t)(s) * 2 * full + (size_t)cur_half * full)
-#define NXT(s) (buf + (size_t)nm * pyr_n + (size_t)(s) * 2 * full + (size_t)(1 - cur_half) * full)
-    int cur_half = 0;
-    for (int s = 0; s < nm; s++) memcpy(CUR(s), buf + (size_t)s * pyr_n, nc * sizeof(float));
-    for (int l = 0; l < Lo; l++) {
-        int m = 1 << l, w = m + 2;
-        for (int s = 0; s < nm; s++) {
-            int q = mem[s];
-            const float *a = CUR(s);
-            float *nx = NXT(s);
-            /* The extended grid: own cells, ghost rows from the neighbours or extrapolated. */
-            for (int j = 0; j < m; j++)
-                memcpy(ext + ((size_t)(j + 1) * w + 1) * nc, a + (size_t)j * m * nc, (size_t)m * nc * sizeof(float));
-            for (int e = 0; e < 4; e++) {
-                int o = rc->nb[q][e];
-                const float *b = o >= 0 ? CUR(rc->slot[o]) : NULL;
-                for (int k = 0; k < m; k++) {
-                    size_t gi; /* ghost position in ext, and the inner cells beside it */
-                    size_t in0 = edge_cell(e, m, k), in1;
-                    switch (e) {
-                    case 0: gi = (size_t)k + 1; in1 = in0 + m; break;
-                    case 1: gi = (size_t)(k + 1) * w + m + 1; in1 = in0 - 1; break;
-                    case 2: gi = (size_t)(m + 1) * w + k + 1; in1 = in0 - m; break;
-                    default: gi = (size_t)(k + 1) * w; in1 = in0 + 1; break;
-                    }
-                    float *g = ext + gi * nc;
-                    if (b) {
-                        const float *src = b + edge_cell(rc->nbe[q][e], m, rc->flip[q][e] ? m - 1 - k : k) * nc;
-                        memcpy(g, src, nc * sizeof(float));
-                    } else if (m >= 2) {
-                        for (int ch = 0; ch < nc; ch++) g[ch] = 2 * a[in0 * nc + ch] - a[in1 * nc + ch];
-                    } else {
-                        memcpy(g, a + in0 * nc, nc * sizeof(float));
-                    }
-                }
+}
+
+/* Stage 2, per quad and level: the extended grid of quad q (own cells, ghosts, corners). */
+static void recon_extend(const wrt_recon *rc, int q, int m, int w, int nc, const float *a, float *ext,
+                         float *buf, int nm, size_t pyr_n, size_t full, int cur_half) {
+    /* The extended grid: own cells, ghost rows from the neighbours or extrapolated. */
+    for (int j = 0; j < m; j++)
+        memcpy(ext + ((size_t)(j + 1) * w + 1) * nc, a + (size_t)j * m * nc, (size_t)m * nc * sizeof(float));
+    for (int e = 0; e < 4; e++) {
+        int o = rc->nb[q][e];
+        const float *b = o >= 0 ? CUR(rc->slot[o]) : NULL;
+        for (int k = 0; k < m; k++) {
+            size_t gi; /* ghost position in ext, and the inner cells beside it */
+            size_t in0 = edge_cell(e, m, k), in1;
+            switch (e) {
+            case 0: gi = (size_t)k + 1; in1 = in0 + m; break;
+            case 1: gi = (size_t)(k + 1) * w + m + 1; in1 = in0 - 1; break;
+            case 2: gi = (size_t)(m + 1) * w + k + 1; in1 = in0 - m; break;
+            default: gi = (size_t)(k + 1) * w; in1 = in0 + 1; break;
             }
-            /* Corners of the extended grid: bilinear extrapolation from the ghosts. */
-            static const int cx[4] = {0, 1, 1, 0}, cy[4] = {0, 0, 1, 1};
-            for (int k = 0; k < 4; k++) {
-                int gx = cx[k] ? m + 1 : 0, gy = cy[k] ? m + 1 : 0, ix = cx[k] ? m : 1, iy = cy[k] ? m : 1;
-                float *g = ext + ((size_t)gy * w + gx) * nc;
-                const float *eu = ext + ((size_t)iy * w + gx) * nc, *ev = ext + ((size_t)gy * w + ix) * nc,
-                            *ai = ext + ((size_t)iy * w + ix) * nc;
-                for (int ch = 0; ch < nc; ch++) g[ch] = eu[ch] + ev[ch] - ai[ch];
-            }
-            /* Children: two output rows per input row. */
-            const float *pyr = buf + (size_t)s * pyr_n;
-            const float *pl = l < L ? pyr + (((size_t)1 << (2 * l)) - 1) / 3 * nc : NULL;
-            const float *pc = l < L ? pyr + (((size_t)1 << (2 * (l + 1))) - 1) / 3 * nc : NULL;
-            const uint8_t *kn = l < L && known && known[q] ? known[q] + wrt_recon_node(l, 0, 0) : NULL;
-            int m2 = 2 * m, all_known = l < L && !kn;
-            size_t rs = (size_t)m2 * nc, ws = (size_t)w * nc; /* output and ext row strides */
-            for (int j = 0; j < m; j++) {
-                const float *rowc = ext + ((size_t)(j + 1) * w + 1) * nc;
-                float *o0 = nx + (size_t)(2 * j) * rs, *o1 = o0 + rs;
-                const float *p0 = pc ? pc + (size_t)(2 * j) * rs : NULL, *p1 = p0 ? p0 + rs : NULL;
-                for (int i = 0; i < m; i++) {
-                    const float *c = rowc + (size_t)i * nc;
-                    size_t x0 = (size_t)(2 * i) * nc, x1 = x0 + nc;
-                    int is_known = all_known || (kn && kn[(size_t)j * m + i]);
-                    if (is_known && l >= keep) { /* past `keep`: only a sharp feature's details */
-                        float dmax = 0, pmax = 0;
-                        for (int ch = 0; ch < nc; ch++) {
-                            float par = pl[((size_t)j * m + i) * nc + ch];
-                            float d0 = fabsf(p0[x0 + ch] - par), d1 = fabsf(p0[x1 + ch] - par);
-                            float d2 = fabsf(p1[x0 + ch] - par), d3 = fabsf(p1[x1 + ch] - par);
-                            float ap = fabsf(par);
-                            pmax = ap > pmax ? ap : pmax;
-                            dmax = d0 > dmax ? d0 : dmax;
-                            dmax = d1 > dmax ? d1 : dmax;
-                            dmax = d2 > dmax ? d2 : dmax;
-                            dmax = d3 > dmax ? d3 : dmax;
-                        }
-                        is_known = sharp > 0 && dmax > sharp * pmax;
-                    }
-                    if (is_known) {
-                        for (int ch = 0; ch < nc; ch++) {
-                            float dv = c[ch] - pl[((size_t)j * m + i) * nc + ch];
-                            o0[x0 + ch] = p0[x0 + ch] + dv;
-                            o0[x1 + ch] = p0[x1 + ch] + dv;
-                            o1[x0 + ch] = p1[x0 + ch] + dv;
-                            o1[x1 + ch] = p1[x1 + ch] + dv;
-                        }
-                        continue;
-                    }
-                    for (int ch = 0; ch < nc; ch++) {
-                        float av = c[ch], E = c[nc + ch], W = c[ch - nc], N = c[ws + ch], S = c[ch - ws];
-                        float dx = (E - W) * 0.125f, dy = (N - S) * 0.125f;
-                        float dxy = (c[ws + nc + ch] - c[ws - nc + ch] - c[ch + nc - ws] + c[ch - nc - ws]) * (1.0f / 64);
-                        if (limit) { /* no new extremum: a dark cell beside a lit one stays dark */
-                            float lx = minmod3(2 * (av - W), 0.5f * (E - W), 2 * (E - av)) * 0.25f;
-                            float ly = minmod3(2 * (av - S), 0.5f * (N - S), 2 * (N - av)) * 0.25f;
-                            if (lx != dx || ly != dy) dxy = 0;
-                            dx = lx;
-                            dy = ly;
-                        }
-                        o0[x0 + ch] = av - dx - dy + dxy;
-                        o0[x1 + ch] = av + dx - dy - dxy;
-                        o1[x0 + ch] = av - dx + dy - dxy;
-                        o1[x1 + ch] = av + dx + dy + dxy;
-                    }
-                }
+            float *g = ext + gi * nc;
+            if (b) {
+                const float *src = b + edge_cell(rc->nbe[q][e], m, rc->flip[q][e] ? m - 1 - k : k) * nc;
+                memcpy(g, src, nc * sizeof(float));
+            } else if (m >= 2) {
+                for (int ch = 0; ch < nc; ch++) g[ch] = 2 * a[in0 * nc + ch] - a[in1 * nc + ch];
+            } else {
+                memcpy(g, a + in0 * nc, nc * sizeof(float));
             }
         }
-        cur_half = 1 - cur_half;
     }
+    /* Corners of the extended grid: bilinear extrapolation from the ghosts. */
+    static const int cx[4] = {0, 1, 1, 0}, cy[4] = {0, 0, 1, 1};
+    for (int k = 0; k < 4; k++) {
+        int gx = cx[k] ? m + 1 : 0, gy = cy[k] ? m + 1 : 0, ix = cx[k] ? m : 1, iy = cy[k] ? m : 1;
+        float *g = ext + ((size_t)gy * w + gx) * nc;
+        const float *eu = ext + ((size_t)iy * w + gx) * nc, *ev = ext + ((size_t)gy * w + ix) * nc,
+                    *ai = ext + ((size_t)iy * w + ix) * nc;
+        for (int ch = 0; ch < nc; ch++) g[ch] = eu[ch] + ev[ch] - ai[ch];
+    }
+}
+
+/* Stage 3, per quad and level: quad s's children at level l + 1 from its extended grid. */
+static void recon_children(int s, int q, int l, int L, int m, int w, int nc, const float *ext, float *nx,
+                           const uint8_t *const *known, const float *buf, size_t pyr_n, int keep, float sharp,
+                           int limit) {
+    /* Children: two output rows per input row. */
+    const float *pyr = buf + (size_t)s * pyr_n;
+    const float *pl = l < L ? pyr + (((size_t)1 << (2 * l)) - 1) / 3 * nc : NULL;
+    const float *pc = l < L ? pyr + (((size_t)1 << (2 * (l + 1))) - 1) / 3 * nc : NULL;
+    const uint8_t *kn = l < L && known && known[q] ? known[q] + wrt_recon_node(l, 0, 0) : NULL;
+    int m2 = 2 * m, all_known = l < L && !kn;
+    size_t rs = (size_t)m2 * nc, ws = (size_t)w * nc; /* output and ext row strides */
+    for (int j = 0; j < m; j++) {
+        const float *rowc = ext + ((size_t)(j + 1) * w + 1) * nc;
+        float *o0 = nx + (size_t)(2 * j) * rs, *o1 = o0 + rs;
+        const float *p0 = pc ? pc + (size_t)(2 * j) * rs : NULL, *p1 = p0 ? p0 + rs : NULL;
+        for (int i = 0; i < m; i++) {
+            const float *c = rowc + (size_t)i * nc;
+            size_t x0 = (size_t)(2 * i) * nc, x1 = x0 + nc;
+            int is_known = all_known || (kn && kn[(size_t)j * m + i]);
+            if (is_known && l >= keep) { /* past `keep`: only a sharp feature's details */
+                float dmax = 0, pmax = 0;
+                for (int ch = 0; ch < nc; ch++) {
+                    float par = pl[((size_t)j * m + i) * nc + ch];
+                    float d0 = fabsf(p0[x0 + ch] - par), d1 = fabsf(p0[x1 + ch] - par);
+                    float d2 = fabsf(p1[x0 + ch] - par), d3 = fabsf(p1[x1 + ch] - par);
+                    float ap = fabsf(par);
+                    pmax = ap > pmax ? ap : pmax;
+                    dmax = d0 > dmax ? d0 : dmax;
+                    dmax = d1 > dmax ? d1 : dmax;
+                    dmax = d2 > dmax ? d2 : dmax;
+                    dmax = d3 > dmax ? d3 : dmax;
+                }
+                is_known = sharp > 0 && dmax > sharp * pmax;
+            }
+            if (is_known) {
+                for (int ch = 0; ch < nc; ch++) {
+                    float dv = c[ch] - pl[((size_t)j * m + i) * nc + ch];
+                    o0[x0 + ch] = p0[x0 + ch] + dv;
+                    o0[x1 + ch] = p0[x1 + ch] + dv;
+                    o1[x0 + ch] = p1[x0 + ch] + dv;
+                    o1[x1 + ch] = p1[x1 + ch] + dv;
+                }
+                continue;
+            }
+            for (int ch = 0; ch < nc; ch++) {
+                float av = c[ch], E = c[nc + ch], W = c[ch - nc], N = c[ws + ch], S = c[ch - ws];
+                float dx = (E - W) * 0.125f, dy = (N - S) * 0.125f;
+                float dxy = (c[ws + nc + ch] - c[ws - nc + ch] - c[ch + nc - ws] + c[ch - nc - ws]) * (1.0f / 64);
+                if (limit) { /* no new extremum: a dark cell beside a lit one stays dark */
+                    float lx = minmod3(2 * (av - W), 0.5f * (E - W), 2 * (E - av)) * 0.25f;
+                    float ly = minmod3(2 * (av - S), 0.5f * (N - S), 2 * (N - av)) * 0.25f;
+                    if (lx != dx || ly != dy) dxy = 0;
+                    dx = lx;
+                    dy = ly;
+                }
+                o0[x0 + ch] = av - dx - dy + dxy;
+                o0[x1 + ch] = av + dx - dy - dxy;
+                o1[x0 + ch] = av - dx + dy - dxy;
+                o1[x1 + ch] = av + dx + dy + dxy;
+            }
+        }
+    }
+}
+
+/* Stage 4: the output, with shared edges and corners averaged across the group. */
+static void recon_output(const wrt_recon *rc, int nm, const int *mem, int Lo, int nc, float *const *out,
+                         float *buf, size_t pyr_n, size_t full, int cur_half) {
     /* Output: shared-edge texels the mean of the two cells beside the edge, corner texels
      * the mean of the cells around the corner; everything else the finest averages. */
     int m = 1 << Lo;
@@ -454,6 +468,37 @@ void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const 
             }
         }
     }
+}
+
+void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
+                      const uint8_t *const *known, float *const *out, const wrt_recon_params *prm, float *buf) {
+    int keep = prm ? prm->keep : WRT_RECON_KEEP, limit = prm ? prm->limit : 1, linear = prm ? prm->linear : 0;
+    float sharp = prm ? prm->sharp : WRT_RECON_SHARP;
+    if (linear) { /* a choice from the mask and `keep` alone */
+        limit = 0;
+        sharp = 0;
+    }
+    int nm;
+    const int *mem = wrt_recon_members(rc, gr, &nm);
+    if (nm == 0) return;
+    size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
+    size_t full = ((size_t)1 << (2 * Lo)) * nc;
+    float *ext = buf + (size_t)nm * (pyr_n + 2 * full);
+    recon_pyramids(nm, mem, L, nc, in, buf, pyr_n);
+    int cur_half = 0;
+    for (int s = 0; s < nm; s++) memcpy(CUR(s), buf + (size_t)s * pyr_n, nc * sizeof(float));
+    for (int l = 0; l < Lo; l++) {
+        int m = 1 << l, w = m + 2;
+        for (int s = 0; s < nm; s++) {
+            int q = mem[s];
+            const float *a = CUR(s);
+            float *nx = NXT(s);
+            recon_extend(rc, q, m, w, nc, a, ext, buf, nm, pyr_n, full, cur_half);
+            recon_children(s, q, l, L, m, w, nc, ext, nx, known, buf, pyr_n, keep, sharp, limit);
+        }
+        cur_half = 1 - cur_half;
+    }
+    recon_output(rc, nm, mem, Lo, nc, out, buf, pyr_n, full, cur_half);
     /* Light is never negative: the prediction can undershoot beside a sharp edge (the
      * linear display keeps the undershoot: a clamp does not superpose). */
     for (int s = 0; s < nm && !linear; s++) {

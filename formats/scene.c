@@ -360,14 +360,10 @@ static int add_triangle_parts(const wrt_gltf_prim *p, int t, int material, quad_
  * triangle becomes three quads of its own (add_triangle_parts), counted in s by
  * reason. Triangles that are degenerate, slivers (narrowest height under
  * WRT_SLIVER_REL x diag) or not finite are appended to pl and left out. */
-static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, double planar_tol,
-                           double diag, int material, quad_list *ql, problem_list *pl, wrt_scene *sc) {
-    size_t ntri = p->ntri;
-    if (ntri == 0) return;
-    uint32_t *rep = wrt_xmalloc(p->npos * sizeof *rep);
-    match_vertices(p, origin, eps, rep);
-    tri_info *info = wrt_xcalloc(ntri, sizeof *info);
-    edge_entry *edges = wrt_xmalloc(3 * ntri * sizeof *edges);
+/* Stage 1 of the pairing: each triangle checked (problems to pl, bad ones marked) and its
+ * edges listed by their matched vertices; returns the number of edges. */
+static size_t pair_classify(const wrt_gltf_prim *p, size_t ntri, const uint32_t *rep, double diag, tri_info *info,
+                            edge_entry *edges, problem_list *pl) {
     size_t nedges = 0;
     for (size_t t = 0; t < ntri; t++) {
         const uint32_t *ix = &p->idx[3 * t];
@@ -416,9 +412,12 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
             nedges++;
         }
     }
-    qsort(edges, nedges, sizeof *edges, cmp_edge);
+    return nedges;
+}
 
-    pair_ctx ctx = {p, rep, info, planar_tol};
+/* Stage 2: the candidate pairs along each shared edge, both ways (failures noted in info). */
+static cand *pair_candidates(pair_ctx *ctx_in, const edge_entry *edges, size_t nedges, tri_info *info, size_t *ncands_out) {
+    pair_ctx ctx = *ctx_in;
     cand *cands = NULL;
     size_t ncands = 0, capc = 0;
     for (size_t i = 0; i < nedges;) {
@@ -465,12 +464,17 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
         }
         i = j;
     }
+    *ncands_out = ncands;
+    return cands;
+}
+
+/* Stage 3: the matching, forced pairs (one free candidate) first; mate[t] is t's pair or -1. */
+static void pair_match(cand *cands, size_t ncands, size_t ntri, tri_info *info, int *mate) {
     if (ncands) qsort(cands, ncands, sizeof *cands, cmp_cand);
     size_t *first = wrt_xcalloc(ntri + 1, sizeof *first);
     for (size_t i = 0; i < ncands; i++) first[cands[i].t + 1]++;
     for (size_t t = 0; t < ntri; t++) first[t + 1] += first[t];
     int *deg = wrt_xcalloc(ntri, sizeof *deg);
-    int *mate = wrt_xmalloc(ntri * sizeof *mate);
     int *stack = wrt_xmalloc(ntri * sizeof *stack);
     size_t nstack = 0;
     for (size_t t = 0; t < ntri; t++) {
@@ -507,7 +511,15 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
                 if (--deg[o] == 1) stack[nstack++] = o;
             }
     }
+    free(stack);
+    free(deg);
+    free(first);
+}
 
+/* Stage 4: the quads, paired ones first where they finish, every other good triangle as three. */
+static void pair_emit(const wrt_gltf_prim *p, pair_ctx *ctx_in, size_t ntri, tri_info *info, const int *mate, int material,
+                      quad_list *ql, problem_list *pl, wrt_scene *sc) {
+    pair_ctx ctx = *ctx_in;
     for (size_t t = 0; t < ntri; t++) {
         int ti = (int)t;
         if (info[t].bad) continue;
@@ -556,10 +568,27 @@ static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, do
                         "zero area: its three quads are degenerate");
         }
     }
-    free(stack);
+}
+
+static void pair_primitive(const wrt_gltf_prim *p, wrt_v3 origin, double eps, double planar_tol,
+                           double diag, int material, quad_list *ql, problem_list *pl, wrt_scene *sc) {
+    size_t ntri = p->ntri;
+    if (ntri == 0) return;
+    uint32_t *rep = wrt_xmalloc(p->npos * sizeof *rep);
+    match_vertices(p, origin, eps, rep);
+    tri_info *info = wrt_xcalloc(ntri, sizeof *info);
+    edge_entry *edges = wrt_xmalloc(3 * ntri * sizeof *edges);
+    size_t nedges = pair_classify(p, ntri, rep, diag, info, edges, pl);
+    qsort(edges, nedges, sizeof *edges, cmp_edge);
+
+    pair_ctx ctx = {p, rep, info, planar_tol};
+    size_t ncands = 0;
+    cand *cands = pair_candidates(&ctx, edges, nedges, info, &ncands);
+    int *mate = wrt_xmalloc(ntri * sizeof *mate);
+    pair_match(cands, ncands, ntri, info, mate);
+
+    pair_emit(p, &ctx, ntri, info, mate, material, ql, pl, sc);
     free(mate);
-    free(deg);
-    free(first);
     free(cands);
     free(edges);
     free(info);
@@ -721,30 +750,13 @@ static wrt_status make_camera(const wrt_gltf_data *g, wrt_scene *s, const char *
     return WRT_OK;
 }
 
-static wrt_status load_common(const void *data, size_t size, const char *base_dir, const char *label,
-                              const wrt_load_options *opt, wrt_scene *out) {
-    wrt_load_options defaults = {0};
-    if (!opt) opt = &defaults;
-    double planar_tol = opt->planar_tol > 0 ? opt->planar_tol : 1e-4;
-    if (!isfinite(planar_tol) || planar_tol >= 1)
-        return wrt_fail(WRT_ERR_INVALID_ARG, "planar_tol %g must be in (0, 1)", opt->planar_tol);
-    wrt_gltf_data g;
-    wrt_status st = wrt_gltf_read(data, size, base_dir, label, opt->allow_outside_files, &g);
-    if (st != WRT_OK) return st;
-    if (g.warnings && g.warnings[0]) {
-        for (char *w = g.warnings; *w; w++)
-            if (*w == '\n') *w = ' ';
-        wrt_log(WRT_LOG_WARN, "%s: %s", label, g.warnings);
-    }
-    wrt_scene *s = out;
-    s->source_hash = wrt_hash64(data, size, WRT_HASH_SEED);
-
-    /* scene extent over every usable vertex: the scale of the matching tolerance */
+/* Load stage 1: the scene extent over every usable vertex, the scale of the matching tolerance
+ * (need_default: a primitive without a material). */
+static void scene_extent(const wrt_gltf_data *g, wrt_v3 *lo_out, wrt_v3 *hi_out, int *need_default) {
     wrt_v3 lo = v3(DBL_MAX, DBL_MAX, DBL_MAX), hi = v3(-DBL_MAX, -DBL_MAX, -DBL_MAX);
-    int need_default = 0;
-    for (size_t i = 0; i < g.nprims; i++) {
-        const wrt_gltf_prim *p = &g.prims[i];
-        if (p->material < 0) need_default = 1;
+    for (size_t i = 0; i < g->nprims; i++) {
+        const wrt_gltf_prim *p = &g->prims[i];
+        if (p->material < 0) *need_default = 1;
         for (size_t v = 0; v < p->npos; v++) {
             const double *c = &p->pos[3 * v];
             if (!coord_ok(c)) continue;
@@ -753,30 +765,15 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
         }
     }
     if (lo.x > hi.x) lo = hi = v3(0, 0, 0);
-    double diag = v3_len(v3_sub(hi, lo));
-    double eps = diag > 0 ? WRT_WELD_REL * diag : 1.0;
+    *lo_out = lo;
+    *hi_out = hi;
+}
 
-    convert_materials(&g, need_default, s, label);
-    s->nnames = (int)g.nmeshes;
-    s->names = wrt_xcalloc(g.nmeshes ? g.nmeshes : 1, sizeof *s->names);
-    for (size_t i = 0; i < g.nmeshes; i++) memcpy(s->names[i], g.mesh_names[i], 64);
-
-    quad_list ql = {0};
-    problem_list pl = {0};
-    size_t ntri = 0;
-    for (size_t i = 0; i < g.nprims; i++) {
-        const wrt_gltf_prim *p = &g.prims[i];
-        int material = p->material >= 0 ? p->material : s->nmaterials - 1;
-        pair_primitive(p, lo, eps, planar_tol, diag, material, &ql, &pl, s);
-        ntri += p->ntri;
-        s->nmirrored += p->mirrored;
-    }
-    s->quads = ql.v;
-    s->nquads = ql.n;
-    s->problems = pl.v;
-    s->nproblems = pl.n;
-    s->ntriangles = (int)ntri;
-
+/* Load stage 2: the problem triangles counted and reported; refuses the scene (freeing g and
+ * s) for non-finite ones unless opt allows them. */
+static wrt_status scene_report_problems(problem_list pl, wrt_gltf_data *g, const wrt_load_options *opt,
+                                        const char *label, wrt_scene *s) {
+    wrt_status st;
     /* Non-finite triangles refuse the scene (unless drop_bad); degenerate ones and
      * slivers are dropped and counted, with one warning naming the first few. */
     for (int pass = 0; pass < 2; pass++) {
@@ -802,7 +799,7 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
         if (pass == 0 && !opt->drop_bad) {
             st = wrt_fail(WRT_ERR_GEOMETRY, "%s: %d bad triangle%s refused: %s%s", label, n,
                           n == 1 ? "" : "s", buf, n > shown ? "; ..." : "");
-            wrt_gltf_free(&g);
+            wrt_gltf_free(g);
             wrt_scene_free(s);
             return st;
         }
@@ -815,18 +812,22 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
                     "diagonal): %s%s",
                     label, n, n == 1 ? "" : "s", WRT_SLIVER_REL, buf, n > shown ? "; ..." : "");
     }
+    return WRT_OK;
+}
 
+/* Load stage 3: the back-to-back twins of doubleSided quads, appended to ql. */
+static void scene_add_twins(quad_list *ql, const wrt_gltf_data *g, double diag, wrt_scene *s) {
     /* doubleSided (glTF: no back-face culling, both sides lit): each such quad gets a
      * back-to-back twin facing the other way, set back by WRT_TWIN_GAP of the scene's
      * diagonal so that a ray meets the side it comes from first (two coincident faces
      * would be hit in arbitrary order). Every part of the method then treats the two
      * sides as the one-sided quads it knows. */
-    int nfront = ql.n;
+    int nfront = ql->n;
     for (int i = 0; i < nfront; i++) {
-        int m = ql.v[i].material;
-        if (m < 0 || m >= (int)g.nmaterials || !g.materials[m].double_sided) continue;
-        wrt_quad *b = add_quad(&ql);
-        const wrt_quad *f = &ql.v[i]; /* after add_quad: it may move the array */
+        int m = ql->v[i].material;
+        if (m < 0 || m >= (int)g->nmaterials || !g->materials[m].double_sided) continue;
+        wrt_quad *b = add_quad(ql);
+        const wrt_quad *f = &ql->v[i]; /* after add_quad: it may move the array */
         wrt_v3 back = v3_scale(f->n, -WRT_TWIN_GAP * (diag > 0 ? diag : 1.0));
         b->p[0] = v3_add(f->p[0], back);
         b->p[1] = v3_add(f->p[3], back);
@@ -846,17 +847,13 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
         b->has_uv = f->has_uv; /* the corners run p0 p3 p2 p1: so do their (u, v) */
         for (int c = 0; c < 4; c++)
             for (int d = 0; d < 2; d++) b->uv[c][d] = f->uv[(4 - c) % 4][d];
-        if (wrt_quad_finish(b) != WRT_OK) ql.n--; /* cannot happen: f was finished */
+        if (wrt_quad_finish(b) != WRT_OK) ql->n--; /* cannot happen: f was finished */
         else s->ntwins++;
     }
-    s->quads = ql.v;
-    s->nquads = ql.n;
-    s->ignored = wrt_xmalloc(strlen(g.ignored ? g.ignored : "") + 1);
-    strcpy(s->ignored, g.ignored ? g.ignored : "");
-    s->files = wrt_xmalloc(strlen(g.files ? g.files : "") + 1);
-    strcpy(s->files, g.files ? g.files : "");
+}
 
-    /* bounding box of the kept geometry */
+/* Load stage 4: the bounding box of the kept geometry (lo, hi: the extent, for no quads). */
+static void scene_bbox(wrt_scene *s, wrt_v3 lo, wrt_v3 hi, const wrt_load_options *opt, const char *label) {
     if (s->nquads > 0) {
         lo = v3(DBL_MAX, DBL_MAX, DBL_MAX);
         hi = v3(-DBL_MAX, -DBL_MAX, -DBL_MAX);
@@ -871,6 +868,65 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
     }
     s->bbox_min = lo;
     s->bbox_max = hi;
+}
+
+static wrt_status load_common(const void *data, size_t size, const char *base_dir, const char *label,
+                              const wrt_load_options *opt, wrt_scene *out) {
+    wrt_load_options defaults = {0};
+    if (!opt) opt = &defaults;
+    double planar_tol = opt->planar_tol > 0 ? opt->planar_tol : 1e-4;
+    if (!isfinite(planar_tol) || planar_tol >= 1)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "planar_tol %g must be in (0, 1)", opt->planar_tol);
+    wrt_gltf_data g;
+    wrt_status st = wrt_gltf_read(data, size, base_dir, label, opt->allow_outside_files, &g);
+    if (st != WRT_OK) return st;
+    if (g.warnings && g.warnings[0]) {
+        for (char *w = g.warnings; *w; w++)
+            if (*w == '\n') *w = ' ';
+        wrt_log(WRT_LOG_WARN, "%s: %s", label, g.warnings);
+    }
+    wrt_scene *s = out;
+    s->source_hash = wrt_hash64(data, size, WRT_HASH_SEED);
+
+    wrt_v3 lo, hi;
+    int need_default = 0;
+    scene_extent(&g, &lo, &hi, &need_default);
+    double diag = v3_len(v3_sub(hi, lo));
+    double eps = diag > 0 ? WRT_WELD_REL * diag : 1.0;
+
+    convert_materials(&g, need_default, s, label);
+    s->nnames = (int)g.nmeshes;
+    s->names = wrt_xcalloc(g.nmeshes ? g.nmeshes : 1, sizeof *s->names);
+    for (size_t i = 0; i < g.nmeshes; i++) memcpy(s->names[i], g.mesh_names[i], 64);
+
+    quad_list ql = {0};
+    problem_list pl = {0};
+    size_t ntri = 0;
+    for (size_t i = 0; i < g.nprims; i++) {
+        const wrt_gltf_prim *p = &g.prims[i];
+        int material = p->material >= 0 ? p->material : s->nmaterials - 1;
+        pair_primitive(p, lo, eps, planar_tol, diag, material, &ql, &pl, s);
+        ntri += p->ntri;
+        s->nmirrored += p->mirrored;
+    }
+    s->quads = ql.v;
+    s->nquads = ql.n;
+    s->problems = pl.v;
+    s->nproblems = pl.n;
+    s->ntriangles = (int)ntri;
+
+    st = scene_report_problems(pl, &g, opt, label, s);
+    if (st != WRT_OK) return st;
+
+    scene_add_twins(&ql, &g, diag, s);
+    s->quads = ql.v;
+    s->nquads = ql.n;
+    s->ignored = wrt_xmalloc(strlen(g.ignored ? g.ignored : "") + 1);
+    strcpy(s->ignored, g.ignored ? g.ignored : "");
+    s->files = wrt_xmalloc(strlen(g.files ? g.files : "") + 1);
+    strcpy(s->files, g.files ? g.files : "");
+
+    scene_bbox(s, lo, hi, opt, label);
 
     st = convert_lights(&g, s, label);
     if (st == WRT_OK) st = make_camera(&g, s, label);
