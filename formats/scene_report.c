@@ -55,96 +55,90 @@ static void json_f3(FILE *f, const float *v) {
     fputc(']', f);
 }
 
-void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
-    if (!s || !f) return;
-    int npara = 0;
-    int *uses = wrt_xcalloc((size_t)(s->nmaterials > 0 ? s->nmaterials : 1), sizeof *uses);
-    for (int i = 0; i < s->nquads; i++) {
-        npara += s->quads[i].parallelogram;
-        if (s->quads[i].material >= 0 && s->quads[i].material < s->nmaterials)
-            uses[s->quads[i].material]++;
-    }
+/* The JSON form: counts, bbox, materials, lights, camera and problems as one object. */
+static void print_summary_json(const wrt_scene *s, int npara, const int *uses, FILE *f) {
     const wrt_camera *c = &s->camera;
-    if (json) {
-        fprintf(f, "{\"quads\":%d,\"parallelograms\":%d,\"triangles\":%d,\"emissive\":%d,", s->nquads,
-                npara, s->ntriangles, s->nemissive);
-        fprintf(f, "\"elements\":{\"paired\":%d,\"triangles\":%d,\"triangle_quads\":%d,\"twins\":%d},",
-                s->npaired, s->nsingle, 3 * s->nsingle, s->ntwins);
-        fputs("\"triangles_alone\":{", f);
-        for (int k = 0; k < WRT_SINGLE_NREASONS; k++)
-            fprintf(f, "%s\"%s\":%d", k ? "," : "", single_name(k), s->why_single[k]);
-        fprintf(f, "},\"dropped\":%d,\"non_finite\":%d,\"mirrored_instances\":%d,", s->ndropped,
-                s->nnonfinite, s->nmirrored);
-        fprintf(f, "\"source_hash\":\"%016llx\",\"bbox\":{\"min\":", (unsigned long long)s->source_hash);
-        json_v3(f, s->bbox_min);
-        fputs(",\"max\":", f);
-        json_v3(f, s->bbox_max);
-        fputs("},\"materials\":[", f);
-        for (int i = 0; i < s->nmaterials; i++) {
-            const wrt_material *m = &s->materials[i];
-            fputs(i ? ",{\"name\":" : "{\"name\":", f);
-            json_string(f, m->name);
-            fputs(",\"base_color\":", f);
-            json_f3(f, m->base_color);
-            fputs(",\"metallic\":", f);
-            json_numf(f, m->metallic);
-            fputs(",\"roughness\":", f);
-            json_numf(f, m->roughness);
-            fputs(",\"emissive\":", f);
-            json_f3(f, m->emissive);
-            fprintf(f, ",\"lambertian\":%s,\"textured\":%s,\"quads\":%d}", m->lambertian ? "true" : "false",
-                    m->has_texture ? "true" : "false", uses[i]);
-        }
-        fputs("],\"lights\":[", f);
-        for (int i = 0; i < s->nlights; i++) {
-            const wrt_light *l = &s->lights[i];
-            fprintf(f, "%s{\"type\":\"%s\",\"name\":", i ? "," : "", wrt_light_type_name(l->type));
-            json_string(f, l->name);
-            fputs(",\"position\":", f);
-            json_v3(f, l->pos);
-            fputs(",\"direction\":", f);
-            json_v3(f, l->dir);
-            fputs(",\"color\":", f);
-            json_f3(f, l->color);
-            fputs(",\"intensity\":", f);
-            json_numf(f, l->intensity);
-            fputs(",\"range\":", f);
-            json_numf(f, l->range);
-            fputs(",\"inner_cone\":", f);
-            json_numf(f, l->inner_cone);
-            fputs(",\"outer_cone\":", f);
-            json_numf(f, l->outer_cone);
-            fputc('}', f);
-        }
-        fputs("],\"camera\":{\"position\":", f);
-        json_v3(f, c->pos);
-        fputs(",\"direction\":", f);
-        json_v3(f, c->dir);
-        fputs(",\"up\":", f);
-        json_v3(f, c->up);
-        fputs(",\"yfov\":", f);
-        json_num(f, c->yfov);
-        fputs(",\"aspect\":", f);
-        json_num(f, c->aspect);
-        fputs(",\"znear\":", f);
-        json_num(f, c->znear);
-        fputs(",\"zfar\":", f);
-        json_num(f, c->zfar);
-        fprintf(f, ",\"from_file\":%s},\"double_sided_twins\":%d,\"ignored\":", c->from_file ? "true" : "false",
-                s->ntwins);
-        json_string(f, s->ignored ? s->ignored : "");
-        fputs(",\"problems\":[", f);
-        for (int i = 0; i < s->nproblems; i++) {
-            const wrt_problem *p = &s->problems[i];
-            fprintf(f, "%s{\"kind\":\"%s\",\"mesh\":%d,\"primitive\":%d,\"triangle\":%d,\"what\":",
-                    i ? "," : "", wrt_scene_problem_name(p->kind), p->mesh, p->prim, p->tri);
-            json_string(f, p->what);
-            fputc('}', f);
-        }
-        fputs("]}\n", f);
-        free(uses);
-        return;
+    fprintf(f, "{\"quads\":%d,\"parallelograms\":%d,\"triangles\":%d,\"emissive\":%d,", s->nquads,
+            npara, s->ntriangles, s->nemissive);
+    fprintf(f, "\"elements\":{\"paired\":%d,\"triangles\":%d,\"triangle_quads\":%d,\"twins\":%d},",
+            s->npaired, s->nsingle, 3 * s->nsingle, s->ntwins);
+    fputs("\"triangles_alone\":{", f);
+    for (int k = 0; k < WRT_SINGLE_NREASONS; k++)
+        fprintf(f, "%s\"%s\":%d", k ? "," : "", single_name(k), s->why_single[k]);
+    fprintf(f, "},\"dropped\":%d,\"non_finite\":%d,\"mirrored_instances\":%d,", s->ndropped,
+            s->nnonfinite, s->nmirrored);
+    fprintf(f, "\"source_hash\":\"%016llx\",\"bbox\":{\"min\":", (unsigned long long)s->source_hash);
+    json_v3(f, s->bbox_min);
+    fputs(",\"max\":", f);
+    json_v3(f, s->bbox_max);
+    fputs("},\"materials\":[", f);
+    for (int i = 0; i < s->nmaterials; i++) {
+        const wrt_material *m = &s->materials[i];
+        fputs(i ? ",{\"name\":" : "{\"name\":", f);
+        json_string(f, m->name);
+        fputs(",\"base_color\":", f);
+        json_f3(f, m->base_color);
+        fputs(",\"metallic\":", f);
+        json_numf(f, m->metallic);
+        fputs(",\"roughness\":", f);
+        json_numf(f, m->roughness);
+        fputs(",\"emissive\":", f);
+        json_f3(f, m->emissive);
+        fprintf(f, ",\"lambertian\":%s,\"textured\":%s,\"quads\":%d}", m->lambertian ? "true" : "false",
+                m->has_texture ? "true" : "false", uses[i]);
     }
+    fputs("],\"lights\":[", f);
+    for (int i = 0; i < s->nlights; i++) {
+        const wrt_light *l = &s->lights[i];
+        fprintf(f, "%s{\"type\":\"%s\",\"name\":", i ? "," : "", wrt_light_type_name(l->type));
+        json_string(f, l->name);
+        fputs(",\"position\":", f);
+        json_v3(f, l->pos);
+        fputs(",\"direction\":", f);
+        json_v3(f, l->dir);
+        fputs(",\"color\":", f);
+        json_f3(f, l->color);
+        fputs(",\"intensity\":", f);
+        json_numf(f, l->intensity);
+        fputs(",\"range\":", f);
+        json_numf(f, l->range);
+        fputs(",\"inner_cone\":", f);
+        json_numf(f, l->inner_cone);
+        fputs(",\"outer_cone\":", f);
+        json_numf(f, l->outer_cone);
+        fputc('}', f);
+    }
+    fputs("],\"camera\":{\"position\":", f);
+    json_v3(f, c->pos);
+    fputs(",\"direction\":", f);
+    json_v3(f, c->dir);
+    fputs(",\"up\":", f);
+    json_v3(f, c->up);
+    fputs(",\"yfov\":", f);
+    json_num(f, c->yfov);
+    fputs(",\"aspect\":", f);
+    json_num(f, c->aspect);
+    fputs(",\"znear\":", f);
+    json_num(f, c->znear);
+    fputs(",\"zfar\":", f);
+    json_num(f, c->zfar);
+    fprintf(f, ",\"from_file\":%s},\"double_sided_twins\":%d,\"ignored\":", c->from_file ? "true" : "false",
+            s->ntwins);
+    json_string(f, s->ignored ? s->ignored : "");
+    fputs(",\"problems\":[", f);
+    for (int i = 0; i < s->nproblems; i++) {
+        const wrt_problem *p = &s->problems[i];
+        fprintf(f, "%s{\"kind\":\"%s\",\"mesh\":%d,\"primitive\":%d,\"triangle\":%d,\"what\":",
+                i ? "," : "", wrt_scene_problem_name(p->kind), p->mesh, p->prim, p->tri);
+        json_string(f, p->what);
+        fputc('}', f);
+    }
+    fputs("]}\n", f);
+}
+
+/* The text form: one line per count, then the materials, lights, camera and problems. */
+static void print_summary_text(const wrt_scene *s, int npara, const int *uses, FILE *f) {
+    const wrt_camera *c = &s->camera;
     int ndiffuse = 0;
     for (int i = 0; i < s->nmaterials; i++) ndiffuse += s->materials[i].lambertian;
     fprintf(f, "scene: %d quads (%d parallelograms, %d general convex) from %d triangles\n", s->nquads,
@@ -209,5 +203,18 @@ void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
                 wrt_scene_problem_name(p->kind), p->what);
     }
     if (s->nproblems > 50) fprintf(f, "  ... %d more\n", s->nproblems - 50);
+}
+
+void wrt_scene_print_summary(const wrt_scene *s, int json, FILE *f) {
+    if (!s || !f) return;
+    int npara = 0;
+    int *uses = wrt_xcalloc((size_t)(s->nmaterials > 0 ? s->nmaterials : 1), sizeof *uses);
+    for (int i = 0; i < s->nquads; i++) {
+        npara += s->quads[i].parallelogram;
+        if (s->quads[i].material >= 0 && s->quads[i].material < s->nmaterials)
+            uses[s->quads[i].material]++;
+    }
+    if (json) print_summary_json(s, npara, uses, f);
+    else print_summary_text(s, npara, uses, f);
     free(uses);
 }
