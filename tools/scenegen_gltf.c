@@ -131,10 +131,8 @@ static wrt_v3 world(const sg_scene *s, wrt_v3 p) {
     return v3_add(v3_scale(p, s->opt.scale), s->opt.offset);
 }
 
-/* Serializes the scene to glTF JSON text in `out`. */
-void write_gltf(const sg_scene *s, sbuf *out) {
-    bbuf bin = {0};
-    sbuf acc = {0}, views = {0};
+/* Buffer data, accessors and buffer views: per mesh POSITION, NORMAL and indices. */
+static void gltf_mesh_buffers(const sg_scene *s, bbuf *bin, sbuf *acc, sbuf *views) {
     int nacc = 0;
     /* per mesh: POSITION, NORMAL, indices; one buffer view each */
     for (int i = 0; i < s->nmeshes; i++) {
@@ -148,42 +146,43 @@ void write_gltf(const sg_scene *s, sbuf *out) {
                 if (v == 0 || x > hi[c]) hi[c] = x;
             }
         for (int part = 0; part < 3; part++) {
-            size_t off = bin.n;
+            size_t off = bin->n;
             if (part < 2) {
                 const float *src = part == 0 ? m->pos : m->nrm, *tsrc = part == 0 ? m->tpos : m->tnrm;
-                for (size_t k = 0; k < 3 * nqv; k++) bb_f32(&bin, src[k]);
-                for (size_t k = 0; k < 3 * (nv - nqv); k++) bb_f32(&bin, tsrc[k]);
+                for (size_t k = 0; k < 3 * nqv; k++) bb_f32(bin, src[k]);
+                for (size_t k = 0; k < 3 * (nv - nqv); k++) bb_f32(bin, tsrc[k]);
             } else {
                 for (uint32_t q = 0; q < (uint32_t)m->nquads; q++) {
                     uint32_t b = 4 * q;
-                    bb_u32(&bin, b); bb_u32(&bin, b + 1); bb_u32(&bin, b + 2);
-                    bb_u32(&bin, b); bb_u32(&bin, b + 2); bb_u32(&bin, b + 3);
+                    bb_u32(bin, b); bb_u32(bin, b + 1); bb_u32(bin, b + 2);
+                    bb_u32(bin, b); bb_u32(bin, b + 2); bb_u32(bin, b + 3);
                 }
-                for (uint32_t k = 0; k < 3 * (uint32_t)m->ntris; k++) bb_u32(&bin, (uint32_t)nqv + k);
+                for (uint32_t k = 0; k < 3 * (uint32_t)m->ntris; k++) bb_u32(bin, (uint32_t)nqv + k);
             }
-            sb_printf(&views, "%s\n    {\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu,\"target\":%d}",
-                      nacc ? "," : "", off, bin.n - off, part < 2 ? 34962 : 34963);
+            sb_printf(views, "%s\n    {\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu,\"target\":%d}",
+                      nacc ? "," : "", off, bin->n - off, part < 2 ? 34962 : 34963);
             if (part < 2) {
-                sb_printf(&acc, "%s\n    {\"bufferView\":%d,\"componentType\":5126,\"count\":%zu,\"type\":\"VEC3\"",
+                sb_printf(acc, "%s\n    {\"bufferView\":%d,\"componentType\":5126,\"count\":%zu,\"type\":\"VEC3\"",
                           nacc ? "," : "", nacc, nv);
                 if (part == 0) {
                     double dlo[3] = {lo[0], lo[1], lo[2]}, dhi[3] = {hi[0], hi[1], hi[2]};
-                    sb_printf(&acc, ",\"min\":");
-                    sb_vec(&acc, dlo, 3);
-                    sb_printf(&acc, ",\"max\":");
-                    sb_vec(&acc, dhi, 3);
+                    sb_printf(acc, ",\"min\":");
+                    sb_vec(acc, dlo, 3);
+                    sb_printf(acc, ",\"max\":");
+                    sb_vec(acc, dhi, 3);
                 }
-                sb_printf(&acc, "}");
+                sb_printf(acc, "}");
             } else {
-                sb_printf(&acc, ",\n    {\"bufferView\":%d,\"componentType\":5125,\"count\":%zu,\"type\":\"SCALAR\"}",
+                sb_printf(acc, ",\n    {\"bufferView\":%d,\"componentType\":5125,\"count\":%zu,\"type\":\"SCALAR\"}",
                           nacc, (size_t)m->nquads * 6 + (size_t)m->ntris * 3);
             }
             nacc++;
         }
     }
+}
 
-    sb_printf(out, "{\n  \"asset\":{\"version\":\"2.0\",\"generator\":\"wrt-scenegen %s\"},\n",
-              WRT_VERSION_STRING);
+/* The KHR_lights_punctual extension with every light, when the scene has lights. */
+static void gltf_lights(const sg_scene *s, sbuf *out) {
     int nl = s->nlights;
     if (nl > 0) {
         sb_printf(out, "  \"extensionsUsed\":[\"KHR_lights_punctual\"],\n");
@@ -209,6 +208,11 @@ void write_gltf(const sg_scene *s, sbuf *out) {
         }
         sb_printf(out, "]}},\n");
     }
+}
+
+/* The scene and its nodes: meshes, lights, camera. */
+static void gltf_nodes(const sg_scene *s, sbuf *out) {
+    int nl = s->nlights;
     /* nodes: meshes, lights, camera */
     int nnodes = s->nmeshes + nl + 1;
     sb_printf(out, "  \"scene\":0,\n  \"scenes\":[{\"name\":\"%s\",\"nodes\":[", s->name);
@@ -238,6 +242,10 @@ void write_gltf(const sg_scene *s, sbuf *out) {
         sb_vec(out, q, 4);
         sb_printf(out, "}");
     }
+}
+
+/* The camera, mesh and material sections. */
+static void gltf_cameras_meshes_materials(const sg_scene *s, sbuf *out) {
     sb_printf(out, "\n  ],\n  \"cameras\":[{\"name\":\"camera\",\"type\":\"perspective\",\"perspective\":{\"yfov\":");
     sb_num(out, s->yfov);
     sb_printf(out, ",\"znear\":");
@@ -260,6 +268,19 @@ void write_gltf(const sg_scene *s, sbuf *out) {
         sb_num(out, m->roughness);
         sb_printf(out, "}}");
     }
+}
+
+/* Serializes the scene to glTF JSON text in `out`. */
+void write_gltf(const sg_scene *s, sbuf *out) {
+    bbuf bin = {0};
+    sbuf acc = {0}, views = {0};
+    gltf_mesh_buffers(s, &bin, &acc, &views);
+
+    sb_printf(out, "{\n  \"asset\":{\"version\":\"2.0\",\"generator\":\"wrt-scenegen %s\"},\n",
+              WRT_VERSION_STRING);
+    gltf_lights(s, out);
+    gltf_nodes(s, out);
+    gltf_cameras_meshes_materials(s, out);
     sb_printf(out, "\n  ],\n  \"accessors\":[%s\n  ],\n  \"bufferViews\":[%s\n  ],\n", acc.p, views.p);
     sb_printf(out, "  \"buffers\":[{\"byteLength\":%zu,\"uri\":\"data:application/octet-stream;base64,", bin.n);
     sb_base64(out, bin.p, bin.n);
