@@ -585,6 +585,130 @@ static void win_title(app *a, win_state *w, int idle) {
     a->plat->set_title(a->plat, title);
 }
 
+/* Key presses, in order: selection, light scale/colour, exposure, mode, reset, reload, shots. */
+static int win_keys(app *a, win_state *w, const wrt_input *in, int *quit, int *shot) {
+    int rc = 0;
+    wrt_light *sl = &a->lights[w->sel];
+    for (int e = 0; e < in->nevents; e++) {
+        int k = in->events[e].key;
+        if (k == WRT_KEY_ESCAPE) *quit = 1;
+        else if (k == WRT_KEY_TAB && !in->events[e].repeat)
+            w->sel = (w->sel + (in->events[e].shift ? nshown(a) - 1 : 1)) % nshown(a);
+        else if (k >= WRT_KEY_1 && k <= WRT_KEY_9) {
+            int i = k - WRT_KEY_1;
+            if (i < nshown(a)) w->sel = i;
+            else say(w, "there is no light %d (the file has %d)", i + 1, a->nlights);
+        } else if (k == WRT_KEY_SPACE && !in->events[e].repeat) {
+            if (a->scales[w->sel] != 0) { w->saved_scale[w->sel] = a->scales[w->sel]; a->scales[w->sel] = 0; }
+            else a->scales[w->sel] = w->saved_scale[w->sel] != 0 ? w->saved_scale[w->sel] : 1;
+        } else if (k == WRT_KEY_PLUS || k == WRT_KEY_MINUS) {
+            float f = k == WRT_KEY_PLUS ? 1.25f : 0.8f;
+            if (a->scales[w->sel] != 0) a->scales[w->sel] = fminf(fmaxf(a->scales[w->sel] * f, 1e-4f), 1e4f);
+            else w->saved_scale[w->sel] = fminf(fmaxf(w->saved_scale[w->sel] * f, 1e-4f), 1e4f);
+        } else if (k == WRT_KEY_C && !in->events[e].repeat) {
+            int c = (w->colour[w->sel] + 1) % NCOLOURS;
+            while (c != 0 && !memcmp(colours[c].rgb, w->file_colour[w->sel], sizeof colours[c].rgb))
+                c = (c + 1) % NCOLOURS; /* the same as its own: no visible change */
+            w->colour[w->sel] = c;
+            memcpy(sl->color, c == 0 ? w->file_colour[w->sel] : colours[c].rgb, sizeof sl->color);
+        } else if (k == WRT_KEY_LBRACKET) w->exposure = fmaxf(w->exposure - 0.5f, -20);
+        else if (k == WRT_KEY_RBRACKET) w->exposure = fminf(w->exposure + 0.5f, 20);
+        else if (k == WRT_KEY_T && !in->events[e].repeat) a->mode = (wrt_render_mode)((a->mode + 1) % WRT_MODE_COUNT);
+        else if (k == WRT_KEY_H && !in->events[e].repeat) w->overlay_on = !w->overlay_on;
+        else if (k == WRT_KEY_F1 && !in->events[e].repeat) { w->keys_on = !w->keys_on; w->overlay_on = 1; }
+        else if (k == WRT_KEY_R && !in->events[e].repeat) {
+            (void)setup_view(a); /* checked at the start */
+            free(a->lights);
+            if ((rc = setup_lights(a))) break;
+            win_reset_lights(a, w);
+            w->exposure = a->o->exposure;
+            a->mode = a->o->mode;
+            say(w, "view, lights and exposure reset");
+        } else if (k == WRT_KEY_F5 && !in->events[e].repeat) {
+            if ((rc = win_reload(a, w))) break;
+        } else if (k == WRT_KEY_F12 && !in->events[e].repeat) *shot = 1;
+        else if (k == WRT_KEY_P && !in->events[e].repeat) {
+            const wrt_light *l = &a->lights[w->sel];
+            printf("--camera-pos %.6g,%.6g,%.6g --camera-target %.6g,%.6g,%.6g --light %d --light-pos %.6g,%.6g,%.6g\n",
+                   a->view.eye[0], a->view.eye[1], a->view.eye[2], a->view.target[0], a->view.target[1],
+                   a->view.target[2], w->sel + 1, l->pos.x, l->pos.y, l->pos.z);
+            fflush(stdout);
+        }
+        sl = &a->lights[w->sel];
+    }
+    return rc;
+}
+
+/* The camera: mouse look, W A S D Q E held; gives the new forward and right. */
+static int win_move_camera(app *a, const wrt_input *in, wrt_v3 up, double speed, wrt_v3 *fwd_out, wrt_v3 *right_out) {
+    int changed = 0;
+    wrt_v3 eye = v3(a->view.eye[0], a->view.eye[1], a->view.eye[2]);
+    wrt_v3 fwd = v3_norm(v3_sub(v3(a->view.target[0], a->view.target[1], a->view.target[2]), eye));
+    if (in->mouse_dx != 0 || in->mouse_dy != 0) {
+        double yaw = -in->mouse_dx * 0.004, pitch = -in->mouse_dy * 0.004;
+        /* rotate about up (yaw), then about right (pitch), keeping away from the poles */
+        wrt_v3 f1 = v3_add(v3_scale(fwd, cos(yaw)), v3_scale(v3_cross(up, fwd), sin(yaw)));
+        f1 = v3_add(f1, v3_scale(up, v3_dot(up, fwd) * (1 - cos(yaw))));
+        wrt_v3 right1 = v3_norm(v3_cross(f1, up));
+        wrt_v3 f2 = v3_norm(v3_add(v3_scale(f1, cos(pitch)), v3_scale(v3_cross(right1, f1), sin(pitch))));
+        if (fabs(v3_dot(f2, up)) < 0.98) fwd = f2; else fwd = v3_norm(f1);
+    }
+    wrt_v3 right = v3_norm(v3_cross(fwd, up));
+    wrt_v3 move = v3(0, 0, 0);
+    if (in->down[WRT_KEY_W]) move = v3_add(move, fwd);
+    if (in->down[WRT_KEY_S]) move = v3_sub(move, fwd);
+    if (in->down[WRT_KEY_D]) move = v3_add(move, right);
+    if (in->down[WRT_KEY_A]) move = v3_sub(move, right);
+    if (in->down[WRT_KEY_E]) move = v3_add(move, up);
+    if (in->down[WRT_KEY_Q]) move = v3_sub(move, up);
+    changed |= v3_len(move) > 0;
+    eye = v3_mad(eye, move, speed);
+    wrt_v3 target = v3_add(eye, fwd);
+    a->view.eye[0] = eye.x; a->view.eye[1] = eye.y; a->view.eye[2] = eye.z;
+    a->view.target[0] = target.x; a->view.target[1] = target.y; a->view.target[2] = target.z;
+    *fwd_out = fwd;
+    *right_out = right;
+    return changed;
+}
+
+/* The selected light: a sun turns, any other light moves, within the scene box. */
+static int win_move_light(win_state *w, const wrt_input *in, wrt_light *sl, wrt_v3 up, wrt_v3 fwd, wrt_v3 right,
+                          double dt, double speed, double size) {
+    int changed = 0;
+    /* the selected light: arrows / I J K L horizontally (relative to the view), U O vertically */
+    wrt_v3 hf = v3_norm(v3_sub(fwd, v3_scale(up, v3_dot(fwd, up))));
+    wrt_v3 lm = v3(0, 0, 0);
+    if (in->down[WRT_KEY_UP] || in->down[WRT_KEY_I]) lm = v3_add(lm, hf);
+    if (in->down[WRT_KEY_DOWN] || in->down[WRT_KEY_K]) lm = v3_sub(lm, hf);
+    if (in->down[WRT_KEY_RIGHT] || in->down[WRT_KEY_L]) lm = v3_add(lm, right);
+    if (in->down[WRT_KEY_LEFT] || in->down[WRT_KEY_J]) lm = v3_sub(lm, right);
+    if (in->down[WRT_KEY_O]) lm = v3_add(lm, up);
+    if (in->down[WRT_KEY_U]) lm = v3_sub(lm, up);
+    if (v3_len(lm) > 0 && sl->type == WRT_LIGHT_DIRECTIONAL) {
+        /* a sun turns: left/right about up (azimuth), up/down and O/U raise/lower it */
+        changed = 1;
+        double turn = 0.8 * dt * (in->down[WRT_KEY_SHIFT] ? 4 : 1); /* radians */
+        /* up / O raise the sun: its light then travels more steeply down */
+        double az = turn * v3_dot(lm, right), el = -turn * (v3_dot(lm, hf) + v3_dot(lm, up));
+        wrt_v3 d = sl->dir, side = v3_cross(up, d);
+        d = v3_add(v3_scale(d, cos(az)), v3_add(v3_scale(side, sin(az)), v3_scale(up, v3_dot(up, d) * (1 - cos(az)))));
+        wrt_v3 axis = v3_cross(d, up);
+        if (v3_len(axis) > 1e-6) {
+            axis = v3_norm(axis);
+            wrt_v3 d2 = v3_add(v3_scale(d, cos(el)), v3_scale(v3_cross(axis, d), sin(el)));
+            if (fabs(v3_dot(d2, up)) < 0.999) d = d2; /* not through the poles */
+        }
+        sl->dir = v3_norm(d);
+    } else if (v3_len(lm) > 0) {
+        changed = 1;
+        wrt_v3 np = v3_mad(sl->pos, lm, fmax(speed, size * 0.005) * 0.5);
+        double c[3] = {np.x, np.y, np.z};
+        for (int k = 0; k < 3; k++) c[k] = fmin(fmax(c[k], w->box_lo[k]), w->box_hi[k]);
+        sl->pos = v3(c[0], c[1], c[2]);
+    }
+    return changed;
+}
+
 static int run_window(app *a) {
     wrt_platform *p = a->plat;
     win_state w;
@@ -629,112 +753,12 @@ static int run_window(app *a) {
         }
         double speed = size * 0.3 * dt * (in.down[WRT_KEY_SHIFT] ? 4 : 1);
         int quit = 0, shot = 0, changed = in.nevents > 0 || in.mouse_dx != 0 || in.mouse_dy != 0;
-        wrt_light *sl = &a->lights[w.sel];
-        /* key presses, in order */
-        for (int e = 0; e < in.nevents; e++) {
-            int k = in.events[e].key;
-            if (k == WRT_KEY_ESCAPE) quit = 1;
-            else if (k == WRT_KEY_TAB && !in.events[e].repeat)
-                w.sel = (w.sel + (in.events[e].shift ? nshown(a) - 1 : 1)) % nshown(a);
-            else if (k >= WRT_KEY_1 && k <= WRT_KEY_9) {
-                int i = k - WRT_KEY_1;
-                if (i < nshown(a)) w.sel = i;
-                else say(&w, "there is no light %d (the file has %d)", i + 1, a->nlights);
-            } else if (k == WRT_KEY_SPACE && !in.events[e].repeat) {
-                if (a->scales[w.sel] != 0) { w.saved_scale[w.sel] = a->scales[w.sel]; a->scales[w.sel] = 0; }
-                else a->scales[w.sel] = w.saved_scale[w.sel] != 0 ? w.saved_scale[w.sel] : 1;
-            } else if (k == WRT_KEY_PLUS || k == WRT_KEY_MINUS) {
-                float f = k == WRT_KEY_PLUS ? 1.25f : 0.8f;
-                if (a->scales[w.sel] != 0) a->scales[w.sel] = fminf(fmaxf(a->scales[w.sel] * f, 1e-4f), 1e4f);
-                else w.saved_scale[w.sel] = fminf(fmaxf(w.saved_scale[w.sel] * f, 1e-4f), 1e4f);
-            } else if (k == WRT_KEY_C && !in.events[e].repeat) {
-                int c = (w.colour[w.sel] + 1) % NCOLOURS;
-                while (c != 0 && !memcmp(colours[c].rgb, w.file_colour[w.sel], sizeof colours[c].rgb))
-                    c = (c + 1) % NCOLOURS; /* the same as its own: no visible change */
-                w.colour[w.sel] = c;
-                memcpy(sl->color, c == 0 ? w.file_colour[w.sel] : colours[c].rgb, sizeof sl->color);
-            } else if (k == WRT_KEY_LBRACKET) w.exposure = fmaxf(w.exposure - 0.5f, -20);
-            else if (k == WRT_KEY_RBRACKET) w.exposure = fminf(w.exposure + 0.5f, 20);
-            else if (k == WRT_KEY_T && !in.events[e].repeat) a->mode = (wrt_render_mode)((a->mode + 1) % WRT_MODE_COUNT);
-            else if (k == WRT_KEY_H && !in.events[e].repeat) w.overlay_on = !w.overlay_on;
-            else if (k == WRT_KEY_F1 && !in.events[e].repeat) { w.keys_on = !w.keys_on; w.overlay_on = 1; }
-            else if (k == WRT_KEY_R && !in.events[e].repeat) {
-                (void)setup_view(a); /* checked at the start */
-                free(a->lights);
-                if ((rc = setup_lights(a))) break;
-                win_reset_lights(a, &w);
-                w.exposure = a->o->exposure;
-                a->mode = a->o->mode;
-                say(&w, "view, lights and exposure reset");
-            } else if (k == WRT_KEY_F5 && !in.events[e].repeat) {
-                if ((rc = win_reload(a, &w))) break;
-            } else if (k == WRT_KEY_F12 && !in.events[e].repeat) shot = 1;
-            else if (k == WRT_KEY_P && !in.events[e].repeat) {
-                const wrt_light *l = &a->lights[w.sel];
-                printf("--camera-pos %.6g,%.6g,%.6g --camera-target %.6g,%.6g,%.6g --light %d --light-pos %.6g,%.6g,%.6g\n",
-                       a->view.eye[0], a->view.eye[1], a->view.eye[2], a->view.target[0], a->view.target[1],
-                       a->view.target[2], w.sel + 1, l->pos.x, l->pos.y, l->pos.z);
-                fflush(stdout);
-            }
-            sl = &a->lights[w.sel];
-        }
+        rc = win_keys(a, &w, &in, &quit, &shot);
         if (rc || quit) break;
-        /* camera: mouse look, W A S D Q E held */
-        wrt_v3 eye = v3(a->view.eye[0], a->view.eye[1], a->view.eye[2]);
-        wrt_v3 fwd = v3_norm(v3_sub(v3(a->view.target[0], a->view.target[1], a->view.target[2]), eye));
-        if (in.mouse_dx != 0 || in.mouse_dy != 0) {
-            double yaw = -in.mouse_dx * 0.004, pitch = -in.mouse_dy * 0.004;
-            /* rotate about up (yaw), then about right (pitch), keeping away from the poles */
-            wrt_v3 f1 = v3_add(v3_scale(fwd, cos(yaw)), v3_scale(v3_cross(up, fwd), sin(yaw)));
-            f1 = v3_add(f1, v3_scale(up, v3_dot(up, fwd) * (1 - cos(yaw))));
-            wrt_v3 right1 = v3_norm(v3_cross(f1, up));
-            wrt_v3 f2 = v3_norm(v3_add(v3_scale(f1, cos(pitch)), v3_scale(v3_cross(right1, f1), sin(pitch))));
-            if (fabs(v3_dot(f2, up)) < 0.98) fwd = f2; else fwd = v3_norm(f1);
-        }
-        wrt_v3 right = v3_norm(v3_cross(fwd, up));
-        wrt_v3 move = v3(0, 0, 0);
-        if (in.down[WRT_KEY_W]) move = v3_add(move, fwd);
-        if (in.down[WRT_KEY_S]) move = v3_sub(move, fwd);
-        if (in.down[WRT_KEY_D]) move = v3_add(move, right);
-        if (in.down[WRT_KEY_A]) move = v3_sub(move, right);
-        if (in.down[WRT_KEY_E]) move = v3_add(move, up);
-        if (in.down[WRT_KEY_Q]) move = v3_sub(move, up);
-        changed |= v3_len(move) > 0;
-        eye = v3_mad(eye, move, speed);
-        wrt_v3 target = v3_add(eye, fwd);
-        a->view.eye[0] = eye.x; a->view.eye[1] = eye.y; a->view.eye[2] = eye.z;
-        a->view.target[0] = target.x; a->view.target[1] = target.y; a->view.target[2] = target.z;
-        /* the selected light: arrows / I J K L horizontally (relative to the view), U O vertically */
-        wrt_v3 hf = v3_norm(v3_sub(fwd, v3_scale(up, v3_dot(fwd, up))));
-        wrt_v3 lm = v3(0, 0, 0);
-        if (in.down[WRT_KEY_UP] || in.down[WRT_KEY_I]) lm = v3_add(lm, hf);
-        if (in.down[WRT_KEY_DOWN] || in.down[WRT_KEY_K]) lm = v3_sub(lm, hf);
-        if (in.down[WRT_KEY_RIGHT] || in.down[WRT_KEY_L]) lm = v3_add(lm, right);
-        if (in.down[WRT_KEY_LEFT] || in.down[WRT_KEY_J]) lm = v3_sub(lm, right);
-        if (in.down[WRT_KEY_O]) lm = v3_add(lm, up);
-        if (in.down[WRT_KEY_U]) lm = v3_sub(lm, up);
-        if (v3_len(lm) > 0 && sl->type == WRT_LIGHT_DIRECTIONAL) {
-            /* a sun turns: left/right about up (azimuth), up/down and O/U raise/lower it */
-            changed = 1;
-            double turn = 0.8 * dt * (in.down[WRT_KEY_SHIFT] ? 4 : 1); /* radians */
-            /* up / O raise the sun: its light then travels more steeply down */
-            double az = turn * v3_dot(lm, right), el = -turn * (v3_dot(lm, hf) + v3_dot(lm, up));
-            wrt_v3 d = sl->dir, side = v3_cross(up, d);
-            d = v3_add(v3_scale(d, cos(az)), v3_add(v3_scale(side, sin(az)), v3_scale(up, v3_dot(up, d) * (1 - cos(az)))));
-            wrt_v3 axis = v3_cross(d, up);
-            if (v3_len(axis) > 1e-6) {
-                axis = v3_norm(axis);
-                wrt_v3 d2 = v3_add(v3_scale(d, cos(el)), v3_scale(v3_cross(axis, d), sin(el)));
-                if (fabs(v3_dot(d2, up)) < 0.999) d = d2; /* not through the poles */
-            }
-            sl->dir = v3_norm(d);
-        } else if (v3_len(lm) > 0) {
-            changed = 1;
-            wrt_v3 np = v3_mad(sl->pos, lm, fmax(speed, size * 0.005) * 0.5);
-            double c[3] = {np.x, np.y, np.z};
-            for (int k = 0; k < 3; k++) c[k] = fmin(fmax(c[k], w.box_lo[k]), w.box_hi[k]);
-            sl->pos = v3(c[0], c[1], c[2]);
-        }
+        wrt_light *sl = &a->lights[w.sel];
+        wrt_v3 fwd, right;
+        changed |= win_move_camera(a, &in, up, speed, &fwd, &right);
+        changed |= win_move_light(&w, &in, sl, up, fwd, right, dt, speed, size);
         if (p->fb_width > 0 && p->fb_height > 0 &&
             (p->fb_width != a->o->width || p->fb_height != a->o->height)) {
             if (wrt_render_resize(a->rd, p->fb_width, p->fb_height) == WRT_OK) {
