@@ -1412,20 +1412,29 @@ static void test_first_bounce_brute_force(void) {
     ts_free(&s);
 }
 
+/* A glossy metal floor and a wall (random operator entries), K's columns on the floor's
+ * functions (level 2 x 2); *w0, *nw: the wall's first function and count, where the
+ * caller puts K's rows. */
+static void metal_floor_wall(ts_scene *s, kop *k, uint32_t *w0, uint32_t *nw) {
+    ts_init(s);
+    ts_metal(s, 2, 0.3f, 2);
+    int qf = ts_quad(s, k_floor, 2, 1, 2), qw = ts_quad(s, k_wall_x, 1, 3, 2);
+    ts_random(s, 30);
+    ts_finish(s);
+    kop_columns(k, (uint32_t)qf, 2, 2);
+    *w0 = s->quads[qw].func_first;
+    *nw = s->quads[qw].func_count;
+}
+
 /* Per light, c is projected once: moving one light of two re-projects that light only,
  * and changing a light's scale re-projects none; X is then the same, to the bit, as a
  * relighter on one thread that starts from those lights (with the final gather: the
  * multiply's copy of the operator, whose non-displayed rows stay 0 in X, Y included). */
 static void test_first_bounce_cache(void) {
     ts_scene s;
-    ts_init(&s);
-    ts_metal(&s, 2, 0.3f, 2);
-    int qf = ts_quad(&s, k_floor, 2, 1, 2), qw = ts_quad(&s, k_wall_x, 1, 3, 2);
-    ts_random(&s, 30);
-    ts_finish(&s);
     kop k;
-    kop_columns(&k, (uint32_t)qf, 2, 2);
-    uint32_t w0 = s.quads[qw].func_first, nw = s.quads[qw].func_count;
+    uint32_t w0, nw;
+    metal_floor_wall(&s, &k, &w0, &nw);
     kop_alloc(&k, 4);
     for (uint32_t j = 0; j < k.n; j++) { /* 4 rows a column, on the wall */
         k.cs[j] = k.nnz;
@@ -1577,14 +1586,9 @@ static void test_steady_update_no_alloc(void) {
     steady_updates("room", &s.g, L, 2, eye);
     ts_free(&s);
     /* the first-bounce operator K: a glossy metal floor's columns onto a wall */
-    ts_init(&s);
-    ts_metal(&s, 2, 0.3f, 2);
-    int qf = ts_quad(&s, k_floor, 2, 1, 2), qw = ts_quad(&s, k_wall_x, 1, 3, 2);
-    ts_random(&s, 30);
-    ts_finish(&s);
     kop k;
-    kop_columns(&k, (uint32_t)qf, 2, 2);
-    uint32_t w0 = s.quads[qw].func_first, nw = s.quads[qw].func_count;
+    uint32_t w0, nw;
+    metal_floor_wall(&s, &k, &w0, &nw);
     kop_alloc(&k, 2);
     for (uint32_t j = 0; j < k.n; j++) {
         k.cs[j] = k.nnz;
