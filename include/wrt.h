@@ -110,7 +110,8 @@ extern "C" {
  * string), and the version of this header's API: 2 since the options' `size`, the
  * user-first allocator and the status-returning accessors; 3 since wrt_runtime_quad's
  * kind, part and (u, v) fields (it grew: rebuild callers), the atlas helper, and the
- * options' linear_display and progress. Compare the macros with
+ * options' linear_display and progress; 4 since wrt_runtime_open_path (a private copy of
+ * the file) and wrt_runtime_get_file_info (functions only added: API 3 callers still work). Compare the macros with
  * wrt_version() and wrt_api_version() at run time to catch a program built against
  * another header than the library it runs with. */
 #define WRT_VERSION_MAJOR 0
@@ -118,7 +119,7 @@ extern "C" {
 #define WRT_VERSION_PATCH 0
 #define WRT_VERSION_STRING "0.1.0"
 #define WRT_VERSION (WRT_VERSION_MAJOR * 10000 + WRT_VERSION_MINOR * 100 + WRT_VERSION_PATCH)
-#define WRT_API_VERSION 3
+#define WRT_API_VERSION 4
 
 /* What every fallible call returns (shared by all of wrt's tools and libraries). */
 typedef enum wrt_status {
@@ -430,6 +431,33 @@ WRT_API wrt_status wrt_runtime_atlas_fill(const wrt_runtime *rt, const wrt_atlas
 /* Milliseconds of the last update's stages (projection, multiply, brdf, synthesis).
  * Errors: WRT_ERR_INVALID_ARG. */
 WRT_API wrt_status wrt_runtime_timings(const wrt_runtime *rt, double ms[4], wrt_error *err);
+
+/* ---- Opening for an application that keeps a file open (API 4) ---- */
+
+/* How wrt_runtime_open_path holds the file. WRT_OPEN_MAP: mapped read-only, as
+ * wrt_runtime_open_file does (the file must then not change while it is open: a new bake
+ * renamed over it is fine, a write into it or a truncate is not). WRT_OPEN_PRIVATE: read
+ * whole into memory from the options' allocator, so that the file may be rewritten,
+ * truncated or removed while the runtime lives (what a viewer that reloads after a new
+ * bake needs); it costs the file's size in memory. Either way the file is validated once. */
+enum { WRT_OPEN_MAP = 0, WRT_OPEN_PRIVATE = 1 };
+/* Opens `path` as `how` says; otherwise as wrt_runtime_open_file (same options, same
+ * errors; messages name the path). A path that is not a regular file (a directory, a FIFO,
+ * a device) is refused before it is read, without blocking: WRT_ERR_NOT_OURS. `how`
+ * neither value: WRT_ERR_INVALID_ARG. */
+WRT_API wrt_status wrt_runtime_open_path(const char *path, int how, const wrt_runtime_options *opt,
+                                         wrt_runtime **out, wrt_error *err);
+
+/* What the open file holds, for a viewer's title or a benchmark's record. */
+typedef struct wrt_runtime_file_info {
+    unsigned version_major, version_minor; /* the .gto format version of the file */
+    unsigned long long bytes;              /* the file's size */
+    unsigned long long functions;          /* basis functions of the operator */
+    unsigned long long entries;            /* the operator's stored entries (RGB each) */
+    int private_copy;                      /* 1: opened WRT_OPEN_PRIVATE */
+} wrt_runtime_file_info;
+/* Errors: WRT_ERR_INVALID_ARG (handle, out NULL). */
+WRT_API wrt_status wrt_runtime_get_file_info(const wrt_runtime *rt, wrt_runtime_file_info *out, wrt_error *err);
 
 #ifdef __cplusplus
 }

@@ -117,7 +117,7 @@ int wrt_gather_sharp(const wrt_material *m) {
 
 typedef struct trace_ctx { wrt_gather *g; int gq; size_t first; } trace_ctx; /* first: a chunk's first point */
 
-static void trace_point(size_t item, void *user) {
+static void trace_point(void *user, size_t item) {
     trace_ctx *tc = user;
     item += tc->first;
     wrt_gather *g = tc->g;
@@ -153,7 +153,7 @@ static void trace_point(size_t item, void *user) {
 typedef struct beta_ctx { wrt_gather *g; int b; size_t first; } beta_ctx; /* first: a chunk's first row */
 
 /* beta(a, w_o) = int_cell f_r cos dw = pi int_cell f_r da db (cosine-weighted map). */
-static void beta_row(size_t item, void *user) {
+static void beta_row(void *user, size_t item) {
     beta_ctx *bc = user;
     item += bc->first;
     const wrt_material *m = bc->g->beta_mat[bc->b];
@@ -302,7 +302,7 @@ void wrt_gather_destroy(wrt_gather *g) {
 
 /* ---------------------------------------------------------- light change ---- */
 
-static void direct_row(size_t item, void *user) {
+static void direct_row(void *user, size_t item) {
     wrt_gather *g = user;
     int s = (int)(item / GATHER_DTEX), j = (int)(item % GATHER_DTEX);
     const wrt_gather_quad *Q = &g->q[g->slot_quad[s]];
@@ -328,7 +328,7 @@ static inline void lerp_cell(const float *t, int n, const axis *x, const axis *y
     }
 }
 
-static void rad_row(size_t item, void *user) {
+static void rad_row(void *user, size_t item) {
     wrt_gather *g = user;
     int s = (int)(item / GATHER_RG), j = (int)(item % GATHER_RG), hq = g->slot_quad[s];
     const float *base = g->q[hq].albedo;
@@ -396,7 +396,7 @@ static void dot4(const float *lin, const float *const bt[4], const float w[4], f
 /* L_o at point p of a glossy quad toward the eye: the incident radiance of its NDIR
  * cells read from the radiance grids (the cell table) into a scratch row, then its sum
  * against the beta rows of the four outgoing directions around w_o (bilinear). */
-static void lout_point(size_t item, void *user) {
+static void lout_point(void *user, size_t item) {
     wrt_gather *g = user;
     int q = g->lq;
     size_t p = item;
@@ -435,7 +435,7 @@ static void lout_point(size_t item, void *user) {
     dot4(lin, bt, w, lo);
 }
 
-static void out_quad(size_t item, void *user) {
+static void out_quad(void *user, size_t item) {
     wrt_gather *g = user;
     int q = g->glossy[item];
     float *o = g->out[q];

@@ -41,9 +41,9 @@ typedef struct wrt_gather_quad {
     float albedo[3];          /* what a ray that sees it gets: albedo/pi x direct + tex */
 } wrt_gather_quad;
 
-/* The caller's parallel loop (fn(item, ctx) for item in [0, n), any threads) and
+/* The caller's parallel loop (fn(ctx, item) for item in [0, n), any threads; the user or context pointer comes first in every callback, as in include/wrt.h) and
  * allocator (zeroed blocks; NULL: no memory). */
-typedef void (*wrt_gather_item_fn)(size_t item, void *ctx);
+typedef void (*wrt_gather_item_fn)(void *ctx, size_t item);
 typedef struct wrt_gather_env {
     void (*run)(void *user, size_t n, wrt_gather_item_fn fn, void *ctx);
     void *(*alloc)(void *user, size_t bytes);

@@ -218,7 +218,7 @@ int run_bench(app *a) {
     e1 = v3_norm(v3_cross(up, fabs(up.x) < 0.9 ? v3(1, 0, 0) : v3(0, 0, 1)));
     e2 = v3_cross(up, e1);
     double lo[3], hi[3];
-    wrt_render_scene_bounds(&a->g, lo, hi);
+    scene_bounds(a, lo, hi);
     double radius = 0.05 * v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
     wrt_v3 d0 = l->dir, h0 = v3_sub(d0, v3_scale(up, v3_dot(d0, up))); /* a sun's direction, horizontal part */
     /* one warm-up frame: the first relight projects every light and uploads every quad */
@@ -248,8 +248,8 @@ int run_bench(app *a) {
         const char *names[7] = {"projection", "multiply", "brdf", "synthesis", "upload", "draw", "frame"};
         printf("{\"frames\": %d, \"width\": %d, \"height\": %d, \"mode\": \"%s\", \"quads\": %u, "
                "\"funcs\": %u, \"nnz\": %llu, \"threads\": %d, \"msaa\": %d, \"first_frame_ms\": %.3f, \"median_ms\": {",
-               n, a->o->width, a->o->height, wrt_render_mode_name(a->mode), a->g.nquads, a->g.nfuncs,
-               (unsigned long long)a->g.nnz, a->o->threads, wrt_render_samples(a->rd), first);
+               n, a->o->width, a->o->height, wrt_render_mode_name(a->mode), a->nquads, (unsigned)a->info.functions,
+               a->info.entries, a->o->threads, wrt_render_samples(a->rd), first);
         double med_frame = 0;
         for (int k = 0; k < 7; k++) {
             double m = median(col[k], n);

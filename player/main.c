@@ -1,5 +1,6 @@
-/* main.c: wrt-play, the run-time of Wavelet Radiance Transport (paper section 5). Maps
- * a .gto file, relights it with player/relight.c each time a light moves (direct light
+/* main.c: wrt-play, the run-time of Wavelet Radiance Transport (paper section 5). Opens
+ * a .gto file through libwrt's API (include/wrt.h: one read, one validation), relights it
+ * through the same API each time a light moves (direct light
  * projected on the wavelet basis, the baked indirect operator applied, outgoing
  * radiance synthesized into per-quad textures) and shows it with player/render.c
  * (direct light with shadow maps + the indirect textures), in a GLFW window or headless
@@ -7,8 +8,9 @@
  * benchmark. Command line and exit codes: see usage() in options.c, which parses them;
  * the scripted frames and the benchmark are run by headless.c. The only file that exits
  * (with options.c, for --help and --version).
- * Depends on formats/gto.h, formats/image.h, include/wrt.h (the runtime), player/render.h,
- * player/platform.h. */
+ * Depends on formats/image.h, include/wrt.h (the runtime), player/render.h,
+ * player/platform.h, and player/wrt_runtime.h (the runtime's validated file, which the
+ * renderer draws). */
 #include <ctype.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -23,7 +25,6 @@
 #include "../common/limits.h"
 #include "../common/outfile.h"
 #include "../common/text.h"
-#include "../formats/gto.h"
 #include "../formats/image.h"
 #include "overlay.h"
 #include "platform.h"
@@ -31,68 +32,22 @@
 #include "render.h"
 #include "options.h"
 #include "play.h"
+#include "wrt_runtime.h"
 
 static const char *T = "wrt-play";
 
 /* ---------------------------------------------------------------- the application */
 
-/* Reads the .gto into private memory and validates it there (wrt_gto_open_memory). It is
- * not mapped: a file replaced or truncated while the player runs (a new bake copied over
- * it, a truncate) cannot pull pages from under the runtime, which a shared mapping would
- * turn into SIGBUS or garbage. *mem receives the bytes (free after wrt_gto_close), *sb
- * the file's stat. O_NONBLOCK: a FIFO or device is refused by fstat, not waited on. */
-static wrt_status read_gto(const char *path, wrt_gto *g, void **mem, struct stat *sb) {
-    memset(g, 0, sizeof *g);
-    *mem = NULL;
-    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
-    if (fd < 0) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    if (fstat(fd, sb) != 0) {
-        int e = errno;
-        close(fd);
-        return wrt_fail(WRT_ERR_IO, "%s: cannot stat: %s", path, strerror(e));
-    }
-    if (!S_ISREG(sb->st_mode)) {
-        close(fd);
-        return wrt_fail(WRT_ERR_NOT_OURS, "%s: not a regular file (%s)", path,
-                        S_ISDIR(sb->st_mode) ? "a directory" : S_ISFIFO(sb->st_mode) ? "a FIFO"
-                        : S_ISCHR(sb->st_mode) || S_ISBLK(sb->st_mode) ? "a device" : "a special file");
-    }
-    size_t len = (size_t)sb->st_size, got = 0;
-    unsigned char *buf = malloc(len + 8); /* malloc's alignment (16) is what the reader needs (8) */
-    if (!buf) {
-        close(fd);
-        return wrt_fail(WRT_ERR_NOMEM, "%s: out of memory reading %zu bytes", path, len);
-    }
-    memset(buf, 0, 8);
-    while (got < len) {
-        ssize_t r = read(fd, buf + got, len - got);
-        if (r < 0 && errno == EINTR) continue;
-        if (r <= 0) break;
-        got += (size_t)r;
-    }
-    close(fd);
-    if (got != len) { /* truncated while we read: validated as the bytes we have */
-        len = got;
-    }
-    wrt_status st = wrt_gto_open_memory(buf, len, g);
-    if (st != WRT_OK) {
-        char msg[1024];
-        snprintf(msg, sizeof msg, "%s", wrt_last_error());
-        free(buf);
-        return wrt_fail(st, "%s: %s", path, msg);
-    }
-    *mem = buf;
-    return WRT_OK;
-}
+/* Opens the .gto through the library alone (include/wrt.h): read into private memory
+ * (WRT_OPEN_PRIVATE), so that a file replaced or truncated while the player runs (a new
+ * bake copied over it, a truncate) cannot pull pages from under the runtime, and
+ * validated once, there. *sb receives the file's stat from before the read: a change
+ * made during the read is then noticed later, never missed. A FIFO or device is
+ * refused by the library without blocking. */
+static wrt_status open_file(const options *o, int progress_line, wrt_runtime **rt, struct stat *sb, wrt_error *err);
 
-static void close_gto(wrt_gto *g, void **mem) {
-    wrt_gto_close(g);
-    free(*mem);
-    *mem = NULL;
-}
-
-static void quad_centroid(const wrt_gto_quad *q, double c[3]) {
-    for (int k = 0; k < 3; k++) c[k] = 0.25 * (q->p[0][k] + q->p[1][k] + q->p[2][k] + q->p[3][k]);
+static void quad_centroid(const double p[4][3], double c[3]) {
+    for (int k = 0; k < 3; k++) c[k] = 0.25 * (p[0][k] + p[1][k] + p[2][k] + p[3][k]);
 }
 
 /* One frame: relight what changed, upload the textures that changed, draw. */
@@ -136,10 +91,10 @@ int run_frame(app *a, stage_ms *t) {
         t->synthesis = ms[3];
         double t1 = wrt_now();
         if (changed > 0 || !a->relit_once) {
-            for (uint32_t q = 0; q < a->g.nquads; q++) {
+            for (int q = 0; q < a->nquads; q++) {
                 int res;
-                const float *tex = wrt_runtime_quad_texture(a->rl, (int)q, &res);
-                if (tex && res > 0) wrt_render_set_quad_tex(a->rd, (int)q, res, tex);
+                const float *tex = wrt_runtime_quad_texture(a->rl, q, &res);
+                if (tex && res > 0) wrt_render_set_quad_tex(a->rd, q, res, tex);
             }
             if (wrt_render_upload(a->rd) < 0) return EXIT_GL;
             wrt_render_finish();
@@ -217,7 +172,7 @@ static int write_stats(app *a, const char *path) {
     FILE *f = out.f;
     fprintf(f, "{\n  \"file\": ");
     json_str(f, a->o->file, 4096);
-    fprintf(f, ",\n  \"nquads\": %u,\n  \"lights\": [", a->g.nquads);
+    fprintf(f, ",\n  \"nquads\": %d,\n  \"lights\": [", a->nquads);
     for (int i = 0; i < a->nlights; i++) {
         const wrt_light *l = &a->lights[i];
         fprintf(f, "%s\n    {\"name\": ", i ? "," : "");
@@ -232,18 +187,20 @@ static int write_stats(app *a, const char *path) {
         fputc('}', f);
     }
     fprintf(f, "\n  ],\n  \"quads\": [");
-    for (uint32_t q = 0; q < a->g.nquads; q++) {
-        const wrt_gto_quad *Q = &a->g.quads[q];
+    for (int q = 0; q < a->nquads; q++) {
+        wrt_runtime_quad Q;
         double c[3], dir[3], ind[3];
-        quad_centroid(Q, c);
-        wrt_runtime_quad_irradiance(a->rl, (int)q, dir, ind, NULL);
-        fprintf(f, "%s\n    {\"quad\": %u, \"mesh\": ", q ? "," : "", q);
-        json_str(f, Q->name < a->g.nnames ? a->g.names[Q->name] : "", 64);
-        double area = Q->area, nrm[3] = {Q->n[0], Q->n[1], Q->n[2]};
-        fprintf(f, ", \"material\": %u", Q->material);
+        wrt_runtime_get_quad(a->rl, q, &Q, NULL);
+        quad_centroid(Q.corners, c);
+        wrt_runtime_quad_irradiance(a->rl, q, dir, ind, NULL);
+        fprintf(f, "%s\n    {\"quad\": %d, \"mesh\": ", q ? "," : "", q);
+        json_str(f, Q.mesh_name, sizeof Q.mesh_name);
+        double area = Q.area;
+        fprintf(f, ", \"material\": %d", Q.material);
         json_key_nums(f, "area", &area, 1, 9);
         json_key_nums(f, "centroid", c, 3, 17);
-        json_key_nums(f, "normal", nrm, 3, 9);
+        json_key_nums(f, "normal", Q.normal, 3, 9); /* the library's, in double: the file's float
+                                                     * differs from it in the 8th digit at most */
         json_key_nums(f, "direct", dir, 3, 9);
         json_key_nums(f, "indirect", ind, 3, 9);
         fputc('}', f);
@@ -266,16 +223,42 @@ void scene_up(const app *a, wrt_v3 *up) {
 /* The light the command line's --light names (0-based), which scripts and --bench move. */
 int chosen_light(const app *a) { return a->o->lights.which ? a->o->lights.which - 1 : 0; }
 
+void scene_bounds(const app *a, double lo[3], double hi[3]) {
+    if (a->nquads <= 0 || wrt_runtime_get_bounds(a->rl, lo, hi, NULL) != WRT_OK)
+        for (int k = 0; k < 3; k++) { lo[k] = -1; hi[k] = 1; }
+}
+
+/* The file's light i, as the library gives it (wrt_runtime_get_light), in the form the
+ * renderer and the command line's light options take (its axis unit length). */
+static void light_from_runtime(const wrt_runtime_light *in, wrt_light *out) {
+    memset(out, 0, sizeof *out);
+    out->type = in->kind == WRT_LIGHT_KIND_SPOT ? WRT_LIGHT_SPOT
+                : in->kind == WRT_LIGHT_KIND_DIRECTIONAL ? WRT_LIGHT_DIRECTIONAL : WRT_LIGHT_POINT;
+    snprintf(out->name, sizeof out->name, "%s", in->name);
+    out->pos = v3(in->position[0], in->position[1], in->position[2]);
+    out->dir = v3_norm(v3(in->direction[0], in->direction[1], in->direction[2]));
+    for (int k = 0; k < 3; k++) out->color[k] = in->color[k];
+    out->intensity = in->intensity;
+    out->range = in->range;
+    out->inner_cone = in->inner_cone;
+    out->outer_cone = in->outer_cone;
+}
+
 static int setup_lights(app *a) {
     const options *o = a->o;
-    a->nlights = (int)a->g.nlights;
-    int need_default = a->nlights == 0;
+    a->nlights = wrt_runtime_light_count(a->rl);
+    int need_default = a->nlights <= 0;
+    if (need_default) a->nlights = 0;
     a->lights = wrt_xcalloc((size_t)(a->nlights ? a->nlights : 1), sizeof *a->lights);
-    for (int i = 0; i < a->nlights; i++) wrt_render_light_from_gto(&a->g.lights[i], &a->lights[i]);
+    for (int i = 0; i < a->nlights; i++) {
+        wrt_runtime_light rl;
+        wrt_runtime_get_light(a->rl, i, &rl, NULL); /* i < the count: cannot fail */
+        light_from_runtime(&rl, &a->lights[i]);
+    }
     if (need_default) {
         /* no light in the file: one point light above the centre of the scene */
         double lo[3], hi[3];
-        wrt_render_scene_bounds(&a->g, lo, hi);
+        scene_bounds(a, lo, hi);
         wrt_v3 up;
         scene_up(a, &up);
         wrt_v3 c = v3(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2]));
@@ -298,8 +281,36 @@ static int setup_lights(app *a) {
     return rc;
 }
 
+/* The file's camera, else one framing the scene's box from +Z (wrt_runtime_get_camera,
+ * wrt_runtime_get_bounds). */
+static void default_view(const app *a, wrt_view *v) {
+    memset(v, 0, sizeof *v);
+    wrt_runtime_camera cam;
+    if (wrt_runtime_get_camera(a->rl, &cam, NULL) == WRT_OK && cam.from_file && cam.yfov > 0) {
+        for (int k = 0; k < 3; k++) {
+            v->eye[k] = cam.position[k];
+            v->target[k] = cam.position[k] + cam.direction[k];
+            v->up[k] = cam.up[k];
+        }
+        v->yfov = cam.yfov;
+        return;
+    }
+    double lo[3], hi[3], r = 0;
+    scene_bounds(a, lo, hi);
+    for (int k = 0; k < 3; k++) {
+        v->target[k] = 0.5 * (lo[k] + hi[k]);
+        r += (hi[k] - lo[k]) * (hi[k] - lo[k]);
+    }
+    r = 0.5 * sqrt(r);
+    v->yfov = 45 * WRT_PI / 180;
+    v->eye[0] = v->target[0];
+    v->eye[1] = v->target[1];
+    v->eye[2] = v->target[2] + r / tan(v->yfov / 2) * 1.1;
+    v->up[1] = 1;
+}
+
 static int setup_view(app *a) {
-    wrt_render_default_view(&a->g, &a->view);
+    default_view(a, &a->view);
     const options *o = a->o;
     if (o->has_cam_pos) {
         double d[3];
@@ -352,7 +363,7 @@ static int nshown(const app *a) { return a->nlights < WRT_RENDER_MAX_LIGHTS ? a-
 /* Lights stay inside the scene's bounding box (grown to hold where the file puts them),
  * so that no key drives a light out of reach. */
 static void light_bounds(app *a, win_state *w) {
-    wrt_render_scene_bounds(&a->g, w->box_lo, w->box_hi);
+    scene_bounds(a, w->box_lo, w->box_hi);
     double size = v3_len(v3(w->box_hi[0] - w->box_lo[0], w->box_hi[1] - w->box_lo[1], w->box_hi[2] - w->box_lo[2]));
     for (int k = 0; k < 3; k++) {
         w->box_lo[k] += 1e-3 * size;
@@ -410,37 +421,37 @@ static int show_progress(void *user, double fraction) {
     return 1;
 }
 
-/* F5: maps the file again (after a new bake) and rebuilds the relighting and the
+static wrt_status open_file(const options *o, int progress_line, wrt_runtime **rt, struct stat *sb, wrt_error *err) {
+    memset(sb, 0, sizeof *sb);
+    (void)stat(o->file, sb); /* before the read; a failure is the open's to report */
+    open_progress op = {-1};
+    wrt_runtime_options ro = {.size = sizeof ro, .max_tex_res = o->max_tex_res, .threads = o->threads,
+                              .linear_display = o->linear_display, .progress_user = &op};
+    if (progress_line) ro.progress = show_progress;
+    return wrt_runtime_open_path(o->file, WRT_OPEN_PRIVATE, &ro, rt, err);
+}
+
+/* F5: reads the file again (after a new bake) and rebuilds the relighting and the
  * renderer; the camera stays, the lights too if the file has as many. */
 static int win_reload(app *a, win_state *w) {
-    wrt_gto g2;
-    void *mem2;
+    wrt_runtime *rl2;
     struct stat st2;
-    wrt_status s = read_gto(a->o->file, &g2, &mem2, &st2);
-    if (s) {
-        say(w, "reload failed, keeping the old file: %s", wrt_last_error());
+    wrt_error err;
+    if (open_file(a->o, isatty(2), &rl2, &st2, &err)) {
+        say(w, "reload failed, keeping the old file: %s", err.message);
         return 0;
     }
-    wrt_render_destroy(a->rd);
+    int same_lights = wrt_runtime_light_count(rl2) == wrt_runtime_light_count(a->rl);
+    wrt_render_destroy(a->rd); /* it draws from the old runtime's file */
     wrt_runtime_close(a->rl);
     a->rd = NULL;
-    a->rl = NULL;
-    int same_lights = g2.nlights == a->g.nlights;
-    close_gto(&a->g, &a->gto_mem);
-    a->g = g2;
-    a->gto_mem = mem2;
+    a->rl = rl2;
     a->gto_st = st2;
-    open_progress op = {-1};
-    wrt_runtime_options ro = {.size = sizeof ro, .max_tex_res = a->o->max_tex_res, .threads = a->o->threads,
-                              .linear_display = a->o->linear_display, .progress_user = &op};
-    if (isatty(2)) ro.progress = show_progress;
-    wrt_error err;
-    if (wrt_runtime_open_memory(a->g.map, a->g.size, &ro, &a->rl, &err)) {
-        fprintf(stderr, "wrt-play: error: %s\n", err.message);
-        return EXIT_RUNTIME;
-    }
+    a->nquads = wrt_runtime_quad_count(rl2);
+    wrt_runtime_get_file_info(rl2, &a->info, NULL);
+    wrt_status s;
     wrt_render_options rdo = {a->o->width, a->o->height, a->o->shadow_res, a->o->msaa};
-    if ((s = wrt_render_create(&a->g, &rdo, &a->rd))) {
+    if ((s = wrt_render_create(wrt_runtime_gto_of(a->rl), &rdo, &a->rd))) {
         fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         return s == WRT_ERR_GL ? EXIT_GL : EXIT_RUNTIME;
     }
@@ -453,7 +464,7 @@ static int win_reload(app *a, win_state *w) {
     } else {
         light_bounds(a, w);
     }
-    say(w, "reloaded %s: %u quads, %u functions", a->o->file, a->g.nquads, a->g.nfuncs);
+    say(w, "reloaded %s: %d quads, %llu functions", a->o->file, a->nquads, a->info.functions);
     return 0;
 }
 
@@ -525,7 +536,7 @@ static void draw_overlay(app *a, win_state *w) {
     size_t n = 0;
 #define ADD(...) n += (size_t)snprintf(buf + n, n < sizeof buf ? sizeof buf - n : 0, __VA_ARGS__)
     const char *base = strrchr(a->o->file, '/');
-    ADD("WRT-PLAY  %s  %u quads  [%s]  exposure %+.1f EV  MSAA %dx\n", base ? base + 1 : a->o->file, a->g.nquads,
+    ADD("WRT-PLAY  %s  %d quads  [%s]  exposure %+.1f EV  MSAA %dx\n", base ? base + 1 : a->o->file, a->nquads,
         wrt_render_mode_name(a->mode), w->exposure, wrt_render_samples(a->rd));
     ADD("%.1f fps  frame %.1f ms  draw %.1f", w->fps, w->frame_ms, w->relight.draw);
     if (w->relit_any)
@@ -722,7 +733,7 @@ static int run_window(app *a) {
     }
     win_reset_lights(a, &w);
     double lo[3], hi[3];
-    wrt_render_scene_bounds(&a->g, lo, hi);
+    scene_bounds(a, lo, hi);
     double size = v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
     /* yaw and the lights' up/down keys turn and move about the world's up, glTF's +Y,
      * whatever the camera's roll or tilt */
@@ -821,19 +832,22 @@ int main(int argc, char **argv) {
     memset(&a, 0, sizeof a);
     a.o = &o;
     a.mode = o.mode;
-    wrt_status s = read_gto(o.file, &a.g, &a.gto_mem, &a.gto_st);
+    wrt_error err;
+    wrt_status s = open_file(&o, isatty(2), &a.rl, &a.gto_st, &err);
     if (s) {
-        const char *e = wrt_last_error(); /* named once: some of the reader's messages name it */
+        const char *e = err.message; /* named once: the library's messages mostly name it */
         if (!strncmp(e, o.file, strlen(o.file))) fprintf(stderr, "wrt-play: error: %s\n", e);
         else fprintf(stderr, "wrt-play: error: %s: %s\n", o.file, e);
-        return s == WRT_ERR_NOMEM ? EXIT_RUNTIME : EXIT_INPUT; /* out of memory: 7 */
+        return s == WRT_ERR_NOMEM ? EXIT_RUNTIME : s == WRT_ERR_INVALID_ARG ? EXIT_USAGE : EXIT_INPUT;
     }
+    a.nquads = wrt_runtime_quad_count(a.rl);
+    wrt_runtime_get_file_info(a.rl, &a.info, NULL);
     /* the view and the lights first: a light the file does not have is refused before
      * any window opens */
     int rc = setup_view(&a) ? setup_lights(&a) : EXIT_USAGE;
     if (rc) {
         free(a.lights);
-        close_gto(&a.g, &a.gto_mem);
+        wrt_runtime_close(a.rl);
         return rc;
     }
     if (o.headless) s = wrt_platform_egl_create(&a.plat);
@@ -841,25 +855,16 @@ int main(int argc, char **argv) {
     if (s) {
         fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         free(a.lights);
-        close_gto(&a.g, &a.gto_mem);
+        wrt_runtime_close(a.rl);
         return EXIT_GL;
     }
     if (a.plat->has_window && a.plat->fb_width > 0) {
         o.width = a.plat->fb_width;
         o.height = a.plat->fb_height;
     }
-    open_progress op = {-1};
-    wrt_runtime_options ro = {.size = sizeof ro, .max_tex_res = o.max_tex_res, .threads = o.threads,
-                              .linear_display = o.linear_display, .progress_user = &op};
-    if (isatty(2)) ro.progress = show_progress;
-    if ((s = wrt_runtime_open_memory(a.g.map, a.g.size, &ro, &a.rl, NULL))) {
-        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
-        rc = EXIT_RUNTIME;
-        goto done;
-    }
     int ss = o.headless ? o.supersample : 1;
     wrt_render_options rdo = {o.width * ss, o.height * ss, o.shadow_res, o.msaa};
-    if ((s = wrt_render_create(&a.g, &rdo, &a.rd))) {
+    if ((s = wrt_render_create(wrt_runtime_gto_of(a.rl), &rdo, &a.rd))) {
         fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         rc = s == WRT_ERR_GL ? EXIT_GL : EXIT_USAGE;
         goto done;
@@ -895,6 +900,5 @@ done:
     wrt_runtime_close(a.rl);
     free(a.lights);
     wrt_platform_destroy(a.plat);
-    close_gto(&a.g, &a.gto_mem);
     return rc;
 }

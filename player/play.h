@@ -1,15 +1,15 @@
 /* play.h: what wrt-play's main.c (the application, its window, main) shares with
  * headless.c (the scripted frames and the benchmark): the exit codes, the application
  * state, one frame's stage times and the functions headless.c calls back. Internal to
- * the program. Depends on cli/cli.h, formats/gto.h, include/wrt.h (the runtime),
- * player/platform.h, player/render.h and player/options.h. */
+ * the program. Depends on cli/cli.h, include/wrt.h (the runtime: the player opens,
+ * reads and relights the .gto through it alone), player/platform.h, player/render.h
+ * and player/options.h. */
 #ifndef WRT_PLAY_PLAY_H
 #define WRT_PLAY_PLAY_H
 
 #include <sys/stat.h>
 
 #include "../cli/cli.h"
-#include "../formats/gto.h"
 #include "../include/wrt.h"
 #include "platform.h"
 #include "render.h"
@@ -31,9 +31,9 @@ typedef struct stage_ms {
 
 typedef struct app {
     options *o;
-    wrt_gto g;
-    void *gto_mem;       /* the file's bytes, private (read_gto) */
-    struct stat gto_st;  /* the file as it was read: a change is noticed in the window */
+    wrt_runtime_file_info info; /* what the open file holds (wrt_runtime_get_file_info) */
+    int nquads;
+    struct stat gto_st;  /* the file as it was before it was read: a change is noticed in the window */
     wrt_platform *plat;
     wrt_runtime *rl;
     wrt_render *rd;
@@ -50,6 +50,7 @@ int run_frame(app *a, stage_ms *t);            /* one frame: relight what change
 int save_picture(app *a, const char *path);    /* the headless picture to a file */
 void scene_up(const app *a, wrt_v3 *up);       /* the view's up direction */
 int chosen_light(const app *a);                /* the light --light names (0-based) */
+void scene_bounds(const app *a, double lo[3], double hi[3]); /* the quads' box (-1..1 without quads) */
 
 /* headless.c */
 int run_script(app *a);  /* --script: one picture per frame of the keyframed sequence */

@@ -16,7 +16,7 @@ typedef struct gather_job { wrt_gather_item_fn fn; void *ctx; } gather_job;
 static void gather_item(wrt_relight *r, worker *w, int item, void *ctx) {
     (void)r; (void)w;
     const gather_job *j = ctx;
-    j->fn((size_t)item, j->ctx);
+    j->fn(j->ctx, (size_t)item);
 }
 static void gather_run(void *user, size_t n, wrt_gather_item_fn fn, void *ctx) {
     gather_job j = {fn, ctx};

@@ -5,14 +5,19 @@
  * the file. Keeps no global state. */
 #include "../include/wrt.h"
 
+#include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "../common/basis.h"
 #include "relight.h"
+#include "wrt_runtime.h"
 
 /* A live handle's magic ("WRTRTIME"); cleared at close, so that a use after close or
  * a double close is caught (include/wrt.h, "Handles"). */
@@ -25,6 +30,7 @@ struct wrt_runtime {
     wrt_relight *rl;
     double lo[3], hi[3];   /* the box of every quad's corners */
     wrt_relight_timings tm;
+    void *copy;            /* WRT_OPEN_PRIVATE: the file's bytes (the allocator's), freed at close */
 };
 
 /* The options' layout of API version 2, the first with `size`: what size 0 means (the
@@ -84,8 +90,64 @@ wrt_status wrt_runtime_defaults(wrt_runtime_options *o) {
     return WRT_OK;
 }
 
-static wrt_status open_common(const void *data, size_t size, const char *path, const wrt_runtime_options *opt,
-                              wrt_runtime **out, wrt_error *err) {
+/* Reads `path` whole into memory from the allocator (WRT_OPEN_PRIVATE): a regular file
+ * only, checked by fstat before any read (O_NONBLOCK: a FIFO or device is refused, not
+ * waited on). A file that shrinks while it is read is validated as the bytes read. */
+static wrt_status read_private(const char *path, const wrt_allocator *al, void **buf_out, size_t *len_out) {
+    *buf_out = NULL;
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
+    if (fd < 0) return wrt_fail(WRT_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    struct stat sb;
+    if (fstat(fd, &sb) != 0) {
+        int e = errno;
+        close(fd);
+        return wrt_fail(WRT_ERR_IO, "%s: cannot stat: %s", path, strerror(e));
+    }
+    if (!S_ISREG(sb.st_mode)) {
+        close(fd);
+        return wrt_fail(WRT_ERR_NOT_OURS, "%s: not a regular file (%s)", path,
+                        S_ISDIR(sb.st_mode) ? "a directory" : S_ISFIFO(sb.st_mode) ? "a FIFO"
+                        : S_ISCHR(sb.st_mode) || S_ISBLK(sb.st_mode) ? "a device" : "a special file");
+    }
+    size_t len = (size_t)sb.st_size, got = 0;
+    unsigned char *buf = al->alloc(al->user, len + 8); /* aligned for any type: the reader needs 8 */
+    if (!buf) {
+        close(fd);
+        return wrt_fail(WRT_ERR_NOMEM, "%s: out of memory reading %zu bytes", path, len);
+    }
+    memset(buf, 0, 8);
+    while (got < len) {
+        ssize_t r = read(fd, buf + got, len - got);
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0) break;
+        got += (size_t)r;
+    }
+    close(fd);
+    *buf_out = buf;
+    *len_out = got;
+    return WRT_OK;
+}
+
+/* The file into rt->g: mapped (path, !private), read into rt->copy (path, private), or
+ * the caller's bytes (no path). The reader's messages get the path in front once. */
+static wrt_status open_gto(wrt_runtime *rt, const char *path, int private_copy, const void *data, size_t size) {
+    if (!path) return wrt_gto_open_memory(data, size, &rt->g);
+    if (!private_copy) return wrt_gto_open(path, &rt->g);
+    size_t len = 0;
+    wrt_status s = read_private(path, &rt->al, &rt->copy, &len);
+    if (s) return s;
+    if ((s = wrt_gto_open_memory(rt->copy, len, &rt->g))) {
+        char msg[200];
+        snprintf(msg, sizeof msg, "%s", wrt_last_error());
+        rt->al.free(rt->al.user, rt->copy);
+        rt->copy = NULL;
+        return wrt_fail(s, "%s: %s", path, msg);
+    }
+    return WRT_OK;
+}
+
+static wrt_status open_common(const void *data, size_t size, const char *path, int private_copy,
+                              const wrt_runtime_options *opt, wrt_runtime **out, wrt_error *err) {
     if (!out) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_open: out is NULL"));
     *out = NULL;
     wrt_runtime_options o;
@@ -100,8 +162,7 @@ static wrt_status open_common(const void *data, size_t size, const char *path, c
     if (!rt) return fail(err, wrt_fail(WRT_ERR_NOMEM, "wrt_runtime_open: out of memory"));
     memset(rt, 0, sizeof *rt);
     rt->al = o.allocator;
-    s = path ? wrt_gto_open(path, &rt->g) : wrt_gto_open_memory(data, size, &rt->g);
-    if (s) { rt->al.free(rt->al.user, rt); return fail(err, s); }
+    if ((s = open_gto(rt, path, private_copy, data, size))) { rt->al.free(rt->al.user, rt); return fail(err, s); }
     for (int c = 0; c < 3; c++) { rt->lo[c] = rt->g.nquads ? HUGE_VAL : 0; rt->hi[c] = rt->g.nquads ? -HUGE_VAL : 0; }
     for (uint32_t q = 0; q < rt->g.nquads; q++)
         for (int k = 0; k < 4; k++)
@@ -119,6 +180,7 @@ static wrt_status open_common(const void *data, size_t size, const char *path, c
                               .progress_user = o.progress_user};
     if ((s = wrt_relight_create(&rt->g, &ro, &rt->rl))) {
         wrt_gto_close(&rt->g);
+        if (rt->copy) rt->al.free(rt->al.user, rt->copy);
         rt->al.free(rt->al.user, rt);
         return fail(err, s);
     }
@@ -130,15 +192,40 @@ static wrt_status open_common(const void *data, size_t size, const char *path, c
 wrt_status wrt_runtime_open_file(const char *path, const wrt_runtime_options *opt, wrt_runtime **out, wrt_error *err) {
     if (out) *out = NULL;
     if (!path) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_open_file: path is NULL"));
-    return open_common(NULL, 0, path, opt, out, err);
+    return open_common(NULL, 0, path, 0, opt, out, err);
 }
+
+wrt_status wrt_runtime_open_path(const char *path, int how, const wrt_runtime_options *opt, wrt_runtime **out,
+                                 wrt_error *err) {
+    if (out) *out = NULL;
+    if (!path) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_open_path: path is NULL"));
+    if (how != WRT_OPEN_MAP && how != WRT_OPEN_PRIVATE)
+        return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_open_path: how is %d, neither WRT_OPEN_MAP (0) "
+                                  "nor WRT_OPEN_PRIVATE (1)", how));
+    return open_common(NULL, 0, path, how == WRT_OPEN_PRIVATE, opt, out, err);
+}
+
+wrt_status wrt_runtime_get_file_info(const wrt_runtime *rt, wrt_runtime_file_info *out, wrt_error *err) {
+    if (!live(rt)) return dead(err, "wrt_runtime_get_file_info", rt);
+    if (!out) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_get_file_info: out is NULL"));
+    memset(out, 0, sizeof *out);
+    out->version_major = rt->g.version;
+    out->version_minor = rt->g.version_minor;
+    out->bytes = rt->g.size;
+    out->functions = rt->g.nfuncs;
+    out->entries = rt->g.nnz;
+    out->private_copy = rt->copy != NULL;
+    return WRT_OK;
+}
+
+const wrt_gto *wrt_runtime_gto_of(const wrt_runtime *rt) { return live(rt) ? &rt->g : NULL; }
 
 wrt_status wrt_runtime_open_memory(const void *data, size_t size, const wrt_runtime_options *opt, wrt_runtime **out,
                                    wrt_error *err) {
     if (out) *out = NULL;
     if (!data || ((uintptr_t)data & 7))
         return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_open_memory: data is NULL or not 8-byte aligned"));
-    return open_common(data, size, NULL, opt, out, err);
+    return open_common(data, size, NULL, 0, opt, out, err);
 }
 
 wrt_status wrt_runtime_close(wrt_runtime *rt) {
@@ -148,6 +235,7 @@ wrt_status wrt_runtime_close(wrt_runtime *rt) {
     wrt_relight_destroy(rt->rl);
     wrt_gto_close(&rt->g);
     wrt_allocator al = rt->al;
+    if (rt->copy) al.free(al.user, rt->copy);
     al.free(al.user, rt);
     return WRT_OK;
 }

@@ -27,6 +27,13 @@
  *    the last exactly 1, the first below 0.5), and a cancel from the callback at its
  *    first, middle and last call: WRT_ERR_CANCELLED, *out NULL, and as many frees as
  *    allocations through the counting allocator (nothing leaked).
+ *  - wrt_runtime_open_path (API 4): WRT_OPEN_PRIVATE reads the file through the allocator
+ *    (one block of the file's size more than a mapped open), and a copy of FACING opened
+ *    so, then truncated to 0 bytes and removed, still relights to bitwise the mapped
+ *    open's textures; a FIFO is refused at once (WRT_ERR_NOT_OURS, naming it), a missing
+ *    file with WRT_ERR_IO naming it, a corrupt copy (a byte complemented) with
+ *    WRT_ERR_CORRUPT naming it, a `how` of 2 with WRT_ERR_INVALID_ARG; the file info
+ *    against the file's size on disk.
  * Prints "N passed, N failed". */
 #include <wrt.h>
 
@@ -37,6 +44,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 static int passed, failed, skipped;
 #define CHECK(c, ...) do { if (c) passed++; else { failed++; fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__); \
@@ -128,7 +137,7 @@ static void test_version(void) {
     CHECK(wrt_version() == WRT_VERSION && WRT_VERSION == 100, "wrt_version %d, header %d", wrt_version(), WRT_VERSION);
     CHECK(!strcmp(wrt_version_string(), WRT_VERSION_STRING) && !strcmp(WRT_VERSION_STRING, "0.1.0"),
           "wrt_version_string '%s'", wrt_version_string());
-    CHECK(wrt_api_version() == WRT_API_VERSION && WRT_API_VERSION == 3, "wrt_api_version %d", wrt_api_version());
+    CHECK(wrt_api_version() == WRT_API_VERSION && WRT_API_VERSION == 4, "wrt_api_version %d", wrt_api_version());
     CHECK(!strcmp(wrt_status_str(WRT_ERR_INVALID_ARG), "invalid argument") &&
           !strcmp(wrt_status_str((wrt_status)99), "unknown status"), "wrt_status_str");
 }
@@ -609,6 +618,80 @@ static void test_progress(const char *glossy) {
     }
 }
 
+/* Copies file `from` to `to` (the test's scratch): 0 on success. */
+static int copy_file(const char *from, const char *to, long flip) {
+    FILE *a = fopen(from, "rb"), *b = fopen(to, "wb");
+    int ok = a && b;
+    for (long i = 0; ok; i++) {
+        int c = fgetc(a);
+        if (c == EOF) break;
+        if (i == flip) c ^= 0xff;
+        ok = fputc(c, b) != EOF;
+    }
+    if (a) fclose(a);
+    if (b && fclose(b)) ok = 0;
+    return ok ? 0 : -1;
+}
+
+static void test_open_path(const char *path) {
+    wrt_error err;
+    wrt_runtime *map = NULL, *priv = NULL, *none = (wrt_runtime *)1;
+    char copy[512], fifo[512];
+    snprintf(copy, sizeof copy, "%s.private-copy.%d", path, (int)getpid());
+    snprintf(fifo, sizeof fifo, "%s.fifo.%d", path, (int)getpid());
+    struct stat sb;
+    if (copy_file(path, copy, -1) || stat(copy, &sb)) { CHECK(0, "cannot copy %s to %s", path, copy); return; }
+    counter cm = {0}, cp = {0};
+    wrt_runtime_options om = {.size = sizeof om, .allocator = {c_alloc, c_free, &cm}};
+    wrt_runtime_options op = {.size = sizeof op, .allocator = {c_alloc, c_free, &cp}};
+    CHECK(wrt_runtime_open_path(copy, WRT_OPEN_MAP, &om, &map, &err) == WRT_OK, "open_path MAP: %s", err.message);
+    CHECK(wrt_runtime_open_path(copy, WRT_OPEN_PRIVATE, &op, &priv, &err) == WRT_OK, "open_path PRIVATE: %s",
+          err.message);
+    if (!map || !priv) { wrt_runtime_close(map); wrt_runtime_close(priv); remove(copy); return; }
+    CHECK(cp.allocs == cm.allocs + 1 && cp.bytes >= cm.bytes + (long)sb.st_size,
+          "PRIVATE: %d allocations of %zu bytes, MAP %d of %zu, the file %lld bytes", (int)cp.allocs, (size_t)cp.bytes,
+          (int)cm.allocs, (size_t)cm.bytes, (long long)sb.st_size);
+    wrt_runtime_file_info fi;
+    CHECK(wrt_runtime_get_file_info(priv, &fi, &err) == WRT_OK && fi.bytes == (unsigned long long)sb.st_size &&
+          fi.private_copy == 1 && fi.version_major == 1 && fi.functions > 0 && fi.entries > 0,
+          "file info: %llu bytes (on disk %lld), private %d, version %u.%u, %llu functions, %llu entries", fi.bytes,
+          (long long)sb.st_size, fi.private_copy, fi.version_major, fi.version_minor, fi.functions, fi.entries);
+    CHECK(wrt_runtime_get_file_info(priv, NULL, &err) == WRT_ERR_INVALID_ARG, "file info out NULL");
+    wrt_runtime_close(map);
+    map = NULL;
+    CHECK(wrt_runtime_open_file(path, NULL, &map, &err) == WRT_OK, "open_file: %s", err.message);
+    /* the private copy outlives its file: truncated, then removed */
+    CHECK(truncate(copy, 0) == 0 && remove(copy) == 0, "truncate and remove the copy");
+    wrt_runtime_light l = {0};
+    wrt_runtime_get_light(map, 0, &l, NULL);
+    size_t na = 0, nb = 0;
+    float *a = relight(map, &l, &na), *b = relight(priv, &l, &nb);
+    CHECK(a && b && same(a, na, b, nb), "PRIVATE after the file went: textures bitwise the mapped open's (%zu, %zu floats)",
+          na, nb);
+    free(a);
+    free(b);
+    wrt_runtime_close(map);
+    CHECK(wrt_runtime_close(priv) == WRT_OK && cp.frees == cp.allocs, "PRIVATE close: %d frees of %d allocations",
+          (int)cp.frees, (int)cp.allocs);
+    wrt_status s = wrt_runtime_open_path(copy, WRT_OPEN_PRIVATE, NULL, &none, &err);
+    CHECK(s == WRT_ERR_IO && none == NULL && strstr(err.message, copy), "missing: %d '%s'", s, err.message);
+    if (mkfifo(fifo, 0600) == 0) {
+        none = (wrt_runtime *)1;
+        s = wrt_runtime_open_path(fifo, WRT_OPEN_PRIVATE, NULL, &none, &err); /* would block if it read */
+        CHECK(s == WRT_ERR_NOT_OURS && none == NULL && strstr(err.message, "FIFO") && strstr(err.message, fifo),
+              "FIFO: %d '%s'", s, err.message);
+        remove(fifo);
+    }
+    if (copy_file(path, copy, (long)sb.st_size / 2) == 0) {
+        s = wrt_runtime_open_path(copy, WRT_OPEN_PRIVATE, NULL, &none, &err);
+        CHECK(s == WRT_ERR_CORRUPT && none == NULL && !strncmp(err.message, copy, strlen(copy)), "corrupt: %d '%s'", s,
+              err.message);
+        remove(copy);
+    }
+    s = wrt_runtime_open_path(path, 2, NULL, &none, &err);
+    CHECK(s == WRT_ERR_INVALID_ARG && none == NULL && strstr(err.message, "how"), "how 2: %d '%s'", s, err.message);
+}
+
 int main(int argc, char **argv) {
     const char *glossy = NULL; /* --glossy FILE (last): a glossy bake for the open's progress */
     if (argc >= 3 && !strcmp(argv[argc - 2], "--glossy")) { glossy = argv[argc - 1]; argc -= 2; }
@@ -619,6 +702,7 @@ int main(int argc, char **argv) {
     test_bounds(argv[1]);
     test_getters(argv[1]);
     test_range(argv[1], argv[2]);
+    test_open_path(argv[1]);
     for (int i = 1; i < argc; i++) if (i != 2) test_steady_allocations(argv[i]);
     for (int i = 1; i < argc; i++) if (i != 2) test_atlas(argv[i]);
     for (int i = 1; i < argc; i++) if (i != 2) test_superposition(argv[i]);
