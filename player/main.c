@@ -32,6 +32,7 @@
 #include "render.h"
 #include "options.h"
 #include "play.h"
+#include "view.h"
 #include "wrt_runtime.h"
 
 static const char *T = "wrt-play";
@@ -281,8 +282,8 @@ static int setup_lights(app *a) {
     return rc;
 }
 
-/* The file's camera, else one framing the scene's box from +Z (wrt_runtime_get_camera,
- * wrt_runtime_get_bounds). */
+/* The file's camera; else the view of view.h that sees the most directly lit surface
+ * (wrt_runtime_get_camera, and the file's lights and quads through the API). */
 static void default_view(const app *a, wrt_view *v) {
     memset(v, 0, sizeof *v);
     wrt_runtime_camera cam;
@@ -295,18 +296,20 @@ static void default_view(const app *a, wrt_view *v) {
         v->yfov = cam.yfov;
         return;
     }
-    double lo[3], hi[3], r = 0;
-    scene_bounds(a, lo, hi);
-    for (int k = 0; k < 3; k++) {
-        v->target[k] = 0.5 * (lo[k] + hi[k]);
-        r += (hi[k] - lo[k]) * (hi[k] - lo[k]);
+    wrt_runtime_light ls[WRT_MAX_LIGHTS];
+    int nl = wrt_runtime_light_count(a->rl);
+    nl = nl < 0 ? 0 : nl > WRT_MAX_LIGHTS ? WRT_MAX_LIGHTS : nl;
+    for (int i = 0; i < nl; i++) wrt_runtime_get_light(a->rl, i, &ls[i], NULL);
+    if (nl == 0) { /* the light setup_lights will add: above the centre, up +Y */
+        double lo[3], hi[3];
+        scene_bounds(a, lo, hi);
+        double r = 0.5 * v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
+        memset(&ls[0], 0, sizeof ls[0]);
+        for (int k = 0; k < 3; k++) ls[0].position[k] = 0.5 * (lo[k] + hi[k]) + (k == 1 ? 0.4 * r : 0);
+        ls[0].intensity = (float)(r * r);
+        nl = 1;
     }
-    r = 0.5 * sqrt(r);
-    v->yfov = 45 * WRT_PI / 180;
-    v->eye[0] = v->target[0];
-    v->eye[1] = v->target[1];
-    v->eye[2] = v->target[2] + r / tan(v->yfov / 2) * 1.1;
-    v->up[1] = 1;
+    wrt_play_default_view(a->geom, ls, nl, v, NULL);
 }
 
 static int setup_view(app *a) {
@@ -350,6 +353,7 @@ typedef struct win_state {
     float file_colour[WRT_RENDER_MAX_LIGHTS][3];
     int colour[WRT_RENDER_MAX_LIGHTS];
     double box_lo[3], box_hi[3];              /* where lights may go */
+    const wrt_play_geom *geom;                /* and the walls they stop at */
     double frame_ms, fps, last_draw;          /* smoothed; when the last frame was drawn */
     stage_ms relight;                         /* the last frame that relit */
     int relit_any;
@@ -441,6 +445,15 @@ static int win_reload(app *a, win_state *w) {
         say(w, "reload failed, keeping the old file: %s", err.message);
         return 0;
     }
+    wrt_play_geom *geom2;
+    if (wrt_play_geom_create(rl2, &geom2)) {
+        say(w, "reload failed, keeping the old file: %s", wrt_last_error());
+        wrt_runtime_close(rl2);
+        return 0;
+    }
+    wrt_play_geom_destroy(a->geom);
+    a->geom = geom2;
+    w->geom = geom2;
     int same_lights = wrt_runtime_light_count(rl2) == wrt_runtime_light_count(a->rl);
     wrt_render_destroy(a->rd); /* it draws from the old runtime's file */
     wrt_runtime_close(a->rl);
@@ -713,9 +726,11 @@ static int win_move_light(win_state *w, const wrt_input *in, wrt_light *sl, wrt_
     } else if (v3_len(lm) > 0) {
         changed = 1;
         wrt_v3 np = v3_mad(sl->pos, lm, fmax(speed, size * 0.005) * 0.5);
-        double c[3] = {np.x, np.y, np.z};
+        double c[3] = {np.x, np.y, np.z}, from[3] = {sl->pos.x, sl->pos.y, sl->pos.z};
         for (int k = 0; k < 3; k++) c[k] = fmin(fmax(c[k], w->box_lo[k]), w->box_hi[k]);
-        sl->pos = v3(c[0], c[1], c[2]);
+        /* and short of any wall on the way: a light never passes through one (view.h) */
+        double f = w->geom ? wrt_play_geom_clip_move(w->geom, from, c) : 1;
+        sl->pos = v3(from[0] + f * (c[0] - from[0]), from[1] + f * (c[1] - from[1]), from[2] + f * (c[2] - from[2]));
     }
     return changed;
 }
@@ -724,6 +739,7 @@ static int run_window(app *a) {
     wrt_platform *p = a->plat;
     win_state w;
     memset(&w, 0, sizeof w);
+    w.geom = a->geom;
     w.overlay_on = !a->o->no_overlay;
     w.exposure = a->o->exposure;
     w.sel = chosen_light(a) < nshown(a) ? chosen_light(a) : 0;
@@ -842,11 +858,17 @@ int main(int argc, char **argv) {
     }
     a.nquads = wrt_runtime_quad_count(a.rl);
     wrt_runtime_get_file_info(a.rl, &a.info, NULL);
+    if ((s = wrt_play_geom_create(a.rl, &a.geom))) {
+        fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
+        wrt_runtime_close(a.rl);
+        return EXIT_RUNTIME;
+    }
     /* the view and the lights first: a light the file does not have is refused before
      * any window opens */
     int rc = setup_view(&a) ? setup_lights(&a) : EXIT_USAGE;
     if (rc) {
         free(a.lights);
+        wrt_play_geom_destroy(a.geom);
         wrt_runtime_close(a.rl);
         return rc;
     }
@@ -855,6 +877,7 @@ int main(int argc, char **argv) {
     if (s) {
         fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         free(a.lights);
+        wrt_play_geom_destroy(a.geom);
         wrt_runtime_close(a.rl);
         return EXIT_GL;
     }
@@ -900,5 +923,6 @@ done:
     wrt_runtime_close(a.rl);
     free(a.lights);
     wrt_platform_destroy(a.plat);
+    wrt_play_geom_destroy(a.geom);
     return rc;
 }

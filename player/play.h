@@ -36,6 +36,7 @@ typedef struct app {
     struct stat gto_st;  /* the file as it was before it was read: a change is noticed in the window */
     wrt_platform *plat;
     wrt_runtime *rl;
+    struct wrt_play_geom *geom; /* the quads for the default camera and the lights' walls (view.h) */
     wrt_render *rd;
     wrt_light *lights;
     int nlights;

@@ -431,8 +431,13 @@ static int write_pending(const bake_args *A, const wrt_scene *s, const wrt_bake_
                          double *t_write) {
     const wrt_bake_counters *c = &r->c;
     char *prov = provenance_json(A, s, c);
+    /* a scene without a camera is stored without one (all zero, formats/GTO_FORMAT.md),
+     * not with the loader's framing from outside its box: the reader then frames it
+     * itself (wrt-play looks from where the light is seen, player/view.h) */
+    wrt_scene stored = *s;
+    if (!stored.camera.from_file) memset(&stored.camera, 0, sizeof stored.camera);
     wrt_gto_contents gc = {
-        .scene = s, .fkeys = r->fkeys, .nfuncs = r->nfuncs,
+        .scene = &stored, .fkeys = r->fkeys, .nfuncs = r->nfuncs,
         .col_start = r->op.col, .rows = r->op.row, .vals = r->op.val,
         .op_kind = (uint32_t)r->op_kind, .material_alevel = r->material_alevel, .provenance = prov,
         .nkcols = r->nkcols, .kkeys = r->kkeys, .kcol_start = r->kcol_start, .krows = r->krows, .kvals = r->kvals,

@@ -5,7 +5,11 @@
  * maps it with wrt_gto_open, relights it (player/relight.c) and draws it headless
  * (player/render.c). Checks: the picture is lit, indirect-only is lit and flat per quad
  * (a root-only operator gives each quad one outgoing radiance, rho/pi x the indirect
- * irradiance relight reports), and both = direct + indirect.
+ * irradiance relight reports), and both = direct + indirect. Without a display:
+ * player/view.c on the room through the library's API (a light moved against the walls
+ * stops 1e-3 of the diagonal short of them, from either side; the default camera of the
+ * room without a camera is outside when its open side shows the lit inside, and inside,
+ * where the light is seen, when that side is closed by a wall seen from both sides).
  *   test_play --write-gto OUT.gto   writes the room for tests/play.sh. */
 #include "tests/test.h"
 #include "common/basis.h"
@@ -15,6 +19,7 @@
 #include "player/platform.h"
 #include "player/relight.h"
 #include "player/render.h"
+#include "player/view.h"
 
 #include <stdlib.h>
 #include <unistd.h>
@@ -26,6 +31,7 @@ static int nq;
 static wrt_material mats[4];
 static wrt_light light;
 static char names[3][64] = {"room", "box", "ceiling"};
+static int closed_room; /* 1: no camera, and the open side closed by a wall seen from both sides */
 
 static void add_quad(wrt_v3 p0, wrt_v3 p1, wrt_v3 p2, wrt_v3 p3, int mat, int name) {
     wrt_quad *q = &quads[nq++];
@@ -79,6 +85,10 @@ static void build_room(wrt_scene *s) {
     add_rect(v3(x1, 0, z0), v3(x0 - x1, 0, 0), v3(0, y1, 0), 1, 0, 1);      /* back -z */
     add_rect(v3(x0, 0, z0), v3(0, 0, z1 - z0), v3(0, y1, 0), 1, 0, 1);      /* left -x */
     add_rect(v3(x1, 0, z1), v3(0, 0, z0 - z1), v3(0, y1, 0), 1, 0, 1);      /* right +x */
+    if (closed_room) { /* the front wall, -z, and its outside, +z, as a double-sided material's twin */
+        add_rect(v3(1, 0, 1), v3(-2, 0, 0), v3(0, 2, 0), 2, 0, 0);
+        add_rect(v3(-1, 0, 1.0001), v3(2, 0, 0), v3(0, 2, 0), 2, 0, 0);
+    }
     memset(&light, 0, sizeof light);
     light.type = WRT_LIGHT_POINT;
     snprintf(light.name, sizeof light.name, "lamp");
@@ -102,6 +112,7 @@ static void build_room(wrt_scene *s) {
     s->camera.yfov = 0.75;
     s->camera.znear = 0.01;
     s->camera.from_file = 1;
+    if (closed_room) memset(&s->camera, 0, sizeof s->camera);
 }
 
 static int cmp_u64(const void *a, const void *b) {
@@ -252,6 +263,54 @@ static void test_write_and_draw(void) {
     unlink(gto_path);
 }
 
+/* player/view.c through the API: the walls stop a moving light; the default camera. */
+static void test_view(void) {
+    char path[160];
+    snprintf(path, sizeof path, "%s/view.gto", dir);
+    for (closed_room = 0; closed_room <= 1; closed_room++) {
+        CHECK(write_room(path) == WRT_OK, "%s", wrt_last_error());
+        wrt_runtime *rt = NULL;
+        wrt_error err;
+        CHECK(wrt_runtime_open_file(path, NULL, &rt, &err) == WRT_OK, "%s", err.message);
+        wrt_play_geom *g = NULL;
+        if (!rt || wrt_play_geom_create(rt, &g)) { CHECK(0, "geometry: %s", wrt_last_error()); wrt_runtime_close(rt); continue; }
+        wrt_runtime_camera cam;
+        CHECK(wrt_runtime_get_camera(rt, &cam, NULL) == WRT_OK && cam.from_file == !closed_room,
+              "camera from_file %d (closed %d)", cam.from_file, closed_room);
+        double lo[3], hi[3];
+        wrt_runtime_get_bounds(rt, lo, hi, NULL);
+        double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                           (hi[2] - lo[2]) * (hi[2] - lo[2])), gap = 1e-3 * diag;
+        /* the lamp towards the back wall (z = -1, 1.1 away) and beyond: stops short of it */
+        double a[3] = {0.2, 1.7, 0.1}, b[3] = {0.2, 1.7, -3}, f = wrt_play_geom_clip_move(g, a, b);
+        CHECK_NEAR(f, (1.1 - gap) / 3.1, 1e-9, "through the back wall: fraction %.12g", f);
+        double b2[3] = {0.2, 1.7, 0.9};
+        CHECK(wrt_play_geom_clip_move(g, a, b2) == 1, "nothing in the way: the whole move");
+        double c[3] = {-0.25, 0.3, 0.5}, d[3] = {-0.25, 0.3, -0.25}; /* into the box, through its front (z = 0) */
+        f = wrt_play_geom_clip_move(g, c, d);
+        CHECK_NEAR(f, (0.5 - gap) / 0.75, 1e-9, "into the box: fraction %.12g", f);
+        f = wrt_play_geom_clip_move(g, d, c); /* out of it: the same wall's back */
+        CHECK_NEAR(f, (0.25 - gap) / 0.75, 1e-9, "out of the box, its wall seen from behind: fraction %.12g", f);
+        wrt_runtime_light l;
+        wrt_runtime_get_light(rt, 0, &l, NULL);
+        wrt_view v;
+        double score = -1;
+        int k = wrt_play_default_view(g, &l, 1, &v, &score);
+        int inside = v.eye[0] > -1 && v.eye[0] < 1 && v.eye[1] > 0 && v.eye[1] < 2 && v.eye[2] > -1 && v.eye[2] < 1;
+        int in_box = v.eye[0] > -0.5 && v.eye[0] < 0 && v.eye[1] < 0.6 && v.eye[2] > -0.5 && v.eye[2] < 0;
+        if (!closed_room)
+            CHECK(k == 0 && !inside && v.eye[2] > 1 && score >= 0.1, "open room: outside, from +z (candidate %d, eye "
+                  "%g %g %g, %.2f of the view lit)", k, v.eye[0], v.eye[1], v.eye[2], score);
+        else
+            CHECK(k > 0 && inside && !in_box && score >= 0.3, "closed room: inside, not in the box (candidate %d, eye "
+                  "%g %g %g, %.2f of the view lit)", k, v.eye[0], v.eye[1], v.eye[2], score);
+        wrt_play_geom_destroy(g);
+        wrt_runtime_close(rt);
+        remove(path);
+    }
+    closed_room = 0;
+}
+
 /* Under AddressSanitizer: Mesa's driver, which EGL loads and unloads, leaves one block
  * of 128 bytes that LeakSanitizer cannot attribute to any module (the leak checks of
  * this program's own allocations were clean before this was switched off). */
@@ -267,6 +326,7 @@ int main(int argc, char **argv) {
     snprintf(dir, sizeof dir, "/tmp/wrt_test_play_XXXXXX");
     if (!mkdtemp(dir)) return 1;
     snprintf(gto_path, sizeof gto_path, "%s/room.gto", dir);
+    TEST_RUN(test_view); /* no display needed */
     wrt_platform *p = NULL;
     if (wrt_platform_egl_create(&p) != WRT_OK) {
         fprintf(stderr, "no headless OpenGL: %s\n", wrt_last_error());
