@@ -317,14 +317,15 @@ static void text_figures(FILE *f, const gto_info *I) {
                 "TEXCOORD_0\n", g->nquads, I->src_twins, I->src_tri, I->src_uv);
     else
         fprintf(f, "source map: none (no srcmap section)\n");
-    /* only the times the bake recorded (none with --reproducible) */
+    /* only the times the bake recorded (only with --provenance-timings) */
     if (S->t_dto > 0 || S->t_gto > 0) {
         fprintf(f, "bake:       DTO %.2f s, GTO %.2f s", S->t_dto, S->t_gto);
         if (S->t_write > 0) fprintf(f, ", write %.2f s", S->t_write);
         if (S->t_total > 0) fprintf(f, ", total %.2f s", S->t_total);
         fputc('\n', f);
     } else {
-        fprintf(f, "bake:       no timings recorded (--reproducible)\n");
+        fprintf(f, "bake:       no timings stored (wrt-bake stores them only with --provenance-timings, so that equal\n"
+                "            bakes give equal bytes)\n");
     }
     fprintf(f, "            links: DTO %" PRIu64 ", GTO %" PRIu64 ", gathered %" PRIu64
             "; entries: DTO %" PRIu64 ", operator %" PRIu64 "\n", S->links_dto, S->links_gto,
@@ -336,13 +337,36 @@ static void text_figures(FILE *f, const gto_info *I) {
             human_bytes(I->len, hb), I->dt * 1e3, I->mbs);
 }
 
+/* What a file's version means to this reader, in words ("current", or what the later
+ * minors add), so that an older file does not read like a warning. */
+static void version_note(char *b, size_t n, unsigned major, unsigned minor) {
+    static const char *added[] = {"", "the optional first-bounce operator", "the optional source map"};
+    int nadded = (int)(sizeof added / sizeof added[0]);
+    if (major == WRT_GTO_VERSION && minor == WRT_GTO_VERSION_MINOR) {
+        snprintf(b, n, "current");
+    } else if (major == WRT_GTO_VERSION && (int)minor < WRT_GTO_VERSION_MINOR) {
+        size_t k = (size_t)snprintf(b, n, "older, read in full: later versions only add");
+        for (int m = (int)minor + 1; m <= WRT_GTO_VERSION_MINOR && k < n; m++)
+            k += (size_t)snprintf(b + k, n - k, "%s %d.%d %s", m > (int)minor + 1 ? "," : "", WRT_GTO_VERSION, m,
+                                  m < nadded ? added[m] : "optional sections");
+    } else if (major == WRT_GTO_VERSION) {
+        snprintf(b, n, "newer than this reader's %d.%d: its added optional sections are skipped", WRT_GTO_VERSION,
+                 WRT_GTO_VERSION_MINOR);
+    } else {
+        snprintf(b, n, "%s than this reader's %d.%d, which reads only %d.x", (int)major > WRT_GTO_VERSION ? "newer" :
+                 "older", WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR, WRT_GTO_VERSION);
+    }
+}
+
 /* --info as text. */
 static void print_text(FILE *f, const gto_info *I) {
     const gto_layout *L = &I->L;
     fprintf(f, "file:       %s (%zu bytes)\n", I->path, I->len);
+    char note[256];
+    if (I->have_header) version_note(note, sizeof note, L->h.version_major, L->h.version_minor);
     if (I->have_header)
-        fprintf(f, "format:     .gto version %u.%u (this reader: %d.%d), little-endian, operator %s\n",
-                L->h.version_major, L->h.version_minor, WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR,
+        fprintf(f, "format:     .gto version %u.%u (%s), little-endian, operator %s\n",
+                L->h.version_major, L->h.version_minor, note,
                 L->h.op_kind == WRT_GTO_OP_INDIRECT ? "indirect (G - I)"
                 : L->h.op_kind == WRT_GTO_OP_GATHERED ? "gathered (T_fine G)" : "unknown");
     if (I->have_layout) {

@@ -465,8 +465,11 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             if (!b->opt.no_balance) {
                 if (b->opt.progress) b->opt.progress("balance", -1, b->opt.progress_user); /* no fraction known */
                 double tb = wrt_now();
+                C->t_balance_begin = tb;
                 uint64_t tcap = nent ? nent : 1, t0n = t;
-                C->closed = wrt_balance_run(b, npt, pr, ps, job->out, keys, res->nfuncs, &tr, &t, &tcap);
+                int cl = wrt_balance_run(b, npt, pr, ps, job->out, keys, res->nfuncs, &tr, &t, &tcap);
+                C->closed = cl > 0;
+                C->open_quad = cl > 0 ? -1 : -cl - 1;
                 C->balance_entries = t - t0n;
                 C->t_balance = wrt_now() - tb;
             }
@@ -514,6 +517,9 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     b.cancel = &cancel;
     wrt_bake_counters *C = &res->c;
     double t0 = wrt_now();
+    C->open_quad = -1;
+    /* the dto phase starts here, with its preparation (frame, materials, ray tracer, pairs) */
+    if (b.opt.progress) b.opt.progress("dto", 0, b.opt.progress_user);
 
     wrt_status fst = bake_frame(&b, scene);
     if (fst != WRT_OK) return fst;
@@ -532,8 +538,14 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     size_t np = pl.np;
     for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].leaf); }
     free(job.out); free(job.tc); free(pr); free(ps); free(occl);
-    C->t_dto = wrt_now() - t0;
+    double t_end = wrt_now();
+    C->t_dto = t_end - t0;
+    C->t_balance_phase = C->t_balance_begin > 0 ? t_end - C->t_balance_begin : 0;
 
+    if (st == WRT_OK && !b.opt.dto_only) {
+        /* the series phase starts here (its first term's fraction follows) */
+        if (b.opt.progress && !b.opt.progress("gto", 0, b.opt.progress_user)) st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
+    }
     if (st == WRT_OK && !b.opt.dto_only) {
         double t1 = wrt_now();
         st = wrt_series_run(&b, res);

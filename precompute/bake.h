@@ -80,6 +80,12 @@ typedef struct wrt_bake_counters {
     int closed;                    /* the balance found the scene closed (no ray escapes) */
     double t_dto, t_gto;           /* seconds (t_dto includes t_balance) */
     double t_balance;
+    /* The phases as the progress lines and the summaries name them (main.c): dto =
+     * t_dto - t_balance_phase, balance = t_balance_phase (the balance and the operator's
+     * assembly after it: from the "balance" progress call to the end of t_dto), series =
+     * t_gto. t_balance_begin: wrt_now() at that call (0: no balance). */
+    double t_balance_phase, t_balance_begin;
+    int open_quad;                 /* an open scene: the first quad with a ray that met no surface (-1: closed) */
     double t_rays;                 /* thread-seconds spent in visibility rays */
     double mem_estimate_mb;        /* the largest memory need the bake estimated before allocating */
     uint64_t entries_k, links_k;   /* the first-bounce operator K: entries and links */

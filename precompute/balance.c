@@ -601,7 +601,8 @@ static void balance_sender(size_t si, int th, void *user) {
 /* A scene is closed when light cannot leave it: 256 cosine-distributed rays from points
  * spread over each quad all meet the front of a quad. Then every function's light is
  * caught, and its column's power must be what it emits, whatever lies between. */
-static int scene_closed(const bake_ctx *b) {
+static int scene_closed(const bake_ctx *b, int *open_quad) {
+    *open_quad = -1;
     enum { N = 256 };
     for (int q = 0; q < b->nq; q++) {
         const wrt_quad *Q = &b->quads[q];
@@ -613,7 +614,10 @@ static int scene_closed(const bake_ctx *b) {
             double d[3];
             wrt_concentric_dir(a, bb, d);
             wrt_v3 dir = v3_add(v3_add(v3_scale(Q->t, d[0]), v3_scale(Q->b, d[1])), v3_scale(Q->n, d[2]));
-            if (!caught(b, v3_mad(wrt_quad_point(Q, u, v), Q->n, b->ray_eps), dir, q)) return 0;
+            if (!caught(b, v3_mad(wrt_quad_point(Q, u, v), Q->n, b->ray_eps), dir, q)) {
+                *open_quad = q;
+                return 0;
+            }
         }
     }
     return 1;
@@ -622,7 +626,8 @@ static int scene_closed(const bake_ctx *b) {
 int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, const pair_out *out,
                     const uint64_t *fkeys, uint32_t nf, wrt_triplet **tr, uint64_t *nt, uint64_t *cap) {
     bal_ctx c = {.b = b, .np = np, .pr = pr, .ps = ps, .out = out, .fkeys = fkeys, .nf = nf};
-    c.closed = scene_closed(b);
+    int open_quad;
+    c.closed = scene_closed(b, &open_quad);
     int nq = b->nq;
     c.refs = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof *c.refs);
     c.nrefs = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof *c.nrefs);
@@ -653,7 +658,7 @@ int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, 
         free(c.res[s]); free(c.refs[s]);
     }
     free(c.res); free(c.nres); free(c.refs); free(c.nrefs); free(capr);
-    return c.closed;
+    return c.closed ? 1 : -(open_quad + 1);
 }
 
 /* ---- glossy senders ----

@@ -8,7 +8,8 @@
 
 /* The power balance (balance.c): correction triplets for the quads' root rows of T, so
  * that every diffuse sender function delivers the power its pointwise form factors say.
- * Appends to *tr (count *nt, capacity *cap). Returns 1 if the scene was found closed. */
+ * Appends to *tr (count *nt, capacity *cap). Returns 1 if the scene was found closed,
+ * else -(q + 1) for the first quad q one of whose rays met no surface (where it is open). */
 int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, const pair_out *out,
                      const uint64_t *fkeys, uint32_t nf, wrt_triplet **tr, uint64_t *nt, uint64_t *cap);
 

@@ -71,7 +71,8 @@ static void usage(FILE *f) {
         "                         (refused by default: an absolute uri, '..' or a link out)\n"
         "  --provenance-timings   also store the bake's timings in the file (they differ from\n"
         "                         run to run: by default equal inputs give equal bytes)\n"
-        "  --reproducible         the default (no timings stored); kept for older scripts\n"
+        "  --reproducible         the default (no timings stored, so equal bakes give equal bytes);\n"
+        "                         kept for older scripts\n"
         "  --max-error E          check the bake against a path-traced reference (cell-average\n"
         "                         relative RMSE of the indirect light, 2 light positions) and\n"
         "                         fail with exit code 5, writing nothing, if it exceeds E\n"
@@ -507,7 +508,11 @@ static int check_accuracy(const bake_args *A, const wrt_scene *s, wrt_gto_pendin
 /* ---------------------------------------------------------------- the summary */
 
 /* What the summary reports beyond the bake's counters. */
-typedef struct bake_times { double t_write, t_total; long long bytes; accuracy acc; } bake_times;
+/* The phases, the same in the progress lines, the text summary and --json: load, dto,
+ * balance, series, write (with the --max-error check inside write's span left out: it is
+ * reported on its own), and the total. */
+typedef struct bake_times { double t_load, t_write, t_total; long long bytes; accuracy acc; } bake_times;
+static double phase_dto(const wrt_bake_counters *c) { return c->t_dto - c->t_balance_phase; }
 
 static void print_json_summary(const bake_args *A, const wrt_scene *s, const wrt_bake_result *r, const bake_times *T) {
     const wrt_bake_counters *c = &r->c;
@@ -517,8 +522,11 @@ static void print_json_summary(const bake_args *A, const wrt_scene *s, const wrt
     printf(",\"output\":");
     wrt_json_str(stdout, A->out_path);
     printf(",\"quads\":%d,\"bytes\":%lld,", s->nquads, T->bytes);
-    printf("\"seconds\":{\"dto\":%.4f,\"balance\":%.4f,\"gto\":%.4f,\"write\":%.4f,\"total\":%.4f,"
-           "\"rays_thread\":%.4f},", c->t_dto, c->t_balance, c->t_gto, T->t_write, T->t_total, c->t_rays);
+    /* the phases of the progress lines and the text summary; "gto" is "series" under its
+     * older name, for older scripts */
+    printf("\"seconds\":{\"load\":%.4f,\"dto\":%.4f,\"balance\":%.4f,\"series\":%.4f,\"gto\":%.4f,"
+           "\"write\":%.4f,\"total\":%.4f,\"rays_thread\":%.4f},", T->t_load, phase_dto(c), c->t_balance_phase,
+           c->t_gto, c->t_gto, T->t_write, T->t_total, c->t_rays);
     if (A->max_error >= 0)
         printf("\"check\":{\"cell_rmse\":%.6g,\"floor\":%.6g,\"max_error\":%.6g,\"seconds\":%.3f},",
                T->acc.error, T->acc.floor, A->max_error, T->acc.seconds);
@@ -536,8 +544,8 @@ static void print_text_summary(const bake_args *A, const wrt_scene *s, const wrt
     const wrt_bake_options *o = &A->o;
     printf("baked %s -> %s (%lld bytes, %s operator)\n", A->scene_path, A->out_path, T->bytes,
            r->op_kind == WRT_GTO_OP_GATHERED ? "gathered" : "indirect");
-    printf("  time      dto %.2f s, gto %.2f s, write %.2f s, total %.2f s\n", c->t_dto, c->t_gto, T->t_write,
-           T->t_total);
+    printf("  time      load %.2f s, dto %.2f s, balance %.2f s, series %.2f s, write %.2f s, total %.2f s\n",
+           T->t_load, phase_dto(c), c->t_balance_phase, c->t_gto, T->t_write, T->t_total);
     printf("  memory    peak %.1f MB resident (largest estimate %.1f MB, budget %.0f MB)\n",
            (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), c->mem_estimate_mb, o->max_memory_mb);
     printf("  quads     %d; pairs %llu exchanging of %llu (%llu skipped facing, %llu with no occluder)\n",
@@ -562,9 +570,19 @@ static void print_text_summary(const bake_args *A, const wrt_scene *s, const wrt
                T->acc.error, T->acc.floor, A->max_error, T->acc.seconds);
     printf("  series    %llu bounces, energy left %.2e, tail added %.2e (ratio %.4f)\n",
            (unsigned long long)c->bounces, c->energy_left, c->tail_fraction, c->series_ratio);
-    if (!o->no_balance)
-        printf("  balance   %llu power entries set, %.2f s; the scene is %s\n", (unsigned long long)c->balance_entries,
-               c->t_balance, c->closed ? "closed (no light escapes)" : "open");
+    if (!o->no_balance && c->closed)
+        printf("  balance   %llu power entries set; the scene is closed: no ray from any surface escapes, so each\n"
+               "            function's light is made to land whole (what it emits)\n",
+               (unsigned long long)c->balance_entries);
+    else if (!o->no_balance) {
+        const wrt_quad *q = c->open_quad >= 0 && c->open_quad < s->nquads ? &s->quads[c->open_quad] : NULL;
+        const char *mesh = q && q->name >= 0 && q->name < s->nnames ? s->names[q->name] : "";
+        printf("  balance   %llu power entries set; the scene is open: light leaves it (a ray from quad %d",
+               (unsigned long long)c->balance_entries, c->open_quad);
+        if (mesh[0]) printf(", mesh \"%.64s\"", mesh);
+        printf(", meets no surface),\n            so the light that escapes is lost, as it should be; a closed "
+               "scene would be balanced to lose none\n");
+    }
 }
 
 /* ---------------------------------------------------------------- main */
@@ -577,6 +595,7 @@ static int bake(bake_args *A, const wrt_load_options *lo) {
     double t0 = wrt_now();
     wrt_scene s;
     rc = load_scene(A, lo, &s);
+    T.t_load = wrt_now() - t0;
     if (rc != GO_ON) return rc;
     wrt_bake_result r;
     rc = run_bake(A, &s, &r);

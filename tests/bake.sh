@@ -228,4 +228,27 @@ else
     ko "interrupted bake: no output, no temporary (exit $rc)"
 fi
 
+# One set of phases (issue 26.5): the progress lines (forced with --progress), the text
+# summary and --json name the same phases, in the same order, and give the same seconds
+# (within 0.1 s + 10%: the progress line is drawn a moment after its phase ends).
+"$bake" assets/cornell.gltf -o "$tmp/ph.gto" --quality 2 --progress > "$tmp/ph.txt" 2> "$tmp/ph.err"
+prog=$(tr '\r' '\n' < "$tmp/ph.err" | grep ' done' | awk '{print $1 "=" $(NF-2)}' | tr '\n' ' ')
+summ=$(grep '^  time ' "$tmp/ph.txt" | sed -E 's/^  time +//; s/, total.*//; s/ ([0-9.]+) s/=\1/g; s/,//g')
+if [ "$(echo "$prog" | sed -E 's/=[0-9.]+//g; s/ +$//')" = "$(echo "$summ" | sed -E 's/=[0-9.]+//g')" ] &&
+   awk -v p="$prog" -v s="$summ" 'BEGIN { n = split(p, a, " "); split(s, b, " "); bad = 0
+        for (i = 1; i <= n; i++) { split(a[i], x, "="); split(b[i], y, "="); d = x[2] - y[2]; if (d < 0) d = -d
+            if (d > 0.1 + 0.1 * y[2]) bad = 1 }
+        exit bad }'; then
+    ok "progress phases = summary phases, same seconds (progress: $prog; summary: $summ)"
+else
+    ko "progress phases = summary phases, same seconds (progress: $prog; summary: $summ)"
+fi
+"$bake" assets/cornell.gltf -o "$tmp/ph.gto" --quality 2 --json > "$tmp/ph.json" 2>/dev/null
+jq -e '.seconds | (keys_unsorted[0:5] == ["load", "dto", "balance", "series", "gto"]) and .gto == .series and
+       (.load + .dto + .balance + .series + .write <= .total + 1e-3)' "$tmp/ph.json" >/dev/null &&
+    ok "--json: seconds of the same phases, their sum within the total" ||
+    ko "--json: seconds of the same phases ($(jq -c .seconds "$tmp/ph.json"))"
+grep -q 'the scene is open: light leaves it (a ray from quad [0-9]*, mesh "' "$tmp/ph.txt" &&
+    ok "an open scene says where light leaves it" || ko "an open scene says where light leaves it: $(grep balance "$tmp/ph.txt")"
+
 summary
