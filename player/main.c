@@ -354,6 +354,7 @@ typedef struct win_state {
     int colour[WRT_RENDER_MAX_LIGHTS];
     double box_lo[3], box_hi[3];              /* where lights may go */
     const wrt_play_geom *geom;                /* and the walls they stop at */
+    float panel_rect[4];                      /* x, y, w, h of the overlay's panel: no marker drawn there */
     double frame_ms, fps, last_draw;          /* smoothed; when the last frame was drawn */
     stage_ms relight;                         /* the last frame that relit */
     int relit_any;
@@ -484,9 +485,16 @@ static int win_reload(app *a, win_state *w) {
 static const float white[4] = {1, 1, 1, 1}, dim[4] = {0.7f, 0.7f, 0.7f, 1}, yellow[4] = {1, 0.85f, 0.2f, 1},
                    panel[4] = {0, 0, 0, 0.6f}, black[4] = {0, 0, 0, 0.8f};
 
+/* Whether the square of half-side `pad` around (x, y) touches the overlay's panel. */
+static int under_panel(const win_state *w, float x, float y, float pad) {
+    const float *r = w->panel_rect;
+    return x + pad >= r[0] && x - pad <= r[0] + r[2] && y + pad >= r[1] && y - pad <= r[1] + r[3];
+}
+
 static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch) {
     /* a marker at each light: a cross in its colour (grey when off), a frame around the
-     * selected one, its number beside it, a dotted axis for a spot */
+     * selected one, its number beside it, a dotted axis for a spot; none of it over the
+     * overlay's panel, whose text it would cover (the light's line in the panel says it) */
     for (int i = 0; i < nshown(a); i++) {
         double p[3] = {a->lights[i].pos.x, a->lights[i].pos.y, a->lights[i].pos.z}, px[2];
         if (a->lights[i].type == WRT_LIGHT_DIRECTIONAL) /* a sun: where it comes from, at the box's edge */
@@ -506,10 +514,12 @@ static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch
             for (int k = 1; k <= 8; k++) {
                 double q[3], qx[2];
                 for (int d = 0; d < 3; d++) q[d] = p[d] + (&a->lights[i].dir.x)[d] * len * k / 8;
-                if (wrt_render_visible(a->rd, &a->view, q, qx)) /* depth-tested: not through walls */
+                if (wrt_render_visible(a->rd, &a->view, q, qx) && /* depth-tested: not through walls */
+                    !under_panel(w, (float)qx[0], (float)qx[1], 2.0f * sc))
                     wrt_overlay_rect(ov, (float)qx[0] - sc, (float)qx[1] - sc, 2.0f * sc, 2.0f * sc, c);
             }
         }
+        if (under_panel(w, x + 3.0f * sc, y - 3.0f * sc, r + 4.0f * sc + 12.0f * sc)) continue;
         if (i == w->sel) {
             float t = 2.0f * sc, R = r + 4.0f * sc;
             wrt_overlay_rect(ov, x - R, y - R, 2 * R, t, yellow);
@@ -538,13 +548,13 @@ static void draw_overlay(app *a, win_state *w) {
         const char *hint = w->status_until > now ? w->status : "H: help and lights";
         float tw, th;
         wrt_overlay_measure(hint, sc, &tw, &th);
+        w->panel_rect[0] = 4; w->panel_rect[1] = (float)H - th - 8; w->panel_rect[2] = tw + 8; w->panel_rect[3] = th + 4;
+        draw_markers(a, w, ov, sc, ch);
         wrt_overlay_rect(ov, 4, (float)H - th - 8, tw + 8, th + 4, panel);
         wrt_overlay_text(ov, 8, (float)H - th - 6, sc, dim, hint);
-        draw_markers(a, w, ov, sc, ch);
         wrt_overlay_draw(ov);
         return;
     }
-    draw_markers(a, w, ov, sc, ch); /* first: the panel and its text go over them */
     char buf[8192];
     size_t n = 0;
 #define ADD(...) n += (size_t)snprintf(buf + n, n < sizeof buf ? sizeof buf - n : 0, __VA_ARGS__)
@@ -579,6 +589,8 @@ static void draw_overlay(app *a, win_state *w) {
 #undef ADD
     float tw, th;
     wrt_overlay_measure(buf, sc, &tw, &th);
+    w->panel_rect[0] = 4; w->panel_rect[1] = 4; w->panel_rect[2] = tw + 12; w->panel_rect[3] = th + 8;
+    draw_markers(a, w, ov, sc, ch); /* first, and not under the panel */
     wrt_overlay_rect(ov, 4, 4, tw + 12, th + 8, panel);
     /* the text, the selected light's line in yellow */
     float y = 8;
