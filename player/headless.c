@@ -67,8 +67,8 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
     keyframe cur;
     memset(&cur, 0, sizeof cur);
     for (int k = 0; k < 3; k++) {
-        cur.lpos[k] = (&a->lights[chosen_light(a)].pos.x)[k];
-        cur.ldir[k] = (&a->lights[chosen_light(a)].dir.x)[k];
+        cur.lpos[k] = a->lights[chosen_light(a)].position[k];
+        cur.ldir[k] = a->lights[chosen_light(a)].direction[k];
         cur.cpos[k] = a->view.eye[k];
         cur.ctarget[k] = a->view.target[k];
     }
@@ -139,7 +139,7 @@ fail:
 }
 
 static void apply_keyframe(app *a, const keyframe *k0, const keyframe *k1, double s) {
-    wrt_light *l = &a->lights[chosen_light(a)];
+    wrt_runtime_light *l = &a->lights[chosen_light(a)];
     double lp[3], ld[3];
     for (int k = 0; k < 3; k++) {
         lp[k] = k0->lpos[k] + (k1->lpos[k] - k0->lpos[k]) * s;
@@ -147,9 +147,9 @@ static void apply_keyframe(app *a, const keyframe *k0, const keyframe *k1, doubl
         a->view.eye[k] = k0->cpos[k] + (k1->cpos[k] - k0->cpos[k]) * s;
         a->view.target[k] = k0->ctarget[k] + (k1->ctarget[k] - k0->ctarget[k]) * s;
     }
-    l->pos = v3(lp[0], lp[1], lp[2]);
+    light_set_pos(l, v3(lp[0], lp[1], lp[2]));
     wrt_v3 d = v3_norm(v3(ld[0], ld[1], ld[2]));
-    if (v3_len(d) > 0.5) l->dir = d;
+    if (v3_len(d) > 0.5) light_set_dir(l, d);
     l->intensity = (float)(k0->lint + (k1->lint - k0->lint) * s);
 }
 
@@ -212,15 +212,15 @@ int run_bench(app *a) {
     int n = a->o->bench;
     double *col[7];
     for (int k = 0; k < 7; k++) col[k] = wrt_xmalloc((size_t)n * sizeof(double));
-    wrt_light *l = &a->lights[chosen_light(a)];
-    wrt_v3 c = l->pos, up, e1, e2;
+    wrt_runtime_light *l = &a->lights[chosen_light(a)];
+    wrt_v3 c = light_pos(l), up, e1, e2;
     scene_up(a, &up);
     e1 = v3_norm(v3_cross(up, fabs(up.x) < 0.9 ? v3(1, 0, 0) : v3(0, 0, 1)));
     e2 = v3_cross(up, e1);
     double lo[3], hi[3];
     scene_bounds(a, lo, hi);
     double radius = 0.05 * v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
-    wrt_v3 d0 = l->dir, h0 = v3_sub(d0, v3_scale(up, v3_dot(d0, up))); /* a sun's direction, horizontal part */
+    wrt_v3 d0 = light_dir(l), h0 = v3_sub(d0, v3_scale(up, v3_dot(d0, up))); /* a sun's direction, horizontal part */
     /* one warm-up frame: the first relight projects every light and uploads every quad */
     stage_ms t;
     int rc = run_frame(a, &t);
@@ -228,12 +228,12 @@ int run_bench(app *a) {
     double t0 = wrt_now();
     for (int i = 0; i < n && !rc; i++) {
         double ang = 2 * WRT_PI * (i + 1) / (n < 8 ? 8 : n);
-        if (l->type == WRT_LIGHT_DIRECTIONAL) /* a sun turns: its direction about up, 2 degrees a frame */
-            l->dir = v3_norm(v3_add(v3_scale(up, v3_dot(d0, up)),
+        if (l->kind == WRT_LIGHT_KIND_DIRECTIONAL) /* a sun turns: its direction about up, 2 degrees a frame */
+            light_set_dir(l, v3_norm(v3_add(v3_scale(up, v3_dot(d0, up)),
                                     v3_add(v3_scale(h0, cos(2 * WRT_PI / 180 * (i + 1))),
-                                           v3_scale(v3_cross(up, h0), sin(2 * WRT_PI / 180 * (i + 1))))));
+                                           v3_scale(v3_cross(up, h0), sin(2 * WRT_PI / 180 * (i + 1)))))));
         else
-            l->pos = v3_add(c, v3_add(v3_scale(e1, radius * cos(ang) - radius), v3_scale(e2, radius * sin(ang))));
+            light_set_pos(l, v3_add(c, v3_add(v3_scale(e1, radius * cos(ang) - radius), v3_scale(e2, radius * sin(ang)))));
         rc = run_frame(a, &t);
         col[0][i] = t.projection;
         col[1][i] = t.multiply;

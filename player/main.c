@@ -51,28 +51,53 @@ static void quad_centroid(const double p[4][3], double c[3]) {
     for (int k = 0; k < 3; k++) c[k] = 0.25 * (p[0][k] + p[1][k] + p[2][k] + p[3][k]);
 }
 
+/* The player keeps its lights in the API's struct (wrt_runtime_get_light), which goes
+ * to wrt_runtime_set_lights as it is. The renderer and the command line's light options
+ * (shared with wrt-ref and wrt-compare) take the scene's wrt_light: these copy between
+ * the two, field for field (nothing normalised: the axis is made unit once, at setup). */
+static void scene_light(const wrt_runtime_light *in, wrt_light *out) {
+    memset(out, 0, sizeof *out);
+    out->type = in->kind == WRT_LIGHT_KIND_SPOT ? WRT_LIGHT_SPOT
+                : in->kind == WRT_LIGHT_KIND_DIRECTIONAL ? WRT_LIGHT_DIRECTIONAL : WRT_LIGHT_POINT;
+    snprintf(out->name, sizeof out->name, "%s", in->name);
+    out->pos = light_pos(in);
+    out->dir = light_dir(in);
+    for (int k = 0; k < 3; k++) out->color[k] = in->color[k];
+    out->intensity = in->intensity;
+    out->range = in->range;
+    out->inner_cone = in->inner_cone;
+    out->outer_cone = in->outer_cone;
+}
+
+static void runtime_light(const wrt_light *in, wrt_runtime_light *out) {
+    memset(out, 0, sizeof *out);
+    out->kind = in->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT
+                : in->type == WRT_LIGHT_DIRECTIONAL ? WRT_LIGHT_KIND_DIRECTIONAL : WRT_LIGHT_KIND_POINT;
+    snprintf(out->name, sizeof out->name, "%s", in->name);
+    light_set_pos(out, in->pos);
+    light_set_dir(out, in->dir);
+    for (int k = 0; k < 3; k++) out->color[k] = in->color[k];
+    out->intensity = in->intensity;
+    out->range = in->range;
+    out->inner_cone = in->inner_cone;
+    out->outer_cone = in->outer_cone;
+}
+
 /* One frame: relight what changed, upload the textures that changed, draw. */
 int run_frame(app *a, stage_ms *t) {
     memset(t, 0, sizeof *t);
     double t0 = wrt_now();
     int n = a->nlights < WRT_RENDER_MAX_LIGHTS ? a->nlights : WRT_RENDER_MAX_LIGHTS;
-    wrt_render_set_lights(a->rd, a->lights, a->scales, n);
+    wrt_light drawn[WRT_RENDER_MAX_LIGHTS]; /* the renderer's form of the same lights */
+    for (int i = 0; i < n; i++) scene_light(&a->lights[i], &drawn[i]);
+    wrt_render_set_lights(a->rd, drawn, a->scales, n);
     /* direct-only pictures need no relighting; everything else does */
     if (a->mode != WRT_MODE_DIRECT || a->o->stats) {
         double ms[4];
         wrt_runtime_light rls[WRT_RENDER_MAX_LIGHTS];
-        for (int i = 0; i < n; i++) { /* the runtime's lights: a scale folds into the intensity */
-            const wrt_light *l = &a->lights[i];
-            memset(&rls[i], 0, sizeof rls[i]);
-            rls[i].kind = l->type == WRT_LIGHT_SPOT ? WRT_LIGHT_KIND_SPOT
-                          : l->type == WRT_LIGHT_DIRECTIONAL ? WRT_LIGHT_KIND_DIRECTIONAL : WRT_LIGHT_KIND_POINT;
-            rls[i].position[0] = l->pos.x; rls[i].position[1] = l->pos.y; rls[i].position[2] = l->pos.z;
-            rls[i].direction[0] = l->dir.x; rls[i].direction[1] = l->dir.y; rls[i].direction[2] = l->dir.z;
-            for (int c = 0; c < 3; c++) rls[i].color[c] = l->color[c];
-            rls[i].intensity = a->scales[i] != 1 ? l->intensity * a->scales[i] : l->intensity;
-            rls[i].inner_cone = l->inner_cone;
-            rls[i].outer_cone = l->outer_cone;
-            rls[i].range = l->range;
+        for (int i = 0; i < n; i++) { /* the same struct; a scale folds into the intensity */
+            rls[i] = a->lights[i];
+            if (a->scales[i] != 1) rls[i].intensity = a->lights[i].intensity * a->scales[i];
             rls[i].off = a->scales[i] == 0;
         }
         int changed = 0;
@@ -175,11 +200,14 @@ static int write_stats(app *a, const char *path) {
     json_str(f, a->o->file, 4096);
     fprintf(f, ",\n  \"nquads\": %d,\n  \"lights\": [", a->nquads);
     for (int i = 0; i < a->nlights; i++) {
-        const wrt_light *l = &a->lights[i];
+        const wrt_runtime_light *l = &a->lights[i];
+        wrt_light sl;
+        scene_light(l, &sl);
         fprintf(f, "%s\n    {\"name\": ", i ? "," : "");
         json_str(f, l->name, sizeof l->name);
-        fprintf(f, ", \"type\": \"%s\"", wrt_light_type_name(l->type));
-        double pos[3] = {l->pos.x, l->pos.y, l->pos.z}, dir[3] = {l->dir.x, l->dir.y, l->dir.z};
+        fprintf(f, ", \"type\": \"%s\"", wrt_light_type_name(sl.type));
+        double pos[3] = {l->position[0], l->position[1], l->position[2]};
+        double dir[3] = {l->direction[0], l->direction[1], l->direction[2]};
         double in = l->intensity, sc = i < WRT_RENDER_MAX_LIGHTS ? a->scales[i] : 0.0f;
         json_key_nums(f, "pos", pos, 3, 17);
         json_key_nums(f, "dir", dir, 3, 9);
@@ -229,22 +257,6 @@ void scene_bounds(const app *a, double lo[3], double hi[3]) {
         for (int k = 0; k < 3; k++) { lo[k] = -1; hi[k] = 1; }
 }
 
-/* The file's light i, as the library gives it (wrt_runtime_get_light), in the form the
- * renderer and the command line's light options take (its axis unit length). */
-static void light_from_runtime(const wrt_runtime_light *in, wrt_light *out) {
-    memset(out, 0, sizeof *out);
-    out->type = in->kind == WRT_LIGHT_KIND_SPOT ? WRT_LIGHT_SPOT
-                : in->kind == WRT_LIGHT_KIND_DIRECTIONAL ? WRT_LIGHT_DIRECTIONAL : WRT_LIGHT_POINT;
-    snprintf(out->name, sizeof out->name, "%s", in->name);
-    out->pos = v3(in->position[0], in->position[1], in->position[2]);
-    out->dir = v3_norm(v3(in->direction[0], in->direction[1], in->direction[2]));
-    for (int k = 0; k < 3; k++) out->color[k] = in->color[k];
-    out->intensity = in->intensity;
-    out->range = in->range;
-    out->inner_cone = in->inner_cone;
-    out->outer_cone = in->outer_cone;
-}
-
 static int setup_lights(app *a) {
     const options *o = a->o;
     a->nlights = wrt_runtime_light_count(a->rl);
@@ -252,9 +264,9 @@ static int setup_lights(app *a) {
     if (need_default) a->nlights = 0;
     a->lights = wrt_xcalloc((size_t)(a->nlights ? a->nlights : 1), sizeof *a->lights);
     for (int i = 0; i < a->nlights; i++) {
-        wrt_runtime_light rl;
-        wrt_runtime_get_light(a->rl, i, &rl, NULL); /* i < the count: cannot fail */
-        light_from_runtime(&rl, &a->lights[i]);
+        wrt_runtime_light *l = &a->lights[i];
+        wrt_runtime_get_light(a->rl, i, l, NULL); /* i < the count: cannot fail */
+        light_set_dir(l, v3_norm(light_dir(l)));
     }
     if (need_default) {
         /* no light in the file: one point light above the centre of the scene */
@@ -264,20 +276,26 @@ static int setup_lights(app *a) {
         scene_up(a, &up);
         wrt_v3 c = v3(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2]));
         double r = 0.5 * v3_len(v3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
-        wrt_light *l = &a->lights[0];
-        l->type = WRT_LIGHT_POINT;
+        wrt_runtime_light *l = &a->lights[0];
+        l->kind = WRT_LIGHT_KIND_POINT;
         snprintf(l->name, sizeof l->name, "default");
-        l->pos = v3_mad(c, up, 0.4 * r);
-        l->dir = v3_scale(up, -1);
+        light_set_pos(l, v3_mad(c, up, 0.4 * r));
+        light_set_dir(l, v3_scale(up, -1));
         l->color[0] = l->color[1] = l->color[2] = 1;
         l->intensity = (float)(r * r);
         l->outer_cone = (float)(WRT_PI / 4);
         a->nlights = 1;
-        wrt_log(WRT_LOG_WARN, "the file has no light: using a point light at (%g, %g, %g)", l->pos.x, l->pos.y, l->pos.z);
+        wrt_log(WRT_LOG_WARN, "the file has no light: using a point light at (%g, %g, %g)", l->position[0],
+                l->position[1], l->position[2]);
     }
+    /* the command line's light options (cli/, shared with wrt-ref and wrt-compare) */
     float *sc = wrt_xmalloc((size_t)a->nlights * sizeof *sc);
-    int rc = wrt_cli_lights_apply(T, &o->lights, a->lights, a->nlights, sc);
+    wrt_light *sl = wrt_xmalloc((size_t)a->nlights * sizeof *sl);
+    for (int i = 0; i < a->nlights; i++) scene_light(&a->lights[i], &sl[i]);
+    int rc = wrt_cli_lights_apply(T, &o->lights, sl, a->nlights, sc);
+    for (int i = 0; i < a->nlights; i++) runtime_light(&sl[i], &a->lights[i]);
     for (int i = 0; i < WRT_RENDER_MAX_LIGHTS; i++) a->scales[i] = i < a->nlights ? sc[i] : 1;
+    free(sl);
     free(sc);
     return rc;
 }
@@ -375,8 +393,8 @@ static void light_bounds(app *a, win_state *w) {
         w->box_hi[k] -= 1e-3 * size;
     }
     for (int i = 0; i < a->nlights; i++)
-        for (int k = 0; k < 3 && a->lights[i].type != WRT_LIGHT_DIRECTIONAL; k++) { /* a sun has no position */
-            double p = (&a->lights[i].pos.x)[k];
+        for (int k = 0; k < 3 && a->lights[i].kind != WRT_LIGHT_KIND_DIRECTIONAL; k++) { /* a sun has no position */
+            double p = a->lights[i].position[k];
             if (p < w->box_lo[k]) w->box_lo[k] = p;
             if (p > w->box_hi[k]) w->box_hi[k] = p;
         }
@@ -496,10 +514,10 @@ static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch
      * selected one, its number beside it, a dotted axis for a spot; none of it over the
      * overlay's panel, whose text it would cover (the light's line in the panel says it) */
     for (int i = 0; i < nshown(a); i++) {
-        double p[3] = {a->lights[i].pos.x, a->lights[i].pos.y, a->lights[i].pos.z}, px[2];
-        if (a->lights[i].type == WRT_LIGHT_DIRECTIONAL) /* a sun: where it comes from, at the box's edge */
+        double p[3] = {a->lights[i].position[0], a->lights[i].position[1], a->lights[i].position[2]}, px[2];
+        if (a->lights[i].kind == WRT_LIGHT_KIND_DIRECTIONAL) /* a sun: where it comes from, at the box's edge */
             for (int k = 0; k < 3; k++)
-                p[k] = 0.5 * (w->box_lo[k] + w->box_hi[k]) - (&a->lights[i].dir.x)[k] * 0.5 *
+                p[k] = 0.5 * (w->box_lo[k] + w->box_hi[k]) - a->lights[i].direction[k] * 0.5 *
                        v3_len(v3(w->box_hi[0] - w->box_lo[0], w->box_hi[1] - w->box_lo[1], w->box_hi[2] - w->box_lo[2]));
         if (!wrt_render_project(a->rd, &a->view, p, px)) continue;
         float x = (float)px[0], y = (float)px[1], r = 6.0f * sc;
@@ -507,13 +525,13 @@ static void draw_markers(app *a, win_state *w, wrt_overlay *ov, int sc, float ch
         float c[4] = {a->lights[i].color[0], a->lights[i].color[1], a->lights[i].color[2], 1};
         float m = fmaxf(c[0], fmaxf(c[1], c[2]));
         for (int k = 0; k < 3; k++) c[k] = on ? (m > 0 ? 0.35f + 0.65f * c[k] / m : 1) : 0.45f;
-        if (a->lights[i].type == WRT_LIGHT_SPOT) {
+        if (a->lights[i].kind == WRT_LIGHT_KIND_SPOT) {
             /* a spot's axis: dots from the light along its direction, a tenth of the box */
             double len = 0.1 * v3_len(v3(w->box_hi[0] - w->box_lo[0], w->box_hi[1] - w->box_lo[1],
                                           w->box_hi[2] - w->box_lo[2]));
             for (int k = 1; k <= 8; k++) {
                 double q[3], qx[2];
-                for (int d = 0; d < 3; d++) q[d] = p[d] + (&a->lights[i].dir.x)[d] * len * k / 8;
+                for (int d = 0; d < 3; d++) q[d] = p[d] + a->lights[i].direction[d] * len * k / 8;
                 if (wrt_render_visible(a->rd, &a->view, q, qx) && /* depth-tested: not through walls */
                     !under_panel(w, (float)qx[0], (float)qx[1], 2.0f * sc))
                     wrt_overlay_rect(ov, (float)qx[0] - sc, (float)qx[1] - sc, 2.0f * sc, 2.0f * sc, c);
@@ -569,11 +587,11 @@ static void draw_overlay(app *a, win_state *w) {
         ADD("\n");
     ADD("LIGHTS  (Tab/1-9 select, Space on/off, +/- intensity, C colour)\n");
     for (int i = 0; i < nshown(a); i++) {
-        const wrt_light *l = &a->lights[i];
-        int sun = l->type == WRT_LIGHT_DIRECTIONAL; /* a sun: its direction, in lux */
-        wrt_v3 shown = sun ? l->dir : l->pos;
+        const wrt_runtime_light *l = &a->lights[i];
+        int sun = l->kind == WRT_LIGHT_KIND_DIRECTIONAL; /* a sun: its direction, in lux */
+        wrt_v3 shown = sun ? light_dir(l) : light_pos(l);
         ADD("%c %d %-5s %-16.16s %-3s %9.4g %s x%-5.3g %s(%.2f, %.2f, %.2f) %s\n", i == w->sel ? '>' : ' ', i + 1,
-            sun ? "sun" : l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, a->scales[i] != 0 ? "on" : "OFF",
+            sun ? "sun" : l->kind == WRT_LIGHT_KIND_SPOT ? "spot" : "point", l->name, a->scales[i] != 0 ? "on" : "OFF",
             l->intensity, sun ? "lx" : "cd", a->scales[i] != 0 ? a->scales[i] : w->saved_scale[i], sun ? "dir " : "",
             shown.x, shown.y, shown.z, colours[w->colour[i]].name);
     }
@@ -582,7 +600,7 @@ static void draw_overlay(app *a, win_state *w) {
         ADD("\nKEYS  mouse (left button) look   W A S D  Q E  move   Shift faster\n"
             "      arrows / I J K L  U O  %s   [ ] exposure   T both/direct/indirect\n"
             "      R reset   F5 reload   F12 screenshot   P print options   H hide   Esc quit\n",
-            w->sel < a->nlights && a->lights[w->sel].type == WRT_LIGHT_DIRECTIONAL ? "turn the sun  " : "move the light");
+            w->sel < a->nlights && a->lights[w->sel].kind == WRT_LIGHT_KIND_DIRECTIONAL ? "turn the sun  " : "move the light");
     else
         ADD("F1 keys   H hide\n");
     if (w->status_until > now) ADD("\n%s\n", w->status);
@@ -624,7 +642,7 @@ static void win_title(app *a, win_state *w, int idle) {
 /* Key presses, in order: selection, light scale/colour, exposure, mode, reset, reload, shots. */
 static int win_keys(app *a, win_state *w, const wrt_input *in, int *quit, int *shot) {
     int rc = 0;
-    wrt_light *sl = &a->lights[w->sel];
+    wrt_runtime_light *sl = &a->lights[w->sel];
     for (int e = 0; e < in->nevents; e++) {
         int k = in->events[e].key;
         if (k == WRT_KEY_ESCAPE) *quit = 1;
@@ -664,10 +682,10 @@ static int win_keys(app *a, win_state *w, const wrt_input *in, int *quit, int *s
             if ((rc = win_reload(a, w))) break;
         } else if (k == WRT_KEY_F12 && !in->events[e].repeat) *shot = 1;
         else if (k == WRT_KEY_P && !in->events[e].repeat) {
-            const wrt_light *l = &a->lights[w->sel];
+            const wrt_runtime_light *l = &a->lights[w->sel];
             printf("--camera-pos %.6g,%.6g,%.6g --camera-target %.6g,%.6g,%.6g --light %d --light-pos %.6g,%.6g,%.6g\n",
                    a->view.eye[0], a->view.eye[1], a->view.eye[2], a->view.target[0], a->view.target[1],
-                   a->view.target[2], w->sel + 1, l->pos.x, l->pos.y, l->pos.z);
+                   a->view.target[2], w->sel + 1, l->position[0], l->position[1], l->position[2]);
             fflush(stdout);
         }
         sl = &a->lights[w->sel];
@@ -708,7 +726,7 @@ static int win_move_camera(app *a, const wrt_input *in, wrt_v3 up, double speed,
 }
 
 /* The selected light: a sun turns, any other light moves, within the scene box. */
-static int win_move_light(win_state *w, const wrt_input *in, wrt_light *sl, wrt_v3 up, wrt_v3 fwd, wrt_v3 right,
+static int win_move_light(win_state *w, const wrt_input *in, wrt_runtime_light *sl, wrt_v3 up, wrt_v3 fwd, wrt_v3 right,
                           double dt, double speed, double size) {
     int changed = 0;
     /* the selected light: arrows / I J K L horizontally (relative to the view), U O vertically */
@@ -720,13 +738,13 @@ static int win_move_light(win_state *w, const wrt_input *in, wrt_light *sl, wrt_
     if (in->down[WRT_KEY_LEFT] || in->down[WRT_KEY_J]) lm = v3_sub(lm, right);
     if (in->down[WRT_KEY_O]) lm = v3_add(lm, up);
     if (in->down[WRT_KEY_U]) lm = v3_sub(lm, up);
-    if (v3_len(lm) > 0 && sl->type == WRT_LIGHT_DIRECTIONAL) {
+    if (v3_len(lm) > 0 && sl->kind == WRT_LIGHT_KIND_DIRECTIONAL) {
         /* a sun turns: left/right about up (azimuth), up/down and O/U raise/lower it */
         changed = 1;
         double turn = 0.8 * dt * (in->down[WRT_KEY_SHIFT] ? 4 : 1); /* radians */
         /* up / O raise the sun: its light then travels more steeply down */
         double az = turn * v3_dot(lm, right), el = -turn * (v3_dot(lm, hf) + v3_dot(lm, up));
-        wrt_v3 d = sl->dir, side = v3_cross(up, d);
+        wrt_v3 d = light_dir(sl), side = v3_cross(up, d);
         d = v3_add(v3_scale(d, cos(az)), v3_add(v3_scale(side, sin(az)), v3_scale(up, v3_dot(up, d) * (1 - cos(az)))));
         wrt_v3 axis = v3_cross(d, up);
         if (v3_len(axis) > 1e-6) {
@@ -734,15 +752,15 @@ static int win_move_light(win_state *w, const wrt_input *in, wrt_light *sl, wrt_
             wrt_v3 d2 = v3_add(v3_scale(d, cos(el)), v3_scale(v3_cross(axis, d), sin(el)));
             if (fabs(v3_dot(d2, up)) < 0.999) d = d2; /* not through the poles */
         }
-        sl->dir = v3_norm(d);
+        light_set_dir(sl, v3_norm(d));
     } else if (v3_len(lm) > 0) {
         changed = 1;
-        wrt_v3 np = v3_mad(sl->pos, lm, fmax(speed, size * 0.005) * 0.5);
-        double c[3] = {np.x, np.y, np.z}, from[3] = {sl->pos.x, sl->pos.y, sl->pos.z};
+        wrt_v3 np = v3_mad(light_pos(sl), lm, fmax(speed, size * 0.005) * 0.5);
+        double c[3] = {np.x, np.y, np.z}, from[3] = {sl->position[0], sl->position[1], sl->position[2]};
         for (int k = 0; k < 3; k++) c[k] = fmin(fmax(c[k], w->box_lo[k]), w->box_hi[k]);
         /* and short of any wall on the way: a light never passes through one (view.h) */
         double f = w->geom ? wrt_play_geom_clip_move(w->geom, from, c) : 1;
-        sl->pos = v3(from[0] + f * (c[0] - from[0]), from[1] + f * (c[1] - from[1]), from[2] + f * (c[2] - from[2]));
+        light_set_pos(sl, v3(from[0] + f * (c[0] - from[0]), from[1] + f * (c[1] - from[1]), from[2] + f * (c[2] - from[2])));
     }
     return changed;
 }
@@ -794,7 +812,7 @@ static int run_window(app *a) {
         int quit = 0, shot = 0, changed = in.nevents > 0 || in.mouse_dx != 0 || in.mouse_dy != 0;
         rc = win_keys(a, &w, &in, &quit, &shot);
         if (rc || quit) break;
-        wrt_light *sl = &a->lights[w.sel];
+        wrt_runtime_light *sl = &a->lights[w.sel];
         wrt_v3 fwd, right;
         changed |= win_move_camera(a, &in, up, speed, &fwd, &right);
         changed |= win_move_light(&w, &in, sl, up, fwd, right, dt, speed, size);

@@ -38,13 +38,19 @@ typedef struct app {
     wrt_runtime *rl;
     struct wrt_play_geom *geom; /* the quads for the default camera and the lights' walls (view.h) */
     wrt_render *rd;
-    wrt_light *lights;
+    wrt_runtime_light *lights; /* the API's light struct, which goes to the runtime unchanged */
     int nlights;
     float scales[WRT_RENDER_MAX_LIGHTS];
     wrt_view view;
     wrt_render_mode mode;
     int relit_once;
 } app;
+
+/* A light's position and direction as vectors (wrt_runtime_light keeps arrays). */
+static inline wrt_v3 light_pos(const wrt_runtime_light *l) { return v3(l->position[0], l->position[1], l->position[2]); }
+static inline wrt_v3 light_dir(const wrt_runtime_light *l) { return v3(l->direction[0], l->direction[1], l->direction[2]); }
+static inline void light_set_pos(wrt_runtime_light *l, wrt_v3 p) { l->position[0] = p.x; l->position[1] = p.y; l->position[2] = p.z; }
+static inline void light_set_dir(wrt_runtime_light *l, wrt_v3 d) { l->direction[0] = d.x; l->direction[1] = d.y; l->direction[2] = d.z; }
 
 /* main.c */
 int run_frame(app *a, stage_ms *t);            /* one frame: relight what changed, upload, draw */
