@@ -105,8 +105,8 @@ mutation balance-channel: the balance's re-derived root entries use channel 0's 
 
 mutation balance-never-closed: the closed-scene test always says open
   file precompute/balance.c
-  find c.closed = scene_closed(b);
-  repl c.closed = 0 * scene_closed(b);
+  find c.closed = scene_closed(b, &open_quad);
+  repl c.closed = 0 * scene_closed(b, &open_quad);
   run test_bake test_furnace test_power_balance
 
 mutation balance-keep-links: where an occluder may lie between, what the links miss is not added
