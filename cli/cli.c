@@ -3,6 +3,7 @@
 
 #include <errno.h>
 #include <pthread.h>
+#include <signal.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -240,19 +241,10 @@ void wrt_cli_json_str(FILE *f, const char *s) { wrt_json_str(f, s); } /* common/
 void wrt_cli_print_safe(FILE *f, const char *s, size_t max) {
     const unsigned char *p = (const unsigned char *)(s ? s : "");
     size_t len = strnlen((const char *)p, max);
-    for (size_t i = 0; i < len;) {
-        unsigned char c = p[i];
-        size_t n = c < 0x80 ? 1 : wrt_utf8_seq(p + i, len - i);
-        if ((c < 0x20 && c != '\n' && c != '\t') || c == 0x7f || n == 0) {
-            fprintf(f, "\\x%02x", c);
-            i++;
-        } else if (n == 2 && c == 0xC2 && p[i + 1] < 0xA0) { /* C1 controls (U+0080..U+009F), e.g. CSI */
-            fprintf(f, "\\x%02x\\x%02x", c, p[i + 1]);
-            i += 2;
-        } else {
-            fwrite(p + i, 1, n, f);
-            i += n;
-        }
+    char unit[WRT_SAFE_UNIT_MAX];
+    for (size_t i = 0, ulen; i < len;) {
+        i += wrt_text_safe_unit(p + i, len - i, 1, unit, &ulen); /* common/text.h */
+        fwrite(unit, 1, ulen, f);
     }
 }
 
@@ -296,6 +288,10 @@ void wrt_cli_init(const char *tool) {
     stdout_tool = tool ? tool : "wrt";
     atexit(check_stdout);
     wrt_set_oom_handler(oom_exit);
+    /* A file size limit (ulimit -f) must fail the write (EFBIG), which every output path
+     * reports and cleans up (exit 3), instead of killing the program mid-write with its
+     * temporary left behind and no message. */
+    signal(SIGXFSZ, SIG_IGN);
 }
 
 /* ---------------------------------------------------------------- progress */
