@@ -707,11 +707,11 @@ static wrt_status make_camera(const wrt_gltf_data *g, wrt_scene *s, const char *
     wrt_camera *c = &s->camera;
     const wrt_gltf_camera *gc = &g->camera;
     if (gc->present) {
-        if (!finite3(gc->pos) || !finite3(gc->dir) || !finite3(gc->up) || !(gc->yfov > 0) ||
+        if (!finite3(gc->pos) || !finite3(gc->dir) || !finite3(gc->up) || !(gc->yfov >= WRT_MIN_YFOV) ||
             !(gc->yfov < WRT_PI) || !isfinite(gc->aspect) || !isfinite(gc->znear) ||
             !isfinite(gc->zfar))
-            return wrt_fail(WRT_ERR_PARSE, "%s: camera of node %d: yfov %g or transform not usable",
-                            label, gc->node, gc->yfov);
+            return wrt_fail(WRT_ERR_PARSE, "%s: camera of node %d: yfov %g (radians, [%g, pi) in "
+                            "common/limits.h) or transform not usable", label, gc->node, gc->yfov, WRT_MIN_YFOV);
         if (!wrt_coord3_ok(gc->pos[0], gc->pos[1], gc->pos[2]))
             return wrt_fail(WRT_ERR_PARSE,
                             "%s: camera of node %d: position (%g, %g, %g) is outside +-%g, what the "

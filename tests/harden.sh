@@ -339,4 +339,11 @@ import json,sys; d=json.load(open('tests/data/quad.gltf')); d['nodes'][0]['scale
 open(sys.argv[1],'w').write(json.dumps(d))" "$S/tiny.gltf"
 expect "a scene 1.4e-30 m across: exit 2" 2 "tiny.gltf: the scene is 1.41421e-30 m across .*below the 1e-06 m" "$bake" "$S/tiny.gltf" -q 1 -o "$tmp/tiny.gto"
 
+# a camera's field of view so narrow that the projection loses the pixels in single
+# precision (1e-10 rad: half the picture black, exit 0): refused where it is read
+python3 -c "
+import json,sys; d=json.load(open('assets/cornell.gltf')); d['cameras'][0]['perspective']['yfov']=1e-10
+open(sys.argv[1],'w').write(json.dumps(d))" "$S/yfov.gltf"
+expect "a camera yfov of 1e-10 rad: exit 2" 2 "camera of node [0-9]+: yfov 1e-10 \(radians, \[0.0001, pi\)" "$bake" --scan "$S/yfov.gltf"
+
 summary
