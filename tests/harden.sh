@@ -346,4 +346,20 @@ import json,sys; d=json.load(open('assets/cornell.gltf')); d['cameras'][0]['pers
 open(sys.argv[1],'w').write(json.dumps(d))" "$S/yfov.gltf"
 expect "a camera yfov of 1e-10 rad: exit 2" 2 "camera of node [0-9]+: yfov 1e-10 \(radians, \[0.0001, pi\)" "$bake" --scan "$S/yfov.gltf"
 
+# an output that is an input of the same run (wrt-play --stats-json naming the .gto it
+# plays replaced the bake with JSON, exit 0): refused by device and inode, so also
+# through a hard link, the input's bytes unchanged (common/outfile.c wrt_output_protect)
+cp "$tmp/c.gto" "$tmp/in.gto"; ln -f "$tmp/in.gto" "$tmp/in_link.json"
+expect "wrt-play --stats-json naming its own .gto: exit 3" 3 "in.gto: is .*in.gto, an input of this run: not replaced" \
+    "$play" "$tmp/in.gto" --headless --width 8 --height 8 --stats-json "$tmp/in.gto"
+expect "the same through a hard link: exit 3" 3 "in_link.json: is .*in.gto, an input of this run" \
+    "$play" "$tmp/in.gto" --headless --width 8 --height 8 --stats-json "$tmp/in_link.json"
+cmp -s "$tmp/in.gto" "$tmp/c.gto" && ok "the .gto is unchanged" || ko "the .gto is unchanged"
+# a script that is not text: /dev/zero gave an endless run of empty lines (a hang)
+expect "--script /dev/zero: exit 2" 2 "/dev/zero:1: a line longer than 4095 bytes or holding a NUL byte" \
+    timeout 30 "$play" "$tmp/c.gto" --headless --width 8 --height 8 --script /dev/zero --out-pattern "$tmp/z%d.png"
+printf '0 light_pos 0 1 0\n1 \033[31mkey\n' >"$tmp/esc.txt"
+expect "a script's unknown key with an escape code is shown escaped" 2 "esc.txt:2: unknown key '\\\\x1b\[31mkey'" \
+    "$play" "$tmp/c.gto" --headless --width 8 --height 8 --script "$tmp/esc.txt" --out-pattern "$tmp/z%d.png"
+
 summary
