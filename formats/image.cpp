@@ -18,7 +18,10 @@ extern "C" {
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
+#include <exception>
 #include <memory>
+#include <new>
+#include <system_error>
 
 #include <cstdio>
 #include <cstdlib>
@@ -29,6 +32,44 @@ extern "C" {
 #include <vector>
 
 using namespace OIIO;
+
+/* Out of memory before main. The programs that write images link OpenImageIO, whose
+ * dependencies start threads and allocate in their static constructors; under a memory
+ * limit (ulimit -v, about 450 MB here) one of them throws std::system_error
+ * ("Resource temporarily unavailable") before main runs, and the C++ rule for an
+ * exception leaving a static initializer is std::terminate: abort(), exit 134, no
+ * message of ours. Nothing in main can catch it, and the constructors of shared
+ * libraries run before the program's own. The one hook that runs earlier is the
+ * executable's .preinit_array, which installs this terminate handler: an uncaught
+ * bad_alloc, or a system_error saying memory or threads ran out, becomes the documented
+ * out-of-memory exit (7) with one line; anything else still aborts as before. (Below
+ * ~400 MB the dynamic loader itself cannot map the libraries and exits 127 with its own
+ * message, before any code of ours.) */
+static void out_of_memory_terminate() {
+    const char *what = nullptr;
+    try {
+        std::exception_ptr e = std::current_exception();
+        if (e) std::rethrow_exception(e);
+    } catch (const std::bad_alloc &) {
+        what = "std::bad_alloc";
+    } catch (const std::system_error &e) {
+        if (e.code() == std::errc::resource_unavailable_try_again || e.code() == std::errc::not_enough_memory)
+            what = e.what();
+    } catch (...) {
+    }
+    if (!what) abort();
+    char msg[256];
+    int n = snprintf(msg, sizeof msg, "%s: error: out of memory (%s, uncaught, possibly before main while the "
+                     "libraries loaded)\n", program_invocation_short_name, what);
+    ssize_t w = write(2, msg, n > 0 ? (size_t)n : 0);
+    (void)w;
+    _exit(7); /* WRT_EXIT_NOMEM */
+}
+
+static void install_terminate(int, char **, char **) { std::set_terminate(out_of_memory_terminate); }
+/* Runs before the initializers of every shared library (an executable's only). */
+__attribute__((section(".preinit_array"), used)) static void (*const wrt_preinit)(int, char **, char **) =
+    install_terminate;
 
 static std::string ext_of(const char *path) {
     const char *dot = strrchr(path, '.');
