@@ -3,8 +3,10 @@
 
 #include <errno.h>
 #include <pthread.h>
+#include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -240,19 +242,10 @@ void wrt_cli_json_str(FILE *f, const char *s) { wrt_json_str(f, s); } /* common/
 void wrt_cli_print_safe(FILE *f, const char *s, size_t max) {
     const unsigned char *p = (const unsigned char *)(s ? s : "");
     size_t len = strnlen((const char *)p, max);
-    for (size_t i = 0; i < len;) {
-        unsigned char c = p[i];
-        size_t n = c < 0x80 ? 1 : wrt_utf8_seq(p + i, len - i);
-        if ((c < 0x20 && c != '\n' && c != '\t') || c == 0x7f || n == 0) {
-            fprintf(f, "\\x%02x", c);
-            i++;
-        } else if (n == 2 && c == 0xC2 && p[i + 1] < 0xA0) { /* C1 controls (U+0080..U+009F), e.g. CSI */
-            fprintf(f, "\\x%02x\\x%02x", c, p[i + 1]);
-            i += 2;
-        } else {
-            fwrite(p + i, 1, n, f);
-            i += n;
-        }
+    char unit[WRT_SAFE_UNIT_MAX];
+    for (size_t i = 0, ulen; i < len;) {
+        i += wrt_text_safe_unit(p + i, len - i, 1, unit, &ulen); /* common/text.h */
+        fwrite(unit, 1, ulen, f);
     }
 }
 
@@ -292,10 +285,52 @@ static void oom_exit(size_t bytes) {
     _exit(WRT_EXIT_INTERNAL);
 }
 
+/* A crash while the shared libraries initialize, before main. Under an address-space
+ * limit (ulimit -v, ~470 MB for the programs that link OpenImageIO) a constructor in one
+ * of its dependencies dereferences a failed allocation: SIGSEGV, exit 139, no message.
+ * The executable's .preinit_array runs before every library's initializer and installs
+ * this handler; wrt_cli_init, first thing in main, restores the default. Only where an
+ * address-space limit is set is the crash reported as out of memory (exit 7); without
+ * one it is re-raised as it was. */
+static struct sigaction before_segv, before_bus; /* as they were (a sanitizer's, say) */
+
+static void early_crash(int sig) {
+    struct rlimit rl;
+    if (getrlimit(RLIMIT_AS, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY) {
+        char msg[200];
+        int n = snprintf(msg, sizeof msg, "%s: error: out of memory: signal %d while the shared libraries "
+                         "initialized, before main, under an address-space limit of %llu MB\n",
+                         program_invocation_short_name, sig, (unsigned long long)(rl.rlim_cur >> 20));
+        ssize_t w = write(2, msg, n > 0 ? (size_t)n : 0);
+        (void)w;
+        _exit(WRT_EXIT_INTERNAL); /* 7: out of memory */
+    }
+    sigaction(SIGSEGV, &before_segv, NULL);
+    sigaction(SIGBUS, &before_bus, NULL);
+    raise(sig);
+}
+
+static void install_early_crash(int argc, char **argv, char **envp) {
+    (void)argc; (void)argv; (void)envp;
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = early_crash;
+    sigaction(SIGSEGV, &sa, &before_segv);
+    sigaction(SIGBUS, &sa, &before_bus);
+}
+__attribute__((section(".preinit_array"), used)) static void (*const wrt_cli_preinit)(int, char **, char **) =
+    install_early_crash;
+
 void wrt_cli_init(const char *tool) {
     stdout_tool = tool ? tool : "wrt";
+    sigaction(SIGSEGV, &before_segv, NULL); /* main has started: a crash is no longer the libraries' start */
+    sigaction(SIGBUS, &before_bus, NULL);
     atexit(check_stdout);
     wrt_set_oom_handler(oom_exit);
+    /* A file size limit (ulimit -f) must fail the write (EFBIG), which every output path
+     * reports and cleans up (exit 3), instead of killing the program mid-write with its
+     * temporary left behind and no message. */
+    signal(SIGXFSZ, SIG_IGN);
 }
 
 /* ---------------------------------------------------------------- progress */

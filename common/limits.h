@@ -8,6 +8,16 @@
  *                            power 1.4e38: the kernel terms (cos cos / r^2, and the r^4 of
  *                            unnormalized dot products) stay below FLT_MAX (3.4e38) even
  *                            where the runtime computes them in single precision.
+ *   WRT_MIN_EXTENT     1e-6  the diagonal of a scene's bounding box, in metres: below a
+ *                            micrometre (visible light's wavelengths are 0.4-0.7 um)
+ *                            geometric optics, which the method assumes, does not hold,
+ *                            and an element's area (its sides down to 1e-5 of the
+ *                            diagonal) approaches what a 32-bit float in the .gto holds
+ *                            once the scene shrinks further (1e-20 m: areas of 1e-40 are 0).
+ *   WRT_MIN_YFOV       1e-4  a camera's vertical field of view in radians (0.006 degrees,
+ *                            far narrower than any lens): the projection's 1/tan(yfov/2)
+ *                            must leave a pixel's offset visible in single precision; at
+ *                            1e-10 half the Cornell box's picture came out black.
  *   WRT_MAX_LIGHT_INTENSITY 1e12 candela of a point or spot light (a 100 W bulb is ~140 cd,
  *                            the sun seen from 1 m ~3e27 cd is not a punctual light).
  *   WRT_MAX_COLOR      1e3   a colour channel given on a command line (glTF's are [0, 1]).
@@ -25,6 +35,8 @@
 
 #include "../include/wrt.h" /* WRT_MAX_COORD (1e9) and the library's WRT_MAX_INTENSITY (1e20, intensity x colour) */
 
+#define WRT_MIN_EXTENT 1e-6
+#define WRT_MIN_YFOV 1e-4
 #define WRT_MAX_LIGHT_INTENSITY 1e12
 #define WRT_MAX_COLOR 1e3
 #define WRT_MAX_LIGHT_SCALE 1e3

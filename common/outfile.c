@@ -3,6 +3,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -18,6 +19,19 @@ static const char *kind_of(mode_t m) {
     return "not a regular file";
 }
 
+#define MAX_PROTECTED 16
+static struct { dev_t dev; ino_t ino; char name[256]; } protected_in[MAX_PROTECTED];
+static int nprotected;
+
+void wrt_output_protect(const char *path) {
+    struct stat st;
+    if (!path || nprotected == MAX_PROTECTED || stat(path, &st) != 0) return;
+    protected_in[nprotected].dev = st.st_dev;
+    protected_in[nprotected].ino = st.st_ino;
+    snprintf(protected_in[nprotected].name, sizeof protected_in[nprotected].name, "%s", path);
+    nprotected++;
+}
+
 wrt_status wrt_output_check(const char *path) {
     if (!path || !path[0]) return wrt_fail(WRT_ERR_IO, "no output path");
     struct stat st;
@@ -25,7 +39,13 @@ wrt_status wrt_output_check(const char *path) {
         if (errno == ENOENT) return WRT_OK;
         return wrt_fail(WRT_ERR_IO, "%s: cannot check the output: %s", path, strerror(errno));
     }
-    if (S_ISREG(st.st_mode)) return WRT_OK;
+    if (S_ISREG(st.st_mode)) {
+        for (int i = 0; i < nprotected; i++)
+            if (protected_in[i].dev == st.st_dev && protected_in[i].ino == st.st_ino)
+                return wrt_fail(WRT_ERR_IO, "%s: is %s, an input of this run: not replaced by an output", path,
+                                protected_in[i].name);
+        return WRT_OK;
+    }
     return wrt_fail(WRT_ERR_IO, "%s: is %s: outputs are only written as regular files (not replaced)", path,
                     kind_of(st.st_mode));
 }

@@ -13,10 +13,19 @@
 
 #include "wrt_common.h"
 
-/* WRT_OK if `path` does not exist or is a regular file (not through a link); else
- * WRT_ERR_IO with wrt_last_error() saying "PATH: is a FIFO: outputs are only written as
- * regular files" (or a symbolic link, a device, a socket, a directory). */
+/* WRT_OK if `path` does not exist or is a regular file (not through a link) that is not
+ * an input registered with wrt_output_protect; else WRT_ERR_IO with wrt_last_error()
+ * saying "PATH: is a FIFO: outputs are only written as regular files" (or a symbolic
+ * link, a device, a socket, a directory, an input of this run). */
 wrt_status wrt_output_check(const char *path);
+
+/* Registers a file this run reads (the scene, the .gto, a script), by device and inode:
+ * wrt_output_check then refuses any output that is that file, under any name (a hard
+ * link too), instead of replacing the input with the results ("PATH: is FILE, an input
+ * of this run: not replaced"). A path that does not exist is ignored; at most 16 inputs.
+ * Call from the program's main before the work starts (not thread-safe against checks
+ * running at the same time). */
+void wrt_output_protect(const char *path);
 
 /* Creates a new temporary beside `path`, named PATH.tmp.PID.N`suffix` (suffix may be ""),
  * with O_CREAT | O_EXCL | O_NOFOLLOW and mode 0666 less the umask (as the target would

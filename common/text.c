@@ -62,3 +62,40 @@ char *wrt_utf8_copy(char *dst, size_t cap, const char *src) {
     dst[used] = 0;
     return dst;
 }
+
+size_t wrt_text_safe_unit(const unsigned char *p, size_t avail, int keep_newlines, char *out, size_t *outlen) {
+    static const char hex[] = "0123456789abcdef";
+    *outlen = 0;
+    if (avail == 0) return 0;
+    unsigned char c = p[0];
+    size_t n = c < 0x80 ? 1 : wrt_utf8_seq(p, avail);
+    int bad = (c < 0x20 && c != '\t' && !(c == '\n' && keep_newlines)) || c == 0x7f || n == 0;
+    size_t esc = bad ? 1 : (n == 2 && c == 0xC2 && p[1] < 0xA0) ? 2 : 0; /* C1 controls */
+    if (esc == 0) {
+        memcpy(out, p, n);
+        *outlen = n;
+        return n;
+    }
+    for (size_t i = 0; i < esc; i++) {
+        char *o = out + 4 * i;
+        o[0] = '\\'; o[1] = 'x'; o[2] = hex[p[i] >> 4]; o[3] = hex[p[i] & 15];
+    }
+    *outlen = 4 * esc;
+    return esc;
+}
+
+char *wrt_text_safe(char *dst, size_t cap, const char *src) {
+    if (cap == 0) return dst;
+    const unsigned char *s = (const unsigned char *)(src ? src : "");
+    size_t len = strlen((const char *)s), used = 0, i = 0;
+    char unit[WRT_SAFE_UNIT_MAX];
+    while (i < len) {
+        size_t ulen, n = wrt_text_safe_unit(s + i, len - i, 0, unit, &ulen);
+        if (used + ulen > cap - 1) break;
+        memcpy(dst + used, unit, ulen);
+        used += ulen;
+        i += n;
+    }
+    dst[used] = 0;
+    return dst;
+}

@@ -27,4 +27,17 @@ size_t wrt_utf8_seq(const unsigned char *s, size_t avail);
  * writer replaces them). Returns dst. */
 char *wrt_utf8_copy(char *dst, size_t cap, const char *src);
 
+/* Text from a file (names, provenance) shown on a terminal: one unit of it, at p (avail
+ * bytes). A valid UTF-8 character that is not a control is copied to out as it is; a
+ * control byte (C0 except tab, and newline unless keep_newlines; DEL), a C1 control
+ * (U+0080..U+009F, e.g. CSI) and a byte that is not valid UTF-8 are written as \xNN
+ * (each byte). out holds at least WRT_SAFE_UNIT_MAX bytes, no NUL added; *outlen gets its
+ * length. Returns the bytes of p consumed (>= 1; 0 only when avail is 0). The one rule
+ * for every message and report that can carry text from a file. */
+#define WRT_SAFE_UNIT_MAX 8
+size_t wrt_text_safe_unit(const unsigned char *p, size_t avail, int keep_newlines, char *out, size_t *outlen);
+/* src made safe for a one-line message (newlines escaped too) into dst (cap >= 1 bytes,
+ * always NUL-terminated, cut between units). Returns dst. */
+char *wrt_text_safe(char *dst, size_t cap, const char *src);
+
 #endif

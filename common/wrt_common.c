@@ -2,6 +2,7 @@
  * allocation, clock and hash. See wrt_common.h. */
 #define _POSIX_C_SOURCE 200809L
 #include "wrt_common.h"
+#include "text.h"
 
 #include <errno.h>
 #include <math.h>
@@ -23,11 +24,15 @@ const char *wrt_status_str(wrt_status s) {
 
 static _Thread_local char last_error[1024];
 
+/* Every error and log message is made safe for a terminal where it is formed: names and
+ * paths from files can hold escape codes, newlines or invalid UTF-8 (common/text.h). */
 wrt_status wrt_fail(wrt_status s, const char *fmt, ...) {
+    char raw[sizeof last_error];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(last_error, sizeof last_error, fmt, ap);
+    vsnprintf(raw, sizeof raw, fmt, ap);
     va_end(ap);
+    wrt_text_safe(last_error, sizeof last_error, raw);
     return s;
 }
 
@@ -42,11 +47,12 @@ void wrt_log_set_sink(wrt_log_sink sink, void *user) { log_sink = sink; log_user
 void wrt_log_set_verbosity(int level) { log_verbosity = level; }
 
 void wrt_log(int level, const char *fmt, ...) {
-    char buf[1024];
+    char raw[1024], buf[1024];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(buf, sizeof buf, fmt, ap);
+    vsnprintf(raw, sizeof raw, fmt, ap);
     va_end(ap);
+    wrt_text_safe(buf, sizeof buf, raw);
     if (log_sink) {
         log_sink(log_user, level, buf);
         return;

@@ -196,11 +196,14 @@ static void check_camera(vctx *v, const uint8_t *base, uint64_t first, uint64_t 
     for (uint64_t i = first; i < first + n; i++) {
         if (!fin3d(c[i].pos) || !fin3d(c[i].dir) || !fin3d(c[i].up))
             return vbad(v, "camera: position, direction or up not finite");
+        if (!wrt_coord3_ok(c[i].pos[0], c[i].pos[1], c[i].pos[2])) /* common/limits.h */
+            return vbad(v, "camera: position (%g, %g, %g) beyond %g", c[i].pos[0], c[i].pos[1], c[i].pos[2],
+                        WRT_MAX_COORD);
         /* yfov 0: the scene has no camera (a scene built in code); the player frames it */
         if (c[i].yfov == 0 && c[i].aspect == 0 && c[i].znear == 0 && c[i].zfar == 0) continue;
         if (!unit3d(c[i].dir) || !unit3d(c[i].up))
             return vbad(v, "camera: direction or up not of unit length");
-        if (!(c[i].yfov > 0 && c[i].yfov < WRT_PI) || !(c[i].aspect >= 0) || !isfinite(c[i].aspect) ||
+        if (!(c[i].yfov >= WRT_MIN_YFOV && c[i].yfov < WRT_PI) || !(c[i].aspect >= 0) || !isfinite(c[i].aspect) ||
             !(c[i].znear > 0) || !isfinite(c[i].znear) || !(c[i].zfar >= 0) || !isfinite(c[i].zfar))
             return vbad(v, "camera: yfov %g, aspect %g, znear %g or zfar %g out of range", c[i].yfov,
                         c[i].aspect, c[i].znear, c[i].zfar);

@@ -4,6 +4,7 @@
  * over it only once complete. Depends on OpenImageIO 2.4 and wrt_common. */
 #include <cmath>
 #include <cstdarg>
+#include <cerrno>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -14,9 +15,13 @@ extern "C" {
 #include "../common/outfile.h"
 }
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
+#include <exception>
 #include <memory>
+#include <new>
+#include <system_error>
 
 #include <cstdio>
 #include <cstdlib>
@@ -28,11 +33,90 @@ extern "C" {
 
 using namespace OIIO;
 
+/* Out of memory before main. The programs that write images link OpenImageIO, whose
+ * dependencies start threads and allocate in their static constructors; under a memory
+ * limit (ulimit -v, about 450 MB here) one of them throws std::system_error
+ * ("Resource temporarily unavailable") before main runs, and the C++ rule for an
+ * exception leaving a static initializer is std::terminate: abort(), exit 134, no
+ * message of ours. Nothing in main can catch it, and the constructors of shared
+ * libraries run before the program's own. The one hook that runs earlier is the
+ * executable's .preinit_array, which installs this terminate handler: an uncaught
+ * bad_alloc, or a system_error saying memory or threads ran out, becomes the documented
+ * out-of-memory exit (7) with one line; anything else still aborts as before. (Below
+ * ~400 MB the dynamic loader itself cannot map the libraries and exits 127 with its own
+ * message, before any code of ours.) */
+static void out_of_memory_terminate() {
+    const char *what = nullptr;
+    try {
+        std::exception_ptr e = std::current_exception();
+        if (e) std::rethrow_exception(e);
+    } catch (const std::bad_alloc &) {
+        what = "std::bad_alloc";
+    } catch (const std::system_error &e) {
+        if (e.code() == std::errc::resource_unavailable_try_again || e.code() == std::errc::not_enough_memory)
+            what = e.what();
+    } catch (...) {
+    }
+    if (!what) abort();
+    char msg[256];
+    int n = snprintf(msg, sizeof msg, "%s: error: out of memory (%s, uncaught, possibly before main while the "
+                     "libraries loaded)\n", program_invocation_short_name, what);
+    ssize_t w = write(2, msg, n > 0 ? (size_t)n : 0);
+    (void)w;
+    _exit(7); /* WRT_EXIT_NOMEM */
+}
+
+static void install_terminate(int, char **, char **) { std::set_terminate(out_of_memory_terminate); }
+/* Runs before the initializers of every shared library (an executable's only). */
+__attribute__((section(".preinit_array"), used)) static void (*const wrt_preinit)(int, char **, char **) =
+    install_terminate;
+
 static std::string ext_of(const char *path) {
     const char *dot = strrchr(path, '.');
     const char *slash = strrchr(path, '/');
     if (!dot || (slash && dot < slash)) return "";
     return dot;
+}
+
+/* Writes all n bytes of p to fd, then syncs it; 0 on success, else errno. */
+static int write_all(int fd, const unsigned char *p, size_t n) {
+    while (n > 0) {
+        ssize_t w = write(fd, p, n);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) return w < 0 ? errno : EIO;
+        p += w;
+        n -= (size_t)w;
+    }
+    return fsync(fd) != 0 ? errno : 0;
+}
+
+/* Encodes the image into memory (OpenImageIO's IOVecOutput) when the format can; else
+ * lets the writer fill tmp by name and then reads it back whole. OpenImageIO's PNG
+ * writer ignores failed writes (a full disk, ulimit -f: a cut file and success), so
+ * the bytes must reach the disk through a path that checks every write. */
+static bool encode(ImageOutput *out, const std::string &tmp, int fd, ImageSpec spec, TypeDesc type, const void *px,
+                   std::string &err) {
+    if (out->supports("ioproxy")) {
+        std::vector<unsigned char> bytes;
+        Filesystem::IOVecOutput mem(bytes);
+        Filesystem::IOProxy *proxy = &mem;
+        spec.attribute("oiio:ioproxy", TypeDesc::PTR, &proxy);
+        bool ok = out->open(tmp, spec) && out->write_image(type, px);
+        ok = out->close() && ok;
+        if (!ok) { err = out->geterror(); return false; }
+        int e = write_all(fd, bytes.data(), bytes.size());
+        if (e) { err = strerror(e); return false; }
+        return true;
+    }
+    bool ok = out->open(tmp, spec) && out->write_image(type, px);
+    ok = out->close() && ok;
+    if (!ok) { err = out->geterror(); return false; }
+    std::vector<float> back((size_t)spec.width * spec.height * 3);
+    auto in = ImageInput::open(tmp);
+    ok = in && in->spec().width == spec.width && in->spec().height == spec.height &&
+         in->read_image(0, 0, 0, 3, TypeDesc::FLOAT, back.data());
+    if (!ok) err = "the written file does not read back whole (" + (in ? in->geterror() : geterror()) + ")";
+    return ok;
 }
 
 static wrt_status write_any(const char *path, const void *px, TypeDesc type, int w, int h) {
@@ -41,35 +125,32 @@ static wrt_status write_any(const char *path, const void *px, TypeDesc type, int
     /* A regular file only (common/outfile.h): a link, FIFO or device is refused. */
     if (wrt_output_check(path) != WRT_OK) return WRT_ERR_IO;
     std::string tmp;
+    int fd = -1;
     try {
         /* The temporary is made here with O_EXCL (never through a link planted at its
-         * name); the image writer then fills that regular file. */
+         * name); the bytes are then written to it (encode). */
         std::string ext = ext_of(path);
         char *name = nullptr;
-        int fd = wrt_output_tmpfile(path, ext.c_str(), &name);
+        fd = wrt_output_tmpfile(path, ext.c_str(), &name);
         if (fd < 0) return WRT_ERR_IO;
-        close(fd);
         tmp = name;
         free(name);
         std::unique_ptr<ImageOutput> out = ImageOutput::create(path);
         if (!out) {
             std::string e = geterror();
+            close(fd);
             unlink(tmp.c_str());
             return wrt_fail(WRT_ERR_IO, "%s: no writer for this file type: %s", path, e.c_str());
         }
         ImageSpec spec(w, h, 3, type);
         if (type == TypeDesc::FLOAT) spec.attribute("compression", "zip");
-        if (!out->open(tmp, spec)) {
-            std::string e = out->geterror();
-            unlink(tmp.c_str());
-            return wrt_fail(WRT_ERR_IO, "%s: cannot open for writing: %s", tmp.c_str(), e.c_str());
-        }
-        bool ok = out->write_image(type, px);
-        ok = out->close() && ok;
+        std::string e;
+        bool ok = encode(out.get(), tmp, fd, spec, type, px, e);
+        ok = close(fd) == 0 && ok;
+        fd = -1;
         if (!ok) {
-            std::string e = out->geterror();
             unlink(tmp.c_str());
-            return wrt_fail(WRT_ERR_IO, "%s: write failed: %s", path, e.c_str());
+            return wrt_fail(WRT_ERR_IO, "%s: write failed: %s", path, e.empty() ? strerror(errno) : e.c_str());
         }
         if (wrt_output_check(path) != WRT_OK) { /* it became a link or a FIFO while we wrote */
             unlink(tmp.c_str());
@@ -81,12 +162,15 @@ static wrt_status write_any(const char *path, const void *px, TypeDesc type, int
         }
         return WRT_OK;
     } catch (const std::bad_alloc &) {
+        if (fd >= 0) close(fd);
         if (!tmp.empty()) unlink(tmp.c_str());
         return wrt_fail(WRT_ERR_NOMEM, "%s: out of memory while writing", path);
     } catch (const std::exception &e) {
+        if (fd >= 0) close(fd);
         if (!tmp.empty()) unlink(tmp.c_str());
         return wrt_fail(WRT_ERR_IO, "%s: %s", path, e.what());
     } catch (...) {
+        if (fd >= 0) close(fd);
         if (!tmp.empty()) unlink(tmp.c_str());
         return wrt_fail(WRT_ERR_IO, "%s: unknown error while writing", path);
     }

@@ -707,11 +707,11 @@ static wrt_status make_camera(const wrt_gltf_data *g, wrt_scene *s, const char *
     wrt_camera *c = &s->camera;
     const wrt_gltf_camera *gc = &g->camera;
     if (gc->present) {
-        if (!finite3(gc->pos) || !finite3(gc->dir) || !finite3(gc->up) || !(gc->yfov > 0) ||
+        if (!finite3(gc->pos) || !finite3(gc->dir) || !finite3(gc->up) || !(gc->yfov >= WRT_MIN_YFOV) ||
             !(gc->yfov < WRT_PI) || !isfinite(gc->aspect) || !isfinite(gc->znear) ||
             !isfinite(gc->zfar))
-            return wrt_fail(WRT_ERR_PARSE, "%s: camera of node %d: yfov %g or transform not usable",
-                            label, gc->node, gc->yfov);
+            return wrt_fail(WRT_ERR_PARSE, "%s: camera of node %d: yfov %g (radians, [%g, pi) in "
+                            "common/limits.h) or transform not usable", label, gc->node, gc->yfov, WRT_MIN_YFOV);
         if (!wrt_coord3_ok(gc->pos[0], gc->pos[1], gc->pos[2]))
             return wrt_fail(WRT_ERR_PARSE,
                             "%s: camera of node %d: position (%g, %g, %g) is outside +-%g, what the "
@@ -893,6 +893,12 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
     scene_extent(&g, &lo, &hi, &need_default);
     double diag = v3_len(v3_sub(hi, lo));
     double eps = diag > 0 ? WRT_WELD_REL * diag : 1.0;
+    if (diag > 0 && diag < WRT_MIN_EXTENT) { /* common/limits.h */
+        wrt_gltf_free(&g);
+        return wrt_fail(WRT_ERR_GEOMETRY, "%s: the scene is %g m across (its bounding box's diagonal), below the "
+                        "%g m wrt works at (common/limits.h): check the nodes' scale and the file's units", label,
+                        diag, WRT_MIN_EXTENT);
+    }
 
     convert_materials(&g, need_default, s, label);
     s->nnames = (int)g.nmeshes;
@@ -917,6 +923,7 @@ static wrt_status load_common(const void *data, size_t size, const char *base_di
 
     st = scene_report_problems(pl, &g, opt, label, s);
     if (st != WRT_OK) return st;
+    s->ncoincident = wrt_scene_coincident(s, diag, label, opt->report_only); /* scene_dups.c */
 
     scene_add_twins(&ql, &g, diag, s);
     s->quads = ql.v;

@@ -65,8 +65,8 @@ static void print_summary_json(const wrt_scene *s, int npara, const int *uses, F
     fputs("\"triangles_alone\":{", f);
     for (int k = 0; k < WRT_SINGLE_NREASONS; k++)
         fprintf(f, "%s\"%s\":%d", k ? "," : "", single_name(k), s->why_single[k]);
-    fprintf(f, "},\"dropped\":%d,\"non_finite\":%d,\"mirrored_instances\":%d,", s->ndropped,
-            s->nnonfinite, s->nmirrored);
+    fprintf(f, "},\"dropped\":%d,\"non_finite\":%d,\"mirrored_instances\":%d,\"coincident_pairs\":%d,",
+            s->ndropped, s->nnonfinite, s->nmirrored, s->ncoincident);
     fprintf(f, "\"source_hash\":\"%016llx\",\"bbox\":{\"min\":", (unsigned long long)s->source_hash);
     json_v3(f, s->bbox_min);
     fputs(",\"max\":", f);
@@ -164,6 +164,9 @@ static void print_summary_text(const wrt_scene *s, int npara, const int *uses, F
     if (s->nmirrored)
         fprintf(f, "mirrored: %d mesh instances placed by a negative-determinant transform (winding flipped)\n",
                 s->nmirrored);
+    if (s->ncoincident)
+        fprintf(f, "coincident: %d pairs of elements in the same place facing the same way (light counted "
+                "twice; a bake warns naming them)\n", s->ncoincident);
     fprintf(f, "bbox: (%g, %g, %g) - (%g, %g, %g)\n", s->bbox_min.x, s->bbox_min.y, s->bbox_min.z,
             s->bbox_max.x, s->bbox_max.y, s->bbox_max.z);
     fprintf(f, "materials: %d (%d diffuse, %d glossy), %d emissive (reported only)\n", s->nmaterials,

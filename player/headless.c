@@ -58,6 +58,23 @@ typedef struct keyframe {
     double lpos[3], ldir[3], lint, cpos[3], ctarget[3];
 } keyframe;
 
+/* One line of a script into line (cap bytes, the newline dropped): 1 a line, 0 the end,
+ * -1 a line that is too long or holds a NUL byte (not a text file: /dev/zero gave an
+ * endless run of empty lines), -2 a read error. */
+static int script_line(FILE *f, char *line, size_t cap) {
+    size_t n = 0;
+    int c;
+    while ((c = getc(f)) != EOF && c != '\n') {
+        if (c == 0 || n + 1 >= cap) return -1;
+        line[n++] = (char)c;
+    }
+    line[n] = 0;
+    if (c == EOF && ferror(f)) return -2;
+    return c == EOF && n == 0 ? 0 : 1;
+}
+
+#define MAX_KEYFRAMES 100000 /* as many as frames a script may ask for */
+
 static int read_script(app *a, const char *path, keyframe **out, int *count) {
     FILE *f = fopen(path, "r");
     if (!f) {
@@ -76,8 +93,21 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
     keyframe *kf = NULL;
     int n = 0, cap = 0, lineno = 0;
     char line[4096];
-    while (fgets(line, sizeof line, f)) {
+    int got;
+    while ((got = script_line(f, line, sizeof line)) != 0) {
         lineno++;
+        if (got < 0) {
+            if (got == -1)
+                fprintf(stderr, "wrt-play: error: %s:%d: a line longer than %zu bytes or holding a NUL byte: "
+                        "a script is text\n", path, lineno, sizeof line - 1);
+            else
+                fprintf(stderr, "wrt-play: error: %s: cannot read the script: %s\n", path, strerror(errno));
+            goto fail;
+        }
+        if (n == MAX_KEYFRAMES) {
+            fprintf(stderr, "wrt-play: error: %s:%d: more than %d keyframes\n", path, lineno, MAX_KEYFRAMES);
+            goto fail;
+        }
         char *hash = strchr(line, '#');
         if (hash) *hash = 0;
         char *save = NULL, *tok = strtok_r(line, " \t\r\n", &save);
@@ -99,7 +129,9 @@ static int read_script(app *a, const char *path, keyframe **out, int *count) {
             else if (!strcmp(tok, "camera_target")) dst = cur.ctarget;
             else if (!strcmp(tok, "light_intensity")) { dst = &cur.lint; nv = 1; }
             else {
-                fprintf(stderr, "wrt-play: error: %s:%d: unknown key '%s'\n", path, lineno, tok);
+                char safe[96]; /* text from the file, shown escaped (common/text.h) */
+                fprintf(stderr, "wrt-play: error: %s:%d: unknown key '%s'\n", path, lineno,
+                        wrt_text_safe(safe, sizeof safe, tok));
                 goto fail;
             }
             for (int k = 0; k < nv; k++) {

@@ -874,6 +874,8 @@ int main(int argc, char **argv) {
     wrt_cli_init("wrt-play"); /* stdout checked at exit (3), out of memory: exit 7 */
     options o;
     if (!parse_args(argc, argv, &o)) return EXIT_USAGE;
+    wrt_output_protect(o.file); /* no output replaces an input (common/outfile.h) */
+    wrt_output_protect(o.script);
     app a;
     memset(&a, 0, sizeof a);
     a.o = &o;

@@ -273,4 +273,116 @@ grep -q '0.69813170000002' "$tmp/cones.gltf" && expect "spot cones equal in sing
     ko "spot cones equal in single precision: the test scene"
 [ ! -e "$tmp/cones.gto" ] && ok "no file from the refused scene" || ko "no file from the refused scene"
 
+# ---- 9 the second pass (session 3): file size limits, names on stderr, coincident
+# elements, a scene too small for the method
+# ulimit -f: the write fails (EFBIG) instead of SIGXFSZ killing the program mid-write
+# with its temporary left and no message; OpenImageIO's PNG writer ignored the failed
+# write and a cut PNG was renamed over the target with exit 0
+mkdir -p "$tmp/fsz"
+fsz() {
+    local name=$1 blocks=$2; shift 2
+    ( ulimit -f "$blocks"; exec "$@" ) >/dev/null 2>"$tmp/err"; local rc=$?
+    if [ $rc -eq 3 ] && grep -q "File too large" "$tmp/err"; then ok "$name under ulimit -f $blocks: exit 3, 'File too large'"
+    else echo "    exit $rc"; ko "$name under ulimit -f $blocks: exit 3, 'File too large'"; fi
+}
+fsz "wrt-bake -o" 100 "$bake" assets/cornell.gltf -q 1 -o "$tmp/fsz/c.gto" --quiet
+fsz "wrt-play -o PNG" 10 "$play" "$tmp/c.gto" --headless --width 512 --height 512 -o "$tmp/fsz/p.png"
+fsz "wrt-play -o EXR" 10 "$play" "$tmp/c.gto" --headless --width 512 --height 512 -o "$tmp/fsz/p.exr"
+fsz "wrt-scenegen -o" 1 "$build/wrt-scenegen" maze --res 8 -o "$tmp/fsz/m.gltf"
+fsz "wrt-ref -o" 1 "$build/wrt-ref" assets/cornell.gltf --width 256 --height 256 --spp 1 -o "$tmp/fsz/r"
+[ -z "$(ls -A "$tmp/fsz")" ] && ok "nothing left in the output folder after the refused writes" || { ls "$tmp/fsz"; ko "nothing left in the output folder after the refused writes"; }
+
+# names from the file on stderr: escape codes, newlines and invalid UTF-8 shown as \xNN
+python3 - "$S" <<'PY2'
+import json, sys
+d = json.load(open('tests/data/quad.gltf'))
+d['extensionsUsed'] = ['KHR_lights_punctual']
+d['extensions'] = {'KHR_lights_punctual': {'lights': [{'type': 'point', 'intensity': 3.0,
+                                                       'name': 'red \x1b[31m\nFAKE: ok \x9b2J'}]}}
+d['nodes'].append({'extensions': {'KHR_lights_punctual': {'light': 0}}, 'translation': [1e30, 0.5, 1]})
+d['scenes'][0]['nodes'].append(1)
+open(sys.argv[1] + '/ctl_name.gltf', 'w').write(json.dumps(d))
+PY2
+expect "a light named with ESC, a newline and CSI: exit 2" 2 "light 'red \\\\x1b\[31m\\\\x0aFAKE: ok \\\\xc2\\\\x9b2J'" "$bake" --scan "$S/ctl_name.gltf"
+noctl "its message holds no raw control character" "$tmp/err"
+[ "$(wc -l <"$tmp/err")" -eq 1 ] && ok "its message is one line (the newline in the name escaped)" || ko "its message is one line (the newline in the name escaped)"
+
+# coincident duplicates: the Cornell box's floor instanced twice at one place is warned
+# about, naming both elements; a back-to-back pair (opposite normals) is not a duplicate
+python3 - "$S" <<'PY2'
+import json, sys
+d = json.load(open('assets/cornell.gltf'))
+floor = next(i for i, n in enumerate(d['nodes']) if n.get('mesh') == 0)
+d['nodes'].append(dict(d['nodes'][floor], name='copy'))
+d['scenes'][0]['nodes'].append(len(d['nodes']) - 1)
+open(sys.argv[1] + '/dup.gltf', 'w').write(json.dumps(d))
+q = json.load(open('tests/data/quad.gltf'))
+q['nodes'].append({'mesh': 0, 'rotation': [1, 0, 0, 0], 'translation': [0, 1, 0]})  # turned over onto the same square
+q['scenes'][0]['nodes'].append(1)
+open(sys.argv[1] + '/backtoback.gltf', 'w').write(json.dumps(q))
+PY2
+expect "the floor twice: a bake warns, exit 0" 0 "elements 0 \(mesh 0 'floor' primitive 0 triangles 0 and 1, node 0\) and [0-9]+ \(mesh 0 'floor' .*node [0-9]+\) occupy the same place facing the same way" \
+    "$bake" "$S/dup.gltf" -q 1 -o "$tmp/dup.gto" --quiet
+"$bake" --scan "$S/dup.gltf" --json >"$tmp/dup.json" 2>"$tmp/err"
+python3 -c "import json,sys; sys.exit(0 if json.load(open(sys.argv[1]))['coincident_pairs'] == 1 else 1)" "$tmp/dup.json" &&
+    ok "--scan --json counts 1 coincident pair" || ko "--scan --json counts 1 coincident pair"
+"$bake" --scan assets/cornell.gltf --json >"$tmp/c.json" 2>"$tmp/err"
+python3 -c "import json,sys; sys.exit(0 if json.load(open(sys.argv[1]))['coincident_pairs'] == 0 else 1)" "$tmp/c.json" &&
+    ok "the Cornell box has none" || ko "the Cornell box has none"
+"$bake" "$S/backtoback.gltf" -q 1 -o "$tmp/b2b.gto" --quiet >/dev/null 2>"$tmp/err"
+grep -q "same place" "$tmp/err" && ko "two faces back to back are not duplicates" || ok "two faces back to back are not duplicates"
+
+# a scene smaller than the method works at: refused where it is read (it used to bake,
+# then its 1e-60 m^2 areas were 0 in the .gto and the write refused it, exit 3)
+python3 -c "
+import json,sys; d=json.load(open('tests/data/quad.gltf')); d['nodes'][0]['scale']=[1e-30]*3
+open(sys.argv[1],'w').write(json.dumps(d))" "$S/tiny.gltf"
+expect "a scene 1.4e-30 m across: exit 2" 2 "tiny.gltf: the scene is 1.41421e-30 m across .*below the 1e-06 m" "$bake" "$S/tiny.gltf" -q 1 -o "$tmp/tiny.gto"
+
+# a camera's field of view so narrow that the projection loses the pixels in single
+# precision (1e-10 rad: half the picture black, exit 0): refused where it is read
+python3 -c "
+import json,sys; d=json.load(open('assets/cornell.gltf')); d['cameras'][0]['perspective']['yfov']=1e-10
+open(sys.argv[1],'w').write(json.dumps(d))" "$S/yfov.gltf"
+expect "a camera yfov of 1e-10 rad: exit 2" 2 "camera of node [0-9]+: yfov 1e-10 \(radians, \[0.0001, pi\)" "$bake" --scan "$S/yfov.gltf"
+
+# an output that is an input of the same run (wrt-play --stats-json naming the .gto it
+# plays replaced the bake with JSON, exit 0): refused by device and inode, so also
+# through a hard link, the input's bytes unchanged (common/outfile.c wrt_output_protect)
+cp "$tmp/c.gto" "$tmp/in.gto"; ln -f "$tmp/in.gto" "$tmp/in_link.json"
+expect "wrt-play --stats-json naming its own .gto: exit 3" 3 "in.gto: is .*in.gto, an input of this run: not replaced" \
+    "$play" "$tmp/in.gto" --headless --width 8 --height 8 --stats-json "$tmp/in.gto"
+expect "the same through a hard link: exit 3" 3 "in_link.json: is .*in.gto, an input of this run" \
+    "$play" "$tmp/in.gto" --headless --width 8 --height 8 --stats-json "$tmp/in_link.json"
+cmp -s "$tmp/in.gto" "$tmp/c.gto" && ok "the .gto is unchanged" || ko "the .gto is unchanged"
+# a script that is not text: /dev/zero gave an endless run of empty lines (a hang)
+expect "--script /dev/zero: exit 2" 2 "/dev/zero:1: a line longer than 4095 bytes or holding a NUL byte" \
+    timeout 30 "$play" "$tmp/c.gto" --headless --width 8 --height 8 --script /dev/zero --out-pattern "$tmp/z%d.png"
+printf '0 light_pos 0 1 0\n1 \033[31mkey\n' >"$tmp/esc.txt"
+expect "a script's unknown key with an escape code is shown escaped" 2 "esc.txt:2: unknown key '\\\\x1b\[31mkey'" \
+    "$play" "$tmp/c.gto" --headless --width 8 --height 8 --script "$tmp/esc.txt" --out-pattern "$tmp/z%d.png"
+
+# the programs that link OpenImageIO under a memory limit: its dependencies' static
+# constructors threw std::system_error (abort, 134) or crashed (139) before main; now
+# every limit ends in 0, 7 with one "out of memory" line, or the dynamic loader's own
+# refusal (127) before any code of ours runs
+if [[ "$build" == *sanitize* ]]; then
+    skipped "OpenImageIO programs under ulimit -v: AddressSanitizer needs terabytes of address space"
+else
+    nbad=0; n7=0
+    for kb in 380000 400000 420000 440000 450000 460000 470000 480000 490000 500000 520000; do
+        for prog in wrt-play wrt-ref wrt-compare; do
+            ( ulimit -v $kb; exec "$build/$prog" --version ) >/dev/null 2>"$tmp/err"; rc=$?
+            case $rc in
+                0|127) ;;
+                7) if grep -q "out of memory" "$tmp/err" && [ "$(wc -l <"$tmp/err")" -eq 1 ]; then n7=$((n7 + 1)); else nbad=$((nbad + 1)); fi ;;
+                *) nbad=$((nbad + 1)); echo "    $prog at $kb KiB: exit $rc" ;;
+            esac
+        done
+    done
+    echo "    $n7 of 33 runs ended in exit 7"
+    [ $nbad -eq 0 ] && ok "wrt-play, wrt-ref, wrt-compare under ulimit -v 380-520 MB: exit 0, 7 (one line) or 127, never a crash" ||
+        ko "wrt-play, wrt-ref, wrt-compare under ulimit -v 380-520 MB: exit 0, 7 (one line) or 127, never a crash"
+fi
+
 summary

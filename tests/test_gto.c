@@ -789,6 +789,11 @@ static void test_bad_numbers(void) {
     corrupt_index(b, n, S_CAMERA, 88, &dzero, 8, "camera: yfov 0.7, aspect 1.5, znear 0 ", "znear 0");
     corrupt_index(b, n, S_CAMERA, 24 + 16, &dzero, 8, "camera: direction or up not of unit length", "camera dir zero");
     corrupt_index(b, n, S_CAMERA, 48 + 8, &dnan, 8, "camera: position, direction or up not finite", "camera up NaN");
+    /* finite but beyond what the player carries (common/limits.h): refused when read, not
+     * by wrt_runtime_set_eye (unnamed file) or as a black picture with exit 0 */
+    double far = 3e38, tiny_fov = 1e-300;
+    corrupt_index(b, n, S_CAMERA, 0, &far, 8, "camera: position (3e+38, ", "camera at 3e38");
+    corrupt_index(b, n, S_CAMERA, 72, &tiny_fov, 8, "camera: yfov 1e-300", "yfov 1e-300");
     corrupt_index(b, n, S_STATS, 96, &dnan, 8, "stats: energy_left nan", "energy NaN");
     corrupt_index(b, n, S_QUADS, 96, &fnan, 4, "quad 0: normal is not a unit vector", "normal NaN");
     corrupt_index(b, n, S_QUADS, 168 + 132, &neg, 4, "quad 1: area -1 is not finite and > 0", "negative area");

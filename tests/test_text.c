@@ -158,11 +158,58 @@ static void test_outputs_regular_only(void) {
     CHECK(system(cmd) == 0, "cleanup");
 }
 
+/* Text from a file in a message: control bytes, C1 controls and invalid UTF-8 as \xNN,
+ * valid characters kept, cut between units; and wrt_fail applies it to every message. */
+static void test_message_escapes(void) {
+    char d[64];
+    wrt_text_safe(d, sizeof d, "a\x1b[31m\nb\tc\x7f");
+    CHECK(!strcmp(d, "a\\x1b[31m\\x0ab\tc\\x7f"), "%s", d);
+    wrt_text_safe(d, sizeof d, "\xc2\x9b" "2J \xc3\xa9 \xe2\x82\xac \xff \xc3");
+    CHECK(!strcmp(d, "\\xc2\\x9b" "2J \xc3\xa9 \xe2\x82\xac \\xff \\xc3"), "%s", d);
+    wrt_text_safe(d, 7, "ab\x01" "cd"); /* "ab\x01" is 6 bytes + NUL: the next unit does not fit */
+    CHECK(!strcmp(d, "ab\\x01"), "%s", d);
+    wrt_text_safe(d, 6, "ab\x01" "cd"); /* the escape does not fit whole: cut before it */
+    CHECK(!strcmp(d, "ab"), "%s", d);
+    wrt_fail(WRT_ERR_PARSE, "light '%s'", "x\ny\x1b");
+    CHECK(!strcmp(wrt_last_error(), "light 'x\\x0ay\\x1b'"), "%s", wrt_last_error());
+    char unit[WRT_SAFE_UNIT_MAX];
+    size_t ulen, n = wrt_text_safe_unit((const unsigned char *)"\n", 1, 1, unit, &ulen);
+    CHECK(n == 1 && ulen == 1 && unit[0] == '\n', "a newline kept in a report: n %zu ulen %zu", n, ulen);
+}
+
+/* An input registered with wrt_output_protect is refused as an output under any name (a
+ * hard link too); another regular file is not. Runs last: the registry stays. */
+static void test_output_protect(void) {
+    char dir[] = "/tmp/wrt_text_XXXXXX";
+    CHECK(mkdtemp(dir) != NULL, "mkdtemp");
+    char in[256], hard[256], other[256];
+    snprintf(in, sizeof in, "%s/in.gto", dir);
+    snprintf(hard, sizeof hard, "%s/hard.json", dir);
+    snprintf(other, sizeof other, "%s/other.json", dir);
+    FILE *f = fopen(in, "w");
+    fputs("input", f);
+    fclose(f);
+    CHECK(link(in, hard) == 0, "link");
+    CHECK(wrt_output_check(in) == WRT_OK, "before it is registered, a regular file is fine");
+    wrt_output_protect(in);
+    wrt_output_protect(other); /* does not exist: ignored */
+    CHECK(wrt_output_check(in) == WRT_ERR_IO && strstr(wrt_last_error(), "an input of this run"), "%s",
+          wrt_last_error());
+    CHECK(wrt_output_check(hard) == WRT_ERR_IO && strstr(wrt_last_error(), "in.gto, an input of this run"), "%s",
+          wrt_last_error());
+    CHECK(wrt_output_check(other) == WRT_OK, "another file: %s", wrt_last_error());
+    unlink(in);
+    unlink(hard);
+    rmdir(dir);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(test_json_escapes);
     TEST_RUN(test_json_checker);
     TEST_RUN(test_json_numbers);
     TEST_RUN(test_utf8_cut);
+    TEST_RUN(test_message_escapes);
     TEST_RUN(test_outputs_regular_only);
+    TEST_RUN(test_output_protect);
     TEST_END();
 }

@@ -7,6 +7,7 @@
  * accuracy/time study (paper section 6). */
 #include "verify/compare.h"
 #include "cli/cli.h"
+#include "common/outfile.h"
 
 #include "cli/font.h"
 #include "formats/image.h"
@@ -361,6 +362,8 @@ static int cmp_parse(int argc, char **argv, const char **gtos, cmp_args *A) {
         fprintf(stderr, "wrt-compare: error: needs a scene and at least one .gto (see --help)\n");
         return 1;
     }
+    wrt_output_protect(A->scene_path); /* no output replaces an input (common/outfile.h) */
+    for (int b = 0; b < A->ngto; b++) wrt_output_protect(gtos[b]);
     return -1;
 }
 

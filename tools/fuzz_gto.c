@@ -9,15 +9,36 @@
  * file with K, v1.1_k_small.gto, so that mutations reach K's checks). */
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "common/wrt_common.h"
+#include "common/text.h"
 #include "formats/gto.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-static void quiet(void *user, int level, const char *msg) { (void)level; (void)msg; (void)user; }
+/* Every message is safe for a terminal whatever the input's names (common/text.h): no
+ * control byte, no C1 control, only valid UTF-8. A crash for the fuzzer if not. */
+static void check_safe(const char *what, const char *msg) {
+    const unsigned char *p = (const unsigned char *)msg;
+    size_t len = strlen(msg);
+    char unit[WRT_SAFE_UNIT_MAX];
+    for (size_t i = 0, ulen; i < len;) {
+        size_t n = wrt_text_safe_unit(p + i, len - i, 0, unit, &ulen);
+        if (ulen != n || memcmp(unit, p + i, n) != 0) {
+            fprintf(stderr, "fuzz: %s holds an unescaped byte 0x%02x at %zu: %s\n", what, p[i], i, msg);
+            abort();
+        }
+        i += n;
+    }
+}
+
+static void quiet(void *user, int level, const char *msg) {
+    (void)level; (void)user;
+    check_safe("a log message", msg);
+}
 
 static uint64_t rd64(const uint8_t *b, size_t o) { uint64_t x; memcpy(&x, b + o, 8); return x; }
 static uint32_t rd32(const uint8_t *b, size_t o) { uint32_t x; memcpy(&x, b + o, 4); return x; }
@@ -72,6 +93,8 @@ static void check(const uint8_t *data, size_t size, int forge) {
     if (wrt_gto_open_memory(c, size, &g) == WRT_OK) {
         sink = touch(&g);
         wrt_gto_close(&g);
+    } else {
+        check_safe("the error", wrt_last_error());
     }
     free(c);
 }

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "common/wrt_common.h"
+#include "common/text.h"
 #include "formats/scene.h"
 #include "tests/json_check.h"
 
@@ -16,14 +17,36 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-static void quiet(void *user, int level, const char *msg) { (void)level; (void)msg; (void)user; }
+/* Every message is safe for a terminal whatever the input's names (common/text.h): no
+ * control byte, no C1 control, only valid UTF-8. A crash for the fuzzer if not. */
+static void check_safe(const char *what, const char *msg) {
+    const unsigned char *p = (const unsigned char *)msg;
+    size_t len = strlen(msg);
+    char unit[WRT_SAFE_UNIT_MAX];
+    for (size_t i = 0, ulen; i < len;) {
+        size_t n = wrt_text_safe_unit(p + i, len - i, 0, unit, &ulen);
+        if (ulen != n || memcmp(unit, p + i, n) != 0) {
+            fprintf(stderr, "fuzz: %s holds an unescaped byte 0x%02x at %zu: %s\n", what, p[i], i, msg);
+            abort();
+        }
+        i += n;
+    }
+}
+
+static void quiet(void *user, int level, const char *msg) {
+    (void)level; (void)user;
+    check_safe("a log message", msg);
+}
 
 /* A scene that loads is summarized as JSON (the --scan --json writer), which must parse
  * whatever names the input gave it: a crash for the fuzzer if not. */
 static void load(const void *p, size_t n, int drop_bad) {
     wrt_load_options opt = {.drop_bad = drop_bad};
     wrt_scene s;
-    if (wrt_scene_load_memory(p, n, "/nonexistent-wrt-fuzz", &opt, &s) != WRT_OK) return;
+    if (wrt_scene_load_memory(p, n, "/nonexistent-wrt-fuzz", &opt, &s) != WRT_OK) {
+        check_safe("the error", wrt_last_error());
+        return;
+    }
     char *buf = NULL;
     size_t len = 0;
     FILE *f = open_memstream(&buf, &len);

@@ -206,6 +206,8 @@ static int ref_parse(int argc, char **argv, ref_opts *o) {
 #undef INT
     }
     if (!o->scene_path) { fprintf(stderr, "wrt-ref: error: no scene (see --help)\n"); return WRT_EXIT_USAGE; }
+    wrt_output_protect(o->scene_path); /* no output replaces an input (common/outfile.h) */
+    wrt_output_protect(o->points_path);
     return -1;
 }
 
