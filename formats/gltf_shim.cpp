@@ -644,6 +644,11 @@ void fill(const tinygltf::Model &model, const char *label, wrt_gltf_data *out, r
         for (int c = 0; c < 3; c++)
             o.emissive[c] = m.emissiveFactor.size() == 3 ? m.emissiveFactor[size_t(c)] : 0.0;
         o.double_sided = m.doubleSided ? 1 : 0;
+        o.emissive_strength = 1.0; /* KHR_materials_emissive_strength (checked by the strict pass) */
+        auto es = m.extensions.find("KHR_materials_emissive_strength");
+        if (es != m.extensions.end() && es->second.IsObject() && es->second.Has("emissiveStrength") &&
+            es->second.Get("emissiveStrength").IsNumber())
+            o.emissive_strength = es->second.Get("emissiveStrength").GetNumberAsDouble();
         /* A texture that is named must be read: never silently the factor alone. */
         auto need = [&](int tex, bool srgb, double mean[4], const char *what) -> int {
             if (tex < 0) return 0;

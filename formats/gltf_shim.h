@@ -40,6 +40,7 @@ typedef struct wrt_gltf_material {
     double base_color[4];
     double metallic, roughness;
     double emissive[3];
+    double emissive_strength; /* KHR_materials_emissive_strength (1 without it) */
     int has_base_tex, has_mr_tex, has_emissive_tex; /* 1 if the texture was decoded */
     int double_sided;        /* material.doubleSided */
     double base_tex_mean[4];

@@ -618,7 +618,7 @@ static void convert_materials(const wrt_gltf_data *g, int need_default, wrt_scen
         for (int c = 0; c < 3; c++) {
             double bc = m->base_color[c] * (m->has_base_tex ? m->base_tex_mean[c] : 1.0);
             o->base_color[c] = clamp01(bc, &changed);
-            double em = m->emissive[c] * (m->has_emissive_tex ? m->emissive_tex_mean[c] : 1.0);
+            double em = m->emissive[c] * m->emissive_strength * (m->has_emissive_tex ? m->emissive_tex_mean[c] : 1.0);
             o->emissive[c] = (float)(isfinite(em) && em > 0 ? em : 0.0);
         }
         o->metallic = clamp01(m->metallic * (m->has_mr_tex ? m->mr_tex_mean[2] : 1.0), &changed);

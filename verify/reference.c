@@ -286,7 +286,9 @@ static void trace(ref_thread *th, ref_rng *rng, wrt_v3 o, wrt_v3 d, const double
         wrt_v3 wo = v3_scale(d, -1);
         double ld[3];
         direct_radiance(th, q, y, wo, ld);
-        for (int c = 0; c < 3; c++) out[c] += T[c] * ld[c];
+        /* An emissive surface's radiance, met by the path (no next-event estimation toward
+         * emitters, so nothing is counted twice and no MIS weight is needed) */
+        for (int c = 0; c < 3; c++) out[c] += T[c] * (ld[c] + q->m->emissive[c]);
         if (k >= th->max_bounces) return;
         double w[3];
         double u1 = rng_next(rng), u2 = rng_next(rng), u3 = rng_next(rng);
@@ -497,7 +499,7 @@ static void render_row(ref_job *job, ref_thread *th, int y) {
                 wrt_v3 wo = v3_scale(d, -1);
                 double dr[3];
                 direct_radiance(th, q, p, wo, dr);
-                for (int ch = 0; ch < 3; ch++) sd[ch] += dr[ch];
+                for (int ch = 0; ch < 3; ch++) sd[ch] += dr[ch] + q->m->emissive[ch]; /* emitter seen */
                 double w[3];
                 double u1 = rng_next(&rng), u2 = rng_next(&rng), u3 = rng_next(&rng);
                 wrt_v3 wi = wrt_brdf_sample(q->m, q->n, wo, u1, u2, u3, w);
