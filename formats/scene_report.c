@@ -137,6 +137,28 @@ static void print_summary_json(const wrt_scene *s, int npara, const int *uses, F
 }
 
 /* The text form: one line per count, then the materials, lights, camera and problems. */
+/* Each emissive material: its radiance, its quads and area, the power it sends (pi L_e A,
+ * W per channel), whether the operator carries it (Lambertian, albedo > 0 in each
+ * emitting channel) and what it costs a light change (docs/emitters.md). */
+static void print_emitters(const wrt_scene *s, const int *uses, FILE *f) {
+    for (int i = 0; i < s->nmaterials; i++) {
+        const wrt_material *m = &s->materials[i];
+        if (!(m->emissive[0] > 0 || m->emissive[1] > 0 || m->emissive[2] > 0)) continue;
+        double area = 0;
+        for (int q = 0; q < s->nquads; q++)
+            if (s->quads[q].material == i) area += s->quads[q].area;
+        const char *carried = "carried by the operator";
+        if (!m->lambertian) carried = "NOT carried (glossy: only Lambertian emitters light other surfaces)";
+        else
+            for (int c = 0; c < 3; c++)
+                if (m->emissive[c] > 0 && !(m->base_color[c] > 0)) carried = "NOT carried in a channel of albedo 0";
+        fprintf(f, "  emitter [%d] %-16s L_e (%g, %g, %g) on %d quads, %.4g m^2, power (%.4g, %.4g, %.4g) W; %s; "
+                   "cost: %d coefficients added to E per change, no projection, no shadow rays\n",
+                i, m->name, m->emissive[0], m->emissive[1], m->emissive[2], uses[i], area, WRT_PI * m->emissive[0] * area,
+                WRT_PI * m->emissive[1] * area, WRT_PI * m->emissive[2] * area, carried, uses[i]);
+    }
+}
+
 static void print_summary_text(const wrt_scene *s, int npara, const int *uses, FILE *f) {
     const wrt_camera *c = &s->camera;
     int ndiffuse = 0;
@@ -166,7 +188,7 @@ static void print_summary_text(const wrt_scene *s, int npara, const int *uses, F
                 s->nmirrored);
     fprintf(f, "bbox: (%g, %g, %g) - (%g, %g, %g)\n", s->bbox_min.x, s->bbox_min.y, s->bbox_min.z,
             s->bbox_max.x, s->bbox_max.y, s->bbox_max.z);
-    fprintf(f, "materials: %d (%d diffuse, %d glossy), %d emissive (reported only)\n", s->nmaterials,
+    fprintf(f, "materials: %d (%d diffuse, %d glossy), %d emissive (sources: docs/emitters.md)\n", s->nmaterials,
             ndiffuse, s->nmaterials - ndiffuse, s->nemissive);
     for (int i = 0; i < s->nmaterials; i++) {
         const wrt_material *m = &s->materials[i];
@@ -174,6 +196,7 @@ static void print_summary_text(const wrt_scene *s, int npara, const int *uses, F
                 m->name, m->lambertian ? "diffuse" : "glossy ", m->base_color[0], m->base_color[1],
                 m->base_color[2], m->metallic, m->roughness, uses[i]);
     }
+    print_emitters(s, uses, f);
     fprintf(f, "lights: %d (numbered from 1, as --light N and --light-scale N=S take them)\n", s->nlights);
     for (int i = 0; i < s->nlights; i++) {
         const wrt_light *l = &s->lights[i];

@@ -269,7 +269,13 @@ int chosen_light(const app *a) { return a->o->lights.which ? a->o->lights.which 
 static int setup_lights(app *a) {
     const options *o = a->o;
     a->nlights = (int)a->g.nlights;
-    int need_default = a->nlights == 0;
+    int emitters = 0; /* emissive surfaces light the scene on their own (docs/emitters.md) */
+    for (uint32_t q = 0; q < a->g.nquads && !emitters; q++) {
+        uint32_t m = a->g.quads[q].material;
+        emitters = m < a->g.nmaterials && (a->g.materials[m].emissive[0] > 0 || a->g.materials[m].emissive[1] > 0 ||
+                                           a->g.materials[m].emissive[2] > 0);
+    }
+    int need_default = a->nlights == 0 && !emitters;
     a->lights = wrt_xcalloc((size_t)(a->nlights ? a->nlights : 1), sizeof *a->lights);
     for (int i = 0; i < a->nlights; i++) wrt_render_light_from_gto(&a->g.lights[i], &a->lights[i]);
     if (need_default) {
@@ -291,7 +297,7 @@ static int setup_lights(app *a) {
         a->nlights = 1;
         wrt_log(WRT_LOG_WARN, "the file has no light: using a point light at (%g, %g, %g)", l->pos.x, l->pos.y, l->pos.z);
     }
-    float *sc = wrt_xmalloc((size_t)a->nlights * sizeof *sc);
+    float *sc = wrt_xmalloc((size_t)(a->nlights ? a->nlights : 1) * sizeof *sc);
     int rc = wrt_cli_lights_apply(T, &o->lights, a->lights, a->nlights, sc);
     for (int i = 0; i < WRT_RENDER_MAX_LIGHTS; i++) a->scales[i] = i < a->nlights ? sc[i] : 1;
     free(sc);

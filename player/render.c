@@ -34,11 +34,14 @@ static const char *scene_vs =
     "layout(location=3) in vec4 a_base;\n"  /* base colour, metallic */
     "layout(location=4) in vec2 a_rough;\n" /* roughness, lambertian */
     "layout(location=5) in vec4 a_rect;\n"  /* atlas: first inner texel x, y; res */
+    "layout(location=6) in vec3 a_emit;\n"  /* emitted radiance x the emitter's scale */
     "uniform mat4 u_vp;\n"
     "out vec3 v_pos; out vec2 v_uv;\n"
     "flat out vec3 v_nrm; flat out vec4 v_base; flat out vec2 v_rough; flat out vec4 v_rect;\n"
+    "flat out vec3 v_emit;\n"
     "void main() {\n"
     "  v_pos = a_pos; v_nrm = a_nrm; v_uv = a_uv; v_base = a_base; v_rough = a_rough; v_rect = a_rect;\n"
+    "  v_emit = a_emit;\n"
     "  gl_Position = u_vp * vec4(a_pos, 1.0);\n"
     "}\n";
 
@@ -51,6 +54,7 @@ static const char *scene_fs =
     "#define SHADOW_NEAR 1e-3\n"
     "in vec3 v_pos; in vec2 v_uv;\n"
     "flat in vec3 v_nrm; flat in vec4 v_base; flat in vec2 v_rough; flat in vec4 v_rect;\n"
+    "flat in vec3 v_emit;\n"
     "uniform int u_nlights;\n"
     "uniform vec4 u_lpos[MAXL];\n"  /* position, far distance of its shadow map (sun: its half-width) */
     "uniform vec4 u_lcol[MAXL];\n"  /* colour * intensity * scale, type (0 point, 1 spot, 2 sun) */
@@ -145,6 +149,7 @@ static const char *scene_fs =
     "      float s = lit(i, v_pos, n);\n"
     "      c += s * att * nl * u_lcol[i].rgb * brdf(n, l, v);\n"
     "    }\n"
+    "    if (u_mode != 2) c += v_emit;\n" /* an emissive surface, seen from its front */
     "    if (u_mode != 1 && v_rect.z > 0.0) {\n"
     "      vec2 uv = clamp(v_uv, 0.0, 1.0);\n"
     "      c += texture(u_atlas, (v_rect.xy + uv * v_rect.z) / u_atlas_size).rgb;\n"
@@ -197,6 +202,7 @@ struct wrt_render {
     int width, height;
     GLuint prog_scene, prog_shadow, prog_present;
     GLuint vao, vbo_geom, vbo_rect, ibo, vao_empty;
+    GLuint vbo_emit;         /* per vertex: its material's emitted radiance x scale */
     GLuint fbo, color, depth;
     int samples;             /* MSAA samples; > 1: draw into ms_fbo, resolve into fbo */
     GLuint ms_fbo, ms_color, ms_depth;
@@ -373,6 +379,21 @@ void wrt_render_light_from_gto(const wrt_gto_light *in, wrt_light *out) {
 
 enum { VTX_FLOATS = 3 + 3 + 2 + 4 + 2 };
 
+void wrt_render_set_emitter_scales(wrt_render *r, const float *scales) {
+    const wrt_gto *g = r->g;
+    size_t nv = (size_t)g->nquads * 4;
+    float *e = wrt_xcalloc(nv ? 3 * nv : 3, sizeof(float));
+    for (uint32_t q = 0; q < g->nquads; q++) {
+        uint32_t mi = g->quads[q].material;
+        if (mi >= g->nmaterials) continue;
+        float s = scales ? scales[mi] : 1.0f;
+        for (int c = 0; c < 4; c++)
+            for (int k = 0; k < 3; k++) e[((size_t)q * 4 + (size_t)c) * 3 + (size_t)k] = g->materials[mi].emissive[k] * s;
+    }
+    glNamedBufferSubData(r->vbo_emit, 0, (GLsizeiptr)((nv ? nv : 1) * 3 * sizeof(float)), e);
+    free(e);
+}
+
 static void build_geometry(wrt_render *r) {
     const wrt_gto *g = r->g;
     size_t nv = (size_t)g->nquads * 4;
@@ -422,6 +443,13 @@ static void build_geometry(wrt_render *r) {
     glEnableVertexArrayAttrib(a, 5);
     glVertexArrayAttribFormat(a, 5, 4, GL_FLOAT, GL_FALSE, 0);
     glVertexArrayAttribBinding(a, 5, 1);
+    glCreateBuffers(1, &r->vbo_emit);
+    glNamedBufferStorage(r->vbo_emit, (GLsizeiptr)((nv ? nv : 1) * 3 * sizeof(float)), NULL, GL_DYNAMIC_STORAGE_BIT);
+    wrt_render_set_emitter_scales(r, NULL);
+    glVertexArrayVertexBuffer(a, 2, r->vbo_emit, 0, 3 * sizeof(float));
+    glEnableVertexArrayAttrib(a, 6);
+    glVertexArrayAttribFormat(a, 6, 3, GL_FLOAT, GL_FALSE, 0);
+    glVertexArrayAttribBinding(a, 6, 2);
     glCreateVertexArrays(1, &r->vao_empty);
 }
 
@@ -566,6 +594,7 @@ void wrt_render_destroy(wrt_render *r) {
     glDeleteVertexArrays(1, &r->vao_empty);
     glDeleteBuffers(1, &r->vbo_geom);
     glDeleteBuffers(1, &r->vbo_rect);
+    glDeleteBuffers(1, &r->vbo_emit);
     glDeleteBuffers(1, &r->ibo);
     glDeleteFramebuffers(1, &r->fbo);
     glDeleteFramebuffers(1, &r->shadow_fbo);

@@ -113,6 +113,15 @@ int wrt_compare_default_lights(const wrt_scene *s, int count, wrt_light *out) {
         double d = v3_len(ext);
         base.intensity = (float)(d > 0 ? d * d : 1);
         base.outer_cone = (float)(WRT_PI / 4);
+        if (s->nemissive > 0) {
+            /* lit by its emissive surfaces alone (docs/emitters.md): one dark light, so
+             * that both sides compare the emitters' light and nothing else */
+            snprintf(base.name, sizeof base.name, "emitters only");
+            base.intensity = 0;
+            base.pos = v3_scale(v3_add(lo, hi), 0.5);
+            out[k++] = base;
+            return k;
+        }
     }
     int nfrac = (int)(sizeof frac / sizeof frac[0]);
     for (int i = 0; k < count && i < 4 * nfrac; i++) {
