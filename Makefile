@@ -198,6 +198,7 @@ TEST_PARTS_test_accuracy := verify bake runtime formats common
 TEST_PARTS_test_stress := verify bake runtime formats common
 TEST_PARTS_test_triangles := bake runtime formats common
 TEST_PARTS_test_emit := verify bake runtime formats common
+TEST_PARTS_test_texture := verify bake runtime formats common
 TEST_PARTS_test_render := display cli formats common
 TEST_PARTS_test_play := display cli runtime formats common
 test_parts = $(or $(TEST_PARTS_$(1)),$(ALL_PARTS))

@@ -50,6 +50,8 @@ typedef struct wrt_material {
                              x mean emissiveTexture (docs/emitters.md) */
     int lambertian;       /* 1 if roughness == 1 and metallic == 0: pure diffuse, albedo base_color */
     int has_texture;
+    int base_tex;         /* 1 + index into the scene's textures of its baseColorTexture on
+                             TEXCOORD_0 (common/texture.h), 0: none (docs/textures.md) */
 } wrt_material;
 
 /* A directional light (KHR_lights_punctual's `directional`, a sun) has no position and no
