@@ -703,6 +703,7 @@ struct strict_check {
         for (auto it = root.begin(); it != root.end(); ++it) {
             static const char *used[] = {"asset", "scene", "scenes", "nodes", "meshes", "accessors",
                                          "bufferViews", "buffers", "materials", "textures", "images",
+                                         "samplers", /* wrap modes of base-colour textures */
                                          "cameras", "extensions", "extensionsUsed", "extensionsRequired",
                                          "extras"};
             bool u = false;
