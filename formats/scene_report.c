@@ -5,6 +5,7 @@
  * wrt_common and the one JSON string writer in common/text.h. */
 #define _POSIX_C_SOURCE 200809L
 #include "scene.h"
+#include "../common/texture.h"
 #include "scene_internal.h"
 #include "../common/text.h"
 
@@ -156,6 +157,18 @@ static void print_emitters(const wrt_scene *s, const int *uses, FILE *f) {
                    "cost: %d coefficients added to E per change, no projection, no shadow rays\n",
                 i, m->name, m->emissive[0], m->emissive[1], m->emissive[2], uses[i], area, WRT_PI * m->emissive[0] * area,
                 WRT_PI * m->emissive[1] * area, WRT_PI * m->emissive[2] * area, carried, uses[i]);
+    }
+    for (int i = 0; i < s->nmaterials; i++) { /* base-colour textures (docs/textures.md) */
+        const wrt_material *m = &s->materials[i];
+        if (m->base_tex <= 0 || m->base_tex > s->ntextures) continue;
+        const wrt_texture *t = &s->textures[m->base_tex - 1];
+        int nuv = 0;
+        for (int q = 0; q < s->nquads; q++) nuv += s->quads[q].material == i && s->quads[q].has_uv;
+        fprintf(f, "  texture [%d] %-16s base colour %d x %d (%.3g MB as linear floats), mean (%.3f, %.3f, %.3f); "
+                   "%d of %d quads have UVs and get their own albedo; cost: the bake's albedo per element "
+                   "(%s), nothing at run time\n",
+                i, m->name, t->w, t->h, (double)t->w * t->h * 12 / 1e6, t->mean[0], t->mean[1], t->mean[2], nuv,
+                uses[i], m->lambertian ? "exact for a Lambertian material" : "glossy: its diffuse albedo only");
     }
 }
 

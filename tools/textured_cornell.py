@@ -8,7 +8,7 @@ PNG images embedded as data URIs). Python's standard library only (zlib for the 
   floor element covers one square, so its own albedo is 0.8 or 0.05 while the
   material's mean is 0.425.
 - back wall: 2 x 2 quads, a texture of four 8 x 8-texel blocks (orange, teal, white,
-  dark blue), baseColorFactor (1, 1, 1).
+  dark blue), baseColorFactor (1, 1, 1); its UV t runs up the wall.
 - red and green side walls, white ceiling, the two white boxes, and the point light of
   wrt-scenegen's cornell (2.5 cd at (0, 0.85, 0)).
 Texels are written sRGB-encoded (glTF's base colour textures are sRGB)."""
@@ -45,7 +45,16 @@ class Mesh:
     def __init__(self, name, material):
         self.name, self.material, self.pos, self.uv, self.idx = name, material, [], [], []
 
-    def quad(self, p, uv=None):
+    def quad(self, p, uv=None, facing=None):
+        """Corners in order around the quad; with `facing`, reversed if their normal
+        (p1 - p0) x (p3 - p0) points away from it."""
+        if facing is not None:
+            e1 = [p[1][k] - p[0][k] for k in range(3)]
+            e3 = [p[3][k] - p[0][k] for k in range(3)]
+            n = (e1[1] * e3[2] - e1[2] * e3[1], e1[2] * e3[0] - e1[0] * e3[2], e1[0] * e3[1] - e1[1] * e3[0])
+            if sum(n[k] * facing[k] for k in range(3)) < 0:
+                p = [p[0], p[3], p[2], p[1]]
+                uv = [uv[0], uv[3], uv[2], uv[1]] if uv else None
         b = len(self.pos)
         self.pos += p
         self.uv += uv if uv else [(0, 0), (1, 0), (1, 1), (0, 1)]
@@ -69,8 +78,9 @@ def block(mesh, cx, cz, w, d, h, deg):
     t = [(x, h, z) for (x, _, z) in b]
     for k in range(4):
         k1 = (k + 1) % 4
-        mesh.quad([b[k], b[k1], t[k1], t[k]])
-    mesh.quad([t[0], t[3], t[2], t[1]])
+        out = tuple(0.5 * (b[k][i] + b[k1][i]) - (cx, 0, cz)[i] for i in range(3))
+        mesh.quad([b[k], b[k1], t[k1], t[k]], facing=out)
+    mesh.quad([t[0], t[1], t[2], t[3]], facing=(0, 1, 0))
 
 
 def main(out):
@@ -87,16 +97,16 @@ def main(out):
     grid(floor, (-0.5, 0, 0.5), (1, 0, 0), (0, 0, -1), 4)
     meshes.append(floor)
     ceil = Mesh("ceiling", 0)
-    ceil.quad([(-0.5, 1, -0.5), (0.5, 1, -0.5), (0.5, 1, 0.5), (-0.5, 1, 0.5)])
+    ceil.quad([(-0.5, 1, -0.5), (0.5, 1, -0.5), (0.5, 1, 0.5), (-0.5, 1, 0.5)], facing=(0, -1, 0))
     meshes.append(ceil)
     back = Mesh("back_wall", 4)
-    grid(back, (-0.5, 1, -0.5), (1, 0, 0), (0, -1, 0), 2)  # t = 0 at the top
+    grid(back, (-0.5, 0, -0.5), (1, 0, 0), (0, 1, 0), 2)  # faces +z; UV t runs up
     meshes.append(back)
     left = Mesh("left_wall", 1)
-    left.quad([(-0.5, 0, -0.5), (-0.5, 0, 0.5), (-0.5, 1, 0.5), (-0.5, 1, -0.5)])
+    left.quad([(-0.5, 0, -0.5), (-0.5, 0, 0.5), (-0.5, 1, 0.5), (-0.5, 1, -0.5)], facing=(1, 0, 0))
     meshes.append(left)
     right = Mesh("right_wall", 2)
-    right.quad([(0.5, 0, 0.5), (0.5, 0, -0.5), (0.5, 1, -0.5), (0.5, 1, 0.5)])
+    right.quad([(0.5, 0, 0.5), (0.5, 0, -0.5), (0.5, 1, -0.5), (0.5, 1, 0.5)], facing=(-1, 0, 0))
     meshes.append(right)
     sbox, tbox = Mesh("short_box", 0), Mesh("tall_box", 0)
     block(sbox, 0.17, 0.20, 0.30, 0.30, 0.30, -17)
