@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "common/texture.h"
+#include <stdint.h>
 #include "include/wrt.h"
 #include "formats/gto.h"
 #include "precompute/bake.h"
@@ -200,6 +201,37 @@ static void test_checker_bounce(void) {
     free_scene(&m);
 }
 
+/* The .gto's textures section (version 1.3): the floor's checker read back (sRGB bytes of
+ * 0.8 and 0.05, computed here from the sRGB formula), and a corrupted record refused. */
+static void test_gto_section(void) {
+    char path[512];
+    snprintf(path, sizeof path, "%s/tex.gto", tmpdir);
+    wrt_gto g;
+    CHECK(wrt_gto_open(path, &g) == WRT_OK, "open: %s", wrt_last_error());
+    if (!g.map) return;
+    CHECK(g.version_minor == 3, "version 1.%u", g.version_minor);
+    wrt_gto_texture t;
+    CHECK(wrt_gto_texture_count(&g) == 1 && wrt_gto_texture_get(&g, 0, &t), "one texture");
+    CHECK(!wrt_gto_texture_get(&g, 1, &t), "index 1 out of range");
+    wrt_gto_texture_get(&g, 0, &t);
+    CHECK(t.material == 0 && t.w == TEX && t.h == TEX && t.wrap[0] == WRT_WRAP_CLAMP, "record");
+    int hi = (int)lround(255 * (1.055 * pow(HI, 1 / 2.4) - 0.055)), lo = (int)lround(255 * (1.055 * pow(LO, 1 / 2.4) - 0.055));
+    CHECK(t.srgb[0] == hi && t.srgb[3 * SQ] == lo && t.srgb[3 * (TEX * SQ)] == lo, "texels %d %d %d (want %d %d)",
+          t.srgb[0], t.srgb[3 * SQ], t.srgb[3 * (TEX * SQ)], hi, lo);
+    CHECK(t.factor[0] == 1 && fabsf(t.mean[0] - 0.5f * (HI + LO)) < 1e-6f, "factor %g mean %g", t.factor[0], t.mean[0]);
+    /* a wrap mode of 7 in a copy: refused, naming the section */
+    uint8_t *copy = malloc(g.size);
+    memcpy(copy, g.map, g.size);
+    size_t rec = (size_t)(g.textures - (const uint8_t *)g.map) + 8;
+    uint32_t bad = 7;
+    memcpy(copy + rec + 12, &bad, 4);
+    wrt_gto g2;
+    CHECK(wrt_gto_open_memory(copy, g.size, &g2) == WRT_ERR_CORRUPT && strstr(wrt_last_error(), "section textures"),
+          "corrupt wrap refused: %s", wrt_last_error());
+    free(copy);
+    wrt_gto_close(&g);
+}
+
 int main(int argc, char **argv) {
     (void)argc; (void)argv;
     setvbuf(stdout, NULL, _IOLBF, 0);
@@ -207,6 +239,7 @@ int main(int argc, char **argv) {
     if (!mkdtemp(tmpdir)) { perror("mkdtemp"); return 2; }
     TEST_RUN(test_element_mean);
     TEST_RUN(test_checker_bounce);
+    TEST_RUN(test_gto_section);
     char cmd[300];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
     if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", tmpdir);
