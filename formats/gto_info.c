@@ -234,6 +234,19 @@ static void print_emitters(FILE *f, const wrt_gto *g, int json) {
     }
     if (json) fputc(']', f);
     else if (!n) fputs("emitters:   none\n", f);
+    uint32_t nt = wrt_gto_texture_count(g); /* base-colour textures (docs/textures.md) */
+    if (json) fputs(", \"textures\": [", f);
+    for (uint32_t i = 0; i < nt; i++) {
+        wrt_gto_texture t;
+        wrt_gto_texture_get(g, i, &t);
+        if (json)
+            fprintf(f, "%s{\"material\": %u, \"width\": %u, \"height\": %u, \"bytes\": %u}", i ? ", " : "",
+                    t.material, t.w, t.h, 3 * t.w * t.h);
+        else
+            fprintf(f, "texture:    material %u base colour %u x %u, %u bytes; cost: four texel fetches a pixel "
+                    "(the bake used it per element)\n", t.material, t.w, t.h, 3 * t.w * t.h);
+    }
+    if (json) fputc(']', f);
 }
 
 /* --info --json: the figures of a sound file (after the header and the sections). */
