@@ -266,6 +266,32 @@ void scene_up(const app *a, wrt_v3 *up) {
 /* The light the command line's --light names (0-based), which scripts and --bench move. */
 int chosen_light(const app *a) { return a->o->lights.which ? a->o->lights.which - 1 : 0; }
 
+/* --emitter-scale: each named emissive material's scale, in the library and the
+ * renderer (docs/emitters.md); a material that is not in the file or does not emit is
+ * refused (exit 1). */
+static int apply_emitters(app *a) {
+    const options *o = a->o;
+    if (!o->nemit) return 0;
+    uint32_t nm = a->g.nmaterials;
+    float *sc = wrt_xmalloc((nm ? nm : 1) * sizeof *sc);
+    for (uint32_t m = 0; m < nm; m++) sc[m] = 1;
+    for (int k = 0; k < o->nemit; k++) {
+        int m = o->emit_mat[k];
+        const float *e = m < (int)nm ? a->g.materials[m].emissive : NULL;
+        if (!e || !(e[0] > 0 || e[1] > 0 || e[2] > 0)) {
+            fprintf(stderr, "wrt-play: error: --emitter-scale %d: %s (wrt-bake --info lists the emitters)\n", m,
+                    e ? "that material does not emit" : "the file has no such material");
+            free(sc);
+            return EXIT_USAGE;
+        }
+        sc[m] = o->emit_scale[k];
+        wrt_runtime_set_emitter_scale(a->rl, m, sc[m], NULL);
+    }
+    wrt_render_set_emitter_scales(a->rd, sc);
+    free(sc);
+    return 0;
+}
+
 static int setup_lights(app *a) {
     const options *o = a->o;
     a->nlights = (int)a->g.nlights;
@@ -450,6 +476,8 @@ static int win_reload(app *a, win_state *w) {
         fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         return s == WRT_ERR_GL ? EXIT_GL : EXIT_RUNTIME;
     }
+    int erc = apply_emitters(a);
+    if (erc) return erc;
     a->relit_once = 0;
     if (!same_lights) {
         free(a->lights);
@@ -870,6 +898,7 @@ int main(int argc, char **argv) {
         rc = s == WRT_ERR_GL ? EXIT_GL : EXIT_USAGE;
         goto done;
     }
+    if ((rc = apply_emitters(&a))) goto done;
     if (a.nlights > WRT_RENDER_MAX_LIGHTS)
         wrt_log(WRT_LOG_WARN, "%d lights: only the first %d are used", a.nlights, WRT_RENDER_MAX_LIGHTS);
 
