@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "../cli/cli.h"
+#include "../common/limits.h"
 #include "options.h"
 
 static void usage(FILE *f) {
@@ -80,7 +81,7 @@ static int parse_emitters(const char *v, options *o) {
         if (end == p || *end != '=' || m < 0 || m > 1000000) break;
         p = end + 1;
         double s = strtod(p, &end);
-        if (end == p || !(s >= 0) || !(s < 1e30) || (*end && *end != ',')) break;
+        if (end == p || !(s >= 0) || !(s <= WRT_MAX_LIGHT_SCALE) || (*end && *end != ',')) break;
         if (o->nemit == (int)(sizeof o->emit_mat / sizeof *o->emit_mat)) {
             fprintf(stderr, "wrt-play: error: --emitter-scale: more than %d emitters\n", o->nemit);
             return 0;
@@ -90,8 +91,8 @@ static int parse_emitters(const char *v, options *o) {
         p = *end ? end + 1 : end;
         if (!*end) return 1;
     }
-    fprintf(stderr, "wrt-play: error: --emitter-scale '%s': expected M=S[,M=S...] with M a material index and S a "
-                    "finite number >= 0\n", v);
+    fprintf(stderr, "wrt-play: error: --emitter-scale '%s': expected M=S[,M=S...] with M a material index and S in "
+                    "[0, %g]\n", v, (double)WRT_MAX_LIGHT_SCALE);
     return 0;
 }
 
