@@ -13,6 +13,13 @@ static int wrap_index(int i, int n, int mode) {
     return ((i % n) + n) % n;
 }
 
+void wrt_texture_srgb_table(float lut[256]) {
+    for (int i = 0; i < 256; i++) {
+        double c = i / 255.0;
+        lut[i] = (float)(c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4));
+    }
+}
+
 void wrt_texture_sample(const wrt_texture *t, double s, double tt, float out[3]) {
     if (!isfinite(s)) s = 0;
     if (!isfinite(tt)) tt = 0;
@@ -30,7 +37,8 @@ void wrt_texture_sample(const wrt_texture *t, double s, double tt, float out[3])
     double w[4] = {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay};
     for (int c = 0; c < 3; c++) {
         double v = 0;
-        for (int k = 0; k < 4; k++) v += w[k] * t->rgb[((size_t)yi[k >> 1] * (size_t)t->w + (size_t)xi[k & 1]) * 3 + (size_t)c];
+        for (int k = 0; k < 4; k++)
+            v += w[k] * t->lut[t->srgb[((size_t)yi[k >> 1] * (size_t)t->w + (size_t)xi[k & 1]) * 3 + (size_t)c]];
         out[c] = (float)v;
     }
 }

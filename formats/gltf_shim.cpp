@@ -293,18 +293,16 @@ int wrap_mode(int gl) {
     return gl == TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE ? 1 : gl == TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT ? 2 : 0;
 }
 
-/* Keeps a base-colour texture's texels, linear RGB, and its sampler's wrap modes (the
- * image was checked by texture_mean). */
+/* Keeps a base-colour texture's texels (sRGB bytes, RGB) and its sampler's wrap modes
+ * (the image was checked by texture_mean). */
 void keep_texture(const tinygltf::Model &model, int tex, wrt_gltf_material &o) {
     const tinygltf::Texture &t = model.textures[size_t(tex)];
     const tinygltf::Image &im = model.images[size_t(t.source)];
     size_t n = size_t(im.width) * size_t(im.height), nc = size_t(im.component);
-    float *rgb = static_cast<float *>(malloc(n * 3 * sizeof(float)));
+    unsigned char *rgb = static_cast<unsigned char *>(malloc(n * 3));
     if (!rgb) throw std::bad_alloc();
-    float lut[256];
-    for (int i = 0; i < 256; i++) lut[i] = float(srgb_to_linear(i / 255.0));
     for (size_t i = 0; i < n; i++)
-        for (size_t c = 0; c < 3; c++) rgb[i * 3 + c] = lut[im.image[i * nc + (nc >= 3 ? c : 0)]];
+        for (size_t c = 0; c < 3; c++) rgb[i * 3 + c] = im.image[i * nc + (nc >= 3 ? c : 0)];
     o.base_tex = rgb;
     o.base_tex_w = im.width;
     o.base_tex_h = im.height;

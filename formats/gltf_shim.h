@@ -47,9 +47,9 @@ typedef struct wrt_gltf_material {
     double mr_tex_mean[3];   /* R, G (roughness), B (metallic) */
     double emissive_tex_mean[3];
     /* baseColorTexture on TEXCOORD_0, kept for per-element albedo (docs/textures.md):
-     * linear RGB texels (w x h x 3, row 0 first, owned; NULL if none or on another
+     * sRGB texels (w x h x 3 bytes, row 0 first, owned; NULL if none or on another
      * TEXCOORD) and the sampler's wrap modes (0 repeat, 1 clamp, 2 mirror) */
-    float *base_tex; int base_tex_w, base_tex_h, base_tex_wrap[2];
+    unsigned char *base_tex; int base_tex_w, base_tex_h, base_tex_wrap[2];
 } wrt_gltf_material;
 
 enum { WRT_GLTF_LIGHT_POINT = 0, WRT_GLTF_LIGHT_SPOT = 1, WRT_GLTF_LIGHT_DIRECTIONAL = 2,

@@ -42,13 +42,13 @@ static uint8_t srgb_byte(float x, const float lut[256]) {
     return (uint8_t)lo;
 }
 
-/* t halved until it fits GTO_TEX_MAX (a new block, or NULL when it already fits). */
+/* t in linear floats, halved until it fits GTO_TEX_MAX (a new block, or NULL when it
+ * already fits: its bytes are then stored as they are). */
 static float *fit_texture(const wrt_texture *t, uint32_t *w, uint32_t *h) {
     *w = (uint32_t)t->w; *h = (uint32_t)t->h;
     if (*w <= GTO_TEX_MAX && *h <= GTO_TEX_MAX) return NULL;
-    float *cur = malloc((size_t)*w * *h * 3 * sizeof(float));
-    if (!cur) return NULL;
-    memcpy(cur, t->rgb, (size_t)*w * *h * 3 * sizeof(float));
+    float *cur = wrt_xmalloc((size_t)*w * *h * 3 * sizeof(float));
+    for (size_t i = 0; i < (size_t)*w * *h * 3; i++) cur[i] = t->lut[t->srgb[i]];
     while (*w > GTO_TEX_MAX || *h > GTO_TEX_MAX) {
         uint32_t nw = *w > 1 ? *w / 2 : 1, nh = *h > 1 ? *h / 2 : 1;
         for (uint32_t j = 0; j < nh; j++)
@@ -80,10 +80,7 @@ uint8_t *gto_build_textures(const wrt_scene *s, uint64_t *size) {
     if (!n) return NULL;
     uint8_t *b = wrt_xcalloc(total, 1);
     float lut[256];
-    for (int i = 0; i < 256; i++) {
-        double c = i / 255.0;
-        lut[i] = (float)(c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4));
-    }
+    wrt_texture_srgb_table(lut);
     memcpy(b, &n, 4);
     uint64_t data = TEX_HEAD + (uint64_t)n * TEX_REC;
     uint32_t k = 0;
@@ -93,13 +90,15 @@ uint8_t *gto_build_textures(const wrt_scene *s, uint64_t *size) {
         const wrt_texture *t = &s->textures[ti - 1];
         uint32_t w, h;
         float *fit = fit_texture(t, &w, &h);
-        const float *px = fit ? fit : t->rgb;
         uint32_t rec[6] = {(uint32_t)m, w, h, (uint32_t)t->wrap[0], (uint32_t)t->wrap[1], 0};
         uint8_t *r = b + TEX_HEAD + (uint64_t)k * TEX_REC;
         memcpy(r, rec, sizeof rec);
         memcpy(r + 24, t->factor, 12);
         memcpy(r + 36, t->mean, 12);
-        for (uint64_t i = 0; i < (uint64_t)w * h * 3; i++) b[data + i] = srgb_byte(px[i], lut);
+        if (fit)
+            for (uint64_t i = 0; i < (uint64_t)w * h * 3; i++) b[data + i] = srgb_byte(fit[i], lut);
+        else
+            memcpy(b + data, t->srgb, (size_t)w * h * 3);
         data += align8((uint64_t)w * h * 3);
         free(fit);
         k++;

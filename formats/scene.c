@@ -632,7 +632,8 @@ static void convert_materials(wrt_gltf_data *g, int need_default, wrt_scene *s,
             t->h = m->base_tex_h;
             t->wrap[0] = m->base_tex_wrap[0];
             t->wrap[1] = m->base_tex_wrap[1];
-            t->rgb = m->base_tex;
+            t->srgb = m->base_tex;
+            wrt_texture_srgb_table(t->lut);
             for (int c = 0; c < 3; c++) {
                 t->factor[c] = (float)m->base_color[c];
                 t->mean[c] = (float)m->base_tex_mean[c];
@@ -1026,7 +1027,7 @@ void wrt_scene_free(wrt_scene *s) {
     free(s->problems);
     free(s->ignored);
     free(s->files);
-    for (int i = 0; i < s->ntextures; i++) free(s->textures[i].rgb);
+    for (int i = 0; i < s->ntextures; i++) free(s->textures[i].srgb);
     free(s->textures);
     memset(s, 0, sizeof *s);
 }

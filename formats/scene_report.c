@@ -164,10 +164,10 @@ static void print_emitters(const wrt_scene *s, const int *uses, FILE *f) {
         const wrt_texture *t = &s->textures[m->base_tex - 1];
         int nuv = 0;
         for (int q = 0; q < s->nquads; q++) nuv += s->quads[q].material == i && s->quads[q].has_uv;
-        fprintf(f, "  texture [%d] %-16s base colour %d x %d (%.3g MB as linear floats), mean (%.3f, %.3f, %.3f); "
+        fprintf(f, "  texture [%d] %-16s base colour %d x %d (%.3g MB), mean (%.3f, %.3f, %.3f); "
                    "%d of %d quads have UVs and get their own albedo; cost: the bake's albedo per element "
                    "(%s), nothing at run time\n",
-                i, m->name, t->w, t->h, (double)t->w * t->h * 12 / 1e6, t->mean[0], t->mean[1], t->mean[2], nuv,
+                i, m->name, t->w, t->h, (double)t->w * t->h * 3 / 1e6, t->mean[0], t->mean[1], t->mean[2], nuv,
                 uses[i], m->lambertian ? "exact for a Lambertian material" : "glossy: its diffuse albedo only");
     }
 }

@@ -438,7 +438,8 @@ static void materials(void) {
         CHECK(s.ntextures == 1 && m[4].base_tex == 1 && s.textures[0].w == 2 && s.textures[0].h == 1,
               "the base-colour texture is kept: %d textures, base_tex %d", s.ntextures, m[4].base_tex);
         if (s.ntextures == 1)
-            CHECK_NEAR(s.textures[0].rgb[0], srgb_lin(128 / 255.0), 1e-6, "kept texel, linear");
+            CHECK(s.textures[0].srgb[0] == 128 && fabs(s.textures[0].lut[128] - srgb_lin(128 / 255.0)) < 1e-6,
+                  "kept texel %d, decoded %g", s.textures[0].srgb[0], s.textures[0].lut[128]);
         CHECK(strcmp(m[3].name, "lamp\"shade") == 0, "name %s", m[3].name);
         /* base: factor x mean of sRGB-decoded texels */
         CHECK_NEAR(m[4].base_color[0], 0.5 * srgb_lin(128 / 255.0), 1e-6, "R");

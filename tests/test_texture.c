@@ -25,8 +25,9 @@ static char tmpdir[256];
 
 #define TEX 64       /* texels a side */
 #define SQ 16        /* texels a checker square */
-#define HI 0.8f
-#define LO 0.05f
+#define HI_BYTE 231 /* sRGB bytes of the checker's squares: albedo about 0.80 and 0.05 */
+#define LO_BYTE 63
+static float HI, LO;  /* their linear values, from the sRGB formula (set in main) */
 
 /* A TEX x TEX checker of SQ-texel squares, HI where (i/SQ + j/SQ) is even; clamped. */
 static wrt_texture checker(void) {
@@ -34,10 +35,12 @@ static wrt_texture checker(void) {
     memset(&t, 0, sizeof t);
     t.w = t.h = TEX;
     t.wrap[0] = t.wrap[1] = WRT_WRAP_CLAMP;
-    t.rgb = malloc((size_t)TEX * TEX * 3 * sizeof(float));
+    t.srgb = malloc((size_t)TEX * TEX * 3);
     for (int j = 0; j < TEX; j++)
         for (int i = 0; i < TEX; i++)
-            for (int c = 0; c < 3; c++) t.rgb[((size_t)j * TEX + (size_t)i) * 3 + (size_t)c] = ((i / SQ + j / SQ) % 2) ? LO : HI;
+            for (int c = 0; c < 3; c++)
+                t.srgb[((size_t)j * TEX + (size_t)i) * 3 + (size_t)c] = ((i / SQ + j / SQ) % 2) ? LO_BYTE : HI_BYTE;
+    wrt_texture_srgb_table(t.lut);
     for (int c = 0; c < 3; c++) { t.factor[c] = 1; t.mean[c] = 0.5f * (HI + LO); }
     return t;
 }
@@ -82,7 +85,7 @@ static void test_element_mean(void) {
     CHECK(b[0] == HI, "mirror: %g", b[0]);
     wrt_texture_sample(&t, -24.0 / TEX, 8.0 / TEX, b);
     CHECK(b[0] == LO, "mirror, second square: %g", b[0]);
-    free(t.rgb);
+    free(t.srgb);
 }
 
 /* A 1 m floor of 4 x 4 elements, one checker square each (UV (0..1) over the floor),
@@ -124,7 +127,7 @@ static void floor_scene(wrt_scene *s, int mean_albedo) {
 }
 
 static void free_scene(wrt_scene *s) {
-    for (int i = 0; i < s->ntextures; i++) free(s->textures[i].rgb);
+    for (int i = 0; i < s->ntextures; i++) free(s->textures[i].srgb);
     free(s->textures);
     s->textures = NULL;
     tsb_free(s);
@@ -215,7 +218,7 @@ static void test_gto_section(void) {
     CHECK(!wrt_gto_texture_get(&g, 1, &t), "index 1 out of range");
     wrt_gto_texture_get(&g, 0, &t);
     CHECK(t.material == 0 && t.w == TEX && t.h == TEX && t.wrap[0] == WRT_WRAP_CLAMP, "record");
-    int hi = (int)lround(255 * (1.055 * pow(HI, 1 / 2.4) - 0.055)), lo = (int)lround(255 * (1.055 * pow(LO, 1 / 2.4) - 0.055));
+    int hi = HI_BYTE, lo = LO_BYTE;
     CHECK(t.srgb[0] == hi && t.srgb[3 * SQ] == lo && t.srgb[3 * (TEX * SQ)] == lo, "texels %d %d %d (want %d %d)",
           t.srgb[0], t.srgb[3 * SQ], t.srgb[3 * (TEX * SQ)], hi, lo);
     CHECK(t.factor[0] == 1 && fabsf(t.mean[0] - 0.5f * (HI + LO)) < 1e-6f, "factor %g mean %g", t.factor[0], t.mean[0]);
@@ -237,6 +240,8 @@ int main(int argc, char **argv) {
     setvbuf(stdout, NULL, _IOLBF, 0);
     snprintf(tmpdir, sizeof tmpdir, "/tmp/wrt_tex_XXXXXX");
     if (!mkdtemp(tmpdir)) { perror("mkdtemp"); return 2; }
+    HI = (float)pow((HI_BYTE / 255.0 + 0.055) / 1.055, 2.4);
+    LO = (float)pow((LO_BYTE / 255.0 + 0.055) / 1.055, 2.4);
     TEST_RUN(test_element_mean);
     TEST_RUN(test_checker_bounce);
     TEST_RUN(test_gto_section);
