@@ -46,9 +46,12 @@ typedef struct wrt_material {
     float base_color[3];  /* linear RGB: baseColorFactor x mean of baseColorTexture */
     float metallic;       /* glTF default 1 */
     float roughness;      /* glTF default 1 */
-    float emissive[3];    /* emissiveFactor x mean emissiveTexture (reported, not emitted) */
+    float emissive[3];    /* emitted radiance L_e: emissiveFactor x KHR_materials_emissive_strength
+                             x mean emissiveTexture (docs/emitters.md) */
     int lambertian;       /* 1 if roughness == 1 and metallic == 0: pure diffuse, albedo base_color */
     int has_texture;
+    int base_tex;         /* 1 + index into the scene's textures of its baseColorTexture on
+                             TEXCOORD_0 (common/texture.h), 0: none (docs/textures.md) */
 } wrt_material;
 
 /* A directional light (KHR_lights_punctual's `directional`, a sun) has no position and no

@@ -288,6 +288,31 @@ bool texture_mean(const tinygltf::Model &model, int tex, bool srgb, double mean[
     return true;
 }
 
+/* glTF's wrap mode as texture.h's (0 repeat, 1 clamp, 2 mirror). */
+int wrap_mode(int gl) {
+    return gl == TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE ? 1 : gl == TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT ? 2 : 0;
+}
+
+/* Keeps a base-colour texture's texels (sRGB bytes, RGB) and its sampler's wrap modes
+ * (the image was checked by texture_mean). */
+void keep_texture(const tinygltf::Model &model, int tex, wrt_gltf_material &o) {
+    const tinygltf::Texture &t = model.textures[size_t(tex)];
+    const tinygltf::Image &im = model.images[size_t(t.source)];
+    size_t n = size_t(im.width) * size_t(im.height), nc = size_t(im.component);
+    unsigned char *rgb = static_cast<unsigned char *>(malloc(n * 3));
+    if (!rgb) throw std::bad_alloc();
+    for (size_t i = 0; i < n; i++)
+        for (size_t c = 0; c < 3; c++) rgb[i * 3 + c] = im.image[i * nc + (nc >= 3 ? c : 0)];
+    o.base_tex = rgb;
+    o.base_tex_w = im.width;
+    o.base_tex_h = im.height;
+    o.base_tex_wrap[0] = o.base_tex_wrap[1] = 0;
+    if (t.sampler >= 0 && size_t(t.sampler) < model.samplers.size()) {
+        o.base_tex_wrap[0] = wrap_mode(model.samplers[size_t(t.sampler)].wrapS);
+        o.base_tex_wrap[1] = wrap_mode(model.samplers[size_t(t.sampler)].wrapT);
+    }
+}
+
 /* Image decoder given to tinygltf: stb_image, 8 bits per channel, size-capped. */
 bool decode_image(tinygltf::Image *image, const int image_idx, std::string *err, std::string *warn,
                   int req_width, int req_height, const unsigned char *bytes, int size, void *user) {
@@ -644,6 +669,11 @@ void fill(const tinygltf::Model &model, const char *label, wrt_gltf_data *out, r
         for (int c = 0; c < 3; c++)
             o.emissive[c] = m.emissiveFactor.size() == 3 ? m.emissiveFactor[size_t(c)] : 0.0;
         o.double_sided = m.doubleSided ? 1 : 0;
+        o.emissive_strength = 1.0; /* KHR_materials_emissive_strength (checked by the strict pass) */
+        auto es = m.extensions.find("KHR_materials_emissive_strength");
+        if (es != m.extensions.end() && es->second.IsObject() && es->second.Has("emissiveStrength") &&
+            es->second.Get("emissiveStrength").IsNumber())
+            o.emissive_strength = es->second.Get("emissiveStrength").GetNumberAsDouble();
         /* A texture that is named must be read: never silently the factor alone. */
         auto need = [&](int tex, bool srgb, double mean[4], const char *what) -> int {
             if (tex < 0) return 0;
@@ -656,6 +686,7 @@ void fill(const tinygltf::Model &model, const char *label, wrt_gltf_data *out, r
         };
         o.has_base_tex = need(pbr.baseColorTexture.index, true, o.base_tex_mean,
                               "pbrMetallicRoughness.baseColorTexture");
+        if (o.has_base_tex && pbr.baseColorTexture.texCoord == 0) keep_texture(model, pbr.baseColorTexture.index, o);
         double mr[4];
         o.has_mr_tex = need(pbr.metallicRoughnessTexture.index, false, mr,
                             "pbrMetallicRoughness.metallicRoughnessTexture");
@@ -774,6 +805,7 @@ extern "C" void wrt_gltf_free(wrt_gltf_data *d) {
         free(d->prims[i].uv);
     }
     free(d->prims);
+    for (size_t i = 0; d->materials && i < d->nmaterials; i++) free(d->materials[i].base_tex);
     free(d->materials);
     free(d->lights);
     free(d->mesh_names);

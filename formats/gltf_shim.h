@@ -40,11 +40,16 @@ typedef struct wrt_gltf_material {
     double base_color[4];
     double metallic, roughness;
     double emissive[3];
+    double emissive_strength; /* KHR_materials_emissive_strength (1 without it) */
     int has_base_tex, has_mr_tex, has_emissive_tex; /* 1 if the texture was decoded */
     int double_sided;        /* material.doubleSided */
     double base_tex_mean[4];
     double mr_tex_mean[3];   /* R, G (roughness), B (metallic) */
     double emissive_tex_mean[3];
+    /* baseColorTexture on TEXCOORD_0, kept for per-element albedo (docs/textures.md):
+     * sRGB texels (w x h x 3 bytes, row 0 first, owned; NULL if none or on another
+     * TEXCOORD) and the sampler's wrap modes (0 repeat, 1 clamp, 2 mirror) */
+    unsigned char *base_tex; int base_tex_w, base_tex_h, base_tex_wrap[2];
 } wrt_gltf_material;
 
 enum { WRT_GLTF_LIGHT_POINT = 0, WRT_GLTF_LIGHT_SPOT = 1, WRT_GLTF_LIGHT_DIRECTIONAL = 2,

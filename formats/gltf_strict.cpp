@@ -373,7 +373,25 @@ struct strict_check {
                 if (s != "OPAQUE") warn(at(p, "alphaMode"), "%s: transparency is not modelled, the surface is opaque", s.c_str());
             }
             if (const json *v = member(m, "alphaCutoff")) number(*v, at(p, "alphaCutoff"), 0, FLT_MAX);
-            ignore_others(m, "materials[*]", {"pbrMetallicRoughness", "emissiveFactor", "emissiveTexture", "doubleSided"});
+            bool has_ext = false;
+            if (const json *ex = member(m, "extensions")) {
+                has_ext = true;
+                std::string pe = at(p, "extensions");
+                object(*ex, pe);
+                if (const json *es = member(*ex, "KHR_materials_emissive_strength")) {
+                    std::string ps = at(pe, "KHR_materials_emissive_strength");
+                    object(*es, ps);
+                    /* emitted radiance = emissiveFactor x emissiveStrength (docs/emitters.md) */
+                    if (const json *v = member(*es, "emissiveStrength")) number(*v, at(ps, "emissiveStrength"), 0, FLT_MAX);
+                    ignore_others(*es, "materials[*].extensions.KHR_materials_emissive_strength", {"emissiveStrength"});
+                }
+                for (auto it = ex->begin(); it != ex->end(); ++it)
+                    if (it.key() != "KHR_materials_emissive_strength") ignore("materials[*].extensions." + it.key());
+            }
+            if (has_ext)
+                ignore_others(m, "materials[*]", {"pbrMetallicRoughness", "emissiveFactor", "emissiveTexture", "doubleSided", "extensions"});
+            else
+                ignore_others(m, "materials[*]", {"pbrMetallicRoughness", "emissiveFactor", "emissiveTexture", "doubleSided"});
         }
     }
 
@@ -685,6 +703,7 @@ struct strict_check {
         for (auto it = root.begin(); it != root.end(); ++it) {
             static const char *used[] = {"asset", "scene", "scenes", "nodes", "meshes", "accessors",
                                          "bufferViews", "buffers", "materials", "textures", "images",
+                                         "samplers", /* wrap modes of base-colour textures */
                                          "cameras", "extensions", "extensionsUsed", "extensionsRequired",
                                          "extras"};
             bool u = false;

@@ -27,8 +27,9 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
  *      WRT_ERR_UNSUPPORTED for it (or add a converter); a minor bump must still open it.
  *   5. Regenerate the golden file of the new version (test_gto --regen) and commit it. */
 #define WRT_GTO_VERSION 1
-#define WRT_GTO_VERSION_MINOR 2 /* 1.1: the optional first-bounce operator K (sections 12-15).
+#define WRT_GTO_VERSION_MINOR 3 /* 1.1: the optional first-bounce operator K (sections 12-15).
                                  * 1.2: the optional quad-to-source map (section 16).
+                                 * 1.3: the optional base-colour textures (section 21).
                                  * The writer puts the lowest minor that has what the file
                                  * holds: a file with neither is 1.0, byte for byte as before. */
 
@@ -134,7 +135,23 @@ typedef struct wrt_gto {
     /* The quad-to-source map (version 1.2): nquads records, NULL when the file has none
      * (1.0 and 1.1 files, or written with no_srcmap). */
     const wrt_gto_srcmap *srcmap;
+    /* Base-colour textures (version 1.3, section textures; docs/textures.md): the
+     * section's bytes (NULL, 0 when the file has none); read with wrt_gto_texture. */
+    const uint8_t *textures; uint64_t textures_size;
 } wrt_gto;
+
+/* One texture of the textures section: the material it belongs to, its size, glTF wrap
+ * modes (0 repeat, 1 clamp, 2 mirror along s and t), the material's baseColorFactor and
+ * the texture's mean (linear; the material's base_color is clamp(factor x mean)), and
+ * w x h x 3 sRGB-encoded bytes, row 0 (t = 0) first. */
+typedef struct wrt_gto_texture {
+    uint32_t material, w, h, wrap[2];
+    float factor[3], mean[3];
+    const uint8_t *srgb;
+} wrt_gto_texture;
+/* Number of textures in g (0: none) and the i-th; returns 0 if i is out of range. */
+uint32_t wrt_gto_texture_count(const wrt_gto *g);
+int wrt_gto_texture_get(const wrt_gto *g, uint32_t i, wrt_gto_texture *out);
 
 /* Maps and validates `path`: magic, version, byte order, every section's offset and
  * size against the file length, checksums, and the index ranges of the operator and of

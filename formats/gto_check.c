@@ -33,6 +33,7 @@ const gto_sec_desc gto_sec_info[SEC_KNOWN_END] = {
     [SEC_KROWS] = {"krows", 4},
     [SEC_KVALS] = {"kvals", 4},
     [SEC_SRCMAP] = {"srcmap", sizeof(wrt_gto_srcmap)},
+    [SEC_TEXTURES] = {"textures", 1},
 };
 
 /* ------------------------------------------------------------------------------------

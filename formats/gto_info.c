@@ -210,6 +210,45 @@ static void info_figures(gto_info *I) {
         }
 }
 
+/* The emissive materials (docs/emitters.md): each one's radiance, quads and area, and
+ * what it costs a light change; as text lines or a JSON array. */
+static void print_emitters(FILE *f, const wrt_gto *g, int json) {
+    int n = 0;
+    if (json) fputs(", \"emitters\": [", f);
+    for (uint32_t m = 0; m < g->nmaterials; m++) {
+        const float *e = g->materials[m].emissive;
+        if (!(e[0] > 0 || e[1] > 0 || e[2] > 0)) continue;
+        uint32_t nq = 0;
+        double area = 0;
+        for (uint32_t q = 0; q < g->nquads; q++)
+            if (g->quads[q].material == m) { nq++; area += g->quads[q].area; }
+        if (json)
+            fprintf(f, "%s{\"material\": %u, \"emissive\": [%.9g, %.9g, %.9g], \"quads\": %u, \"area\": %.9g, "
+                    "\"lambertian\": %s}", n ? ", " : "", m, e[0], e[1], e[2], nq, area,
+                    g->materials[m].lambertian ? "true" : "false");
+        else
+            fprintf(f, "emitter:    material %u L_e (%g, %g, %g) on %u quad%s, %.4g m^2%s; cost: %u coefficient%s "
+                    "added to E per change, no projection, no rays\n", m, e[0], e[1], e[2], nq, nq == 1 ? "" : "s",
+                    area, g->materials[m].lambertian ? "" : " (glossy: lights no other surface)", nq, nq == 1 ? "" : "s");
+        n++;
+    }
+    if (json) fputc(']', f);
+    else if (!n) fputs("emitters:   none\n", f);
+    uint32_t nt = wrt_gto_texture_count(g); /* base-colour textures (docs/textures.md) */
+    if (json) fputs(", \"textures\": [", f);
+    for (uint32_t i = 0; i < nt; i++) {
+        wrt_gto_texture t;
+        wrt_gto_texture_get(g, i, &t);
+        if (json)
+            fprintf(f, "%s{\"material\": %u, \"width\": %u, \"height\": %u, \"bytes\": %u}", i ? ", " : "",
+                    t.material, t.w, t.h, 3 * t.w * t.h);
+        else
+            fprintf(f, "texture:    material %u base colour %u x %u, %u bytes; cost: four texel fetches a pixel "
+                    "(the bake used it per element)\n", t.material, t.w, t.h, 3 * t.w * t.h);
+    }
+    if (json) fputc(']', f);
+}
+
 /* --info --json: the figures of a sound file (after the header and the sections). */
 static void json_figures(FILE *f, const gto_info *I) {
     const wrt_gto *g = &I->g;
@@ -217,6 +256,7 @@ static void json_figures(FILE *f, const gto_info *I) {
     fprintf(f, ", \"counts\": {\"quads\": %u, \"materials\": %u, \"lights\": %u, \"names\": %u, "
             "\"functions\": %u, \"entries\": %" PRIu64 ", \"k_columns\": %u, \"k_entries\": %" PRIu64 "}",
             g->nquads, g->nmaterials, g->nlights, g->nnames, g->nfuncs, g->nnz, g->nkcols, g->knnz);
+    print_emitters(f, g, 1);
     fprintf(f, ", \"operator\": {\"bytes\": %" PRIu64 ", \"density\": %.6g, "
             "\"mean_entries_per_column\": %.3f, \"max_entries_per_column\": %u, "
             "\"max_functions_per_quad\": %u, \"angular_functions\": %" PRIu64 ", "
@@ -298,6 +338,7 @@ static void text_figures(FILE *f, const gto_info *I) {
     const wrt_gto_stats *S = g->stats;
     fprintf(f, "scene:      %u quads, %u materials, %u lights, %u names\n", g->nquads,
             g->nmaterials, g->nlights, g->nnames);
+    print_emitters(f, g, 0);
     char hb[32];
     fprintf(f, "operator:   %u functions (%" PRIu64 " with angular detail), %" PRIu64
             " entries, %s, density %.3g\n", g->nfuncs, I->nangular, g->nnz, human_bytes(I->op_bytes, hb),
@@ -340,7 +381,7 @@ static void text_figures(FILE *f, const gto_info *I) {
 /* What a file's version means to this reader, in words ("current", or what the later
  * minors add), so that an older file does not read like a warning. */
 static void version_note(char *b, size_t n, unsigned major, unsigned minor) {
-    static const char *added[] = {"", "the optional first-bounce operator", "the optional source map"};
+    static const char *added[] = {"", "the optional first-bounce operator", "the optional source map", "the optional textures"};
     int nadded = (int)(sizeof added / sizeof added[0]);
     if (major == WRT_GTO_VERSION && minor == WRT_GTO_VERSION_MINOR) {
         snprintf(b, n, "current");

@@ -110,20 +110,31 @@ enum {
     SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS,
     /* version 1.2: the quad-to-source map, optional */
     SEC_SRCMAP,
+    /* version 1.3 (this branch): base-colour textures, optional (docs/textures.md); ids
+     * 17-20 are other sections of the same session, unknown here and skipped */
+    SEC_TEXTURES = 21,
     SEC_KNOWN_END
 };
 #define SEC_KNOWN (SEC_KNOWN_END - 1)
 #define SEC_REQUIRED SEC_PROVENANCE /* ids 1 .. this are in every file */
 #define GTO_MINOR_K 1               /* the minor version that added K */
 #define GTO_MINOR_SRCMAP 2          /* the minor version that added the quad-to-source map */
+#define GTO_MINOR_TEXTURES 3        /* the minor version that added the textures section */
 
 /* Name and element size of each known section id (gto_check.c). */
 typedef struct gto_sec_desc { const char *name; uint32_t elem_size; } gto_sec_desc;
 extern const gto_sec_desc gto_sec_info[SEC_KNOWN_END];
 
-static inline const char *gto_sec_name(uint32_t id) {
-    return (id >= 1 && id <= SEC_KNOWN) ? gto_sec_info[id].name : "unknown";
-}
+/* The textures section (gto_texture.c): the writer's encoding of the scene's base-colour
+ * textures (NULL and *size 0 when it has none; free it) and the reader's check of one. */
+struct wrt_scene;
+uint8_t *gto_build_textures(const struct wrt_scene *s, uint64_t *size);
+wrt_status gto_check_textures(const uint8_t *b, uint64_t size, uint32_t nmaterials);
+
+/* 1 if this reader knows section id (the table has gaps: ids it does not know). */
+static inline int gto_sec_known(uint32_t id) { return id >= 1 && id <= SEC_KNOWN && gto_sec_info[id].name; }
+
+static inline const char *gto_sec_name(uint32_t id) { return gto_sec_known(id) ? gto_sec_info[id].name : "unknown"; }
 
 static inline uint64_t gto_align_up(uint64_t x) { return (x + GTO_ALIGN - 1) & ~(uint64_t)(GTO_ALIGN - 1); }
 

@@ -251,10 +251,11 @@ typedef struct gto_records {
     wrt_gto_camera cam;
     wrt_gto_stats stats;
     wrt_gto_srcmap *srcmap; /* NULL: not written (no_srcmap) */
+    uint8_t *textures; uint64_t textures_size; /* NULL: the scene has none */
 } gto_records;
 
 static void free_records(gto_records *R) {
-    free(R->quads); free(R->mats); free(R->lights); free(R->names); free(R->srcmap);
+    free(R->quads); free(R->mats); free(R->lights); free(R->names); free(R->srcmap); free(R->textures);
 }
 
 /* Each quad's function range and deepest levels from the keys, then its geometry. */
@@ -369,6 +370,7 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
         {SEC_VALS, nnz, c->vals}, {SEC_STATS, 1, &R->stats}, {SEC_PROVENANCE, strlen(prov), prov},
         {SEC_KKEYS, nk, c->kkeys}, {SEC_KCOL_START, (uint64_t)nk + 1, c->kcol_start},
         {SEC_KROWS, knnz, c->krows}, {SEC_KVALS, knnz, c->kvals}, {SEC_SRCMAP, R->nq, R->srcmap},
+        {SEC_TEXTURES, R->textures_size, R->textures},
     };
     /* Without K and the source map the file is version 1.0 with its 11 sections, byte
      * for byte as before they existed: the minor is the lowest that has everything the
@@ -376,7 +378,9 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
     P->nsec = 0;
     for (int i = 0; i < SEC_KNOWN; i++) {
         uint32_t id = secs[i].id;
-        if ((id >= SEC_KKEYS && id <= SEC_KVALS && !nk) || (id == SEC_SRCMAP && !R->srcmap)) continue;
+        if (id == 0 || (id >= SEC_KKEYS && id <= SEC_KVALS && !nk) || (id == SEC_SRCMAP && !R->srcmap) ||
+            (id == SEC_TEXTURES && !R->textures))
+            continue;
         P->secs[P->nsec++] = secs[i];
     }
 
@@ -398,7 +402,7 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     memcpy(h->magic, GTO_MAGIC, GTO_MAGIC_LEN);
     h->byte_order = GTO_BOM;
     h->version_major = WRT_GTO_VERSION;
-    h->version_minor = R->srcmap ? GTO_MINOR_SRCMAP : nk ? GTO_MINOR_K : 0;
+    h->version_minor = R->textures ? GTO_MINOR_TEXTURES : R->srcmap ? GTO_MINOR_SRCMAP : nk ? GTO_MINOR_K : 0;
     h->nsections = (uint32_t)nsec;
     h->header_size = hsize;
     h->op_kind = c->op_kind;
@@ -486,6 +490,7 @@ wrt_status wrt_gto_write_pending(const char *path, const wrt_gto_contents *c, wr
     st = build_quads(path, c, &R);
     if (st == WRT_OK) {
         build_scene_records(c, &R);
+        R.textures = gto_build_textures(c->scene, &R.textures_size); /* docs/textures.md */
         gto_plan P;
         plan_sections(c, &R, &P);
         st = plan_header(path, c, &R, &P);

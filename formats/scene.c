@@ -16,6 +16,7 @@
  * one across the triangle's longest edge (a quad's diagonal), then the lowest index. */
 #define _POSIX_C_SOURCE 200809L
 #include "scene.h"
+#include "../common/texture.h"
 #include "gltf_shim.h"
 #include "scene_internal.h"
 #include "../common/limits.h"
@@ -605,25 +606,41 @@ static float clamp01(double x, int *changed) {
 
 static int finite3(const double *v) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }
 
-static void convert_materials(const wrt_gltf_data *g, int need_default, wrt_scene *s,
+static void convert_materials(wrt_gltf_data *g, int need_default, wrt_scene *s,
                               const char *label) {
     int n = (int)g->nmaterials + (need_default ? 1 : 0);
     s->materials = wrt_xcalloc((size_t)(n ? n : 1), sizeof *s->materials);
     s->nmaterials = n;
     for (int i = 0; i < (int)g->nmaterials; i++) {
-        const wrt_gltf_material *m = &g->materials[i];
+        wrt_gltf_material *m = &g->materials[i];
         wrt_material *o = &s->materials[i];
         int changed = 0;
         wrt_utf8_copy(o->name, sizeof o->name, m->name);
         for (int c = 0; c < 3; c++) {
             double bc = m->base_color[c] * (m->has_base_tex ? m->base_tex_mean[c] : 1.0);
             o->base_color[c] = clamp01(bc, &changed);
-            double em = m->emissive[c] * (m->has_emissive_tex ? m->emissive_tex_mean[c] : 1.0);
+            double em = m->emissive[c] * m->emissive_strength * (m->has_emissive_tex ? m->emissive_tex_mean[c] : 1.0);
             o->emissive[c] = (float)(isfinite(em) && em > 0 ? em : 0.0);
         }
         o->metallic = clamp01(m->metallic * (m->has_mr_tex ? m->mr_tex_mean[2] : 1.0), &changed);
         o->roughness = clamp01(m->roughness * (m->has_mr_tex ? m->mr_tex_mean[1] : 1.0), &changed);
         o->has_texture = m->has_base_tex || m->has_mr_tex || m->has_emissive_tex;
+        if (m->base_tex) { /* kept for per-element albedo (docs/textures.md); ownership moves */
+            s->textures = wrt_xrealloc(s->textures, (size_t)(s->ntextures + 1) * sizeof *s->textures);
+            wrt_texture *t = &s->textures[s->ntextures++];
+            t->w = m->base_tex_w;
+            t->h = m->base_tex_h;
+            t->wrap[0] = m->base_tex_wrap[0];
+            t->wrap[1] = m->base_tex_wrap[1];
+            t->srgb = m->base_tex;
+            wrt_texture_srgb_table(t->lut);
+            for (int c = 0; c < 3; c++) {
+                t->factor[c] = (float)m->base_color[c];
+                t->mean[c] = (float)m->base_tex_mean[c];
+            }
+            m->base_tex = NULL;
+            o->base_tex = s->ntextures;
+        }
         if (changed)
             wrt_log(WRT_LOG_WARN, "%s: material %d '%s': factor outside [0, 1] clamped", label, i,
                     o->name);
@@ -1017,5 +1034,7 @@ void wrt_scene_free(wrt_scene *s) {
     free(s->problems);
     free(s->ignored);
     free(s->files);
+    for (int i = 0; i < s->ntextures; i++) free(s->textures[i].srgb);
+    free(s->textures);
     memset(s, 0, sizeof *s);
 }

@@ -69,6 +69,8 @@ typedef struct wrt_scene {
     int ntwins;            /* back-to-back twins added for doubleSided materials (in nquads) */
     char *ignored;         /* glTF fields the bake does not use, "; "-separated (owned) */
     char *files;           /* external files read (buffers, images), one a line (owned) */
+    struct wrt_texture *textures; int ntextures; /* base-colour textures (common/texture.h),
+                              one per textured material, wrt_material.base_tex - 1 (owned) */
 } wrt_scene;
 
 typedef struct wrt_load_options {

@@ -5,6 +5,7 @@
  * wrt_common and the one JSON string writer in common/text.h. */
 #define _POSIX_C_SOURCE 200809L
 #include "scene.h"
+#include "../common/texture.h"
 #include "scene_internal.h"
 #include "../common/text.h"
 
@@ -137,6 +138,40 @@ static void print_summary_json(const wrt_scene *s, int npara, const int *uses, F
 }
 
 /* The text form: one line per count, then the materials, lights, camera and problems. */
+/* Each emissive material: its radiance, its quads and area, the power it sends (pi L_e A,
+ * W per channel), whether the operator carries it (Lambertian, albedo > 0 in each
+ * emitting channel) and what it costs a light change (docs/emitters.md). */
+static void print_emitters(const wrt_scene *s, const int *uses, FILE *f) {
+    for (int i = 0; i < s->nmaterials; i++) {
+        const wrt_material *m = &s->materials[i];
+        if (!(m->emissive[0] > 0 || m->emissive[1] > 0 || m->emissive[2] > 0)) continue;
+        double area = 0;
+        for (int q = 0; q < s->nquads; q++)
+            if (s->quads[q].material == i) area += s->quads[q].area;
+        const char *carried = "carried by the operator";
+        if (!m->lambertian) carried = "NOT carried (glossy: only Lambertian emitters light other surfaces)";
+        else
+            for (int c = 0; c < 3; c++)
+                if (m->emissive[c] > 0 && !(m->base_color[c] > 0)) carried = "NOT carried in a channel of albedo 0";
+        fprintf(f, "  emitter [%d] %-16s L_e (%g, %g, %g) on %d quads, %.4g m^2, power (%.4g, %.4g, %.4g) W; %s; "
+                   "cost: %d coefficients added to E per change, no projection, no shadow rays\n",
+                i, m->name, m->emissive[0], m->emissive[1], m->emissive[2], uses[i], area, WRT_PI * m->emissive[0] * area,
+                WRT_PI * m->emissive[1] * area, WRT_PI * m->emissive[2] * area, carried, uses[i]);
+    }
+    for (int i = 0; i < s->nmaterials; i++) { /* base-colour textures (docs/textures.md) */
+        const wrt_material *m = &s->materials[i];
+        if (m->base_tex <= 0 || m->base_tex > s->ntextures) continue;
+        const wrt_texture *t = &s->textures[m->base_tex - 1];
+        int nuv = 0;
+        for (int q = 0; q < s->nquads; q++) nuv += s->quads[q].material == i && s->quads[q].has_uv;
+        fprintf(f, "  texture [%d] %-16s base colour %d x %d (%.3g MB), mean (%.3f, %.3f, %.3f); "
+                   "%d of %d quads have UVs and get their own albedo; cost: the bake's albedo per element "
+                   "(%s), nothing at run time\n",
+                i, m->name, t->w, t->h, (double)t->w * t->h * 3 / 1e6, t->mean[0], t->mean[1], t->mean[2], nuv,
+                uses[i], m->lambertian ? "exact for a Lambertian material" : "glossy: its diffuse albedo only");
+    }
+}
+
 static void print_summary_text(const wrt_scene *s, int npara, const int *uses, FILE *f) {
     const wrt_camera *c = &s->camera;
     int ndiffuse = 0;
@@ -169,7 +204,7 @@ static void print_summary_text(const wrt_scene *s, int npara, const int *uses, F
                 "twice; a bake warns naming them)\n", s->ncoincident);
     fprintf(f, "bbox: (%g, %g, %g) - (%g, %g, %g)\n", s->bbox_min.x, s->bbox_min.y, s->bbox_min.z,
             s->bbox_max.x, s->bbox_max.y, s->bbox_max.z);
-    fprintf(f, "materials: %d (%d diffuse, %d glossy), %d emissive (reported only)\n", s->nmaterials,
+    fprintf(f, "materials: %d (%d diffuse, %d glossy), %d emissive (sources: docs/emitters.md)\n", s->nmaterials,
             ndiffuse, s->nmaterials - ndiffuse, s->nemissive);
     for (int i = 0; i < s->nmaterials; i++) {
         const wrt_material *m = &s->materials[i];
@@ -177,6 +212,7 @@ static void print_summary_text(const wrt_scene *s, int npara, const int *uses, F
                 m->name, m->lambertian ? "diffuse" : "glossy ", m->base_color[0], m->base_color[1],
                 m->base_color[2], m->metallic, m->roughness, uses[i]);
     }
+    print_emitters(s, uses, f);
     fprintf(f, "lights: %d (numbered from 1, as --light N and --light-scale N=S take them)\n", s->nlights);
     for (int i = 0; i < s->nlights; i++) {
         const wrt_light *l = &s->lights[i];

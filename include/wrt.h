@@ -295,6 +295,17 @@ WRT_API wrt_status wrt_runtime_set_eye(wrt_runtime *rt, const double eye[3], wrt
  * successful update redoes every texture). */
 WRT_API wrt_status wrt_runtime_update(wrt_runtime *rt, int *changed, wrt_error *err);
 
+/* ---- Emissive surfaces (docs/emitters.md) ----
+ * Every material with emission (glTF emissiveFactor x KHR_materials_emissive_strength)
+ * is a source: its light on the other surfaces (direct and bounced) is in the quads'
+ * textures and cells, linear in its scale; the emitter's own radiance (what the camera
+ * sees on it) is the material's `emissive` times the scale, for the caller to draw.
+ * Each starts at scale 1. Count: emissive materials used by some quad (-1: not a live
+ * handle). Scale: material index, >= 0 and finite (0 switches it off); the next
+ * wrt_runtime_update applies it. Errors: WRT_ERR_INVALID_ARG. */
+WRT_API int wrt_runtime_emitter_count(const wrt_runtime *rt);
+WRT_API wrt_status wrt_runtime_set_emitter_scale(wrt_runtime *rt, int material, float scale, wrt_error *err);
+
 /* ---- The scene, for drawing it from the library alone ---- */
 
 /* A material (glTF metallic-roughness, as the bake used it). */
@@ -302,7 +313,7 @@ typedef struct wrt_runtime_material {
     char name[64];
     float base_color[3];    /* linear RGB: baseColorFactor x the mean of baseColorTexture */
     float metallic, roughness;
-    float emissive[3];      /* reported, not emitted by the bake */
+    float emissive[3];      /* emitted radiance L_e (a source: see "Emissive surfaces") */
     int lambertian;         /* 1: pure diffuse (roughness 1, metallic 0): albedo base_color */
 } wrt_runtime_material;
 /* Count (-1: not a live handle) and each material. Errors: WRT_ERR_INVALID_ARG. */

@@ -257,11 +257,40 @@ void scene_bounds(const app *a, double lo[3], double hi[3]) {
         for (int k = 0; k < 3; k++) { lo[k] = -1; hi[k] = 1; }
 }
 
+/* --emitter-scale: each named emissive material's scale, in the library and the
+ * renderer (docs/emitters.md); a material that is not in the file or does not emit is
+ * refused (exit 1). */
+static int apply_emitters(app *a) {
+    const options *o = a->o;
+    if (!o->nemit) return 0;
+    int nm = wrt_runtime_material_count(a->rl);
+    if (nm < 0) nm = 0;
+    float *sc = wrt_xmalloc((size_t)(nm ? nm : 1) * sizeof *sc);
+    for (int m = 0; m < nm; m++) sc[m] = 1;
+    for (int k = 0; k < o->nemit; k++) {
+        int m = o->emit_mat[k];
+        wrt_runtime_material mat;
+        const float *e = m < nm && wrt_runtime_get_material(a->rl, m, &mat, NULL) == WRT_OK ? mat.emissive : NULL;
+        if (!e || !(e[0] > 0 || e[1] > 0 || e[2] > 0)) {
+            fprintf(stderr, "wrt-play: error: --emitter-scale %d: %s (wrt-bake --info lists the emitters)\n", m,
+                    e ? "that material does not emit" : "the file has no such material");
+            free(sc);
+            return EXIT_USAGE;
+        }
+        sc[m] = o->emit_scale[k];
+        wrt_runtime_set_emitter_scale(a->rl, m, sc[m], NULL);
+    }
+    wrt_render_set_emitter_scales(a->rd, sc);
+    free(sc);
+    return 0;
+}
+
 static int setup_lights(app *a) {
     const options *o = a->o;
     a->nlights = wrt_runtime_light_count(a->rl);
-    int need_default = a->nlights <= 0;
-    if (need_default) a->nlights = 0;
+    if (a->nlights < 0) a->nlights = 0;
+    /* emissive surfaces light the scene on their own (docs/emitters.md) */
+    int need_default = a->nlights == 0 && wrt_runtime_emitter_count(a->rl) <= 0;
     a->lights = wrt_xcalloc((size_t)(a->nlights ? a->nlights : 1), sizeof *a->lights);
     for (int i = 0; i < a->nlights; i++) {
         wrt_runtime_light *l = &a->lights[i];
@@ -289,8 +318,8 @@ static int setup_lights(app *a) {
                 l->position[1], l->position[2]);
     }
     /* the command line's light options (cli/, shared with wrt-ref and wrt-compare) */
-    float *sc = wrt_xmalloc((size_t)a->nlights * sizeof *sc);
-    wrt_light *sl = wrt_xmalloc((size_t)a->nlights * sizeof *sl);
+    float *sc = wrt_xmalloc((size_t)(a->nlights ? a->nlights : 1) * sizeof *sc);
+    wrt_light *sl = wrt_xmalloc((size_t)(a->nlights ? a->nlights : 1) * sizeof *sl);
     for (int i = 0; i < a->nlights; i++) scene_light(&a->lights[i], &sl[i]);
     int rc = wrt_cli_lights_apply(T, &o->lights, sl, a->nlights, sc);
     for (int i = 0; i < a->nlights; i++) runtime_light(&sl[i], &a->lights[i]);
@@ -487,6 +516,8 @@ static int win_reload(app *a, win_state *w) {
         fprintf(stderr, "wrt-play: error: %s\n", wrt_last_error());
         return s == WRT_ERR_GL ? EXIT_GL : EXIT_RUNTIME;
     }
+    int erc = apply_emitters(a);
+    if (erc) return erc;
     a->relit_once = 0;
     if (!same_lights) {
         free(a->lights);
@@ -924,6 +955,7 @@ int main(int argc, char **argv) {
         rc = s == WRT_ERR_GL ? EXIT_GL : EXIT_USAGE;
         goto done;
     }
+    if ((rc = apply_emitters(&a))) goto done;
     if (a.nlights > WRT_RENDER_MAX_LIGHTS)
         wrt_log(WRT_LOG_WARN, "%d lights: only the first %d are used", a.nlights, WRT_RENDER_MAX_LIGHTS);
 

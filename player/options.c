@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "../cli/cli.h"
+#include "../common/limits.h"
 #include "options.h"
 
 static void usage(FILE *f) {
@@ -49,6 +50,8 @@ static void usage(FILE *f) {
         "Lights (default: the file's):\n");
     wrt_cli_lights_help(f);
     fprintf(f,
+        "  --emitter-scale M=S[,M=S...]  scale emissive material M's light by S >= 0 (0: off;\n"
+        "                        materials numbered as --scan and --info list them)\n"
         "Other:\n"
         "  --threads N           relighting threads (0 = all cores)\n"
         "  --max-tex-res N       cap on a quad's texture resolution (default 64)\n"
@@ -68,6 +71,30 @@ static void usage(FILE *f) {
 }
 
 static const char *T = "wrt-play";
+
+/* --emitter-scale's value: M=S pairs, comma-separated; 0 with a message if malformed. */
+static int parse_emitters(const char *v, options *o) {
+    const char *p = v;
+    while (*p) {
+        char *end;
+        long m = strtol(p, &end, 10);
+        if (end == p || *end != '=' || m < 0 || m > 1000000) break;
+        p = end + 1;
+        double s = strtod(p, &end);
+        if (end == p || !(s >= 0) || !(s <= WRT_MAX_LIGHT_SCALE) || (*end && *end != ',')) break;
+        if (o->nemit == (int)(sizeof o->emit_mat / sizeof *o->emit_mat)) {
+            fprintf(stderr, "wrt-play: error: --emitter-scale: more than %d emitters\n", o->nemit);
+            return 0;
+        }
+        o->emit_mat[o->nemit] = (int)m;
+        o->emit_scale[o->nemit++] = (float)s;
+        p = *end ? end + 1 : end;
+        if (!*end) return 1;
+    }
+    fprintf(stderr, "wrt-play: error: --emitter-scale '%s': expected M=S[,M=S...] with M a material index and S in "
+                    "[0, %g]\n", v, (double)WRT_MAX_LIGHT_SCALE);
+    return 0;
+}
 
 int parse_args(int argc, char **argv, options *o) {
     memset(o, 0, sizeof *o);
@@ -126,6 +153,7 @@ int parse_args(int argc, char **argv, options *o) {
         else if (!strcmp(a, "--supersample")) INT(1, 4, o->supersample);
         else if (!strcmp(a, "--exposure")) { double e; NUM(-64, 64, e); o->exposure = (float)e; }
         else if (!strcmp(a, "--script-fps")) NUM(1e-3, 1e4, o->script_fps);
+        else if (!strcmp(a, "--emitter-scale")) { NEED(); if (!parse_emitters(v, o)) return 0; }
         else if (!strcmp(a, "--fov")) { NUM(1, 179, o->fov); o->has_fov = 1; }
         else if (!strcmp(a, "--camera-pos")) { if (!wrt_cli_vec3(T, a, v, o->cam_pos)) return 0; i++; o->has_cam_pos = 1; }
         else if (!strcmp(a, "--camera-target")) { if (!wrt_cli_vec3(T, a, v, o->cam_target)) return 0; i++; o->has_cam_target = 1; }

@@ -17,6 +17,9 @@ typedef struct options {
     int has_cam_pos, has_cam_target, has_fov;
     double cam_pos[3], cam_target[3], fov;
     wrt_cli_lights lights;
+    int nemit;                       /* --emitter-scale M=S[,M=S...] (docs/emitters.md) */
+    int emit_mat[16];
+    float emit_scale[16];
 } options;
 
 /* Parses argv into *o (defaults first); 0 after printing the error on a bad command

@@ -95,7 +95,7 @@ static int update_nomem(wrt_relight *r, const char *stage, wrt_relight_timings *
     return -1;
 }
 
-/* E = sum of the scaled per-light projections, in light order. */
+/* E = sum of the scaled per-light projections, in light order, and the emitters'. */
 static void sum_lights(wrt_relight *r) {
     memset(r->E, 0, (size_t)r->g->nfuncs * 3 * sizeof(float));
     for (int i = 0; i < r->nlights; i++) {
@@ -104,6 +104,7 @@ static void sum_lights(wrt_relight *r) {
         for (size_t k = 0; k < ls->n; k++)
             for (int c = 0; c < 3; c++) r->E[(size_t)ls->idx[k] * 3 + c] += ls->scale * ls->val[k * 3 + c];
     }
+    relight_add_emitters(r); /* emissive surfaces' source terms (relight_emit.c) */
 }
 
 /* The stages of an update, each only when what it reads changed: the projection of

@@ -71,6 +71,15 @@ void wrt_relight_destroy(wrt_relight *r); /* NULL is a no-op */
  * lights than ever before allocate each new one's arrays (about 16 bytes a function).
  * Errors: WRT_ERR_NOMEM (the lights are then as before). */
 wrt_status wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const float *scales, int n);
+/* Emissive surfaces (docs/emitters.md): every material with emission is a source, on at
+ * scale 1 after creation; its light on other surfaces is in X (linear in the scale).
+ * wrt_relight_emitter_count: emissive materials used by some quad. set_emitter_scale:
+ * material's scale (>= 0, finite; 0 switches it off; a material without emission takes
+ * it and nothing changes). Errors: WRT_ERR_INVALID_ARG. */
+int wrt_relight_emitter_count(const wrt_relight *r);
+wrt_status wrt_relight_set_emitter_scale(wrt_relight *r, int material, float scale);
+float wrt_relight_emitter_scale(const wrt_relight *r, int material);
+
 /* Sets the eye position; only glossy quads depend on it. */
 void wrt_relight_set_eye(wrt_relight *r, const double eye[3]);
 

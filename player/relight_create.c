@@ -385,7 +385,7 @@ static wrt_status create_stages(wrt_relight *r) {
     size_t tex_total = 0, ang_total = 0;
     wrt_v3 bmin, bmax;
     if ((st = create_workers(r)) || (st = create_materials(r)) || (st = create_functions(r)) ||
-        (st = create_quads(r, &tex_total, &ang_total, &bmin, &bmax)))
+        (st = create_quads(r, &tex_total, &ang_total, &bmin, &bmax)) || (st = relight_setup_emitters(r)))
         goto fail;
     if (!r->opt.haar_blocks && (st = relight_setup_smooth(r, &tex_total))) goto fail;
     if ((st = create_angular(r, ang_total))) goto fail;
@@ -444,7 +444,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     relight_free(r, r->ang_list); relight_free(r, r->ang_start); relight_free(r, r->ang_full); relight_free(r, r->ang_perm);
     relight_free(r, r->E); relight_free(r, r->X); relight_free(r, r->Xprev); relight_free(r, r->mul.X4); relight_free(r, r->mul.cols); relight_free(r, r->tex); relight_free(r, r->texk); relight_free(r, r->tex_nonzero); relight_free(r, r->x_nonzero);
     relight_free(r, r->resynth); relight_free(r, r->proj.recs); relight_free(r, r->proj.qlevel); relight_free(r, r->proj.cones);
-    relight_free(r, r->synth_list);
+    relight_free(r, r->synth_list); relight_free(r, r->emit_scale);
     wrt_recon_destroy(r->sm.recon); relight_free(r, r->sm.stex); relight_free(r, r->sm.regroup);
     relight_free(r, r->sm.rin); relight_free(r, r->sm.rknown); relight_free(r, r->sm.rout);
     relight_free(r, r->k.fn_slevel); relight_free(r, r->k.fn_ang); relight_free(r, r->k.fn_spidx);

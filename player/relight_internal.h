@@ -219,6 +219,8 @@ struct wrt_relight {
     rl_bounce k;
     rl_smooth sm;
     rl_gather gat;
+    float *emit_scale;              /* per material: its emission's scale (relight_emit.c) */
+    int nemitters;                  /* emissive materials used by some quad */
 };
 
 /* ------------------------------------------------- shared small functions ---- */
@@ -297,6 +299,14 @@ static inline int light_visible(const wrt_relight *r, wrt_v3 x, wrt_v3 n, wrt_v3
     rtcOccluded1(r->rt.scene, &ic, &ray);
     return !(ray.tfar < 0);
 }
+
+/* ------------------------------------------------------ relight_emit.c ---- */
+
+/* The emitters' scales (all 1) and the warnings on what cannot be carried; sets e_dirty
+ * when some quad emits. Runs after the quads are made. */
+wrt_status relight_setup_emitters(wrt_relight *r);
+/* E += the emitting quads' source terms (docs/emitters.md), scaled. */
+void relight_add_emitters(wrt_relight *r);
 
 /* ------------------------------------------------------ relight_base.c ---- */
 

@@ -18,6 +18,7 @@
 #include "render.h"
 
 #include "../cli/cli.h"
+#include "render_tex.h"
 
 #include <GL/glcorearb.h>
 #include <stdio.h>
@@ -34,11 +35,19 @@ static const char *scene_vs =
     "layout(location=3) in vec4 a_base;\n"  /* base colour, metallic */
     "layout(location=4) in vec2 a_rough;\n" /* roughness, lambertian */
     "layout(location=5) in vec4 a_rect;\n"  /* atlas: first inner texel x, y; res */
+    "layout(location=6) in vec3 a_emit;\n"  /* emitted radiance x the emitter's scale */
+    "layout(location=7) in vec4 a_tex;\n"   /* base-colour texture in u_tex: x, y, w, h (w 0: none) */
+    "layout(location=8) in vec4 a_tuv;\n"   /* TEXCOORD_0, wrap modes */
+    "layout(location=9) in vec3 a_tfac;\n"  /* baseColorFactor */
     "uniform mat4 u_vp;\n"
     "out vec3 v_pos; out vec2 v_uv;\n"
     "flat out vec3 v_nrm; flat out vec4 v_base; flat out vec2 v_rough; flat out vec4 v_rect;\n"
+    "flat out vec3 v_emit;\n"
+    "flat out vec4 v_tex; out vec2 v_tuv; flat out vec2 v_twrap; flat out vec3 v_tfac;\n"
     "void main() {\n"
+    "  v_tex = a_tex; v_tuv = a_tuv.xy; v_twrap = a_tuv.zw; v_tfac = a_tfac;\n"
     "  v_pos = a_pos; v_nrm = a_nrm; v_uv = a_uv; v_base = a_base; v_rough = a_rough; v_rect = a_rect;\n"
+    "  v_emit = a_emit;\n"
     "  gl_Position = u_vp * vec4(a_pos, 1.0);\n"
     "}\n";
 
@@ -51,6 +60,9 @@ static const char *scene_fs =
     "#define SHADOW_NEAR 1e-3\n"
     "in vec3 v_pos; in vec2 v_uv;\n"
     "flat in vec3 v_nrm; flat in vec4 v_base; flat in vec2 v_rough; flat in vec4 v_rect;\n"
+    "flat in vec3 v_emit;\n"
+    "flat in vec4 v_tex; in vec2 v_tuv; flat in vec2 v_twrap; flat in vec3 v_tfac;\n"
+    "uniform sampler2D u_tex;\n"
     "uniform int u_nlights;\n"
     "uniform vec4 u_lpos[MAXL];\n"  /* position, far distance of its shadow map (sun: its half-width) */
     "uniform vec4 u_lcol[MAXL];\n"  /* colour * intensity * scale, type (0 point, 1 spot, 2 sun) */
@@ -66,10 +78,28 @@ static const char *scene_fs =
     "uniform float u_shadow_texel;\n" /* 2 / shadow map size: a texel's angular size */
     "out vec4 o_color;\n"
     "const float PI = 3.14159265358979;\n"
+    "vec3 g_base;\n" /* the base colour here: the material's, or its texture's (docs/textures.md) */
+    /* glTF's wrap modes on texel index i of n (0 repeat, 1 clamp, 2 mirror) */
+    "int twrap(int i, int n, float mode) {\n"
+    "  if (mode > 0.5 && mode < 1.5) return clamp(i, 0, n - 1);\n"
+    "  int p = mode > 1.5 ? 2 * n : n, k = i - p * int(floor(float(i) / float(p)));\n"
+    "  return k < n ? k : p - 1 - k;\n"
+    "}\n"
+    /* the albedo clamp(factor x texel) at this pixel's TEXCOORD_0, bilinear */
+    "vec3 tex_albedo() {\n"
+    "  int w = int(v_tex.z), h = int(v_tex.w);\n"
+    "  float x = v_tuv.x * v_tex.z - 0.5, y = v_tuv.y * v_tex.w - 0.5, fx = floor(x), fy = floor(y);\n"
+    "  int x0 = twrap(int(fx), w, v_twrap.x), x1 = twrap(int(fx) + 1, w, v_twrap.x);\n"
+    "  int y0 = twrap(int(fy), h, v_twrap.y), y1 = twrap(int(fy) + 1, h, v_twrap.y);\n"
+    "  ivec2 o = ivec2(v_tex.xy);\n"
+    "  vec3 a = mix(texelFetch(u_tex, o + ivec2(x0, y0), 0).rgb, texelFetch(u_tex, o + ivec2(x1, y0), 0).rgb, x - fx);\n"
+    "  vec3 b = mix(texelFetch(u_tex, o + ivec2(x0, y1), 0).rgb, texelFetch(u_tex, o + ivec2(x1, y1), 0).rgb, x - fx);\n"
+    "  return clamp(v_tfac * mix(a, b, y - fy), 0.0, 1.0);\n"
+    "}\n"
     "vec3 brdf(vec3 n, vec3 l, vec3 v) {\n"
     "  float nl = dot(n, l), nv = dot(n, v);\n"
     "  if (nl <= 0.0 || nv <= 0.0) return vec3(0.0);\n"
-    "  vec3 base = v_base.rgb;\n"
+    "  vec3 base = g_base;\n"
     "  if (v_rough.y > 0.5) return base / PI;\n"
     "  float metal = clamp(v_base.a, 0.0, 1.0), r = clamp(v_rough.x, 0.0, 1.0);\n"
     "  float a = max(r * r, 1e-3), a2 = a * a;\n"
@@ -110,6 +140,16 @@ static const char *scene_fs =
     "  return texture(u_sun, vec4(s, t, u_lcone[i].z, ref));\n"
     "}\n"
     "void main() {\n"
+    "  g_base = v_base.rgb;\n"
+    /* a textured Lambertian quad's indirect light is its mean albedo's (the runtime's):
+     * scaled by the texel's albedo over that mean */
+    "  vec3 tmod = vec3(1.0);\n"
+    "  if (v_tex.z > 0.0) {\n"
+    "    vec3 a = tex_albedo();\n"
+    "    if (v_rough.y > 0.5) tmod = vec3(v_base.r > 0.0 ? a.r / v_base.r : 0.0, v_base.g > 0.0 ? a.g / v_base.g : 0.0,\n"
+    "                                     v_base.b > 0.0 ? a.b / v_base.b : 0.0);\n"
+    "    g_base = a;\n"
+    "  }\n"
     "  vec3 n = v_nrm;\n"
     "  vec3 v = u_eye - v_pos;\n"
     "  float vl = length(v);\n"
@@ -145,9 +185,10 @@ static const char *scene_fs =
     "      float s = lit(i, v_pos, n);\n"
     "      c += s * att * nl * u_lcol[i].rgb * brdf(n, l, v);\n"
     "    }\n"
+    "    if (u_mode != 2) c += v_emit;\n" /* an emissive surface, seen from its front */
     "    if (u_mode != 1 && v_rect.z > 0.0) {\n"
     "      vec2 uv = clamp(v_uv, 0.0, 1.0);\n"
-    "      c += texture(u_atlas, (v_rect.xy + uv * v_rect.z) / u_atlas_size).rgb;\n"
+    "      c += tmod * texture(u_atlas, (v_rect.xy + uv * v_rect.z) / u_atlas_size).rgb;\n"
     "    }\n"
     "  }\n"
     "  o_color = vec4(c, 1.0);\n"
@@ -197,6 +238,8 @@ struct wrt_render {
     int width, height;
     GLuint prog_scene, prog_shadow, prog_present;
     GLuint vao, vbo_geom, vbo_rect, ibo, vao_empty;
+    GLuint vbo_emit;         /* per vertex: its material's emitted radiance x scale */
+    GLuint vbo_tex, base_tex; /* base-colour textures (render_tex.h) */
     GLuint fbo, color, depth;
     int samples;             /* MSAA samples; > 1: draw into ms_fbo, resolve into fbo */
     GLuint ms_fbo, ms_color, ms_depth;
@@ -373,6 +416,21 @@ void wrt_render_light_from_gto(const wrt_gto_light *in, wrt_light *out) {
 
 enum { VTX_FLOATS = 3 + 3 + 2 + 4 + 2 };
 
+void wrt_render_set_emitter_scales(wrt_render *r, const float *scales) {
+    const wrt_gto *g = r->g;
+    size_t nv = (size_t)g->nquads * 4;
+    float *e = wrt_xcalloc(nv ? 3 * nv : 3, sizeof(float));
+    for (uint32_t q = 0; q < g->nquads; q++) {
+        uint32_t mi = g->quads[q].material;
+        if (mi >= g->nmaterials) continue;
+        float s = scales ? scales[mi] : 1.0f;
+        for (int c = 0; c < 4; c++)
+            for (int k = 0; k < 3; k++) e[((size_t)q * 4 + (size_t)c) * 3 + (size_t)k] = g->materials[mi].emissive[k] * s;
+    }
+    glNamedBufferSubData(r->vbo_emit, 0, (GLsizeiptr)((nv ? nv : 1) * 3 * sizeof(float)), e);
+    free(e);
+}
+
 static void build_geometry(wrt_render *r) {
     const wrt_gto *g = r->g;
     size_t nv = (size_t)g->nquads * 4;
@@ -422,6 +480,14 @@ static void build_geometry(wrt_render *r) {
     glEnableVertexArrayAttrib(a, 5);
     glVertexArrayAttribFormat(a, 5, 4, GL_FLOAT, GL_FALSE, 0);
     glVertexArrayAttribBinding(a, 5, 1);
+    glCreateBuffers(1, &r->vbo_emit);
+    glNamedBufferStorage(r->vbo_emit, (GLsizeiptr)((nv ? nv : 1) * 3 * sizeof(float)), NULL, GL_DYNAMIC_STORAGE_BIT);
+    wrt_render_set_emitter_scales(r, NULL);
+    glVertexArrayVertexBuffer(a, 2, r->vbo_emit, 0, 3 * sizeof(float));
+    glEnableVertexArrayAttrib(a, 6);
+    glVertexArrayAttribFormat(a, 6, 3, GL_FLOAT, GL_FALSE, 0);
+    glVertexArrayAttribBinding(a, 6, 2);
+    r->base_tex = wrt_render_tex_build(g, a, &r->vbo_tex);
     glCreateVertexArrays(1, &r->vao_empty);
 }
 
@@ -566,6 +632,9 @@ void wrt_render_destroy(wrt_render *r) {
     glDeleteVertexArrays(1, &r->vao_empty);
     glDeleteBuffers(1, &r->vbo_geom);
     glDeleteBuffers(1, &r->vbo_rect);
+    glDeleteBuffers(1, &r->vbo_emit);
+    glDeleteBuffers(1, &r->vbo_tex);
+    glDeleteTextures(1, &r->base_tex);
     glDeleteBuffers(1, &r->ibo);
     glDeleteFramebuffers(1, &r->fbo);
     glDeleteFramebuffers(1, &r->shadow_fbo);
@@ -929,6 +998,8 @@ void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode) {
     glUniform1f(loc(p, "u_sun_texel"), 2.0f / (float)r->sun_res);
     glBindTextureUnit(1, r->atlas);
     glUniform1i(loc(p, "u_atlas"), 1);
+    glBindTextureUnit(3, r->base_tex);
+    glUniform1i(loc(p, "u_tex"), 3);
     glUniform2f(loc(p, "u_atlas_size"), (float)(r->atlas_w ? r->atlas_w : 1), (float)(r->atlas_h ? r->atlas_h : 1));
     glBindVertexArray(r->vao);
     glDrawElements(GL_TRIANGLES, (GLsizei)(r->g->nquads * 6), GL_UNSIGNED_INT, NULL);

@@ -58,6 +58,9 @@ void wrt_render_set_lights(wrt_render *r, const wrt_light *lights, const float *
  * row j (v) after row j-1, texel i of a row at u in [i/res, (i+1)/res) (as
  * wrt_relight_tex). Copied. Returns 1 if it differs from what was staged before. */
 int wrt_render_set_quad_tex(wrt_render *r, int q, int res, const float *rgb);
+/* The emissive surfaces' radiance drawn in the direct pass (docs/emitters.md): each
+ * material's emission times scales[material] (NULL: all 1, as after create). */
+void wrt_render_set_emitter_scales(wrt_render *r, const float *scales);
 /* Sends the staged textures that changed to the GPU (re-packs the atlas if a quad's
  * resolution changed). Returns the number of quads uploaded, or -1 with an error
  * (atlas larger than the GPU allows: wrt_last_error()). */

@@ -347,6 +347,14 @@ wrt_status wrt_runtime_set_eye(wrt_runtime *rt, const double eye[3], wrt_error *
     return WRT_OK;
 }
 
+int wrt_runtime_emitter_count(const wrt_runtime *rt) { return live(rt) ? wrt_relight_emitter_count(rt->rl) : -1; }
+
+wrt_status wrt_runtime_set_emitter_scale(wrt_runtime *rt, int material, float scale, wrt_error *err) {
+    if (!live(rt)) return dead(err, "wrt_runtime_set_emitter_scale", rt);
+    wrt_status s = wrt_relight_set_emitter_scale(rt->rl, material, scale);
+    return s == WRT_OK ? WRT_OK : fail(err, s);
+}
+
 wrt_status wrt_runtime_update(wrt_runtime *rt, int *changed, wrt_error *err) {
     if (changed) *changed = 0;
     if (!live(rt)) return dead(err, "wrt_runtime_update", rt);

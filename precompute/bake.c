@@ -15,6 +15,7 @@
 #include "../common/threads.h"
 #include "../common/brdf.h"
 #include "../common/brdf_table.h"
+#include "../common/texture.h"
 #include "../common/rt_scene.h"
 #include "dto.h"
 #include "balance.h"
@@ -189,9 +190,15 @@ static void k_assemble(wrt_bake_result *res, const pair_out *out, size_t n, uint
     free(t);
 }
 
-static void material_rho(const wrt_material *m, double rho[3]) {
+/* The albedo the transport gives a quad: from its material, with the base colour its
+ * own mean over its UV footprint when the material has a base-colour texture and the
+ * quad has UVs (docs/textures.md), else the material's (factor x the texture's mean). */
+static void material_rho(const wrt_scene *scene, const wrt_quad *q, const wrt_material *m, double rho[3]) {
+    double own[3] = {m->base_color[0], m->base_color[1], m->base_color[2]};
+    if (m->base_tex > 0 && m->base_tex <= scene->ntextures && q->has_uv)
+        wrt_texture_quad_mean(&scene->textures[m->base_tex - 1], q, own);
     for (int c = 0; c < 3; c++) {
-        double base = m->base_color[c];
+        double base = own[c];
         /* non-Lambertian materials: diffuse part of the glTF model plus the
          * normal-incidence specular reflectance, as a diffuse albedo */
         if (!m->lambertian) base = (1 - m->metallic) * base * 0.96 + (0.04 * (1 - m->metallic) + m->metallic * base);
@@ -223,7 +230,7 @@ static wrt_status bake_frame(bake_ctx *b, const wrt_scene *scene) {
         b->quads[i] = scene->quads[i];
         for (int k = 0; k < 4; k++) b->quads[i].p[k] = v3_sub(scene->quads[i].p[k], centre);
         const wrt_material *m = &scene->materials[scene->quads[i].material];
-        material_rho(m, b->rho[i]);
+        material_rho(scene, &scene->quads[i], m, b->rho[i]);
         nglossy += !m->lambertian;
     }
     (void)nglossy;

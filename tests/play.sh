@@ -34,6 +34,7 @@ expect_exit "foreign file: exit 2" 2 "not|foreign|magic" "$play" "$tmp/foreign.g
 expect_exit "unknown option: exit 1" 1 "unknown option" "$play" x.gto --frobnicate
 expect_exit "bad vector: exit 1" 1 "bad value" "$play" x.gto --light-pos 1,2
 expect_exit "headless without output: exit 1" 1 "needs -o/--out" "$play" x.gto --headless
+expect_exit "bad --emitter-scale: exit 1" 1 "expected M=S" "$play" x.gto --emitter-scale 3=-1
 
 # A small baked scene.
 scene=""

@@ -630,7 +630,7 @@ static void test_versions(void) {
     b[F_VERSION_MAJOR] = 2;
     fix_header_sum(b);
     write_raw(tpath("v2.gto"), b, n);
-    expect(wrt_gto_open(tpath("v2.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 2.0 is newer than this reader's version 1.2",
+    expect(wrt_gto_open(tpath("v2.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 2.0 is newer than this reader's version 1.3",
            "newer major");
     b[F_VERSION_MAJOR] = 0;
     fix_header_sum(b);
@@ -1462,7 +1462,7 @@ static void test_k_print_info(void) {
     wrt_status st = wrt_gto_print_info(p, 0, f);
     fclose(f);
     CHECK(st == WRT_OK, "info: %s", wrt_last_error());
-    CHECK(strstr(text, "version 1.1 (older, read in full: later versions only add 1.2 the optional source map)"),
+    CHECK(strstr(text, "version 1.1 (older, read in full: later versions only add 1.2 the optional source map, 1.3 the optional textures)"),
           "version: %s", text);
     CHECK(strstr(text, "first bounce: K, 5 columns on 2 glossy quads, 9 entries"), "K line: %s", text);
     CHECK(strstr(text, "max 3; deepest level: spatial 1, angular node 1"), "K figures: %s", text);
@@ -1484,7 +1484,7 @@ static void test_k_print_info(void) {
     wrt_gto_print_info(p0, 0, f);
     fclose(f);
     CHECK(strstr(text, "version 1.0 (older, read in full: later versions only add 1.1 the optional first-bounce "
-                       "operator, 1.2 the optional source map)") && strstr(text, "first bounce: none") && !strstr(text, "kkeys"),
+                       "operator, 1.2 the optional source map, 1.3 the optional textures)") && strstr(text, "first bounce: none") && !strstr(text, "kkeys"),
           "no K: %s", text);
     free(text);
     f = open_memstream(&text, &tn);

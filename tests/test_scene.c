@@ -8,6 +8,7 @@
 #endif
 #include "tests/test.h"
 #include "formats/scene.h"
+#include "common/texture.h"
 
 #include <stdarg.h>
 #include <stdlib.h>
@@ -412,7 +413,8 @@ static void materials(void) {
         "{\"name\":\"no factors\"},"
         "{\"name\":\"matte\",\"pbrMetallicRoughness\":{\"metallicFactor\":0,\"baseColorFactor\":[0.5,0.25,0.125,1]}},"
         "{\"name\":\"satin\",\"pbrMetallicRoughness\":{\"metallicFactor\":0,\"roughnessFactor\":0.5}},"
-        "{\"name\":\"lamp\\\"shade\",\"emissiveFactor\":[1,0.5,0]},"
+        "{\"name\":\"lamp\\\"shade\",\"emissiveFactor\":[1,0.5,0],"
+        "\"extensions\":{\"KHR_materials_emissive_strength\":{\"emissiveStrength\":4}}},"
         "{\"name\":\"textured\",\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.5,1,1,1],\"baseColorTexture\":{\"index\":0},"
         "\"metallicRoughnessTexture\":{\"index\":1}}}],"
         "\"textures\":[{\"source\":0},{\"source\":1}],"
@@ -432,7 +434,12 @@ static void materials(void) {
         CHECK_NEAR(m[1].base_color[1], 0.25, 1e-7, "base color factor");
         CHECK(m[2].lambertian == 0, "roughness 0.5 is glossy");
         CHECK(s.nemissive == 1, "nemissive %d", s.nemissive);
-        CHECK_NEAR(m[3].emissive[1], 0.5, 1e-7, "emissive factor");
+        CHECK_NEAR(m[3].emissive[1], 2.0, 1e-7, "emissive factor x KHR_materials_emissive_strength");
+        CHECK(s.ntextures == 1 && m[4].base_tex == 1 && s.textures[0].w == 2 && s.textures[0].h == 1,
+              "the base-colour texture is kept: %d textures, base_tex %d", s.ntextures, m[4].base_tex);
+        if (s.ntextures == 1)
+            CHECK(s.textures[0].srgb[0] == 128 && fabs(s.textures[0].lut[128] - srgb_lin(128 / 255.0)) < 1e-6,
+                  "kept texel %d, decoded %g", s.textures[0].srgb[0], s.textures[0].lut[128]);
         CHECK(strcmp(m[3].name, "lamp\"shade") == 0, "name %s", m[3].name);
         /* base: factor x mean of sRGB-decoded texels */
         CHECK_NEAR(m[4].base_color[0], 0.5 * srgb_lin(128 / 255.0), 1e-6, "R");

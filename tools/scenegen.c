@@ -256,6 +256,18 @@ static void cornell_build(sg_scene *s, int glossy_back) {
 
 static void scene_cornell(sg_scene *s) { cornell_build(s, 0); }
 
+/* The Cornell box lit only by an emissive ceiling panel (docs/emitters.md): a 0.35 m
+ * square 5 mm under the ceiling, facing down, albedo 0.78, emitted radiance
+ * (1, 0.9, 0.75) x 10 (emissiveFactor x KHR_materials_emissive_strength); no lamp. */
+static void scene_cornell_emit(sg_scene *s) {
+    cornell_build(s, 0);
+    s->nlights = 0;
+    int panel = add_material(s, "panel", 0.78, 0.78, 0.78, 0, 1);
+    s->mats[panel].emissive[0] = 1; s->mats[panel].emissive[1] = 0.9; s->mats[panel].emissive[2] = 0.75;
+    s->mats[panel].strength = 10;
+    add_rect(s, add_mesh(s, "panel", panel), 1, 0.995, -0.175, 0.175, -0.175, 0.175, -1);
+}
+
 /* The Cornell box with a glossy metal back wall (base colour 0.9, metallic 1,
  * roughness --roughness): the reflections of the lit ceiling and of the boxes are
  * glossy-to-diffuse-to-glossy transport a path tracer shows. */
@@ -666,6 +678,7 @@ static const sg_entry scenes[] = {
     {"icosphere", scene_icosphere, "test/icosphere.gltf",
      "closed icosphere of 20 x 4^--res inward triangles, light at the centre"},
     {"sun-room", scene_sun_room, "sun_room.gltf", "closed room lit by a sun through a window"},
+    {"cornell-emit", scene_cornell_emit, "test/cornell_emit.gltf", "Cornell box lit only by an emissive ceiling panel"},
 };
 #define NSCENES ((int)(sizeof scenes / sizeof scenes[0]))
 

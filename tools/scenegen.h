@@ -28,6 +28,8 @@ typedef struct sg_material {
     char name[64];
     double rgb[3];
     double metallic, roughness;
+    double emissive[3];  /* emissiveFactor (0: none) */
+    double strength;     /* KHR_materials_emissive_strength (0 or 1: not written) */
 } sg_material;
 
 typedef struct sg_mesh {

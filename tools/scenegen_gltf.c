@@ -184,8 +184,14 @@ static void gltf_mesh_buffers(const sg_scene *s, bbuf *bin, sbuf *acc, sbuf *vie
 /* The KHR_lights_punctual extension with every light, when the scene has lights. */
 static void gltf_lights(const sg_scene *s, sbuf *out) {
     int nl = s->nlights;
+    int strength = 0;
+    for (int i = 0; i < s->nmats; i++) strength |= s->mats[i].strength > 0 && s->mats[i].strength != 1;
+    if (strength && nl == 0) sb_printf(out, "  \"extensionsUsed\":[\"KHR_materials_emissive_strength\"],\n");
     if (nl > 0) {
-        sb_printf(out, "  \"extensionsUsed\":[\"KHR_lights_punctual\"],\n");
+        if (strength)
+            sb_printf(out, "  \"extensionsUsed\":[\"KHR_lights_punctual\",\"KHR_materials_emissive_strength\"],\n");
+        else
+            sb_printf(out, "  \"extensionsUsed\":[\"KHR_lights_punctual\"],\n");
         sb_printf(out, "  \"extensions\":{\"KHR_lights_punctual\":{\"lights\":[");
         for (int i = 0; i < nl; i++) {
             const sg_light *l = &s->lights[i];
@@ -266,7 +272,17 @@ static void gltf_cameras_meshes_materials(const sg_scene *s, sbuf *out) {
         sb_num(out, m->metallic);
         sb_printf(out, ",\"roughnessFactor\":");
         sb_num(out, m->roughness);
-        sb_printf(out, "}}");
+        sb_printf(out, "}");
+        if (m->emissive[0] > 0 || m->emissive[1] > 0 || m->emissive[2] > 0) {
+            sb_printf(out, ",\"emissiveFactor\":");
+            sb_vec(out, m->emissive, 3);
+            if (m->strength > 0 && m->strength != 1) {
+                sb_printf(out, ",\"extensions\":{\"KHR_materials_emissive_strength\":{\"emissiveStrength\":");
+                sb_num(out, m->strength);
+                sb_printf(out, "}}");
+            }
+        }
+        sb_printf(out, "}");
     }
 }
 

@@ -14,6 +14,7 @@
 #include "include/wrt.h"
 #include "common/rt_scene.h"
 #include "verify/reference.h"
+#include "common/texture.h"
 
 #include <embree3/rtcore.h>
 #include <math.h>
@@ -113,6 +114,15 @@ int wrt_compare_default_lights(const wrt_scene *s, int count, wrt_light *out) {
         double d = v3_len(ext);
         base.intensity = (float)(d > 0 ? d * d : 1);
         base.outer_cone = (float)(WRT_PI / 4);
+        if (s->nemissive > 0) {
+            /* lit by its emissive surfaces alone (docs/emitters.md): one dark light, so
+             * that both sides compare the emitters' light and nothing else */
+            snprintf(base.name, sizeof base.name, "emitters only");
+            base.intensity = 0;
+            base.pos = v3_scale(v3_add(lo, hi), 0.5);
+            out[k++] = base;
+            return k;
+        }
     }
     int nfrac = (int)(sizeof frac / sizeof frac[0]);
     for (int i = 0; k < count && i < 4 * nfrac; i++) {
@@ -441,6 +451,20 @@ static void display_cells(const wrt_gto *g, const wrt_runtime *r, int q, int n, 
         }
 }
 
+/* A textured quad's display (docs/textures.md): the runtime's outgoing radiance is the
+ * material's mean albedo x irradiance / pi; the pixel's is its texel's albedo x the same
+ * irradiance, so v is scaled by albedo(uv) / mean albedo, channel by channel. */
+static void texture_modulate(const wrt_scene *s, int q, double u, double v, double out[3]) {
+    const wrt_quad *qq = &s->quads[q];
+    const wrt_material *m = &s->materials[qq->material];
+    if (m->base_tex <= 0 || m->base_tex > s->ntextures || !qq->has_uv || !m->lambertian) return;
+    double st[2];
+    float a[3];
+    wrt_quad_uv_at(qq, u, v, st);
+    wrt_texture_albedo(&s->textures[m->base_tex - 1], st[0], st[1], a);
+    for (int c = 0; c < 3; c++) out[c] = m->base_color[c] > 0 ? out[c] * a[c] / m->base_color[c] : 0;
+}
+
 /* The image of relighter `r` for light li into `wi` and its errors against the reference. */
 static void image_errors(const wrt_compare_ref *c, int li, const wrt_runtime *r, float *wi, double *rmse,
                          double *floor_, double *deb) {
@@ -455,6 +479,7 @@ static void image_errors(const wrt_compare_ref *c, int li, const wrt_runtime *r,
                 int res;
                 const float *tex = wrt_runtime_quad_texture(r, q, &res);
                 tex_lookup(tex, res, c->hit_uv[(p * ns + k) * 2], c->hit_uv[(p * ns + k) * 2 + 1], v);
+                texture_modulate(c->scene, q, c->hit_uv[(p * ns + k) * 2], c->hit_uv[(p * ns + k) * 2 + 1], v);
                 for (int ch = 0; ch < 3; ch++) acc[ch] += v[ch] / ns;
             }
             for (int ch = 0; ch < 3; ch++) {

@@ -13,6 +13,7 @@
 #include "common/brdf.h"
 #include "common/threads.h"
 #include "common/rt_scene.h"
+#include "common/texture.h"
 
 #include <embree3/rtcore.h>
 #include <stdatomic.h>
@@ -252,15 +253,31 @@ static void direct_irradiance(ref_thread *th, wrt_v3 x, wrt_v3 n, double e[3]) {
     }
 }
 
-/* Direct light reflected at x toward wo: sum over lights f(wl, wo) E_l. */
-static void direct_radiance(ref_thread *th, const ref_quad *q, wrt_v3 x, wrt_v3 wo, double out[3]) {
+/* The material at point y of quad qi: its own, or with a base-colour texture (and UVs)
+ * a copy whose base colour is the texture's albedo at y's UV (docs/textures.md). */
+static const wrt_material *hit_material(const wrt_ref *r, int qi, wrt_v3 y, wrt_material *tmp) {
+    const wrt_material *m = r->quads[qi].m;
+    const wrt_scene *s = r->scene;
+    const wrt_quad *q = &s->quads[qi];
+    if (m->base_tex <= 0 || m->base_tex > s->ntextures || !q->has_uv) return m;
+    double u, v, st[2];
+    wrt_quad_inverse(q, y, &u, &v);
+    wrt_quad_uv_at(q, u, v, st);
+    *tmp = *m;
+    wrt_texture_albedo(&s->textures[m->base_tex - 1], st[0], st[1], tmp->base_color);
+    return tmp;
+}
+
+/* Direct light reflected at x toward wo (material m): sum over lights f(wl, wo) E_l. */
+static void direct_radiance(ref_thread *th, const ref_quad *q, const wrt_material *m, wrt_v3 x, wrt_v3 wo,
+                            double out[3]) {
     out[0] = out[1] = out[2] = 0;
     wrt_v3 o = v3_mad(x, q->n, th->r->eps);
     for (int i = 0; i < th->nlights; i++) {
         double el[3], f[3];
         wrt_v3 wl;
         if (!light_irradiance(&th->lights[i], x, q->n, &wl, el)) continue;
-        wrt_brdf_eval(q->m, q->n, wl, wo, f);
+        wrt_brdf_eval(m, q->n, wl, wo, f);
         if (f[0] == 0 && f[1] == 0 && f[2] == 0) continue;
         if (!light_seen(th, o, &th->lights[i], wl)) continue;
         for (int c = 0; c < 3; c++) out[c] += f[c] * el[c];
@@ -285,12 +302,16 @@ static void trace(ref_thread *th, ref_rng *rng, wrt_v3 o, wrt_v3 d, const double
         y = v3_mad(y, q->n, q->d - v3_dot(q->n, y)); /* snap onto the plane */
         wrt_v3 wo = v3_scale(d, -1);
         double ld[3];
-        direct_radiance(th, q, y, wo, ld);
-        for (int c = 0; c < 3; c++) out[c] += T[c] * ld[c];
+        wrt_material mt;
+        const wrt_material *m = hit_material(th->r, qi, y, &mt);
+        direct_radiance(th, q, m, y, wo, ld);
+        /* An emissive surface's radiance, met by the path (no next-event estimation toward
+         * emitters, so nothing is counted twice and no MIS weight is needed) */
+        for (int c = 0; c < 3; c++) out[c] += T[c] * (ld[c] + q->m->emissive[c]);
         if (k >= th->max_bounces) return;
         double w[3];
         double u1 = rng_next(rng), u2 = rng_next(rng), u3 = rng_next(rng);
-        wrt_v3 wi = wrt_brdf_sample(q->m, q->n, wo, u1, u2, u3, w);
+        wrt_v3 wi = wrt_brdf_sample(m, q->n, wo, u1, u2, u3, w);
         for (int c = 0; c < 3; c++) T[c] *= w[c];
         double tmax = fmax(T[0], fmax(T[1], T[2]));
         if (!(tmax > 0)) return;
@@ -496,11 +517,13 @@ static void render_row(ref_job *job, ref_thread *th, int y) {
                 p = v3_mad(p, q->n, q->d - v3_dot(q->n, p));
                 wrt_v3 wo = v3_scale(d, -1);
                 double dr[3];
-                direct_radiance(th, q, p, wo, dr);
-                for (int ch = 0; ch < 3; ch++) sd[ch] += dr[ch];
+                wrt_material mt;
+                const wrt_material *m = hit_material(job->r, qi, p, &mt);
+                direct_radiance(th, q, m, p, wo, dr);
+                for (int ch = 0; ch < 3; ch++) sd[ch] += dr[ch] + q->m->emissive[ch]; /* emitter seen */
                 double w[3];
                 double u1 = rng_next(&rng), u2 = rng_next(&rng), u3 = rng_next(&rng);
-                wrt_v3 wi = wrt_brdf_sample(q->m, q->n, wo, u1, u2, u3, w);
+                wrt_v3 wi = wrt_brdf_sample(m, q->n, wo, u1, u2, u3, w);
                 if (w[0] > 0 || w[1] > 0 || w[2] > 0)
                     trace(th, &rng, v3_mad(p, q->n, job->r->eps), wi, w, 1, ind);
             }

@@ -13,7 +13,12 @@
  * mu = max(0, -d . n), no falloff and no range; its shadow ray toward -d must leave the
  * scene.
  * Surfaces reflect only on their front (normal) side; a ray reaching the back of a quad
- * is absorbed. Lights are not hit by rays (they are points).
+ * is absorbed. Lights are not hit by rays (they are points). An emissive material
+ * (wrt_material.emissive, the emitted radiance L_e) sends L_e from its quads' fronts:
+ * a path that meets one adds its throughput times L_e (emission on hit, no next-event
+ * estimation toward emitters; docs/emitters.md), so the emitters' light on a surface
+ * counts as "indirect" (it arrives along the sampled paths), and an emitter seen by the
+ * camera adds L_e to the image's "direct".
  *
  * "Direct" irradiance is light arriving straight from the lights; "indirect" is light
  * that reflected at least once. Paths end by unbiased Russian roulette (after three
