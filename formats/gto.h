@@ -27,8 +27,9 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
  *      WRT_ERR_UNSUPPORTED for it (or add a converter); a minor bump must still open it.
  *   5. Regenerate the golden file of the new version (test_gto --regen) and commit it. */
 #define WRT_GTO_VERSION 1
-#define WRT_GTO_VERSION_MINOR 2 /* 1.1: the optional first-bounce operator K (sections 12-15).
+#define WRT_GTO_VERSION_MINOR 3 /* 1.1: the optional first-bounce operator K (sections 12-15).
                                  * 1.2: the optional quad-to-source map (section 16).
+                                 * 1.3: the optional corner normals (section 18).
                                  * The writer puts the lowest minor that has what the file
                                  * holds: a file with neither is 1.0, byte for byte as before. */
 
@@ -86,6 +87,15 @@ typedef struct wrt_gto_srcmap {
 #define WRT_GTO_SRC_TWIN 1u /* the back twin of a double-sided quad */
 #define WRT_GTO_SRC_UV 2u   /* uv holds the primitive's TEXCOORD_0 */
 
+/* Corner normals (version 1.3, section normals): one record per quad, the mesh's vertex
+ * normals (glTF NORMAL) at p0..p3, unit, world space; a quad without normals holds its
+ * flat normal n at all four. Written only when some quad's corner normals differ from its
+ * flat normal; used to shade and to join the smooth display across a smooth mesh's
+ * edges, never by the transport. */
+typedef struct wrt_gto_normals {
+    float n[4][3];
+} wrt_gto_normals; /* 48 bytes */
+
 /* Figures of the bake, stored in the file and printed by `wrt-bake --info`. */
 typedef struct wrt_gto_stats {
     double t_dto, t_gto, t_write, t_total;  /* seconds */
@@ -134,6 +144,8 @@ typedef struct wrt_gto {
     /* The quad-to-source map (version 1.2): nquads records, NULL when the file has none
      * (1.0 and 1.1 files, or written with no_srcmap). */
     const wrt_gto_srcmap *srcmap;
+    /* Corner normals (version 1.3): nquads records, NULL when the file has none. */
+    const wrt_gto_normals *normals;
 } wrt_gto;
 
 /* Maps and validates `path`: magic, version, byte order, every section's offset and

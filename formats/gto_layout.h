@@ -101,6 +101,7 @@ _Static_assert(offsetof(wrt_gto_srcmap, flags) == 28, "layout");
 _Static_assert(offsetof(wrt_gto_srcmap, twin_of) == 32, "layout");
 _Static_assert(offsetof(wrt_gto_srcmap, reserved) == 36, "layout");
 _Static_assert(offsetof(wrt_gto_srcmap, uv) == 40, "layout");
+_Static_assert(sizeof(wrt_gto_normals) == 48, "normals record");
 _Static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE 754 binary32/binary64");
 
 enum {
@@ -110,19 +111,26 @@ enum {
     SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS,
     /* version 1.2: the quad-to-source map, optional */
     SEC_SRCMAP,
+    /* 17 is reserved (another branch's encoded operator): unknown here, skipped */
+    /* version 1.3: the corner normals, optional */
+    SEC_NORMALS = 18,
     SEC_KNOWN_END
 };
 #define SEC_KNOWN (SEC_KNOWN_END - 1)
 #define SEC_REQUIRED SEC_PROVENANCE /* ids 1 .. this are in every file */
 #define GTO_MINOR_K 1               /* the minor version that added K */
 #define GTO_MINOR_SRCMAP 2          /* the minor version that added the quad-to-source map */
+#define GTO_MINOR_NORMALS 3         /* the minor version that added the corner normals */
 
 /* Name and element size of each known section id (gto_check.c). */
 typedef struct gto_sec_desc { const char *name; uint32_t elem_size; } gto_sec_desc;
 extern const gto_sec_desc gto_sec_info[SEC_KNOWN_END];
 
+/* 1 if this reader knows section `id` (ids below SEC_KNOWN may be gaps). */
+static inline int gto_sec_known(uint32_t id) { return id >= 1 && id <= SEC_KNOWN && gto_sec_info[id].name; }
+
 static inline const char *gto_sec_name(uint32_t id) {
-    return (id >= 1 && id <= SEC_KNOWN) ? gto_sec_info[id].name : "unknown";
+    return (id >= 1 && id <= SEC_KNOWN && gto_sec_info[id].name) ? gto_sec_info[id].name : "unknown";
 }
 
 static inline uint64_t gto_align_up(uint64_t x) { return (x + GTO_ALIGN - 1) & ~(uint64_t)(GTO_ALIGN - 1); }

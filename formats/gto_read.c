@@ -90,14 +90,14 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
         if (s->offset != gto_align_up(prev_end))
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 ", expected %" PRIu64
                             " (sections follow each other)", nm, s->offset, gto_align_up(prev_end));
-        if (s->id <= SEC_KNOWN && s->elem_size != gto_sec_info[s->id].elem_size)
+        if (gto_sec_known(s->id) && s->elem_size != gto_sec_info[s->id].elem_size)
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: element size %u, expected %u", nm,
                             s->elem_size, gto_sec_info[s->id].elem_size);
         if (s->elem_size == 0 || s->count > s->size / s->elem_size ||
             s->count * s->elem_size != s->size)
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: size %" PRIu64 " is not %" PRIu64
                             " elements of %u bytes", nm, s->size, s->count, s->elem_size);
-        if (s->id <= SEC_KNOWN) L->sec[s->id] = s;
+        if (gto_sec_known(s->id)) L->sec[s->id] = s;
         prev_end = s->offset + s->size;
     }
     if (prev_end != len)
@@ -158,6 +158,9 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     if (S[SEC_SRCMAP] && S[SEC_SRCMAP]->count != S[SEC_QUADS]->count)
         return wrt_fail(WRT_ERR_CORRUPT, "section srcmap: %" PRIu64 " records, expected %" PRIu64 " (one per quad)",
                         S[SEC_SRCMAP]->count, S[SEC_QUADS]->count);
+    if (S[SEC_NORMALS] && S[SEC_NORMALS]->count != S[SEC_QUADS]->count)
+        return wrt_fail(WRT_ERR_CORRUPT, "section normals: %" PRIu64 " records, expected %" PRIu64 " (one per quad)",
+                        S[SEC_NORMALS]->count, S[SEC_QUADS]->count);
     /* Every byte outside the sections is header, table or zero padding. */
     uint64_t prev_end = L->h.header_size;
     for (uint32_t i = 0; i < L->h.nsections; i++) {
@@ -199,6 +202,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
         g->kvals = SECPTR(SEC_KVALS);
     }
     if (S[SEC_SRCMAP]) g->srcmap = SECPTR(SEC_SRCMAP);
+    if (S[SEC_NORMALS]) g->normals = SECPTR(SEC_NORMALS);
 #undef SECPTR
     return WRT_OK;
 }

@@ -7,4 +7,12 @@
 /* The short name of a WRT_PROBLEM_* kind ("unpaired", "non-planar", ...). */
 const char *wrt_scene_problem_name(int kind);
 
+/* scene_normals.c: NORMAL at the corners of triangle t's three quads (q from
+ * wrt_triangle_quads) and of the quad paired from triangles t and s; nothing if the
+ * primitive has no normals. */
+struct wrt_gltf_prim;
+struct wrt_quad;
+void wrt_scene_triangle_parts_nrm(const struct wrt_gltf_prim *p, int t, struct wrt_quad *q);
+void wrt_scene_pair_nrm(const struct wrt_gltf_prim *p, int t, int s, struct wrt_quad *q);
+
 #endif

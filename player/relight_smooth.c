@@ -27,7 +27,9 @@ static wrt_status smooth_groups(wrt_relight *r) {
         mat[q] = g->quads[q].material;
     }
     wrt_recon_allocator ral = {r->opt.alloc, r->opt.free, r->opt.alloc_user};
-    r->sm.recon = wrt_recon_create_with((int)nq, (const double (*)[4][3])corners, mat, &ral);
+    /* a curved mesh's corner normals (file version 1.3) join its quads across smooth edges */
+    const float (*nrm)[4][3] = g->normals ? (const float (*)[4][3])g->normals : NULL;
+    r->sm.recon = wrt_recon_create_smooth((int)nq, (const double (*)[4][3])corners, mat, nrm, WRT_RECON_SMOOTH_COS, &ral);
     relight_free(r, corners);
     relight_free(r, mat);
     if (!r->sm.recon) return WRT_ERR_NOMEM;
