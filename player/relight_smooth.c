@@ -57,6 +57,10 @@ static void smooth_levels(wrt_relight *r) {
         }
         int Lo = L + extra < r->max_tex_level ? L + extra : r->max_tex_level;
         if (Lo < 1) Lo = L < 1 ? L : 1;
+        /* a group joined across a curved mesh's edges (file 1.3) gets at least 4 x 4 texels
+         * a quad: at 2 x 2 every texel is an edge or corner texel and none inside can give
+         * back what the edges take, so each facet kept its own mean as a visible tile */
+        if (r->g->normals && nm > 1 && Lo < 2 && r->max_tex_level >= 2) Lo = 2;
         /* a sharp reflection is gathered a point per texel: its texture has the gather's
          * resolution whatever the depth of the quad's cells in the file (glossy links are
          * refined at a lower quality: cornell-glossy r0.1 at quality 5, texture 16 -> 32:
