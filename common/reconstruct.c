@@ -10,7 +10,7 @@
 /* Edge e runs from corner E_END[e][0] to E_END[e][1], along increasing u (edges 0, 2)
  * or v (edges 1, 3). */
 static const int E_END[4][2] = {{0, 1}, {1, 2}, {3, 2}, {0, 3}};
-#define MAX_AROUND 16 /* quads around one corner within a group */
+#define MAX_AROUND 40 /* quads around one corner within a group (a 32-segment UV sphere's pole: 32) */
 
 typedef struct corner_set { int n; int quad[MAX_AROUND], corner[MAX_AROUND]; } corner_set;
 
@@ -91,9 +91,23 @@ static double recon_tolerance(int n, const double (*corners)[4][3]) {
     return tol;
 }
 
-/* Stage 2: each quad edge's smooth neighbour (same material, coplanar, a shared edge), mutual. */
+/* With corner normals: 1 if quads q and o, sharing q's edge e as o's edge f (fl: the other
+ * way), are one smooth surface there: the normals at both ends agree within cos_tol and
+ * the faces are not folded onto each other (flat normals more than 120 degrees apart). */
+static int smooth_edge(const float (*normals)[4][3], double cos_tol, const v3 *nrm, int q, int e, int o, int f,
+                       int fl) {
+    if (!normals || dot(nrm[q], nrm[o]) < -0.5) return 0;
+    for (int end = 0; end < 2; end++) {
+        const float *a = normals[q][E_END[e][end]], *b = normals[o][E_END[f][fl ? 1 - end : end]];
+        if ((double)a[0] * b[0] + (double)a[1] * b[1] + (double)a[2] * b[2] < cos_tol) return 0;
+    }
+    return 1;
+}
+
+/* Stage 2: each quad edge's smooth neighbour (same material; coplanar, or with corner
+ * normals agreeing along the edge; a shared edge), mutual. */
 static void recon_neighbours(wrt_recon *rc, int n, const double (*corners)[4][3], const uint32_t *material, v3 *nrm,
-                             double tol) {
+                             double tol, const float (*normals)[4][3], double cos_tol) {
     for (int q = 0; q < n; q++) {
         nrm[q] = quad_normal(corners[q]);
         for (int e = 0; e < 4; e++) rc->nb[q][e] = -1, rc->nbe[q][e] = 0, rc->flip[q][e] = 0;
@@ -102,17 +116,18 @@ static void recon_neighbours(wrt_recon *rc, int n, const double (*corners)[4][3]
         for (int e = 0; e < 4; e++) {
             const double *a = corners[q][E_END[e][0]], *b = corners[q][E_END[e][1]];
             for (int o = 0; o < n && rc->nb[q][e] < 0; o++) {
-                if (o == q || material[o] != material[q] || dot(nrm[q], nrm[o]) < 1 - 1e-9) continue;
-                int coplanar = 1;
-                for (int k = 0; k < 4; k++)
+                if (o == q || material[o] != material[q]) continue;
+                int coplanar = dot(nrm[q], nrm[o]) >= 1 - 1e-9;
+                for (int k = 0; k < 4 && coplanar; k++)
                     if (fabs(dot(sub(mk(corners[o][k]), mk(a)), nrm[q])) > tol) coplanar = 0;
-                if (!coplanar) continue;
+                if (!coplanar && !normals) continue;
                 for (int f = 0; f < 4; f++) {
                     const double *c = corners[o][E_END[f][0]], *d = corners[o][E_END[f][1]];
                     int fl;
                     if (same_point(a, c, tol) && same_point(b, d, tol)) fl = 0;
                     else if (same_point(a, d, tol) && same_point(b, c, tol)) fl = 1;
                     else continue;
+                    if (!coplanar && !smooth_edge(normals, cos_tol, nrm, q, e, o, f, fl)) break;
                     if (edge_blocked(n, corners, q, o, mk(a), mk(b), tol)) break;
                     rc->nb[q][e] = o; rc->nbe[q][e] = f; rc->flip[q][e] = fl;
                     break;
@@ -175,6 +190,11 @@ static void recon_corner_sets(wrt_recon *rc, int n) {
 
 wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uint32_t *material,
                                  const wrt_recon_allocator *alloc) {
+    return wrt_recon_create_smooth(n, corners, material, NULL, 1, alloc);
+}
+
+wrt_recon *wrt_recon_create_smooth(int n, const double (*corners)[4][3], const uint32_t *material,
+                                   const float (*normals)[4][3], double cos_tol, const wrt_recon_allocator *alloc) {
     wrt_recon_allocator al = {0};
     if (alloc && alloc->alloc && alloc->free) al = *alloc;
     wrt_recon *rc = rc_alloc(&al, sizeof *rc);
@@ -199,7 +219,7 @@ wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uin
         return NULL;
     }
     double tol = recon_tolerance(n, corners);
-    recon_neighbours(rc, n, corners, material, nrm, tol);
+    recon_neighbours(rc, n, corners, material, nrm, tol, normals, cos_tol);
     int ng = recon_components(rc, n, stack);
     rc->ngroups = ng;
     /* Each group's members, in quad order, and each quad's slot in its group. */

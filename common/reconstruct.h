@@ -51,6 +51,16 @@ typedef struct wrt_recon_allocator {
 } wrt_recon_allocator;
 wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uint32_t *material,
                                  const wrt_recon_allocator *a);
+/* The same on a curved mesh: with each quad's corner normals (normals[q][k] at corners[q][k],
+ * unit; NULL: none, as wrt_recon_create_with), two quads that share an edge and a material
+ * but do not lie in one plane are also smooth neighbours when their normals agree at both
+ * ends of the edge (cosine >= cos_tol) and their faces are not folded onto each other
+ * (flat normals at most 120 degrees apart); the wall test still applies. So the display is
+ * continuous across a smooth mesh's edges and stops at a crease, where the mesh's normals
+ * split. WRT_RECON_SMOOTH_COS is the runtime's tolerance (docs/triangles.md). */
+#define WRT_RECON_SMOOTH_COS 0.9998 /* about 1.1 degrees */
+wrt_recon *wrt_recon_create_smooth(int n, const double (*corners)[4][3], const uint32_t *material,
+                                   const float (*normals)[4][3], double cos_tol, const wrt_recon_allocator *a);
 void wrt_recon_destroy(wrt_recon *rc); /* NULL is a no-op */
 
 int wrt_recon_ngroups(const wrt_recon *rc);

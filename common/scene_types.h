@@ -33,6 +33,11 @@ typedef struct wrt_quad {
     int has_uv;         /* 1: uv holds the primitive's TEXCOORD_0 at each corner */
     float uv[4][2];     /* TEXCOORD_0 at p0..p3 (a triangle element's midpoints and centroid
                            interpolated linearly, as glTF does across a triangle) */
+    int has_nrm;        /* 1: vn holds the mesh's vertex normals (glTF NORMAL) at each corner */
+    float vn[4][3];     /* unit normals at p0..p3, world space (a triangle element's midpoints
+                           and centroid: the normalized mean of its corners' normals); used to
+                           shade and to join the smooth display across a smooth mesh's edges,
+                           never by the bake's transport (that stays with the flat quads) */
 } wrt_quad;
 
 /* Element kinds. A triangle that does not pair into a planar convex quad is cut into

@@ -422,6 +422,47 @@ struct reader {
             free(p.pos);
             free(p.idx);
             free(p.uv);
+            free(p.nrm);
+        }
+    }
+
+    /* NORMAL (glTF: FLOAT VEC3, one per vertex), to world space by the cofactor matrix of
+     * the node's linear part (its inverse transpose times the determinant; the sign of the
+     * determinant keeps a mirrored node's normals outward), then made unit. A normal that
+     * is not finite or of zero length is refused with its accessor element. */
+    void read_normals(const tinygltf::Primitive &p, size_t npos, const mat4 &world, size_t mi, size_t pi,
+                      wrt_gltf_prim &q) {
+        auto na = p.attributes.find("NORMAL");
+        if (na == p.attributes.end()) return;
+        accessor_view nv = check_accessor(model, na->second, "NORMAL", TINYGLTF_TYPE_VEC3,
+                                          {TINYGLTF_COMPONENT_TYPE_FLOAT}, mi, pi, label);
+        if (nv.count != npos)
+            throw make_error(WRT_ERR_PARSE, "%s: mesh %zu primitive %zu: NORMAL has %zu elements, POSITION %zu",
+                             label, mi, pi, nv.count, npos);
+        const double *m = world.m; /* column-major: m[c * 4 + r] */
+        double cof[3][3], det = mat_det3(world), sg = det < 0 ? -1.0 : 1.0;
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++) {
+                int r1 = (r + 1) % 3, r2 = (r + 2) % 3, c1 = (c + 1) % 3, c2 = (c + 2) % 3;
+                cof[r][c] = m[c1 * 4 + r1] * m[c2 * 4 + r2] - m[c2 * 4 + r1] * m[c1 * 4 + r2];
+            }
+        q.nrm = static_cast<float *>(malloc(npos * 3 * sizeof(float)));
+        if (!q.nrm) throw std::bad_alloc();
+        size_t cs = component_size(nv.ct);
+        for (size_t v = 0; v < npos; v++) {
+            double ln[3], wn[3], l2 = 0;
+            for (size_t c = 0; c < 3; c++) ln[c] = read_component(nv.base + v * nv.stride + c * cs, nv.ct, false);
+            for (int r = 0; r < 3; r++) {
+                wn[r] = sg * (cof[r][0] * ln[0] + cof[r][1] * ln[1] + cof[r][2] * ln[2]);
+                l2 += wn[r] * wn[r];
+            }
+            double l = std::sqrt(l2);
+            if (!(l > 1e-12) || !std::isfinite(l) || !std::isfinite(ln[0] + ln[1] + ln[2]))
+                throw make_error(WRT_ERR_PARSE,
+                                 "%s: meshes[%zu].primitives[%zu].attributes.NORMAL element %zu: (%g, %g, %g) "
+                                 "is not a direction (glTF normals are unit vectors)",
+                                 label, mi, pi, v, ln[0], ln[1], ln[2]);
+            for (int r = 0; r < 3; r++) q.nrm[3 * v + size_t(r)] = float(wn[r] / l);
         }
     }
 
@@ -529,6 +570,7 @@ struct reader {
                     q.uv = nullptr;
                 }
         }
+        read_normals(p, pv.count, world, mi, pi, q);
         /* glTF: a node whose world transform has a negative determinant turns its
          * triangles' front faces clockwise; swapping two corners keeps the rest of the
          * loader on counter-clockwise fronts. */
@@ -803,6 +845,7 @@ extern "C" void wrt_gltf_free(wrt_gltf_data *d) {
         free(d->prims[i].pos);
         free(d->prims[i].idx);
         free(d->prims[i].uv);
+        free(d->prims[i].nrm);
     }
     free(d->prims);
     for (size_t i = 0; d->materials && i < d->nmaterials; i++) free(d->materials[i].base_tex);

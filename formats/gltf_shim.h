@@ -28,6 +28,8 @@ typedef struct wrt_gltf_prim {
                               in the world's front-face winding (see mirrored) */
     size_t ntri;
     float *uv;             /* 2 * npos floats: TEXCOORD_0 per vertex; NULL if the primitive has none */
+    float *nrm;            /* 3 * npos floats: NORMAL per vertex in world space (by the inverse
+                              transpose of the node's transform), unit; NULL if none */
     int mirrored;          /* 1: the node's world transform has a negative determinant; glTF
                               then flips the winding, so each triangle's 2nd and 3rd indices
                               are swapped here and the front faces stay counter-clockwise */

@@ -610,7 +610,7 @@ struct strict_check {
                 for (auto it = at_->begin(); it != at_->end(); ++it) {
                     long long ai = ref(it.value(), at(at(pp, "attributes"), it.key().c_str()), "accessors");
                     if (it.key() == "POSITION") position_type(ai, at(at(pp, "attributes"), "POSITION"));
-                    if (it.key() != "POSITION" && it.key() != "TEXCOORD_0") ignore("meshes[*].primitives[*].attributes." + it.key());
+                    if (it.key() != "POSITION" && it.key() != "TEXCOORD_0" && it.key() != "NORMAL") ignore("meshes[*].primitives[*].attributes." + it.key());
                 }
                 ignore_others(pr, "meshes[*].primitives[*]", {"mode", "material", "indices", "attributes"});
             }

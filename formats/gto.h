@@ -30,6 +30,7 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
 #define WRT_GTO_VERSION_MINOR 3 /* 1.1: the optional first-bounce operator K (sections 12-15).
                                  * 1.2: the optional quad-to-source map (section 16).
                                  * 1.3: the optional base-colour textures (section 21).
+                                 * 1.3: the optional corner normals (section 18).
                                  * The writer puts the lowest minor that has what the file
                                  * holds: a file with neither is 1.0, byte for byte as before. */
 
@@ -87,6 +88,15 @@ typedef struct wrt_gto_srcmap {
 #define WRT_GTO_SRC_TWIN 1u /* the back twin of a double-sided quad */
 #define WRT_GTO_SRC_UV 2u   /* uv holds the primitive's TEXCOORD_0 */
 
+/* Corner normals (version 1.3, section normals): one record per quad, the mesh's vertex
+ * normals (glTF NORMAL) at p0..p3, unit, world space; a quad without normals holds its
+ * flat normal n at all four. Written only when some quad's corner normals differ from its
+ * flat normal; used to shade and to join the smooth display across a smooth mesh's
+ * edges, never by the transport. */
+typedef struct wrt_gto_normals {
+    float n[4][3];
+} wrt_gto_normals; /* 48 bytes */
+
 /* Figures of the bake, stored in the file and printed by `wrt-bake --info`. */
 typedef struct wrt_gto_stats {
     double t_dto, t_gto, t_write, t_total;  /* seconds */
@@ -138,6 +148,8 @@ typedef struct wrt_gto {
     /* Base-colour textures (version 1.3, section textures; docs/textures.md): the
      * section's bytes (NULL, 0 when the file has none); read with wrt_gto_texture. */
     const uint8_t *textures; uint64_t textures_size;
+    /* Corner normals (version 1.3): nquads records, NULL when the file has none. */
+    const wrt_gto_normals *normals;
 } wrt_gto;
 
 /* One texture of the textures section: the material it belongs to, its size, glTF wrap

@@ -33,6 +33,7 @@ const gto_sec_desc gto_sec_info[SEC_KNOWN_END] = {
     [SEC_KROWS] = {"krows", 4},
     [SEC_KVALS] = {"kvals", 4},
     [SEC_SRCMAP] = {"srcmap", sizeof(wrt_gto_srcmap)},
+    [SEC_NORMALS] = {"normals", sizeof(wrt_gto_normals)},
     [SEC_TEXTURES] = {"textures", 1},
 };
 
@@ -561,6 +562,20 @@ static void check_srcmap(vctx *v, const uint8_t *base, uint64_t first, uint64_t 
     }
 }
 
+/* Corner normals: finite and unit (within 1e-3: they were made unit in double precision
+ * and stored as floats). */
+static void check_normals(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
+    const wrt_gto_normals *all = (const wrt_gto_normals *)base;
+    for (uint64_t q = first; q < first + n; q++)
+        for (int k = 0; k < 4; k++) {
+            const float *c = all[q].n[k];
+            double l2 = (double)c[0] * c[0] + (double)c[1] * c[1] + (double)c[2] * c[2];
+            if (!(fabs(l2 - 1) <= 2e-3))
+                return vbad(v, "normals[%" PRIu64 "]: corner %d (%g, %g, %g) is not a unit vector", q, k,
+                            (double)c[0], (double)c[1], (double)c[2]);
+        }
+}
+
 chunk_check gto_sec_checker(uint32_t id) {
     switch (id) {
     case SEC_QUADS: return check_quads_local;
@@ -578,6 +593,7 @@ chunk_check gto_sec_checker(uint32_t id) {
     case SEC_KROWS: return check_krows;
     case SEC_KVALS: return check_kvals;
     case SEC_SRCMAP: return check_srcmap;
+    case SEC_NORMALS: return check_normals;
     default: return NULL;
     }
 }

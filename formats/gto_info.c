@@ -381,7 +381,7 @@ static void text_figures(FILE *f, const gto_info *I) {
 /* What a file's version means to this reader, in words ("current", or what the later
  * minors add), so that an older file does not read like a warning. */
 static void version_note(char *b, size_t n, unsigned major, unsigned minor) {
-    static const char *added[] = {"", "the optional first-bounce operator", "the optional source map", "the optional textures"};
+    static const char *added[] = {"", "the optional first-bounce operator", "the optional source map", "the optional corner normals and textures"};
     int nadded = (int)(sizeof added / sizeof added[0]);
     if (major == WRT_GTO_VERSION && minor == WRT_GTO_VERSION_MINOR) {
         snprintf(b, n, "current");

@@ -101,6 +101,7 @@ _Static_assert(offsetof(wrt_gto_srcmap, flags) == 28, "layout");
 _Static_assert(offsetof(wrt_gto_srcmap, twin_of) == 32, "layout");
 _Static_assert(offsetof(wrt_gto_srcmap, reserved) == 36, "layout");
 _Static_assert(offsetof(wrt_gto_srcmap, uv) == 40, "layout");
+_Static_assert(sizeof(wrt_gto_normals) == 48, "normals record");
 _Static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE 754 binary32/binary64");
 
 enum {
@@ -110,6 +111,9 @@ enum {
     SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS,
     /* version 1.2: the quad-to-source map, optional */
     SEC_SRCMAP,
+    /* 17 is reserved (another branch's encoded operator): unknown here, skipped */
+    /* version 1.3: the corner normals, optional */
+    SEC_NORMALS = 18,
     /* version 1.3 (this branch): base-colour textures, optional (docs/textures.md); ids
      * 17-20 are other sections of the same session, unknown here and skipped */
     SEC_TEXTURES = 21,
@@ -120,6 +124,7 @@ enum {
 #define GTO_MINOR_K 1               /* the minor version that added K */
 #define GTO_MINOR_SRCMAP 2          /* the minor version that added the quad-to-source map */
 #define GTO_MINOR_TEXTURES 3        /* the minor version that added the textures section */
+#define GTO_MINOR_NORMALS 3         /* the minor version that added the corner normals */
 
 /* Name and element size of each known section id (gto_check.c). */
 typedef struct gto_sec_desc { const char *name; uint32_t elem_size; } gto_sec_desc;

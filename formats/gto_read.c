@@ -158,6 +158,9 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     if (S[SEC_SRCMAP] && S[SEC_SRCMAP]->count != S[SEC_QUADS]->count)
         return wrt_fail(WRT_ERR_CORRUPT, "section srcmap: %" PRIu64 " records, expected %" PRIu64 " (one per quad)",
                         S[SEC_SRCMAP]->count, S[SEC_QUADS]->count);
+    if (S[SEC_NORMALS] && S[SEC_NORMALS]->count != S[SEC_QUADS]->count)
+        return wrt_fail(WRT_ERR_CORRUPT, "section normals: %" PRIu64 " records, expected %" PRIu64 " (one per quad)",
+                        S[SEC_NORMALS]->count, S[SEC_QUADS]->count);
     /* Every byte outside the sections is header, table or zero padding. */
     uint64_t prev_end = L->h.header_size;
     for (uint32_t i = 0; i < L->h.nsections; i++) {
@@ -199,6 +202,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
         g->kvals = SECPTR(SEC_KVALS);
     }
     if (S[SEC_SRCMAP]) g->srcmap = SECPTR(SEC_SRCMAP);
+    if (S[SEC_NORMALS]) g->normals = SECPTR(SEC_NORMALS);
     if (S[SEC_TEXTURES]) {
         g->textures = SECPTR(SEC_TEXTURES);
         g->textures_size = S[SEC_TEXTURES]->size;

@@ -252,10 +252,35 @@ typedef struct gto_records {
     wrt_gto_stats stats;
     wrt_gto_srcmap *srcmap; /* NULL: not written (no_srcmap) */
     uint8_t *textures; uint64_t textures_size; /* NULL: the scene has none */
+    wrt_gto_normals *normals; /* NULL: not written (no quad's corner normals leave its plane) */
 } gto_records;
 
 static void free_records(gto_records *R) {
-    free(R->quads); free(R->mats); free(R->lights); free(R->names); free(R->srcmap); free(R->textures);
+    free(R->quads); free(R->mats); free(R->lights); free(R->names); free(R->srcmap); free(R->normals); free(R->textures);
+}
+
+/* The corner normals (section normals, version 1.3), only where they say something: some
+ * quad's vertex normals leave its flat normal by more than half a degree (cosine under
+ * 1 - 4e-5; the flat faces of assets/cornell.gltf carry normals up to 0.1 degree off, the
+ * float rounding of the exporter's). A scene of flat faces, with or without glTF normals,
+ * gives the file as before. */
+static void build_normals(const wrt_scene *sc, gto_records *R) {
+    uint32_t nq = R->nq;
+    int curved = 0;
+    for (uint32_t q = 0; q < nq && !curved; q++) {
+        const wrt_quad *s = &sc->quads[q];
+        for (int k = 0; k < 4 && s->has_nrm; k++)
+            if (s->vn[k][0] * s->n.x + s->vn[k][1] * s->n.y + s->vn[k][2] * s->n.z < 1 - 4e-5) curved = 1;
+    }
+    if (!curved) return;
+    wrt_gto_normals *m = R->normals = wrt_xcalloc(nq ? nq : 1, sizeof *m);
+    for (uint32_t q = 0; q < nq; q++) {
+        const wrt_quad *s = &sc->quads[q];
+        for (int k = 0; k < 4; k++) {
+            if (s->has_nrm) { memcpy(m[q].n[k], s->vn[k], sizeof m[q].n[k]); continue; }
+            m[q].n[k][0] = (float)s->n.x; m[q].n[k][1] = (float)s->n.y; m[q].n[k][2] = (float)s->n.z;
+        }
+    }
 }
 
 /* Each quad's function range and deepest levels from the keys, then its geometry. */
@@ -302,6 +327,7 @@ static wrt_status build_quads(const char *path, const wrt_gto_contents *c, gto_r
             if (s->has_uv) memcpy(m[q].uv, s->uv, sizeof m[q].uv);
         }
     }
+    build_normals(sc, R);
     return WRT_OK;
 }
 
@@ -370,6 +396,7 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
         {SEC_VALS, nnz, c->vals}, {SEC_STATS, 1, &R->stats}, {SEC_PROVENANCE, strlen(prov), prov},
         {SEC_KKEYS, nk, c->kkeys}, {SEC_KCOL_START, (uint64_t)nk + 1, c->kcol_start},
         {SEC_KROWS, knnz, c->krows}, {SEC_KVALS, knnz, c->kvals}, {SEC_SRCMAP, R->nq, R->srcmap},
+        {SEC_NORMALS, R->nq, R->normals},
         {SEC_TEXTURES, R->textures_size, R->textures},
     };
     /* Without K and the source map the file is version 1.0 with its 11 sections, byte
@@ -379,7 +406,7 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
     for (int i = 0; i < SEC_KNOWN; i++) {
         uint32_t id = secs[i].id;
         if (id == 0 || (id >= SEC_KKEYS && id <= SEC_KVALS && !nk) || (id == SEC_SRCMAP && !R->srcmap) ||
-            (id == SEC_TEXTURES && !R->textures))
+            (id == SEC_TEXTURES && !R->textures) || (id == SEC_NORMALS && !R->normals))
             continue;
         P->secs[P->nsec++] = secs[i];
     }
@@ -402,7 +429,8 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     memcpy(h->magic, GTO_MAGIC, GTO_MAGIC_LEN);
     h->byte_order = GTO_BOM;
     h->version_major = WRT_GTO_VERSION;
-    h->version_minor = R->textures ? GTO_MINOR_TEXTURES : R->srcmap ? GTO_MINOR_SRCMAP : nk ? GTO_MINOR_K : 0;
+    h->version_minor = R->textures ? GTO_MINOR_TEXTURES : R->normals ? GTO_MINOR_NORMALS : R->srcmap ? GTO_MINOR_SRCMAP
+                       : nk ? GTO_MINOR_K : 0;
     h->nsections = (uint32_t)nsec;
     h->header_size = hsize;
     h->op_kind = c->op_kind;

@@ -344,6 +344,7 @@ static int add_triangle_parts(const wrt_gltf_prim *p, int t, int material, quad_
     wrt_quad parts[3];
     if (wrt_triangle_quads(pos_at(p, ix[0]), pos_at(p, ix[1]), pos_at(p, ix[2]), parts) != WRT_OK) return -1;
     triangle_parts_uv(p, t, parts);
+    wrt_scene_triangle_parts_nrm(p, t, parts);
     for (int k = 0; k < 3; k++) {
         wrt_quad *q = add_quad(ql);
         *q = parts[k];
@@ -543,6 +544,7 @@ static void pair_emit(const wrt_gltf_prim *p, pair_ctx *ctx_in, size_t ntri, tri
                 quad->kind = WRT_ELEM_QUAD;
                 quad->node = p->node;
                 pair_uv(p, ti, s, quad);
+                wrt_scene_pair_nrm(p, ti, s, quad);
                 sc->npaired++;
                 continue;
             }
@@ -864,6 +866,9 @@ static void scene_add_twins(quad_list *ql, const wrt_gltf_data *g, double diag, 
         b->has_uv = f->has_uv; /* the corners run p0 p3 p2 p1: so do their (u, v) */
         for (int c = 0; c < 4; c++)
             for (int d = 0; d < 2; d++) b->uv[c][d] = f->uv[(4 - c) % 4][d];
+        b->has_nrm = f->has_nrm; /* the back faces the other way: so do its normals */
+        for (int c = 0; c < 4; c++)
+            for (int d = 0; d < 3; d++) b->vn[c][d] = -f->vn[(4 - c) % 4][d];
         if (wrt_quad_finish(b) != WRT_OK) ql->n--; /* cannot happen: f was finished */
         else s->ntwins++;
     }

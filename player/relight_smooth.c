@@ -27,7 +27,9 @@ static wrt_status smooth_groups(wrt_relight *r) {
         mat[q] = g->quads[q].material;
     }
     wrt_recon_allocator ral = {r->opt.alloc, r->opt.free, r->opt.alloc_user};
-    r->sm.recon = wrt_recon_create_with((int)nq, (const double (*)[4][3])corners, mat, &ral);
+    /* a curved mesh's corner normals (file version 1.3) join its quads across smooth edges */
+    const float (*nrm)[4][3] = g->normals ? (const float (*)[4][3])g->normals : NULL;
+    r->sm.recon = wrt_recon_create_smooth((int)nq, (const double (*)[4][3])corners, mat, nrm, WRT_RECON_SMOOTH_COS, &ral);
     relight_free(r, corners);
     relight_free(r, mat);
     if (!r->sm.recon) return WRT_ERR_NOMEM;
@@ -55,6 +57,10 @@ static void smooth_levels(wrt_relight *r) {
         }
         int Lo = L + extra < r->max_tex_level ? L + extra : r->max_tex_level;
         if (Lo < 1) Lo = L < 1 ? L : 1;
+        /* a group joined across a curved mesh's edges (file 1.3) gets at least 4 x 4 texels
+         * a quad: at 2 x 2 every texel is an edge or corner texel and none inside can give
+         * back what the edges take, so each facet kept its own mean as a visible tile */
+        if (r->g->normals && nm > 1 && Lo < 2 && r->max_tex_level >= 2) Lo = 2;
         /* a sharp reflection is gathered a point per texel: its texture has the gather's
          * resolution whatever the depth of the quad's cells in the file (glossy links are
          * refined at a lower quality: cornell-glossy r0.1 at quality 5, texture 16 -> 32:

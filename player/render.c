@@ -39,8 +39,9 @@ static const char *scene_vs =
     "layout(location=7) in vec4 a_tex;\n"   /* base-colour texture in u_tex: x, y, w, h (w 0: none) */
     "layout(location=8) in vec4 a_tuv;\n"   /* TEXCOORD_0, wrap modes */
     "layout(location=9) in vec3 a_tfac;\n"  /* baseColorFactor */
+    "layout(location=10) in vec3 a_snrm;\n"  /* the mesh's vertex normal at the corner (flat: a_nrm) */
     "uniform mat4 u_vp;\n"
-    "out vec3 v_pos; out vec2 v_uv;\n"
+    "out vec3 v_pos; out vec2 v_uv; out vec3 v_snrm;\n"
     "flat out vec3 v_nrm; flat out vec4 v_base; flat out vec2 v_rough; flat out vec4 v_rect;\n"
     "flat out vec3 v_emit;\n"
     "flat out vec4 v_tex; out vec2 v_tuv; flat out vec2 v_twrap; flat out vec3 v_tfac;\n"
@@ -48,6 +49,7 @@ static const char *scene_vs =
     "  v_tex = a_tex; v_tuv = a_tuv.xy; v_twrap = a_tuv.zw; v_tfac = a_tfac;\n"
     "  v_pos = a_pos; v_nrm = a_nrm; v_uv = a_uv; v_base = a_base; v_rough = a_rough; v_rect = a_rect;\n"
     "  v_emit = a_emit;\n"
+    "  v_snrm = a_snrm;\n"
     "  gl_Position = u_vp * vec4(a_pos, 1.0);\n"
     "}\n";
 
@@ -58,7 +60,7 @@ static const char *scene_fs =
     "#version 450 core\n"
     "#define MAXL 16\n"
     "#define SHADOW_NEAR 1e-3\n"
-    "in vec3 v_pos; in vec2 v_uv;\n"
+    "in vec3 v_pos; in vec2 v_uv; in vec3 v_snrm;\n"
     "flat in vec3 v_nrm; flat in vec4 v_base; flat in vec2 v_rough; flat in vec4 v_rect;\n"
     "flat in vec3 v_emit;\n"
     "flat in vec4 v_tex; in vec2 v_tuv; flat in vec2 v_twrap; flat in vec3 v_tfac;\n"
@@ -150,19 +152,21 @@ static const char *scene_fs =
     "                                     v_base.b > 0.0 ? a.b / v_base.b : 0.0);\n"
     "    g_base = a;\n"
     "  }\n"
-    "  vec3 n = v_nrm;\n"
+    /* the face's own normal decides which side is seen and offsets the shadow lookups;
+     * the mesh's interpolated vertex normal shades (flat faces: the same) */
+    "  vec3 fn = v_nrm, n = normalize(v_snrm);\n"
     "  vec3 v = u_eye - v_pos;\n"
     "  float vl = length(v);\n"
     "  v /= vl;\n"
     "  vec3 c = vec3(0.0);\n"
-    "  if (dot(n, v) > 0.0) {\n"
+    "  if (dot(fn, v) > 0.0) {\n"
     "    if (u_mode != 2) for (int i = 0; i < u_nlights; i++) {\n"
     "      if (u_lcone[i].w == 0.0) continue;\n"
     "      if (u_lcol[i].w > 1.5) {\n" /* a sun */
     "        vec3 ls = -u_ldir[i].xyz;\n"
     "        float nls = dot(n, ls);\n"
     "        if (nls <= 0.0) continue;\n"
-    "        c += lit_sun(i, v_pos, n) * nls * u_lcol[i].rgb * brdf(n, ls, v);\n"
+    "        c += lit_sun(i, v_pos, fn) * nls * u_lcol[i].rgb * brdf(n, ls, v);\n"
     "        continue;\n"
     "      }\n"
     "      vec3 l = u_lpos[i].xyz - v_pos;\n"
@@ -182,7 +186,7 @@ static const char *scene_fs =
     "        att *= w * w;\n"
     "      }\n"
     "      if (att <= 0.0) continue;\n"
-    "      float s = lit(i, v_pos, n);\n"
+    "      float s = lit(i, v_pos, fn);\n"
     "      c += s * att * nl * u_lcol[i].rgb * brdf(n, l, v);\n"
     "    }\n"
     "    if (u_mode != 2) c += v_emit;\n" /* an emissive surface, seen from its front */
@@ -414,7 +418,7 @@ void wrt_render_light_from_gto(const wrt_gto_light *in, wrt_light *out) {
     out->outer_cone = in->outer_cone;
 }
 
-enum { VTX_FLOATS = 3 + 3 + 2 + 4 + 2 };
+enum { VTX_FLOATS = 3 + 3 + 2 + 4 + 2 + 3 }; /* ..., the vertex normal last (location 10) */
 
 void wrt_render_set_emitter_scales(wrt_render *r, const float *scales) {
     const wrt_gto *g = r->g;
@@ -450,6 +454,7 @@ static void build_geometry(wrt_render *r) {
             o[11] = m ? m->metallic : 0;
             o[12] = m ? m->roughness : 1;
             o[13] = m ? (float)(m->lambertian != 0) : 1;
+            for (int k = 0; k < 3; k++) o[14 + k] = g->normals ? g->normals[q].n[c][k] : Q->n[k];
         }
         static const int tri[6] = {0, 1, 2, 0, 2, 3};
         for (int k = 0; k < 6; k++) idx[q * 6 + k] = q * 4 + (uint32_t)tri[k];
@@ -488,6 +493,9 @@ static void build_geometry(wrt_render *r) {
     glVertexArrayAttribFormat(a, 6, 3, GL_FLOAT, GL_FALSE, 0);
     glVertexArrayAttribBinding(a, 6, 2);
     r->base_tex = wrt_render_tex_build(g, a, &r->vbo_tex);
+    glEnableVertexArrayAttrib(a, 10);
+    glVertexArrayAttribFormat(a, 10, 3, GL_FLOAT, GL_FALSE, (GLuint)(off * sizeof(float)));
+    glVertexArrayAttribBinding(a, 10, 0);
     glCreateVertexArrays(1, &r->vao_empty);
 }
 

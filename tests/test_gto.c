@@ -1298,7 +1298,7 @@ static void test_k_bad(void) {
     fix_header_sum(c);
     expect(open_copy(c, n, &g), WRT_ERR_CORRUPT, "missing section kvals (the first-bounce sections", "kvals missing");
     memcpy(c, b, n);
-    uint32_t ids[3] = {17, 18, 19};
+    uint32_t ids[3] = {100, 101, 102}; /* unknown ids (18 is the corner normals) */
     for (int i = 0; i < 3; i++) memcpy(c + entry(S_KCOL_START + i), &ids[i], 4);
     fix_header_sum(c);
     expect(open_copy(c, n, &g), WRT_ERR_CORRUPT, "missing section kcol_start", "only kkeys");
@@ -1462,7 +1462,7 @@ static void test_k_print_info(void) {
     wrt_status st = wrt_gto_print_info(p, 0, f);
     fclose(f);
     CHECK(st == WRT_OK, "info: %s", wrt_last_error());
-    CHECK(strstr(text, "version 1.1 (older, read in full: later versions only add 1.2 the optional source map, 1.3 the optional textures)"),
+    CHECK(strstr(text, "version 1.1 (older, read in full: later versions only add 1.2 the optional source map, 1.3 the optional corner normals and textures)"),
           "version: %s", text);
     CHECK(strstr(text, "first bounce: K, 5 columns on 2 glossy quads, 9 entries"), "K line: %s", text);
     CHECK(strstr(text, "max 3; deepest level: spatial 1, angular node 1"), "K figures: %s", text);
@@ -1484,7 +1484,7 @@ static void test_k_print_info(void) {
     wrt_gto_print_info(p0, 0, f);
     fclose(f);
     CHECK(strstr(text, "version 1.0 (older, read in full: later versions only add 1.1 the optional first-bounce "
-                       "operator, 1.2 the optional source map, 1.3 the optional textures)") && strstr(text, "first bounce: none") && !strstr(text, "kkeys"),
+                       "operator, 1.2 the optional source map, 1.3 the optional corner normals and textures)") && strstr(text, "first bounce: none") && !strstr(text, "kkeys"),
           "no K: %s", text);
     free(text);
     f = open_memstream(&text, &tn);
@@ -1629,6 +1629,85 @@ static void test_srcmap_golden(void) {
     writer_reproduces(golden_s_path, "s_golden_now.gto", write_good_s);
 }
 
+/* Corner normals (version 1.3): a quad whose normals leave its plane makes the writer add
+ * section 18, one record per quad (a quad without normals: its flat normal at all four
+ * corners), read back as written; normals within half a degree of the plane (or none)
+ * leave the file as before (1.2); a normal that is not unit is refused with its quad and
+ * corner, and a flipped byte by the checksum. */
+static int write_good_n(const char *path) {
+    build();
+    static wrt_quad nq[3];
+    static wrt_scene ns;
+    memcpy(nq, quads, sizeof nq);
+    ns = scene;
+    ns.quads = nq;
+    nq[1].has_nrm = 1; /* quad 1 faces -z: tilt its corners' normals by 30 degrees outward */
+    for (int k = 0; k < 4; k++) {
+        wrt_v3 out = v3_norm(v3(nq[1].p[k].x - 0.5, nq[1].p[k].y - 0.5, 0));
+        wrt_v3 n = v3_norm(v3_add(v3_scale(nq[1].n, cos(WRT_PI / 6)), v3_scale(out, sin(WRT_PI / 6))));
+        nq[1].vn[k][0] = (float)n.x; nq[1].vn[k][1] = (float)n.y; nq[1].vn[k][2] = (float)n.z;
+    }
+    wrt_gto_contents c = contents_s;
+    c.scene = &ns;
+    wrt_status st = wrt_gto_write(path, &c);
+    CHECK(st == WRT_OK, "write %s: %s", path, wrt_last_error());
+    return st == WRT_OK;
+}
+
+static void test_normals(void) {
+    size_t n;
+    uint8_t *b = written("n.gto", write_good_n, &n);
+    if (!b) return;
+    wrt_gto g;
+    wrt_status st = wrt_gto_open(tpath("n.gto"), &g);
+    CHECK(st == WRT_OK, "open: %s", wrt_last_error());
+    if (st != WRT_OK) { free(b); return; }
+    CHECK(g.version == 1 && g.version_minor == 3 && g.normals && rd32(b, entry(S_SRCMAP + 1)) == 18 &&
+              rd32(b, entry(S_SRCMAP + 1) + 4) == 48,
+          "version %u.%u, normals %p, section id %u", g.version, g.version_minor, (const void *)g.normals,
+          rd32(b, entry(S_SRCMAP + 1)));
+    if (g.normals) {
+        const float *a = g.normals[1].n[2], *f = g.normals[0].n[3];
+        double c1 = -a[2]; /* quad 1's flat normal is -z */
+        CHECK(fabs(c1 - cos(WRT_PI / 6)) < 1e-6 && f[0] == quads[0].n.x && f[1] == (float)quads[0].n.y &&
+                  f[2] == (float)quads[0].n.z,
+              "quad 1 corner 2 at %g degrees from its plane's normal (30), quad 0 flat (%g %g %g)",
+              acos(c1) * 180 / WRT_PI, f[0], f[1], f[2]);
+    }
+    wrt_gto_close(&g);
+    for (size_t at = 0; at < sec_size(b, S_SRCMAP + 1); at += 29) {
+        uint8_t *c = malloc(n);
+        memcpy(c, b, n);
+        c[sec_off(c, S_SRCMAP + 1) + at] ^= 0x10;
+        expect(open_copy(c, n, &g), WRT_ERR_CORRUPT, "section normals: checksum mismatch", "normals byte flipped");
+        free(c);
+    }
+    float two = 2.0f, nan = NAN;
+    corrupt_index(b, n, S_SRCMAP + 1, 48 + 12 * 2, &two, 4, "normals[1]: corner 2 (2, ", "a normal of length 2");
+    corrupt_index(b, n, S_SRCMAP + 1, 4, &nan, 4, "normals[0]: corner 0 (", "a NaN normal");
+    free(b);
+    /* normals a quarter of a degree off the plane: no section, the file of 1.2 */
+    build();
+    static wrt_quad fq[3];
+    static wrt_scene fs;
+    memcpy(fq, quads, sizeof fq);
+    fs = scene;
+    fs.quads = fq;
+    fq[0].has_nrm = 1;
+    for (int k = 0; k < 4; k++) {
+        wrt_v3 m = v3_norm(v3_add(fq[0].n, v3_scale(fq[0].t, tan(0.25 * WRT_PI / 180))));
+        fq[0].vn[k][0] = (float)m.x; fq[0].vn[k][1] = (float)m.y; fq[0].vn[k][2] = (float)m.z;
+    }
+    wrt_gto_contents c = contents_s;
+    c.scene = &fs;
+    st = wrt_gto_write(tpath("n_flat.gto"), &c);
+    CHECK(st == WRT_OK, "write: %s", wrt_last_error());
+    st = wrt_gto_open(tpath("n_flat.gto"), &g);
+    CHECK(st == WRT_OK && g.version_minor == 2 && !g.normals, "normals 0.25 degrees off: version 1.%u, normals %p",
+          g.version_minor, (const void *)g.normals);
+    if (st == WRT_OK) wrt_gto_close(&g);
+}
+
 /* A damaged map is refused with the section and the quad named: a flipped byte (the
  * checksum), a count that is not one per quad, and each content check behind fixed-up
  * checksums. */
@@ -1758,6 +1837,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_srcmap_roundtrip);
     TEST_RUN(test_srcmap_golden);
     TEST_RUN(test_srcmap_bad);
+    TEST_RUN(test_normals);
     TEST_RUN(test_open_speed);
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);

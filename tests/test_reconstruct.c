@@ -6,6 +6,7 @@
  * jump inside a quad, the Haar blocks beside it to show the measure sees seams). */
 #include "common/basis.h"
 #include "formats/gto.h"
+#include "formats/scene.h"
 #include "common/reconstruct.h"
 #include "player/relight.h"
 #include "precompute/bake.h"
@@ -330,6 +331,178 @@ static void test_no_light_across(void) {
     }
 }
 
+/* ------------------------------------------------------- curved meshes ---- */
+
+/* An icosphere of radius 1 (an icosahedron, each face cut in four, 80 triangles), each
+ * triangle as its three quads (wrt_triangle_quads, as the loader makes them), the corner
+ * normals radial: on a sphere the loader's normalized means of the vertices' normals at
+ * the midpoints and the centroid are radial too, so this is what a smooth-shaded
+ * icosphere's glTF gives. Returns the number of quads (240). */
+static int icosphere(double (*c)[4][3], float (*nrm)[4][3]) {
+    const double t = (1 + sqrt(5.0)) / 2;
+    double v[12][3] = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                       {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+    static const int f[20][3] = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                 {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
+                                 {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+    int nq = 0;
+    for (int i = 0; i < 20; i++) {
+        wrt_v3 a = v3_norm(v3(v[f[i][0]][0], v[f[i][0]][1], v[f[i][0]][2]));
+        wrt_v3 b = v3_norm(v3(v[f[i][1]][0], v[f[i][1]][1], v[f[i][1]][2]));
+        wrt_v3 cc = v3_norm(v3(v[f[i][2]][0], v[f[i][2]][1], v[f[i][2]][2]));
+        wrt_v3 ab = v3_norm(v3_add(a, b)), bc = v3_norm(v3_add(b, cc)), ca = v3_norm(v3_add(cc, a));
+        wrt_v3 tri[4][3] = {{a, ab, ca}, {ab, b, bc}, {ca, bc, cc}, {ab, bc, ca}};
+        for (int k = 0; k < 4; k++) {
+            wrt_quad parts[3];
+            if (wrt_triangle_quads(tri[k][0], tri[k][1], tri[k][2], parts) != WRT_OK) return 0;
+            for (int p = 0; p < 3; p++, nq++)
+                for (int j = 0; j < 4; j++) {
+                    wrt_v3 x = parts[p].p[j], n = v3_norm(x);
+                    c[nq][j][0] = x.x; c[nq][j][1] = x.y; c[nq][j][2] = x.z;
+                    nrm[nq][j][0] = (float)n.x; nrm[nq][j][1] = (float)n.y; nrm[nq][j][2] = (float)n.z;
+                }
+        }
+    }
+    return nq;
+}
+
+/* Quad q's display (out, 2^Lo a side) and its neighbours' along every shared edge whose
+ * two quads are not coplanar (the triangles' edges, not the edges between a triangle's
+ * own quads), read at the edge: the largest jump relative to the values there, and the
+ * number of such edges. The neighbours are found from the geometry (both ends within
+ * 1e-9), not from the module's adjacency. */
+static double curved_edge_jump(int nq, const double (*c)[4][3], float *const *out, int Lo, int *nedges) {
+    static const int ends[4][2] = {{0, 1}, {1, 2}, {3, 2}, {0, 3}};
+    int no = 1 << Lo;
+    double worst = 0;
+    *nedges = 0;
+    for (int q = 0; q < nq; q++)
+        for (int e = 0; e < 4; e++)
+            for (int o = q + 1; o < nq; o++)
+                for (int g = 0; g < 4; g++) {
+                    const double *a = c[q][ends[e][0]], *b = c[q][ends[e][1]];
+                    const double *x = c[o][ends[g][0]], *y = c[o][ends[g][1]];
+                    int fl;
+                    if (fabs(a[0] - x[0]) + fabs(a[1] - x[1]) + fabs(a[2] - x[2]) < 1e-9 &&
+                        fabs(b[0] - y[0]) + fabs(b[1] - y[1]) + fabs(b[2] - y[2]) < 1e-9) fl = 0;
+                    else if (fabs(a[0] - y[0]) + fabs(a[1] - y[1]) + fabs(a[2] - y[2]) < 1e-9 &&
+                             fabs(b[0] - x[0]) + fabs(b[1] - x[1]) + fabs(b[2] - x[2]) < 1e-9) fl = 1;
+                    else continue;
+                    /* coplanar pairs (inside a triangle) are the flat rule's, not counted */
+                    wrt_v3 pq = v3_cross(v3_sub(v3(c[q][1][0], c[q][1][1], c[q][1][2]), v3(c[q][0][0], c[q][0][1], c[q][0][2])),
+                                         v3_sub(v3(c[q][3][0], c[q][3][1], c[q][3][2]), v3(c[q][0][0], c[q][0][1], c[q][0][2])));
+                    wrt_v3 po = v3_cross(v3_sub(v3(c[o][1][0], c[o][1][1], c[o][1][2]), v3(c[o][0][0], c[o][0][1], c[o][0][2])),
+                                         v3_sub(v3(c[o][3][0], c[o][3][1], c[o][3][2]), v3(c[o][0][0], c[o][0][1], c[o][0][2])));
+                    if (v3_dot(v3_norm(pq), v3_norm(po)) > 1 - 1e-9) continue;
+                    (*nedges)++;
+                    for (int k = 0; k < 16; k++) {
+                        double tt = (k + 0.5) / 16, u, v, u2, v2;
+                        edge_uv(e, tt, 0, &u, &v);
+                        edge_uv(g, fl ? 1 - tt : tt, 0, &u2, &v2);
+                        double va = lookup(out[q], no, 1, 0, u, v), vb = lookup(out[o], no, 1, 0, u2, v2);
+                        worst = fmax(worst, fabs(va - vb) / (0.5 * (va + vb)));
+                    }
+                }
+    return worst;
+}
+
+/* A smooth-shaded icosphere: with its corner normals the display joins all 240 quads in
+ * one group and is continuous across every edge between triangles (the texels on both
+ * sides agree at the edge); without them (the flat rule) each triangle is its own group
+ * and the display jumps there (by 1.1%). The light: f = 1 + 0.5 z + 0.3 x (cell centres), a smooth
+ * function on the sphere. Then a cube, flat-shaded (each face's own normals): its edges
+ * are creases and stay so, and a fold of 2 degrees whose two sides keep their own normals
+ * (a crease below the tolerance's 1.1 degrees would be joined) is not joined either. */
+static void test_smooth_mesh(void) {
+    double (*c)[4][3] = malloc(240 * sizeof *c);
+    float (*nrm)[4][3] = malloc(240 * sizeof *nrm);
+    int nq = icosphere(c, nrm);
+    CHECK(nq == 240, "icosphere of %d quads", nq);
+    uint32_t *mat = calloc(240, sizeof *mat);
+    int L = 3, Lo = 4, n = 1 << L, no = 1 << Lo;
+    float *in = malloc((size_t)240 * n * n * sizeof(float)), *out = malloc((size_t)240 * no * no * sizeof(float));
+    const float *ip[240];
+    float *op[240];
+    for (int q = 0; q < nq; q++) {
+        ip[q] = in + (size_t)q * n * n;
+        op[q] = out + (size_t)q * no * no;
+        wrt_quad Q;
+        memset(&Q, 0, sizeof Q);
+        for (int j = 0; j < 4; j++) Q.p[j] = v3(c[q][j][0], c[q][j][1], c[q][j][2]);
+        for (int y = 0; y < n; y++)
+            for (int x = 0; x < n; x++) {
+                wrt_v3 p = wrt_quad_point(&Q, (x + 0.5) / n, (y + 0.5) / n);
+                in[(size_t)q * n * n + y * n + x] = (float)(1 + 0.5 * p.z + 0.3 * p.x);
+            }
+    }
+    double jump[2];
+    int ngr[2], nedges[2];
+    for (int smooth = 0; smooth < 2; smooth++) {
+        wrt_recon *rc = wrt_recon_create_smooth(nq, (const double (*)[4][3])c, mat, smooth ? (const float (*)[4][3])nrm : NULL,
+                                                WRT_RECON_SMOOTH_COS, NULL);
+        ngr[smooth] = wrt_recon_ngroups(rc);
+        for (int gr = 0; gr < ngr[smooth]; gr++)
+            CHECK(wrt_recon_run(rc, gr, L, Lo, 1, ip, NULL, op, NULL) == 0, "run group %d", gr);
+        jump[smooth] = curved_edge_jump(nq, (const double (*)[4][3])c, op, Lo, &nedges[smooth]);
+        wrt_recon_destroy(rc);
+    }
+    printf("icosphere, 240 quads: groups %d flat rule, %d with normals; %d edges between triangles: largest "
+           "jump at the edge %.3g%% flat rule, %.3g%% with normals\n", ngr[0], ngr[1], nedges[1], 100 * jump[0],
+           100 * jump[1]);
+    CHECK(nedges[1] == 240, "the 80 triangles' 120 edges are %d quad edges (240, two halves each)", nedges[1]);
+    CHECK(ngr[0] == 80 && ngr[1] == 1, "groups: %d flat (80, one a triangle), %d with normals (1)", ngr[0], ngr[1]);
+    CHECK(jump[1] < 1e-5, "with normals the display is continuous across the triangles' edges (jump %g)", jump[1]);
+    CHECK(jump[0] > 0.005, "the flat rule jumps there (%g): the measure sees seams", jump[0]);
+    /* A flat-shaded cube: each face one quad, its normals its own. */
+    double cube[6][4][3] = {{{0, 0, 0}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0}}, {{0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}},
+                            {{0, 0, 0}, {1, 0, 0}, {1, 0, 1}, {0, 0, 1}}, {{0, 1, 0}, {0, 1, 1}, {1, 1, 1}, {1, 1, 0}},
+                            {{0, 0, 0}, {0, 0, 1}, {0, 1, 1}, {0, 1, 0}}, {{1, 0, 0}, {1, 1, 0}, {1, 1, 1}, {1, 0, 1}}};
+    float cn[6][4][3];
+    for (int q = 0; q < 6; q++) {
+        wrt_v3 a = v3(cube[q][0][0], cube[q][0][1], cube[q][0][2]);
+        wrt_v3 nn = v3_norm(v3_cross(v3_sub(v3(cube[q][1][0], cube[q][1][1], cube[q][1][2]), a),
+                                     v3_sub(v3(cube[q][3][0], cube[q][3][1], cube[q][3][2]), a)));
+        for (int j = 0; j < 4; j++) { cn[q][j][0] = (float)nn.x; cn[q][j][1] = (float)nn.y; cn[q][j][2] = (float)nn.z; }
+    }
+    wrt_recon *rc = wrt_recon_create_smooth(6, (const double (*)[4][3])cube, mat, (const float (*)[4][3])cn,
+                                            WRT_RECON_SMOOTH_COS, NULL);
+    int joined = 0;
+    for (int q = 0; q < 6; q++)
+        for (int e = 0; e < 4; e++) joined += wrt_recon_neighbour(rc, q, e, NULL, NULL) >= 0;
+    CHECK(wrt_recon_ngroups(rc) == 6 && joined == 0, "a flat-shaded cube: %d groups (6), %d joined edges (0)",
+          wrt_recon_ngroups(rc), joined);
+    wrt_recon_destroy(rc);
+    /* The same cube with each corner's normal the mean of its three faces' (smooth
+     * shaded): then its edges are smooth and all six faces one group. */
+    for (int q = 0; q < 6; q++)
+        for (int j = 0; j < 4; j++) {
+            wrt_v3 m = v3_norm(v3(cube[q][j][0] - 0.5, cube[q][j][1] - 0.5, cube[q][j][2] - 0.5));
+            cn[q][j][0] = (float)m.x; cn[q][j][1] = (float)m.y; cn[q][j][2] = (float)m.z;
+        }
+    rc = wrt_recon_create_smooth(6, (const double (*)[4][3])cube, mat, (const float (*)[4][3])cn, WRT_RECON_SMOOTH_COS, NULL);
+    CHECK(wrt_recon_ngroups(rc) == 1, "a smooth-shaded cube: %d groups (1)", wrt_recon_ngroups(rc));
+    wrt_recon_destroy(rc);
+    /* A fold of 2 degrees, each side with its own flat normals: a crease, not joined; the
+     * same fold with the mean normal on the shared edge: joined. */
+    double fold[2][4][3] = {{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}},
+                            {{1, 0, 0}, {2, 0, sin(2 * WRT_PI / 180)}, {2, 1, sin(2 * WRT_PI / 180)}, {1, 1, 0}}};
+    wrt_v3 n1 = v3_norm(v3(-sin(2 * WRT_PI / 180), 0, 1)), nm = v3_norm(v3(-sin(1 * WRT_PI / 180), 0, 1));
+    float fn[2][4][3];
+    for (int pass = 0; pass < 2; pass++) {
+        for (int j = 0; j < 4; j++) {
+            int on_edge0 = j == 1 || j == 2, on_edge1 = j == 0 || j == 3;
+            wrt_v3 a = pass && on_edge0 ? nm : v3(0, 0, 1), b = pass && on_edge1 ? nm : n1;
+            fn[0][j][0] = (float)a.x; fn[0][j][1] = (float)a.y; fn[0][j][2] = (float)a.z;
+            fn[1][j][0] = (float)b.x; fn[1][j][1] = (float)b.y; fn[1][j][2] = (float)b.z;
+        }
+        rc = wrt_recon_create_smooth(2, (const double (*)[4][3])fold, mat, (const float (*)[4][3])fn, WRT_RECON_SMOOTH_COS, NULL);
+        CHECK(wrt_recon_ngroups(rc) == (pass ? 1 : 2), "a 2-degree fold, %s: %d groups", pass ? "mean normal on the edge" : "a crease",
+              wrt_recon_ngroups(rc));
+        wrt_recon_destroy(rc);
+    }
+    free(c); free(nrm); free(mat); free(in); free(out);
+}
+
 /* ------------------------------------------------------- through the player ---- */
 
 static char tmpdir[256];
@@ -484,6 +657,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_continuous_across_edges);
     TEST_RUN(test_linear_superposes);
     TEST_RUN(test_no_light_across);
+    TEST_RUN(test_smooth_mesh);
     TEST_RUN(test_two_rooms_dark);
     TEST_RUN(test_box_no_seams);
     rmdir(tmpdir);

@@ -405,12 +405,68 @@ static void test_icosphere_furnace(void) {
     CHECK(worst <= 1e-3, "icosphere furnace: the worst element %.4f%% from the mean", 100 * worst);
 }
 
+/* ------------------------------------------------------- vertex normals ---- */
+
+/* tests/data/blender_smooth.gltf (tools/blender_smooth.py, Blender's exporter): the UV
+ * sphere is shaded smooth, so its normals are radial; the loader's corner normals (a
+ * pair's vertices, a triangle's corners, midpoints and centroid as normalized means) must
+ * point from the sphere's centre through each corner (centre and radius from the script:
+ * Blender's (-0.2, 0.15, 0.17), radius 0.17, Z up; glTF Y up: (-0.2, 0.17, -0.15)). At a
+ * midpoint or centroid the mean of radial normals is radial too, so the truth holds at
+ * every corner, to the exporter's rounding and its vertex normals' own tilt (0.34
+ * degrees; flat normals would be 5.6 degrees off). The flat
+ * cube's corners carry its faces' normals (within 0.1 degree). */
+static void test_loader_normals(void) {
+    wrt_scene s;
+    wrt_load_options lo;
+    memset(&lo, 0, sizeof lo);
+    if (wrt_scene_load("tests/data/blender_smooth.gltf", &lo, &s) != WRT_OK) {
+        CHECK(0, "load: %s", wrt_last_error());
+        return;
+    }
+    wrt_v3 c = v3(-0.2, 0.17, -0.15);
+    double worst_sphere = 0, worst_cube = 0, rad_lo = 1e9, rad_hi = 0;
+    int nsphere = 0, ncube = 0, without = 0;
+    for (int q = 0; q < s.nquads; q++) {
+        const wrt_quad *Q = &s.quads[q];
+        const char *nm = s.names[Q->name];
+        without += !Q->has_nrm;
+        for (int k = 0; k < 4 && Q->has_nrm; k++) {
+            wrt_v3 vn = v3(Q->vn[k][0], Q->vn[k][1], Q->vn[k][2]);
+            if (!strcmp(nm, "Sphere")) {
+                wrt_v3 d = v3_sub(Q->p[k], c);
+                double r = v3_len(d), a = acos(fmin(1, v3_dot(vn, v3_scale(d, 1 / r)))) * 180 / M_PI;
+                worst_sphere = fmax(worst_sphere, a);
+                rad_lo = fmin(rad_lo, r); rad_hi = fmax(rad_hi, r);
+                nsphere += k == 0;
+            } else if (!strcmp(nm, "Cube")) {
+                worst_cube = fmax(worst_cube, acos(fmin(1, v3_dot(vn, Q->n))) * 180 / M_PI);
+                ncube += k == 0;
+            }
+        }
+    }
+    printf("blender_smooth.gltf: %d quads, %d without normals; UV sphere: %d quads, corners %.4f to %.4f from the "
+           "centre, normals at most %.3f degrees from radial; flat cube: %d quads, at most %.4f degrees from flat\n",
+           s.nquads, without, nsphere, rad_lo, rad_hi, worst_sphere, ncube, worst_cube);
+    CHECK(s.nquads == 1227 && without == 0, "%d quads (1227), %d without normals", s.nquads, without);
+    CHECK(nsphere == 640 && rad_hi < 0.1701 && rad_lo > 0.16, "the sphere: %d quads, radius %g to %g", nsphere,
+          rad_lo, rad_hi);
+    /* Blender's vertex normals (angle-weighted means of the faces') are up to 0.34 degrees
+     * off radial on this sphere; flat normals would be up to 5.6 degrees off (half of a
+     * 32-segment sphere's 11.25) */
+    CHECK(worst_sphere < 0.5, "the sphere's corner normals are radial (worst %.4f degrees)", worst_sphere);
+    CHECK(ncube == 6 && worst_cube < 0.1, "the flat cube: %d quads, normals %.4f degrees off its faces", ncube,
+          worst_cube);
+    wrt_scene_free(&s);
+}
+
 int main(int argc, char **argv) {
     setvbuf(stdout, NULL, _IOLBF, 0);
     snprintf(tmpdir, sizeof tmpdir, "/tmp/wrt_tri_XXXXXX");
     if (!mkdtemp(tmpdir)) { perror("mkdtemp"); return 2; }
     TEST_RUN(test_truth_itself);
     TEST_RUN(test_triangle_form_factors);
+    TEST_RUN(test_loader_normals);
     TEST_RUN(test_icosphere_furnace);
     rmdir(tmpdir);
     TEST_END();

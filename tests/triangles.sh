@@ -9,6 +9,9 @@
 #   refused or dropped; it bakes (quality 1 here; docs/triangles.md has the default
 #   quality against the path tracer). Where Blender is installed the script is rerun and
 #   its output must load the same.
+# - tests/data/blender_smooth.gltf (tools/blender_smooth.py, smooth-shaded sphere and
+#   Suzanne): its normals reach the .gto (1.3, section normals); cornell's flat ones do
+#   not (1.2). Its script is rerun with Blender like the other.
 # Prints "N passed, N failed". ~10 s (30 s more with Blender).
 set -u
 build=${1:-build}
@@ -57,6 +60,20 @@ PY
     && python3 -c "import json,sys; j=json.load(open(sys.argv[1])); sys.exit(0 if j['ok'] and j['counts']['quads'] == 844 else 1)" "$tmp/info.json" \
     && ok "blender_shapes bakes (quality 1) into a .gto of its 844 elements" || ko "blender_shapes bake: $(tail -n 3 "$tmp/err")"
 
+# the smooth-shaded Blender scene (tools/blender_smooth.py): its vertex normals reach the
+# .gto (version 1.3, section normals, one record per quad); a flat scene's do not
+smooth=tests/data/blender_smooth.gltf
+"$bake" "$smooth" -o "$tmp/smooth.gto" -q 1 --quiet >/dev/null 2>"$tmp/err" && "$bake" --info "$tmp/smooth.gto" --json >"$tmp/sinfo.json" 2>>"$tmp/err" \
+    && "$bake" assets/cornell.gltf -o "$tmp/cornell.gto" -q 1 --quiet >/dev/null 2>>"$tmp/err" \
+    && "$bake" --info "$tmp/cornell.gto" --json >"$tmp/cinfo.json" 2>>"$tmp/err" \
+    && python3 - "$tmp/sinfo.json" "$tmp/cinfo.json" <<'PY' && ok "blender_smooth: version 1.3 with 1227 corner normals; cornell (flat, with NORMAL) stays 1.2 without" || ko "blender_smooth normals: $(tail -n 3 "$tmp/err")"
+import json, sys
+s, c = (json.load(open(p)) for p in sys.argv[1:3])
+n = {x["name"]: x["count"] for x in s["sections"]}
+sys.exit(0 if s["ok"] and s["version"] == "1.3" and n.get("normals") == 1227 and c["version"] == "1.2"
+         and all(x["name"] != "normals" for x in c["sections"]) else 1)
+PY
+
 # Blender's glTF exporter needs numpy in Blender's own Python (Debian: python3-numpy)
 if command -v blender >/dev/null 2>&1 &&
    timeout 120 blender -b --factory-startup --python-exit-code 3 --python-expr "import numpy" >/dev/null 2>&1; then
@@ -71,8 +88,20 @@ PY
     else
         ko "tools/blender_shapes.py: $(tail -n 5 "$tmp/blender.log")"
     fi
+    if timeout 300 blender -b --factory-startup --python-exit-code 3 --python tools/blender_smooth.py -- "$tmp/smooth_again.gltf" >"$tmp/blender2.log" 2>&1 \
+        && "$bake" --scan "$smooth" --json >"$tmp/smooth.json" 2>>"$tmp/err" \
+        && "$bake" --scan "$tmp/smooth_again.gltf" --json >"$tmp/smooth_again.json" 2>>"$tmp/err"; then
+        python3 - "$tmp/smooth.json" "$tmp/smooth_again.json" <<'PY' && ok "tools/blender_smooth.py rerun: the same elements" || ko "tools/blender_smooth.py rerun differs"
+import json, sys
+a, b = (json.load(open(p)) for p in sys.argv[1:3])
+keys = ("triangles", "quads", "elements", "triangles_alone", "dropped", "non_finite")
+sys.exit(0 if all(a[k] == b[k] for k in keys) else 1)
+PY
+    else
+        ko "tools/blender_smooth.py: $(tail -n 5 "$tmp/blender2.log")"
+    fi
 else
-    echo "skipped 1: Blender (with numpy) is not installed: tools/blender_shapes.py not rerun"
+    echo "skipped 1: Blender (with numpy) is not installed: tools/blender_shapes.py and blender_smooth.py not rerun"
     echo "triangles: $pass passed, $fail failed, 1 skipped"
     [ "$fail" -eq 0 ]; exit
 fi
