@@ -63,7 +63,8 @@ typedef struct wrt_scene {
     int nnonfinite;        /* triangles with a non-finite corner: refused, or dropped with drop_bad */
     int nmirrored;         /* primitive instances placed by a mirroring node (winding flipped) */
     int nemissive;         /* materials with non-zero emission (reported only) */
-    int ncoincident;       /* pairs of elements in the same place facing the same way (warned) */
+    int ncoincident;       /* pairs of elements in the same place facing the same way (warned;
+                              counting stops at 10,000) */
     wrt_v3 bbox_min, bbox_max;
     uint64_t source_hash;  /* hash of the source file bytes */
     int ntwins;            /* back-to-back twins added for doubleSided materials (in nquads) */

@@ -7,7 +7,8 @@
  * where they come from, rather than refusing. Back-to-back faces (opposite normals: a
  * zero-thickness wall lit from both sides) are not duplicates. Found in O(n log n): the
  * centroids are sorted by a grid cell twice the tolerance wide and each element is
- * compared with those in its own and the 26 neighbouring cells. Depends on scene.h. */
+ * compared with those in its own and the 26 neighbouring cells; counting stops at 10,000
+ * pairs (a file of n copies of one quad has n^2/2). Depends on scene.h. */
 #include "scene.h"
 #include "scene_internal.h"
 
@@ -20,7 +21,8 @@
 #define DUP_REL 1e-5
 #define DUP_COS (1.0 - 1e-6)
 #define DUP_AREA 1e-3
-#define DUP_SHOWN 3 /* pairs named in the warning; the rest are counted */
+#define DUP_SHOWN 3     /* pairs named in the warning; the rest are counted */
+#define DUP_MAX 10000   /* counting stops here: n copies of one quad are n^2/2 pairs */
 
 typedef struct { int64_t k[3]; int q; } dup_key;
 
@@ -81,11 +83,11 @@ int wrt_scene_coincident(const wrt_scene *s, double diag, const char *label, int
     qsort(keys, n, sizeof *keys, cmp_key);
     int found = 0;
     char a[200], b[200];
-    for (size_t i = 0; i < n; i++) {
+    for (size_t i = 0; i < n && found < DUP_MAX; i++) {
         const dup_key *ki = &keys[i];
         for (int d = 0; d < 27; d++) {
             int64_t c[3] = {ki->k[0] + d % 3 - 1, ki->k[1] + d / 3 % 3 - 1, ki->k[2] + d / 9 - 1};
-            for (size_t j = lower(keys, n, c); j < n; j++) {
+            for (size_t j = lower(keys, n, c); j < n && found < DUP_MAX; j++) {
                 const dup_key *kj = &keys[j];
                 if (kj->k[0] != c[0] || kj->k[1] != c[1] || kj->k[2] != c[2]) break;
                 if (kj->q <= ki->q) continue; /* each pair once, the lower index first */
@@ -102,7 +104,8 @@ int wrt_scene_coincident(const wrt_scene *s, double diag, const char *label, int
         }
     }
     if (found > DUP_SHOWN && !quiet)
-        wrt_log(WRT_LOG_WARN, "%s: %d more pairs of coincident elements (%d in all)", label, found - DUP_SHOWN, found);
+        wrt_log(WRT_LOG_WARN, "%s: %s%d more pairs of coincident elements (%s%d in all)", label,
+                found == DUP_MAX ? "at least " : "", found - DUP_SHOWN, found == DUP_MAX ? "at least " : "", found);
     free(keys);
     return found;
 }

@@ -11,7 +11,8 @@ const char *wrt_scene_problem_name(int kind);
 
 /* scene_dups.c: counts the pairs of elements that occupy the same place facing the same
  * way (centroids within 1e-5 of `diag`, the same normal and area) and, unless quiet, warns
- * naming the first three pairs (index, mesh, primitive, triangles, node). */
+ * naming the first three pairs (index, mesh, primitive, triangles, node). Counts up to
+ * 10,000 pairs. */
 int wrt_scene_coincident(const wrt_scene *s, double diag, const char *label, int quiet);
 /* scene_normals.c: NORMAL at the corners of triangle t's three quads (q from
  * wrt_triangle_quads) and of the quad paired from triangles t and s; nothing if the
