@@ -24,6 +24,7 @@
 #include "balance.h"
 #include "budget.h"
 #include "links.h"
+#include "cluster.h"
 
 /* Memory before each product: an upper bound on the product's entries from the column
  * counts (column j of P T has at most the sum of the counts of P's columns that T's
@@ -84,6 +85,7 @@ static void series_setup(series_state *s) {
     /* power weights (irradiance x area per unit coefficient: sqrt(A) on a parallelogram's
      * root, 0 on its wavelets): compression keeps each column's power */
     double *pw = wrt_power_weights(b, res->fkeys, T->n);
+    if (b->cl) wrt_clusters_series_weights(b, b->cl, res->fkeys, T->n, rw, cw, pw); /* the tree's slots */
     s->rw = rw; s->cw = cw; s->pw = pw;
     s->W = (wrt_csc_weights){rw, cw, pw};
     s->S = wrt_csc_copy(T);
