@@ -593,9 +593,11 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     free(b.quads); free(b.rho); free(b.klevel); free(b.kbmax);
     for (int m = 0; m < scene->nmaterials; m++) free(b.btilde[m]);
     free(b.btilde);
-    if (b.opt.clusters) { /* the tree goes with the result (the file's tree section) */
-        res->ctree = cl.tree;
-        memset(&cl.tree, 0, sizeof cl.tree);
+    if (b.opt.clusters) { /* the tree goes with the result when the operator is in its basis */
+        if (C->cluster_tree_basis) {
+            res->ctree = cl.tree;
+            memset(&cl.tree, 0, sizeof cl.tree);
+        }
         wrt_clusters_free(&cl);
     }
     if (st != WRT_OK) {

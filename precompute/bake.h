@@ -48,6 +48,7 @@ typedef struct wrt_bake_options {
     int clusters;          /* 1: the cluster hierarchy (cluster.h, docs/clusters.md) */
     double cluster_sep;    /* its separation threshold (0: WRT_CLUSTER_SEP_DEFAULT) */
     double cluster_spread; /* its oracle's spread threshold (0: WRT_CLUSTER_SPREAD_DEFAULT) */
+    int cluster_tree;      /* 1: store the operator in the tree's basis even when it is not smaller */
     wrt_progress_fn progress;
     void *progress_user;
 } wrt_bake_options;
@@ -92,6 +93,9 @@ typedef struct wrt_bake_counters {
      * DTO, node pairs visited, oracle calls and their rays, entries the closed-scene rule
      * added, the tree's depth */
     uint64_t cluster_links, cluster_leaf_pairs, cluster_visits, cluster_oracle, cluster_rays, cluster_fix_entries;
+    uint64_t cluster_tree_entries;  /* G - I's entries in the tree basis before its compression */
+    uint64_t cluster_tree_compressed; /* and after */
+    int cluster_tree_basis;         /* 1: the operator is stored in the tree's basis (res->ctree set) */
     uint32_t cluster_depth;
 } wrt_bake_counters;
 

@@ -45,10 +45,13 @@ void wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl);
 void wrt_clusters_free(wrt_clusters *cl);
 
 /* T (quads' basis, balanced) with the cluster links added, in a closed scene each
- * column's power made what its function emits, then expressed in the tree basis
- * (cluster_ops.c). Replaces *T. Returns the entries the closed-scene rule added. */
+ * column's power made what its function emits, the links then pushed down to the quads'
+ * roots (cluster_ops.c). Replaces *T. Returns the entries the closed-scene rule added. */
 uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
                                int closed, wrt_csc *T);
+/* A matrix of the quads' basis (nf x nf) expressed in the tree basis: rows, then columns
+ * (cluster_ops.c). Replaces *M. */
+void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf, wrt_csc *M);
 /* The series' weights of the root slots for the tree functions: areas of their nodes
  * (rw = 1/sqrt(a), cw = sqrt(a)) and the power weights transformed (cluster_ops.c). */
 void wrt_clusters_series_weights(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,

@@ -39,6 +39,7 @@ typedef struct ops {
     const uint32_t *root;     /* per quad: its root slot */
     int32_t *node_of;         /* per function: the leaf node of a quad's root, else -1 */
     double *wl, *wr;          /* per internal node */
+    const wrt_clusters *cl;
 } ops;
 
 static int32_t ext_node(const ops *o, uint32_t row) {
@@ -97,6 +98,33 @@ static wrt_triplet *row_transform(const ops *o, const wrt_csc *E, uint64_t *nout
             for (int ch = 0; ch < 3; ch++) s[(size_t)touched[i] * 3 + ch] = 0;
     }
     free(s); free(d); free(mark); free(touched);
+    *nout = n;
+    return out;
+}
+
+/* Every column's entries on phi_node (rows >= nf) pushed down to the quads' roots,
+ * phi_A = sum over quads q of A of sqrt(a_q / a_A) phi_q; triplets out with row and
+ * column swapped, as row_transform. */
+static wrt_triplet *push_down(const ops *o, const wrt_csc *E, uint64_t *nout) {
+    const wrt_clusters *cl = o->cl;
+    const wrt_ctree *t = o->t;
+    uint64_t cap = E->nnz + 16, n = 0;
+    wrt_triplet *out = wrt_xmalloc(cap * sizeof *out);
+    for (uint32_t c = 0; c < E->n; c++)
+        for (uint64_t k = E->col[c]; k < E->col[c + 1]; k++) {
+            uint32_t r = E->row[k];
+            const float *v = &E->val[3 * k];
+            uint32_t lo = 0, hi = 0;
+            if (r >= o->nf) { lo = cl->lo[r - o->nf]; hi = cl->hi[r - o->nf]; }
+            if (n + (hi - lo) + 1 > cap) { cap = 2 * (n + (hi - lo) + 1); out = wrt_xrealloc(out, cap * sizeof *out); }
+            if (r < o->nf) { out[n++] = (wrt_triplet){c, r, {v[0], v[1], v[2]}}; continue; }
+            double aA = t->area[r - o->nf];
+            for (uint32_t i = lo; i < hi; i++) {
+                uint32_t q = cl->perm[i];
+                double w = sqrt(t->area[t->leaf[q]] / aA);
+                out[n++] = (wrt_triplet){c, o->root[q], {(float)(w * v[0]), (float)(w * v[1]), (float)(w * v[2])}};
+            }
+        }
     *nout = n;
     return out;
 }
@@ -192,6 +220,7 @@ static void ops_init(ops *o, const wrt_clusters *cl, const uint64_t *fkeys, uint
     const wrt_ctree *t = &cl->tree;
     o->t = t;
     o->nf = nf;
+    o->cl = cl;
     uint32_t *root = wrt_clusters_root_index(fkeys, nf, nq);
     o->root = root;
     o->node_of = wrt_xmalloc(((size_t)nf + 1) * sizeof *o->node_of);
@@ -233,18 +262,33 @@ uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const 
     wrt_csc E = wrt_csc_from_triplets(ne, tr, n);
     free(tr);
     uint64_t added = closed ? closed_fix(b, &o, fkeys, &E) : 0;
-    /* rows, then (on the transpose) columns */
+    /* the links pushed down to the quads: rows, then (on the transpose) columns */
     uint64_t n1, n2;
-    wrt_triplet *t1 = row_transform(&o, &E, &n1);
+    wrt_triplet *t1 = push_down(&o, &E, &n1);
     wrt_csc_free(&E);
     E = wrt_csc_from_triplets(ne, t1, n1);
     free(t1);
-    wrt_triplet *t2 = row_transform(&o, &E, &n2);
+    wrt_triplet *t2 = push_down(&o, &E, &n2);
     wrt_csc_free(&E);
     *T = wrt_csc_from_triplets(nf, t2, n2);
     free(t2);
     ops_free(&o);
     return added;
+}
+
+void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf, wrt_csc *M) {
+    ops o;
+    ops_init(&o, cl, fkeys, nf, (uint32_t)b->nq);
+    uint64_t n1, n2;
+    wrt_triplet *t1 = row_transform(&o, M, &n1);
+    wrt_csc_free(M);
+    wrt_csc E = wrt_csc_from_triplets(nf, t1, n1);
+    free(t1);
+    wrt_triplet *t2 = row_transform(&o, &E, &n2);
+    wrt_csc_free(&E);
+    *M = wrt_csc_from_triplets(nf, t2, n2);
+    free(t2);
+    ops_free(&o);
 }
 
 void wrt_clusters_series_weights(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,

@@ -63,7 +63,9 @@ static void usage(FILE *f) {
         "                         power balance: loses energy conservation; for comparison)\n"
         "  --clusters             link well separated clusters of quads by one entry each\n"
         "                         instead of every quad pair (docs/clusters.md; diffuse\n"
-        "                         scenes only; writes a version 2.0 file)\n"
+        "                         scenes only). When the operator has fewer entries in the\n"
+        "                         cluster tree's basis it is stored so (a version 2.0 file)\n"
+        "  --clusters-tree-basis  --clusters, storing the tree's basis whatever its size\n"
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --max-memory MB        memory budget: the bake estimates what each stage needs\n"
         "                         before allocating it and refuses (exit 7, naming the figure)\n"
@@ -149,10 +151,13 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
     /* only with --clusters, likewise */
     if (c->cluster_visits || c->cluster_leaf_pairs || c->cluster_links)
         fprintf(f, ",\"clusters\":{\"links\":%llu,\"leaf_pairs\":%llu,\"visits\":%llu,\"oracle\":%llu,"
-                "\"rays\":%llu,\"closed_entries\":%llu,\"depth\":%u}",
+                "\"rays\":%llu,\"closed_entries\":%llu,\"tree_entries\":%llu,\"tree_compressed\":%llu,"
+                "\"tree_basis\":%s,\"depth\":%u}",
                 (unsigned long long)c->cluster_links, (unsigned long long)c->cluster_leaf_pairs,
                 (unsigned long long)c->cluster_visits, (unsigned long long)c->cluster_oracle,
-                (unsigned long long)c->cluster_rays, (unsigned long long)c->cluster_fix_entries, c->cluster_depth);
+                (unsigned long long)c->cluster_rays, (unsigned long long)c->cluster_fix_entries,
+                (unsigned long long)c->cluster_tree_entries, (unsigned long long)c->cluster_tree_compressed,
+                c->cluster_tree_basis ? "true" : "false", c->cluster_depth);
 }
 
 static void json_options(FILE *f, const wrt_bake_options *o) {
@@ -271,6 +276,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--no-tail")) o->no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o->no_balance = 1;
         else if (!strcmp(a, "--clusters")) o->clusters = 1;
+        else if (!strcmp(a, "--clusters-tree-basis")) { o->clusters = 1; o->cluster_tree = 1; }
         else if (!strcmp(a, "--drop-bad")) A->drop_bad = 1;
         else if (!strcmp(a, "--allow-outside-files")) A->allow_outside = 1;
         else if (!strcmp(a, "--reproducible")) A->timings = 0;
