@@ -362,6 +362,8 @@ static void bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters 
     C->cluster_visits = cl->pairs_visited;
     C->cluster_oracle = cl->oracle_calls;
     C->cluster_rays = cl->rays;
+    C->cluster_refused_visibility = cl->oracle_refused_vis;
+    C->cluster_refused_spread = cl->oracle_refused_spread;
     C->cluster_depth = cl->tree.depth;
 }
 

@@ -95,7 +95,8 @@ typedef struct wrt_bake_counters {
     uint64_t cluster_links, cluster_leaf_pairs, cluster_visits, cluster_oracle, cluster_rays, cluster_fix_entries;
     uint64_t cluster_tree_entries;  /* G - I's entries in the tree basis before its compression */
     uint64_t cluster_tree_compressed; /* and after */
-    int cluster_tree_basis;         /* 1: the operator is stored in the tree's basis (res->ctree set) */
+    int cluster_tree_basis;
+    uint64_t cluster_refused_visibility, cluster_refused_spread; /* the oracle's refusals */         /* 1: the operator is stored in the tree's basis (res->ctree set) */
     uint32_t cluster_depth;
 } wrt_bake_counters;
 

@@ -189,12 +189,12 @@ static void two_rooms(wrt_scene *s, int m) {
     for (int r = 0; r < 2; r++) {
         double x0 = r, x1 = r + 1;
         int nw0 = r == 1 ? 8 : 2, nw1 = r == 0 ? 8 : 2; /* the x = 1 wall fine on both sides */
-        face(s, P(x0, 0, 0), P(0, 0, 1), P(0, 1, 0), nw0, nw0, m);     /* x = x0, normal +x */
-        face(s, P(x1, 0, 0), P(0, 1, 0), P(0, 0, 1), nw1, nw1, m);     /* x = x1, normal -x */
-        face(s, P(x0, 0, 0), P(1, 0, 0), P(0, 0, 1), 2, 2, m);         /* y = 0, normal +y... */
-        face(s, P(x0, 1, 0), P(0, 0, 1), P(1, 0, 0), 2, 2, m);         /* y = 1, normal -y */
-        face(s, P(x0, 0, 0), P(0, 1, 0), P(1, 0, 0), 2, 2, m);         /* z = 0, normal +z */
-        face(s, P(x0, 0, 1), P(1, 0, 0), P(0, 1, 0), 2, 2, m);         /* z = 1, normal -z */
+        face(s, P(x0, 0, 0), P(0, 1, 0), P(0, 0, 1), nw0, nw0, m);     /* x = x0, normal +x */
+        face(s, P(x1, 0, 0), P(0, 0, 1), P(0, 1, 0), nw1, nw1, m);     /* x = x1, normal -x */
+        face(s, P(x0, 0, 0), P(0, 0, 1), P(1, 0, 0), 2, 2, m);         /* y = 0, normal +y */
+        face(s, P(x0, 1, 0), P(1, 0, 0), P(0, 0, 1), 2, 2, m);         /* y = 1, normal -y */
+        face(s, P(x0, 0, 0), P(1, 0, 0), P(0, 1, 0), 2, 2, m);         /* z = 0, normal +z */
+        face(s, P(x0, 0, 1), P(0, 1, 0), P(1, 0, 0), 2, 2, m);         /* z = 1, normal -z */
     }
 }
 
