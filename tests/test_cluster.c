@@ -224,6 +224,31 @@ static void test_two_rooms(void) {
     tsb_free(&s);
 }
 
+/* The same operator whatever the thread count (the linking's tasks merge in order) */
+static void test_threads(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, 0.8, 0.6, 0.4);
+    two_rooms(&s, m);
+    wrt_bake_result r[2];
+    for (int i = 0; i < 2; i++) {
+        wrt_bake_options o = opts(1, 0, 0);
+        o.clusters = 1; o.cluster_tree = 1;
+        o.threads = i ? 2 : 1;
+        CHECK(wrt_bake_run(&s, &o, &r[i]) == WRT_OK, "%s", wrt_last_error());
+    }
+    int same = r[0].op.nnz == r[1].op.nnz && r[0].nfuncs == r[1].nfuncs &&
+               memcmp(r[0].op.col, r[1].op.col, ((size_t)r[0].nfuncs + 1) * sizeof *r[0].op.col) == 0 &&
+               memcmp(r[0].op.row, r[1].op.row, r[0].op.nnz * sizeof *r[0].op.row) == 0 &&
+               memcmp(r[0].op.val, r[1].op.val, r[0].op.nnz * 3 * sizeof *r[0].op.val) == 0 &&
+               r[0].c.cluster_links == r[1].c.cluster_links &&
+               memcmp(r[0].ctree.left, r[1].ctree.left, r[0].ctree.nnodes * sizeof *r[0].ctree.left) == 0;
+    CHECK(same, "1 and 2 threads: %llu and %llu entries, %llu and %llu cluster links", (unsigned long long)r[0].op.nnz,
+          (unsigned long long)r[1].op.nnz, (unsigned long long)r[0].c.cluster_links, (unsigned long long)r[1].c.cluster_links);
+    wrt_bake_result_free(&r[0]); wrt_bake_result_free(&r[1]);
+    tsb_free(&s);
+}
+
 /* A closed unit box of albedo rho, n x n quads a face, --clusters: the flux of the indirect
  * light from a uniform irradiance 1 over its truth rho / (1 - rho). */
 static void test_furnace(void) {
@@ -372,6 +397,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_no_separated_pairs);
     TEST_RUN(test_gto_section);
     TEST_RUN(test_two_rooms);
+    TEST_RUN(test_threads);
     TEST_RUN(test_furnace);
     TEST_END();
 }
