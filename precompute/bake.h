@@ -48,7 +48,8 @@ typedef struct wrt_bake_options {
     int clusters;          /* 1: the cluster hierarchy (cluster.h, docs/clusters.md) */
     double cluster_sep;    /* its separation threshold (0: WRT_CLUSTER_SEP_DEFAULT) */
     double cluster_spread; /* its oracle's spread threshold (0: WRT_CLUSTER_SPREAD_DEFAULT) */
-    int cluster_tree;      /* 1: store the operator in the tree's basis even when it is not smaller */
+    int cluster_tree;      /* 1: store the operator in the tree's basis when it has fewer entries
+                            * there (a trial: a copy and a transform of G - I); 2: always */
     wrt_progress_fn progress;
     void *progress_user;
 } wrt_bake_options;

@@ -63,9 +63,10 @@ static void usage(FILE *f) {
         "                         power balance: loses energy conservation; for comparison)\n"
         "  --clusters             link well separated clusters of quads by one entry each\n"
         "                         instead of every quad pair (docs/clusters.md; diffuse\n"
-        "                         scenes only). When the operator has fewer entries in the\n"
-        "                         cluster tree's basis it is stored so (a version 2.0 file)\n"
-        "  --clusters-tree-basis  --clusters, storing the tree's basis whatever its size\n"
+        "                         scenes only)\n"
+        "  --clusters-tree-basis  --clusters, and the operator stored in the cluster tree's\n"
+        "                         basis when it has fewer entries there (a version 2.0 file;\n"
+        "                         --clusters-tree-basis-always: whatever its size)\n"
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --max-memory MB        memory budget: the bake estimates what each stage needs\n"
         "                         before allocating it and refuses (exit 7, naming the figure)\n"
@@ -278,6 +279,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--no-balance")) o->no_balance = 1;
         else if (!strcmp(a, "--clusters")) o->clusters = 1;
         else if (!strcmp(a, "--clusters-tree-basis")) { o->clusters = 1; o->cluster_tree = 1; }
+        else if (!strcmp(a, "--clusters-tree-basis-always")) { o->clusters = 1; o->cluster_tree = 2; }
         else if (!strcmp(a, "--drop-bad")) A->drop_bad = 1;
         else if (!strcmp(a, "--allow-outside-files")) A->allow_outside = 1;
         else if (!strcmp(a, "--reproducible")) A->timings = 0;
