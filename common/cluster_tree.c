@@ -8,14 +8,19 @@
 
 #include "cluster_tree.h"
 
-void wrt_ctree_alloc(wrt_ctree *t, uint32_t nq) {
+wrt_status wrt_ctree_alloc(wrt_ctree *t, uint32_t nq) {
     memset(t, 0, sizeof *t);
     t->nq = nq;
     t->nnodes = nq ? 2 * nq - 1 : 0;
     size_t n = t->nnodes ? t->nnodes : 1;
-    t->left = wrt_xcalloc(n, sizeof *t->left);
-    t->right = wrt_xcalloc(n, sizeof *t->right);
-    t->area = wrt_xcalloc(n, sizeof *t->area);
+    t->left = calloc(n, sizeof *t->left);
+    t->right = calloc(n, sizeof *t->right);
+    t->area = calloc(n, sizeof *t->area);
+    if (!t->left || !t->right || !t->area) {
+        wrt_ctree_free(t);
+        return wrt_fail(WRT_ERR_NOMEM, "cluster tree: out of memory (%u quads)", nq);
+    }
+    return WRT_OK;
 }
 
 void wrt_ctree_free(wrt_ctree *t) {
@@ -53,12 +58,18 @@ wrt_status wrt_ctree_finish(wrt_ctree *t, const char *what) {
     if (t->nnodes != 2 * t->nq - 1)
         return wrt_fail(WRT_ERR_CORRUPT, "%s: %u nodes for %u quads (need %u)", what, t->nnodes, t->nq, 2 * t->nq - 1);
     size_t n = t->nnodes;
-    t->parent = wrt_xmalloc(n * sizeof *t->parent);
-    t->slot = wrt_xmalloc(n * sizeof *t->slot);
-    t->leaf = wrt_xmalloc(t->nq * sizeof *t->leaf);
+    t->parent = malloc(n * sizeof *t->parent);
+    t->slot = malloc(n * sizeof *t->slot);
+    t->leaf = malloc(t->nq * sizeof *t->leaf);
+    uint8_t *seen = calloc(n, 1);
+    uint32_t *lm = malloc(n * sizeof *lm), *dep = calloc(n, sizeof *dep);
+    if (!t->parent || !t->slot || !t->leaf || !seen || !lm || !dep) {
+        free(seen); free(lm); free(dep);
+        free(t->parent); free(t->slot); free(t->leaf);
+        t->parent = NULL; t->slot = NULL; t->leaf = NULL;
+        return wrt_fail(WRT_ERR_NOMEM, "%s: out of memory", what);
+    }
     for (uint32_t q = 0; q < t->nq; q++) t->leaf[q] = UINT32_MAX;
-    uint8_t *seen = wrt_xcalloc(n, 1);
-    uint32_t *lm = wrt_xmalloc(n * sizeof *lm), *dep = wrt_xcalloc(n, sizeof *dep);
     t->parent[0] = -1;
     seen[0] = 1;
     wrt_status st = WRT_OK;

@@ -35,12 +35,14 @@ typedef struct wrt_ctree {
     uint32_t depth;     /* longest path from the root, in edges */
 } wrt_ctree;
 
-/* Allocates the three stored arrays for nq quads (zeroed); the derived ones are NULL. */
-void wrt_ctree_alloc(wrt_ctree *t, uint32_t nq);
+/* Allocates the three stored arrays for nq quads (zeroed); the derived ones are NULL.
+ * WRT_ERR_NOMEM (nothing left allocated). The runtime library's code never aborts. */
+wrt_status wrt_ctree_alloc(wrt_ctree *t, uint32_t nq);
 /* Checks the stored arrays (children after parents, every node reached once, every quad
  * a leaf once, areas positive and finite, each internal area the sum of its children's
  * within 1e-6) and derives the rest. On failure names the node and the fault and
- * returns WRT_ERR_CORRUPT with `what` (e.g. the section's name) in the message. */
+ * returns WRT_ERR_CORRUPT with `what` (e.g. the section's name) in the message, or
+ * WRT_ERR_NOMEM. */
 wrt_status wrt_ctree_finish(wrt_ctree *t, const char *what);
 void wrt_ctree_free(wrt_ctree *t);
 

@@ -603,11 +603,12 @@ wrt_status gto_check_ctree(const wrt_gto_cnode *nodes, uint32_t n, uint32_t nq, 
     if (nq == 0 || n != 2 * nq - 1)
         return wrt_fail(fail, "%s: %u nodes for %u quads (need 2 x quads - 1)", what, n, nq);
     wrt_ctree t;
-    wrt_ctree_alloc(&t, nq);
+    wrt_status ast = wrt_ctree_alloc(&t, nq);
+    if (ast != WRT_OK) return ast;
     for (uint32_t i = 0; i < n; i++) { t.left[i] = nodes[i].left; t.right[i] = nodes[i].right; t.area[i] = nodes[i].area; }
     wrt_status st = wrt_ctree_finish(&t, what);
     wrt_ctree_free(&t);
-    if (st != WRT_OK && fail != st) {
+    if (st != WRT_OK && fail != st && st != WRT_ERR_NOMEM) {
         char msg[512];
         snprintf(msg, sizeof msg, "%s", wrt_last_error());
         return wrt_fail(fail, "%s", msg);

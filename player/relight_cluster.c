@@ -24,11 +24,12 @@ wrt_status relight_setup_clusters(wrt_relight *r) {
             return wrt_fail(WRT_ERR_CORRUPT, "relight: quad %u has no root function for the cluster tree", q);
         r->ct.root[q] = f;
     }
-    wrt_ctree_alloc(&r->ct.t, nq);
+    wrt_status st = wrt_ctree_alloc(&r->ct.t, nq);
+    if (st != WRT_OK) return st;
     for (uint32_t i = 0; i < g->nctree; i++) {
         r->ct.t.left[i] = g->ctree[i].left; r->ct.t.right[i] = g->ctree[i].right; r->ct.t.area[i] = g->ctree[i].area;
     }
-    wrt_status st = wrt_ctree_finish(&r->ct.t, "relight: cluster tree");
+    st = wrt_ctree_finish(&r->ct.t, "relight: cluster tree");
     if (st != WRT_OK) { wrt_ctree_free(&r->ct.t); return st; }
     r->ct.on = 1;
     return WRT_OK;

@@ -17,18 +17,16 @@
  * visible, and the per-point sums agreeing within 15% on both sides, make one cluster
  * link, T[phi_A][phi_B] = rho_B sqrt(a_A a_B) mean(cos cos / (pi d^2)); every ray blocked
  * drops the pair (no light); a mix of blocked and free rays, a pair seen edge-on or a
- * spread above the threshold splits the larger node. The top of the recursion runs on
- * one thread and hands the pairs of at most `grain` quads to all threads as tasks,
- * whose results are merged in task order (identical whatever the thread count).
- * Depends on bake_ctx.h, bake.c's pair tests, Embree 3 and common/threads.h. */
+ * spread above the threshold splits the larger node (cluster_link.c). The top of the
+ * recursion runs on one thread and hands the pairs of at most `grain` quads to all
+ * threads as tasks, whose results are merged in task order (identical whatever the
+ * thread count). Depends on bake_ctx.h. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "../common/threads.h"
 #include "cluster.h"
 
-#define CL_SAMPLES 8      /* sample points per cluster in the oracle */
 #define CL_ORIENT_GAP 0.3 /* normal-component gap that splits by orientation */
 
 typedef struct key_q { double k; uint32_t q; } key_q;
@@ -84,7 +82,6 @@ static void node_summary(const bake_ctx *b, wrt_clusters *cl, uint32_t p) {
     wrt_v3 lo = v3(HUGE_VAL, HUGE_VAL, HUGE_VAL), hi = v3(-HUGE_VAL, -HUGE_VAL, -HUGE_VAL), ns = v3(0, 0, 0);
     double area = 0;
     int uni = 1;
-    const wrt_quad *q0 = &b->quads[cl->perm[cl->lo[p]]];
     for (uint32_t i = cl->lo[p]; i < cl->hi[p]; i++) {
         int qi = (int)cl->perm[i];
         const wrt_quad *q = &b->quads[qi];
@@ -96,7 +93,6 @@ static void node_summary(const bake_ctx *b, wrt_clusters *cl, uint32_t p) {
         area += q->area;
         if (b->alevel[q->material] || memcmp(b->rho[qi], b->rho[cl->perm[cl->lo[p]]], sizeof b->rho[qi]) != 0) uni = 0;
     }
-    (void)q0;
     double len = v3_len(ns), cw = 1;
     wrt_v3 axis = len > 1e-9 * area ? v3_scale(ns, 1 / len) : v3(0, 0, 0);
     for (uint32_t i = cl->lo[p]; i < cl->hi[p]; i++) cw = fmin(cw, v3_dot(b->quads[cl->perm[i]].n, axis));
@@ -127,7 +123,7 @@ static uint32_t build_node(build_ctx *bc, uint32_t lo, uint32_t hi) {
 void wrt_clusters_build(const bake_ctx *b, wrt_clusters *cl) {
     memset(cl, 0, sizeof *cl);
     uint32_t nq = (uint32_t)b->nq;
-    wrt_ctree_alloc(&cl->tree, nq);
+    if (wrt_ctree_alloc(&cl->tree, nq) != WRT_OK) abort(); /* the bake's allocations abort (wrt_xmalloc) */
     size_t nn = cl->tree.nnodes ? cl->tree.nnodes : 1;
     cl->perm = wrt_xmalloc((nq ? nq : 1) * sizeof *cl->perm);
     for (uint32_t q = 0; q < nq; q++) cl->perm[q] = q;
@@ -136,15 +132,14 @@ void wrt_clusters_build(const bake_ctx *b, wrt_clusters *cl) {
     cl->axis = wrt_xmalloc(nn * sizeof *cl->axis); cl->cosw = wrt_xmalloc(nn * sizeof *cl->cosw);
     cl->rho = wrt_xmalloc(nn * sizeof *cl->rho); cl->uniform = wrt_xmalloc(nn);
     if (!nq) return;
-    /* split by a quad's split position, then the tree; nodes in preorder */
+    /* the tree, nodes numbered in preorder (children after their parent) */
     build_ctx bc = {b, cl, 0, wrt_xmalloc(nq * sizeof *bc.tmp)};
     build_node(&bc, 0, nq);
     free(bc.tmp);
     cl->pref = wrt_xmalloc(((size_t)nq + 1) * sizeof *cl->pref);
     cl->pref[0] = 0;
     for (uint32_t i = 0; i < nq; i++) cl->pref[i + 1] = cl->pref[i] + b->quads[cl->perm[i]].area;
-    wrt_status st = wrt_ctree_finish(&cl->tree, "cluster tree");
-    (void)st; /* built above: cannot fail */
+    if (wrt_ctree_finish(&cl->tree, "cluster tree") != WRT_OK) abort(); /* built above: only memory can fail */
 }
 
 void wrt_clusters_free(wrt_clusters *cl) {

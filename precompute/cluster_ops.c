@@ -51,7 +51,7 @@ static int32_t ext_node(const ops *o, uint32_t row) {
 static wrt_triplet *row_transform(const ops *o, const wrt_csc *E, uint64_t *nout) {
     const wrt_ctree *t = o->t;
     size_t nn = t->nnodes;
-    double *s = wrt_xcalloc(nn * 3, sizeof *s), *d = wrt_xcalloc(nn * 3, sizeof *d);
+    double *s = wrt_xcalloc(nn * 3, sizeof *s);
     uint32_t *mark = wrt_xcalloc(nn, sizeof *mark), *touched = wrt_xmalloc(nn * sizeof *touched);
     uint64_t cap = E->nnz + 16, n = 0;
     wrt_triplet *out = wrt_xmalloc(cap * sizeof *out);
@@ -97,7 +97,7 @@ static wrt_triplet *row_transform(const ops *o, const wrt_csc *E, uint64_t *nout
         for (uint32_t i = 0; i < nt; i++)
             for (int ch = 0; ch < 3; ch++) s[(size_t)touched[i] * 3 + ch] = 0;
     }
-    free(s); free(d); free(mark); free(touched);
+    free(s); free(mark); free(touched);
     *nout = n;
     return out;
 }

@@ -37,7 +37,7 @@ static uint32_t rand_node(wrt_ctree *t, uint32_t *next, uint32_t *quad, uint32_t
 
 static void transform_case(uint32_t nq, int chain) {
     wrt_ctree t;
-    wrt_ctree_alloc(&t, nq);
+    CHECK(wrt_ctree_alloc(&t, nq) == WRT_OK, "%s", wrt_last_error());
     uint64_t rs = 12345 + nq;
     uint32_t next = 0, quad = 0;
     rand_node(&t, &next, &quad, nq, &rs, chain);
@@ -91,7 +91,7 @@ static void test_transform(void) {
 /* Damaged trees are refused, naming the node */
 static void test_tree_checks(void) {
     wrt_ctree t;
-    wrt_ctree_alloc(&t, 3);
+    CHECK(wrt_ctree_alloc(&t, 3) == WRT_OK, "%s", wrt_last_error());
     int32_t L[5] = {1, -1, 3, -1, -1}, R[5] = {2, 0, 4, 1, 2};
     double A[5] = {3, 1, 2, 1, 1};
     for (int i = 0; i < 5; i++) { t.left[i] = L[i]; t.right[i] = R[i]; t.area[i] = A[i]; }
