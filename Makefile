@@ -191,6 +191,7 @@ TEST_PARTS_test_gto := formats common
 TEST_PARTS_test_image := formats common
 TEST_PARTS_test_scene := formats common
 TEST_PARTS_test_bake := bake formats common
+TEST_PARTS_test_cluster := bake formats common
 TEST_PARTS_test_relight := runtime formats common
 TEST_PARTS_test_reconstruct := bake runtime formats common
 TEST_PARTS_test_reference := verify formats common
@@ -217,7 +218,7 @@ $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $$(foreach p,$$(call test_parts,$$*),$(
 # the committed seeds, copied into build/fuzz/corpus-* (which grow as they run).
 FUZZ_SECONDS ?= 60
 FUZZ_SCENE_C := tools/fuzz_scene.c common/wrt_common.c common/text.c formats/scene.c formats/scene_report.c formats/scene_dups.c
-FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c common/text.c common/texture.c formats/gto_read.c formats/gto_check.c formats/gto_texture.c
+FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c common/text.c common/texture.c common/cluster_tree.c formats/gto_read.c formats/gto_check.c formats/gto_texture.c
 FUZZ_SAN := -fsanitize=address,undefined -fno-sanitize-recover=all
 FUZZ_CC = clang -std=c11 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -D_GNU_SOURCE
 fuzz: build/fuzz/fuzz_scene build/fuzz/fuzz_gto

@@ -33,6 +33,16 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
                                  * 1.3: the optional corner normals (section 18).
                                  * The writer puts the lowest minor that has what the file
                                  * holds: a file with neither is 1.0, byte for byte as before. */
+/* Version 2.0 (docs/clusters.md; GTO_FORMAT.md "Critical sections"): a section id >= 256
+ * is critical: a reader that does not know it refuses the file, naming it. The cluster
+ * tree (section 257, from `wrt-bake --clusters`) is one: the quads' root slots then hold
+ * the tree's functions. A file with it is written as 2.0; every other file as 1.x, as
+ * before. This reader reads majors WRT_GTO_VERSION to WRT_GTO_VERSION_MAX. */
+#define WRT_GTO_VERSION_MAX 2
+
+/* A node of the cluster tree (section ctree, 257): children (left -1 for a leaf, whose
+ * right is then its quad) and area; node 0 is the root, children follow their parent. */
+typedef struct wrt_gto_cnode { int32_t left, right; double area; } wrt_gto_cnode; /* 16 bytes */
 
 /* On-disk records (all little-endian, naturally aligned, sizes fixed). */
 typedef struct wrt_gto_quad {
@@ -150,6 +160,10 @@ typedef struct wrt_gto {
     const uint8_t *textures; uint64_t textures_size;
     /* Corner normals (version 1.3): nquads records, NULL when the file has none. */
     const wrt_gto_normals *normals;
+    /* The cluster tree (version 2.0, section ctree): 2 nquads - 1 nodes, checked by the
+     * reader (common/cluster_tree.h's rules); NULL when the file has none. */
+    const wrt_gto_cnode *ctree;
+    uint32_t nctree;
 } wrt_gto;
 
 /* One texture of the textures section: the material it belongs to, its size, glTF wrap
@@ -210,6 +224,10 @@ typedef struct wrt_gto_contents {
     /* 0: the quad-to-source map is written from the scene's quads (section srcmap, version
      * 1.2); 1: not (the file is then as before version 1.2). */
     int no_srcmap;
+    /* The cluster tree (nctree 0: none; else 2 nquads - 1 nodes): written as section ctree
+     * (257), and the file as version 2.0. */
+    const wrt_gto_cnode *ctree;
+    uint32_t nctree;
 } wrt_gto_contents;
 
 /* Writes atomically: a temporary (see wrt_gto_write_pending), fsync, rename over

@@ -6,6 +6,7 @@
  * input before it writes a byte. Part of the runtime library (the reader needs it).
  * Depends on gto_layout.h, wrt_common, basis.h (the function keys) and libm. */
 #include "gto_layout.h"
+#include "../common/cluster_tree.h"
 
 #include <inttypes.h>
 #include <math.h>
@@ -616,4 +617,21 @@ uint64_t gto_scan_section(const uint8_t *p, uint64_t count, uint32_t elem, chunk
     uint64_t sum = h_final(&s, p + done * elem + full, rest - full, size);
     if (fn && !v->bad && count > done) fn(v, p, done, count - done);
     return sum;
+}
+
+wrt_status gto_check_ctree(const wrt_gto_cnode *nodes, uint32_t n, uint32_t nq, wrt_status fail, const char *what) {
+    if (nq == 0 || n != 2 * nq - 1)
+        return wrt_fail(fail, "%s: %u nodes for %u quads (need 2 x quads - 1)", what, n, nq);
+    wrt_ctree t;
+    wrt_status ast = wrt_ctree_alloc(&t, nq);
+    if (ast != WRT_OK) return ast;
+    for (uint32_t i = 0; i < n; i++) { t.left[i] = nodes[i].left; t.right[i] = nodes[i].right; t.area[i] = nodes[i].area; }
+    wrt_status st = wrt_ctree_finish(&t, what);
+    wrt_ctree_free(&t);
+    if (st != WRT_OK && fail != st && st != WRT_ERR_NOMEM) {
+        char msg[512];
+        snprintf(msg, sizeof msg, "%s", wrt_last_error());
+        return wrt_fail(fail, "%s", msg);
+    }
+    return st;
 }

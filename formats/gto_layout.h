@@ -120,6 +120,9 @@ enum {
     SEC_KNOWN_END
 };
 #define SEC_KNOWN (SEC_KNOWN_END - 1)
+#define SEC_CRITICAL 256            /* ids from here on: a reader that does not know one refuses the file */
+#define SEC_CTREE 257               /* the cluster tree (version 2.0) */
+#define GTO_MAX_WRITTEN (SEC_KNOWN + 1) /* sections a file can hold: the known ones and ctree */
 #define SEC_REQUIRED SEC_PROVENANCE /* ids 1 .. this are in every file */
 #define GTO_MINOR_K 1               /* the minor version that added K */
 #define GTO_MINOR_SRCMAP 2          /* the minor version that added the quad-to-source map */
@@ -139,7 +142,17 @@ wrt_status gto_check_textures(const uint8_t *b, uint64_t size, uint32_t nmateria
 /* 1 if this reader knows section id (the table has gaps: ids it does not know). */
 static inline int gto_sec_known(uint32_t id) { return id >= 1 && id <= SEC_KNOWN && gto_sec_info[id].name; }
 
-static inline const char *gto_sec_name(uint32_t id) { return gto_sec_known(id) ? gto_sec_info[id].name : "unknown"; }
+static inline const char *gto_sec_name(uint32_t id) {
+    if (id == SEC_CTREE) return "ctree";
+    return gto_sec_known(id) ? gto_sec_info[id].name : "unknown";
+}
+
+/* Element size of a section this code writes or reads (known ids and ctree). */
+static inline uint32_t gto_sec_elem(uint32_t id) {
+    return id == SEC_CTREE ? (uint32_t)sizeof(wrt_gto_cnode) : gto_sec_info[id].elem_size;
+}
+_Static_assert(sizeof(wrt_gto_cnode) == 16, "ctree record");
+_Static_assert(offsetof(wrt_gto_cnode, area) == 8, "layout");
 
 static inline uint64_t gto_align_up(uint64_t x) { return (x + GTO_ALIGN - 1) & ~(uint64_t)(GTO_ALIGN - 1); }
 
@@ -169,6 +182,9 @@ chunk_check gto_sec_checker(uint32_t id);
 uint64_t gto_scan_section(const uint8_t *p, uint64_t count, uint32_t elem, chunk_check fn, vctx *v);
 /* What needs a later section: each quad's function range against fkeys. */
 void gto_check_quad_ranges(vctx *v);
+/* The cluster tree's records against common/cluster_tree.h's rules (n nodes for nq
+ * quads); on failure returns `fail` with a message that starts with `what`. */
+wrt_status gto_check_ctree(const wrt_gto_cnode *nodes, uint32_t n, uint32_t nq, wrt_status fail, const char *what);
 
 /* ------------------------------------------------------------------------------------
  * Reading (gto_read.c): three stages, then the mapping.
@@ -179,6 +195,7 @@ typedef struct gto_layout {
     gto_header h;
     const gto_section *table;
     const gto_section *sec[SEC_KNOWN_END];
+    const gto_section *ctree; /* section ctree (257), or NULL */
 } gto_layout;
 
 /* Stage 1: the header and the section table, no payload byte read. */

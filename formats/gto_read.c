@@ -38,10 +38,10 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
         return wrt_fail(WRT_ERR_UNSUPPORTED, "big-endian file; this reader reads little-endian only");
     if (h->byte_order != GTO_BOM)
         return wrt_fail(WRT_ERR_CORRUPT, "bad byte-order mark 0x%08x", h->byte_order);
-    if (h->version_major > WRT_GTO_VERSION)
+    if (h->version_major > WRT_GTO_VERSION_MAX)
         return wrt_fail(WRT_ERR_UNSUPPORTED,
                         "file version %u.%u is newer than this reader's version %d.%d",
-                        h->version_major, h->version_minor, WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR);
+                        h->version_major, h->version_minor, WRT_GTO_VERSION_MAX, 0);
     if (h->version_major < WRT_GTO_VERSION)
         return wrt_fail(WRT_ERR_UNSUPPORTED,
                         "file version %u.%u is older than this reader's version %d.%d",
@@ -90,14 +90,21 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
         if (s->offset != gto_align_up(prev_end))
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 ", expected %" PRIu64
                             " (sections follow each other)", nm, s->offset, gto_align_up(prev_end));
-        if (gto_sec_known(s->id) && s->elem_size != gto_sec_info[s->id].elem_size)
+        if (s->id >= SEC_CRITICAL && s->id != SEC_CTREE)
+            return wrt_fail(WRT_ERR_UNSUPPORTED, "section id %u is critical (ids from %u on must be understood) "
+                            "and unknown to this reader: it cannot read this file", s->id, SEC_CRITICAL);
+        if (s->id == SEC_CTREE && h->version_major < 2)
+            return wrt_fail(WRT_ERR_CORRUPT, "section ctree in a version %u.%u file (it needs version 2.0)",
+                            h->version_major, h->version_minor);
+        if ((gto_sec_known(s->id) || s->id == SEC_CTREE) && s->elem_size != gto_sec_elem(s->id))
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: element size %u, expected %u", nm,
-                            s->elem_size, gto_sec_info[s->id].elem_size);
+                            s->elem_size, gto_sec_elem(s->id));
         if (s->elem_size == 0 || s->count > s->size / s->elem_size ||
             s->count * s->elem_size != s->size)
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: size %" PRIu64 " is not %" PRIu64
                             " elements of %u bytes", nm, s->size, s->count, s->elem_size);
         if (gto_sec_known(s->id)) L->sec[s->id] = s;
+        if (s->id == SEC_CTREE) L->ctree = s;
         prev_end = s->offset + s->size;
     }
     if (prev_end != len)
@@ -161,6 +168,9 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     if (S[SEC_NORMALS] && S[SEC_NORMALS]->count != S[SEC_QUADS]->count)
         return wrt_fail(WRT_ERR_CORRUPT, "section normals: %" PRIu64 " records, expected %" PRIu64 " (one per quad)",
                         S[SEC_NORMALS]->count, S[SEC_QUADS]->count);
+    if (L->ctree && (S[SEC_QUADS]->count == 0 || L->ctree->count != 2 * S[SEC_QUADS]->count - 1))
+        return wrt_fail(WRT_ERR_CORRUPT, "section ctree: %" PRIu64 " nodes, expected %" PRIu64 " (2 x quads - 1)",
+                        L->ctree->count, S[SEC_QUADS]->count ? 2 * S[SEC_QUADS]->count - 1 : 0);
     /* Every byte outside the sections is header, table or zero padding. */
     uint64_t prev_end = L->h.header_size;
     for (uint32_t i = 0; i < L->h.nsections; i++) {
@@ -209,6 +219,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
         st = gto_check_textures(g->textures, g->textures_size, g->nmaterials);
         if (st != WRT_OK) return st;
     }
+    if (L->ctree) { g->ctree = (const void *)(b + L->ctree->offset); g->nctree = (uint32_t)L->ctree->count; }
 #undef SECPTR
     return WRT_OK;
 }
@@ -228,6 +239,7 @@ wrt_status gto_check_payload(const uint8_t *b, const gto_layout *L, const wrt_gt
     }
     gto_check_quad_ranges(&v);
     if (v.bad) return wrt_fail(WRT_ERR_CORRUPT, "section quads: %s", v.err);
+    if (g->ctree) return gto_check_ctree(g->ctree, g->nctree, g->nquads, WRT_ERR_CORRUPT, "section ctree");
     return WRT_OK;
 }
 

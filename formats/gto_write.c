@@ -221,6 +221,12 @@ static wrt_status check_contents(const char *path, const wrt_gto_contents *c) {
     if (nf && (!c->fkeys || !c->col_start))
         return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: %u functions but no keys or columns",
                         path, nf);
+    if (c->nctree) {
+        char what[300];
+        snprintf(what, sizeof what, "refusing to write %s: cluster tree", path);
+        wrt_status ct = gto_check_ctree(c->ctree, c->nctree, (uint32_t)sc->nquads, WRT_ERR_INVALID_ARG, what);
+        if (ct != WRT_OK) return ct;
+    }
     uint64_t nnz = c->col_start ? c->col_start[nf] : 0;
     if (nnz && (!c->rows || !c->vals))
         return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: %" PRIu64 " entries but no rows or vals",
@@ -375,10 +381,10 @@ static void build_scene_records(const wrt_gto_contents *c, gto_records *R) {
 
 /* The file as planned: its sections in order, the header and the section table. */
 typedef struct gto_plan {
-    wsec secs[SEC_KNOWN];
+    wsec secs[GTO_MAX_WRITTEN];
     int nsec;
     uint32_t hsize;
-    alignas(8) uint8_t head[sizeof(gto_header) + sizeof(gto_section) * SEC_KNOWN];
+    alignas(8) uint8_t head[sizeof(gto_header) + sizeof(gto_section) * GTO_MAX_WRITTEN];
 } gto_plan;
 
 static const uint64_t zero_col = 0;
@@ -410,6 +416,7 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
             continue;
         P->secs[P->nsec++] = secs[i];
     }
+    if (c->nctree) P->secs[P->nsec++] = (wsec){SEC_CTREE, c->nctree, c->ctree}; /* critical: version 2.0 */
 
     static const uint64_t nothing = 0;
     for (int i = 0; i < P->nsec; i++)
@@ -428,9 +435,9 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     gto_section *tab = (gto_section *)(head + sizeof(gto_header));
     memcpy(h->magic, GTO_MAGIC, GTO_MAGIC_LEN);
     h->byte_order = GTO_BOM;
-    h->version_major = WRT_GTO_VERSION;
-    h->version_minor = R->textures ? GTO_MINOR_TEXTURES : R->normals ? GTO_MINOR_NORMALS : R->srcmap ? GTO_MINOR_SRCMAP
-                       : nk ? GTO_MINOR_K : 0;
+    h->version_major = c->nctree ? 2 : WRT_GTO_VERSION;
+    h->version_minor = c->nctree ? 0 : R->textures ? GTO_MINOR_TEXTURES : R->normals ? GTO_MINOR_NORMALS
+                       : R->srcmap ? GTO_MINOR_SRCMAP : nk ? GTO_MINOR_K : 0;
     h->nsections = (uint32_t)nsec;
     h->header_size = hsize;
     h->op_kind = c->op_kind;
@@ -448,7 +455,7 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     uint64_t off = hsize;
     wrt_status st = WRT_OK;
     for (int i = 0; i < nsec && st == WRT_OK; i++) {
-        uint32_t es = gto_sec_info[secs[i].id].elem_size;
+        uint32_t es = gto_sec_elem(secs[i].id);
         tab[i].id = secs[i].id;
         tab[i].elem_size = es;
         tab[i].offset = gto_align_up(off);

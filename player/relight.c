@@ -137,7 +137,8 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
         /* With K: the first bounce from its quads, Y = K c, and E' = E off them + Y. */
         const float *src = r->E;
         if (g->nkcols) { relight_first_bounce(r); src = r->k.Ep; }
-        relight_multiply(r, src);
+        relight_multiply(r, relight_cluster_forward(r, src)); /* the tree's basis and back, if any */
+        relight_cluster_inverse(r);
     }
     double t2 = wrt_now();
     t.multiply = (t2 - t1) * 1e3;

@@ -392,6 +392,7 @@ static wrt_status create_stages(wrt_relight *r) {
     if (r->g->nkcols && (st = relight_setup_first_bounce(r))) return st;
     if ((st = create_rays(r, bmin, bmax))) return r->oom ? wrt_fail(WRT_ERR_NOMEM, "relight: out of memory") : st;
     if ((st = create_state(r, tex_total)) || (st = create_scratch(r))) goto fail;
+    if ((st = relight_setup_clusters(r))) goto fail;
     if (!relight_progress(r, PROGRESS_TABLES)) return wrt_fail(WRT_ERR_CANCELLED, "relight: cancelled by the progress callback");
     if ((st = create_brdf_tables(r)) || (st = relight_setup_gather(r))) goto fail;
     if (!relight_progress(r, 1.0)) return wrt_fail(WRT_ERR_CANCELLED, "relight: cancelled by the progress callback");
@@ -445,6 +446,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     relight_free(r, r->E); relight_free(r, r->X); relight_free(r, r->Xprev); relight_free(r, r->mul.X4); relight_free(r, r->mul.cols); relight_free(r, r->tex); relight_free(r, r->texk); relight_free(r, r->tex_nonzero); relight_free(r, r->x_nonzero);
     relight_free(r, r->resynth); relight_free(r, r->proj.recs); relight_free(r, r->proj.qlevel); relight_free(r, r->proj.cones);
     relight_free(r, r->synth_list); relight_free(r, r->emit_scale);
+    wrt_ctree_free(&r->ct.t); relight_free(r, r->ct.root); relight_free(r, r->ct.Et); relight_free(r, r->ct.scratch);
     wrt_recon_destroy(r->sm.recon); relight_free(r, r->sm.stex); relight_free(r, r->sm.regroup);
     relight_free(r, r->sm.rin); relight_free(r, r->sm.rknown); relight_free(r, r->sm.rout);
     relight_free(r, r->k.fn_slevel); relight_free(r, r->k.fn_ang); relight_free(r, r->k.fn_spidx);

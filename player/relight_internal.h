@@ -11,6 +11,7 @@
 #ifndef WRT_RELIGHT_INTERNAL_H
 #define WRT_RELIGHT_INTERNAL_H
 
+#include "../common/cluster_tree.h"
 #include "relight.h"
 
 #include <embree3/rtcore.h>
@@ -202,6 +203,10 @@ struct wrt_relight {
     int e_dirty, eye_dirty, have_eye;
     double eye[3];
     float *E, *X, *Xprev;
+    /* The cluster tree of a `--clusters` file (relight_cluster.c): the operator's quad
+     * root slots hold the tree's functions; E is taken there (Et) before the multiply and
+     * X back after it. on 0: none. */
+    struct { int on; wrt_ctree t; uint32_t *root; float *Et; double *scratch; } ct;
     float *tex; uint8_t *tex_nonzero, *x_nonzero, *resynth;
     float *texk;                    /* per texel of non-parallelograms: 2^Lt sqrt(pi/J)/pi */
     int *synth_list;                /* nquads + 1: quads to synthesize this update */
@@ -365,6 +370,12 @@ int relight_projection_cap(const wrt_relight *r, const quad_info *q);
 /* relight_multiply.c: X = Op src (src = E, or E' with K; + Y with K), and per quad
  * whether its rows changed (r->resynth) and are non-zero (r->x_nonzero). */
 void relight_multiply(wrt_relight *r, const float *src);
+/* The cluster tree (relight_cluster.c): set up from the file's section (WRT_OK when the
+ * file has none), E taken to the tree's basis (returns the vector to multiply), and X
+ * back to the quads' basis with the quads whose X changed marked. */
+wrt_status relight_setup_clusters(wrt_relight *r);
+const float *relight_cluster_forward(wrt_relight *r, const float *src);
+void relight_cluster_inverse(wrt_relight *r);
 /* With the final gather: the operator without the rows nothing displays. -1: no memory. */
 int relight_display_rows_operator(wrt_relight *r);
 

@@ -22,6 +22,7 @@
 #include "series.h"
 #include "budget.h"
 #include "links.h"
+#include "cluster.h"
 
 void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->quality <= 0) o->quality = 5;
@@ -127,6 +128,11 @@ static int may_occlude(const bake_ctx *b, const wrt_quad *r, const wrt_quad *s, 
     double e = b->plane_eps;
     return olo.x < hi.x - e && ohi.x > lo.x + e && olo.y < hi.y - e && ohi.y > lo.y + e &&
            olo.z < hi.z - e && ohi.z > lo.z + e;
+}
+
+int wrt_bake_can_exchange(const bake_ctx *b, const wrt_quad *r, const wrt_quad *s) { return can_exchange(b, r, s); }
+int wrt_bake_may_occlude(const bake_ctx *b, const wrt_quad *r, const wrt_quad *s, const wrt_quad *o) {
+    return may_occlude(b, r, s, o);
 }
 
 typedef struct dto_job {
@@ -342,6 +348,32 @@ static void bake_pairs(const bake_ctx *b, const wrt_scene *scene, wrt_bake_count
     pl->pr = pr; pl->ps = ps; pl->occl = occl; pl->np = np; pl->npt = npt;
 }
 
+/* Stage 4 with --clusters: the tree, its links, and the leaf pairs (cluster.c) */
+static void bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters *C, pair_list *pl) {
+    wrt_clusters_build(b, cl);
+    wrt_clusters_link(b, cl);
+    b->cl = cl;
+    b->balance_open = 1;
+    size_t np = cl->np;
+    pl->pr = wrt_xmalloc((np + 1) * sizeof *pl->pr);
+    pl->ps = wrt_xmalloc((np + 1) * sizeof *pl->ps);
+    pl->occl = wrt_xmalloc(np + 1);
+    memcpy(pl->pr, cl->pr, np * sizeof *pl->pr);
+    memcpy(pl->ps, cl->ps, np * sizeof *pl->ps);
+    memcpy(pl->occl, cl->occl, np);
+    pl->np = pl->npt = np;
+    for (size_t i = 0; i < np; i++) C->pairs_unoccluded += 2 * !(cl->occl[i] & 1);
+    C->pairs_exchange = 2 * np;
+    C->cluster_links = cl->nlinks;
+    C->cluster_leaf_pairs = np;
+    C->cluster_visits = cl->pairs_visited;
+    C->cluster_oracle = cl->oracle_calls;
+    C->cluster_rays = cl->rays;
+    C->cluster_refused_visibility = cl->oracle_refused_vis;
+    C->cluster_refused_spread = cl->oracle_refused_spread;
+    C->cluster_depth = cl->tree.depth;
+}
+
 /* Stage 5: the DTO's links and entries, pair by pair in parallel, with the memory check
  * after every chunk; the threads' counters summed; the status so far */
 static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *pl, dto_job *job,
@@ -482,6 +514,8 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             }
             res->dto = wrt_csc_from_triplets(res->nfuncs, tr, t);
             free(tr);
+            if (b->cl) /* --clusters: the links added, the closed rule, the tree basis */
+                C->cluster_fix_entries = wrt_clusters_assemble(b, b->cl, keys, res->nfuncs, C->closed, &res->dto);
             if (!b->opt.no_balance) {
                 double tb = wrt_now();
                 C->balance_entries += wrt_balance_glossy(b, keys, res->nfuncs, &res->dto);
@@ -534,7 +568,24 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     wrt_status est = bake_embree(&b);
     if (est != WRT_OK) return est;
     pair_list pl;
-    bake_pairs(&b, scene, C, &pl);
+    wrt_clusters cl = {0};
+    if (b.opt.clusters) {
+        int glossy = 0;
+        for (int m = 0; m < scene->nmaterials; m++) glossy |= b.alevel[m] != 0;
+        if (glossy || b.opt.gathered) {
+            rtcReleaseScene(b.rtc);
+            rtcReleaseDevice(b.dev);
+            free(b.quads); free(b.rho); free(b.klevel); free(b.kbmax);
+            for (int m = 0; m < scene->nmaterials; m++) free(b.btilde[m]);
+            free(b.btilde);
+            wrt_bake_result_free(res);
+            return wrt_fail(WRT_ERR_UNSUPPORTED, "--clusters: %s is not supported yet (docs/clusters.md)",
+                            glossy ? "a glossy material" : "the gathered operator");
+        }
+        bake_cluster_pairs(&b, &cl, C, &pl);
+    } else {
+        bake_pairs(&b, scene, C, &pl);
+    }
     /* the DTO's link pool (bake_ctx.h), counted across its threads */
     atomic_ullong pool_bytes, pool_refused;
     dto_job job;
@@ -563,6 +614,13 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     free(b.quads); free(b.rho); free(b.klevel); free(b.kbmax);
     for (int m = 0; m < scene->nmaterials; m++) free(b.btilde[m]);
     free(b.btilde);
+    if (b.opt.clusters) { /* the tree goes with the result when the operator is in its basis */
+        if (C->cluster_tree_basis) {
+            res->ctree = cl.tree;
+            memset(&cl.tree, 0, sizeof cl.tree);
+        }
+        wrt_clusters_free(&cl);
+    }
     if (st != WRT_OK) {
         char msg[1024];
         snprintf(msg, sizeof msg, "%s", wrt_last_error());
@@ -578,5 +636,6 @@ void wrt_bake_result_free(wrt_bake_result *res) {
     wrt_csc_free(&res->op);
     free(res->material_alevel);
     free(res->kkeys); free(res->kcol_start); free(res->krows); free(res->kvals);
+    wrt_ctree_free(&res->ctree);
     memset(res, 0, sizeof *res);
 }

@@ -10,6 +10,7 @@
 #include "sparse.h"
 #include "budget.h" /* the memory budget, which main.c reports */
 #include "links.h"  /* wrt_fkey_find, wrt_count_links */
+#include "../common/cluster_tree.h"
 
 /* Progress: phase name ("dto", "balance", "gto") and fraction done, or < 0 when no
  * fraction is known; return 0 to cancel. */
@@ -44,6 +45,11 @@ typedef struct wrt_bake_options {
                              * materials (1..3; dto.c); 0: default (the material's angular
                              * need, at most 3); -1: no K (the direct light reflected by a glossy
                              * quad enters the operator through its incident angular cells) */
+    int clusters;          /* 1: the cluster hierarchy (cluster.h, docs/clusters.md) */
+    double cluster_sep;    /* its separation threshold (0: WRT_CLUSTER_SEP_DEFAULT) */
+    double cluster_spread; /* its oracle's spread threshold (0: WRT_CLUSTER_SPREAD_DEFAULT) */
+    int cluster_tree;      /* 1: store the operator in the tree's basis when it has fewer entries
+                            * there (a trial: a copy and a transform of G - I); 2: always */
     wrt_progress_fn progress;
     void *progress_user;
 } wrt_bake_options;
@@ -90,6 +96,15 @@ typedef struct wrt_bake_counters {
     double mem_estimate_mb;        /* the largest memory need the bake estimated before allocating */
     uint64_t entries_k, links_k;   /* the first-bounce operator K: entries and links */
     uint32_t nkcols;               /* its columns (outgoing functions of glossy quads) */
+    /* --clusters: links between clusters (one entry pair each), leaf pairs handed to the
+     * DTO, node pairs visited, oracle calls and their rays, entries the closed-scene rule
+     * added, the tree's depth */
+    uint64_t cluster_links, cluster_leaf_pairs, cluster_visits, cluster_oracle, cluster_rays, cluster_fix_entries;
+    uint64_t cluster_tree_entries;  /* G - I's entries in the tree basis before its compression */
+    uint64_t cluster_tree_compressed; /* and after */
+    int cluster_tree_basis;
+    uint64_t cluster_refused_visibility, cluster_refused_spread; /* the oracle's refusals */         /* 1: the operator is stored in the tree's basis (res->ctree set) */
+    uint32_t cluster_depth;
 } wrt_bake_counters;
 
 typedef struct wrt_bake_result {
@@ -105,6 +120,8 @@ typedef struct wrt_bake_result {
     uint64_t *kkeys, *kcol_start, knnz;
     uint32_t *krows;
     float *kvals;
+    /* --clusters: the tree whose basis the quads' root slots hold (nq 0: none) */
+    wrt_ctree ctree;
     wrt_bake_counters c;
 } wrt_bake_result;
 

@@ -35,6 +35,10 @@ typedef struct bake_ctx {
      * holds the size it would have reached, and the bake is cancelled. */
     atomic_ullong *pool_bytes, *pool_refused;
     double pool_limit;
+    /* --clusters (cluster.h): the tree and its links; the pair balance then runs in its
+     * open-scene mode and the closed-scene rule is applied with the links (cluster_ops.c) */
+    const struct wrt_clusters *cl;
+    int balance_open;
 } bake_ctx;
 
 typedef struct bake_thread_counters {

@@ -628,6 +628,8 @@ int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, 
     bal_ctx c = {.b = b, .np = np, .pr = pr, .ps = ps, .out = out, .fkeys = fkeys, .nf = nf};
     int open_quad;
     c.closed = scene_closed(b, &open_quad);
+    int closed = c.closed;
+    if (b->balance_open) c.closed = 0; /* --clusters: cluster_ops.c applies the closed rule */
     int nq = b->nq;
     c.refs = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof *c.refs);
     c.nrefs = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof *c.nrefs);
@@ -658,7 +660,7 @@ int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, 
         free(c.res[s]); free(c.refs[s]);
     }
     free(c.res); free(c.nres); free(c.refs); free(c.nrefs); free(capr);
-    return c.closed ? 1 : -(open_quad + 1);
+    return closed ? 1 : -(open_quad + 1);
 }
 
 /* ---- glossy senders ----

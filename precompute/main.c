@@ -61,6 +61,12 @@ static void usage(FILE *f) {
         "  --no-tail              do not add the estimated tail of the series\n"
         "  --no-balance           keep T's quad-to-quad power as the links integrate it (no\n"
         "                         power balance: loses energy conservation; for comparison)\n"
+        "  --clusters             link well separated clusters of quads by one entry each\n"
+        "                         instead of every quad pair (docs/clusters.md; diffuse\n"
+        "                         scenes only)\n"
+        "  --clusters-tree-basis  --clusters, and the operator stored in the cluster tree's\n"
+        "                         basis when it has fewer entries there (a version 2.0 file;\n"
+        "                         --clusters-tree-basis-always: whatever its size)\n"
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --max-memory MB        memory budget: the bake estimates what each stage needs\n"
         "                         before allocating it and refuses (exit 7, naming the figure)\n"
@@ -144,6 +150,17 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
     if (c->nkcols)
         fprintf(f, "\"first_bounce\":{\"columns\":%u,\"entries\":%llu,\"links\":%llu}", c->nkcols,
                 (unsigned long long)c->entries_k, (unsigned long long)c->links_k);
+    /* only with --clusters, likewise */
+    if (c->cluster_visits || c->cluster_leaf_pairs || c->cluster_links)
+        fprintf(f, ",\"clusters\":{\"links\":%llu,\"leaf_pairs\":%llu,\"visits\":%llu,\"oracle\":%llu,"
+                "\"refused_visibility\":%llu,\"refused_spread\":%llu,\"rays\":%llu,\"closed_entries\":%llu,\"tree_entries\":%llu,\"tree_compressed\":%llu,"
+                "\"tree_basis\":%s,\"depth\":%u}",
+                (unsigned long long)c->cluster_links, (unsigned long long)c->cluster_leaf_pairs,
+                (unsigned long long)c->cluster_visits, (unsigned long long)c->cluster_oracle,
+                (unsigned long long)c->cluster_refused_visibility, (unsigned long long)c->cluster_refused_spread,
+                (unsigned long long)c->cluster_rays, (unsigned long long)c->cluster_fix_entries,
+                (unsigned long long)c->cluster_tree_entries, (unsigned long long)c->cluster_tree_compressed,
+                c->cluster_tree_basis ? "true" : "false", c->cluster_depth);
 }
 
 static void json_options(FILE *f, const wrt_bake_options *o) {
@@ -261,6 +278,9 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--report-gathered")) o->report_gathered = 1;
         else if (!strcmp(a, "--no-tail")) o->no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o->no_balance = 1;
+        else if (!strcmp(a, "--clusters")) o->clusters = 1;
+        else if (!strcmp(a, "--clusters-tree-basis")) { o->clusters = 1; o->cluster_tree = 1; }
+        else if (!strcmp(a, "--clusters-tree-basis-always")) { o->clusters = 1; o->cluster_tree = 2; }
         else if (!strcmp(a, "--drop-bad")) A->drop_bad = 1;
         else if (!strcmp(a, "--allow-outside-files")) A->allow_outside = 1;
         else if (!strcmp(a, "--reproducible")) A->timings = 0;
@@ -443,6 +463,14 @@ static int write_pending(const bake_args *A, const wrt_scene *s, const wrt_bake_
         .op_kind = (uint32_t)r->op_kind, .material_alevel = r->material_alevel, .provenance = prov,
         .nkcols = r->nkcols, .kkeys = r->kkeys, .kcol_start = r->kcol_start, .krows = r->krows, .kvals = r->kvals,
     };
+    wrt_gto_cnode *cn = NULL;
+    if (r->ctree.nnodes) { /* --clusters: the tree (section ctree, version 2.0) */
+        cn = wrt_xmalloc(r->ctree.nnodes * sizeof *cn);
+        for (uint32_t i = 0; i < r->ctree.nnodes; i++)
+            cn[i] = (wrt_gto_cnode){r->ctree.left[i], r->ctree.right[i], r->ctree.area[i]};
+        gc.ctree = cn;
+        gc.nctree = r->ctree.nnodes;
+    }
     gc.stats.links_dto = c->links_dto;
     gc.stats.links_gto = c->links_gto;
     gc.stats.links_gathered = c->links_gathered;
@@ -459,6 +487,7 @@ static int write_pending(const bake_args *A, const wrt_scene *s, const wrt_bake_
     wrt_cli_progress_end();
     *t_write = wrt_now() - tw;
     free(prov);
+    free(cn);
     if (st != WRT_OK) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return WRT_EXIT_OUTPUT;

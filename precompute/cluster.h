@@ -1,0 +1,66 @@
+/* cluster.h: the cluster hierarchy of the bake (`--clusters`, docs/clusters.md): the
+ * binary tree over the quads (cluster.c), the top-down linking that hands near pairs of
+ * quads to the per-pair DTO (dto.c) and couples well separated clusters by one entry
+ * (cluster.c), and the operator's expression in the tree's orthonormal Haar basis
+ * (cluster_ops.c). Called by the driver (bake.c) and the series (series.c). Depends on
+ * bake_ctx.h and common/cluster_tree.h. */
+#ifndef WRT_CLUSTER_H
+#define WRT_CLUSTER_H
+
+#include "bake_ctx.h"
+#include "sparse.h"
+#include "../common/cluster_tree.h"
+
+/* A cluster link between nodes a and b (disjoint): T[phi_a][phi_b] = tab (b's albedo),
+ * T[phi_b][phi_a] = tba (a's albedo). */
+typedef struct wrt_clink { uint32_t a, b; float tab[3], tba[3]; } wrt_clink;
+
+typedef struct wrt_clusters {
+    wrt_ctree tree;
+    uint32_t *perm;          /* quads in leaf order */
+    double *pref;            /* prefix areas over perm (nq + 1) */
+    uint32_t *lo, *hi;       /* per node: its quads are perm[lo, hi) */
+    wrt_v3 *bmin, *bmax;     /* per node: bounding box of its quads' corners */
+    wrt_v3 *axis;            /* per node: unit mean normal (0 if they cancel) */
+    double *cosw;            /* per node: min over its quads of n . axis */
+    float (*rho)[3];         /* per node: the albedo if uniform */
+    uint8_t *uniform;        /* per node: all quads diffuse with one albedo */
+    wrt_clink *links; size_t nlinks;
+    /* the leaf pairs for the DTO, in a fixed order: r < s, flags as bake.c's */
+    int *pr, *ps; uint8_t *occl; size_t np;
+    uint64_t pairs_visited, pairs_culled, oracle_calls, oracle_refused_vis, oracle_refused_spread;
+    uint64_t rays;
+} wrt_clusters;
+
+/* Thresholds (0 = default): separation (distance of centres over the sum of radii) and
+ * the relative spread of the sampled kernel that a cluster link accepts. */
+#define WRT_CLUSTER_SEP_DEFAULT 1.5
+#define WRT_CLUSTER_SPREAD_DEFAULT 0.15
+
+/* The tree over b->quads (cluster.c). */
+void wrt_clusters_build(const bake_ctx *b, wrt_clusters *cl);
+/* The links and leaf pairs, top-down from (root, root), on b->opt.threads threads;
+ * deterministic whatever the thread count (cluster.c). */
+void wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl);
+void wrt_clusters_free(wrt_clusters *cl);
+
+/* T (quads' basis, balanced) with the cluster links added, in a closed scene each
+ * column's power made what its function emits, the links then pushed down to the quads'
+ * roots (cluster_ops.c). Replaces *T. Returns the entries the closed-scene rule added. */
+uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
+                               int closed, wrt_csc *T);
+/* A matrix of the quads' basis (nf x nf) expressed in the tree basis: rows, then columns
+ * (cluster_ops.c). Replaces *M. */
+void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf, wrt_csc *M);
+/* The series' weights of the root slots for the tree functions: areas of their nodes
+ * (rw = 1/sqrt(a), cw = sqrt(a)) and the power weights transformed (cluster_ops.c). */
+void wrt_clusters_series_weights(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
+                                 double *rw, double *cw, double *pw);
+/* The root slot (function index) of every quad; malloc'd (cluster_ops.c). */
+uint32_t *wrt_clusters_root_index(const uint64_t *fkeys, uint32_t nf, uint32_t nq);
+
+/* bake.c's pair tests, shared with the linking. */
+int wrt_bake_can_exchange(const bake_ctx *b, const wrt_quad *r, const wrt_quad *s);
+int wrt_bake_may_occlude(const bake_ctx *b, const wrt_quad *r, const wrt_quad *s, const wrt_quad *o);
+
+#endif

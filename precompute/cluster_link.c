@@ -1,0 +1,262 @@
+/* cluster_link.c: the top-down linking of the cluster tree (cluster.h; the rules are
+ * described at the top of cluster.c and in docs/clusters.md): culling by boxes and
+ * normal cones, the sampled oracle that makes cluster links, and the leaf pairs handed
+ * to the per-pair DTO. Depends on cluster.h, Embree 3 and common/threads.h. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../common/threads.h"
+#include "cluster.h"
+
+#define CL_SAMPLES 8
+
+typedef struct task { uint32_t a, b; } task;
+
+typedef struct sink {
+    wrt_clink *l; size_t nl, capl;
+    int *pr, *ps; uint8_t *oc; size_t np, capp;
+    uint64_t visited, culled, oracle, refused_vis, refused_spread, rays;
+} sink;
+
+typedef struct lctx {
+    const bake_ctx *b;
+    const wrt_clusters *cl;
+    double sep, spread;
+    uint32_t grain;
+    task *tasks; size_t nt, capt; /* the serial top's hand-off */
+    sink *sinks;
+} lctx;
+
+static uint32_t count(const wrt_clusters *cl, uint32_t a) { return cl->hi[a] - cl->lo[a]; }
+static int is_leaf(const wrt_clusters *cl, uint32_t a) { return cl->tree.left[a] < 0; }
+static double radius(const wrt_clusters *cl, uint32_t a) { return 0.5 * v3_len(v3_sub(cl->bmax[a], cl->bmin[a])); }
+static wrt_v3 centre(const wrt_clusters *cl, uint32_t a) { return v3_scale(v3_add(cl->bmax[a], cl->bmin[a]), 0.5); }
+
+/* 1 if every point of B's box lies behind (within plane_eps) every plane of A's quads:
+ * max over the boxes of axis . (y - x), plus the cone's slack times the largest distance. */
+static int behind(const lctx *c, uint32_t a, uint32_t bn) {
+    const wrt_clusters *cl = c->cl;
+    wrt_v3 n = cl->axis[a];
+    if (v3_len(n) == 0) return 0;
+    double m = 0;
+    for (int k = 0; k < 3; k++) {
+        double nk = k == 0 ? n.x : k == 1 ? n.y : n.z;
+        double bmin = k == 0 ? cl->bmin[bn].x : k == 1 ? cl->bmin[bn].y : cl->bmin[bn].z;
+        double bmax = k == 0 ? cl->bmax[bn].x : k == 1 ? cl->bmax[bn].y : cl->bmax[bn].z;
+        double amin = k == 0 ? cl->bmin[a].x : k == 1 ? cl->bmin[a].y : cl->bmin[a].z;
+        double amax = k == 0 ? cl->bmax[a].x : k == 1 ? cl->bmax[a].y : cl->bmax[a].z;
+        m += nk > 0 ? nk * (bmax - amin) : nk * (bmin - amax);
+    }
+    double cw = cl->cosw[a];
+    double slack = sqrt(fmax(0, 2 - 2 * cw));
+    wrt_v3 lo = v3(fmin(cl->bmin[a].x, cl->bmin[bn].x), fmin(cl->bmin[a].y, cl->bmin[bn].y), fmin(cl->bmin[a].z, cl->bmin[bn].z));
+    wrt_v3 hi = v3(fmax(cl->bmax[a].x, cl->bmax[bn].x), fmax(cl->bmax[a].y, cl->bmax[bn].y), fmax(cl->bmax[a].z, cl->bmax[bn].z));
+    m += slack * v3_len(v3_sub(hi, lo));
+    return m <= c->b->plane_eps;
+}
+
+/* Can a quad under node p lie between quads r and s (bake.c's test, on the quads whose
+ * boxes meet the shrunk box of r and s)? */
+static int occ_query(const lctx *c, uint32_t p, wrt_v3 lo, wrt_v3 hi, int r, int s) {
+    const wrt_clusters *cl = c->cl;
+    const wrt_v3 *a = &cl->bmin[p], *z = &cl->bmax[p];
+    if (!(a->x < hi.x && z->x > lo.x && a->y < hi.y && z->y > lo.y && a->z < hi.z && z->z > lo.z)) return 0;
+    if (is_leaf(cl, p)) {
+        int o = cl->tree.right[p];
+        const bake_ctx *b = c->b;
+        return o != r && o != s && wrt_bake_may_occlude(b, &b->quads[r], &b->quads[s], &b->quads[o]);
+    }
+    return occ_query(c, (uint32_t)cl->tree.left[p], lo, hi, r, s) || occ_query(c, (uint32_t)cl->tree.right[p], lo, hi, r, s);
+}
+
+static void leaf_pair(const lctx *c, sink *k, int qa, int qb) {
+    const bake_ctx *b = c->b;
+    int r = qa < qb ? qa : qb, s = qa < qb ? qb : qa;
+    if (!wrt_bake_can_exchange(b, &b->quads[r], &b->quads[s])) { k->culled++; return; }
+    wrt_v3 lo = b->quads[r].p[0], hi = lo;
+    for (int i = 0; i < 8; i++) {
+        wrt_v3 p = i < 4 ? b->quads[r].p[i] : b->quads[s].p[i - 4];
+        lo = v3(fmin(lo.x, p.x), fmin(lo.y, p.y), fmin(lo.z, p.z));
+        hi = v3(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
+    }
+    double e = b->plane_eps;
+    int oc = occ_query(c, 0, v3_add(lo, v3(e, e, e)), v3_sub(hi, v3(e, e, e)), r, s);
+    if (k->np == k->capp) {
+        k->capp = k->capp ? 2 * k->capp : 64;
+        k->pr = wrt_xrealloc(k->pr, k->capp * sizeof *k->pr);
+        k->ps = wrt_xrealloc(k->ps, k->capp * sizeof *k->ps);
+        k->oc = wrt_xrealloc(k->oc, k->capp);
+    }
+    k->pr[k->np] = r; k->ps[k->np] = s; k->oc[k->np] = (uint8_t)(oc | 2); k->np++;
+}
+
+/* 1 if the segment a -> b (ends already lifted off their quads) is blocked */
+static int blocked(const bake_ctx *b, wrt_v3 a, wrt_v3 e) {
+    wrt_v3 d = v3_sub(e, a);
+    double len = v3_len(d);
+    if (len <= 0) return 0;
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRay ray;
+    ray.org_x = (float)a.x; ray.org_y = (float)a.y; ray.org_z = (float)a.z;
+    ray.dir_x = (float)(d.x / len); ray.dir_y = (float)(d.y / len); ray.dir_z = (float)(d.z / len);
+    ray.tnear = 0;
+    ray.tfar = (float)(len * (1 - 1e-7));
+    ray.time = 0; ray.mask = 0xFFFFFFFF; ray.id = 0; ray.flags = 0;
+    rtcOccluded1(b->rtc, &ctx, &ray);
+    return ray.tfar < 0;
+}
+
+static double u01(uint64_t h) { return (double)(h >> 11) * 0x1.0p-53; }
+
+/* CL_SAMPLES area-stratified points of node p (and their quads' normals) */
+static void node_points(const lctx *c, uint32_t p, wrt_v3 *x, wrt_v3 *n) {
+    const wrt_clusters *cl = c->cl;
+    double a0 = cl->pref[cl->lo[p]], a1 = cl->pref[cl->hi[p]];
+    for (int i = 0; i < CL_SAMPLES; i++) {
+        uint64_t h = wrt_mix64(((uint64_t)p << 8) ^ (uint64_t)i ^ 0xC1u);
+        double t = a0 + (a1 - a0) * (i + u01(h)) / CL_SAMPLES;
+        uint32_t lo = cl->lo[p], hi = cl->hi[p] - 1; /* last prefix entry <= t */
+        while (lo < hi) {
+            uint32_t m = lo + (hi - lo + 1) / 2;
+            if (cl->pref[m] <= t) lo = m; else hi = m - 1;
+        }
+        const wrt_quad *q = &c->b->quads[cl->perm[lo]];
+        uint64_t h2 = wrt_mix64(h);
+        x[i] = v3_mad(wrt_quad_point(q, u01(h2), u01(wrt_mix64(h2))), q->n, c->b->ray_eps);
+        n[i] = q->n;
+    }
+}
+
+static void add_link(sink *k, uint32_t a, uint32_t bn, const float tab[3], const float tba[3]) {
+    if (k->nl == k->capl) {
+        k->capl = k->capl ? 2 * k->capl : 64;
+        k->l = wrt_xrealloc(k->l, k->capl * sizeof *k->l);
+    }
+    wrt_clink *l = &k->l[k->nl++];
+    l->a = a; l->b = bn;
+    memcpy(l->tab, tab, sizeof l->tab); memcpy(l->tba, tba, sizeof l->tba);
+}
+
+/* The oracle: 1 if the pair is done (a cluster link, or no light), 0 to refine. */
+static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
+    const wrt_clusters *cl = c->cl;
+    enum { S = CL_SAMPLES };
+    wrt_v3 xa[S], na[S], xb[S], nb[S];
+    double kv[S][S], ra[S] = {0}, rb[S] = {0}, sum = 0;
+    k->oracle++;
+    node_points(c, a, xa, na);
+    node_points(c, bn, xb, nb);
+    int nblk = 0;
+    for (int i = 0; i < S; i++)
+        for (int j = 0; j < S; j++) {
+            wrt_v3 d = v3_sub(xb[j], xa[i]);
+            double d2 = v3_dot(d, d), ci = v3_dot(na[i], d), cj = -v3_dot(nb[j], d);
+            if (!(ci > 0 && cj > 0 && d2 > 0)) { k->refused_spread++; return 0; } /* seen edge-on or from behind */
+            k->rays++;
+            int bl = blocked(c->b, xa[i], xb[j]);
+            nblk += bl;
+            kv[i][j] = bl ? 0 : ci * cj / (WRT_PI * d2 * d2);
+        }
+    if (nblk == S * S) return 1;
+    if (nblk) { k->refused_vis++; return 0; }
+    for (int i = 0; i < S; i++)
+        for (int j = 0; j < S; j++) { ra[i] += kv[i][j]; rb[j] += kv[i][j]; sum += kv[i][j]; }
+    double lo = HUGE_VAL, hi = 0, lo2 = HUGE_VAL, hi2 = 0;
+    for (int i = 0; i < S; i++) {
+        lo = fmin(lo, ra[i]); hi = fmax(hi, ra[i]);
+        lo2 = fmin(lo2, rb[i]); hi2 = fmax(hi2, rb[i]);
+    }
+    if (!(hi <= (1 + c->spread) * lo && hi2 <= (1 + c->spread) * lo2)) { k->refused_spread++; return 0; }
+    double t = sqrt(cl->tree.area[a] * cl->tree.area[bn]) * sum / (S * S);
+    float tab[3], tba[3];
+    for (int ch = 0; ch < 3; ch++) { tab[ch] = (float)(cl->rho[bn][ch] * t); tba[ch] = (float)(cl->rho[a][ch] * t); }
+    add_link(k, a, bn, tab, tba);
+    return 1;
+}
+
+static void push_task(lctx *c, uint32_t a, uint32_t bn) {
+    if (c->nt == c->capt) {
+        c->capt = c->capt ? 2 * c->capt : 256;
+        c->tasks = wrt_xrealloc(c->tasks, c->capt * sizeof *c->tasks);
+    }
+    c->tasks[c->nt++] = (task){a, bn};
+}
+
+static int separated(const lctx *c, uint32_t a, uint32_t bn) {
+    const wrt_clusters *cl = c->cl;
+    return v3_len(v3_sub(centre(cl, a), centre(cl, bn))) >= c->sep * (radius(cl, a) + radius(cl, bn));
+}
+
+/* Two disjoint nodes; serial: hand pairs of at most grain quads off as tasks */
+static void link_pair(lctx *c, sink *k, uint32_t a, uint32_t bn, int serial) {
+    const wrt_clusters *cl = c->cl;
+    if (serial && count(cl, a) + count(cl, bn) <= c->grain) { push_task(c, a, bn); return; }
+    k->visited++;
+    if (behind(c, a, bn) || behind(c, bn, a)) { k->culled++; return; }
+    int la = is_leaf(cl, a), lb = is_leaf(cl, bn);
+    if (la && lb) { leaf_pair(c, k, cl->tree.right[a], cl->tree.right[bn]); return; }
+    if (cl->uniform[a] && cl->uniform[bn] && separated(c, a, bn) && oracle(c, k, a, bn)) return;
+    int split_a = lb || (!la && radius(cl, a) >= radius(cl, bn));
+    if (split_a) {
+        link_pair(c, k, (uint32_t)cl->tree.left[a], bn, serial);
+        link_pair(c, k, (uint32_t)cl->tree.right[a], bn, serial);
+    } else {
+        link_pair(c, k, a, (uint32_t)cl->tree.left[bn], serial);
+        link_pair(c, k, a, (uint32_t)cl->tree.right[bn], serial);
+    }
+}
+
+static void link_self(lctx *c, sink *k, uint32_t a, int serial) {
+    const wrt_clusters *cl = c->cl;
+    if (is_leaf(cl, a)) return;
+    if (serial && count(cl, a) <= c->grain) { push_task(c, a, a); return; }
+    uint32_t L = (uint32_t)cl->tree.left[a], R = (uint32_t)cl->tree.right[a];
+    link_self(c, k, L, serial);
+    link_self(c, k, R, serial);
+    link_pair(c, k, L, R, serial);
+}
+
+static void run_task(size_t i, int th, void *user) {
+    (void)th;
+    lctx *c = user;
+    task t = c->tasks[i];
+    if (t.a == t.b) link_self(c, &c->sinks[i + 1], t.a, 0);
+    else link_pair(c, &c->sinks[i + 1], t.a, t.b, 0);
+}
+
+void wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
+    if (!b->nq) return;
+    lctx c = {.b = b, .cl = cl};
+    c.sep = b->opt.cluster_sep > 0 ? b->opt.cluster_sep : WRT_CLUSTER_SEP_DEFAULT;
+    c.spread = b->opt.cluster_spread > 0 ? b->opt.cluster_spread : WRT_CLUSTER_SPREAD_DEFAULT;
+    c.grain = (uint32_t)fmax(32, b->nq / 128);
+    sink top = {0};
+    link_self(&c, &top, 0, 1);
+    /* sinks[0]: the serial top's own results, first; then the tasks' in order */
+    c.sinks = wrt_xcalloc(c.nt + 1, sizeof *c.sinks);
+    c.sinks[0] = top;
+    wrt_parallel_for(c.nt, b->opt.threads, run_task, &c);
+    size_t nl = 0, np = 0;
+    for (size_t i = 0; i <= c.nt; i++) { nl += c.sinks[i].nl; np += c.sinks[i].np; }
+    cl->links = wrt_xmalloc((nl ? nl : 1) * sizeof *cl->links);
+    cl->pr = wrt_xmalloc((np ? np : 1) * sizeof *cl->pr);
+    cl->ps = wrt_xmalloc((np ? np : 1) * sizeof *cl->ps);
+    cl->occl = wrt_xmalloc(np ? np : 1);
+    for (size_t i = 0; i <= c.nt; i++) {
+        sink *k = &c.sinks[i];
+        if (k->nl) memcpy(cl->links + cl->nlinks, k->l, k->nl * sizeof *k->l);
+        if (k->np) {
+            memcpy(cl->pr + cl->np, k->pr, k->np * sizeof *k->pr);
+            memcpy(cl->ps + cl->np, k->ps, k->np * sizeof *k->ps);
+            memcpy(cl->occl + cl->np, k->oc, k->np);
+        }
+        cl->nlinks += k->nl; cl->np += k->np;
+        cl->pairs_visited += k->visited; cl->pairs_culled += k->culled; cl->oracle_calls += k->oracle;
+        cl->oracle_refused_vis += k->refused_vis; cl->oracle_refused_spread += k->refused_spread;
+        cl->rays += k->rays;
+        free(k->l); free(k->pr); free(k->ps); free(k->oc);
+    }
+    free(c.sinks); free(c.tasks);
+}

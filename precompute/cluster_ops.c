@@ -1,0 +1,308 @@
+/* cluster_ops.c: the operator of the `--clusters` bake in the cluster tree's orthonormal
+ * basis (cluster.h, common/cluster_tree.h, docs/clusters.md).
+ *
+ * T arrives in the quads' basis, balanced pair by pair (balance.c, in its open-scene
+ * mode). Its rows and columns are extended by one index per tree node, nf + node, the
+ * node's scaling function phi_node; the cluster links are entries there. In a closed
+ * scene each column's power is then made what its function emits, rho int h sqrt(J)
+ * (balance.c's rule, which the per-pair balance cannot apply when part of a column's
+ * light travels by cluster links): a quad's root column delivers its own entries plus
+ * sqrt(a_q / a_B) times the column of phi_B of every ancestor B; the difference is
+ * spread over those contributions in proportion to their power, as new entries in the
+ * quad's column (so light only grows where it already went: the dark room of two rooms
+ * gets none). Last, the rows and then the columns are taken to the tree basis: each
+ * column's coefficients on phi_node (quad roots are the leaves') are pushed up the tree,
+ * (s_L, s_R) -> (s_P = wL s_L + wR s_R, d_P = wR s_L - wL s_R), and d_P lands in psi_P's
+ * root slot, s_root in phi_root's (common/cluster_tree.h's bijection). The transform is
+ * exact (orthonormal); the file then holds the same operator in another basis.
+ * Depends on cluster.h, balance.h (power weights), links.h and sparse.h. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "balance.h"
+#include "cluster.h"
+#include "links.h"
+
+uint32_t *wrt_clusters_root_index(const uint64_t *fkeys, uint32_t nf, uint32_t nq) {
+    uint32_t *r = wrt_xmalloc((nq ? nq : 1) * sizeof *r);
+    for (uint32_t q = 0; q < nq; q++) {
+        int64_t i = wrt_fkey_find(fkeys, nf, wrt_fkey_make(q, wrt_node_root(), 0, wrt_node_root(), 0));
+        r[q] = i < 0 ? 0 : (uint32_t)i;
+    }
+    return r;
+}
+
+typedef struct ops {
+    const wrt_ctree *t;
+    uint32_t nf;
+    const uint32_t *root;     /* per quad: its root slot */
+    int32_t *node_of;         /* per function: the leaf node of a quad's root, else -1 */
+    double *wl, *wr;          /* per internal node */
+    const wrt_clusters *cl;
+} ops;
+
+static int32_t ext_node(const ops *o, uint32_t row) {
+    return row >= o->nf ? (int32_t)(row - o->nf) : o->node_of[row];
+}
+
+/* Rows of every column of E to the tree basis; triplets out with row and column swapped
+ * (so that building them gives the transpose). */
+static wrt_triplet *row_transform(const ops *o, const wrt_csc *E, uint64_t *nout) {
+    const wrt_ctree *t = o->t;
+    size_t nn = t->nnodes;
+    double *s = wrt_xcalloc(nn * 3, sizeof *s);
+    uint32_t *mark = wrt_xcalloc(nn, sizeof *mark), *touched = wrt_xmalloc(nn * sizeof *touched);
+    uint64_t cap = E->nnz + 16, n = 0;
+    wrt_triplet *out = wrt_xmalloc(cap * sizeof *out);
+    for (uint32_t c = 0; c < E->n; c++) {
+        uint32_t nt = 0, epoch = c + 1;
+        for (uint64_t k = E->col[c]; k < E->col[c + 1]; k++) {
+            uint32_t r = E->row[k];
+            const float *v = &E->val[3 * k];
+            int32_t p = ext_node(o, r);
+            if (p < 0) {
+                if (n + 1 > cap) { cap *= 2; out = wrt_xrealloc(out, cap * sizeof *out); }
+                out[n++] = (wrt_triplet){c, r, {v[0], v[1], v[2]}};
+                continue;
+            }
+            for (int ch = 0; ch < 3; ch++) s[(size_t)p * 3 + ch] += v[ch];
+            for (int32_t q = p; q >= 0 && mark[q] != epoch; q = t->parent[q]) { mark[q] = epoch; touched[nt++] = (uint32_t)q; }
+        }
+        if (!nt) continue;
+        /* children before parents: descending node numbers */
+        for (uint32_t i = 1; i < nt; i++) { /* insertion sort: short lists, mostly in order */
+            uint32_t x = touched[i], j = i;
+            while (j > 0 && touched[j - 1] < x) { touched[j] = touched[j - 1]; j--; }
+            touched[j] = x;
+        }
+        if (n + nt + 1 > cap) { cap = 2 * (n + nt + 1); out = wrt_xrealloc(out, cap * sizeof *out); }
+        for (uint32_t i = 0; i < nt; i++) {
+            uint32_t p = touched[i];
+            if (t->left[p] < 0) continue;
+            int32_t L = t->left[p], R = t->right[p];
+            double wl = o->wl[p], wr = o->wr[p];
+            float dv[3];
+            for (int ch = 0; ch < 3; ch++) {
+                double sl = s[(size_t)L * 3 + ch], sr = s[(size_t)R * 3 + ch];
+                s[(size_t)p * 3 + ch] += wl * sl + wr * sr;
+                dv[ch] = (float)(wr * sl - wl * sr);
+            }
+            if (dv[0] != 0 || dv[1] != 0 || dv[2] != 0) out[n++] = (wrt_triplet){c, o->root[t->slot[p]], {dv[0], dv[1], dv[2]}};
+        }
+        if (mark[0] == epoch) {
+            float sv[3] = {(float)s[0], (float)s[1], (float)s[2]};
+            if (sv[0] != 0 || sv[1] != 0 || sv[2] != 0) out[n++] = (wrt_triplet){c, o->root[t->root_slot], {sv[0], sv[1], sv[2]}};
+        }
+        for (uint32_t i = 0; i < nt; i++)
+            for (int ch = 0; ch < 3; ch++) s[(size_t)touched[i] * 3 + ch] = 0;
+    }
+    free(s); free(mark); free(touched);
+    *nout = n;
+    return out;
+}
+
+/* Every column's entries on phi_node (rows >= nf) pushed down to the quads' roots,
+ * phi_A = sum over quads q of A of sqrt(a_q / a_A) phi_q; triplets out with row and
+ * column swapped, as row_transform. */
+static wrt_triplet *push_down(const ops *o, const wrt_csc *E, uint64_t *nout) {
+    const wrt_clusters *cl = o->cl;
+    const wrt_ctree *t = o->t;
+    uint64_t cap = E->nnz + 16, n = 0;
+    wrt_triplet *out = wrt_xmalloc(cap * sizeof *out);
+    for (uint32_t c = 0; c < E->n; c++)
+        for (uint64_t k = E->col[c]; k < E->col[c + 1]; k++) {
+            uint32_t r = E->row[k];
+            const float *v = &E->val[3 * k];
+            uint32_t lo = 0, hi = 0;
+            if (r >= o->nf) { lo = cl->lo[r - o->nf]; hi = cl->hi[r - o->nf]; }
+            if (n + (hi - lo) + 1 > cap) { cap = 2 * (n + (hi - lo) + 1); out = wrt_xrealloc(out, cap * sizeof *out); }
+            if (r < o->nf) { out[n++] = (wrt_triplet){c, r, {v[0], v[1], v[2]}}; continue; }
+            double aA = t->area[r - o->nf];
+            for (uint32_t i = lo; i < hi; i++) {
+                uint32_t q = cl->perm[i];
+                double w = sqrt(t->area[t->leaf[q]] / aA);
+                out[n++] = (wrt_triplet){c, o->root[q], {(float)(w * v[0]), (float)(w * v[1]), (float)(w * v[2])}};
+            }
+        }
+    *nout = n;
+    return out;
+}
+
+/* Power weight of every extended index: the quads' functions' (balance.c), and phi_node's. */
+static double *ext_power(const bake_ctx *b, const ops *o, const uint64_t *fkeys) {
+    const wrt_ctree *t = o->t;
+    double *pw = wrt_power_weights(b, fkeys, o->nf);
+    pw = wrt_xrealloc(pw, ((size_t)o->nf + t->nnodes + 1) * sizeof *pw);
+    double *pn = pw + o->nf;
+    for (uint32_t p = t->nnodes; p-- > 0;)
+        pn[p] = t->left[p] < 0 ? pw[o->root[t->right[p]]] : o->wl[p] * pn[t->left[p]] + o->wr[p] * pn[t->right[p]];
+    return pw;
+}
+
+/* Is row r of the extended matrix a tree function (a quad's root or a node's phi)? */
+static int tree_row(const ops *o, uint32_t r) { return ext_node(o, r) >= 0; }
+
+/* One column's contributions to quad function j's power: pass 0 sums them (and their
+ * magnitudes), pass 1 appends the correction entries. */
+typedef struct fix_col {
+    const ops *o; const wrt_csc *E; const double *pw;
+    uint32_t j; double have[3], want[3], wsum[3];
+    wrt_triplet *add; uint64_t n, cap;
+} fix_col;
+
+static void fix_visit(fix_col *fc, uint32_t col, double f, int direct, int pass) {
+    const wrt_csc *E = fc->E;
+    for (uint64_t k = E->col[col]; k < E->col[col + 1]; k++) {
+        uint32_t r = E->row[k];
+        double pr = fc->pw[r];
+        if (!tree_row(fc->o, r) || !(pr > 0)) continue;
+        float dv[3];
+        for (int ch = 0; ch < 3; ch++) {
+            double g = pr * f * E->val[3 * k + ch];
+            if (!pass) {
+                if (!direct) fc->have[ch] += g;
+                fc->wsum[ch] += fabs(g);
+            } else {
+                dv[ch] = fc->wsum[ch] > 0 ? (float)((fc->want[ch] - fc->have[ch]) * fabs(g) / fc->wsum[ch] / pr) : 0;
+            }
+        }
+        if (!pass || (dv[0] == 0 && dv[1] == 0 && dv[2] == 0)) continue;
+        if (fc->n + 1 > fc->cap) { fc->cap = 2 * fc->cap + 64; fc->add = wrt_xrealloc(fc->add, fc->cap * sizeof *fc->add); }
+        fc->add[fc->n++] = (wrt_triplet){r, fc->j, {dv[0], dv[1], dv[2]}};
+    }
+}
+
+/* Closed scene: each quad function's column made to deliver what it emits (file comment). */
+static uint64_t closed_fix(const bake_ctx *b, const ops *o, const uint64_t *fkeys, wrt_csc *E) {
+    const wrt_ctree *t = o->t;
+    uint32_t nf = o->nf;
+    double *pw = ext_power(b, o, fkeys);
+    double (*P)[3] = wrt_xcalloc((size_t)E->n, sizeof *P);
+    for (uint32_t c = 0; c < E->n; c++)
+        for (uint64_t k = E->col[c]; k < E->col[c + 1]; k++)
+            if (tree_row(o, E->row[k]))
+                for (int ch = 0; ch < 3; ch++) P[c][ch] += pw[E->row[k]] * E->val[3 * k + ch];
+    fix_col fc = {.o = o, .E = E, .pw = pw};
+    for (uint32_t j = 0; j < nf; j++) {
+        if (!wrt_fkey_angular_root(fkeys[j])) continue;
+        uint32_t q = wrt_fkey_quad(fkeys[j]);
+        int32_t leaf = o->node_of[j];
+        fc.j = j;
+        for (int ch = 0; ch < 3; ch++) { fc.have[ch] = P[j][ch]; fc.want[ch] = b->rho[q][ch] * pw[j]; fc.wsum[ch] = 0; }
+        for (int pass = 0; pass < 2; pass++) {
+            fix_visit(&fc, j, 1, 1, pass);
+            if (leaf >= 0)
+                for (int32_t a = t->parent[leaf]; a >= 0; a = t->parent[a])
+                    fix_visit(&fc, nf + (uint32_t)a, sqrt(t->area[leaf] / t->area[a]), 0, pass);
+        }
+    }
+    wrt_triplet *add = fc.add;
+    uint64_t n = fc.n;
+    free(P); free(pw);
+    if (n) {
+        uint64_t m = E->nnz;
+        wrt_triplet *all = wrt_xmalloc((m + n) * sizeof *all);
+        for (uint32_t c = 0; c < E->n; c++)
+            for (uint64_t k = E->col[c]; k < E->col[c + 1]; k++)
+                all[k] = (wrt_triplet){E->row[k], c, {E->val[3 * k], E->val[3 * k + 1], E->val[3 * k + 2]}};
+        memcpy(all + m, add, n * sizeof *add);
+        uint32_t ne = E->n;
+        wrt_csc_free(E);
+        *E = wrt_csc_from_triplets(ne, all, m + n);
+        free(all);
+    }
+    free(add);
+    return n;
+}
+
+static void ops_init(ops *o, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf, uint32_t nq) {
+    const wrt_ctree *t = &cl->tree;
+    o->t = t;
+    o->nf = nf;
+    o->cl = cl;
+    uint32_t *root = wrt_clusters_root_index(fkeys, nf, nq);
+    o->root = root;
+    o->node_of = wrt_xmalloc(((size_t)nf + 1) * sizeof *o->node_of);
+    for (uint32_t f = 0; f < nf; f++) o->node_of[f] = -1;
+    for (uint32_t q = 0; q < nq; q++) o->node_of[root[q]] = (int32_t)t->leaf[q];
+    o->wl = wrt_xcalloc(t->nnodes, sizeof *o->wl);
+    o->wr = wrt_xcalloc(t->nnodes, sizeof *o->wr);
+    for (uint32_t p = 0; p < t->nnodes; p++)
+        if (t->left[p] >= 0) {
+            o->wl[p] = sqrt(t->area[t->left[p]] / t->area[p]);
+            o->wr[p] = sqrt(t->area[t->right[p]] / t->area[p]);
+        }
+}
+
+static void ops_free(ops *o) {
+    free((void *)o->root); free(o->node_of); free(o->wl); free(o->wr);
+}
+
+uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
+                               int closed, wrt_csc *T) {
+    const wrt_ctree *t = &cl->tree;
+    ops o;
+    ops_init(&o, cl, fkeys, nf, (uint32_t)b->nq);
+    uint32_t ne = nf + t->nnodes;
+    /* T's entries and the cluster links' in the extended index space */
+    uint64_t m = T->nnz, n = m + 2 * cl->nlinks;
+    wrt_triplet *tr = wrt_xmalloc((n ? n : 1) * sizeof *tr);
+    for (uint32_t c = 0; c < T->n; c++)
+        for (uint64_t k = T->col[c]; k < T->col[c + 1]; k++)
+            tr[k] = (wrt_triplet){T->row[k], c, {T->val[3 * k], T->val[3 * k + 1], T->val[3 * k + 2]}};
+    for (size_t i = 0; i < cl->nlinks; i++) {
+        const wrt_clink *l = &cl->links[i];
+        uint32_t ea = t->left[l->a] < 0 ? o.root[t->right[l->a]] : nf + l->a;
+        uint32_t eb = t->left[l->b] < 0 ? o.root[t->right[l->b]] : nf + l->b;
+        tr[m + 2 * i] = (wrt_triplet){ea, eb, {l->tab[0], l->tab[1], l->tab[2]}};
+        tr[m + 2 * i + 1] = (wrt_triplet){eb, ea, {l->tba[0], l->tba[1], l->tba[2]}};
+    }
+    wrt_csc_free(T);
+    wrt_csc E = wrt_csc_from_triplets(ne, tr, n);
+    free(tr);
+    uint64_t added = closed ? closed_fix(b, &o, fkeys, &E) : 0;
+    /* the links pushed down to the quads: rows, then (on the transpose) columns */
+    uint64_t n1, n2;
+    wrt_triplet *t1 = push_down(&o, &E, &n1);
+    wrt_csc_free(&E);
+    E = wrt_csc_from_triplets(ne, t1, n1);
+    free(t1);
+    wrt_triplet *t2 = push_down(&o, &E, &n2);
+    wrt_csc_free(&E);
+    *T = wrt_csc_from_triplets(nf, t2, n2);
+    free(t2);
+    ops_free(&o);
+    return added;
+}
+
+void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf, wrt_csc *M) {
+    ops o;
+    ops_init(&o, cl, fkeys, nf, (uint32_t)b->nq);
+    uint64_t n1, n2;
+    wrt_triplet *t1 = row_transform(&o, M, &n1);
+    wrt_csc_free(M);
+    wrt_csc E = wrt_csc_from_triplets(nf, t1, n1);
+    free(t1);
+    wrt_triplet *t2 = row_transform(&o, &E, &n2);
+    wrt_csc_free(&E);
+    *M = wrt_csc_from_triplets(nf, t2, n2);
+    free(t2);
+    ops_free(&o);
+}
+
+void wrt_clusters_series_weights(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
+                                 double *rw, double *cw, double *pw) {
+    const wrt_ctree *t = &cl->tree;
+    uint32_t *root = wrt_clusters_root_index(fkeys, nf, (uint32_t)b->nq);
+    for (uint32_t p = 0; p < t->nnodes; p++) {
+        if (t->left[p] < 0) continue;
+        uint32_t f = root[t->slot[p]];
+        rw[f] = 1 / sqrt(t->area[p]); cw[f] = sqrt(t->area[p]);
+    }
+    rw[root[t->root_slot]] = 1 / sqrt(t->area[0]); cw[root[t->root_slot]] = sqrt(t->area[0]);
+    double *scratch = wrt_xmalloc(2 * (size_t)t->nnodes * sizeof *scratch);
+    wrt_ctree_forward_d(t, root, pw, 1, scratch);
+    free(scratch);
+    free(root);
+}
