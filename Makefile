@@ -80,7 +80,7 @@ TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
 .PHONY: all deps demo test tests stress study fuzz clean assets bench timings mutate install
 all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/examples/engine $(BUILD)/tests/runtime_instances \
-     $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core
+     $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core $(BUILD)/tools/codec_study
 
 deps:
 	@bash tools/install-deps.sh
@@ -170,6 +170,12 @@ $(BUILD)/wrt-ref: $(call obj,tools/ref_main.c) $(REF_OBJ) $(CORE_OBJ)
 $(BUILD)/wrt-compare: $(call obj,tools/compare_main.c) $(VERIFY_OBJ) $(RUNTIME_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
+
+# The compact-entry study (issue 23, docs/bench.md "Compact entries"): not installed.
+$(BUILD)/tools/codec_study: $(call obj,tools/codec_study.c) $(BAKE_CORE_OBJ)
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
 
 $(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c tools/scenegen_gltf.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
