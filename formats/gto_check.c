@@ -33,6 +33,7 @@ const gto_sec_desc gto_sec_info[SEC_KNOWN_END] = {
     [SEC_KROWS] = {"krows", 4},
     [SEC_KVALS] = {"kvals", 4},
     [SEC_SRCMAP] = {"srcmap", sizeof(wrt_gto_srcmap)},
+    [SEC_OPCODE] = {"opcode", 1},
 };
 
 /* ------------------------------------------------------------------------------------
@@ -574,6 +575,7 @@ chunk_check gto_sec_checker(uint32_t id) {
     case SEC_KROWS: return check_krows;
     case SEC_KVALS: return check_kvals;
     case SEC_SRCMAP: return check_srcmap;
+    case SEC_OPCODE: return gto_check_opcode;
     default: return NULL;
     }
 }

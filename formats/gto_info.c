@@ -186,8 +186,8 @@ static void info_figures(gto_info *I) {
             if (n > I->max_col) I->max_col = (uint32_t)n;
             if (!wrt_fkey_angular_root(g->fkeys[s])) I->nangular++;
         }
-        I->op_bytes = L->sec[SEC_FKEYS]->size + L->sec[SEC_COL_START]->size + L->sec[SEC_ROWS]->size +
-                      L->sec[SEC_VALS]->size;
+        I->op_bytes = L->sec[SEC_FKEYS]->size + L->sec[SEC_COL_START]->size +
+                      (L->sec[SEC_OPCODE] ? L->sec[SEC_OPCODE]->size : L->sec[SEC_ROWS]->size + L->sec[SEC_VALS]->size);
     }
     I->density = g->nfuncs ? (double)g->nnz / ((double)g->nfuncs * g->nfuncs) : 0;
     if (I->ok && g->nkcols) {
@@ -217,11 +217,12 @@ static void json_figures(FILE *f, const gto_info *I) {
     fprintf(f, ", \"counts\": {\"quads\": %u, \"materials\": %u, \"lights\": %u, \"names\": %u, "
             "\"functions\": %u, \"entries\": %" PRIu64 ", \"k_columns\": %u, \"k_entries\": %" PRIu64 "}",
             g->nquads, g->nmaterials, g->nlights, g->nnames, g->nfuncs, g->nnz, g->nkcols, g->knnz);
-    fprintf(f, ", \"operator\": {\"bytes\": %" PRIu64 ", \"density\": %.6g, "
+    fprintf(f, ", \"operator\": {\"compact\": %s, \"blocks\": %" PRIu64 ", \"bytes\": %" PRIu64 ", \"density\": %.6g, "
             "\"mean_entries_per_column\": %.3f, \"max_entries_per_column\": %u, "
             "\"max_functions_per_quad\": %u, \"angular_functions\": %" PRIu64 ", "
             "\"max_spatial_level\": %u, \"max_angular_level\": %u}",
-            I->op_bytes, I->density, g->nfuncs ? (double)g->nnz / g->nfuncs : 0.0, I->max_col, I->max_fpq,
+            g->op_codes ? "true" : "false", g->nblocks, I->op_bytes, I->density,
+            g->nfuncs ? (double)g->nnz / g->nfuncs : 0.0, I->max_col, I->max_fpq,
             I->nangular, I->max_sl, I->max_al);
     if (g->nkcols)
         fprintf(f, ", \"first_bounce\": {\"columns\": %u, \"entries\": %" PRIu64 ", \"bytes\": %" PRIu64
@@ -302,6 +303,10 @@ static void text_figures(FILE *f, const gto_info *I) {
     fprintf(f, "operator:   %u functions (%" PRIu64 " with angular detail), %" PRIu64
             " entries, %s, density %.3g\n", g->nfuncs, I->nangular, g->nnz, human_bytes(I->op_bytes, hb),
             I->density);
+    if (g->op_codes)
+        fprintf(f, "            compact entries: %" PRIu64 " blocks (mean %.1f entries), %.2f bytes an entry\n",
+                g->nblocks, g->nblocks ? (double)g->nnz / g->nblocks : 0.0,
+                g->nnz ? (double)I->L.sec[SEC_OPCODE]->size / g->nnz : 0.0);
     fprintf(f, "            entries per column: mean %.1f, max %u; functions per quad: max %u; "
             "deepest level: spatial %u, angular %u\n",
             g->nfuncs ? (double)g->nnz / g->nfuncs : 0.0, I->max_col, I->max_fpq, I->max_sl, I->max_al);

@@ -251,10 +251,41 @@ typedef struct gto_records {
     wrt_gto_camera cam;
     wrt_gto_stats stats;
     wrt_gto_srcmap *srcmap; /* NULL: not written (no_srcmap) */
+    uint8_t *opcode;        /* the compact operator's section (contents.compact), else NULL */
+    uint64_t opcode_size, nblocks;
 } gto_records;
 
 static void free_records(gto_records *R) {
-    free(R->quads); free(R->mats); free(R->lights); free(R->names); free(R->srcmap);
+    free(R->quads); free(R->mats); free(R->lights); free(R->names); free(R->srcmap); free(R->opcode);
+}
+
+/* contents.compact: the float entries checked as a 1.x file's col_start, rows and vals
+ * would be (the encoder relies on ascending rows and finite values), then encoded. */
+static wrt_status encode_entries(const char *path, const wrt_gto_contents *c, gto_records *R) {
+    uint32_t nf = c->nfuncs;
+    static const uint64_t zero = 0;
+    const uint64_t *cs = c->col_start ? c->col_start : &zero;
+    wrt_gto view;
+    memset(&view, 0, sizeof view);
+    view.nfuncs = nf; view.col_start = cs; view.nnz = cs[nf];
+    vctx v;
+    memset(&v, 0, sizeof v);
+    v.g = &view;
+    const struct { uint32_t id; uint64_t count; const void *data; } in[3] = {
+        {SEC_COL_START, (uint64_t)nf + 1, cs}, {SEC_ROWS, view.nnz, c->rows}, {SEC_VALS, view.nnz, c->vals}};
+    for (int i = 0; i < 3; i++) {
+        if (in[i].count == 0) continue;
+        gto_scan_section(in[i].data, in[i].count, gto_sec_info[in[i].id].elem_size, gto_sec_checker(in[i].id), &v);
+        if (v.bad)
+            return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: %s: %s", path, gto_sec_name(in[i].id), v.err);
+    }
+    if (view.nnz > UINT32_MAX * (uint64_t)WRT_GTO_BLOCK_MAX)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: %" PRIu64 " entries, too many to encode", path,
+                        view.nnz);
+    R->opcode = gto_opcode_encode(nf, cs, c->rows, c->vals, &R->opcode_size);
+    if (!R->opcode) return wrt_fail(WRT_ERR_NOMEM, "cannot write %s: no memory to encode the entries", path);
+    memcpy(&R->nblocks, R->opcode + offsetof(gto_opcode_head, nblocks), 8);
+    return WRT_OK;
 }
 
 /* Each quad's function range and deepest levels from the keys, then its geometry. */
@@ -369,6 +400,7 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
         {SEC_VALS, nnz, c->vals}, {SEC_STATS, 1, &R->stats}, {SEC_PROVENANCE, strlen(prov), prov},
         {SEC_KKEYS, nk, c->kkeys}, {SEC_KCOL_START, (uint64_t)nk + 1, c->kcol_start},
         {SEC_KROWS, knnz, c->krows}, {SEC_KVALS, knnz, c->kvals}, {SEC_SRCMAP, R->nq, R->srcmap},
+        {SEC_OPCODE, R->opcode_size, R->opcode},
     };
     /* Without K and the source map the file is version 1.0 with its 11 sections, byte
      * for byte as before they existed: the minor is the lowest that has everything the
@@ -377,6 +409,7 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
     for (int i = 0; i < SEC_KNOWN; i++) {
         uint32_t id = secs[i].id;
         if ((id >= SEC_KKEYS && id <= SEC_KVALS && !nk) || (id == SEC_SRCMAP && !R->srcmap)) continue;
+        if ((id == SEC_ROWS || id == SEC_VALS) ? R->opcode != NULL : id == SEC_OPCODE && !R->opcode) continue;
         P->secs[P->nsec++] = secs[i];
     }
 
@@ -397,8 +430,9 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     gto_section *tab = (gto_section *)(head + sizeof(gto_header));
     memcpy(h->magic, GTO_MAGIC, GTO_MAGIC_LEN);
     h->byte_order = GTO_BOM;
-    h->version_major = WRT_GTO_VERSION;
-    h->version_minor = R->srcmap ? GTO_MINOR_SRCMAP : nk ? GTO_MINOR_K : 0;
+    /* compact entries: 2.0; float entries: 1.x as before (the lowest that has it all) */
+    h->version_major = R->opcode ? WRT_GTO_VERSION : WRT_GTO_VERSION_FLOAT;
+    h->version_minor = R->opcode ? 0 : R->srcmap ? GTO_MINOR_SRCMAP : nk ? GTO_MINOR_K : 0;
     h->nsections = (uint32_t)nsec;
     h->header_size = hsize;
     h->op_kind = c->op_kind;
@@ -409,6 +443,7 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     view.nfuncs = c->nfuncs; view.quads = R->quads; view.materials = R->mats; view.fkeys = c->fkeys;
     view.col_start = c->col_start ? c->col_start : &zero_col;
     view.nnz = view.col_start[c->nfuncs];
+    view.nblocks = R->nblocks;
     view.nkcols = nk; view.knnz = nk ? c->kcol_start[nk] : 0; view.kkeys = c->kkeys; view.kcol_start = c->kcol_start;
     vctx v;
     memset(&v, 0, sizeof v);
@@ -484,6 +519,7 @@ wrt_status wrt_gto_write_pending(const char *path, const wrt_gto_contents *c, wr
     R.nl = (uint32_t)c->scene->nlights;
     R.nn = (uint32_t)c->scene->nnames;
     st = build_quads(path, c, &R);
+    if (st == WRT_OK && c->compact) st = encode_entries(path, c, &R);
     if (st == WRT_OK) {
         build_scene_records(c, &R);
         gto_plan P;

@@ -118,9 +118,14 @@ typedef struct kt_entry { uint32_t col; float val; } kt_entry;
  * entries whose receiver is displayed (own). */
 typedef struct op_view {
     const uint64_t *col_start; /* nfuncs + 1 */
-    const uint32_t *rows;
+    const uint32_t *rows;      /* NULL: the compact entries below */
     const float *vals;         /* nnz x 3 */
     uint64_t nnz;
+    /* The compact operator (version 2.0; wrt_gto's op_*), used when rows is NULL. */
+    const uint32_t *bcol;
+    const wrt_gto_block *blocks;
+    const uint32_t *codes;
+    const uint8_t *deltas;
 } op_view;
 
 /* Embree: every quad, in a frame centred on the scene (float precision). */

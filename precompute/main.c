@@ -58,6 +58,8 @@ static void usage(FILE *f) {
         "                         direction is truncated to the incident angular cells)\n"
         "  --gathered             store the gathered GTO (T_fine G) instead of G - I\n"
         "  --report-gathered      compute the gathered GTO's link count without storing it\n"
+        "  --float-entries        store the operator as floats (a version 1.x file, 16 bytes an\n"
+        "                         entry) instead of compact (version 2.0, about 5.5 bytes)\n"
         "  --no-tail              do not add the estimated tail of the series\n"
         "  --no-balance           keep T's quad-to-quad power as the links integrate it (no\n"
         "                         power balance: loses energy conservation; for comparison)\n"
@@ -162,6 +164,7 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
 typedef struct bake_args {
     const char *scene_path, *out_path, *scan, *info;
     int json, force_progress, quiet, print_config, timings, drop_bad, allow_outside;
+    int float_entries;  /* --float-entries: a 1.x file, not the compact 2.0 */
     double max_error;   /* < 0: no accuracy check */
     int check_paths;
     wrt_bake_options o;
@@ -258,6 +261,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--check-paths")) { ok = opt_int(a, v, 1000, 1000000000, &A->check_paths); i++; }
         else if (!strcmp(a, "--gathered")) o->gathered = 1;
         else if (!strcmp(a, "--report-gathered")) o->report_gathered = 1;
+        else if (!strcmp(a, "--float-entries")) A->float_entries = 1;
         else if (!strcmp(a, "--no-tail")) o->no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o->no_balance = 1;
         else if (!strcmp(a, "--drop-bad")) A->drop_bad = 1;
@@ -436,6 +440,7 @@ static int write_pending(const bake_args *A, const wrt_scene *s, const wrt_bake_
         .col_start = r->op.col, .rows = r->op.row, .vals = r->op.val,
         .op_kind = (uint32_t)r->op_kind, .material_alevel = r->material_alevel, .provenance = prov,
         .nkcols = r->nkcols, .kkeys = r->kkeys, .kcol_start = r->kcol_start, .krows = r->krows, .kvals = r->kvals,
+        .compact = !A->float_entries,
     };
     gc.stats.links_dto = c->links_dto;
     gc.stats.links_gto = c->links_gto;
