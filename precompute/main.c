@@ -44,6 +44,8 @@ static void usage(FILE *f) {
         "                         (8 x 8 a quad); finer than --eps-receiver from quality 5\n"
         "  --eps-sender E         sender refinement threshold\n"
         "  --eps-compress E       drop operator entries below E after each product\n"
+        "  --eps-final E          drop entries below E from the stored operator, once (at\n"
+        "                         least the products' threshold; default: the quality's)\n"
         "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
         "  --min-level L          refine every link at least to level L\n"
         "  --max-angular-level L  cap on glossy materials' angular level (1..3; default 1 up\n"
@@ -152,10 +154,12 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
         "{\"quality\":%d,\"eps_receiver\":%.6g,\"eps_receiver_coarse\":%.6g,\"eps_sender\":%.6g,\"eps_compress\":%.6g,"
         "\"max_level\":%d,\"min_level\":%d,\"receiver_samples\":%d,\"gathered\":%d,\"tail\":%d,"
         "\"max_bounces\":%d,\"max_alevel\":%d,\"glossy_quality\":%d,"
-        "\"eps_receiver_glossy\":%.6g,\"eps_sender_glossy\":%.6g,\"max_level_glossy\":%d,\"balance\":%d}",
+        "\"eps_receiver_glossy\":%.6g,\"eps_sender_glossy\":%.6g,\"max_level_glossy\":%d,\"balance\":%d,"
+        "\"eps_final\":%.6g}",
         o->quality, o->eps_receiver, o->eps_receiver_coarse, o->eps_sender, o->eps_compress, o->max_slevel, o->min_slevel,
         o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces, o->max_alevel,
-        o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance);
+        o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance,
+        o->eps_final);
 }
 
 /* ---------------------------------------------------------------- the command line */
@@ -215,6 +219,15 @@ static int check_args(const bake_args *A) {
         fprintf(stderr, "wrt-bake: error: --min-level %d is deeper than --max-level %d\n", o->min_slevel, o->max_slevel);
         return WRT_EXIT_USAGE;
     }
+    if (o->eps_final > 0) { /* the defaults, to compare with the products' threshold */
+        wrt_bake_options d = *o;
+        wrt_bake_defaults(&d);
+        if (o->eps_final < d.eps_compress) {
+            fprintf(stderr, "wrt-bake: error: --eps-final %g is below the products' threshold --eps-compress %g "
+                    "(entries those dropped cannot come back)\n", o->eps_final, d.eps_compress);
+            return WRT_EXIT_USAGE;
+        }
+    }
     if (o->glossy_quality && o->glossy_quality > (o->quality ? o->quality : 5)) {
         fprintf(stderr, "wrt-bake: error: --glossy-quality %d must not exceed the quality (%d)\n", o->glossy_quality,
                 o->quality ? o->quality : 5);
@@ -245,6 +258,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--eps-receiver-coarse")) { ok = opt_num(a, v, 1e-12, 10, &o->eps_receiver_coarse); i++; }
         else if (!strcmp(a, "--eps-sender")) { ok = opt_num(a, v, 1e-12, 10, &o->eps_sender); i++; }
         else if (!strcmp(a, "--eps-compress")) { ok = opt_num(a, v, 1e-15, 1, &o->eps_compress); i++; }
+        else if (!strcmp(a, "--eps-final")) { ok = opt_num(a, v, 1e-15, 1, &o->eps_final); i++; }
         else if (!strcmp(a, "--max-level")) { ok = opt_int(a, v, 1, 10, &o->max_slevel); i++; }
         else if (!strcmp(a, "--min-level")) { ok = opt_int(a, v, 0, 10, &o->min_slevel); i++; }
         else if (!strcmp(a, "--max-angular-level")) { ok = opt_int(a, v, 1, 3, &o->max_alevel); i++; }
