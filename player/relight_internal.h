@@ -207,6 +207,8 @@ struct wrt_relight {
     int e_dirty, eye_dirty, have_eye;
     double eye[3];
     float *E, *X, *Xprev;
+    float *Eapplied;                /* skip_below > 0: the E of the last multiply */
+    int e_applied;                  /* 1 once Eapplied holds one */
     float *tex; uint8_t *tex_nonzero, *x_nonzero, *resynth;
     float *texk;                    /* per texel of non-parallelograms: 2^Lt sqrt(pi/J)/pi */
     int *synth_list;                /* nquads + 1: quads to synthesize this update */

@@ -1058,6 +1058,57 @@ static void test_multiply_compact(void) {
     multiply_compact(1);
 }
 
+/* skip_below: a light change that moves E by less than the fraction (measured here from
+ * E itself) keeps X and reports skipped; changes add up against the E last multiplied, and
+ * the one that passes gives X bit for bit as a relighter that skips nothing. A fraction
+ * outside [0, 1) is refused. */
+static void test_skip_small_change(void) {
+    ts_scene s;
+    build_room(&s, 2, 2, 20);
+    size_t n3 = (size_t)s.nf * 3;
+    wrt_relight *rs, *rf;
+    wrt_relight_options os = {.skip_below = 0.05}, of = {0}, bad = {.skip_below = 1};
+    CHECK(wrt_relight_create(&s.g, &bad, &rs) == WRT_ERR_INVALID_ARG && strstr(wrt_last_error(), "skip_below 1"),
+          "skip_below 1 refused: %s", wrt_last_error());
+    CHECK(wrt_relight_create(&s.g, &os, &rs) == WRT_OK, "%s", wrt_last_error());
+    CHECK(wrt_relight_create(&s.g, &of, &rf) == WRT_OK, "%s", wrt_last_error());
+    double eye[3] = {0.5, 0.5, 0.9};
+    wrt_light L = point_light(0.3, 0.7, 0.6, 2);
+    float *X0 = malloc(n3 * sizeof *X0), *E0 = malloc(n3 * sizeof *E0);
+    /* scale 1, then 1.03 (3%: skipped), 1.04 (4% of the applied E: skipped), 1.08 (applied) */
+    static const float scale[4] = {1.0f, 1.03f, 1.04f, 1.08f};
+    static const int want_skip[4] = {0, 1, 1, 0};
+    for (int k = 0; k < 4; k++) {
+        wrt_relight_timings ts, tf;
+        wrt_relight *both[2] = {rs, rf};
+        for (int i = 0; i < 2; i++) {
+            wrt_relight_set_eye(both[i], eye);
+            wrt_relight_set_lights(both[i], &L, &scale[k], 1);
+        }
+        wrt_relight_update(rs, &ts);
+        wrt_relight_update(rf, &tf);
+        const float *E = wrt_relight_E(rs), *Xs = wrt_relight_X(rs), *Xf = wrt_relight_X(rf);
+        double d = 0, n = 0;
+        for (size_t i = 0; i < n3; i++) { d += ((double)E[i] - E0[i]) * ((double)E[i] - E0[i]); n += (double)E0[i] * E0[i]; }
+        double rel = k ? sqrt(d / n) : 1;
+        CHECK(ts.skipped == want_skip[k] && tf.skipped == 0, "scale %.2f: E moved %.3f of the applied E, skipped %d "
+              "(expected %d)", scale[k], rel, ts.skipped, want_skip[k]);
+        CHECK(want_skip[k] ? rel < 0.05 : rel >= 0.05, "scale %.2f: the change %.3f against 0.05", scale[k], rel);
+        if (want_skip[k]) {
+            CHECK(memcmp(Xs, X0, n3 * sizeof *Xs) == 0, "scale %.2f: X kept", scale[k]);
+            CHECK(memcmp(Xs, Xf, n3 * sizeof *Xs) != 0, "scale %.2f: the relighter that skips nothing moved", scale[k]);
+        } else {
+            CHECK(memcmp(Xs, Xf, n3 * sizeof *Xs) == 0, "scale %.2f: X as the relighter's that skips nothing", scale[k]);
+            memcpy(X0, Xs, n3 * sizeof *X0);
+            memcpy(E0, E, n3 * sizeof *E0);
+        }
+    }
+    free(X0); free(E0);
+    wrt_relight_destroy(rs);
+    wrt_relight_destroy(rf);
+    ts_free(&s);
+}
+
 static double rel_rms(const float *a, const float *b, size_t n) {
     double d = 0, m = 0;
     for (size_t i = 0; i < n; i++) { d += ((double)a[i] - b[i]) * ((double)a[i] - b[i]); m += (double)b[i] * b[i]; }
@@ -1717,6 +1768,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_linearity);
     TEST_RUN(test_multiply_dense);
     TEST_RUN(test_multiply_compact);
+    TEST_RUN(test_skip_small_change);
     TEST_RUN(test_exact_zeros);
     TEST_RUN(test_glossy_beta);
     TEST_RUN(test_first_bounce_projection);
