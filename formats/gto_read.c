@@ -159,10 +159,10 @@ static wrt_status check_opcode_counts(const uint8_t *b, const gto_section *const
     if (h.nnz > s->size || h.nblocks > s->size / 8 || h.nblocks > UINT32_MAX || nf > UINT32_MAX - 1 ||
         gto_opcode_place((uint32_t)nf, h.nblocks, h.nnz).size != s->size) {
         /* a damaged header reads as the damage it is, as in stage 3 */
-        uint64_t sum = wrt_gto_checksum(b + s->offset, (size_t)s->size);
-        if (sum != s->checksum)
+        uint64_t computed = wrt_gto_checksum(b + s->offset, (size_t)s->size);
+        if (computed != s->checksum)
             return wrt_fail(WRT_ERR_CORRUPT, "section opcode: checksum mismatch (stored 0x%016" PRIx64
-                            ", computed 0x%016" PRIx64 ")", s->checksum, sum);
+                            ", computed 0x%016" PRIx64 ")", s->checksum, computed);
         return wrt_fail(WRT_ERR_CORRUPT, "section opcode: %" PRIu64 " bytes do not hold the %" PRIu64 " blocks and %"
                         PRIu64 " entries its header says (with %" PRIu64 " columns)", s->size, h.nblocks, h.nnz, nf);
     }
