@@ -68,7 +68,7 @@ ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(VERIFY_OBJ) $(CORE_OBJ)
 # objects with the API as roots and every other symbol made local (tools/link-static-lib.sh):
 # nothing of wrt but the API can clash with an embedder's symbols (tests/exports.sh
 # checks both libraries).
-LIB_SRC := $(wildcard common/*.c) formats/gto_read.c formats/gto_check.c formats/gto_texture.c $(RUNTIME_SRC)
+LIB_SRC := $(wildcard common/*.c) formats/gto_read.c formats/gto_check.c formats/gto_texture.c formats/gto_opcode.c $(RUNTIME_SRC)
 LIB_OBJ := $(call obj,$(LIB_SRC))
 PIC_OBJ := $(patsubst %.c,$(BUILD)/pic/%.o,$(LIB_SRC))
 LIBWRT := $(BUILD)/libwrt.a $(BUILD)/libwrt.so
@@ -80,7 +80,7 @@ TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
 .PHONY: all deps demo test tests stress study fuzz clean assets bench timings mutate install
 all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/examples/engine $(BUILD)/tests/runtime_instances \
-     $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core
+     $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core $(BUILD)/tools/codec_study
 
 deps:
 	@bash tools/install-deps.sh
@@ -171,6 +171,12 @@ $(BUILD)/wrt-compare: $(call obj,tools/compare_main.c) $(VERIFY_OBJ) $(RUNTIME_O
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
+# The compact-entry study (issue 23, docs/bench.md "Compact entries"): not installed.
+$(BUILD)/tools/codec_study: $(call obj,tools/codec_study.c) $(BAKE_CORE_OBJ)
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
+
 $(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c tools/scenegen_gltf.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
@@ -188,6 +194,7 @@ ALL_PARTS := display cli verify bake runtime formats common
 TEST_PARTS_test_brdf := common
 TEST_PARTS_test_text := common
 TEST_PARTS_test_gto := formats common
+TEST_PARTS_test_gto_compact := formats common
 TEST_PARTS_test_image := formats common
 TEST_PARTS_test_scene := formats common
 TEST_PARTS_test_bake := bake formats common
@@ -218,7 +225,7 @@ $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $$(foreach p,$$(call test_parts,$$*),$(
 # the committed seeds, copied into build/fuzz/corpus-* (which grow as they run).
 FUZZ_SECONDS ?= 60
 FUZZ_SCENE_C := tools/fuzz_scene.c common/wrt_common.c common/text.c formats/scene.c formats/scene_report.c formats/scene_dups.c
-FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c common/text.c common/texture.c common/cluster_tree.c formats/gto_read.c formats/gto_check.c formats/gto_texture.c
+FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c common/text.c common/texture.c common/cluster_tree.c formats/gto_read.c formats/gto_check.c formats/gto_texture.c formats/gto_opcode.c
 FUZZ_SAN := -fsanitize=address,undefined -fno-sanitize-recover=all
 FUZZ_CC = clang -std=c11 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -D_GNU_SOURCE
 fuzz: build/fuzz/fuzz_scene build/fuzz/fuzz_gto

@@ -15,9 +15,11 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
 
 /* Format version. The major version (WRT_GTO_VERSION) changes when an older reader
  * would misread a newer file; the minor version when a newer file only adds what an
- * older reader may skip (a new section id, a field in a reserved slot whose zero
- * means "as before"). A reader accepts every minor of its own major and refuses any
- * other major with WRT_ERR_UNSUPPORTED.
+ * older reader may skip (a new section id below 256, a field in a reserved slot whose
+ * zero means "as before"). A reader accepts every minor of the majors it knows (1 and
+ * 2) and refuses any other major with WRT_ERR_UNSUPPORTED, naming both versions. Since
+ * 2.0 a section id >= 256 is critical: a reader that does not know it refuses the file,
+ * naming the section; ids below 256 that it does not know it skips.
  * Checklist for a bump (GTO_FORMAT.md, "Changing the format", says the same):
  *   1. Decide major or minor by the rule above; a struct size or field meaning that
  *      changes is a major bump; a new section or a used reserved slot is a minor bump.
@@ -26,20 +28,22 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
  *   4. Keep tests/data/gto/v1_small.gto: a major bump makes the test expect
  *      WRT_ERR_UNSUPPORTED for it (or add a converter); a minor bump must still open it.
  *   5. Regenerate the golden file of the new version (test_gto --regen) and commit it. */
-#define WRT_GTO_VERSION 1
-#define WRT_GTO_VERSION_MINOR 3 /* 1.1: the optional first-bounce operator K (sections 12-15).
+#define WRT_GTO_VERSION 2
+#define WRT_GTO_VERSION_MINOR 0 /* 1.1: the optional first-bounce operator K (sections 12-15).
                                  * 1.2: the optional quad-to-source map (section 16).
-                                 * 1.3: the optional base-colour textures (section 21).
-                                 * 1.3: the optional corner normals (section 18).
-                                 * The writer puts the lowest minor that has what the file
-                                 * holds: a file with neither is 1.0, byte for byte as before. */
-/* Version 2.0 (docs/clusters.md; GTO_FORMAT.md "Critical sections"): a section id >= 256
- * is critical: a reader that does not know it refuses the file, naming it. The cluster
- * tree (section 257, from `wrt-bake --clusters`) is one: the quads' root slots then hold
- * the tree's functions. A file with it is written as 2.0; every other file as 1.x, as
- * before. This reader reads majors WRT_GTO_VERSION to WRT_GTO_VERSION_MAX. */
-#define WRT_GTO_VERSION_MAX 2
-
+                                 * 1.3: the optional corner normals (section 18) and
+                                 * base-colour textures (section 21).
+                                 * 2.0: the compact operator (section 17 in place of 8 and 9),
+                                 * critical section ids (>= 256), the cluster tree (257).
+                                 * The writer puts the lowest version that has what the file
+                                 * holds: float entries without K or the map are 1.0, byte
+                                 * for byte as before. */
+#define WRT_GTO_VERSION_FLOAT 1 /* the major of files with float entries (sections 8, 9) */
+/* Critical sections (GTO_FORMAT.md): a section id >= 256 is critical: a reader that does
+ * not know it refuses the file, naming it. The cluster tree (section 257, from `wrt-bake
+ * --clusters`) is one: the quads' root slots then hold the tree's functions (docs/clusters.md).
+ * This reader reads majors WRT_GTO_VERSION_FLOAT to WRT_GTO_VERSION_MAX. */
+#define WRT_GTO_VERSION_MAX WRT_GTO_VERSION
 /* A node of the cluster tree (section ctree, 257): children (left -1 for a leaf, whose
  * right is then its quad) and area; node 0 is the root, children follow their parent. */
 typedef struct wrt_gto_cnode { int32_t left, right; double area; } wrt_gto_cnode; /* 16 bytes */
@@ -124,6 +128,31 @@ enum {
     WRT_GTO_OP_GATHERED = 1  /* T_fine G = T_fine + T_fine T + ... */
 };
 
+/* The compact operator (version 2.0, section opcode; GTO_FORMAT.md "The compact
+ * operator"): a column's entries in blocks of up to 64, each block one record. */
+typedef struct wrt_gto_block {
+    uint32_t row0;   /* the block's first row (a function index) */
+    uint8_t n;       /* entries, 1..WRT_GTO_BLOCK_MAX */
+    uint8_t reserved;/* 0 */
+    int16_t base;    /* entry value = mantissa * 2^(base + e), WRT_GTO_BASE_MIN..MAX */
+} wrt_gto_block;
+#define WRT_GTO_BLOCK_MAX 64
+#define WRT_GTO_BASE_MIN (-126)
+#define WRT_GTO_BASE_MAX 36 /* 511 * 2^(36 + 3) < 2^48, the largest value a file may hold */
+#define WRT_GTO_CODEC 1     /* the encoding of this version: 3 x 10-bit mantissas, 2-bit e */
+
+/* An entry's RGB value from its 32-bit code: bits 0-9, 10-19, 20-29 the red, green and
+ * blue mantissas (two's complement, -511..511), bits 30-31 the exponent e above the
+ * block's base. Exact: every value is a float (10 significant bits). */
+static inline void wrt_gto_decode(uint32_t code, int base, float rgb[3]) {
+    union { uint32_t u; float f; } sc;
+    sc.u = (uint32_t)(base + (int)(code >> 30) + 127) << 23;
+    for (int c = 0; c < 3; c++) {
+        int32_t m = (int32_t)(code << (22 - 10 * c)) >> 22;
+        rgb[c] = (float)m * sc.f;
+    }
+}
+
 /* A mapped, validated file. All pointers point into the mapping. */
 typedef struct wrt_gto {
     void *map; size_t size;
@@ -164,6 +193,17 @@ typedef struct wrt_gto {
      * reader (common/cluster_tree.h's rules); NULL when the file has none. */
     const wrt_gto_cnode *ctree;
     uint32_t nctree;
+    /* The compact operator (version 2.0, section opcode): then rows and vals are NULL and
+     * column s's entries [col_start[s], col_start[s+1]) are in blocks
+     * [op_bcol[s], op_bcol[s+1]); block b's entries follow those of block b - 1, entry i
+     * has the code op_codes[i] (wrt_gto_decode with the block's base) and the row
+     * (previous row of the block) + op_deltas[i] (the block's row0 for its first, whose
+     * delta is 0). NULL / 0 in a file with float entries. */
+    uint64_t nblocks;
+    const uint32_t *op_bcol;          /* nfuncs + 1 */
+    const wrt_gto_block *op_blocks;   /* nblocks */
+    const uint32_t *op_codes;         /* nnz */
+    const uint8_t *op_deltas;         /* nnz */
 } wrt_gto;
 
 /* One texture of the textures section: the material it belongs to, its size, glTF wrap
@@ -228,6 +268,11 @@ typedef struct wrt_gto_contents {
      * (257), and the file as version 2.0. */
     const wrt_gto_cnode *ctree;
     uint32_t nctree;
+    /* 1: the operator's entries are written compact (section opcode, version 2.0:
+     * GTO_FORMAT.md "The compact operator"; about 5.5 bytes an entry instead of 16, each
+     * value within 2^-10 of its entry's largest channel); 0: as floats (sections rows
+     * and vals, version 1.x). */
+    int compact;
 } wrt_gto_contents;
 
 /* Writes atomically: a temporary (see wrt_gto_write_pending), fsync, rename over

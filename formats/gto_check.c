@@ -34,6 +34,7 @@ const gto_sec_desc gto_sec_info[SEC_KNOWN_END] = {
     [SEC_KROWS] = {"krows", 4},
     [SEC_KVALS] = {"kvals", 4},
     [SEC_SRCMAP] = {"srcmap", sizeof(wrt_gto_srcmap)},
+    [SEC_OPCODE] = {"opcode", 1},
     [SEC_NORMALS] = {"normals", sizeof(wrt_gto_normals)},
     [SEC_TEXTURES] = {"textures", 1},
 };
@@ -595,6 +596,7 @@ chunk_check gto_sec_checker(uint32_t id) {
     case SEC_KVALS: return check_kvals;
     case SEC_SRCMAP: return check_srcmap;
     case SEC_NORMALS: return check_normals;
+    case SEC_OPCODE: return gto_check_opcode;
     default: return NULL;
     }
 }

@@ -186,8 +186,8 @@ static void info_figures(gto_info *I) {
             if (n > I->max_col) I->max_col = (uint32_t)n;
             if (!wrt_fkey_angular_root(g->fkeys[s])) I->nangular++;
         }
-        I->op_bytes = L->sec[SEC_FKEYS]->size + L->sec[SEC_COL_START]->size + L->sec[SEC_ROWS]->size +
-                      L->sec[SEC_VALS]->size;
+        I->op_bytes = L->sec[SEC_FKEYS]->size + L->sec[SEC_COL_START]->size +
+                      (L->sec[SEC_OPCODE] ? L->sec[SEC_OPCODE]->size : L->sec[SEC_ROWS]->size + L->sec[SEC_VALS]->size);
     }
     I->density = g->nfuncs ? (double)g->nnz / ((double)g->nfuncs * g->nfuncs) : 0;
     if (I->ok && g->nkcols) {
@@ -257,11 +257,12 @@ static void json_figures(FILE *f, const gto_info *I) {
             "\"functions\": %u, \"entries\": %" PRIu64 ", \"k_columns\": %u, \"k_entries\": %" PRIu64 "}",
             g->nquads, g->nmaterials, g->nlights, g->nnames, g->nfuncs, g->nnz, g->nkcols, g->knnz);
     print_emitters(f, g, 1);
-    fprintf(f, ", \"operator\": {\"bytes\": %" PRIu64 ", \"density\": %.6g, "
+    fprintf(f, ", \"operator\": {\"compact\": %s, \"blocks\": %" PRIu64 ", \"bytes\": %" PRIu64 ", \"density\": %.6g, "
             "\"mean_entries_per_column\": %.3f, \"max_entries_per_column\": %u, "
             "\"max_functions_per_quad\": %u, \"angular_functions\": %" PRIu64 ", "
             "\"max_spatial_level\": %u, \"max_angular_level\": %u}",
-            I->op_bytes, I->density, g->nfuncs ? (double)g->nnz / g->nfuncs : 0.0, I->max_col, I->max_fpq,
+            g->op_codes ? "true" : "false", g->nblocks, I->op_bytes, I->density,
+            g->nfuncs ? (double)g->nnz / g->nfuncs : 0.0, I->max_col, I->max_fpq,
             I->nangular, I->max_sl, I->max_al);
     if (g->nkcols)
         fprintf(f, ", \"first_bounce\": {\"columns\": %u, \"entries\": %" PRIu64 ", \"bytes\": %" PRIu64
@@ -343,6 +344,10 @@ static void text_figures(FILE *f, const gto_info *I) {
     fprintf(f, "operator:   %u functions (%" PRIu64 " with angular detail), %" PRIu64
             " entries, %s, density %.3g\n", g->nfuncs, I->nangular, g->nnz, human_bytes(I->op_bytes, hb),
             I->density);
+    if (g->op_codes)
+        fprintf(f, "            compact entries: %" PRIu64 " blocks (mean %.1f entries), %.2f bytes an entry\n",
+                g->nblocks, g->nblocks ? (double)g->nnz / g->nblocks : 0.0,
+                g->nnz ? (double)I->L.sec[SEC_OPCODE]->size / g->nnz : 0.0);
     fprintf(f, "            entries per column: mean %.1f, max %u; functions per quad: max %u; "
             "deepest level: spatial %u, angular %u\n",
             g->nfuncs ? (double)g->nnz / g->nfuncs : 0.0, I->max_col, I->max_fpq, I->max_sl, I->max_al);
@@ -381,21 +386,27 @@ static void text_figures(FILE *f, const gto_info *I) {
 /* What a file's version means to this reader, in words ("current", or what the later
  * minors add), so that an older file does not read like a warning. */
 static void version_note(char *b, size_t n, unsigned major, unsigned minor) {
-    static const char *added[] = {"", "the optional first-bounce operator", "the optional source map", "the optional corner normals and textures"};
+    /* what each version added, in order: 1.1 .. 1.3, then 2.0 */
+    static const struct { unsigned major, minor; const char *what; } added[] = {
+        {1, 1, "the optional first-bounce operator"}, {1, 2, "the optional source map"},
+        {1, 3, "the optional corner normals and textures"}, {2, 0, "the compact operator and critical sections"}};
     int nadded = (int)(sizeof added / sizeof added[0]);
     if (major == WRT_GTO_VERSION && minor == WRT_GTO_VERSION_MINOR) {
         snprintf(b, n, "current");
-    } else if (major == WRT_GTO_VERSION && (int)minor < WRT_GTO_VERSION_MINOR) {
-        size_t k = (size_t)snprintf(b, n, "older, read in full: later versions only add");
-        for (int m = (int)minor + 1; m <= WRT_GTO_VERSION_MINOR && k < n; m++)
-            k += (size_t)snprintf(b + k, n - k, "%s %d.%d %s", m > (int)minor + 1 ? "," : "", WRT_GTO_VERSION, m,
-                                  m < nadded ? added[m] : "optional sections");
-    } else if (major == WRT_GTO_VERSION) {
-        snprintf(b, n, "newer than this reader's %d.%d: its added optional sections are skipped", WRT_GTO_VERSION,
-                 WRT_GTO_VERSION_MINOR);
+    } else if (major > WRT_GTO_VERSION || (major == WRT_GTO_VERSION && minor > WRT_GTO_VERSION_MINOR)) {
+        snprintf(b, n, "newer than this reader's %d.%d%s", WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR,
+                 major == WRT_GTO_VERSION ? ": its added optional sections are skipped" : ", which reads only up to 2.x");
+    } else if (major < WRT_GTO_VERSION_FLOAT) {
+        snprintf(b, n, "older than any version this reader reads");
     } else {
-        snprintf(b, n, "%s than this reader's %d.%d, which reads only %d.x", (int)major > WRT_GTO_VERSION ? "newer" :
-                 "older", WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR, WRT_GTO_VERSION);
+        size_t k = (size_t)snprintf(b, n, "older, read in full: later versions add");
+        int first = 1;
+        for (int i = 0; i < nadded && k < n; i++) {
+            if (added[i].major < major || (added[i].major == major && added[i].minor <= minor)) continue;
+            k += (size_t)snprintf(b + k, n - k, "%s %u.%u %s", first ? "" : ",", added[i].major, added[i].minor,
+                                  added[i].what);
+            first = 0;
+        }
     }
 }
 

@@ -104,6 +104,8 @@ _Static_assert(offsetof(wrt_gto_srcmap, uv) == 40, "layout");
 _Static_assert(sizeof(wrt_gto_normals) == 48, "normals record");
 _Static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE 754 binary32/binary64");
 
+static inline uint64_t gto_align_up(uint64_t x) { return (x + GTO_ALIGN - 1) & ~(uint64_t)(GTO_ALIGN - 1); }
+
 enum {
     SEC_QUADS = 1, SEC_MATERIALS, SEC_LIGHTS, SEC_CAMERA, SEC_NAMES, SEC_FKEYS,
     SEC_COL_START, SEC_ROWS, SEC_VALS, SEC_STATS, SEC_PROVENANCE,
@@ -111,11 +113,11 @@ enum {
     SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS,
     /* version 1.2: the quad-to-source map, optional */
     SEC_SRCMAP,
-    /* 17 is reserved (another branch's encoded operator): unknown here, skipped */
+    /* version 2.0: the compact operator, in place of rows and vals */
+    SEC_OPCODE,
     /* version 1.3: the corner normals, optional */
     SEC_NORMALS = 18,
-    /* version 1.3 (this branch): base-colour textures, optional (docs/textures.md); ids
-     * 17-20 are other sections of the same session, unknown here and skipped */
+    /* version 1.3: base-colour textures, optional (docs/textures.md) */
     SEC_TEXTURES = 21,
     SEC_KNOWN_END
 };
@@ -128,6 +130,42 @@ enum {
 #define GTO_MINOR_SRCMAP 2          /* the minor version that added the quad-to-source map */
 #define GTO_MINOR_TEXTURES 3        /* the minor version that added the textures section */
 #define GTO_MINOR_NORMALS 3         /* the minor version that added the corner normals */
+#define GTO_CRITICAL_ID 256u        /* since 2.0: ids from here on must be known to be read */
+
+/* The compact operator's section (opcode, version 2.0): this header, then at offsets
+ * that are multiples of 64 from the payload's start (zero bytes between): bcol (u32,
+ * nfuncs + 1), the blocks (wrt_gto_block, nblocks), the codes (u32, nnz) and the row
+ * deltas (u8, nnz), which end the payload. */
+typedef struct gto_opcode_head {
+    uint32_t codec;      /* WRT_GTO_CODEC */
+    uint32_t block_max;  /* WRT_GTO_BLOCK_MAX */
+    uint64_t nblocks, nnz;
+    uint8_t reserved[40];
+} gto_opcode_head;
+_Static_assert(sizeof(gto_opcode_head) == 64, "opcode header is 64 bytes");
+_Static_assert(sizeof(wrt_gto_block) == 8, "block record");
+_Static_assert(offsetof(wrt_gto_block, n) == 4 && offsetof(wrt_gto_block, base) == 6, "layout");
+
+/* Where the opcode section's arrays start, from its counts; its size is the deltas' end. */
+typedef struct gto_opcode_layout { uint64_t bcol, blocks, codes, deltas, size; } gto_opcode_layout;
+static inline gto_opcode_layout gto_opcode_place(uint32_t nfuncs, uint64_t nblocks, uint64_t nnz) {
+    gto_opcode_layout o;
+    o.bcol = sizeof(gto_opcode_head);
+    o.blocks = gto_align_up(o.bcol + 4 * ((uint64_t)nfuncs + 1));
+    o.codes = gto_align_up(o.blocks + sizeof(wrt_gto_block) * nblocks);
+    o.deltas = gto_align_up(o.codes + 4 * nnz);
+    o.size = o.deltas + nnz;
+    return o;
+}
+
+/* The compact operator (gto_opcode.c). The checker of section opcode: the whole
+ * section's structure once its last chunk has been summed (GTO_FORMAT.md). */
+struct vctx;
+void gto_check_opcode(struct vctx *v, const uint8_t *base, uint64_t first, uint64_t n);
+/* Encodes float entries (col_start over nfuncs columns, rows, vals) into a new payload
+ * of section opcode (*size bytes, malloc'd; NULL if there is no memory). Deterministic. */
+uint8_t *gto_opcode_encode(uint32_t nfuncs, const uint64_t *col_start, const uint32_t *rows,
+                           const float *vals, uint64_t *size);
 
 /* Name and element size of each known section id (gto_check.c). */
 typedef struct gto_sec_desc { const char *name; uint32_t elem_size; } gto_sec_desc;
@@ -154,7 +192,6 @@ static inline uint32_t gto_sec_elem(uint32_t id) {
 _Static_assert(sizeof(wrt_gto_cnode) == 16, "ctree record");
 _Static_assert(offsetof(wrt_gto_cnode, area) == 8, "layout");
 
-static inline uint64_t gto_align_up(uint64_t x) { return (x + GTO_ALIGN - 1) & ~(uint64_t)(GTO_ALIGN - 1); }
 
 /* ------------------------------------------------------------------------------------
  * Content checks (gto_check.c), shared by the reader (on the mapping) and the writer (on

@@ -41,11 +41,12 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
     if (h->version_major > WRT_GTO_VERSION_MAX)
         return wrt_fail(WRT_ERR_UNSUPPORTED,
                         "file version %u.%u is newer than this reader's version %d.%d",
-                        h->version_major, h->version_minor, WRT_GTO_VERSION_MAX, 0);
-    if (h->version_major < WRT_GTO_VERSION)
-        return wrt_fail(WRT_ERR_UNSUPPORTED,
-                        "file version %u.%u is older than this reader's version %d.%d",
                         h->version_major, h->version_minor, WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR);
+    if (h->version_major < WRT_GTO_VERSION_FLOAT)
+        return wrt_fail(WRT_ERR_UNSUPPORTED,
+                        "file version %u.%u is older than any this reader's version %d.%d reads (from %d.0)",
+                        h->version_major, h->version_minor, WRT_GTO_VERSION, WRT_GTO_VERSION_MINOR,
+                        WRT_GTO_VERSION_FLOAT);
     if (h->file_size > len)
         return wrt_fail(WRT_ERR_CORRUPT, "truncated: expected %" PRIu64 " bytes, found %zu",
                         h->file_size, len);
@@ -110,8 +111,16 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
     if (prev_end != len)
         return wrt_fail(WRT_ERR_CORRUPT, "last section ends at %" PRIu64 ", file has %zu bytes",
                         prev_end, len);
+    /* The operator's entries: as floats (rows and vals) or compact (opcode, 2.0), one of them. */
+    if (L->sec[SEC_OPCODE] && h->version_major < 2)
+        return wrt_fail(WRT_ERR_CORRUPT, "section opcode in a version %u.%u file (the compact operator is 2.0)",
+                        h->version_major, h->version_minor);
+    if (L->sec[SEC_OPCODE] && (L->sec[SEC_ROWS] || L->sec[SEC_VALS]))
+        return wrt_fail(WRT_ERR_CORRUPT, "section opcode beside section %s (the entries are compact or "
+                        "float, not both)", L->sec[SEC_ROWS] ? "rows" : "vals");
     for (uint32_t id = 1; id <= SEC_REQUIRED; id++)
-        if (!L->sec[id]) return wrt_fail(WRT_ERR_CORRUPT, "missing section %s", gto_sec_name(id));
+        if (!L->sec[id] && !((id == SEC_ROWS || id == SEC_VALS) && L->sec[SEC_OPCODE]))
+            return wrt_fail(WRT_ERR_CORRUPT, "missing section %s", gto_sec_name(id));
     /* The first-bounce operator: all four sections or none. */
     int nk = 0;
     for (uint32_t id = SEC_KKEYS; id <= SEC_KVALS; id++) nk += L->sec[id] != NULL;
@@ -136,6 +145,41 @@ static wrt_status check_csc_counts(const gto_section *const *S, uint32_t keys, u
     return WRT_OK;
 }
 
+/* The compact operator's counts: its header (read here, checksummed in stage 3) says
+ * how many blocks and entries, which must give the section's size exactly; fills g's
+ * counts and pointers. */
+static wrt_status check_opcode_counts(const uint8_t *b, const gto_section *const *S, wrt_gto *g) {
+    const gto_section *s = S[SEC_OPCODE];
+    if (S[SEC_COL_START]->count != S[SEC_FKEYS]->count + 1)
+        return wrt_fail(WRT_ERR_CORRUPT, "section col_start: %" PRIu64 " entries, expected %" PRIu64 " (functions + 1)",
+                        S[SEC_COL_START]->count, S[SEC_FKEYS]->count + 1);
+    if (s->size < sizeof(gto_opcode_head))
+        return wrt_fail(WRT_ERR_CORRUPT, "section opcode: %" PRIu64 " bytes, less than its %zu-byte header", s->size,
+                        sizeof(gto_opcode_head));
+    gto_opcode_head h;
+    memcpy(&h, b + s->offset, sizeof h);
+    uint64_t nf = S[SEC_FKEYS]->count;
+    if (h.nnz > s->size || h.nblocks > s->size / 8 || h.nblocks > UINT32_MAX || nf > UINT32_MAX - 1 ||
+        gto_opcode_place((uint32_t)nf, h.nblocks, h.nnz).size != s->size) {
+        /* a damaged header reads as the damage it is, as in stage 3 */
+        uint64_t computed = wrt_gto_checksum(b + s->offset, (size_t)s->size);
+        if (computed != s->checksum)
+            return wrt_fail(WRT_ERR_CORRUPT, "section opcode: checksum mismatch (stored 0x%016" PRIx64
+                            ", computed 0x%016" PRIx64 ")", s->checksum, computed);
+        return wrt_fail(WRT_ERR_CORRUPT, "section opcode: %" PRIu64 " bytes do not hold the %" PRIu64 " blocks and %"
+                        PRIu64 " entries its header says (with %" PRIu64 " columns)", s->size, h.nblocks, h.nnz, nf);
+    }
+    gto_opcode_layout o = gto_opcode_place((uint32_t)nf, h.nblocks, h.nnz);
+    const uint8_t *p = b + s->offset;
+    g->nnz = h.nnz;
+    g->nblocks = h.nblocks;
+    g->op_bcol = (const uint32_t *)(p + o.bcol);
+    g->op_blocks = (const wrt_gto_block *)(p + o.blocks);
+    g->op_codes = (const uint32_t *)(p + o.codes);
+    g->op_deltas = p + o.deltas;
+    return WRT_OK;
+}
+
 /* Stage 2: counts that must agree across sections, and zero padding. */
 wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     const gto_section *const *S = L->sec;
@@ -150,7 +194,8 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     if (S[SEC_STATS]->count != 1)
         return wrt_fail(WRT_ERR_CORRUPT, "section stats: %" PRIu64 " records, expected 1",
                         S[SEC_STATS]->count);
-    wrt_status st = check_csc_counts(S, SEC_FKEYS, SEC_COL_START, SEC_ROWS, SEC_VALS, "functions");
+    wrt_status st = S[SEC_OPCODE] ? check_opcode_counts(b, S, g)
+                                  : check_csc_counts(S, SEC_FKEYS, SEC_COL_START, SEC_ROWS, SEC_VALS, "functions");
     if (st != WRT_OK) return st;
     if (S[SEC_KKEYS]) { /* then all four (gto_parse_layout) */
         if (S[SEC_KKEYS]->count == 0)
@@ -189,7 +234,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     g->nlights = (uint32_t)S[SEC_LIGHTS]->count;
     g->nnames = (uint32_t)S[SEC_NAMES]->count;
     g->nfuncs = (uint32_t)S[SEC_FKEYS]->count;
-    g->nnz = S[SEC_ROWS]->count;
+    if (S[SEC_ROWS]) g->nnz = S[SEC_ROWS]->count;
 #define SECPTR(id) ((const void *)(b + S[id]->offset))
     g->quads = SECPTR(SEC_QUADS);
     g->materials = SECPTR(SEC_MATERIALS);
@@ -198,8 +243,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     g->names = SECPTR(SEC_NAMES);
     g->fkeys = SECPTR(SEC_FKEYS);
     g->col_start = SECPTR(SEC_COL_START);
-    g->rows = SECPTR(SEC_ROWS);
-    g->vals = SECPTR(SEC_VALS);
+    if (S[SEC_ROWS]) { g->rows = SECPTR(SEC_ROWS); g->vals = SECPTR(SEC_VALS); }
     g->stats = SECPTR(SEC_STATS);
     g->provenance = SECPTR(SEC_PROVENANCE);
     g->provenance_len = (size_t)S[SEC_PROVENANCE]->size;

@@ -259,10 +259,12 @@ typedef struct gto_records {
     wrt_gto_srcmap *srcmap; /* NULL: not written (no_srcmap) */
     uint8_t *textures; uint64_t textures_size; /* NULL: the scene has none */
     wrt_gto_normals *normals; /* NULL: not written (no quad's corner normals leave its plane) */
+    uint8_t *opcode;        /* the compact operator's section (contents.compact), else NULL */
+    uint64_t opcode_size, nblocks;
 } gto_records;
 
 static void free_records(gto_records *R) {
-    free(R->quads); free(R->mats); free(R->lights); free(R->names); free(R->srcmap); free(R->normals); free(R->textures);
+    free(R->quads); free(R->mats); free(R->lights); free(R->names); free(R->srcmap); free(R->opcode); free(R->normals); free(R->textures);
 }
 
 /* The corner normals (section normals, version 1.3), only where they say something: some
@@ -287,6 +289,35 @@ static void build_normals(const wrt_scene *sc, gto_records *R) {
             m[q].n[k][0] = (float)s->n.x; m[q].n[k][1] = (float)s->n.y; m[q].n[k][2] = (float)s->n.z;
         }
     }
+}
+
+/* contents.compact: the float entries checked as a 1.x file's col_start, rows and vals
+ * would be (the encoder relies on ascending rows and finite values), then encoded. */
+static wrt_status encode_entries(const char *path, const wrt_gto_contents *c, gto_records *R) {
+    uint32_t nf = c->nfuncs;
+    static const uint64_t zero = 0;
+    const uint64_t *cs = c->col_start ? c->col_start : &zero;
+    wrt_gto view;
+    memset(&view, 0, sizeof view);
+    view.nfuncs = nf; view.col_start = cs; view.nnz = cs[nf];
+    vctx v;
+    memset(&v, 0, sizeof v);
+    v.g = &view;
+    const struct { uint32_t id; uint64_t count; const void *data; } in[3] = {
+        {SEC_COL_START, (uint64_t)nf + 1, cs}, {SEC_ROWS, view.nnz, c->rows}, {SEC_VALS, view.nnz, c->vals}};
+    for (int i = 0; i < 3; i++) {
+        if (in[i].count == 0) continue;
+        gto_scan_section(in[i].data, in[i].count, gto_sec_info[in[i].id].elem_size, gto_sec_checker(in[i].id), &v);
+        if (v.bad)
+            return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: %s: %s", path, gto_sec_name(in[i].id), v.err);
+    }
+    if (view.nnz > UINT32_MAX * (uint64_t)WRT_GTO_BLOCK_MAX)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: %" PRIu64 " entries, too many to encode", path,
+                        view.nnz);
+    R->opcode = gto_opcode_encode(nf, cs, c->rows, c->vals, &R->opcode_size);
+    if (!R->opcode) return wrt_fail(WRT_ERR_NOMEM, "cannot write %s: no memory to encode the entries", path);
+    memcpy(&R->nblocks, R->opcode + offsetof(gto_opcode_head, nblocks), 8);
+    return WRT_OK;
 }
 
 /* Each quad's function range and deepest levels from the keys, then its geometry. */
@@ -402,6 +433,7 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
         {SEC_VALS, nnz, c->vals}, {SEC_STATS, 1, &R->stats}, {SEC_PROVENANCE, strlen(prov), prov},
         {SEC_KKEYS, nk, c->kkeys}, {SEC_KCOL_START, (uint64_t)nk + 1, c->kcol_start},
         {SEC_KROWS, knnz, c->krows}, {SEC_KVALS, knnz, c->kvals}, {SEC_SRCMAP, R->nq, R->srcmap},
+        {SEC_OPCODE, R->opcode_size, R->opcode},
         {SEC_NORMALS, R->nq, R->normals},
         {SEC_TEXTURES, R->textures_size, R->textures},
     };
@@ -414,6 +446,7 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
         if (id == 0 || (id >= SEC_KKEYS && id <= SEC_KVALS && !nk) || (id == SEC_SRCMAP && !R->srcmap) ||
             (id == SEC_TEXTURES && !R->textures) || (id == SEC_NORMALS && !R->normals))
             continue;
+        if ((id == SEC_ROWS || id == SEC_VALS) ? R->opcode != NULL : id == SEC_OPCODE && !R->opcode) continue;
         P->secs[P->nsec++] = secs[i];
     }
     if (c->nctree) P->secs[P->nsec++] = (wsec){SEC_CTREE, c->nctree, c->ctree}; /* critical: version 2.0 */
@@ -435,9 +468,10 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     gto_section *tab = (gto_section *)(head + sizeof(gto_header));
     memcpy(h->magic, GTO_MAGIC, GTO_MAGIC_LEN);
     h->byte_order = GTO_BOM;
-    h->version_major = c->nctree ? 2 : WRT_GTO_VERSION;
-    h->version_minor = c->nctree ? 0 : R->textures ? GTO_MINOR_TEXTURES : R->normals ? GTO_MINOR_NORMALS
-                       : R->srcmap ? GTO_MINOR_SRCMAP : nk ? GTO_MINOR_K : 0;
+    /* compact entries or a cluster tree: 2.0; float entries: 1.x as before (the lowest that has it all) */
+    h->version_major = R->opcode || c->nctree ? WRT_GTO_VERSION : WRT_GTO_VERSION_FLOAT;
+    h->version_minor = h->version_major == WRT_GTO_VERSION ? 0 : R->textures ? GTO_MINOR_TEXTURES
+                       : R->normals ? GTO_MINOR_NORMALS : R->srcmap ? GTO_MINOR_SRCMAP : nk ? GTO_MINOR_K : 0;
     h->nsections = (uint32_t)nsec;
     h->header_size = hsize;
     h->op_kind = c->op_kind;
@@ -448,6 +482,7 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     view.nfuncs = c->nfuncs; view.quads = R->quads; view.materials = R->mats; view.fkeys = c->fkeys;
     view.col_start = c->col_start ? c->col_start : &zero_col;
     view.nnz = view.col_start[c->nfuncs];
+    view.nblocks = R->nblocks;
     view.nkcols = nk; view.knnz = nk ? c->kcol_start[nk] : 0; view.kkeys = c->kkeys; view.kcol_start = c->kcol_start;
     vctx v;
     memset(&v, 0, sizeof v);
@@ -523,6 +558,7 @@ wrt_status wrt_gto_write_pending(const char *path, const wrt_gto_contents *c, wr
     R.nl = (uint32_t)c->scene->nlights;
     R.nn = (uint32_t)c->scene->nnames;
     st = build_quads(path, c, &R);
+    if (st == WRT_OK && c->compact) st = encode_entries(path, c, &R);
     if (st == WRT_OK) {
         build_scene_records(c, &R);
         R.textures = gto_build_textures(c->scene, &R.textures_size); /* docs/textures.md */

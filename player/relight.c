@@ -107,6 +107,19 @@ static void sum_lights(wrt_relight *r) {
     relight_add_emitters(r); /* emissive surfaces' source terms (relight_emit.c) */
 }
 
+/* skip_below: whether E moved by less than that fraction of the E last multiplied
+ * (never after a failed update, and not before a first multiply). */
+static int change_too_small(const wrt_relight *r) {
+    if (r->opt.skip_below <= 0 || !r->e_applied || r->redo_all) return 0;
+    double d = 0, n = 0;
+    for (size_t k = 0; k < (size_t)r->g->nfuncs * 3; k++) {
+        double a = r->Eapplied[k], b = r->E[k];
+        d += (b - a) * (b - a);
+        n += a * a;
+    }
+    return d < r->opt.skip_below * r->opt.skip_below * n;
+}
+
 /* The stages of an update, each only when what it reads changed: the projection of
  * every light that moved (section 5.1), E and the multiply when a light changed (5.2;
  * with K the first bounce first), the synthesis of the quads whose X changed or, glossy,
@@ -134,11 +147,19 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     if (r->e_dirty) {
         r->e_dirty = 0;
         sum_lights(r);
-        /* With K: the first bounce from its quads, Y = K c, and E' = E off them + Y. */
-        const float *src = r->E;
-        if (g->nkcols) { relight_first_bounce(r); src = r->k.Ep; }
-        relight_multiply(r, relight_cluster_forward(r, src)); /* the tree's basis and back, if any */
-        relight_cluster_inverse(r);
+        if (change_too_small(r)) {
+            t.skipped = 1;
+        } else {
+            /* With K: the first bounce from its quads, Y = K c, and E' = E off them + Y. */
+            const float *src = r->E;
+            if (g->nkcols) { relight_first_bounce(r); src = r->k.Ep; }
+            relight_multiply(r, relight_cluster_forward(r, src)); /* the tree's basis and back, if any */
+            relight_cluster_inverse(r);
+            if (r->Eapplied) {
+                memcpy(r->Eapplied, r->E, (size_t)g->nfuncs * 3 * sizeof(float));
+                r->e_applied = 1;
+            }
+        }
     }
     double t2 = wrt_now();
     t.multiply = (t2 - t1) * 1e3;

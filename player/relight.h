@@ -52,6 +52,11 @@ typedef struct wrt_relight_options {
      * with 1; returning 0 cancels the creation (WRT_ERR_CANCELLED, everything freed). */
     int (*progress)(void *user, double fraction);
     void *progress_user;
+    /* > 0: a light change whose E moves by less than this fraction of the E last
+     * multiplied (relative L2 norm over every function and channel) costs no multiply and
+     * no synthesis: X stays; the changes add up until one passes it (Enlighten's rule;
+     * issue 23). In [0, 1); 0 (the default): every change is applied. */
+    double skip_below;
 } wrt_relight_options;
 
 typedef struct wrt_relight_timings { /* milliseconds of the last update */
@@ -59,6 +64,7 @@ typedef struct wrt_relight_timings { /* milliseconds of the last update */
     double reconstruction;  /* of synthesis: the smooth display of the changed quads' groups */
     int quads_resynthesized;
     int lights_changed;
+    int skipped;            /* 1: the light change was below skip_below: X kept */
 } wrt_relight_timings;
 
 /* `g` must outlive the relighter (it points into the mapping). Errors: WRT_ERR_INVALID_ARG,

@@ -44,6 +44,8 @@ static void brdf_cell_item(wrt_relight *r, worker *w, int item, void *vctx) {
 static wrt_status create_base(const wrt_gto *g, const wrt_relight_options *opt, wrt_relight **out) {
     wrt_relight_options o = {0};
     if (opt) o = *opt;
+    if (!(o.skip_below >= 0 && o.skip_below < 1))
+        return wrt_fail(WRT_ERR_INVALID_ARG, "relight: skip_below %g: a fraction in [0, 1)", o.skip_below);
     if (o.gather_points != 0 && o.gather_points != 16 && o.gather_points != 32)
         return wrt_fail(WRT_ERR_INVALID_ARG, "relight: gather points %d: 0 (chosen per quad), 16 or 32", o.gather_points);
     if (!o.alloc != !o.free) return wrt_fail(WRT_ERR_INVALID_ARG, "relight: an allocator needs both alloc and free");
@@ -52,6 +54,8 @@ static wrt_status create_base(const wrt_gto *g, const wrt_relight_options *opt, 
     memset(r, 0, sizeof *r);
     r->g = g;
     r->mul.op.col_start = g->col_start; r->mul.op.rows = g->rows; r->mul.op.vals = g->vals; r->mul.op.nnz = g->nnz;
+    r->mul.op.bcol = g->op_bcol; r->mul.op.blocks = g->op_blocks; r->mul.op.codes = g->op_codes;
+    r->mul.op.deltas = g->op_deltas;
     r->opt = o;
     if (r->opt.proj_level < 0 || r->opt.proj_level > PROJ_MAX_LEVEL) {
         relight_free(r, r);
@@ -281,6 +285,7 @@ static wrt_status create_state(wrt_relight *r, size_t tex_total) {
     r->E = relight_calloc(r, (size_t)nf * 3 + 1, sizeof(float));
     r->X = relight_calloc(r, (size_t)nf * 3 + 1, sizeof(float));
     r->Xprev = relight_calloc(r, (size_t)nf * 3 + 1, sizeof(float));
+    if (r->opt.skip_below > 0) r->Eapplied = relight_calloc(r, (size_t)nf * 3 + 1, sizeof(float));
     r->mul.X4 = relight_calloc(r, (size_t)nf * 4 + 4, sizeof(float)); /* malloc: 16-byte aligned */
     r->mul.cols = relight_calloc(r, (size_t)nf + 1, sizeof(uint32_t));
     r->tex = relight_calloc(r, tex_total + 1, sizeof(float));
@@ -443,7 +448,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (r->qi) for (uint32_t q = 0; q < r->g->nquads; q++) relight_free(r, r->qi[q].known);
     relight_free(r, r->mats); relight_free(r, r->fn_slevel); relight_free(r, r->fn_ang); relight_free(r, r->fn_spidx); relight_free(r, r->qi);
     relight_free(r, r->ang_list); relight_free(r, r->ang_start); relight_free(r, r->ang_full); relight_free(r, r->ang_perm);
-    relight_free(r, r->E); relight_free(r, r->X); relight_free(r, r->Xprev); relight_free(r, r->mul.X4); relight_free(r, r->mul.cols); relight_free(r, r->tex); relight_free(r, r->texk); relight_free(r, r->tex_nonzero); relight_free(r, r->x_nonzero);
+    relight_free(r, r->E); relight_free(r, r->X); relight_free(r, r->Xprev); relight_free(r, r->Eapplied); relight_free(r, r->mul.X4); relight_free(r, r->mul.cols); relight_free(r, r->tex); relight_free(r, r->texk); relight_free(r, r->tex_nonzero); relight_free(r, r->x_nonzero);
     relight_free(r, r->resynth); relight_free(r, r->proj.recs); relight_free(r, r->proj.qlevel); relight_free(r, r->proj.cones);
     relight_free(r, r->synth_list); relight_free(r, r->emit_scale);
     wrt_ctree_free(&r->ct.t); relight_free(r, r->ct.root); relight_free(r, r->ct.Et); relight_free(r, r->ct.scratch);

@@ -119,9 +119,14 @@ typedef struct kt_entry { uint32_t col; float val; } kt_entry;
  * entries whose receiver is displayed (own). */
 typedef struct op_view {
     const uint64_t *col_start; /* nfuncs + 1 */
-    const uint32_t *rows;
+    const uint32_t *rows;      /* NULL: the compact entries below */
     const float *vals;         /* nnz x 3 */
     uint64_t nnz;
+    /* The compact operator (version 2.0; wrt_gto's op_*), used when rows is NULL. */
+    const uint32_t *bcol;
+    const wrt_gto_block *blocks;
+    const uint32_t *codes;
+    const uint8_t *deltas;
 } op_view;
 
 /* Embree: every quad, in a frame centred on the scene (float precision). */
@@ -207,6 +212,8 @@ struct wrt_relight {
      * root slots hold the tree's functions; E is taken there (Et) before the multiply and
      * X back after it. on 0: none. */
     struct { int on; wrt_ctree t; uint32_t *root; float *Et; double *scratch; } ct;
+    float *Eapplied;                /* skip_below > 0: the E of the last multiply */
+    int e_applied;                  /* 1 once Eapplied holds one */
     float *tex; uint8_t *tex_nonzero, *x_nonzero, *resynth;
     float *texk;                    /* per texel of non-parallelograms: 2^Lt sqrt(pi/J)/pi */
     int *synth_list;                /* nquads + 1: quads to synthesize this update */

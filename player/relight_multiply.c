@@ -7,8 +7,13 @@
  * Depends on relight_internal.h and the mapped operator (formats/gto.h). */
 #include "relight_internal.h"
 
+#include <stdalign.h>
+
 #ifdef __SSE2__
 #include <emmintrin.h>
+#endif
+#ifdef __SSE4_1__
+#include <smmintrin.h>
 #endif
 
 #define MUL_MAX_CHUNKS 256
@@ -56,30 +61,104 @@ static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
     }
 }
 
+/* The compact operator's entries of one block added to X4 (rows [lo, hi) only, unless
+ * all): the code's mantissas times the source scaled by 2^(base + e), ev4[e]. That is
+ * the float operator's product to the bit (the decoded value m 2^(base + e) is exact,
+ * and so is the source times a power of two unless it leaves the normal range), so a row sums the same terms in the same
+ * order as from the decoded floats. SSE4.1: the three mantissas sign-extended in one
+ * multiply and shift. */
+static inline void mul_block(float *X4, const float (*ev4)[4], const uint32_t *codes, const uint8_t *deltas,
+                             uint32_t row, uint32_t n, uint32_t lo, uint32_t hi, int all) {
+#ifdef __SSE4_1__
+    const __m128i sh = _mm_set_epi32(0, 1 << 2, 1 << 12, 1 << 22);
+#endif
+    for (uint32_t j = 0; j < n; j++) {
+        row += deltas[j];
+        if (!all && (row < lo || row >= hi)) continue;
+        uint32_t c = codes[j];
+        float *x = X4 + (size_t)row * 4;
+#ifdef __SSE4_1__
+        __m128i m = _mm_srai_epi32(_mm_mullo_epi32(_mm_set1_epi32((int32_t)c), sh), 22);
+        _mm_store_ps(x, _mm_add_ps(_mm_load_ps(x), _mm_mul_ps(_mm_cvtepi32_ps(m), _mm_load_ps(ev4[c >> 30]))));
+#else
+        const float *e = ev4[c >> 30];
+        for (int k = 0; k < 3; k++) x[k] += (float)((int32_t)(c << (22 - 10 * k)) >> 22) * e[k];
+#endif
+    }
+}
+
+/* Rows [lo, hi) of X = Op E from the compact operator, as mul_chunk does from floats. */
+static void mul_chunk_compact(wrt_relight *r, worker *w, int item, void *vctx) {
+    (void)w;
+    const mul_ctx *mc = vctx;
+    const op_view *op = &r->mul.op;
+    uint32_t nf = r->g->nfuncs;
+    uint32_t lo = (uint32_t)((uint64_t)nf * item / mc->nchunk), hi = (uint32_t)((uint64_t)nf * (item + 1) / mc->nchunk);
+    if (lo >= hi) return;
+    int all = lo == 0 && hi == nf;
+    memset(r->mul.X4 + (size_t)lo * 4, 0, (size_t)(hi - lo) * 4 * sizeof(float));
+    for (uint32_t k = 0; k < mc->ncols; k++) {
+        uint32_t s = mc->cols[k];
+        const float *e = mc->src + (size_t)s * 3;
+        uint64_t i = op->col_start[s];
+        for (uint32_t b = op->bcol[s]; b < op->bcol[s + 1]; b++) {
+            const wrt_gto_block *bk = &op->blocks[b];
+            if (bk->row0 >= hi) break; /* rows ascend within the column */
+            union { uint32_t u; float f; } p2;
+            alignas(16) float ev4[4][4];
+            for (int x = 0; x < 4; x++) {
+                p2.u = (uint32_t)(bk->base + x + 127) << 23; /* 2^(base + x), a normal float */
+                for (int c = 0; c < 3; c++) ev4[x][c] = e[c] * p2.f;
+                ev4[x][3] = 0.0f;
+            }
+            mul_block(r->mul.X4, ev4, op->codes + i, op->deltas + i, bk->row0, bk->n, lo, hi, all);
+            i += bk->n;
+        }
+    }
+}
+
 /* With the final gather nothing shows the rows of X that are a glossy quad's angular
  * (non-root) functions: glossy quads are drawn from the gather, which reads every quad's
  * angular-root functions only (a diffuse quad has no others). The multiply then streams a
  * copy of the operator without those rows (on the glossy asset 15% of the entries are
  * kept), in the file's order, so every displayed row of X sums the same terms in the same
- * order (bit-identical); the others stay 0. Kept as the file's when it would save < 10%.
+ * order (bit-identical); the others stay 0. Kept as the file's when it would save < 10%
+ * (a compact file's: < 70%, its entries being a third of the copy's bytes).
  * Returns -1 if there is no memory. */
+/* Entry i's row and value (decoded from the compact entries when the file has them). The
+ * compact walk keeps its place: it visits the entries in order. */
+typedef struct entry_walk { uint64_t b; uint32_t left, row; } entry_walk;
+static uint32_t entry_at(const wrt_gto *g, entry_walk *wk, uint64_t i, float v[3]) {
+    if (g->rows) { memcpy(v, g->vals + i * 3, 3 * sizeof *v); return g->rows[i]; }
+    if (wk->left == 0) { wk->row = g->op_blocks[wk->b].row0; wk->left = g->op_blocks[wk->b].n; wk->b++; }
+    wk->row += g->op_deltas[i];
+    wk->left--;
+    wrt_gto_decode(g->op_codes[i], g->op_blocks[wk->b - 1].base, v);
+    return wk->row;
+}
+
 int relight_display_rows_operator(wrt_relight *r) {
     const wrt_gto *g = r->g;
     uint32_t nf = g->nfuncs;
     uint64_t keep = 0;
-    for (uint64_t i = 0; i < g->nnz; i++) keep += r->fn_ang[g->rows[i]] == 0;
-    if (keep >= 0.9 * (double)g->nnz) return 0;
+    entry_walk wk = {0, 0, 0};
+    float v[3];
+    for (uint64_t i = 0; i < g->nnz; i++) keep += r->fn_ang[entry_at(g, &wk, i, v)] == 0;
+    /* a compact file's entries take a third of the floats' bytes */
+    if (keep >= (g->rows ? 0.9 : 0.3) * (double)g->nnz) return 0;
     uint64_t *cs = relight_calloc(r, (size_t)nf + 1, sizeof *cs);
     uint32_t *rows = relight_calloc(r, keep ? keep : 1, sizeof *rows);
     float *vals = relight_calloc(r, (keep ? keep : 1) * 3 + 1, sizeof *vals); /* + 1: 4-float loads */
     if (!cs || !rows || !vals) { relight_free(r, cs); relight_free(r, rows); relight_free(r, vals); return -1; }
     uint64_t n = 0;
+    wk = (entry_walk){0, 0, 0};
     for (uint32_t c = 0; c < nf; c++) {
         cs[c] = n;
         for (uint64_t i = g->col_start[c]; i < g->col_start[c + 1]; i++) {
-            if (r->fn_ang[g->rows[i]] != 0) continue;
-            rows[n] = g->rows[i];
-            memcpy(vals + n * 3, g->vals + i * 3, 3 * sizeof *vals);
+            uint32_t row = entry_at(g, &wk, i, v);
+            if (r->fn_ang[row] != 0) continue;
+            rows[n] = row;
+            memcpy(vals + n * 3, v, 3 * sizeof *vals);
             n++;
         }
     }
@@ -109,7 +188,7 @@ void relight_multiply(wrt_relight *r, const float *src) {
     int nchunk = entries > MUL_PARALLEL_ENTRIES ? r->nthreads : 1;
     if (nchunk > MUL_MAX_CHUNKS) nchunk = MUL_MAX_CHUNKS;
     mc.nchunk = nchunk;
-    relight_parallel_for(r, nchunk, 1e9, mul_chunk, &mc);
+    relight_parallel_for(r, nchunk, 1e9, r->mul.op.rows ? mul_chunk : mul_chunk_compact, &mc);
     memcpy(r->Xprev, r->X, (size_t)nf * 3 * sizeof(float)); /* X keeps its address */
     for (size_t f = 0; f < nf; f++)
         for (int c = 0; c < 3; c++) r->X[f * 3 + c] = r->mul.X4[f * 4 + c];

@@ -47,6 +47,7 @@ void wrt_bake_defaults(wrt_bake_options *o) {
      * the error metric no longer see refinement past level 4 at quality 5, so the depth
      * grows slowly with quality and the compression threshold fast. */
     if (o->eps_compress <= 0) o->eps_compress = 1e-3 * f;
+    if (o->eps_final <= 0) o->eps_final = o->eps_compress;
     if (o->max_slevel <= 0) o->max_slevel = 1 + (q + 1) / 2;
     if (o->max_slevel > WRT_MAX_SLEVEL) o->max_slevel = WRT_MAX_SLEVEL;
     if (o->min_slevel < 0) o->min_slevel = 0;

@@ -25,6 +25,8 @@ typedef struct wrt_bake_options {
                                  * keeps (levels < WRT_RECON_KEEP; default: eps_receiver,
                                  * finer from quality 5 on: wrt_bake_defaults) */
     double eps_compress;   /* drop operator entries below this (max over RGB) after each product */
+    double eps_final;      /* the same once, on the operator that is stored (default: eps_compress;
+                            * docs/bench.md "Thresholds by error per byte") */
     int max_slevel;        /* deepest spatial level of refinement (cells 2^-l of a quad) */
     int min_slevel;        /* refine every link at least to this level (default 0) */
     int max_alevel;        /* cap on the angular level of glossy materials (1..3) */

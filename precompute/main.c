@@ -44,6 +44,8 @@ static void usage(FILE *f) {
         "                         (8 x 8 a quad); finer than --eps-receiver from quality 5\n"
         "  --eps-sender E         sender refinement threshold\n"
         "  --eps-compress E       drop operator entries below E after each product\n"
+        "  --eps-final E          drop entries below E from the stored operator, once (at\n"
+        "                         least the products' threshold; default: the quality's)\n"
         "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
         "  --min-level L          refine every link at least to level L\n"
         "  --max-angular-level L  cap on glossy materials' angular level (1..3; default 1 up\n"
@@ -58,6 +60,8 @@ static void usage(FILE *f) {
         "                         direction is truncated to the incident angular cells)\n"
         "  --gathered             store the gathered GTO (T_fine G) instead of G - I\n"
         "  --report-gathered      compute the gathered GTO's link count without storing it\n"
+        "  --float-entries        store the operator as floats (a version 1.x file, 16 bytes an\n"
+        "                         entry) instead of compact (version 2.0, about 5.5 bytes)\n"
         "  --no-tail              do not add the estimated tail of the series\n"
         "  --no-balance           keep T's quad-to-quad power as the links integrate it (no\n"
         "                         power balance: loses energy conservation; for comparison)\n"
@@ -168,10 +172,12 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
         "{\"quality\":%d,\"eps_receiver\":%.6g,\"eps_receiver_coarse\":%.6g,\"eps_sender\":%.6g,\"eps_compress\":%.6g,"
         "\"max_level\":%d,\"min_level\":%d,\"receiver_samples\":%d,\"gathered\":%d,\"tail\":%d,"
         "\"max_bounces\":%d,\"max_alevel\":%d,\"glossy_quality\":%d,"
-        "\"eps_receiver_glossy\":%.6g,\"eps_sender_glossy\":%.6g,\"max_level_glossy\":%d,\"balance\":%d}",
+        "\"eps_receiver_glossy\":%.6g,\"eps_sender_glossy\":%.6g,\"max_level_glossy\":%d,\"balance\":%d,"
+        "\"eps_final\":%.6g}",
         o->quality, o->eps_receiver, o->eps_receiver_coarse, o->eps_sender, o->eps_compress, o->max_slevel, o->min_slevel,
         o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces, o->max_alevel,
-        o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance);
+        o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance,
+        o->eps_final);
 }
 
 /* ---------------------------------------------------------------- the command line */
@@ -180,6 +186,7 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
 typedef struct bake_args {
     const char *scene_path, *out_path, *scan, *info;
     int json, force_progress, quiet, print_config, timings, drop_bad, allow_outside;
+    int float_entries;  /* --float-entries: a 1.x file, not the compact 2.0 */
     double max_error;   /* < 0: no accuracy check */
     int check_paths;
     wrt_bake_options o;
@@ -230,6 +237,15 @@ static int check_args(const bake_args *A) {
         fprintf(stderr, "wrt-bake: error: --min-level %d is deeper than --max-level %d\n", o->min_slevel, o->max_slevel);
         return WRT_EXIT_USAGE;
     }
+    if (o->eps_final > 0) { /* the defaults, to compare with the products' threshold */
+        wrt_bake_options d = *o;
+        wrt_bake_defaults(&d);
+        if (o->eps_final < d.eps_compress) {
+            fprintf(stderr, "wrt-bake: error: --eps-final %g is below the products' threshold --eps-compress %g "
+                    "(entries those dropped cannot come back)\n", o->eps_final, d.eps_compress);
+            return WRT_EXIT_USAGE;
+        }
+    }
     if (o->glossy_quality && o->glossy_quality > (o->quality ? o->quality : 5)) {
         fprintf(stderr, "wrt-bake: error: --glossy-quality %d must not exceed the quality (%d)\n", o->glossy_quality,
                 o->quality ? o->quality : 5);
@@ -260,6 +276,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--eps-receiver-coarse")) { ok = opt_num(a, v, 1e-12, 10, &o->eps_receiver_coarse); i++; }
         else if (!strcmp(a, "--eps-sender")) { ok = opt_num(a, v, 1e-12, 10, &o->eps_sender); i++; }
         else if (!strcmp(a, "--eps-compress")) { ok = opt_num(a, v, 1e-15, 1, &o->eps_compress); i++; }
+        else if (!strcmp(a, "--eps-final")) { ok = opt_num(a, v, 1e-15, 1, &o->eps_final); i++; }
         else if (!strcmp(a, "--max-level")) { ok = opt_int(a, v, 1, 10, &o->max_slevel); i++; }
         else if (!strcmp(a, "--min-level")) { ok = opt_int(a, v, 0, 10, &o->min_slevel); i++; }
         else if (!strcmp(a, "--max-angular-level")) { ok = opt_int(a, v, 1, 3, &o->max_alevel); i++; }
@@ -276,6 +293,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--check-paths")) { ok = opt_int(a, v, 1000, 1000000000, &A->check_paths); i++; }
         else if (!strcmp(a, "--gathered")) o->gathered = 1;
         else if (!strcmp(a, "--report-gathered")) o->report_gathered = 1;
+        else if (!strcmp(a, "--float-entries")) A->float_entries = 1;
         else if (!strcmp(a, "--no-tail")) o->no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o->no_balance = 1;
         else if (!strcmp(a, "--clusters")) o->clusters = 1;
@@ -462,6 +480,7 @@ static int write_pending(const bake_args *A, const wrt_scene *s, const wrt_bake_
         .col_start = r->op.col, .rows = r->op.row, .vals = r->op.val,
         .op_kind = (uint32_t)r->op_kind, .material_alevel = r->material_alevel, .provenance = prov,
         .nkcols = r->nkcols, .kkeys = r->kkeys, .kcol_start = r->kcol_start, .krows = r->krows, .kvals = r->kvals,
+        .compact = !A->float_entries,
     };
     wrt_gto_cnode *cn = NULL;
     if (r->ctree.nnodes) { /* --clusters: the tree (section ctree, version 2.0) */

@@ -217,7 +217,9 @@ static wrt_status series_tail(series_state *s) {
         s->S = S2;
     }
     wrt_csc_free(&s->P);
-    wrt_csc_compress(&s->S, s->eps, &s->W);
+    /* the stored operator: its own threshold (eps_final >= eps_compress drops what the
+     * products needed but the display does not) */
+    wrt_csc_compress(&s->S, b->opt.eps_final > s->eps ? b->opt.eps_final : s->eps, &s->W);
     C->entries_gto = s->S.nnz;
     C->links_gto = wrt_count_links(&s->S, s->res->fkeys);
     return WRT_OK;

@@ -38,15 +38,27 @@ printf '%s' "$ce" | grep -q '"eps_receiver":0.02,"eps_receiver_coarse":0.02,' &&
 printf '%s' "$cc" | grep -q '"eps_receiver":0.01,"eps_receiver_coarse":0.001,' && ok "--eps-receiver-coarse alone" || ko "--eps-receiver-coarse config: $cc"
 expect_exit "unknown option: exit 1" 1 "unknown option" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --frobnicate
 expect_exit "glossy quality above the quality refused: exit 1" 1 "glossy-quality 5 must not exceed the quality \(3\)" "$bake" assets/glossy.gltf -o "$tmp/x.gto" -q 3 --glossy-quality 5
+# --eps-final: below the products' threshold refused; above it, the stored operator alone
+# loses its smallest entries (the products' figures unchanged), and the file is smaller
+expect_exit "--eps-final below --eps-compress refused: exit 1" 1 "eps-final 1e-06 is below the products' threshold" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --eps-final 1e-6
+if "$bake" assets/cornell.gltf -q 2 -o "$tmp/ef0.gto" --json --quiet >"$tmp/ef0.json" 2>/dev/null &&
+   "$bake" assets/cornell.gltf -q 2 -o "$tmp/ef1.gto" --json --quiet --eps-final 0.01 >"$tmp/ef1.json" 2>/dev/null; then
+    e0=$(grep -o '"gto":[0-9]*' "$tmp/ef0.json" | tail -n 1 | cut -d: -f2); e1=$(grep -o '"gto":[0-9]*' "$tmp/ef1.json" | tail -n 1 | cut -d: -f2)
+    d0=$(grep -o '"dto":[0-9]*' "$tmp/ef0.json" | tail -n 1 | cut -d: -f2); d1=$(grep -o '"dto":[0-9]*' "$tmp/ef1.json" | tail -n 1 | cut -d: -f2)
+    [ -n "$e0" ] && [ -n "$e1" ] && [ "$e1" -lt "$e0" ] && [ "$d0" = "$d1" ] && [ "$(stat -c %s "$tmp/ef1.gto")" -lt "$(stat -c %s "$tmp/ef0.gto")" ] &&
+        grep -q '"eps_final":0.01' "$tmp/ef1.json" && ok "--eps-final 0.01: $e0 -> $e1 stored entries, DTO $d0 both" || ko "--eps-final: $e0 -> $e1, DTO $d0 $d1"
+else
+    ko "bakes with and without --eps-final"
+fi
 # the first-bounce operator: written for glossy quads at the lobe's level (3 for the
 # glossy asset's floor, roughness 0.3), none with --first-bounce-level 0 (no K sections;
-# both files are version 1.2 for their quad-to-source map)
+# both files are version 2.0 for their compact entries, with the quad-to-source map)
 if "$bake" assets/glossy.gltf -q 1 -o "$tmp/k.gto" --quiet >/dev/null 2>&1 &&
    "$bake" assets/glossy.gltf -q 1 -o "$tmp/k0.gto" --first-bounce-level 0 --quiet >/dev/null 2>&1; then
     k=$("$bake" --info "$tmp/k.gto" --json | jq -r '"\(.version) \(.first_bounce.max_angular_node_level)"')
     k0=$("$bake" --info "$tmp/k0.gto" --json | jq -r '"\(.version) \(.first_bounce) \(.source_map != null)"')
-    [ "$k" = "1.2 2" ] && ok "glossy bake: first-bounce operator to outgoing level 3 ($k)" || ko "glossy bake: first-bounce operator ($k)"
-    [ "$k0" = "1.2 null true" ] && ok "--first-bounce-level 0: no K, the source map (1.2)" || ko "--first-bounce-level 0: $k0"
+    [ "$k" = "2.0 2" ] && ok "glossy bake: first-bounce operator to outgoing level 3 ($k)" || ko "glossy bake: first-bounce operator ($k)"
+    [ "$k0" = "2.0 null true" ] && ok "--first-bounce-level 0: no K, the source map (2.0)" || ko "--first-bounce-level 0: $k0"
 else
     ko "glossy bakes with and without the first-bounce operator"
 fi

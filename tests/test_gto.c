@@ -49,6 +49,9 @@ enum { S_KKEYS = 11, S_KCOL_START, S_KROWS, S_KVALS };
 static const char *golden_path = "tests/data/gto/v1_small.gto";
 static const char *golden_k_path = "tests/data/gto/v1.1_k_small.gto";
 static const char *golden_s_path = "tests/data/gto/v1.2_srcmap_small.gto";
+/* Version 2.0: the compact operator (section 17 for 8 and 9); tests/test_gto_compact.c
+ * tests it, this file keeps its golden file. */
+static const char *golden_c_path = "tests/data/gto/v2.0_compact_small.gto";
 /* Version 1.2: the quad-to-source map, id 16, after the 11 (no K here). */
 #define S_SRCMAP 11
 #define F_NSEC_S 12
@@ -351,7 +354,7 @@ static void test_roundtrip(void) {
     CHECK(st == WRT_OK, "open: %s", wrt_last_error());
     if (st != WRT_OK) return;
     /* No first-bounce operator: still version 1.0 (1.1 only for files with K). */
-    CHECK(g.version == WRT_GTO_VERSION && g.version_minor == 0, "version %u.%u", g.version, g.version_minor);
+    CHECK(g.version == WRT_GTO_VERSION_FLOAT && g.version_minor == 0, "version %u.%u", g.version, g.version_minor);
     CHECK(g.nkcols == 0 && g.knnz == 0 && !g.kkeys && !g.kcol_start && !g.krows && !g.kvals, "no K");
     CHECK(g.op_kind == WRT_GTO_OP_GATHERED, "op kind %u", g.op_kind);
     CHECK(g.nquads == 3 && g.nmaterials == 2 && g.nlights == 2 && g.nnames == 2, "counts");
@@ -627,12 +630,17 @@ static void test_versions(void) {
     uint8_t *b = written("ver_src.gto", write_good, &n);
     if (!b) return;
     wrt_gto g;
-    /* 2.0 (the cluster tree's critical section, docs/clusters.md) is read; 3.0 is not */
     b[F_VERSION_MAJOR] = 3;
     fix_header_sum(b);
-    write_raw(tpath("v2.gto"), b, n);
-    expect(wrt_gto_open(tpath("v2.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 3.0 is newer than this reader's version 2.0",
+    write_raw(tpath("v3.gto"), b, n);
+    expect(wrt_gto_open(tpath("v3.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 3.0 is newer than this reader's version 2.0",
            "newer major");
+    /* Version 2.0 with float entries (a 2.0 writer that needs a critical section but
+     * writes floats): it opens. */
+    b[F_VERSION_MAJOR] = 2;
+    fix_header_sum(b);
+    wrt_status st2 = open_copy(b, n, &g);
+    CHECK(st2 == WRT_OK && g.version == 2 && g.rows && !g.op_codes, "2.0 with float entries opens: %s", wrt_last_error());
     b[F_VERSION_MAJOR] = 0;
     fix_header_sum(b);
     expect(open_copy(b, n, &g), WRT_ERR_UNSUPPORTED, "older", "older major");
@@ -1292,9 +1300,9 @@ static void test_k_bad(void) {
     if (!b) return;
     uint8_t *c = malloc(n);
     wrt_gto g;
-    /* All four or none: kvals renumbered to an unknown id (17 on: 16 is the source map). */
+    /* All four or none: kvals renumbered to an unknown id (100: below 256, skipped). */
     memcpy(c, b, n);
-    uint32_t id17 = 17;
+    uint32_t id17 = 100;
     memcpy(c + entry(S_KVALS), &id17, 4);
     fix_header_sum(c);
     expect(open_copy(c, n, &g), WRT_ERR_CORRUPT, "missing section kvals (the first-bounce sections", "kvals missing");
@@ -1463,7 +1471,7 @@ static void test_k_print_info(void) {
     wrt_status st = wrt_gto_print_info(p, 0, f);
     fclose(f);
     CHECK(st == WRT_OK, "info: %s", wrt_last_error());
-    CHECK(strstr(text, "version 1.1 (older, read in full: later versions only add 1.2 the optional source map, 1.3 the optional corner normals and textures)"),
+    CHECK(strstr(text, "version 1.1 (older, read in full: later versions add 1.2 the optional source map, 1.3 the optional corner normals and textures, 2.0 the compact operator and critical sections)"),
           "version: %s", text);
     CHECK(strstr(text, "first bounce: K, 5 columns on 2 glossy quads, 9 entries"), "K line: %s", text);
     CHECK(strstr(text, "max 3; deepest level: spatial 1, angular node 1"), "K figures: %s", text);
@@ -1484,8 +1492,8 @@ static void test_k_print_info(void) {
     f = open_memstream(&text, &tn);
     wrt_gto_print_info(p0, 0, f);
     fclose(f);
-    CHECK(strstr(text, "version 1.0 (older, read in full: later versions only add 1.1 the optional first-bounce "
-                       "operator, 1.2 the optional source map, 1.3 the optional corner normals and textures)") && strstr(text, "first bounce: none") && !strstr(text, "kkeys"),
+    CHECK(strstr(text, "version 1.0 (older, read in full: later versions add 1.1 the optional first-bounce "
+                       "operator, 1.2 the optional source map, 1.3 the optional corner normals and textures, 2.0 the compact operator and critical sections)") && strstr(text, "first bounce: none") && !strstr(text, "kkeys"),
           "no K: %s", text);
     free(text);
     f = open_memstream(&text, &tn);
@@ -1793,6 +1801,45 @@ static void test_srcmap_bad(void) {
     free(b);
 }
 
+static int write_good_c(const char *path) {
+    wrt_gto_contents c = contents;
+    c.compact = 1;
+    wrt_status st = wrt_gto_write(path, &c);
+    CHECK(st == WRT_OK, "write %s: %s", path, wrt_last_error());
+    return st == WRT_OK;
+}
+
+/* The committed 2.0 file opens with the same operator as the 1.0 golden (rows exactly,
+ * values within the encoding's step) and today's writer reproduces it. */
+static void test_c_golden(void) {
+    build();
+    wrt_gto g;
+    wrt_status st = wrt_gto_open(golden_c_path, &g);
+    CHECK(st == WRT_OK, "golden compact file: %s", wrt_last_error());
+    if (st == WRT_OK) {
+        CHECK(g.version == 2 && g.version_minor == 0 && g.nfuncs == 7 && g.nnz == 12 && !g.rows && g.op_codes,
+              "golden compact counts");
+        int ok = 1;
+        for (uint32_t s = 0; s < g.nfuncs; s++) {
+            uint64_t e = g.col_start[s];
+            for (uint32_t k = g.op_bcol[s]; k < g.op_bcol[s + 1]; k++) {
+                uint32_t row = g.op_blocks[k].row0;
+                for (uint32_t j = 0; j < g.op_blocks[k].n; j++, e++) {
+                    float v[3];
+                    row += g.op_deltas[e];
+                    wrt_gto_decode(g.op_codes[e], g.op_blocks[k].base, v);
+                    double m = fmax(fabs(vals[3 * e]), fmax(fabs(vals[3 * e + 1]), fabs(vals[3 * e + 2])));
+                    ok &= row == rows[e];
+                    for (int c = 0; c < 3; c++) ok &= fabs(v[c] - vals[3 * e + c]) <= m / 511;
+                }
+            }
+        }
+        CHECK(ok, "the golden compact file holds the operator of the 1.0 golden (within 1/511)");
+        wrt_gto_close(&g);
+    }
+    writer_reproduces(golden_c_path, "golden_c_now.gto", write_good_c);
+}
+
 static void regen(void) {
     build();
     mkdir("tests/data", 0777);
@@ -1803,6 +1850,7 @@ static void regen(void) {
     printf("%s: %s\n", golden_k_path, st == WRT_OK ? "written" : wrt_last_error());
     st = wrt_gto_write(golden_s_path, &contents_s);
     printf("%s: %s\n", golden_s_path, st == WRT_OK ? "written" : wrt_last_error());
+    printf("%s: %s\n", golden_c_path, write_good_c(golden_c_path) ? "written" : wrt_last_error());
 }
 
 int main(int argc, char **argv) {
@@ -1830,6 +1878,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_print_info);
     TEST_RUN(test_k_roundtrip);
     TEST_RUN(test_k_golden);
+    TEST_RUN(test_c_golden);
     TEST_RUN(test_k_damaged);
     TEST_RUN(test_k_bad);
     TEST_RUN(test_k_write_errors);

@@ -13,6 +13,7 @@
 #include "common/brdf.h"
 #include "common/brdf_table.h"
 #include "player/relight.h"
+#include "formats/gto_layout.h" /* the compact operator's encoder (test_multiply_compact) */
 
 /* ------------------------------------------------------------ test scene ---- */
 
@@ -959,6 +960,155 @@ static void test_multiply_dense(void) {
     multiply_dense(1);
 }
 
+/* The compact operator (version 2.0): the multiply that decodes blocks on the fly gives
+ * X bit for bit as the float multiply over the decoded values (same terms, same order),
+ * without and with the final gather (on the rows it displays); and against the dense
+ * product of the unquantized floats it is off by no more than the encoding's step (each
+ * value within half a step: 1/511 of the larger of its entry's largest channel and an
+ * eighth of its block's, the 2-bit exponent's reach). */
+static void multiply_compact(int gather) {
+    ts_scene s;
+    build_room(&s, 2, 2, 100); /* 100 entries a column: two blocks */
+    uint32_t nf = s.nf;
+    size_t n3 = (size_t)nf * 3;
+    uint64_t nnz = s.col[nf], size = 0;
+    uint8_t *enc = gto_opcode_encode(nf, s.col, s.rows, s.vals, &size);
+    CHECK(enc != NULL, "encode");
+    if (!enc) { ts_free(&s); return; }
+    gto_opcode_layout o = gto_opcode_place(nf, ((const gto_opcode_head *)enc)->nblocks, nnz);
+    wrt_gto gc = s.g;
+    gc.rows = NULL; gc.vals = NULL;
+    gc.nblocks = ((const gto_opcode_head *)enc)->nblocks;
+    gc.op_bcol = (const uint32_t *)(enc + o.bcol);
+    gc.op_blocks = (const wrt_gto_block *)(enc + o.blocks);
+    gc.op_codes = (const uint32_t *)(enc + o.codes);
+    gc.op_deltas = enc + o.deltas;
+    /* the decoded floats, independently of the multiply: rows from the deltas */
+    float *dec = calloc(nnz * 3 + 1, sizeof *dec);
+    uint32_t *drow = calloc(nnz + 1, sizeof *drow);
+    uint64_t i = 0;
+    for (uint64_t b = 0; b < gc.nblocks; b++) {
+        uint32_t row = gc.op_blocks[b].row0;
+        for (uint32_t j = 0; j < gc.op_blocks[b].n; j++, i++) {
+            row += gc.op_deltas[i];
+            drow[i] = row;
+            wrt_gto_decode(gc.op_codes[i], gc.op_blocks[b].base, dec + i * 3);
+        }
+    }
+    CHECK(i == nnz && memcmp(drow, s.rows, nnz * sizeof *drow) == 0, "the rows decode exactly (%llu of %llu entries)",
+          (unsigned long long)i, (unsigned long long)nnz);
+    double qerr = 0;
+    i = 0;
+    for (uint64_t b = 0; b < gc.nblocks; b++) {
+        double bm = 0;
+        for (uint64_t k = i; k < i + gc.op_blocks[b].n; k++)
+            for (int c = 0; c < 3; c++) bm = fmax(bm, fabs(s.vals[3 * k + c]));
+        for (uint64_t k = i; k < i + gc.op_blocks[b].n; k++) {
+            double m = fmax(fabs(s.vals[3 * k]), fmax(fabs(s.vals[3 * k + 1]), fabs(s.vals[3 * k + 2])));
+            for (int c = 0; c < 3; c++) qerr = fmax(qerr, fabs(dec[3 * k + c] - s.vals[3 * k + c]) / fmax(m, bm / 8));
+        }
+        i += gc.op_blocks[b].n;
+    }
+    CHECK(qerr <= 1.0 / 511, "each value within 1/511 of max(its largest channel, its block's / 8) (worst %.3g)", qerr);
+    wrt_gto gf = s.g;
+    gf.vals = dec;
+    wrt_relight *rc, *rf;
+    wrt_relight_options opt = {.no_gather = !gather};
+    CHECK(wrt_relight_create(&gc, &opt, &rc) == WRT_OK, "%s", wrt_last_error());
+    CHECK(wrt_relight_create(&gf, &opt, &rf) == WRT_OK, "%s", wrt_last_error());
+    double eye[3] = {0.5, 0.5, 0.9};
+    wrt_light L[2] = {point_light(0.3, 0.7, 0.6, 2), point_light(0.7, 0.25, 0.4, 1)};
+    L[0].color[0] = 1; L[0].color[1] = 0.45f; L[0].color[2] = 0.1f;
+    wrt_relight *rs[2] = {rc, rf};
+    for (int k = 0; k < 2; k++) {
+        wrt_relight_set_eye(rs[k], eye);
+        wrt_relight_set_lights(rs[k], L, NULL, 2);
+        wrt_relight_update(rs[k], NULL);
+    }
+    const float *Xc = wrt_relight_X(rc), *Xf = wrt_relight_X(rf), *E = wrt_relight_E(rc);
+    uint32_t ndiff = 0;
+    for (uint32_t r = 0; r < nf; r++)
+        if (!gather || wrt_fkey_angular_root(s.fkeys[r])) ndiff += memcmp(Xc + 3 * r, Xf + 3 * r, 3 * sizeof *Xc) != 0;
+    CHECK(ndiff == 0, "compact X is the decoded floats' X bit for bit%s (%u rows differ)",
+          gather ? " on the displayed rows (final gather)" : "", ndiff);
+    /* against the unquantized dense product, on the rows the multiply computes */
+    double *ref = calloc(n3, sizeof *ref), worst = 0, mx = 0;
+    for (uint32_t j = 0; j < nf; j++)
+        for (uint64_t k = s.col[j]; k < s.col[j + 1]; k++)
+            for (int c = 0; c < 3; c++) ref[3 * s.rows[k] + c] += (double)s.vals[3 * k + c] * E[3 * j + c];
+    for (uint32_t r = 0; r < nf; r++) {
+        if (gather && !wrt_fkey_angular_root(s.fkeys[r])) continue;
+        for (int c = 0; c < 3; c++) {
+            mx = fmax(mx, fabs(ref[3 * r + c]));
+            worst = fmax(worst, fabs(Xc[3 * r + c] - ref[3 * r + c]));
+        }
+    }
+    CHECK(mx > 0 && worst <= mx / 511, "compact X off the float operator's by %.3g of %.3g", worst, mx);
+    printf("compact multiply%s: %u functions, %llu entries in %llu blocks (%.2f bytes an entry); "
+           "worst value error %.2e; X off the float operator's by %.2e of max\n", gather ? " (final gather)" : "", nf,
+           (unsigned long long)nnz, (unsigned long long)gc.nblocks, (double)size / (double)nnz, qerr, worst / mx);
+    wrt_relight_destroy(rc);
+    wrt_relight_destroy(rf);
+    free(ref); free(dec); free(drow); free(enc);
+    ts_free(&s);
+}
+
+static void test_multiply_compact(void) {
+    multiply_compact(0);
+    multiply_compact(1);
+}
+
+/* skip_below: a light change that moves E by less than the fraction (measured here from
+ * E itself) keeps X and reports skipped; changes add up against the E last multiplied, and
+ * the one that passes gives X bit for bit as a relighter that skips nothing. A fraction
+ * outside [0, 1) is refused. */
+static void test_skip_small_change(void) {
+    ts_scene s;
+    build_room(&s, 2, 2, 20);
+    size_t n3 = (size_t)s.nf * 3;
+    wrt_relight *rs, *rf;
+    wrt_relight_options os = {.skip_below = 0.05}, of = {0}, bad = {.skip_below = 1};
+    CHECK(wrt_relight_create(&s.g, &bad, &rs) == WRT_ERR_INVALID_ARG && strstr(wrt_last_error(), "skip_below 1"),
+          "skip_below 1 refused: %s", wrt_last_error());
+    CHECK(wrt_relight_create(&s.g, &os, &rs) == WRT_OK, "%s", wrt_last_error());
+    CHECK(wrt_relight_create(&s.g, &of, &rf) == WRT_OK, "%s", wrt_last_error());
+    double eye[3] = {0.5, 0.5, 0.9};
+    wrt_light L = point_light(0.3, 0.7, 0.6, 2);
+    float *X0 = malloc(n3 * sizeof *X0), *E0 = malloc(n3 * sizeof *E0);
+    /* scale 1, then 1.03 (3%: skipped), 1.04 (4% of the applied E: skipped), 1.08 (applied) */
+    static const float scale[4] = {1.0f, 1.03f, 1.04f, 1.08f};
+    static const int want_skip[4] = {0, 1, 1, 0};
+    for (int k = 0; k < 4; k++) {
+        wrt_relight_timings ts, tf;
+        wrt_relight *both[2] = {rs, rf};
+        for (int i = 0; i < 2; i++) {
+            wrt_relight_set_eye(both[i], eye);
+            wrt_relight_set_lights(both[i], &L, &scale[k], 1);
+        }
+        wrt_relight_update(rs, &ts);
+        wrt_relight_update(rf, &tf);
+        const float *E = wrt_relight_E(rs), *Xs = wrt_relight_X(rs), *Xf = wrt_relight_X(rf);
+        double d = 0, n = 0;
+        for (size_t i = 0; i < n3; i++) { d += ((double)E[i] - E0[i]) * ((double)E[i] - E0[i]); n += (double)E0[i] * E0[i]; }
+        double rel = k ? sqrt(d / n) : 1;
+        CHECK(ts.skipped == want_skip[k] && tf.skipped == 0, "scale %.2f: E moved %.3f of the applied E, skipped %d "
+              "(expected %d)", scale[k], rel, ts.skipped, want_skip[k]);
+        CHECK(want_skip[k] ? rel < 0.05 : rel >= 0.05, "scale %.2f: the change %.3f against 0.05", scale[k], rel);
+        if (want_skip[k]) {
+            CHECK(memcmp(Xs, X0, n3 * sizeof *Xs) == 0, "scale %.2f: X kept", scale[k]);
+            CHECK(memcmp(Xs, Xf, n3 * sizeof *Xs) != 0, "scale %.2f: the relighter that skips nothing moved", scale[k]);
+        } else {
+            CHECK(memcmp(Xs, Xf, n3 * sizeof *Xs) == 0, "scale %.2f: X as the relighter's that skips nothing", scale[k]);
+            memcpy(X0, Xs, n3 * sizeof *X0);
+            memcpy(E0, E, n3 * sizeof *E0);
+        }
+    }
+    free(X0); free(E0);
+    wrt_relight_destroy(rs);
+    wrt_relight_destroy(rf);
+    ts_free(&s);
+}
+
 static double rel_rms(const float *a, const float *b, size_t n) {
     double d = 0, m = 0;
     for (size_t i = 0; i < n; i++) { d += ((double)a[i] - b[i]) * ((double)a[i] - b[i]); m += (double)b[i] * b[i]; }
@@ -1617,6 +1767,8 @@ int main(int argc, char **argv) {
     TEST_RUN(test_adaptive_vs_reference);
     TEST_RUN(test_linearity);
     TEST_RUN(test_multiply_dense);
+    TEST_RUN(test_multiply_compact);
+    TEST_RUN(test_skip_small_change);
     TEST_RUN(test_exact_zeros);
     TEST_RUN(test_glossy_beta);
     TEST_RUN(test_first_bounce_projection);

@@ -6,7 +6,8 @@
  * stopping at them. A file that passes is then read in full, every array the reader
  * hands out, the way the player uses it, the first-bounce operator K included. Built
  * by `make fuzz`; the seeds are tests/data/fuzz_gto and tests/data/gto (which holds a
- * file with K, v1.1_k_small.gto, so that mutations reach K's checks). */
+ * file with K, v1.1_k_small.gto, so that mutations reach K's checks, and a compact 2.0
+ * file, v2.0_compact_small.gto, for the opcode section's). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -69,9 +70,25 @@ static double touch(const wrt_gto *g) {
     s += g->camera->yfov + g->stats->energy_left;
     for (uint32_t f = 0; f < g->nfuncs; f++) {
         s += (double)g->fkeys[f];
-        for (uint64_t e = g->col_start[f]; e < g->col_start[f + 1]; e++)
-            s += g->rows[e] + g->vals[3 * e] + g->vals[3 * e + 2];
+        if (g->rows)
+            for (uint64_t e = g->col_start[f]; e < g->col_start[f + 1]; e++)
+                s += g->rows[e] + g->vals[3 * e] + g->vals[3 * e + 2];
     }
+    /* The compact operator (2.0): each column's blocks decoded as the multiply does, the
+     * rows looked up in fkeys (so a row out of range shows). */
+    if (g->op_codes)
+        for (uint32_t f = 0; f < g->nfuncs; f++) {
+            uint64_t e = g->col_start[f];
+            for (uint32_t k = g->op_bcol[f]; k < g->op_bcol[f + 1]; k++) {
+                uint32_t row = g->op_blocks[k].row0;
+                for (uint32_t j = 0; j < g->op_blocks[k].n; j++, e++) {
+                    float v[3];
+                    row += g->op_deltas[e];
+                    wrt_gto_decode(g->op_codes[e], g->op_blocks[k].base, v);
+                    s += (double)g->fkeys[row] + v[0] + v[2];
+                }
+            }
+        }
     for (size_t i = 0; i < g->provenance_len; i++) s += g->provenance[i];
     /* K: each column's key, its entries' rows looked up in fkeys, as the player does. */
     for (uint32_t j = 0; j < g->nkcols; j++) {

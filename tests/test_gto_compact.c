@@ -1,0 +1,382 @@
+/* test_gto_compact.c: the compact operator of .gto version 2.0 (formats/gto_opcode.c,
+ * GTO_FORMAT.md "The compact operator") and the version rules that came with it. A
+ * synthetic operator over 1,025 functions (columns of up to 150 entries, row steps above
+ * 255, values from 1e-6 to 1 of both signs) is written compact and read back: the rows
+ * exactly, every value within its documented step, values that the encoding holds
+ * exactly exactly, the blocks where the documented rule cuts them (counted here from
+ * the rule, not from the encoder); the same contents give the same bytes. Damaged files
+ * (truncated, flipped bytes) and forged ones (every check of the section behind made-right
+ * checksums, each naming what is wrong) are refused; a critical section id (>= 256) is
+ * refused naming it, an unknown id below 256 skipped. The layout is read from
+ * GTO_FORMAT.md's description, independently of gto_layout.h. */
+#ifndef _GNU_SOURCE
+#define _GNU_SOURCE
+#endif
+#include <stdlib.h>
+#include <unistd.h>
+
+#include "tests/test.h"
+#include "formats/gto.h"
+#include "formats/scene.h"
+#include "common/basis.h"
+
+#define NF_MAX 1100
+#define NNZ_MAX 60000
+static wrt_quad quads[2];
+static wrt_material mats[1];
+static wrt_scene scene;
+static uint64_t fkeys[NF_MAX], col_start[NF_MAX + 1];
+static uint32_t rows[NNZ_MAX], nfuncs;
+static float vals[NNZ_MAX * 3];
+static wrt_gto_contents contents;
+static char tmpdir[256];
+
+static uint64_t lcg_state = 99;
+static double lcg(void) {
+    lcg_state = lcg_state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return (double)(lcg_state >> 11) / 9007199254740992.0;
+}
+
+static int cmp_u64(const void *a, const void *b) {
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static void set_quad(wrt_quad *q, double z) {
+    memset(q, 0, sizeof *q);
+    q->p[0] = v3(0, 0, z); q->p[1] = v3(1, 0, z); q->p[2] = v3(1, 1, z); q->p[3] = v3(0, 1, z);
+    q->t = v3(1, 0, 0); q->n = v3(0, 0, z > 0 ? -1 : 1); q->b = v3_cross(q->n, q->t);
+    q->area = 1; q->parallelogram = 1; q->name = -1;
+}
+
+/* Quad 0: every spatial Haar function to level 4 (1,024); quad 1: its scaling function.
+ * Column 0: one entry that the encoding holds exactly; then columns of 0 to 150 entries,
+ * rows ascending in steps of 1 to 400. */
+static void build(void) {
+    memset(&scene, 0, sizeof scene);
+    set_quad(&quads[0], 0); set_quad(&quads[1], 1);
+    memset(mats, 0, sizeof mats);
+    snprintf(mats[0].name, 64, "white");
+    mats[0].base_color[0] = mats[0].base_color[1] = mats[0].base_color[2] = 0.5f;
+    mats[0].roughness = 1; mats[0].lambertian = 1;
+    scene.quads = quads; scene.nquads = 2;
+    scene.materials = mats; scene.nmaterials = 1;
+    nfuncs = 0;
+    wrt_node r = wrt_node_root();
+    fkeys[nfuncs++] = wrt_fkey_make(0, r, 0, r, 0);
+    for (int l = 0; l <= 4; l++)
+        for (int y = 0; y < (1 << l); y++)
+            for (int x = 0; x < (1 << l); x++)
+                for (int t = 1; t <= 3; t++) {
+                    wrt_node n = {(uint8_t)l, (uint16_t)x, (uint16_t)y};
+                    fkeys[nfuncs++] = wrt_fkey_make(0, n, t, r, 0);
+                }
+    fkeys[nfuncs++] = wrt_fkey_make(1, r, 0, r, 0);
+    qsort(fkeys, nfuncs, sizeof *fkeys, cmp_u64);
+    uint64_t e = 0;
+    col_start[0] = 0;
+    rows[0] = 7; vals[0] = 0.375f; vals[1] = -0.5f; vals[2] = 0.25f; /* 192, -256, 128 times 2^-9 */
+    col_start[1] = e = 1;
+    for (uint32_t s = 1; s < nfuncs; s++) {
+        int n = (int)(lcg() * 151);
+        uint32_t row = (uint32_t)(lcg() * 50);
+        for (int k = 0; k < n && row < nfuncs && e < NNZ_MAX; k++) {
+            rows[e] = row;
+            double mag = pow(10, -6 * lcg());
+            for (int c = 0; c < 3; c++) vals[3 * e + c] = (float)(mag * (lcg() - 0.4) * (c == 2 && k % 7 == 0 ? 0 : 1));
+            e++;
+            row += 1 + (uint32_t)(lcg() < 0.05 ? 256 + lcg() * 150 : lcg() * 12);
+        }
+        col_start[s + 1] = e;
+    }
+    memset(&contents, 0, sizeof contents);
+    contents.scene = &scene;
+    contents.fkeys = fkeys; contents.nfuncs = nfuncs;
+    contents.col_start = col_start; contents.rows = rows; contents.vals = vals;
+    contents.provenance = "{}";
+    contents.no_srcmap = 1;
+    contents.compact = 1;
+}
+
+/* ---- files ---- */
+
+static char *tpath(const char *name) {
+    static char buf[4][512];
+    static int k;
+    char *p = buf[k++ & 3];
+    snprintf(p, 512, "%s/%s", tmpdir, name);
+    return p;
+}
+
+static uint8_t *read_all(const char *path, size_t *len) {
+    FILE *f = fopen(path, "rb");
+    if (!f) { *len = 0; return NULL; }
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    uint8_t *b = malloc(n ? (size_t)n : 1);
+    *len = fread(b, 1, (size_t)n, f);
+    fclose(f);
+    return b;
+}
+
+static uint8_t *written(const char *name, size_t *n) {
+    wrt_status st = wrt_gto_write(tpath(name), &contents);
+    CHECK(st == WRT_OK, "write: %s", wrt_last_error());
+    return st == WRT_OK ? read_all(tpath(name), n) : NULL;
+}
+
+static uint64_t rd64(const uint8_t *b, size_t o) { uint64_t x; memcpy(&x, b + o, 8); return x; }
+static uint32_t rd32(const uint8_t *b, size_t o) { uint32_t x; memcpy(&x, b + o, 4); return x; }
+static void wr64(uint8_t *b, size_t o, uint64_t x) { memcpy(b + o, &x, 8); }
+
+/* The table entry of section `id` (header 64 bytes, entries of 48: id, elem_size, offset
+ * at 8, size at 16, count at 24, checksum at 32), or 0. */
+static size_t entry_of(const uint8_t *b, uint32_t id) {
+    uint32_t ns = rd32(b, 28);
+    for (uint32_t i = 0; i < ns; i++)
+        if (rd32(b, 64 + 48 * (size_t)i) == id) return 64 + 48 * (size_t)i;
+    return 0;
+}
+
+/* Every section checksum and the header's made right, as a forger would. */
+static void forge(uint8_t *b) {
+    uint32_t ns = rd32(b, 28);
+    for (uint32_t i = 0; i < ns; i++) {
+        size_t e = 64 + 48 * (size_t)i;
+        wr64(b, e + 32, wrt_gto_checksum(b + rd64(b, e + 8), (size_t)rd64(b, e + 16)));
+    }
+    wr64(b, 40, 0);
+    wr64(b, 40, wrt_gto_checksum(b, 64 + 48 * (size_t)ns));
+}
+
+static wrt_status open_copy(const uint8_t *b, size_t n, wrt_gto *g) {
+    uint8_t *c = malloc(n ? n : 1);
+    if (n) memcpy(c, b, n);
+    wrt_status st = wrt_gto_open_memory(c, n, g);
+    free(c);
+    return st;
+}
+
+static void expect(wrt_status got, wrt_status want, const char *substr, const char *what) {
+    CHECK(got == want, "%s: status %s, expected %s (%s)", what, wrt_status_str(got), wrt_status_str(want),
+          wrt_last_error());
+    CHECK(strstr(wrt_last_error(), substr) != NULL, "%s: message '%s' lacks '%s'", what, wrt_last_error(), substr);
+}
+
+/* Where the opcode section's arrays are (GTO_FORMAT.md): header 64 bytes (codec u32,
+ * block_max u32, nblocks u64, nnz u64), then bcol, blocks, codes, deltas, each from a
+ * multiple of 64 of the payload. */
+typedef struct opc { size_t sec, bcol, blocks, codes, deltas; uint64_t nblocks, nnz; } opc;
+static size_t al64(size_t x) { return (x + 63) / 64 * 64; }
+static opc locate(const uint8_t *b) {
+    opc o;
+    o.sec = (size_t)rd64(b, entry_of(b, 17) + 8);
+    o.nblocks = rd64(b, o.sec + 8);
+    o.nnz = rd64(b, o.sec + 16);
+    o.bcol = o.sec + 64;
+    o.blocks = o.sec + al64(64 + 4 * ((size_t)nfuncs + 1));
+    o.codes = o.sec + al64(o.blocks - o.sec + 8 * o.nblocks);
+    o.deltas = o.sec + al64(o.codes - o.sec + 4 * o.nnz);
+    return o;
+}
+
+/* ---- round trip ---- */
+
+/* The blocks by the documented rule: a column's entries from the first, a block ending
+ * after 64 entries or before a row 256 or more past the previous one. */
+static uint64_t blocks_by_rule(void) {
+    uint64_t nb = 0;
+    for (uint32_t s = 0; s < nfuncs; s++)
+        for (uint64_t i = col_start[s], k = 0; i < col_start[s + 1]; i++, k++) {
+            if (k == 64 || (i > col_start[s] && rows[i] - rows[i - 1] >= 256)) k = 0;
+            nb += k == 0;
+        }
+    return nb;
+}
+
+static void test_roundtrip(void) {
+    build();
+    size_t n;
+    uint8_t *b = written("c.gto", &n);
+    if (!b) return;
+    wrt_gto g;
+    wrt_status st = wrt_gto_open(tpath("c.gto"), &g);
+    CHECK(st == WRT_OK, "open: %s", wrt_last_error());
+    if (st != WRT_OK) { free(b); return; }
+    uint64_t nnz = col_start[nfuncs];
+    CHECK(g.version == 2 && g.version_minor == 0, "version %u.%u", g.version, g.version_minor);
+    CHECK(!g.rows && !g.vals && g.op_codes && g.nnz == nnz, "compact: %llu entries", (unsigned long long)g.nnz);
+    CHECK(!entry_of(b, 8) && !entry_of(b, 9) && entry_of(b, 17), "sections rows and vals replaced by opcode");
+    uint64_t nb = blocks_by_rule();
+    CHECK(g.nblocks == nb, "%llu blocks, the rule cuts %llu", (unsigned long long)g.nblocks, (unsigned long long)nb);
+    int rows_ok = 1;
+    double worst = 0;
+    uint64_t i = 0;
+    for (uint32_t s = 0; s < nfuncs; s++) {
+        CHECK(g.op_bcol[s] <= g.op_bcol[s + 1], "bcol ascends");
+        for (uint32_t k = g.op_bcol[s]; k < g.op_bcol[s + 1]; k++) {
+            const wrt_gto_block *bk = &g.op_blocks[k];
+            uint32_t row = bk->row0;
+            double bm = 0;
+            for (uint64_t j = i; j < i + bk->n; j++)
+                for (int c = 0; c < 3; c++) bm = fmax(bm, fabs(vals[3 * j + c]));
+            for (uint32_t j = 0; j < bk->n; j++, i++) {
+                row += g.op_deltas[i];
+                rows_ok &= row == rows[i];
+                float v[3];
+                wrt_gto_decode(g.op_codes[i], bk->base, v);
+                double m = fmax(fabs(vals[3 * i]), fmax(fabs(vals[3 * i + 1]), fabs(vals[3 * i + 2])));
+                for (int c = 0; c < 3; c++) worst = fmax(worst, fabs(v[c] - vals[3 * i + c]) / fmax(m, bm / 8));
+            }
+        }
+    }
+    CHECK(i == nnz && rows_ok, "every row decoded exactly (%llu entries)", (unsigned long long)i);
+    CHECK(worst <= 1.0 / 511 && worst > 1e-5, "values within half a step, 1/511 of max(entry, block / 8): worst %.3g",
+          worst);
+    float v0[3];
+    wrt_gto_decode(g.op_codes[0], g.op_blocks[0].base, v0);
+    CHECK(v0[0] == 0.375f && v0[1] == -0.5f && v0[2] == 0.25f, "exact values decode exactly: %g %g %g", v0[0], v0[1], v0[2]);
+    printf("compact: %u functions, %llu entries, %llu blocks, section %llu bytes (%.2f an entry), file %zu bytes\n",
+           nfuncs, (unsigned long long)nnz, (unsigned long long)g.nblocks,
+           (unsigned long long)rd64(b, entry_of(b, 17) + 16), (double)rd64(b, entry_of(b, 17) + 16) / (double)nnz, n);
+    wrt_gto_close(&g);
+    size_t n2;
+    uint8_t *b2 = written("c2.gto", &n2);
+    CHECK(b2 && n2 == n && memcmp(b, b2, n) == 0, "the same contents give the same bytes");
+    free(b2);
+    /* float entries: version 1.0 still */
+    contents.compact = 0;
+    uint8_t *f = written("f.gto", &n2);
+    CHECK(f && f[12] == 1 && f[14] == 0 && entry_of(f, 8) && !entry_of(f, 17), "float entries: a 1.0 file");
+    contents.compact = 1;
+    free(f); free(b);
+}
+
+/* ---- damage ---- */
+
+static void test_truncated_and_flipped(void) {
+    build();
+    size_t n;
+    uint8_t *b = written("d.gto", &n);
+    if (!b) return;
+    wrt_gto g;
+    int refused = 0, tries = 0;
+    for (size_t len = 0; len < n; len += 1 + len / 16, tries++) refused += open_copy(b, len, &g) != WRT_OK;
+    CHECK(refused == tries, "every truncation refused (%d of %d)", refused, tries);
+    opc o = locate(b);
+    size_t at[5] = {o.sec + 8, o.bcol + 40, o.blocks + 13, o.codes + 4 * 1000 + 2, o.deltas + 777};
+    for (int k = 0; k < 5; k++) {
+        b[at[k]] ^= 0x10;
+        expect(open_copy(b, n, &g), WRT_ERR_CORRUPT, "section opcode: checksum mismatch", "flipped byte");
+        b[at[k]] ^= 0x10;
+    }
+    CHECK(open_copy(b, n, &g) == WRT_OK, "the undamaged copy opens: %s", wrt_last_error());
+    wrt_gto_close(&g);
+    free(b);
+}
+
+/* One forged change (then the checksums made right): refused with `msg`. */
+static void forged(const uint8_t *b, size_t n, size_t at, const void *val, size_t len, wrt_status want,
+                   const char *msg, const char *what) {
+    uint8_t *c = malloc(n);
+    memcpy(c, b, n);
+    memcpy(c + at, val, len);
+    forge(c);
+    wrt_gto g;
+    expect(open_copy(c, n, &g), want, msg, what);
+    free(c);
+}
+
+static void test_forged(void) {
+    build();
+    size_t n;
+    uint8_t *b = written("x.gto", &n);
+    if (!b) return;
+    opc o = locate(b);
+    /* block 5: its fields; the last block; entry codes and deltas */
+    size_t b5 = o.blocks + 8 * 5, blast = o.blocks + 8 * (o.nblocks - 1);
+    uint8_t u8;
+    int16_t i16;
+    uint32_t u32;
+    uint64_t u64;
+    u8 = 0; forged(b, n, b5 + 4, &u8, 1, WRT_ERR_CORRUPT, "block 5 (column", "block of 0 entries");
+    u8 = 65; forged(b, n, b5 + 4, &u8, 1, WRT_ERR_CORRUPT, "65 entries (1..64)", "block of 65 entries");
+    u8 = 1; forged(b, n, b5 + 5, &u8, 1, WRT_ERR_CORRUPT, "reserved byte 1", "reserved byte");
+    i16 = 37; forged(b, n, b5 + 6, &i16, 2, WRT_ERR_CORRUPT, "base exponent 37 outside [-126, 36]", "base too large");
+    i16 = -127; forged(b, n, b5 + 6, &i16, 2, WRT_ERR_CORRUPT, "base exponent -127 outside", "base too small");
+    u32 = nfuncs; forged(b, n, blast, &u32, 4, WRT_ERR_CORRUPT, "out of range (1025 functions)", "row0 = nfuncs");
+    /* the first entry of block 5 and the one after it */
+    uint64_t e5 = 0;
+    for (uint64_t k = 0; k < 5; k++) e5 += b[o.blocks + 8 * k + 4];
+    u8 = 3; forged(b, n, o.deltas + e5, &u8, 1, WRT_ERR_CORRUPT, "on a block's first entry (must be 0)", "first delta");
+    if (b[o.blocks + 8 * 5 + 4] > 1) {
+        u8 = 0; forged(b, n, o.deltas + e5 + 1, &u8, 1, WRT_ERR_CORRUPT, "row delta 0, rows must ascend", "delta 0");
+    }
+    u32 = 0x200u << 10; forged(b, n, o.codes + 4 * 123, &u32, 4, WRT_ERR_CORRUPT, "entry 123 channel 1: mantissa -512",
+                               "mantissa -512");
+    u32 = 0xffffffu; forged(b, n, o.bcol + 4 * 3, &u32, 4, WRT_ERR_CORRUPT, "bcol not monotone at column 4", "bcol");
+    u32 = (uint32_t)o.nblocks + 1;
+    forged(b, n, o.bcol + 4 * (size_t)nfuncs, &u32, 4, WRT_ERR_CORRUPT, "bcol runs from 0 to", "bcol end");
+    u32 = 2; forged(b, n, o.sec, &u32, 4, WRT_ERR_CORRUPT, "unknown encoding 2", "codec");
+    u64 = o.nnz + 1; forged(b, n, o.sec + 16, &u64, 8, WRT_ERR_CORRUPT, "do not hold the", "header's entry count");
+    u8 = 1; forged(b, n, o.codes - 1, &u8, 1, WRT_ERR_CORRUPT, "non-zero padding", "padding");
+    /* a block's first row at or below the previous block's last (same column) */
+    for (uint32_t s = 0; s < nfuncs; s++) {
+        uint32_t k0 = rd32(b, o.bcol + 4 * s), k1 = rd32(b, o.bcol + 4 * (s + 1));
+        if (k1 - k0 < 2) continue;
+        u32 = rd32(b, o.blocks + 8 * (size_t)k0);
+        forged(b, n, o.blocks + 8 * (size_t)(k0 + 1), &u32, 4, WRT_ERR_CORRUPT, "not above the previous block's last",
+               "rows across blocks");
+        break;
+    }
+    /* one entry more in a block than its column has */
+    u8 = (uint8_t)(b[blast + 4] + 1);
+    if (u8 <= 64) forged(b, n, blast + 4, &u8, 1, WRT_ERR_CORRUPT, "hold", "block count against col_start");
+    /* opcode in a 1.x file */
+    u8 = 1; forged(b, n, 12, &u8, 1, WRT_ERR_CORRUPT, "section opcode in a version 1.0 file", "opcode in 1.0");
+    free(b);
+}
+
+/* ---- version rules ---- */
+
+static void test_critical(void) {
+    build();
+    size_t n;
+    uint8_t *b = written("k.gto", &n);
+    if (!b) return;
+    uint32_t id = 258;
+    forged(b, n, entry_of(b, 17), &id, 4, WRT_ERR_UNSUPPORTED, "section id 258 is critical (ids from 256 on must be understood) and unknown",
+           "critical section");
+    free(b);
+    /* an unknown id below 256 is skipped: the source map renamed 200 in a float file */
+    contents.compact = 0; contents.no_srcmap = 0;
+    b = written("s.gto", &n);
+    contents.compact = 1; contents.no_srcmap = 1;
+    if (!b) return;
+    id = 200;
+    memcpy(b + entry_of(b, 16), &id, 4);
+    forge(b);
+    wrt_gto g;
+    wrt_status st = open_copy(b, n, &g);
+    CHECK(st == WRT_OK, "unknown section 200 skipped: %s", wrt_last_error());
+    /* a newer major: refused naming both versions */
+    b[12] = 3;
+    forge(b);
+    expect(open_copy(b, n, &g), WRT_ERR_UNSUPPORTED, "file version 3.2 is newer than this reader's version 2.0",
+           "version 3");
+    free(b);
+}
+
+int main(int argc, char **argv) {
+    snprintf(tmpdir, sizeof tmpdir, "%s/wrt_test_gto_compact.XXXXXX", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp");
+    if (!mkdtemp(tmpdir)) { perror("mkdtemp"); return 1; }
+    TEST_RUN(test_roundtrip);
+    TEST_RUN(test_truncated_and_flipped);
+    TEST_RUN(test_forged);
+    TEST_RUN(test_critical);
+    char cmd[600];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
+    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", tmpdir);
+    TEST_END();
+}

@@ -1,0 +1,193 @@
+/* codec_study.c: how compact can the operator's entries be (issue 23)? Reads a .gto
+ * with float entries (version 1.x) and, for each candidate encoding of the values and of
+ * the row indices, prints the bytes per entry and the quantization error against the
+ * float operator: relative Frobenius over the whole operator and the largest relative
+ * error of a column (|q - v| / |v| over the column's entries, RGB together). With
+ * --write PREFIX it also writes, for each value encoding, PREFIX_NAME.gto: a copy of
+ * the file whose float values are replaced by their quantized ones (checksums made
+ * right), so that wrt-compare measures the encodings' cell and image error against one
+ * path-traced reference (docs/bench.md, "Compact entries"). Blocks are those of the
+ * file's encoding (formats/gto_encode.c): up to 64 entries of one column whose rows span
+ * less than 65536. Depends on formats/gto.h and wrt_common (the checksum). */
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/wrt_common.h"
+#include "formats/gto.h"
+
+#define BLOCK_MAX 64
+
+typedef struct vcodec {
+    const char *name, *what;
+    int kind;              /* 0 float, 1 half, 2 per-block per-channel scale, 3 shared exponent */
+    int bits;              /* kind 2: signed bits per channel; kind 3: signed mantissa bits */
+    int ebits;             /* kind 3: exponent bits per entry (range 2^ebits above the block's base) */
+    double bytes_entry;    /* value bytes per entry */
+    double bytes_block;    /* value bytes per block */
+} vcodec;
+
+static const vcodec vcodecs[] = {
+    {"f32", "float RGB (today)", 0, 0, 0, 12, 0},
+    {"f16", "half-float RGB", 1, 0, 0, 6, 0},
+    {"bs16", "int16 RGB, per-block per-channel scale", 2, 16, 0, 6, 12},
+    {"bs10", "10-bit RGB in a u32, per-block per-channel scale", 2, 10, 0, 4, 12},
+    {"bs8", "int8 RGB, per-block per-channel scale", 2, 8, 0, 3, 12},
+    {"se9", "u32: 5-bit exponent + 3 x 9-bit signed mantissas, per-block base", 3, 9, 5, 4, 0},
+    {"se10", "u32: 2-bit exponent + 3 x 10-bit signed mantissas, per-block base", 3, 10, 2, 4, 0},
+    {"se7", "24 bits: 3-bit exponent + 3 x 7-bit signed mantissas, per-block base", 3, 7, 3, 3, 0},
+};
+#define NV (sizeof vcodecs / sizeof *vcodecs)
+
+/* Round to the nearest half-float value (11 significant bits, subnormals below 2^-14,
+ * saturated at 65504). */
+static float to_half(float v) {
+    double a = fabs(v);
+    if (a == 0) return v;
+    if (a > 65504) a = 65504;
+    int e;
+    frexp(a, &e); /* a = m 2^e, m in [0.5, 1) */
+    int ulp_e = e - 11;
+    if (ulp_e < -24) ulp_e = -24;
+    double q = ldexp(nearbyint(ldexp(a, -ulp_e)), ulp_e);
+    return (float)(v < 0 ? -q : q);
+}
+
+/* Quantizes the values of one block [a, b) of rows with codec c into out. */
+static void quantize_block(const vcodec *c, const float *v, uint64_t a, uint64_t b, float *out) {
+    if (c->kind == 0) { memcpy(out + a * 3, v + a * 3, (b - a) * 3 * sizeof *v); return; }
+    if (c->kind == 1) { for (uint64_t i = a * 3; i < b * 3; i++) out[i] = to_half(v[i]); return; }
+    double qmax = ldexp(1, c->bits - 1) - 1;
+    if (c->kind == 2) {
+        for (int ch = 0; ch < 3; ch++) {
+            double m = 0;
+            for (uint64_t i = a; i < b; i++) m = fmax(m, fabs(v[i * 3 + ch]));
+            float s = (float)(m / qmax);
+            for (uint64_t i = a; i < b; i++)
+                out[i * 3 + ch] = s > 0 ? (float)(nearbyint(v[i * 3 + ch] / s) * s) : 0.0f;
+        }
+        return;
+    }
+    /* shared exponent: each entry's step 2^E with E the smallest that holds its largest
+     * channel in qmax steps, at least the block's base (the largest E less the range) */
+    int emax = -1000;
+    for (uint64_t i = a; i < b; i++) {
+        double m = fmax(fabs(v[i * 3]), fmax(fabs(v[i * 3 + 1]), fabs(v[i * 3 + 2])));
+        if (m > 0) { int e = (int)ceil(log2(m / qmax)); if (ldexp(qmax, e) < m) e++; if (e > emax) emax = e; }
+    }
+    int base = emax - ((1 << c->ebits) - 1);
+    for (uint64_t i = a; i < b; i++) {
+        double m = fmax(fabs(v[i * 3]), fmax(fabs(v[i * 3 + 1]), fabs(v[i * 3 + 2])));
+        int e = base;
+        if (m > 0) { e = (int)ceil(log2(m / qmax)); if (ldexp(qmax, e) < m) e++; if (e < base) e = base; }
+        for (int ch = 0; ch < 3; ch++) out[i * 3 + ch] = (float)ldexp(nearbyint(ldexp(v[i * 3 + ch], -e)), e);
+    }
+}
+
+/* Calls fn on each block of the operator: column by column, up to BLOCK_MAX entries
+ * whose rows span less than 65536. Returns the number of blocks. With d8, a block also
+ * ends where a row is 256 or more past the previous (the u8-delta row encoding). */
+static uint64_t for_blocks(const wrt_gto *g, int d8, const vcodec *c, float *out) {
+    uint64_t nb = 0;
+    for (uint32_t s = 0; s < g->nfuncs; s++) {
+        uint64_t a = g->col_start[s], end = g->col_start[s + 1];
+        while (a < end) {
+            uint64_t b = a + 1;
+            while (b < end && b - a < BLOCK_MAX && g->rows[b] - g->rows[a] < 65536 &&
+                   (!d8 || g->rows[b] - g->rows[b - 1] < 256))
+                b++;
+            if (c) quantize_block(c, g->vals, a, b, out);
+            nb++;
+            a = b;
+        }
+    }
+    return nb;
+}
+
+static void errors(const wrt_gto *g, const float *q, double *frob, double *colmax) {
+    double num = 0, den = 0;
+    *colmax = 0;
+    for (uint32_t s = 0; s < g->nfuncs; s++) {
+        double cn = 0, cd = 0;
+        for (uint64_t i = g->col_start[s] * 3; i < g->col_start[s + 1] * 3; i++) {
+            double d = (double)q[i] - g->vals[i];
+            cn += d * d; cd += (double)g->vals[i] * g->vals[i];
+        }
+        num += cn; den += cd;
+        if (cd > 0 && sqrt(cn / cd) > *colmax) *colmax = sqrt(cn / cd);
+    }
+    *frob = den > 0 ? sqrt(num / den) : 0;
+}
+
+static uint64_t rd64(const uint8_t *b, size_t o) { uint64_t x; memcpy(&x, b + o, 8); return x; }
+static uint32_t rd32(const uint8_t *b, size_t o) { uint32_t x; memcpy(&x, b + o, 4); return x; }
+static void wr64(uint8_t *b, size_t o, uint64_t x) { memcpy(b + o, &x, 8); }
+
+/* A copy of the file with the values section (id 9) replaced by q, its checksum and the
+ * header's recomputed (GTO_FORMAT.md: table entries of 48 bytes from offset 64). */
+static int write_copy(const wrt_gto *g, const float *q, const char *path) {
+    uint8_t *b = malloc(g->size);
+    if (!b) return -1;
+    memcpy(b, g->map, g->size);
+    uint32_t ns = rd32(b, 28);
+    for (uint32_t i = 0; i < ns; i++) {
+        size_t e = 64 + 48 * (size_t)i;
+        if (rd32(b, e) != 9) continue;
+        uint64_t off = rd64(b, e + 8), sz = rd64(b, e + 16);
+        memcpy(b + off, q, sz);
+        wr64(b, e + 32, wrt_gto_checksum(b + off, (size_t)sz));
+    }
+    wr64(b, 40, 0);
+    wr64(b, 40, wrt_gto_checksum(b, 64 + 48 * (size_t)ns));
+    FILE *f = fopen(path, "wb");
+    int ok = f && fwrite(b, 1, g->size, f) == g->size;
+    if (f && fclose(f) != 0) ok = 0;
+    free(b);
+    return ok ? 0 : -1;
+}
+
+int main(int argc, char **argv) {
+    if (argc != 2 && !(argc == 4 && !strcmp(argv[2], "--write"))) {
+        fprintf(stderr, "usage: codec_study FILE.gto [--write PREFIX]\n");
+        return 1;
+    }
+    wrt_gto g;
+    if (wrt_gto_open(argv[1], &g) != WRT_OK) {
+        fprintf(stderr, "codec_study: error: %s\n", wrt_last_error());
+        return 2;
+    }
+    if (!g.vals || g.nnz == 0) {
+        fprintf(stderr, "codec_study: error: %s: no float entries to study\n", argv[1]);
+        return 2;
+    }
+    float *q = malloc(g.nnz * 3 * sizeof *q);
+    if (!q) { fprintf(stderr, "codec_study: error: out of memory\n"); return 4; }
+    uint64_t nb16 = for_blocks(&g, 0, NULL, NULL), nb8 = for_blocks(&g, 1, NULL, NULL);
+    double n = (double)g.nnz, cols = (double)g.nfuncs + 1;
+    double row_u32 = 4, row_b16 = 2 + (8.0 * nb16 + 4 * cols) / n, row_d8 = 1 + (8.0 * nb8 + 4 * cols) / n;
+    uint64_t other = g.size - g.nnz * 16;
+    printf("%s: %" PRIu64 " entries, %u columns, %" PRIu64 " blocks (u16 rows), %" PRIu64 " blocks (u8 deltas); "
+           "%.2f MB besides the entries\n", argv[1], g.nnz, g.nfuncs, nb16, nb8, other / 1e6);
+    printf("| values | bytes/entry: values | + u32 rows | + u16 rows in blocks | + u8 deltas in blocks | file MB (u16 rows) | rel. Frobenius | max column |\n");
+    printf("|---|---|---|---|---|---|---|---|\n");
+    for (size_t k = 0; k < NV; k++) {
+        const vcodec *c = &vcodecs[k];
+        for_blocks(&g, 0, c, q);
+        double frob, colmax;
+        errors(&g, q, &frob, &colmax);
+        double vb = c->bytes_entry + c->bytes_block * (double)nb16 / n;
+        printf("| %s: %s | %.2f | %.2f | %.2f | %.2f | %.1f | %.2e | %.2e |\n", c->name, c->what, vb, vb + row_u32,
+               vb + row_b16, vb + row_d8, (other + (vb + row_b16) * n) / 1e6, frob, colmax);
+        fflush(stdout);
+        if (argc == 4) {
+            char path[4096];
+            snprintf(path, sizeof path, "%s_%s.gto", argv[3], c->name);
+            if (write_copy(&g, q, path) != 0) { fprintf(stderr, "codec_study: error: cannot write %s\n", path); return 3; }
+        }
+    }
+    free(q);
+    wrt_gto_close(&g);
+    return 0;
+}
