@@ -292,7 +292,7 @@ static void oom_exit(size_t bytes) {
  * this handler; wrt_cli_init, first thing in main, restores the default. Only where an
  * address-space limit is set is the crash reported as out of memory (exit 7); without
  * one it is re-raised as it was. */
-static struct sigaction before_segv, before_bus; /* as they were (a sanitizer's, say) */
+static struct sigaction before_segv, before_bus, before_abrt; /* as they were (a sanitizer's, say) */
 
 static void early_crash(int sig) {
     struct rlimit rl;
@@ -307,6 +307,7 @@ static void early_crash(int sig) {
     }
     sigaction(SIGSEGV, &before_segv, NULL);
     sigaction(SIGBUS, &before_bus, NULL);
+    sigaction(SIGABRT, &before_abrt, NULL);
     raise(sig);
 }
 
@@ -317,6 +318,9 @@ static void install_early_crash(int argc, char **argv, char **envp) {
     sa.sa_handler = early_crash;
     sigaction(SIGSEGV, &sa, &before_segv);
     sigaction(SIGBUS, &sa, &before_bus);
+    /* libstdc++'s start-up under a tight limit ends in std::terminate, "terminate called
+     * without an active exception", then abort (wrt-bake --version at 50 MB): the same case */
+    sigaction(SIGABRT, &sa, &before_abrt);
 }
 __attribute__((section(".preinit_array"), used)) static void (*const wrt_cli_preinit)(int, char **, char **) =
     install_early_crash;
@@ -325,6 +329,7 @@ void wrt_cli_init(const char *tool) {
     stdout_tool = tool ? tool : "wrt";
     sigaction(SIGSEGV, &before_segv, NULL); /* main has started: a crash is no longer the libraries' start */
     sigaction(SIGBUS, &before_bus, NULL);
+    sigaction(SIGABRT, &before_abrt, NULL);
     atexit(check_stdout);
     wrt_set_oom_handler(oom_exit);
     /* A file size limit (ulimit -f) must fail the write (EFBIG), which every output path

@@ -219,10 +219,13 @@ static void print_summary_text(const wrt_scene *s, int npara, const int *uses, F
         if (l->type == WRT_LIGHT_DIRECTIONAL)
             fprintf(f, "  [%d] %-5s %-16s dir (%.3f, %.3f, %.3f) intensity %g lux color (%.3f, %.3f, %.3f)", i + 1, "sun",
                     l->name, l->dir.x, l->dir.y, l->dir.z, l->intensity, l->color[0], l->color[1], l->color[2]);
-        else
+        else if (l->type == WRT_LIGHT_SPOT)
             fprintf(f, "  [%d] %-5s %-16s at (%g, %g, %g) dir (%.3f, %.3f, %.3f) intensity %g cd color (%.3f, %.3f, %.3f)",
-                    i + 1, l->type == WRT_LIGHT_SPOT ? "spot" : "point", l->name, l->pos.x, l->pos.y, l->pos.z,
-                    l->dir.x, l->dir.y, l->dir.z, l->intensity, l->color[0], l->color[1], l->color[2]);
+                    i + 1, "spot", l->name, l->pos.x, l->pos.y, l->pos.z, l->dir.x, l->dir.y, l->dir.z, l->intensity,
+                    l->color[0], l->color[1], l->color[2]);
+        else /* a point light shines every way: no direction to show (docs/walkthrough.md, 1) */
+            fprintf(f, "  [%d] %-5s %-16s at (%g, %g, %g) intensity %g cd color (%.3f, %.3f, %.3f)", i + 1, "point",
+                    l->name, l->pos.x, l->pos.y, l->pos.z, l->intensity, l->color[0], l->color[1], l->color[2]);
         if (l->type == WRT_LIGHT_SPOT)
             fprintf(f, " cone %.3f/%.3f rad", l->inner_cone, l->outer_cone);
         if (l->range > 0) fprintf(f, " range %g", l->range);

@@ -980,6 +980,9 @@ int main(int argc, char **argv) {
         stage_ms t;
         if ((rc = run_frame(&a, &t))) goto done;
         if (o.out && (rc = save_picture(&a, o.out))) goto done;
+        /* on a terminal, say where the picture went (docs/walkthrough.md, 6); a pipeline
+         * or a script sees nothing on success, as before */
+        if (o.out && isatty(STDERR_FILENO)) fprintf(stderr, "wrt-play: wrote %s (%d x %d)\n", o.out, o.width, o.height);
         if (o.stats && (rc = write_stats(&a, o.stats))) goto done;
     }
 done:

@@ -539,6 +539,10 @@ static void lights_and_camera(void) {
     CHECK(strstr(buf, "1 quads (1 parallelograms") != NULL, "%s", buf);
     CHECK(strstr(buf, "spot") != NULL && strstr(buf, "intensity 30 cd") != NULL, "%s", buf);
     CHECK(strstr(buf, "[3] sun   sun              dir (0.000, 0.960, -0.280) intensity 7 lux") != NULL, "%s", buf);
+    {   /* a point light shines every way: its line shows no direction */
+        const char *p = strstr(buf, "[1] point"), *e = p ? strchr(p, '\n') : NULL, *d = p ? strstr(p, "dir (") : NULL;
+        CHECK(p && e && (!d || d > e) && strstr(p, "intensity 1 cd") && strstr(p, "intensity 1 cd") < e, "%s", buf);
+    }
     free(buf);
     wrt_scene_free(&s);
 
