@@ -171,7 +171,7 @@ $(BUILD)/wrt-compare: $(call obj,tools/compare_main.c) $(VERIFY_OBJ) $(RUNTIME_O
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
-$(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c tools/scenegen_gltf.c) $(CORE_OBJ)
+$(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c tools/scenegen_gltf.c tools/scenegen_atrium.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
