@@ -78,7 +78,7 @@ PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-sc
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
-.PHONY: all deps demo test tests stress study fuzz clean assets bench timings mutate install
+.PHONY: all deps demo test tests stress study fuzz clean assets bench bench-scale timings mutate install
 all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/examples/engine $(BUILD)/tests/runtime_instances \
      $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core
 
@@ -270,6 +270,12 @@ study: deps
 bench: all
 	bash tools/bench.sh
 	bash tools/readme_times.sh $(BUILD)
+
+# Issue 22's scale benchmark (docs/bench.md, "Scale"): the atrium and the mazes, time,
+# memory, bytes and light change against elements, slopes and plot in bench-scale/.
+# Knobs through the environment: DETAILS, MAZES, QUALITY, CAP_MB, BAKE_OPTS, LABEL.
+bench-scale: all
+	nice -n 10 bash tools/bench_scale.sh $(BUILD) bench-scale
 
 # The README's timings (its "Timings" table) measured again: CPU within a factor 2.
 timings: all

@@ -462,7 +462,14 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
                     memcpy(tr[t].v, e->v, sizeof e->v);
                     t++;
                 }
-            if (!b->opt.no_balance) {
+            /* the balance: per leaf link a reference and the power entries it sets (about
+             * three of 24 bytes each, measured on the maze: 606k entries from 263k leaves) */
+            uint64_t nleaf = 0;
+            for (size_t i = 0; i < npt; i++) nleaf += job->out[i].nleaf;
+            if (!b->opt.no_balance)
+                st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, nleaf * (8 + 3 * 24),
+                                           "the power balance");
+            if (!b->opt.no_balance && st == WRT_OK) {
                 if (b->opt.progress) b->opt.progress("balance", -1, b->opt.progress_user); /* no fraction known */
                 double tb = wrt_now();
                 uint64_t tcap = nent ? nent : 1, t0n = t;
@@ -472,7 +479,7 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             }
             res->dto = wrt_csc_from_triplets(res->nfuncs, tr, t);
             free(tr);
-            if (!b->opt.no_balance) {
+            if (!b->opt.no_balance && st == WRT_OK) {
                 double tb = wrt_now();
                 C->balance_entries += wrt_balance_glossy(b, keys, res->nfuncs, &res->dto);
                 C->t_balance += wrt_now() - tb;
@@ -482,7 +489,7 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             C->nfuncs = res->nfuncs;
             for (uint32_t f = 0; f < res->nfuncs; f++) C->nfuncs_angular += !wrt_fkey_angular_root(res->fkeys[f]);
             /* K's triplets, then its arrays (the triplets' 16 bytes an entry, then 8) */
-            if (nkent)
+            if (nkent && st == WRT_OK)
                 st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, nkent * 24,
                                            "the first-bounce operator K");
             if (nkent && st == WRT_OK) {
