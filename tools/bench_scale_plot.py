@@ -8,8 +8,10 @@ of the slopes, and draws the three quantities against the elements on log-log ax
 the fitted lines (gnuplot, pngcairo). Python's standard library only."""
 import csv
 import math
+import os
 import subprocess
 import sys
+import tempfile
 
 QUANT = [("cpu_s", "bake CPU (s)"), ("file_mb", "file (MB)"), ("peak_mb", "peak memory (MB)")]
 
@@ -57,8 +59,8 @@ def main():
     # the plot: one panel per quantity, points per (label, scene), lines per (label, all)
     series = sorted({(r["label"], r["scene"]) for r in ok})
     labels = sorted({r["label"] for r in ok})
-    data = sys.argv[2] + ".dat"
-    with open(data, "w") as f:
+    fd, data = tempfile.mkstemp(suffix=".dat")
+    with os.fdopen(fd, "w") as f:
         for lab, sc in series:
             f.write("# %s %s\n" % (lab, sc))
             for r in sorted((r for r in ok if (r["label"], r["scene"]) == (lab, sc)), key=lambda r: float(r["elements"])):
@@ -82,6 +84,8 @@ def main():
         subprocess.run(["gnuplot"], input="\n".join(gp) + "\n", text=True, check=True)
     except (OSError, subprocess.CalledProcessError) as e:
         sys.exit("bench_scale_plot: gnuplot failed (%s); the table above stands" % e)
+    finally:
+        os.unlink(data)
 
 
 if __name__ == "__main__":
