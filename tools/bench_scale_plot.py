@@ -5,7 +5,7 @@ Reads the rows tools/bench_scale.sh wrote, fits y = a * elements^b by least squa
 log-log for the bake's CPU seconds, file MB and peak MB, per label and scene family
 (atrium, maze) and per label over all scenes, prints a markdown table of the runs and one
 of the slopes, and draws the three quantities against the elements on log-log axes with
-the fitted lines (gnuplot, pngcairo). Python's standard library only."""
+the lines fitted per scene family (gnuplot, pngcairo). Python's standard library only."""
 import csv
 import math
 import os
@@ -56,7 +56,7 @@ def main():
         fits[key] = f
         print("| %s | %s | %d | %s |" % (key[0], key[1], len(g), " | ".join(
             "%.2f" % x[1] if x else "-" for x in f)))
-    # the plot: one panel per quantity, points per (label, scene), lines per (label, all)
+    # the plot: one panel per quantity, points and fitted lines per (label, scene)
     series = sorted({(r["label"], r["scene"]) for r in ok})
     labels = sorted({r["label"] for r in ok})
     fd, data = tempfile.mkstemp(suffix=".dat")
@@ -74,10 +74,10 @@ def main():
         plots = []
         for i, (lab, sc) in enumerate(series):
             plots.append('"%s" index %d using 1:%d with points pt %d ps 1.5 title "%s %s"' % (data, i, col + 2, 5 + 2 * (i % 5), lab, sc))
-        for lab in labels:
-            f = fits.get((lab, "all"), [None] * 3)[col]
+        for lab, sc in series:  # a line per scene family (families differ in cost per element)
+            f = fits.get((lab, sc), [None] * 3)[col]
             if f:
-                plots.append("%.6g * x**%.6g with lines lw 2 title \"%s fit: slope %.2f\"" % (f[0], f[1], lab, f[1]))
+                plots.append("%.6g * x**%.6g with lines lw 2 title \"%s %s fit: slope %.2f\"" % (f[0], f[1], lab, sc, f[1]))
         gp.append("plot " + ", ".join(plots) if plots else "plot 1 notitle")
     gp.append("unset multiplot")
     try:
