@@ -78,7 +78,7 @@ PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-sc
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
-.PHONY: all deps demo test tests stress study fuzz clean assets bench timings mutate install
+.PHONY: all deps demo test tests stress study fuzz clean assets bench bench-scale timings mutate install
 all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/examples/engine $(BUILD)/tests/runtime_instances \
      $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core $(BUILD)/tools/codec_study
 
@@ -177,7 +177,7 @@ $(BUILD)/tools/codec_study: $(call obj,tools/codec_study.c) $(BAKE_CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
 
-$(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c tools/scenegen_gltf.c) $(CORE_OBJ)
+$(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c tools/scenegen_gltf.c tools/scenegen_atrium.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
@@ -280,6 +280,12 @@ study: deps
 bench: all
 	bash tools/bench.sh
 	bash tools/readme_times.sh $(BUILD)
+
+# Issue 22's scale benchmark (docs/bench.md, "Scale"): the atrium and the mazes, time,
+# memory, bytes and light change against elements, slopes and plot in bench-scale/.
+# Knobs through the environment: DETAILS, MAZES, QUALITY, CAP_MB, BAKE_OPTS, LABEL.
+bench-scale: all
+	nice -n 10 bash tools/bench_scale.sh $(BUILD) bench-scale
 
 # The README's timings (its "Timings" table) measured again: CPU within a factor 2.
 timings: all

@@ -144,10 +144,12 @@ typedef struct dto_job {
     bake_thread_counters *tc;
     atomic_size_t done;
     size_t total;
+    size_t phase, stride; /* this run's pairs: phase, phase + stride, ... */
 } dto_job;
 
 static void dto_one(size_t i, int th, void *user) {
     dto_job *j = user;
+    i = j->phase + i * j->stride;
     wrt_dto_pair(j->b, j->pr[i], j->ps[i], j->occl[i], &j->tc[th], &j->out[i]);
     atomic_fetch_add(&j->done, 1);
 }
@@ -389,42 +391,47 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
     atomic_init(&job->done, 0);
     job->out = wrt_xcalloc(np ? np : 1, sizeof *job->out);
     job->tc = wrt_xcalloc((size_t)nt, sizeof *job->tc);
-    /* run in chunks so the progress callback can be called between them */
-    size_t chunk = np / 50 + 1;
+    /* run in chunks so the progress callback can be called between them; chunk c takes
+     * the pairs c, c + nch, c + 2 nch, ...: a sample of the whole scene, not a stretch of
+     * it in scene order, so the memory extrapolated from the first chunks is that of the
+     * whole (in scene order, blender_shapes' first tenth of the pairs extrapolated to 13.4
+     * GB and was refused; it needs 2.7 GB). The order does not change the result. */
+    size_t chunk = np / 50 + 1, nch = np ? (np + chunk - 1) / chunk : 0, ndone = 0;
+    uint64_t ent = 0;
     wrt_status mst = WRT_OK;
     /* the pairs' link tables may use what the budget leaves beside what is resident now */
     atomic_init(pool_bytes, 0);
     atomic_init(pool_refused, 0);
     b->pool_bytes = pool_bytes;
     b->pool_refused = pool_refused;
+    wrt_bake_memory_trim();
     uint64_t rss0 = wrt_bake_rss_bytes();
     b->pool_limit = b->opt.max_memory_mb * 1024.0 * 1024.0 - (double)rss0;
     if (b->pool_limit < 0) b->pool_limit = 0;
     if (b->opt.progress) b->opt.progress("dto", 0, b->opt.progress_user);
-    for (size_t start = 0; start < np; start += chunk) {
-        size_t n = np - start < chunk ? np - start : chunk;
+    for (size_t c = 0; c < nch; c++) {
+        size_t n = (np - c + nch - 1) / nch;
         dto_job sub = *job;
-        sub.pr = pr + start; sub.ps = ps + start; sub.occl = occl + start; sub.out = job->out + start;
+        sub.phase = c;
+        sub.stride = nch;
         wrt_parallel_for(n, nt, dto_one, &sub);
-        if (b->opt.progress && !b->opt.progress("dto", (double)(start + n) / (double)np, b->opt.progress_user))
+        ndone += n;
+        if (b->opt.progress && !b->opt.progress("dto", (double)ndone / (double)np, b->opt.progress_user))
             atomic_store(b->cancel, 1);
         if (atomic_load(b->cancel)) break;
-        /* Memory: the entries so far, extrapolated over the pairs left (the pairs run in
-         * scene order, so a glossy wall late in the list is seen only when reached: the
-         * check repeats after every chunk), then their conversion to triplets, keys and
-         * the matrix, which needs about 60 bytes per entry beside the entries' 32. */
-        uint64_t ent = 0;
-        for (size_t i = 0; i < start + n; i++) ent += job->out[i].count;
-        double done = (double)(start + n) / (double)np, left = (1 - done) / done;
+        /* Memory: the entries so far, extrapolated over the pairs left, then their
+         * conversion to triplets, keys and the matrix, which needs about 60 bytes per
+         * entry beside the entries' 32. */
+        for (size_t k = 0; k < n; k++) ent += job->out[c + k * nch].count;
+        double done = (double)ndone / (double)np, left = (1 - done) / done;
         uint64_t need = (uint64_t)((double)ent * left * sizeof(pair_entry) + (double)ent * (1 + left) * 60.0);
         uint64_t known = (uint64_t)((double)ent * 60.0);
-        /* the extrapolation from under a tenth of the pairs is noise (the first pairs of
-         * the glossy asset are its heaviest: 3x the final figure): it refuses only from
+        /* the extrapolation from under a tenth of the pairs is noise: it refuses only from
          * there on, what is already computed at any time; the figure recorded is the last */
         double keep = C->mem_estimate_mb;
         mst = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, done >= 0.1 ? need : known,
                                     "the transport operator T");
-        if (start + n < np) C->mem_estimate_mb = keep;
+        if (c + 1 < nch) C->mem_estimate_mb = keep;
         if (mst != WRT_OK) break;
     }
     for (int t = 0; t < nt; t++) {
@@ -502,7 +509,14 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
                     memcpy(tr[t].v, e->v, sizeof e->v);
                     t++;
                 }
-            if (!b->opt.no_balance) {
+            /* the balance: per leaf link a reference and the power entries it sets (about
+             * three of 24 bytes each, measured on the maze: 606k entries from 263k leaves) */
+            uint64_t nleaf = 0;
+            for (size_t i = 0; i < npt; i++) nleaf += job->out[i].nleaf;
+            if (!b->opt.no_balance)
+                st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, nleaf * (8 + 3 * 24),
+                                           "the power balance");
+            if (!b->opt.no_balance && st == WRT_OK) {
                 if (b->opt.progress) b->opt.progress("balance", -1, b->opt.progress_user); /* no fraction known */
                 double tb = wrt_now();
                 C->t_balance_begin = tb;
@@ -515,9 +529,9 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             }
             res->dto = wrt_csc_from_triplets(res->nfuncs, tr, t);
             free(tr);
-            if (b->cl) /* --clusters: the links added, the closed rule, the tree basis */
+            if (b->cl && st == WRT_OK) /* --clusters: the links added, the closed rule, the tree basis */
                 C->cluster_fix_entries = wrt_clusters_assemble(b, b->cl, keys, res->nfuncs, C->closed, &res->dto);
-            if (!b->opt.no_balance) {
+            if (!b->opt.no_balance && st == WRT_OK) {
                 double tb = wrt_now();
                 C->balance_entries += wrt_balance_glossy(b, keys, res->nfuncs, &res->dto);
                 C->t_balance += wrt_now() - tb;
@@ -527,7 +541,7 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             C->nfuncs = res->nfuncs;
             for (uint32_t f = 0; f < res->nfuncs; f++) C->nfuncs_angular += !wrt_fkey_angular_root(res->fkeys[f]);
             /* K's triplets, then its arrays (the triplets' 16 bytes an entry, then 8) */
-            if (nkent)
+            if (nkent && st == WRT_OK)
                 st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, nkent * 24,
                                            "the first-bounce operator K");
             if (nkent && st == WRT_OK) {

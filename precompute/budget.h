@@ -12,8 +12,11 @@ double wrt_bake_memory_default(void);
 /* The process's resident memory now and at its peak (getrusage), in bytes (0 if unknown). */
 uint64_t wrt_bake_rss_bytes(void);
 uint64_t wrt_bake_peak_rss_bytes(void);
+/* Hands the pages of freed memory back to the system (glibc's malloc_trim; nothing
+ * elsewhere), so that resident memory counts only what is in use. */
+void wrt_bake_memory_trim(void);
 /* Refuses (WRT_ERR_NOMEM, a message naming the figures) when `need` bytes more than
- * what is resident now would pass `budget_mb`; records the largest total (MB) in
+ * what is resident now (after wrt_bake_memory_trim) would pass `budget_mb`; records the largest total (MB) in
  * *largest_mb. `what` names the stage in the message. */
 wrt_status wrt_bake_memory_check(double budget_mb, double *largest_mb, uint64_t need, const char *what);
 

@@ -442,6 +442,16 @@ static int run_bake(bake_args *A, wrt_scene *s, wrt_bake_result *r) {
         return st == WRT_ERR_CANCELLED ? WRT_EXIT_INTERRUPTED : st == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT;
     }
     wrt_bake_defaults(&A->o);
+    /* the write's own records (formats/gto_write.c: quads, names, materials; the operator
+     * is written from the bake's arrays), about 256 bytes a quad */
+    st = wrt_bake_memory_check(A->o.max_memory_mb, &r->c.mem_estimate_mb, (uint64_t)s->nquads * 256 + (1u << 20),
+                               "writing the file");
+    if (st != WRT_OK) {
+        fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
+        wrt_bake_result_free(r);
+        wrt_scene_free(s);
+        return WRT_EXIT_INTERNAL;
+    }
     return GO_ON;
 }
 

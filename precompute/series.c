@@ -26,14 +26,16 @@
 #include "links.h"
 #include "cluster.h"
 
-/* Memory before each product: an upper bound on the product's entries from the column
- * counts (column j of P T has at most the sum of the counts of P's columns that T's
- * column j touches, and at most n), and, when that bound passes a quarter of the
- * budget, an estimate from every 16th column of the product (sparse.h; it costs a
- * sixteenth of the product). The product needs its
- * entries twice (columns, then gathered), the sum that follows S + N once more. */
+/* Memory before each product: the product's entries, estimated from every 16th of its
+ * columns (sparse.h; a sixteenth of the product's work) where an upper bound from the
+ * column counts (column j of P T has at most the sum of the counts of P's columns that T's
+ * column j touches, and at most n) passes a quarter of the budget, else from every 64th.
+ * The product holds its entries twice (columns, then gathered); the sum that follows
+ * grows S in place by at most as many (wrt_csc_add3_into), while the columns are gone.
+ * The estimate, not the bound, is what is checked and recorded: the bound was 3x the
+ * maze's peak (issue 22). */
 static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, const wrt_csc *P, const wrt_csc *T,
-                                      const wrt_csc *S, double eps, const wrt_csc_weights *W, int bounce) {
+                                      double eps, const wrt_csc_weights *W, int bounce) {
     double bound = 0;
     for (uint32_t j = 0; j < T->n; j++) {
         double cnt = 0;
@@ -45,15 +47,10 @@ static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, c
     char what[96];
     if (bounce > 0) snprintf(what, sizeof what, "bounce %d of the series", bounce);
     else snprintf(what, sizeof what, "the gathered operator T S");
-    double need = per * (2 * bound + (double)S->nnz + bound);
-    if ((double)wrt_bake_rss_bytes() + need <= 0.25 * b->opt.max_memory_mb * 1024.0 * 1024.0) {
-        /* within a quarter of the budget even at the bound: no sample needed (the
-         * sample costs a sixteenth of a product: 6% of a maze bake's series) */
-        return wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, (uint64_t)need, what);
-    }
-    uint64_t est = wrt_csc_mul_estimate(P, T, eps, W, 16, b->opt.threads);
+    int near = (double)wrt_bake_rss_bytes() + per * 2 * bound > 0.25 * b->opt.max_memory_mb * 1024.0 * 1024.0;
+    uint64_t est = wrt_csc_mul_estimate(P, T, eps, W, near ? 16 : 64, b->opt.threads);
     /* 1.25: the sample's spread, measured on the glossy asset (see the commit message) */
-    need = per * 1.25 * (2 * (double)est + (double)S->nnz + (double)est);
+    double need = per * 1.25 * 2 * (double)est;
     return wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, (uint64_t)need, what);
 }
 
@@ -126,7 +123,7 @@ static wrt_status series_bounces(series_state *s) {
     int stable = 0;
     C->bounces = 1;
     while ((int)C->bounces < b->opt.max_bounces && s->P.nnz) {
-        wrt_status mst = series_memory_check(b, C, &s->P, T, &s->S, eps, &s->W, (int)C->bounces + 1);
+        wrt_status mst = series_memory_check(b, C, &s->P, T, eps, &s->W, (int)C->bounces + 1);
         if (mst != WRT_OK) {
             char msg[1024];
             snprintf(msg, sizeof msg, "%s", wrt_last_error());
@@ -141,12 +138,11 @@ static wrt_status series_bounces(series_state *s) {
             wrt_csc_free(&N);
             break;
         }
-        wrt_csc_free(&s->P);
+        wrt_csc_free(&s->P); /* the last term, used: its product is made */
         s->P = N;
         C->bounces++;
-        wrt_csc S2 = wrt_csc_add(&s->S, &s->P, 1.0);
-        wrt_csc_free(&s->S);
-        s->S = S2;
+        const double one[3] = {1, 1, 1};
+        wrt_csc_add3_into(&s->S, &s->P, one); /* in place: no second copy of the sum */
         double pn = wrt_csc_norm(&s->P), sn = wrt_csc_norm(&s->S);
         /* next iterate: x = y / its power, y = T x */
         double vs = fmax(vp_prev[0], fmax(vp_prev[1], vp_prev[2]));
@@ -210,11 +206,9 @@ static wrt_status series_tail(series_state *s) {
     if (!b->opt.no_tail && s->P.nnz && ratio > 0 && ratio < 1) {
         double k[3];
         for (int ch = 0; ch < 3; ch++) k[ch] = rc[ch] > 0 && rc[ch] < 1 ? rc[ch] / (1 - rc[ch]) : 0;
-        wrt_csc S2 = wrt_csc_add3(&s->S, &s->P, k);
-        double sn = wrt_csc_norm(&S2);
+        wrt_csc_add3_into(&s->S, &s->P, k);
+        double sn = wrt_csc_norm(&s->S);
         C->tail_fraction = sn > 0 ? fmax(k[0], fmax(k[1], k[2])) * wrt_csc_norm(&s->P) / sn : 0;
-        wrt_csc_free(&s->S);
-        s->S = S2;
     }
     wrt_csc_free(&s->P);
     /* the stored operator: its own threshold (eps_final >= eps_compress drops what the
@@ -233,7 +227,7 @@ static wrt_status series_gathered(series_state *s) {
     /* gathered: T + T S, computed when stored or when its figures are asked for */
     if (b->opt.gathered || b->opt.report_gathered) {
         /* T S: the same check, with T on the left (column j of T S gathers T's columns) */
-        wrt_status mst = series_memory_check(b, C, T, &s->S, &s->S, s->eps, &s->W, 0);
+        wrt_status mst = series_memory_check(b, C, T, &s->S, s->eps, &s->W, 0);
         if (mst != WRT_OK) {
             char msg[1024];
             snprintf(msg, sizeof msg, "%s", wrt_last_error());

@@ -347,6 +347,55 @@ wrt_csc wrt_csc_add3(const wrt_csc *a, const wrt_csc *b, const double s[3]) {
     return m;
 }
 
+void wrt_csc_add3_into(wrt_csc *a, const wrt_csc *b, const double s[3]) {
+    uint32_t n = a->n;
+    /* the merged columns' ends */
+    uint64_t *col = wrt_xmalloc(((size_t)n + 1) * sizeof *col);
+    col[0] = 0;
+    for (uint32_t j = 0; j < n; j++) {
+        uint64_t ia = a->col[j], ea = a->col[j + 1], ib = b->col[j], eb = b->col[j + 1], m = 0;
+        while (ia < ea && ib < eb) {
+            uint32_t ra = a->row[ia], rb = b->row[ib];
+            ia += ra <= rb;
+            ib += rb <= ra;
+            m++;
+        }
+        col[j + 1] = col[j] + m + (ea - ia) + (eb - ib);
+    }
+    uint64_t total = col[n];
+    a->row = wrt_xrealloc(a->row, (total ? total : 1) * sizeof *a->row);
+    a->val = wrt_xrealloc(a->val, (total ? total : 1) * 3 * sizeof *a->val);
+    /* merge from the last column and the last entry down: an entry of a moves to the
+     * same place or later, so nothing is overwritten before it is read */
+    for (uint32_t j = n; j-- > 0;) {
+        uint64_t ia = a->col[j + 1], ib = b->col[j + 1], k = col[j + 1];
+        const uint64_t ea = a->col[j], eb = b->col[j];
+        while (ia > ea || ib > eb) {
+            uint32_t ra = ia > ea ? a->row[ia - 1] : 0, rb = ib > eb ? b->row[ib - 1] : 0;
+            int take_a = ia > ea && (ib == eb || ra >= rb), take_b = ib > eb && (ia == ea || rb >= ra);
+            float v[3];
+            uint32_t r = take_a ? ra : rb;
+            if (take_a) {
+                ia--;
+                for (int c = 0; c < 3; c++) v[c] = a->val[3 * ia + c];
+                if (take_b) { /* the same row in both: as wrt_csc_add3 rounds it */
+                    ib--;
+                    for (int c = 0; c < 3; c++) v[c] = (float)((double)v[c] + s[c] * b->val[3 * ib + c]);
+                }
+            } else {
+                ib--;
+                for (int c = 0; c < 3; c++) v[c] = (float)(s[c] * b->val[3 * ib + c]);
+            }
+            k--;
+            a->row[k] = r;
+            for (int c = 0; c < 3; c++) a->val[3 * k + c] = v[c];
+        }
+    }
+    free(a->col);
+    a->col = col;
+    a->nnz = total;
+}
+
 void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w) {
     uint64_t k = 0, start = 0;
     const double *pw = w ? w->power_w : NULL;

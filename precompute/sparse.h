@@ -39,6 +39,9 @@ uint64_t wrt_csc_mul_estimate(const wrt_csc *a, const wrt_csc *b, double drop, c
 /* C = A + s B, and with a scale per channel. */
 wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s);
 wrt_csc wrt_csc_add3(const wrt_csc *a, const wrt_csc *b, const double s[3]);
+/* a += s b in place, per channel, with the same entries and roundings as wrt_csc_add3:
+ * a's arrays grow by at most b's entries instead of a copy of both being made. */
+void wrt_csc_add3_into(wrt_csc *a, const wrt_csc *b, const double s[3]);
 /* Removes entries below `drop` (weighted as in wrt_csc_mul). */
 void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w);
 /* Sorts n 64-bit keys ascending (LSD radix; for the bake's function keys). */

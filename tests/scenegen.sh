@@ -84,8 +84,14 @@ for mesh in g["meshes"]:
         lo = [min(p[c] for p in pos) for c in range(3)]; hi = [max(p[c] for p in pos) for c in range(3)]
         if [f32(x) for x in pa["min"]] != lo or [f32(x) for x in pa["max"]] != hi:
             err("%s: POSITION min/max %s %s != data %s %s" % (mesh["name"], pa["min"], pa["max"], lo, hi))
-        if len(idx) % 6: err("%s: index count not a multiple of 6" % mesh["name"])
         if any(i >= len(pos) for i in idx): err("%s: index out of range" % mesh["name"])
+        if mesh["name"] in want.get("trimeshes", "").split(","):  # loose triangles: each non-degenerate,
+            for t in range(0, len(idx) - 2, 3):                   # its normals on its front side
+                p0, p1, p2 = (pos[i] for i in idx[t:t+3]); n = cross(sub(p1, p0), sub(p2, p0))
+                if dot(n, n) < 1e-20: err("%s: degenerate triangle %d" % (mesh["name"], t // 3))
+                if any(dot(nrm[i], n) <= 0 for i in idx[t:t+3]): err("%s: a normal disagrees with the winding" % mesh["name"])
+            continue
+        if len(idx) % 6: err("%s: index count not a multiple of 6" % mesh["name"])
         for t in range(0, len(idx) - 5, 6):
             t0, t1 = idx[t:t+3], idx[t+3:t+6]
             shared = set(t0) & set(t1)
@@ -331,6 +337,72 @@ ok = (s["triangles"] == 10 + 224 + 36 + 30 and e["paired"] == 5 + 96 + 18 + 13 a
 sys.exit(0 if ok else 1)
 PY
     then ok; else bad "cornell-shapes / icosphere scans: $(head -c 400 "$tmp/shapes.json")"; fi
+fi
+
+# the atrium (issue 22's scale benchmark): valid, closed as seen from its light (rays from
+# the light in 400 fixed directions all meet the front of a face: nothing escapes, nothing
+# is seen from behind), the same bytes twice, elements growing as about detail^1.7 as
+# --help states (--scan's count), no triangle dropped or refused
+run atrium-half "$tmp/at05.gltf" atrium --detail 0.5
+run atrium-1 "$tmp/at1.gltf" atrium
+check_gltf atrium "$tmp/at05.gltf" trimeshes=arcade_fans,columns,banner_tips_red,banner_tips_blue lights=1 type=point light0=0,3,0 lookat_bbox=1 bbox=-8,0,-6.4,8,8,6.4
+"$gen" atrium -o "$tmp/at1b.gltf" >/dev/null 2>&1
+if cmp -s "$tmp/at1.gltf" "$tmp/at1b.gltf"; then ok; else bad "atrium: two runs differ"; fi
+if python3 - "$tmp/at05.gltf" <<'PY'
+import base64, json, math, struct, sys
+g = json.load(open(sys.argv[1]))
+data = base64.b64decode(g["buffers"][0]["uri"].split(",", 1)[1])
+def acc(i):
+    a = g["accessors"][i]; v = g["bufferViews"][a["bufferView"]]
+    n = a["count"] * (3 if a["type"] == "VEC3" else 1)
+    vals = struct.unpack_from("<%d%s" % (n, "f" if a["componentType"] == 5126 else "I"), data, v.get("byteOffset", 0))
+    return [vals[3*k:3*k+3] for k in range(a["count"])] if a["type"] == "VEC3" else vals
+tris = []
+for m in g["meshes"]:
+    for p in m["primitives"]:
+        P = acc(p["attributes"]["POSITION"]); I = acc(p["indices"])
+        tris += [(P[I[k]], P[I[k+1]], P[I[k+2]]) for k in range(0, len(I), 3)]
+L = (0.0, 3.0, 0.0)
+sub = lambda a, b: (a[0]-b[0], a[1]-b[1], a[2]-b[2])
+dot = lambda a, b: a[0]*b[0]+a[1]*b[1]+a[2]*b[2]
+cross = lambda a, b: (a[1]*b[2]-a[2]*b[1], a[2]*b[0]-a[0]*b[2], a[0]*b[1]-a[1]*b[0])
+pre = [(a, sub(b, a), sub(c, a), cross(sub(b, a), sub(c, a))) for a, b, c in tris]
+bad = 0; n = 400; ga = math.pi * (3 - math.sqrt(5))
+for k in range(n):  # a Fibonacci sphere of directions
+    y = 1 - 2 * (k + 0.5) / n; r = math.sqrt(1 - y * y); d = (r * math.cos(ga * k), y, r * math.sin(ga * k))
+    best, front = 1e30, None
+    for a, e1, e2, nrm in pre:
+        p = cross(d, e2); det = dot(e1, p)
+        if abs(det) < 1e-12: continue
+        s = sub(L, a); u = dot(s, p) / det
+        if u < 0 or u > 1: continue
+        q = cross(s, e1); v = dot(d, q) / det
+        if v < 0 or u + v > 1: continue
+        t = dot(e2, q) / det
+        if 1e-6 < t < best: best, front = t, dot(nrm, d) < 0
+    if front is not True: bad += 1
+print("%d of %d rays escape or meet a back face" % (bad, n))
+sys.exit(0 if bad == 0 else 1)
+PY
+then ok; else bad "atrium is not closed and facing its light"; fi
+for args in "atrium --detail 0.1" "atrium --detail 17" "atrium --detail x"; do
+    # shellcheck disable=SC2086
+    "$gen" $args --out "$tmp/bad.gltf" >/dev/null 2>&1; rc=$?
+    if [ $rc -eq 1 ] && [ ! -e "$tmp/bad.gltf" ]; then ok; else bad "wrt-scenegen $args: status $rc"; fi
+done
+if [ -x "$build/wrt-bake" ]; then
+    "$gen" atrium --detail 2 -o "$tmp/at2.gltf" >/dev/null 2>&1
+    for d in 05 1 2; do "$build/wrt-bake" --scan "$tmp/at$d.gltf" --json >"$tmp/at$d.json" 2>"$tmp/at$d.err"; done
+    if python3 - "$tmp/at05.json" "$tmp/at1.json" "$tmp/at2.json" <<'PY'
+import json, sys
+s = [json.load(open(f)) for f in sys.argv[1:]]
+n = [x["quads"] for x in s]
+ok = all(x["dropped"] == 0 and x["non_finite"] == 0 and x["problems"] == [] for x in s)
+ok = ok and 2000 <= n[1] <= 3500 and 2.3 <= n[1] / n[0] <= 3.6 and 2.3 <= n[2] / n[1] <= 3.6  # 2^1.7 = 3.2
+ok = ok and all(x["elements"]["triangles"] > 0 and x["elements"]["paired"] > 0 for x in s)  # both kinds
+print(n); sys.exit(0 if ok else 1)
+PY
+    then ok; else bad "atrium scans: $(cat "$tmp/at1.err" | head -c 300)"; fi
 fi
 
 summary

@@ -360,6 +360,54 @@ static double dominant_eigenvalue(const wrt_scene *s, const wrt_bake_result *r) 
     return lambda;
 }
 
+/* The series' in-place sum (wrt_csc_add3_into) against the sum written out densely in
+ * double: random 40 x 40 matrices of about 30% entries with empty columns and shared
+ * rows, a per-channel scale; the same entries as wrt_csc_add3, bit for bit. */
+static void test_add_in_place(void) {
+    enum { N = 40 };
+    uint32_t seed = 777;
+    wrt_triplet ta[N * N], tb[N * N];
+    uint64_t na = 0, nb = 0;
+    static double dense[N][N][3];
+    const double s[3] = {1, 0.5, -2};
+    for (uint32_t j = 0; j < N; j++)
+        for (uint32_t i = 0; i < N; i++) {
+            for (int c = 0; c < 3; c++) dense[i][j][c] = 0;
+            for (int w = 0; w < 2; w++) {
+                seed = seed * 1664525u + 1013904223u;
+                if ((seed >> 8) % 10 >= 3 || j % 7 == 3) continue;
+                wrt_triplet *e = w ? &tb[nb++] : &ta[na++];
+                e->row = i; e->col = j;
+                for (int c = 0; c < 3; c++) {
+                    e->v[c] = (float)((double)((seed >> 4) % 1000) / 997.0 - 0.4 + c);
+                    dense[i][j][c] += (w ? s[c] : 1) * e->v[c];
+                }
+            }
+        }
+    wrt_csc a = wrt_csc_from_triplets(N, ta, na), b = wrt_csc_from_triplets(N, tb, nb);
+    wrt_csc want = wrt_csc_add3(&a, &b, s);
+    wrt_csc_add3_into(&a, &b, s);
+    CHECK(a.nnz == want.nnz, "in-place sum has %llu entries, wrt_csc_add3 %llu", (unsigned long long)a.nnz,
+          (unsigned long long)want.nnz);
+    int same = a.nnz == want.nnz && !memcmp(a.col, want.col, (N + 1) * sizeof *a.col) &&
+               !memcmp(a.row, want.row, a.nnz * sizeof *a.row) && !memcmp(a.val, want.val, 3 * a.nnz * sizeof *a.val);
+    CHECK(same, "in-place sum differs from wrt_csc_add3");
+    double worst = 0;
+    for (uint32_t j = 0; j < N; j++)
+        for (uint64_t k = a.col[j]; k < a.col[j + 1]; k++)
+            for (int c = 0; c < 3; c++) {
+                worst = fmax(worst, fabs(a.val[3 * k + c] - dense[a.row[k]][j][c]));
+                dense[a.row[k]][j][c] = 0;
+            }
+    for (uint32_t i = 0; i < N; i++)
+        for (uint32_t j = 0; j < N; j++)
+            for (int c = 0; c < 3; c++) worst = fmax(worst, fabs(dense[i][j][c]) > 0 ? 1 : 0);
+    CHECK(worst < 1e-5, "in-place sum off the dense sum by %.3g (or an entry missing)", worst);
+    printf("in-place sum: %llu + %llu entries -> %llu, worst difference from the dense sum %.2e\n",
+           (unsigned long long)na, (unsigned long long)nb, (unsigned long long)a.nnz, worst);
+    wrt_csc_free(&a); wrt_csc_free(&b); wrt_csc_free(&want);
+}
+
 /* Compression keeps each column's power (sum of power weight x entry), the property the
  * series relies on (precompute/sparse.h), also in a column whose power nearly cancels:
  * a wavelet sender's entries to receiver roots are of both signs and sum to what it
@@ -953,6 +1001,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_coloured_furnace);
     TEST_RUN(test_small_quads_furnace);
     TEST_RUN(test_compression_keeps_power);
+    TEST_RUN(test_add_in_place);
     TEST_RUN(test_power_balance);
     TEST_RUN(test_glossy_power_balance);
     TEST_RUN(test_coplanar_and_backfacing);

@@ -22,6 +22,7 @@ typedef struct sg_options {
     int cells;        /* maze: cells per side */
     uint64_t seed;    /* maze: layout seed */
     double roughness; /* cornell-glossy, glossy-box: the metal's roughness */
+    double detail;    /* atrium: tessellation (elements grow as detail^2) */
 } sg_options;
 
 typedef struct sg_material {
@@ -67,6 +68,21 @@ typedef struct sbuf {
     char *p;
     size_t n, cap;
 } sbuf;
+
+/* Builders shared with the scene files other than scenegen.c (defined there): a
+ * material and a mesh (their index), a white point light (candela), the camera, a
+ * triangle a b c (counter-clockwise seen from its front, normal per vertex) and a
+ * planar convex quad a b c d (counter-clockwise seen from its front; written as the
+ * two indexed triangles a b c, a c d). */
+int sg_add_material(sg_scene *s, const char *name, double r, double g, double b, double metallic, double roughness);
+int sg_add_mesh(sg_scene *s, const char *name, int material);
+void sg_add_point_light(sg_scene *s, const char *name, wrt_v3 pos, double intensity);
+void sg_set_camera(sg_scene *s, wrt_v3 eye, wrt_v3 target, double yfov_deg);
+void sg_push_tri(sg_scene *s, int mesh, wrt_v3 a, wrt_v3 b, wrt_v3 c, wrt_v3 na, wrt_v3 nb, wrt_v3 nc);
+void sg_push_quad(sg_scene *s, int mesh, wrt_v3 a, wrt_v3 b, wrt_v3 c, wrt_v3 d);
+
+/* The atrium (scenegen_atrium.c). */
+void scene_atrium(sg_scene *s);
 
 /* Writes scene s as one self-contained glTF 2.0 text (one base64 buffer) into out. */
 void write_gltf(const sg_scene *s, sbuf *out);
