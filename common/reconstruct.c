@@ -304,6 +304,27 @@ static inline float minmod3(float a, float b, float c) {
     return 0;
 }
 
+/* How far the bake's four children of cell c (rows r0, r1, two cells each; parent
+ * average par) lie from the limited prediction below, as a fraction of the larger of the
+ * cell's average and the quad's mean (mean: the quad's level 0), both the largest over
+ * the channels. The
+ * children's own offsets are compared (each child minus the parent, the prediction's
+ * minus its centre), so that a cell the coarser levels already moved is judged alike. */
+static float details_missed(const float *c, int nc, size_t ws, const float *par, const float *r0, const float *r1,
+                            const float *mean) {
+    float dmax = 0, smax = 0;
+    for (int ch = 0; ch < nc; ch++) {
+        float av = c[ch], E = c[nc + ch], W = c[ch - nc], N = c[ws + ch], S = c[ch - ws];
+        float dx = minmod3(2 * (av - W), 0.5f * (E - W), 2 * (E - av)) * 0.25f;
+        float dy = minmod3(2 * (av - S), 0.5f * (N - S), 2 * (N - av)) * 0.25f;
+        float pred[4] = {-dx - dy, dx - dy, -dx + dy, dx + dy};
+        float bake[4] = {r0[ch] - par[ch], r0[nc + ch] - par[ch], r1[ch] - par[ch], r1[nc + ch] - par[ch]};
+        for (int t = 0; t < 4; t++) dmax = fmaxf(dmax, fabsf(bake[t] - pred[t]));
+        smax = fmaxf(smax, fmaxf(fabsf(av), fabsf(mean[ch])));
+    }
+    return smax > 0 ? dmax / smax : (dmax > 0 ? INFINITY : 0);
+}
+
 size_t wrt_recon_scratch(const wrt_recon *rc, int gr, int L, int Lo, int nc) {
     int nm;
     wrt_recon_members(rc, gr, &nm);
@@ -406,21 +427,8 @@ static void recon_children(int s, int q, int l, int L, int m, int w, int nc, con
             const float *c = rowc + (size_t)i * nc;
             size_t x0 = (size_t)(2 * i) * nc, x1 = x0 + nc;
             int is_known = all_known || (kn && kn[(size_t)j * m + i]);
-            if (is_known && l >= keep) { /* past `keep`: only a sharp feature's details */
-                float dmax = 0, pmax = 0;
-                for (int ch = 0; ch < nc; ch++) {
-                    float par = pl[((size_t)j * m + i) * nc + ch];
-                    float d0 = fabsf(p0[x0 + ch] - par), d1 = fabsf(p0[x1 + ch] - par);
-                    float d2 = fabsf(p1[x0 + ch] - par), d3 = fabsf(p1[x1 + ch] - par);
-                    float ap = fabsf(par);
-                    pmax = ap > pmax ? ap : pmax;
-                    dmax = d0 > dmax ? d0 : dmax;
-                    dmax = d1 > dmax ? d1 : dmax;
-                    dmax = d2 > dmax ? d2 : dmax;
-                    dmax = d3 > dmax ? d3 : dmax;
-                }
-                is_known = sharp > 0 && dmax > sharp * pmax;
-            }
+            if (is_known && l >= keep) /* past `keep`: only the details the prediction misses */
+                is_known = sharp > 0 && details_missed(c, nc, ws, pl + ((size_t)j * m + i) * nc, p0 + x0, p1 + x0, pyr) > sharp;
             if (is_known) {
                 for (int ch = 0; ch < nc; ch++) {
                     float dv = c[ch] - pl[((size_t)j * m + i) * nc + ch];

@@ -78,9 +78,10 @@ static inline uint32_t wrt_recon_node(int l, int x, int y) {
 }
 
 /* Which of the bake's averages are kept (NULL: the defaults). A node's children keep the
- * bake's averages if it holds a function and lies above level `keep`, or below it if its
- * details are sharp: a child differs from the node's average by more than `sharp` times
- * it (0: never); the rest are predicted. `limit` 1: the prediction's slopes are limited
+ * bake's averages if it holds a function and lies above level `keep`, or below it if the
+ * prediction misses its details: a child's offset from the node's average differs from
+ * the limited prediction's by more than `sharp` times the larger of the node's average
+ * and the quad's mean (0: never); the rest are predicted. `limit` 1: the prediction's slopes are limited
  * (monotonized central: no child beyond its neighbours' range, so a dark cell beside a lit
  * one stays dark, and linear functions are still reproduced exactly). `linear` 1: the
  * output is a fixed linear function of the input (the sum of two inputs' outputs is the
@@ -90,7 +91,7 @@ static inline uint32_t wrt_recon_node(int l, int x, int y) {
  * not linear: the limiter, the sharpness test and the clamp all depend on the data. */
 typedef struct wrt_recon_params { int keep; float sharp; int limit; int linear; } wrt_recon_params;
 #define WRT_RECON_KEEP 3
-#define WRT_RECON_SHARP 0.5f
+#define WRT_RECON_SHARP 0.1f
 
 /* Reconstructs every member of group `gr`: in[q] holds quad q's 2^L x 2^L cell averages
  * (nc floats a cell, cell (i, j) at (j 2^L + i) nc, i along u), known[q] its mask for
