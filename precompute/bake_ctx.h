@@ -63,6 +63,10 @@ static inline uint64_t wrt_mix64(uint64_t z) {
     return z ^ (z >> 31);
 }
 
+/* 1 if the segment a -> b is blocked by some quad; both ends must already be lifted off
+ * their quads along the normals (by ray_eps): the ray is not trimmed (dto.c). */
+int wrt_bake_occluded(const bake_ctx *b, wrt_v3 a, wrt_v3 bpt);
+
 /* The corners of cell n of quad q, in order. */
 static inline void wrt_cell_poly(const wrt_quad *q, wrt_node n, wrt_v3 out[4]) {
     double x0 = wrt_node_x0(n), y0 = wrt_node_y0(n), sz = wrt_node_size(n);

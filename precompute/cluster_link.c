@@ -91,23 +91,6 @@ static void leaf_pair(const lctx *c, sink *k, int qa, int qb) {
     k->pr[k->np] = r; k->ps[k->np] = s; k->oc[k->np] = (uint8_t)(oc | 2); k->np++;
 }
 
-/* 1 if the segment a -> b (ends already lifted off their quads) is blocked */
-static int blocked(const bake_ctx *b, wrt_v3 a, wrt_v3 e) {
-    wrt_v3 d = v3_sub(e, a);
-    double len = v3_len(d);
-    if (len <= 0) return 0;
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    struct RTCRay ray;
-    ray.org_x = (float)a.x; ray.org_y = (float)a.y; ray.org_z = (float)a.z;
-    ray.dir_x = (float)(d.x / len); ray.dir_y = (float)(d.y / len); ray.dir_z = (float)(d.z / len);
-    ray.tnear = 0;
-    ray.tfar = (float)(len * (1 - 1e-7));
-    ray.time = 0; ray.mask = 0xFFFFFFFF; ray.id = 0; ray.flags = 0;
-    rtcOccluded1(b->rtc, &ctx, &ray);
-    return ray.tfar < 0;
-}
-
 static double u01(uint64_t h) { return (double)(h >> 11) * 0x1.0p-53; }
 
 /* CL_SAMPLES area-stratified points of node p (and their quads' normals) */
@@ -155,7 +138,7 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
             double d2 = v3_dot(d, d), ci = v3_dot(na[i], d), cj = -v3_dot(nb[j], d);
             if (!(ci > 0 && cj > 0 && d2 > 0)) { k->refused_spread++; return 0; } /* seen edge-on or from behind */
             k->rays++;
-            int bl = blocked(c->b, xa[i], xb[j]);
+            int bl = wrt_bake_occluded(c->b, xa[i], xb[j]); /* ends already lifted off their quads */
             nblk += bl;
             kv[i][j] = bl ? 0 : ci * cj / (WRT_PI * d2 * d2);
         }

@@ -176,8 +176,8 @@ static size_t get_block(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     return pc->nblocks++;
 }
 
-/* 1 if the segment a -> b is blocked by some quad. */
-static int occluded(const bake_ctx *b, wrt_v3 a, wrt_v3 bpt) {
+/* 1 if the segment a -> b is blocked by some quad (bake_ctx.h). */
+int wrt_bake_occluded(const bake_ctx *b, wrt_v3 a, wrt_v3 bpt) {
     wrt_v3 d = v3_sub(bpt, a);
     double len = v3_len(d);
     if (len <= 0) return 0;
@@ -310,7 +310,7 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
                     double tu = wrt_node_x0(c) + gu * wrt_node_size(c), tv = wrt_node_y0(c) + gv * wrt_node_size(c);
                     wrt_v3 y = wrt_quad_point(S, tu, tv);
                     double t0 = wrt_now();
-                    int blocked = occluded(b, v3_mad(x, R->n, b->ray_eps), v3_mad(y, S->n, b->ray_eps));
+                    int blocked = wrt_bake_occluded(b, v3_mad(x, R->n, b->ray_eps), v3_mad(y, S->n, b->ray_eps));
                     pc->tc->t_rays += wrt_now() - t0;
                     pc->tc->rays_traced++;
                     if (blocked) continue;
