@@ -294,13 +294,17 @@ static void oom_exit(size_t bytes) {
  * one it is re-raised as it was. */
 static struct sigaction before_segv, before_bus, before_abrt; /* as they were (a sanitizer's, say) */
 
+static volatile sig_atomic_t in_main; /* wrt_cli_init has run */
+
 static void early_crash(int sig) {
     struct rlimit rl;
     if (getrlimit(RLIMIT_AS, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY) {
-        char msg[200];
-        int n = snprintf(msg, sizeof msg, "%s: error: out of memory: signal %d while the shared libraries "
-                         "initialized, before main, under an address-space limit of %llu MB\n",
-                         program_invocation_short_name, sig, (unsigned long long)(rl.rlim_cur >> 20));
+        char msg[240];
+        int n = snprintf(msg, sizeof msg, "%s: error: out of memory: signal %d %s, under an address-space limit "
+                         "of %llu MB\n", program_invocation_short_name, sig,
+                         in_main ? "from a library (std::terminate: a thread or an allocation refused)"
+                                 : "while the shared libraries initialized, before main",
+                         (unsigned long long)(rl.rlim_cur >> 20));
         ssize_t w = write(2, msg, n > 0 ? (size_t)n : 0);
         (void)w;
         _exit(WRT_EXIT_INTERNAL); /* 7: out of memory */
@@ -329,7 +333,12 @@ void wrt_cli_init(const char *tool) {
     stdout_tool = tool ? tool : "wrt";
     sigaction(SIGSEGV, &before_segv, NULL); /* main has started: a crash is no longer the libraries' start */
     sigaction(SIGBUS, &before_bus, NULL);
-    sigaction(SIGABRT, &before_abrt, NULL);
+    /* Under an address-space limit a C++ library (Embree's threads) can still end in
+     * std::terminate after main has started: that abort is the same out of memory (exit 7);
+     * without a limit an abort is what it was. */
+    struct rlimit rl;
+    in_main = 1;
+    if (!(getrlimit(RLIMIT_AS, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY)) sigaction(SIGABRT, &before_abrt, NULL);
     atexit(check_stdout);
     wrt_set_oom_handler(oom_exit);
     /* A file size limit (ulimit -f) must fail the write (EFBIG), which every output path

@@ -252,10 +252,10 @@ PY
         line=$(head -n 1 "$tmp/err")
         case $rc in
             0) ;;
-            # one line of ours; before main, libstdc++'s start-up may print its own
-            # "terminate called ..." line first (cli/cli.c, early_crash)
+            # one line of ours; libstdc++ may print its own "terminate called ..." line
+            # first when a library gives up under the limit (cli/cli.c, early_crash)
             7) if tail -n 1 "$tmp/err" | grep -q "^wrt-bake: error: .*out of memory" &&
-                  { [ "$(wc -l <"$tmp/err")" -eq 1 ] || { [ "$(wc -l <"$tmp/err")" -eq 2 ] && grep -q "before main" "$tmp/err"; }; }; then
+                  { [ "$(wc -l <"$tmp/err")" -eq 1 ] || { [ "$(wc -l <"$tmp/err")" -eq 2 ] && head -n 1 "$tmp/err" | grep -q "^terminate called"; }; }; then
                    n7=$((n7 + 1)); else nbad=$((nbad + 1)); echo "    $kb KiB: exit 7 but '$line'"; fi ;;
             127) echo "    $kb KiB: the dynamic loader cannot map the libraries (before main)" ;;
             *) nbad=$((nbad + 1)); echo "    $kb KiB: exit $rc: $line" ;;
