@@ -367,6 +367,9 @@ static void bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters 
     pl->np = pl->npt = np;
     for (size_t i = 0; i < np; i++) C->pairs_unoccluded += 2 * !(cl->occl[i] & 1);
     C->pairs_exchange = 2 * np;
+    /* of every ordered pair of quads, as the plain bake counts them (those below a cluster
+     * link or a dropped cluster pair are not tried one by one) */
+    C->pairs_total = (uint64_t)b->nq * (uint64_t)(b->nq > 0 ? b->nq - 1 : 0);
     C->cluster_links = cl->nlinks;
     C->cluster_leaf_pairs = np;
     C->cluster_visits = cl->pairs_visited;
@@ -374,6 +377,7 @@ static void bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters 
     C->cluster_rays = cl->rays;
     C->cluster_refused_visibility = cl->oracle_refused_vis;
     C->cluster_refused_spread = cl->oracle_refused_spread;
+    C->cluster_partial = cl->links_partial;
     C->cluster_depth = cl->tree.depth;
 }
 

@@ -50,6 +50,7 @@ typedef struct wrt_bake_options {
     int clusters;          /* 1: the cluster hierarchy (cluster.h, docs/clusters.md) */
     double cluster_sep;    /* its separation threshold (0: WRT_CLUSTER_SEP_DEFAULT) */
     double cluster_spread; /* its oracle's spread threshold (0: WRT_CLUSTER_SPREAD_DEFAULT) */
+    double cluster_eps;    /* its power criterion (0: WRT_CLUSTER_EPS_DEFAULT; < 0: off) */
     int cluster_tree;      /* 1: store the operator in the tree's basis when it has fewer entries
                             * there (a trial: a copy and a transform of G - I); 2: always */
     wrt_progress_fn progress;
@@ -106,6 +107,7 @@ typedef struct wrt_bake_counters {
     uint64_t cluster_tree_compressed; /* and after */
     int cluster_tree_basis;
     uint64_t cluster_refused_visibility, cluster_refused_spread; /* the oracle's refusals */         /* 1: the operator is stored in the tree's basis (res->ctree set) */
+    uint64_t cluster_partial;      /* cluster links with some of their rays blocked */
     uint32_t cluster_depth;
 } wrt_bake_counters;
 

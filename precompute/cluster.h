@@ -29,13 +29,19 @@ typedef struct wrt_clusters {
     /* the leaf pairs for the DTO, in a fixed order: r < s, flags as bake.c's */
     int *pr, *ps; uint8_t *occl; size_t np;
     uint64_t pairs_visited, pairs_culled, oracle_calls, oracle_refused_vis, oracle_refused_spread;
-    uint64_t rays;
+    uint64_t rays, links_partial; /* links_partial: cluster links with some rays blocked */
 } wrt_clusters;
 
 /* Thresholds (0 = default): separation (distance of centres over the sum of radii) and
  * the relative spread of the sampled kernel that a cluster link accepts. */
 #define WRT_CLUSTER_SEP_DEFAULT 1.5
 #define WRT_CLUSTER_SPREAD_DEFAULT 0.15
+/* The power criterion (cluster_link.c's oracle): a pair whose estimated transported-power
+ * error, for unit radiosity on the sender, is at most eps times the scene's area is
+ * linked whatever its kernel's spread or partial visibility; WRT_CLUSTER_STRICT times
+ * that where one side's sample points both see and do not see the other (walls). */
+#define WRT_CLUSTER_EPS_DEFAULT 1e-4
+#define WRT_CLUSTER_STRICT 1e-3
 
 /* The tree over b->quads (cluster.c). */
 void wrt_clusters_build(const bake_ctx *b, wrt_clusters *cl);

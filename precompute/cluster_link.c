@@ -16,13 +16,13 @@ typedef struct task { uint32_t a, b; } task;
 typedef struct sink {
     wrt_clink *l; size_t nl, capl;
     int *pr, *ps; uint8_t *oc; size_t np, capp;
-    uint64_t visited, culled, oracle, refused_vis, refused_spread, rays;
+    uint64_t visited, culled, oracle, refused_vis, refused_spread, rays, partial;
 } sink;
 
 typedef struct lctx {
     const bake_ctx *b;
     const wrt_clusters *cl;
-    double sep, spread;
+    double sep, spread, eps;
     uint32_t grain;
     task *tasks; size_t nt, capt; /* the serial top's hand-off */
     sink *sinks;
@@ -122,37 +122,84 @@ static void add_link(sink *k, uint32_t a, uint32_t bn, const float tab[3], const
     memcpy(l->tab, tab, sizeof l->tab); memcpy(l->tba, tba, sizeof l->tba);
 }
 
-/* The oracle: 1 if the pair is done (a cluster link, or no light), 0 to refine. */
-static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
-    const wrt_clusters *cl = c->cl;
-    enum { S = CL_SAMPLES };
+/* The oracle's sampled kernel: kv[i][j] = cos cos / (pi d^2) between point i of a and
+ * point j of b, 0 where either faces away or the ray is blocked. Per point, its state:
+ * 1 sees some of the other side, 2 faces it but every ray is blocked, 4 faces away from
+ * every point of it. Returns the blocked rays. */
+enum { S = CL_SAMPLES, PT_FREE = 1, PT_HIDDEN = 2, PT_AWAY = 4 };
+
+static int sample_kernel(const lctx *c, sink *k, uint32_t a, uint32_t bn, double kv[S][S], int sa[S], int sb[S]) {
     wrt_v3 xa[S], na[S], xb[S], nb[S];
-    double kv[S][S], ra[S] = {0}, rb[S] = {0}, sum = 0;
-    k->oracle++;
+    int facing_a[S] = {0}, facing_b[S] = {0}, free_a[S] = {0}, free_b[S] = {0}, nblk = 0;
     node_points(c, a, xa, na);
     node_points(c, bn, xb, nb);
-    int nblk = 0;
     for (int i = 0; i < S; i++)
         for (int j = 0; j < S; j++) {
             wrt_v3 d = v3_sub(xb[j], xa[i]);
             double d2 = v3_dot(d, d), ci = v3_dot(na[i], d), cj = -v3_dot(nb[j], d);
-            if (!(ci > 0 && cj > 0 && d2 > 0)) { k->refused_spread++; return 0; } /* seen edge-on or from behind */
+            kv[i][j] = 0;
+            if (!(ci > 0 && cj > 0 && d2 > 0)) continue; /* one side faces away: no light, no ray */
+            facing_a[i]++; facing_b[j]++;
             k->rays++;
-            int bl = wrt_bake_occluded(c->b, xa[i], xb[j]); /* ends already lifted off their quads */
-            nblk += bl;
-            kv[i][j] = bl ? 0 : ci * cj / (WRT_PI * d2 * d2);
+            if (wrt_bake_occluded(c->b, xa[i], xb[j])) { nblk++; continue; } /* ends already lifted */
+            free_a[i]++; free_b[j]++;
+            kv[i][j] = ci * cj / (WRT_PI * d2 * d2);
         }
-    if (nblk == S * S) return 1;
-    if (nblk) { k->refused_vis++; return 0; }
-    for (int i = 0; i < S; i++)
-        for (int j = 0; j < S; j++) { ra[i] += kv[i][j]; rb[j] += kv[i][j]; sum += kv[i][j]; }
-    double lo = HUGE_VAL, hi = 0, lo2 = HUGE_VAL, hi2 = 0;
     for (int i = 0; i < S; i++) {
-        lo = fmin(lo, ra[i]); hi = fmax(hi, ra[i]);
-        lo2 = fmin(lo2, rb[i]); hi2 = fmax(hi2, rb[i]);
+        sa[i] = free_a[i] ? PT_FREE : facing_a[i] ? PT_HIDDEN : PT_AWAY;
+        sb[i] = free_b[i] ? PT_FREE : facing_b[i] ? PT_HIDDEN : PT_AWAY;
     }
-    if (!(hi <= (1 + c->spread) * lo && hi2 <= (1 + c->spread) * lo2)) { k->refused_spread++; return 0; }
-    double t = sqrt(cl->tree.area[a] * cl->tree.area[bn]) * sum / (S * S);
+    return nblk;
+}
+
+/* Largest minus smallest of v[0..S), and the largest */
+static double spread_of(const double *v, double *hi) {
+    double lo = HUGE_VAL, h = 0;
+    for (int i = 0; i < S; i++) { lo = fmin(lo, v[i]); h = fmax(h, v[i]); }
+    *hi = h;
+    return h - lo;
+}
+
+/* The oracle: 1 if the pair is done (a cluster link, or no light), 0 to refine.
+ * A cluster link is isotropic: every quad of a receives the sampled mean irradiance
+ * from b's mean radiosity, visibility included (a mean over the rays, blocked ones 0).
+ * Its error, for unit radiosity on the sender, is bounded by the receiver's area times
+ * the spread of the per-point irradiances (and the same the other way): it is accepted
+ * when that spread is within c->spread of the largest (the kernel agrees, as before) or
+ * when the error is at most c->eps of the scene's area (the power criterion: far or
+ * small exchanges). A side whose points include both some that see the other and some
+ * that do not (hidden, or facing away) would, pushed down uniformly, light quads that
+ * get no light (the dark room behind a wall): then only an error of c->eps *
+ * WRT_CLUSTER_STRICT passes. */
+static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
+    const wrt_clusters *cl = c->cl;
+    double kv[S][S], fa[S] = {0}, fb[S] = {0}, sum = 0;
+    int sa[S], sb[S], ma = 0, mb = 0;
+    k->oracle++;
+    int nblk = sample_kernel(c, k, a, bn, kv, sa, sb);
+    double aa = cl->tree.area[a], ab = cl->tree.area[bn];
+    for (int i = 0; i < S; i++)
+        for (int j = 0; j < S; j++) { fa[i] += ab * kv[i][j] / S; fb[j] += aa * kv[i][j] / S; sum += kv[i][j]; }
+    for (int i = 0; i < S; i++) { ma |= sa[i]; mb |= sb[i]; }
+    if (sum == 0) {
+        /* every facing ray blocked, and no point facing away: no light, dropped */
+        if (nblk && !(ma & PT_AWAY) && !(mb & PT_AWAY)) return 1;
+        k->refused_spread++;
+        return 0;
+    }
+    int mixed = (ma != PT_FREE) || (mb != PT_FREE);
+    double ha, hb, da = spread_of(fa, &ha), db = spread_of(fb, &hb);
+    double rho = fmax(fmax(cl->rho[a][0], cl->rho[a][1]), cl->rho[a][2]);
+    double rhob = fmax(fmax(cl->rho[bn][0], cl->rho[bn][1]), cl->rho[bn][2]);
+    double err = fmax(rho * aa * da, rhob * ab * db);
+    double bound = c->eps * cl->tree.area[0] * (mixed ? WRT_CLUSTER_STRICT : 1);
+    int agree = !mixed && da <= c->spread * ha && db <= c->spread * hb;
+    if (!agree && !(err <= bound)) {
+        if (mixed || nblk) k->refused_vis++; else k->refused_spread++;
+        return 0;
+    }
+    if (nblk) k->partial++;
+    double t = sqrt(aa * ab) * sum / (S * S);
     float tab[3], tba[3];
     for (int ch = 0; ch < 3; ch++) { tab[ch] = (float)(cl->rho[bn][ch] * t); tba[ch] = (float)(cl->rho[a][ch] * t); }
     add_link(k, a, bn, tab, tba);
@@ -214,6 +261,7 @@ void wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
     lctx c = {.b = b, .cl = cl};
     c.sep = b->opt.cluster_sep > 0 ? b->opt.cluster_sep : WRT_CLUSTER_SEP_DEFAULT;
     c.spread = b->opt.cluster_spread > 0 ? b->opt.cluster_spread : WRT_CLUSTER_SPREAD_DEFAULT;
+    c.eps = b->opt.cluster_eps > 0 ? b->opt.cluster_eps : b->opt.cluster_eps < 0 ? 0 : WRT_CLUSTER_EPS_DEFAULT;
     c.grain = (uint32_t)fmax(32, b->nq / 128);
     sink top = {0};
     link_self(&c, &top, 0, 1);
@@ -238,7 +286,7 @@ void wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
         cl->nlinks += k->nl; cl->np += k->np;
         cl->pairs_visited += k->visited; cl->pairs_culled += k->culled; cl->oracle_calls += k->oracle;
         cl->oracle_refused_vis += k->refused_vis; cl->oracle_refused_spread += k->refused_spread;
-        cl->rays += k->rays;
+        cl->rays += k->rays; cl->links_partial += k->partial;
         free(k->l); free(k->pr); free(k->ps); free(k->oc);
     }
     free(c.sinks); free(c.tasks);

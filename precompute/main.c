@@ -68,6 +68,9 @@ static void usage(FILE *f) {
         "  --clusters             link well separated clusters of quads by one entry each\n"
         "                         instead of every quad pair (docs/clusters.md; diffuse\n"
         "                         scenes only)\n"
+        "  --cluster-eps E        --clusters, and the oracle's power criterion: a cluster pair\n"
+        "                         whose estimated error is at most E of the scene's power is\n"
+        "                         linked at cluster level (default 1e-4; 0: off)\n"
         "  --clusters-tree-basis  --clusters, and the operator stored in the cluster tree's\n"
         "                         basis when it has fewer entries there (a version 2.0 file;\n"
         "                         --clusters-tree-basis-always: whatever its size)\n"
@@ -157,11 +160,11 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
     /* only with --clusters, likewise */
     if (c->cluster_visits || c->cluster_leaf_pairs || c->cluster_links)
         fprintf(f, ",\"clusters\":{\"links\":%llu,\"leaf_pairs\":%llu,\"visits\":%llu,\"oracle\":%llu,"
-                "\"refused_visibility\":%llu,\"refused_spread\":%llu,\"rays\":%llu,\"closed_entries\":%llu,\"tree_entries\":%llu,\"tree_compressed\":%llu,"
+                "\"partial\":%llu,\"refused_visibility\":%llu,\"refused_spread\":%llu,\"rays\":%llu,\"closed_entries\":%llu,\"tree_entries\":%llu,\"tree_compressed\":%llu,"
                 "\"tree_basis\":%s,\"depth\":%u}",
                 (unsigned long long)c->cluster_links, (unsigned long long)c->cluster_leaf_pairs,
                 (unsigned long long)c->cluster_visits, (unsigned long long)c->cluster_oracle,
-                (unsigned long long)c->cluster_refused_visibility, (unsigned long long)c->cluster_refused_spread,
+                (unsigned long long)c->cluster_partial, (unsigned long long)c->cluster_refused_visibility, (unsigned long long)c->cluster_refused_spread,
                 (unsigned long long)c->cluster_rays, (unsigned long long)c->cluster_fix_entries,
                 (unsigned long long)c->cluster_tree_entries, (unsigned long long)c->cluster_tree_compressed,
                 c->cluster_tree_basis ? "true" : "false", c->cluster_depth);
@@ -297,6 +300,13 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--no-tail")) o->no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o->no_balance = 1;
         else if (!strcmp(a, "--clusters")) o->clusters = 1;
+        else if (!strcmp(a, "--cluster-eps")) {
+            double e = 0;
+            ok = opt_num(a, v, 0, 1, &e);
+            o->clusters = 1;
+            o->cluster_eps = e > 0 ? e : -1; /* 0: the power criterion off */
+            i++;
+        }
         else if (!strcmp(a, "--clusters-tree-basis")) { o->clusters = 1; o->cluster_tree = 1; }
         else if (!strcmp(a, "--clusters-tree-basis-always")) { o->clusters = 1; o->cluster_tree = 2; }
         else if (!strcmp(a, "--drop-bad")) A->drop_bad = 1;
@@ -609,6 +619,13 @@ static void print_text_summary(const bake_args *A, const wrt_scene *s, const wrt
     printf("  quads     %d; pairs %llu exchanging of %llu (%llu skipped facing, %llu with no occluder)\n",
            s->nquads, (unsigned long long)c->pairs_exchange, (unsigned long long)c->pairs_total,
            (unsigned long long)c->pairs_skipped_facing, (unsigned long long)c->pairs_unoccluded);
+    if (c->cluster_visits || c->cluster_leaf_pairs || c->cluster_links)
+        printf("  clusters  %llu links (%llu partly visible), %llu leaf pairs; oracle %llu tries, refused "
+               "%llu for visibility, %llu for spread; tree depth %u\n",
+               (unsigned long long)c->cluster_links, (unsigned long long)c->cluster_partial,
+               (unsigned long long)c->cluster_leaf_pairs, (unsigned long long)c->cluster_oracle,
+               (unsigned long long)c->cluster_refused_visibility, (unsigned long long)c->cluster_refused_spread,
+               c->cluster_depth);
     char gath[32] = "not computed";
     if (o->gathered || o->report_gathered) snprintf(gath, sizeof gath, "%llu", (unsigned long long)c->links_gathered);
     printf("  links     dto %llu, gto %llu, gathered %s (leaves %llu, invisible %llu)\n",
