@@ -125,10 +125,12 @@ static void add_link(sink *k, uint32_t a, uint32_t bn, const float tab[3], const
 /* The oracle's sampled kernel: kv[i][j] = cos cos / (pi d^2) between point i of a and
  * point j of b, 0 where either faces away or the ray is blocked. Per point, its state:
  * 1 sees some of the other side, 2 faces it but every ray is blocked, 4 faces away from
- * every point of it. Returns the blocked rays. */
+ * every point of it. *unocc gets the sum of the kernel without visibility. Returns the
+ * blocked rays. */
 enum { S = CL_SAMPLES, PT_FREE = 1, PT_HIDDEN = 2, PT_AWAY = 4 };
 
-static int sample_kernel(const lctx *c, sink *k, uint32_t a, uint32_t bn, double kv[S][S], int sa[S], int sb[S]) {
+static int sample_kernel(const lctx *c, sink *k, uint32_t a, uint32_t bn, double kv[S][S], double *unocc, int sa[S],
+                         int sb[S]) {
     wrt_v3 xa[S], na[S], xb[S], nb[S];
     int facing_a[S] = {0}, facing_b[S] = {0}, free_a[S] = {0}, free_b[S] = {0}, nblk = 0;
     node_points(c, a, xa, na);
@@ -140,6 +142,7 @@ static int sample_kernel(const lctx *c, sink *k, uint32_t a, uint32_t bn, double
             kv[i][j] = 0;
             if (!(ci > 0 && cj > 0 && d2 > 0)) continue; /* one side faces away: no light, no ray */
             facing_a[i]++; facing_b[j]++;
+            *unocc += ci * cj / (WRT_PI * d2 * d2);
             k->rays++;
             if (wrt_bake_occluded(c->b, xa[i], xb[j])) { nblk++; continue; } /* ends already lifted */
             free_a[i]++; free_b[j]++;
@@ -176,23 +179,31 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
     double kv[S][S], fa[S] = {0}, fb[S] = {0}, sum = 0;
     int sa[S], sb[S], ma = 0, mb = 0;
     k->oracle++;
-    int nblk = sample_kernel(c, k, a, bn, kv, sa, sb);
+    double unocc = 0;
+    int nblk = sample_kernel(c, k, a, bn, kv, &unocc, sa, sb);
     double aa = cl->tree.area[a], ab = cl->tree.area[bn];
     for (int i = 0; i < S; i++)
         for (int j = 0; j < S; j++) { fa[i] += ab * kv[i][j] / S; fb[j] += aa * kv[i][j] / S; sum += kv[i][j]; }
     for (int i = 0; i < S; i++) { ma |= sa[i]; mb |= sb[i]; }
+    double rho = fmax(fmax(cl->rho[a][0], cl->rho[a][1]), cl->rho[a][2]);
+    double rhob = fmax(fmax(cl->rho[bn][0], cl->rho[bn][1]), cl->rho[bn][2]);
+    double bound = c->eps * cl->tree.area[0];
     if (sum == 0) {
-        /* every facing ray blocked, and no point facing away: no light, dropped */
-        if (nblk && !(ma & PT_AWAY) && !(mb & PT_AWAY)) return 1;
+        /* every facing ray blocked, and no point facing away: no light, dropped if the
+         * light that the 64 rays could have missed through an opening between them (at
+         * most the transfer without visibility) is within the bound; else refined, as
+         * dropping always loses light (an open box with a plate across it, not closed
+         * so no rule restores it: flux 0.986 of the truth dropping every blocked pair,
+         * 0.992 so; the maze asset at quality 1: 7,849 leaf pairs against 7,816) */
+        double lost = fmax(rho, rhob) * aa * ab * unocc / (S * S);
+        if (nblk && !(ma & PT_AWAY) && !(mb & PT_AWAY) && lost <= bound) return 1;
         k->refused_spread++;
         return 0;
     }
     int mixed = (ma != PT_FREE) || (mb != PT_FREE);
     double ha, hb, da = spread_of(fa, &ha), db = spread_of(fb, &hb);
-    double rho = fmax(fmax(cl->rho[a][0], cl->rho[a][1]), cl->rho[a][2]);
-    double rhob = fmax(fmax(cl->rho[bn][0], cl->rho[bn][1]), cl->rho[bn][2]);
     double err = fmax(rho * aa * da, rhob * ab * db);
-    double bound = c->eps * cl->tree.area[0] * (mixed ? WRT_CLUSTER_STRICT : 1);
+    if (mixed) bound *= WRT_CLUSTER_STRICT;
     int agree = !mixed && da <= c->spread * ha && db <= c->spread * hb;
     if (!agree && !(err <= bound)) {
         if (mixed || nblk) k->refused_vis++; else k->refused_spread++;
