@@ -148,17 +148,23 @@ static int sample_kernel(const lctx *c, sink *k, uint32_t a, uint32_t bn, double
             free_a[i]++; free_b[j]++;
             kv[i][j] = ci * cj / (WRT_PI * d2 * d2);
         }
+    /* a point facing away counts as hidden unless it also faces away from the other
+     * node's centre, which gives its quad no share of the link (cluster_ops.c) */
+    wrt_v3 ca = centre(c->cl, a), cb = centre(c->cl, bn);
     for (int i = 0; i < S; i++) {
-        sa[i] = free_a[i] ? PT_FREE : facing_a[i] ? PT_HIDDEN : PT_AWAY;
-        sb[i] = free_b[i] ? PT_FREE : facing_b[i] ? PT_HIDDEN : PT_AWAY;
+        sa[i] = free_a[i] ? PT_FREE : facing_a[i] || v3_dot(na[i], v3_sub(cb, xa[i])) > 0 ? PT_HIDDEN : PT_AWAY;
+        sb[i] = free_b[i] ? PT_FREE : facing_b[i] || v3_dot(nb[i], v3_sub(ca, xb[i])) > 0 ? PT_HIDDEN : PT_AWAY;
     }
     return nblk;
 }
 
-/* Largest minus smallest of v[0..S), and the largest */
-static double spread_of(const double *v, double *hi) {
+/* Largest minus smallest of v[i] over the points whose state st[i] is free, and the
+ * largest (the quads of points facing away get no share: cluster_ops.c) */
+static double spread_of(const double *v, const int *st, double *hi) {
     double lo = HUGE_VAL, h = 0;
-    for (int i = 0; i < S; i++) { lo = fmin(lo, v[i]); h = fmax(h, v[i]); }
+    for (int i = 0; i < S; i++)
+        if (st[i] == PT_FREE) { lo = fmin(lo, v[i]); h = fmax(h, v[i]); }
+    if (lo > h) lo = h;
     *hi = h;
     return h - lo;
 }
@@ -200,8 +206,8 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
         k->refused_spread++;
         return 0;
     }
-    int mixed = (ma != PT_FREE) || (mb != PT_FREE);
-    double ha, hb, da = spread_of(fa, &ha), db = spread_of(fb, &hb);
+    int mixed = (ma & PT_HIDDEN) || (mb & PT_HIDDEN);
+    double ha, hb, da = spread_of(fa, sa, &ha), db = spread_of(fb, sb, &hb);
     double err = fmax(rho * aa * da, rhob * ab * db);
     if (mixed) bound *= WRT_CLUSTER_STRICT;
     int agree = !mixed && da <= c->spread * ha && db <= c->spread * hb;
