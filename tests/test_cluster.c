@@ -253,8 +253,9 @@ static void test_threads(void) {
  * light from a uniform irradiance 1 over its truth rho / (1 - rho). */
 static void test_furnace(void) {
     double rhos[2] = {0.9, 0.99};
-    /* 8 x 8 quads a face by default (30 s of CPU for both); WRT_FURNACE_N=16 for the
-     * issue's 16 x 16 (about 1 CPU minute each and 2.3 GB): at quality 1's compression
+    /* 8 x 8 quads a face by default (about 5 s of CPU for both); WRT_FURNACE_N=16 for the
+     * issue's 16 x 16 (flux 1.000001 and 1.000002; 313 s of CPU for both at load 20,
+     * peak 692 MiB: docs/clusters.md): at quality 1's compression
      * (1e-3) the entries between its 1536 small quads all fall under the threshold and the
      * series stops after one term (flux 0.125 of the truth, the plain bake's rule too), so
      * the compression is set to 1e-5 there */
