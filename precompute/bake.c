@@ -533,6 +533,11 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             }
             res->dto = wrt_csc_from_triplets(res->nfuncs, tr, t);
             free(tr);
+            if (b->cl && st == WRT_OK) /* --clusters: the links pushed down to the quads' roots,
+                                        * as triplets twice and the matrix (cluster_ops.c) */
+                st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb,
+                                           (wrt_clusters_pushed_entries(b->cl) + res->dto.nnz) *
+                                               (2 * sizeof(wrt_triplet) + 16), "the cluster links' push-down");
             if (b->cl && st == WRT_OK) /* --clusters: the links added, the closed rule, the tree basis */
                 C->cluster_fix_entries = wrt_clusters_assemble(b, b->cl, keys, res->nfuncs, C->closed, &res->dto);
             if (!b->opt.no_balance && st == WRT_OK) {

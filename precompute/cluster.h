@@ -55,6 +55,9 @@ void wrt_clusters_free(wrt_clusters *cl);
  * roots (cluster_ops.c). Replaces *T. Returns the entries the closed-scene rule added. */
 uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
                                int closed, wrt_csc *T);
+/* The entries the cluster links become once pushed down to the quads' roots: 2 |A| |B|
+ * per link (an upper bound: quads facing away get none) (cluster_ops.c). */
+uint64_t wrt_clusters_pushed_entries(const wrt_clusters *cl);
 /* A matrix of the quads' basis (nf x nf) expressed in the tree basis: rows, then columns
  * (cluster_ops.c). Replaces *M. */
 void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf, wrt_csc *M);

@@ -324,6 +324,13 @@ uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const 
     return added;
 }
 
+uint64_t wrt_clusters_pushed_entries(const wrt_clusters *cl) {
+    uint64_t n = 0;
+    for (size_t i = 0; i < cl->nlinks; i++)
+        n += 2 * (uint64_t)(cl->hi[cl->links[i].a] - cl->lo[cl->links[i].a]) * (cl->hi[cl->links[i].b] - cl->lo[cl->links[i].b]);
+    return n;
+}
+
 void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf, wrt_csc *M) {
     ops o;
     ops_init(&o, cl, fkeys, nf, (uint32_t)b->nq);
