@@ -219,9 +219,6 @@ static wrt_status series_tail(series_state *s) {
     if (!b->opt.no_tail && s->pw) {
         wrt_series_power_stats ps;
         wrt_series_power_fix(s->T, s->pw, s->threads, b->opt.max_bounces, &s->S, &ps);
-        if (getenv("WRT_SERIES_POWER_REPORT"))
-            fprintf(stderr, "series power: %d bounces of pw T^n; %llu columns corrected, %llu could not take it\n",
-                    ps.bounces, (unsigned long long)ps.columns_fixed, (unsigned long long)ps.columns_left);
     }
     C->entries_gto = s->S.nnz;
     C->links_gto = wrt_count_links(&s->S, s->res->fkeys);
