@@ -21,6 +21,7 @@
 
 #include "../formats/gto.h"
 #include "series.h"
+#include "series_power.h"
 #include "balance.h"
 #include "budget.h"
 #include "links.h"
@@ -214,6 +215,11 @@ static wrt_status series_tail(series_state *s) {
     /* the stored operator: its own threshold (eps_final >= eps_compress drops what the
      * products needed but the display does not) */
     wrt_csc_compress(&s->S, b->opt.eps_final > s->eps ? b->opt.eps_final : s->eps, &s->W);
+    /* each column's power made the DTO's own series' (series_power.c) */
+    if (!b->opt.no_tail && s->pw) {
+        wrt_series_power_stats ps;
+        wrt_series_power_fix(s->T, s->pw, s->threads, b->opt.max_bounces, &s->S, &ps);
+    }
     C->entries_gto = s->S.nnz;
     C->links_gto = wrt_count_links(&s->S, s->res->fkeys);
     return WRT_OK;

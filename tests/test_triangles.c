@@ -361,6 +361,17 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
             printf("the series summed from the DTO: indirect flux %.6f vs %.6f (%+.4f%%)\n", acc, want,
                    100 * (acc / want - 1));
             CHECK(fabs(acc / want - 1) <= 1e-3, "the DTO's series: indirect flux off by %.4f%%", 100 * (acc / want - 1));
+            /* the bake's G - I applied in memory (no file, no runtime): the series'
+             * products and compressions, the tail and the column power rule
+             * (precompute/series_power.c) give what the DTO's own series gives */
+            for (size_t k = 0; k < 3 * (size_t)r.nfuncs; k++) xv[k] = E[k];
+            memset(yv, 0, 3 * r.nfuncs * sizeof *yv);
+            wrt_csc_apply(&r.op, xv, yv);
+            double gacc = 0;
+            for (uint32_t f = 0; f < r.nfuncs; f++) gacc += mh[f] * yv[3 * f];
+            printf("G - I in memory: indirect flux %.6f (%+.4f%%), against the DTO's series %+.2e\n", gacc,
+                   100 * (gacc / want - 1), gacc / acc - 1);
+            CHECK(fabs(gacc / acc - 1) <= 1e-4, "G - I's flux %.6f against the DTO's series %.6f", gacc, acc);
             free(xv); free(yv);
         }
         double want = 4 * M_PI * rho / (1 - rho), mean = indirect / area;
@@ -394,14 +405,14 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
 }
 
 /* 80 triangles (240 elements) at quality 5. The transport itself conserves power: the
- * series summed from the DTO gives 4 pi rho / (1 - rho) within 0.1% (measured +0.007% on
- * 20 triangles). The baked global operator G - I loses some: -0.14% on 20 triangles,
- * -0.58% on 80 (the series' compression, eps compress 6.25e-5, drops more small entries
- * as elements multiply; the elements stay within 0.03% of each other), held here at 1%
- * and reported in docs/triangles.md. */
+ * series summed from the DTO gives 4 pi rho / (1 - rho) within 0.1% (measured -0.026%, the
+ * direct projection's own error). The baked global operator G - I lost some before each
+ * column was given its series' power (precompute/series_power.c): -0.14% on 20
+ * triangles, -0.58% on 80, as the compression dropped more of each late term's column;
+ * now -0.026% on 80 (the DTO's series to 1e-6), held at 0.1% (docs/triangles.md). */
 static void test_icosphere_furnace(void) {
     double worst, e = icosphere_furnace(1, 5, 0.9, &worst);
-    CHECK(fabs(e) <= 1e-2, "icosphere furnace: indirect flux off by %.4f%%", 100 * e);
+    CHECK(fabs(e) <= 1e-3, "icosphere furnace: indirect flux off by %.4f%%", 100 * e);
     CHECK(worst <= 1e-3, "icosphere furnace: the worst element %.4f%% from the mean", 100 * worst);
 }
 
