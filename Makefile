@@ -80,7 +80,7 @@ TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
 .PHONY: all deps demo test tests stress study fuzz clean assets bench bench-scale timings mutate install
 all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/examples/engine $(BUILD)/tests/runtime_instances \
-     $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core $(BUILD)/tools/codec_study
+     $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core $(BUILD)/tests/runtime_budget $(BUILD)/tools/codec_study
 
 deps:
 	@bash tools/install-deps.sh
@@ -124,7 +124,7 @@ $(BUILD)/tests/runtime_instances: tests/runtime_instances.c $(BUILD)/libwrt.a in
 
 # The public API's tests: runtime_api through the header and libwrt.a alone;
 # runtime_core the same calls beside the relighting core they wrap (tests/runtime.sh).
-$(BUILD)/tests/runtime_api: tests/runtime_api.c $(BUILD)/libwrt.a include/wrt.h
+$(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_budget: $(BUILD)/tests/%: tests/%.c $(BUILD)/libwrt.a include/wrt.h
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -D_GNU_SOURCE -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)

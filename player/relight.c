@@ -120,47 +120,70 @@ static int change_too_small(const wrt_relight *r) {
     return d < r->opt.skip_below * r->opt.skip_below * n;
 }
 
+int relight_budget_left(wrt_relight *r) {
+    if (r->opt.budget_ms <= 0) return 1;
+    if (!r->run.did) { r->run.did = 1; return 1; }
+    return wrt_now() < r->run.deadline;
+}
+
+/* E (5.2): the sum of the lights, and unless the change is below skip_below the multiply
+ * (with K the first bounce first) into X, marking the quads whose X changed. */
+static void apply_lights(wrt_relight *r, wrt_relight_timings *t) {
+    const wrt_gto *g = r->g;
+    r->e_dirty = 0;
+    sum_lights(r);
+    if (change_too_small(r)) {
+        t->skipped = 1;
+        r->run.n.skips++;
+        return;
+    }
+    /* With K: the first bounce from its quads, Y = K c, and E' = E off them + Y. */
+    const float *src = r->E;
+    if (g->nkcols) { relight_first_bounce(r); src = r->k.Ep; }
+    relight_multiply(r, relight_cluster_forward(r, src)); /* the tree's basis and back, if any */
+    relight_cluster_inverse(r);
+    r->run.n.multiplies++;
+    if (r->Eapplied) {
+        memcpy(r->Eapplied, r->E, (size_t)g->nfuncs * 3 * sizeof(float));
+        r->e_applied = 1;
+    }
+}
+
 /* The stages of an update, each only when what it reads changed: the projection of
  * every light that moved (section 5.1), E and the multiply when a light changed (5.2;
  * with K the first bounce first), the synthesis of the quads whose X changed or, glossy,
- * whose view moved (5.3-5.4), their groups' smooth display, and the final gather. */
+ * whose view moved (5.3-5.4), their groups' smooth display, and the final gather. With
+ * a budget each stage waits until the ones before it are done (the multiply until every
+ * light is projected, the smoothing until every marked quad is synthesized, the gather
+ * until every group is smoothed): what the caller sees between is the textures of the
+ * last complete stage, never a half-summed E. */
 int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     wrt_relight_timings t = {0};
     const wrt_gto *g = r->g;
     uint32_t nq = g->nquads;
     double t0 = wrt_now();
+    r->run.deadline = t0 + r->opt.budget_ms * 1e-3;
+    r->run.did = 0;
+    r->run.n.updates++;
     atomic_store(&r->upd_oom, 0);
+    int proj_pending = 0;
     for (int i = 0; i < r->nlights; i++) {
         light_state *ls = &r->lights[i];
         if (ls->projected || ls->scale == 0) continue;
+        if (!relight_budget_left(r)) { proj_pending = 1; break; }
         if (relight_project_light(r, ls) != 0) return update_nomem(r, "projecting a light", tm, &t);
         t.lights_changed++;
+        r->run.n.projections++;
     }
     double t1 = wrt_now();
     t.projection = (t1 - t0) * 1e3;
-    memset(r->resynth, 0, nq);
-    int lights_dirty = r->e_dirty || r->redo_all, eye_moved = r->eye_dirty || r->redo_all;
+    r->run.gl_lights |= r->e_dirty || r->redo_all;
+    r->run.gl_eye |= r->eye_dirty || r->redo_all;
     if (r->redo_all) { /* the last update failed part way: every texture again */
         memset(r->resynth, 1, nq);
         memset(r->tex_nonzero, 1, nq); /* dark quads: cleared again */
     }
-    if (r->e_dirty) {
-        r->e_dirty = 0;
-        sum_lights(r);
-        if (change_too_small(r)) {
-            t.skipped = 1;
-        } else {
-            /* With K: the first bounce from its quads, Y = K c, and E' = E off them + Y. */
-            const float *src = r->E;
-            if (g->nkcols) { relight_first_bounce(r); src = r->k.Ep; }
-            relight_multiply(r, relight_cluster_forward(r, src)); /* the tree's basis and back, if any */
-            relight_cluster_inverse(r);
-            if (r->Eapplied) {
-                memcpy(r->Eapplied, r->E, (size_t)g->nfuncs * 3 * sizeof(float));
-                r->e_applied = 1;
-            }
-        }
-    }
+    if (r->e_dirty && !proj_pending && relight_budget_left(r)) apply_lights(r, &t);
     double t2 = wrt_now();
     t.multiply = (t2 - t1) * 1e3;
     if (r->eye_dirty) {
@@ -172,19 +195,41 @@ int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     if (nchanged < 0) return update_nomem(r, "synthesizing textures", tm, &t);
     if (r->sm.recon) { /* smooth display of every group that changed (reconstruct.h) */
         double t4 = wrt_now();
-        nchanged = relight_smooth(r);
+        nchanged = r->run.synth_pending ? 0 : relight_smooth(r);
         t.reconstruction = (wrt_now() - t4) * 1e3;
         t.synthesis += t.reconstruction;
     }
-    double t5 = wrt_now();
-    int ngl = relight_gather(r, lights_dirty, eye_moved); /* gather.h */
-    if (ngl < 0) return update_nomem(r, "gathering glossy light", tm, &t);
-    if (ngl > 0) t.synthesis += (wrt_now() - t5) * 1e3;
-    nchanged += ngl;
+    int waits = proj_pending || r->e_dirty || r->run.synth_pending || r->run.smooth_pending;
+    if (!waits && (r->run.gl_lights || r->run.gl_eye) && relight_budget_left(r)) {
+        double t5 = wrt_now();
+        int ngl = relight_gather(r, r->run.gl_lights, r->run.gl_eye); /* gather.h */
+        if (ngl < 0) return update_nomem(r, "gathering glossy light", tm, &t);
+        r->run.gl_lights = r->run.gl_eye = 0;
+        if (ngl > 0) { t.synthesis += (wrt_now() - t5) * 1e3; r->run.n.gathers++; }
+        nchanged += ngl;
+    }
+    t.pending = waits || r->run.gl_lights || r->run.gl_eye;
     t.quads_resynthesized = nchanged;
     r->redo_all = 0;
     if (tm) *tm = t;
     return nchanged;
+}
+
+void wrt_relight_get_counters(const wrt_relight *r, wrt_relight_counters *out) { *out = r->run.n; }
+
+wrt_status wrt_relight_set_budget(wrt_relight *r, double budget_ms, double skip_below) {
+    if (!(budget_ms >= 0 && budget_ms <= 1e9))
+        return wrt_fail(WRT_ERR_INVALID_ARG, "relight: budget_ms %g: milliseconds in [0, 1e9] (0: no budget)", budget_ms);
+    if (!(skip_below >= 0 && skip_below < 1))
+        return wrt_fail(WRT_ERR_INVALID_ARG, "relight: skip_below %g: a fraction in [0, 1)", skip_below);
+    if (skip_below > 0 && !r->Eapplied) {
+        r->Eapplied = relight_calloc(r, (size_t)r->g->nfuncs * 3 + 1, sizeof(float));
+        if (!r->Eapplied) { r->oom = 0; return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory for skip_below's E"); }
+        r->e_applied = 0; /* the next multiply is applied, and remembered */
+    }
+    r->opt.budget_ms = budget_ms;
+    r->opt.skip_below = skip_below;
+    return WRT_OK;
 }
 
 /* ------------------------------------------------------------- accessors ---- */
