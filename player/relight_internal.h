@@ -76,6 +76,9 @@ typedef struct light_state {
     light_c lc;                     /* light_consts(&light), for the gather's direct light */
     float scale;
     int projected;                  /* E below is the projection of `light` */
+    int have_proj;                  /* E below is a whole projection, maybe of the light's
+                                     * last position (a budgeted update sums it while the
+                                     * new one waits: a consistent, older E) */
     uint32_t *idx; float *val;      /* sparse E at scale 1: function index, RGB */
     size_t n, cap;
     float *kc;                      /* c over K's columns at scale 1, RGB (NULL without K) */
@@ -219,6 +222,8 @@ struct wrt_relight {
         double deadline; int did;
         int synth_pending, smooth_pending; /* quads still marked in resynth, groups in regroup */
         int gl_lights, gl_eye;             /* the final gather's inputs moved since it last ran */
+        int resume;                        /* the stage the next budgeted call starts with */
+        int next_light;                    /* the light the projection starts with */
         wrt_relight_counters n;
     } run;
     int e_applied;                  /* 1 once Eapplied holds one */

@@ -179,7 +179,7 @@ int relight_smooth(wrt_relight *r) {
         return nchanged;
     }
     /* budgeted: slices while the budget lasts; the groups left stay marked */
-    int slice = RELIGHT_SLICE * r->nthreads, done = 0;
+    int slice = r->nthreads, done = 0; /* a group can be a whole wall: one a thread */
     for (; done < nre && relight_budget_left(r); done += slice) {
         int m = nre - done < slice ? nre - done : slice;
         rcx.groups = list + done;

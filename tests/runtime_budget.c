@@ -7,6 +7,8 @@
  *    until, after k > 1 calls, every quad's texture equals the unbudgeted one's bit for
  *    bit; the same from a light moved after that, and from a light moved again while work
  *    was still pending (the textures of the last lights, not a mixture);
+ *  - a light moved before each of 60 budgeted updates: the multiply, the synthesis and
+ *    the smoothing still run (no stage starved behind the projection);
  *  - its counters: one multiply per light change, as many quads synthesized as without a
  *    budget (no quad done twice) when nothing moves in between;
  *  - skip_below 0.05: a light 1% brighter costs no multiply, no texture and no smoothing
@@ -125,6 +127,23 @@ static void test_budget(const char *path) {
         printf("%s step %d: converged bit for bit in %d budgeted updates (%lld quads, %lld groups)\n", path, step, k,
                sb.quads_synthesized - sb0.quads_synthesized, sb.groups_smoothed - sb0.groups_smoothed);
     }
+    /* a light moved before every budgeted update: the later stages still run (the
+     * multiply from the lights' last whole projections), none is starved */
+    wrt_runtime_get_update_stats(b, &sb0, NULL);
+    for (int k = 0; k < 60; k++) {
+        light_moved(&l[0], (k % 2 ? -0.01 : 0.01) * diag);
+        wrt_runtime_set_lights(b, l, nl, NULL);
+        wrt_runtime_update(b, NULL, NULL);
+    }
+    wrt_runtime_get_update_stats(b, &sb, NULL);
+    CHECK(sb.multiplies - sb0.multiplies >= 3 && sb.quads_synthesized > sb0.quads_synthesized &&
+          sb.groups_smoothed > sb0.groups_smoothed,
+          "%s: a light moving every update starved the budgeted stages: %lld multiplies, %lld quads, %lld groups in "
+          "60 updates", path, sb.multiplies - sb0.multiplies, sb.quads_synthesized - sb0.quads_synthesized,
+          sb.groups_smoothed - sb0.groups_smoothed);
+    printf("%s: light moving every update, budget 1e-6 ms: %lld multiplies, %lld quads, %lld groups in 60 updates\n",
+           path, sb.multiplies - sb0.multiplies, sb.quads_synthesized - sb0.quads_synthesized,
+           sb.groups_smoothed - sb0.groups_smoothed);
     wrt_runtime_close(a);
     wrt_runtime_close(b);
 }
