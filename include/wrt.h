@@ -325,6 +325,7 @@ typedef struct wrt_runtime_update_stats {
     long long quads_synthesized;  /* quads' wavelet textures synthesized */
     long long groups_smoothed;    /* groups of quads through the smooth display */
     long long gathers;            /* glossy final gathers */
+    long long entries_streamed;   /* operator entries the multiplies read (the lit columns' only) */
 } wrt_runtime_update_stats;
 /* Errors: WRT_ERR_INVALID_ARG (handle, out NULL). */
 WRT_API wrt_status wrt_runtime_get_update_stats(const wrt_runtime *rt, wrt_runtime_update_stats *out, wrt_error *err);

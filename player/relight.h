@@ -81,6 +81,7 @@ typedef struct wrt_relight_timings { /* milliseconds of the last update */
  * light change below skip_below adds to skips and to nothing after the projection. */
 typedef struct wrt_relight_counters {
     long long updates, projections, multiplies, skips, quads_synthesized, groups_smoothed, gathers;
+    long long entries_streamed; /* the operator's entries the multiplies read (lit columns only) */
 } wrt_relight_counters;
 void wrt_relight_get_counters(const wrt_relight *r, wrt_relight_counters *out);
 

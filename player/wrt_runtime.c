@@ -382,6 +382,7 @@ wrt_status wrt_runtime_get_update_stats(const wrt_runtime *rt, wrt_runtime_updat
     out->updates = c.updates; out->projections = c.projections; out->multiplies = c.multiplies;
     out->skips = c.skips; out->quads_synthesized = c.quads_synthesized; out->groups_smoothed = c.groups_smoothed;
     out->gathers = c.gathers;
+    out->entries_streamed = c.entries_streamed;
     return WRT_OK;
 }
 
