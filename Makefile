@@ -80,7 +80,8 @@ TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
 .PHONY: all deps demo test tests stress study fuzz clean assets bench bench-scale timings mutate install
 all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/examples/engine $(BUILD)/tests/runtime_instances \
-     $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core $(BUILD)/tools/codec_study
+     $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core $(BUILD)/tests/runtime_budget $(BUILD)/tools/codec_study \
+     $(BUILD)/tools/light_bw
 
 deps:
 	@bash tools/install-deps.sh
@@ -124,7 +125,7 @@ $(BUILD)/tests/runtime_instances: tests/runtime_instances.c $(BUILD)/libwrt.a in
 
 # The public API's tests: runtime_api through the header and libwrt.a alone;
 # runtime_core the same calls beside the relighting core they wrap (tests/runtime.sh).
-$(BUILD)/tests/runtime_api: tests/runtime_api.c $(BUILD)/libwrt.a include/wrt.h
+$(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_budget: $(BUILD)/tests/%: tests/%.c $(BUILD)/libwrt.a include/wrt.h
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -D_GNU_SOURCE -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
@@ -170,6 +171,12 @@ $(BUILD)/wrt-ref: $(call obj,tools/ref_main.c) $(REF_OBJ) $(CORE_OBJ)
 $(BUILD)/wrt-compare: $(call obj,tools/compare_main.c) $(VERIFY_OBJ) $(RUNTIME_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
+
+# A light change against the memory bandwidth (issue 23, docs/bench.md): not installed.
+$(BUILD)/tools/light_bw: tools/light_bw.c $(BUILD)/libwrt.a include/wrt.h
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -D_GNU_SOURCE -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
 
 # The compact-entry study (issue 23, docs/bench.md "Compact entries"): not installed.
 $(BUILD)/tools/codec_study: $(call obj,tools/codec_study.c) $(BAKE_CORE_OBJ)

@@ -7,6 +7,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#ifdef __SSE4_1__
+#include <smmintrin.h>
+#endif
+
 /* Edge e runs from corner E_END[e][0] to E_END[e][1], along increasing u (edges 0, 2)
  * or v (edges 1, 3). */
 static const int E_END[4][2] = {{0, 1}, {1, 2}, {3, 2}, {0, 3}};
@@ -310,6 +314,10 @@ static inline float minmod3(float a, float b, float c) {
  * the channels. The
  * children's own offsets are compared (each child minus the parent, the prediction's
  * minus its centre), so that a cell the coarser levels already moved is judged alike. */
+/* fmaxf for the values here (never -0): the larger, or the one that is not NaN; inline
+ * (the library's fmaxf is a call at -O2). */
+static inline float max_nn(float a, float b) { return a != a ? b : (b > a ? b : a); }
+
 static float details_missed(const float *c, int nc, size_t ws, const float *par, const float *r0, const float *r1,
                             const float *mean) {
     float dmax = 0, smax = 0;
@@ -319,8 +327,8 @@ static float details_missed(const float *c, int nc, size_t ws, const float *par,
         float dy = minmod3(2 * (av - S), 0.5f * (N - S), 2 * (N - av)) * 0.25f;
         float pred[4] = {-dx - dy, dx - dy, -dx + dy, dx + dy};
         float bake[4] = {r0[ch] - par[ch], r0[nc + ch] - par[ch], r1[ch] - par[ch], r1[nc + ch] - par[ch]};
-        for (int t = 0; t < 4; t++) dmax = fmaxf(dmax, fabsf(bake[t] - pred[t]));
-        smax = fmaxf(smax, fmaxf(fabsf(av), fabsf(mean[ch])));
+        for (int t = 0; t < 4; t++) dmax = max_nn(dmax, fabsf(bake[t] - pred[t]));
+        smax = max_nn(smax, max_nn(fabsf(av), fabsf(mean[ch])));
     }
     return smax > 0 ? dmax / smax : (dmax > 0 ? INFINITY : 0);
 }
@@ -331,7 +339,7 @@ size_t wrt_recon_scratch(const wrt_recon *rc, int gr, int L, int Lo, int nc) {
     size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
     size_t full = ((size_t)1 << (2 * Lo)) * nc;
     size_t ext_n = (((size_t)1 << Lo) + 2) * (((size_t)1 << Lo) + 2) * nc;
-    return (size_t)nm * (pyr_n + 2 * full) + ext_n;
+    return (size_t)nm * (pyr_n + 2 * full) + ext_n + 4; /* + 4: the RGB loads' fourth lane */
 }
 
 int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
@@ -408,6 +416,51 @@ static void recon_extend(const wrt_recon *rc, int q, int m, int w, int nc, const
     }
 }
 
+#ifdef __SSE4_1__
+/* Three channels in one SSE register: the fourth lane is loaded (the next value, or the
+ * scratch's padding) and never stored. Every lane does the scalar code's operations in
+ * its order (no FMA at -march=x86-64-v2), so the texels are the same bits. */
+static inline void st3(float *p, __m128 v) {
+    _mm_storel_pi((__m64 *)p, v);
+    _mm_store_ss(p + 2, _mm_movehl_ps(v, v));
+}
+
+/* minmod3 lane by lane: MINPS and MAXPS are the scalar ?: (a < b ? a : b, a > b ? a : b). */
+static inline __m128 minmod3v(__m128 a, __m128 b, __m128 c) {
+    __m128 z = _mm_setzero_ps();
+    __m128 pos = _mm_and_ps(_mm_and_ps(_mm_cmpgt_ps(a, z), _mm_cmpgt_ps(b, z)), _mm_cmpgt_ps(c, z));
+    __m128 neg = _mm_and_ps(_mm_and_ps(_mm_cmplt_ps(a, z), _mm_cmplt_ps(b, z)), _mm_cmplt_ps(c, z));
+    __m128 mn = _mm_min_ps(_mm_min_ps(a, b), c), mx = _mm_max_ps(_mm_max_ps(a, b), c);
+    return _mm_or_ps(_mm_and_ps(pos, mn), _mm_and_ps(neg, mx));
+}
+
+/* The smooth prediction of recon_children for one cell, RGB at once. */
+static inline void children3(const float *c, size_t ws, int limit, float *o0, float *o1) {
+    const __m128 av = _mm_loadu_ps(c), E = _mm_loadu_ps(c + 3), W = _mm_loadu_ps(c - 3);
+    const __m128 N = _mm_loadu_ps(c + ws), S = _mm_loadu_ps(c - ws);
+    __m128 dx = _mm_mul_ps(_mm_sub_ps(E, W), _mm_set1_ps(0.125f));
+    __m128 dy = _mm_mul_ps(_mm_sub_ps(N, S), _mm_set1_ps(0.125f));
+    __m128 dxy = _mm_add_ps(_mm_sub_ps(_mm_sub_ps(_mm_loadu_ps(c + ws + 3), _mm_loadu_ps(c + ws - 3)),
+                                       _mm_loadu_ps(c + 3 - ws)), _mm_loadu_ps(c - 3 - ws));
+    dxy = _mm_mul_ps(dxy, _mm_set1_ps(1.0f / 64));
+    if (limit) {
+        const __m128 two = _mm_set1_ps(2.0f), half = _mm_set1_ps(0.5f), q = _mm_set1_ps(0.25f);
+        __m128 lx = _mm_mul_ps(minmod3v(_mm_mul_ps(two, _mm_sub_ps(av, W)), _mm_mul_ps(half, _mm_sub_ps(E, W)),
+                                        _mm_mul_ps(two, _mm_sub_ps(E, av))), q);
+        __m128 ly = _mm_mul_ps(minmod3v(_mm_mul_ps(two, _mm_sub_ps(av, S)), _mm_mul_ps(half, _mm_sub_ps(N, S)),
+                                        _mm_mul_ps(two, _mm_sub_ps(N, av))), q);
+        dxy = _mm_andnot_ps(_mm_or_ps(_mm_cmpneq_ps(lx, dx), _mm_cmpneq_ps(ly, dy)), dxy);
+        dx = lx;
+        dy = ly;
+    }
+    __m128 am = _mm_sub_ps(av, dx), ap = _mm_add_ps(av, dx);
+    st3(o0, _mm_add_ps(_mm_sub_ps(am, dy), dxy));
+    st3(o0 + 3, _mm_sub_ps(_mm_sub_ps(ap, dy), dxy));
+    st3(o1, _mm_sub_ps(_mm_add_ps(am, dy), dxy));
+    st3(o1 + 3, _mm_add_ps(_mm_add_ps(ap, dy), dxy));
+}
+#endif
+
 /* Stage 3, per quad and level: quad s's children at level l + 1 from its extended grid. */
 static void recon_children(int s, int q, int l, int L, int m, int w, int nc, const float *ext, float *nx,
                            const uint8_t *const *known, const float *buf, size_t pyr_n, int keep, float sharp,
@@ -429,6 +482,17 @@ static void recon_children(int s, int q, int l, int L, int m, int w, int nc, con
             int is_known = all_known || (kn && kn[(size_t)j * m + i]);
             if (is_known && l >= keep) /* past `keep`: only the details the prediction misses */
                 is_known = sharp > 0 && details_missed(c, nc, ws, pl + ((size_t)j * m + i) * nc, p0 + x0, p1 + x0, pyr) > sharp;
+#ifdef __SSE4_1__
+            if (nc == 3) {
+                if (!is_known) { children3(c, ws, limit, o0 + x0, o1 + x0); continue; }
+                __m128 dv = _mm_sub_ps(_mm_loadu_ps(c), _mm_loadu_ps(pl + ((size_t)j * m + i) * 3));
+                st3(o0 + x0, _mm_add_ps(_mm_loadu_ps(p0 + x0), dv));
+                st3(o0 + x1, _mm_add_ps(_mm_loadu_ps(p0 + x1), dv));
+                st3(o1 + x0, _mm_add_ps(_mm_loadu_ps(p1 + x0), dv));
+                st3(o1 + x1, _mm_add_ps(_mm_loadu_ps(p1 + x1), dv));
+                continue;
+            }
+#endif
             if (is_known) {
                 for (int ch = 0; ch < nc; ch++) {
                     float dv = c[ch] - pl[((size_t)j * m + i) * nc + ch];

@@ -103,7 +103,8 @@ int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const floa
                   const uint8_t *const *known, float *const *out, const wrt_recon_params *p);
 
 /* The same with the caller's scratch (no allocation): buf holds at least
- * wrt_recon_scratch(rc, gr, L, Lo, nc) floats, not read before written. */
+ * wrt_recon_scratch(rc, gr, L, Lo, nc) floats, not read before written
+ * (its last 4 floats are padding that 4-float loads of RGB values may read). */
 size_t wrt_recon_scratch(const wrt_recon *rc, int gr, int L, int Lo, int nc);
 void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
                       const uint8_t *const *known, float *const *out, const wrt_recon_params *p, float *buf);

@@ -111,7 +111,8 @@ extern "C" {
  * user-first allocator and the status-returning accessors; 3 since wrt_runtime_quad's
  * kind, part and (u, v) fields (it grew: rebuild callers), the atlas helper, and the
  * options' linear_display and progress; 4 since wrt_runtime_open_path (a private copy of
- * the file) and wrt_runtime_get_file_info (functions only added: API 3 callers still work). Compare the macros with
+ * the file) and wrt_runtime_get_file_info; 5 since wrt_runtime_set_budget and
+ * wrt_runtime_get_update_stats (functions only added: API 3 callers still work). Compare the macros with
  * wrt_version() and wrt_api_version() at run time to catch a program built against
  * another header than the library it runs with. */
 #define WRT_VERSION_MAJOR 0
@@ -119,7 +120,7 @@ extern "C" {
 #define WRT_VERSION_PATCH 0
 #define WRT_VERSION_STRING "0.1.0"
 #define WRT_VERSION (WRT_VERSION_MAJOR * 10000 + WRT_VERSION_MINOR * 100 + WRT_VERSION_PATCH)
-#define WRT_API_VERSION 4
+#define WRT_API_VERSION 5
 
 /* What every fallible call returns (shared by all of wrt's tools and libraries). */
 typedef enum wrt_status {
@@ -294,6 +295,40 @@ WRT_API wrt_status wrt_runtime_set_eye(wrt_runtime *rt, const double eye[3], wrt
  * WRT_ERR_INVALID_ARG (handle), WRT_ERR_NOMEM (then *changed is 0, and the next
  * successful update redoes every texture). */
 WRT_API wrt_status wrt_runtime_update(wrt_runtime *rt, int *changed, wrt_error *err);
+
+/* ---- A time budget and small changes skipped (API 5; docs/runtime.md) ----
+ * budget_ms > 0: each wrt_runtime_update works within about that many milliseconds and
+ * leaves the rest for the next update (stats.pending); call update every frame, even when
+ * nothing changed, until pending is 0. Work goes in units (one light's projection, the
+ * multiply, a slice of the quads' textures, a slice of the smoothed groups, the glossy
+ * gather), a unit starts only while time is left, and every call does at least one, so a
+ * call overruns by at most one unit (the multiply is the largest: a few milliseconds on a
+ * large scene). The textures between show the last finished stage; once pending is 0
+ * they are bit for bit what one update without a budget gives. 0 (the default): none.
+ * skip_below in [0, 1): a light change whose projected direct light moves by less than
+ * that fraction of the light last applied (relative L2 norm) costs no multiply, no
+ * texture and no gather (its projection is paid: it is how the change is measured); the
+ * changes add up until one passes. 0 (the default): every change is applied.
+ * Errors: WRT_ERR_INVALID_ARG (handle; a value out of range, named), WRT_ERR_NOMEM
+ * (skip_below's copy of the light, 12 bytes a function; the settings are then as before). */
+WRT_API wrt_status wrt_runtime_set_budget(wrt_runtime *rt, double budget_ms, double skip_below, wrt_error *err);
+
+/* What the updates did: the last update's state and counts since the open. */
+typedef struct wrt_runtime_update_stats {
+    int pending;                  /* 1: the last update ran out of budget: work is left */
+    int skipped;                  /* 1: the last update's light change was below skip_below */
+    double ms[5];                 /* the last update: projection, multiply, brdf, synthesis, smoothing */
+    long long updates;            /* wrt_runtime_update calls */
+    long long projections;        /* lights projected */
+    long long multiplies;         /* X = Op E */
+    long long skips;              /* light changes below skip_below */
+    long long quads_synthesized;  /* quads' wavelet textures synthesized */
+    long long groups_smoothed;    /* groups of quads through the smooth display */
+    long long gathers;            /* glossy final gathers */
+    long long entries_streamed;   /* operator entries the multiplies read (the lit columns' only) */
+} wrt_runtime_update_stats;
+/* Errors: WRT_ERR_INVALID_ARG (handle, out NULL). */
+WRT_API wrt_status wrt_runtime_get_update_stats(const wrt_runtime *rt, wrt_runtime_update_stats *out, wrt_error *err);
 
 /* ---- Emissive surfaces (docs/emitters.md) ----
  * Every material with emission (glTF emissiveFactor x KHR_materials_emissive_strength)

@@ -256,7 +256,10 @@ int run_bench(app *a) {
     /* one warm-up frame: the first relight projects every light and uploads every quad */
     stage_ms t;
     int rc = run_frame(a, &t);
-    double first = t.frame;
+    double first = t.frame, worst = 0;
+    int npending = 0;
+    wrt_runtime_update_stats us0, us;
+    wrt_runtime_get_update_stats(a->rl, &us0, NULL);
     double t0 = wrt_now();
     for (int i = 0; i < n && !rc; i++) {
         double ang = 2 * WRT_PI * (i + 1) / (n < 8 ? 8 : n);
@@ -274,8 +277,14 @@ int run_bench(app *a) {
         col[4][i] = t.upload;
         col[5][i] = t.draw;
         col[6][i] = t.frame;
+        wrt_runtime_get_update_stats(a->rl, &us, NULL);
+        npending += us.pending;
+        double upd = t.projection + t.multiply + t.brdf + t.synthesis;
+        if (upd > worst) worst = upd;
     }
     double total = wrt_now() - t0;
+    wrt_runtime_update_stats us1;
+    wrt_runtime_get_update_stats(a->rl, &us1, NULL);
     if (!rc) {
         const char *names[7] = {"projection", "multiply", "brdf", "synthesis", "upload", "draw", "frame"};
         printf("{\"frames\": %d, \"width\": %d, \"height\": %d, \"mode\": \"%s\", \"quads\": %u, "
@@ -288,8 +297,13 @@ int run_bench(app *a) {
             if (k == 6) med_frame = m;
             printf("%s\"%s\": %.3f", k ? ", " : "", names[k], m);
         }
-        printf("}, \"fps\": %.2f, \"fps_mean\": %.2f, \"renderer\": ", med_frame > 0 ? 1e3 / med_frame : 0.0,
-               n / total);
+        printf("}, \"fps\": %.2f, \"fps_mean\": %.2f, ", med_frame > 0 ? 1e3 / med_frame : 0.0, n / total);
+        /* the time budget and skip_below (wrt_runtime_set_budget): the slowest update, the
+         * frames that left work pending, and the work done over the frames */
+        printf("\"budget_ms\": %g, \"skip_below\": %g, \"max_update_ms\": %.3f, \"frames_pending\": %d, "
+               "\"skipped\": %lld, \"multiplies\": %lld, \"quads_synthesized\": %lld, \"renderer\": ",
+               a->o->budget_ms, a->o->skip_below, worst, npending, us1.skips - us0.skips, us1.multiplies - us0.multiplies,
+               us1.quads_synthesized - us0.quads_synthesized);
         wrt_json_str(stdout, wrt_render_gl_info());
         printf("}\n");
     }

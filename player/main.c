@@ -480,7 +480,13 @@ static wrt_status open_file(const options *o, int progress_line, wrt_runtime **r
     wrt_runtime_options ro = {.size = sizeof ro, .max_tex_res = o->max_tex_res, .threads = o->threads,
                               .linear_display = o->linear_display, .progress_user = &op};
     if (progress_line) ro.progress = show_progress;
-    return wrt_runtime_open_path(o->file, WRT_OPEN_PRIVATE, &ro, rt, err);
+    wrt_status s = wrt_runtime_open_path(o->file, WRT_OPEN_PRIVATE, &ro, rt, err);
+    if (s == WRT_OK && (o->budget_ms > 0 || o->skip_below > 0) &&
+        (s = wrt_runtime_set_budget(*rt, o->budget_ms, o->skip_below, err)) != WRT_OK) {
+        wrt_runtime_close(*rt);
+        *rt = NULL;
+    }
+    return s;
 }
 
 /* F5: reads the file again (after a new bake) and rebuilds the relighting and the

@@ -55,6 +55,11 @@ static void usage(FILE *f) {
         "Other:\n"
         "  --threads N           relighting threads (0 = all cores)\n"
         "  --max-tex-res N       cap on a quad's texture resolution (default 64)\n"
+        "  --budget MS           each relight works within about MS milliseconds and carries\n"
+        "                        the rest to the next frame (default 0: no budget; wrt.h)\n"
+        "  --skip-below F        a light change that moves the direct light by less than the\n"
+        "                        fraction F (0 <= F < 1) of the light last applied costs no\n"
+        "                        multiply and no texture (default 0: none skipped)\n"
         "  --linear-display      the linear smooth display: textures superpose across lights\n"
         "                        (no slope limiter, no clamp; see wrt.h, linear_display)\n"
         "  --shadow-res N        shadow cube map face size (default 512)\n"
@@ -151,6 +156,11 @@ int parse_args(int argc, char **argv, options *o) {
             if (o->msaa & (o->msaa - 1)) { fprintf(stderr, "wrt-play: error: bad value for --msaa: '%s' (1, 2, 4 or 8)\n", v); return 0; }
         }
         else if (!strcmp(a, "--supersample")) INT(1, 4, o->supersample);
+        else if (!strcmp(a, "--budget")) NUM(0, 1e6, o->budget_ms);
+        else if (!strcmp(a, "--skip-below")) {
+            NUM(0, 1, o->skip_below);
+            if (o->skip_below >= 1) { fprintf(stderr, "wrt-play: error: bad value for --skip-below: '%s' (0 <= F < 1)\n", v); return 0; }
+        }
         else if (!strcmp(a, "--exposure")) { double e; NUM(-64, 64, e); o->exposure = (float)e; }
         else if (!strcmp(a, "--script-fps")) NUM(1e-3, 1e4, o->script_fps);
         else if (!strcmp(a, "--emitter-scale")) { NEED(); if (!parse_emitters(v, o)) return 0; }

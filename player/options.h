@@ -11,6 +11,7 @@ typedef struct options {
     const char *file, *out, *script, *pattern, *stats, *screenshot;
     int headless, width, height, bench, frames, threads, max_tex_res, shadow_res, msaa, no_overlay, supersample;
     int linear_display;
+    double budget_ms, skip_below;    /* --budget, --skip-below (wrt_runtime_set_budget) */
     wrt_render_mode mode;
     float exposure;
     double script_fps;

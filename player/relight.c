@@ -100,7 +100,7 @@ static void sum_lights(wrt_relight *r) {
     memset(r->E, 0, (size_t)r->g->nfuncs * 3 * sizeof(float));
     for (int i = 0; i < r->nlights; i++) {
         const light_state *ls = &r->lights[i];
-        if (ls->scale == 0 || !ls->projected) continue;
+        if (ls->scale == 0 || !ls->have_proj) continue;
         for (size_t k = 0; k < ls->n; k++)
             for (int c = 0; c < 3; c++) r->E[(size_t)ls->idx[k] * 3 + c] += ls->scale * ls->val[k * 3 + c];
     }
@@ -120,71 +120,159 @@ static int change_too_small(const wrt_relight *r) {
     return d < r->opt.skip_below * r->opt.skip_below * n;
 }
 
+int relight_budget_left(wrt_relight *r) {
+    if (r->opt.budget_ms <= 0) return 1;
+    if (!r->run.did) { r->run.did = 1; return 1; }
+    return wrt_now() < r->run.deadline;
+}
+
+/* E (5.2): the sum of the lights, and unless the change is below skip_below the multiply
+ * (with K the first bounce first) into X, marking the quads whose X changed. */
+static void apply_lights(wrt_relight *r, wrt_relight_timings *t) {
+    const wrt_gto *g = r->g;
+    r->e_dirty = 0;
+    sum_lights(r);
+    if (change_too_small(r)) {
+        t->skipped = 1;
+        r->run.n.skips++;
+        return;
+    }
+    /* With K: the first bounce from its quads, Y = K c, and E' = E off them + Y. */
+    const float *src = r->E;
+    if (g->nkcols) { relight_first_bounce(r); src = r->k.Ep; }
+    relight_multiply(r, relight_cluster_forward(r, src)); /* the tree's basis and back, if any */
+    relight_cluster_inverse(r);
+    r->run.n.multiplies++;
+    if (r->Eapplied) {
+        memcpy(r->Eapplied, r->E, (size_t)g->nfuncs * 3 * sizeof(float));
+        r->e_applied = 1;
+    }
+}
+
+enum { ST_PROJECT, ST_MULTIPLY, ST_SYNTH, ST_SMOOTH, ST_GATHER, ST_COUNT };
+
+/* One stage of an update: 0 done (or nothing to do, or waiting on an earlier stage), 1
+ * stopped by the budget with work left, -1 out of memory (the message made). */
+static int run_stage(wrt_relight *r, int st, wrt_relight_timings *t, int *nchanged) {
+    double t0 = wrt_now();
+    switch (st) {
+    case ST_PROJECT:
+        for (int k = 0; k < r->nlights; k++) { /* budgeted: from the light that waited */
+            int i = (r->run.next_light + k) % r->nlights;
+            light_state *ls = &r->lights[i];
+            if (ls->projected || ls->scale == 0) continue;
+            if (!relight_budget_left(r)) { r->run.next_light = i; return 1; }
+            ls->have_proj = 0; /* written in place: whole again once it succeeds */
+            if (relight_project_light(r, ls) != 0) return -1;
+            r->e_dirty = 1;
+            t->lights_changed++;
+            r->run.n.projections++;
+        }
+        t->projection += (wrt_now() - t0) * 1e3;
+        return 0;
+    case ST_MULTIPLY:
+        if (!r->e_dirty) return 0;
+        if (!relight_budget_left(r)) return 1;
+        apply_lights(r, t);
+        t->multiply += (wrt_now() - t0) * 1e3;
+        return 0;
+    case ST_SYNTH: {
+        int n = relight_synthesize(r, t);
+        if (n < 0) return -1;
+        if (!r->sm.recon) *nchanged += n;
+        return r->run.synth_pending;
+    }
+    case ST_SMOOTH: {
+        if (!r->sm.recon || r->run.synth_pending) return 0;
+        *nchanged += relight_smooth(r);
+        t->reconstruction += (wrt_now() - t0) * 1e3;
+        t->synthesis += (wrt_now() - t0) * 1e3;
+        return r->run.smooth_pending;
+    }
+    default: {
+        int waits = r->e_dirty || r->run.synth_pending || r->run.smooth_pending;
+        for (int i = 0; i < r->nlights && !waits; i++) waits = !r->lights[i].projected && r->lights[i].scale != 0;
+        if (waits || !(r->run.gl_lights || r->run.gl_eye)) return 0;
+        if (!relight_budget_left(r)) return 1;
+        int ngl = relight_gather(r, r->run.gl_lights, r->run.gl_eye); /* gather.h */
+        if (ngl < 0) return -1;
+        r->run.gl_lights = r->run.gl_eye = 0;
+        if (ngl > 0) { t->synthesis += (wrt_now() - t0) * 1e3; r->run.n.gathers++; }
+        *nchanged += ngl;
+        return 0;
+    }
+    }
+}
+
 /* The stages of an update, each only when what it reads changed: the projection of
  * every light that moved (section 5.1), E and the multiply when a light changed (5.2;
  * with K the first bounce first), the synthesis of the quads whose X changed or, glossy,
- * whose view moved (5.3-5.4), their groups' smooth display, and the final gather. */
+ * whose view moved (5.3-5.4), their groups' smooth display, and the final gather. With
+ * a budget a call starts at the stage where the last one stopped and goes round once,
+ * so a light that moves every frame does not starve the stages after its projection:
+ * the multiply then sums each light's last whole projection (an older but consistent
+ * E), the smoothing waits until every marked quad is synthesized and the gather until
+ * everything before it is done. */
 int wrt_relight_update(wrt_relight *r, wrt_relight_timings *tm) {
     wrt_relight_timings t = {0};
-    const wrt_gto *g = r->g;
-    uint32_t nq = g->nquads;
-    double t0 = wrt_now();
+    uint32_t nq = r->g->nquads;
+    r->run.deadline = wrt_now() + r->opt.budget_ms * 1e-3;
+    r->run.did = 0;
+    r->run.n.updates++;
     atomic_store(&r->upd_oom, 0);
-    for (int i = 0; i < r->nlights; i++) {
-        light_state *ls = &r->lights[i];
-        if (ls->projected || ls->scale == 0) continue;
-        if (relight_project_light(r, ls) != 0) return update_nomem(r, "projecting a light", tm, &t);
-        t.lights_changed++;
-    }
-    double t1 = wrt_now();
-    t.projection = (t1 - t0) * 1e3;
-    memset(r->resynth, 0, nq);
-    int lights_dirty = r->e_dirty || r->redo_all, eye_moved = r->eye_dirty || r->redo_all;
+    r->run.gl_lights |= r->e_dirty || r->redo_all;
+    r->run.gl_eye |= r->eye_dirty || r->redo_all;
     if (r->redo_all) { /* the last update failed part way: every texture again */
         memset(r->resynth, 1, nq);
         memset(r->tex_nonzero, 1, nq); /* dark quads: cleared again */
     }
-    if (r->e_dirty) {
-        r->e_dirty = 0;
-        sum_lights(r);
-        if (change_too_small(r)) {
-            t.skipped = 1;
-        } else {
-            /* With K: the first bounce from its quads, Y = K c, and E' = E off them + Y. */
-            const float *src = r->E;
-            if (g->nkcols) { relight_first_bounce(r); src = r->k.Ep; }
-            relight_multiply(r, relight_cluster_forward(r, src)); /* the tree's basis and back, if any */
-            relight_cluster_inverse(r);
-            if (r->Eapplied) {
-                memcpy(r->Eapplied, r->E, (size_t)g->nfuncs * 3 * sizeof(float));
-                r->e_applied = 1;
-            }
-        }
-    }
-    double t2 = wrt_now();
-    t.multiply = (t2 - t1) * 1e3;
     if (r->eye_dirty) {
         r->eye_dirty = 0;
         for (uint32_t q = 0; q < nq; q++)
             if (r->qi[q].glossy && r->x_nonzero[q]) r->resynth[q] = 1;
     }
-    int nchanged = relight_synthesize(r, &t);
-    if (nchanged < 0) return update_nomem(r, "synthesizing textures", tm, &t);
-    if (r->sm.recon) { /* smooth display of every group that changed (reconstruct.h) */
-        double t4 = wrt_now();
-        nchanged = relight_smooth(r);
-        t.reconstruction = (wrt_now() - t4) * 1e3;
-        t.synthesis += t.reconstruction;
+    static const char *what[ST_COUNT] = {"projecting a light", "multiplying", "synthesizing textures",
+                                         "smoothing textures", "gathering glossy light"};
+    int start = r->opt.budget_ms > 0 ? r->run.resume : 0, stopped = -1, nchanged = 0;
+    for (int k = 0; k < ST_COUNT; k++) {
+        int st = (start + k) % ST_COUNT;
+        int rc = run_stage(r, st, &t, &nchanged);
+        if (rc < 0) return update_nomem(r, what[st], tm, &t);
+        if (rc > 0 && stopped < 0) stopped = st;
     }
-    double t5 = wrt_now();
-    int ngl = relight_gather(r, lights_dirty, eye_moved); /* gather.h */
-    if (ngl < 0) return update_nomem(r, "gathering glossy light", tm, &t);
-    if (ngl > 0) t.synthesis += (wrt_now() - t5) * 1e3;
-    nchanged += ngl;
+    /* a light moved while its stage was behind us: pending too */
+    int waits = r->e_dirty || r->run.synth_pending || r->run.smooth_pending || r->run.gl_lights || r->run.gl_eye;
+    for (int i = 0; i < r->nlights && !waits; i++) waits = !r->lights[i].projected && r->lights[i].scale != 0;
+    /* the next call resumes where this one stopped, except that the projection gets one
+     * whole call at most once every light has a whole projection: lights that keep moving
+     * would otherwise keep every later stage waiting (the multiply then sums their last
+     * whole projections); a light never projected is not left out of E */
+    int all_whole = 1;
+    for (int i = 0; i < r->nlights; i++) all_whole &= r->lights[i].have_proj || r->lights[i].scale == 0;
+    r->run.resume = stopped < 0 ? 0 : stopped == ST_PROJECT && start == ST_PROJECT && all_whole ? ST_MULTIPLY : stopped;
+    if (r->opt.budget_ms <= 0) r->run.next_light = 0;
+    t.pending = waits || stopped >= 0;
     t.quads_resynthesized = nchanged;
     r->redo_all = 0;
     if (tm) *tm = t;
     return nchanged;
+}
+
+void wrt_relight_get_counters(const wrt_relight *r, wrt_relight_counters *out) { *out = r->run.n; }
+
+wrt_status wrt_relight_set_budget(wrt_relight *r, double budget_ms, double skip_below) {
+    if (!(budget_ms >= 0 && budget_ms <= 1e9))
+        return wrt_fail(WRT_ERR_INVALID_ARG, "relight: budget_ms %g: milliseconds in [0, 1e9] (0: no budget)", budget_ms);
+    if (!(skip_below >= 0 && skip_below < 1))
+        return wrt_fail(WRT_ERR_INVALID_ARG, "relight: skip_below %g: a fraction in [0, 1)", skip_below);
+    if (skip_below > 0 && !r->Eapplied) {
+        r->Eapplied = relight_calloc(r, (size_t)r->g->nfuncs * 3 + 1, sizeof(float));
+        if (!r->Eapplied) { r->oom = 0; return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory for skip_below's E"); }
+        r->e_applied = 0; /* the next multiply is applied, and remembered */
+    }
+    r->opt.budget_ms = budget_ms;
+    r->opt.skip_below = skip_below;
+    return WRT_OK;
 }
 
 /* ------------------------------------------------------------- accessors ---- */

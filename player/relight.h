@@ -57,6 +57,15 @@ typedef struct wrt_relight_options {
      * no synthesis: X stays; the changes add up until one passes it (Enlighten's rule;
      * issue 23). In [0, 1); 0 (the default): every change is applied. */
     double skip_below;
+    /* > 0: the time budget of an update in milliseconds (issue 23, "as engines expect"):
+     * an update does its work in units (one light's projection, the multiply, a slice of
+     * the quads to synthesize, a slice of the groups to smooth, the final gather) and
+     * starts a unit only while the budget lasts, except the first unit of every call, so
+     * each call makes progress and overruns the budget by at most one unit. What is left
+     * waits for the next update (timings.pending); an update that finds nothing new
+     * carries on with it. The textures reach exactly (bit for bit) what one unbudgeted
+     * update gives. Finite, >= 0; 0 (the default): no budget. */
+    double budget_ms;
 } wrt_relight_options;
 
 typedef struct wrt_relight_timings { /* milliseconds of the last update */
@@ -65,7 +74,21 @@ typedef struct wrt_relight_timings { /* milliseconds of the last update */
     int quads_resynthesized;
     int lights_changed;
     int skipped;            /* 1: the light change was below skip_below: X kept */
+    int pending;            /* 1: budget_ms ran out: work is left for the next update */
 } wrt_relight_timings;
+
+/* Work done since creation, counted in units of an update (for tests and --bench): a
+ * light change below skip_below adds to skips and to nothing after the projection. */
+typedef struct wrt_relight_counters {
+    long long updates, projections, multiplies, skips, quads_synthesized, groups_smoothed, gathers;
+    long long entries_streamed; /* the operator's entries the multiplies read (lit columns only) */
+} wrt_relight_counters;
+void wrt_relight_get_counters(const wrt_relight *r, wrt_relight_counters *out);
+
+/* Changes options.budget_ms and options.skip_below (same ranges) between updates; work
+ * left pending stays pending. Errors: WRT_ERR_INVALID_ARG (naming the value),
+ * WRT_ERR_NOMEM (skip_below's copy of E; the options are then as before). */
+wrt_status wrt_relight_set_budget(wrt_relight *r, double budget_ms, double skip_below);
 
 /* `g` must outlive the relighter (it points into the mapping). Errors: WRT_ERR_INVALID_ARG,
  * WRT_ERR_NOMEM, WRT_ERR_CANCELLED (options.progress returned 0). */

@@ -283,7 +283,7 @@ void relight_first_bounce(wrt_relight *r) {
     memset(r->k.C, 0, (size_t)nk * 4 * sizeof(float));
     for (int i = 0; i < r->nlights; i++) {
         const light_state *ls = &r->lights[i];
-        if (ls->scale == 0 || !ls->projected) continue;
+        if (ls->scale == 0 || !ls->have_proj) continue;
         for (size_t j = 0; j < nk; j++)
             for (int c = 0; c < 3; c++) r->k.C[j * 4 + c] += ls->scale * ls->kc[j * 3 + c];
     }

@@ -50,7 +50,8 @@ void relight_cluster_inverse(wrt_relight *r) {
     for (uint32_t q = 0; q < g->nquads; q++) {
         const wrt_gto_quad *gq = &g->quads[q];
         size_t a = (size_t)gq->func_first * 3, n = (size_t)gq->func_count * 3;
-        r->resynth[q] = (uint8_t)(r->redo_all || memcmp(r->X + a, r->Xprev + a, n * sizeof(float)) != 0);
+        /* marks are added: a quad a budgeted update has not synthesized yet stays marked */
+        if (r->redo_all || memcmp(r->X + a, r->Xprev + a, n * sizeof(float)) != 0) r->resynth[q] = 1;
         int nz = 0;
         for (size_t k = a; k < a + n && !nz; k++) nz = r->X[k] != 0;
         r->x_nonzero[q] = (uint8_t)nz;

@@ -46,6 +46,8 @@ static wrt_status create_base(const wrt_gto *g, const wrt_relight_options *opt, 
     if (opt) o = *opt;
     if (!(o.skip_below >= 0 && o.skip_below < 1))
         return wrt_fail(WRT_ERR_INVALID_ARG, "relight: skip_below %g: a fraction in [0, 1)", o.skip_below);
+    if (!(o.budget_ms >= 0 && o.budget_ms <= 1e9))
+        return wrt_fail(WRT_ERR_INVALID_ARG, "relight: budget_ms %g: milliseconds in [0, 1e9] (0: no budget)", o.budget_ms);
     if (o.gather_points != 0 && o.gather_points != 16 && o.gather_points != 32)
         return wrt_fail(WRT_ERR_INVALID_ARG, "relight: gather points %d: 0 (chosen per quad), 16 or 32", o.gather_points);
     if (!o.alloc != !o.free) return wrt_fail(WRT_ERR_INVALID_ARG, "relight: an allocator needs both alloc and free");

@@ -76,6 +76,9 @@ typedef struct light_state {
     light_c lc;                     /* light_consts(&light), for the gather's direct light */
     float scale;
     int projected;                  /* E below is the projection of `light` */
+    int have_proj;                  /* E below is a whole projection, maybe of the light's
+                                     * last position (a budgeted update sums it while the
+                                     * new one waits: a consistent, older E) */
     uint32_t *idx; float *val;      /* sparse E at scale 1: function index, RGB */
     size_t n, cap;
     float *kc;                      /* c over K's columns at scale 1, RGB (NULL without K) */
@@ -213,6 +216,16 @@ struct wrt_relight {
      * X back after it. on 0: none. */
     struct { int on; wrt_ctree t; uint32_t *root; float *Et; double *scratch; } ct;
     float *Eapplied;                /* skip_below > 0: the E of the last multiply */
+    /* The time budget (options.budget_ms; relight.c): the current call's deadline and
+     * whether it did a unit yet, what waits for a later call, and the work counters. */
+    struct {
+        double deadline; int did;
+        int synth_pending, smooth_pending; /* quads still marked in resynth, groups in regroup */
+        int gl_lights, gl_eye;             /* the final gather's inputs moved since it last ran */
+        int resume;                        /* the stage the next budgeted call starts with */
+        int next_light;                    /* the light the projection starts with */
+        wrt_relight_counters n;
+    } run;
     int e_applied;                  /* 1 once Eapplied holds one */
     float *tex; uint8_t *tex_nonzero, *x_nonzero, *resynth;
     float *texk;                    /* per texel of non-parallelograms: 2^Lt sqrt(pi/J)/pi */
@@ -311,6 +324,13 @@ static inline int light_visible(const wrt_relight *r, wrt_v3 x, wrt_v3 n, wrt_v3
     rtcOccluded1(r->rt.scene, &ic, &ray);
     return !(ray.tfar < 0);
 }
+
+/* Whether an update may start another unit of work (relight.c): always without a budget
+ * and for the first unit of a call (every call makes progress), else while the budget
+ * lasts. */
+int relight_budget_left(wrt_relight *r);
+/* Units of a budgeted stage: items per slice of the synthesis or the smoothing. */
+#define RELIGHT_SLICE 16
 
 /* ------------------------------------------------------ relight_emit.c ---- */
 

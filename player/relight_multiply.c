@@ -183,26 +183,39 @@ void relight_multiply(wrt_relight *r, const float *src) {
         entries += (double)(r->mul.op.col_start[c + 1] - r->mul.op.col_start[c]);
     }
     mul_ctx mc = {r->mul.cols, ncols, 0, src};
+    r->run.n.entries_streamed += (long long)entries;
     /* Bound by memory: threads that stream halves of the same columns were measured
      * slower than one on 2 cores (maze 4.2 vs 2.8 ms, glossy 14 vs 11 ms). */
     int nchunk = entries > MUL_PARALLEL_ENTRIES ? r->nthreads : 1;
     if (nchunk > MUL_MAX_CHUNKS) nchunk = MUL_MAX_CHUNKS;
     mc.nchunk = nchunk;
     relight_parallel_for(r, nchunk, 1e9, r->mul.op.rows ? mul_chunk : mul_chunk_compact, &mc);
-    memcpy(r->Xprev, r->X, (size_t)nf * 3 * sizeof(float)); /* X keeps its address */
-    for (size_t f = 0; f < nf; f++)
-        for (int c = 0; c < 3; c++) r->X[f * 3 + c] = r->mul.X4[f * 4 + c];
-    if (g->nkcols) /* X = Op E' + Y, on the rows the multiply computes (all but a glossy
-                    * quad's angular rows when the final gather displays it) */
-        for (size_t f = 0; f < nf; f++)
-            if (!r->mul.own[0] || r->fn_ang[f] == 0)
-                for (int c = 0; c < 3; c++) r->X[f * 3 + c] += r->k.Y[f * 3 + c];
+    /* X from X4 (+ Y with K, on the rows the multiply computes: all but a glossy quad's
+     * angular rows when the final gather displays it), each value compared with the one
+     * it replaces as it is written (X keeps its address; the quads' ranges follow each
+     * other over every function: gto_check_quad_ranges). With the cluster tree the
+     * values compared are the tree's: relight_cluster_inverse compares again, on the
+     * quads' functions, against this copy of the last X. */
+    if (r->ct.on) memcpy(r->Xprev, r->X, (size_t)nf * 3 * sizeof(float));
+    const float *Y = g->nkcols ? r->k.Y : NULL;
     for (uint32_t q = 0; q < nq; q++) {
         const wrt_gto_quad *gq = &g->quads[q];
-        size_t a = (size_t)gq->func_first * 3, n = (size_t)gq->func_count * 3;
-        if (memcmp(r->X + a, r->Xprev + a, n * sizeof(float)) != 0) r->resynth[q] = 1;
-        int nz = 0;
-        for (size_t k = a; k < a + n && !nz; k++) nz = r->X[k] != 0;
-        r->x_nonzero[q] = (uint8_t)nz;
+        uint32_t changed = 0, nz = 0;
+        for (size_t f = gq->func_first; f < (size_t)gq->func_first + gq->func_count; f++) {
+            int addy = Y && (!r->mul.own[0] || r->fn_ang[f] == 0);
+            for (int c = 0; c < 3; c++) {
+                float v = r->mul.X4[f * 4 + c];
+                if (addy) v += Y[f * 3 + c];
+                uint32_t ov, nv;
+                memcpy(&ov, &r->X[f * 3 + c], 4);
+                memcpy(&nv, &v, 4);
+                changed |= ov ^ nv;
+                nz |= v != 0;
+                r->X[f * 3 + c] = v;
+            }
+        }
+        if (r->ct.on) continue; /* relight_cluster_inverse marks the quads */
+        if (changed) r->resynth[q] = 1;
+        r->x_nonzero[q] = (uint8_t)(nz != 0);
     }
 }

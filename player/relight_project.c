@@ -642,6 +642,6 @@ int relight_project_light(wrt_relight *r, light_state *ls) {
         k += rec->count;
     }
     ls->n = total;
-    ls->projected = 1;
+    ls->projected = ls->have_proj = 1;
     return 0;
 }

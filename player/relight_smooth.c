@@ -172,6 +172,27 @@ int relight_smooth(wrt_relight *r) {
         rwork += 0.15 * nm * ldexp(1.0, 2 * r->qi[mem[0]].stex_level); /* ~30 ns a texel */
     }
     recon_ctx rcx = {list};
-    relight_parallel_for(r, nre, rwork, recon_item, &rcx);
+    if (r->opt.budget_ms <= 0) {
+        relight_parallel_for(r, nre, rwork, recon_item, &rcx);
+        r->run.n.groups_smoothed += nre;
+        r->run.smooth_pending = 0;
+        return nchanged;
+    }
+    /* budgeted: slices while the budget lasts; the groups left stay marked */
+    int slice = r->nthreads, done = 0; /* a group can be a whole wall: one a thread */
+    for (; done < nre && relight_budget_left(r); done += slice) {
+        int m = nre - done < slice ? nre - done : slice;
+        rcx.groups = list + done;
+        relight_parallel_for(r, m, rwork * m / nre, recon_item, &rcx);
+    }
+    if (done > nre) done = nre;
+    for (int k = done; k < nre; k++) {
+        int nm;
+        wrt_recon_members(r->sm.recon, list[k], &nm);
+        r->sm.regroup[list[k]] = 1;
+        nchanged -= nm;
+    }
+    r->run.n.groups_smoothed += done;
+    r->run.smooth_pending = done < nre;
     return nchanged;
 }

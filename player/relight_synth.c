@@ -184,6 +184,7 @@ static int synth_select(wrt_relight *r, int *ncleared) {
     *ncleared = 0;
     for (uint32_t q = 0; q < nq; q++) {
         if (!r->resynth[q]) continue;
+        r->resynth[q] = 0; /* done here, or by the synthesis (marked again if it waits) */
         if (!r->x_nonzero[q]) { /* all dark: clear once */
             if (r->tex_nonzero[q]) {
                 memset(r->tex + r->qi[q].tex_off, 0, ((size_t)1 << (2 * r->qi[q].tex_level)) * 3 * sizeof(float));
@@ -216,13 +217,28 @@ int relight_synthesize(wrt_relight *r, wrt_relight_timings *t) {
         const quad_info *qi = &r->qi[list[k]];
         work += ldexp(qi->glossy ? 0.3 * qi->nang : 0.015, 2 * qi->tex_level); /* ~3 ns a diffuse texel */
     }
-    relight_parallel_for(r, nsynth, work, synth_item, &sc);
+    int done = nsynth;
+    if (r->opt.budget_ms <= 0) {
+        relight_parallel_for(r, nsynth, work, synth_item, &sc);
+    } else { /* in slices while the budget lasts; the rest stays marked for the next update */
+        int slice = RELIGHT_SLICE * r->nthreads;
+        for (done = 0; done < nsynth && relight_budget_left(r); done += slice) {
+            int m = nsynth - done < slice ? nsynth - done : slice;
+            sc.list = list + done;
+            relight_parallel_for(r, m, work * m / nsynth, synth_item, &sc);
+        }
+        if (done > nsynth) done = nsynth;
+        for (int k = done; k < nsynth; k++) r->resynth[list[k]] = 1;
+    }
+    r->run.synth_pending = done < nsynth;
+    r->run.n.quads_synthesized += done;
     if (atomic_load(&r->upd_oom)) return -1;
     double t4 = wrt_now(), bt = 0;
     for (int tt = 0; tt < r->nthreads; tt++) bt += r->workers[tt].brdf_time;
     int used = r->nthreads < nsynth ? r->nthreads : (nsynth ? nsynth : 1);
     t->brdf = bt / used * 1e3;
-    t->synthesis = (t4 - t3) * 1e3 - t->brdf;
-    if (t->synthesis < 0) t->synthesis = 0;
+    nsynth = done;
+    double ts = (t4 - t3) * 1e3 - t->brdf;
+    t->synthesis += ts > 0 ? ts : 0; /* a budgeted update's smoothing may come first */
     return nsynth + ncleared;
 }

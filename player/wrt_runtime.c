@@ -363,6 +363,29 @@ wrt_status wrt_runtime_update(wrt_runtime *rt, int *changed, wrt_error *err) {
     return n < 0 ? fail(err, WRT_ERR_NOMEM) : WRT_OK;
 }
 
+wrt_status wrt_runtime_set_budget(wrt_runtime *rt, double budget_ms, double skip_below, wrt_error *err) {
+    if (!live(rt)) return dead(err, "wrt_runtime_set_budget", rt);
+    wrt_status s = wrt_relight_set_budget(rt->rl, budget_ms, skip_below);
+    return s == WRT_OK ? WRT_OK : fail(err, s);
+}
+
+wrt_status wrt_runtime_get_update_stats(const wrt_runtime *rt, wrt_runtime_update_stats *out, wrt_error *err) {
+    if (!live(rt)) return dead(err, "wrt_runtime_get_update_stats", rt);
+    if (!out) return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_get_update_stats: out is NULL"));
+    wrt_relight_counters c;
+    wrt_relight_get_counters(rt->rl, &c);
+    memset(out, 0, sizeof *out);
+    out->pending = rt->tm.pending;
+    out->skipped = rt->tm.skipped;
+    out->ms[0] = rt->tm.projection; out->ms[1] = rt->tm.multiply; out->ms[2] = rt->tm.brdf;
+    out->ms[3] = rt->tm.synthesis - rt->tm.reconstruction; out->ms[4] = rt->tm.reconstruction;
+    out->updates = c.updates; out->projections = c.projections; out->multiplies = c.multiplies;
+    out->skips = c.skips; out->quads_synthesized = c.quads_synthesized; out->groups_smoothed = c.groups_smoothed;
+    out->gathers = c.gathers;
+    out->entries_streamed = c.entries_streamed;
+    return WRT_OK;
+}
+
 int wrt_runtime_material_count(const wrt_runtime *rt) { return live(rt) ? (int)rt->g.nmaterials : -1; }
 
 wrt_status wrt_runtime_get_material(const wrt_runtime *rt, int i, wrt_runtime_material *out, wrt_error *err) {

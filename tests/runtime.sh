@@ -3,7 +3,8 @@
 # test (tests/runtime_instances.c) on the two-square scene and a 2 x 2 maze; the public
 # API's boundary (tests/runtime_api.c) and the API beside the relighting core
 # (tests/runtime_core.c) on the two-square scene and a copy of it whose light has a glTF
-# range of 0.75, and the open's progress and cancel on a glossy floor (quality 2). Prints "N passed, N failed" (", N skipped").
+# range of 0.75, and the open's progress and cancel on a glossy floor (quality 2); the
+# time budget and skip_below (tests/runtime_budget.c) on the maze and the glossy floor. Prints "N passed, N failed" (", N skipped").
 set -u
 build=${1:-build}
 cd "$(dirname "$0")/.."
@@ -19,7 +20,7 @@ grep -q '"range":0.75' "$tmp/r.gltf" &&
 "$build/wrt-bake" assets/test/glossy_floor.gltf -o "$tmp/g.gto" -q 2 --quiet >/dev/null 2>&1 || { ko "bakes"; summary; exit 1; }
 pass=0; fail=0; skip=0; rc=0
 for t in "runtime_instances $tmp/a.gto $tmp/b.gto" "runtime_api $tmp/a.gto $tmp/r.gto $tmp/b.gto --glossy $tmp/g.gto" \
-         "runtime_core $tmp/r.gto"; do
+         "runtime_core $tmp/r.gto" "runtime_budget $tmp/b.gto $tmp/g.gto"; do
     set -- $t
     out=$("$build/tests/$1" "${@:2}" 2>&1) || rc=1
     printf '%s\n' "$out"

@@ -137,7 +137,7 @@ static void test_version(void) {
     CHECK(wrt_version() == WRT_VERSION && WRT_VERSION == 100, "wrt_version %d, header %d", wrt_version(), WRT_VERSION);
     CHECK(!strcmp(wrt_version_string(), WRT_VERSION_STRING) && !strcmp(WRT_VERSION_STRING, "0.1.0"),
           "wrt_version_string '%s'", wrt_version_string());
-    CHECK(wrt_api_version() == WRT_API_VERSION && WRT_API_VERSION == 4, "wrt_api_version %d", wrt_api_version());
+    CHECK(wrt_api_version() == WRT_API_VERSION && WRT_API_VERSION == 5, "wrt_api_version %d", wrt_api_version());
     CHECK(!strcmp(wrt_status_str(WRT_ERR_INVALID_ARG), "invalid argument") &&
           !strcmp(wrt_status_str((wrt_status)99), "unknown status"), "wrt_status_str");
 }
