@@ -172,7 +172,7 @@ $(BUILD)/wrt-compare: $(call obj,tools/compare_main.c) $(VERIFY_OBJ) $(RUNTIME_O
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
 # The compact-entry study (issue 23, docs/bench.md "Compact entries"): not installed.
-$(BUILD)/tools/codec_study: $(call obj,tools/codec_study.c) $(BAKE_CORE_OBJ)
+$(BUILD)/tools/codec_study: $(call obj,tools/codec_study.c) $(BAKE_OBJ) $(BAKE_CORE_OBJ)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
@@ -198,6 +198,7 @@ TEST_PARTS_test_gto_compact := formats common
 TEST_PARTS_test_image := formats common
 TEST_PARTS_test_scene := formats common
 TEST_PARTS_test_bake := bake formats common
+TEST_PARTS_test_drop := bake formats common
 TEST_PARTS_test_cluster := bake formats common
 TEST_PARTS_test_relight := runtime formats common
 TEST_PARTS_test_reconstruct := bake runtime formats common
