@@ -179,7 +179,7 @@ $(BUILD)/tools/light_bw: tools/light_bw.c $(BUILD)/libwrt.a include/wrt.h
 	$(Q)$(CC) -std=c11 $(CWARN) $(CFLAGS_$(config)) -D_GNU_SOURCE -Iinclude $< -o $@ $(BUILD)/libwrt.a $(LDFLAGS) $(LIBS_CORE)
 
 # The compact-entry study (issue 23, docs/bench.md "Compact entries"): not installed.
-$(BUILD)/tools/codec_study: $(call obj,tools/codec_study.c) $(BAKE_CORE_OBJ)
+$(BUILD)/tools/codec_study: $(call obj,tools/codec_study.c) $(BAKE_OBJ) $(BAKE_CORE_OBJ)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
@@ -205,6 +205,7 @@ TEST_PARTS_test_gto_compact := formats common
 TEST_PARTS_test_image := formats common
 TEST_PARTS_test_scene := formats common
 TEST_PARTS_test_bake := bake formats common
+TEST_PARTS_test_drop := bake formats common
 TEST_PARTS_test_cluster := bake formats common
 TEST_PARTS_test_relight := runtime formats common
 TEST_PARTS_test_reconstruct := bake runtime formats common

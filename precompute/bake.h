@@ -27,6 +27,12 @@ typedef struct wrt_bake_options {
     double eps_compress;   /* drop operator entries below this (max over RGB) after each product */
     double eps_final;      /* the same once, on the operator that is stored (default: eps_compress;
                             * docs/bench.md "Thresholds by error per byte") */
+    double drop_sender;    /* the final compression's threshold grows as 2^(drop_sender x the
+                            * sender's depth) (drop_rule.h; 0: the default 0.5; negative: none,
+                            * the uniform threshold of before) */
+    double drop_receiver;  /* and as 2^(drop_receiver x the receiver's depth past drop_receiver_from)
+                            * (0: the default 1; negative: none) */
+    int drop_receiver_from;/* 0: the default 3 (finer than the display's 8 x 8 cells); negative: 0 */
     int max_slevel;        /* deepest spatial level of refinement (cells 2^-l of a quad) */
     int min_slevel;        /* refine every link at least to this level (default 0) */
     int max_alevel;        /* cap on the angular level of glossy materials (1..3) */

@@ -46,6 +46,13 @@ static void usage(FILE *f) {
         "  --eps-compress E       drop operator entries below E after each product\n"
         "  --eps-final E          drop entries below E from the stored operator, once (at\n"
         "                         least the products' threshold; default: the quality's)\n"
+        "  --drop-sender S        the stored operator's threshold grows as 2^(S d) with the\n"
+        "                         sender's depth d (0 for a quad's mean, level + 1 for a\n"
+        "                         wavelet; default 0.5; 0: a uniform threshold, as before;\n"
+        "                         docs/bench.md \"Which entries are stored\")\n"
+        "  --drop-receiver R      and as 2^(R (d - F)) with the receiver's depth d past F\n"
+        "                         (default 1; 0: none)\n"
+        "  --drop-receiver-from F (default 3: finer than the display's 8 x 8 cells a quad)\n"
         "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
         "  --min-level L          refine every link at least to level L\n"
         "  --max-angular-level L  cap on glossy materials' angular level (1..3; default 1 up\n"
@@ -176,11 +183,12 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
         "\"max_level\":%d,\"min_level\":%d,\"receiver_samples\":%d,\"gathered\":%d,\"tail\":%d,"
         "\"max_bounces\":%d,\"max_alevel\":%d,\"glossy_quality\":%d,"
         "\"eps_receiver_glossy\":%.6g,\"eps_sender_glossy\":%.6g,\"max_level_glossy\":%d,\"balance\":%d,"
-        "\"eps_final\":%.6g}",
+        "\"eps_final\":%.6g,\"drop_sender\":%.6g,\"drop_receiver\":%.6g,\"drop_receiver_from\":%d}",
         o->quality, o->eps_receiver, o->eps_receiver_coarse, o->eps_sender, o->eps_compress, o->max_slevel, o->min_slevel,
         o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces, o->max_alevel,
         o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance,
-        o->eps_final);
+        o->eps_final, fmax(o->drop_sender, 0), fmax(o->drop_receiver, 0),
+        o->drop_receiver_from > 0 ? o->drop_receiver_from : 0);
 }
 
 /* ---------------------------------------------------------------- the command line */
@@ -280,6 +288,17 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--eps-sender")) { ok = opt_num(a, v, 1e-12, 10, &o->eps_sender); i++; }
         else if (!strcmp(a, "--eps-compress")) { ok = opt_num(a, v, 1e-15, 1, &o->eps_compress); i++; }
         else if (!strcmp(a, "--eps-final")) { ok = opt_num(a, v, 1e-15, 1, &o->eps_final); i++; }
+        else if (!strcmp(a, "--drop-sender") || !strcmp(a, "--drop-receiver")) { /* 0: none (stored as -1) */
+            double *d = a[7] == 's' ? &o->drop_sender : &o->drop_receiver;
+            ok = opt_num(a, v, 0, 4, d);
+            if (ok && *d == 0) *d = -1;
+            i++;
+        }
+        else if (!strcmp(a, "--drop-receiver-from")) {
+            ok = opt_int(a, v, 0, 11, &o->drop_receiver_from);
+            if (ok && o->drop_receiver_from == 0) o->drop_receiver_from = -1;
+            i++;
+        }
         else if (!strcmp(a, "--max-level")) { ok = opt_int(a, v, 1, 10, &o->max_slevel); i++; }
         else if (!strcmp(a, "--min-level")) { ok = opt_int(a, v, 0, 10, &o->min_slevel); i++; }
         else if (!strcmp(a, "--max-angular-level")) { ok = opt_int(a, v, 1, 3, &o->max_alevel); i++; }

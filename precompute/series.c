@@ -26,6 +26,7 @@
 #include "budget.h"
 #include "links.h"
 #include "cluster.h"
+#include "drop_rule.h"
 
 /* Memory before each product: the product's entries, estimated from every 16th of its
  * columns (sparse.h; a sixteenth of the product's work) where an upper bound from the
@@ -186,6 +187,30 @@ static wrt_status series_bounces(series_state *s) {
     return WRT_OK;
 }
 
+/* The stored operator's compression: its own threshold (eps_final >= eps_compress drops
+ * what the products needed but the display does not), weighted by the drop rule
+ * (drop_rule.h) on top of the products' weights; the rule's scales are <= 1, so it only
+ * drops more */
+static void series_final_compress(series_state *s) {
+    const bake_ctx *b = s->b;
+    double eps = b->opt.eps_final > s->eps ? b->opt.eps_final : s->eps;
+    wrt_drop_rule r = {fmax(b->opt.drop_sender, 0), fmax(b->opt.drop_receiver, 0),
+                       b->opt.drop_receiver_from > 0 ? b->opt.drop_receiver_from : 0};
+    if (r.sender == 0 && r.receiver == 0) {
+        wrt_csc_compress(&s->S, eps, &s->W);
+        return;
+    }
+    uint32_t n = s->S.n;
+    double *rw = wrt_xmalloc(((size_t)n + 1) * sizeof *rw), *cw = wrt_xmalloc(((size_t)n + 1) * sizeof *cw);
+    for (uint32_t i = 0; i < n; i++) {
+        rw[i] = s->rw[i] * wrt_drop_row_scale(&r, s->res->fkeys[i]);
+        cw[i] = s->cw[i] * wrt_drop_col_scale(&r, s->res->fkeys[i]);
+    }
+    wrt_csc_weights W = {rw, cw, s->pw};
+    wrt_csc_compress(&s->S, eps, &W);
+    free(rw); free(cw);
+}
+
 /* Stage 3: refuse a diverging series, else add the geometric tail and compress the sum */
 static wrt_status series_tail(series_state *s) {
     const bake_ctx *b = s->b;
@@ -212,10 +237,8 @@ static wrt_status series_tail(series_state *s) {
         C->tail_fraction = sn > 0 ? fmax(k[0], fmax(k[1], k[2])) * wrt_csc_norm(&s->P) / sn : 0;
     }
     wrt_csc_free(&s->P);
-    /* the stored operator: its own threshold (eps_final >= eps_compress drops what the
-     * products needed but the display does not) */
-    wrt_csc_compress(&s->S, b->opt.eps_final > s->eps ? b->opt.eps_final : s->eps, &s->W);
-    /* each column's power made the DTO's own series' (series_power.c) */
+    series_final_compress(s);
+    /* each column's power made the DTO's own series' (series_power.c), after the drop */
     if (!b->opt.no_tail && s->pw) {
         wrt_series_power_stats ps;
         wrt_series_power_fix(s->T, s->pw, s->threads, b->opt.max_bounces, &s->S, &ps);

@@ -50,6 +50,21 @@ if "$bake" assets/cornell.gltf -q 2 -o "$tmp/ef0.gto" --json --quiet >"$tmp/ef0.
 else
     ko "bakes with and without --eps-final"
 fi
+# the drop rule of the stored operator (drop_rule.h): on by default (sender 0.5, receiver
+# 1 from depth 3); 0 turns each part off, the uniform threshold of before, which stores
+# more entries; the products' figures are the same; out of range refused
+expect_exit "--drop-sender 5 refused: exit 1" 1 "drop-sender" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --drop-sender 5
+if "$bake" assets/cornell.gltf -q 2 -o "$tmp/dr1.gto" --json --quiet --drop-sender 0 --drop-receiver 0 >"$tmp/dr1.json" 2>/dev/null; then
+    e1=$(grep -o '"gto":[0-9]*' "$tmp/dr1.json" | tail -n 1 | cut -d: -f2)
+    d1=$(grep -o '"dto":[0-9]*' "$tmp/dr1.json" | tail -n 1 | cut -d: -f2)
+    [ -n "$e0" ] && [ -n "$e1" ] && [ "$e0" -lt "$e1" ] && [ "$d0" = "$d1" ] &&
+        grep -q '"drop_sender":0.5,"drop_receiver":1,"drop_receiver_from":3' "$tmp/ef0.json" &&
+        grep -q '"drop_sender":0,"drop_receiver":0,"drop_receiver_from":3' "$tmp/dr1.json" &&
+        ok "drop rule: $e1 stored entries without it, $e0 with it (the default), DTO $d0 both" ||
+        ko "drop rule: $e1 without, $e0 with, DTO $d0 $d1"
+else
+    ko "bake with --drop-sender 0 --drop-receiver 0"
+fi
 # the first-bounce operator: written for glossy quads at the lobe's level (3 for the
 # glossy asset's floor, roughness 0.3), none with --first-bounce-level 0 (no K sections;
 # both files are version 2.0 for their compact entries, with the quad-to-source map)

@@ -8,15 +8,22 @@
  * right), so that wrt-compare measures the encodings' cell and image error against one
  * path-traced reference (docs/bench.md, "Compact entries"). Blocks are those of the
  * file's encoding (formats/gto_encode.c): up to 64 entries of one column whose rows span
- * less than 65536. Depends on formats/gto.h and wrt_common (the checksum). */
+ * less than 65536. With --drop PREFIX SPEC... it studies which entries to store instead
+ * (drop_study below; docs/bench.md, "Which entries are stored"). Depends on formats/gto.h,
+ * wrt_common (the checksum) and the bake's compression (precompute/sparse.h, balance.h's
+ * power weights, drop_rule.h). */
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/basis.h"
 #include "common/wrt_common.h"
 #include "formats/gto.h"
+#include "precompute/balance.h"
+#include "precompute/drop_rule.h"
+#include "precompute/sparse.h"
 
 #define BLOCK_MAX 64
 
@@ -148,9 +155,111 @@ static int write_copy(const wrt_gto *g, const float *q, const char *path) {
     return ok ? 0 : -1;
 }
 
+
+/* --drop: which entries to store (issues 22 and 23). Each SPEC is a drop rule of the
+ * bake's final compression, "e=E,s=S,r=R,f=F" (threshold E, drop_rule.h's sender S,
+ * receiver R from depth F; absent: 0, and E the products' 6.25e-5 of quality 5), applied
+ * to the file's operator by wrt_csc_compress with the bake's weights (sqrt(A_s / A_r),
+ * the power kept per column): PREFIX_SPEC.gto gets the kept entries (dropped ones are
+ * 0), and the row says entries, the compact file's bytes (formats/gto_opcode.c's
+ * blocks), and the relative Frobenius error against the file's operator. */
+typedef struct drop_spec { double e; wrt_drop_rule r; } drop_spec;
+
+static int parse_spec(const char *t, drop_spec *d) {
+    *d = (drop_spec){6.25e-5, {0, 0, 0}};
+    while (*t) {
+        char k = t[0], *end;
+        if (t[1] != '=') return -1;
+        double v = strtod(t + 2, &end);
+        if (end == t + 2 || !isfinite(v)) return -1;
+        if (k == 'e' && v > 0) d->e = v;
+        else if (k == 's') d->r.sender = v;
+        else if (k == 'r') d->r.receiver = v;
+        else if (k == 'f') d->r.receiver_from = (int)v;
+        else return -1;
+        t = *end == ',' ? end + 1 : end;
+        if (*end && *end != ',') return -1;
+    }
+    return 0;
+}
+
+/* The compact file's bytes for the entries kept (q nonzero): codes, deltas, blocks. */
+static double compact_bytes(const wrt_gto *g, const float *q, uint64_t *kept) {
+    uint64_t nb = 0, nk = 0;
+    for (uint32_t s = 0; s < g->nfuncs; s++) {
+        uint32_t prev = 0; int inb = 0;
+        for (uint64_t i = g->col_start[s]; i < g->col_start[s + 1]; i++) {
+            if (q[3 * i] == 0 && q[3 * i + 1] == 0 && q[3 * i + 2] == 0) continue;
+            if (!inb || inb == BLOCK_MAX || g->rows[i] - prev >= 256) { nb++; inb = 0; }
+            inb++; nk++; prev = g->rows[i];
+        }
+    }
+    *kept = nk;
+    return 5.0 * (double)nk + 8.0 * (double)nb;
+}
+
+static int drop_study(const wrt_gto *g, const char *prefix, int nspec, char **specs) {
+    uint32_t n = g->nfuncs;
+    double *rw = malloc(((size_t)n + 1) * sizeof *rw), *cw = malloc(((size_t)n + 1) * sizeof *cw);
+    double *pw = malloc(((size_t)n + 1) * sizeof *pw);
+    float *q = malloc(g->nnz * 3 * sizeof *q);
+    wrt_csc m = {n, g->nnz, malloc(((size_t)n + 1) * sizeof(uint64_t)), malloc(g->nnz * sizeof(uint32_t)),
+                 malloc(g->nnz * 3 * sizeof(float))};
+    if (!rw || !cw || !pw || !q || !m.col || !m.row || !m.val) { fprintf(stderr, "codec_study: error: out of memory\n"); return 4; }
+    for (uint32_t i = 0; i < n; i++) {
+        const wrt_gto_quad *gq = &g->quads[wrt_fkey_quad(g->fkeys[i])];
+        wrt_quad wq;
+        memset(&wq, 0, sizeof wq);
+        for (int c = 0; c < 4; c++) wq.p[c] = (wrt_v3){gq->p[c][0], gq->p[c][1], gq->p[c][2]};
+        wq.n = (wrt_v3){gq->n[0], gq->n[1], gq->n[2]};
+        wq.area = gq->area;
+        wq.parallelogram = (int)(gq->flags & 1);
+        pw[i] = wrt_fkey_angular_root(g->fkeys[i])
+                    ? wrt_func_power(&wq, wrt_fkey_snode(g->fkeys[i]), wrt_fkey_stype(g->fkeys[i])) : 0;
+    }
+    uint64_t other = g->size - g->nnz * 16;
+    printf("| rule | entries | file MB (compact) | rel. Frobenius |\n|---|---|---|---|\n");
+    for (int k = 0; k < nspec; k++) {
+        drop_spec d;
+        if (parse_spec(specs[k], &d) != 0) { fprintf(stderr, "codec_study: error: bad rule '%s' (e=E,s=S,r=R,f=F)\n", specs[k]); return 1; }
+        for (uint32_t i = 0; i < n; i++) {
+            double a = g->quads[wrt_fkey_quad(g->fkeys[i])].area;
+            rw[i] = 1 / sqrt(a) * wrt_drop_row_scale(&d.r, g->fkeys[i]);
+            cw[i] = sqrt(a) * wrt_drop_col_scale(&d.r, g->fkeys[i]);
+        }
+        memcpy(m.col, g->col_start, ((size_t)n + 1) * sizeof(uint64_t));
+        memcpy(m.row, g->rows, g->nnz * sizeof(uint32_t));
+        memcpy(m.val, g->vals, g->nnz * 3 * sizeof(float));
+        m.nnz = g->nnz;
+        wrt_csc_weights W = {rw, cw, pw};
+        wrt_csc_compress(&m, d.e, &W);
+        /* back in the file's places: a kept entry where its row is, 0 elsewhere */
+        memset(q, 0, g->nnz * 3 * sizeof *q);
+        for (uint32_t s = 0; s < n; s++) {
+            uint64_t i = g->col_start[s];
+            for (uint64_t j = m.col[s]; j < m.col[s + 1]; j++) {
+                while (g->rows[i] != m.row[j]) i++;
+                memcpy(&q[3 * i], &m.val[3 * j], 3 * sizeof *q);
+            }
+        }
+        double frob, colmax;
+        errors(g, q, &frob, &colmax);
+        uint64_t kept;
+        double bytes = compact_bytes(g, q, &kept);
+        printf("| %s | %" PRIu64 " | %.2f | %.2e |\n", specs[k], kept, (other + bytes) / 1e6, frob);
+        fflush(stdout);
+        char path[4096];
+        snprintf(path, sizeof path, "%s_%s.gto", prefix, specs[k]);
+        if (write_copy(g, q, path) != 0) { fprintf(stderr, "codec_study: error: cannot write %s\n", path); return 3; }
+    }
+    free(rw); free(cw); free(pw); free(q); wrt_csc_free(&m);
+    return 0;
+}
+
 int main(int argc, char **argv) {
-    if (argc != 2 && !(argc == 4 && !strcmp(argv[2], "--write"))) {
-        fprintf(stderr, "usage: codec_study FILE.gto [--write PREFIX]\n");
+    int drop = argc >= 5 && !strcmp(argv[2], "--drop");
+    if (argc != 2 && !(argc == 4 && !strcmp(argv[2], "--write")) && !drop) {
+        fprintf(stderr, "usage: codec_study FILE.gto [--write PREFIX | --drop PREFIX SPEC...]\n");
         return 1;
     }
     wrt_gto g;
@@ -161,6 +270,11 @@ int main(int argc, char **argv) {
     if (!g.vals || g.nnz == 0) {
         fprintf(stderr, "codec_study: error: %s: no float entries to study\n", argv[1]);
         return 2;
+    }
+    if (drop) {
+        int rc = drop_study(&g, argv[3], argc - 4, argv + 4);
+        wrt_gto_close(&g);
+        return rc;
     }
     float *q = malloc(g.nnz * 3 * sizeof *q);
     if (!q) { fprintf(stderr, "codec_study: error: out of memory\n"); return 4; }
