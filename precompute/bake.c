@@ -60,6 +60,10 @@ void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->max_slevel_glossy > o->max_slevel) o->max_slevel_glossy = o->max_slevel;
     if (o->receiver_samples <= 0) o->receiver_samples = 16;
     if (o->max_bounces <= 0) o->max_bounces = 2000;
+    /* 1 x eps: the products' threshold (series.c: the maze asset's errors the same, its
+     * bake 0.72x the CPU; coarser factors failed the small-quads furnace) */
+    if (o->series_right == 0) o->series_right = 1;
+    if (o->series_right_from <= 0) o->series_right_from = 2;
     /* Glossy materials (measured by tools/study.sh on the glossy asset and the glossy-wall
      * Cornell box, docs/study): a finer angular level blurs the light's own reflection
      * less but places it worse (its direction is a delta truncated to the level's cells),

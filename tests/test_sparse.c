@@ -2,13 +2,17 @@
  * The product is checked against sums over the triplets themselves (no CSC involved),
  * on a matrix large enough for several of the product's column chunks and several words
  * of its row bitmaps; the construction from triplets against a sequential float sum of
- * the duplicates in their input order (the order the bake's power entries rely on). */
+ * the duplicates in their input order (the order the bake's power entries rely on); the
+ * series' coarse right factor (--series-right) against a furnace's closed form. */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "precompute/bake.h"
 #include "precompute/sparse.h"
+#include "bake_helpers.h"
+#include "scene_build.h"
 #include "test.h"
 
 static uint32_t lcg(uint32_t *s) { *s = *s * 1664525u + 1013904223u; return *s >> 8; }
@@ -92,8 +96,71 @@ static void test_product_brute_force(void) {
     wrt_csc_free(&a); wrt_csc_free(&b); wrt_csc_free(&c1); wrt_csc_free(&c2);
 }
 
+/* Indirect irradiance of each quad of a closed box under a uniform irradiance of 1, per
+ * channel, by G - I applied to the quads' root functions. */
+static void box_response(const wrt_scene *s, const wrt_bake_result *r, double *e) {
+    double *x = calloc(3 * (size_t)r->nfuncs, sizeof *x), *y = calloc(3 * (size_t)r->nfuncs, sizeof *y);
+    for (int q = 0; q < s->nquads; q++) {
+        int64_t f = wrt_fkey_find(r->fkeys, r->nfuncs, root_key(q));
+        for (int c = 0; c < 3; c++) x[3 * f + c] = sqrt(s->quads[q].area / M_PI);
+    }
+    wrt_csc_apply(&r->op, x, y);
+    for (int q = 0; q < s->nquads; q++) {
+        int64_t f = wrt_fkey_find(r->fkeys, r->nfuncs, root_key(q));
+        for (int c = 0; c < 3; c++) e[3 * q + c] = y[3 * f + c] * sqrt(M_PI / s->quads[q].area);
+    }
+    free(x); free(y);
+}
+
+/* The products' right factor compressed (series.c): a closed box of 2 x 2 quads a face,
+ * coloured albedo 0.5 / 0.9 / 0.99, quality 4: every quad's indirect irradiance is
+ * rho / (1 - rho) per channel, with the full T and with the default right factor (4 x
+ * eps), within the furnace claim, flux and every quad, and the two within 0.1% of each
+ * other on every quad and channel. Measured beyond the default: at 16 x eps the flux is
+ * 0.31% off, at 64 x eps 2.6% (the columns' dropped power outgrows what their kept
+ * entries may take, and is lost), which is why the default is 4. */
+static void test_series_right_furnace(void) {
+    const double rho[3] = {0.5, 0.9, 0.99}, fs[2] = {-1, 0};
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, rho[0], rho[1], rho[2]);
+    tsb_box_inward(&s, P(0, 0, 0), P(1, 1, 1), 2, m);
+    double *e[2];
+    for (int k = 0; k < 2; k++) {
+        e[k] = calloc(3 * (size_t)s.nquads, sizeof *e[k]);
+        wrt_bake_result r;
+        wrt_bake_options o = opts(4, 0, 0);
+        o.series_right = fs[k];
+        CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+        box_response(&s, &r, e[k]);
+        double worst = 0, flux_err = 0;
+        for (int c = 0; c < 3; c++) {
+            double flux = 0, area = 0, truth = rho[c] / (1 - rho[c]);
+            for (int q = 0; q < s.nquads; q++) {
+                worst = fmax(worst, fabs(e[k][3 * q + c] / truth - 1));
+                flux += e[k][3 * q + c] * s.quads[q].area;
+                area += s.quads[q].area;
+            }
+            flux_err = fmax(flux_err, fabs(flux / (area * truth) - 1));
+        }
+        CHECK(flux_err < 5e-4, "series_right %g: flux off rho / (1 - rho) by %.3g%%", fs[k], 100 * flux_err);
+        CHECK(worst < 5e-4, "series_right %g: worst quad off rho / (1 - rho) by %.3g%%", fs[k], 100 * worst);
+        printf("series right factor %g: flux off the closed form by %.4f%%, worst quad %.4f%%, %llu bounces, "
+               "%llu entries\n", fs[k], 100 * flux_err, 100 * worst, (unsigned long long)r.c.bounces,
+               (unsigned long long)r.op.nnz);
+        wrt_bake_result_free(&r);
+    }
+    double diff = 0;
+    for (int q = 0; q < s.nquads; q++)
+        for (int c = 0; c < 3; c++) diff = fmax(diff, fabs(e[1][3 * q + c] / e[0][3 * q + c] - 1));
+    CHECK(diff < 1e-3, "default right factor off the full T's response by %.3g%%", 100 * diff);
+    for (int k = 0; k < 2; k++) free(e[k]);
+    tsb_free(&s);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(test_duplicates_in_order);
     TEST_RUN(test_product_brute_force);
+    TEST_RUN(test_series_right_furnace);
     TEST_END();
 }
