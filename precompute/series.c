@@ -62,6 +62,7 @@ typedef struct {
     wrt_csc_weights W;
     wrt_csc S, P;
     wrt_csc Tr;     /* --series-right: T compressed, the right factor of the later bounces */
+    int shared;     /* 1 while P and Tr are one matrix (the first term, at 1 x eps) */
     double rc[3], ratio;
 } series_state;
 
@@ -84,7 +85,12 @@ static void series_setup(series_state *s) {
     s->S = wrt_csc_copy(T);
     s->P = wrt_csc_copy(T);
     wrt_csc_compress(&s->P, s->eps, &s->W);
-    if (b->opt.series_right > 0) {
+    if (b->opt.series_right == 1) {
+        /* the first term is that matrix already: one copy, not two (on the 12 x 12 maze
+         * 260 MB of the peak) */
+        s->Tr = s->P;
+        s->shared = 1;
+    } else if (b->opt.series_right > 0) {
         s->Tr = wrt_csc_copy(T);
         wrt_csc_compress(&s->Tr, b->opt.series_right * s->eps, &s->W);
     }
@@ -106,6 +112,13 @@ static void series_setup(series_state *s) {
  * and the tail's power iteration keep the full T. */
 static const wrt_csc *series_right(const series_state *s, int bounce) {
     return s->Tr.col && bounce >= s->b->opt.series_right_from ? &s->Tr : s->T;
+}
+
+/* Frees the right factor, unless the term P still is that matrix (P then owns it). */
+static void series_free_right(series_state *s) {
+    if (s->shared) memset(&s->Tr, 0, sizeof s->Tr);
+    else wrt_csc_free(&s->Tr);
+    s->shared = 0;
 }
 
 /* Stage 2: the bounces, each term the previous one times T, with the power iteration that
@@ -158,7 +171,8 @@ static wrt_status series_bounces(series_state *s) {
             wrt_csc_free(&N);
             break;
         }
-        wrt_csc_free(&s->P); /* the last term, used: its product is made */
+        if (s->shared) s->shared = 0; /* the first term stays on as the right factor */
+        else wrt_csc_free(&s->P);       /* the last term, used: its product is made */
         s->P = N;
         C->bounces++;
         const double one[3] = {1, 1, 1};
@@ -201,7 +215,7 @@ static wrt_status series_bounces(series_state *s) {
         if (!b->opt.no_tail && stable >= 3 && C->bounces >= 8) break;
     }
     free(x); free(y);
-    wrt_csc_free(&s->Tr);
+    series_free_right(s);
     s->ratio = ratio;
     return WRT_OK;
 }
@@ -275,7 +289,8 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     series_setup(&s);
     wrt_status st = series_bounces(&s);
     if (st != WRT_OK) {
-        wrt_csc_free(&s.P); wrt_csc_free(&s.S); wrt_csc_free(&s.Tr); free(s.rw); free(s.cw); free(s.pw);
+        series_free_right(&s);
+        wrt_csc_free(&s.P); wrt_csc_free(&s.S); free(s.rw); free(s.cw); free(s.pw);
         return st;
     }
     st = series_tail(&s);
