@@ -69,6 +69,10 @@ void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->max_slevel_glossy > o->max_slevel) o->max_slevel_glossy = o->max_slevel;
     if (o->receiver_samples <= 0) o->receiver_samples = 16;
     if (o->max_bounces <= 0) o->max_bounces = 2000;
+    /* 1 x eps: the products' threshold (series.c: the maze asset's errors the same, its
+     * bake 0.72x the CPU; coarser factors failed the small-quads furnace) */
+    if (o->series_right == 0) o->series_right = 1;
+    if (o->series_right_from <= 0) o->series_right_from = 2;
     /* Glossy materials (measured by tools/study.sh on the glossy asset and the glossy-wall
      * Cornell box, docs/study): a finer angular level blurs the light's own reflection
      * less but places it worse (its direction is a delta truncated to the level's cells),
@@ -433,12 +437,15 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
             atomic_store(b->cancel, 1);
         if (atomic_load(b->cancel)) break;
         /* Memory: the entries so far, extrapolated over the pairs left, then their
-         * conversion to triplets, keys and the matrix, which needs about 60 bytes per
-         * entry beside the entries' 32. */
+         * conversion: the keys (two of 8 bytes an entry) and their sort's buffer beside the
+         * entries' 32 bytes, then the triplets (20), the matrix (16) and its build's index
+         * (4) once the entries are freed (bake_assemble): 36 bytes an entry beyond the
+         * entries at the most (60 while the entries stayed to the end and qsort copied the
+         * triplets). */
         for (size_t k = 0; k < n; k++) ent += job->out[c + k * nch].count;
         double done = (double)ndone / (double)np, left = (1 - done) / done;
-        uint64_t need = (uint64_t)((double)ent * left * sizeof(pair_entry) + (double)ent * (1 + left) * 60.0);
-        uint64_t known = (uint64_t)((double)ent * 60.0);
+        uint64_t need = (uint64_t)((double)ent * left * sizeof(pair_entry) + (double)ent * (1 + left) * 36.0);
+        uint64_t known = (uint64_t)((double)ent * 36.0);
         /* the extrapolation from under a tenth of the pairs is noise: it refuses only from
          * there on, what is already computed at any time; the figure recorded is the last */
         double keep = C->mem_estimate_mb;
@@ -511,7 +518,9 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             free(keys);
         } else {
             res->nfuncs = (uint32_t)nu;
-            res->fkeys = keys;
+            /* the unique keys only: the array was sized for every entry's two (on the
+             * 12 x 12 maze 515 MB held to the end of the bake for 2.3 MB of keys) */
+            res->fkeys = keys = wrt_xrealloc(keys, (nu ? nu : 1) * sizeof *keys);
             wrt_triplet *tr = wrt_xmalloc((nent ? nent : 1) * sizeof *tr);
             uint64_t t = 0;
             for (size_t i = 0; i < npt; i++)
@@ -539,6 +548,12 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
                 C->open_quad = cl > 0 ? -1 : -cl - 1;
                 C->balance_entries = t - t0n;
                 C->t_balance = wrt_now() - tb;
+            }
+            /* the pairs' entries are all in tr now (the balance read them): freed before T
+             * is built beside tr (on the 12 x 12 maze 1 GB of the assembly's peak) */
+            for (size_t i = 0; i < npt; i++) {
+                free(job->out[i].e); free(job->out[i].leaf);
+                job->out[i].e = NULL; job->out[i].leaf = NULL;
             }
             res->dto = wrt_csc_from_triplets(res->nfuncs, tr, t);
             free(tr);

@@ -47,6 +47,10 @@ typedef struct wrt_bake_options {
     int dto_only;          /* 1: stop after the DTO (res->op stays empty): for tests */
     int max_bounces;       /* cap on the Neumann series (default 2000) */
     int no_tail;           /* 1: do not add the geometric estimate of the series' tail */
+    double series_right;   /* bounces from series_right_from on multiply by T compressed at
+                            * series_right x eps_compress (power kept) instead of the full T
+                            * (series.c); 0: the default, 1; < 0: the full T */
+    int series_right_from; /* the first bounce that does (2 or more; default 2) */
     int no_balance;        /* 1: keep T's root rows as the links integrate them (no power balance) */
     double max_memory_mb;  /* memory budget; default half the physical memory (wrt_bake_memory_default) */
     int first_bounce_level; /* outgoing angular level of the first-bounce operator K of glossy

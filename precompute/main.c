@@ -70,6 +70,9 @@ static void usage(FILE *f) {
         "  --float-entries        store the operator as floats (a version 1.x file, 16 bytes an\n"
         "                         entry) instead of compact (version 2.0, about 5.5 bytes)\n"
         "  --no-tail              do not add the estimated tail of the series\n"
+        "  --series-right F       bounces from --series-right-from B (default 2) on multiply\n"
+        "                         by T compressed at F x --eps-compress (power kept) instead\n"
+        "                         of the full T (default 1; 0: the full T, slower)\n"
         "  --no-balance           keep T's quad-to-quad power as the links integrate it (no\n"
         "                         power balance: loses energy conservation; for comparison)\n"
         "  --clusters             link well separated clusters of quads by one entry each\n"
@@ -183,12 +186,15 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
         "\"max_level\":%d,\"min_level\":%d,\"receiver_samples\":%d,\"gathered\":%d,\"tail\":%d,"
         "\"max_bounces\":%d,\"max_alevel\":%d,\"glossy_quality\":%d,"
         "\"eps_receiver_glossy\":%.6g,\"eps_sender_glossy\":%.6g,\"max_level_glossy\":%d,\"balance\":%d,"
-        "\"eps_final\":%.6g,\"drop_sender\":%.6g,\"drop_receiver\":%.6g,\"drop_receiver_from\":%d}",
+        "\"eps_final\":%.6g,\"drop_sender\":%.6g,\"drop_receiver\":%.6g,\"drop_receiver_from\":%d",
         o->quality, o->eps_receiver, o->eps_receiver_coarse, o->eps_sender, o->eps_compress, o->max_slevel, o->min_slevel,
         o->receiver_samples, o->gathered, !o->no_tail, o->max_bounces, o->max_alevel,
         o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance,
         o->eps_final, fmax(o->drop_sender, 0), fmax(o->drop_receiver, 0),
         o->drop_receiver_from > 0 ? o->drop_receiver_from : 0);
+    fprintf(f, ",\"series_right\":%.6g,\"series_right_from\":%d", o->series_right > 0 ? o->series_right : 0,
+            o->series_right_from);
+    fputc('}', f);
 }
 
 /* ---------------------------------------------------------------- the command line */
@@ -316,6 +322,12 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--gathered")) o->gathered = 1;
         else if (!strcmp(a, "--report-gathered")) o->report_gathered = 1;
         else if (!strcmp(a, "--float-entries")) A->float_entries = 1;
+        else if (!strcmp(a, "--series-right")) {
+            ok = opt_num(a, v, 0, 1e6, &o->series_right);
+            if (ok && o->series_right == 0) o->series_right = -1; /* 0 on the command line: off */
+            i++;
+        }
+        else if (!strcmp(a, "--series-right-from")) { ok = opt_int(a, v, 2, 1000000, &o->series_right_from); i++; }
         else if (!strcmp(a, "--no-tail")) o->no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o->no_balance = 1;
         else if (!strcmp(a, "--clusters")) o->clusters = 1;

@@ -28,31 +28,27 @@
 #include "cluster.h"
 #include "drop_rule.h"
 
-/* Memory before each product: the product's entries, estimated from every 16th of its
- * columns (sparse.h; a sixteenth of the product's work) where an upper bound from the
- * column counts (column j of P T has at most the sum of the counts of P's columns that T's
- * column j touches, and at most n) passes a quarter of the budget, else from every 64th.
- * The product holds its entries twice (columns, then gathered); the sum that follows
- * grows S in place by at most as many (wrt_csc_add3_into), while the columns are gone.
- * The estimate, not the bound, is what is checked and recorded: the bound was 3x the
- * maze's peak (issue 22). */
+/* Memory before each product: the product's entries, estimated from every 64th of its
+ * columns (sparse.h; computed and discarded), and again from every 16th where that
+ * estimate passes a quarter of the budget. The product holds its entries once, plus the
+ * arrays of the 32nd of its columns being computed (wrt_csc_mul); the sum that follows
+ * grows S in place by at most as many (wrt_csc_add3_into), while the term before is gone.
+ * The estimate is what is checked and recorded. (An upper bound from the column counts
+ * decided the finer sample before; on the mazes it always passed, so every product paid
+ * a 16th of itself to be estimated: 4% of the series.) */
 static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, const wrt_csc *P, const wrt_csc *T,
                                       double eps, const wrt_csc_weights *W, int bounce) {
-    double bound = 0;
-    for (uint32_t j = 0; j < T->n; j++) {
-        double cnt = 0;
-        for (uint64_t k = T->col[j]; k < T->col[j + 1] && cnt < T->n; k++)
-            cnt += (double)(P->col[T->row[k] + 1] - P->col[T->row[k]]);
-        bound += cnt < T->n ? cnt : T->n;
-    }
     const double per = 16.0; /* bytes per entry: row index and three floats */
     char what[96];
     if (bounce > 0) snprintf(what, sizeof what, "bounce %d of the series", bounce);
     else snprintf(what, sizeof what, "the gathered operator T S");
-    int near = (double)wrt_bake_rss_bytes() + per * 2 * bound > 0.25 * b->opt.max_memory_mb * 1024.0 * 1024.0;
-    uint64_t est = wrt_csc_mul_estimate(P, T, eps, W, near ? 16 : 64, b->opt.threads);
     /* 1.25: the sample's spread, measured on the glossy asset (see the commit message) */
-    double need = per * 1.25 * 2 * (double)est;
+    uint64_t est = wrt_csc_mul_estimate(P, T, eps, W, 64, b->opt.threads);
+    double need = per * 1.25 * (1 + 1.0 / 32) * (double)est;
+    if ((double)wrt_bake_rss_bytes() + need > 0.25 * b->opt.max_memory_mb * 1024.0 * 1024.0) {
+        est = wrt_csc_mul_estimate(P, T, eps, W, 16, b->opt.threads);
+        need = per * 1.25 * (1 + 1.0 / 32) * (double)est;
+    }
     return wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, (uint64_t)need, what);
 }
 
@@ -67,6 +63,8 @@ typedef struct {
     double *rw, *cw, *pw;
     wrt_csc_weights W;
     wrt_csc S, P;
+    wrt_csc Tr;     /* --series-right: T compressed, the right factor of the later bounces */
+    int shared;     /* 1 while P and Tr are one matrix (the first term, at 1 x eps) */
     double rc[3], ratio;
 } series_state;
 
@@ -89,6 +87,40 @@ static void series_setup(series_state *s) {
     s->S = wrt_csc_copy(T);
     s->P = wrt_csc_copy(T);
     wrt_csc_compress(&s->P, s->eps, &s->W);
+    if (b->opt.series_right == 1) {
+        /* the first term is that matrix already: one copy, not two (on the 12 x 12 maze
+         * 260 MB of the peak) */
+        s->Tr = s->P;
+        s->shared = 1;
+    } else if (b->opt.series_right > 0) {
+        s->Tr = wrt_csc_copy(T);
+        wrt_csc_compress(&s->Tr, b->opt.series_right * s->eps, &s->W);
+    }
+}
+
+/* The right factor of bounce k: T, or from series_right_from on (default: every product
+ * after the first term), T compressed at series_right x eps (default 1: the products'
+ * own threshold; each column's power kept by the compression's hand-over). The light a
+ * product carries on has been through a bounce at least, and the entries of T below the
+ * threshold, 40% of them on the maze asset at q5 (8.1M, 4.8M above eps), move it between
+ * neighbouring functions. Measured against one path-traced reference, debiased cell /
+ * image error, and the bake's CPU seconds:
+ *   maze asset q5: full T 1.66% / 0.65%, 29.2 s; 1 x eps 1.66% / 0.65%, 21.1 s;
+ *                  4 x eps 1.65% / 0.65%, 18.2 s; 16 x eps 1.73% / 0.65%, 17.9 s.
+ * But a closed box with a floor of 8 x 8 small quads at quality 4 (test_bake's
+ * small-quads furnace, tolerance 4.1%): worst quad 3.85% with the full T, 3.97% at 1 x
+ * eps, 5.53% at 2 x, 7.72% at 4 x (also with the roots' rows kept at 1 x); and a
+ * coloured box at albedo 0.99 lost 0.31% of its flux at 16 x. Hence 1. The first term
+ * and the tail's power iteration keep the full T. */
+static const wrt_csc *series_right(const series_state *s, int bounce) {
+    return s->Tr.col && bounce >= s->b->opt.series_right_from ? &s->Tr : s->T;
+}
+
+/* Frees the right factor, unless the term P still is that matrix (P then owns it). */
+static void series_free_right(series_state *s) {
+    if (s->shared) memset(&s->Tr, 0, sizeof s->Tr);
+    else wrt_csc_free(&s->Tr);
+    s->shared = 0;
 }
 
 /* Stage 2: the bounces, each term the previous one times T, with the power iteration that
@@ -125,14 +157,15 @@ static wrt_status series_bounces(series_state *s) {
     int stable = 0;
     C->bounces = 1;
     while ((int)C->bounces < b->opt.max_bounces && s->P.nnz) {
-        wrt_status mst = series_memory_check(b, C, &s->P, T, eps, &s->W, (int)C->bounces + 1);
+        const wrt_csc *R = series_right(s, (int)C->bounces + 1);
+        wrt_status mst = series_memory_check(b, C, &s->P, R, eps, &s->W, (int)C->bounces + 1);
         if (mst != WRT_OK) {
             char msg[1024];
             snprintf(msg, sizeof msg, "%s", wrt_last_error());
             free(x); free(y);
             return wrt_fail(mst, "%s", msg);
         }
-        wrt_csc N = wrt_csc_mul(&s->P, T, eps, &s->W, threads);
+        wrt_csc N = wrt_csc_mul(&s->P, R, eps, &s->W, threads);
         if (!N.nnz) {
             /* every entry of the next term fell under the threshold, but together they
              * still carry ratio / (1 - ratio) of the last term (0.2% of the total at
@@ -140,7 +173,8 @@ static wrt_status series_bounces(series_state *s) {
             wrt_csc_free(&N);
             break;
         }
-        wrt_csc_free(&s->P); /* the last term, used: its product is made */
+        if (s->shared) s->shared = 0; /* the first term stays on as the right factor */
+        else wrt_csc_free(&s->P);       /* the last term, used: its product is made */
         s->P = N;
         C->bounces++;
         const double one[3] = {1, 1, 1};
@@ -183,6 +217,7 @@ static wrt_status series_bounces(series_state *s) {
         if (!b->opt.no_tail && stable >= 3 && C->bounces >= 8) break;
     }
     free(x); free(y);
+    series_free_right(s);
     s->ratio = ratio;
     return WRT_OK;
 }
@@ -283,6 +318,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     series_setup(&s);
     wrt_status st = series_bounces(&s);
     if (st != WRT_OK) {
+        series_free_right(&s);
         wrt_csc_free(&s.P); wrt_csc_free(&s.S); free(s.rw); free(s.cw); free(s.pw);
         return st;
     }

@@ -16,7 +16,7 @@ static int cmp_triplet(const void *pa, const void *pb) {
     return 0;
 }
 
-wrt_csc wrt_csc_from_triplets(uint32_t n, wrt_triplet *t, uint64_t count) {
+static wrt_csc from_triplets_qsort(uint32_t n, wrt_triplet *t, uint64_t count) {
     qsort(t, count, sizeof *t, cmp_triplet);
     wrt_csc m = {.n = n};
     m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
@@ -35,6 +35,57 @@ wrt_csc wrt_csc_from_triplets(uint32_t n, wrt_triplet *t, uint64_t count) {
     }
     for (uint32_t j = 0; j < n; j++) m.col[j + 1] += m.col[j];
     m.nnz = k;
+    return m;
+}
+
+/* Builds from triplets: duplicates of one (row, col) are summed in their order in t (the
+ * order a stable sort by (col, row) leaves them, as qsort's merge sort did). Two counting
+ * passes instead of a comparison sort: the rows' order as an index (4 bytes an entry),
+ * then each triplet scattered in that order into its column, so rows ascend within a
+ * column. On the 12 x 12 maze (32M entries) qsort took seconds and a second copy of the
+ * 20-byte triplets; this takes 4 bytes an entry beside the result. */
+wrt_csc wrt_csc_from_triplets(uint32_t n, wrt_triplet *t, uint64_t count) {
+    if (count >= UINT32_MAX) return from_triplets_qsort(n, t, count); /* the index is 32-bit */
+    wrt_csc m = {.n = n};
+    m.col = wrt_xcalloc((size_t)n + 2, sizeof *m.col);
+    uint64_t *rstart = wrt_xcalloc((size_t)n + 2, sizeof *rstart);
+    for (uint64_t i = 0; i < count; i++) { rstart[t[i].row + 1]++; m.col[t[i].col + 1]++; }
+    for (uint32_t j = 0; j < n; j++) { rstart[j + 1] += rstart[j]; m.col[j + 1] += m.col[j]; }
+    uint32_t *order = wrt_xmalloc((count ? count : 1) * sizeof *order);
+    for (uint64_t i = 0; i < count; i++) order[rstart[t[i].row]++] = (uint32_t)i;
+    free(rstart);
+    m.row = wrt_xmalloc((count ? count : 1) * sizeof *m.row);
+    m.val = wrt_xmalloc((count ? count : 1) * 3 * sizeof *m.val);
+    uint64_t *next = wrt_xmalloc(((size_t)n + 1) * sizeof *next);
+    memcpy(next, m.col, ((size_t)n + 1) * sizeof *next);
+    for (uint64_t k = 0; k < count; k++) {
+        const wrt_triplet *e = &t[order[k]];
+        uint64_t at = next[e->col]++;
+        m.row[at] = e->row;
+        memcpy(&m.val[3 * at], e->v, sizeof e->v);
+    }
+    free(order); free(next);
+    /* duplicates are now side by side in their order in t: summed as before, in place */
+    uint64_t k = 0, start = 0;
+    for (uint32_t j = 0; j < n; j++) {
+        uint64_t end = m.col[j + 1];
+        for (uint64_t i = start; i < end; i++) {
+            if (i > start && m.row[k - 1] == m.row[i]) {
+                for (int c = 0; c < 3; c++) m.val[3 * (k - 1) + c] += m.val[3 * i + c];
+                continue;
+            }
+            m.row[k] = m.row[i];
+            if (k != i) memcpy(&m.val[3 * k], &m.val[3 * i], 3 * sizeof *m.val);
+            k++;
+        }
+        start = end;
+        m.col[j + 1] = k;
+    }
+    m.nnz = k;
+    if (k < count) {
+        m.row = wrt_xrealloc(m.row, (k ? k : 1) * sizeof *m.row);
+        m.val = wrt_xrealloc(m.val, (k ? k : 1) * 3 * sizeof *m.val);
+    }
     return m;
 }
 
@@ -62,9 +113,9 @@ typedef struct mul_ctx {
     const double *row_w, *col_w;
     col_out *out;
     double **acc;       /* per thread: 3n doubles */
-    uint32_t **mark;    /* per thread: n markers (column index + 1) */
+    uint64_t **bits;    /* per thread: one bit per row, set while the column touches it */
+    uint64_t **top;     /* per thread: one bit per word of bits that has a bit set */
     uint32_t **list;    /* per thread: touched rows */
-    uint32_t **tmp;     /* per thread: the sort's buffer */
     const double *power_w;
 } mul_ctx;
 
@@ -102,46 +153,22 @@ static void spread_power(const uint32_t *rows, uint32_t n, double *acc, const do
         if (lost[ch] != 0) spread_power_channel(rows, n, acc, pw, lost[ch], ch);
 }
 
-/* Sorts a[0..n) (values <= maxv) ascending: insertion sort for short lists, else an LSD
- * radix sort by bytes through tmp (n entries), as many passes as maxv needs. qsort with
- * a comparison callback took 38% of a maze bake (the product sorts every column's
- * touched rows). */
-static void sort_u32(uint32_t *a, uint32_t n, uint32_t *tmp, uint32_t maxv) {
-    if (n < 32) {
-        for (uint32_t i = 1; i < n; i++) {
-            uint32_t v = a[i], j = i;
-            while (j > 0 && a[j - 1] > v) { a[j] = a[j - 1]; j--; }
-            a[j] = v;
-        }
-        return;
-    }
-    uint32_t *src = a, *dst = tmp;
-    for (int shift = 0; shift < 32 && (maxv >> shift); shift += 8) {
-        uint32_t count[256 + 1];
-        memset(count, 0, sizeof count);
-        for (uint32_t i = 0; i < n; i++) count[((src[i] >> shift) & 255) + 1]++;
-        for (int d = 0; d < 256; d++) count[d + 1] += count[d];
-        for (uint32_t i = 0; i < n; i++) dst[count[(src[i] >> shift) & 255]++] = src[i];
-        uint32_t *t = src; src = dst; dst = t;
-    }
-    if (src != a) memcpy(a, src, n * sizeof *a);
-}
-
 static void mul_column(size_t j, int th, void *user) {
     mul_ctx *c = user;
     const wrt_csc *a = c->a, *b = c->b;
     double *acc = c->acc[th];
-    uint32_t *mark = c->mark[th], *list = c->list[th];
-    uint32_t nl = 0;
+    uint32_t *list = c->list[th];
+    uint64_t *bits = c->bits[th], *top = c->top[th];
     for (uint64_t kb = b->col[j]; kb < b->col[j + 1]; kb++) {
         uint32_t k = b->row[kb];
         const float *bv = &b->val[3 * kb];
         for (uint64_t ka = a->col[k]; ka < a->col[k + 1]; ka++) {
             uint32_t i = a->row[ka];
             const float *av = &a->val[3 * ka];
-            if (mark[i] != j + 1) {
-                mark[i] = (uint32_t)(j + 1);
-                list[nl++] = i;
+            uint64_t bit = (uint64_t)1 << (i & 63);
+            if (!(bits[i >> 6] & bit)) {
+                bits[i >> 6] |= bit;
+                top[i >> 12] |= (uint64_t)1 << ((i >> 6) & 63);
                 acc[3 * i] = acc[3 * i + 1] = acc[3 * i + 2] = 0;
             }
             acc[3 * i] += (double)av[0] * bv[0];
@@ -149,12 +176,23 @@ static void mul_column(size_t j, int th, void *user) {
             acc[3 * i + 2] += (double)av[2] * bv[2];
         }
     }
-    if ((uint64_t)nl * 8 > a->n) {
-        /* a dense column: reading the markers in order is cheaper than sorting */
-        nl = 0;
-        for (uint32_t i = 0; i < a->n; i++) if (mark[i] == j + 1) list[nl++] = i;
-    } else {
-        sort_u32(list, nl, c->tmp[th], a->n);
+    /* The touched rows in ascending order, read off the two bitmaps (and cleared on the
+     * way): sorting each column's touched rows (a radix sort, qsort before it) took 13% of
+     * the 12 x 12 maze's bake (perf), reading the bitmaps a few words per 4,096 rows. */
+    uint32_t nl = 0, ntop = (a->n >> 12) + 1;
+    for (uint32_t u = 0; u < ntop; u++) {
+        uint64_t tw = top[u];
+        top[u] = 0;
+        while (tw) {
+            uint32_t wi = u * 64 + (uint32_t)__builtin_ctzll(tw);
+            tw &= tw - 1;
+            uint64_t bw = bits[wi];
+            bits[wi] = 0;
+            while (bw) {
+                list[nl++] = wi * 64 + (uint32_t)__builtin_ctzll(bw);
+                bw &= bw - 1;
+            }
+        }
     }
     uint32_t kept = 0, kept_power = 0, best = UINT32_MAX;
     double cw = c->col_w ? c->col_w[j] : 1.0, lost[3] = {0, 0, 0}, bestw = 0;
@@ -220,38 +258,21 @@ void wrt_sort_u64(uint64_t *a, size_t n) {
     free(tmp); free(count);
 }
 
-static wrt_csc gather_columns(uint32_t n, col_out *out) {
-    wrt_csc m = {.n = n};
-    m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
-    for (uint32_t j = 0; j < n; j++) m.col[j + 1] = m.col[j] + out[j].count;
-    m.nnz = m.col[n];
-    m.row = wrt_xmalloc((m.nnz ? m.nnz : 1) * sizeof *m.row);
-    m.val = wrt_xmalloc((m.nnz ? m.nnz : 1) * 3 * sizeof *m.val);
-    for (uint32_t j = 0; j < n; j++) {
-        if (out[j].count) {
-            memcpy(&m.row[m.col[j]], out[j].row, out[j].count * sizeof *m.row);
-            memcpy(&m.val[3 * m.col[j]], out[j].val, out[j].count * 3 * sizeof *m.val);
-        }
-        free(out[j].row); free(out[j].val);
-    }
-    return m;
-}
-
 /* The product's context: its inputs, one output record per column of the n x n result, and
- * each of the t threads' scratch (an accumulator, a marker, a row list and a sort buffer). */
+ * each of the t threads' scratch (an accumulator, the touched rows' bitmaps, a row list). */
 static mul_ctx mul_ctx_make(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int t) {
     uint32_t n = a->n;
     mul_ctx c = {.a = a, .b = b, .drop = drop};
     if (w) { c.row_w = w->row_w; c.col_w = w->col_w; c.power_w = w->power_w; }
     c.out = wrt_xcalloc(n ? n : 1, sizeof *c.out);
     c.acc = wrt_xcalloc((size_t)t, sizeof *c.acc);
-    c.mark = wrt_xcalloc((size_t)t, sizeof *c.mark);
+    c.bits = wrt_xcalloc((size_t)t, sizeof *c.bits);
+    c.top = wrt_xcalloc((size_t)t, sizeof *c.top);
     c.list = wrt_xcalloc((size_t)t, sizeof *c.list);
-    c.tmp = wrt_xcalloc((size_t)t, sizeof *c.tmp);
     for (int i = 0; i < t; i++) {
-        c.tmp[i] = wrt_xmalloc(((size_t)n + 1) * sizeof(uint32_t));
         c.acc[i] = wrt_xmalloc(((size_t)n * 3 + 1) * sizeof(double));
-        c.mark[i] = wrt_xcalloc((size_t)n + 1, sizeof(uint32_t));
+        c.bits[i] = wrt_xcalloc(((size_t)n >> 6) + 1, sizeof(uint64_t));
+        c.top[i] = wrt_xcalloc(((size_t)n >> 12) + 1, sizeof(uint64_t));
         c.list[i] = wrt_xmalloc(((size_t)n + 1) * sizeof(uint32_t));
     }
     return c;
@@ -259,16 +280,58 @@ static mul_ctx mul_ctx_make(const wrt_csc *a, const wrt_csc *b, double drop, con
 
 /* Frees what mul_ctx_make allocated (the output records' own arrays are the caller's). */
 static void mul_ctx_free(mul_ctx *c, int t) {
-    for (int i = 0; i < t; i++) { free(c->acc[i]); free(c->mark[i]); free(c->list[i]); free(c->tmp[i]); }
-    free(c->acc); free(c->mark); free(c->list); free(c->tmp); free(c->out);
+    for (int i = 0; i < t; i++) { free(c->acc[i]); free(c->bits[i]); free(c->top[i]); free(c->list[i]); }
+    free(c->acc); free(c->bits); free(c->top); free(c->list); free(c->out);
 }
 
+typedef struct mul_chunk_ctx { mul_ctx *c; uint32_t j0; } mul_chunk_ctx;
+
+static void mul_chunk_column(size_t i, int th, void *user) {
+    mul_chunk_ctx *cc = user;
+    mul_column(cc->j0 + i, th, cc->c);
+}
+
+/* Appends columns [j0, j1) of the product to m (whose columns before j0 are complete),
+ * freeing their per-column arrays. */
+static void append_columns(wrt_csc *m, col_out *out, uint32_t j0, uint32_t j1) {
+    for (uint32_t j = j0; j < j1; j++) m->col[j + 1] = m->col[j] + out[j].count;
+    uint64_t total = m->col[j1];
+    m->row = wrt_xrealloc(m->row, (total ? total : 1) * sizeof *m->row);
+    m->val = wrt_xrealloc(m->val, (total ? total : 1) * 3 * sizeof *m->val);
+    for (uint32_t j = j0; j < j1; j++) {
+        if (out[j].count) {
+            memcpy(&m->row[m->col[j]], out[j].row, out[j].count * sizeof *m->row);
+            memcpy(&m->val[3 * m->col[j]], out[j].val, out[j].count * 3 * sizeof *m->val);
+        }
+        free(out[j].row); free(out[j].val);
+        out[j].row = NULL; out[j].val = NULL;
+    }
+    m->nnz = total;
+}
+
+/* The columns are computed in 32 chunks, each appended to the result as it finishes: the
+ * product's entries are held once plus a chunk's, not twice (every column's own arrays,
+ * then their gathered copy, which was the series' peak; issue 22). Same entries, same
+ * order, whatever the chunking or the threads. */
 wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads) {
     uint32_t n = a->n;
     int t = wrt_threads_resolve(threads);
     mul_ctx c = mul_ctx_make(a, b, drop, w, t);
-    wrt_parallel_for(n, t, mul_column, &c);
-    wrt_csc m = gather_columns(n, c.out);
+    wrt_csc m = {.n = n};
+    m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
+    m.row = wrt_xmalloc(sizeof *m.row);
+    m.val = wrt_xmalloc(3 * sizeof *m.val);
+    wrt_pool *pool = NULL;
+    if (t > 1 && wrt_pool_create(t, &pool) != WRT_OK) pool = NULL;
+    uint32_t chunk = n / 32 + 1;
+    for (uint32_t j0 = 0; j0 < n; j0 += chunk) {
+        uint32_t j1 = n - j0 > chunk ? j0 + chunk : n;
+        mul_chunk_ctx cc = {&c, j0};
+        if (pool) wrt_pool_run(pool, j1 - j0, 0, mul_chunk_column, &cc);
+        else for (uint32_t j = j0; j < j1; j++) mul_column(j, 0, &c);
+        append_columns(&m, c.out, j0, j1);
+    }
+    if (pool) wrt_pool_destroy(pool);
     mul_ctx_free(&c, t);
     return m;
 }
