@@ -382,7 +382,8 @@ struct strict_check {
                     std::string ps = at(pe, "KHR_materials_emissive_strength");
                     object(*es, ps);
                     /* emitted radiance = emissiveFactor x emissiveStrength (docs/emitters.md) */
-                    if (const json *v = member(*es, "emissiveStrength")) number(*v, at(ps, "emissiveStrength"), 0, FLT_MAX);
+                    if (const json *v = member(*es, "emissiveStrength"))
+                        number(*v, at(ps, "emissiveStrength"), 0, WRT_MAX_EMISSIVE);
                     ignore_others(*es, "materials[*].extensions.KHR_materials_emissive_strength", {"emissiveStrength"});
                 }
                 for (auto it = ex->begin(); it != ex->end(); ++it)
@@ -496,7 +497,18 @@ struct strict_check {
             std::string p = at("nodes", i);
             const json &n = object((*ns)[i], p);
             const json *mat = member(n, "matrix");
-            if (mat) numbers(*mat, at(p, "matrix"), 16, -DBL_MAX, DBL_MAX);
+            if (mat) {
+                numbers(*mat, at(p, "matrix"), 16, -DBL_MAX, DBL_MAX);
+                /* Column-major: elements 3, 7, 11, 15 are the last row. glTF node matrices
+                 * are decomposable to translation, rotation and scale, so the row is
+                 * (0, 0, 0, 1); a projective row was ignored by the transforms. */
+                double row[4] = {(*mat)[3].get<double>(), (*mat)[7].get<double>(), (*mat)[11].get<double>(),
+                                 (*mat)[15].get<double>()};
+                if (std::fabs(row[0]) > 1e-6 || std::fabs(row[1]) > 1e-6 || std::fabs(row[2]) > 1e-6 ||
+                    std::fabs(row[3] - 1) > 1e-6)
+                    fail(at(p, "matrix"), "last row (%g, %g, %g, %g) is not (0, 0, 0, 1): not an affine transform "
+                         "(glTF node matrices are translation x rotation x scale)", row[0], row[1], row[2], row[3]);
+            }
             const char *trs[3] = {"translation", "rotation", "scale"};
             const size_t len[3] = {3, 4, 3};
             for (int k = 0; k < 3; k++) {
