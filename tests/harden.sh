@@ -405,6 +405,11 @@ def emissive(d):
 variant('emit_huge.gltf', emissive)
 variant('mat_proj.gltf', lambda d: d['nodes'][0].update(matrix=[1,0,0,0.5, 0,1,0,0, 0,0,1,0, 0,0,0,1]))
 variant('mat_w0.gltf', lambda d: d['nodes'][0].update(matrix=[1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,0]))
+variant('mime.gltf', lambda d: d['buffers'][0].update(uri=d['buffers'][0]['uri'].replace('application/octet-stream', 'text/html')))
+variant('len_lie.gltf', lambda d: d['buffers'][0].update(byteLength=10**12))
+c = json.load(open('assets/cornell.gltf'))   # its short box (node 5) has NORMALs
+c['nodes'][5]['scale'] = [1, 0, 1]
+open(f"{out}/flat.gltf", 'w').write(json.dumps(c))
 PY
 # an emissiveStrength of 3e38 (below FLT_MAX): the emitter's power was inf, the indirect light NaN, exit 0
 expect "emissiveStrength 3e38: exit 2" 2 "emissiveStrength: 3e\+38 is outside \[0, 1e\+12\]" "$bake" --scan "$S/emit_huge.gltf"
@@ -412,6 +417,15 @@ expect "emissiveStrength 3e38: exit 2" 2 "emissiveStrength: 3e\+38 is outside \[
 expect "a projective node matrix: exit 2" 2 "nodes\[0\].matrix: last row \(0.5, 0, 0, 1\) is not \(0, 0, 0, 1\)" \
     "$bake" --scan "$S/mat_proj.gltf"
 expect "a node matrix whose w is 0: exit 2" 2 "last row \(0, 0, 0, 0\) is not \(0, 0, 0, 1\)" "$bake" --scan "$S/mat_w0.gltf"
+# a buffer's data uri of another media type, or a byteLength the uri does not hold: tinygltf
+# said "File not found" or "Failed to decode 'uri'", then 600 bytes of base64
+expect "a data uri of type text/html: exit 2, named" 2 "buffers\\[0\\].uri: a data uri of type 'text/html;base64'" \
+    "$bake" --scan "$S/mime.gltf"
+expect "byteLength 1e12 for a short data uri: exit 2, both lengths" 2 "buffers\\[0\\].byteLength: 1000000000000, but its data uri holds [0-9]+ bytes" \
+    "$bake" --scan "$S/len_lie.gltf"
+# a node scaled by 0 on an axis: the message blamed the (unit) NORMAL, not the transform
+expect "a node scaled flat: exit 2, the node named" 2 "nodes\\[5\\]: its world transform has zero scale \\(determinant 0\\): it flattens mesh 5" \
+    "$bake" --scan "$S/flat.gltf"
 # wrt-ref --points /dev/zero read NUL lines forever (a hang)
 expect "wrt-ref --points /dev/zero: exit 2" 2 "/dev/zero:1: a line longer than 510 bytes or holding a NUL byte" \
     timeout 30 "$build/wrt-ref" assets/cornell.gltf --no-image --points /dev/zero
