@@ -437,6 +437,9 @@ expect "--light-cone 0.5,0.50000001: exit 1" 1 "--light-cone: '0.5,0.50000001' .
 expect "icosphere --res 20: exit 1" 1 "--res 20: the icosphere takes --res 1..6" \
     "$build/wrt-scenegen" icosphere --res 20 -o "$tmp/ico.gltf"
 [ ! -e "$tmp/ico.gltf" ] && ok "no icosphere written" || ko "no icosphere written"
+# wrt-scenegen -o x.glb wrote glTF JSON under the binary form's name, exit 0
+expect "wrt-scenegen -o x.glb: exit 1" 1 "x.glb: wrt-scenegen writes glTF JSON \\(.gltf\\), not binary glTF" \
+    "$build/wrt-scenegen" cornell -o "$tmp/x.glb"
 # a .gto with 1 GB appended (sparse): wrt-play read it whole (20 GB resident at 20 GB, the
 # kernel's kill) before the reader refused the trailing data; now refused from the header
 cp "$tmp/c.gto" "$tmp/long.gto"; truncate -s 1G "$tmp/long.gto"

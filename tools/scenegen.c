@@ -25,6 +25,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -871,6 +872,13 @@ int main(int argc, char **argv) {
     if (!scene && !out) { usage(stderr); return WRT_EXIT_USAGE; }
     if (!scene) { fprintf(stderr, "wrt-scenegen: error: no scene name before -o %s (see --help for the list)\n", out); return WRT_EXIT_USAGE; }
     if (!out) { fprintf(stderr, "wrt-scenegen: error: no output file: wrt-scenegen %s -o FILE.gltf\n", scene); return WRT_EXIT_USAGE; }
+    /* It writes glTF's JSON form: -o x.glb wrote JSON under the binary form's name, which
+     * other glTF readers refuse (wrt-bake reads either by their first bytes). */
+    size_t outlen = strlen(out);
+    if (outlen >= 4 && !strcasecmp(out + outlen - 4, ".glb")) {
+        fprintf(stderr, "wrt-scenegen: error: %s: wrt-scenegen writes glTF JSON (.gltf), not binary glTF (.glb)\n", out);
+        return WRT_EXIT_USAGE;
+    }
     for (int i = 0; i < NSCENES; i++)
         if (!strcmp(scenes[i].name, scene)) {
             if (generate(&scenes[i], &opt, out) != WRT_OK) {
