@@ -78,7 +78,7 @@ PROGRAMS := $(BUILD)/wrt-bake $(BUILD)/wrt-play $(BUILD)/wrt-ref $(BUILD)/wrt-sc
 TEST_SRC := $(wildcard tests/test_*.c)
 TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 
-.PHONY: all deps demo test tests stress study fuzz clean assets bench bench-scale timings mutate install
+.PHONY: all deps demo test tests stress study fuzz fuzz-fast clean assets bench bench-scale timings mutate install
 all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/examples/engine $(BUILD)/tests/runtime_instances \
      $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core $(BUILD)/tests/runtime_budget $(BUILD)/tools/codec_study \
      $(BUILD)/tools/light_bw
@@ -231,32 +231,38 @@ $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $$(foreach p,$$(call test_parts,$$*),$(
 
 # The fuzz targets (libFuzzer, clang): the glTF loader (fuzz_scene) and the .gto reader
 # (fuzz_gto). `make fuzz` builds both and runs each for FUZZ_SECONDS (default 60) from
-# the committed seeds, copied into build/fuzz/corpus-* (which grow as they run).
+# the committed seeds, copied into FUZZ_DIR/corpus-* (which grow as they run).
+# FUZZ_SAN picks the sanitizers (default AddressSanitizer + UBSan, which finds the most);
+# `make fuzz-fast` builds with UBSan only into build/fuzz-fast, several times more
+# executions per second, for long runs (the same corpora can be shared with -merge).
 FUZZ_SECONDS ?= 60
+FUZZ_DIR ?= build/fuzz
 FUZZ_SCENE_C := tools/fuzz_scene.c common/wrt_common.c common/text.c formats/scene.c formats/scene_report.c formats/scene_dups.c formats/scene_normals.c common/texture.c
 FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c common/text.c common/texture.c common/cluster_tree.c formats/gto_read.c formats/gto_check.c formats/gto_texture.c formats/gto_opcode.c
-FUZZ_SAN := -fsanitize=address,undefined -fno-sanitize-recover=all
+FUZZ_SAN ?= -fsanitize=address,undefined -fno-sanitize-recover=all
 FUZZ_CC = clang -std=c11 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -D_GNU_SOURCE
-fuzz: build/fuzz/fuzz_scene build/fuzz/fuzz_gto
-	@mkdir -p build/fuzz/corpus-scene build/fuzz/corpus-gto
-	cp -n assets/*.gltf tests/data/*.gltf tests/data/*.glb build/fuzz/corpus-scene/ 2>/dev/null || true
-	cp -n tests/data/gto/*.gto tests/data/fuzz_gto/* build/fuzz/corpus-gto/ 2>/dev/null || true
-	build/fuzz/fuzz_scene -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -rss_limit_mb=2048 build/fuzz/corpus-scene 2>&1 | tail -n 3
-	build/fuzz/fuzz_gto -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -rss_limit_mb=2048 build/fuzz/corpus-gto 2>&1 | tail -n 3
+fuzz: $(FUZZ_DIR)/fuzz_scene $(FUZZ_DIR)/fuzz_gto
+	@mkdir -p $(FUZZ_DIR)/corpus-scene $(FUZZ_DIR)/corpus-gto
+	cp -n assets/*.gltf tests/data/*.gltf tests/data/*.glb $(FUZZ_DIR)/corpus-scene/ 2>/dev/null || true
+	cp -n tests/data/gto/*.gto tests/data/fuzz_gto/* $(FUZZ_DIR)/corpus-gto/ 2>/dev/null || true
+	$(FUZZ_DIR)/fuzz_scene -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -rss_limit_mb=2048 $(FUZZ_DIR)/corpus-scene 2>&1 | tail -n 3
+	$(FUZZ_DIR)/fuzz_gto -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -rss_limit_mb=2048 $(FUZZ_DIR)/corpus-gto 2>&1 | tail -n 3
+fuzz-fast:
+	@$(MAKE) --no-print-directory fuzz FUZZ_DIR=build/fuzz-fast FUZZ_SAN='-fsanitize=undefined -fno-sanitize-recover=all'
 
-build/fuzz/fuzz_scene: $(FUZZ_SCENE_C) formats/gltf_shim.cpp formats/gltf_strict.cpp $(wildcard formats/*.h common/*.h)
-	@mkdir -p build/fuzz/obj-scene
-	for f in $(FUZZ_SCENE_C); do $(FUZZ_CC) -c $$f -o build/fuzz/obj-scene/$$(basename $$f .c).o || exit 1; done
+$(FUZZ_DIR)/fuzz_scene: $(FUZZ_SCENE_C) formats/gltf_shim.cpp formats/gltf_strict.cpp $(wildcard formats/*.h common/*.h)
+	@mkdir -p $(FUZZ_DIR)/obj-scene
+	for f in $(FUZZ_SCENE_C); do $(FUZZ_CC) -c $$f -o $(FUZZ_DIR)/obj-scene/$$(basename $$f .c).o || exit 1; done
 	clang++ -std=c++17 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -I/usr/include/stb -w -D_GNU_SOURCE \
-	  -c formats/gltf_shim.cpp -o build/fuzz/obj-scene/gltf_shim.o
+	  -c formats/gltf_shim.cpp -o $(FUZZ_DIR)/obj-scene/gltf_shim.o
 	clang++ -std=c++17 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -w -D_GNU_SOURCE \
-	  -c formats/gltf_strict.cpp -o build/fuzz/obj-scene/gltf_strict.o
-	clang++ -fsanitize=fuzzer $(FUZZ_SAN) build/fuzz/obj-scene/*.o -o $@ -lm
+	  -c formats/gltf_strict.cpp -o $(FUZZ_DIR)/obj-scene/gltf_strict.o
+	clang++ -fsanitize=fuzzer $(FUZZ_SAN) $(FUZZ_DIR)/obj-scene/*.o -o $@ -lm
 
-build/fuzz/fuzz_gto: $(FUZZ_GTO_C) $(wildcard formats/*.h common/*.h)
-	@mkdir -p build/fuzz/obj-gto
-	for f in $(FUZZ_GTO_C); do $(FUZZ_CC) -c $$f -o build/fuzz/obj-gto/$$(basename $$f .c).o || exit 1; done
-	clang -fsanitize=fuzzer $(FUZZ_SAN) build/fuzz/obj-gto/*.o -o $@ -lm -pthread
+$(FUZZ_DIR)/fuzz_gto: $(FUZZ_GTO_C) $(wildcard formats/*.h common/*.h)
+	@mkdir -p $(FUZZ_DIR)/obj-gto
+	for f in $(FUZZ_GTO_C); do $(FUZZ_CC) -c $$f -o $(FUZZ_DIR)/obj-gto/$$(basename $$f .c).o || exit 1; done
+	clang -fsanitize=fuzzer $(FUZZ_SAN) $(FUZZ_DIR)/obj-gto/*.o -o $@ -lm -pthread
 
 assets: $(BUILD)/wrt-scenegen
 	$(BUILD)/wrt-scenegen --all assets

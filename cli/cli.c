@@ -106,8 +106,10 @@ int wrt_cli_lights_option(const char *tool, wrt_cli_lights *L, int argc, char **
                 ok = end != s && *end == 0 && !errno;
             }
         }
-        if (!ok || !(c[0] >= 0 && c[1] > c[0] && c[1] <= WRT_PI / 2))
-            ok = bad(tool, a, v, "IN,OUT radians with 0 <= IN < OUT <= pi/2");
+        /* The lights carry cones as floats (the .gto, the library): 0.5,0.50000001 passed
+         * here and was refused later by the library as "light 0" with exit 2. */
+        if (!ok || !(c[0] >= 0 && (float)c[1] > (float)c[0] && c[1] <= WRT_PI / 2))
+            ok = bad(tool, a, v, "IN,OUT radians with 0 <= IN < OUT <= pi/2, distinct as 32-bit floats");
         else { L->cone[0] = c[0]; L->cone[1] = c[1]; L->has_cone = 1; }
     } else if (!strcmp(a, "--light-intensity")) {
         ok = L->has_intensity = wrt_cli_num(tool, a, v, 0, WRT_MAX_LIGHT_INTENSITY, &L->intensity);
@@ -296,6 +298,8 @@ static struct sigaction before_segv, before_bus, before_abrt; /* as they were (a
 
 static volatile sig_atomic_t in_main; /* wrt_cli_init has run */
 
+#define WRT_MIN_STACK_KB 512 /* the least stack limit the programs start with */
+
 static void early_crash(int sig) {
     struct rlimit rl;
     if (getrlimit(RLIMIT_AS, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY) {
@@ -339,6 +343,15 @@ void wrt_cli_init(const char *tool) {
     struct rlimit rl;
     in_main = 1;
     if (!(getrlimit(RLIMIT_AS, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY)) sigaction(SIGABRT, &before_abrt, NULL);
+    /* A stack limit (ulimit -s) far below the default 8 MB: at 64 KB a Cornell box bake
+     * ended in SIGSEGV (exit 139, no message); glibc also sizes the worker threads'
+     * stacks by it. Refused at the start, naming the limit (128 KB was measured enough
+     * for the Cornell box; the bound leaves a margin for deeper scenes). */
+    if (getrlimit(RLIMIT_STACK, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY && rl.rlim_cur < WRT_MIN_STACK_KB * 1024) {
+        fprintf(stderr, "%s: error: the stack limit (ulimit -s) is %llu KB, below the %d KB wrt's programs need\n",
+                stdout_tool, (unsigned long long)(rl.rlim_cur / 1024), WRT_MIN_STACK_KB);
+        _exit(WRT_EXIT_INTERNAL);
+    }
     atexit(check_stdout);
     wrt_set_oom_handler(oom_exit);
     /* A file size limit (ulimit -f) must fail the write (EFBIG), which every output path

@@ -21,7 +21,12 @@
  *   WRT_MAX_LIGHT_INTENSITY 1e12 candela of a point or spot light (a 100 W bulb is ~140 cd,
  *                            the sun seen from 1 m ~3e27 cd is not a punctual light).
  *   WRT_MAX_COLOR      1e3   a colour channel given on a command line (glTF's are [0, 1]).
- *   WRT_MAX_LIGHT_SCALE 1e3  a --light-scale factor.
+ *   WRT_MAX_LIGHT_SCALE 1e3  a --light-scale factor; also an emitter's scale
+ *                            (--emitter-scale, wrt_runtime_set_emitter_scale).
+ *   WRT_MAX_EMISSIVE   1e12  a glTF material's emissiveStrength (its emitted radiance is
+ *                            emissiveFactor, in [0, 1], times it; the sun's disc is about
+ *                            1.6e9 cd/m^2). At 3e38 the emitter's power (pi L_e A) was inf
+ *                            in float and the indirect light NaN.
  *   So a light's radiant factor intensity x colour x scale is at most 1e18, and the
  *   irradiance it gives, 1e18 / d^2, stays below FLT_MAX for every distance d > 1e-10,
  *   with a margin of 1e9 for the sums over the operator's columns. The library (include/wrt.h)
@@ -40,6 +45,7 @@
 #define WRT_MAX_LIGHT_INTENSITY 1e12
 #define WRT_MAX_COLOR 1e3
 #define WRT_MAX_LIGHT_SCALE 1e3
+#define WRT_MAX_EMISSIVE 1e12
 
 /* 1 if x is finite and |x| <= bound. */
 static inline int wrt_in_bound(double x, double bound) { return isfinite(x) && fabs(x) <= bound; }

@@ -431,7 +431,7 @@ struct reader {
      * determinant keeps a mirrored node's normals outward), then made unit. A normal that
      * is not finite or of zero length is refused with its accessor element. */
     void read_normals(const tinygltf::Primitive &p, size_t npos, const mat4 &world, size_t mi, size_t pi,
-                      wrt_gltf_prim &q) {
+                      size_t node, wrt_gltf_prim &q) {
         auto na = p.attributes.find("NORMAL");
         if (na == p.attributes.end()) return;
         accessor_view nv = check_accessor(model, na->second, "NORMAL", TINYGLTF_TYPE_VEC3,
@@ -457,6 +457,15 @@ struct reader {
                 l2 += wn[r] * wn[r];
             }
             double l = std::sqrt(l2);
+            double l_local = std::sqrt(ln[0] * ln[0] + ln[1] * ln[1] + ln[2] * ln[2]);
+            /* A unit normal that the node's transform collapses (a scale of 0 on an axis):
+             * the transform is at fault, not the normal (the message named the normal). */
+            if (!(l > 1e-12) && std::isfinite(l) && l_local > 1e-6 && std::isfinite(l_local))
+                throw make_error(WRT_ERR_PARSE,
+                                 "%s: nodes[%zu]: its world transform has zero scale (determinant %g): it "
+                                 "flattens mesh %zu (primitive %zu, NORMAL element %zu (%g, %g, %g) has no "
+                                 "direction after it)",
+                                 label, node, det, mi, pi, v, ln[0], ln[1], ln[2]);
             if (!(l > 1e-12) || !std::isfinite(l) || !std::isfinite(ln[0] + ln[1] + ln[2]))
                 throw make_error(WRT_ERR_PARSE,
                                  "%s: meshes[%zu].primitives[%zu].attributes.NORMAL element %zu: (%g, %g, %g) "
@@ -570,7 +579,7 @@ struct reader {
                     q.uv = nullptr;
                 }
         }
-        read_normals(p, pv.count, world, mi, pi, q);
+        read_normals(p, pv.count, world, mi, pi, node, q);
         /* glTF: a node whose world transform has a negative determinant turns its
          * triangles' front faces clockwise; swapping two corners keeps the rest of the
          * loader on counter-clockwise fronts. */

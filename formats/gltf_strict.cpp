@@ -382,7 +382,8 @@ struct strict_check {
                     std::string ps = at(pe, "KHR_materials_emissive_strength");
                     object(*es, ps);
                     /* emitted radiance = emissiveFactor x emissiveStrength (docs/emitters.md) */
-                    if (const json *v = member(*es, "emissiveStrength")) number(*v, at(ps, "emissiveStrength"), 0, FLT_MAX);
+                    if (const json *v = member(*es, "emissiveStrength"))
+                        number(*v, at(ps, "emissiveStrength"), 0, WRT_MAX_EMISSIVE);
                     ignore_others(*es, "materials[*].extensions.KHR_materials_emissive_strength", {"emissiveStrength"});
                 }
                 for (auto it = ex->begin(); it != ex->end(); ++it)
@@ -496,7 +497,18 @@ struct strict_check {
             std::string p = at("nodes", i);
             const json &n = object((*ns)[i], p);
             const json *mat = member(n, "matrix");
-            if (mat) numbers(*mat, at(p, "matrix"), 16, -DBL_MAX, DBL_MAX);
+            if (mat) {
+                numbers(*mat, at(p, "matrix"), 16, -DBL_MAX, DBL_MAX);
+                /* Column-major: elements 3, 7, 11, 15 are the last row. glTF node matrices
+                 * are decomposable to translation, rotation and scale, so the row is
+                 * (0, 0, 0, 1); a projective row was ignored by the transforms. */
+                double row[4] = {(*mat)[3].get<double>(), (*mat)[7].get<double>(), (*mat)[11].get<double>(),
+                                 (*mat)[15].get<double>()};
+                if (std::fabs(row[0]) > 1e-6 || std::fabs(row[1]) > 1e-6 || std::fabs(row[2]) > 1e-6 ||
+                    std::fabs(row[3] - 1) > 1e-6)
+                    fail(at(p, "matrix"), "last row (%g, %g, %g, %g) is not (0, 0, 0, 1): not an affine transform "
+                         "(glTF node matrices are translation x rotation x scale)", row[0], row[1], row[2], row[3]);
+            }
             const char *trs[3] = {"translation", "rotation", "scale"};
             const size_t len[3] = {3, 4, 3};
             for (int k = 0; k < 3; k++) {
@@ -672,7 +684,35 @@ struct strict_check {
                 const json *bl = member(b, "byteLength");
                 if (!bl) fail(at(p, "byteLength"), "is missing (required)");
                 integer(*bl, at(p, "byteLength"), 1, INT64_MAX / 2);
+                data_uri(b, p, bl->get<double>());
             }
+    }
+
+    /* A buffer's data: uri, checked before tinygltf decodes it: its media type, its base64
+     * text and its decoded length against byteLength. tinygltf's own messages were "File
+     * not found" for a media type it does not take and "Failed to decode 'uri'" for a
+     * length that differs, each followed by 600 bytes of base64. */
+    void data_uri(const json &b, const std::string &p, double byte_length) {
+        const json *u = member(b, "uri");
+        if (!u || !u->is_string()) return;
+        const std::string &uri = u->get_ref<const std::string &>();
+        if (uri.compare(0, 5, "data:") != 0) return;
+        size_t comma = uri.find(',');
+        std::string head = uri.substr(0, comma == std::string::npos ? 0 : comma);
+        if (head != "data:application/octet-stream;base64" && head != "data:application/gltf-buffer;base64")
+            fail(at(p, "uri"), "a data uri of type '%.60s': a buffer's is application/octet-stream or "
+                 "application/gltf-buffer, in base64", comma == std::string::npos ? "(no comma)" : head.c_str() + 5);
+        size_t n = uri.size() - comma - 1, pad = 0;
+        for (size_t i = comma + 1; i < uri.size(); i++) {
+            unsigned char c = (unsigned char)uri[i];
+            if (c == '=' && i + 2 >= uri.size() && (n % 4 == 0)) { pad++; continue; }
+            if (!std::isalnum(c) && c != '+' && c != '/')
+                fail(at(p, "uri"), "byte %zu of the data uri (0x%02x) is not base64", i, c);
+            if (pad) fail(at(p, "uri"), "'=' inside the base64 text (byte %zu)", i - 1);
+        }
+        double decoded = (double)(n / 4 * 3) + (n % 4 ? (double)(n % 4) - 1 : 0) - (double)pad;
+        if (decoded != byte_length)
+            fail(at(p, "byteLength"), "%.17g, but its data uri holds %.17g bytes", byte_length, decoded);
     }
 
     void scenes() {

@@ -245,6 +245,12 @@ wrt_status wrt_gto_print_info(const char *path, int json, FILE *f);
  * always changes it. Not cryptographic. */
 uint64_t wrt_gto_checksum(const void *data, size_t n);
 
+/* The first n bytes of a file of file_len bytes (read WRT_GTO_HEAD_BYTES of them): refuses
+ * a file whose full header is not a .gto's or gives another size (WRT_ERR_NOT_OURS,
+ * WRT_ERR_CORRUPT), before a copy of the whole file is allocated; WRT_OK otherwise. */
+#define WRT_GTO_HEAD_BYTES 64
+wrt_status wrt_gto_check_head(const void *head, size_t n, uint64_t file_len);
+
 /* Everything the writer needs, in memory. */
 typedef struct wrt_gto_contents {
     const wrt_scene *scene;

@@ -152,9 +152,9 @@ static void check_materials(vctx *v, const uint8_t *base, uint64_t first, uint64
             if (!in01(m[i].base_color[c]))
                 return vbad(v, "material %" PRIu64 ": base_color[%d] %g is not in [0, 1]", i, c,
                             (double)m[i].base_color[c]);
-            if (!(m[i].emissive[c] >= 0) || !isfinite(m[i].emissive[c]))
-                return vbad(v, "material %" PRIu64 ": emissive[%d] %g is not finite and >= 0", i, c,
-                            (double)m[i].emissive[c]);
+            if (!(m[i].emissive[c] >= 0) || !(m[i].emissive[c] <= WRT_MAX_EMISSIVE))
+                return vbad(v, "material %" PRIu64 ": emissive[%d] %g is not in [0, %g] (common/limits.h)", i, c,
+                            (double)m[i].emissive[c], WRT_MAX_EMISSIVE);
         }
         if (!in01(m[i].metallic) || !in01(m[i].roughness))
             return vbad(v, "material %" PRIu64 ": metallic %g or roughness %g is not in [0, 1]", i,

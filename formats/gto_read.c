@@ -23,6 +23,25 @@
  * Reader
  * ---------------------------------------------------------------------------------- */
 
+/* A reader that copies a file (wrt_runtime_open_path's WRT_OPEN_PRIVATE) checks its first
+ * bytes before allocating for all of them: a 20 GB sparse file, or a bake with 20 GB of
+ * zeros appended, was read whole (20 GB resident, then the kernel's out-of-memory kill)
+ * only to be refused as "bad magic" or "trailing data". Only a full header is judged;
+ * the reader says what a shorter file lacks. */
+wrt_status wrt_gto_check_head(const void *head, size_t n, uint64_t file_len) {
+    gto_header h;
+    if (n < sizeof h) return WRT_OK;
+    memcpy(&h, head, sizeof h);
+    if (memcmp(h.magic, GTO_MAGIC, GTO_MAGIC_LEN) != 0) return wrt_fail(WRT_ERR_NOT_OURS, "not a .gto file (bad magic)");
+    if (h.byte_order != GTO_BOM) return WRT_OK;
+    if (h.file_size > file_len)
+        return wrt_fail(WRT_ERR_CORRUPT, "truncated: expected %" PRIu64 " bytes, found %" PRIu64, h.file_size, file_len);
+    if (h.file_size < file_len)
+        return wrt_fail(WRT_ERR_CORRUPT, "trailing data: expected %" PRIu64 " bytes, found %" PRIu64, h.file_size,
+                        file_len);
+    return WRT_OK;
+}
+
 /* Stage 1: the header and the section table, no payload byte read. */
 wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
     memset(L, 0, sizeof *L);

@@ -177,7 +177,7 @@ typedef struct wrt_runtime_options {
      * size smaller than the version-2 layout, or larger than the library knows, is
      * refused (WRT_ERR_INVALID_ARG, naming both sizes). */
     size_t size;
-    int threads;        /* worker threads of an update: 0 = all cores, 1 = the caller's thread only, at most 64 */
+    int threads;        /* worker threads of an update: 0 = all cores, 1 = the caller's thread only, at most 64 (negative: refused) */
     int max_tex_res;    /* cap on a quad's texture side in texels, a power of two up to 1024: 0 = 64 */
     int proj_level;     /* spatial level of the direct light's projection: 0 = chosen per quad */
     wrt_allocator allocator;
@@ -336,7 +336,8 @@ WRT_API wrt_status wrt_runtime_get_update_stats(const wrt_runtime *rt, wrt_runti
  * textures and cells, linear in its scale; the emitter's own radiance (what the camera
  * sees on it) is the material's `emissive` times the scale, for the caller to draw.
  * Each starts at scale 1. Count: emissive materials used by some quad (-1: not a live
- * handle). Scale: material index, >= 0 and finite (0 switches it off); the next
+ * handle). Scale: material index, >= 0 and finite (0 switches it off), the scale times
+ * the material's largest emissive channel at most WRT_MAX_INTENSITY; the next
  * wrt_runtime_update applies it. Errors: WRT_ERR_INVALID_ARG. */
 WRT_API int wrt_runtime_emitter_count(const wrt_runtime *rt);
 WRT_API wrt_status wrt_runtime_set_emitter_scale(wrt_runtime *rt, int material, float scale, wrt_error *err);

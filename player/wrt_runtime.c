@@ -110,6 +110,20 @@ static wrt_status read_private(const char *path, const wrt_allocator *al, void *
                         : S_ISCHR(sb.st_mode) || S_ISBLK(sb.st_mode) ? "a device" : "a special file");
     }
     size_t len = (size_t)sb.st_size, got = 0;
+    /* The header's magic and file size before the bulk read: a 20 GB sparse file, or a
+     * bake with 20 GB of zeros appended, was read whole (20 GB resident, then the
+     * kernel's out-of-memory kill, exit 137) only to be refused as "bad magic" or
+     * "trailing data". A file whose header agrees is read; the reader checks the rest. */
+    unsigned char head[WRT_GTO_HEAD_BYTES];
+    ssize_t hr;
+    do hr = pread(fd, head, sizeof head, 0); while (hr < 0 && errno == EINTR);
+    wrt_status hs = hr > 0 ? wrt_gto_check_head(head, (size_t)hr, (uint64_t)len) : WRT_OK;
+    if (hs) {
+        char msg[200];
+        snprintf(msg, sizeof msg, "%s", wrt_last_error());
+        close(fd);
+        return wrt_fail(hs, "%s: %s (not read)", path, msg);
+    }
     unsigned char *buf = al->alloc(al->user, len + 8); /* aligned for any type: the reader needs 8 */
     if (!buf) {
         close(fd);
@@ -153,7 +167,7 @@ static wrt_status open_common(const void *data, size_t size, const char *path, i
     wrt_runtime_options o;
     wrt_status s = read_options(opt, &o, "wrt_runtime_open");
     if (s) return fail(err, s);
-    if (o.max_tex_res < 0 || (o.max_tex_res & (o.max_tex_res - 1)) || o.max_tex_res > 1024 || o.threads > 64 ||
+    if (o.max_tex_res < 0 || (o.max_tex_res & (o.max_tex_res - 1)) || o.max_tex_res > 1024 || o.threads < 0 || o.threads > 64 ||
         o.proj_level < 0 || o.proj_level > WRT_MAX_SLEVEL)
         return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_open: options out of range (max_tex_res %d, "
                                   "threads %d, proj_level %d)", o.max_tex_res, o.threads, o.proj_level));
@@ -351,6 +365,15 @@ int wrt_runtime_emitter_count(const wrt_runtime *rt) { return live(rt) ? wrt_rel
 
 wrt_status wrt_runtime_set_emitter_scale(wrt_runtime *rt, int material, float scale, wrt_error *err) {
     if (!live(rt)) return dead(err, "wrt_runtime_set_emitter_scale", rt);
+    /* The lights' bound (include/wrt.h, "Bounds"): radiance x scale at most WRT_MAX_INTENSITY;
+     * FLT_MAX on an emitter of radiance 10 gave inf in the textures. */
+    if (material >= 0 && material < (int)rt->g.nmaterials && isfinite(scale))
+        for (int c = 0; c < 3; c++)
+            if ((double)rt->g.materials[material].emissive[c] * scale > WRT_MAX_INTENSITY)
+                return fail(err, wrt_fail(WRT_ERR_INVALID_ARG, "wrt_runtime_set_emitter_scale: material %d: scale %g "
+                                          "times its radiance %g is beyond WRT_MAX_INTENSITY (%g)", material,
+                                          (double)scale, (double)rt->g.materials[material].emissive[c],
+                                          WRT_MAX_INTENSITY));
     wrt_status s = wrt_relight_set_emitter_scale(rt->rl, material, scale);
     return s == WRT_OK ? WRT_OK : fail(err, s);
 }

@@ -390,4 +390,69 @@ else
         ko "wrt-play, wrt-ref, wrt-compare under ulimit -v 380-520 MB: exit 0, 7 (one line) or 127, never a crash"
 fi
 
+# ---- third pass (session 4): a fresh attack's faults, one check each
+python3 - "$S" <<'PY'
+import json, sys
+out = sys.argv[1]
+d0 = json.load(open('tests/data/quad.gltf'))
+def variant(name, f):
+    d = json.loads(json.dumps(d0)); f(d); open(f"{out}/{name}", 'w').write(json.dumps(d))
+def emissive(d):
+    d['materials'] = [{'emissiveFactor': [1, 1, 1],
+                       'extensions': {'KHR_materials_emissive_strength': {'emissiveStrength': 3e38}}}]
+    d['extensionsUsed'] = ['KHR_materials_emissive_strength']
+    for m in d['meshes']:
+        for p in m['primitives']: p['material'] = 0
+variant('emit_huge.gltf', emissive)
+variant('mat_proj.gltf', lambda d: d['nodes'][0].update(matrix=[1,0,0,0.5, 0,1,0,0, 0,0,1,0, 0,0,0,1]))
+variant('mat_w0.gltf', lambda d: d['nodes'][0].update(matrix=[1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,0]))
+variant('mime.gltf', lambda d: d['buffers'][0].update(uri=d['buffers'][0]['uri'].replace('application/octet-stream', 'text/html')))
+variant('len_lie.gltf', lambda d: d['buffers'][0].update(byteLength=10**12))
+c = json.load(open('assets/cornell.gltf'))   # its short box (node 5) has NORMALs
+c['nodes'][5]['scale'] = [1, 0, 1]
+open(f"{out}/flat.gltf", 'w').write(json.dumps(c))
+PY
+# an emissiveStrength of 3e38 (below FLT_MAX): the emitter's power was inf, the indirect light NaN, exit 0
+expect "emissiveStrength 3e38: exit 2" 2 "emissiveStrength: 3e\+38 is outside \[0, 1e\+12\]" "$bake" --scan "$S/emit_huge.gltf"
+# a node matrix with a projective last row: its last row was ignored without a word
+expect "a projective node matrix: exit 2" 2 "nodes\[0\].matrix: last row \(0.5, 0, 0, 1\) is not \(0, 0, 0, 1\)" \
+    "$bake" --scan "$S/mat_proj.gltf"
+expect "a node matrix whose w is 0: exit 2" 2 "last row \(0, 0, 0, 0\) is not \(0, 0, 0, 1\)" "$bake" --scan "$S/mat_w0.gltf"
+# a buffer's data uri of another media type, or a byteLength the uri does not hold: tinygltf
+# said "File not found" or "Failed to decode 'uri'", then 600 bytes of base64
+expect "a data uri of type text/html: exit 2, named" 2 "buffers\\[0\\].uri: a data uri of type 'text/html;base64'" \
+    "$bake" --scan "$S/mime.gltf"
+expect "byteLength 1e12 for a short data uri: exit 2, both lengths" 2 "buffers\\[0\\].byteLength: 1000000000000, but its data uri holds [0-9]+ bytes" \
+    "$bake" --scan "$S/len_lie.gltf"
+# a node scaled by 0 on an axis: the message blamed the (unit) NORMAL, not the transform
+expect "a node scaled flat: exit 2, the node named" 2 "nodes\\[5\\]: its world transform has zero scale \\(determinant 0\\): it flattens mesh 5" \
+    "$bake" --scan "$S/flat.gltf"
+# wrt-ref --points /dev/zero read NUL lines forever (a hang)
+expect "wrt-ref --points /dev/zero: exit 2" 2 "/dev/zero:1: a line longer than 510 bytes or holding a NUL byte" \
+    timeout 30 "$build/wrt-ref" assets/cornell.gltf --no-image --points /dev/zero
+# a cone whose angles differ only below float precision: passed the option check, then the
+# library refused it as "light 0" with exit 2
+expect "--light-cone 0.5,0.50000001: exit 1" 1 "--light-cone: '0.5,0.50000001' .*distinct as 32-bit floats" \
+    "$play" "$tmp/c.gto" --headless --width 8 --height 8 -o "$tmp/cone.png" --light-dir 0,-1,0 --light-cone 0.5,0.50000001
+# wrt-scenegen icosphere --res 20 made 20 x 4^6 triangles without a word
+expect "icosphere --res 20: exit 1" 1 "--res 20: the icosphere takes --res 1..6" \
+    "$build/wrt-scenegen" icosphere --res 20 -o "$tmp/ico.gltf"
+[ ! -e "$tmp/ico.gltf" ] && ok "no icosphere written" || ko "no icosphere written"
+# wrt-scenegen -o x.glb wrote glTF JSON under the binary form's name, exit 0
+expect "wrt-scenegen -o x.glb: exit 1" 1 "x.glb: wrt-scenegen writes glTF JSON \\(.gltf\\), not binary glTF" \
+    "$build/wrt-scenegen" cornell -o "$tmp/x.glb"
+# a .gto with 1 GB appended (sparse): wrt-play read it whole (20 GB resident at 20 GB, the
+# kernel's kill) before the reader refused the trailing data; now refused from the header
+cp "$tmp/c.gto" "$tmp/long.gto"; truncate -s 1G "$tmp/long.gto"
+expect "a bake with 1 GB appended: exit 2 before reading it" 2 "long.gto: trailing data: expected [0-9]+ bytes, found 1073741824 \(not read\)" \
+    "$play" "$tmp/long.gto" --headless --width 8 --height 8 -o "$tmp/long.png"
+rm -f "$tmp/long.gto"
+# a stack limit of 64 KB: the bake ended in SIGSEGV (139, no message)
+if [[ "$build" == *sanitize* ]]; then
+    skipped "ulimit -s 64: AddressSanitizer's own start needs more stack"
+else
+    expect "ulimit -s 64: exit 7 naming the limit" 7 "the stack limit \(ulimit -s\) is 64 KB, below the 512 KB" \
+        bash -c 'ulimit -s 64; exec "$0" "$@"' "$bake" assets/cornell.gltf -q 1 -o "$tmp/stack.gto"
+fi
+
 summary

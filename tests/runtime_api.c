@@ -159,6 +159,13 @@ static void test_options(const char *path) {
     o.size = sizeof(int);
     s = wrt_runtime_open_file(path, &o, &rt, &err);
     CHECK(s == WRT_ERR_INVALID_ARG && rt == NULL, "size too small: %d '%s'", s, err.message);
+    /* a negative thread count was taken as 0 (all cores) without a word (issue 25) */
+    o.size = sizeof o;
+    o.threads = -3;
+    s = wrt_runtime_open_file(path, &o, &rt, &err);
+    CHECK(s == WRT_ERR_INVALID_ARG && rt == NULL && strstr(err.message, "threads -3"), "threads -3: %d '%s'", s,
+          err.message);
+    o.threads = 1;
     wrt_runtime_options d = {0};
     CHECK(wrt_runtime_defaults(&d) == WRT_OK && d.max_tex_res == 64 && d.threads == 0 && d.allocator.alloc &&
           d.allocator.free && d.size == 0, "defaults: max_tex_res %d, threads %d", d.max_tex_res, d.threads);

@@ -9,6 +9,7 @@
  * the reference path tracer and the test harness. */
 #include "test.h"
 
+#include <float.h>
 #include <stdlib.h>
 #include <unistd.h>
 
@@ -114,6 +115,29 @@ static void test_closed_form(void) {
           "negative scale refused: %s", err.message);
     CHECK(wrt_runtime_set_emitter_scale(rt, 7, 1, &err) == WRT_ERR_INVALID_ARG && strstr(err.message, "material 7"),
           "bad material refused: %s", err.message);
+    /* A finite scale past what the computation carries (FLT_MAX on this emitter gave inf
+     * in every texture, silently): refused beyond WRT_MAX_INTENSITY as the lights are,
+     * and the largest scale allowed keeps every cell finite and linear (issue 25). */
+    CHECK(wrt_runtime_set_emitter_scale(rt, 0, FLT_MAX, &err) == WRT_ERR_INVALID_ARG &&
+              strstr(err.message, "WRT_MAX_INTENSITY"), "FLT_MAX scale refused: %s", err.message);
+    wrt_runtime_material mat;
+    CHECK(wrt_runtime_get_material(rt, 0, &mat, &err) == WRT_OK, "material: %s", err.message);
+    float emax = fmaxf(mat.emissive[0], fmaxf(mat.emissive[1], mat.emissive[2]));
+    float top = (float)(WRT_MAX_INTENSITY / emax * 0.999);
+    CHECK(wrt_runtime_set_emitter_scale(rt, 0, top, &err) == WRT_OK, "scale %g: %s", (double)top, err.message);
+    CHECK(wrt_runtime_update(rt, NULL, &err) == WRT_OK, "update: %s", err.message);
+    wrt_runtime_quad_cells(rt, 1, NCELL, half, NULL);
+    dev = 0;
+    int nonfinite = 0;
+    for (int k = 0; k < NCELL * NCELL * 3; k++) {
+        nonfinite += !isfinite(half[k]);
+        if (cells[k] > 0) dev = fmax(dev, fabs(half[k] / (top * cells[k]) - 1));
+    }
+    int res = 0;
+    const float *tex = wrt_runtime_quad_texture(rt, 1, &res);
+    for (int k = 0; tex && k < res * res * 3; k++) nonfinite += !isfinite(tex[k]);
+    CHECK(nonfinite == 0 && dev < 1e-5, "scale %g: %d non-finite values, max relative deviation from linear %g",
+          (double)top, nonfinite, dev);
     wrt_runtime_close(rt);
 
     /* the path tracer, emission on hit, against the same closed form */

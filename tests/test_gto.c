@@ -786,7 +786,10 @@ static void test_bad_numbers(void) {
     double dnan = NAN, dzero = 0;
     corrupt_index(b, n, S_MATERIALS, 104 + 64 + 4, &fnan, 4, "material 1: base_color[1] nan is not in [0, 1]", "material NaN");
     corrupt_index(b, n, S_MATERIALS, 76, &two, 4, "material 0: metallic 2 or roughness", "metallic 2");
-    corrupt_index(b, n, S_MATERIALS, 84, &finf, 4, "material 0: emissive[0] inf is not finite", "emissive inf");
+    corrupt_index(b, n, S_MATERIALS, 84, &finf, 4, "material 0: emissive[0] inf is not in [0, 1e+12]", "emissive inf");
+    /* finite, but the emitter's power pi L_e A is inf in float (issue 25, session 4) */
+    float fhuge = 3e38f;
+    corrupt_index(b, n, S_MATERIALS, 84, &fhuge, 4, "material 0: emissive[0] 3e+38 is not in [0, 1e+12]", "emissive 3e38");
     corrupt_index(b, n, S_LIGHTS, 68, &fnan, 4, "light 0: color[0] nan is not finite", "light colour NaN");
     corrupt_index(b, n, S_LIGHTS, 144 + 128, &fnan, 4, "light 1: intensity nan", "light intensity NaN");
     corrupt_index(b, n, S_LIGHTS, 128, &finf, 4, "light 0: intensity inf", "light intensity inf");

@@ -75,6 +75,14 @@ static wrt_status read_points(const char *path, const wrt_scene *s, point_list *
     memset(out, 0, sizeof *out);
     while (fgets(line, sizeof line, f)) {
         lineno++;
+        /* A line cut by the buffer, or holding a NUL byte (fgets stops only at a newline
+         * or a full buffer): refused, so that /dev/zero is not read forever. */
+        size_t len = strlen(line);
+        if ((len == 0 || line[len - 1] != '\n') && (len == sizeof line - 1 || !feof(f))) {
+            fclose(f);
+            return wrt_fail(WRT_ERR_PARSE, "%s:%d: a line longer than %d bytes or holding a NUL byte", path,
+                            lineno, (int)sizeof line - 2);
+        }
         char *c = line;
         while (*c == ' ' || *c == '\t') c++;
         if (*c == '#' || *c == '\n' || *c == 0) continue;

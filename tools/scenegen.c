@@ -25,6 +25,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -694,7 +695,7 @@ static const sg_entry scenes[] = {
     {"cornell-shapes", scene_cornell_shapes, "test/cornell_shapes.gltf",
      "Cornell room with a UV sphere, a cylinder and a bevelled box made of triangles"},
     {"icosphere", scene_icosphere, "test/icosphere.gltf",
-     "closed icosphere of 20 x 4^--res inward triangles, light at the centre"},
+     "closed icosphere of 20 x 4^--res inward triangles (--res <= 6), light at the centre"},
     {"sun-room", scene_sun_room, "sun_room.gltf", "closed room lit by a sun through a window"},
     {"cornell-emit", scene_cornell_emit, "test/cornell_emit.gltf", "Cornell box lit only by an emissive ceiling panel"},
     {"atrium", scene_atrium, NULL, /* large: not in --all; the scale benchmark makes it */
@@ -846,6 +847,13 @@ int main(int argc, char **argv) {
         }
         if (!ok) { fprintf(stderr, "wrt-scenegen: error: bad value for %s: %s\n", a, v); return WRT_EXIT_USAGE; }
     }
+    /* The icosphere subdivides --res times (20 x 4^res triangles); it stops at 6 (81,920),
+     * and --res 20 gave 81,920 triangles without a word. */
+    if (opt.res > 6 && (all || (scene && !strcmp(scene, "icosphere")))) {
+        fprintf(stderr, "wrt-scenegen: error: --res %d: the icosphere%s takes --res 1..6 (20 x 4^6 = 81,920 "
+                "triangles at most)\n", opt.res, all ? " (one of --all's scenes)" : "");
+        return WRT_EXIT_USAGE;
+    }
     if (all) {
         if (scene || out) { fprintf(stderr, "wrt-scenegen: error: --all takes no scene or --out\n"); return WRT_EXIT_USAGE; }
         char path[4096];
@@ -864,6 +872,13 @@ int main(int argc, char **argv) {
     if (!scene && !out) { usage(stderr); return WRT_EXIT_USAGE; }
     if (!scene) { fprintf(stderr, "wrt-scenegen: error: no scene name before -o %s (see --help for the list)\n", out); return WRT_EXIT_USAGE; }
     if (!out) { fprintf(stderr, "wrt-scenegen: error: no output file: wrt-scenegen %s -o FILE.gltf\n", scene); return WRT_EXIT_USAGE; }
+    /* It writes glTF's JSON form: -o x.glb wrote JSON under the binary form's name, which
+     * other glTF readers refuse (wrt-bake reads either by their first bytes). */
+    size_t outlen = strlen(out);
+    if (outlen >= 4 && !strcasecmp(out + outlen - 4, ".glb")) {
+        fprintf(stderr, "wrt-scenegen: error: %s: wrt-scenegen writes glTF JSON (.gltf), not binary glTF (.glb)\n", out);
+        return WRT_EXIT_USAGE;
+    }
     for (int i = 0; i < NSCENES; i++)
         if (!strcmp(scenes[i].name, scene)) {
             if (generate(&scenes[i], &opt, out) != WRT_OK) {
