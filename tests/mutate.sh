@@ -116,16 +116,18 @@ mutation balance-keep-links: where an occluder may lie between, what the links m
   run test_stress test_furnace_occluded
   run test_accuracy
 
-mutation series-tail: the geometric tail 1% short
-  file precompute/series.c
-  find for (int ch = 0; ch < 3; ch++) k[ch] = rc[ch] > 0 && rc[ch] < 1 ? rc[ch] / (1 - rc[ch]) : 0;
-  repl for (int ch = 0; ch < 3; ch++) k[ch] = rc[ch] > 0 && rc[ch] < 1 ? 0.99 * rc[ch] / (1 - rc[ch]) : 0;
+mutation series-tail: the geometric tail of each column's power 1% short (series_power.c
+sets every column's power of G - I since session 4; series.c's own tail now shapes only
+the light within a column, and its 1% went unseen by every flux test)
+  file precompute/series_power.c
+  find u[i] += v[i] * rr / (1 - rr);
+  repl u[i] += 0.99 * v[i] * rr / (1 - rr);
   run test_stress test_furnace
 
-mutation series-tail-channel: the tail of every channel from channel 0's ratio
-  file precompute/series.c
-  find for (int ch = 0; ch < 3; ch++) k[ch] = rc[ch] > 0 && rc[ch] < 1 ? rc[ch] / (1 - rc[ch]) : 0;
-  repl for (int ch = 0; ch < 3; ch++) k[ch] = rc[0] > 0 && rc[0] < 1 ? rc[0] / (1 - rc[0]) : 0;
+mutation series-tail-channel: the power tail of every channel from channel 0's ratio
+  file precompute/series_power.c
+  find double rr = r[i % 3];
+  repl double rr = r[0];
   run test_bake test_coloured_furnace
 
 mutation series-stop: the series stops when the last term is 1% of the sum
@@ -148,7 +150,7 @@ mutation sparse-apply-channel: the bake's sparse multiply uses channel 0 of x fo
   file precompute/sparse.c
   find for (int c = 0; c < 3; c++) y[3 * i + c] += (double)m->val[3 * k + c] * xj[c];
   repl for (int c = 0; c < 3; c++) y[3 * i + c] += (double)m->val[3 * k + c] * xj[0];
-  run test_bake test_coloured_furnace
+  run test_sparse test_apply_brute_force
 
 mutation projection-falloff: the projection's point light falls off as 1 / d^2.1
   file player/relight_internal.h

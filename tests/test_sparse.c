@@ -112,6 +112,34 @@ static void box_response(const wrt_scene *s, const wrt_bake_result *r, double *e
     free(x); free(y);
 }
 
+
+/* wrt_csc_apply against a plain loop over the matrix's entries, with a vector whose three channels
+ * differ (a furnace's uniform light has equal channels and cannot tell them apart) */
+static void test_apply_brute_force(void) {
+    enum { N = 500, PER = 5 };
+    uint32_t seed = 4242;
+    wrt_triplet *t = malloc(N * PER * sizeof *t);
+    double *x = malloc(3 * N * sizeof *x), *y = calloc(3 * N, sizeof *y), *want = calloc(3 * N, sizeof *want);
+    for (uint32_t i = 0; i < 3 * N; i++) x[i] = (lcg(&seed) % 2001) / 1000.0 - 1.0;
+    for (uint32_t j = 0; j < N; j++)
+        for (int e = 0; e < PER; e++) {
+            wrt_triplet *q = &t[j * PER + e];
+            *q = (wrt_triplet){lcg(&seed) % N, j, {0}};
+            for (int c = 0; c < 3; c++) q->v[c] = (float)((lcg(&seed) % 2001) / 1000.0 - 1.0);
+        }
+    wrt_csc m = wrt_csc_from_triplets(N, t, N * PER);
+    /* the truth: y_r += sum of the duplicates (summed in float, as the CSC holds them) x_c */
+    for (uint32_t j = 0; j < N; j++)
+        for (uint64_t k = m.col[j]; k < m.col[j + 1]; k++)
+            for (int c = 0; c < 3; c++) want[3 * m.row[k] + c] += (double)m.val[3 * k + c] * x[3 * j + c];
+    wrt_csc_apply(&m, x, y);
+    double worst = 0, scale = 0;
+    for (uint32_t i = 0; i < 3 * N; i++) { worst = fmax(worst, fabs(y[i] - want[i])); scale = fmax(scale, fabs(want[i])); }
+    CHECK(scale > 0.1 && worst <= 1e-12 * scale, "apply: largest difference %.3g of %.3g", worst, scale);
+    free(t); free(x); free(y); free(want);
+    wrt_csc_free(&m);
+}
+
 /* The products' right factor compressed (series.c): a closed box of 2 x 2 quads a face,
  * coloured albedo 0.5 / 0.9 / 0.99, quality 4: every quad's indirect irradiance is
  * rho / (1 - rho) per channel, with the full T and with the default right factor (4 x
@@ -161,6 +189,7 @@ static void test_series_right_furnace(void) {
 int main(int argc, char **argv) {
     TEST_RUN(test_duplicates_in_order);
     TEST_RUN(test_product_brute_force);
+    TEST_RUN(test_apply_brute_force);
     TEST_RUN(test_series_right_furnace);
     TEST_END();
 }
