@@ -1,7 +1,11 @@
-/* bake_helpers.h: small helpers the bake's tests share (test_bake.c, test_stress.c):
- * points, options, the key of a quad's root function, and reading one operator entry. */
+/* bake_helpers.h: small helpers the bake's tests share (test_bake.c, test_stress.c, test_sparse.c):
+ * points, options, the key of a quad's root function, reading one operator entry, and a
+ * closed scene's response to uniform irradiance. */
 #ifndef WRT_TEST_BAKE_HELPERS_H
 #define WRT_TEST_BAKE_HELPERS_H
+
+#include <math.h>
+#include <stdlib.h>
 
 #include "common/basis.h"
 #include "precompute/bake.h"
@@ -25,6 +29,24 @@ static inline double entry(const wrt_bake_result *r, const wrt_csc *m, uint64_t 
     for (uint64_t k = m->col[j]; k < m->col[j + 1]; k++)
         if (m->row[k] == (uint32_t)i) return m->val[3 * k];
     return 0;
+}
+
+/* Uniform irradiance 1 injected on every quad's root function, G - I applied: each quad's
+ * indirect irradiance per channel, e[3 * q + c] (calloc'd, the caller frees). */
+static inline double *root_response(const wrt_scene *s, const wrt_bake_result *r) {
+    double *x = calloc(3 * r->nfuncs, sizeof *x), *y = calloc(3 * r->nfuncs, sizeof *y);
+    double *e = calloc(3 * (size_t)s->nquads, sizeof *e);
+    for (int q = 0; q < s->nquads; q++) {
+        int64_t f = wrt_fkey_find(r->fkeys, r->nfuncs, root_key(q));
+        for (int c = 0; c < 3; c++) x[3 * f + c] = sqrt(s->quads[q].area / M_PI);
+    }
+    wrt_csc_apply(&r->op, x, y);
+    for (int q = 0; q < s->nquads; q++) {
+        int64_t f = wrt_fkey_find(r->fkeys, r->nfuncs, root_key(q));
+        for (int c = 0; c < 3; c++) e[3 * q + c] = y[3 * f + c] * sqrt(M_PI / s->quads[q].area);
+    }
+    free(x); free(y);
+    return e;
 }
 
 #endif

@@ -185,23 +185,6 @@ static void test_distribution(void) {
                 "sender cells (0, 1): %.4f%%, (2, 3): %.4f%%", 100 * w2, 100 * w3);
 }
 
-/* Uniform irradiance 1 injected on every quad's root function, G - I applied: each quad's
- * indirect irradiance per channel, e[3 * q + c] (calloc'd, the caller frees). */
-static double *uniform_response(const wrt_scene *s, const wrt_bake_result *r) {
-    double *x = calloc(3 * r->nfuncs, sizeof *x), *y = calloc(3 * r->nfuncs, sizeof *y);
-    double *e = calloc(3 * (size_t)s->nquads, sizeof *e);
-    for (int q = 0; q < s->nquads; q++) {
-        int64_t f = wrt_fkey_find(r->fkeys, r->nfuncs, root_key(q));
-        for (int c = 0; c < 3; c++) x[3 * f + c] = sqrt(s->quads[q].area / M_PI);
-    }
-    wrt_csc_apply(&r->op, x, y);
-    for (int q = 0; q < s->nquads; q++) {
-        int64_t f = wrt_fkey_find(r->fkeys, r->nfuncs, root_key(q));
-        for (int c = 0; c < 3; c++) e[3 * q + c] = y[3 * f + c] * sqrt(M_PI / s->quads[q].area);
-    }
-    free(x); free(y);
-    return e;
-}
 
 /* Uniform irradiance 1 injected on every quad of a closed box of albedo rho, G - I applied:
  * returns the indirect flux over its truth rho / (1 - rho) x flux in, and the worst quad's
@@ -215,7 +198,7 @@ static double furnace(double rho, int n, int quality, int no_balance, double *wo
     wrt_bake_options o = opts(quality, 0, 0);
     o.no_balance = no_balance;
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
-    double *irr = uniform_response(&s, &r);
+    double *irr = root_response(&s, &r);
     double flux_in = 0, flux = 0, worst = 0, expect = rho / (1 - rho);
     for (int q = 0; q < s.nquads; q++) {
         double e = irr[3 * q];
@@ -269,7 +252,7 @@ static void test_coloured_furnace(void) {
     wrt_bake_result r;
     wrt_bake_options o = opts(4, 0, 0);
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
-    double *irr = uniform_response(&s, &r);
+    double *irr = root_response(&s, &r);
     for (int c = 0; c < 3; c++) {
         double truth = rho[c] / (1 - rho[c]), worst = 0;
         for (int q = 0; q < s.nquads; q++) worst = fmax(worst, fabs(irr[3 * q + c] / truth - 1));
@@ -308,7 +291,7 @@ static void test_small_quads_furnace(void) {
     wrt_bake_result r;
     wrt_bake_options o = opts(4, 0, 0);
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
-    double *irr = uniform_response(&s, &r);
+    double *irr = root_response(&s, &r);
     double flux = 0, area = 0, worst = 0;
     for (int q = 0; q < s.nquads; q++) {
         double e = irr[3 * q];
