@@ -165,12 +165,10 @@ static void mul_column(size_t j, int th, void *user) {
         for (uint64_t ka = a->col[k]; ka < a->col[k + 1]; ka++) {
             uint32_t i = a->row[ka];
             const float *av = &a->val[3 * ka];
-            uint64_t bit = (uint64_t)1 << (i & 63);
-            if (!(bits[i >> 6] & bit)) {
-                bits[i >> 6] |= bit;
-                top[i >> 12] |= (uint64_t)1 << ((i >> 6) & 63);
-                acc[3 * i] = acc[3 * i + 1] = acc[3 * i + 2] = 0;
-            }
+            /* acc is all zero between columns (cleared as the rows are read out), so a
+             * touch only marks the bitmaps: no test, no branch to mispredict */
+            bits[i >> 6] |= (uint64_t)1 << (i & 63);
+            top[i >> 12] |= (uint64_t)1 << ((i >> 6) & 63);
             acc[3 * i] += (double)av[0] * bv[0];
             acc[3 * i + 1] += (double)av[1] * bv[1];
             acc[3 * i + 2] += (double)av[2] * bv[2];
@@ -195,7 +193,7 @@ static void mul_column(size_t j, int th, void *user) {
         }
     }
     uint32_t kept = 0, kept_power = 0, best = UINT32_MAX;
-    double cw = c->col_w ? c->col_w[j] : 1.0, lost[3] = {0, 0, 0}, bestw = 0;
+    double cw = c->col_w ? c->col_w[j] : 1.0, lost[3] = {0, 0, 0}, bestw = 0, bestv[3] = {0, 0, 0};
     const double *pw = c->power_w;
     for (uint32_t t = 0; t < nl; t++) {
         uint32_t i = list[t];
@@ -205,9 +203,15 @@ static void mul_column(size_t j, int th, void *user) {
         if (m > 0 && m * cw * (c->row_w ? c->row_w[i] : 1.0) >= c->drop) {
             list[kept++] = i;
             kept_power += pw && pw[i] != 0;
-        } else if (pw && pw[i] != 0) {
-            for (int ch = 0; ch < 3; ch++) lost[ch] += pw[i] * acc[3 * i + ch];
-            if (pw[i] * (m0 + m1 + m2) > bestw) { bestw = pw[i] * (m0 + m1 + m2); best = i; }
+        } else {
+            if (pw && pw[i] != 0) {
+                for (int ch = 0; ch < 3; ch++) lost[ch] += pw[i] * acc[3 * i + ch];
+                if (pw[i] * (m0 + m1 + m2) > bestw) {
+                    bestw = pw[i] * (m0 + m1 + m2); best = i;
+                    for (int ch = 0; ch < 3; ch++) bestv[ch] = acc[3 * i + ch];
+                }
+            }
+            acc[3 * i] = acc[3 * i + 1] = acc[3 * i + 2] = 0;
         }
     }
     if (pw && (lost[0] != 0 || lost[1] != 0 || lost[2] != 0)) {
@@ -217,6 +221,7 @@ static void mul_column(size_t j, int th, void *user) {
             while (at > 0 && list[at - 1] > best) { list[at] = list[at - 1]; at--; }
             list[at] = best;
             kept++;
+            for (int ch = 0; ch < 3; ch++) acc[3 * best + ch] = bestv[ch];
             for (int ch = 0; ch < 3; ch++) lost[ch] -= pw[best] * acc[3 * best + ch];
         }
         spread_power(list, kept, acc, pw, lost);
@@ -229,6 +234,7 @@ static void mul_column(size_t j, int th, void *user) {
         uint32_t i = list[t];
         o->row[t] = i;
         for (int ch = 0; ch < 3; ch++) o->val[3 * t + ch] = (float)acc[3 * i + ch];
+        acc[3 * i] = acc[3 * i + 1] = acc[3 * i + 2] = 0;
     }
 }
 
@@ -270,7 +276,7 @@ static mul_ctx mul_ctx_make(const wrt_csc *a, const wrt_csc *b, double drop, con
     c.top = wrt_xcalloc((size_t)t, sizeof *c.top);
     c.list = wrt_xcalloc((size_t)t, sizeof *c.list);
     for (int i = 0; i < t; i++) {
-        c.acc[i] = wrt_xmalloc(((size_t)n * 3 + 1) * sizeof(double));
+        c.acc[i] = wrt_xcalloc((size_t)n * 3 + 1, sizeof(double)); /* kept zero between columns */
         c.bits[i] = wrt_xcalloc(((size_t)n >> 6) + 1, sizeof(uint64_t));
         c.top[i] = wrt_xcalloc(((size_t)n >> 12) + 1, sizeof(uint64_t));
         c.list[i] = wrt_xmalloc(((size_t)n + 1) * sizeof(uint32_t));
