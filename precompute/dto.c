@@ -57,6 +57,35 @@
 #include "dto.h"
 
 /* ---- Lambert's closed form, clipped to the half-space in front of x ---- */
+
+/* One edge's term of Lambert's sum, a -> b (unit vectors from x): the angle g between
+ * them times (a x b).n / |a x b|. An edge that subtends a small angle (tan g = t <= 1/4:
+ * most edges of a cell a few cell sizes away) takes g / sin g = P(t^2) / cos g with
+ * atan(t) / t's series to t^16 (at most 7.4e-13 of the value off) instead of
+ * atan2 and a square root: the arc tangent was a sixth of a maze bake (perf). The
+ * reversed edge's term is exactly the negation (a x b and its dot with n change sign,
+ * the rest is unchanged), bit for bit. */
+static inline double ff_edge(wrt_v3 a, wrt_v3 b, wrt_v3 n) {
+    wrt_v3 c = v3_cross(a, b);
+    double s2 = v3_dot(c, c), d = v3_dot(a, b);
+    if (d > 0 && s2 <= 0.0625 * d * d) {
+        double t2 = s2 / (d * d);
+        double p = 1.0 / 17;
+        p = 1.0 / 15 - t2 * p;
+        p = 1.0 / 13 - t2 * p;
+        p = 1.0 / 11 - t2 * p;
+        p = 1.0 / 9 - t2 * p;
+        p = 1.0 / 7 - t2 * p;
+        p = 1.0 / 5 - t2 * p;
+        p = 1.0 / 3 - t2 * p;
+        p = 1.0 - t2 * p;
+        return v3_dot(c, n) * p / d;
+    }
+    double sl = sqrt(s2);
+    if (sl < 1e-300) return 0;
+    return atan2(sl, d) * v3_dot(c, n) / sl;
+}
+
 double wrt_ff_point_polygon(wrt_v3 x, wrt_v3 n, const wrt_v3 *poly, int count) {
     wrt_v3 clip[16];
     int nc = 0;
@@ -71,25 +100,8 @@ double wrt_ff_point_polygon(wrt_v3 x, wrt_v3 n, const wrt_v3 *poly, int count) {
     }
     if (nc < 3) return 0;
     double sum = 0;
-    for (int i = 0; i < nc; i++) {
-        wrt_v3 a = v3_norm(clip[i]), b = v3_norm(clip[(i + 1) % nc]);
-        wrt_v3 c = v3_cross(a, b);
-        double sl = v3_len(c);
-        if (sl < 1e-300) continue;
-        double g = atan2(sl, v3_dot(a, b));
-        sum += g * v3_dot(c, n) / sl;
-    }
+    for (int i = 0; i < nc; i++) sum += ff_edge(v3_norm(clip[i]), v3_norm(clip[(i + 1) % nc]), n);
     return fabs(sum) / (2 * WRT_PI);
-}
-
-/* One edge's term of Lambert's sum, a -> b (both relative to x, unit length); the
- * reversed edge's term is exactly the negation (the cross product and its dot with n
- * change sign, the rest is unchanged), bit for bit. */
-static double ff_edge(wrt_v3 a, wrt_v3 b, wrt_v3 n) {
-    wrt_v3 c = v3_cross(a, b);
-    double sl = v3_len(c);
-    if (sl < 1e-300) return 0;
-    return atan2(sl, v3_dot(a, b)) * v3_dot(c, n) / sl;
 }
 
 /* The form factors from x (normal n) to the four quadrants of a sender cell, given its
