@@ -6,6 +6,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
 #include "../common/threads.h"
 #include "../common/wrt_common.h"
 
@@ -162,17 +166,34 @@ static void mul_column(size_t j, int th, void *user) {
     for (uint64_t kb = b->col[j]; kb < b->col[j + 1]; kb++) {
         uint32_t k = b->row[kb];
         const float *bv = &b->val[3 * kb];
+        /* acc is all zero between columns (cleared as the rows are read out), so a touch
+         * only marks the bitmaps: no test, no branch to mispredict */
+#ifdef __SSE2__
+        /* channels 0 and 1 in one register: the same products and sums, in double, as
+         * the plain loop (#else), so the same bits */
+        __m128d b01 = _mm_set_pd((double)bv[1], (double)bv[0]);
+        double b2 = bv[2];
         for (uint64_t ka = a->col[k]; ka < a->col[k + 1]; ka++) {
             uint32_t i = a->row[ka];
             const float *av = &a->val[3 * ka];
-            /* acc is all zero between columns (cleared as the rows are read out), so a
-             * touch only marks the bitmaps: no test, no branch to mispredict */
+            bits[i >> 6] |= (uint64_t)1 << (i & 63);
+            top[i >> 12] |= (uint64_t)1 << ((i >> 6) & 63);
+            __m128d a01 = _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64((const __m128i *)av)));
+            double *ac = &acc[3 * (size_t)i];
+            _mm_storeu_pd(ac, _mm_add_pd(_mm_loadu_pd(ac), _mm_mul_pd(a01, b01)));
+            ac[2] += (double)av[2] * b2;
+        }
+#else
+        for (uint64_t ka = a->col[k]; ka < a->col[k + 1]; ka++) {
+            uint32_t i = a->row[ka];
+            const float *av = &a->val[3 * ka];
             bits[i >> 6] |= (uint64_t)1 << (i & 63);
             top[i >> 12] |= (uint64_t)1 << ((i >> 6) & 63);
             acc[3 * i] += (double)av[0] * bv[0];
             acc[3 * i + 1] += (double)av[1] * bv[1];
             acc[3 * i + 2] += (double)av[2] * bv[2];
         }
+#endif
     }
     /* The touched rows in ascending order, read off the two bitmaps (and cleared on the
      * way): sorting each column's touched rows (a radix sort, qsort before it) took 13% of
