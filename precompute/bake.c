@@ -501,36 +501,36 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
     }
     if (st == WRT_OK) {
         /* K's rows are basis functions too (a receiver cell finer than T's links reach) */
-        uint64_t *keys = wrt_xmalloc((2 * nent + nkent + (size_t)b->nq + 1) * sizeof *keys);
-        uint64_t nk = 0;
-        for (int q = 0; q < b->nq; q++) keys[nk++] = wrt_fkey_make((uint32_t)q, wrt_node_root(), 0, wrt_node_root(), 0);
+        /* the distinct keys by a hash set: an array of every entry's two keys and its
+         * sort's buffer were 1 GB beside the entries on the 12 x 12 maze, the bake's peak
+         * (2.0 GB); the set holds the 2.3 MB of distinct keys */
+        wrt_fkey_set ks = {0};
+        for (int q = 0; q < b->nq; q++) wrt_fkey_set_add(&ks, wrt_fkey_make((uint32_t)q, wrt_node_root(), 0, wrt_node_root(), 0));
         for (size_t i = 0; i < np; i++)
             for (size_t k = 0; k < job->out[i].count; k++) {
-                keys[nk++] = job->out[i].e[k].r;
-                if (!job->out[i].kmode) keys[nk++] = job->out[i].e[k].s;
+                wrt_fkey_set_add(&ks, job->out[i].e[k].r);
+                if (!job->out[i].kmode) wrt_fkey_set_add(&ks, job->out[i].e[k].s);
             }
-        wrt_sort_u64(keys, nk);
-        uint64_t nu = 0;
-        for (uint64_t i = 0; i < nk; i++)
-            if (nu == 0 || keys[nu - 1] != keys[i]) keys[nu++] = keys[i];
+        uint64_t nu = ks.n;
         if (nu > UINT32_MAX - 1) {
             st = wrt_fail(WRT_ERR_INVALID_ARG, "too many basis functions (%llu)", (unsigned long long)nu);
-            free(keys);
+            wrt_fkey_set_free(&ks);
         } else {
+            uint64_t *keys = wrt_fkey_set_sorted(&ks);
+            if (!keys) keys = wrt_xmalloc(sizeof *keys);
             res->nfuncs = (uint32_t)nu;
-            /* the unique keys only: the array was sized for every entry's two (on the
-             * 12 x 12 maze 515 MB held to the end of the bake for 2.3 MB of keys) */
-            res->fkeys = keys = wrt_xrealloc(keys, (nu ? nu : 1) * sizeof *keys);
+            res->fkeys = keys;
             wrt_triplet *tr = wrt_xmalloc((nent ? nent : 1) * sizeof *tr);
             uint64_t t = 0;
             for (size_t i = 0; i < npt; i++)
                 for (size_t k = 0; k < job->out[i].count; k++) {
                     const pair_entry *e = &job->out[i].e[k];
-                    tr[t].row = (uint32_t)wrt_fkey_find(keys, res->nfuncs, e->r);
-                    tr[t].col = (uint32_t)wrt_fkey_find(keys, res->nfuncs, e->s);
+                    tr[t].row = (uint32_t)wrt_fkey_set_find(&ks, e->r);
+                    tr[t].col = (uint32_t)wrt_fkey_set_find(&ks, e->s);
                     memcpy(tr[t].v, e->v, sizeof e->v);
                     t++;
                 }
+            wrt_fkey_set_free(&ks);
             /* the balance: per leaf link a reference and the power entries it sets (about
              * three of 24 bytes each, measured on the maze: 606k entries from 263k leaves) */
             uint64_t nleaf = 0;

@@ -6,6 +6,7 @@
 #include "links.h"
 
 #include <stdlib.h>
+#include <string.h>
 
 #include "../common/wrt_common.h"
 
@@ -17,6 +18,72 @@ int64_t wrt_fkey_find(const uint64_t *fkeys, uint32_t n, uint64_t key) {
         else hi = mid;
     }
     return (lo < n && fkeys[lo] == key) ? (int64_t)lo : -1;
+}
+
+/* a 64-bit finaliser: keys differ in few low bits, the slots need all of them mixed */
+static size_t key_hash(uint64_t k) {
+    k ^= k >> 33;
+    k *= 0xff51afd7ed558ccdULL;
+    k ^= k >> 33;
+    k *= 0xc4ceb9fe1a85ec53ULL;
+    k ^= k >> 33;
+    return (size_t)k;
+}
+
+static void fkey_set_grow(wrt_fkey_set *s) {
+    size_t ncap = s->cap ? 2 * s->cap : 1024;
+    uint64_t *nk = wrt_xmalloc(ncap * sizeof *nk);
+    uint32_t *ni = wrt_xmalloc(ncap * sizeof *ni);
+    for (size_t i = 0; i < ncap; i++) ni[i] = UINT32_MAX;
+    for (size_t i = 0; i < s->cap; i++) {
+        if (s->idx[i] == UINT32_MAX) continue;
+        size_t h = key_hash(s->key[i]) & (ncap - 1);
+        while (ni[h] != UINT32_MAX) h = (h + 1) & (ncap - 1);
+        nk[h] = s->key[i]; ni[h] = s->idx[i];
+    }
+    free(s->key); free(s->idx);
+    s->key = nk; s->idx = ni; s->cap = ncap;
+}
+
+void wrt_fkey_set_add(wrt_fkey_set *s, uint64_t key) {
+    if (2 * (s->n + 1) > s->cap) fkey_set_grow(s);
+    size_t h = key_hash(key) & (s->cap - 1);
+    while (s->idx[h] != UINT32_MAX) {
+        if (s->key[h] == key) return;
+        h = (h + 1) & (s->cap - 1);
+    }
+    s->key[h] = key; s->idx[h] = 0;
+    s->n++;
+}
+
+int64_t wrt_fkey_set_find(const wrt_fkey_set *s, uint64_t key) {
+    if (!s->cap) return -1;
+    size_t h = key_hash(key) & (s->cap - 1);
+    while (s->idx[h] != UINT32_MAX) {
+        if (s->key[h] == key) return s->idx[h];
+        h = (h + 1) & (s->cap - 1);
+    }
+    return -1;
+}
+
+uint64_t *wrt_fkey_set_sorted(wrt_fkey_set *s) {
+    if (!s->n) return NULL;
+    uint64_t *keys = wrt_xmalloc(s->n * sizeof *keys);
+    size_t k = 0;
+    for (size_t i = 0; i < s->cap; i++)
+        if (s->idx[i] != UINT32_MAX) keys[k++] = s->key[i];
+    wrt_sort_u64(keys, k);
+    for (size_t i = 0; i < k; i++) {
+        size_t h = key_hash(keys[i]) & (s->cap - 1);
+        while (s->key[h] != keys[i] || s->idx[h] == UINT32_MAX) h = (h + 1) & (s->cap - 1);
+        s->idx[h] = (uint32_t)i;
+    }
+    return keys;
+}
+
+void wrt_fkey_set_free(wrt_fkey_set *s) {
+    free(s->key); free(s->idx);
+    memset(s, 0, sizeof *s);
 }
 
 /* The link of a function: its key without the wavelet types. */
