@@ -107,7 +107,7 @@ double wrt_ff_point_polygon(wrt_v3 x, wrt_v3 n, const wrt_v3 *poly, int count) {
 /* The form factors from x (normal n) to the four quadrants of a sender cell, given its
  * 3 x 3 corner grid g[row v][column u]: when no corner lies behind x's tangent plane no
  * quadrant is clipped, and the 12 distinct edges are shared by the quadrants (an inner
- * edge is walked once each way), so 9 normalisations and 12 arc tangents replace 16 and
+ * edge is walked once each way), so 9 normalisations and 12 edge terms replace 16 and
  * 16. The sums are taken in wrt_ff_point_polygon's order, so f[] is the same bit for bit.
  * Returns 0, computing nothing, when some corner is behind the plane. */
 static int ff_point_quadrants(wrt_v3 x, wrt_v3 n, const wrt_v3 g[3][3], double f[4]) {

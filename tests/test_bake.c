@@ -63,6 +63,16 @@ static void test_point_polygon(void) {
     double fw = wrt_ff_point_polygon(P(0, 0, 0), P(0, 0, 1), wall, 4);
     wrt_v3 upper[4] = {P(1, -.5, 0), P(1, .5, 0), P(1, .5, 1), P(1, -.5, 1)};
     CHECK_NEAR(fw, wrt_ff_point_polygon(P(0, 0, 0), P(0, 0, 1), upper, 4), 1e-12, "clipping");
+    /* small and far (every edge under tan 1/4: the arc tangent's series), and long and
+     * thin (two edges by the series, two by atan2), against the corner rectangles */
+    double dims[2][2] = {{0.05, 0.05}, {0.05, 2.0}};
+    for (int c = 0; c < 2; c++) {
+        A = dims[c][0]; B = dims[c][1]; a1 = sqrt(1 + A * A); b1 = sqrt(1 + B * B);
+        corner = (A / a1 * atan(B / a1) + B / b1 * atan(A / b1)) / (2 * M_PI);
+        wrt_v3 r[4] = {P(-A, -B, 1), P(A, -B, 1), P(A, B, 1), P(-A, B, 1)};
+        f = wrt_ff_point_polygon(P(0, 0, 0), P(0, 0, 1), r, 4);
+        CHECK_NEAR(f / (4 * corner), 1, 1e-11, c ? "point to a long thin rectangle" : "point to a small far square");
+    }
 }
 
 static void facing_scene(wrt_scene *s, double rho) {
