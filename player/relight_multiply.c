@@ -213,7 +213,27 @@ void relight_multiply(wrt_relight *r, const float *src) {
     for (uint32_t q = 0; q < nq; q++) {
         const wrt_gto_quad *gq = &g->quads[q];
         uint32_t changed = 0, nz = 0;
-        for (size_t f = gq->func_first; f < (size_t)gq->func_first + gq->func_count; f++) {
+        size_t f = gq->func_first, fend = (size_t)gq->func_first + gq->func_count;
+#ifdef __SSE2__
+        /* without Y: each function's RGB at once, the same bits written and compared; the
+         * fourth lane of the loads (X4's unused one, X's next value) is masked out */
+        if (!Y) {
+            const __m128i m3 = _mm_set_epi32(0, -1, -1, -1);
+            __m128i ch = _mm_setzero_si128(), nzv = _mm_setzero_si128();
+            for (; f < fend; f++) {
+                __m128 v = _mm_load_ps(r->mul.X4 + f * 4);
+                float *x = r->X + f * 3;
+                __m128i o = _mm_castps_si128(_mm_loadu_ps(x)), n = _mm_castps_si128(v);
+                ch = _mm_or_si128(ch, _mm_and_si128(_mm_xor_si128(o, n), m3));
+                nzv = _mm_or_si128(nzv, _mm_and_si128(_mm_castps_si128(_mm_cmpneq_ps(v, _mm_setzero_ps())), m3));
+                _mm_storel_pi((__m64 *)x, v);
+                _mm_store_ss(x + 2, _mm_movehl_ps(v, v));
+            }
+            changed = _mm_movemask_epi8(_mm_cmpeq_epi8(ch, _mm_setzero_si128())) != 0xFFFF;
+            nz = _mm_movemask_epi8(_mm_cmpeq_epi8(nzv, _mm_setzero_si128())) != 0xFFFF;
+        }
+#endif
+        for (; f < fend; f++) {
             int addy = Y && (!r->mul.own[0] || r->fn_ang[f] == 0);
             for (int c = 0; c < 3; c++) {
                 float v = r->mul.X4[f * 4 + c];
