@@ -341,10 +341,8 @@ static inline void light_visible4(const wrt_relight *r, int n, const wrt_v3 *x, 
     for (int k = 0; k < 4; k++) {
         valid[k] = 0;
         vis[k] = 1;
-        ray.org_x[k] = ray.org_y[k] = ray.org_z[k] = 0;
-        ray.dir_x[k] = ray.dir_y[k] = 0; ray.dir_z[k] = 1;
-        ray.tnear[k] = 0; ray.tfar[k] = 0; ray.time[k] = 0; ray.mask[k] = 0xFFFFFFFFu; ray.id[k] = 0; ray.flags[k] = 0;
-        if (k >= n || !need[k]) continue;
+        if (k >= n || !need[k]) continue; /* a lane not valid is not read */
+        ray.tnear[k] = 0; ray.time[k] = 0; ray.mask[k] = 0xFFFFFFFFu; ray.id[k] = 0; ray.flags[k] = 0;
         wrt_v3 o = v3_sub(v3_mad(x[k], nrm, r->rt.eps), r->rt.origin);
         ray.org_x[k] = (float)o.x; ray.org_y[k] = (float)o.y; ray.org_z[k] = (float)o.z;
         ray.dir_x[k] = (float)dir[k].x; ray.dir_y[k] = (float)dir[k].y; ray.dir_z[k] = (float)dir[k].z;

@@ -158,7 +158,8 @@ static uint32_t eval_cell(const wrt_relight *r, worker *w, const proj_setup *ps,
                 es[t] = light_irradiance(ps->lc, xs[t], q->n, &dirs[t], &ds[t]);
                 need[t] = rays && es[t] != 0;
             }
-            light_visible4(r, n4, xs, q->n, dirs, ds, need, lit);
+            if (rays) light_visible4(r, n4, xs, q->n, dirs, ds, need, lit);
+            else lit[0] = lit[1] = lit[2] = lit[3] = 1;
         }
         double u = us[k4], v = vs[k4], e = es[k4];
         wrt_v3 dir = dirs[k4];
