@@ -38,11 +38,6 @@ typedef struct gquad {
     int32_t *cell;    /* npt x NDIR: slot x RG2 + radiance cell it reads (nslot x RG2: the
                        * black cell after the grids, for a ray that sees nothing or a back) */
     float *lout;      /* npt x 3: L_o toward the eye at the points */
-    float *tw;        /* npt x NDIR x 3: at each point, the beta rows toward the eye
-                       * blended (dot4's t), kept while the eye stays (a light change
-                       * then reads them instead of blending four rows again) */
-    double tw_eye[3]; /* the eye tw holds; tw_ok 0: none yet */
-    int tw_ok;
     int beta_id;      /* index into g->beta */
 } gquad;
 
@@ -82,7 +77,6 @@ struct wrt_gather {
     const float *const *tex; const int *tex_res;
     double eye[3];
     int lq;            /* the glossy quad lout_point works on */
-    int lq_tw;         /* 1: its tw holds this eye's rows (read them), 0: write them */
     float *const *out; const int *out_res;
 };
 
@@ -286,8 +280,6 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_re
         }
         gf(g, G->hits);
         G->hits = NULL;
-        G->tw = ga(g, (size_t)G->npt * NDIR * 3 * sizeof(float)); /* the hits' bytes, freed above */
-        if (!G->tw) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
     }
     g->direct = ga(g, ((size_t)(g->nslot ? g->nslot : 1) * GATHER_DTEX * GATHER_DTEX * 3) * sizeof(float));
     g->rad = ga(g, ((size_t)g->nslot * RG2 + 1) * 3 * sizeof(float) + sizeof(float)); /* + the black cell, + 1 float */
@@ -302,7 +294,7 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_re
 void wrt_gather_destroy(wrt_gather *g) {
     if (!g) return;
     if (g->gq)
-        for (int i = 0; i < g->nq; i++) { gf(g, g->gq[i].hits); gf(g, g->gq[i].cell); gf(g, g->gq[i].lout); gf(g, g->gq[i].tw); }
+        for (int i = 0; i < g->nq; i++) { gf(g, g->gq[i].hits); gf(g, g->gq[i].cell); gf(g, g->gq[i].lout); }
     for (int b = 0; b < g->nbeta; b++) gf(g, g->beta[b]);
     gf(g, g->beta); gf(g, g->beta_mat); gf(g, g->direct); gf(g, g->rad); gf(g, g->dax); gf(g, g->tax); gf(g, g->slot); gf(g, g->slot_quad); gf(g, g->glossy); gf(g, g->gq); gf(g, g->q);
     gf(g, g);
@@ -374,7 +366,7 @@ void wrt_gather_lights(wrt_gather *g, wrt_gather_direct_fn direct, void *user, c
  * NDIR x 3 floats. Vectorised over blocks of 4 cells (12 floats: three 4-lane vectors whose
  * lanes hold the channels 0120, 1201, 2012), folded at the end; the scalar loop below
  * sums the same terms in cell order (the two differ by float rounding only). */
-static void dot4(const float *lin, const float *const bt[4], const float w[4], float out[3], float *tw) {
+static void dot4(const float *lin, const float *const bt[4], const float w[4], float out[3]) {
 #ifdef __SSE2__
     __m128 acc0 = _mm_setzero_ps(), acc1 = _mm_setzero_ps(), acc2 = _mm_setzero_ps();
     __m128 w0 = _mm_set1_ps(w[0]), w1 = _mm_set1_ps(w[1]), w2 = _mm_set1_ps(w[2]), w3 = _mm_set1_ps(w[3]);
@@ -382,7 +374,6 @@ static void dot4(const float *lin, const float *const bt[4], const float w[4], f
     do {                                                                                                     \
         __m128 t_ = _mm_add_ps(_mm_add_ps(_mm_mul_ps(w0, _mm_loadu_ps(bt[0] + (o))), _mm_mul_ps(w1, _mm_loadu_ps(bt[1] + (o)))), \
                                _mm_add_ps(_mm_mul_ps(w2, _mm_loadu_ps(bt[2] + (o))), _mm_mul_ps(w3, _mm_loadu_ps(bt[3] + (o))))); \
-        _mm_storeu_ps(tw + (o), t_);                                                                         \
         acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(lin + (o)), t_));                                       \
     } while (0)
     for (int i = 0; i < NDIR * 3; i += 12) {
@@ -397,30 +388,8 @@ static void dot4(const float *lin, const float *const bt[4], const float w[4], f
     for (int k = 0; k < 12; k++) out[k % 3] += a[k];
 #else
     out[0] = out[1] = out[2] = 0;
-    for (int i = 0; i < NDIR * 3; i++) {
-        tw[i] = w[0] * bt[0][i] + w[1] * bt[1][i] + w[2] * bt[2][i] + w[3] * bt[3][i];
-        out[i % 3] += lin[i] * tw[i];
-    }
-#endif
-}
-
-/* dot4 with the blended rows t that an earlier dot4 wrote into tw: the same products
- * summed in the same order, so the same bits. */
-static void dot4_kept(const float *lin, const float *tw, float out[3]) {
-#ifdef __SSE2__
-    __m128 acc0 = _mm_setzero_ps(), acc1 = _mm_setzero_ps(), acc2 = _mm_setzero_ps();
-    for (int i = 0; i < NDIR * 3; i += 12) {
-        acc0 = _mm_add_ps(acc0, _mm_mul_ps(_mm_loadu_ps(lin + i), _mm_loadu_ps(tw + i)));
-        acc1 = _mm_add_ps(acc1, _mm_mul_ps(_mm_loadu_ps(lin + i + 4), _mm_loadu_ps(tw + i + 4)));
-        acc2 = _mm_add_ps(acc2, _mm_mul_ps(_mm_loadu_ps(lin + i + 8), _mm_loadu_ps(tw + i + 8)));
-    }
-    float a[12];
-    _mm_storeu_ps(a, acc0); _mm_storeu_ps(a + 4, acc1); _mm_storeu_ps(a + 8, acc2);
-    for (int c = 0; c < 3; c++) out[c] = 0;
-    for (int k = 0; k < 12; k++) out[k % 3] += a[k];
-#else
-    out[0] = out[1] = out[2] = 0;
-    for (int i = 0; i < NDIR * 3; i++) out[i % 3] += lin[i] * tw[i];
+    for (int i = 0; i < NDIR * 3; i++)
+        out[i % 3] += lin[i] * (w[0] * bt[0][i] + w[1] * bt[1][i] + w[2] * bt[2][i] + w[3] * bt[3][i]);
 #endif
 }
 
@@ -463,8 +432,7 @@ static void lout_point(void *user, size_t item) {
         memcpy(lin + i * 3, rad + (size_t)cell[i] * 3, 3 * sizeof(float));
 #endif
     }
-    if (g->lq_tw) dot4_kept(lin, G->tw + p * NDIR * 3, lo);
-    else dot4(lin, bt, w, lo, G->tw + p * NDIR * 3);
+    dot4(lin, bt, w, lo);
 }
 
 static void out_quad(void *user, size_t item) {
@@ -490,12 +458,8 @@ void wrt_gather_eye(wrt_gather *g, const double eye[3], float *const *out, const
     memcpy(g->eye, eye, sizeof g->eye);
     g->out = out; g->out_res = out_res;
     for (int k = 0; k < g->nglossy; k++) { /* quads in turn: their point counts differ */
-        gquad *G = &g->gq[g->glossy[k]];
         g->lq = g->glossy[k];
-        g->lq_tw = G->tw_ok && !memcmp(G->tw_eye, g->eye, sizeof g->eye);
-        g->env.run(g->env.user, (size_t)G->npt, lout_point, g);
-        memcpy(G->tw_eye, g->eye, sizeof g->eye);
-        G->tw_ok = 1;
+        g->env.run(g->env.user, (size_t)g->gq[g->lq].npt, lout_point, g);
     }
     g->env.run(g->env.user, (size_t)g->nglossy, out_quad, g);
 }

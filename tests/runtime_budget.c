@@ -14,9 +14,6 @@
  *  - skip_below 0.05: a light 1% brighter costs no multiply, no texture and no smoothing
  *    (the counters do not move, *changed is 0, skipped is 1) and the textures stay; one
  *    30% brighter is applied and equals the unbudgeted runtime's bit for bit;
- *  - the final gather's BRDF rows kept while the eye stays: after two light moves and
- *    then an eye move, the textures of a runtime opened for those lights and eye, bit
- *    for bit;
  *  - bad values refused with their value named: a negative, NaN or 1e10 budget, a
  *    skip_below of 1 or -0.1; the settings are then unchanged.
  * Prints "N passed, N failed". */
@@ -214,47 +211,6 @@ static void test_skip(const char *path) {
     wrt_runtime_close(b);
 }
 
-/* The final gather keeps each glossy point's blended BRDF rows while the eye stays: a
- * light change (a) then reads the kept rows, an eye move (a again) makes them anew; a
- * runtime opened for each state (c) blends them from the table. Same bits each time (on
- * a file without glossy quads the same check holds trivially). */
-static void test_kept_rows(const char *path) {
-    wrt_runtime *a = open_rt(path);
-    if (!a) return;
-    double lo[3], hi[3], eye[3], eye2[3];
-    wrt_runtime_get_bounds(a, lo, hi, NULL);
-    for (int c = 0; c < 3; c++) {
-        eye[c] = 0.5 * (lo[c] + hi[c]) + 0.3 * (hi[c] - lo[c]);
-        eye2[c] = 0.5 * (lo[c] + hi[c]) + (c == 1 ? 0.45 : -0.2) * (hi[c] - lo[c]);
-    }
-    int nl = wrt_runtime_light_count(a);
-    wrt_runtime_light l[8];
-    for (int i = 0; i < nl && i < 8; i++) wrt_runtime_get_light(a, i, &l[i], NULL);
-    if (nl > 8) nl = 8;
-    double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
-    wrt_runtime_set_eye(a, eye, NULL);
-    wrt_runtime_set_lights(a, l, nl, NULL);
-    wrt_runtime_update(a, NULL, NULL);
-    for (int step = 0; step < 3; step++) {
-        const double *e = step == 2 ? eye2 : eye;
-        if (step < 2) light_moved(&l[0], 0.04 * diag); /* step 2: the eye moves, the lights stay */
-        wrt_runtime_set_eye(a, e, NULL);
-        wrt_runtime_set_lights(a, l, nl, NULL);
-        wrt_runtime_update(a, NULL, NULL);
-        wrt_runtime *c = open_rt(path);
-        if (!c) break;
-        wrt_runtime_set_eye(c, e, NULL);
-        wrt_runtime_set_lights(c, l, nl, NULL);
-        wrt_runtime_update(c, NULL, NULL);
-        int q = -1;
-        CHECK(same_textures(a, c, &q), "%s step %d (%s): quad %d's texture differs from a fresh runtime's", path, step,
-              step == 2 ? "eye moved" : "light moved", q);
-        wrt_runtime_close(c);
-    }
-    printf("%s: light moved twice, then the eye: the textures of a fresh runtime bit for bit\n", path);
-    wrt_runtime_close(a);
-}
-
 static void test_refused(const char *path) {
     wrt_runtime *b = open_rt(path);
     if (!b) return;
@@ -284,7 +240,6 @@ int main(int argc, char **argv) {
     for (int i = 1; i < argc; i++) {
         test_budget(argv[i]);
         test_skip(argv[i]);
-        test_kept_rows(argv[i]);
     }
     test_refused(argv[1]);
     printf("runtime_budget: %d passed, %d failed\n", passed, failed);
