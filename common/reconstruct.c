@@ -318,8 +318,46 @@ static inline float minmod3(float a, float b, float c) {
  * (the library's fmaxf is a call at -O2). */
 static inline float max_nn(float a, float b) { return a != a ? b : (b > a ? b : a); }
 
+#ifdef __SSE4_1__
+static inline __m128 minmod3v(__m128 a, __m128 b, __m128 c);
+/* details_missed for RGB at once (nc 3): each lane does the scalar code's operations in
+ * its order; the maxima's order does not matter (max is exact, and NaN is ignored as
+ * max_nn ignores it), so the result is the same float. The fourth lane is loaded and
+ * masked out. */
+static float details_missed3(const float *c, size_t ws, const float *par, const float *r0, const float *r1,
+                             const float *mean) {
+    const __m128 sign = _mm_set1_ps(-0.0f), lanes = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
+    const __m128 two = _mm_set1_ps(2.0f), half = _mm_set1_ps(0.5f), q = _mm_set1_ps(0.25f);
+    __m128 av = _mm_loadu_ps(c), E = _mm_loadu_ps(c + 3), W = _mm_loadu_ps(c - 3);
+    __m128 N = _mm_loadu_ps(c + ws), S = _mm_loadu_ps(c - ws);
+    __m128 dx = _mm_mul_ps(minmod3v(_mm_mul_ps(two, _mm_sub_ps(av, W)), _mm_mul_ps(half, _mm_sub_ps(E, W)),
+                                    _mm_mul_ps(two, _mm_sub_ps(E, av))), q);
+    __m128 dy = _mm_mul_ps(minmod3v(_mm_mul_ps(two, _mm_sub_ps(av, S)), _mm_mul_ps(half, _mm_sub_ps(N, S)),
+                                    _mm_mul_ps(two, _mm_sub_ps(N, av))), q);
+    __m128 ndx = _mm_xor_ps(dx, sign), p = _mm_loadu_ps(par);
+    __m128 pred[4] = {_mm_sub_ps(ndx, dy), _mm_sub_ps(dx, dy), _mm_add_ps(ndx, dy), _mm_add_ps(dx, dy)};
+    __m128 bake[4] = {_mm_sub_ps(_mm_loadu_ps(r0), p), _mm_sub_ps(_mm_loadu_ps(r0 + 3), p),
+                      _mm_sub_ps(_mm_loadu_ps(r1), p), _mm_sub_ps(_mm_loadu_ps(r1 + 3), p)};
+    __m128 d = _mm_setzero_ps();
+    for (int t = 0; t < 4; t++) d = _mm_max_ps(_mm_andnot_ps(sign, _mm_sub_ps(bake[t], pred[t])), d);
+    __m128 aa = _mm_andnot_ps(sign, av), am = _mm_andnot_ps(sign, _mm_loadu_ps(mean));
+    __m128 sv = _mm_blendv_ps(_mm_max_ps(am, aa), am, _mm_cmpunord_ps(aa, aa)); /* max_nn(|av|, |mean|) */
+    d = _mm_and_ps(d, lanes);
+    sv = _mm_and_ps(_mm_max_ps(sv, _mm_setzero_ps()), lanes);
+    d = _mm_max_ps(d, _mm_movehl_ps(d, d));
+    d = _mm_max_ss(d, _mm_shuffle_ps(d, d, 1));
+    sv = _mm_max_ps(sv, _mm_movehl_ps(sv, sv));
+    sv = _mm_max_ss(sv, _mm_shuffle_ps(sv, sv, 1));
+    float dmax = _mm_cvtss_f32(d), smax = _mm_cvtss_f32(sv);
+    return smax > 0 ? dmax / smax : (dmax > 0 ? INFINITY : 0);
+}
+#endif
+
 static float details_missed(const float *c, int nc, size_t ws, const float *par, const float *r0, const float *r1,
                             const float *mean) {
+#ifdef __SSE4_1__
+    if (nc == 3) return details_missed3(c, ws, par, r0, r1, mean);
+#endif
     float dmax = 0, smax = 0;
     for (int ch = 0; ch < nc; ch++) {
         float av = c[ch], E = c[nc + ch], W = c[ch - nc], N = c[ws + ch], S = c[ch - ws];
@@ -366,6 +404,23 @@ static void recon_pyramids(int nm, const int *mem, int L, int nc, const float *c
         for (int l = L - 1; l >= 0; l--) {
             int m = 1 << l;
             float *p = pyr + (((size_t)1 << (2 * l)) - 1) / 3 * nc, *c = pyr + (((size_t)1 << (2 * (l + 1))) - 1) / 3 * nc;
+#ifdef __SSE4_1__
+            if (nc == 3) { /* RGB at once, the same sums in the same order (4th lane not stored) */
+                const __m128 q = _mm_set1_ps(0.25f);
+                size_t r = (size_t)2 * m * 3;
+                for (int j = 0; j < m; j++)
+                    for (int i = 0; i < m; i++) {
+                        const float *c0 = c + ((size_t)(2 * j) * 2 * m + 2 * i) * 3;
+                        __m128 v = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_loadu_ps(c0), _mm_loadu_ps(c0 + 3)),
+                                                         _mm_loadu_ps(c0 + r)), _mm_loadu_ps(c0 + r + 3));
+                        float *o = p + ((size_t)j * m + i) * 3;
+                        __m128 pv = _mm_mul_ps(q, v);
+                        _mm_storel_pi((__m64 *)o, pv);
+                        _mm_store_ss(o + 2, _mm_movehl_ps(pv, pv));
+                    }
+                continue;
+            }
+#endif
             for (int j = 0; j < m; j++)
                 for (int i = 0; i < m; i++)
                     for (int ch = 0; ch < nc; ch++) {
@@ -595,7 +650,12 @@ void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const 
      * linear display keeps the undershoot: a clamp does not superpose). */
     for (int s = 0; s < nm && !linear; s++) {
         float *o = out[mem[s]];
-        for (size_t k = 0; k < full; k++) o[k] = o[k] < 0 ? 0 : o[k];
+        size_t k = 0;
+#ifdef __SSE4_1__
+        /* MAXPS(0, x) is 0 > x ? 0 : x: the scalar clamp's bits, NaN and -0 kept */
+        for (; k + 4 <= full; k += 4) _mm_storeu_ps(o + k, _mm_max_ps(_mm_setzero_ps(), _mm_loadu_ps(o + k)));
+#endif
+        for (; k < full; k++) o[k] = o[k] < 0 ? 0 : o[k];
     }
 #undef CUR
 #undef NXT

@@ -276,6 +276,7 @@ static wrt_status create_rays(wrt_relight *r, wrt_v3 bmin, wrt_v3 bmax) {
     r->rt.dev = rs.dev;
     r->rt.scene = rs.scene;
     r->rt.eps = rs.eps;
+    r->rt.ray4 = rtcGetDeviceProperty(r->rt.dev, RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED) != 0;
     if (r->opt.log) rtcSetDeviceErrorFunction(r->rt.dev, embree_error, r); /* Embree's errors to our log */
     return WRT_OK;
 }

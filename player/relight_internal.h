@@ -136,6 +136,7 @@ typedef struct op_view {
 typedef struct rl_rays {
     RTCDevice dev; RTCScene scene;
     wrt_v3 origin; double eps, scene_diag;
+    int ray4;                       /* the device traces 4-ray packets (rtcOccluded4) */
 } rl_rays;
 
 /* The projection's per-light scratch (relight_project.c). */
@@ -323,6 +324,39 @@ static inline int light_visible(const wrt_relight *r, wrt_v3 x, wrt_v3 n, wrt_v3
     rtcInitIntersectContext(&ic);
     rtcOccluded1(r->rt.scene, &ic, &ray);
     return !(ray.tfar < 0);
+}
+
+/* light_visible for up to 4 rays at once (Embree's 4-wide packet, when the device has
+ * it: rtcOccluded4; else one at a time): ray k (k < n) only where need[k]; vis[k] 1 if
+ * nothing blocks it (as light_visible), 1 too where not needed. */
+static inline void light_visible4(const wrt_relight *r, int n, const wrt_v3 *x, wrt_v3 nrm, const wrt_v3 *dir,
+                                  const double *d, const int *need, int *vis) {
+    if (!r->rt.ray4) {
+        for (int k = 0; k < n; k++) vis[k] = !need[k] || light_visible(r, x[k], nrm, dir[k], d[k]);
+        return;
+    }
+    struct RTCRay4 ray;
+    _Alignas(16) int valid[4];
+    int any = 0;
+    for (int k = 0; k < 4; k++) {
+        valid[k] = 0;
+        vis[k] = 1;
+        if (k >= n || !need[k]) continue; /* a lane not valid is not read */
+        ray.tnear[k] = 0; ray.time[k] = 0; ray.mask[k] = 0xFFFFFFFFu; ray.id[k] = 0; ray.flags[k] = 0;
+        wrt_v3 o = v3_sub(v3_mad(x[k], nrm, r->rt.eps), r->rt.origin);
+        ray.org_x[k] = (float)o.x; ray.org_y[k] = (float)o.y; ray.org_z[k] = (float)o.z;
+        ray.dir_x[k] = (float)dir[k].x; ray.dir_y[k] = (float)dir[k].y; ray.dir_z[k] = (float)dir[k].z;
+        ray.tfar[k] = (float)(d[k] - 2 * r->rt.eps);
+        if (!(ray.tfar[k] > 0)) continue; /* as light_visible: visible */
+        valid[k] = -1;
+        any = 1;
+    }
+    if (!any) return;
+    struct RTCIntersectContext ic;
+    rtcInitIntersectContext(&ic);
+    rtcOccluded4(valid, r->rt.scene, &ic, &ray);
+    for (int k = 0; k < 4; k++)
+        if (valid[k]) vis[k] = !(ray.tfar[k] < 0);
 }
 
 /* Whether an update may start another unit of work (relight.c): always without a budget

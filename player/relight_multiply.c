@@ -101,16 +101,28 @@ static void mul_chunk_compact(wrt_relight *r, worker *w, int item, void *vctx) {
         uint32_t s = mc->cols[k];
         const float *e = mc->src + (size_t)s * 3;
         uint64_t i = op->col_start[s];
+#ifdef __SSE2__
+        const __m128 e3 = _mm_set_ps(0.0f, e[2], e[1], e[0]);
+#endif
         for (uint32_t b = op->bcol[s]; b < op->bcol[s + 1]; b++) {
             const wrt_gto_block *bk = &op->blocks[b];
             if (bk->row0 >= hi) break; /* rows ascend within the column */
-            union { uint32_t u; float f; } p2;
             alignas(16) float ev4[4][4];
+#ifdef __SSE2__
+            /* the scalar loop's products e[c] x 2^(base + x), four lanes at once (the
+             * fourth 0 x 2^(base + x) = 0): the same bits, a fifth of the instructions of
+             * a block's set-up (13.8 entries a block on the maze) */
+            const __m128i one = _mm_set1_epi32(1 << 23);
+            __m128i p2 = _mm_set1_epi32((bk->base + 127) * (1 << 23)); /* 2^(base + x), a normal float */
+            for (int x = 0; x < 4; x++, p2 = _mm_add_epi32(p2, one)) _mm_store_ps(ev4[x], _mm_mul_ps(e3, _mm_castsi128_ps(p2)));
+#else
+            union { uint32_t u; float f; } p2;
             for (int x = 0; x < 4; x++) {
                 p2.u = (uint32_t)(bk->base + x + 127) << 23; /* 2^(base + x), a normal float */
                 for (int c = 0; c < 3; c++) ev4[x][c] = e[c] * p2.f;
                 ev4[x][3] = 0.0f;
             }
+#endif
             mul_block(r->mul.X4, ev4, op->codes + i, op->deltas + i, bk->row0, bk->n, lo, hi, all);
             i += bk->n;
         }
@@ -201,7 +213,27 @@ void relight_multiply(wrt_relight *r, const float *src) {
     for (uint32_t q = 0; q < nq; q++) {
         const wrt_gto_quad *gq = &g->quads[q];
         uint32_t changed = 0, nz = 0;
-        for (size_t f = gq->func_first; f < (size_t)gq->func_first + gq->func_count; f++) {
+        size_t f = gq->func_first, fend = (size_t)gq->func_first + gq->func_count;
+#ifdef __SSE2__
+        /* without Y: each function's RGB at once, the same bits written and compared; the
+         * fourth lane of the loads (X4's unused one, X's next value) is masked out */
+        if (!Y) {
+            const __m128i m3 = _mm_set_epi32(0, -1, -1, -1);
+            __m128i ch = _mm_setzero_si128(), nzv = _mm_setzero_si128();
+            for (; f < fend; f++) {
+                __m128 v = _mm_load_ps(r->mul.X4 + f * 4);
+                float *x = r->X + f * 3;
+                __m128i o = _mm_castps_si128(_mm_loadu_ps(x)), n = _mm_castps_si128(v);
+                ch = _mm_or_si128(ch, _mm_and_si128(_mm_xor_si128(o, n), m3));
+                nzv = _mm_or_si128(nzv, _mm_and_si128(_mm_castps_si128(_mm_cmpneq_ps(v, _mm_setzero_ps())), m3));
+                _mm_storel_pi((__m64 *)x, v);
+                _mm_store_ss(x + 2, _mm_movehl_ps(v, v));
+            }
+            changed = _mm_movemask_epi8(_mm_cmpeq_epi8(ch, _mm_setzero_si128())) != 0xFFFF;
+            nz = _mm_movemask_epi8(_mm_cmpeq_epi8(nzv, _mm_setzero_si128())) != 0xFFFF;
+        }
+#endif
+        for (; f < fend; f++) {
             int addy = Y && (!r->mul.own[0] || r->fn_ang[f] == 0);
             for (int c = 0; c < 3; c++) {
                 float v = r->mul.X4[f * 4 + c];

@@ -139,15 +139,32 @@ static uint32_t eval_cell(const wrt_relight *r, worker *w, const proj_setup *ps,
     uint32_t vis = 0, ang_cell = 0;
     float kacc[3 * NANG]; /* K's slots, summed in single precision over the cell's samples */
     if (ps->nkang) memset(kacc, 0, 3 * (size_t)ps->nkang * sizeof(float));
+    /* the samples four at a time: their points and light first, then their shadow rays
+     * as one packet, then each sample's terms in sample order */
+    wrt_v3 xs[4], dirs[4];
+    double us[4], vs[4], ds[4], es[4];
+    int need[4], lit[4];
     for (int k = 0; k < ps->nsamp; k++) {
-        double ou = ps->grid_n ? (k % ps->grid_n + 0.5) / ps->grid_n : cell_samples[k][0];
-        double ov = ps->grid_n ? (k / ps->grid_n + 0.5) / ps->grid_n : cell_samples[k][1];
-        double u = (i + ou) * cellw, v = (j + ov) * cellw;
-        wrt_v3 x = quad_point(q, u, v), dir;
-        double d = 0;
-        double e = light_irradiance(ps->lc, x, q->n, &dir, &d);
+        int k4 = k & 3;
+        if (k4 == 0) {
+            int n4 = ps->nsamp - k < 4 ? ps->nsamp - k : 4;
+            for (int t = 0; t < n4; t++) {
+                int kk = k + t;
+                double ou = ps->grid_n ? (kk % ps->grid_n + 0.5) / ps->grid_n : cell_samples[kk][0];
+                double ov = ps->grid_n ? (kk / ps->grid_n + 0.5) / ps->grid_n : cell_samples[kk][1];
+                us[t] = (i + ou) * cellw; vs[t] = (j + ov) * cellw;
+                xs[t] = quad_point(q, us[t], vs[t]);
+                ds[t] = 0;
+                es[t] = light_irradiance(ps->lc, xs[t], q->n, &dirs[t], &ds[t]);
+                need[t] = rays && es[t] != 0;
+            }
+            if (rays) light_visible4(r, n4, xs, q->n, dirs, ds, need, lit);
+            else lit[0] = lit[1] = lit[2] = lit[3] = 1;
+        }
+        double u = us[k4], v = vs[k4], e = es[k4];
+        wrt_v3 dir = dirs[k4];
         if (e == 0) continue;
-        if (rays && !light_visible(r, x, q->n, dir, d)) { vis |= VIS_SHADOWED; continue; }
+        if (!lit[k4]) { vis |= VIS_SHADOWED; continue; }
         double val = e * (q->parallelogram ? sj : sqrt(quad_jacobian(q, u, v) * inv_pi)) * wgt;
         vis |= VIS_LIT;
         if (root_slot >= 0) out[root_slot] += val;

@@ -228,6 +228,51 @@ static void test_continuous_across_edges(void) {
     wrt_recon_destroy(rc);
 }
 
+/* RGB at once (the SIMD path for 3 channels) against the scalar path, bit for bit: the
+ * same light given as 6 channels (RGB twice, so that the sharpness test, which takes the
+ * largest over the channels, decides alike), with the default parameters (the sharpness
+ * test, the limiter, the clamp) on blocky light with dark, bright and negative cells and
+ * random refinement. */
+static void test_rgb_is_scalar(void) {
+    double d[4][4][3] = {{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}},
+                         {{1, 0, 0}, {2, 0, 0}, {2, 1, 0}, {1, 1, 0}},
+                         {{1, 2, 0}, {0, 2, 0}, {0, 1, 0}, {1, 1, 0}},
+                         {{1, 1, 0}, {2, 1, 0}, {2, 2, 0}, {1, 2, 0}}};
+    uint32_t m[4] = {7, 7, 7, 7};
+    wrt_recon *rc = wrt_recon_create(4, (const double (*)[4][3])d, m);
+    int L = 4, Lo = 5, n = 1 << L, no = 1 << Lo;
+    float *in[4], *out[4], *in6[4], *out6[4];
+    uint8_t *k[4];
+    for (int q = 0; q < 4; q++) {
+        in[q] = malloc((size_t)n * n * 3 * sizeof(float));
+        out[q] = malloc((size_t)no * no * 3 * sizeof(float));
+        in6[q] = malloc((size_t)n * n * 6 * sizeof(float));
+        out6[q] = malloc((size_t)no * no * 6 * sizeof(float));
+        for (int i = 0; i < n * n * 3; i++) { /* smooth light with details of every size, some dark */
+            double u = rnd(), x = (double)(i / 3 % n) / n, y = (double)(i / 3 / n) / n, t = rnd();
+            in[q][i] = (float)(u < 0.1 ? 0 : u < 0.15 ? -0.2 * rnd() : 1 + x + 2 * y * (1 + i % 3) + 0.6 * t * t * t * t);
+        }
+        for (int i = 0; i < n * n; i++)
+            for (int c = 0; c < 6; c++) in6[q][i * 6 + c] = in[q][i * 3 + c % 3];
+        k[q] = random_known(L, 1, 0.7);
+    }
+    CHECK(wrt_recon_run(rc, 0, L, Lo, 3, (const float *const *)in, (const uint8_t *const *)k, out, NULL) == 0, "run");
+    CHECK(wrt_recon_run(rc, 0, L, Lo, 6, (const float *const *)in6, (const uint8_t *const *)k, out6, NULL) == 0, "run");
+    long differ = 0, zeros = 0, chan_differ = 0;
+    for (int q = 0; q < 4; q++)
+        for (int i = 0; i < no * no; i++)
+            for (int c = 0; c < 3; c++) {
+                differ += memcmp(&out[q][i * 3 + c], &out6[q][i * 6 + c], sizeof(float)) != 0;
+                zeros += out[q][i * 3 + c] == 0;
+                chan_differ += out[q][i * 3 + c] != out[q][i * 3];
+            }
+    CHECK(differ == 0, "%ld of %d texel channels differ between RGB at once and the scalar path", differ,
+          4 * no * no * 3);
+    CHECK(zeros > 100 && chan_differ > 1000, "the channels differ (%ld) and the clamp acts (%ld zeros)", chan_differ, zeros);
+    for (int q = 0; q < 4; q++) { free(in[q]); free(out[q]); free(in6[q]); free(out6[q]); free(k[q]); }
+    wrt_recon_destroy(rc);
+}
+
 /* The linear display (wrt_recon_params.linear): on four coplanar quads with blocky light
  * of dark and bright cells (where the default's limiter, sharpness test and clamp act),
  * the output of A + B is the output of A plus that of B to float rounding, each quad's
@@ -655,6 +700,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_known_averages_kept);
     TEST_RUN(test_linear_reproduced);
     TEST_RUN(test_continuous_across_edges);
+    TEST_RUN(test_rgb_is_scalar);
     TEST_RUN(test_linear_superposes);
     TEST_RUN(test_no_light_across);
     TEST_RUN(test_smooth_mesh);

@@ -6,8 +6,9 @@
  * 41), and prints one JSON object: the bandwidths, the median CPU milliseconds of a light
  * change (and the wall milliseconds of its stages, as the library times them), the operator's entries a multiply streams (the lit columns'
  * only) and the bytes they take at least (5 compact, 16 float), and the time those bytes take
- * at the read bandwidth as a fraction of the light change and of its multiply. Not
- * installed. */
+ * at the read bandwidth as a fraction of the light change and of its multiply, and a
+ * hash (FNV-1a) of every quad's texture bytes after every update, so that two builds'
+ * light changes can be compared bit for bit. Not installed. */
 #include <wrt.h>
 
 #include <math.h>
@@ -37,6 +38,18 @@ static int cmp_d(const void *a, const void *b) {
 static double median(double *v, int n) {
     qsort(v, (size_t)n, sizeof *v, cmp_d);
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* FNV-1a of every quad's texture after an update, folded into h. */
+static uint64_t texture_hash(const wrt_runtime *rt, uint64_t h) {
+    for (int q = 0; q < wrt_runtime_quad_count(rt); q++) {
+        int res = 0;
+        const float *t = wrt_runtime_quad_texture(rt, q, &res);
+        const unsigned char *b = (const unsigned char *)t;
+        size_t n = t ? (size_t)res * res * 3 * sizeof(float) : 0;
+        for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * 1099511628211ull;
+    }
+    return h;
 }
 
 /* GB/s of reading (sum) and of memcpy (bytes read + written) over 256 MB, best of 5,
@@ -99,7 +112,8 @@ int main(int argc, char **argv) {
     double *ms = malloc(sizeof(double) * n * 6), p0[3] = {l[0].position[0], l[0].position[1], l[0].position[2]};
     wrt_runtime_update_stats s0, s1, st;
     wrt_runtime_get_update_stats(rt, &s0, NULL);
-    double w0 = wall_now();
+    double w0 = wall_now(), hash_s = 0;
+    uint64_t h = texture_hash(rt, 14695981039346656037ull);
     for (int k = 0; k < n; k++) {
         double a = 2 * M_PI * (k + 1) / n, rad = 0.02 * diag;
         l[0].position[0] = p0[0] + rad * cos(a);
@@ -111,8 +125,11 @@ int main(int argc, char **argv) {
         ms[k] = (cpu_now() - t0) * 1e3;
         wrt_runtime_get_update_stats(rt, &st, NULL);
         for (int j = 0; j < 5; j++) ms[(size_t)(j + 1) * n + k] = st.ms[j];
+        double h0 = wall_now();
+        h = texture_hash(rt, h);
+        hash_s += wall_now() - h0;
     }
-    double wall = (wall_now() - w0) * 1e3 / n;
+    double wall = (wall_now() - w0 - hash_s) * 1e3 / n;
     wrt_runtime_get_update_stats(rt, &s1, NULL);
     double med[6];
     for (int j = 0; j < 6; j++) med[j] = median(ms + (size_t)j * n, n);
@@ -126,9 +143,10 @@ int main(int argc, char **argv) {
            "\"updates\": %d, \"cpu_ms_light_change\": %.3f, \"wall_ms_light_change\": %.3f, \"stage_ms_wall\": "
            "{\"projection\": %.3f, \"multiply\": %.3f, \"brdf\": %.3f, \"synthesis\": %.3f, \"smoothing\": %.3f}, "
            "\"entries_streamed\": %.0f, \"bytes_per_entry\": %.2f, \"operator_mb_read\": %.2f, "
-           "\"ms_at_read_bandwidth\": %.3f, \"fraction_of_light_change\": %.3f, \"fraction_of_multiply\": %.3f}\n",
+           "\"ms_at_read_bandwidth\": %.3f, \"fraction_of_light_change\": %.3f, \"fraction_of_multiply\": %.3f, "
+           "\"textures_fnv\": \"%016llx\"}\n",
            argv[1], fi.bytes, fi.entries, rd, cp, n, med[0], wall, med[1], med[2], med[3], med[4], med[5], entries, bpe,
-           mb, at_bw_ms, med[0] > 0 ? at_bw_ms / med[0] : 0, med[2] > 0 ? at_bw_ms / med[2] : 0);
+           mb, at_bw_ms, med[0] > 0 ? at_bw_ms / med[0] : 0, med[2] > 0 ? at_bw_ms / med[2] : 0, (unsigned long long)h);
     free(ms);
     wrt_runtime_close(rt);
     return 0;
