@@ -53,6 +53,9 @@ static void usage(FILE *f) {
         "  --drop-receiver R      and as 2^(R (d - F)) with the receiver's depth d past F\n"
         "                         (default 1; 0: none)\n"
         "  --drop-receiver-from F (default 3: finer than the display's 8 x 8 cells a quad)\n"
+        "  --drop-sender-size L   the sender's depth counts only on supports smaller than L x\n"
+        "                         the scene's diagonal (a larger quad keeps its fine senders;\n"
+        "                         0: off)\n"
         "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
         "  --min-level L          refine every link at least to level L\n"
         "  --max-angular-level L  cap on glossy materials' angular level (1..3; default 1 up\n"
@@ -194,6 +197,7 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
         o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance,
         o->eps_final, fmax(o->drop_sender, 0), fmax(o->drop_receiver, 0),
         o->drop_receiver_from > 0 ? o->drop_receiver_from : 0);
+    if (o->drop_sender_size > 0) fprintf(f, ",\"drop_sender_size\":%.6g", o->drop_sender_size);
     fprintf(f, ",\"series_right\":%.6g,\"series_right_from\":%d", o->series_right > 0 ? o->series_right : 0,
             o->series_right_from);
     fputc('}', f);
@@ -301,6 +305,11 @@ static int parse_args(int argc, char **argv, bake_args *A) {
             double *d = a[7] == 's' ? &o->drop_sender : &o->drop_receiver;
             ok = opt_num(a, v, 0, 4, d);
             if (ok && *d == 0) *d = -1;
+            i++;
+        }
+        else if (!strcmp(a, "--drop-sender-size")) { /* 0: none (stored as -1) */
+            ok = opt_num(a, v, 0, 10, &o->drop_sender_size);
+            if (ok && o->drop_sender_size == 0) o->drop_sender_size = -1;
             i++;
         }
         else if (!strcmp(a, "--drop-receiver-from")) {
