@@ -55,7 +55,7 @@ static void usage(FILE *f) {
         "  --drop-receiver-from F (default 3: finer than the display's 8 x 8 cells a quad)\n"
         "  --drop-sender-size L   the sender's depth counts only on supports smaller than L x\n"
         "                         the scene's diagonal (a larger quad keeps its fine senders;\n"
-        "                         0: off)\n"
+        "                         default 0.05; 0: off)\n"
         "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
         "  --min-level L          refine every link at least to level L\n"
         "  --max-angular-level L  cap on glossy materials' angular level (1..3; default 1 up\n"
