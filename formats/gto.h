@@ -34,7 +34,8 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
                                  * 1.3: the optional corner normals (section 18) and
                                  * base-colour textures (section 21).
                                  * 2.0: the compact operator (section 17 in place of 8 and 9),
-                                 * critical section ids (>= 256), the cluster tree (257).
+                                 * critical section ids (>= 256), the cluster tree (257),
+                                 * K's entries compact (260, in place of 14 and 15).
                                  * The writer puts the lowest version that has what the file
                                  * holds: float entries without K or the map are 1.0, byte
                                  * for byte as before. */
