@@ -19,13 +19,6 @@
 
 #include "../common/basis.h"
 
-/* The smallest E with WRT_GTO_KMANT_MAX * 2^E >= m (m > 0, finite). */
-static int kstep_exp(double m) {
-    int k;
-    double f = frexp(m / WRT_GTO_KMANT_MAX, &k);
-    return f == 0.5 ? k - 1 : k;
-}
-
 /* One block's base and codes: entries [a, b) of vals. The base is the block's largest
  * step exponent less 3 (within WRT_GTO_BASE_MIN..MAX), an entry's e its own less the
  * base, clamped to 0..3; mantissas rounded to nearest (ties to even). */
@@ -33,14 +26,14 @@ static int16_t kencode_block(const float *vals, uint64_t a, uint64_t b, uint16_t
     int emax = WRT_GTO_BASE_MIN;
     for (uint64_t i = a; i < b; i++) {
         double m = fabs(vals[i]);
-        if (m > 0) { int e = kstep_exp(m); if (e > emax) emax = e; }
+        if (m > 0) { int e = gto_step_exp(m, WRT_GTO_KMANT_MAX); if (e > emax) emax = e; }
     }
     int base = emax - 3;
     if (base < WRT_GTO_BASE_MIN) base = WRT_GTO_BASE_MIN;
     if (base > WRT_GTO_BASE_MAX) base = WRT_GTO_BASE_MAX; /* only for values the float checks refuse */
     for (uint64_t i = a; i < b; i++) {
         double m = fabs(vals[i]);
-        int e = m > 0 ? kstep_exp(m) : base;
+        int e = m > 0 ? gto_step_exp(m, WRT_GTO_KMANT_MAX) : base;
         if (e < base) e = base;
         if (e > base + 3) e = base + 3;
         double q = isfinite(vals[i]) ? nearbyint(ldexp(vals[i], -e)) : 0; /* the writer refuses those */
@@ -51,18 +44,11 @@ static int16_t kencode_block(const float *vals, uint64_t a, uint64_t b, uint16_t
     return (int16_t)base;
 }
 
-/* The end of the block that starts at entry a of a column ending at `end`. */
-static uint64_t kblock_end(const uint32_t *rows, uint64_t a, uint64_t end) {
-    uint64_t b = a + 1;
-    while (b < end && b - a < WRT_GTO_BLOCK_MAX && rows[b] - rows[b - 1] < 256) b++;
-    return b;
-}
-
 uint8_t *gto_kcode_encode(uint32_t nkcols, const uint64_t *kcol_start, const uint32_t *krows,
                           const float *kvals, uint64_t *size) {
     uint64_t knnz = kcol_start[nkcols], nb = 0;
     for (uint32_t j = 0; j < nkcols; j++)
-        for (uint64_t a = kcol_start[j]; a < kcol_start[j + 1]; a = kblock_end(krows, a, kcol_start[j + 1])) nb++;
+        for (uint64_t a = kcol_start[j]; a < kcol_start[j + 1]; a = gto_block_end(krows, a, kcol_start[j + 1])) nb++;
     gto_opcode_layout o = gto_kcode_place(nkcols, nb, knnz);
     uint8_t *p = calloc(1, o.size);
     if (!p) return NULL;
@@ -80,7 +66,7 @@ uint8_t *gto_kcode_encode(uint32_t nkcols, const uint64_t *kcol_start, const uin
         bcol[j] = (uint32_t)k;
         uint64_t end = kcol_start[j + 1];
         for (uint64_t a = kcol_start[j], b; a < end; a = b, k++) {
-            b = kblock_end(krows, a, end);
+            b = gto_block_end(krows, a, end);
             blk[k].row0 = krows[a];
             blk[k].n = (uint8_t)(b - a);
             blk[k].base = kencode_block(kvals, a, b, codes);
@@ -120,22 +106,6 @@ void wrt_gto_k_entries(const wrt_gto *g, uint32_t *rows, float *vals) {
  * column's own quad, and no mantissa -8192. kkeys, kcol_start and fkeys are valid.
  * ---------------------------------------------------------------------------------- */
 
-static void kbad(vctx *v, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void kbad(vctx *v, const char *fmt, ...) {
-    if (v->bad) return;
-    v->bad = 1;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(v->err, sizeof v->err, fmt, ap);
-    va_end(ap);
-}
-
-static int kzero(const uint8_t *p, uint64_t a, uint64_t b) {
-    for (uint64_t i = a; i < b; i++)
-        if (p[i]) return 0;
-    return 1;
-}
-
 /* Column j's blocks [k0, k1) against its entries [e0, e1). */
 static void check_kcolumn(vctx *v, const wrt_gto_block *blk, const uint8_t *d, uint32_t j,
                           uint64_t k0, uint64_t k1, uint64_t e0, uint64_t e1) {
@@ -146,35 +116,35 @@ static void check_kcolumn(vctx *v, const wrt_gto_block *blk, const uint8_t *d, u
     for (uint64_t k = k0; k < k1; k++) {
         const wrt_gto_block *b = &blk[k];
         if (b->n == 0 || b->n > WRT_GTO_BLOCK_MAX || b->reserved)
-            return kbad(v, "block %" PRIu64 " (K column %u): %u entries (1..%d) or reserved byte %u", k, j, b->n,
+            return gto_obad(v, "block %" PRIu64 " (K column %u): %u entries (1..%d) or reserved byte %u", k, j, b->n,
                         WRT_GTO_BLOCK_MAX, b->reserved);
         if (b->base < WRT_GTO_BASE_MIN || b->base > WRT_GTO_BASE_MAX)
-            return kbad(v, "block %" PRIu64 " (K column %u): base exponent %d outside [%d, %d]", k, j, b->base,
+            return gto_obad(v, "block %" PRIu64 " (K column %u): base exponent %d outside [%d, %d]", k, j, b->base,
                         WRT_GTO_BASE_MIN, WRT_GTO_BASE_MAX);
         if (b->n > e1 - e)
-            return kbad(v, "K column %u: its blocks hold more than its %" PRIu64 " entries (kcol_start)", j, e1 - e0);
+            return gto_obad(v, "K column %u: its blocks hold more than its %" PRIu64 " entries (kcol_start)", j, e1 - e0);
         if ((int64_t)b->row0 <= last)
-            return kbad(v, "block %" PRIu64 " (K column %u): first row %u not above the previous block's last, %"
+            return gto_obad(v, "block %" PRIu64 " (K column %u): first row %u not above the previous block's last, %"
                         PRId64, k, j, b->row0, last);
         if (d[e] != 0)
-            return kbad(v, "entry %" PRIu64 " (K column %u): row delta %u on a block's first entry (must be 0)", e, j,
+            return gto_obad(v, "entry %" PRIu64 " (K column %u): row delta %u on a block's first entry (must be 0)", e, j,
                         d[e]);
         uint64_t row = b->row0;
         for (uint64_t i = e; i < e + b->n; i++) {
-            if (i > e && d[i] == 0) return kbad(v, "entry %" PRIu64 " (K column %u): row delta 0, rows must ascend", i, j);
+            if (i > e && d[i] == 0) return gto_obad(v, "entry %" PRIu64 " (K column %u): row delta 0, rows must ascend", i, j);
             row += i > e ? d[i] : 0;
             if (row >= nf)
-                return kbad(v, "entry %" PRIu64 " (K column %u): row %" PRIu64 " out of range (%u functions)", i, j,
+                return gto_obad(v, "entry %" PRIu64 " (K column %u): row %" PRIu64 " out of range (%u functions)", i, j,
                             row, nf);
             if (wrt_fkey_quad(g->fkeys[row]) == q)
-                return kbad(v, "entry %" PRIu64 " (K column %u): row %" PRIu64 " is a function of quad %u, the "
+                return gto_obad(v, "entry %" PRIu64 " (K column %u): row %" PRIu64 " is a function of quad %u, the "
                             "column's own quad", i, j, row, q);
         }
         last = (int64_t)row;
         e += b->n;
     }
     if (e != e1)
-        return kbad(v, "K column %u: its blocks hold %" PRIu64 " entries, kcol_start says %" PRIu64, j, e - e0,
+        return gto_obad(v, "K column %u: its blocks hold %" PRIu64 " entries, kcol_start says %" PRIu64, j, e - e0,
                     e1 - e0);
 }
 
@@ -184,25 +154,25 @@ void gto_check_kcode(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
     if (first + n != o.size) return; /* the whole section, once its last chunk is summed */
     const gto_opcode_head *h = (const gto_opcode_head *)base;
     if (h->codec != WRT_GTO_KCODEC || h->block_max != WRT_GTO_BLOCK_MAX)
-        return kbad(v, "unknown encoding %u with blocks of %u (this reader: %d, %d)", h->codec, h->block_max,
+        return gto_obad(v, "unknown encoding %u with blocks of %u (this reader: %d, %d)", h->codec, h->block_max,
                     WRT_GTO_KCODEC, WRT_GTO_BLOCK_MAX);
-    if (h->nblocks != g->knblocks || h->nnz != g->knnz || !kzero(h->reserved, 0, sizeof h->reserved))
-        return kbad(v, "header: %" PRIu64 " blocks and %" PRIu64 " entries, expected %" PRIu64 " and %" PRIu64
+    if (h->nblocks != g->knblocks || h->nnz != g->knnz || !gto_zero_bytes(h->reserved, 0, sizeof h->reserved))
+        return gto_obad(v, "header: %" PRIu64 " blocks and %" PRIu64 " entries, expected %" PRIu64 " and %" PRIu64
                     ", or reserved bytes not zero", h->nblocks, h->nnz, g->knblocks, g->knnz);
-    if (!kzero(base, o.bcol + 4 * ((uint64_t)g->nkcols + 1), o.blocks) ||
-        !kzero(base, o.blocks + 8 * g->knblocks, o.codes) || !kzero(base, o.codes + 2 * g->knnz, o.deltas))
-        return kbad(v, "non-zero padding between its arrays");
+    if (!gto_zero_bytes(base, o.bcol + 4 * ((uint64_t)g->nkcols + 1), o.blocks) ||
+        !gto_zero_bytes(base, o.blocks + 8 * g->knblocks, o.codes) || !gto_zero_bytes(base, o.codes + 2 * g->knnz, o.deltas))
+        return gto_obad(v, "non-zero padding between its arrays");
     const uint32_t *bcol = (const uint32_t *)(base + o.bcol);
     const uint16_t *codes = (const uint16_t *)(base + o.codes);
     const wrt_gto_block *blk = (const wrt_gto_block *)(base + o.blocks);
     if (bcol[0] != 0 || bcol[g->nkcols] != g->knblocks)
-        return kbad(v, "bcol runs from %u to %u, expected 0 to %" PRIu64, bcol[0], bcol[g->nkcols], g->knblocks);
+        return gto_obad(v, "bcol runs from %u to %u, expected 0 to %" PRIu64, bcol[0], bcol[g->nkcols], g->knblocks);
     for (uint32_t j = 0; j < g->nkcols; j++)
         if (bcol[j + 1] < bcol[j])
-            return kbad(v, "bcol not monotone at K column %u (%u after %u)", j + 1, bcol[j + 1], bcol[j]);
+            return gto_obad(v, "bcol not monotone at K column %u (%u after %u)", j + 1, bcol[j + 1], bcol[j]);
     for (uint32_t j = 0; j < g->nkcols && !v->bad; j++)
         check_kcolumn(v, blk, base + o.deltas, j, bcol[j], bcol[j + 1], g->kcol_start[j], g->kcol_start[j + 1]);
     for (uint64_t i = 0; i < g->knnz && !v->bad; i++)
         if ((codes[i] & 0x3fffu) == 0x2000u)
-            return kbad(v, "entry %" PRIu64 ": mantissa -8192 (the encoding uses -8191..8191)", i);
+            return gto_obad(v, "entry %" PRIu64 ": mantissa -8192 (the encoding uses -8191..8191)", i);
 }

@@ -163,6 +163,13 @@ static inline gto_opcode_layout gto_opcode_place(uint32_t nfuncs, uint64_t nbloc
  * section's structure once its last chunk has been summed (GTO_FORMAT.md). */
 struct vctx;
 void gto_check_opcode(struct vctx *v, const uint8_t *base, uint64_t first, uint64_t n);
+/* Shared by the compact sections' encoders and checkers (gto_opcode.c): the end of the
+ * block that starts at entry a of a column ending at `end` (64 entries or a row step of
+ * 256), whether bytes [a, b) of p are zero, and the first problem recorded in v. */
+uint64_t gto_block_end(const uint32_t *rows, uint64_t a, uint64_t end);
+int gto_step_exp(double m, double mant_max); /* the smallest E with mant_max 2^E >= m > 0 */
+int gto_zero_bytes(const uint8_t *p, uint64_t a, uint64_t b);
+void gto_obad(struct vctx *v, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 /* Encodes float entries (col_start over nfuncs columns, rows, vals) into a new payload
  * of section opcode (*size bytes, malloc'd; NULL if there is no memory). Deterministic. */
 uint8_t *gto_opcode_encode(uint32_t nfuncs, const uint64_t *col_start, const uint32_t *rows,
