@@ -68,7 +68,7 @@ ALL_LIB_OBJ := $(PLAY_OBJ) $(BAKE_OBJ) $(VERIFY_OBJ) $(CORE_OBJ)
 # objects with the API as roots and every other symbol made local (tools/link-static-lib.sh):
 # nothing of wrt but the API can clash with an embedder's symbols (tests/exports.sh
 # checks both libraries).
-LIB_SRC := $(wildcard common/*.c) formats/gto_read.c formats/gto_check.c formats/gto_texture.c formats/gto_opcode.c $(RUNTIME_SRC)
+LIB_SRC := $(wildcard common/*.c) formats/gto_read.c formats/gto_check.c formats/gto_texture.c formats/gto_opcode.c formats/gto_kcode.c $(RUNTIME_SRC)
 LIB_OBJ := $(call obj,$(LIB_SRC))
 PIC_OBJ := $(patsubst %.c,$(BUILD)/pic/%.o,$(LIB_SRC))
 LIBWRT := $(BUILD)/libwrt.a $(BUILD)/libwrt.so
@@ -202,6 +202,7 @@ TEST_PARTS_test_brdf := common
 TEST_PARTS_test_text := common
 TEST_PARTS_test_gto := formats common
 TEST_PARTS_test_gto_compact := formats common
+TEST_PARTS_test_gto_kcode := formats common
 TEST_PARTS_test_image := formats common
 TEST_PARTS_test_scene := formats common
 TEST_PARTS_test_bake := bake formats common
@@ -238,7 +239,7 @@ $(BUILD)/tests/%: $(BUILD)/obj/tests/%.o $$(foreach p,$$(call test_parts,$$*),$(
 FUZZ_SECONDS ?= 60
 FUZZ_DIR ?= build/fuzz
 FUZZ_SCENE_C := tools/fuzz_scene.c common/wrt_common.c common/text.c formats/scene.c formats/scene_report.c formats/scene_dups.c formats/scene_normals.c common/texture.c
-FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c common/text.c common/texture.c common/cluster_tree.c formats/gto_read.c formats/gto_check.c formats/gto_texture.c formats/gto_opcode.c
+FUZZ_GTO_C := tools/fuzz_gto.c common/wrt_common.c common/text.c common/texture.c common/cluster_tree.c formats/gto_read.c formats/gto_check.c formats/gto_texture.c formats/gto_opcode.c formats/gto_kcode.c
 FUZZ_SAN ?= -fsanitize=address,undefined -fno-sanitize-recover=all
 FUZZ_CC = clang -std=c11 -g -O1 -fsanitize=fuzzer-no-link $(FUZZ_SAN) -I. -D_GNU_SOURCE
 fuzz: $(FUZZ_DIR)/fuzz_scene $(FUZZ_DIR)/fuzz_gto

@@ -34,7 +34,8 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
                                  * 1.3: the optional corner normals (section 18) and
                                  * base-colour textures (section 21).
                                  * 2.0: the compact operator (section 17 in place of 8 and 9),
-                                 * critical section ids (>= 256), the cluster tree (257).
+                                 * critical section ids (>= 256), the cluster tree (257),
+                                 * K's entries compact (260, in place of 14 and 15).
                                  * The writer puts the lowest version that has what the file
                                  * holds: float entries without K or the map are 1.0, byte
                                  * for byte as before. */
@@ -140,6 +141,8 @@ typedef struct wrt_gto_block {
 #define WRT_GTO_BASE_MIN (-126)
 #define WRT_GTO_BASE_MAX 36 /* 511 * 2^(36 + 3) < 2^48, the largest value a file may hold */
 #define WRT_GTO_CODEC 1     /* the encoding of this version: 3 x 10-bit mantissas, 2-bit e */
+#define WRT_GTO_KCODEC 2    /* K's compact encoding (section kcode): a 14-bit mantissa, 2-bit e */
+#define WRT_GTO_KMANT_MAX 8191 /* |K mantissa| <= 8191: 14 bits, two's complement, -8192 unused */
 
 /* An entry's RGB value from its 32-bit code: bits 0-9, 10-19, 20-29 the red, green and
  * blue mantissas (two's complement, -511..511), bits 30-31 the exponent e above the
@@ -151,6 +154,16 @@ static inline void wrt_gto_decode(uint32_t code, int base, float rgb[3]) {
         int32_t m = (int32_t)(code << (22 - 10 * c)) >> 22;
         rgb[c] = (float)m * sc.f;
     }
+}
+
+/* A K entry's value from its 16-bit code (section kcode, GTO_FORMAT.md "The compact
+ * first-bounce operator"): bits 0-13 the mantissa (two's complement, -8191..8191), bits
+ * 14-15 the exponent e above the block's base. Exact: every value is a float. */
+static inline float wrt_gto_kdecode(uint16_t code, int base) {
+    union { uint32_t u; float f; } sc;
+    sc.u = (uint32_t)(base + (int)(code >> 14) + 127) << 23;
+    int32_t m = (int32_t)((uint32_t)code << 18) >> 18;
+    return (float)m * sc.f;
 }
 
 /* A mapped, validated file. All pointers point into the mapping. */
@@ -204,7 +217,21 @@ typedef struct wrt_gto {
     const wrt_gto_block *op_blocks;   /* nblocks */
     const uint32_t *op_codes;         /* nnz */
     const uint8_t *op_deltas;         /* nnz */
+    /* The compact first-bounce operator (version 2.0, critical section kcode, 260): then
+     * krows and kvals are NULL and K's column j holds entries [kcol_start[j],
+     * kcol_start[j+1]) in blocks [k_bcol[j], k_bcol[j+1]), laid out as the operator's
+     * (a u16 code per entry, wrt_gto_kdecode); wrt_gto_k_entries decodes them. */
+    uint64_t knblocks;
+    const uint32_t *k_bcol;           /* nkcols + 1 */
+    const wrt_gto_block *k_blocks;    /* knblocks */
+    const uint16_t *k_codes;          /* knnz */
+    const uint8_t *k_deltas;          /* knnz */
 } wrt_gto;
+
+/* K's entries in compressed-column order, whichever form the file holds them in: rows
+ * (fkeys indices) and values into caller arrays of g->knnz each. The compact form's
+ * values are exact decodes (wrt_gto_kdecode). */
+void wrt_gto_k_entries(const wrt_gto *g, uint32_t *rows, float *vals);
 
 /* One texture of the textures section: the material it belongs to, its size, glTF wrap
  * modes (0 repeat, 1 clamp, 2 mirror along s and t), the material's baseColorFactor and
@@ -279,6 +306,10 @@ typedef struct wrt_gto_contents {
      * value within 2^-10 of its entry's largest channel); 0: as floats (sections rows
      * and vals, version 1.x). */
     int compact;
+    /* With compact: 0 writes K compact too (section kcode, 260, in place of krows and
+     * kvals; about 3 bytes an entry instead of 8, each value within 1/8191 of the larger
+     * of itself and an eighth of its block's largest); 1 keeps K's float sections. */
+    int k_float;
 } wrt_gto_contents;
 
 /* Writes atomically: a temporary (see wrt_gto_write_pending), fsync, rename over

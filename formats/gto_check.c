@@ -597,6 +597,7 @@ chunk_check gto_sec_checker(uint32_t id) {
     case SEC_SRCMAP: return check_srcmap;
     case SEC_NORMALS: return check_normals;
     case SEC_OPCODE: return gto_check_opcode;
+    case SEC_KCODE: return gto_check_kcode;
     default: return NULL;
     }
 }

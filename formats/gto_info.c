@@ -199,8 +199,8 @@ static void info_figures(gto_info *I) {
             uint64_t n = g->kcol_start[j + 1] - g->kcol_start[j];
             if (n > I->k_max_col) I->k_max_col = (uint32_t)n;
         }
-        I->k_bytes = L->sec[SEC_KKEYS]->size + L->sec[SEC_KCOL_START]->size + L->sec[SEC_KROWS]->size +
-                     L->sec[SEC_KVALS]->size;
+        I->k_bytes = L->sec[SEC_KKEYS]->size + L->sec[SEC_KCOL_START]->size +
+                     (L->kcode ? L->kcode->size : L->sec[SEC_KROWS]->size + L->sec[SEC_KVALS]->size);
     }
     if (I->ok && g->srcmap)
         for (uint32_t q = 0; q < g->nquads; q++) {
@@ -356,7 +356,11 @@ static void text_figures(FILE *f, const gto_info *I) {
                 "per column: mean %.1f, max %u; deepest level: spatial %u, angular node %u\n",
                 g->nkcols, I->k_quads, I->k_quads == 1 ? "" : "s", g->knnz, human_bytes(I->k_bytes, hb),
                 (double)g->knnz / g->nkcols, I->k_max_col, I->k_max_sl, I->k_max_al);
-    else
+    if (g->k_codes)
+        fprintf(f, "            compact K: %" PRIu64 " blocks (mean %.1f entries), %.2f bytes an entry\n",
+                g->knblocks, g->knblocks ? (double)g->knnz / g->knblocks : 0.0,
+                g->knnz ? (double)I->L.kcode->size / g->knnz : 0.0);
+    else if (!g->nkcols)
         fprintf(f, "first bounce: none (no K sections)\n");
     if (g->srcmap)
         fprintf(f, "source map: %u quads, %u double-sided twins, %u from triangles cut in three, %u with "

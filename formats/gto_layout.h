@@ -124,7 +124,8 @@ enum {
 #define SEC_KNOWN (SEC_KNOWN_END - 1)
 #define SEC_CRITICAL 256            /* ids from here on: a reader that does not know one refuses the file */
 #define SEC_CTREE 257               /* the cluster tree (version 2.0) */
-#define GTO_MAX_WRITTEN (SEC_KNOWN + 1) /* sections a file can hold: the known ones and ctree */
+#define SEC_KCODE 260               /* the compact first-bounce operator (version 2.0), in place of krows, kvals */
+#define GTO_MAX_WRITTEN (SEC_KNOWN + 2) /* sections a file can hold: the known ones, ctree and kcode */
 #define SEC_REQUIRED SEC_PROVENANCE /* ids 1 .. this are in every file */
 #define GTO_MINOR_K 1               /* the minor version that added K */
 #define GTO_MINOR_SRCMAP 2          /* the minor version that added the quad-to-source map */
@@ -162,10 +163,38 @@ static inline gto_opcode_layout gto_opcode_place(uint32_t nfuncs, uint64_t nbloc
  * section's structure once its last chunk has been summed (GTO_FORMAT.md). */
 struct vctx;
 void gto_check_opcode(struct vctx *v, const uint8_t *base, uint64_t first, uint64_t n);
+/* Shared by the compact sections' encoders and checkers (gto_opcode.c): the end of the
+ * block that starts at entry a of a column ending at `end` (64 entries or a row step of
+ * 256), whether bytes [a, b) of p are zero, and the first problem recorded in v. */
+uint64_t gto_block_end(const uint32_t *rows, uint64_t a, uint64_t end);
+int gto_step_exp(double m, double mant_max); /* the smallest E with mant_max 2^E >= m > 0 */
+int gto_zero_bytes(const uint8_t *p, uint64_t a, uint64_t b);
+void gto_obad(struct vctx *v, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 /* Encodes float entries (col_start over nfuncs columns, rows, vals) into a new payload
  * of section opcode (*size bytes, malloc'd; NULL if there is no memory). Deterministic. */
 uint8_t *gto_opcode_encode(uint32_t nfuncs, const uint64_t *col_start, const uint32_t *rows,
                            const float *vals, uint64_t *size);
+
+/* The compact first-bounce operator's section (kcode, 260, version 2.0): the opcode's
+ * header (codec WRT_GTO_KCODEC), then at multiples of 64 from the payload's start: bcol
+ * (u32, nkcols + 1), the blocks (wrt_gto_block, nblocks), the codes (u16, knnz) and the
+ * row deltas (u8, knnz), which end the payload. Blocks are cut as the operator's. */
+static inline gto_opcode_layout gto_kcode_place(uint32_t nkcols, uint64_t nblocks, uint64_t knnz) {
+    gto_opcode_layout o;
+    o.bcol = sizeof(gto_opcode_head);
+    o.blocks = gto_align_up(o.bcol + 4 * ((uint64_t)nkcols + 1));
+    o.codes = gto_align_up(o.blocks + sizeof(wrt_gto_block) * nblocks);
+    o.deltas = gto_align_up(o.codes + 2 * knnz);
+    o.size = o.deltas + knnz;
+    return o;
+}
+/* gto_kcode.c: the checker of section kcode (the whole section once its last chunk is
+ * summed: structure, rows ascending below nfuncs and off the column's quad, no mantissa
+ * -8192) and the encoder of K's float entries (malloc'd payload, NULL without memory;
+ * deterministic). */
+void gto_check_kcode(struct vctx *v, const uint8_t *base, uint64_t first, uint64_t n);
+uint8_t *gto_kcode_encode(uint32_t nkcols, const uint64_t *kcol_start, const uint32_t *krows,
+                          const float *kvals, uint64_t *size);
 
 /* Name and element size of each known section id (gto_check.c). */
 typedef struct gto_sec_desc { const char *name; uint32_t elem_size; } gto_sec_desc;
@@ -182,11 +211,13 @@ static inline int gto_sec_known(uint32_t id) { return id >= 1 && id <= SEC_KNOWN
 
 static inline const char *gto_sec_name(uint32_t id) {
     if (id == SEC_CTREE) return "ctree";
+    if (id == SEC_KCODE) return "kcode";
     return gto_sec_known(id) ? gto_sec_info[id].name : "unknown";
 }
 
 /* Element size of a section this code writes or reads (known ids and ctree). */
 static inline uint32_t gto_sec_elem(uint32_t id) {
+    if (id == SEC_KCODE) return 1;
     return id == SEC_CTREE ? (uint32_t)sizeof(wrt_gto_cnode) : gto_sec_info[id].elem_size;
 }
 _Static_assert(sizeof(wrt_gto_cnode) == 16, "ctree record");
@@ -233,6 +264,7 @@ typedef struct gto_layout {
     const gto_section *table;
     const gto_section *sec[SEC_KNOWN_END];
     const gto_section *ctree; /* section ctree (257), or NULL */
+    const gto_section *kcode; /* section kcode (260), or NULL */
 } gto_layout;
 
 /* Stage 1: the header and the section table, no payload byte read. */

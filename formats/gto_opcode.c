@@ -17,10 +17,10 @@
 
 #define MANT_MAX 511 /* |mantissa| <= 511: 10 bits, two's complement, -512 unused */
 
-/* The smallest E with MANT_MAX * 2^E >= m (m > 0, finite). */
-static int step_exp(double m) {
+/* The smallest E with mant_max * 2^E >= m (m > 0, finite; gto_layout.h). */
+int gto_step_exp(double m, double mant_max) {
     int k;
-    double f = frexp(m / MANT_MAX, &k); /* m / 511 = f 2^k, f in [0.5, 1) */
+    double f = frexp(m / mant_max, &k); /* m / mant_max = f 2^k, f in [0.5, 1) */
     return f == 0.5 ? k - 1 : k;
 }
 
@@ -31,14 +31,14 @@ static int16_t encode_block(const float *vals, uint64_t a, uint64_t b, uint32_t 
     int emax = WRT_GTO_BASE_MIN;
     for (uint64_t i = a; i < b; i++) {
         double m = max3(vals + i * 3);
-        if (m > 0) { int e = step_exp(m); if (e > emax) emax = e; }
+        if (m > 0) { int e = gto_step_exp(m, MANT_MAX); if (e > emax) emax = e; }
     }
     int base = emax - 3;
     if (base < WRT_GTO_BASE_MIN) base = WRT_GTO_BASE_MIN;
     if (base > WRT_GTO_BASE_MAX) base = WRT_GTO_BASE_MAX; /* only for values the float checks refuse */
     for (uint64_t i = a; i < b; i++) {
         double m = max3(vals + i * 3);
-        int e = m > 0 ? step_exp(m) : base;
+        int e = m > 0 ? gto_step_exp(m, MANT_MAX) : base;
         if (e < base) e = base;
         if (e > base + 3) e = base + 3;
         uint32_t code = (uint32_t)(e - base) << 30;
@@ -53,8 +53,9 @@ static int16_t encode_block(const float *vals, uint64_t a, uint64_t b, uint32_t 
     return (int16_t)base;
 }
 
-/* The end of the block that starts at entry a of a column ending at `end`. */
-static uint64_t block_end(const uint32_t *rows, uint64_t a, uint64_t end) {
+/* The end of the block that starts at entry a of a column ending at `end` (gto_layout.h;
+ * section kcode's blocks are cut the same way). */
+uint64_t gto_block_end(const uint32_t *rows, uint64_t a, uint64_t end) {
     uint64_t b = a + 1;
     while (b < end && b - a < WRT_GTO_BLOCK_MAX && rows[b] - rows[b - 1] < 256) b++;
     return b;
@@ -64,7 +65,7 @@ uint8_t *gto_opcode_encode(uint32_t nfuncs, const uint64_t *col_start, const uin
                            const float *vals, uint64_t *size) {
     uint64_t nnz = col_start[nfuncs], nb = 0;
     for (uint32_t s = 0; s < nfuncs; s++)
-        for (uint64_t a = col_start[s]; a < col_start[s + 1]; a = block_end(rows, a, col_start[s + 1])) nb++;
+        for (uint64_t a = col_start[s]; a < col_start[s + 1]; a = gto_block_end(rows, a, col_start[s + 1])) nb++;
     gto_opcode_layout o = gto_opcode_place(nfuncs, nb, nnz);
     uint8_t *p = calloc(1, o.size);
     if (!p) return NULL;
@@ -81,7 +82,7 @@ uint8_t *gto_opcode_encode(uint32_t nfuncs, const uint64_t *col_start, const uin
         bcol[s] = (uint32_t)k;
         uint64_t end = col_start[s + 1];
         for (uint64_t a = col_start[s], b; a < end; a = b, k++) {
-            b = block_end(rows, a, end);
+            b = gto_block_end(rows, a, end);
             blk[k].row0 = rows[a];
             blk[k].n = (uint8_t)(b - a);
             blk[k].base = encode_block(vals, a, b, codes);
@@ -100,8 +101,7 @@ uint8_t *gto_opcode_encode(uint32_t nfuncs, const uint64_t *col_start, const uin
  * rows strictly ascending within the column and below nfuncs, and no mantissa -512.
  * ---------------------------------------------------------------------------------- */
 
-static void obad(vctx *v, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void obad(vctx *v, const char *fmt, ...) {
+void gto_obad(vctx *v, const char *fmt, ...) {
     if (v->bad) return;
     v->bad = 1;
     va_list ap;
@@ -110,7 +110,7 @@ static void obad(vctx *v, const char *fmt, ...) {
     va_end(ap);
 }
 
-static int zero_bytes(const uint8_t *p, uint64_t a, uint64_t b) {
+int gto_zero_bytes(const uint8_t *p, uint64_t a, uint64_t b) {
     for (uint64_t i = a; i < b; i++)
         if (p[i]) return 0;
     return 1;
@@ -125,32 +125,32 @@ static void check_column_blocks(vctx *v, const wrt_gto_block *blk, const uint8_t
     for (uint64_t k = k0; k < k1; k++) {
         const wrt_gto_block *b = &blk[k];
         if (b->n == 0 || b->n > WRT_GTO_BLOCK_MAX || b->reserved)
-            return obad(v, "block %" PRIu64 " (column %u): %u entries (1..%d) or reserved byte %u", k, s, b->n,
+            return gto_obad(v, "block %" PRIu64 " (column %u): %u entries (1..%d) or reserved byte %u", k, s, b->n,
                         WRT_GTO_BLOCK_MAX, b->reserved);
         if (b->base < WRT_GTO_BASE_MIN || b->base > WRT_GTO_BASE_MAX)
-            return obad(v, "block %" PRIu64 " (column %u): base exponent %d outside [%d, %d]", k, s, b->base,
+            return gto_obad(v, "block %" PRIu64 " (column %u): base exponent %d outside [%d, %d]", k, s, b->base,
                         WRT_GTO_BASE_MIN, WRT_GTO_BASE_MAX);
         if (b->n > e1 - e)
-            return obad(v, "column %u: its blocks hold more than its %" PRIu64 " entries (col_start)", s, e1 - e0);
+            return gto_obad(v, "column %u: its blocks hold more than its %" PRIu64 " entries (col_start)", s, e1 - e0);
         if ((int64_t)b->row0 <= last)
-            return obad(v, "block %" PRIu64 " (column %u): first row %u not above the previous block's last, %" PRId64,
+            return gto_obad(v, "block %" PRIu64 " (column %u): first row %u not above the previous block's last, %" PRId64,
                         k, s, b->row0, last);
         if (d[e] != 0)
-            return obad(v, "entry %" PRIu64 " (column %u): row delta %u on a block's first entry (must be 0)", e, s, d[e]);
+            return gto_obad(v, "entry %" PRIu64 " (column %u): row delta %u on a block's first entry (must be 0)", e, s, d[e]);
         uint64_t row = b->row0;
         for (uint64_t i = e + 1; i < e + b->n; i++) {
             if (d[i] == 0)
-                return obad(v, "entry %" PRIu64 " (column %u): row delta 0, rows must ascend", i, s);
+                return gto_obad(v, "entry %" PRIu64 " (column %u): row delta 0, rows must ascend", i, s);
             row += d[i];
         }
         if (row >= nf)
-            return obad(v, "block %" PRIu64 " (column %u): rows up to %" PRIu64 " out of range (%u functions)", k, s,
+            return gto_obad(v, "block %" PRIu64 " (column %u): rows up to %" PRIu64 " out of range (%u functions)", k, s,
                         row, nf);
         last = (int64_t)row;
         e += b->n;
     }
     if (e != e1)
-        return obad(v, "column %u: its blocks hold %" PRIu64 " entries, col_start says %" PRIu64, s, e - e0, e1 - e0);
+        return gto_obad(v, "column %u: its blocks hold %" PRIu64 " entries, col_start says %" PRIu64, s, e - e0, e1 - e0);
 }
 
 void gto_check_opcode(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
@@ -159,22 +159,22 @@ void gto_check_opcode(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) 
     if (first + n != o.size) return; /* the whole section, once its last chunk is summed */
     const gto_opcode_head *h = (const gto_opcode_head *)base;
     if (h->codec != WRT_GTO_CODEC || h->block_max != WRT_GTO_BLOCK_MAX)
-        return obad(v, "unknown encoding %u with blocks of %u (this reader: %d, %d)", h->codec, h->block_max,
+        return gto_obad(v, "unknown encoding %u with blocks of %u (this reader: %d, %d)", h->codec, h->block_max,
                     WRT_GTO_CODEC, WRT_GTO_BLOCK_MAX);
-    if (h->nblocks != g->nblocks || h->nnz != g->nnz || !zero_bytes(h->reserved, 0, sizeof h->reserved))
-        return obad(v, "header: %" PRIu64 " blocks and %" PRIu64 " entries, expected %" PRIu64 " and %" PRIu64
+    if (h->nblocks != g->nblocks || h->nnz != g->nnz || !gto_zero_bytes(h->reserved, 0, sizeof h->reserved))
+        return gto_obad(v, "header: %" PRIu64 " blocks and %" PRIu64 " entries, expected %" PRIu64 " and %" PRIu64
                     ", or reserved bytes not zero", h->nblocks, h->nnz, g->nblocks, g->nnz);
-    if (!zero_bytes(base, o.bcol + 4 * ((uint64_t)g->nfuncs + 1), o.blocks) ||
-        !zero_bytes(base, o.blocks + 8 * g->nblocks, o.codes) || !zero_bytes(base, o.codes + 4 * g->nnz, o.deltas))
-        return obad(v, "non-zero padding between its arrays");
+    if (!gto_zero_bytes(base, o.bcol + 4 * ((uint64_t)g->nfuncs + 1), o.blocks) ||
+        !gto_zero_bytes(base, o.blocks + 8 * g->nblocks, o.codes) || !gto_zero_bytes(base, o.codes + 4 * g->nnz, o.deltas))
+        return gto_obad(v, "non-zero padding between its arrays");
     const uint32_t *bcol = (const uint32_t *)(base + o.bcol), *codes = (const uint32_t *)(base + o.codes);
     const wrt_gto_block *blk = (const wrt_gto_block *)(base + o.blocks);
     const uint64_t *cs = g->col_start;
     if (bcol[0] != 0 || bcol[g->nfuncs] != g->nblocks)
-        return obad(v, "bcol runs from %u to %u, expected 0 to %" PRIu64, bcol[0], bcol[g->nfuncs], g->nblocks);
+        return gto_obad(v, "bcol runs from %u to %u, expected 0 to %" PRIu64, bcol[0], bcol[g->nfuncs], g->nblocks);
     for (uint32_t s = 0; s < g->nfuncs; s++) /* so every column's blocks lie inside */
         if (bcol[s + 1] < bcol[s])
-            return obad(v, "bcol not monotone at column %u (%u after %u)", s + 1, bcol[s + 1], bcol[s]);
+            return gto_obad(v, "bcol not monotone at column %u (%u after %u)", s + 1, bcol[s + 1], bcol[s]);
     for (uint32_t s = 0; s < g->nfuncs && !v->bad; s++)
         check_column_blocks(v, blk, base + o.deltas, s, bcol[s], bcol[s + 1], cs[s], cs[s + 1]);
     uint32_t any = 0;
@@ -186,5 +186,5 @@ void gto_check_opcode(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) 
         for (uint64_t i = 0; i < g->nnz; i++)
             for (int c = 0; c < 3; c++)
                 if (((codes[i] >> (10 * c)) & 0x3ffu) == 0x200u)
-                    return obad(v, "entry %" PRIu64 " channel %d: mantissa -512 (the encoding uses -511..511)", i, c);
+                    return gto_obad(v, "entry %" PRIu64 " channel %d: mantissa -512 (the encoding uses -511..511)", i, c);
 }

@@ -110,13 +110,14 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
         if (s->offset != gto_align_up(prev_end))
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 ", expected %" PRIu64
                             " (sections follow each other)", nm, s->offset, gto_align_up(prev_end));
-        if (s->id >= SEC_CRITICAL && s->id != SEC_CTREE)
+        int crit_known = s->id == SEC_CTREE || s->id == SEC_KCODE;
+        if (s->id >= SEC_CRITICAL && !crit_known)
             return wrt_fail(WRT_ERR_UNSUPPORTED, "section id %u is critical (ids from %u on must be understood) "
                             "and unknown to this reader: it cannot read this file", s->id, SEC_CRITICAL);
-        if (s->id == SEC_CTREE && h->version_major < 2)
-            return wrt_fail(WRT_ERR_CORRUPT, "section ctree in a version %u.%u file (it needs version 2.0)",
+        if (crit_known && h->version_major < 2)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s in a version %u.%u file (it needs version 2.0)", nm,
                             h->version_major, h->version_minor);
-        if ((gto_sec_known(s->id) || s->id == SEC_CTREE) && s->elem_size != gto_sec_elem(s->id))
+        if ((gto_sec_known(s->id) || crit_known) && s->elem_size != gto_sec_elem(s->id))
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: element size %u, expected %u", nm,
                             s->elem_size, gto_sec_elem(s->id));
         if (s->elem_size == 0 || s->count > s->size / s->elem_size ||
@@ -125,6 +126,7 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
                             " elements of %u bytes", nm, s->size, s->count, s->elem_size);
         if (gto_sec_known(s->id)) L->sec[s->id] = s;
         if (s->id == SEC_CTREE) L->ctree = s;
+        if (s->id == SEC_KCODE) L->kcode = s;
         prev_end = s->offset + s->size;
     }
     if (prev_end != len)
@@ -140,10 +142,17 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
     for (uint32_t id = 1; id <= SEC_REQUIRED; id++)
         if (!L->sec[id] && !((id == SEC_ROWS || id == SEC_VALS) && L->sec[SEC_OPCODE]))
             return wrt_fail(WRT_ERR_CORRUPT, "missing section %s", gto_sec_name(id));
-    /* The first-bounce operator: all four sections or none. */
+    /* The first-bounce operator: all four sections or none; or kkeys, kcol_start and kcode
+     * (2.0, its entries compact). */
+    if (L->kcode && (L->sec[SEC_KROWS] || L->sec[SEC_KVALS]))
+        return wrt_fail(WRT_ERR_CORRUPT, "section kcode beside section %s (K's entries are compact or "
+                        "float, not both)", L->sec[SEC_KROWS] ? "krows" : "kvals");
+    if (L->kcode && (!L->sec[SEC_KKEYS] || !L->sec[SEC_KCOL_START]))
+        return wrt_fail(WRT_ERR_CORRUPT, "missing section %s (section kcode comes with kkeys and kcol_start)",
+                        L->sec[SEC_KKEYS] ? "kcol_start" : "kkeys");
     int nk = 0;
     for (uint32_t id = SEC_KKEYS; id <= SEC_KVALS; id++) nk += L->sec[id] != NULL;
-    if (nk != 0 && nk != SEC_KVALS - SEC_KKEYS + 1)
+    if (nk != 0 && nk != SEC_KVALS - SEC_KKEYS + 1 && !L->kcode)
         for (uint32_t id = SEC_KKEYS; id <= SEC_KVALS; id++)
             if (!L->sec[id])
                 return wrt_fail(WRT_ERR_CORRUPT, "missing section %s (the first-bounce sections kkeys, "
@@ -199,6 +208,39 @@ static wrt_status check_opcode_counts(const uint8_t *b, const gto_section *const
     return WRT_OK;
 }
 
+/* The compact K's counts (section kcode): its header says how many blocks and entries,
+ * which must give the section's size; fills g's K counts and pointers. */
+static wrt_status check_kcode_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
+    const gto_section *s = L->kcode, *const *S = L->sec;
+    if (S[SEC_KCOL_START]->count != S[SEC_KKEYS]->count + 1)
+        return wrt_fail(WRT_ERR_CORRUPT, "section kcol_start: %" PRIu64 " entries, expected %" PRIu64
+                        " (K's columns + 1)", S[SEC_KCOL_START]->count, S[SEC_KKEYS]->count + 1);
+    if (s->size < sizeof(gto_opcode_head))
+        return wrt_fail(WRT_ERR_CORRUPT, "section kcode: %" PRIu64 " bytes, less than its %zu-byte header", s->size,
+                        sizeof(gto_opcode_head));
+    gto_opcode_head h;
+    memcpy(&h, b + s->offset, sizeof h);
+    uint64_t nk = S[SEC_KKEYS]->count;
+    if (h.nnz > s->size || h.nblocks > s->size / 8 || h.nblocks > UINT32_MAX ||
+        gto_kcode_place((uint32_t)nk, h.nblocks, h.nnz).size != s->size) {
+        uint64_t computed = wrt_gto_checksum(b + s->offset, (size_t)s->size);
+        if (computed != s->checksum)
+            return wrt_fail(WRT_ERR_CORRUPT, "section kcode: checksum mismatch (stored 0x%016" PRIx64
+                            ", computed 0x%016" PRIx64 ")", s->checksum, computed);
+        return wrt_fail(WRT_ERR_CORRUPT, "section kcode: %" PRIu64 " bytes do not hold the %" PRIu64 " blocks and %"
+                        PRIu64 " entries its header says (with %" PRIu64 " columns)", s->size, h.nblocks, h.nnz, nk);
+    }
+    gto_opcode_layout o = gto_kcode_place((uint32_t)nk, h.nblocks, h.nnz);
+    const uint8_t *p = b + s->offset;
+    g->knnz = h.nnz;
+    g->knblocks = h.nblocks;
+    g->k_bcol = (const uint32_t *)(p + o.bcol);
+    g->k_blocks = (const wrt_gto_block *)(p + o.blocks);
+    g->k_codes = (const uint16_t *)(p + o.codes);
+    g->k_deltas = p + o.deltas;
+    return WRT_OK;
+}
+
 /* Stage 2: counts that must agree across sections, and zero padding. */
 wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     const gto_section *const *S = L->sec;
@@ -223,7 +265,8 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
         if (S[SEC_KKEYS]->count > UINT32_MAX - 1)
             return wrt_fail(WRT_ERR_CORRUPT, "section kkeys: %" PRIu64 " elements, too many",
                             S[SEC_KKEYS]->count);
-        st = check_csc_counts(S, SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS, "K's columns");
+        st = L->kcode ? check_kcode_counts(b, L, g)
+                      : check_csc_counts(S, SEC_KKEYS, SEC_KCOL_START, SEC_KROWS, SEC_KVALS, "K's columns");
         if (st != WRT_OK) return st;
     }
     if (S[SEC_SRCMAP] && S[SEC_SRCMAP]->count != S[SEC_QUADS]->count)
@@ -268,11 +311,13 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     g->provenance_len = (size_t)S[SEC_PROVENANCE]->size;
     if (S[SEC_KKEYS]) {
         g->nkcols = (uint32_t)S[SEC_KKEYS]->count;
-        g->knnz = S[SEC_KROWS]->count;
         g->kkeys = SECPTR(SEC_KKEYS);
         g->kcol_start = SECPTR(SEC_KCOL_START);
-        g->krows = SECPTR(SEC_KROWS);
-        g->kvals = SECPTR(SEC_KVALS);
+        if (!L->kcode) {
+            g->knnz = S[SEC_KROWS]->count;
+            g->krows = SECPTR(SEC_KROWS);
+            g->kvals = SECPTR(SEC_KVALS);
+        }
     }
     if (S[SEC_SRCMAP]) g->srcmap = SECPTR(SEC_SRCMAP);
     if (S[SEC_NORMALS]) g->normals = SECPTR(SEC_NORMALS);

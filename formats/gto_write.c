@@ -261,10 +261,12 @@ typedef struct gto_records {
     wrt_gto_normals *normals; /* NULL: not written (no quad's corner normals leave its plane) */
     uint8_t *opcode;        /* the compact operator's section (contents.compact), else NULL */
     uint64_t opcode_size, nblocks;
+    uint8_t *kcode;         /* K's compact section (compact and not k_float, with K), else NULL */
+    uint64_t kcode_size, knblocks;
 } gto_records;
 
 static void free_records(gto_records *R) {
-    free(R->quads); free(R->mats); free(R->lights); free(R->names); free(R->srcmap); free(R->opcode); free(R->normals); free(R->textures);
+    free(R->quads); free(R->mats); free(R->lights); free(R->names); free(R->srcmap); free(R->opcode); free(R->kcode); free(R->normals); free(R->textures);
 }
 
 /* The corner normals (section normals, version 1.3), only where they say something: some
@@ -317,6 +319,25 @@ static wrt_status encode_entries(const char *path, const wrt_gto_contents *c, gt
     R->opcode = gto_opcode_encode(nf, cs, c->rows, c->vals, &R->opcode_size);
     if (!R->opcode) return wrt_fail(WRT_ERR_NOMEM, "cannot write %s: no memory to encode the entries", path);
     memcpy(&R->nblocks, R->opcode + offsetof(gto_opcode_head, nblocks), 8);
+    return WRT_OK;
+}
+
+/* contents.compact without k_float, with K: K's entries encoded (section kcode, 2.0). The
+ * float krows and kvals are checked as a 1.x file's would be when the plan is checked
+ * (plan_header), before anything is written. */
+static wrt_status encode_k(const char *path, const wrt_gto_contents *c, gto_records *R) {
+    uint32_t nk = c->nkcols;
+    uint64_t knnz = c->kcol_start[nk];
+    for (uint32_t j = 0; j < nk; j++)
+        if (c->kcol_start[j + 1] < c->kcol_start[j])
+            return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: kcol_start not monotone at column %u", path,
+                            j + 1);
+    if (c->kcol_start[0] != 0 || knnz > UINT32_MAX * (uint64_t)WRT_GTO_BLOCK_MAX)
+        return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: kcol_start from %" PRIu64 " to %" PRIu64
+                        " entries (from 0, fewer than 2^38)", path, c->kcol_start[0], knnz);
+    R->kcode = gto_kcode_encode(nk, c->kcol_start, c->krows, c->kvals, &R->kcode_size);
+    if (!R->kcode) return wrt_fail(WRT_ERR_NOMEM, "cannot write %s: no memory to encode K's entries", path);
+    memcpy(&R->knblocks, R->kcode + offsetof(gto_opcode_head, nblocks), 8);
     return WRT_OK;
 }
 
@@ -444,12 +465,14 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
     for (int i = 0; i < SEC_KNOWN; i++) {
         uint32_t id = secs[i].id;
         if (id == 0 || (id >= SEC_KKEYS && id <= SEC_KVALS && !nk) || (id == SEC_SRCMAP && !R->srcmap) ||
-            (id == SEC_TEXTURES && !R->textures) || (id == SEC_NORMALS && !R->normals))
+            (id == SEC_TEXTURES && !R->textures) || (id == SEC_NORMALS && !R->normals) ||
+            ((id == SEC_KROWS || id == SEC_KVALS) && R->kcode))
             continue;
         if ((id == SEC_ROWS || id == SEC_VALS) ? R->opcode != NULL : id == SEC_OPCODE && !R->opcode) continue;
         P->secs[P->nsec++] = secs[i];
     }
     if (c->nctree) P->secs[P->nsec++] = (wsec){SEC_CTREE, c->nctree, c->ctree}; /* critical: version 2.0 */
+    if (R->kcode) P->secs[P->nsec++] = (wsec){SEC_KCODE, R->kcode_size, R->kcode}; /* critical: version 2.0 */
 
     static const uint64_t nothing = 0;
     for (int i = 0; i < P->nsec; i++)
@@ -469,7 +492,7 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     memcpy(h->magic, GTO_MAGIC, GTO_MAGIC_LEN);
     h->byte_order = GTO_BOM;
     /* compact entries or a cluster tree: 2.0; float entries: 1.x as before (the lowest that has it all) */
-    h->version_major = R->opcode || c->nctree ? WRT_GTO_VERSION : WRT_GTO_VERSION_FLOAT;
+    h->version_major = R->opcode || c->nctree || R->kcode ? WRT_GTO_VERSION : WRT_GTO_VERSION_FLOAT;
     h->version_minor = h->version_major == WRT_GTO_VERSION ? 0 : R->textures ? GTO_MINOR_TEXTURES
                        : R->normals ? GTO_MINOR_NORMALS : R->srcmap ? GTO_MINOR_SRCMAP : nk ? GTO_MINOR_K : 0;
     h->nsections = (uint32_t)nsec;
@@ -484,6 +507,7 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     view.nnz = view.col_start[c->nfuncs];
     view.nblocks = R->nblocks;
     view.nkcols = nk; view.knnz = nk ? c->kcol_start[nk] : 0; view.kkeys = c->kkeys; view.kcol_start = c->kcol_start;
+    view.knblocks = R->knblocks;
     vctx v;
     memset(&v, 0, sizeof v);
     v.g = &view;
@@ -491,6 +515,13 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     wrt_status st = WRT_OK;
     for (int i = 0; i < nsec && st == WRT_OK; i++) {
         uint32_t es = gto_sec_elem(secs[i].id);
+        if (secs[i].id == SEC_KCODE) /* the float entries it encodes, checked as a 1.x file's */
+            for (uint32_t id = SEC_KROWS; id <= SEC_KVALS && !v.bad; id++) {
+                gto_scan_section(id == SEC_KROWS ? (const void *)c->krows : (const void *)c->kvals, view.knnz,
+                                 gto_sec_elem(id), gto_sec_checker(id), &v);
+                if (v.bad) st = wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: %s: %s", path, gto_sec_name(id), v.err);
+            }
+        if (st != WRT_OK) break;
         tab[i].id = secs[i].id;
         tab[i].elem_size = es;
         tab[i].offset = gto_align_up(off);
@@ -559,6 +590,7 @@ wrt_status wrt_gto_write_pending(const char *path, const wrt_gto_contents *c, wr
     R.nn = (uint32_t)c->scene->nnames;
     st = build_quads(path, c, &R);
     if (st == WRT_OK && c->compact) st = encode_entries(path, c, &R);
+    if (st == WRT_OK && c->compact && !c->k_float && c->nkcols) st = encode_k(path, c, &R);
     if (st == WRT_OK) {
         build_scene_records(c, &R);
         R.textures = gto_build_textures(c->scene, &R.textures_size); /* docs/textures.md */

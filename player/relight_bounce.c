@@ -24,7 +24,7 @@
 static wrt_status k_check(const wrt_relight *r) {
     const wrt_gto *g = r->g;
     uint32_t nk = g->nkcols, nq = g->nquads;
-    if (!g->kkeys || !g->kcol_start || (g->knnz && (!g->krows || !g->kvals)))
+    if (!g->kkeys || !g->kcol_start || (g->knnz && !g->k_codes && (!g->krows || !g->kvals)))
         return wrt_fail(WRT_ERR_CORRUPT, "relight: first-bounce operator: %u columns without their arrays", nk);
     if (g->kcol_start[0] != 0 || g->kcol_start[nk] != g->knnz)
         return wrt_fail(WRT_ERR_CORRUPT, "relight: first-bounce operator: column starts do not run from 0 to %llu entries",
@@ -43,23 +43,24 @@ static wrt_status k_check(const wrt_relight *r) {
         if (g->kcol_start[j + 1] < g->kcol_start[j])
             return wrt_fail(WRT_ERR_CORRUPT, "relight: first-bounce operator: column %u: start not monotone", j);
     }
-    for (uint64_t e = 0; e < g->knnz; e++)
+    for (uint64_t e = 0; e < g->knnz && !g->k_codes; e++) /* the compact form's rows: the reader's */
         if (g->krows[e] >= g->nfuncs)
             return wrt_fail(WRT_ERR_CORRUPT, "relight: first-bounce operator: entry %llu: row %u outside the %u functions",
                             (unsigned long long)e, g->krows[e], g->nfuncs);
     return WRT_OK;
 }
 
-/* K's transpose: row f's entries are te[ts[f] .. ts[f + 1]), columns ascending. */
-static void k_transpose(const wrt_gto *g, uint32_t *ts, kt_entry *te) {
+/* K's transpose: row f's entries are te[ts[f] .. ts[f + 1]), columns ascending. K's
+ * entries are krows, kvals (the file's floats, or the compact section decoded). */
+static void k_transpose(const wrt_gto *g, const uint32_t *krows, const float *kvals, uint32_t *ts, kt_entry *te) {
     uint32_t nf = g->nfuncs;
-    for (uint64_t e = 0; e < g->knnz; e++) ts[g->krows[e] + 1]++;
+    for (uint64_t e = 0; e < g->knnz; e++) ts[krows[e] + 1]++;
     for (uint32_t f = 0; f < nf; f++) ts[f + 1] += ts[f];
     for (uint32_t j = 0; j < g->nkcols; j++)
         for (uint64_t e = g->kcol_start[j]; e < g->kcol_start[j + 1]; e++) {
-            uint32_t p = ts[g->krows[e]]++;
+            uint32_t p = ts[krows[e]]++;
             te[p].col = j;
-            te[p].val = g->kvals[e];
+            te[p].val = kvals[e];
         }
     for (uint32_t f = nf; f > 0; f--) ts[f] = ts[f - 1];
     ts[0] = 0;
@@ -138,9 +139,13 @@ static wrt_status k_by_rows(wrt_relight *r) {
     r->k.k4_start = relight_calloc(r, (size_t)nf / 2 + 2, sizeof(uint32_t));
     r->k.k4_n = relight_calloc(r, (size_t)nf / 2 + 1, 1);
     uint8_t *in4 = relight_calloc(r, (size_t)nf + 1, 1);
+    /* the compact K (section kcode) decoded once here; the float K used in place */
+    uint32_t *drows = g->k_codes ? relight_calloc(r, (size_t)g->knnz + 1, sizeof(uint32_t)) : NULL;
+    float *dvals = g->k_codes ? relight_calloc(r, (size_t)g->knnz + 1, sizeof(float)) : NULL;
     wrt_status st = WRT_OK;
     if (r->oom) goto done;
-    k_transpose(g, ts, te);
+    if (g->k_codes) wrt_gto_k_entries(g, drows, dvals);
+    k_transpose(g, g->k_codes ? drows : g->krows, g->k_codes ? dvals : g->kvals, ts, te);
     uint64_t n4 = k_find_fours(r, ts, te, in4), n1 = 0;
     for (uint32_t f = 0; f < nf; f++) if (!in4[f]) n1 += ts[f + 1] - ts[f];
     r->k.kt = relight_calloc(r, (size_t)n1 + 1, sizeof(kt_entry));
@@ -150,7 +155,7 @@ static wrt_status k_by_rows(wrt_relight *r) {
     k_fill(r, ts, te, in4);
 done:
     if (r->oom) st = wrt_fail(WRT_ERR_NOMEM, "relight: out of memory");
-    relight_free(r, ts); relight_free(r, te); relight_free(r, in4);
+    relight_free(r, ts); relight_free(r, te); relight_free(r, in4); relight_free(r, drows); relight_free(r, dvals);
     return st;
 }
 

@@ -33,6 +33,9 @@ typedef struct wrt_bake_options {
     double drop_receiver;  /* and as 2^(drop_receiver x the receiver's depth past drop_receiver_from)
                             * (0: the default 1; negative: none) */
     int drop_receiver_from;/* 0: the default 3 (finer than the display's 8 x 8 cells); negative: 0 */
+    double drop_sender_size; /* > 0: the sender's depth counts from supports of this fraction of
+                            * the scene's diagonal down (drop_rule.h size_ref; quads larger keep
+                            * more of their fine senders); 0: the default 0.05; negative: none */
     int max_slevel;        /* deepest spatial level of refinement (cells 2^-l of a quad) */
     int min_slevel;        /* refine every link at least to this level (default 0) */
     int max_alevel;        /* cap on the angular level of glossy materials (1..3) */

@@ -13,6 +13,13 @@ double wrt_drop_col_scale(const wrt_drop_rule *r, uint64_t fkey) {
     return exp2(-r->sender * wrt_drop_depth(fkey));
 }
 
+double wrt_drop_col_scale_sized(const wrt_drop_rule *r, uint64_t fkey, double quad_side) {
+    if (!r || r->sender == 0) return 1;
+    double d = wrt_drop_depth(fkey);
+    if (r->size_ref > 0 && quad_side > r->size_ref) d = fmax(0, d - log2(quad_side / r->size_ref));
+    return exp2(-r->sender * d);
+}
+
 double wrt_drop_row_scale(const wrt_drop_rule *r, uint64_t fkey) {
     if (!r || r->receiver == 0) return 1;
     int d = wrt_drop_depth(fkey) - r->receiver_from;

@@ -22,6 +22,9 @@ typedef struct wrt_drop_rule {
     double sender;     /* the threshold grows as 2^(sender x d_s); 0: as before */
     double receiver;   /* 2^(receiver x (d_r - receiver_from)) for d_r > receiver_from; 0: as before */
     int receiver_from; /* the receiver depth from which it grows */
+    double size_ref;   /* > 0: the sender's depth counts only below supports of this side (the
+                        * sender's support side sqrt(A_q) 2^-d: depth log2(size_ref / side),
+                        * at most d, at least 0); 0: the depth d as it is */
 } wrt_drop_rule;
 
 /* The depth of a basis function (fkey of basis.h): 0 for a spatial scaling function,
@@ -31,5 +34,11 @@ int wrt_drop_depth(uint64_t fkey);
  * weight: 1 for a rule of zeros. */
 double wrt_drop_col_scale(const wrt_drop_rule *r, uint64_t fkey);
 double wrt_drop_row_scale(const wrt_drop_rule *r, uint64_t fkey);
+/* The column's factor for a sender on a quad of side quad_side (sqrt of its area): with
+ * size_ref > 0, 2^-(sender x min(d, max(0, d + log2(size_ref / quad_side)))): a quad
+ * larger than size_ref keeps more of its fine senders (a light near a large wall puts
+ * much more than 2^-d of the wall's root coefficient on its fine wavelets); a smaller one
+ * as wrt_drop_col_scale. */
+double wrt_drop_col_scale_sized(const wrt_drop_rule *r, uint64_t fkey, double quad_side);
 
 #endif

@@ -53,6 +53,9 @@ static void usage(FILE *f) {
         "  --drop-receiver R      and as 2^(R (d - F)) with the receiver's depth d past F\n"
         "                         (default 1; 0: none)\n"
         "  --drop-receiver-from F (default 3: finer than the display's 8 x 8 cells a quad)\n"
+        "  --drop-sender-size L   the sender's depth counts only on supports smaller than L x\n"
+        "                         the scene's diagonal (a larger quad keeps its fine senders;\n"
+        "                         default 0.05; 0: off)\n"
         "  --max-level L          deepest spatial refinement level (cells of 2^-L), <= 10\n"
         "  --min-level L          refine every link at least to level L\n"
         "  --max-angular-level L  cap on glossy materials' angular level (1..3; default 1 up\n"
@@ -69,6 +72,8 @@ static void usage(FILE *f) {
         "  --report-gathered      compute the gathered GTO's link count without storing it\n"
         "  --float-entries        store the operator as floats (a version 1.x file, 16 bytes an\n"
         "                         entry) instead of compact (version 2.0, about 5.5 bytes)\n"
+        "  --float-k              with compact entries, keep the first-bounce operator K's as\n"
+        "                         floats (8 bytes an entry) instead of compact (3 bytes)\n"
         "  --no-tail              do not add the estimated tail of the series\n"
         "  --series-right F       bounces from --series-right-from B (default 2) on multiply\n"
         "                         by T compressed at F x --eps-compress (power kept) instead\n"
@@ -192,6 +197,7 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
         o->glossy_quality, o->eps_receiver_glossy, o->eps_sender_glossy, o->max_slevel_glossy, !o->no_balance,
         o->eps_final, fmax(o->drop_sender, 0), fmax(o->drop_receiver, 0),
         o->drop_receiver_from > 0 ? o->drop_receiver_from : 0);
+    if (o->drop_sender_size > 0) fprintf(f, ",\"drop_sender_size\":%.6g", o->drop_sender_size);
     fprintf(f, ",\"series_right\":%.6g,\"series_right_from\":%d", o->series_right > 0 ? o->series_right : 0,
             o->series_right_from);
     fputc('}', f);
@@ -204,6 +210,7 @@ typedef struct bake_args {
     const char *scene_path, *out_path, *scan, *info;
     int json, force_progress, quiet, print_config, timings, drop_bad, allow_outside;
     int float_entries;  /* --float-entries: a 1.x file, not the compact 2.0 */
+    int float_k;        /* --float-k: K's entries as floats in a compact file (sections 14, 15) */
     double max_error;   /* < 0: no accuracy check */
     int check_paths;
     wrt_bake_options o;
@@ -300,6 +307,11 @@ static int parse_args(int argc, char **argv, bake_args *A) {
             if (ok && *d == 0) *d = -1;
             i++;
         }
+        else if (!strcmp(a, "--drop-sender-size")) { /* 0: none (stored as -1) */
+            ok = opt_num(a, v, 0, 10, &o->drop_sender_size);
+            if (ok && o->drop_sender_size == 0) o->drop_sender_size = -1;
+            i++;
+        }
         else if (!strcmp(a, "--drop-receiver-from")) {
             ok = opt_int(a, v, 0, 11, &o->drop_receiver_from);
             if (ok && o->drop_receiver_from == 0) o->drop_receiver_from = -1;
@@ -322,6 +334,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--gathered")) o->gathered = 1;
         else if (!strcmp(a, "--report-gathered")) o->report_gathered = 1;
         else if (!strcmp(a, "--float-entries")) A->float_entries = 1;
+        else if (!strcmp(a, "--float-k")) A->float_k = 1;
         else if (!strcmp(a, "--series-right")) {
             ok = opt_num(a, v, 0, 1e6, &o->series_right);
             if (ok && o->series_right == 0) o->series_right = -1; /* 0 on the command line: off */
@@ -531,7 +544,7 @@ static int write_pending(const bake_args *A, const wrt_scene *s, const wrt_bake_
         .col_start = r->op.col, .rows = r->op.row, .vals = r->op.val,
         .op_kind = (uint32_t)r->op_kind, .material_alevel = r->material_alevel, .provenance = prov,
         .nkcols = r->nkcols, .kkeys = r->kkeys, .kcol_start = r->kcol_start, .krows = r->krows, .kvals = r->kvals,
-        .compact = !A->float_entries,
+        .compact = !A->float_entries, .k_float = A->float_k,
     };
     wrt_gto_cnode *cn = NULL;
     if (r->ctree.nnodes) { /* --clusters: the tree (section ctree, version 2.0) */

@@ -230,7 +230,8 @@ static void series_final_compress(series_state *s) {
     const bake_ctx *b = s->b;
     double eps = b->opt.eps_final > s->eps ? b->opt.eps_final : s->eps;
     wrt_drop_rule r = {fmax(b->opt.drop_sender, 0), fmax(b->opt.drop_receiver, 0),
-                       b->opt.drop_receiver_from > 0 ? b->opt.drop_receiver_from : 0};
+                       b->opt.drop_receiver_from > 0 ? b->opt.drop_receiver_from : 0,
+                       fmax(b->opt.drop_sender_size, 0) * b->scene_size};
     if (r.sender == 0 && r.receiver == 0) {
         wrt_csc_compress(&s->S, eps, &s->W);
         return;
@@ -239,7 +240,7 @@ static void series_final_compress(series_state *s) {
     double *rw = wrt_xmalloc(((size_t)n + 1) * sizeof *rw), *cw = wrt_xmalloc(((size_t)n + 1) * sizeof *cw);
     for (uint32_t i = 0; i < n; i++) {
         rw[i] = s->rw[i] * wrt_drop_row_scale(&r, s->res->fkeys[i]);
-        cw[i] = s->cw[i] * wrt_drop_col_scale(&r, s->res->fkeys[i]);
+        cw[i] = s->cw[i] * wrt_drop_col_scale_sized(&r, s->res->fkeys[i], sqrt(b->quads[wrt_fkey_quad(s->res->fkeys[i])].area));
     }
     wrt_csc_weights W = {rw, cw, s->pw};
     wrt_csc_compress(&s->S, eps, &W);

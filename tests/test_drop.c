@@ -16,7 +16,7 @@
 #include "test.h"
 
 static void test_scales(void) {
-    wrt_drop_rule r = {0.5, 1, 3};
+    wrt_drop_rule r = {0.5, 1, 3, 0};
     wrt_node root = wrt_node_root(), l2 = {2, 1, 3};
     uint64_t kr = wrt_fkey_make(7, root, 0, root, 0), k0 = wrt_fkey_make(7, root, 2, root, 0);
     uint64_t k2 = wrt_fkey_make(7, l2, 1, root, 0), k4 = wrt_fkey_make(7, (wrt_node){4, 9, 2}, 3, root, 0);
@@ -27,7 +27,14 @@ static void test_scales(void) {
           wrt_drop_col_scale(&r, k2), wrt_drop_col_scale(&r, k4));
     CHECK(wrt_drop_row_scale(&r, k2) == 1 && wrt_drop_row_scale(&r, k4) == 0.25, "receiver scales %.17g %.17g",
           wrt_drop_row_scale(&r, k2), wrt_drop_row_scale(&r, k4));
-    wrt_drop_rule off = {0, 0, 0};
+    /* sized: a quad of side 4 with size_ref 1 counts depth from its supports of side 1 (d - 2) */
+    wrt_drop_rule sz = {0.5, 1, 3, 1.0};
+    CHECK(fabs(wrt_drop_col_scale_sized(&sz, k4, 4) - exp2(-1.5)) < 1e-15 &&
+          fabs(wrt_drop_col_scale_sized(&sz, k4, 0.5) - exp2(-2.5)) < 1e-15 && wrt_drop_col_scale_sized(&sz, k4, 64) == 1 &&
+          wrt_drop_col_scale_sized(&sz, kr, 4) == 1 && fabs(wrt_drop_col_scale_sized(&r, k4, 4) - exp2(-2.5)) < 1e-15,
+          "sized sender scales %.17g %.17g %.17g", wrt_drop_col_scale_sized(&sz, k4, 4), wrt_drop_col_scale_sized(&sz, k4, 0.5),
+          wrt_drop_col_scale_sized(&sz, k4, 64));
+    wrt_drop_rule off = {0, 0, 0, 0};
     CHECK(wrt_drop_col_scale(&off, k4) == 1 && wrt_drop_row_scale(&off, k4) == 1 && wrt_drop_col_scale(NULL, k4) == 1,
           "a rule of zeros scales nothing");
 }

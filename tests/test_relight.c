@@ -1580,6 +1580,50 @@ static void metal_floor_wall(ts_scene *s, kop *k, uint32_t *w0, uint32_t *nw) {
  * and changing a light's scale re-projects none; X is then the same, to the bit, as a
  * relighter on one thread that starts from those lights (with the final gather: the
  * multiply's copy of the operator, whose non-displayed rows stay 0 in X, Y included). */
+/* K compact (section kcode, formats/gto_kcode.c): the relighter decodes it once at
+ * creation, so its Y is that of a float K holding the decoded values, bit for bit, and
+ * within the encoding's step of the float K's Y (Yf). */
+static void first_bounce_compact_k(ts_scene *s, const kop *k, const wrt_light *L, const float *sc, const double *eye,
+                                   const float *Yf) {
+    uint64_t size;
+    uint8_t *enc = gto_kcode_encode(k->n, k->cs, k->rows, k->vals, &size);
+    CHECK(enc != NULL, "encode K");
+    if (!enc) return;
+    uint64_t nb = ((const gto_opcode_head *)enc)->nblocks;
+    gto_opcode_layout o = gto_kcode_place(k->n, nb, k->nnz);
+    wrt_gto gc = s->g;
+    gc.krows = NULL; gc.kvals = NULL;
+    gc.knblocks = nb;
+    gc.k_bcol = (const uint32_t *)(enc + o.bcol);
+    gc.k_blocks = (const wrt_gto_block *)(enc + o.blocks);
+    gc.k_codes = (const uint16_t *)(enc + o.codes);
+    gc.k_deltas = enc + o.deltas;
+    uint32_t *dr = malloc(k->nnz * sizeof *dr);
+    float *dv = malloc(k->nnz * sizeof *dv);
+    wrt_gto_k_entries(&gc, dr, dv);
+    int rows_same = memcmp(dr, k->rows, k->nnz * sizeof *dr) == 0;
+    CHECK(rows_same, "the decoded rows are K's");
+    wrt_gto gd = s->g; /* a float K of the decoded values */
+    gd.kvals = dv;
+    wrt_relight *rc, *rd;
+    size_t n3 = (size_t)s->nf * 3;
+    CHECK(wrt_relight_create(&gc, NULL, &rc) == WRT_OK, "compact K: %s", wrt_last_error());
+    CHECK(wrt_relight_create(&gd, NULL, &rd) == WRT_OK, "decoded K: %s", wrt_last_error());
+    wrt_relight_set_eye(rc, eye); wrt_relight_set_eye(rd, eye);
+    wrt_relight_set_lights(rc, L, sc, 2); wrt_relight_set_lights(rd, L, sc, 2);
+    wrt_relight_update(rc, NULL); wrt_relight_update(rd, NULL);
+    const float *Yc = wrt_relight_Y(rc);
+    CHECK(memcmp(Yc, wrt_relight_Y(rd), n3 * sizeof(float)) == 0, "compact K's Y is the decoded floats' to the bit");
+    double worst = 0, mx = 0;
+    for (size_t i = 0; i < n3; i++) { worst = fmax(worst, fabs(Yc[i] - Yf[i])); mx = fmax(mx, fabs(Yf[i])); }
+    CHECK(mx > 0 && worst <= 4 * mx / 8191 && worst > 0, "compact K's Y off the float K's by %.3g of %.3g", worst, mx);
+    printf("compact K: %u columns, %llu entries, %llu blocks, %llu bytes (%.2f an entry; floats 8); Y off by %.3g of %.3g\n",
+           k->n, (unsigned long long)k->nnz, (unsigned long long)nb, (unsigned long long)size,
+           (double)size / (double)k->nnz, worst, mx);
+    wrt_relight_destroy(rc); wrt_relight_destroy(rd);
+    free(dr); free(dv); free(enc);
+}
+
 static void test_first_bounce_cache(void) {
     ts_scene s;
     kop k;
@@ -1637,6 +1681,7 @@ static void test_first_bounce_cache(void) {
         if (!wrt_fkey_angular_root(s.fkeys[f])) nz += X[3 * f] != 0 || X[3 * f + 1] != 0 || X[3 * f + 2] != 0;
     }
     CHECK(ynz > 0 && nz == 0, "Y reaches %u wall rows; the %u non-displayed rows of X stay 0", ynz, nz);
+    first_bounce_compact_k(&s, &k, L, sc, eye, Y);
     wrt_relight_destroy(r);
     kop_free(&k);
     ts_free(&s);

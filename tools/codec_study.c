@@ -9,7 +9,8 @@
  * path-traced reference (docs/bench.md, "Compact entries"). Blocks are those of the
  * file's encoding (formats/gto_encode.c): up to 64 entries of one column whose rows span
  * less than 65536. With --drop PREFIX SPEC... it studies which entries to store instead
- * (drop_study below; docs/bench.md, "Which entries are stored"). Depends on formats/gto.h,
+ * (drop_study below; docs/bench.md, "Which entries are stored"); with --k PREFIX, how
+ * compact K can be (k_study; docs/bench.md, "K compact"). Depends on formats/gto.h,
  * wrt_common (the checksum) and the bake's compression (precompute/sparse.h, balance.h's
  * power weights, drop_rule.h). */
 #include <inttypes.h>
@@ -132,16 +133,17 @@ static uint64_t rd64(const uint8_t *b, size_t o) { uint64_t x; memcpy(&x, b + o,
 static uint32_t rd32(const uint8_t *b, size_t o) { uint32_t x; memcpy(&x, b + o, 4); return x; }
 static void wr64(uint8_t *b, size_t o, uint64_t x) { memcpy(b + o, &x, 8); }
 
-/* A copy of the file with the values section (id 9) replaced by q, its checksum and the
- * header's recomputed (GTO_FORMAT.md: table entries of 48 bytes from offset 64). */
-static int write_copy(const wrt_gto *g, const float *q, const char *path) {
+/* A copy of the file with the values section (id 9, or K's values, 15) replaced by q, its
+ * checksum and the header's recomputed (GTO_FORMAT.md: table entries of 48 bytes from
+ * offset 64). */
+static int write_copy_section(const wrt_gto *g, uint32_t id, const float *q, const char *path) {
     uint8_t *b = malloc(g->size);
     if (!b) return -1;
     memcpy(b, g->map, g->size);
     uint32_t ns = rd32(b, 28);
     for (uint32_t i = 0; i < ns; i++) {
         size_t e = 64 + 48 * (size_t)i;
-        if (rd32(b, e) != 9) continue;
+        if (rd32(b, e) != id) continue;
         uint64_t off = rd64(b, e + 8), sz = rd64(b, e + 16);
         memcpy(b + off, q, sz);
         wr64(b, e + 32, wrt_gto_checksum(b + off, (size_t)sz));
@@ -153,6 +155,56 @@ static int write_copy(const wrt_gto *g, const float *q, const char *path) {
     if (f && fclose(f) != 0) ok = 0;
     free(b);
     return ok ? 0 : -1;
+}
+static int write_copy(const wrt_gto *g, const float *q, const char *path) { return write_copy_section(g, 9, q, path); }
+
+/* --k PREFIX: K's values (one channel; a file with float K, sections 14-15) quantized as
+ * section kcode does (formats/gto_kcode.c: blocks of up to 64 entries of a column whose
+ * rows step by less than 256, a base exponent per block, an entry's mantissa of B bits
+ * with a 2-bit exponent above it), for B = 14 (the file's) and coarser; per B the bytes
+ * an entry (mantissa and exponent, a u8 row delta, the blocks' 8 bytes and bcol's 4 a
+ * column shared out), the relative Frobenius error of K and the largest relative error
+ * of a column, and PREFIX_kB.gto: the file with K's values replaced, for wrt-compare. */
+static int k_study(const wrt_gto *g, const char *prefix) {
+    static const int bits[] = {14, 10, 8, 6, 4};
+    uint64_t n = g->knnz, nb = 0;
+    float *q = malloc((n + 1) * sizeof *q);
+    if (!q) return 4;
+    for (uint32_t j = 0; j < g->nkcols; j++)
+        for (uint64_t a = g->kcol_start[j], b; a < g->kcol_start[j + 1]; a = b, nb++)
+            for (b = a + 1; b < g->kcol_start[j + 1] && b - a < BLOCK_MAX && g->krows[b] - g->krows[b - 1] < 256;) b++;
+    printf("%" PRIu64 " K entries, %u columns, %" PRIu64 " blocks; float K: 8 bytes an entry\n", n, g->nkcols, nb);
+    printf("| mantissa bits | bytes an entry | K MB | rel. Frobenius | max column |\n|---|---|---|---|---|\n");
+    for (size_t k = 0; k < sizeof bits / sizeof *bits; k++) {
+        double mmax = exp2(bits[k] - 1) - 1, se = 0, sv = 0, colmax = 0;
+        for (uint32_t j = 0; j < g->nkcols; j++) {
+            double ce = 0, cv = 0;
+            for (uint64_t a = g->kcol_start[j], b; a < g->kcol_start[j + 1]; a = b) {
+                for (b = a + 1; b < g->kcol_start[j + 1] && b - a < BLOCK_MAX && g->krows[b] - g->krows[b - 1] < 256;) b++;
+                int emax = -126;
+                for (uint64_t i = a; i < b; i++)
+                    if (g->kvals[i] != 0) emax = (int)fmax(emax, ceil(log2(fabs(g->kvals[i]) / mmax)));
+                for (uint64_t i = a; i < b; i++) {
+                    double v = g->kvals[i];
+                    int e = v != 0 ? (int)ceil(log2(fabs(v) / mmax)) : emax - 3;
+                    e = e < emax - 3 ? emax - 3 : e > emax ? emax : e;
+                    q[i] = (float)ldexp(nearbyint(ldexp(v, -e)), e);
+                    ce += (q[i] - v) * (q[i] - v);
+                    cv += v * v;
+                }
+            }
+            se += ce; sv += cv;
+            if (cv > 0) colmax = fmax(colmax, sqrt(ce / cv));
+        }
+        double bpe = (bits[k] + 2) / 8.0 + 1 + (8.0 * nb + 4.0 * (g->nkcols + 1)) / (double)n;
+        printf("| %d | %.2f | %.2f | %.2e | %.2e |\n", bits[k], bpe, bpe * (double)n / 1e6, sqrt(se / fmax(sv, 1e-300)),
+               colmax);
+        char path[4096];
+        snprintf(path, sizeof path, "%s_k%d.gto", prefix, bits[k]);
+        if (write_copy_section(g, 15, q, path) != 0) { fprintf(stderr, "codec_study: error: cannot write %s\n", path); free(q); return 3; }
+    }
+    free(q);
+    return 0;
 }
 
 
@@ -166,7 +218,7 @@ static int write_copy(const wrt_gto *g, const float *q, const char *path) {
 typedef struct drop_spec { double e; wrt_drop_rule r; } drop_spec;
 
 static int parse_spec(const char *t, drop_spec *d) {
-    *d = (drop_spec){6.25e-5, {0, 0, 0}};
+    *d = (drop_spec){6.25e-5, {0, 0, 0, 0}};
     while (*t) {
         char k = t[0], *end;
         if (t[1] != '=') return -1;
@@ -257,15 +309,21 @@ static int drop_study(const wrt_gto *g, const char *prefix, int nspec, char **sp
 }
 
 int main(int argc, char **argv) {
-    int drop = argc >= 5 && !strcmp(argv[2], "--drop");
-    if (argc != 2 && !(argc == 4 && !strcmp(argv[2], "--write")) && !drop) {
-        fprintf(stderr, "usage: codec_study FILE.gto [--write PREFIX | --drop PREFIX SPEC...]\n");
+    int drop = argc >= 5 && !strcmp(argv[2], "--drop"), kst = argc == 4 && !strcmp(argv[2], "--k");
+    if (argc != 2 && !(argc == 4 && !strcmp(argv[2], "--write")) && !drop && !kst) {
+        fprintf(stderr, "usage: codec_study FILE.gto [--write PREFIX | --drop PREFIX SPEC... | --k PREFIX]\n");
         return 1;
     }
     wrt_gto g;
     if (wrt_gto_open(argv[1], &g) != WRT_OK) {
         fprintf(stderr, "codec_study: error: %s\n", wrt_last_error());
         return 2;
+    }
+    if (kst) {
+        int rc = g.kvals && g.knnz ? k_study(&g, argv[3]) : 2;
+        if (rc == 2) fprintf(stderr, "codec_study: error: %s: no float K to study (bake with --float-k)\n", argv[1]);
+        wrt_gto_close(&g);
+        return rc;
     }
     if (!g.vals || g.nnz == 0) {
         fprintf(stderr, "codec_study: error: %s: no float entries to study\n", argv[1]);

@@ -7,7 +7,8 @@
  * hands out, the way the player uses it, the first-bounce operator K included. Built
  * by `make fuzz`; the seeds are tests/data/fuzz_gto and tests/data/gto (which holds a
  * file with K, v1.1_k_small.gto, so that mutations reach K's checks, and a compact 2.0
- * file, v2.0_compact_small.gto, for the opcode section's). */
+ * file, v2.0_compact_small.gto, for the opcode section's, and one with the compact K,
+ * v2.0_kcode_small.gto, for section kcode's). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -90,12 +91,18 @@ static double touch(const wrt_gto *g) {
             }
         }
     for (size_t i = 0; i < g->provenance_len; i++) s += g->provenance[i];
-    /* K: each column's key, its entries' rows looked up in fkeys, as the player does. */
+    /* K: each column's key, its entries' rows looked up in fkeys, as the player does (the
+     * compact section kcode decoded first, as the player does). */
+    uint32_t *kr = g->knnz ? malloc(sizeof *kr * g->knnz) : NULL;
+    float *kv = g->knnz ? malloc(sizeof *kv * g->knnz) : NULL;
+    if (g->knnz && (!kr || !kv)) { free(kr); free(kv); return s; }
+    wrt_gto_k_entries(g, kr, kv);
     for (uint32_t j = 0; j < g->nkcols; j++) {
         s += (double)g->kkeys[j];
         for (uint64_t e = g->kcol_start[j]; e < g->kcol_start[j + 1]; e++)
-            s += (double)g->fkeys[g->krows[e]] + g->kvals[e];
+            s += (double)g->fkeys[kr[e]] + kv[e];
     }
+    free(kr); free(kv);
     return s;
 }
 
