@@ -23,6 +23,7 @@
 #include "budget.h"
 #include "links.h"
 #include "cluster.h"
+#include "dist.h"
 
 void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->quality <= 0) o->quality = 5;
@@ -158,11 +159,14 @@ typedef struct dto_job {
     atomic_size_t done;
     size_t total;
     size_t phase, stride; /* this run's pairs: phase, phase + stride, ... */
+    const int *owner;     /* wrt-bake-mpi: the rank that computes each pair (NULL: all here) */
+    int rank;
 } dto_job;
 
 static void dto_one(size_t i, int th, void *user) {
     dto_job *j = user;
     i = j->phase + i * j->stride;
+    if (j->owner && j->owner[i] != j->rank) return; /* another rank's (dist.h) */
     wrt_dto_pair(j->b, j->pr[i], j->ps[i], j->occl[i], &j->tc[th], &j->out[i]);
     atomic_fetch_add(&j->done, 1);
 }
@@ -394,6 +398,24 @@ static void bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters 
     C->cluster_depth = cl->tree.depth;
 }
 
+/* wrt-bake-mpi: each pair's rank (dist.h), by an estimated cost: the refinement grows
+ * with how much of each other the quads see (a form factor's scale, sqrt(A_r A_s) over
+ * the squared distance of their centres), and visibility rays triple a pair's work
+ * where an occluder may lie between (measured on the 9 x 9 maze: docs/mpi.md). */
+static int *bake_pair_owners(const bake_ctx *b, const pair_list *pl) {
+    double *cost = wrt_xmalloc((pl->np ? pl->np : 1) * sizeof *cost);
+    for (size_t i = 0; i < pl->np; i++) {
+        const wrt_quad *r = &b->quads[pl->pr[i]], *q = &b->quads[pl->ps[i]];
+        wrt_v3 cr = v3_scale(v3_add(r->p[0], r->p[2]), 0.5), cs = v3_scale(v3_add(q->p[0], q->p[2]), 0.5);
+        double d2 = v3_dot(v3_sub(cr, cs), v3_sub(cr, cs)), a = sqrt(r->area * q->area);
+        cost[i] = (pl->occl[i] ? 3.0 : 1.0) * (1.0 + 8.0 * a / (d2 + 0.5 * (r->area + q->area)));
+    }
+    int *owner = wrt_xmalloc((pl->np ? pl->np : 1) * sizeof *owner);
+    wrt_dist_assign(cost, pl->np, b->opt.dist->nranks, owner);
+    free(cost);
+    return owner;
+}
+
 /* Stage 5: the DTO's links and entries, pair by pair in parallel, with the memory check
  * after every chunk; the threads' counters summed; the status so far */
 static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *pl, dto_job *job,
@@ -405,6 +427,10 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
      * would balance better, but the order does not change the result */
     int nt = wrt_threads_resolve(b->opt.threads);
     *job = (dto_job){.b = b, .pr = pr, .ps = ps, .occl = occl, .total = np};
+    if (wrt_dist_on(b->opt.dist)) {
+        job->owner = bake_pair_owners(b, pl);
+        job->rank = b->opt.dist->rank;
+    }
     atomic_init(&job->done, 0);
     job->out = wrt_xcalloc(np ? np : 1, sizeof *job->out);
     job->tc = wrt_xcalloc((size_t)nt, sizeof *job->tc);
@@ -605,7 +631,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     atomic_init(&cancel, 0);
     b.cancel = &cancel;
     wrt_bake_counters *C = &res->c;
-    double t0 = wrt_now();
+    double t0 = wrt_now(), cpu0 = wrt_dist_cpu_now();
     C->open_quad = -1;
     /* the dto phase starts here, with its preparation (frame, materials, ray tracer, pairs) */
     if (b.opt.progress) b.opt.progress("dto", 0, b.opt.progress_user);
@@ -638,13 +664,24 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     atomic_ullong pool_bytes, pool_refused;
     dto_job job;
     wrt_status st = bake_dto(&b, C, &pl, &job, &pool_bytes, &pool_refused);
+    if (job.owner) { /* wrt-bake-mpi: every rank gets every pair's links, and the counters' sums */
+        if (st == WRT_OK) st = wrt_dist_merge_pairs(b.opt.dist, job.owner, job.out, pl.np);
+        uint64_t sums[7] = {C->samples, C->rays_traced, C->rays_skipped_facing, C->rays_skipped_unoccluded,
+                            C->links_refined, C->links_leaf, C->links_invisible};
+        if (st == WRT_OK) st = wrt_dist_sum_u64(b.opt.dist, sums, 7);
+        C->samples = sums[0]; C->rays_traced = sums[1]; C->rays_skipped_facing = sums[2];
+        C->rays_skipped_unoccluded = sums[3]; C->links_refined = sums[4]; C->links_leaf = sums[5];
+        C->links_invisible = sums[6];
+        free((void *)job.owner);
+    }
     st = bake_assemble(&b, C, &pl, &job, st, res);
     int *pr = pl.pr, *ps = pl.ps;
     uint8_t *occl = pl.occl;
     size_t np = pl.np;
     for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].leaf); }
     free(job.out); free(job.tc); free(pr); free(ps); free(occl);
-    double t_end = wrt_now();
+    double t_end = wrt_now(), cpu1 = wrt_dist_cpu_now();
+    if (b.opt.dist) b.opt.dist->cpu_dto = cpu1 - cpu0;
     C->t_dto = t_end - t0;
     C->t_balance_phase = C->t_balance_begin > 0 ? t_end - C->t_balance_begin : 0;
 
@@ -656,6 +693,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         double t1 = wrt_now();
         st = wrt_series_run(&b, res);
         C->t_gto = wrt_now() - t1;
+        if (b.opt.dist) b.opt.dist->cpu_series = wrt_dist_cpu_now() - cpu1;
     }
     rtcReleaseScene(b.rtc);
     rtcReleaseDevice(b.dev);
