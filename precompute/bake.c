@@ -316,6 +316,32 @@ static wrt_status bake_embree(bake_ctx *b) {
 }
 
 /* Stage 4: the pairs that exchange light, T's then K's */
+/* A pair's kind: 0 the quads cannot exchange light, 1 they can and no quad can lie
+ * between them, 3 one may. */
+static uint8_t pair_code(const bake_ctx *b, int r, int s) {
+    if (!can_exchange(b, &b->quads[r], &b->quads[s])) return 0;
+    for (int o = 0; o < b->nq; o++)
+        if (o != r && o != s && may_occlude(b, &b->quads[r], &b->quads[s], &b->quads[o])) return 3;
+    return 1;
+}
+
+/* wrt-bake-mpi: the kinds of the pairs of receivers [r0, r1), each rank computing every
+ * nranks-th receiver, gathered in receiver order (dist.h): the occluder search is
+ * O(N^3), the rest of the pair list is not. NULL where the exchange failed. */
+static uint8_t *pair_codes_dist(const bake_ctx *b, int r0, int r1) {
+    wrt_bake_dist *d = b->opt.dist;
+    size_t nq = (size_t)b->nq, mine = 0;
+    uint8_t *buf = wrt_xmalloc(((size_t)(r1 - r0) / (size_t)d->nranks + 1) * nq);
+    for (int r = r0 + d->rank; r < r1; r += d->nranks, mine++)
+        for (int s = 0; s < b->nq; s++) buf[mine * nq + (size_t)s] = r == s ? 0 : pair_code(b, r, s);
+    int *owner = wrt_xmalloc((size_t)(r1 - r0) * sizeof *owner);
+    for (int r = r0; r < r1; r++) owner[r - r0] = (r - r0) % d->nranks;
+    uint8_t *codes = wrt_dist_gather_rows(d, owner, (size_t)(r1 - r0), buf, nq);
+    free(owner);
+    free(buf);
+    return codes;
+}
+
 static void bake_pairs(const bake_ctx *b, const wrt_scene *scene, wrt_bake_counters *C, pair_list *pl) {
     /* pairs */
     size_t cap = 64, np = 0, kcap = 16, nkp = 0;
@@ -323,14 +349,21 @@ static void bake_pairs(const bake_ctx *b, const wrt_scene *scene, wrt_bake_count
     uint8_t *occl = wrt_xmalloc(cap);
     int *kpr = wrt_xmalloc(kcap * sizeof *kpr), *kps = wrt_xmalloc(kcap * sizeof *kps);
     uint8_t *kocc = wrt_xmalloc(kcap);
+    const int block = 256; /* wrt-bake-mpi: receivers per exchange of the pairs' kinds */
+    uint8_t *codes = NULL;
     for (int r = 0; r < b->nq; r++) {
+        if (wrt_dist_on(b->opt.dist) && r % block == 0) {
+            free(codes);
+            codes = pair_codes_dist(b, r, r + block < b->nq ? r + block : b->nq);
+            if (!codes) atomic_store(b->cancel, 1); /* the exchange failed: the bake stops (bake_dto) */
+        }
         for (int s = 0; s < b->nq; s++) {
             if (r == s) continue;
             C->pairs_total++;
-            if (!can_exchange(b, &b->quads[r], &b->quads[s])) { C->pairs_skipped_facing++; continue; }
-            int oc = 0;
-            for (int o = 0; o < b->nq && !oc; o++)
-                if (o != r && o != s && may_occlude(b, &b->quads[r], &b->quads[s], &b->quads[o])) oc = 1;
+            uint8_t code = codes ? codes[(size_t)(r % block) * (size_t)b->nq + (size_t)s]
+                                 : wrt_dist_on(b->opt.dist) ? 0 : pair_code(b, r, s);
+            if (!code) { C->pairs_skipped_facing++; continue; }
+            int oc = code == 3;
             if (np + 1 >= cap) {
                 cap *= 2;
                 pr = wrt_xrealloc(pr, cap * sizeof *pr); ps = wrt_xrealloc(ps, cap * sizeof *ps);
@@ -363,7 +396,7 @@ static void bake_pairs(const bake_ctx *b, const wrt_scene *scene, wrt_bake_count
     }
     memcpy(pr + np, kpr, nkp * sizeof *pr); memcpy(ps + np, kps, nkp * sizeof *ps); memcpy(occl + np, kocc, nkp);
     np += nkp;
-    free(kpr); free(kps); free(kocc);
+    free(kpr); free(kps); free(kocc); free(codes);
 
     pl->pr = pr; pl->ps = ps; pl->occl = occl; pl->np = np; pl->npt = npt;
 }
@@ -675,6 +708,8 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         free((void *)job.owner);
     }
     st = bake_assemble(&b, C, &pl, &job, st, res);
+    if (st == WRT_OK && wrt_dist_on(b.opt.dist) && atomic_load(&cancel)) /* the balance's exchange failed */
+        st = wrt_fail(WRT_ERR_IO, "the ranks' exchange of the power balance failed: %s", wrt_last_error());
     int *pr = pl.pr, *ps = pl.ps;
     uint8_t *occl = pl.occl;
     size_t np = pl.np;

@@ -192,3 +192,66 @@ double wrt_dist_cpu_now(void) {
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
+
+/* ---------------------------------------------------------------- per-item triplets */
+
+wrt_status wrt_dist_merge_triplets(wrt_bake_dist *d, const int *owner, wrt_triplet **res, uint64_t *nres, size_t n) {
+    uint64_t len = 0;
+    for (size_t s = 0; s < n; s++)
+        if (owner[s] == d->rank) len += 16 + nres[s] * sizeof(wrt_triplet);
+    uint8_t *buf = wrt_xmalloc(len ? len : 1), *p = buf;
+    for (size_t s = 0; s < n; s++) {
+        if (owner[s] != d->rank) continue;
+        uint64_t h[2] = {s, nres[s]};
+        memcpy(p, h, 16);
+        p += 16;
+        if (nres[s]) memcpy(p, res[s], nres[s] * sizeof(wrt_triplet));
+        p += nres[s] * sizeof(wrt_triplet);
+    }
+    int nr = d->nranks;
+    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
+    void *all = NULL;
+    wrt_status st = d->allgather(d->user, buf, len, &all, lens);
+    free(buf);
+    if (st != WRT_OK) { free(lens); return st; }
+    d->bytes_sent[WRT_DIST_DTO] += len * (uint64_t)(nr - 1);
+    const uint8_t *q = all;
+    for (int r = 0; r < nr; r++) {
+        const uint8_t *end = q + lens[r];
+        if (r == d->rank) { q = end; continue; }
+        d->bytes_recv[WRT_DIST_DTO] += lens[r];
+        while (q < end) {
+            uint64_t h[2];
+            memcpy(h, q, 16);
+            q += 16;
+            free(res[h[0]]);
+            nres[h[0]] = h[1];
+            res[h[0]] = h[1] ? wrt_xmalloc(h[1] * sizeof(wrt_triplet)) : NULL;
+            if (h[1]) memcpy(res[h[0]], q, h[1] * sizeof(wrt_triplet));
+            q += h[1] * sizeof(wrt_triplet);
+        }
+    }
+    free(all); free(lens);
+    return WRT_OK;
+}
+
+uint8_t *wrt_dist_gather_rows(wrt_bake_dist *d, const int *owner, size_t nrows, const uint8_t *mine, size_t width) {
+    uint64_t len = 0;
+    for (size_t i = 0; i < nrows; i++) len += owner[i] == d->rank ? width : 0;
+    int nr = d->nranks;
+    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
+    void *all = NULL;
+    if (d->allgather(d->user, mine, len, &all, lens) != WRT_OK) { free(lens); return NULL; }
+    d->bytes_sent[WRT_DIST_DTO] += len * (uint64_t)(nr - 1);
+    uint64_t *at = wrt_xcalloc((size_t)nr, sizeof *at);
+    for (int r = 1; r < nr; r++) at[r] = at[r - 1] + lens[r - 1];
+    for (int r = 0; r < nr; r++) d->bytes_recv[WRT_DIST_DTO] += r == d->rank ? 0 : lens[r];
+    uint8_t *rows = wrt_xmalloc(nrows * width + 1);
+    const uint8_t *a = all;
+    for (size_t i = 0; i < nrows; i++) {
+        memcpy(rows + i * width, a + at[owner[i]], width); /* a rank's rows in their order */
+        at[owner[i]] += width;
+    }
+    free(at); free(lens); free(all);
+    return rows;
+}

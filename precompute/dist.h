@@ -50,6 +50,14 @@ wrt_status wrt_dist_mul(wrt_bake_dist *d, const wrt_csc *a, const wrt_csc *b, do
 struct pair_out;
 wrt_status wrt_dist_merge_pairs(wrt_bake_dist *d, const int *owner, struct pair_out *out, size_t np);
 
+/* Per-item results (n items, item s computed by rank owner[s]: res[s], nres[s]
+ * triplets); afterwards every rank holds every item's (the balance's senders). */
+wrt_status wrt_dist_merge_triplets(wrt_bake_dist *d, const int *owner, wrt_triplet **res, uint64_t *nres, size_t n);
+
+/* Rows of `width` bytes, row i computed by rank owner[i]: `mine` holds this rank's
+ * rows in order; returns every row in order (malloc'd), NULL where the exchange failed. */
+uint8_t *wrt_dist_gather_rows(wrt_bake_dist *d, const int *owner, size_t nrows, const uint8_t *mine, size_t width);
+
 /* This process's CPU seconds so far (all its threads). */
 double wrt_dist_cpu_now(void);
 
