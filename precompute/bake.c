@@ -433,8 +433,9 @@ static void bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters 
 
 /* wrt-bake-mpi: each pair's rank (dist.h), by an estimated cost: the refinement grows
  * with how much of each other the quads see (a form factor's scale, sqrt(A_r A_s) over
- * the squared distance of their centres), and visibility rays triple a pair's work
- * where an occluder may lie between (measured on the 9 x 9 maze: docs/mpi.md). */
+ * the squared distance of their centres), and visibility rays roughly triple a pair's
+ * work where an occluder may lie between: a first guess, not fitted (the ranks' DTO
+ * phases came within 5% of one another on the 9 x 9 maze and the atrium, docs/mpi.md). */
 static int *bake_pair_owners(const bake_ctx *b, const pair_list *pl) {
     double *cost = wrt_xmalloc((pl->np ? pl->np : 1) * sizeof *cost);
     for (size_t i = 0; i < pl->np; i++) {
