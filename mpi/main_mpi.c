@@ -18,7 +18,21 @@
 /* Bytes per rank per round of MPI_Allgatherv, whose counts are ints */
 #define ROUND_BYTES ((uint64_t)1 << 30)
 
+/* CPU and wall seconds spent in the all-gathers (waiting for the slowest rank included:
+ * Open MPI polls), for WRT_MPI_REPORT */
+static double gather_cpu, gather_wall;
+
+static wrt_status mpi_allgather_timed(void *user, const void *mine, uint64_t len, void **all, uint64_t *lens);
+
 static wrt_status mpi_allgather(void *user, const void *mine, uint64_t len, void **all, uint64_t *lens) {
+    double c0 = wrt_dist_cpu_now(), w0 = wrt_now();
+    wrt_status st = mpi_allgather_timed(user, mine, len, all, lens);
+    gather_cpu += wrt_dist_cpu_now() - c0;
+    gather_wall += wrt_now() - w0;
+    return st;
+}
+
+static wrt_status mpi_allgather_timed(void *user, const void *mine, uint64_t len, void **all, uint64_t *lens) {
     (void)user;
     int nr;
     MPI_Comm_size(MPI_COMM_WORLD, &nr);
@@ -66,11 +80,12 @@ static void report(const wrt_bake_dist *d) {
     if (!e || strcmp(e, "1")) return;
     fprintf(stderr,
             "wrt-bake-mpi: rank %d of %d: cpu dto %.2f s series %.2f s; peak rss %.1f MB; sent dto %llu series %llu "
-            "counters %llu bytes; received dto %llu series %llu counters %llu bytes\n",
+            "counters %llu bytes; received dto %llu series %llu counters %llu bytes; in all-gathers cpu %.2f s "
+            "wall %.2f s\n",
             d->rank, d->nranks, d->cpu_dto, d->cpu_series, (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0),
             (unsigned long long)d->bytes_sent[0], (unsigned long long)d->bytes_sent[1],
             (unsigned long long)d->bytes_sent[2], (unsigned long long)d->bytes_recv[0],
-            (unsigned long long)d->bytes_recv[1], (unsigned long long)d->bytes_recv[2]);
+            (unsigned long long)d->bytes_recv[1], (unsigned long long)d->bytes_recv[2], gather_cpu, gather_wall);
 }
 
 int main(int argc, char **argv) {
