@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # mpi.sh: wrt-bake-mpi (docs/mpi.md) against wrt-bake. The same bytes at -np 1, 2 and 3
-# (oversubscribed) on cornell, a 9 x 9 maze and the atrium with --clusters, each compared
+# (oversubscribed) on cornell, a 9 x 9 maze, the atrium with --clusters and the glossy
+# asset (its first-bounce operator K), each compared
 # with the single process's file: the ranks divide the DTO's pairs, the balance's senders,
 # the pair list's occluder search and the series' product columns, and any slip in a
 # merge's order or a share computed twice or not at all changes the file. Then the
@@ -48,6 +49,7 @@ same() { # NAME NPS SCENE OPTIONS...
 same cornell "1 2 3" assets/cornell.gltf -q 3
 same maze9 "2 3" "$tmp/maze9.gltf" -q 1
 same atrium-clusters "2 3" "$tmp/atrium.gltf" -q 1 --clusters
+same glossy "3" assets/glossy.gltf -q 1   # the first-bounce operator K's pairs and the glossy balances
 # the summary on stdout is rank 0's alone, once
 mpi 2 "$mpibake" assets/cornell.gltf -o "$tmp/c.gto" -q 2 >"$tmp/out" 2>"$tmp/err"
 [ "$(grep -c '^baked ' "$tmp/out")" = 1 ] && ok "one summary from two ranks" || ko "summary lines: $(grep -c '^baked ' "$tmp/out")"
