@@ -86,6 +86,18 @@ all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/examples/
 deps:
 	@bash tools/install-deps.sh
 
+# wrt-bake-mpi (docs/mpi.md): wrt-bake divided among MPI ranks, built when Open MPI's
+# mpicc is found (Debian: libopenmpi-dev openmpi-bin, installed by `make deps`); wrt-bake
+# itself needs no MPI.
+MPICC ?= mpicc
+HAVE_MPI := $(shell command -v $(MPICC) >/dev/null 2>&1 && echo 1)
+ifeq ($(HAVE_MPI),1)
+MPI_PROGRAM := $(BUILD)/wrt-bake-mpi
+MPI_CFLAGS := $(shell $(MPICC) --showme:compile)
+MPI_LIBS := $(shell $(MPICC) --showme:link)
+endif
+all: $(MPI_PROGRAM)
+
 # A plain `make` on a machine without the packages names them and the command that
 # installs them, before any compiler error (checked once per build directory).
 $(BUILD)/.deps-checked: tools/check-deps.sh
@@ -160,6 +172,22 @@ $(BUILD)/wrt-bake: $(call obj,precompute/main.c) $(BAKE_OBJ) $(VERIFY_OBJ) $(RUN
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
 
+# wrt-bake-mpi: wrt-bake's main.c without its main (the same command line, bake_cli.h)
+# and mpi/main_mpi.c's, which gives the bake its ranks.
+$(BUILD)/obj-mpi/precompute/main.o: precompute/main.c | $(BUILD)/.deps-checked
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  CC      $< (no main)")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) -DWRT_BAKE_CLI_NO_MAIN -c $< -o $@
+
+$(BUILD)/obj/mpi/main_mpi.o: mpi/main_mpi.c | $(BUILD)/.deps-checked
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  MPICC   $<")
+	$(Q)$(CC) $(CPPFLAGS) $(CFLAGS) $(MPI_CFLAGS) -c $< -o $@
+
+$(BUILD)/wrt-bake-mpi: $(BUILD)/obj/mpi/main_mpi.o $(BUILD)/obj-mpi/precompute/main.o $(BAKE_OBJ) $(VERIFY_OBJ) $(RUNTIME_OBJ) $(BAKE_CORE_OBJ)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(MPI_LIBS) $(LIBS_CORE)
+
 $(BUILD)/wrt-play: $(call obj,$(PLAY_MAIN)) $(PLAY_OBJ) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_GL) $(LIBS_IMG) $(LIBS_CORE)
@@ -209,6 +237,7 @@ TEST_PARTS_test_bake := bake formats common
 TEST_PARTS_test_drop := bake formats common
 TEST_PARTS_test_cluster := bake formats common
 TEST_PARTS_test_sparse := bake formats common
+TEST_PARTS_test_dist := bake formats common
 TEST_PARTS_test_relight := runtime formats common
 TEST_PARTS_test_reconstruct := bake runtime formats common
 TEST_PARTS_test_reference := verify formats common

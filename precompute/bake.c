@@ -23,6 +23,7 @@
 #include "budget.h"
 #include "links.h"
 #include "cluster.h"
+#include "dist.h"
 
 void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->quality <= 0) o->quality = 5;
@@ -166,11 +167,14 @@ typedef struct dto_job {
     atomic_size_t done;
     size_t total;
     size_t phase, stride; /* this run's pairs: phase, phase + stride, ... */
+    const int *owner;     /* wrt-bake-mpi: the rank that computes each pair (NULL: all here) */
+    int rank;
 } dto_job;
 
 static void dto_one(size_t i, int th, void *user) {
     dto_job *j = user;
     i = j->phase + i * j->stride;
+    if (j->owner && j->owner[i] != j->rank) return; /* another rank's (dist.h) */
     wrt_dto_pair(j->b, j->pr[i], j->ps[i], j->occl[i], &j->tc[th], &j->out[i]);
     atomic_fetch_add(&j->done, 1);
 }
@@ -320,6 +324,32 @@ static wrt_status bake_embree(bake_ctx *b) {
 }
 
 /* Stage 4: the pairs that exchange light, T's then K's */
+/* A pair's kind: 0 the quads cannot exchange light, 1 they can and no quad can lie
+ * between them, 3 one may. */
+static uint8_t pair_code(const bake_ctx *b, int r, int s) {
+    if (!can_exchange(b, &b->quads[r], &b->quads[s])) return 0;
+    for (int o = 0; o < b->nq; o++)
+        if (o != r && o != s && may_occlude(b, &b->quads[r], &b->quads[s], &b->quads[o])) return 3;
+    return 1;
+}
+
+/* wrt-bake-mpi: the kinds of the pairs of receivers [r0, r1), each rank computing every
+ * nranks-th receiver, gathered in receiver order (dist.h): the occluder search is
+ * O(N^3), the rest of the pair list is not. NULL where the exchange failed. */
+static uint8_t *pair_codes_dist(const bake_ctx *b, int r0, int r1) {
+    wrt_bake_dist *d = b->opt.dist;
+    size_t nq = (size_t)b->nq, mine = 0;
+    uint8_t *buf = wrt_xmalloc(((size_t)(r1 - r0) / (size_t)d->nranks + 1) * nq);
+    for (int r = r0 + d->rank; r < r1; r += d->nranks, mine++)
+        for (int s = 0; s < b->nq; s++) buf[mine * nq + (size_t)s] = r == s ? 0 : pair_code(b, r, s);
+    int *owner = wrt_xmalloc((size_t)(r1 - r0) * sizeof *owner);
+    for (int r = r0; r < r1; r++) owner[r - r0] = (r - r0) % d->nranks;
+    uint8_t *codes = wrt_dist_gather_rows(d, owner, (size_t)(r1 - r0), buf, nq);
+    free(owner);
+    free(buf);
+    return codes;
+}
+
 static void bake_pairs(const bake_ctx *b, const wrt_scene *scene, wrt_bake_counters *C, pair_list *pl) {
     /* pairs */
     size_t cap = 64, np = 0, kcap = 16, nkp = 0;
@@ -327,14 +357,21 @@ static void bake_pairs(const bake_ctx *b, const wrt_scene *scene, wrt_bake_count
     uint8_t *occl = wrt_xmalloc(cap);
     int *kpr = wrt_xmalloc(kcap * sizeof *kpr), *kps = wrt_xmalloc(kcap * sizeof *kps);
     uint8_t *kocc = wrt_xmalloc(kcap);
+    const int block = 256; /* wrt-bake-mpi: receivers per exchange of the pairs' kinds */
+    uint8_t *codes = NULL;
     for (int r = 0; r < b->nq; r++) {
+        if (wrt_dist_on(b->opt.dist) && r % block == 0) {
+            free(codes);
+            codes = pair_codes_dist(b, r, r + block < b->nq ? r + block : b->nq);
+            if (!codes) atomic_store(b->cancel, 1); /* the exchange failed: the bake stops (bake_dto) */
+        }
         for (int s = 0; s < b->nq; s++) {
             if (r == s) continue;
             C->pairs_total++;
-            if (!can_exchange(b, &b->quads[r], &b->quads[s])) { C->pairs_skipped_facing++; continue; }
-            int oc = 0;
-            for (int o = 0; o < b->nq && !oc; o++)
-                if (o != r && o != s && may_occlude(b, &b->quads[r], &b->quads[s], &b->quads[o])) oc = 1;
+            uint8_t code = codes ? codes[(size_t)(r % block) * (size_t)b->nq + (size_t)s]
+                                 : wrt_dist_on(b->opt.dist) ? 0 : pair_code(b, r, s);
+            if (!code) { C->pairs_skipped_facing++; continue; }
+            int oc = code == 3;
             if (np + 1 >= cap) {
                 cap *= 2;
                 pr = wrt_xrealloc(pr, cap * sizeof *pr); ps = wrt_xrealloc(ps, cap * sizeof *ps);
@@ -367,7 +404,7 @@ static void bake_pairs(const bake_ctx *b, const wrt_scene *scene, wrt_bake_count
     }
     memcpy(pr + np, kpr, nkp * sizeof *pr); memcpy(ps + np, kps, nkp * sizeof *ps); memcpy(occl + np, kocc, nkp);
     np += nkp;
-    free(kpr); free(kps); free(kocc);
+    free(kpr); free(kps); free(kocc); free(codes);
 
     pl->pr = pr; pl->ps = ps; pl->occl = occl; pl->np = np; pl->npt = npt;
 }
@@ -402,6 +439,25 @@ static void bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters 
     C->cluster_depth = cl->tree.depth;
 }
 
+/* wrt-bake-mpi: each pair's rank (dist.h), by an estimated cost: the refinement grows
+ * with how much of each other the quads see (a form factor's scale, sqrt(A_r A_s) over
+ * the squared distance of their centres), and visibility rays roughly triple a pair's
+ * work where an occluder may lie between: a first guess, not fitted (the ranks' DTO
+ * phases came within 5% of one another on the 9 x 9 maze and the atrium, docs/mpi.md). */
+static int *bake_pair_owners(const bake_ctx *b, const pair_list *pl) {
+    double *cost = wrt_xmalloc((pl->np ? pl->np : 1) * sizeof *cost);
+    for (size_t i = 0; i < pl->np; i++) {
+        const wrt_quad *r = &b->quads[pl->pr[i]], *q = &b->quads[pl->ps[i]];
+        wrt_v3 cr = v3_scale(v3_add(r->p[0], r->p[2]), 0.5), cs = v3_scale(v3_add(q->p[0], q->p[2]), 0.5);
+        double d2 = v3_dot(v3_sub(cr, cs), v3_sub(cr, cs)), a = sqrt(r->area * q->area);
+        cost[i] = (pl->occl[i] ? 3.0 : 1.0) * (1.0 + 8.0 * a / (d2 + 0.5 * (r->area + q->area)));
+    }
+    int *owner = wrt_xmalloc((pl->np ? pl->np : 1) * sizeof *owner);
+    wrt_dist_assign(cost, pl->np, b->opt.dist->nranks, owner);
+    free(cost);
+    return owner;
+}
+
 /* Stage 5: the DTO's links and entries, pair by pair in parallel, with the memory check
  * after every chunk; the threads' counters summed; the status so far */
 static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *pl, dto_job *job,
@@ -413,6 +469,10 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
      * would balance better, but the order does not change the result */
     int nt = wrt_threads_resolve(b->opt.threads);
     *job = (dto_job){.b = b, .pr = pr, .ps = ps, .occl = occl, .total = np};
+    if (wrt_dist_on(b->opt.dist)) {
+        job->owner = bake_pair_owners(b, pl);
+        job->rank = b->opt.dist->rank;
+    }
     atomic_init(&job->done, 0);
     job->out = wrt_xcalloc(np ? np : 1, sizeof *job->out);
     job->tc = wrt_xcalloc((size_t)nt, sizeof *job->tc);
@@ -613,7 +673,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     atomic_init(&cancel, 0);
     b.cancel = &cancel;
     wrt_bake_counters *C = &res->c;
-    double t0 = wrt_now();
+    double t0 = wrt_now(), cpu0 = wrt_dist_cpu_now();
     C->open_quad = -1;
     /* the dto phase starts here, with its preparation (frame, materials, ray tracer, pairs) */
     if (b.opt.progress) b.opt.progress("dto", 0, b.opt.progress_user);
@@ -646,13 +706,26 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     atomic_ullong pool_bytes, pool_refused;
     dto_job job;
     wrt_status st = bake_dto(&b, C, &pl, &job, &pool_bytes, &pool_refused);
+    if (job.owner) { /* wrt-bake-mpi: every rank gets every pair's links, and the counters' sums */
+        if (st == WRT_OK) st = wrt_dist_merge_pairs(b.opt.dist, job.owner, job.out, pl.np);
+        uint64_t sums[7] = {C->samples, C->rays_traced, C->rays_skipped_facing, C->rays_skipped_unoccluded,
+                            C->links_refined, C->links_leaf, C->links_invisible};
+        if (st == WRT_OK) st = wrt_dist_sum_u64(b.opt.dist, sums, 7);
+        C->samples = sums[0]; C->rays_traced = sums[1]; C->rays_skipped_facing = sums[2];
+        C->rays_skipped_unoccluded = sums[3]; C->links_refined = sums[4]; C->links_leaf = sums[5];
+        C->links_invisible = sums[6];
+        free((void *)job.owner);
+    }
     st = bake_assemble(&b, C, &pl, &job, st, res);
+    if (st == WRT_OK && wrt_dist_on(b.opt.dist) && atomic_load(&cancel)) /* the balance's exchange failed */
+        st = wrt_fail(WRT_ERR_IO, "the ranks' exchange of the power balance failed: %s", wrt_last_error());
     int *pr = pl.pr, *ps = pl.ps;
     uint8_t *occl = pl.occl;
     size_t np = pl.np;
     for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].leaf); }
     free(job.out); free(job.tc); free(pr); free(ps); free(occl);
-    double t_end = wrt_now();
+    double t_end = wrt_now(), cpu1 = wrt_dist_cpu_now();
+    if (b.opt.dist) b.opt.dist->cpu_dto = cpu1 - cpu0;
     C->t_dto = t_end - t0;
     C->t_balance_phase = C->t_balance_begin > 0 ? t_end - C->t_balance_begin : 0;
 
@@ -664,6 +737,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         double t1 = wrt_now();
         st = wrt_series_run(&b, res);
         C->t_gto = wrt_now() - t1;
+        if (b.opt.dist) b.opt.dist->cpu_series = wrt_dist_cpu_now() - cpu1;
     }
     rtcReleaseScene(b.rtc);
     rtcReleaseDevice(b.dev);

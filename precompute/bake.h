@@ -68,6 +68,9 @@ typedef struct wrt_bake_options {
                             * there (a trial: a copy and a transform of G - I); 2: always */
     wrt_progress_fn progress;
     void *progress_user;
+    /* NULL: one process. wrt-bake-mpi: the ranks and their all-gather (dist.h); the DTO's
+     * pairs and the series' products are divided among them, the result the same bytes */
+    struct wrt_bake_dist *dist;
 } wrt_bake_options;
 
 /* Resolves the zero fields of *o from o->quality (or the default quality 5). */

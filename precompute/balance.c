@@ -42,6 +42,7 @@
 #include "../common/brdf_table.h"
 #include "balance.h"
 #include "links.h"
+#include "dist.h"
 
 #define GL2 0.28867513459481287 /* 2 x 2 Gauss-Legendre: centre +- GL2 x side */
 
@@ -59,6 +60,7 @@ typedef struct bal_ctx {
     src_ref **refs; size_t *nrefs;  /* per sender quad */
     int closed;                     /* every ray from every quad meets a quad's front */
     wrt_triplet **res; uint64_t *nres;
+    const int *owner; int rank;     /* wrt-bake-mpi: each sender's rank (NULL: all here; dist.h) */
 } bal_ctx;
 
 static int cmp_u32(const void *pa, const void *pb) {
@@ -583,7 +585,7 @@ static void balance_sender(size_t si, int th, void *user) {
     const bake_ctx *b = c->b;
     int s = (int)si;
     c->res[s] = NULL; c->nres[s] = 0;
-    if (!c->nrefs[s]) return;
+    if (!c->nrefs[s] || (c->owner && c->owner[s] != c->rank)) return;
     sender_data d = {.c = c, .b = b, .s = s, .Sq = &b->quads[s], .rho = b->rho[s]};
     sender_tree(c->fkeys, c->nf, s, 1, &d.tree, &d.nt, &d.leaves, &d.nl);
     sender_receivers(&d);
@@ -649,7 +651,20 @@ int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, 
     }
     c.res = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof *c.res);
     c.nres = wrt_xcalloc((size_t)(nq ? nq : 1), sizeof *c.nres);
+    int *owner = NULL;
+    if (wrt_dist_on(b->opt.dist)) { /* wrt-bake-mpi: the senders divided by their leaf links */
+        double *cost = wrt_xmalloc((size_t)(nq ? nq : 1) * sizeof *cost);
+        for (int s = 0; s < nq; s++) cost[s] = (double)c.nrefs[s];
+        owner = wrt_xmalloc((size_t)(nq ? nq : 1) * sizeof *owner);
+        wrt_dist_assign(cost, (uint64_t)nq, b->opt.dist->nranks, owner);
+        free(cost);
+        c.owner = owner;
+        c.rank = b->opt.dist->rank;
+    }
     wrt_parallel_for((size_t)nq, b->opt.threads, balance_sender, &c);
+    if (owner && wrt_dist_merge_triplets(b->opt.dist, owner, c.res, c.nres, (size_t)nq) != WRT_OK)
+        atomic_store(b->cancel, 1); /* the bake stops after the balance (bake.c) */
+    free(owner);
     for (int s = 0; s < nq; s++) {
         if (*nt + c.nres[s] > *cap) {
             *cap = (*nt + c.nres[s]) * 2;

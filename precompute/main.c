@@ -22,6 +22,8 @@
 #include "../verify/compare.h"
 #include "bake.h"
 #include "scan.h"
+#include "bake_cli.h"
+#include "dist.h"
 
 static void usage(FILE *f) {
     fprintf(f,
@@ -745,12 +747,29 @@ static int bake(bake_args *A, const wrt_load_options *lo) {
     return rc;
 }
 
-int main(int argc, char **argv) {
+/* wrt-bake-mpi's ranks other than 0 (dist): the same load and bake, their shares of it
+ * (dist.h), and nothing written or printed; 0, or the exit code. */
+static int bake_rank(bake_args *A, const wrt_load_options *lo) {
+    wrt_scene s;
+    int rc = load_scene(A, lo, &s);
+    if (rc != GO_ON) return rc;
+    wrt_bake_result r;
+    rc = run_bake(A, &s, &r);
+    if (rc != GO_ON) return rc;
+    wrt_bake_result_free(&r);
+    wrt_scene_free(&s);
+    return 0;
+}
+
+int wrt_bake_cli(int argc, char **argv, struct wrt_bake_dist *dist) {
     wrt_cli_init("wrt-bake"); /* stdout checked at exit (3), out of memory: exit 7 */
     install_interrupt_exit(); /* first: a signal from here on exits 4, writing nothing */
     bake_args A;
     int rc = parse_args(argc, argv, &A);
     if (rc != GO_ON) return rc;
+    A.o.dist = dist;
+    int writer = !dist || dist->rank == 0; /* the rank that reports and writes the file */
+    if (!writer && (A.print_config || A.info || A.scan)) return 0;
     if (A.print_config) {
         wrt_bake_defaults(&A.o);
         json_options(stdout, &A.o);
@@ -766,6 +785,10 @@ int main(int argc, char **argv) {
         return WRT_EXIT_INPUT;
     }
     if (!A.out_path) { fprintf(stderr, "wrt-bake: error: no output file (-o OUT.gto)\n"); return WRT_EXIT_USAGE; }
-    wrt_cli_progress_enable(!A.quiet && (A.force_progress || isatty(2)));
-    return bake(&A, &lo);
+    wrt_cli_progress_enable(writer && !A.quiet && (A.force_progress || isatty(2)));
+    return writer ? bake(&A, &lo) : bake_rank(&A, &lo);
 }
+
+#ifndef WRT_BAKE_CLI_NO_MAIN /* wrt-bake-mpi has its own main (mpi/main_mpi.c) */
+int main(int argc, char **argv) { return wrt_bake_cli(argc, argv, NULL); }
+#endif

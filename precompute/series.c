@@ -27,6 +27,7 @@
 #include "links.h"
 #include "cluster.h"
 #include "drop_rule.h"
+#include "dist.h"
 
 /* Memory before each product: the product's entries, estimated from every 64th of its
  * columns (sparse.h; computed and discarded), and again from every 16th where that
@@ -50,6 +51,17 @@ static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, c
         need = per * 1.25 * (1 + 1.0 / 32) * (double)est;
     }
     return wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, (uint64_t)need, what);
+}
+
+/* A product of the series: wrt_csc_mul, or under wrt-bake-mpi divided among the ranks by
+ * columns and gathered (dist.h: the same entries) */
+static wrt_status series_mul(const bake_ctx *b, const wrt_csc *a, const wrt_csc *m, double eps,
+                             const wrt_csc_weights *W, int threads, wrt_csc *out) {
+    if (!wrt_dist_on(b->opt.dist)) {
+        *out = wrt_csc_mul(a, m, eps, W, threads);
+        return WRT_OK;
+    }
+    return wrt_dist_mul(b->opt.dist, a, m, eps, W, threads, out);
 }
 
 /* The series' working state, shared by its stages */
@@ -165,7 +177,12 @@ static wrt_status series_bounces(series_state *s) {
             free(x); free(y);
             return wrt_fail(mst, "%s", msg);
         }
-        wrt_csc N = wrt_csc_mul(&s->P, R, eps, &s->W, threads);
+        wrt_csc N;
+        wrt_status pst = series_mul(b, &s->P, R, eps, &s->W, threads, &N);
+        if (pst != WRT_OK) {
+            free(x); free(y);
+            return pst;
+        }
         if (!N.nnz) {
             /* every entry of the next term fell under the threshold, but together they
              * still carry ratio / (1 - ratio) of the last term (0.2% of the total at
@@ -298,7 +315,9 @@ static wrt_status series_gathered(series_state *s) {
             snprintf(msg, sizeof msg, "%s", wrt_last_error());
             return wrt_fail(mst, "%s", msg);
         }
-        wrt_csc TS = wrt_csc_mul(T, &s->S, s->eps, &s->W, s->threads);
+        wrt_csc TS;
+        wrt_status pst = series_mul(b, T, &s->S, s->eps, &s->W, s->threads, &TS);
+        if (pst != WRT_OK) return pst;
         wrt_csc Gg = wrt_csc_add(&TS, T, 1.0);
         wrt_csc_free(&TS);
         C->entries_gathered = Gg.nnz;

@@ -341,7 +341,17 @@ static void append_columns(wrt_csc *m, col_out *out, uint32_t j0, uint32_t j1) {
  * then their gathered copy, which was the series' peak; issue 22). Same entries, same
  * order, whatever the chunking or the threads. */
 wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads) {
+    return wrt_csc_mul_cols(a, b, drop, w, threads, 0, a->n);
+}
+
+/* Columns [c0, c1) of the product, the others empty (precompute/dist.c divides a product
+ * among processes by columns): each column is computed alone, so they are the same
+ * entries as in the whole product. */
+wrt_csc wrt_csc_mul_cols(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads,
+                         uint32_t c0, uint32_t c1) {
     uint32_t n = a->n;
+    if (c1 > n) c1 = n;
+    if (c0 > c1) c0 = c1;
     int t = wrt_threads_resolve(threads);
     mul_ctx c = mul_ctx_make(a, b, drop, w, t);
     wrt_csc m = {.n = n};
@@ -351,13 +361,14 @@ wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_c
     wrt_pool *pool = NULL;
     if (t > 1 && wrt_pool_create(t, &pool) != WRT_OK) pool = NULL;
     uint32_t chunk = n / 32 + 1;
-    for (uint32_t j0 = 0; j0 < n; j0 += chunk) {
-        uint32_t j1 = n - j0 > chunk ? j0 + chunk : n;
+    for (uint32_t j0 = c0; j0 < c1; j0 += chunk) {
+        uint32_t j1 = c1 - j0 > chunk ? j0 + chunk : c1;
         mul_chunk_ctx cc = {&c, j0};
         if (pool) wrt_pool_run(pool, j1 - j0, 0, mul_chunk_column, &cc);
         else for (uint32_t j = j0; j < j1; j++) mul_column(j, 0, &c);
         append_columns(&m, c.out, j0, j1);
     }
+    for (uint32_t j = c1; j < n; j++) m.col[j + 1] = m.col[c1];
     if (pool) wrt_pool_destroy(pool);
     mul_ctx_free(&c, t);
     return m;

@@ -31,6 +31,9 @@ typedef struct wrt_csc_weights { const double *row_w, *col_w, *power_w; } wrt_cs
 
 /* C = A B, compressed by `drop` and `w` (may be NULL). Deterministic whatever `threads`. */
 wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads);
+/* Only columns [c0, c1) of that product (the others empty), the same entries. */
+wrt_csc wrt_csc_mul_cols(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads,
+                         uint32_t c0, uint32_t c1);
 /* Estimated entries of wrt_csc_mul(a, b, drop, w) from every stride-th column of the
  * product (computed and discarded), scaled by the share of B's entries those columns
  * hold: what the product will allocate, known before it is allocated. */

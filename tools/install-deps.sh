@@ -5,7 +5,8 @@ set -euo pipefail
 pkgs=(gcc g++ make clang libclang-rt-14-dev
       libembree-dev libopenimageio-dev libtinygltf-dev libstb-dev nlohmann-json3-dev
       libglfw3-dev libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
-      xvfb xauth xdotool jq gnuplot-nox python3 bc)
+      xvfb xauth xdotool jq gnuplot-nox python3 bc
+      libopenmpi-dev openmpi-bin)
 missing=()
 for p in "${pkgs[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,0 +1,111 @@
+/* main_mpi.c: wrt-bake-mpi, wrt-bake on MPI ranks (docs/mpi.md). Every rank runs wrt-bake's
+ * command line (precompute/main.c) with the same arguments and loads the scene; the bake
+ * divides its DTO pairs and series products among the ranks through the all-gather
+ * below (precompute/dist.h) and rank 0 writes the file as wrt-bake does (a temporary
+ * renamed over the target). A rank that fails ends every rank (MPI_Abort); a rank that
+ * is killed is seen by mpirun, which ends the others, whose signal handler removes the
+ * temporary. WRT_MPI_REPORT=1 prints each rank's CPU seconds, peak memory and bytes. */
+#include <mpi.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../precompute/bake_cli.h"
+#include "../precompute/budget.h"
+#include "../precompute/dist.h"
+
+/* Bytes per rank per round of MPI_Allgatherv, whose counts are ints */
+#define ROUND_BYTES ((uint64_t)1 << 30)
+
+/* CPU and wall seconds spent in the all-gathers (waiting for the slowest rank included:
+ * Open MPI polls), for WRT_MPI_REPORT */
+static double gather_cpu, gather_wall;
+
+static wrt_status mpi_allgather_timed(void *user, const void *mine, uint64_t len, void **all, uint64_t *lens);
+
+static wrt_status mpi_allgather(void *user, const void *mine, uint64_t len, void **all, uint64_t *lens) {
+    double c0 = wrt_dist_cpu_now(), w0 = wrt_now();
+    wrt_status st = mpi_allgather_timed(user, mine, len, all, lens);
+    gather_cpu += wrt_dist_cpu_now() - c0;
+    gather_wall += wrt_now() - w0;
+    return st;
+}
+
+static wrt_status mpi_allgather_timed(void *user, const void *mine, uint64_t len, void **all, uint64_t *lens) {
+    (void)user;
+    int nr;
+    MPI_Comm_size(MPI_COMM_WORLD, &nr);
+    if (MPI_Allgather(&len, 1, MPI_UINT64_T, lens, 1, MPI_UINT64_T, MPI_COMM_WORLD) != MPI_SUCCESS)
+        return wrt_fail(WRT_ERR_IO, "MPI_Allgather of the block sizes failed");
+    uint64_t total = 0, most = 0;
+    uint64_t *at = malloc((size_t)nr * sizeof *at);
+    int *cnt = malloc((size_t)nr * sizeof *cnt), *disp = malloc((size_t)nr * sizeof *disp);
+    if (!at || !cnt || !disp) { free(at); free(cnt); free(disp); return wrt_fail(WRT_ERR_NOMEM, "out of memory"); }
+    for (int r = 0; r < nr; r++) {
+        at[r] = total;
+        total += lens[r];
+        if (lens[r] > most) most = lens[r];
+    }
+    uint8_t *buf = wrt_xmalloc(total ? total : 1);
+    /* in rounds of at most ROUND_BYTES from each rank, straight into each rank's place */
+    uint8_t *tmp = wrt_xmalloc((size_t)(most < ROUND_BYTES ? most : ROUND_BYTES) * (size_t)nr + 1);
+    wrt_status st = WRT_OK;
+    for (uint64_t off = 0; off < most && st == WRT_OK; off += ROUND_BYTES) {
+        int sum = 0;
+        for (int r = 0; r < nr; r++) {
+            uint64_t left = lens[r] > off ? lens[r] - off : 0;
+            cnt[r] = (int)(left < ROUND_BYTES ? left : ROUND_BYTES);
+            disp[r] = sum;
+            sum += cnt[r];
+        }
+        int rank;
+        MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+        if (MPI_Allgatherv((const uint8_t *)mine + (cnt[rank] ? off : 0), cnt[rank], MPI_BYTE, tmp, cnt, disp,
+                           MPI_BYTE, MPI_COMM_WORLD) != MPI_SUCCESS) {
+            st = wrt_fail(WRT_ERR_IO, "MPI_Allgatherv failed");
+            break;
+        }
+        for (int r = 0; r < nr; r++)
+            if (cnt[r]) memcpy(buf + at[r] + off, tmp + disp[r], (size_t)cnt[r]);
+    }
+    free(tmp); free(at); free(cnt); free(disp);
+    if (st != WRT_OK) { free(buf); return st; }
+    *all = buf;
+    return WRT_OK;
+}
+
+static void report(const wrt_bake_dist *d) {
+    const char *e = getenv("WRT_MPI_REPORT");
+    if (!e || strcmp(e, "1")) return;
+    fprintf(stderr,
+            "wrt-bake-mpi: rank %d of %d: cpu dto %.2f s series %.2f s; peak rss %.1f MB; sent dto %llu series %llu "
+            "counters %llu bytes; received dto %llu series %llu counters %llu bytes; in all-gathers cpu %.2f s "
+            "wall %.2f s\n",
+            d->rank, d->nranks, d->cpu_dto, d->cpu_series, (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0),
+            (unsigned long long)d->bytes_sent[0], (unsigned long long)d->bytes_sent[1],
+            (unsigned long long)d->bytes_sent[2], (unsigned long long)d->bytes_recv[0],
+            (unsigned long long)d->bytes_recv[1], (unsigned long long)d->bytes_recv[2], gather_cpu, gather_wall);
+}
+
+int main(int argc, char **argv) {
+    if (MPI_Init(&argc, &argv) != MPI_SUCCESS) {
+        fprintf(stderr, "wrt-bake-mpi: error: MPI_Init failed (run it with mpirun)\n");
+        return 1;
+    }
+    wrt_bake_dist d = {.allgather = mpi_allgather};
+    MPI_Comm_rank(MPI_COMM_WORLD, &d.rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &d.nranks);
+    int rc = wrt_bake_cli(argc, argv, &d);
+    if (rc != 0) {
+        /* the others may wait in a collective for this rank: end them all */
+        fprintf(stderr, "wrt-bake-mpi: rank %d of %d stopped with exit code %d: ending every rank, no file written\n",
+                d.rank, d.nranks, rc);
+        fflush(stderr);
+        MPI_Abort(MPI_COMM_WORLD, rc);
+        return rc;
+    }
+    report(&d);
+    MPI_Finalize();
+    return 0;
+}

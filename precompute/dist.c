@@ -1,0 +1,257 @@
+/* dist.c: the bake's work divided among ranks and merged back (dist.h, docs/mpi.md):
+ * the shares by estimated cost, and the series' products by columns, gathered so that
+ * every rank holds the product the single process computes. No MPI here: the ranks
+ * talk through the caller's all-gather. */
+#include <stdlib.h>
+#include <time.h>
+#include <string.h>
+
+#include "dist.h"
+#include "dto.h"
+
+typedef struct cost_item { double cost; uint64_t i; } cost_item;
+
+static int cmp_cost_desc(const void *pa, const void *pb) {
+    const cost_item *a = pa, *b = pb;
+    if (a->cost != b->cost) return a->cost > b->cost ? -1 : 1;
+    return a->i < b->i ? -1 : a->i > b->i;
+}
+
+void wrt_dist_assign(const double *cost, uint64_t n, int nranks, int *owner) {
+    cost_item *it = wrt_xmalloc((n ? n : 1) * sizeof *it);
+    for (uint64_t i = 0; i < n; i++) it[i] = (cost_item){cost[i], i};
+    qsort(it, n, sizeof *it, cmp_cost_desc);
+    double *load = wrt_xcalloc((size_t)nranks, sizeof *load);
+    for (uint64_t k = 0; k < n; k++) {
+        int best = 0;
+        for (int r = 1; r < nranks; r++)
+            if (load[r] < load[best]) best = r;
+        load[best] += it[k].cost;
+        owner[it[k].i] = best;
+    }
+    free(load);
+    free(it);
+}
+
+void wrt_dist_mul_cuts(const wrt_csc *a, const wrt_csc *b, int nranks, uint32_t *cut) {
+    uint32_t n = b->n;
+    double total = 0;
+    for (uint32_t j = 0; j < n; j++)
+        for (uint64_t k = b->col[j]; k < b->col[j + 1]; k++) total += 1.0 + (double)(a->col[b->row[k] + 1] - a->col[b->row[k]]);
+    /* rank r's columns end where the running cost first reaches (r + 1) / nranks of it */
+    double run = 0;
+    int r = 0;
+    cut[0] = 0;
+    for (uint32_t j = 0; j < n && r < nranks - 1; j++) {
+        for (uint64_t k = b->col[j]; k < b->col[j + 1]; k++) run += 1.0 + (double)(a->col[b->row[k] + 1] - a->col[b->row[k]]);
+        while (r < nranks - 1 && run >= total * (double)(r + 1) / nranks) cut[++r] = j + 1;
+    }
+    while (r < nranks - 1) cut[++r] = n;
+    cut[nranks] = n;
+}
+
+/* A rank's columns [c0, c1) of m as bytes: the counts (uint32 each), then the rows, then
+ * the values. */
+static void *pack_columns(const wrt_csc *m, uint32_t c0, uint32_t c1, uint64_t *len) {
+    uint64_t nnz = m->col[c1] - m->col[c0];
+    *len = (uint64_t)(c1 - c0) * 4 + nnz * 4 + nnz * 12;
+    uint8_t *buf = wrt_xmalloc(*len ? *len : 1), *p = buf;
+    for (uint32_t j = c0; j < c1; j++) {
+        uint32_t cnt = (uint32_t)(m->col[j + 1] - m->col[j]);
+        memcpy(p, &cnt, 4);
+        p += 4;
+    }
+    memcpy(p, m->row + m->col[c0], nnz * 4);
+    p += nnz * 4;
+    memcpy(p, m->val + 3 * m->col[c0], nnz * 12);
+    return buf;
+}
+
+wrt_status wrt_dist_mul(wrt_bake_dist *d, const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w,
+                        int threads, wrt_csc *out) {
+    int nr = d->nranks;
+    uint32_t *cut = wrt_xmalloc(((size_t)nr + 1) * sizeof *cut);
+    wrt_dist_mul_cuts(a, b, nr, cut);
+    wrt_csc mine = wrt_csc_mul_cols(a, b, drop, w, threads, cut[d->rank], cut[d->rank + 1]);
+    uint64_t len;
+    void *buf = pack_columns(&mine, cut[d->rank], cut[d->rank + 1], &len);
+    wrt_csc_free(&mine);
+    void *all = NULL;
+    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
+    wrt_status st = d->allgather(d->user, buf, len, &all, lens);
+    free(buf);
+    if (st != WRT_OK) { free(cut); free(lens); return st; }
+    d->bytes_sent[WRT_DIST_SERIES] += len * (uint64_t)(nr - 1);
+    for (int r = 0; r < nr; r++)
+        if (r != d->rank) d->bytes_recv[WRT_DIST_SERIES] += lens[r];
+    /* the columns in order: rank r's block holds columns cut[r] .. cut[r + 1] */
+    uint32_t n = a->n;
+    wrt_csc m = {.n = n};
+    m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
+    uint64_t total = 0;
+    for (int r = 0; r < nr; r++) total += (lens[r] - 4ull * (cut[r + 1] - cut[r])) / 16;
+    m.nnz = total;
+    m.row = wrt_xmalloc((total ? total : 1) * sizeof *m.row);
+    m.val = wrt_xmalloc((total ? total : 1) * 3 * sizeof *m.val);
+    const uint8_t *p = all;
+    for (int r = 0; r < nr; r++) {
+        uint32_t c0 = cut[r], c1 = cut[r + 1];
+        uint64_t nnz = (lens[r] - 4ull * (c1 - c0)) / 16, at = m.col[c0];
+        for (uint32_t j = c0; j < c1; j++) {
+            uint32_t cnt;
+            memcpy(&cnt, p + 4ull * (j - c0), 4);
+            m.col[j + 1] = m.col[j] + cnt;
+        }
+        p += 4ull * (c1 - c0);
+        memcpy(m.row + at, p, nnz * 4);
+        p += nnz * 4;
+        memcpy(m.val + 3 * at, p, nnz * 12);
+        p += nnz * 12;
+    }
+    free(all); free(lens); free(cut);
+    *out = m;
+    return WRT_OK;
+}
+
+wrt_status wrt_dist_sum_u64(wrt_bake_dist *d, uint64_t *v, int n) {
+    int nr = d->nranks;
+    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
+    void *all = NULL;
+    wrt_status st = d->allgather(d->user, v, (uint64_t)n * 8, &all, lens);
+    if (st == WRT_OK) {
+        const uint64_t *a = all;
+        for (int i = 0; i < n; i++) v[i] = 0;
+        for (int r = 0; r < nr; r++)
+            for (int i = 0; i < n; i++) v[i] += a[(size_t)r * n + i];
+        d->bytes_sent[WRT_DIST_COUNTERS] += (uint64_t)n * 8 * (uint64_t)(nr - 1);
+        d->bytes_recv[WRT_DIST_COUNTERS] += (uint64_t)n * 8 * (uint64_t)(nr - 1);
+    }
+    free(all); free(lens);
+    return st;
+}
+
+/* ---------------------------------------------------------------- the DTO's pairs */
+
+/* One pair's record: its index, sizes and flags, then its entries and leaves. */
+typedef struct pair_head {
+    uint64_t i, count, nleaf, links, angular;
+    int32_t occluded, leaf_dirs, glossy, kmode, cancelled, pad;
+} pair_head;
+
+wrt_status wrt_dist_merge_pairs(wrt_bake_dist *d, const int *owner, pair_out *out, size_t np) {
+    uint64_t len = 0;
+    for (size_t i = 0; i < np; i++)
+        if (owner[i] == d->rank) len += sizeof(pair_head) + out[i].count * sizeof(pair_entry) + out[i].nleaf * sizeof(leaf_rec);
+    uint8_t *buf = wrt_xmalloc(len ? len : 1), *p = buf;
+    for (size_t i = 0; i < np; i++) {
+        if (owner[i] != d->rank) continue;
+        const pair_out *o = &out[i];
+        pair_head h = {i, o->count, o->nleaf, o->links, o->angular, o->occluded, o->leaf_dirs, o->glossy, o->kmode,
+                       o->cancelled, 0};
+        memcpy(p, &h, sizeof h);
+        p += sizeof h;
+        if (o->count) memcpy(p, o->e, o->count * sizeof(pair_entry));
+        p += o->count * sizeof(pair_entry);
+        if (o->nleaf) memcpy(p, o->leaf, o->nleaf * sizeof(leaf_rec));
+        p += o->nleaf * sizeof(leaf_rec);
+    }
+    int nr = d->nranks;
+    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
+    void *all = NULL;
+    wrt_status st = d->allgather(d->user, buf, len, &all, lens);
+    free(buf);
+    if (st != WRT_OK) { free(lens); return st; }
+    d->bytes_sent[WRT_DIST_DTO] += len * (uint64_t)(nr - 1);
+    const uint8_t *q = all;
+    for (int r = 0; r < nr; r++) {
+        const uint8_t *end = q + lens[r];
+        if (r == d->rank) { q = end; continue; }
+        d->bytes_recv[WRT_DIST_DTO] += lens[r];
+        while (q < end) {
+            pair_head h;
+            memcpy(&h, q, sizeof h);
+            q += sizeof h;
+            pair_out *o = &out[h.i];
+            *o = (pair_out){.count = h.count, .nleaf = h.nleaf, .links = h.links, .angular = h.angular,
+                            .occluded = h.occluded, .leaf_dirs = h.leaf_dirs, .glossy = h.glossy, .kmode = h.kmode,
+                            .cancelled = h.cancelled};
+            o->e = h.count ? wrt_xmalloc(h.count * sizeof(pair_entry)) : NULL;
+            if (h.count) memcpy(o->e, q, h.count * sizeof(pair_entry));
+            q += h.count * sizeof(pair_entry);
+            o->leaf = h.nleaf ? wrt_xmalloc(h.nleaf * sizeof(leaf_rec)) : NULL;
+            if (h.nleaf) memcpy(o->leaf, q, h.nleaf * sizeof(leaf_rec));
+            q += h.nleaf * sizeof(leaf_rec);
+        }
+    }
+    free(all); free(lens);
+    return WRT_OK;
+}
+
+double wrt_dist_cpu_now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* ---------------------------------------------------------------- per-item triplets */
+
+wrt_status wrt_dist_merge_triplets(wrt_bake_dist *d, const int *owner, wrt_triplet **res, uint64_t *nres, size_t n) {
+    uint64_t len = 0;
+    for (size_t s = 0; s < n; s++)
+        if (owner[s] == d->rank) len += 16 + nres[s] * sizeof(wrt_triplet);
+    uint8_t *buf = wrt_xmalloc(len ? len : 1), *p = buf;
+    for (size_t s = 0; s < n; s++) {
+        if (owner[s] != d->rank) continue;
+        uint64_t h[2] = {s, nres[s]};
+        memcpy(p, h, 16);
+        p += 16;
+        if (nres[s]) memcpy(p, res[s], nres[s] * sizeof(wrt_triplet));
+        p += nres[s] * sizeof(wrt_triplet);
+    }
+    int nr = d->nranks;
+    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
+    void *all = NULL;
+    wrt_status st = d->allgather(d->user, buf, len, &all, lens);
+    free(buf);
+    if (st != WRT_OK) { free(lens); return st; }
+    d->bytes_sent[WRT_DIST_DTO] += len * (uint64_t)(nr - 1);
+    const uint8_t *q = all;
+    for (int r = 0; r < nr; r++) {
+        const uint8_t *end = q + lens[r];
+        if (r == d->rank) { q = end; continue; }
+        d->bytes_recv[WRT_DIST_DTO] += lens[r];
+        while (q < end) {
+            uint64_t h[2];
+            memcpy(h, q, 16);
+            q += 16;
+            free(res[h[0]]);
+            nres[h[0]] = h[1];
+            res[h[0]] = h[1] ? wrt_xmalloc(h[1] * sizeof(wrt_triplet)) : NULL;
+            if (h[1]) memcpy(res[h[0]], q, h[1] * sizeof(wrt_triplet));
+            q += h[1] * sizeof(wrt_triplet);
+        }
+    }
+    free(all); free(lens);
+    return WRT_OK;
+}
+
+uint8_t *wrt_dist_gather_rows(wrt_bake_dist *d, const int *owner, size_t nrows, const uint8_t *mine, size_t width) {
+    uint64_t len = 0;
+    for (size_t i = 0; i < nrows; i++) len += owner[i] == d->rank ? width : 0;
+    int nr = d->nranks;
+    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
+    void *all = NULL;
+    if (d->allgather(d->user, mine, len, &all, lens) != WRT_OK) { free(lens); return NULL; }
+    d->bytes_sent[WRT_DIST_DTO] += len * (uint64_t)(nr - 1);
+    uint64_t *at = wrt_xcalloc((size_t)nr, sizeof *at);
+    for (int r = 1; r < nr; r++) at[r] = at[r - 1] + lens[r - 1];
+    for (int r = 0; r < nr; r++) d->bytes_recv[WRT_DIST_DTO] += r == d->rank ? 0 : lens[r];
+    uint8_t *rows = wrt_xmalloc(nrows * width + 1);
+    const uint8_t *a = all;
+    for (size_t i = 0; i < nrows; i++) {
+        memcpy(rows + i * width, a + at[owner[i]], width); /* a rank's rows in their order */
+        at[owner[i]] += width;
+    }
+    free(at); free(lens); free(all);
+    return rows;
+}

@@ -1,0 +1,67 @@
+/* dist.h: the bake divided among processes (wrt-bake-mpi, docs/mpi.md) without the bake
+ * knowing how they talk: the caller gives one collective, an all-gather of bytes, and
+ * the bake divides the DTO's quad pairs and the series' product columns among the
+ * ranks, then merges every rank's share in pair and column order, so that each rank
+ * holds what the single process holds and the file is byte for byte the same.
+ * This part uses no MPI (mpi/main_mpi.c implements the collective with it). */
+#ifndef WRT_DIST_H
+#define WRT_DIST_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "../common/wrt_common.h"
+#include "sparse.h"
+
+typedef struct wrt_bake_dist {
+    int rank, nranks;
+    /* Every rank calls it with its `len` bytes at `mine`; it returns in *all (malloc'd)
+     * the ranks' bytes one after the other in rank order, and in lens[r] rank r's byte
+     * count (lens has nranks slots). WRT_OK, or a failure (wrt_fail) after which the
+     * bake stops. */
+    wrt_status (*allgather)(void *user, const void *mine, uint64_t len, void **all, uint64_t *lens);
+    void *user;
+    /* what this rank sent and received, per phase (filled by the bake; docs/mpi.md) */
+    uint64_t bytes_sent[3], bytes_recv[3]; /* WRT_DIST_DTO, WRT_DIST_SERIES, WRT_DIST_COUNTERS */
+    double cpu_dto, cpu_series;           /* this process's CPU seconds in each phase */
+} wrt_bake_dist;
+
+enum { WRT_DIST_DTO = 0, WRT_DIST_SERIES = 1, WRT_DIST_COUNTERS = 2 };
+
+/* 1 when the bake is divided (dist given and more than one rank). */
+static inline int wrt_dist_on(const wrt_bake_dist *d) { return d && d->nranks > 1; }
+
+/* The ranks' shares of n items of estimated cost cost[i]: owner[i] is the rank that
+ * computes item i (largest cost first, each to the rank with the least cost so far,
+ * ties to the lower rank and index: the same on every rank). */
+void wrt_dist_assign(const double *cost, uint64_t n, int nranks, int *owner);
+
+/* The contiguous column ranges of a product A B balanced by its cost (per column j,
+ * the entries of A's columns that B's column j reads): rank r computes columns
+ * [cut[r], cut[r + 1]); cut has nranks + 1 slots. */
+void wrt_dist_mul_cuts(const wrt_csc *a, const wrt_csc *b, int nranks, uint32_t *cut);
+
+/* C = A B as wrt_csc_mul, each rank computing its columns, the result on every rank. */
+wrt_status wrt_dist_mul(wrt_bake_dist *d, const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w,
+                        int threads, wrt_csc *out);
+
+/* The DTO's pairs (dto.h): each rank has computed out[i] for the pairs it owns
+ * (owner[i] == rank); afterwards every rank holds every pair's out[i]. */
+struct pair_out;
+wrt_status wrt_dist_merge_pairs(wrt_bake_dist *d, const int *owner, struct pair_out *out, size_t np);
+
+/* Per-item results (n items, item s computed by rank owner[s]: res[s], nres[s]
+ * triplets); afterwards every rank holds every item's (the balance's senders). */
+wrt_status wrt_dist_merge_triplets(wrt_bake_dist *d, const int *owner, wrt_triplet **res, uint64_t *nres, size_t n);
+
+/* Rows of `width` bytes, row i computed by rank owner[i]: `mine` holds this rank's
+ * rows in order; returns every row in order (malloc'd), NULL where the exchange failed. */
+uint8_t *wrt_dist_gather_rows(wrt_bake_dist *d, const int *owner, size_t nrows, const uint8_t *mine, size_t width);
+
+/* This process's CPU seconds so far (all its threads). */
+double wrt_dist_cpu_now(void);
+
+/* Sums n uint64 counters over the ranks (in place). */
+wrt_status wrt_dist_sum_u64(wrt_bake_dist *d, uint64_t *v, int n);
+
+#endif

@@ -1,0 +1,221 @@
+/* test_dist.c: the bake divided among ranks (precompute/dist.h) without MPI: the ranks
+ * are threads here, their all-gather a barrier, so that the division and its merges are
+ * checked on every machine (tests/mpi.sh runs the real program where Open MPI is).
+ * The truths: the single process's own results, which the divided bake must give bit
+ * for bit (the file's bytes follow from them), and the greedy division's bound. */
+#include <pthread.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "precompute/bake.h"
+#include "precompute/dist.h"
+#include "precompute/sparse.h"
+#include "bake_helpers.h"
+#include "scene_build.h"
+#include "test.h"
+
+/* ---- ranks as threads: the all-gather through a barrier */
+#define MAXR 4
+typedef struct sim {
+    int nranks;
+    pthread_barrier_t bar;
+    const void *buf[MAXR];
+    uint64_t len[MAXR];
+    uint64_t calls[MAXR];
+} sim;
+
+static __thread int sim_rank; /* the calling thread's rank */
+
+static wrt_status sim_allgather(void *user, const void *mine, uint64_t len, void **all, uint64_t *lens) {
+    sim *s = user;
+    s->buf[sim_rank] = mine;
+    s->len[sim_rank] = len;
+    s->calls[sim_rank]++;
+    pthread_barrier_wait(&s->bar);
+    uint64_t total = 0;
+    for (int k = 0; k < s->nranks; k++) { lens[k] = s->len[k]; total += s->len[k]; }
+    uint8_t *out = malloc(total ? total : 1), *p = out;
+    for (int k = 0; k < s->nranks; k++) { if (s->len[k]) memcpy(p, s->buf[k], s->len[k]); p += s->len[k]; }
+    pthread_barrier_wait(&s->bar); /* every rank has copied before any buffer is reused */
+    *all = out;
+    return WRT_OK;
+}
+
+/* Runs fn(arg + k * size) on nranks threads, thread k being rank k. */
+typedef struct rank_start { void *(*fn)(void *); void *arg; int rank; } rank_start;
+static void *rank_main(void *p) {
+    rank_start *rs = p;
+    sim_rank = rs->rank;
+    return rs->fn(rs->arg);
+}
+static void run_ranks(int nranks, void *(*fn)(void *), void *args, size_t size) {
+    pthread_t th[MAXR];
+    rank_start rs[MAXR];
+    for (int k = 0; k < nranks; k++) {
+        rs[k] = (rank_start){fn, (char *)args + (size_t)k * size, k};
+        pthread_create(&th[k], NULL, rank_main, &rs[k]);
+    }
+    for (int k = 0; k < nranks; k++) pthread_join(th[k], NULL);
+}
+
+/* ---- the products by columns */
+static wrt_csc random_csc(uint32_t n, double density, uint64_t seed) {
+    wrt_triplet *t = malloc((size_t)n * n * sizeof *t);
+    uint64_t m = 0, h = seed;
+    for (uint32_t j = 0; j < n; j++)
+        for (uint32_t i = 0; i < n; i++) {
+            h = h * 6364136223846793005ULL + 1442695040888963407ULL;
+            if ((double)(h >> 11) / 9007199254740992.0 >= density) continue;
+            float v = (float)((h >> 40) % 1000) / 2000.0f + 0.01f;
+            t[m++] = (wrt_triplet){i, j, {v, v * 0.9f, v * 1.1f}};
+        }
+    wrt_csc c = wrt_csc_from_triplets(n, t, m);
+    free(t);
+    return c;
+}
+
+static int csc_same(const wrt_csc *a, const wrt_csc *b) {
+    return a->n == b->n && a->nnz == b->nnz && !memcmp(a->col, b->col, ((size_t)a->n + 1) * sizeof *a->col) &&
+           !memcmp(a->row, b->row, a->nnz * sizeof *a->row) && !memcmp(a->val, b->val, a->nnz * 3 * sizeof *a->val);
+}
+
+typedef struct mul_arg {
+    sim *s;
+    const wrt_csc *a, *b;
+    const wrt_csc_weights *w;
+    double drop;
+    wrt_csc out;
+    wrt_status st;
+} mul_arg;
+
+static void *mul_rank(void *p) {
+    mul_arg *m = p;
+    wrt_bake_dist d = {.rank = sim_rank, .nranks = m->s->nranks, .allgather = sim_allgather, .user = m->s};
+    m->st = wrt_dist_mul(&d, m->a, m->b, m->drop, m->w, 1, &m->out);
+    return NULL;
+}
+
+/* A product divided among 1 to 4 ranks: every rank holds wrt_csc_mul's matrix, bit for
+ * bit, with the compression and its power hand-over on (per column, so unchanged). */
+static void dist_mul_same(void) {
+    uint32_t n = 300;
+    wrt_csc a = random_csc(n, 0.03, 1), b = random_csc(n, 0.05, 2);
+    double *rw = malloc(n * sizeof *rw), *cw = malloc(n * sizeof *cw), *pw = malloc(n * sizeof *pw);
+    for (uint32_t i = 0; i < n; i++) { rw[i] = 1.0 + (i % 7) * 0.1; cw[i] = 1.0 / rw[i]; pw[i] = i % 3 ? 0 : 1.0; }
+    wrt_csc_weights w = {rw, cw, pw};
+    wrt_csc want = wrt_csc_mul(&a, &b, 0.02, &w, 2);
+    CHECK(want.nnz > 1000 && want.nnz < (uint64_t)n * n, "the product keeps %llu entries: some dropped, many kept",
+          (unsigned long long)want.nnz);
+    for (int nr = 1; nr <= MAXR; nr++) {
+        sim s = {.nranks = nr};
+        pthread_barrier_init(&s.bar, NULL, (unsigned)nr);
+        mul_arg m[MAXR];
+        for (int k = 0; k < nr; k++) m[k] = (mul_arg){.s = &s, .a = &a, .b = &b, .w = &w, .drop = 0.02};
+        run_ranks(nr, mul_rank, m, sizeof *m);
+        for (int k = 0; k < nr; k++) {
+            CHECK(m[k].st == WRT_OK && csc_same(&m[k].out, &want), "%d ranks: rank %d's product differs", nr, k);
+            wrt_csc_free(&m[k].out);
+        }
+        pthread_barrier_destroy(&s.bar);
+    }
+    /* the cuts: contiguous, covering every column */
+    uint32_t cut[MAXR + 1];
+    wrt_dist_mul_cuts(&a, &b, 4, cut);
+    CHECK(cut[0] == 0 && cut[4] == n && cut[1] <= cut[2] && cut[2] <= cut[3] && cut[3] <= cut[4],
+          "cuts 0 %u %u %u %u", cut[1], cut[2], cut[3], cut[4]);
+    wrt_csc_free(&a); wrt_csc_free(&b); wrt_csc_free(&want);
+    free(rw); free(cw); free(pw);
+}
+
+/* The greedy division (largest first to the least loaded): every item has a rank, and
+ * the loads differ by at most the largest item (the bound of that rule). */
+static void dist_assign_bound(void) {
+    enum { N = 1000 };
+    double cost[N], load[MAXR] = {0}, big = 0;
+    int owner[N];
+    uint64_t h = 7;
+    for (int i = 0; i < N; i++) {
+        h = h * 6364136223846793005ULL + 1442695040888963407ULL;
+        cost[i] = 1.0 + (double)(h >> 44) / 1024.0;
+        if (cost[i] > big) big = cost[i];
+    }
+    wrt_dist_assign(cost, N, 3, owner);
+    int bad = 0;
+    for (int i = 0; i < N; i++) {
+        if (owner[i] < 0 || owner[i] > 2) bad++;
+        else load[owner[i]] += cost[i];
+    }
+    CHECK(bad == 0, "%d items without a rank", bad);
+    double lo = fmin(load[0], fmin(load[1], load[2])), hi = fmax(load[0], fmax(load[1], load[2]));
+    CHECK(hi - lo <= big, "loads %.1f %.1f %.1f differ by more than the largest item %.1f", load[0], load[1], load[2], big);
+}
+
+/* ---- a whole bake divided among 3 ranks against the single process */
+typedef struct bake_arg {
+    sim *s;
+    const wrt_scene *scene;
+    wrt_bake_options o;
+    wrt_bake_result r;
+    wrt_status st;
+} bake_arg;
+
+static void *bake_rank(void *p) {
+    bake_arg *a = p;
+    wrt_bake_dist d = {.rank = sim_rank, .nranks = a->s->nranks, .allgather = sim_allgather, .user = a->s};
+    a->o.dist = &d;
+    a->st = wrt_bake_run(a->scene, &a->o, &a->r);
+    a->o.dist = NULL;
+    return NULL;
+}
+
+/* A closed box of 3 x 3 quads a face with a floating panel inside (occluded pairs): T,
+ * G - I and the counters the file records are the single process's on every rank. */
+static void dist_bake_same(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int mat = tsb_material(&s, 0.7, 0.6, 0.5);
+    tsb_box_inward(&s, P(0, 0, 0), P(1, 1, 1), 3, mat);
+    tsb_quad(&s, P(0.3, 0.5, 0.3), P(0.7, 0.5, 0.3), P(0.7, 0.5, 0.7), P(0.3, 0.5, 0.7), mat);
+    wrt_bake_options o = opts(2, 0, 3);
+    o.threads = 1;
+    wrt_bake_result want;
+    wrt_status st = wrt_bake_run(&s, &o, &want);
+    CHECK(st == WRT_OK && want.op.nnz > 0, "the single process bakes (%s)", wrt_last_error());
+    enum { NR = 3 };
+    sim sm = {.nranks = NR};
+    pthread_barrier_init(&sm.bar, NULL, NR);
+    bake_arg a[NR];
+    for (int k = 0; k < NR; k++) a[k] = (bake_arg){.s = &sm, .scene = &s, .o = o};
+    run_ranks(NR, bake_rank, a, sizeof *a);
+    for (int k = 0; k < NR; k++) {
+        CHECK(a[k].st == WRT_OK, "rank %d baked", k);
+        if (a[k].st != WRT_OK) continue;
+        CHECK(a[k].r.nfuncs == want.nfuncs && !memcmp(a[k].r.fkeys, want.fkeys, want.nfuncs * sizeof *want.fkeys),
+              "rank %d: the same basis functions", k);
+        CHECK(csc_same(&a[k].r.dto, &want.dto), "rank %d: the same T (%llu entries, want %llu)", k,
+              (unsigned long long)a[k].r.dto.nnz, (unsigned long long)want.dto.nnz);
+        CHECK(csc_same(&a[k].r.op, &want.op), "rank %d: the same G - I", k);
+        const wrt_bake_counters *c = &a[k].r.c, *w = &want.c;
+        CHECK(c->rays_traced == w->rays_traced && c->samples == w->samples && c->links_leaf == w->links_leaf &&
+                  c->links_dto == w->links_dto && c->pairs_unoccluded == w->pairs_unoccluded &&
+                  c->bounces == w->bounces && c->balance_entries == w->balance_entries,
+              "rank %d: the same counters (rays %llu / %llu)", k, (unsigned long long)c->rays_traced,
+              (unsigned long long)w->rays_traced);
+        wrt_bake_result_free(&a[k].r);
+    }
+    CHECK(want.c.pairs_unoccluded < want.c.pairs_exchange, "some pairs are occluded (%llu of %llu free)",
+          (unsigned long long)want.c.pairs_unoccluded, (unsigned long long)want.c.pairs_exchange);
+    CHECK(sm.calls[0] > 3 && sm.calls[0] == sm.calls[1] && sm.calls[1] == sm.calls[2],
+          "the ranks met in the same %llu all-gathers", (unsigned long long)sm.calls[0]);
+    pthread_barrier_destroy(&sm.bar);
+    wrt_bake_result_free(&want);
+    tsb_free(&s);
+}
+
+int main(int argc, char **argv) {
+    TEST_RUN(dist_mul_same);
+    TEST_RUN(dist_assign_bound);
+    TEST_RUN(dist_bake_same);
+    TEST_END();
+}
