@@ -73,9 +73,12 @@ typedef struct {
  * support is at least F of the scene's area (a wavelet of node level l on quad q: a_q /
  * 4^l), and every quad's scaling function. Row k of the right factor is where the light
  * of one bounce lands before it is sent on: the cut keeps its mean over each quad and its
- * shape down to that size (the scaling functions carry all of a row's power; wavelets
- * carry none), so every term's power is what the full product's would be to the
- * compression's rounding, and a furnace's light is exact; the first bounce and every
+ * shape down to that size (on a parallelogram the scaling function carries all of a row's
+ * power, its wavelets none), so every term's power is what the full product's would be
+ * to the compression's rounding, and a furnace's light is exact; on other quads
+ * (triangles, trapezoids) the wavelets carry a little power (sqrt(J) varies), which the
+ * cut drops per product and series_power.c gives back, each column of the sum taking
+ * the power of the full T's series at the end; the first bounce and every
  * term's receivers stay exact, only the re-emitted light is averaged below the cut's
  * size. The products then read only the cut's columns of each term (docs/clusters.md has
  * the figures). */
