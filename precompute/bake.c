@@ -82,6 +82,8 @@ void wrt_bake_defaults(wrt_bake_options *o) {
      * bake 0.72x the CPU; coarser factors failed the small-quads furnace) */
     if (o->series_right == 0) o->series_right = 1;
     if (o->series_right_from <= 0) o->series_right_from = 2;
+    /* the coarse cut between bounces: with --clusters only (the default bake unchanged) */
+    if (o->series_coarse == 0) o->series_coarse = o->clusters ? WRT_SERIES_COARSE_CLUSTERS : -1;
     /* Glossy materials (measured by tools/study.sh on the glossy asset and the glossy-wall
      * Cornell box, docs/study): a finer angular level blurs the light's own reflection
      * less but places it worse (its direction is a delta truncated to the level's cells),

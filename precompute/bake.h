@@ -66,12 +66,21 @@ typedef struct wrt_bake_options {
     double cluster_eps;    /* its power criterion (0: WRT_CLUSTER_EPS_DEFAULT; < 0: off) */
     int cluster_tree;      /* 1: store the operator in the tree's basis when it has fewer entries
                             * there (a trial: a copy and a transform of G - I); 2: always */
+    double series_coarse;  /* the series' right factor from the second term on keeps only the
+                            * rows of spatial functions whose support is at least this share
+                            * of the scene's area (a quad's scaling function always): the light
+                            * between bounces is carried on a coarser cut, its power exact
+                            * (series.c); 0: the default (off; with --clusters
+                            * WRT_SERIES_COARSE_CLUSTERS); < 0: off */
     wrt_progress_fn progress;
     void *progress_user;
     /* NULL: one process. wrt-bake-mpi: the ranks and their all-gather (dist.h); the DTO's
      * pairs and the series' products are divided among them, the result the same bytes */
     struct wrt_bake_dist *dist;
 } wrt_bake_options;
+
+/* --clusters' default series_coarse (docs/clusters.md "The series on a coarser cut") */
+#define WRT_SERIES_COARSE_CLUSTERS 1e-3
 
 /* Resolves the zero fields of *o from o->quality (or the default quality 5). */
 void wrt_bake_defaults(wrt_bake_options *o);

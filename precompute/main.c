@@ -80,6 +80,11 @@ static void usage(FILE *f) {
         "  --series-right F       bounces from --series-right-from B (default 2) on multiply\n"
         "                         by T compressed at F x --eps-compress (power kept) instead\n"
         "                         of the full T (default 1; 0: the full T, slower)\n"
+        "  --series-coarse F      from the second bounce on, the light between bounces is\n"
+        "                         kept on the functions whose support is at least F of the\n"
+        "                         scene's area, each quad's mean always (power exact;\n"
+        "                         default 1e-3 with --clusters, else off; 0: off;\n"
+        "                         docs/clusters.md)\n"
         "  --no-balance           keep T's quad-to-quad power as the links integrate it (no\n"
         "                         power balance: loses energy conservation; for comparison)\n"
         "  --clusters             link well separated clusters of quads by one entry each\n"
@@ -202,6 +207,8 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
     if (o->drop_sender_size > 0) fprintf(f, ",\"drop_sender_size\":%.6g", o->drop_sender_size);
     fprintf(f, ",\"series_right\":%.6g,\"series_right_from\":%d", o->series_right > 0 ? o->series_right : 0,
             o->series_right_from);
+    /* only when on (the default bake's provenance, and so its bytes, unchanged) */
+    if (o->series_coarse > 0) fprintf(f, ",\"series_coarse\":%.6g", o->series_coarse);
     fputc('}', f);
 }
 
@@ -343,6 +350,11 @@ static int parse_args(int argc, char **argv, bake_args *A) {
             i++;
         }
         else if (!strcmp(a, "--series-right-from")) { ok = opt_int(a, v, 2, 1000000, &o->series_right_from); i++; }
+        else if (!strcmp(a, "--series-coarse")) {
+            ok = opt_num(a, v, 0, 1, &o->series_coarse);
+            if (ok && o->series_coarse == 0) o->series_coarse = -1; /* 0 on the command line: off */
+            i++;
+        }
         else if (!strcmp(a, "--no-tail")) o->no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o->no_balance = 1;
         else if (!strcmp(a, "--clusters")) o->clusters = 1;

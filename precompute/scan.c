@@ -31,11 +31,48 @@ static double at_quality(const double a[2], int q) {
     return a[1] * pow(step, q - 5);
 }
 
+/* --clusters: its own anchors, the atrium (wrt-scenegen atrium --detail 1: 2,704
+ * elements) baked with --clusters at quality 1 (15.1 s CPU, 630 MB, 7.92 MB) and 5 (266.5 s,
+ * 3,877 MB, 126.7 MB; docs/bench.md "Scale"), and its own exponents, the atrium's at
+ * quality 1 over 1,060 to 8,172 elements (CPU 1.21, peak 1.04, bytes 0.71): steeper than
+ * quality 5's two points (0.68, 0.66, 0.59 from 1,060 to 2,704), so the estimate errs
+ * high above the anchor, which is what a memory cap needs. The plain bake's N^1.4 from
+ * 240 elements put the atrium at detail 1 at 10.6 GB and detail 2 at 49.9 GB, which made
+ * tools/bench_scale.sh skip every --clusters row unless CAP_MB was raised. */
+#define SCAN_CL_N0 2704.0
+/* quality 5's anchor and the exponents (above) */
+#define CL_Q5_SECONDS 266.5
+#define CL_Q5_MB 3877.0
+#define CL_Q5_BYTES 126.7e6
+#define CL_EXP_SECONDS 1.21
+#define CL_EXP_MB 1.04
+#define CL_EXP_BYTES 0.71
+static const double cl_anchor_seconds[2] = {15.1, CL_Q5_SECONDS}; /* quality 1, 5 */
+static const double cl_anchor_mb[2] = {630.0, CL_Q5_MB};
+static const double cl_anchor_bytes[2] = {7.92e6, CL_Q5_BYTES};
+static const double cl_exponent[3] = {CL_EXP_SECONDS, CL_EXP_MB, CL_EXP_BYTES}; /* time, peak, bytes */
+
+static double cl_at_quality(const double a[2], int q) {
+    double step = pow(a[1] / a[0], 0.25); /* per quality step, from 1 to 5 */
+    return a[1] * pow(step, q - 5);
+}
+
+static wrt_scan_estimate scan_estimate_clusters(int quality, int elements) {
+    wrt_scan_estimate e = {.quality = quality, .elements = elements};
+    double x = (double)elements / SCAN_CL_N0;
+    e.seconds = cl_at_quality(cl_anchor_seconds, quality) * pow(x, cl_exponent[0]);
+    e.memory_mb = SCAN_MB_BASE + (cl_at_quality(cl_anchor_mb, quality) - SCAN_MB_BASE) * pow(x, cl_exponent[1]);
+    e.bytes = cl_at_quality(cl_anchor_bytes, quality) * pow(x, cl_exponent[2]);
+    if (elements == 0) e.seconds = e.bytes = 0, e.memory_mb = SCAN_MB_BASE;
+    return e;
+}
+
 wrt_scan_estimate wrt_scan_estimate_cost(const wrt_scene *s, const wrt_bake_options *o) {
     wrt_scan_estimate e;
     memset(&e, 0, sizeof e);
     e.quality = o && o->quality ? o->quality : 5;
     e.elements = s ? s->nquads : 0;
+    if (o && o->clusters) return scan_estimate_clusters(e.quality, e.elements);
     double g = pow((double)e.elements / SCAN_N0, SCAN_EXPONENT);
     e.seconds = at_quality(anchor_seconds, e.quality) * g;
     e.memory_mb = SCAN_MB_BASE + (at_quality(anchor_mb, e.quality) - SCAN_MB_BASE) * g;
@@ -54,6 +91,7 @@ static const char *human_time(double s, char *buf, size_t n) {
 void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad, int json, FILE *f) {
     if (!s || !f) return;
     wrt_scan_estimate e = wrt_scan_estimate_cost(s, o);
+    double ex = o && o->clusters ? cl_exponent[0] : SCAN_EXPONENT;
     int refused = s->nnonfinite > 0 && !drop_bad;
     if (json) {
         char *buf = NULL;
@@ -70,7 +108,7 @@ void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad,
         fprintf(f, ",\"refused\":%s,\"drop_bad\":%s,\"estimate\":{\"quality\":%d,\"elements\":%d,"
                    "\"cpu_seconds\":%.3g,\"memory_mb\":%.4g,\"bytes\":%.4g,\"model\":\"N^%.1f from measured bakes\"}}\n",
                 refused ? "true" : "false", drop_bad ? "true" : "false", e.quality, e.elements, e.seconds,
-                e.memory_mb, e.bytes, SCAN_EXPONENT);
+                e.memory_mb, e.bytes, ex);
         return;
     }
     wrt_scene_print_summary(s, 0, f);
@@ -81,5 +119,5 @@ void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad,
     fprintf(f, "estimate at quality %d: %d elements, about %s of CPU (about half that on 2 idle cores), peak "
                "memory about %.0f MB, file about %.0f MB (model: N^%.1f scaled from measured bakes; the real "
                "cost varies by a factor of a few with how much each element sees)\n",
-            e.quality, e.elements, human_time(e.seconds, tb, sizeof tb), e.memory_mb, e.bytes / 1e6, SCAN_EXPONENT);
+            e.quality, e.elements, human_time(e.seconds, tb, sizeof tb), e.memory_mb, e.bytes / 1e6, ex);
 }

@@ -80,6 +80,42 @@ typedef struct {
     double rc[3], ratio;
 } series_state;
 
+/* The coarse cut (--series-coarse F, on by default with --clusters): the right factor of
+ * the products from the second term on keeps only the rows of the spatial functions whose
+ * support is at least F of the scene's area (a wavelet of node level l on quad q: a_q /
+ * 4^l), and every quad's scaling function. Row k of the right factor is where the light
+ * of one bounce lands before it is sent on: the cut keeps its mean over each quad and its
+ * shape down to that size (on a parallelogram the scaling function carries all of a row's
+ * power, its wavelets none), so every term's power is what the full product's would be
+ * to the compression's rounding, and a furnace's light is exact; on other quads
+ * (triangles, trapezoids) the wavelets carry a little power (sqrt(J) varies), which the
+ * cut drops per product and series_power.c gives back, each column of the sum taking
+ * the power of the full T's series at the end; the first bounce and every
+ * term's receivers stay exact, only the re-emitted light is averaged below the cut's
+ * size. The products then read only the cut's columns of each term (docs/clusters.md has
+ * the figures). */
+static void series_coarse_rows(const bake_ctx *b, wrt_csc *m, const uint64_t *fkeys, double F) {
+    double total = 0;
+    for (int q = 0; q < b->nq; q++) total += b->quads[q].area;
+    double amin = F * total;
+    uint64_t w = 0, k = 0;
+    for (uint32_t c = 0; c < m->n; c++) {
+        uint64_t end = m->col[c + 1];
+        for (; k < end; k++) {
+            uint64_t f = fkeys[m->row[k]];
+            int d = wrt_drop_depth(f);
+            /* angular functions (glossy) are kept whole */
+            if (wrt_fkey_angular_root(f) && d > 0 && ldexp(b->quads[wrt_fkey_quad(f)].area, -2 * (d - 1)) < amin)
+                continue;
+            m->row[w] = m->row[k];
+            memmove(&m->val[3 * w], &m->val[3 * k], 3 * sizeof *m->val);
+            w++;
+        }
+        m->col[c + 1] = w;
+    }
+    m->nnz = w;
+}
+
 /* Stage 1: the compression weights and the first term (S = P = T, P compressed) */
 static void series_setup(series_state *s) {
     const bake_ctx *b = s->b;
@@ -107,6 +143,11 @@ static void series_setup(series_state *s) {
     } else if (b->opt.series_right > 0) {
         s->Tr = wrt_csc_copy(T);
         wrt_csc_compress(&s->Tr, b->opt.series_right * s->eps, &s->W);
+    }
+    if (b->opt.series_coarse > 0) {
+        if (!s->Tr.col || s->shared) s->Tr = wrt_csc_copy(s->Tr.col ? &s->Tr : T);
+        s->shared = 0;
+        series_coarse_rows(b, &s->Tr, s->res->fkeys, b->opt.series_coarse);
     }
 }
 
