@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include "tests/test.h"
+#include "tests/gto_bytes.h"
 #include "formats/gto.h"
 #include "formats/scene.h"
 #include "common/basis.h"
@@ -125,17 +126,6 @@ static char *tpath(const char *name) {
     return p;
 }
 
-static uint8_t *read_all(const char *path, size_t *len) {
-    FILE *f = fopen(path, "rb");
-    if (!f) { *len = 0; return NULL; }
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    uint8_t *b = malloc(n ? (size_t)n : 1);
-    *len = fread(b, 1, (size_t)n, f);
-    fclose(f);
-    return b;
-}
 
 static uint8_t *written(const char *name, size_t *n) {
     wrt_status st = wrt_gto_write(tpath(name), &contents);
@@ -143,28 +133,8 @@ static uint8_t *written(const char *name, size_t *n) {
     return st == WRT_OK ? read_all(tpath(name), n) : NULL;
 }
 
-static uint64_t rd64(const uint8_t *b, size_t o) { uint64_t x; memcpy(&x, b + o, 8); return x; }
-static uint32_t rd32(const uint8_t *b, size_t o) { uint32_t x; memcpy(&x, b + o, 4); return x; }
-static void wr64(uint8_t *b, size_t o, uint64_t x) { memcpy(b + o, &x, 8); }
 
-/* The table entry of section `id` (header 64 bytes, entries of 48), or 0. */
-static size_t entry_of(const uint8_t *b, uint32_t id) {
-    uint32_t ns = rd32(b, 28);
-    for (uint32_t i = 0; i < ns; i++)
-        if (rd32(b, 64 + 48 * (size_t)i) == id) return 64 + 48 * (size_t)i;
-    return 0;
-}
 
-/* Every section checksum and the header's made right, as a forger would. */
-static void forge(uint8_t *b) {
-    uint32_t ns = rd32(b, 28);
-    for (uint32_t i = 0; i < ns; i++) {
-        size_t e = 64 + 48 * (size_t)i;
-        wr64(b, e + 32, wrt_gto_checksum(b + rd64(b, e + 8), (size_t)rd64(b, e + 16)));
-    }
-    wr64(b, 40, 0);
-    wr64(b, 40, wrt_gto_checksum(b, 64 + 48 * (size_t)ns));
-}
 
 static wrt_status open_copy(const uint8_t *b, size_t n, wrt_gto *g) {
     uint8_t *c = malloc(n ? n : 1);
