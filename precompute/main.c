@@ -28,7 +28,7 @@
 static void usage(FILE *f) {
     fprintf(f,
         "usage: wrt-bake SCENE.gltf|.glb -o OUT.gto [options]\n"
-        "       wrt-bake --scan SCENE.gltf [--json]     what the bake will see\n"
+        "       wrt-bake --scan SCENE.gltf [--json] [bake options]   what the bake will see and cost\n"
         "       wrt-bake --info FILE.gto [--json]       header, provenance, figures, integrity\n"
         "\n"
         "Precomputes the light transport of a static quad scene (Wavelet Radiance Transport):\n"
@@ -217,6 +217,7 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
 /* The command line, parsed. */
 typedef struct bake_args {
     const char *scene_path, *out_path, *scan, *info;
+    int scan_positional; /* --scan followed by an option: the scene is the positional argument */
     int json, force_progress, quiet, print_config, timings, drop_bad, allow_outside;
     int float_entries;  /* --float-entries: a 1.x file, not the compact 2.0 */
     int float_k;        /* --float-k: K's entries as floats in a compact file (sections 14, 15) */
@@ -302,7 +303,10 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) { usage(stdout); return 0; }
         else if (!strcmp(a, "--version")) { wrt_cli_version("wrt-bake"); return 0; }
         else if (!strcmp(a, "-o") || !strcmp(a, "--out") || !strcmp(a, "--output")) { ok = opt_str(a, v, &A->out_path); i++; }
-        else if (!strcmp(a, "--scan")) { ok = opt_str(a, v, &A->scan); i++; }
+        else if (!strcmp(a, "--scan")) {
+            if (v && !(v[0] == '-' && v[1])) { A->scan = v; i++; }
+            else A->scan_positional = 1; /* `wrt-bake SCENE --scan --clusters` */
+        }
         else if (!strcmp(a, "--info")) { ok = opt_str(a, v, &A->info); i++; }
         else if (!strcmp(a, "-q") || !strcmp(a, "--quality")) { ok = opt_int(a, v, 1, 9, &o->quality); i++; }
         else if (!strcmp(a, "--eps-receiver")) { ok = opt_num(a, v, 1e-12, 10, &o->eps_receiver); i++; }
@@ -379,6 +383,14 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!A->scene_path) A->scene_path = a;
         else { fprintf(stderr, "wrt-bake: error: unexpected argument '%s'\n", a); return WRT_EXIT_USAGE; }
         if (!ok) return WRT_EXIT_USAGE;
+    }
+    if (A->scan_positional) {
+        if (!A->scene_path) {
+            fprintf(stderr, "wrt-bake: error: --scan needs a scene: wrt-bake --scan SCENE.gltf [options]\n");
+            return WRT_EXIT_USAGE;
+        }
+        A->scan = A->scene_path;
+        A->scene_path = NULL;
     }
     return check_args(A);
 }

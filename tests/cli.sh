@@ -95,6 +95,9 @@ if [ -x "$build/tests/test_image" ]; then
     "$build/tests/test_image" --stats "$tmp/off.exr" >"$tmp/out" 2>>"$tmp/err"
     grep -q "max 0 " "$tmp/out" && ok "--lights-off 1 switches the first light off" || ko "--lights-off 1 switches the first light off"
 fi
+# --scan takes its scene before or after it, with bake options anywhere; alone it names what it needs
+"$build/wrt-bake" assets/cornell.gltf --scan --clusters --json | grep -q '"elements"' && ok "wrt-bake SCENE --scan --clusters: the scene's report" || ko "wrt-bake SCENE --scan --clusters: the scene's report"
+expect "wrt-bake --scan alone: exit 1, says it needs a scene" 1 "--scan needs a scene" "$build/wrt-bake" --scan --json
 # --scan of a baked file says what it is; --info prints no raw JSON and no unrecorded times
 expect "--scan of a .gto: exit 2, named" 2 "is a baked .gto file, not a scene" "$build/wrt-bake" --scan "$gto"
 "$build/wrt-bake" --info "$gto" >"$tmp/info" 2>"$tmp/err"
