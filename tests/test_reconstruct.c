@@ -568,7 +568,7 @@ static void tri_quads(const wrt_v3 *p, const wrt_v3 *n, double (*c)[4][3], float
  * cell its own constant: 1 and 2), as a UV sphere's faceted bake gives a smooth surface.
  * Smooth (the shared edge's vertex normals the mean of the two faces'): one group, the
  * quads at the edge curved, and the display blends across the edge: continuous there, no
- * more than a quarter of the step outside [1, 2] (before, the facets' own cells were kept
+ * more than 0.3 of the step outside [1, 2] (before, the facets' own cells were kept
  * with the slopes limited, and the edge's averaging pushed the texels beside the edge to
  * 0 and 3: the tiles' dark and bright lines), each quad's mean kept. Creased (each face its own normals): two groups, and each triangle's
  * display is exactly its constant (the step of 1 at the edge stays). */
