@@ -94,7 +94,7 @@ static inline uint32_t wrt_recon_node(int l, int x, int y) {
  * not linear: the limiter, the sharpness test and the clamp all depend on the data.
  * A curved quad (wrt_recon_curved: joined to a neighbour across a bent edge by its corner
  * normals) keeps only its mean, plus the details the prediction misses by more than
- * `sharp`, and its prediction is not limited: its bake cells and means are those of a flat
+ * half of `sharp`, and its prediction is not limited: its bake cells and means are those of a flat
  * facet, and kept as they are they showed each facet as a tile of its own, bordered where
  * the edges are averaged (docs/triangles.md). `facets` 1: curved quads as flat ones (the
  * display before; for comparisons). */
