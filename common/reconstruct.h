@@ -70,6 +70,9 @@ const int *wrt_recon_members(const wrt_recon *rc, int gr, int *count);
 /* Quad q's smooth neighbour across edge e (0: v = 0, 1: u = 1, 2: v = 1, 3: u = 0), or -1;
  * *nedge its edge, *flip 1 if it runs the shared edge the other way. */
 int wrt_recon_neighbour(const wrt_recon *rc, int q, int e, int *nedge, int *flip);
+/* 1 if quad q is joined to a smooth neighbour that does not lie in its plane (a curved
+ * mesh's edge, by the corner normals), else 0. */
+int wrt_recon_curved(const wrt_recon *rc, int q);
 
 /* Index of node (level l, x, y) in a `known` mask: levels 0 .. L-1, level by level, row
  * by row: (4^l - 1)/3 + y 2^l + x. A mask for levels < L holds (4^L - 1)/3 bytes. */
@@ -88,8 +91,14 @@ static inline uint32_t wrt_recon_node(int l, int x, int y) {
  * output of their sum, to float rounding): `limit` and `sharp` are ignored (no limiter; a
  * node keeps its children's averages if it holds a function and lies above `keep`, a
  * choice from `known` alone) and negative texels are kept, not clamped to 0. The default (0) is
- * not linear: the limiter, the sharpness test and the clamp all depend on the data. */
-typedef struct wrt_recon_params { int keep; float sharp; int limit; int linear; } wrt_recon_params;
+ * not linear: the limiter, the sharpness test and the clamp all depend on the data.
+ * A curved quad (wrt_recon_curved: joined to a neighbour across a bent edge by its corner
+ * normals) keeps only its mean, plus the details the prediction misses by more than
+ * half of `sharp`, and its prediction is not limited: its bake cells and means are those of a flat
+ * facet, and kept as they are they showed each facet as a tile of its own, bordered where
+ * the edges are averaged (docs/triangles.md). `facets` 1: curved quads as flat ones (the
+ * display before; for comparisons). */
+typedef struct wrt_recon_params { int keep; float sharp; int limit; int linear; int facets; } wrt_recon_params;
 #define WRT_RECON_KEEP 3
 #define WRT_RECON_SHARP 0.1f
 

@@ -250,6 +250,12 @@ mutation linear-display-limited: the linear display keeps the slope limiter (dat
   repl limit = 1;
   run test_reconstruct test_linear_superposes
 
+mutation curved-as-flat: a curved mesh's quads keep their facets' cells and limited slopes (the tiles)
+  file common/reconstruct.c
+  find int curved = rc->curved[q] && !facets;
+  repl int curved = 0 && rc->curved[q] && !facets;
+  run test_reconstruct test_smooth_strip
+
 mutation open-cancel-ignored: the open goes on when the progress callback returns 0
   file player/relight_base.c
   find return r->opt.progress(r->opt.progress_user, fraction) != 0;
