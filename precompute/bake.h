@@ -72,6 +72,12 @@ typedef struct wrt_bake_options {
                             * between bounces is carried on a coarser cut, its power exact
                             * (series.c); 0: the default (off; with --clusters
                             * WRT_SERIES_COARSE_CLUSTERS); < 0: off */
+    double small_share;    /* a sender whose quad holds less than small_share x eps_compress of
+                            * the scene's area has its compression threshold (products and
+                            * final) scaled by its share / (small_share x eps_compress): an entry is then weighed as a kernel
+                            * (form factor per sender area), so a closed scene of N small
+                            * elements, whose entries are each about rho / N, keeps its
+                            * multi-bounce light at any N (series.c); 0: the default 10; < 0: off */
     wrt_progress_fn progress;
     void *progress_user;
     /* NULL: one process. wrt-bake-mpi: the ranks and their all-gather (dist.h); the DTO's

@@ -80,6 +80,10 @@ static void usage(FILE *f) {
         "  --series-right F       bounces from --series-right-from B (default 2) on multiply\n"
         "                         by T compressed at F x --eps-compress (power kept) instead\n"
         "                         of the full T (default 1; 0: the full T, slower)\n"
+        "  --small-share F        a sender quad under F x eps_compress of the scene's area has\n"
+        "                         its compression threshold scaled by its share over that\n"
+        "                         (many small elements keep their multi-bounce light;\n"
+        "                         default 10, 0: off)\n"
         "  --series-coarse F      from the second bounce on, the light between bounces is\n"
         "                         kept on the functions whose support is at least F of the\n"
         "                         scene's area, each quad's mean always (power exact;\n"
@@ -209,6 +213,8 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
             o->series_right_from);
     /* only when on (the default bake's provenance, and so its bytes, unchanged) */
     if (o->series_coarse > 0) fprintf(f, ",\"series_coarse\":%.6g", o->series_coarse);
+    /* only when not the default 10 (the default bake's bytes unchanged); 0: off */
+    if (o->small_share != 10) fprintf(f, ",\"small_share\":%.6g", fmax(o->small_share, 0));
     fputc('}', f);
 }
 
@@ -357,6 +363,11 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--series-coarse")) {
             ok = opt_num(a, v, 0, 1, &o->series_coarse);
             if (ok && o->series_coarse == 0) o->series_coarse = -1; /* 0 on the command line: off */
+            i++;
+        }
+        else if (!strcmp(a, "--small-share")) {
+            ok = opt_num(a, v, 0, 1e6, &o->small_share);
+            if (ok && o->small_share == 0) o->small_share = -1; /* 0 on the command line: off */
             i++;
         }
         else if (!strcmp(a, "--no-tail")) o->no_tail = 1;

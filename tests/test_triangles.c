@@ -299,6 +299,7 @@ static void icosphere(wrt_scene *s, int sub, int mat) {
  * (haar_sqrtj), and each element's mean indirect irradiance is compared with the
  * sphere's mean. Returns the relative error of the indirect flux. */
 static int furnace_clusters; /* `furnace SUB Q clusters|tree` on the command line: 1, 2 */
+static double furnace_tol = 1e-3; /* the DTO's series and the direct flux against their truths */
 static double icosphere_furnace(int sub, int quality, double rho, double *worst_out) {
     wrt_scene s;
     tsb_init(&s);
@@ -375,7 +376,7 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
             double want = 4 * M_PI * rho / (1 - rho);
             printf("the series summed from the DTO: indirect flux %.6f vs %.6f (%+.4f%%)\n", acc, want,
                    100 * (acc / want - 1));
-            CHECK(fabs(acc / want - 1) <= 1e-3, "the DTO's series: indirect flux off by %.4f%%", 100 * (acc / want - 1));
+            CHECK(fabs(acc / want - 1) <= furnace_tol, "the DTO's series: indirect flux off by %.4f%%", 100 * (acc / want - 1));
             /* the bake's G - I applied in memory (no file, no runtime): the series'
              * products and compressions, the tail and the column power rule
              * (precompute/series_power.c) give what the DTO's own series gives */
@@ -414,7 +415,7 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
                s.nquads / 3, s.nquads, quality, rho, direct, 4 * M_PI, 100 * (direct / (4 * M_PI) - 1), indirect, want,
                100 * err, 100 * (rt_indirect / want - 1), wq, s.quads[wq].part, 100 * worst, tb, r.nfuncs,
                (unsigned long long)r.op.nnz);
-        CHECK(fabs(direct / (4 * M_PI) - 1) <= 1e-3, "direct flux %.6f vs 4 pi", direct);
+        CHECK(fabs(direct / (4 * M_PI) - 1) <= furnace_tol, "direct flux %.6f vs 4 pi", direct);
         free(fd);
         free(fi);
         free(mh);
@@ -438,6 +439,24 @@ static void test_icosphere_furnace(void) {
     double worst, e = icosphere_furnace(1, 5, 0.9, &worst);
     CHECK(fabs(e) <= 1e-3, "icosphere furnace: indirect flux off by %.4f%%", 100 * e);
     CHECK(worst <= 1e-3, "icosphere furnace: the worst element %.4f%% from the mean", 100 * worst);
+}
+
+/* 320 triangles (960 elements) at quality 1 with --clusters: every entry of G - I is about
+ * rho / N = 9e-4, under quality 1's threshold 1e-3. Before the small senders' threshold
+ * (precompute/series.c series_small_area) the series stopped after 3 terms and the final
+ * compression dropped nearly all: G - I's flux -52.5% (1,280 triangles: -99.2%); now the
+ * DTO's own series to 1e-4 (+0.345% of the truth; quality 1's direct projection is itself
+ * -0.24% off, so those truths are held at 0.5% here), the worst element 5.6% from the mean
+ * (84% before). About 18 s CPU. */
+static void test_icosphere_furnace_many(void) {
+    double worst, e;
+    furnace_clusters = 1;
+    furnace_tol = 5e-3;
+    e = icosphere_furnace(2, 1, 0.9, &worst);
+    furnace_clusters = 0;
+    furnace_tol = 1e-3;
+    CHECK(fabs(e) <= 5e-3, "icosphere furnace, 320 triangles: indirect flux off by %.4f%%", 100 * e);
+    CHECK(worst <= 0.1, "icosphere furnace, 320 triangles: the worst element %.4f%% from the mean", 100 * worst);
 }
 
 /* ------------------------------------------------------- vertex normals ---- */
@@ -512,6 +531,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_triangle_form_factors);
     TEST_RUN(test_loader_normals);
     TEST_RUN(test_icosphere_furnace);
+    TEST_RUN(test_icosphere_furnace_many);
     rmdir(tmpdir);
     TEST_END();
 }
