@@ -123,6 +123,7 @@ static wrt_status create_functions(wrt_relight *r) {
     r->fn_slevel = relight_calloc(r, nf ? nf : 1, 1);
     r->fn_ang = relight_calloc(r, nf ? nf : 1, 1);
     r->fn_spidx = relight_calloc(r, nf ? nf : 1, sizeof(uint32_t));
+    r->fn_flux = relight_calloc(r, nf ? nf : 1, sizeof(float));
     if (r->oom) return WRT_ERR_NOMEM;
     uint32_t nbad = 0;
     for (uint32_t f = 0; f < nf; f++) {
@@ -166,6 +167,24 @@ static void quad_geometry(wrt_relight *r, uint32_t q, wrt_v3 *bmin, wrt_v3 *bmax
     qi->glossy = !r->mats[gq->material].lambertian;
 }
 
+/* The flux of a unit coefficient of the spatial function (node n, type) on a general
+ * quad: sqrt(pi) int h sqrt(J) du dv (the function is h / sqrt(J) on the surface and its
+ * coefficients are of E sqrt(J / pi)). J is affine in u and v on a planar convex quad, so
+ * sqrt(J) is smooth: 3 x 3 Gauss-Legendre points per quadrant (1e-9 relative on the
+ * triangles' parts, whose J varies 3 to 1). */
+static double func_flux(const quad_info *q, wrt_node n, int type) {
+    static const double gx[3] = {0.11270166537925831, 0.5, 0.88729833462074169};
+    static const double gw[3] = {5.0 / 18, 8.0 / 18, 5.0 / 18};
+    double size = wrt_node_size(n), h = 0.5 * size, sum = 0;
+    for (int c = 0; c < 4; c++) {
+        double sign = type == 0 ? 1 : wrt_haar_sign(type, c & 1, c >> 1);
+        double u0 = wrt_node_x0(n) + (c & 1) * h, v0 = wrt_node_y0(n) + (c >> 1) * h;
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) sum += sign * gw[i] * gw[j] * sqrt(quad_jacobian(q, u0 + h * gx[i], v0 + h * gx[j]));
+    }
+    return sqrt(WRT_PI) * sum * h * h / size; /* the Haar function's value is 1 / size */
+}
+
 /* Quad q's levels (spatial, angular, texture) and texture offset (*tex_total grows),
  * its mean irradiance factor, root function and the number of its angular functions
  * (*ang_total grows). */
@@ -177,6 +196,10 @@ static void quad_functions(wrt_relight *r, uint32_t q, size_t *tex_total, size_t
     for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++)
         if (r->fn_slevel[f] > sl && r->fn_slevel[f] != FN_INVALID) sl = r->fn_slevel[f];
     qi->slevel = sl;
+    if (!qi->parallelogram) /* the projection's flux correction (relight_project.c) */
+        for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++)
+            if (r->fn_slevel[f] != FN_INVALID && r->fn_ang[f] == 0)
+                r->fn_flux[f] = (float)func_flux(qi, wrt_fkey_snode(g->fkeys[f]), wrt_fkey_stype(g->fkeys[f]));
     for (uint32_t f = gq->func_first; f < gq->func_first + gq->func_count; f++)
         if (r->fn_slevel[f] != FN_INVALID && r->fn_ang[f] != 0) {
             int al = (int)wrt_fkey_anode(g->fkeys[f]).level;
@@ -348,7 +371,7 @@ static wrt_status create_brdf_tables(wrt_relight *r) {
  * large quad allocated then: 2 blocks in 10 updates of a small room on 2 threads). */
 static wrt_status create_scratch(wrt_relight *r) {
     const wrt_gto *g = r->g;
-    size_t pval = 1, pwav = 1, pyr = 1, fpyr = 1, fgrid = 1, glossy = 1;
+    size_t pval = 1, pwav = 1, pflux = 1, pyr = 1, fpyr = 1, fgrid = 1, glossy = 1;
     for (uint32_t q = 0; q < g->nquads; q++) {
         const quad_info *qi = &r->qi[q];
         size_t ncell = (size_t)1 << (2 * qi->tex_level);
@@ -360,6 +383,7 @@ static wrt_status create_scratch(wrt_relight *r) {
         size_t nslot = (size_t)(qi->nang > 0 && !qi->kcount ? qi->nang : 1) + 3 * (size_t)qi->nkang;
         if (LEVEL_OFF(cap + 1) * nslot > pval) pval = LEVEL_OFF(cap + 1) * nslot;
         if (LEVEL_OFF(cap) * 3 * nslot + 1 > pwav) pwav = LEVEL_OFF(cap) * 3 * nslot + 1;
+        if (!qi->parallelogram && LEVEL_OFF(cap + 1) > pflux) pflux = LEVEL_OFF(cap + 1);
         if (((size_t)1 << (2 * cap)) * nslot > pyr) pyr = ((size_t)1 << (2 * cap)) * nslot;
     }
     size_t nout = (size_t)g->nfuncs + 1, nocc = (size_t)g->nquads + 1;
@@ -367,6 +391,7 @@ static wrt_status create_scratch(wrt_relight *r) {
         worker *w = &r->workers[t];
         w->pval = relight_calloc(r, w->pval_cap = pval, sizeof *w->pval);
         w->pwav = relight_calloc(r, w->pwav_cap = pwav, sizeof *w->pwav);
+        w->pflux = relight_calloc(r, w->pflux_cap = pflux, sizeof *w->pflux);
         w->pyr = relight_calloc(r, w->pyr_cap = pyr, sizeof *w->pyr);
         w->occ = relight_calloc(r, w->nocc_cap = nocc, sizeof *w->occ);
         w->oidx = relight_calloc(r, nout, sizeof *w->oidx);
@@ -441,7 +466,7 @@ void wrt_relight_destroy(wrt_relight *r) {
             /* scratch grown in updates */
             relight_free(r, w->grid); relight_free(r, w->pyr); relight_free(r, w->acc); relight_free(r, w->wts); relight_free(r, w->cells);
             relight_free(r, w->oidx); relight_free(r, w->oval); relight_free(r, w->fpyr); relight_free(r, w->fgrid); relight_free(r, w->occ);
-            relight_free(r, w->pval); relight_free(r, w->pwav); relight_free(r, w->rbuf);
+            relight_free(r, w->pval); relight_free(r, w->pwav); relight_free(r, w->pflux); relight_free(r, w->rbuf);
             relight_free(r, w->pstate); relight_free(r, w->prefined); relight_free(r, w->pclear); relight_free(r, w->pcells);
         }
     relight_free(r, r->workers);
@@ -449,7 +474,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (r->beta) for (uint32_t m = 0; m < r->g->nmaterials; m++) relight_free(r, r->beta[m]);
     relight_free(r, r->beta);
     if (r->qi) for (uint32_t q = 0; q < r->g->nquads; q++) relight_free(r, r->qi[q].known);
-    relight_free(r, r->mats); relight_free(r, r->fn_slevel); relight_free(r, r->fn_ang); relight_free(r, r->fn_spidx); relight_free(r, r->qi);
+    relight_free(r, r->mats); relight_free(r, r->fn_slevel); relight_free(r, r->fn_ang); relight_free(r, r->fn_spidx); relight_free(r, r->fn_flux); relight_free(r, r->qi);
     relight_free(r, r->ang_list); relight_free(r, r->ang_start); relight_free(r, r->ang_full); relight_free(r, r->ang_perm);
     relight_free(r, r->E); relight_free(r, r->X); relight_free(r, r->Xprev); relight_free(r, r->Eapplied); relight_free(r, r->mul.X4); relight_free(r, r->mul.cols); relight_free(r, r->tex); relight_free(r, r->texk); relight_free(r, r->tex_nonzero); relight_free(r, r->x_nonzero);
     relight_free(r, r->resynth); relight_free(r, r->proj.recs); relight_free(r, r->proj.qlevel); relight_free(r, r->proj.cones);

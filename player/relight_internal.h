@@ -103,6 +103,7 @@ typedef struct worker {
     uint16_t *pcells;               /* cells sampled, level by level */
     double *pval; size_t pval_cap;  /* scaling coefficients of those cells, x slots */
     double *pwav; size_t pwav_cap;  /* wavelets of split cells, x 3 x slots */
+    double *pflux; size_t pflux_cap; /* non-parallelograms: each cell's sampled flux */
     float *rbuf;                    /* the smooth display's scratch (made at creation, the
                                      * largest group's: an update allocates nothing) */
     double brdf_time;
@@ -202,6 +203,8 @@ struct wrt_relight {
     /* per function */
     uint8_t *fn_slevel, *fn_ang;
     uint32_t *fn_spidx;
+    float *fn_flux;                 /* flux of the function's unit coefficient, sqrt(pi) int
+                                     * h sqrt(J): angular roots of non-parallelograms, else 0 */
     uint32_t *ang_perm;             /* functions of each quad grouped by angular index */
     uint16_t *ang_list;             /* present angular indices per quad (qi.ang_first) */
     uint32_t *ang_start;            /* for each (quad, present angular): range in ang_perm, +1 */

@@ -204,13 +204,17 @@ static void fix_visit(fix_col *fc, uint32_t col, double f, int direct, int pass)
     for (uint64_t k = E->col[col]; k < E->col[col + 1]; k++) {
         uint32_t r = E->row[k];
         double pr = fc->pw[r];
-        if (!tree_row(fc->o, r) || !(pr > 0)) continue;
+        if (pr == 0) continue;
+        int tree = tree_row(fc->o, r) && pr > 0; /* the correction goes to these only */
+        if (!tree && pass) continue;
         float dv[3];
         for (int ch = 0; ch < 3; ch++) {
             double g = pr * f * E->val[3 * k + ch];
             if (!pass) {
+                /* a general quad's wavelet rows carry power too (wrt_func_power): a
+                 * triangle's part receives as much again in them as its root misses */
                 if (!direct) fc->have[ch] += g;
-                fc->wsum[ch] += fabs(g);
+                if (tree) fc->wsum[ch] += fabs(g);
             } else {
                 dv[ch] = fc->wsum[ch] > 0 ? (float)((fc->want[ch] - fc->have[ch]) * fabs(g) / fc->wsum[ch] / pr) : 0;
             }
@@ -228,9 +232,8 @@ static uint64_t closed_fix(const bake_ctx *b, const ops *o, const uint64_t *fkey
     double *pw = ext_power(b, o, fkeys);
     double (*P)[3] = wrt_xcalloc((size_t)E->n, sizeof *P);
     for (uint32_t c = 0; c < E->n; c++)
-        for (uint64_t k = E->col[c]; k < E->col[c + 1]; k++)
-            if (tree_row(o, E->row[k]))
-                for (int ch = 0; ch < 3; ch++) P[c][ch] += pw[E->row[k]] * E->val[3 * k + ch];
+        for (uint64_t k = E->col[c]; k < E->col[c + 1]; k++) /* every row with power */
+            for (int ch = 0; ch < 3; ch++) P[c][ch] += pw[E->row[k]] * E->val[3 * k + ch];
     fix_col fc = {.o = o, .E = E, .pw = pw};
     for (uint32_t j = 0; j < nf; j++) {
         if (!wrt_fkey_angular_root(fkeys[j])) continue;
