@@ -431,10 +431,10 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
 
 /* 80 triangles (240 elements) at quality 5. The transport itself conserves power: the
  * series summed from the DTO gives 4 pi rho / (1 - rho) within 0.1% (measured -0.026%, the
- * direct projection's own error). The baked global operator G - I lost some before each
+ * direct projection's own error, before the projection's flux rule; +0.0019% since). The baked global operator G - I lost some before each
  * column was given its series' power (precompute/series_power.c): -0.14% on 20
  * triangles, -0.58% on 80, as the compression dropped more of each late term's column;
- * now -0.026% on 80 (the DTO's series to 1e-6), held at 0.1% (docs/triangles.md). */
+ * then -0.026% on 80 (the DTO's series to 1e-6; -0.0026% since the projection's flux rule), held at 0.1% (docs/triangles.md). */
 static void test_icosphere_furnace(void) {
     double worst, e = icosphere_furnace(1, 5, 0.9, &worst);
     CHECK(fabs(e) <= 1e-3, "icosphere furnace: indirect flux off by %.4f%%", 100 * e);
