@@ -660,5 +660,6 @@ int relight_project_light(wrt_relight *r, light_state *ls) {
     }
     ls->n = total;
     ls->projected = ls->have_proj = 1;
+    ls->proj_gen++; /* its product (relight_multiply_lights) is made again */
     return 0;
 }
