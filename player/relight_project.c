@@ -280,42 +280,66 @@ static int all_below(const wrt_v3 *pts, int n, wrt_v3 o, wrt_v3 nrm, double size
     return 1;
 }
 
-/* 1 if quad b cannot meet the prism swept by the convex planar polygon c[0..3] (normal n)
- * toward a sun in unit direction s (on its front): the pyramid below with its apex at
- * infinity. */
-static int prism_clear(const wrt_v3 c[4], wrt_v3 n, wrt_v3 s, const quad_info *b, double size) {
-    if (all_below(b->p, 4, c[0], n, size)) return 1; /* b on or behind the polygon's plane */
-    wrt_v3 mid = v3_scale(v3_add(v3_add(c[0], c[1]), v3_add(c[2], c[3])), 0.25);
-    for (int k = 0; k < 4; k++) { /* the sides: planes through an edge and s, normals inward */
-        wrt_v3 sn = v3_cross(v3_sub(c[(k + 1) & 3], c[k]), s);
-        if (v3_dot(sn, v3_sub(mid, c[k])) < 0) sn = v3_scale(sn, -1);
-        if (all_below(b->p, 4, c[k], sn, size)) return 1;
-    }
-    /* b's plane leaves the polygon below it, and the sun's direction does not rise above it */
-    if (all_below(c, 4, b->p[0], b->n, size) && v3_dot(s, b->n) <= 0) return 1;
-    wrt_v3 nb = v3_scale(b->n, -1);
-    if (all_below(c, 4, b->p[0], nb, size) && v3_dot(s, nb) <= 0) return 1;
-    return 0;
+/* The planes of the pyramid of light l and the convex planar polygon c[0..3] (normal n,
+ * light on its front), or for a sun the prism toward it: what pyramid_clear tests every
+ * quad b against, made once per polygon. A plane is a point o, a normal and all_below's
+ * tolerance for it. */
+typedef struct pyr_planes {
+    int np, sun;
+    wrt_v3 o[6], nrm[6];
+    double tol[6];
+    wrt_v3 pts[5];  /* the polygon's corners and the light (a sun: the corners only) */
+    wrt_v3 s;       /* a sun: the unit direction toward it */
+} pyr_planes;
+
+static void pyr_plane(pyr_planes *pp, wrt_v3 o, wrt_v3 nrm, double size) {
+    pp->o[pp->np] = o;
+    pp->nrm[pp->np] = nrm;
+    pp->tol[pp->np++] = 1e-9 * size * sqrt(v3_dot(nrm, nrm)); /* as all_below's */
 }
 
-/* 1 if quad b cannot meet the pyramid of light l and the convex planar polygon c[0..3]
- * (normal n, light on its front); for a sun, the prism (prism_clear). */
-static int pyramid_clear(const wrt_v3 c[4], wrt_v3 n, const light_c *lc, const quad_info *b, double size) {
-    if (lc->sun) return prism_clear(c, n, v3_scale(lc->dir, -1), b, size);
+static void pyramid_setup(pyr_planes *pp, const wrt_v3 c[4], wrt_v3 n, const light_c *lc, double size) {
+    pp->np = 0;
+    pp->sun = lc->sun;
+    for (int k = 0; k < 4; k++) pp->pts[k] = c[k];
+    pyr_plane(pp, c[0], n, size); /* b on or behind the polygon's plane */
+    if (lc->sun) {
+        wrt_v3 s = v3_scale(lc->dir, -1);
+        pp->s = s;
+        wrt_v3 mid = v3_scale(v3_add(v3_add(c[0], c[1]), v3_add(c[2], c[3])), 0.25);
+        for (int k = 0; k < 4; k++) { /* the sides: planes through an edge and s, normals inward */
+            wrt_v3 sn = v3_cross(v3_sub(c[(k + 1) & 3], c[k]), s);
+            if (v3_dot(sn, v3_sub(mid, c[k])) < 0) sn = v3_scale(sn, -1);
+            pyr_plane(pp, c[k], sn, size);
+        }
+        return;
+    }
     wrt_v3 l = lc->pos;
-    /* b on or behind the polygon's plane, or beyond the light's parallel plane */
-    if (all_below(b->p, 4, c[0], n, size) || all_below(b->p, 4, l, v3_scale(n, -1), size)) return 1;
+    pp->pts[4] = l;
+    pyr_plane(pp, l, v3_scale(n, -1), size); /* beyond the light's parallel plane */
     /* the pyramid's sides: inward normals (e_k - l) x (e_k+1 - l) for a ccw polygon */
     wrt_v3 mid = v3_sub(v3_scale(v3_add(v3_add(c[0], c[1]), v3_add(c[2], c[3])), 0.25), l);
     for (int k = 0; k < 4; k++) {
         wrt_v3 sn = v3_cross(v3_sub(c[(k + 1) & 3], l), v3_sub(c[k], l));
         if (v3_dot(sn, mid) < 0) sn = v3_scale(sn, -1); /* inward whatever the winding */
-        if (all_below(b->p, 4, l, sn, size)) return 1;
+        pyr_plane(pp, l, sn, size);
     }
-    /* b's plane leaves the light and the polygon on one side */
-    wrt_v3 pts[5] = {c[0], c[1], c[2], c[3], l};
-    if (all_below(pts, 5, b->p[0], b->n, size) || all_below(pts, 5, b->p[0], v3_scale(b->n, -1), size)) return 1;
-    return 0;
+}
+
+/* 1 if quad b cannot meet the pyramid (or a sun's prism) of pp: b wholly below one of its
+ * planes, or b's plane leaves the polygon and the light (a sun: the polygon, and the sun's
+ * direction does not rise above it) on one side. */
+static int pyramid_clear(const pyr_planes *pp, const quad_info *b, double size) {
+    for (int k = 0; k < pp->np; k++) {
+        int below = 1;
+        for (int t = 0; t < 4 && below; t++) below = !(v3_dot(v3_sub(b->p[t], pp->o[k]), pp->nrm[k]) > pp->tol[k]);
+        if (below) return 1;
+    }
+    wrt_v3 nb = v3_scale(b->n, -1);
+    if (pp->sun)
+        return (all_below(pp->pts, 4, b->p[0], b->n, size) && v3_dot(pp->s, b->n) <= 0) ||
+               (all_below(pp->pts, 4, b->p[0], nb, size) && v3_dot(pp->s, nb) <= 0);
+    return all_below(pp->pts, 5, b->p[0], b->n, size) || all_below(pp->pts, 5, b->p[0], nb, size);
 }
 
 /* Cell (i, j) of level l of quad q: 1 if none of the quad's possible occluders can
@@ -323,8 +347,10 @@ static int pyramid_clear(const wrt_v3 c[4], wrt_v3 n, const light_c *lc, const q
 static int cell_clear(const wrt_relight *r, const worker *w, const quad_info *q, const light_c *l, int lv, int i, int j) {
     double h = ldexp(1.0, -lv), u0 = i * h, v0 = j * h;
     wrt_v3 c[4] = {quad_point(q, u0, v0), quad_point(q, u0 + h, v0), quad_point(q, u0 + h, v0 + h), quad_point(q, u0, v0 + h)};
+    pyr_planes pp;
+    pyramid_setup(&pp, c, q->n, l, r->proj.size);
     for (int k = 0; k < w->nocc; k++)
-        if (!pyramid_clear(c, q->n, l, &r->qi[w->occ[k]], r->proj.size)) return 0;
+        if (!pyramid_clear(&pp, &r->qi[w->occ[k]], r->proj.size)) return 0;
     return 1;
 }
 
@@ -339,6 +365,8 @@ static int find_occluders(wrt_relight *r, worker *w, int a, const light_c *l) {
     w->occ = occ;
     const light_cone *ca = &r->proj.cones[a];
     const quad_info *qa = &r->qi[a];
+    pyr_planes pp;
+    pyramid_setup(&pp, qa->p, qa->n, l, r->proj.size);
     for (uint32_t b = 0; b < nq; b++) {
         if ((int)b == a) continue;
         const light_cone *cb = &r->proj.cones[b];
@@ -350,7 +378,7 @@ static int find_occluders(wrt_relight *r, worker *w, int a, const light_c *l) {
             wrt_v3 perp = v3_sub(dc, v3_scale(l->dir, v3_dot(dc, l->dir)));
             if (v3_len(perp) >= qa->radius + r->qi[b].radius) continue;
         }
-        if (pyramid_clear(qa->p, qa->n, l, &r->qi[b], r->proj.size)) continue;
+        if (pyramid_clear(&pp, &r->qi[b], r->proj.size)) continue;
         w->occ[w->nocc++] = b;
     }
     return 0;
