@@ -33,6 +33,7 @@
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
 #define PROJ_MIN_LEVEL 3     /* every quad is sampled on at least 8 x 8 cells (if it has them) */
+#define PROJ_MIN_LEVEL_DIFFUSE 2 /* a quad without angular functions or K columns: 4 x 4 */
 #define ANG_LEVELS 4         /* angular node levels 0..3 (basis.h: 2 bits of level) */
 #define NANG 256             /* angular functions over node levels 0..3: 4^ANG_LEVELS */
 #define BETA_RES WRT_BRDF_TABLE_RES /* beta table: common/brdf_table.h, shared with the bake */

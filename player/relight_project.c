@@ -6,7 +6,8 @@
  * BRDF table (K's btilde).
  *
  * Projection: an adaptive quadtree per quad and light. Every cell of the 8 x 8 grid
- * (PROJ_MIN_LEVEL; coarser if the quad holds no finer functions) is either split
+ * (PROJ_MIN_LEVEL; 4 x 4 on a diffuse quad, proj_min_level; coarser if the quad holds
+ * no finer functions) is either split
  * unseen, while it is wider than 1/8 of its distance to the light (1/11.3 on quads with
  * angular functions), so that 1/d^2 and the cosine change by at most ~1/8 across a
  * cell, or sampled (4 samples at fixed rotated-grid positions, one shadow ray each). A
@@ -51,6 +52,15 @@
 
 /* Fixed rotated-grid sample positions within a cell (4 samples). */
 static const double cell_samples[4][2] = {{0.375, 0.125}, {0.875, 0.375}, {0.625, 0.875}, {0.125, 0.625}};
+
+/* The grid every cell of which is sampled (or split unseen by the level rule) on quad q:
+ * 8 x 8 where the light's direction matters (angular functions, K's columns), 4 x 4 on
+ * a diffuse quad, whose E only feeds the transport (the direct light is drawn apart):
+ * the finer wavelets of a smooth light are small there, and the level rule and the
+ * shadow edges still split cells down to the cap (docs/bench.md, session 6). */
+static int proj_min_level(const quad_info *q) {
+    return q->nang > 1 || q->kcount ? PROJ_MIN_LEVEL : PROJ_MIN_LEVEL_DIFFUSE;
+}
 
 /* The deepest spatial level the projection resolves: the quad's functions' and its K
  * columns' (kslevel is 0 without K). */
@@ -483,7 +493,7 @@ static int proj_sample_tree(const wrt_relight *r, worker *w, const proj_setup *p
             int c = w->pcells[k], x = c % n, y = c / n;
             /* clear of occluders: its parent is, or (near the top) the test says so */
             int clear = !ps->rays || (lv > Ld && w->pclear[LEVEL_OFF(lv - 1) + (size_t)(y / 2) * (n / 2) + x / 2]) ||
-                        (lv <= PROJ_MIN_LEVEL + 1 && r->opt.proj_reference == 0 && cell_clear(r, w, q, ps->lc, lv, x, y));
+                        (lv <= proj_min_level(q) + 1 && r->opt.proj_reference == 0 && cell_clear(r, w, q, ps->lc, lv, x, y));
             w->pclear[off + c] = (uint8_t)clear;
             if (local_rule && lv < cap && too_close(ps, lv, x, y)) { /* split unseen */
                 w->prefined[off + c] = 1;
@@ -648,14 +658,15 @@ int relight_project_light(wrt_relight *r, light_state *ls) {
             cn->cosa = sqrt(1 - cn->sina * cn->sina);
         } else { cn->u = v3(0, 0, 1); cn->sina = 0; cn->cosa = -1; } /* the light is inside */
         /* A sun: no falloff, so the rule's distance is infinite and the level is the
-         * coarsest the rule allows (PROJ_MIN_LEVEL's grid); only shadow edges split cells,
+         * coarsest the rule allows (proj_min_level's grid); only shadow edges split cells,
          * down to the cap (the finest level the quad's functions have). */
         double dmin = sun ? INFINITY : relight_quad_dist(&r->qi[q], ls->light.pos);
         int L = !sun && ls->light.range > 0 && dmin >= ls->light.range ? -1 : projection_level(r, &r->qi[q], dmin);
         if (L >= 0) work += ldexp(r->opt.proj_reference > 0 ? 4096.0 : 4.0, 2 * L);
         if (L >= 0 && r->opt.proj_level == 0) { /* the rule is applied cell by cell from here */
             int cap = relight_projection_cap(r, &r->qi[q]);
-            L = cap < PROJ_MIN_LEVEL ? cap : PROJ_MIN_LEVEL;
+            int lmin = proj_min_level(&r->qi[q]);
+            L = cap < lmin ? cap : lmin;
         }
         r->proj.qlevel[q] = (int8_t)L;
     }
