@@ -22,7 +22,8 @@
 /* One block's base and codes: entries [a, b) of vals. The base is the block's largest
  * step exponent less 3 (within WRT_GTO_BASE_MIN..MAX), an entry's e its own less the
  * base, clamped to 0..3; mantissas rounded to nearest (ties to even). */
-static int16_t kencode_block(const float *vals, uint64_t a, uint64_t b, uint16_t *codes) {
+static int16_t kencode_block(const float *vals, uint64_t a, uint64_t b, void *out) {
+    uint16_t *codes = out;
     int emax = WRT_GTO_BASE_MIN;
     for (uint64_t i = a; i < b; i++) {
         double m = fabs(vals[i]);
@@ -46,37 +47,7 @@ static int16_t kencode_block(const float *vals, uint64_t a, uint64_t b, uint16_t
 
 uint8_t *gto_kcode_encode(uint32_t nkcols, const uint64_t *kcol_start, const uint32_t *krows,
                           const float *kvals, uint64_t *size) {
-    uint64_t knnz = kcol_start[nkcols], nb = 0;
-    for (uint32_t j = 0; j < nkcols; j++)
-        for (uint64_t a = kcol_start[j]; a < kcol_start[j + 1]; a = gto_block_end(krows, a, kcol_start[j + 1])) nb++;
-    gto_opcode_layout o = gto_kcode_place(nkcols, nb, knnz);
-    uint8_t *p = calloc(1, o.size);
-    if (!p) return NULL;
-    gto_opcode_head *h = (gto_opcode_head *)p;
-    h->codec = WRT_GTO_KCODEC;
-    h->block_max = WRT_GTO_BLOCK_MAX;
-    h->nblocks = nb;
-    h->nnz = knnz;
-    uint32_t *bcol = (uint32_t *)(p + o.bcol);
-    uint16_t *codes = (uint16_t *)(p + o.codes);
-    wrt_gto_block *blk = (wrt_gto_block *)(p + o.blocks);
-    uint8_t *deltas = p + o.deltas;
-    uint64_t k = 0;
-    for (uint32_t j = 0; j < nkcols; j++) {
-        bcol[j] = (uint32_t)k;
-        uint64_t end = kcol_start[j + 1];
-        for (uint64_t a = kcol_start[j], b; a < end; a = b, k++) {
-            b = gto_block_end(krows, a, end);
-            blk[k].row0 = krows[a];
-            blk[k].n = (uint8_t)(b - a);
-            blk[k].base = kencode_block(kvals, a, b, codes);
-            deltas[a] = 0;
-            for (uint64_t i = a + 1; i < b; i++) deltas[i] = (uint8_t)(krows[i] - krows[i - 1]);
-        }
-    }
-    bcol[nkcols] = (uint32_t)k;
-    *size = o.size;
-    return p;
+    return gto_blocks_encode(nkcols, kcol_start, krows, kvals, WRT_GTO_KCODEC, 2, kencode_block, size);
 }
 
 void wrt_gto_k_entries(const wrt_gto *g, uint32_t *rows, float *vals) {
@@ -106,46 +77,21 @@ void wrt_gto_k_entries(const wrt_gto *g, uint32_t *rows, float *vals) {
  * column's own quad, and no mantissa -8192. kkeys, kcol_start and fkeys are valid.
  * ---------------------------------------------------------------------------------- */
 
-/* Column j's blocks [k0, k1) against its entries [e0, e1). */
-static void check_kcolumn(vctx *v, const wrt_gto_block *blk, const uint8_t *d, uint32_t j,
-                          uint64_t k0, uint64_t k1, uint64_t e0, uint64_t e1) {
+/* Entry i's row of K column j: below nfuncs and not a function of the column's own quad
+ * (gto_check_column_blocks' row_ok). */
+static int krow_ok(vctx *v, uint32_t j, uint64_t i, uint64_t row) {
     const wrt_gto *g = v->g;
-    uint32_t nf = g->nfuncs, q = wrt_fkey_quad(g->kkeys[j]);
-    uint64_t e = e0;
-    int64_t last = -1;
-    for (uint64_t k = k0; k < k1; k++) {
-        const wrt_gto_block *b = &blk[k];
-        if (b->n == 0 || b->n > WRT_GTO_BLOCK_MAX || b->reserved)
-            return gto_obad(v, "block %" PRIu64 " (K column %u): %u entries (1..%d) or reserved byte %u", k, j, b->n,
-                        WRT_GTO_BLOCK_MAX, b->reserved);
-        if (b->base < WRT_GTO_BASE_MIN || b->base > WRT_GTO_BASE_MAX)
-            return gto_obad(v, "block %" PRIu64 " (K column %u): base exponent %d outside [%d, %d]", k, j, b->base,
-                        WRT_GTO_BASE_MIN, WRT_GTO_BASE_MAX);
-        if (b->n > e1 - e)
-            return gto_obad(v, "K column %u: its blocks hold more than its %" PRIu64 " entries (kcol_start)", j, e1 - e0);
-        if ((int64_t)b->row0 <= last)
-            return gto_obad(v, "block %" PRIu64 " (K column %u): first row %u not above the previous block's last, %"
-                        PRId64, k, j, b->row0, last);
-        if (d[e] != 0)
-            return gto_obad(v, "entry %" PRIu64 " (K column %u): row delta %u on a block's first entry (must be 0)", e, j,
-                        d[e]);
-        uint64_t row = b->row0;
-        for (uint64_t i = e; i < e + b->n; i++) {
-            if (i > e && d[i] == 0) return gto_obad(v, "entry %" PRIu64 " (K column %u): row delta 0, rows must ascend", i, j);
-            row += i > e ? d[i] : 0;
-            if (row >= nf)
-                return gto_obad(v, "entry %" PRIu64 " (K column %u): row %" PRIu64 " out of range (%u functions)", i, j,
-                            row, nf);
-            if (wrt_fkey_quad(g->fkeys[row]) == q)
-                return gto_obad(v, "entry %" PRIu64 " (K column %u): row %" PRIu64 " is a function of quad %u, the "
-                            "column's own quad", i, j, row, q);
-        }
-        last = (int64_t)row;
-        e += b->n;
+    if (row >= g->nfuncs) {
+        gto_obad(v, "entry %" PRIu64 " (K column %u): row %" PRIu64 " out of range (%u functions)", i, j, row, g->nfuncs);
+        return 0;
     }
-    if (e != e1)
-        return gto_obad(v, "K column %u: its blocks hold %" PRIu64 " entries, kcol_start says %" PRIu64, j, e - e0,
-                    e1 - e0);
+    uint32_t q = wrt_fkey_quad(g->kkeys[j]);
+    if (wrt_fkey_quad(g->fkeys[row]) == q) {
+        gto_obad(v, "entry %" PRIu64 " (K column %u): row %" PRIu64 " is a function of quad %u, the column's own quad", i,
+                 j, row, q);
+        return 0;
+    }
+    return 1;
 }
 
 void gto_check_kcode(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
@@ -171,7 +117,8 @@ void gto_check_kcode(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
         if (bcol[j + 1] < bcol[j])
             return gto_obad(v, "bcol not monotone at K column %u (%u after %u)", j + 1, bcol[j + 1], bcol[j]);
     for (uint32_t j = 0; j < g->nkcols && !v->bad; j++)
-        check_kcolumn(v, blk, base + o.deltas, j, bcol[j], bcol[j + 1], g->kcol_start[j], g->kcol_start[j + 1]);
+        gto_check_column_blocks(v, "K column", "kcol_start", blk, base + o.deltas, j, bcol[j], bcol[j + 1],
+                                g->kcol_start[j], g->kcol_start[j + 1], krow_ok);
     for (uint64_t i = 0; i < g->knnz && !v->bad; i++)
         if ((codes[i] & 0x3fffu) == 0x2000u)
             return gto_obad(v, "entry %" PRIu64 ": mantissa -8192 (the encoding uses -8191..8191)", i);

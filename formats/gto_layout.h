@@ -147,16 +147,20 @@ _Static_assert(sizeof(gto_opcode_head) == 64, "opcode header is 64 bytes");
 _Static_assert(sizeof(wrt_gto_block) == 8, "block record");
 _Static_assert(offsetof(wrt_gto_block, n) == 4 && offsetof(wrt_gto_block, base) == 6, "layout");
 
-/* Where the opcode section's arrays start, from its counts; its size is the deltas' end. */
+/* Where a compact section's arrays start (opcode and kcode share the layout), from its
+ * counts and the bytes of a code (4 opcode, 2 kcode); its size is the deltas' end. */
 typedef struct gto_opcode_layout { uint64_t bcol, blocks, codes, deltas, size; } gto_opcode_layout;
-static inline gto_opcode_layout gto_opcode_place(uint32_t nfuncs, uint64_t nblocks, uint64_t nnz) {
+static inline gto_opcode_layout gto_blocks_place(uint32_t ncols, uint64_t nblocks, uint64_t nnz, uint32_t code_bytes) {
     gto_opcode_layout o;
     o.bcol = sizeof(gto_opcode_head);
-    o.blocks = gto_align_up(o.bcol + 4 * ((uint64_t)nfuncs + 1));
+    o.blocks = gto_align_up(o.bcol + 4 * ((uint64_t)ncols + 1));
     o.codes = gto_align_up(o.blocks + sizeof(wrt_gto_block) * nblocks);
-    o.deltas = gto_align_up(o.codes + 4 * nnz);
+    o.deltas = gto_align_up(o.codes + code_bytes * nnz);
     o.size = o.deltas + nnz;
     return o;
+}
+static inline gto_opcode_layout gto_opcode_place(uint32_t nfuncs, uint64_t nblocks, uint64_t nnz) {
+    return gto_blocks_place(nfuncs, nblocks, nnz, 4);
 }
 
 /* The compact operator (gto_opcode.c). The checker of section opcode: the whole
@@ -170,6 +174,23 @@ uint64_t gto_block_end(const uint32_t *rows, uint64_t a, uint64_t end);
 int gto_step_exp(double m, double mant_max); /* the smallest E with mant_max 2^E >= m > 0 */
 int gto_zero_bytes(const uint8_t *p, uint64_t a, uint64_t b);
 void gto_obad(struct vctx *v, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+/* Column col's blocks [k0, k1) against its entries [e0, e1) of col_start (both compact
+ * sections' structure; `what` and `starts` name the column and its array in the
+ * messages); row_ok, when not NULL, checks every entry's row (records the problem in v,
+ * returns 0), else only each block's last row is checked against nfuncs. */
+typedef int (*gto_row_check)(struct vctx *v, uint32_t col, uint64_t entry, uint64_t row);
+void gto_check_column_blocks(struct vctx *v, const char *what, const char *starts, const wrt_gto_block *blk,
+                             const uint8_t *d, uint32_t col, uint64_t k0, uint64_t k1, uint64_t e0, uint64_t e1,
+                             gto_row_check row_ok);
+/* The block layout both compact sections share (gto_opcode.c): ncols columns of entries
+ * (col_start, rows ascending within a column) cut into blocks (gto_block_end), a new
+ * payload (*size bytes, malloc'd; NULL if there is no memory) with its header (codec),
+ * bcol, each block's first row, count and base, and each entry's row delta; `code`
+ * writes one block's codes (entries [a, b) of vals, code_bytes each, at codes + a) and
+ * returns its base exponent. Deterministic. */
+typedef int16_t (*gto_block_coder)(const float *vals, uint64_t a, uint64_t b, void *codes);
+uint8_t *gto_blocks_encode(uint32_t ncols, const uint64_t *col_start, const uint32_t *rows, const float *vals,
+                           uint32_t codec, uint32_t code_bytes, gto_block_coder code, uint64_t *size);
 /* Encodes float entries (col_start over nfuncs columns, rows, vals) into a new payload
  * of section opcode (*size bytes, malloc'd; NULL if there is no memory). Deterministic. */
 uint8_t *gto_opcode_encode(uint32_t nfuncs, const uint64_t *col_start, const uint32_t *rows,
@@ -180,13 +201,7 @@ uint8_t *gto_opcode_encode(uint32_t nfuncs, const uint64_t *col_start, const uin
  * (u32, nkcols + 1), the blocks (wrt_gto_block, nblocks), the codes (u16, knnz) and the
  * row deltas (u8, knnz), which end the payload. Blocks are cut as the operator's. */
 static inline gto_opcode_layout gto_kcode_place(uint32_t nkcols, uint64_t nblocks, uint64_t knnz) {
-    gto_opcode_layout o;
-    o.bcol = sizeof(gto_opcode_head);
-    o.blocks = gto_align_up(o.bcol + 4 * ((uint64_t)nkcols + 1));
-    o.codes = gto_align_up(o.blocks + sizeof(wrt_gto_block) * nblocks);
-    o.deltas = gto_align_up(o.codes + 2 * knnz);
-    o.size = o.deltas + knnz;
-    return o;
+    return gto_blocks_place(nkcols, nblocks, knnz, 2);
 }
 /* gto_kcode.c: the checker of section kcode (the whole section once its last chunk is
  * summed: structure, rows ascending below nfuncs and off the column's quad, no mantissa

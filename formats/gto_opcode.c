@@ -26,8 +26,9 @@ int gto_step_exp(double m, double mant_max) {
 
 static double max3(const float *v) { return fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2]))); }
 
-/* One block's base and codes: entries [a, b) of vals. */
-static int16_t encode_block(const float *vals, uint64_t a, uint64_t b, uint32_t *codes) {
+/* One block's base and codes: entries [a, b) of vals (3 channels each), 32-bit codes. */
+static int16_t encode_block(const float *vals, uint64_t a, uint64_t b, void *out) {
+    uint32_t *codes = out;
     int emax = WRT_GTO_BASE_MIN;
     for (uint64_t i = a; i < b; i++) {
         double m = max3(vals + i * 3);
@@ -61,38 +62,43 @@ uint64_t gto_block_end(const uint32_t *rows, uint64_t a, uint64_t end) {
     return b;
 }
 
-uint8_t *gto_opcode_encode(uint32_t nfuncs, const uint64_t *col_start, const uint32_t *rows,
-                           const float *vals, uint64_t *size) {
-    uint64_t nnz = col_start[nfuncs], nb = 0;
-    for (uint32_t s = 0; s < nfuncs; s++)
+uint8_t *gto_blocks_encode(uint32_t ncols, const uint64_t *col_start, const uint32_t *rows, const float *vals,
+                           uint32_t codec, uint32_t code_bytes, gto_block_coder code, uint64_t *size) {
+    uint64_t nnz = col_start[ncols], nb = 0;
+    for (uint32_t s = 0; s < ncols; s++)
         for (uint64_t a = col_start[s]; a < col_start[s + 1]; a = gto_block_end(rows, a, col_start[s + 1])) nb++;
-    gto_opcode_layout o = gto_opcode_place(nfuncs, nb, nnz);
+    gto_opcode_layout o = gto_blocks_place(ncols, nb, nnz, code_bytes);
     uint8_t *p = calloc(1, o.size);
     if (!p) return NULL;
     gto_opcode_head *h = (gto_opcode_head *)p;
-    h->codec = WRT_GTO_CODEC;
+    h->codec = codec;
     h->block_max = WRT_GTO_BLOCK_MAX;
     h->nblocks = nb;
     h->nnz = nnz;
-    uint32_t *bcol = (uint32_t *)(p + o.bcol), *codes = (uint32_t *)(p + o.codes);
+    uint32_t *bcol = (uint32_t *)(p + o.bcol);
     wrt_gto_block *blk = (wrt_gto_block *)(p + o.blocks);
     uint8_t *deltas = p + o.deltas;
     uint64_t k = 0;
-    for (uint32_t s = 0; s < nfuncs; s++) {
+    for (uint32_t s = 0; s < ncols; s++) {
         bcol[s] = (uint32_t)k;
         uint64_t end = col_start[s + 1];
         for (uint64_t a = col_start[s], b; a < end; a = b, k++) {
             b = gto_block_end(rows, a, end);
             blk[k].row0 = rows[a];
             blk[k].n = (uint8_t)(b - a);
-            blk[k].base = encode_block(vals, a, b, codes);
+            blk[k].base = code(vals, a, b, p + o.codes);
             deltas[a] = 0;
             for (uint64_t i = a + 1; i < b; i++) deltas[i] = (uint8_t)(rows[i] - rows[i - 1]);
         }
     }
-    bcol[nfuncs] = (uint32_t)k;
+    bcol[ncols] = (uint32_t)k;
     *size = o.size;
     return p;
+}
+
+uint8_t *gto_opcode_encode(uint32_t nfuncs, const uint64_t *col_start, const uint32_t *rows,
+                           const float *vals, uint64_t *size) {
+    return gto_blocks_encode(nfuncs, col_start, rows, vals, WRT_GTO_CODEC, 4, encode_block, size);
 }
 
 /* ------------------------------------------------------------------------------------
@@ -116,41 +122,50 @@ int gto_zero_bytes(const uint8_t *p, uint64_t a, uint64_t b) {
     return 1;
 }
 
-/* Column s's blocks [k0, k1) against its entries [e0, e1). */
-static void check_column_blocks(vctx *v, const wrt_gto_block *blk, const uint8_t *d, uint32_t s,
-                                uint64_t k0, uint64_t k1, uint64_t e0, uint64_t e1) {
+/* Column s's blocks [k0, k1) against its entries [e0, e1), for both compact sections
+ * (`what` names a column in the messages: "column", "K column"; `starts` its entries'
+ * array: "col_start", "kcol_start"): each block's count, reserved byte and base, rows
+ * strictly ascending from block to block, a block's first delta 0 and the others not,
+ * and the rows below nfuncs: every entry's through row_ok when given (which records the
+ * problem and returns 0), else the last row of each block. */
+void gto_check_column_blocks(vctx *v, const char *what, const char *starts, const wrt_gto_block *blk,
+                             const uint8_t *d, uint32_t s, uint64_t k0, uint64_t k1, uint64_t e0, uint64_t e1,
+                             gto_row_check row_ok) {
     uint32_t nf = v->g->nfuncs;
     uint64_t e = e0;
     int64_t last = -1;
     for (uint64_t k = k0; k < k1; k++) {
         const wrt_gto_block *b = &blk[k];
         if (b->n == 0 || b->n > WRT_GTO_BLOCK_MAX || b->reserved)
-            return gto_obad(v, "block %" PRIu64 " (column %u): %u entries (1..%d) or reserved byte %u", k, s, b->n,
+            return gto_obad(v, "block %" PRIu64 " (%s %u): %u entries (1..%d) or reserved byte %u", k, what, s, b->n,
                         WRT_GTO_BLOCK_MAX, b->reserved);
         if (b->base < WRT_GTO_BASE_MIN || b->base > WRT_GTO_BASE_MAX)
-            return gto_obad(v, "block %" PRIu64 " (column %u): base exponent %d outside [%d, %d]", k, s, b->base,
+            return gto_obad(v, "block %" PRIu64 " (%s %u): base exponent %d outside [%d, %d]", k, what, s, b->base,
                         WRT_GTO_BASE_MIN, WRT_GTO_BASE_MAX);
         if (b->n > e1 - e)
-            return gto_obad(v, "column %u: its blocks hold more than its %" PRIu64 " entries (col_start)", s, e1 - e0);
+            return gto_obad(v, "%s %u: its blocks hold more than its %" PRIu64 " entries (%s)", what, s, e1 - e0, starts);
         if ((int64_t)b->row0 <= last)
-            return gto_obad(v, "block %" PRIu64 " (column %u): first row %u not above the previous block's last, %" PRId64,
-                        k, s, b->row0, last);
+            return gto_obad(v, "block %" PRIu64 " (%s %u): first row %u not above the previous block's last, %" PRId64,
+                        k, what, s, b->row0, last);
         if (d[e] != 0)
-            return gto_obad(v, "entry %" PRIu64 " (column %u): row delta %u on a block's first entry (must be 0)", e, s, d[e]);
+            return gto_obad(v, "entry %" PRIu64 " (%s %u): row delta %u on a block's first entry (must be 0)", e, what, s,
+                        d[e]);
         uint64_t row = b->row0;
-        for (uint64_t i = e + 1; i < e + b->n; i++) {
-            if (d[i] == 0)
-                return gto_obad(v, "entry %" PRIu64 " (column %u): row delta 0, rows must ascend", i, s);
-            row += d[i];
+        for (uint64_t i = e; i < e + b->n; i++) {
+            if (i > e && d[i] == 0)
+                return gto_obad(v, "entry %" PRIu64 " (%s %u): row delta 0, rows must ascend", i, what, s);
+            row += i > e ? d[i] : 0;
+            if (row_ok && !row_ok(v, s, i, row)) return;
         }
         if (row >= nf)
-            return gto_obad(v, "block %" PRIu64 " (column %u): rows up to %" PRIu64 " out of range (%u functions)", k, s,
-                        row, nf);
+            return gto_obad(v, "block %" PRIu64 " (%s %u): rows up to %" PRIu64 " out of range (%u functions)", k, what,
+                        s, row, nf);
         last = (int64_t)row;
         e += b->n;
     }
     if (e != e1)
-        return gto_obad(v, "column %u: its blocks hold %" PRIu64 " entries, col_start says %" PRIu64, s, e - e0, e1 - e0);
+        return gto_obad(v, "%s %u: its blocks hold %" PRIu64 " entries, %s says %" PRIu64, what, s, e - e0, starts,
+                    e1 - e0);
 }
 
 void gto_check_opcode(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) {
@@ -176,7 +191,8 @@ void gto_check_opcode(vctx *v, const uint8_t *base, uint64_t first, uint64_t n) 
         if (bcol[s + 1] < bcol[s])
             return gto_obad(v, "bcol not monotone at column %u (%u after %u)", s + 1, bcol[s + 1], bcol[s]);
     for (uint32_t s = 0; s < g->nfuncs && !v->bad; s++)
-        check_column_blocks(v, blk, base + o.deltas, s, bcol[s], bcol[s + 1], cs[s], cs[s + 1]);
+        gto_check_column_blocks(v, "column", "col_start", blk, base + o.deltas, s, bcol[s], bcol[s + 1], cs[s],
+                                cs[s + 1], NULL);
     uint32_t any = 0;
     for (uint64_t i = 0; i < g->nnz; i++) {
         uint32_t c = codes[i];

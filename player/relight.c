@@ -30,15 +30,18 @@ static int same_light(const wrt_light *a, const wrt_light *b) {
 /* A new light slot's arrays: its roots, its c over K's columns (with K) and room for its
  * projection (each function at most once), so that no update allocates. -1: no memory
  * (what was made is freed). */
-static int light_slot_init(wrt_relight *r, light_state *ls) {
+static int light_slot_init(wrt_relight *r, light_state *ls, int slot) {
     size_t nf = (size_t)r->g->nfuncs + 1;
     ls->root = relight_calloc(r, (size_t)r->g->nquads * 3 + 1, sizeof(double));
     if (r->g->nkcols) ls->kc = relight_calloc(r, (size_t)r->g->nkcols * 3, sizeof(float));
     ls->idx = relight_calloc(r, nf, sizeof *ls->idx);
     ls->val = relight_calloc(r, 3 * nf, sizeof *ls->val);
     ls->cap = nf;
+    if (r->mul.per_light && slot < WRT_RELIGHT_SUM_MAX)
+        ls->X4 = relight_calloc(r, (size_t)r->g->nfuncs * 4 + 4, sizeof(float)); /* malloc: 16-byte aligned */
     if (!r->oom) return 0;
     relight_free(r, ls->root); relight_free(r, ls->kc); relight_free(r, ls->idx); relight_free(r, ls->val);
+    relight_free(r, ls->X4);
     memset(ls, 0, sizeof *ls);
     return -1;
 }
@@ -48,11 +51,12 @@ wrt_status wrt_relight_set_lights(wrt_relight *r, const wrt_light *lights, const
     if (n > r->lights_cap) {
         light_state *nl = relight_calloc(r, (size_t)n, sizeof(light_state));
         int made = r->lights_cap;
-        while (nl && made < n && light_slot_init(r, &nl[made]) == 0) made++;
+        while (nl && made < n && light_slot_init(r, &nl[made], made) == 0) made++;
         if (made < n) {
             r->oom = 0;
             for (int i = r->lights_cap; i < made; i++) {
                 relight_free(r, nl[i].root); relight_free(r, nl[i].kc); relight_free(r, nl[i].idx); relight_free(r, nl[i].val);
+                relight_free(r, nl[i].X4);
             }
             relight_free(r, nl);
             return wrt_fail(WRT_ERR_NOMEM, "relight: out of memory for %d lights", n);
@@ -140,7 +144,8 @@ static void apply_lights(wrt_relight *r, wrt_relight_timings *t) {
     /* With K: the first bounce from its quads, Y = K c, and E' = E off them + Y. */
     const float *src = r->E;
     if (g->nkcols) { relight_first_bounce(r); src = r->k.Ep; }
-    relight_multiply(r, relight_cluster_forward(r, src)); /* the tree's basis and back, if any */
+    if (r->mul.per_light && r->nlights <= WRT_RELIGHT_SUM_MAX) relight_multiply_lights(r); /* the lights that moved */
+    else relight_multiply(r, relight_cluster_forward(r, src)); /* the tree's basis and back, if any */
     relight_cluster_inverse(r);
     r->run.n.multiplies++;
     if (r->Eapplied) {

@@ -314,6 +314,10 @@ static wrt_status create_state(wrt_relight *r, size_t tex_total) {
     if (r->opt.skip_below > 0) r->Eapplied = relight_calloc(r, (size_t)nf * 3 + 1, sizeof(float));
     r->mul.X4 = relight_calloc(r, (size_t)nf * 4 + 4, sizeof(float)); /* malloc: 16-byte aligned */
     r->mul.cols = relight_calloc(r, (size_t)nf + 1, sizeof(uint32_t));
+    /* each light keeps its own product where X is a plain sum of the lights' (no first
+     * bounce K, whose E' mixes them, and no emitters, whose terms join E) */
+    r->mul.per_light = !r->g->nkcols && !r->nemitters;
+    if (r->mul.per_light) r->mul.Ed = relight_calloc(r, (size_t)nf * 3 + 1, sizeof(float));
     r->tex = relight_calloc(r, tex_total + 1, sizeof(float));
     r->texk = relight_calloc(r, tex_total / 3 + 1, sizeof(float));
     if (r->oom) return WRT_ERR_NOMEM;
@@ -457,7 +461,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (r->rt.dev) rtcReleaseDevice(r->rt.dev);
     for (int i = 0; i < r->lights_cap; i++) {
         relight_free(r, r->lights[i].idx); relight_free(r, r->lights[i].val); relight_free(r, r->lights[i].root);
-        relight_free(r, r->lights[i].kc);
+        relight_free(r, r->lights[i].kc); relight_free(r, r->lights[i].X4);
     }
     relight_free(r, r->lights);
     if (r->workers)
@@ -476,7 +480,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (r->qi) for (uint32_t q = 0; q < r->g->nquads; q++) relight_free(r, r->qi[q].known);
     relight_free(r, r->mats); relight_free(r, r->fn_slevel); relight_free(r, r->fn_ang); relight_free(r, r->fn_spidx); relight_free(r, r->fn_flux); relight_free(r, r->qi);
     relight_free(r, r->ang_list); relight_free(r, r->ang_start); relight_free(r, r->ang_full); relight_free(r, r->ang_perm);
-    relight_free(r, r->E); relight_free(r, r->X); relight_free(r, r->Xprev); relight_free(r, r->Eapplied); relight_free(r, r->mul.X4); relight_free(r, r->mul.cols); relight_free(r, r->tex); relight_free(r, r->texk); relight_free(r, r->tex_nonzero); relight_free(r, r->x_nonzero);
+    relight_free(r, r->E); relight_free(r, r->X); relight_free(r, r->Xprev); relight_free(r, r->Eapplied); relight_free(r, r->mul.X4); relight_free(r, r->mul.Ed); relight_free(r, r->mul.cols); relight_free(r, r->tex); relight_free(r, r->texk); relight_free(r, r->tex_nonzero); relight_free(r, r->x_nonzero);
     relight_free(r, r->resynth); relight_free(r, r->proj.recs); relight_free(r, r->proj.qlevel); relight_free(r, r->proj.cones);
     relight_free(r, r->synth_list); relight_free(r, r->emit_scale);
     wrt_ctree_free(&r->ct.t); relight_free(r, r->ct.root); relight_free(r, r->ct.Et); relight_free(r, r->ct.scratch);

@@ -33,10 +33,12 @@
 
 #define PROJ_MAX_LEVEL 6     /* finest projection grid: 64 x 64 cells per quad */
 #define PROJ_MIN_LEVEL 3     /* every quad is sampled on at least 8 x 8 cells (if it has them) */
+#define PROJ_MIN_LEVEL_DIFFUSE 2 /* a quad without angular functions or K columns: 4 x 4 */
 #define ANG_LEVELS 4         /* angular node levels 0..3 (basis.h: 2 bits of level) */
 #define NANG 256             /* angular functions over node levels 0..3: 4^ANG_LEVELS */
 #define BETA_RES WRT_BRDF_TABLE_RES /* beta table: common/brdf_table.h, shared with the bake */
 #define FN_INVALID 255       /* fn_slevel of a key that is not a basis function */
+#define WRT_RELIGHT_SUM_MAX 8 /* rl_mul.per_light: lights that keep their own product, at most */
 
 /* Cells of levels 0..l-1 of a quadtree: the offset of level l in per-level arrays. */
 #define LEVEL_OFF(l) ((((size_t)1 << (2 * (l))) - 1) / 3)
@@ -85,6 +87,9 @@ typedef struct light_state {
     double *root;                   /* nquads x 3: projected (root, root) coefficient */
     double last_work;               /* its last projection's work (samples and rays, in
                                      * parallel_for's units): an estimate of the next one's */
+    float *X4;                      /* Op of its E at scale 1, 4 floats a function (NULL
+                                     * unless rl_mul.per_light) */
+    uint64_t proj_gen, x_gen;       /* whole projections made; the one X4 is the Op of */
 } light_state;
 
 /* One worker thread's scratch: grown on demand during updates, kept between them. */
@@ -154,6 +159,9 @@ typedef struct rl_mul {
     void *own[3];                   /* op's arrays when they are the relighter's copy */
     float *X4;                      /* X being summed: 4 floats a function (RGB, unused) */
     uint32_t *cols;                 /* non-zero columns of E */
+    int per_light;                  /* X = sum of scale x each light's X4 (no K, no emitters):
+                                     * a light change multiplies the lights that moved only */
+    float *Ed;                      /* per_light: one light's E, dense (nfuncs x 3) */
 } rl_mul;
 
 /* The first-bounce operator K (g->nkcols > 0; relight_bounce.c). */
@@ -434,6 +442,10 @@ int relight_projection_cap(const wrt_relight *r, const quad_info *q);
 /* relight_multiply.c: X = Op src (src = E, or E' with K; + Y with K), and per quad
  * whether its rows changed (r->resynth) and are non-zero (r->x_nonzero). */
 void relight_multiply(wrt_relight *r, const float *src);
+/* The same from each light's own product (rl_mul.per_light): Op E_i for the lights whose
+ * whole projection changed since their X4 was made (through the cluster tree's basis when
+ * the file has one), then X = sum over the lights, in their order, of scale_i X4_i. */
+void relight_multiply_lights(wrt_relight *r);
 /* The cluster tree (relight_cluster.c): set up from the file's section (WRT_OK when the
  * file has none), E taken to the tree's basis (returns the vector to multiply), and X
  * back to the quads' basis with the quads whose X changed marked. */

@@ -19,7 +19,7 @@
 #define MUL_MAX_CHUNKS 256
 #define MUL_PARALLEL_ENTRIES 3e7 /* entries touched above which the multiply is split */
 
-typedef struct mul_ctx { const uint32_t *cols; uint32_t ncols; int nchunk; const float *src; } mul_ctx;
+typedef struct mul_ctx { const uint32_t *cols; uint32_t ncols; int nchunk; const float *src; float *X4; } mul_ctx;
 
 /* Rows [lo, hi) of X = Op E (E: mc->src, r->E or with K r->k.Ep): each chunk scans every non-zero column and takes the
  * entries of its rows (rows ascend within a column), so each X entry sums its terms in
@@ -32,7 +32,7 @@ static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
     uint32_t nf = r->g->nfuncs;
     uint32_t lo = (uint32_t)((uint64_t)nf * item / mc->nchunk), hi = (uint32_t)((uint64_t)nf * (item + 1) / mc->nchunk);
     if (lo >= hi) return;
-    memset(r->mul.X4 + (size_t)lo * 4, 0, (size_t)(hi - lo) * 4 * sizeof(float));
+    memset(mc->X4 + (size_t)lo * 4, 0, (size_t)(hi - lo) * 4 * sizeof(float));
     for (uint32_t k = 0; k < mc->ncols; k++) {
         uint32_t s = mc->cols[k];
         uint64_t a = op->col_start[s], b = op->col_start[s + 1];
@@ -47,12 +47,12 @@ static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
 #ifdef __SSE2__
         __m128 ev = _mm_set_ps(0.0f, e[2], e[1], e[0]);
         for (; i < vend && op->rows[i] < hi; i++) {
-            float *x = r->mul.X4 + (size_t)op->rows[i] * 4;
+            float *x = mc->X4 + (size_t)op->rows[i] * 4;
             _mm_store_ps(x, _mm_add_ps(_mm_load_ps(x), _mm_mul_ps(ev, _mm_loadu_ps(op->vals + i * 3))));
         }
 #endif
         for (; i < end && op->rows[i] < hi; i++) {
-            float *x = r->mul.X4 + (size_t)op->rows[i] * 4;
+            float *x = mc->X4 + (size_t)op->rows[i] * 4;
             const float *v = op->vals + i * 3;
             x[0] += e[0] * v[0];
             x[1] += e[1] * v[1];
@@ -67,7 +67,7 @@ static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
  * and so is the source times a power of two unless it leaves the normal range), so a row sums the same terms in the same
  * order as from the decoded floats. SSE4.1: the three mantissas sign-extended in one
  * multiply and shift. */
-static inline void mul_block(float *X4, const float (*ev4)[4], const uint32_t *codes, const uint8_t *deltas,
+static inline __attribute__((always_inline)) void mul_block(float *X4, const float (*ev4)[4], const uint32_t *codes, const uint8_t *deltas,
                              uint32_t row, uint32_t n, uint32_t lo, uint32_t hi, int all) {
 #ifdef __SSE4_1__
     const __m128i sh = _mm_set_epi32(0, 1 << 2, 1 << 12, 1 << 22);
@@ -96,7 +96,7 @@ static void mul_chunk_compact(wrt_relight *r, worker *w, int item, void *vctx) {
     uint32_t lo = (uint32_t)((uint64_t)nf * item / mc->nchunk), hi = (uint32_t)((uint64_t)nf * (item + 1) / mc->nchunk);
     if (lo >= hi) return;
     int all = lo == 0 && hi == nf;
-    memset(r->mul.X4 + (size_t)lo * 4, 0, (size_t)(hi - lo) * 4 * sizeof(float));
+    memset(mc->X4 + (size_t)lo * 4, 0, (size_t)(hi - lo) * 4 * sizeof(float));
     for (uint32_t k = 0; k < mc->ncols; k++) {
         uint32_t s = mc->cols[k];
         const float *e = mc->src + (size_t)s * 3;
@@ -123,7 +123,9 @@ static void mul_chunk_compact(wrt_relight *r, worker *w, int item, void *vctx) {
                 ev4[x][3] = 0.0f;
             }
 #endif
-            mul_block(r->mul.X4, ev4, op->codes + i, op->deltas + i, bk->row0, bk->n, lo, hi, all);
+            /* the whole range (one chunk, the usual case): the row test compiled out */
+            if (all) mul_block(mc->X4, ev4, op->codes + i, op->deltas + i, bk->row0, bk->n, 0, nf, 1);
+            else mul_block(mc->X4, ev4, op->codes + i, op->deltas + i, bk->row0, bk->n, lo, hi, 0);
             i += bk->n;
         }
     }
@@ -180,21 +182,20 @@ int relight_display_rows_operator(wrt_relight *r) {
     return 0;
 }
 
-/* X = Op src over the non-zero sources only, in column order for every row (+ Y with K),
- * then per quad whether its rows of X changed since the last multiply (r->resynth) and
- * whether any is non-zero (r->x_nonzero). */
-void relight_multiply(wrt_relight *r, const float *src) {
-    const wrt_gto *g = r->g;
-    uint32_t nq = g->nquads, nf = g->nfuncs;
-    uint32_t ncols = 0;
+/* X4 = Op src over the non-zero sources only, in column order for every row: the
+ * columns are src's non-zero ones, found by a scan, or among `cand` (n of them,
+ * ascending) when given. */
+static void mul_run(wrt_relight *r, const float *src, const uint32_t *cand, size_t n, float *X4) {
+    uint32_t nf = r->g->nfuncs, ncols = 0;
     double entries = 0;
-    for (uint32_t c = 0; c < nf; c++) {
+    for (size_t k = 0; k < (cand ? n : nf); k++) {
+        uint32_t c = cand ? cand[k] : (uint32_t)k;
         const float *e = src + (size_t)c * 3;
         if (e[0] == 0 && e[1] == 0 && e[2] == 0) continue;
         r->mul.cols[ncols++] = c;
         entries += (double)(r->mul.op.col_start[c + 1] - r->mul.op.col_start[c]);
     }
-    mul_ctx mc = {r->mul.cols, ncols, 0, src};
+    mul_ctx mc = {r->mul.cols, ncols, 0, src, X4};
     r->run.n.entries_streamed += (long long)entries;
     /* Bound by memory: threads that stream halves of the same columns were measured
      * slower than one on 2 cores (maze 4.2 vs 2.8 ms, glossy 14 vs 11 ms). */
@@ -202,7 +203,15 @@ void relight_multiply(wrt_relight *r, const float *src) {
     if (nchunk > MUL_MAX_CHUNKS) nchunk = MUL_MAX_CHUNKS;
     mc.nchunk = nchunk;
     relight_parallel_for(r, nchunk, 1e9, r->mul.op.rows ? mul_chunk : mul_chunk_compact, &mc);
-    /* X from X4 (+ Y with K, on the rows the multiply computes: all but a glossy quad's
+}
+
+/* X = sum over k < n of sc[k] x4[k] (4 floats a function; with one term of scale 1, x4[0]
+ * itself to the bit), + Y with K, then per quad whether its rows of X changed since the
+ * last multiply (r->resynth) and whether any is non-zero (r->x_nonzero). */
+static void x_store(wrt_relight *r, const float *const *x4, const float *sc, int n) {
+    const wrt_gto *g = r->g;
+    uint32_t nq = g->nquads, nf = g->nfuncs;
+    /* X from the sum (+ Y with K, on the rows the multiply computes: all but a glossy quad's
      * angular rows when the final gather displays it), each value compared with the one
      * it replaces as it is written (X keeps its address; the quads' ranges follow each
      * other over every function: gto_check_quad_ranges). With the cluster tree the
@@ -221,10 +230,14 @@ void relight_multiply(wrt_relight *r, const float *src) {
             const __m128i m3 = _mm_set_epi32(0, -1, -1, -1);
             __m128i ch = _mm_setzero_si128(), nzv = _mm_setzero_si128();
             for (; f < fend; f++) {
-                __m128 v = _mm_load_ps(r->mul.X4 + f * 4);
+                __m128 v = _mm_setzero_ps();
+                for (int k = 0; k < n; k++) {
+                    __m128 t = _mm_mul_ps(_mm_set1_ps(sc[k]), _mm_load_ps(x4[k] + f * 4));
+                    v = k ? _mm_add_ps(v, t) : t;
+                }
                 float *x = r->X + f * 3;
-                __m128i o = _mm_castps_si128(_mm_loadu_ps(x)), n = _mm_castps_si128(v);
-                ch = _mm_or_si128(ch, _mm_and_si128(_mm_xor_si128(o, n), m3));
+                __m128i o = _mm_castps_si128(_mm_loadu_ps(x)), nw = _mm_castps_si128(v);
+                ch = _mm_or_si128(ch, _mm_and_si128(_mm_xor_si128(o, nw), m3));
                 nzv = _mm_or_si128(nzv, _mm_and_si128(_mm_castps_si128(_mm_cmpneq_ps(v, _mm_setzero_ps())), m3));
                 _mm_storel_pi((__m64 *)x, v);
                 _mm_store_ss(x + 2, _mm_movehl_ps(v, v));
@@ -236,7 +249,11 @@ void relight_multiply(wrt_relight *r, const float *src) {
         for (; f < fend; f++) {
             int addy = Y && (!r->mul.own[0] || r->fn_ang[f] == 0);
             for (int c = 0; c < 3; c++) {
-                float v = r->mul.X4[f * 4 + c];
+                float v = 0;
+                for (int k = 0; k < n; k++) {
+                    float t = sc[k] * x4[k][f * 4 + c];
+                    v = k ? v + t : t;
+                }
                 if (addy) v += Y[f * 3 + c];
                 uint32_t ov, nv;
                 memcpy(&ov, &r->X[f * 3 + c], 4);
@@ -250,4 +267,46 @@ void relight_multiply(wrt_relight *r, const float *src) {
         if (changed) r->resynth[q] = 1;
         r->x_nonzero[q] = (uint8_t)(nz != 0);
     }
+}
+
+/* X = Op src over the non-zero sources only, in column order for every row (+ Y with K),
+ * then per quad whether its rows of X changed since the last multiply (r->resynth) and
+ * whether any is non-zero (r->x_nonzero). */
+void relight_multiply(wrt_relight *r, const float *src) {
+    mul_run(r, src, NULL, 0, r->mul.X4);
+    const float *x4 = r->mul.X4, one = 1.0f;
+    x_store(r, &x4, &one, 1);
+}
+
+/* Linear in the lights: X = sum_i scale_i Op E_i. A light whose projection did not change
+ * keeps its product, so moving one light of three streams that light's lit columns only,
+ * and a change of intensity or colour scale none. Each X4_i depends on E_i alone and the
+ * sum runs in light order, so X depends on the lights, not on the history of updates. */
+void relight_multiply_lights(wrt_relight *r) {
+    uint32_t nf = r->g->nfuncs;
+    const float *x4[WRT_RELIGHT_SUM_MAX];
+    float sc[WRT_RELIGHT_SUM_MAX];
+    int n = 0;
+    for (int i = 0; i < r->nlights; i++) {
+        light_state *ls = &r->lights[i];
+        if (ls->scale == 0 || !ls->have_proj) continue;
+        if (ls->x_gen != ls->proj_gen) {
+            float *Ed = r->mul.Ed;
+            for (size_t k = 0; k < ls->n; k++) memcpy(Ed + (size_t)ls->idx[k] * 3, ls->val + k * 3, 3 * sizeof(float));
+            /* the light's functions ascend (quad by quad, the quads' functions in order);
+             * the cluster tree's basis spreads them: then a scan */
+            if (r->ct.on) mul_run(r, relight_cluster_forward(r, Ed), NULL, 0, ls->X4);
+            else mul_run(r, Ed, ls->idx, ls->n, ls->X4);
+            for (size_t k = 0; k < ls->n; k++) memset(Ed + (size_t)ls->idx[k] * 3, 0, 3 * sizeof(float));
+            ls->x_gen = ls->proj_gen;
+        }
+        x4[n] = ls->X4;
+        sc[n++] = ls->scale;
+    }
+    if (n == 0) {
+        memset(r->mul.X4, 0, (size_t)nf * 4 * sizeof(float));
+        x4[n] = r->mul.X4;
+        sc[n++] = 1.0f;
+    }
+    x_store(r, x4, sc, n);
 }

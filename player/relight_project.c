@@ -6,7 +6,8 @@
  * BRDF table (K's btilde).
  *
  * Projection: an adaptive quadtree per quad and light. Every cell of the 8 x 8 grid
- * (PROJ_MIN_LEVEL; coarser if the quad holds no finer functions) is either split
+ * (PROJ_MIN_LEVEL; 4 x 4 on a diffuse quad, proj_min_level; coarser if the quad holds
+ * no finer functions) is either split
  * unseen, while it is wider than 1/8 of its distance to the light (1/11.3 on quads with
  * angular functions), so that 1/d^2 and the cosine change by at most ~1/8 across a
  * cell, or sampled (4 samples at fixed rotated-grid positions, one shadow ray each). A
@@ -51,6 +52,15 @@
 
 /* Fixed rotated-grid sample positions within a cell (4 samples). */
 static const double cell_samples[4][2] = {{0.375, 0.125}, {0.875, 0.375}, {0.625, 0.875}, {0.125, 0.625}};
+
+/* The grid every cell of which is sampled (or split unseen by the level rule) on quad q:
+ * 8 x 8 where the light's direction matters (angular functions, K's columns), 4 x 4 on
+ * a diffuse quad, whose E only feeds the transport (the direct light is drawn apart):
+ * the finer wavelets of a smooth light are small there, and the level rule and the
+ * shadow edges still split cells down to the cap (docs/bench.md, session 6). */
+static int proj_min_level(const quad_info *q) {
+    return q->nang > 1 || q->kcount ? PROJ_MIN_LEVEL : PROJ_MIN_LEVEL_DIFFUSE;
+}
 
 /* The deepest spatial level the projection resolves: the quad's functions' and its K
  * columns' (kslevel is 0 without K). */
@@ -284,42 +294,66 @@ static int all_below(const wrt_v3 *pts, int n, wrt_v3 o, wrt_v3 nrm, double size
     return 1;
 }
 
-/* 1 if quad b cannot meet the prism swept by the convex planar polygon c[0..3] (normal n)
- * toward a sun in unit direction s (on its front): the pyramid below with its apex at
- * infinity. */
-static int prism_clear(const wrt_v3 c[4], wrt_v3 n, wrt_v3 s, const quad_info *b, double size) {
-    if (all_below(b->p, 4, c[0], n, size)) return 1; /* b on or behind the polygon's plane */
-    wrt_v3 mid = v3_scale(v3_add(v3_add(c[0], c[1]), v3_add(c[2], c[3])), 0.25);
-    for (int k = 0; k < 4; k++) { /* the sides: planes through an edge and s, normals inward */
-        wrt_v3 sn = v3_cross(v3_sub(c[(k + 1) & 3], c[k]), s);
-        if (v3_dot(sn, v3_sub(mid, c[k])) < 0) sn = v3_scale(sn, -1);
-        if (all_below(b->p, 4, c[k], sn, size)) return 1;
-    }
-    /* b's plane leaves the polygon below it, and the sun's direction does not rise above it */
-    if (all_below(c, 4, b->p[0], b->n, size) && v3_dot(s, b->n) <= 0) return 1;
-    wrt_v3 nb = v3_scale(b->n, -1);
-    if (all_below(c, 4, b->p[0], nb, size) && v3_dot(s, nb) <= 0) return 1;
-    return 0;
+/* The planes of the pyramid of light l and the convex planar polygon c[0..3] (normal n,
+ * light on its front), or for a sun the prism toward it: what pyramid_clear tests every
+ * quad b against, made once per polygon. A plane is a point o, a normal and all_below's
+ * tolerance for it. */
+typedef struct pyr_planes {
+    int np, sun;
+    wrt_v3 o[6], nrm[6];
+    double tol[6];
+    wrt_v3 pts[5];  /* the polygon's corners and the light (a sun: the corners only) */
+    wrt_v3 s;       /* a sun: the unit direction toward it */
+} pyr_planes;
+
+static void pyr_plane(pyr_planes *pp, wrt_v3 o, wrt_v3 nrm, double size) {
+    pp->o[pp->np] = o;
+    pp->nrm[pp->np] = nrm;
+    pp->tol[pp->np++] = 1e-9 * size * sqrt(v3_dot(nrm, nrm)); /* as all_below's */
 }
 
-/* 1 if quad b cannot meet the pyramid of light l and the convex planar polygon c[0..3]
- * (normal n, light on its front); for a sun, the prism (prism_clear). */
-static int pyramid_clear(const wrt_v3 c[4], wrt_v3 n, const light_c *lc, const quad_info *b, double size) {
-    if (lc->sun) return prism_clear(c, n, v3_scale(lc->dir, -1), b, size);
+static void pyramid_setup(pyr_planes *pp, const wrt_v3 c[4], wrt_v3 n, const light_c *lc, double size) {
+    pp->np = 0;
+    pp->sun = lc->sun;
+    for (int k = 0; k < 4; k++) pp->pts[k] = c[k];
+    pyr_plane(pp, c[0], n, size); /* b on or behind the polygon's plane */
+    if (lc->sun) {
+        wrt_v3 s = v3_scale(lc->dir, -1);
+        pp->s = s;
+        wrt_v3 mid = v3_scale(v3_add(v3_add(c[0], c[1]), v3_add(c[2], c[3])), 0.25);
+        for (int k = 0; k < 4; k++) { /* the sides: planes through an edge and s, normals inward */
+            wrt_v3 sn = v3_cross(v3_sub(c[(k + 1) & 3], c[k]), s);
+            if (v3_dot(sn, v3_sub(mid, c[k])) < 0) sn = v3_scale(sn, -1);
+            pyr_plane(pp, c[k], sn, size);
+        }
+        return;
+    }
     wrt_v3 l = lc->pos;
-    /* b on or behind the polygon's plane, or beyond the light's parallel plane */
-    if (all_below(b->p, 4, c[0], n, size) || all_below(b->p, 4, l, v3_scale(n, -1), size)) return 1;
+    pp->pts[4] = l;
+    pyr_plane(pp, l, v3_scale(n, -1), size); /* beyond the light's parallel plane */
     /* the pyramid's sides: inward normals (e_k - l) x (e_k+1 - l) for a ccw polygon */
     wrt_v3 mid = v3_sub(v3_scale(v3_add(v3_add(c[0], c[1]), v3_add(c[2], c[3])), 0.25), l);
     for (int k = 0; k < 4; k++) {
         wrt_v3 sn = v3_cross(v3_sub(c[(k + 1) & 3], l), v3_sub(c[k], l));
         if (v3_dot(sn, mid) < 0) sn = v3_scale(sn, -1); /* inward whatever the winding */
-        if (all_below(b->p, 4, l, sn, size)) return 1;
+        pyr_plane(pp, l, sn, size);
     }
-    /* b's plane leaves the light and the polygon on one side */
-    wrt_v3 pts[5] = {c[0], c[1], c[2], c[3], l};
-    if (all_below(pts, 5, b->p[0], b->n, size) || all_below(pts, 5, b->p[0], v3_scale(b->n, -1), size)) return 1;
-    return 0;
+}
+
+/* 1 if quad b cannot meet the pyramid (or a sun's prism) of pp: b wholly below one of its
+ * planes, or b's plane leaves the polygon and the light (a sun: the polygon, and the sun's
+ * direction does not rise above it) on one side. */
+static int pyramid_clear(const pyr_planes *pp, const quad_info *b, double size) {
+    for (int k = 0; k < pp->np; k++) {
+        int below = 1;
+        for (int t = 0; t < 4 && below; t++) below = !(v3_dot(v3_sub(b->p[t], pp->o[k]), pp->nrm[k]) > pp->tol[k]);
+        if (below) return 1;
+    }
+    wrt_v3 nb = v3_scale(b->n, -1);
+    if (pp->sun)
+        return (all_below(pp->pts, 4, b->p[0], b->n, size) && v3_dot(pp->s, b->n) <= 0) ||
+               (all_below(pp->pts, 4, b->p[0], nb, size) && v3_dot(pp->s, nb) <= 0);
+    return all_below(pp->pts, 5, b->p[0], b->n, size) || all_below(pp->pts, 5, b->p[0], nb, size);
 }
 
 /* Cell (i, j) of level l of quad q: 1 if none of the quad's possible occluders can
@@ -327,8 +361,10 @@ static int pyramid_clear(const wrt_v3 c[4], wrt_v3 n, const light_c *lc, const q
 static int cell_clear(const wrt_relight *r, const worker *w, const quad_info *q, const light_c *l, int lv, int i, int j) {
     double h = ldexp(1.0, -lv), u0 = i * h, v0 = j * h;
     wrt_v3 c[4] = {quad_point(q, u0, v0), quad_point(q, u0 + h, v0), quad_point(q, u0 + h, v0 + h), quad_point(q, u0, v0 + h)};
+    pyr_planes pp;
+    pyramid_setup(&pp, c, q->n, l, r->proj.size);
     for (int k = 0; k < w->nocc; k++)
-        if (!pyramid_clear(c, q->n, l, &r->qi[w->occ[k]], r->proj.size)) return 0;
+        if (!pyramid_clear(&pp, &r->qi[w->occ[k]], r->proj.size)) return 0;
     return 1;
 }
 
@@ -343,6 +379,8 @@ static int find_occluders(wrt_relight *r, worker *w, int a, const light_c *l) {
     w->occ = occ;
     const light_cone *ca = &r->proj.cones[a];
     const quad_info *qa = &r->qi[a];
+    pyr_planes pp;
+    pyramid_setup(&pp, qa->p, qa->n, l, r->proj.size);
     for (uint32_t b = 0; b < nq; b++) {
         if ((int)b == a) continue;
         const light_cone *cb = &r->proj.cones[b];
@@ -354,7 +392,7 @@ static int find_occluders(wrt_relight *r, worker *w, int a, const light_c *l) {
             wrt_v3 perp = v3_sub(dc, v3_scale(l->dir, v3_dot(dc, l->dir)));
             if (v3_len(perp) >= qa->radius + r->qi[b].radius) continue;
         }
-        if (pyramid_clear(qa->p, qa->n, l, &r->qi[b], r->proj.size)) continue;
+        if (pyramid_clear(&pp, &r->qi[b], r->proj.size)) continue;
         w->occ[w->nocc++] = b;
     }
     return 0;
@@ -459,7 +497,7 @@ static int proj_sample_tree(const wrt_relight *r, worker *w, const proj_setup *p
             int c = w->pcells[k], x = c % n, y = c / n;
             /* clear of occluders: its parent is, or (near the top) the test says so */
             int clear = !ps->rays || (lv > Ld && w->pclear[LEVEL_OFF(lv - 1) + (size_t)(y / 2) * (n / 2) + x / 2]) ||
-                        (lv <= PROJ_MIN_LEVEL + 1 && r->opt.proj_reference == 0 && cell_clear(r, w, q, ps->lc, lv, x, y));
+                        (lv <= proj_min_level(q) + 1 && r->opt.proj_reference == 0 && cell_clear(r, w, q, ps->lc, lv, x, y));
             w->pclear[off + c] = (uint8_t)clear;
             if (local_rule && lv < cap && too_close(ps, lv, x, y)) { /* split unseen */
                 w->prefined[off + c] = 1;
@@ -657,14 +695,15 @@ int relight_project_light(wrt_relight *r, light_state *ls) {
             cn->cosa = sqrt(1 - cn->sina * cn->sina);
         } else { cn->u = v3(0, 0, 1); cn->sina = 0; cn->cosa = -1; } /* the light is inside */
         /* A sun: no falloff, so the rule's distance is infinite and the level is the
-         * coarsest the rule allows (PROJ_MIN_LEVEL's grid); only shadow edges split cells,
+         * coarsest the rule allows (proj_min_level's grid); only shadow edges split cells,
          * down to the cap (the finest level the quad's functions have). */
         double dmin = sun ? INFINITY : relight_quad_dist(&r->qi[q], ls->light.pos);
         int L = !sun && ls->light.range > 0 && dmin >= ls->light.range ? -1 : projection_level(r, &r->qi[q], dmin);
         if (L >= 0) work += ldexp(r->opt.proj_reference > 0 ? 4096.0 : 4.0, 2 * L);
         if (L >= 0 && r->opt.proj_level == 0) { /* the rule is applied cell by cell from here */
             int cap = relight_projection_cap(r, &r->qi[q]);
-            L = cap < PROJ_MIN_LEVEL ? cap : PROJ_MIN_LEVEL;
+            int lmin = proj_min_level(&r->qi[q]);
+            L = cap < lmin ? cap : lmin;
         }
         r->proj.qlevel[q] = (int8_t)L;
     }
@@ -697,5 +736,6 @@ int relight_project_light(wrt_relight *r, light_state *ls) {
     }
     ls->n = total;
     ls->projected = ls->have_proj = 1;
+    ls->proj_gen++; /* its product (relight_multiply_lights) is made again */
     return 0;
 }

@@ -624,8 +624,14 @@ static void test_linearity(void) {
     memcpy(EB, wrt_relight_E(r), n3 * sizeof(float));
     sc[0] = 1; sc[1] = 1;
     wrt_relight_set_lights(r, L, sc, 2);
+    wrt_relight_counters c0, c1;
+    wrt_relight_get_counters(r, &c0);
     wrt_relight_update(r, &t);
+    wrt_relight_get_counters(r, &c1);
     CHECK(t.lights_changed == 0, "scales alone re-project nothing (%d)", t.lights_changed);
+    /* each light keeps its own product: a change of scale streams no entry */
+    CHECK(c1.multiplies == c0.multiplies + 1 && c1.entries_streamed == c0.entries_streamed,
+          "scales alone stream no operator entry (%lld)", c1.entries_streamed - c0.entries_streamed);
     const float *X = wrt_relight_X(r), *E = wrt_relight_E(r);
     double xm = max_abs(X, n3), em = max_abs(E, n3), xerr = 0, eerr = 0;
     CHECK(xm > 0 && max_abs(XA, n3) > 0 && max_abs(XB, n3) > 0, "both lights reach the operator");
@@ -706,6 +712,33 @@ static void test_linearity(void) {
     }
     CHECK(same, "textures identical with 1 thread");
     wrt_relight_destroy(r1);
+    /* both lights on, then light 1 moves: only its columns are streamed, as many entries as
+     * a relighter lit by it alone streams, fewer than both lights' */
+    float on[2] = {1, 1};
+    wrt_relight_set_lights(r, L3, on, 2);
+    wrt_relight_update(r, NULL);
+    L3[0].pos = v3(0.45, 0.55, 0.5);
+    wrt_relight_set_lights(r, L3, on, 2);
+    wrt_relight_get_counters(r, &c0);
+    wrt_relight_update(r, NULL);
+    wrt_relight_get_counters(r, &c1);
+    wrt_relight *r0;
+    CHECK(wrt_relight_create(&s.g, NULL, &r0) == WRT_OK, "%s", wrt_last_error());
+    wrt_relight_set_eye(r0, eye2);
+    wrt_relight_set_lights(r0, L3, on, 1);
+    wrt_relight_counters c2, c3;
+    wrt_relight_update(r0, NULL);
+    wrt_relight_get_counters(r0, &c2);
+    wrt_relight_set_lights(r0, L3, on, 2); /* the second light: its columns once */
+    wrt_relight_update(r0, NULL);
+    wrt_relight_get_counters(r0, &c3);
+    CHECK(c2.entries_streamed > 0 && c1.entries_streamed - c0.entries_streamed == c2.entries_streamed &&
+          c3.entries_streamed > c2.entries_streamed,
+          "moving light 1 of 2 streams its columns only: %lld entries (it alone: %lld; the second light: %lld)",
+          c1.entries_streamed - c0.entries_streamed, c2.entries_streamed, c3.entries_streamed - c2.entries_streamed);
+    CHECK(memcmp(wrt_relight_X(r0), wrt_relight_X(r), n3 * sizeof(float)) == 0,
+          "X after the moves is a fresh relighter's with the same lights, bit for bit");
+    wrt_relight_destroy(r0);
     free(before); free(XA); free(XB); free(EA); free(EB);
     wrt_relight_destroy(r);
     ts_free(&s);
