@@ -415,13 +415,14 @@ static void bake_pairs(const bake_ctx *b, const wrt_scene *scene, wrt_bake_count
     pl->pr = pr; pl->ps = ps; pl->occl = occl; pl->np = np; pl->npt = npt;
 }
 
-/* Stage 4 with --clusters: the tree, its links, and the leaf pairs (cluster.c) */
-static void bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters *C, pair_list *pl) {
+/* Stage 4 with --clusters: the tree, its links, and the leaf pairs (cluster.c); the
+ * links' status (wrt-bake-mpi's exchange; no pairs then) */
+static wrt_status bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters *C, pair_list *pl) {
     wrt_clusters_build(b, cl);
-    wrt_clusters_link(b, cl);
+    wrt_status st = wrt_clusters_link(b, cl);
     b->cl = cl;
     b->balance_open = 1;
-    size_t np = cl->np;
+    size_t np = st == WRT_OK ? cl->np : 0;
     pl->pr = wrt_xmalloc((np + 1) * sizeof *pl->pr);
     pl->ps = wrt_xmalloc((np + 1) * sizeof *pl->ps);
     pl->occl = wrt_xmalloc(np + 1);
@@ -443,6 +444,7 @@ static void bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters 
     C->cluster_refused_spread = cl->oracle_refused_spread;
     C->cluster_partial = cl->links_partial;
     C->cluster_depth = cl->tree.depth;
+    return st;
 }
 
 /* wrt-bake-mpi: each pair's rank (dist.h), by an estimated cost: the refinement grows
@@ -691,6 +693,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     if (est != WRT_OK) return est;
     pair_list pl;
     wrt_clusters cl = {0};
+    wrt_status lst = WRT_OK; /* the cluster links' exchange */
     if (b.opt.clusters) {
         int glossy = 0;
         for (int m = 0; m < scene->nmaterials; m++) glossy |= b.alevel[m] != 0;
@@ -704,7 +707,9 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             return wrt_fail(WRT_ERR_UNSUPPORTED, "--clusters: %s is not supported yet (docs/clusters.md)",
                             glossy ? "a glossy material" : "the gathered operator");
         }
-        bake_cluster_pairs(&b, &cl, C, &pl);
+        double c0 = wrt_dist_cpu_now();
+        lst = bake_cluster_pairs(&b, &cl, C, &pl);
+        if (b.opt.dist) b.opt.dist->cpu_links = wrt_dist_cpu_now() - c0;
     } else {
         bake_pairs(&b, scene, C, &pl);
     }
@@ -712,6 +717,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     atomic_ullong pool_bytes, pool_refused;
     dto_job job;
     wrt_status st = bake_dto(&b, C, &pl, &job, &pool_bytes, &pool_refused);
+    if (lst != WRT_OK) st = lst;
     if (job.owner) { /* wrt-bake-mpi: every rank gets every pair's links, and the counters' sums */
         if (st == WRT_OK) st = wrt_dist_merge_pairs(b.opt.dist, job.owner, job.out, pl.np);
         uint64_t sums[7] = {C->samples, C->rays_traced, C->rays_skipped_facing, C->rays_skipped_unoccluded,
@@ -722,7 +728,9 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         C->links_invisible = sums[6];
         free((void *)job.owner);
     }
+    double ca = wrt_dist_cpu_now();
     st = bake_assemble(&b, C, &pl, &job, st, res);
+    if (b.opt.dist) b.opt.dist->cpu_assemble = wrt_dist_cpu_now() - ca;
     if (st == WRT_OK && wrt_dist_on(b.opt.dist) && atomic_load(&cancel)) /* the balance's exchange failed */
         st = wrt_fail(WRT_ERR_IO, "the ranks' exchange of the power balance failed: %s", wrt_last_error());
     int *pr = pl.pr, *ps = pl.ps;

@@ -213,9 +213,53 @@ static void dist_bake_same(void) {
     tsb_free(&s);
 }
 
+/* --clusters on 3 ranks: the cluster tree's node pairs below its serial top divided by
+ * rank (cluster_link.c) and merged in their order: a long box of 4 x 4 quads a face (far
+ * walls linked as clusters, near ones refined to leaf pairs) gives every rank the single
+ * process's links, leaf pairs, oracle counts, T and G - I; 2 threads a rank, so the ranks'
+ * tasks also run in parallel within each. */
+static void dist_clusters_same(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int mat = tsb_material(&s, 0.7, 0.6, 0.5);
+    tsb_box_inward(&s, P(0, 0, 0), P(4, 1, 1), 4, mat);
+    wrt_bake_options o = opts(1, 0, 2);
+    o.clusters = 1;
+    wrt_bake_result want;
+    wrt_status st = wrt_bake_run(&s, &o, &want);
+    CHECK(st == WRT_OK && want.c.cluster_links > 0 && want.c.cluster_leaf_pairs > 0,
+          "the single process bakes with cluster links (%llu) and leaf pairs (%llu) (%s)",
+          (unsigned long long)want.c.cluster_links, (unsigned long long)want.c.cluster_leaf_pairs, wrt_last_error());
+    enum { NR = 3 };
+    sim sm = {.nranks = NR};
+    pthread_barrier_init(&sm.bar, NULL, NR);
+    bake_arg a[NR];
+    for (int k = 0; k < NR; k++) a[k] = (bake_arg){.s = &sm, .scene = &s, .o = o};
+    run_ranks(NR, bake_rank, a, sizeof *a);
+    for (int k = 0; k < NR; k++) {
+        CHECK(a[k].st == WRT_OK, "rank %d baked", k);
+        if (a[k].st != WRT_OK) continue;
+        const wrt_bake_counters *c = &a[k].r.c, *w = &want.c;
+        CHECK(c->cluster_links == w->cluster_links && c->cluster_leaf_pairs == w->cluster_leaf_pairs &&
+                  c->cluster_visits == w->cluster_visits && c->cluster_oracle == w->cluster_oracle &&
+                  c->cluster_rays == w->cluster_rays && c->cluster_partial == w->cluster_partial,
+              "rank %d: the same cluster links (%llu / %llu), leaf pairs and oracle counts", k,
+              (unsigned long long)c->cluster_links, (unsigned long long)w->cluster_links);
+        CHECK(a[k].r.nfuncs == want.nfuncs && !memcmp(a[k].r.fkeys, want.fkeys, want.nfuncs * sizeof *want.fkeys),
+              "rank %d: the same basis functions", k);
+        CHECK(csc_same(&a[k].r.dto, &want.dto), "rank %d: the same T", k);
+        CHECK(csc_same(&a[k].r.op, &want.op), "rank %d: the same G - I", k);
+        wrt_bake_result_free(&a[k].r);
+    }
+    pthread_barrier_destroy(&sm.bar);
+    wrt_bake_result_free(&want);
+    tsb_free(&s);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(dist_mul_same);
     TEST_RUN(dist_assign_bound);
     TEST_RUN(dist_bake_same);
+    TEST_RUN(dist_clusters_same);
     TEST_END();
 }
