@@ -489,7 +489,7 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
      * it in scene order, so the memory extrapolated from the first chunks is that of the
      * whole (in scene order, blender_shapes' first tenth of the pairs extrapolated to 13.4
      * GB and was refused; it needs 2.7 GB). The order does not change the result. */
-    size_t chunk = np / 50 + 1, nch = np ? (np + chunk - 1) / chunk : 0, ndone = 0;
+    size_t chunk = np / 50 + 1, nch = np ? (np + chunk - 1) / chunk : 0, ndone = 0, nown = 0;
     uint64_t ent = 0;
     wrt_status mst = WRT_OK;
     /* the pairs' link tables may use what the budget leaves beside what is resident now */
@@ -518,10 +518,17 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
          * (4) once the entries are freed (bake_assemble): 36 bytes an entry beyond the
          * entries at the most (60 while the entries stayed to the end and qsort copied the
          * triplets). */
-        for (size_t k = 0; k < n; k++) ent += job->out[c + k * nch].count;
+        for (size_t k = 0; k < n; k++)
+            if (!job->owner || job->owner[c + k * nch] == job->rank) {
+                ent += job->out[c + k * nch].count;
+                nown++;
+            }
+        /* wrt-bake-mpi: this rank's pairs so far stand for all the pairs so far, whose
+         * entries the merge then gives every rank (the assembly holds them all) */
+        double all = nown == ndone ? (double)ent : nown ? (double)ent * (double)ndone / (double)nown : 0;
         double done = (double)ndone / (double)np, left = (1 - done) / done;
-        uint64_t need = (uint64_t)((double)ent * left * sizeof(pair_entry) + (double)ent * (1 + left) * 36.0);
-        uint64_t known = (uint64_t)((double)ent * 36.0);
+        uint64_t need = (uint64_t)(all * left * sizeof(pair_entry) + all * (1 + left) * 36.0);
+        uint64_t known = (uint64_t)(all * 36.0);
         /* the extrapolation from under a tenth of the pairs is noise: it refuses only from
          * there on, what is already computed at any time; the figure recorded is the last */
         double keep = C->mem_estimate_mb;
