@@ -746,7 +746,10 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].leaf); }
     free(job.out); free(job.tc); free(pr); free(ps); free(occl);
     double t_end = wrt_now(), cpu1 = wrt_dist_cpu_now();
-    if (b.opt.dist) b.opt.dist->cpu_dto = cpu1 - cpu0;
+    if (b.opt.dist) {
+        b.opt.dist->cpu_dto = cpu1 - cpu0;
+        b.opt.dist->peak_dto = wrt_bake_peak_rss_bytes(); /* the high-water mark: the DTO phase's peak */
+    }
     C->t_dto = t_end - t0;
     C->t_balance_phase = C->t_balance_begin > 0 ? t_end - C->t_balance_begin : 0;
 

@@ -26,6 +26,7 @@ typedef struct wrt_bake_dist {
     double cpu_dto, cpu_series;           /* this process's CPU seconds in each phase */
     double cpu_links, cpu_assemble;       /* parts of cpu_dto: the cluster tree and its links
                                            * (--clusters), and T's assembly (keys, balance, matrix) */
+    uint64_t peak_dto;                    /* this process's peak resident bytes up to the series */
 } wrt_bake_dist;
 
 enum { WRT_DIST_DTO = 0, WRT_DIST_SERIES = 1, WRT_DIST_COUNTERS = 2 };
