@@ -415,13 +415,14 @@ static void bake_pairs(const bake_ctx *b, const wrt_scene *scene, wrt_bake_count
     pl->pr = pr; pl->ps = ps; pl->occl = occl; pl->np = np; pl->npt = npt;
 }
 
-/* Stage 4 with --clusters: the tree, its links, and the leaf pairs (cluster.c) */
-static void bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters *C, pair_list *pl) {
+/* Stage 4 with --clusters: the tree, its links, and the leaf pairs (cluster.c); the
+ * links' status (wrt-bake-mpi's exchange; no pairs then) */
+static wrt_status bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters *C, pair_list *pl) {
     wrt_clusters_build(b, cl);
-    wrt_clusters_link(b, cl);
+    wrt_status st = wrt_clusters_link(b, cl);
     b->cl = cl;
     b->balance_open = 1;
-    size_t np = cl->np;
+    size_t np = st == WRT_OK ? cl->np : 0;
     pl->pr = wrt_xmalloc((np + 1) * sizeof *pl->pr);
     pl->ps = wrt_xmalloc((np + 1) * sizeof *pl->ps);
     pl->occl = wrt_xmalloc(np + 1);
@@ -443,6 +444,7 @@ static void bake_cluster_pairs(bake_ctx *b, wrt_clusters *cl, wrt_bake_counters 
     C->cluster_refused_spread = cl->oracle_refused_spread;
     C->cluster_partial = cl->links_partial;
     C->cluster_depth = cl->tree.depth;
+    return st;
 }
 
 /* wrt-bake-mpi: each pair's rank (dist.h), by an estimated cost: the refinement grows
@@ -487,7 +489,7 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
      * it in scene order, so the memory extrapolated from the first chunks is that of the
      * whole (in scene order, blender_shapes' first tenth of the pairs extrapolated to 13.4
      * GB and was refused; it needs 2.7 GB). The order does not change the result. */
-    size_t chunk = np / 50 + 1, nch = np ? (np + chunk - 1) / chunk : 0, ndone = 0;
+    size_t chunk = np / 50 + 1, nch = np ? (np + chunk - 1) / chunk : 0, ndone = 0, nown = 0;
     uint64_t ent = 0;
     wrt_status mst = WRT_OK;
     /* the pairs' link tables may use what the budget leaves beside what is resident now */
@@ -516,10 +518,17 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
          * (4) once the entries are freed (bake_assemble): 36 bytes an entry beyond the
          * entries at the most (60 while the entries stayed to the end and qsort copied the
          * triplets). */
-        for (size_t k = 0; k < n; k++) ent += job->out[c + k * nch].count;
+        for (size_t k = 0; k < n; k++)
+            if (!job->owner || job->owner[c + k * nch] == job->rank) {
+                ent += job->out[c + k * nch].count;
+                nown++;
+            }
+        /* wrt-bake-mpi: this rank's pairs so far stand for all the pairs so far, whose
+         * entries the merge then gives every rank (the assembly holds them all) */
+        double all = nown == ndone ? (double)ent : nown ? (double)ent * (double)ndone / (double)nown : 0;
         double done = (double)ndone / (double)np, left = (1 - done) / done;
-        uint64_t need = (uint64_t)((double)ent * left * sizeof(pair_entry) + (double)ent * (1 + left) * 36.0);
-        uint64_t known = (uint64_t)((double)ent * 36.0);
+        uint64_t need = (uint64_t)(all * left * sizeof(pair_entry) + all * (1 + left) * 36.0);
+        uint64_t known = (uint64_t)(all * 36.0);
         /* the extrapolation from under a tenth of the pairs is noise: it refuses only from
          * there on, what is already computed at any time; the figure recorded is the last */
         double keep = C->mem_estimate_mb;
@@ -691,6 +700,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     if (est != WRT_OK) return est;
     pair_list pl;
     wrt_clusters cl = {0};
+    wrt_status lst = WRT_OK; /* the cluster links' exchange */
     if (b.opt.clusters) {
         int glossy = 0;
         for (int m = 0; m < scene->nmaterials; m++) glossy |= b.alevel[m] != 0;
@@ -704,7 +714,9 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
             return wrt_fail(WRT_ERR_UNSUPPORTED, "--clusters: %s is not supported yet (docs/clusters.md)",
                             glossy ? "a glossy material" : "the gathered operator");
         }
-        bake_cluster_pairs(&b, &cl, C, &pl);
+        double c0 = wrt_dist_cpu_now();
+        lst = bake_cluster_pairs(&b, &cl, C, &pl);
+        if (b.opt.dist) b.opt.dist->cpu_links = wrt_dist_cpu_now() - c0;
     } else {
         bake_pairs(&b, scene, C, &pl);
     }
@@ -712,6 +724,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     atomic_ullong pool_bytes, pool_refused;
     dto_job job;
     wrt_status st = bake_dto(&b, C, &pl, &job, &pool_bytes, &pool_refused);
+    if (lst != WRT_OK) st = lst;
     if (job.owner) { /* wrt-bake-mpi: every rank gets every pair's links, and the counters' sums */
         if (st == WRT_OK) st = wrt_dist_merge_pairs(b.opt.dist, job.owner, job.out, pl.np);
         uint64_t sums[7] = {C->samples, C->rays_traced, C->rays_skipped_facing, C->rays_skipped_unoccluded,
@@ -722,7 +735,9 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         C->links_invisible = sums[6];
         free((void *)job.owner);
     }
+    double ca = wrt_dist_cpu_now();
     st = bake_assemble(&b, C, &pl, &job, st, res);
+    if (b.opt.dist) b.opt.dist->cpu_assemble = wrt_dist_cpu_now() - ca;
     if (st == WRT_OK && wrt_dist_on(b.opt.dist) && atomic_load(&cancel)) /* the balance's exchange failed */
         st = wrt_fail(WRT_ERR_IO, "the ranks' exchange of the power balance failed: %s", wrt_last_error());
     int *pr = pl.pr, *ps = pl.ps;
@@ -731,7 +746,10 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].leaf); }
     free(job.out); free(job.tc); free(pr); free(ps); free(occl);
     double t_end = wrt_now(), cpu1 = wrt_dist_cpu_now();
-    if (b.opt.dist) b.opt.dist->cpu_dto = cpu1 - cpu0;
+    if (b.opt.dist) {
+        b.opt.dist->cpu_dto = cpu1 - cpu0;
+        b.opt.dist->peak_dto = wrt_bake_peak_rss_bytes(); /* the high-water mark: the DTO phase's peak */
+    }
     C->t_dto = t_end - t0;
     C->t_balance_phase = C->t_balance_begin > 0 ? t_end - C->t_balance_begin : 0;
 

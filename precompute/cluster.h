@@ -46,8 +46,10 @@ typedef struct wrt_clusters {
 /* The tree over b->quads (cluster.c). */
 void wrt_clusters_build(const bake_ctx *b, wrt_clusters *cl);
 /* The links and leaf pairs, top-down from (root, root), on b->opt.threads threads;
- * deterministic whatever the thread count (cluster.c). */
-void wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl);
+ * deterministic whatever the thread count. Under wrt-bake-mpi (b->opt.dist) the pairs
+ * below the serial top are divided among the ranks and merged in their order, so every
+ * rank gets the same; WRT_OK, or the exchange's failure (cluster_link.c). */
+wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl);
 void wrt_clusters_free(wrt_clusters *cl);
 
 /* T (quads' basis, balanced) with the cluster links added, in a closed scene each

@@ -8,6 +8,7 @@
 
 #include "../common/threads.h"
 #include "cluster.h"
+#include "dist.h"
 
 #define CL_SAMPLES 8
 
@@ -26,6 +27,7 @@ typedef struct lctx {
     uint32_t grain;
     task *tasks; size_t nt, capt; /* the serial top's hand-off */
     sink *sinks;
+    const int *owner; int rank;   /* wrt-bake-mpi: each task's rank (NULL: all here; dist.h) */
 } lctx;
 
 static uint32_t count(const wrt_clusters *cl, uint32_t a) { return cl->hi[a] - cl->lo[a]; }
@@ -269,12 +271,80 @@ static void run_task(size_t i, int th, void *user) {
     (void)th;
     lctx *c = user;
     task t = c->tasks[i];
+    if (c->owner && c->owner[i] != c->rank) return; /* another rank's: merged after */
     if (t.a == t.b) link_self(c, &c->sinks[i + 1], t.a, 0);
     else link_pair(c, &c->sinks[i + 1], t.a, t.b, 0);
 }
 
-void wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
-    if (!b->nq) return;
+/* wrt-bake-mpi: each task's rank (dist.h), by an estimated cost. A task's node pairs are
+ * refined down to leaf pairs where the two nodes are near (their count's product) and
+ * end at the oracle where they are far: the product weighted by how large the nodes look
+ * from each other, (r_a + r_b)^2 / (d^2 + (r_a + r_b)^2), plus the nodes' sizes; a node
+ * with itself, its count squared over two. A first guess, not fitted. */
+static int *task_owners(const lctx *c, int nranks) {
+    const wrt_clusters *cl = c->cl;
+    double *cost = wrt_xmalloc((c->nt ? c->nt : 1) * sizeof *cost);
+    for (size_t i = 0; i < c->nt; i++) {
+        uint32_t a = c->tasks[i].a, bn = c->tasks[i].b;
+        double na = count(cl, a), nb = count(cl, bn);
+        if (a == bn) { cost[i] = 0.5 * na * na + na; continue; }
+        wrt_v3 d = v3_sub(centre(cl, a), centre(cl, bn));
+        double rr = radius(cl, a) + radius(cl, bn), d2 = v3_dot(d, d);
+        cost[i] = na * nb * rr * rr / (d2 + rr * rr) + na + nb;
+    }
+    int *owner = wrt_xmalloc((c->nt ? c->nt : 1) * sizeof *owner);
+    wrt_dist_assign(cost, c->nt, nranks, owner);
+    free(cost);
+    return owner;
+}
+
+/* A task's results as bytes (dist.h's records): its 7 counters and its sizes, then its
+ * links, then its leaf pairs' receivers, senders and flags. */
+static uint64_t sink_size(void *user, size_t i) {
+    const sink *k = (const sink *)user + i;
+    return 9 * 8 + k->nl * sizeof *k->l + k->np * (2 * sizeof(int) + 1);
+}
+
+static void sink_pack(void *user, size_t i, uint8_t *p) {
+    const sink *k = (const sink *)user + i;
+    uint64_t h[9] = {k->visited, k->culled, k->oracle, k->refused_vis, k->refused_spread, k->rays, k->partial,
+                     k->nl, k->np};
+    memcpy(p, h, sizeof h);
+    p += sizeof h;
+    if (k->nl) memcpy(p, k->l, k->nl * sizeof *k->l);
+    p += k->nl * sizeof *k->l;
+    if (k->np) {
+        memcpy(p, k->pr, k->np * sizeof(int));
+        memcpy(p + k->np * sizeof(int), k->ps, k->np * sizeof(int));
+        memcpy(p + 2 * k->np * sizeof(int), k->oc, k->np);
+    }
+}
+
+static void sink_unpack(void *user, size_t i, const uint8_t *p, uint64_t len) {
+    (void)len;
+    sink *k = (sink *)user + i;
+    uint64_t h[9];
+    memcpy(h, p, sizeof h);
+    p += sizeof h;
+    *k = (sink){.visited = h[0], .culled = h[1], .oracle = h[2], .refused_vis = h[3], .refused_spread = h[4],
+                .rays = h[5], .partial = h[6], .nl = h[7], .np = h[8]};
+    k->capl = k->nl;
+    k->capp = k->np;
+    k->l = k->nl ? wrt_xmalloc(k->nl * sizeof *k->l) : NULL;
+    if (k->nl) memcpy(k->l, p, k->nl * sizeof *k->l);
+    p += k->nl * sizeof *k->l;
+    if (k->np) {
+        k->pr = wrt_xmalloc(k->np * sizeof(int));
+        k->ps = wrt_xmalloc(k->np * sizeof(int));
+        k->oc = wrt_xmalloc(k->np);
+        memcpy(k->pr, p, k->np * sizeof(int));
+        memcpy(k->ps, p + k->np * sizeof(int), k->np * sizeof(int));
+        memcpy(k->oc, p + 2 * k->np * sizeof(int), k->np);
+    }
+}
+
+wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
+    if (!b->nq) return WRT_OK;
     lctx c = {.b = b, .cl = cl};
     c.sep = b->opt.cluster_sep > 0 ? b->opt.cluster_sep : WRT_CLUSTER_SEP_DEFAULT;
     c.spread = b->opt.cluster_spread > 0 ? b->opt.cluster_spread : WRT_CLUSTER_SPREAD_DEFAULT;
@@ -285,7 +355,20 @@ void wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
     /* sinks[0]: the serial top's own results, first; then the tasks' in order */
     c.sinks = wrt_xcalloc(c.nt + 1, sizeof *c.sinks);
     c.sinks[0] = top;
+    wrt_bake_dist *d = b->opt.dist;
+    int *owner = NULL;
+    if (wrt_dist_on(d)) { /* the tasks divided; every rank gets every task's results, in task order */
+        owner = task_owners(&c, d->nranks);
+        c.owner = owner;
+        c.rank = d->rank;
+    }
     wrt_parallel_for(c.nt, b->opt.threads, run_task, &c);
+    wrt_status st = WRT_OK;
+    if (owner) {
+        wrt_dist_items f = {sink_size, sink_pack, sink_unpack, c.sinks + 1};
+        st = wrt_dist_merge_items(d, WRT_DIST_DTO, owner, c.nt, &f);
+        free(owner);
+    }
     size_t nl = 0, np = 0;
     for (size_t i = 0; i <= c.nt; i++) { nl += c.sinks[i].nl; np += c.sinks[i].np; }
     cl->links = wrt_xmalloc((nl ? nl : 1) * sizeof *cl->links);
@@ -307,4 +390,5 @@ void wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
         free(k->l); free(k->pr); free(k->ps); free(k->oc);
     }
     free(c.sinks); free(c.tasks);
+    return st;
 }

@@ -17,6 +17,24 @@ static int cmp_cost_desc(const void *pa, const void *pb) {
     return a->i < b->i ? -1 : a->i > b->i;
 }
 
+/* The prologue of every merge: the all-gather of this rank's `len` bytes at `mine`; every
+ * rank's bytes in rank order in *all and their counts in *lens (both malloc'd, freed by
+ * the caller; neither set on failure), the bytes sent and received counted in `phase`. */
+static wrt_status dist_exchange(wrt_bake_dist *d, int phase, const void *mine, uint64_t len, uint8_t **all,
+                                uint64_t **lens) {
+    int nr = d->nranks;
+    uint64_t *l = wrt_xcalloc((size_t)nr, sizeof *l);
+    void *a = NULL;
+    wrt_status st = d->allgather(d->user, mine, len, &a, l);
+    if (st != WRT_OK) { free(a); free(l); return st; }
+    d->bytes_sent[phase] += len * (uint64_t)(nr - 1);
+    for (int r = 0; r < nr; r++)
+        if (r != d->rank) d->bytes_recv[phase] += l[r];
+    *all = a;
+    *lens = l;
+    return WRT_OK;
+}
+
 void wrt_dist_assign(const double *cost, uint64_t n, int nranks, int *owner) {
     cost_item *it = wrt_xmalloc((n ? n : 1) * sizeof *it);
     for (uint64_t i = 0; i < n; i++) it[i] = (cost_item){cost[i], i};
@@ -76,14 +94,11 @@ wrt_status wrt_dist_mul(wrt_bake_dist *d, const wrt_csc *a, const wrt_csc *b, do
     uint64_t len;
     void *buf = pack_columns(&mine, cut[d->rank], cut[d->rank + 1], &len);
     wrt_csc_free(&mine);
-    void *all = NULL;
-    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
-    wrt_status st = d->allgather(d->user, buf, len, &all, lens);
+    uint8_t *all;
+    uint64_t *lens;
+    wrt_status st = dist_exchange(d, WRT_DIST_SERIES, buf, len, &all, &lens);
     free(buf);
-    if (st != WRT_OK) { free(cut); free(lens); return st; }
-    d->bytes_sent[WRT_DIST_SERIES] += len * (uint64_t)(nr - 1);
-    for (int r = 0; r < nr; r++)
-        if (r != d->rank) d->bytes_recv[WRT_DIST_SERIES] += lens[r];
+    if (st != WRT_OK) { free(cut); return st; }
     /* the columns in order: rank r's block holds columns cut[r] .. cut[r + 1] */
     uint32_t n = a->n;
     wrt_csc m = {.n = n};
@@ -114,77 +129,98 @@ wrt_status wrt_dist_mul(wrt_bake_dist *d, const wrt_csc *a, const wrt_csc *b, do
 }
 
 wrt_status wrt_dist_sum_u64(wrt_bake_dist *d, uint64_t *v, int n) {
-    int nr = d->nranks;
-    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
-    void *all = NULL;
-    wrt_status st = d->allgather(d->user, v, (uint64_t)n * 8, &all, lens);
-    if (st == WRT_OK) {
-        const uint64_t *a = all;
-        for (int i = 0; i < n; i++) v[i] = 0;
-        for (int r = 0; r < nr; r++)
-            for (int i = 0; i < n; i++) v[i] += a[(size_t)r * n + i];
-        d->bytes_sent[WRT_DIST_COUNTERS] += (uint64_t)n * 8 * (uint64_t)(nr - 1);
-        d->bytes_recv[WRT_DIST_COUNTERS] += (uint64_t)n * 8 * (uint64_t)(nr - 1);
-    }
+    uint8_t *all;
+    uint64_t *lens;
+    wrt_status st = dist_exchange(d, WRT_DIST_COUNTERS, v, (uint64_t)n * 8, &all, &lens);
+    if (st != WRT_OK) return st;
+    for (int i = 0; i < n; i++) v[i] = 0;
+    for (int r = 0; r < d->nranks; r++)
+        for (int i = 0; i < n; i++) {
+            uint64_t x;
+            memcpy(&x, all + 8 * ((size_t)r * n + i), 8);
+            v[i] += x;
+        }
     free(all); free(lens);
-    return st;
+    return WRT_OK;
 }
 
-/* ---------------------------------------------------------------- the DTO's pairs */
+/* ---------------------------------------------------------------- per-item records */
 
-/* One pair's record: its index, sizes and flags, then its entries and leaves. */
-typedef struct pair_head {
-    uint64_t i, count, nleaf, links, angular;
-    int32_t occluded, leaf_dirs, glossy, kmode, cancelled, pad;
-} pair_head;
-
-wrt_status wrt_dist_merge_pairs(wrt_bake_dist *d, const int *owner, pair_out *out, size_t np) {
+wrt_status wrt_dist_merge_items(wrt_bake_dist *d, int phase, const int *owner, size_t n, const wrt_dist_items *f) {
     uint64_t len = 0;
-    for (size_t i = 0; i < np; i++)
-        if (owner[i] == d->rank) len += sizeof(pair_head) + out[i].count * sizeof(pair_entry) + out[i].nleaf * sizeof(leaf_rec);
+    for (size_t i = 0; i < n; i++)
+        if (owner[i] == d->rank) len += 16 + f->size(f->user, i);
     uint8_t *buf = wrt_xmalloc(len ? len : 1), *p = buf;
-    for (size_t i = 0; i < np; i++) {
+    for (size_t i = 0; i < n; i++) {
         if (owner[i] != d->rank) continue;
-        const pair_out *o = &out[i];
-        pair_head h = {i, o->count, o->nleaf, o->links, o->angular, o->occluded, o->leaf_dirs, o->glossy, o->kmode,
-                       o->cancelled, 0};
-        memcpy(p, &h, sizeof h);
-        p += sizeof h;
-        if (o->count) memcpy(p, o->e, o->count * sizeof(pair_entry));
-        p += o->count * sizeof(pair_entry);
-        if (o->nleaf) memcpy(p, o->leaf, o->nleaf * sizeof(leaf_rec));
-        p += o->nleaf * sizeof(leaf_rec);
+        uint64_t h[2] = {i, f->size(f->user, i)};
+        memcpy(p, h, 16);
+        f->pack(f->user, i, p + 16);
+        p += 16 + h[1];
     }
-    int nr = d->nranks;
-    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
-    void *all = NULL;
-    wrt_status st = d->allgather(d->user, buf, len, &all, lens);
+    uint8_t *all;
+    uint64_t *lens;
+    wrt_status st = dist_exchange(d, phase, buf, len, &all, &lens);
     free(buf);
-    if (st != WRT_OK) { free(lens); return st; }
-    d->bytes_sent[WRT_DIST_DTO] += len * (uint64_t)(nr - 1);
+    if (st != WRT_OK) return st;
     const uint8_t *q = all;
-    for (int r = 0; r < nr; r++) {
+    for (int r = 0; r < d->nranks; r++) {
         const uint8_t *end = q + lens[r];
         if (r == d->rank) { q = end; continue; }
-        d->bytes_recv[WRT_DIST_DTO] += lens[r];
         while (q < end) {
-            pair_head h;
-            memcpy(&h, q, sizeof h);
-            q += sizeof h;
-            pair_out *o = &out[h.i];
-            *o = (pair_out){.count = h.count, .nleaf = h.nleaf, .links = h.links, .angular = h.angular,
-                            .occluded = h.occluded, .leaf_dirs = h.leaf_dirs, .glossy = h.glossy, .kmode = h.kmode,
-                            .cancelled = h.cancelled};
-            o->e = h.count ? wrt_xmalloc(h.count * sizeof(pair_entry)) : NULL;
-            if (h.count) memcpy(o->e, q, h.count * sizeof(pair_entry));
-            q += h.count * sizeof(pair_entry);
-            o->leaf = h.nleaf ? wrt_xmalloc(h.nleaf * sizeof(leaf_rec)) : NULL;
-            if (h.nleaf) memcpy(o->leaf, q, h.nleaf * sizeof(leaf_rec));
-            q += h.nleaf * sizeof(leaf_rec);
+            uint64_t h[2];
+            memcpy(h, q, 16);
+            f->unpack(f->user, (size_t)h[0], q + 16, h[1]);
+            q += 16 + h[1];
         }
     }
     free(all); free(lens);
     return WRT_OK;
+}
+
+/* ---------------------------------------------------------------- the DTO's pairs */
+
+/* One pair's record: its sizes and flags, then its entries and leaves. */
+typedef struct pair_head {
+    uint64_t count, nleaf, links, angular;
+    int32_t occluded, leaf_dirs, glossy, kmode, cancelled, pad;
+} pair_head;
+
+static uint64_t pair_size(void *user, size_t i) {
+    const pair_out *o = (const pair_out *)user + i;
+    return sizeof(pair_head) + o->count * sizeof(pair_entry) + o->nleaf * sizeof(leaf_rec);
+}
+
+static void pair_pack(void *user, size_t i, uint8_t *p) {
+    const pair_out *o = (const pair_out *)user + i;
+    pair_head h = {o->count, o->nleaf, o->links, o->angular, o->occluded, o->leaf_dirs, o->glossy, o->kmode,
+                   o->cancelled, 0};
+    memcpy(p, &h, sizeof h);
+    p += sizeof h;
+    if (o->count) memcpy(p, o->e, o->count * sizeof(pair_entry));
+    p += o->count * sizeof(pair_entry);
+    if (o->nleaf) memcpy(p, o->leaf, o->nleaf * sizeof(leaf_rec));
+}
+
+static void pair_unpack(void *user, size_t i, const uint8_t *q, uint64_t len) {
+    (void)len;
+    pair_out *o = (pair_out *)user + i;
+    pair_head h;
+    memcpy(&h, q, sizeof h);
+    q += sizeof h;
+    *o = (pair_out){.count = h.count, .nleaf = h.nleaf, .links = h.links, .angular = h.angular,
+                    .occluded = h.occluded, .leaf_dirs = h.leaf_dirs, .glossy = h.glossy, .kmode = h.kmode,
+                    .cancelled = h.cancelled};
+    o->e = h.count ? wrt_xmalloc(h.count * sizeof(pair_entry)) : NULL;
+    if (h.count) memcpy(o->e, q, h.count * sizeof(pair_entry));
+    q += h.count * sizeof(pair_entry);
+    o->leaf = h.nleaf ? wrt_xmalloc(h.nleaf * sizeof(leaf_rec)) : NULL;
+    if (h.nleaf) memcpy(o->leaf, q, h.nleaf * sizeof(leaf_rec));
+}
+
+wrt_status wrt_dist_merge_pairs(wrt_bake_dist *d, const int *owner, pair_out *out, size_t np) {
+    wrt_dist_items f = {pair_size, pair_pack, pair_unpack, out};
+    return wrt_dist_merge_items(d, WRT_DIST_DTO, owner, np, &f);
 }
 
 double wrt_dist_cpu_now(void) {
@@ -195,61 +231,42 @@ double wrt_dist_cpu_now(void) {
 
 /* ---------------------------------------------------------------- per-item triplets */
 
+typedef struct trip_items { wrt_triplet **res; uint64_t *nres; } trip_items;
+
+static uint64_t trip_size(void *user, size_t s) { return ((trip_items *)user)->nres[s] * sizeof(wrt_triplet); }
+
+static void trip_pack(void *user, size_t s, uint8_t *p) {
+    trip_items *t = user;
+    if (t->nres[s]) memcpy(p, t->res[s], t->nres[s] * sizeof(wrt_triplet));
+}
+
+static void trip_unpack(void *user, size_t s, const uint8_t *q, uint64_t len) {
+    trip_items *t = user;
+    uint64_t n = len / sizeof(wrt_triplet);
+    free(t->res[s]);
+    t->nres[s] = n;
+    t->res[s] = n ? wrt_xmalloc(n * sizeof(wrt_triplet)) : NULL;
+    if (n) memcpy(t->res[s], q, n * sizeof(wrt_triplet));
+}
+
 wrt_status wrt_dist_merge_triplets(wrt_bake_dist *d, const int *owner, wrt_triplet **res, uint64_t *nres, size_t n) {
-    uint64_t len = 0;
-    for (size_t s = 0; s < n; s++)
-        if (owner[s] == d->rank) len += 16 + nres[s] * sizeof(wrt_triplet);
-    uint8_t *buf = wrt_xmalloc(len ? len : 1), *p = buf;
-    for (size_t s = 0; s < n; s++) {
-        if (owner[s] != d->rank) continue;
-        uint64_t h[2] = {s, nres[s]};
-        memcpy(p, h, 16);
-        p += 16;
-        if (nres[s]) memcpy(p, res[s], nres[s] * sizeof(wrt_triplet));
-        p += nres[s] * sizeof(wrt_triplet);
-    }
-    int nr = d->nranks;
-    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
-    void *all = NULL;
-    wrt_status st = d->allgather(d->user, buf, len, &all, lens);
-    free(buf);
-    if (st != WRT_OK) { free(lens); return st; }
-    d->bytes_sent[WRT_DIST_DTO] += len * (uint64_t)(nr - 1);
-    const uint8_t *q = all;
-    for (int r = 0; r < nr; r++) {
-        const uint8_t *end = q + lens[r];
-        if (r == d->rank) { q = end; continue; }
-        d->bytes_recv[WRT_DIST_DTO] += lens[r];
-        while (q < end) {
-            uint64_t h[2];
-            memcpy(h, q, 16);
-            q += 16;
-            free(res[h[0]]);
-            nres[h[0]] = h[1];
-            res[h[0]] = h[1] ? wrt_xmalloc(h[1] * sizeof(wrt_triplet)) : NULL;
-            if (h[1]) memcpy(res[h[0]], q, h[1] * sizeof(wrt_triplet));
-            q += h[1] * sizeof(wrt_triplet);
-        }
-    }
-    free(all); free(lens);
-    return WRT_OK;
+    trip_items t = {res, nres};
+    wrt_dist_items f = {trip_size, trip_pack, trip_unpack, &t};
+    return wrt_dist_merge_items(d, WRT_DIST_DTO, owner, n, &f);
 }
 
 uint8_t *wrt_dist_gather_rows(wrt_bake_dist *d, const int *owner, size_t nrows, const uint8_t *mine, size_t width) {
     uint64_t len = 0;
     for (size_t i = 0; i < nrows; i++) len += owner[i] == d->rank ? width : 0;
     int nr = d->nranks;
-    uint64_t *lens = wrt_xcalloc((size_t)nr, sizeof *lens);
-    void *all = NULL;
-    if (d->allgather(d->user, mine, len, &all, lens) != WRT_OK) { free(lens); return NULL; }
-    d->bytes_sent[WRT_DIST_DTO] += len * (uint64_t)(nr - 1);
+    uint8_t *all;
+    uint64_t *lens;
+    if (dist_exchange(d, WRT_DIST_DTO, mine, len, &all, &lens) != WRT_OK) return NULL;
     uint64_t *at = wrt_xcalloc((size_t)nr, sizeof *at);
     for (int r = 1; r < nr; r++) at[r] = at[r - 1] + lens[r - 1];
-    for (int r = 0; r < nr; r++) d->bytes_recv[WRT_DIST_DTO] += r == d->rank ? 0 : lens[r];
     uint8_t *rows = wrt_xmalloc(nrows * width + 1);
-    const uint8_t *a = all;
     for (size_t i = 0; i < nrows; i++) {
-        memcpy(rows + i * width, a + at[owner[i]], width); /* a rank's rows in their order */
+        memcpy(rows + i * width, all + at[owner[i]], width); /* a rank's rows in their order */
         at[owner[i]] += width;
     }
     free(at); free(lens); free(all);

@@ -24,6 +24,9 @@ typedef struct wrt_bake_dist {
     /* what this rank sent and received, per phase (filled by the bake; docs/mpi.md) */
     uint64_t bytes_sent[3], bytes_recv[3]; /* WRT_DIST_DTO, WRT_DIST_SERIES, WRT_DIST_COUNTERS */
     double cpu_dto, cpu_series;           /* this process's CPU seconds in each phase */
+    double cpu_links, cpu_assemble;       /* parts of cpu_dto: the cluster tree and its links
+                                           * (--clusters), and T's assembly (keys, balance, matrix) */
+    uint64_t peak_dto;                    /* this process's peak resident bytes up to the series */
 } wrt_bake_dist;
 
 enum { WRT_DIST_DTO = 0, WRT_DIST_SERIES = 1, WRT_DIST_COUNTERS = 2 };
@@ -44,6 +47,17 @@ void wrt_dist_mul_cuts(const wrt_csc *a, const wrt_csc *b, int nranks, uint32_t 
 /* C = A B as wrt_csc_mul, each rank computing its columns, the result on every rank. */
 wrt_status wrt_dist_mul(wrt_bake_dist *d, const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w,
                         int threads, wrt_csc *out);
+
+/* Per-item records merged: item i (of n) is computed by rank owner[i], which packs it
+ * into size(user, i) bytes; after the exchange every other rank unpacks it (len bytes),
+ * items in rank order and, within a rank, in index order. The bytes count in `phase`. */
+typedef struct wrt_dist_items {
+    uint64_t (*size)(void *user, size_t i);
+    void (*pack)(void *user, size_t i, uint8_t *p);
+    void (*unpack)(void *user, size_t i, const uint8_t *p, uint64_t len);
+    void *user;
+} wrt_dist_items;
+wrt_status wrt_dist_merge_items(wrt_bake_dist *d, int phase, const int *owner, size_t n, const wrt_dist_items *f);
 
 /* The DTO's pairs (dto.h): each rank has computed out[i] for the pairs it owns
  * (owner[i] == rank); afterwards every rank holds every pair's out[i]. */

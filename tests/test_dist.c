@@ -169,6 +169,32 @@ static void *bake_rank(void *p) {
     return NULL;
 }
 
+/* The bake in one process (*want, its status returned), then on NR_BAKE ranks (threads),
+ * barrier set up in *sm; the ranks' results in a[] */
+enum { NR_BAKE = 3 };
+static wrt_status bake_on_ranks(sim *sm, bake_arg *a, const wrt_scene *s, wrt_bake_options o, wrt_bake_result *want) {
+    wrt_status st = wrt_bake_run(s, &o, want);
+    *sm = (sim){.nranks = NR_BAKE};
+    pthread_barrier_init(&sm->bar, NULL, NR_BAKE);
+    for (int k = 0; k < NR_BAKE; k++) a[k] = (bake_arg){.s = sm, .scene = s, .o = o};
+    run_ranks(NR_BAKE, bake_rank, a, sizeof *a);
+    return st;
+}
+
+/* Rank k baked, and its basis functions, T and G - I are the single process's, bit for
+ * bit; 1 if it baked */
+static int same_operator(int k, const bake_arg *a, const wrt_bake_result *want) {
+    CHECK(a->st == WRT_OK, "rank %d baked", k);
+    if (a->st != WRT_OK) return 0;
+    const wrt_bake_result *r = &a->r;
+    CHECK(r->nfuncs == want->nfuncs && !memcmp(r->fkeys, want->fkeys, want->nfuncs * sizeof *want->fkeys),
+          "rank %d: the same basis functions", k);
+    CHECK(csc_same(&r->dto, &want->dto), "rank %d: the same T (%llu entries, want %llu)", k,
+          (unsigned long long)r->dto.nnz, (unsigned long long)want->dto.nnz);
+    CHECK(csc_same(&r->op, &want->op), "rank %d: the same G - I", k);
+    return 1;
+}
+
 /* A closed box of 3 x 3 quads a face with a floating panel inside (occluded pairs): T,
  * G - I and the counters the file records are the single process's on every rank. */
 static void dist_bake_same(void) {
@@ -180,22 +206,12 @@ static void dist_bake_same(void) {
     wrt_bake_options o = opts(2, 0, 3);
     o.threads = 1;
     wrt_bake_result want;
-    wrt_status st = wrt_bake_run(&s, &o, &want);
+    sim sm;
+    bake_arg a[NR_BAKE];
+    wrt_status st = bake_on_ranks(&sm, a, &s, o, &want);
     CHECK(st == WRT_OK && want.op.nnz > 0, "the single process bakes (%s)", wrt_last_error());
-    enum { NR = 3 };
-    sim sm = {.nranks = NR};
-    pthread_barrier_init(&sm.bar, NULL, NR);
-    bake_arg a[NR];
-    for (int k = 0; k < NR; k++) a[k] = (bake_arg){.s = &sm, .scene = &s, .o = o};
-    run_ranks(NR, bake_rank, a, sizeof *a);
-    for (int k = 0; k < NR; k++) {
-        CHECK(a[k].st == WRT_OK, "rank %d baked", k);
-        if (a[k].st != WRT_OK) continue;
-        CHECK(a[k].r.nfuncs == want.nfuncs && !memcmp(a[k].r.fkeys, want.fkeys, want.nfuncs * sizeof *want.fkeys),
-              "rank %d: the same basis functions", k);
-        CHECK(csc_same(&a[k].r.dto, &want.dto), "rank %d: the same T (%llu entries, want %llu)", k,
-              (unsigned long long)a[k].r.dto.nnz, (unsigned long long)want.dto.nnz);
-        CHECK(csc_same(&a[k].r.op, &want.op), "rank %d: the same G - I", k);
+    for (int k = 0; k < NR_BAKE; k++) {
+        if (!same_operator(k, &a[k], &want)) continue;
         const wrt_bake_counters *c = &a[k].r.c, *w = &want.c;
         CHECK(c->rays_traced == w->rays_traced && c->samples == w->samples && c->links_leaf == w->links_leaf &&
                   c->links_dto == w->links_dto && c->pairs_unoccluded == w->pairs_unoccluded &&
@@ -213,9 +229,44 @@ static void dist_bake_same(void) {
     tsb_free(&s);
 }
 
+/* --clusters on 3 ranks: the cluster tree's node pairs below its serial top divided by
+ * rank (cluster_link.c) and merged in their order: a long box of 4 x 4 quads a face (far
+ * walls linked as clusters, near ones refined to leaf pairs) gives every rank the single
+ * process's links, leaf pairs, oracle counts, T and G - I; 2 threads a rank, so the ranks'
+ * tasks also run in parallel within each. */
+static void dist_clusters_same(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int mat = tsb_material(&s, 0.7, 0.6, 0.5);
+    tsb_box_inward(&s, P(0, 0, 0), P(4, 1, 1), 4, mat);
+    wrt_bake_options o = opts(1, 0, 2);
+    o.clusters = 1;
+    wrt_bake_result want;
+    sim sm;
+    bake_arg a[NR_BAKE];
+    wrt_status st = bake_on_ranks(&sm, a, &s, o, &want);
+    CHECK(st == WRT_OK && want.c.cluster_links > 0 && want.c.cluster_leaf_pairs > 0,
+          "the single process bakes with cluster links (%llu) and leaf pairs (%llu) (%s)",
+          (unsigned long long)want.c.cluster_links, (unsigned long long)want.c.cluster_leaf_pairs, wrt_last_error());
+    for (int k = 0; k < NR_BAKE; k++) {
+        if (!same_operator(k, &a[k], &want)) continue;
+        const wrt_bake_counters *c = &a[k].r.c, *w = &want.c;
+        CHECK(c->cluster_links == w->cluster_links && c->cluster_leaf_pairs == w->cluster_leaf_pairs &&
+                  c->cluster_visits == w->cluster_visits && c->cluster_oracle == w->cluster_oracle &&
+                  c->cluster_rays == w->cluster_rays && c->cluster_partial == w->cluster_partial,
+              "rank %d: the same cluster links (%llu / %llu), leaf pairs and oracle counts", k,
+              (unsigned long long)c->cluster_links, (unsigned long long)w->cluster_links);
+        wrt_bake_result_free(&a[k].r);
+    }
+    pthread_barrier_destroy(&sm.bar);
+    wrt_bake_result_free(&want);
+    tsb_free(&s);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(dist_mul_same);
     TEST_RUN(dist_assign_bound);
     TEST_RUN(dist_bake_same);
+    TEST_RUN(dist_clusters_same);
     TEST_END();
 }
