@@ -337,7 +337,23 @@ ok = (s["triangles"] == 10 + 224 + 36 + 30 and e["paired"] == 5 + 96 + 18 + 13 a
 sys.exit(0 if ok else 1)
 PY
     then ok; else bad "cornell-shapes / icosphere scans: $(head -c 400 "$tmp/shapes.json")"; fi
+    # --detail D multiplies the sphere's segments and rings and the cylinder's sides: at 2,
+    # sphere 32 x 16 (2 x 32 x 15 triangles: 32 x 14 band quads, 64 cap triangles),
+    # cylinder 24 sides (72 triangles: 24 side quads, 12 cap pairs); walls and box as at 1
+    "$gen" cornell-shapes --detail 2 -o "$tmp/shapes2.gltf" >/dev/null 2>&1
+    "$build/wrt-bake" --scan "$tmp/shapes2.gltf" --json >"$tmp/shapes2.json" 2>&1
+    if python3 - "$tmp/shapes2.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1])); e = s["elements"]
+ok = (s["triangles"] == 10 + 960 + 72 + 30 and e["paired"] == 5 + 448 + 36 + 13 and e["triangles"] == 64 + 4
+      and s["dropped"] == 0 and s["problems"] == [])
+sys.exit(0 if ok else 1)
+PY
+    then ok; else bad "cornell-shapes --detail 2 scan: $(head -c 400 "$tmp/shapes2.json")"; fi
 fi
+# --detail 1 is the scene as it was before the option (the committed test scene's bytes)
+"$gen" cornell-shapes --detail 1 -o "$tmp/shapes1.gltf" >/dev/null 2>&1
+if cmp -s "$tmp/shapes1.gltf" "$tmp/all/test/cornell_shapes.gltf"; then ok; else bad "cornell-shapes --detail 1 differs from the default"; fi
 
 # the atrium (issue 22's scale benchmark): valid, closed as seen from its light (rays from
 # the light in 400 fixed directions all meet the front of a face: nothing escapes, nothing

@@ -1,16 +1,19 @@
 #!/usr/bin/env bash
 # bench_scale.sh: issue 22's scale benchmark. Bakes the atrium (wrt-scenegen atrium) at
-# several --detail values and the N x N mazes at one quality, and records per scene: the
+# several --detail values, the N x N mazes and, for issue 21's cost against triangle count,
+# cornell-shapes at --detail values (SHAPES) at one quality, and records per scene: the
 # elements (wrt-bake --scan), the bake's CPU seconds (user + system) and wall seconds
 # (/usr/bin/time), its peak resident memory (--json's memory_mb.peak_rss) and largest
 # estimate, the file's size and the light change (wrt-play --headless --bench: median ms
-# of projection + multiply + BRDF + synthesis). A scene whose --scan estimate passes the
+# of projection + multiply + BRDF + synthesis; FRAMES=0 skips it). A scene whose --scan
+# estimate (at QUALITY, with BAKE_OPTS: --clusters has its own model) passes the
 # memory cap is skipped and recorded so; every bake also runs under --max-memory CAP, and
 # one that the bake refuses is recorded as refused. Rows are appended to DIR/scale.csv
 # (one LABEL per build or option set), then tools/bench_scale_plot.py fits the slopes
 # (least squares on log-log) and draws DIR/scale.png (gnuplot). docs/bench.md explains.
 # Usage: tools/bench_scale.sh [BUILD] [DIR]     (defaults: build, bench-scale)
-#   env DETAILS="0.25 0.5 0.7" MAZES="4 6 8 12" QUALITY=5 CAP_MB=6000 FRAMES=20
+#   env DETAILS="0.25 0.5 0.7" MAZES="4 6 8 12" SHAPES="" (e.g. "2 3.5 6.25": about 1k,
+#       3k and 10k triangles) QUALITY=5 CAP_MB=6000 FRAMES=20
 #       BAKE_OPTS="--clusters" (passed to wrt-bake) LABEL=name (default: the git commit)
 #       KEEP=1 keeps the .gto files
 set -euo pipefail
@@ -19,6 +22,7 @@ dir=${2:-bench-scale}
 cd "$(dirname "$0")/.."
 details=${DETAILS-"0.25 0.5 0.7"}
 mazes=${MAZES-"4 6 8 12"}
+shapes=${SHAPES-}
 quality=${QUALITY:-5}
 cap=${CAP_MB:-6000}
 frames=${FRAMES:-20}
@@ -39,7 +43,8 @@ one() {  # one SCENE PARAM scenegen-options...
     local scene=$1 param=$2; shift 2
     local g=$tmp/$scene-$param.gltf o=$tmp/$scene-$param.gto
     "$build/wrt-scenegen" "$scene" "$@" -o "$g" >/dev/null
-    "$build/wrt-bake" --scan "$g" --json >"$tmp/scan.json"
+    # shellcheck disable=SC2086
+    "$build/wrt-bake" --scan "$g" --json --quality "$quality" $bake_opts >"$tmp/scan.json"
     local n est
     n=$(num quads "$tmp/scan.json")
     est=$(tr -d '\n ' <"$tmp/scan.json" | grep -o '"estimate":{[^}]*}' | grep -o '"memory_mb":[0-9.e+-]*' | cut -d: -f2)
@@ -68,7 +73,8 @@ one() {  # one SCENE PARAM scenegen-options...
     bestim=$(tr -d '\n ' <"$tmp/bake.json" | grep -o '"memory_mb":{[^}]*}' | grep -o '"estimated":[0-9.e+-]*' | cut -d: -f2)
     bytes=$(num bytes "$tmp/bake.json")
     lc=
-    if "$build/wrt-play" "$o" --headless --msaa 1 --bench "$frames" >"$tmp/play.json" 2>"$tmp/play.err"; then
+    if [ "$frames" -eq 0 ]; then :
+    elif "$build/wrt-play" "$o" --headless --msaa 1 --bench "$frames" >"$tmp/play.json" 2>"$tmp/play.err"; then
         lc=$(tr -d '\n ' <"$tmp/play.json" | grep -o '"median_ms":{[^}]*}' | tr ',{}' '\n\n\n' |
              awk -F: '$1 ~ /projection|multiply|brdf|synthesis/ {s += $2} END {printf "%.3f", s}')
     else
@@ -82,4 +88,5 @@ one() {  # one SCENE PARAM scenegen-options...
 
 for n in $mazes; do one maze "$n" --cells "$n"; done
 for d in $details; do one atrium "$d" --detail "$d"; done
+for d in $shapes; do one cornell-shapes "$d" --detail "$d"; done
 python3 tools/bench_scale_plot.py "$csv" "$dir/scale.png"

@@ -595,7 +595,10 @@ static void add_bevel_box(sg_scene *s, int mesh, double cx, double cz, double w,
 }
 
 /* The Cornell box's room (no boxes) holding a UV sphere (16 x 8), a cylinder (12 sides)
- * and a bevelled box, all made of triangles, under the same point light. */
+ * and a bevelled box, all made of triangles, under the same point light. --detail D
+ * multiplies the sphere's segments and rings and the cylinder's sides by D (rounded;
+ * at least 3 x 2 and 3), so the triangle count grows as about 256 D^2 (the cost against
+ * triangle count, docs/triangles.md); D = 1 is the scene as it always was. */
 static void scene_cornell_shapes(sg_scene *s) {
     double a = s->opt.albedo;
     int white = add_material(s, "white", a, a, a, 0, 1);
@@ -607,8 +610,11 @@ static void scene_cornell_shapes(sg_scene *s) {
     add_rect(s, add_mesh(s, "back_wall", white), 2, -0.5, -0.5, 0.5, 0.0, 1.0, +1);
     add_rect(s, add_mesh(s, "left_wall", red), 0, -0.5, 0.0, 1.0, -0.5, 0.5, +1);
     add_rect(s, add_mesh(s, "right_wall", green), 0, 0.5, 0.0, 1.0, -0.5, 0.5, -1);
-    add_uv_sphere(s, add_mesh(s, "sphere", white), v3(-0.2, 0.18, 0.1), 0.18, 16, 8);
-    add_cylinder(s, add_mesh(s, "cylinder", blue), 0.22, -0.2, 0.12, 0.45, 12);
+    double d = s->opt.detail;
+    int seg = (int)lround(16 * d), rings = (int)lround(8 * d), sides = (int)lround(12 * d);
+    add_uv_sphere(s, add_mesh(s, "sphere", white), v3(-0.2, 0.18, 0.1), 0.18, seg < 3 ? 3 : seg,
+                  rings < 2 ? 2 : rings);
+    add_cylinder(s, add_mesh(s, "cylinder", blue), 0.22, -0.2, 0.12, 0.45, sides < 3 ? 3 : sides);
     add_bevel_box(s, add_mesh(s, "bevel_box", white), 0.2, 0.22, 0.22, 0.22, 0.22, 0.03, -20);
     add_light(s, "ceiling_light", LIGHT_POINT, v3(0, 0.85, 0), v3(0, 0, 0), 2.5, 1, 1, 1, 60, 80);
     set_camera(s, v3(0, 0.5, 1.9), v3(0, 0.5, 0), 39.3);
@@ -763,7 +769,9 @@ static void usage(FILE *f) {
             "  --roughness R    cornell-glossy, glossy-box: the metal's roughness (default 0.3)\n"
             "  --detail D       atrium: tessellation, 0.25..16; elements grow as about D^1.75:\n"
             "                   1,060 at 0.5, 2,700 at 1 (default), 8,200 at 2, 28,500 at 4,\n"
-            "                   108,000 at 8 (wrt-bake --scan counts them)\n"
+            "                   108,000 at 8 (wrt-bake --scan counts them); cornell-shapes:\n"
+            "                   the sphere's and cylinder's segments x D, triangles about\n"
+            "                   256 D^2: 1,072 at 2, 3,190 at 3.5, 10,065 at 6.25\n"
             "scenes:\n");
     for (int i = 0; i < NSCENES; i++) fprintf(f, "  %-14s %s\n", scenes[i].name, scenes[i].what);
     fprintf(f, "\n");

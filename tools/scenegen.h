@@ -22,7 +22,7 @@ typedef struct sg_options {
     int cells;        /* maze: cells per side */
     uint64_t seed;    /* maze: layout seed */
     double roughness; /* cornell-glossy, glossy-box: the metal's roughness */
-    double detail;    /* atrium: tessellation (elements grow as detail^2) */
+    double detail;    /* atrium: tessellation (elements grow as detail^2); cornell-shapes: segments x detail */
 } sg_options;
 
 typedef struct sg_material {
