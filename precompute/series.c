@@ -298,11 +298,14 @@ static void series_setup(series_state *s) {
  * each bounce reads it back once, in wrt_csc_apply's order: the same bits), and the
  * bounces hold S, Tr and the terms, not T beside them (on the 12 x 12 maze 515 MB of the
  * peak; issue 22). Where the file cannot be written, T stays and S is a copy. */
+static int series_can_consume(const bake_ctx *b) {
+    return b->opt.consume_dto && !b->opt.gathered && !b->opt.report_gathered && b->opt.series_right > 0 &&
+           b->opt.series_right_from <= 2;
+}
+
 static void series_consume(series_state *s) {
     const bake_ctx *b = s->b;
-    if (!b->opt.consume_dto || b->opt.gathered || b->opt.report_gathered || !s->Tr.col || b->opt.series_right_from > 2 ||
-        !s->pw || s->T != &s->res->dto)
-        return;
+    if (!series_can_consume(b) || !s->Tr.col || !s->pw || s->T != &s->res->dto) return;
     power_iter_start(&s->pi, s->T, s->pw);
     if (!spill_write(&s->Tf, s->T)) return; /* the iteration goes on in memory */
     if (!b->opt.no_tail) s->u = wrt_series_power_targets(s->T, s->pw, s->threads, b->opt.max_bounces, &s->u_bounces);
@@ -535,10 +538,17 @@ static void series_state_free(series_state *s) {
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     series_state s = {.b = b, .res = res, .C = &res->c, .T = &res->dto, .eps = b->opt.eps_compress,
                       .threads = b->opt.threads};
+    /* the start's memory: the first term (at most T's entries, 16 bytes each), a second
+     * right factor where it is not the first term, and the sum's copy of T where T is
+     * not consumed (then the bounces' checks, series_memory_check) */
+    uint64_t copies = 1 + (b->opt.series_right != 1 || b->opt.series_coarse > 0) + !series_can_consume(b);
+    wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, copies * 16 * res->dto.nnz,
+                                          "the series' first term");
+    if (st != WRT_OK) return st;
     series_setup(&s);
     series_consume(&s);
     if (!s.consumed) s.S = wrt_csc_copy(s.T);
-    wrt_status st = series_bounces(&s);
+    st = series_bounces(&s);
     if (st == WRT_OK) st = series_tail(&s);
     if (st == WRT_OK) st = series_gathered(&s);
     if (st != WRT_OK) {
