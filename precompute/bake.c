@@ -513,13 +513,15 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
         /* Memory: the entries so far, extrapolated over the pairs left, then their
          * conversion (bake_assemble): each pair's entries cut as they become triplets (20
          * bytes), then the matrix (16) and its build's index (4) beside the triplets, 40
-         * bytes an entry where the entries were 32; 44 counted, for what the balance and
-         * the allocator hold beside them (the 12 x 12 maze: 32.2M entries, the assembly's
-         * peak 1,445 MB sampled, 44 x 32.2M = 1,417 MB). Before
-         * the cut the entries stayed beside the triplets: 36 bytes beyond the entries. */
+         * bytes an entry where the entries were 32; 54 counted, for what the balance, the
+         * key set and the allocator hold beside them (measured: the maze asset's peak 404
+         * MB over 267 MB at the DTO's end with 8.1M entries, 17 bytes an entry beyond
+         * them; the 12 x 12 maze 1,459 over 1,026 MB with 32.2M, 13; cornell-glossy at
+         * quality 3, tests/bake.sh, 0.93 of its peak at 50). Before the cut the entries
+         * stayed beside the triplets: 36 bytes beyond the entries. */
         for (size_t k = 0; k < n; k++) ent += job->out[c + k * nch].count;
         double done = (double)ndone / (double)np, left = (1 - done) / done;
-        double per = 44.0 - (double)sizeof(pair_entry); /* beyond the entries already resident */
+        double per = 54.0 - (double)sizeof(pair_entry); /* beyond the entries already resident */
         uint64_t need = (uint64_t)((double)ent * left * sizeof(pair_entry) + (double)ent * (1 + left) * per);
         uint64_t known = (uint64_t)((double)ent * per);
         /* the extrapolation from under a tenth of the pairs is noise: it refuses only from
