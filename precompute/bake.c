@@ -513,11 +513,14 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
             atomic_store(b->cancel, 1);
         if (atomic_load(b->cancel)) break;
         /* Memory: the entries so far, extrapolated over the pairs left, then their
-         * conversion: the keys (two of 8 bytes an entry) and their sort's buffer beside the
-         * entries' 32 bytes, then the triplets (20), the matrix (16) and its build's index
-         * (4) once the entries are freed (bake_assemble): 36 bytes an entry beyond the
-         * entries at the most (60 while the entries stayed to the end and qsort copied the
-         * triplets). */
+         * conversion (bake_assemble): each pair's entries cut as they become triplets (20
+         * bytes), then the matrix (16) and its build's index (4) beside the triplets, 40
+         * bytes an entry where the entries were 32; 54 counted, for what the balance, the
+         * key set and the allocator hold beside them (measured: the maze asset's peak 404
+         * MB over 267 MB at the DTO's end with 8.1M entries, 17 bytes an entry beyond
+         * them; the 12 x 12 maze 1,459 over 1,026 MB with 32.2M, 13; cornell-glossy at
+         * quality 3, tests/bake.sh, 0.93 of its peak at 50). Before the cut the entries
+         * stayed beside the triplets: 36 bytes beyond the entries. */
         for (size_t k = 0; k < n; k++)
             if (!job->owner || job->owner[c + k * nch] == job->rank) {
                 ent += job->out[c + k * nch].count;
@@ -527,8 +530,9 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
          * entries the merge then gives every rank (the assembly holds them all) */
         double all = nown == ndone ? (double)ent : nown ? (double)ent * (double)ndone / (double)nown : 0;
         double done = (double)ndone / (double)np, left = (1 - done) / done;
-        uint64_t need = (uint64_t)(all * left * sizeof(pair_entry) + all * (1 + left) * 36.0);
-        uint64_t known = (uint64_t)(all * 36.0);
+        double per = 54.0 - (double)sizeof(pair_entry); /* beyond the entries already resident */
+        uint64_t need = (uint64_t)(all * left * sizeof(pair_entry) + all * (1 + left) * per);
+        uint64_t known = (uint64_t)(all * per);
         /* the extrapolation from under a tenth of the pairs is noise: it refuses only from
          * there on, what is already computed at any time; the figure recorded is the last */
         double keep = C->mem_estimate_mb;
@@ -605,14 +609,31 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             res->fkeys = keys;
             wrt_triplet *tr = wrt_xmalloc((nent ? nent : 1) * sizeof *tr);
             uint64_t t = 0;
-            for (size_t i = 0; i < npt; i++)
-                for (size_t k = 0; k < job->out[i].count; k++) {
-                    const pair_entry *e = &job->out[i].e[k];
+            /* each pair's entries, once they are triplets, cut to those the balance reads
+             * (wrt_balance_reads_entry, in their order; on the mazes their roots' rows):
+             * the entries (32 bytes each) and the triplets (20) were held together, 1.72 GB
+             * on the 12 x 12 maze; the freed pages go back every 32nd of the pairs */
+            size_t trim_every = npt / 32 + 1;
+            for (size_t i = 0; i < npt; i++) {
+                pair_out *o = &job->out[i];
+                size_t keep = 0;
+                for (size_t k = 0; k < o->count; k++) {
+                    const pair_entry *e = &o->e[k];
                     tr[t].row = (uint32_t)wrt_fkey_set_find(&ks, e->r);
                     tr[t].col = (uint32_t)wrt_fkey_set_find(&ks, e->s);
                     memcpy(tr[t].v, e->v, sizeof e->v);
                     t++;
+                    if (!b->opt.no_balance && wrt_balance_reads_entry(b, e)) o->e[keep++] = *e;
                 }
+                o->count = keep;
+                if (!keep) {
+                    free(o->e);
+                    o->e = NULL;
+                } else {
+                    o->e = wrt_xrealloc(o->e, keep * sizeof *o->e);
+                }
+                if ((i + 1) % trim_every == 0) wrt_bake_memory_trim();
+            }
             wrt_fkey_set_free(&ks);
             /* the balance: per leaf link a reference and the power entries it sets (about
              * three of 24 bytes each, measured on the maze: 606k entries from 263k leaves) */

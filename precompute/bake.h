@@ -48,6 +48,9 @@ typedef struct wrt_bake_options {
     int gathered;          /* 1: store T_fine G instead of G - I */
     int report_gathered;   /* 1: compute the gathered GTO's figures even when not stored */
     int dto_only;          /* 1: stop after the DTO (res->op stays empty): for tests */
+    int consume_dto;       /* 1: the series may take T's arrays for its sum once what it needs of T
+                            * is computed (res->dto empty after the bake; wrt-bake sets it:
+                            * series.c, series_consume) */
     int max_bounces;       /* cap on the Neumann series (default 2000) */
     int no_tail;           /* 1: do not add the geometric estimate of the series' tail */
     double series_right;   /* bounces from series_right_from on multiply by T compressed at

@@ -402,6 +402,15 @@ static void sender_analysis(sender_data *d) {
     d->tc = tc;
 }
 
+/* What sender_emitted below reads of the pairs' entries, whatever the pair (a superset:
+ * it also checks the quads and the sender's node) */
+int wrt_balance_reads_entry(const bake_ctx *b, const pair_entry *e) {
+    if (!wrt_fkey_angular_root(e->s)) return 0;
+    uint32_t q = wrt_fkey_quad(e->r);
+    if (e->r == wrt_fkey_make(q, wrt_node_root(), 0, wrt_node_root(), 0)) return 1;
+    return !b->quads[q].parallelogram && wrt_fkey_angular_root(e->r);
+}
+
 /* Stage 4: the root entries the pairs emitted, and the power of the wavelet rows */
 static void sender_emitted(sender_data *d) {
     bal_ctx *c = d->c;

@@ -10,6 +10,10 @@
  * that every diffuse sender function delivers the power its pointwise form factors say.
  * Appends to *tr (count *nt, capacity *cap). Returns 1 if the scene was found closed,
  * else -(q + 1) for the first quad q one of whose rays met no surface (where it is open). */
+/* 1 if wrt_balance_run reads the pair entry e (a diffuse sender's entry to a receiver's
+ * root, or to a general quad's wavelet): the pairs' other entries may be freed before it
+ * runs (bake.c, once they are T's triplets). */
+int wrt_balance_reads_entry(const bake_ctx *b, const pair_entry *e);
 int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, const pair_out *out,
                      const uint64_t *fkeys, uint32_t nf, wrt_triplet **tr, uint64_t *nt, uint64_t *cap);
 

@@ -525,6 +525,7 @@ static int load_scene(const bake_args *A, const wrt_load_options *lo, wrt_scene 
  * code with the scene freed. */
 static int run_bake(bake_args *A, wrt_scene *s, wrt_bake_result *r) {
     A->o.progress = progress_cb;
+    A->o.consume_dto = 1; /* T is not written: the series' sum takes its arrays (series.c) */
     wrt_status st = wrt_bake_run(s, &A->o, r);
     wrt_cli_progress_end();
     if (st != WRT_OK) {

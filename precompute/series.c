@@ -64,6 +64,120 @@ static wrt_status series_mul(const bake_ctx *b, const wrt_csc *a, const wrt_csc 
     return wrt_dist_mul(b->opt.dist, a, m, eps, W, threads, out);
 }
 
+/* T written to an unlinked scratch file (tmpfile(): $TMPDIR or /tmp) in blocks of
+ * SPILL_BLOCK entries, rows then values, its column starts kept: what the power
+ * iteration reads of T once the sum has taken T's arrays (series_consume). The file's
+ * pages are the page cache's, which the system can drop and read back, not the bake's
+ * resident memory; the file goes with the process however it ends. */
+#define SPILL_BLOCK 65536u
+typedef struct {
+    FILE *f;
+    uint32_t n;
+    uint64_t nnz, *col;
+    uint32_t *row; /* one block */
+    float *val;
+} spilled_csc;
+
+static int spill_write(spilled_csc *sp, const wrt_csc *T) {
+    memset(sp, 0, sizeof *sp);
+    sp->f = tmpfile();
+    if (!sp->f) return 0;
+    int ok = 1;
+    for (uint64_t k = 0; k < T->nnz && ok; k += SPILL_BLOCK) {
+        size_t m = T->nnz - k < SPILL_BLOCK ? (size_t)(T->nnz - k) : SPILL_BLOCK;
+        ok = fwrite(&T->row[k], sizeof *T->row, m, sp->f) == m && fwrite(&T->val[3 * k], 3 * sizeof *T->val, m, sp->f) == m;
+    }
+    if (!ok || fflush(sp->f) != 0) {
+        fclose(sp->f);
+        sp->f = NULL;
+        return 0;
+    }
+    sp->n = T->n;
+    sp->nnz = T->nnz;
+    sp->col = wrt_xmalloc(((size_t)T->n + 1) * sizeof *sp->col);
+    memcpy(sp->col, T->col, ((size_t)T->n + 1) * sizeof *sp->col);
+    sp->row = wrt_xmalloc(SPILL_BLOCK * sizeof *sp->row);
+    sp->val = wrt_xmalloc(3 * SPILL_BLOCK * sizeof *sp->val);
+    return 1;
+}
+
+static void spill_free(spilled_csc *sp) {
+    if (sp->f) fclose(sp->f);
+    free(sp->col); free(sp->row); free(sp->val);
+    memset(sp, 0, sizeof *sp);
+}
+
+/* y += T x read back from the file: wrt_csc_apply's operations in its order. 0 where
+ * the file could not be read. */
+static int spill_apply(spilled_csc *sp, const double *x, double *y) {
+    if (fseek(sp->f, 0, SEEK_SET) != 0) return 0;
+    uint64_t base = 0, have = 0; /* the block in the buffers: entries [base, base + have) */
+    for (uint32_t j = 0; j < sp->n; j++) {
+        const double *xj = &x[3 * j];
+        int zero = xj[0] == 0 && xj[1] == 0 && xj[2] == 0;
+        for (uint64_t k = sp->col[j]; k < sp->col[j + 1]; k++) {
+            if (k >= base + have) {
+                base += have;
+                have = sp->nnz - base < SPILL_BLOCK ? sp->nnz - base : SPILL_BLOCK;
+                if (fread(sp->row, sizeof *sp->row, have, sp->f) != have ||
+                    fread(sp->val, 3 * sizeof *sp->val, have, sp->f) != have)
+                    return 0;
+            }
+            if (zero) continue;
+            uint32_t i = sp->row[k - base];
+            const float *v = &sp->val[3 * (k - base)];
+            for (int c = 0; c < 3; c++) y[3 * i + c] += (double)v[c] * xj[c];
+        }
+    }
+    return 1;
+}
+
+/* The power iteration of series_bounces (see there) on T (in memory, or spilled): the
+ * start vector's image, then one step an iteration giving the ratios rc[3] */
+typedef struct {
+    uint32_t n;
+    double *x, *y, vp_prev[3];
+} power_iter;
+
+static void power_iter_start(power_iter *p, const wrt_csc *T, const double *pw) {
+    uint32_t n = T->n;
+    p->n = n;
+    p->x = wrt_xcalloc(3 * (size_t)n + 1, sizeof *p->x);
+    p->y = wrt_xcalloc(3 * (size_t)n + 1, sizeof *p->y);
+    for (uint32_t i = 0; i < n; i++)
+        if (pw[i] != 0) p->x[3 * i] = p->x[3 * i + 1] = p->x[3 * i + 2] = pw[i];
+    wrt_csc_apply(T, p->x, p->y);
+    for (int ch = 0; ch < 3; ch++) p->vp_prev[ch] = 0;
+    for (uint32_t i = 0; i < n; i++)
+        for (int ch = 0; ch < 3; ch++) p->vp_prev[ch] += pw[i] * p->y[3 * i + ch];
+}
+
+/* next iterate: x = y / its power, y = T x; rc the ratio of the powers. 0 where the
+ * spilled T could not be read back. */
+static int power_iter_step(power_iter *p, const wrt_csc *T, spilled_csc *sp, const double *pw, double rc[3]) {
+    uint32_t n = p->n;
+    double *x = p->x, *y = p->y, *vp_prev = p->vp_prev;
+    double vs = fmax(vp_prev[0], fmax(vp_prev[1], vp_prev[2]));
+    for (size_t i = 0; i < 3 * (size_t)n; i++) x[i] = vs > 0 ? y[i] / vs : 0;
+    for (int ch = 0; ch < 3; ch++) vp_prev[ch] = vs > 0 ? vp_prev[ch] / vs : 0;
+    memset(y, 0, 3 * (size_t)n * sizeof *y);
+    if (T) wrt_csc_apply(T, x, y);
+    else if (!spill_apply(sp, x, y)) return 0;
+    double vp[3] = {0, 0, 0};
+    for (uint32_t i = 0; i < n; i++)
+        for (int ch = 0; ch < 3; ch++) vp[ch] += pw[i] * y[3 * i + ch];
+    for (int ch = 0; ch < 3; ch++) {
+        rc[ch] = vp_prev[ch] > 0 ? vp[ch] / vp_prev[ch] : 0;
+        vp_prev[ch] = vp[ch];
+    }
+    return 1;
+}
+
+static void power_iter_free(power_iter *p) {
+    free(p->x); free(p->y);
+    p->x = p->y = NULL;
+}
+
 /* The series' working state, shared by its stages */
 typedef struct {
     const bake_ctx *b;
@@ -78,6 +192,13 @@ typedef struct {
     wrt_csc Tr;     /* --series-right: T compressed, the right factor of the later bounces */
     int shared;     /* 1 while P and Tr are one matrix (the first term, at 1 x eps) */
     double rc[3], ratio;
+    /* series_consume: T's arrays taken by S; what the bounces and the tail needed of T
+     * computed before: the power iteration's ratios and the power targets */
+    int consumed;
+    spilled_csc Tf; /* T in the scratch file, for the power iteration */
+    double *u;      /* 3n: the power targets (series_power.h) */
+    int u_bounces;
+    power_iter pi;
 } series_state;
 
 /* The coarse cut (--series-coarse F, on by default with --clusters): the right factor of
@@ -153,23 +274,45 @@ static void series_setup(series_state *s) {
     double *pw = wrt_power_weights(b, res->fkeys, T->n);
     s->rw = rw; s->cw = cw; s->pw = pw;
     s->W = (wrt_csc_weights){rw, cw, pw};
-    s->S = wrt_csc_copy(T);
-    s->P = wrt_csc_copy(T);
-    wrt_csc_compress(&s->P, s->eps, &s->W);
+    s->P = wrt_csc_copy_compress(T, s->eps, &s->W); /* without a full copy of T first */
     if (b->opt.series_right == 1) {
         /* the first term is that matrix already: one copy, not two (on the 12 x 12 maze
          * 260 MB of the peak) */
         s->Tr = s->P;
         s->shared = 1;
     } else if (b->opt.series_right > 0) {
-        s->Tr = wrt_csc_copy(T);
-        wrt_csc_compress(&s->Tr, b->opt.series_right * s->eps, &s->W);
+        s->Tr = wrt_csc_copy_compress(T, b->opt.series_right * s->eps, &s->W);
     }
     if (b->opt.series_coarse > 0) {
         if (!s->Tr.col || s->shared) s->Tr = wrt_csc_copy(s->Tr.col ? &s->Tr : T);
         s->shared = 0;
         series_coarse_rows(b, &s->Tr, s->res->fkeys, b->opt.series_coarse);
     }
+}
+
+/* When the bake may consume T (wrt_bake_options.consume_dto: wrt-bake, whose file does
+ * not hold T) and T has no use after the first term but the power iteration (the later
+ * products' right factor is Tr; no gathered operator), the sum S takes T's arrays instead
+ * of a copy: the power targets are computed first (the same operations as at the tail,
+ * so the same bits), T is written to a scratch file for the power iteration (spill_write;
+ * each bounce reads it back once, in wrt_csc_apply's order: the same bits), and the
+ * bounces hold S, Tr and the terms, not T beside them (on the 12 x 12 maze 515 MB of the
+ * peak; issue 22). Where the file cannot be written, T stays and S is a copy. */
+static int series_can_consume(const bake_ctx *b) {
+    return b->opt.consume_dto && !b->opt.gathered && !b->opt.report_gathered && b->opt.series_right > 0 &&
+           b->opt.series_right_from <= 2;
+}
+
+static void series_consume(series_state *s) {
+    const bake_ctx *b = s->b;
+    if (!series_can_consume(b) || !s->Tr.col || !s->pw || s->T != &s->res->dto) return;
+    power_iter_start(&s->pi, s->T, s->pw);
+    if (!spill_write(&s->Tf, s->T)) return; /* the iteration goes on in memory */
+    if (!b->opt.no_tail) s->u = wrt_series_power_targets(s->T, s->pw, s->threads, b->opt.max_bounces, &s->u_bounces);
+    s->S = s->res->dto; /* S = T, its first term, without a copy */
+    memset(&s->res->dto, 0, sizeof s->res->dto);
+    s->T = NULL;
+    s->consumed = 1;
 }
 
 /* The right factor of bounce k: T, or from series_right_from on (default: every product
@@ -187,7 +330,7 @@ static void series_setup(series_state *s) {
  * coloured box at albedo 0.99 lost 0.31% of its flux at 16 x. Hence 1. The first term
  * and the tail's power iteration keep the full T. */
 static const wrt_csc *series_right(const series_state *s, int bounce) {
-    return s->Tr.col && bounce >= s->b->opt.series_right_from ? &s->Tr : s->T;
+    return s->Tr.col && (s->consumed || bounce >= s->b->opt.series_right_from) ? &s->Tr : s->T;
 }
 
 /* Frees the right factor, unless the term P still is that matrix (P then owns it). */
@@ -205,7 +348,6 @@ static wrt_status series_bounces(series_state *s) {
     const wrt_csc *T = s->T;
     double eps = s->eps;
     int threads = s->threads;
-    double *pw = s->pw;
     double *rc = s->rc;
     /* The tail's ratio is measured by power iteration on a smooth start vector (each quad's
      * root coefficient, i.e. a uniform irradiance), per channel, as the ratio of the
@@ -216,16 +358,10 @@ static wrt_status series_bounces(series_state *s) {
      * albedo 0.999 stopped at 0.998971: -2.8%). The power is what the tail must get right,
      * and with the power balance a closed scene's power ratio is the albedo from the first
      * bounce. */
-    uint32_t n = T->n;
-    double *x = wrt_xcalloc(3 * (size_t)n + 1, sizeof *x), *y = wrt_xcalloc(3 * (size_t)n + 1, sizeof *y);
-    for (uint32_t i = 0; i < n; i++)
-        if (pw[i] != 0) x[3 * i] = x[3 * i + 1] = x[3 * i + 2] = pw[i];
     /* the iteration runs on T itself, not on the compressed terms, whose power drifts by
-     * what compression drops (at albedo 0.999 a drift of 2e-5 per bounce is 2% of the tail) */
-    wrt_csc_apply(T, x, y);
-    double vp_prev[3] = {0, 0, 0};
-    for (uint32_t i = 0; i < n; i++)
-        for (int ch = 0; ch < 3; ch++) vp_prev[ch] += pw[i] * y[3 * i + ch];
+     * what compression drops (at albedo 0.999 a drift of 2e-5 per bounce is 2% of the tail);
+     * started here, or in series_consume before T was consumed */
+    if (!s->pi.x) power_iter_start(&s->pi, T, s->pw);
     double rc_prev[3] = {-1, -1, -1};
     double ratio = 0;
     int stable = 0;
@@ -236,15 +372,11 @@ static wrt_status series_bounces(series_state *s) {
         if (mst != WRT_OK) {
             char msg[1024];
             snprintf(msg, sizeof msg, "%s", wrt_last_error());
-            free(x); free(y);
             return wrt_fail(mst, "%s", msg);
         }
         wrt_csc N;
         wrt_status pst = series_mul(b, &s->P, R, eps, &s->W, threads, &N);
-        if (pst != WRT_OK) {
-            free(x); free(y);
-            return pst;
-        }
+        if (pst != WRT_OK) return pst;
         if (!N.nnz) {
             /* every entry of the next term fell under the threshold, but together they
              * still carry ratio / (1 - ratio) of the last term (0.2% of the total at
@@ -259,21 +391,15 @@ static wrt_status series_bounces(series_state *s) {
         const double one[3] = {1, 1, 1};
         wrt_csc_add3_into(&s->S, &s->P, one); /* in place: no second copy of the sum */
         double pn = wrt_csc_norm(&s->P), sn = wrt_csc_norm(&s->S);
-        /* next iterate: x = y / its power, y = T x */
-        double vs = fmax(vp_prev[0], fmax(vp_prev[1], vp_prev[2]));
-        for (size_t i = 0; i < 3 * (size_t)n; i++) x[i] = vs > 0 ? y[i] / vs : 0;
-        for (int ch = 0; ch < 3; ch++) vp_prev[ch] = vs > 0 ? vp_prev[ch] / vs : 0;
-        memset(y, 0, 3 * (size_t)n * sizeof *y);
-        wrt_csc_apply(T, x, y);
-        double vp[3] = {0, 0, 0};
-        for (uint32_t i = 0; i < n; i++)
-            for (int ch = 0; ch < 3; ch++) vp[ch] += pw[i] * y[3 * i + ch];
+        /* the next iterate's ratios (T in memory, or read back from its scratch file) */
+        double rnext[3];
+        if (!power_iter_step(&s->pi, T, &s->Tf, s->pw, rnext))
+            return wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
         int settled = 1;
         ratio = 0;
         C->energy_left = sn > 0 ? pn / sn : 0;
         for (int ch = 0; ch < 3; ch++) {
-            rc[ch] = vp_prev[ch] > 0 ? vp[ch] / vp_prev[ch] : 0;
-            vp_prev[ch] = vp[ch];
+            rc[ch] = rnext[ch];
             ratio = fmax(ratio, rc[ch]);
             /* settled when the ratio has stopped moving, or when what its movement could
              * still change in the tail, |dr| / (1 - r)^2 times the last term's share of
@@ -288,15 +414,14 @@ static wrt_status series_bounces(series_state *s) {
         /* how far: the light left on its way from 1 down to the 1e-6 where the series stops
          * at the latest (it often stops sooner, when the tail can be added) */
         double done = C->energy_left > 0 ? log(C->energy_left) / log(1e-6) : 1;
-        if (b->opt.progress && !b->opt.progress("gto", fmin(1.0, fmax(done, 0.0)), b->opt.progress_user)) {
-            free(x); free(y);
+        if (b->opt.progress && !b->opt.progress("gto", fmin(1.0, fmax(done, 0.0)), b->opt.progress_user))
             return wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
-        }
         if (C->energy_left < 1e-6) break;
         if (!b->opt.no_tail && stable >= 3 && C->bounces >= 8) break;
     }
-    free(x); free(y);
     series_free_right(s);
+    power_iter_free(&s->pi);
+    spill_free(&s->Tf);
     s->ratio = ratio;
     return WRT_OK;
 }
@@ -356,7 +481,13 @@ static wrt_status series_tail(series_state *s) {
     /* each column's power made the DTO's own series' (series_power.c), after the drop */
     if (!b->opt.no_tail && s->pw) {
         wrt_series_power_stats ps;
-        wrt_series_power_fix(s->T, s->pw, s->threads, b->opt.max_bounces, &s->S, &ps);
+        if (s->u) { /* the targets, computed before T was consumed */
+            memset(&ps, 0, sizeof ps);
+            ps.bounces = s->u_bounces;
+            wrt_series_power_apply(s->u, s->pw, s->threads, &s->S, &ps);
+        } else {
+            wrt_series_power_fix(s->T, s->pw, s->threads, b->opt.max_bounces, &s->S, &ps);
+        }
     }
     C->entries_gto = s->S.nnz;
     C->links_gto = wrt_count_links(&s->S, s->res->fkeys);
@@ -394,24 +525,34 @@ static wrt_status series_gathered(series_state *s) {
     return WRT_OK;
 }
 
+/* Frees what the state holds (after a failure: the sum too) */
+static void series_state_free(series_state *s) {
+    series_free_right(s);
+    power_iter_free(&s->pi);
+    wrt_csc_free(&s->P); wrt_csc_free(&s->S);
+    spill_free(&s->Tf);
+    free(s->rw); free(s->cw); free(s->pw); free(s->u);
+    s->rw = s->cw = s->pw = s->u = NULL;
+}
+
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     series_state s = {.b = b, .res = res, .C = &res->c, .T = &res->dto, .eps = b->opt.eps_compress,
                       .threads = b->opt.threads};
+    /* the start's memory: the first term (at most T's entries, 16 bytes each), a second
+     * right factor where it is not the first term, and the sum's copy of T where T is
+     * not consumed (then the bounces' checks, series_memory_check) */
+    uint64_t copies = 1 + (b->opt.series_right != 1 || b->opt.series_coarse > 0) + !series_can_consume(b);
+    wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, copies * 16 * res->dto.nnz,
+                                          "the series' first term");
+    if (st != WRT_OK) return st;
     series_setup(&s);
-    wrt_status st = series_bounces(&s);
+    series_consume(&s);
+    if (!s.consumed) s.S = wrt_csc_copy(s.T);
+    st = series_bounces(&s);
+    if (st == WRT_OK) st = series_tail(&s);
+    if (st == WRT_OK) st = series_gathered(&s);
     if (st != WRT_OK) {
-        series_free_right(&s);
-        wrt_csc_free(&s.P); wrt_csc_free(&s.S); free(s.rw); free(s.cw); free(s.pw);
-        return st;
-    }
-    st = series_tail(&s);
-    if (st != WRT_OK) {
-        wrt_csc_free(&s.P); wrt_csc_free(&s.S); free(s.rw); free(s.cw); free(s.pw);
-        return st;
-    }
-    st = series_gathered(&s);
-    if (st != WRT_OK) {
-        wrt_csc_free(&s.S); free(s.rw); free(s.cw); free(s.pw);
+        series_state_free(&s);
         return st;
     }
     if (b->cl && b->opt.cluster_tree) {
@@ -437,7 +578,8 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         }
     }
     res->op = s.S;
+    memset(&s.S, 0, sizeof s.S);
     res->op_kind = b->opt.gathered ? WRT_GTO_OP_GATHERED : WRT_GTO_OP_INDIRECT;
-    free(s.rw); free(s.cw); free(s.pw);
+    series_state_free(&s);
     return WRT_OK;
 }

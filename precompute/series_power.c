@@ -150,13 +150,16 @@ static void fix_col(size_t j, int th, void *user) {
     c->state[j] = st;
 }
 
-void wrt_series_power_fix(const wrt_csc *T, const double *pw, int threads, int max_bounces, wrt_csc *S,
-                          wrt_series_power_stats *stats) {
-    size_t n = S->n;
-    memset(stats, 0, sizeof *stats);
-    if (!n || T->n != S->n) return;
+double *wrt_series_power_targets(const wrt_csc *T, const double *pw, int threads, int max_bounces, int *bounces) {
+    size_t n = T->n;
     double *u = wrt_xmalloc((3 * n + 1) * sizeof *u);
-    stats->bounces = power_targets(T, pw, threads, max_bounces, u);
+    int it = n ? power_targets(T, pw, threads, max_bounces, u) : 0;
+    if (bounces) *bounces = it;
+    return u;
+}
+
+void wrt_series_power_apply(const double *u, const double *pw, int threads, wrt_csc *S, wrt_series_power_stats *stats) {
+    size_t n = S->n;
     double before = 0, want = 0;
     for (size_t j = 0; j < n; j++)
         for (uint64_t k = S->col[j]; k < S->col[j + 1]; k++) before += pw[S->row[k]] * S->val[3 * k];
@@ -170,5 +173,13 @@ void wrt_series_power_fix(const wrt_csc *T, const double *pw, int threads, int m
     stats->power_before = before;
     stats->power_target = want;
     free(c.state);
+}
+
+void wrt_series_power_fix(const wrt_csc *T, const double *pw, int threads, int max_bounces, wrt_csc *S,
+                          wrt_series_power_stats *stats) {
+    memset(stats, 0, sizeof *stats);
+    if (!S->n || T->n != S->n) return;
+    double *u = wrt_series_power_targets(T, pw, threads, max_bounces, &stats->bounces);
+    wrt_series_power_apply(u, pw, threads, S, stats);
     free(u);
 }

@@ -18,5 +18,11 @@ typedef struct wrt_series_power_stats {
  * sum_{n >= 1} (pw^T T^n)_j and the power S's column delivers, channel by channel. */
 void wrt_series_power_fix(const wrt_csc *T, const double *pw, int threads, int max_bounces, wrt_csc *S,
                           wrt_series_power_stats *stats);
+/* The same in two steps, so that T can be freed between them (series.c, when the bake
+ * may consume T): the targets sum_{n >= 1} pw^T T^n (3n values, malloc'd; *bounces the
+ * terms iterated), then their spreading over S's columns (stats' sums added to; zero
+ * them first). wrt_series_power_fix is the two in a row. */
+double *wrt_series_power_targets(const wrt_csc *T, const double *pw, int threads, int max_bounces, int *bounces);
+void wrt_series_power_apply(const double *u, const double *pw, int threads, wrt_csc *S, wrt_series_power_stats *stats);
 
 #endif

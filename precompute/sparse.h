@@ -47,6 +47,9 @@ wrt_csc wrt_csc_add3(const wrt_csc *a, const wrt_csc *b, const double s[3]);
 void wrt_csc_add3_into(wrt_csc *a, const wrt_csc *b, const double s[3]);
 /* Removes entries below `drop` (weighted as in wrt_csc_mul). */
 void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w);
+/* A compressed copy of m: the same entries and values as wrt_csc_compress on a copy,
+ * without the copy. */
+wrt_csc wrt_csc_copy_compress(const wrt_csc *m, double drop, const wrt_csc_weights *w);
 /* Sorts n 64-bit keys ascending (LSD radix; for the bake's function keys). */
 void wrt_sort_u64(uint64_t *a, size_t n);
 /* Frobenius norm over all channels. */

@@ -454,7 +454,14 @@ static void test_compression_keeps_power(void) {
             }
         wrt_csc_weights W = {rw, cw, pw};
         wrt_csc m = wrt_csc_mul(&a, &id, 0.01, &W, 2);
+        wrt_csc cc = wrt_csc_copy_compress(&a, 0.01, &W);
         wrt_csc_compress(&a, 0.01, &W);
+        /* the compressed copy (the series' first term) is the in-place compression's matrix */
+        int same = cc.nnz == a.nnz && !memcmp(cc.col, a.col, (N + 1) * sizeof *a.col) &&
+                   !memcmp(cc.row, a.row, a.nnz * sizeof *a.row) && !memcmp(cc.val, a.val, 3 * a.nnz * sizeof *a.val);
+        CHECK(same, "trial %d: wrt_csc_copy_compress differs from wrt_csc_compress (%llu / %llu entries)", trial,
+              (unsigned long long)cc.nnz, (unsigned long long)a.nnz);
+        wrt_csc_free(&cc);
         const wrt_csc *ms[2] = {&a, &m};
         for (int w = 0; w < 2; w++)
             for (uint32_t j = 0; j < N; j++)
@@ -616,6 +623,45 @@ static void test_threads_identical(void) {
     wrt_bake_result_free(&a);
     wrt_bake_result_free(&b);
     tsb_free(&s);
+}
+
+/* consume_dto (wrt-bake's): the series takes T's arrays for its sum, with the power
+ * iteration and the power targets computed before; the stored operator and the series'
+ * figures must be the bits of the path that keeps T, and T gone. A coloured box with an
+ * occluder (its series stops on the settled ratio and adds the tail) and the same box
+ * at albedo 0.95 (more bounces, a larger tail). */
+static void test_consume_identical(void) {
+    for (int k = 0; k < 2; k++) {
+        wrt_scene s;
+        tsb_init(&s);
+        int m = k ? tsb_material(&s, 0.95, 0.9, 0.8) : tsb_material(&s, 0.7, 0.5, 0.3);
+        tsb_box_inward(&s, P(0, 0, 0), P(2, 1, 1.5), 1, m);
+        tsb_quad(&s, P(0.8, 0.2, 0.5), P(1.2, 0.2, 0.5), P(1.2, 0.6, 0.5), P(0.8, 0.6, 0.5), m);
+        tsb_quad(&s, P(0.8, 0.2, 0.5), P(0.8, 0.6, 0.5), P(1.2, 0.6, 0.5), P(1.2, 0.2, 0.5), m);
+        wrt_bake_result a, b;
+        wrt_bake_options o1 = opts(4, 0, 0), o2 = opts(4, 0, 0);
+        o2.consume_dto = 1;
+        CHECK(wrt_bake_run(&s, &o1, &a) == WRT_OK, "%s", wrt_last_error());
+        CHECK(wrt_bake_run(&s, &o2, &b) == WRT_OK, "%s", wrt_last_error());
+        CHECK(a.dto.nnz > 0 && b.dto.nnz == 0 && !b.dto.row, "T kept (%llu entries) / consumed (%llu)",
+              (unsigned long long)a.dto.nnz, (unsigned long long)b.dto.nnz);
+        int same = a.op.nnz == b.op.nnz && a.nfuncs == b.nfuncs &&
+                   !memcmp(a.op.col, b.op.col, ((size_t)a.nfuncs + 1) * sizeof *a.op.col) &&
+                   !memcmp(a.op.row, b.op.row, a.op.nnz * sizeof *a.op.row) &&
+                   !memcmp(a.op.val, b.op.val, 3 * a.op.nnz * sizeof *a.op.val);
+        CHECK(same, "albedo case %d: the operator differs (%llu / %llu entries)", k, (unsigned long long)a.op.nnz,
+              (unsigned long long)b.op.nnz);
+        CHECK(a.c.bounces == b.c.bounces && a.c.series_ratio == b.c.series_ratio && a.c.energy_left == b.c.energy_left &&
+                  a.c.tail_fraction == b.c.tail_fraction,
+              "albedo case %d: the series' figures differ (bounces %llu / %llu, ratio %.9g / %.9g)", k,
+              (unsigned long long)a.c.bounces, (unsigned long long)b.c.bounces, a.c.series_ratio, b.c.series_ratio);
+        CHECK(a.c.tail_fraction > 0, "albedo case %d: the tail is used (%.3g)", k, a.c.tail_fraction);
+        printf("consumed T: case %d, %llu entries stored, %llu bounces, ratio %.6f, tail %.3g, the same bits\n", k,
+               (unsigned long long)b.op.nnz, (unsigned long long)b.c.bounces, b.c.series_ratio, b.c.tail_fraction);
+        wrt_bake_result_free(&a);
+        wrt_bake_result_free(&b);
+        tsb_free(&s);
+    }
 }
 
 /* Glossy sender (rough dielectric, roughness 0.4) lit by isotropic incident radiance
@@ -999,5 +1045,6 @@ int main(int argc, char **argv) {
     TEST_RUN(test_glossy_power_balance);
     TEST_RUN(test_coplanar_and_backfacing);
     TEST_RUN(test_threads_identical);
+    TEST_RUN(test_consume_identical);
     TEST_END();
 }
