@@ -86,6 +86,11 @@ void wrt_bake_defaults(wrt_bake_options *o) {
      * series_small_area): the icosphere furnace of 1,280 triangles at quality 1 G - I -99.2%
      * -> the DTO's series; the assets at quality 5 the same bytes. Negative: off. */
     if (o->small_share == 0) o->small_share = 10;
+    /* the oracle's share rule (dto.c refine(), wrt_depth_weight): a quad under this share of
+     * the scene's area has its detail weighed by sqrt(share / depth_share). 1e-3 is under
+     * every exchanging quad of the assets (cornell's smallest 1.4e-2, glossy's 1.3e-2, the
+     * maze's walls and floor cells 1.2e-3): their bytes are unchanged. Negative: off. */
+    if (o->depth_share == 0) o->depth_share = WRT_DEPTH_SHARE_DEFAULT;
     /* the coarse cut between bounces: with --clusters only (the default bake unchanged) */
     if (o->series_coarse == 0) o->series_coarse = o->clusters ? WRT_SERIES_COARSE_CLUSTERS : -1;
     /* Glossy materials (measured by tools/study.sh on the glossy asset and the glossy-wall
@@ -274,6 +279,11 @@ static wrt_status bake_frame(bake_ctx *b, const wrt_scene *scene) {
         nglossy += !m->lambertian;
     }
     (void)nglossy;
+    if (b->opt.depth_share > 0) {
+        double total = 0;
+        for (int i = 0; i < b->nq; i++) total += b->quads[i].area;
+        b->depth_area = b->opt.depth_share * total;
+    }
     return WRT_OK;
 }
 

@@ -81,12 +81,20 @@ typedef struct wrt_bake_options {
                             * (form factor per sender area), so a closed scene of N small
                             * elements, whose entries are each about rho / N, keeps its
                             * multi-bounce light at any N (series.c); 0: the default 10; < 0: off */
+    double depth_share;    /* the oracle's share rule (dto.c refine()): a quad holding less than
+                            * depth_share of the scene's area has the kernel's spreads over its
+                            * cells weighted by sqrt(its share / depth_share), so small
+                            * elements' pairs stop refining at cells of an absolute size;
+                            * 0: the default WRT_DEPTH_SHARE_DEFAULT; < 0: off */
     wrt_progress_fn progress;
     void *progress_user;
     /* NULL: one process. wrt-bake-mpi: the ranks and their all-gather (dist.h); the DTO's
      * pairs and the series' products are divided among them, the result the same bytes */
     struct wrt_bake_dist *dist;
 } wrt_bake_options;
+
+/* the default depth_share (docs/bench.md "The oracle's depth by the scene's share") */
+#define WRT_DEPTH_SHARE_DEFAULT 1e-3
 
 /* --clusters' default series_coarse (docs/clusters.md "The series on a coarser cut") */
 #define WRT_SERIES_COARSE_CLUSTERS 1e-3

@@ -5,6 +5,7 @@
 #ifndef WRT_BAKE_CTX_H
 #define WRT_BAKE_CTX_H
 
+#include <math.h>
 #include <stdatomic.h>
 #include <embree3/rtcore.h>
 
@@ -39,6 +40,7 @@ typedef struct bake_ctx {
      * open-scene mode and the closed-scene rule is applied with the links (cluster_ops.c) */
     const struct wrt_clusters *cl;
     int balance_open;
+    double depth_area;      /* depth_share x the scene's area (0: the share rule off; dto.c) */
 } bake_ctx;
 
 typedef struct bake_thread_counters {
@@ -53,6 +55,13 @@ typedef struct bake_thread_counters {
  * the shared table of common/brdf_table.h. */
 static inline void wrt_bake_btilde(const bake_ctx *b, int m, double a, double bb, double *out) {
     wrt_brdf_table_lookup(b->btilde[m], 1 << (2 * b->alevel[m]), a, bb, out);
+}
+
+/* The oracle's weight of quad q's detail (bake.h depth_share): sqrt(A_q / depth_area) for a
+ * quad under depth_area, else 1 (and 1 with the rule off). */
+static inline double wrt_depth_weight(const bake_ctx *b, int q) {
+    double a = b->quads[q].area;
+    return a < b->depth_area ? sqrt(a / b->depth_area) : 1.0;
 }
 
 /* splitmix64's finalizer: sample keys and hash slots from integers. */

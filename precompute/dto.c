@@ -161,6 +161,7 @@ typedef struct pair_ctx {
     int cancelled;
     int record;              /* keep the leaves for the power balance */
     leaf_rec *leaf; size_t nleaf, leaf_cap;
+    double wr, ws;           /* the receiver's and the sender's share weights (refine()) */
 } pair_ctx;
 
 /* value (i, j, angular pair a, channel ch) of block bl */
@@ -586,8 +587,13 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
     }
     double vq = 0;
     for (int q = 0; q < 4; q++) vq = fmax(vq, qhi[q] - qlo[q]);
-    double vr = (swapped ? vs : vq) * pc->rho_max * wrt_node_size(rn);
-    double vsn = (swapped ? vq : vs) * pc->rho_max * wrt_node_size(sn);
+    /* ... and by the quad's share weight (wrt_depth_weight): a quad that holds less than
+     * depth_share of the scene's area weighs its detail by sqrt(its share / depth_share),
+     * its weight in the scene's area-weighted L2 error relative to a quad of that share, so
+     * that where the spread does not shrink (a shared edge) refinement stops at cells of an
+     * absolute size, not at a fixed fraction of each quad however small. */
+    double vr = (swapped ? vs : vq) * pc->rho_max * wrt_node_size(rn) * pc->wr;
+    double vsn = (swapped ? vq : vs) * pc->rho_max * wrt_node_size(sn) * pc->ws;
     /* A cell whose Jacobian varies (a triangle's part, a general convex quad) cannot hold
      * a constant: its functions are h / sqrt(J), so uniform radiosity is carried as
      * mean(sqrt J) / sqrt(J), off by about half J's relative spread over each cell, and
@@ -698,6 +704,8 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
     pc.rho_max = fmax(rho[0], fmax(rho[1], rho[2]));
     if (sym) pc.rho_max = fmax(pc.rho_max, fmax(rho_r[0], fmax(rho_r[1], rho_r[2])));
     pc.sym = sym;
+    pc.wr = wrt_depth_weight(b, r);
+    pc.ws = wrt_depth_weight(b, s);
     pc.kmode = (flags & 4) != 0;
     pc.lr = b->alevel[b->scene->quads[r].material];
     pc.ls = pc.kmode ? b->klevel[b->scene->quads[s].material] : b->alevel[b->scene->quads[s].material];

@@ -84,6 +84,10 @@ static void usage(FILE *f) {
         "                         its compression threshold scaled by its share over that\n"
         "                         (many small elements keep their multi-bounce light;\n"
         "                         default 10, 0: off)\n"
+        "  --depth-share S        the oracle weighs a quad's detail by its share of the\n"
+        "                         scene's area: under S, the kernel's spread over its cells\n"
+        "                         is weighted by sqrt(share / S), so small elements stop at\n"
+        "                         cells of an absolute size (default 1e-3; 0: off)\n"
         "  --series-coarse F      from the second bounce on, the light between bounces is\n"
         "                         kept on the functions whose support is at least F of the\n"
         "                         scene's area, each quad's mean always (power exact;\n"
@@ -215,6 +219,8 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
     if (o->series_coarse > 0) fprintf(f, ",\"series_coarse\":%.6g", o->series_coarse);
     /* only when not the default 10 (the default bake's bytes unchanged); 0: off */
     if (o->small_share != 10) fprintf(f, ",\"small_share\":%.6g", fmax(o->small_share, 0));
+    /* only when not the default (the default bake's bytes unchanged); 0: off */
+    if (o->depth_share != WRT_DEPTH_SHARE_DEFAULT) fprintf(f, ",\"depth_share\":%.6g", fmax(o->depth_share, 0));
     fputc('}', f);
 }
 
@@ -363,6 +369,11 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--series-coarse")) {
             ok = opt_num(a, v, 0, 1, &o->series_coarse);
             if (ok && o->series_coarse == 0) o->series_coarse = -1; /* 0 on the command line: off */
+            i++;
+        }
+        else if (!strcmp(a, "--depth-share")) {
+            ok = opt_num(a, v, 0, 1, &o->depth_share);
+            if (ok && o->depth_share == 0) o->depth_share = -1; /* 0 on the command line: off */
             i++;
         }
         else if (!strcmp(a, "--small-share")) {
