@@ -16,7 +16,23 @@
 static const int E_END[4][2] = {{0, 1}, {1, 2}, {3, 2}, {0, 3}};
 #define MAX_AROUND 40 /* quads around one corner within a group (a 32-segment UV sphere's pole: 32) */
 
-typedef struct corner_set { int n; int quad[MAX_AROUND], corner[MAX_AROUND]; } corner_set;
+#define MAX_TREF 4    /* edges of other quads passing through one corner (a T-junction's vertex) */
+
+/* The quads around a corner, and the edges it lies inside of (a T-junction: the vertex
+ * where a triangle's two half-edges meet lies inside the paired quad's whole edge): each
+ * T-reference is quad tquad's edge tedge at its parameter ts. */
+typedef struct corner_set {
+    int n, nt;
+    int quad[MAX_AROUND], corner[MAX_AROUND];
+    int tquad[MAX_TREF], tedge[MAX_TREF];
+    double ts[MAX_TREF];
+} corner_set;
+
+/* A neighbour along a part of an edge (a T-junction, or any overlap of two collinear
+ * edges that do not share both ends): the overlap is [t0, t1] (t0 < t1) on this edge, in
+ * its parameter (0 at E_END[e][0], 1 at E_END[e][1]), and runs from s0 to s1 on the
+ * neighbour's edge f, in that edge's parameter. */
+typedef struct part_nb { int o, f, bent; double t0, t1, s0, s1; } part_nb; /* bent: joined by the corner normals */
 
 struct wrt_recon {
     int n, ngroups;
@@ -26,6 +42,8 @@ struct wrt_recon {
     int *group, *slot;           /* slot: position within its group */
     int *gfirst, *gquads;        /* members of group g: gquads[gfirst[g] .. gfirst[g+1]) */
     corner_set (*around)[4];     /* quads around each corner (itself included), ascending */
+    int *pfirst;                 /* edge e of quad q: its partial neighbours pnb[pfirst[4q+e] .. pfirst[4q+e+1]) */
+    part_nb *pnb;                /* ascending quad, edge, t0 */
     wrt_recon_allocator al;      /* alloc NULL: malloc and free */
 };
 
@@ -154,6 +172,157 @@ static void recon_neighbours(wrt_recon *rc, int n, const double (*corners)[4][3]
             if (rc->nb[q][e] >= 0 && rc->bent[q][e]) rc->curved[q] = 1;
 }
 
+/* ------------------------------------------------------------ T-junctions ---- */
+
+/* An edge without a neighbour, with its extent along x (for the sweep). */
+typedef struct open_edge { int q, e; double lo, hi, box[4]; } open_edge; /* box: y and z extents */
+/* A partial neighbour of quad q's edge e, while they are collected. */
+typedef struct part_entry { int q, e; part_nb p; } part_entry;
+
+static int cmp_open(const void *x, const void *y) {
+    const open_edge *a = x, *b = y;
+    if (a->lo != b->lo) return a->lo < b->lo ? -1 : 1;
+    if (a->q != b->q) return a->q < b->q ? -1 : 1;
+    return a->e - b->e;
+}
+
+static int cmp_part(const void *x, const void *y) {
+    const part_entry *a = x, *b = y;
+    if (a->q != b->q) return a->q < b->q ? -1 : 1;
+    if (a->e != b->e) return a->e - b->e;
+    if (a->p.t0 != b->p.t0) return a->p.t0 < b->p.t0 ? -1 : 1;
+    if (a->p.o != b->p.o) return a->p.o < b->p.o ? -1 : 1;
+    return a->p.f - b->p.f;
+}
+
+/* Parameter of point p on the line of segment a-b (0 at a, 1 at b), snapped to 0 or 1
+ * within tol (world). */
+static double seg_param(v3 p, v3 a, v3 b, double tol) {
+    v3 d = sub(b, a);
+    double l = len(d), t = dot(sub(p, a), d) / (l * l);
+    if (fabs(t) * l <= tol) t = 0;
+    else if (fabs(t - 1) * l <= tol) t = 1;
+    return t;
+}
+
+static v3 seg_point(v3 a, v3 b, double t) {
+    v3 r = {a.x + t * (b.x - a.x), a.y + t * (b.y - a.y), a.z + t * (b.z - a.z)};
+    return r;
+}
+
+/* Quad q's corner normals interpolated along its edge e at parameter t, unit. */
+static v3 edge_normal(const float (*normals)[4][3], int q, int e, double t) {
+    const float *a = normals[q][E_END[e][0]], *b = normals[q][E_END[e][1]];
+    v3 r = {(1 - t) * a[0] + t * b[0], (1 - t) * a[1] + t * b[1], (1 - t) * a[2] + t * b[2]};
+    double l = len(r);
+    if (l > 0) { r.x /= l; r.y /= l; r.z /= l; }
+    return r;
+}
+
+static v3 quad_centre(const double (*c)[3]) {
+    v3 r = {0.25 * (c[0][0] + c[1][0] + c[2][0] + c[3][0]), 0.25 * (c[0][1] + c[1][1] + c[2][1] + c[3][1]),
+            0.25 * (c[0][2] + c[1][2] + c[2][2] + c[3][2])};
+    return r;
+}
+
+/* 0, or 1 if quad q's edge e and quad o's edge f (same material, both without a whole
+ * neighbour) are partial smooth neighbours: collinear, overlapping by more than tol but
+ * not the same segment (that is the whole-edge rule's, which refused it), the two quads on
+ * either side of the line, coplanar or with corner normals agreeing at both ends of the
+ * overlap (no fold), and no other quad's edge along the overlap. Fills *pq (q's view) and
+ * *po (o's view). */
+static int partial_pair(int n, const double (*corners)[4][3], const v3 *nrm, double tol, const float (*normals)[4][3],
+                        double cos_tol, int q, int e, int o, int f, part_nb *pq, part_nb *po) {
+    v3 a = mk(corners[q][E_END[e][0]]), b = mk(corners[q][E_END[e][1]]);
+    v3 c = mk(corners[o][E_END[f][0]]), d = mk(corners[o][E_END[f][1]]);
+    double lab = len(sub(b, a)), lcd = len(sub(d, c));
+    if (!(lab > tol) || !(lcd > tol) || line_dist(c, a, b) > tol || line_dist(d, a, b) > tol) return 0;
+    double tc = seg_param(c, a, b, tol), td = seg_param(d, a, b, tol);
+    if ((tc == 0 && td == 1) || (tc == 1 && td == 0)) return 0;
+    double t0 = fmax(fmin(tc, td), 0), t1 = fmin(fmax(tc, td), 1);
+    if (!((t1 - t0) * lab > tol)) return 0; /* a point at most */
+    v3 dir = sub(b, a);
+    if (dot(cross(sub(quad_centre(corners[q]), a), dir), cross(sub(quad_centre(corners[o]), a), dir)) >= 0) return 0;
+    v3 p0 = seg_point(a, b, t0), p1 = seg_point(a, b, t1);
+    double s0 = seg_param(p0, c, d, tol), s1 = seg_param(p1, c, d, tol);
+    int coplanar = dot(nrm[q], nrm[o]) >= 1 - 1e-9;
+    for (int k = 0; k < 4 && coplanar; k++)
+        if (fabs(dot(sub(mk(corners[o][k]), a), nrm[q])) > tol) coplanar = 0;
+    if (!coplanar) { /* a curved mesh's edge: the normals agree where the overlap starts and ends */
+        if (!normals || dot(nrm[q], nrm[o]) < -0.5) return 0;
+        if (dot(edge_normal(normals, q, e, t0), edge_normal(normals, o, f, s0)) < cos_tol ||
+            dot(edge_normal(normals, q, e, t1), edge_normal(normals, o, f, s1)) < cos_tol) return 0;
+    }
+    if (edge_blocked(n, corners, q, o, p0, p1, tol)) return 0;
+    part_nb x = {o, f, !coplanar, t0, t1, s0, s1};
+    part_nb y = {q, e, !coplanar, s0 < s1 ? s0 : s1, s0 < s1 ? s1 : s0, s0 < s1 ? t0 : t1, s0 < s1 ? t1 : t0};
+    *pq = x;
+    *po = y;
+    return 1;
+}
+
+/* Stage 2b: the partial neighbours of the edges left without a whole one (T-junctions:
+ * a paired quad's whole edge against the two half-edges of a triangle's quads). Open
+ * edges are swept along x; a pair is tested where their extents meet. -1 on out of memory. */
+static int recon_partial(wrt_recon *rc, int n, const double (*corners)[4][3], const uint32_t *material, const v3 *nrm,
+                         double tol, const float (*normals)[4][3], double cos_tol) {
+    const wrt_recon_allocator *al = &rc->al;
+    size_t nopen = 0, cap = 16, np = 0;
+    for (int q = 0; q < n; q++)
+        for (int e = 0; e < 4; e++) nopen += rc->nb[q][e] < 0;
+    open_edge *op = rc_alloc(al, (nopen ? nopen : 1) * sizeof *op);
+    part_entry *pe = rc_alloc(al, cap * sizeof *pe);
+    rc->pfirst = rc_alloc(al, ((size_t)4 * n + 1) * sizeof(int));
+    if (!op || !pe || !rc->pfirst) { rc_free(al, op); rc_free(al, pe); return -1; }
+    nopen = 0;
+    for (int q = 0; q < n; q++)
+        for (int e = 0; e < 4; e++) {
+            if (rc->nb[q][e] >= 0) continue;
+            const double *x0 = corners[q][E_END[e][0]], *x1 = corners[q][E_END[e][1]];
+            open_edge oe = {q, e, fmin(x0[0], x1[0]) - tol, fmax(x0[0], x1[0]) + tol,
+                            {fmin(x0[1], x1[1]) - tol, fmax(x0[1], x1[1]) + tol, fmin(x0[2], x1[2]) - tol,
+                             fmax(x0[2], x1[2]) + tol}};
+            op[nopen++] = oe;
+        }
+    qsort(op, nopen, sizeof *op, cmp_open);
+    for (size_t i = 0; i < nopen; i++)
+        for (size_t j = i + 1; j < nopen && op[j].lo <= op[i].hi; j++) {
+            const open_edge *u = op[i].q < op[j].q || (op[i].q == op[j].q && op[i].e < op[j].e) ? &op[i] : &op[j];
+            const open_edge *w = u == &op[i] ? &op[j] : &op[i];
+            if (u->q == w->q || material[u->q] != material[w->q] || u->box[0] > w->box[1] || w->box[0] > u->box[1] ||
+                u->box[2] > w->box[3] || w->box[2] > u->box[3]) continue;
+            part_nb pq, po;
+            if (!partial_pair(n, corners, nrm, tol, normals, cos_tol, u->q, u->e, w->q, w->e, &pq, &po)) continue;
+            if (np + 2 > cap) {
+                part_entry *grown = rc_alloc(al, 2 * cap * sizeof *pe);
+                if (!grown) { rc_free(al, op); rc_free(al, pe); return -1; }
+                memcpy(grown, pe, np * sizeof *pe);
+                rc_free(al, pe);
+                pe = grown;
+                cap *= 2;
+            }
+            part_entry x = {u->q, u->e, pq}, y = {w->q, w->e, po};
+            pe[np++] = x;
+            pe[np++] = y;
+        }
+    rc_free(al, op);
+    qsort(pe, np, sizeof *pe, cmp_part);
+    rc->pnb = rc_alloc(al, (np ? np : 1) * sizeof *rc->pnb);
+    if (!rc->pnb) { rc_free(al, pe); return -1; }
+    size_t k = 0;
+    for (int qe = 0; qe < 4 * n; qe++) {
+        rc->pfirst[qe] = (int)k;
+        while (k < np && 4 * pe[k].q + pe[k].e == qe) {
+            rc->pnb[k] = pe[k].p;
+            if (pe[k].p.bent) rc->curved[pe[k].q] = 1;
+            k++;
+        }
+    }
+    rc->pfirst[4 * n] = (int)k;
+    rc_free(al, pe);
+    return 0;
+}
+
 /* Stage 3: groups, the connected components, numbered by their smallest quad; returns their count. */
 static int recon_components(wrt_recon *rc, int n, int *stack) {
     for (int q = 0; q < n; q++) rc->group[q] = -1;
@@ -168,6 +337,10 @@ static int recon_components(wrt_recon *rc, int n, int *stack) {
             for (int e = 0; e < 4; e++) {
                 int o = rc->nb[x][e];
                 if (o >= 0 && rc->group[o] < 0) { rc->group[o] = ng; stack[sp++] = o; }
+                for (int k = rc->pfirst[4 * x + e]; k < rc->pfirst[4 * x + e + 1]; k++) {
+                    o = rc->pnb[k].o;
+                    if (rc->group[o] < 0) { rc->group[o] = ng; stack[sp++] = o; }
+                }
             }
         }
         ng++;
@@ -175,27 +348,55 @@ static int recon_components(wrt_recon *rc, int n, int *stack) {
     return ng;
 }
 
-/* Stage 4 (after the group lists): the quads around each corner, walking the smooth edges. */
+static void corner_add(corner_set *cs, int o, int ok) {
+    for (int s = 0; s < cs->n; s++)
+        if (cs->quad[s] == o && cs->corner[s] == ok) return;
+    if (cs->n < MAX_AROUND) { cs->quad[cs->n] = o; cs->corner[cs->n] = ok; cs->n++; }
+}
+
+/* A T-reference: the same edge from two sides keeps the smaller parameter (the same
+ * point, up to rounding), so that every member of the set sums the same values. */
+static void corner_add_t(corner_set *cs, int o, int f, double sv) {
+    for (int s = 0; s < cs->nt; s++)
+        if (cs->tquad[s] == o && cs->tedge[s] == f) { cs->ts[s] = fmin(cs->ts[s], sv); return; }
+    if (cs->nt < MAX_TREF) { cs->tquad[cs->nt] = o; cs->tedge[cs->nt] = f; cs->ts[cs->nt] = sv; cs->nt++; }
+}
+
+/* Stage 4 (after the group lists): the quads around each corner, walking the smooth edges
+ * (whole and partial). */
 static void recon_corner_sets(wrt_recon *rc, int n) {
     for (int q = 0; q < n; q++)
         for (int k = 0; k < 4; k++) {
             corner_set *cs = &rc->around[q][k];
-            cs->n = 1; cs->quad[0] = q; cs->corner[0] = k;
+            cs->n = 1; cs->nt = 0; cs->quad[0] = q; cs->corner[0] = k;
             for (int h = 0; h < cs->n; h++) {
                 int x = cs->quad[h], xk = cs->corner[h];
                 for (int e = 0; e < 4; e++) {
                     int end = E_END[e][0] == xk ? 0 : E_END[e][1] == xk ? 1 : -1;
+                    if (end < 0) continue;
                     int o = rc->nb[x][e];
-                    if (end < 0 || o < 0) continue;
-                    int ok = E_END[rc->nbe[x][e]][rc->flip[x][e] ? 1 - end : end], seen = 0;
-                    for (int s = 0; s < cs->n; s++) seen |= cs->quad[s] == o && cs->corner[s] == ok;
-                    if (!seen && cs->n < MAX_AROUND) { cs->quad[cs->n] = o; cs->corner[cs->n] = ok; cs->n++; }
+                    if (o >= 0) corner_add(cs, o, E_END[rc->nbe[x][e]][rc->flip[x][e] ? 1 - end : end]);
+                    /* a partial neighbour reaching this end: its corner there, or (a
+                     * T-junction) the point inside its edge */
+                    for (int p = rc->pfirst[4 * x + e]; p < rc->pfirst[4 * x + e + 1]; p++) {
+                        const part_nb *pn = &rc->pnb[p];
+                        if (end ? pn->t1 != 1 : pn->t0 != 0) continue;
+                        double sv = end ? pn->s1 : pn->s0;
+                        if (sv == 0 || sv == 1) corner_add(cs, pn->o, E_END[pn->f][sv == 1]);
+                        else corner_add_t(cs, pn->o, pn->f, sv);
+                    }
                 }
             }
             for (int a = 1; a < cs->n; a++) /* ascending quad: the same sum from every side */
                 for (int b = a; b > 0 && cs->quad[b - 1] > cs->quad[b]; b--) {
                     int t = cs->quad[b]; cs->quad[b] = cs->quad[b - 1]; cs->quad[b - 1] = t;
                     t = cs->corner[b]; cs->corner[b] = cs->corner[b - 1]; cs->corner[b - 1] = t;
+                }
+            for (int a = 1; a < cs->nt; a++) /* and ascending quad and edge */
+                for (int b = a; b > 0 && cs->tquad[b - 1] * 4 + cs->tedge[b - 1] > cs->tquad[b] * 4 + cs->tedge[b]; b--) {
+                    int t = cs->tquad[b]; cs->tquad[b] = cs->tquad[b - 1]; cs->tquad[b - 1] = t;
+                    t = cs->tedge[b]; cs->tedge[b] = cs->tedge[b - 1]; cs->tedge[b - 1] = t;
+                    double d = cs->ts[b]; cs->ts[b] = cs->ts[b - 1]; cs->ts[b - 1] = d;
                 }
         }
 }
@@ -234,6 +435,10 @@ wrt_recon *wrt_recon_create_smooth(int n, const double (*corners)[4][3], const u
     }
     double tol = recon_tolerance(n, corners);
     recon_neighbours(rc, n, corners, material, nrm, tol, normals, cos_tol);
+    if (recon_partial(rc, n, corners, material, nrm, tol, normals, cos_tol) != 0) {
+        rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc);
+        return NULL;
+    }
     int ng = recon_components(rc, n, stack);
     rc->ngroups = ng;
     /* Each group's members, in quad order, and each quad's slot in its group. */
@@ -262,6 +467,7 @@ void wrt_recon_destroy(wrt_recon *rc) {
     rc_free(&al, rc->nb); rc_free(&al, rc->nbe); rc_free(&al, rc->flip); rc_free(&al, rc->bent); rc_free(&al, rc->curved);
     rc_free(&al, rc->group); rc_free(&al, rc->slot);
     rc_free(&al, rc->gfirst); rc_free(&al, rc->gquads); rc_free(&al, rc->around);
+    rc_free(&al, rc->pfirst); rc_free(&al, rc->pnb);
     rc_free(&al, rc);
 }
 
@@ -275,6 +481,16 @@ const int *wrt_recon_members(const wrt_recon *rc, int gr, int *count) {
 }
 
 int wrt_recon_curved(const wrt_recon *rc, int q) { return q >= 0 && q < rc->n ? rc->curved[q] : 0; }
+
+int wrt_recon_partial(const wrt_recon *rc, int q, int e, int i, int *nedge, double range[4]) {
+    if (q < 0 || q >= rc->n || e < 0 || e > 3) return -1;
+    int k = rc->pfirst[4 * q + e] + i;
+    if (i < 0 || k >= rc->pfirst[4 * q + e + 1]) return -1;
+    const part_nb *p = &rc->pnb[k];
+    if (nedge) *nedge = p->f;
+    if (range) { range[0] = p->t0; range[1] = p->t1; range[2] = p->s0; range[3] = p->s1; }
+    return p->o;
+}
 
 int wrt_recon_neighbour(const wrt_recon *rc, int q, int e, int *nedge, int *flip) {
     if (q < 0 || q >= rc->n || e < 0 || e > 3) return -1;
@@ -384,6 +600,67 @@ static float details_missed(const float *c, int nc, size_t ws, const float *par,
     return smax > 0 ? dmax / smax : (dmax > 0 ? INFINITY : 0);
 }
 
+/* Quad o's edge row (the m cells along its edge f, at the current level, in b) as a
+ * function of the edge's parameter: each cell its average plus a slope across it (central;
+ * one-sided in the end cells; none when m = 1; MC-limited when `limit`), which keeps every
+ * cell's average. Its mean over [sa, sb] (0 <= sa < sb <= 1) in channel ch: over whole
+ * cells their mean, inside one cell the value at the range's centre (the along-edge part
+ * of the children's prediction). */
+static double row_mean(const float *b, int f, int m, int nc, int ch, double sa, double sb, int limit) {
+    int k0 = (int)floor(sa * m), k1 = (int)ceil(sb * m) - 1;
+    if (k0 < 0) k0 = 0;
+    if (k1 > m - 1) k1 = m - 1;
+    double acc = 0;
+    for (int k = k0; k <= k1; k++) {
+        double lo = fmax(sa, (double)k / m), hi = fmin(sb, (double)(k + 1) / m);
+        if (!(hi > lo)) continue;
+        double av = b[edge_cell(f, m, k) * nc + ch], sl = 0;
+        if (m > 1) {
+            double W = k > 0 ? b[edge_cell(f, m, k - 1) * nc + ch] : 0, E = k < m - 1 ? b[edge_cell(f, m, k + 1) * nc + ch] : 0;
+            if (k == 0) sl = E - av;
+            else if (k == m - 1) sl = av - W;
+            else sl = limit ? minmod3((float)(2 * (av - W)), (float)(0.5 * (E - W)), (float)(2 * (E - av))) : 0.5 * (E - W);
+        }
+        acc += (hi - lo) * (av + sl * (0.5 * (lo + hi) * m - (k + 0.5)));
+    }
+    return acc / (sb - sa);
+}
+
+/* Quad o's edge row at parameter s, channel ch: linear between the cells' centres, the end
+ * cells' values beyond them (what a clamped bilinear lookup shows along the edge). */
+static double row_point(const float *b, int f, int m, int nc, int ch, double s) {
+    double x = s * m - 0.5;
+    if (x <= 0) return b[edge_cell(f, m, 0) * nc + ch];
+    if (x >= m - 1) return b[edge_cell(f, m, m - 1) * nc + ch];
+    int k = (int)floor(x);
+    double t = x - k;
+    return (1 - t) * b[edge_cell(f, m, k) * nc + ch] + t * b[edge_cell(f, m, k + 1) * nc + ch];
+}
+
+/* The partial neighbours of quad q's edge e over [ta, tb] of it, channel ch: their edge
+ * rows' means over the matching ranges (cur + slot * stride: a member's cells at the
+ * current level m), weighted by the lengths they cover; *cov the covered fraction of
+ * [ta, tb] (0: none, the value 0). */
+static double partial_mean(const wrt_recon *rc, int q, int e, int m, int nc, int ch, double ta, double tb, int limit,
+                           const float *cur, size_t stride, double *cov) {
+    double acc = 0, c = 0;
+    for (int k = rc->pfirst[4 * q + e]; k < rc->pfirst[4 * q + e + 1]; k++) {
+        const part_nb *p = &rc->pnb[k];
+        double lo = fmax(ta, p->t0), hi = fmin(tb, p->t1);
+        if (!(hi > lo)) continue;
+        double r = (p->s1 - p->s0) / (p->t1 - p->t0);
+        double sa = p->s0 + (lo - p->t0) * r, sb = p->s0 + (hi - p->t0) * r;
+        if (sa > sb) { double t = sa; sa = sb; sb = t; }
+        sa = fmax(sa, 0);
+        sb = fmin(sb, 1);
+        if (!(sb > sa)) continue;
+        acc += (hi - lo) * row_mean(cur + (size_t)rc->slot[p->o] * stride, p->f, m, nc, ch, sa, sb, limit);
+        c += hi - lo;
+    }
+    *cov = c / (tb - ta);
+    return c > 0 ? acc / c : 0;
+}
+
 size_t wrt_recon_scratch(const wrt_recon *rc, int gr, int L, int Lo, int nc) {
     int nm;
     wrt_recon_members(rc, gr, &nm);
@@ -446,13 +723,14 @@ static void recon_pyramids(int nm, const int *mem, int L, int nc, const float *c
 
 /* Stage 2, per quad and level: the extended grid of quad q (own cells, ghosts, corners). */
 static void recon_extend(const wrt_recon *rc, int q, int m, int w, int nc, const float *a, float *ext,
-                         float *buf, int nm, size_t pyr_n, size_t full, int cur_half) {
+                         float *buf, int nm, size_t pyr_n, size_t full, int cur_half, int limit) {
     /* The extended grid: own cells, ghost rows from the neighbours or extrapolated. */
     for (int j = 0; j < m; j++)
         memcpy(ext + ((size_t)(j + 1) * w + 1) * nc, a + (size_t)j * m * nc, (size_t)m * nc * sizeof(float));
     for (int e = 0; e < 4; e++) {
         int o = rc->nb[q][e];
         const float *b = o >= 0 ? CUR(rc->slot[o]) : NULL;
+        int part = o < 0 && rc->pfirst[4 * q + e] < rc->pfirst[4 * q + e + 1];
         for (int k = 0; k < m; k++) {
             size_t gi; /* ghost position in ext, and the inner cells beside it */
             size_t in0 = edge_cell(e, m, k), in1;
@@ -463,9 +741,16 @@ static void recon_extend(const wrt_recon *rc, int q, int m, int w, int nc, const
             default: gi = (size_t)(k + 1) * w; in1 = in0 + 1; break;
             }
             float *g = ext + gi * nc;
+            double cov = 0;
+            if (part) /* a T-junction: the neighbours' cells over the same stretch of the edge */
+                for (int ch = 0; ch < nc && (ch == 0 || cov >= 0.5); ch++)
+                    g[ch] = (float)partial_mean(rc, q, e, m, nc, ch, (double)k / m, (double)(k + 1) / m, limit,
+                                                CUR(0), 2 * full, &cov);
             if (b) {
                 const float *src = b + edge_cell(rc->nbe[q][e], m, rc->flip[q][e] ? m - 1 - k : k) * nc;
                 memcpy(g, src, nc * sizeof(float));
+            } else if (cov >= 0.5) {
+                continue;
             } else if (m >= 2) {
                 for (int ch = 0; ch < nc; ch++) g[ch] = 2 * a[in0 * nc + ch] - a[in1 * nc + ch];
             } else {
@@ -591,9 +876,18 @@ static void recon_children(int s, int q, int l, int L, int m, int w, int nc, con
     }
 }
 
+/* 1 if quad q's edge e lies inside one longer edge of a partial neighbour (a triangle's
+ * half-edge against a paired quad's whole edge): its display follows the longer edge's. */
+static int edge_inside(const wrt_recon *rc, int q, int e) {
+    int k = rc->pfirst[4 * q + e];
+    if (rc->nb[q][e] >= 0 || rc->pfirst[4 * q + e + 1] != k + 1) return 0;
+    const part_nb *p = &rc->pnb[k];
+    return p->t0 == 0 && p->t1 == 1 && fabs(p->s1 - p->s0) < 1;
+}
+
 /* Stage 4: the output, with shared edges and corners averaged across the group. */
 static void recon_output(const wrt_recon *rc, int nm, const int *mem, int Lo, int nc, float *const *out,
-                         float *buf, size_t pyr_n, size_t full, int cur_half) {
+                         float *buf, size_t pyr_n, size_t full, int cur_half, int limit) {
     /* Output: shared-edge texels the mean of the two cells beside the edge, corner texels
      * the mean of the cells around the corner; everything else the finest averages. */
     int m = 1 << Lo;
@@ -605,6 +899,21 @@ static void recon_output(const wrt_recon *rc, int nm, const int *mem, int Lo, in
         if (m < 2) continue;
         for (int e = 0; e < 4; e++) {
             int nbq = rc->nb[q][e];
+            if (nbq < 0 && rc->pfirst[4 * q + e] < rc->pfirst[4 * q + e + 1] && !edge_inside(rc, q, e)) {
+                /* a longer edge at a T-junction: the mean of its cells and the shorter
+                 * edges' beside the same stretch */
+                for (int k = 1; k < m - 1; k++) {
+                    size_t mi = edge_cell(e, m, k) * nc, ii = inner_cell(e, m, k) * nc;
+                    double cov;
+                    for (int ch = 0; ch < nc; ch++) {
+                        double v = partial_mean(rc, q, e, m, nc, ch, (double)k / m, (double)(k + 1) / m, limit, CUR(0),
+                                                2 * full, &cov);
+                        if (cov < 0.5) break;
+                        o[mi + ch] = (float)(0.5 * (a[mi + ch] + v));
+                        if (m >= 4) o[ii + ch] -= o[mi + ch] - a[mi + ch];
+                    }
+                }
+            }
             if (nbq < 0) continue;
             const float *b = CUR(rc->slot[nbq]);
             for (int k = 1; k < m - 1; k++) {
@@ -618,12 +927,45 @@ static void recon_output(const wrt_recon *rc, int nm, const int *mem, int Lo, in
         }
         for (int k = 0; k < 4; k++) {
             const corner_set *cs = &rc->around[q][k];
-            if (cs->n < 2) continue;
+            if (cs->n < 2 || cs->nt) continue;
             size_t mi = corner_cell(k, m) * nc, ii = corner_inner(k, m) * nc;
             for (int ch = 0; ch < nc; ch++) {
                 float sum = 0;
                 for (int t = 0; t < cs->n; t++) sum += CUR(rc->slot[cs->quad[t]])[corner_cell(cs->corner[t], m) * nc + ch];
                 o[mi + ch] = sum / (float)cs->n;
+                if (m >= 4) o[ii + ch] -= o[mi + ch] - a[mi + ch];
+            }
+        }
+    }
+    if (m < 2) return;
+    /* Then the shorter edges at T-junctions show what the longer edge shows (its texels,
+     * final now, read along it at each texel's position), and a T-junction's vertex its
+     * value there: the texel centres of the two sides never line up, and the longer side's
+     * display is the one both can show (a half-texel corner zone of each size, else). */
+    for (int s = 0; s < nm; s++) {
+        int q = mem[s];
+        const float *a = CUR(s);
+        float *o = out[q];
+        for (int e = 0; e < 4; e++) {
+            if (!edge_inside(rc, q, e)) continue;
+            const part_nb *p = &rc->pnb[rc->pfirst[4 * q + e]];
+            for (int k = 1; k < m - 1; k++) {
+                size_t mi = edge_cell(e, m, k) * nc, ii = inner_cell(e, m, k) * nc;
+                double sv = p->s0 + ((k + 0.5) / m) * (p->s1 - p->s0);
+                for (int ch = 0; ch < nc; ch++) {
+                    o[mi + ch] = (float)row_point(out[p->o], p->f, m, nc, ch, sv);
+                    if (m >= 4) o[ii + ch] -= o[mi + ch] - a[mi + ch];
+                }
+            }
+        }
+        for (int k = 0; k < 4; k++) {
+            const corner_set *cs = &rc->around[q][k];
+            if (!cs->nt) continue;
+            size_t mi = corner_cell(k, m) * nc, ii = corner_inner(k, m) * nc;
+            for (int ch = 0; ch < nc; ch++) {
+                double ts = 0;
+                for (int t = 0; t < cs->nt; t++) ts += row_point(out[cs->tquad[t]], cs->tedge[t], m, nc, ch, cs->ts[t]);
+                o[mi + ch] = (float)(ts / cs->nt);
                 if (m >= 4) o[ii + ch] -= o[mi + ch] - a[mi + ch];
             }
         }
@@ -654,7 +996,7 @@ void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const 
             int q = mem[s];
             const float *a = CUR(s);
             float *nx = NXT(s);
-            recon_extend(rc, q, m, w, nc, a, ext, buf, nm, pyr_n, full, cur_half);
+            recon_extend(rc, q, m, w, nc, a, ext, buf, nm, pyr_n, full, cur_half, limit);
             /* a curved quad's cells are a flat facet's: its mean, and the details the unlimited
              * prediction misses by more than half of `sharp` (blender_smooth q3, one light,
              * image error 13.25% before; sharp / 2 13.31%, sharp 13.47%, 0.3 sharp 13.30%
@@ -665,7 +1007,7 @@ void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const 
         }
         cur_half = 1 - cur_half;
     }
-    recon_output(rc, nm, mem, Lo, nc, out, buf, pyr_n, full, cur_half);
+    recon_output(rc, nm, mem, Lo, nc, out, buf, pyr_n, full, cur_half, limit);
     /* Light is never negative: the prediction can undershoot beside a sharp edge (the
      * linear display keeps the undershoot: a clamp does not superpose). */
     for (int s = 0; s < nm && !linear; s++) {

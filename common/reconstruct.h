@@ -70,6 +70,12 @@ const int *wrt_recon_members(const wrt_recon *rc, int gr, int *count);
 /* Quad q's smooth neighbour across edge e (0: v = 0, 1: u = 1, 2: v = 1, 3: u = 0), or -1;
  * *nedge its edge, *flip 1 if it runs the shared edge the other way. */
 int wrt_recon_neighbour(const wrt_recon *rc, int q, int e, int *nedge, int *flip);
+/* Quad q's i-th partial neighbour along edge e (a T-junction: an edge that meets another
+ * over a part of it, as a paired quad's whole edge meets the two half-edges of a
+ * triangle's quads), or -1 past the last; *nedge its edge, range[0 .. 1] the overlap on
+ * q's edge (its parameter, 0 at the edge's first corner, ascending), range[2 .. 3] the same
+ * two points on the neighbour's edge. Only edges without a whole neighbour have them. */
+int wrt_recon_partial(const wrt_recon *rc, int q, int e, int i, int *nedge, double range[4]);
 /* 1 if quad q is joined to a smooth neighbour that does not lie in its plane (a curved
  * mesh's edge, by the corner normals), else 0. */
 int wrt_recon_curved(const wrt_recon *rc, int q);
