@@ -28,6 +28,25 @@
  * wall standing on it, a box's side on a floor). Groups: the connected sets of quads
  * under that relation; a group is reconstructed together and at one resolution.
  *
+ * Partial neighbours (T-junctions): an edge without a whole neighbour may meet other
+ * quads' edges over a part of it, as a UV sphere's paired quad meets the two half-edges of
+ * a pole triangle's quads. Collinear edges that overlap (by more than the tolerance, not
+ * both ends shared), of quads on either side of the line, under the same rules (one plane
+ * or agreeing corner normals at both ends of the overlap, same material, no third quad's
+ * edge along the overlap), are partial neighbours; they join groups. A ghost cell across
+ * such an edge is the neighbours' edge cells over the same stretch of the edge, at the
+ * current level: over whole cells their mean (a half-edge's two cells for the whole
+ * edge's one, one level coarser), inside one cell its value at the stretch's centre, with
+ * the slope along the edge (the along-edge part of the prediction). At the output, the
+ * longer edge's texels take the mean of their own cell and the shorter edges' over the
+ * same stretch; then a shorter edge (one lying inside the longer one) shows the longer
+ * one's display (its texels read along that edge at their positions), and a T-junction's
+ * vertex (a corner of the shorter edges, inside the longer one) its value there; texel
+ * centres of different sizes never line up, so the two sides differ where a side's
+ * display is flat within half a texel of a corner (first order in the texel size) and
+ * elsewhere only by the bend of the longer side's display between two texel centres of
+ * the shorter side (second order; measured in docs/triangles.md).
+ *
  * Pure functions of their arguments: no OpenGL, no globals; depends on libc only (so it
  * sits in common/: the runtime uses it for its textures, the verification for its seams).
  * Reentrant: distinct groups may be reconstructed in parallel. */
