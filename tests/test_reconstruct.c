@@ -451,6 +451,21 @@ static double curved_edge_jump(int nq, const double (*c)[4][3], float *const *ou
     return worst;
 }
 
+/* Quad q's n x n cells (at in + q n n): f = 1 + 0.5 z + 0.3 x at each cell's centre, a
+ * smooth function on a sphere. */
+static void smooth_cells(int nq, const double (*c)[4][3], int n, float *in) {
+    for (int q = 0; q < nq; q++) {
+        wrt_quad Q;
+        memset(&Q, 0, sizeof Q);
+        for (int j = 0; j < 4; j++) Q.p[j] = v3(c[q][j][0], c[q][j][1], c[q][j][2]);
+        for (int y = 0; y < n; y++)
+            for (int x = 0; x < n; x++) {
+                wrt_v3 p = wrt_quad_point(&Q, (x + 0.5) / n, (y + 0.5) / n);
+                in[(size_t)q * n * n + y * n + x] = (float)(1 + 0.5 * p.z + 0.3 * p.x);
+            }
+    }
+}
+
 /* A smooth-shaded icosphere: with its corner normals the display joins all 240 quads in
  * one group and is continuous across every edge between triangles (the texels on both
  * sides agree at the edge); without them (the flat rule) each triangle is its own group
@@ -468,17 +483,10 @@ static void test_smooth_mesh(void) {
     float *in = malloc((size_t)240 * n * n * sizeof(float)), *out = malloc((size_t)240 * no * no * sizeof(float));
     const float *ip[240];
     float *op[240];
+    smooth_cells(nq, (const double (*)[4][3])c, n, in);
     for (int q = 0; q < nq; q++) {
         ip[q] = in + (size_t)q * n * n;
         op[q] = out + (size_t)q * no * no;
-        wrt_quad Q;
-        memset(&Q, 0, sizeof Q);
-        for (int j = 0; j < 4; j++) Q.p[j] = v3(c[q][j][0], c[q][j][1], c[q][j][2]);
-        for (int y = 0; y < n; y++)
-            for (int x = 0; x < n; x++) {
-                wrt_v3 p = wrt_quad_point(&Q, (x + 0.5) / n, (y + 0.5) / n);
-                in[(size_t)q * n * n + y * n + x] = (float)(1 + 0.5 * p.z + 0.3 * p.x);
-            }
     }
     double jump[2];
     int ngr[2], nedges[2];
@@ -730,18 +738,11 @@ static void test_tjunction_sphere(void) {
     for (int crease = 0; crease < 2; crease++) {
         int nq = uv_sphere(SEG, RINGS, crease, c, cn), band = SEG * (RINGS - 2);
         CHECK(nq == NQ, "UV sphere of %d quads (%d)", nq, NQ);
+        smooth_cells(nq, (const double (*)[4][3])c, n, in);
         for (int q = 0; q < nq; q++) {
             ip[q] = in + (size_t)q * n * n;
             op[q] = out + (size_t)q * no * no;
-            wrt_quad Q;
-            memset(&Q, 0, sizeof Q);
-            for (int j = 0; j < 4; j++) Q.p[j] = v3(c[q][j][0], c[q][j][1], c[q][j][2]);
-            for (int y = 0; y < n; y++)
-                for (int x = 0; x < n; x++) {
-                    wrt_v3 p = wrt_quad_point(&Q, (x + 0.5) / n, (y + 0.5) / n);
-                    in[(size_t)q * n * n + y * n + x] =
-                        crease ? (q < band ? 1.0f : 2.0f) : (float)(1 + 0.5 * p.z + 0.3 * p.x);
-                }
+            for (int k = 0; k < n * n && crease; k++) in[(size_t)q * n * n + k] = q < band ? 1.0f : 2.0f;
         }
         wrt_recon *rc = wrt_recon_create_smooth(nq, (const double (*)[4][3])c, mat, (const float (*)[4][3])cn,
                                                 WRT_RECON_SMOOTH_COS, NULL);
