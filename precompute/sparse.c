@@ -594,11 +594,14 @@ wrt_csc wrt_csc_copy_compress(const wrt_csc *m, double drop, const wrt_csc_weigh
     return c;
 }
 
-double wrt_csc_norm(const wrt_csc *m) {
-    double s = 0;
-    for (uint64_t i = 0; i < 3 * m->nnz; i++) s += (double)m->val[i] * m->val[i];
-    return sqrt(s);
+double wrt_csc_sumsq(const wrt_csc *m, double s) {
+    if (!m->nnz) return s;
+    const float *v = &m->val[3 * m->col[0]];
+    for (uint64_t i = 0; i < 3 * m->nnz; i++) s += (double)v[i] * v[i];
+    return s;
 }
+
+double wrt_csc_norm(const wrt_csc *m) { return sqrt(wrt_csc_sumsq(m, 0)); }
 
 double wrt_csc_max(const wrt_csc *m) {
     double mx = 0;

@@ -54,6 +54,9 @@ wrt_csc wrt_csc_copy_compress(const wrt_csc *m, double drop, const wrt_csc_weigh
 void wrt_sort_u64(uint64_t *a, size_t n);
 /* Frobenius norm over all channels. */
 double wrt_csc_norm(const wrt_csc *m);
+/* s plus the squares of every value, in storage order (the norm's sum, continued from s:
+ * a matrix held by blocks of columns gives the whole one's bits) */
+double wrt_csc_sumsq(const wrt_csc *m, double s);
 /* Largest channel magnitude of any entry. */
 double wrt_csc_max(const wrt_csc *m);
 /* y += M x for RGB vectors (x, y of length 3n). */
