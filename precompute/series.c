@@ -193,14 +193,14 @@ static double series_small_area(const bake_ctx *b) {
     return b->opt.small_share * b->opt.eps_compress * total;
 }
 
-/* Stage 1: the compression weights and the first term (S = P = T, P compressed) */
-static void series_setup(series_state *s) {
+/* Stage 1: the compression weights */
+static void series_weights(series_state *s) {
     const bake_ctx *b = s->b;
     wrt_bake_result *res = s->res;
-    const wrt_csc *T = s->T;
-    double *rw = wrt_xmalloc(((size_t)T->n + 1) * sizeof *rw), *cw = wrt_xmalloc(((size_t)T->n + 1) * sizeof *cw);
+    uint32_t n = s->T->n;
+    double *rw = wrt_xmalloc(((size_t)n + 1) * sizeof *rw), *cw = wrt_xmalloc(((size_t)n + 1) * sizeof *cw);
     double small = series_small_area(b);
-    for (uint32_t i = 0; i < T->n; i++) {
+    for (uint32_t i = 0; i < n; i++) {
         double a = b->quads[wrt_fkey_quad(res->fkeys[i])].area;
         rw[i] = 1 / sqrt(a);
         cw[i] = sqrt(a);
@@ -208,23 +208,44 @@ static void series_setup(series_state *s) {
     }
     /* power weights (irradiance x area per unit coefficient: sqrt(A) on a parallelogram's
      * root, 0 on its wavelets): compression keeps each column's power */
-    double *pw = wrt_power_weights(b, res->fkeys, T->n);
+    double *pw = wrt_power_weights(b, res->fkeys, n);
     s->rw = rw; s->cw = cw; s->pw = pw;
     s->W = (wrt_csc_weights){rw, cw, pw};
-    s->P = wrt_csc_copy_compress(T, s->eps, &s->W); /* without a full copy of T first */
+}
+
+/* T compressed at drop: from T (without a full copy first), or where T is streamed and
+ * gone, from its scratch file by blocks of columns (the same entries) */
+static wrt_csc series_compress_T(series_state *s, const wrt_csc *T, double drop) {
+    if (T) return wrt_csc_copy_compress(T, drop, &s->W);
+    wrt_csc m;
+    const double none[3] = {0, 0, 0};
+    if (wrt_sum_stream_final(&s->ss, NULL, none, NULL, drop, &s->W, NULL, NULL, &m) != 1) m = (wrt_csc){0};
+    return m;
+}
+
+/* Stage 1 too: the first term P = T compressed, and the later products' right factor
+ * (from T in memory, or from its scratch file once T is streamed: then T and the first
+ * term are never held together). 0 where the scratch file could not be read. */
+static int series_first_terms(series_state *s) {
+    const bake_ctx *b = s->b;
+    const wrt_csc *T = s->T ? s->T : s->streamed ? NULL : &s->S; /* consumed in memory: S is T still */
+    s->P = series_compress_T(s, T, s->eps);
+    if (!s->P.col) return 0;
     if (b->opt.series_right == 1) {
         /* the first term is that matrix already: one copy, not two (on the 12 x 12 maze
          * 260 MB of the peak) */
         s->Tr = s->P;
         s->shared = 1;
     } else if (b->opt.series_right > 0) {
-        s->Tr = wrt_csc_copy_compress(T, b->opt.series_right * s->eps, &s->W);
+        s->Tr = series_compress_T(s, T, b->opt.series_right * s->eps);
+        if (!s->Tr.col) return 0;
     }
     if (b->opt.series_coarse > 0) {
         if (!s->Tr.col || s->shared) s->Tr = wrt_csc_copy(s->Tr.col ? &s->Tr : T);
         s->shared = 0;
         series_coarse_rows(b, &s->Tr, s->res->fkeys, b->opt.series_coarse);
     }
+    return 1;
 }
 
 /* When the bake may consume T (wrt_bake_options.consume_dto: wrt-bake, whose file does
@@ -234,7 +255,12 @@ static void series_setup(series_state *s) {
  * so the same bits), T is written to a scratch file for the power iteration (spill_write;
  * each bounce reads it back once, in wrt_csc_apply's order: the same bits), and the
  * bounces hold S, Tr and the terms, not T beside them (on the 12 x 12 maze 515 MB of the
- * peak; issue 22). Where the file cannot be written, T stays and S is a copy. */
+ * peak; issue 22). Where the file cannot be written, T stays and S is a copy. Streamed
+ * (series_block >= 0, the default), S does not take T's arrays either: T's file is the
+ * sum's first state (series_stream.h), T is freed, and the first term and the right
+ * factor are then compressed from the file by blocks (series_first_terms), so the
+ * series' start holds T or its first term, not both, and the bounces hold neither T nor S
+ * (on the 12 x 12 maze the series' peak 1,288 -> about 500 MB). */
 static int series_can_consume(const bake_ctx *b) {
     return b->opt.consume_dto && !b->opt.gathered && !b->opt.report_gathered && b->opt.series_right > 0 &&
            b->opt.series_right_from <= 2;
@@ -242,7 +268,7 @@ static int series_can_consume(const bake_ctx *b) {
 
 static void series_consume(series_state *s) {
     const bake_ctx *b = s->b;
-    if (!series_can_consume(b) || !s->Tr.col || !s->pw || s->T != &s->res->dto) return;
+    if (!series_can_consume(b) || !s->pw || s->T != &s->res->dto) return;
     power_iter_start(&s->pi, s->T, s->pw);
     if (!wrt_spill_write(&s->Tf, s->T)) return; /* the iteration goes on in memory */
     if (!b->opt.no_tail) s->u = wrt_series_power_targets(s->T, s->pw, s->threads, b->opt.max_bounces, &s->u_bounces);
@@ -533,13 +559,20 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
                       .threads = b->opt.threads};
     /* the start's memory: the first term (at most T's entries, 16 bytes each), a second
      * right factor where it is not the first term, and the sum's copy of T where T is
-     * not consumed (then the bounces' checks, series_memory_check) */
-    uint64_t copies = 1 + (b->opt.series_right != 1 || b->opt.series_coarse > 0) + !series_can_consume(b);
+     * not consumed; streamed, T goes to its scratch file before the first term is made,
+     * which then takes T's place instead of joining it (then the bounces' checks,
+     * series_memory_check, and the last pass's, series_final_check) */
+    int streamed = series_can_consume(b) && b->opt.series_block >= 0;
+    uint64_t copies = 1 + (b->opt.series_right != 1 || b->opt.series_coarse > 0) + !series_can_consume(b) - streamed;
     wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, copies * 16 * res->dto.nnz,
                                           "the series' first term");
     if (st != WRT_OK) return st;
-    series_setup(&s);
+    series_weights(&s);
     series_consume(&s);
+    if (!series_first_terms(&s)) {
+        series_state_free(&s);
+        return wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
+    }
     if (!s.consumed) s.S = wrt_csc_copy(s.T);
     st = series_bounces(&s);
     if (st == WRT_OK) st = series_tail(&s);
