@@ -524,13 +524,15 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
         if (atomic_load(b->cancel)) break;
         /* Memory: the entries so far, extrapolated over the pairs left, then their
          * conversion (bake_assemble): each pair's entries cut as they become triplets (20
-         * bytes), then the matrix (16) and its build's index (4) beside the triplets, 40
-         * bytes an entry where the entries were 32; 54 counted, for what the balance, the
-         * key set and the allocator hold beside them (measured: the maze asset's peak 404
-         * MB over 267 MB at the DTO's end with 8.1M entries, 17 bytes an entry beyond
-         * them; the 12 x 12 maze 1,459 over 1,026 MB with 32.2M, 13; cornell-glossy at
-         * quality 3, tests/bake.sh, 0.93 of its peak at 50). Before the cut the entries
-         * stayed beside the triplets: 36 bytes beyond the entries. */
+         * bytes), then the matrix (16) built by ranges of columns as the triplets shrink
+         * (wrt_csc_from_triplets_free: 20 bytes an entry at the most, where it was 40 with
+         * the whole build's index), so the DTO's end is the assembly's peak; 38 counted,
+         * 6 beyond the entries, for what the balance, the key set and the allocator hold
+         * beside them (measured: the maze asset's peak 267 MB at the DTO's end with 8.1M
+         * entries, the balance and T's build under it; the 12 x 12 maze 975 MB with 30.1M,
+         * the balance 795; with the whole build 54 were counted, 17 and 13 bytes an entry
+         * measured beyond the entries). Before the cut the entries stayed beside the
+         * triplets: 36 bytes beyond the entries. */
         for (size_t k = 0; k < n; k++)
             if (!job->owner || job->owner[c + k * nch] == job->rank) {
                 ent += job->out[c + k * nch].count;
@@ -540,7 +542,7 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
          * entries the merge then gives every rank (the assembly holds them all) */
         double all = nown == ndone ? (double)ent : nown ? (double)ent * (double)ndone / (double)nown : 0;
         double done = (double)ndone / (double)np, left = (1 - done) / done;
-        double per = 54.0 - (double)sizeof(pair_entry); /* beyond the entries already resident */
+        double per = 38.0 - (double)sizeof(pair_entry); /* beyond the entries already resident */
         uint64_t need = (uint64_t)(all * left * sizeof(pair_entry) + all * (1 + left) * per);
         uint64_t known = (uint64_t)(all * per);
         /* the extrapolation from under a tenth of the pairs is noise: it refuses only from
