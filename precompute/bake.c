@@ -500,7 +500,7 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
      * whole (in scene order, blender_shapes' first tenth of the pairs extrapolated to 13.4
      * GB and was refused; it needs 2.7 GB). The order does not change the result. */
     size_t chunk = np / 50 + 1, nch = np ? (np + chunk - 1) / chunk : 0, ndone = 0, nown = 0;
-    uint64_t ent = 0;
+    uint64_t ent = 0, kent = 0;
     wrt_status mst = WRT_OK;
     /* the pairs' link tables may use what the budget leaves beside what is resident now */
     atomic_init(pool_bytes, 0);
@@ -524,25 +524,31 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
         if (atomic_load(b->cancel)) break;
         /* Memory: the entries so far, extrapolated over the pairs left, then their
          * conversion (bake_assemble): each pair's entries cut as they become triplets (20
-         * bytes), then the matrix (16) and its build's index (4) beside the triplets, 40
-         * bytes an entry where the entries were 32; 54 counted, for what the balance, the
-         * key set and the allocator hold beside them (measured: the maze asset's peak 404
-         * MB over 267 MB at the DTO's end with 8.1M entries, 17 bytes an entry beyond
-         * them; the 12 x 12 maze 1,459 over 1,026 MB with 32.2M, 13; cornell-glossy at
-         * quality 3, tests/bake.sh, 0.93 of its peak at 50). Before the cut the entries
+         * bytes), then the matrix (16) built by ranges of columns as the triplets shrink
+         * (wrt_csc_from_triplets_free: 20 bytes an entry at the most, where it was 40 with
+         * the whole build's index), so on the mazes the DTO's end is the assembly's peak
+         * (the maze asset 267 MB with 8.1M entries; the 12 x 12 maze 975 MB with 30.1M,
+         * the balance 795): 38 counted, 6 beyond the entries, for what the balance, the
+         * key set and the allocator hold beside them (the maze asset's estimate 1.14 of
+         * its peak). K's entries stay whole until K's triplets (16 bytes) and arrays (8)
+         * are made beside them: 24 more each (cornell-glossy q3, tests/bake.sh: 0.93 of
+         * its peak without). With the whole build 54 were counted for every entry, 17 and
+         * 13 bytes an entry measured beyond the entries. Before the cut the entries
          * stayed beside the triplets: 36 bytes beyond the entries. */
         for (size_t k = 0; k < n; k++)
             if (!job->owner || job->owner[c + k * nch] == job->rank) {
                 ent += job->out[c + k * nch].count;
+                if (job->out[c + k * nch].kmode) kent += job->out[c + k * nch].count;
                 nown++;
             }
         /* wrt-bake-mpi: this rank's pairs so far stand for all the pairs so far, whose
          * entries the merge then gives every rank (the assembly holds them all) */
-        double all = nown == ndone ? (double)ent : nown ? (double)ent * (double)ndone / (double)nown : 0;
+        double scale = nown == ndone ? 1 : nown ? (double)ndone / (double)nown : 0;
+        double all = (double)ent * scale, kall = (double)kent * scale;
         double done = (double)ndone / (double)np, left = (1 - done) / done;
-        double per = 54.0 - (double)sizeof(pair_entry); /* beyond the entries already resident */
-        uint64_t need = (uint64_t)(all * left * sizeof(pair_entry) + all * (1 + left) * per);
-        uint64_t known = (uint64_t)(all * per);
+        double per = 38.0 - (double)sizeof(pair_entry); /* beyond the entries already resident */
+        uint64_t need = (uint64_t)(all * left * sizeof(pair_entry) + (all * per + kall * 24) * (1 + left));
+        uint64_t known = (uint64_t)(all * per + kall * 24);
         /* the extrapolation from under a tenth of the pairs is noise: it refuses only from
          * there on, what is already computed at any time; the figure recorded is the last */
         double keep = C->mem_estimate_mb;
@@ -669,8 +675,7 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
                 free(job->out[i].e); free(job->out[i].leaf);
                 job->out[i].e = NULL; job->out[i].leaf = NULL;
             }
-            res->dto = wrt_csc_from_triplets(res->nfuncs, tr, t);
-            free(tr);
+            res->dto = wrt_csc_from_triplets_free(res->nfuncs, tr, t); /* tr freed as T grows */
             if (b->cl && st == WRT_OK) /* --clusters: the links pushed down to the quads' roots,
                                         * as triplets twice and the matrix (cluster_ops.c) */
                 st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb,

@@ -51,6 +51,10 @@ typedef struct wrt_bake_options {
     int consume_dto;       /* 1: the series may take T's arrays for its sum once what it needs of T
                             * is computed (res->dto empty after the bake; wrt-bake sets it:
                             * series.c, series_consume) */
+    long long series_block; /* with consume_dto: the series' sum is held in scratch files between
+                            * bounces and merged with each term by blocks of this many entries
+                            * (series_stream.h; 0: WRT_SERIES_BLOCK_DEFAULT); < 0: held in
+                            * memory, as before. The same bytes either way */
     int max_bounces;       /* cap on the Neumann series (default 2000) */
     int no_tail;           /* 1: do not add the geometric estimate of the series' tail */
     double series_right;   /* bounces from series_right_from on multiply by T compressed at

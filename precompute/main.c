@@ -77,6 +77,9 @@ static void usage(FILE *f) {
         "  --float-k              with compact entries, keep the first-bounce operator K's as\n"
         "                         floats (8 bytes an entry) instead of compact (3 bytes)\n"
         "  --no-tail              do not add the estimated tail of the series\n"
+        "  --series-block N       the series' sum waits in scratch files between bounces and is\n"
+        "                         merged with each term by blocks of about N entries (default\n"
+        "                         1048576; 0: the sum held in memory, as before; the same bytes)\n"
         "  --series-right F       bounces from --series-right-from B (default 2) on multiply\n"
         "                         by T compressed at F x --eps-compress (power kept) instead\n"
         "                         of the full T (default 1; 0: the full T, slower)\n"
@@ -363,6 +366,12 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--series-right")) {
             ok = opt_num(a, v, 0, 1e6, &o->series_right);
             if (ok && o->series_right == 0) o->series_right = -1; /* 0 on the command line: off */
+            i++;
+        }
+        else if (!strcmp(a, "--series-block")) {
+            double d = 0;
+            ok = opt_num(a, v, 0, 1e12, &d);
+            o->series_block = d >= 1 ? (long long)d : -1; /* 0 on the command line: the sum in memory */
             i++;
         }
         else if (!strcmp(a, "--series-right-from")) { ok = opt_int(a, v, 2, 1000000, &o->series_right_from); i++; }

@@ -28,6 +28,8 @@
 #include "cluster.h"
 #include "drop_rule.h"
 #include "dist.h"
+#include "spill.h"
+#include "series_stream.h"
 
 /* Memory before each product: the product's entries, estimated from every 64th of its
  * columns (sparse.h; computed and discarded), and again from every 16th where that
@@ -64,74 +66,6 @@ static wrt_status series_mul(const bake_ctx *b, const wrt_csc *a, const wrt_csc 
     return wrt_dist_mul(b->opt.dist, a, m, eps, W, threads, out);
 }
 
-/* T written to an unlinked scratch file (tmpfile(): $TMPDIR or /tmp) in blocks of
- * SPILL_BLOCK entries, rows then values, its column starts kept: what the power
- * iteration reads of T once the sum has taken T's arrays (series_consume). The file's
- * pages are the page cache's, which the system can drop and read back, not the bake's
- * resident memory; the file goes with the process however it ends. */
-#define SPILL_BLOCK 65536u
-typedef struct {
-    FILE *f;
-    uint32_t n;
-    uint64_t nnz, *col;
-    uint32_t *row; /* one block */
-    float *val;
-} spilled_csc;
-
-static int spill_write(spilled_csc *sp, const wrt_csc *T) {
-    memset(sp, 0, sizeof *sp);
-    sp->f = tmpfile();
-    if (!sp->f) return 0;
-    int ok = 1;
-    for (uint64_t k = 0; k < T->nnz && ok; k += SPILL_BLOCK) {
-        size_t m = T->nnz - k < SPILL_BLOCK ? (size_t)(T->nnz - k) : SPILL_BLOCK;
-        ok = fwrite(&T->row[k], sizeof *T->row, m, sp->f) == m && fwrite(&T->val[3 * k], 3 * sizeof *T->val, m, sp->f) == m;
-    }
-    if (!ok || fflush(sp->f) != 0) {
-        fclose(sp->f);
-        sp->f = NULL;
-        return 0;
-    }
-    sp->n = T->n;
-    sp->nnz = T->nnz;
-    sp->col = wrt_xmalloc(((size_t)T->n + 1) * sizeof *sp->col);
-    memcpy(sp->col, T->col, ((size_t)T->n + 1) * sizeof *sp->col);
-    sp->row = wrt_xmalloc(SPILL_BLOCK * sizeof *sp->row);
-    sp->val = wrt_xmalloc(3 * SPILL_BLOCK * sizeof *sp->val);
-    return 1;
-}
-
-static void spill_free(spilled_csc *sp) {
-    if (sp->f) fclose(sp->f);
-    free(sp->col); free(sp->row); free(sp->val);
-    memset(sp, 0, sizeof *sp);
-}
-
-/* y += T x read back from the file: wrt_csc_apply's operations in its order. 0 where
- * the file could not be read. */
-static int spill_apply(spilled_csc *sp, const double *x, double *y) {
-    if (fseek(sp->f, 0, SEEK_SET) != 0) return 0;
-    uint64_t base = 0, have = 0; /* the block in the buffers: entries [base, base + have) */
-    for (uint32_t j = 0; j < sp->n; j++) {
-        const double *xj = &x[3 * j];
-        int zero = xj[0] == 0 && xj[1] == 0 && xj[2] == 0;
-        for (uint64_t k = sp->col[j]; k < sp->col[j + 1]; k++) {
-            if (k >= base + have) {
-                base += have;
-                have = sp->nnz - base < SPILL_BLOCK ? sp->nnz - base : SPILL_BLOCK;
-                if (fread(sp->row, sizeof *sp->row, have, sp->f) != have ||
-                    fread(sp->val, 3 * sizeof *sp->val, have, sp->f) != have)
-                    return 0;
-            }
-            if (zero) continue;
-            uint32_t i = sp->row[k - base];
-            const float *v = &sp->val[3 * (k - base)];
-            for (int c = 0; c < 3; c++) y[3 * i + c] += (double)v[c] * xj[c];
-        }
-    }
-    return 1;
-}
-
 /* The power iteration of series_bounces (see there) on T (in memory, or spilled): the
  * start vector's image, then one step an iteration giving the ratios rc[3] */
 typedef struct {
@@ -154,7 +88,7 @@ static void power_iter_start(power_iter *p, const wrt_csc *T, const double *pw) 
 
 /* next iterate: x = y / its power, y = T x; rc the ratio of the powers. 0 where the
  * spilled T could not be read back. */
-static int power_iter_step(power_iter *p, const wrt_csc *T, spilled_csc *sp, const double *pw, double rc[3]) {
+static int power_iter_step(power_iter *p, const wrt_csc *T, wrt_spill *sp, const double *pw, double rc[3]) {
     uint32_t n = p->n;
     double *x = p->x, *y = p->y, *vp_prev = p->vp_prev;
     double vs = fmax(vp_prev[0], fmax(vp_prev[1], vp_prev[2]));
@@ -162,7 +96,7 @@ static int power_iter_step(power_iter *p, const wrt_csc *T, spilled_csc *sp, con
     for (int ch = 0; ch < 3; ch++) vp_prev[ch] = vs > 0 ? vp_prev[ch] / vs : 0;
     memset(y, 0, 3 * (size_t)n * sizeof *y);
     if (T) wrt_csc_apply(T, x, y);
-    else if (!spill_apply(sp, x, y)) return 0;
+    else if (!wrt_spill_apply(sp, x, y)) return 0;
     double vp[3] = {0, 0, 0};
     for (uint32_t i = 0; i < n; i++)
         for (int ch = 0; ch < 3; ch++) vp[ch] += pw[i] * y[3 * i + ch];
@@ -195,7 +129,10 @@ typedef struct {
     /* series_consume: T's arrays taken by S; what the bounces and the tail needed of T
      * computed before: the power iteration's ratios and the power targets */
     int consumed;
-    spilled_csc Tf; /* T in the scratch file, for the power iteration */
+    wrt_spill Tf;   /* T in the scratch file, for the power iteration */
+    /* streamed: S in scratch files between bounces (series_stream.h), not in memory */
+    int streamed;
+    wrt_sum_stream ss;
     double *u;      /* 3n: the power targets (series_power.h) */
     int u_bounces;
     power_iter pi;
@@ -256,14 +193,14 @@ static double series_small_area(const bake_ctx *b) {
     return b->opt.small_share * b->opt.eps_compress * total;
 }
 
-/* Stage 1: the compression weights and the first term (S = P = T, P compressed) */
-static void series_setup(series_state *s) {
+/* Stage 1: the compression weights */
+static void series_weights(series_state *s) {
     const bake_ctx *b = s->b;
     wrt_bake_result *res = s->res;
-    const wrt_csc *T = s->T;
-    double *rw = wrt_xmalloc(((size_t)T->n + 1) * sizeof *rw), *cw = wrt_xmalloc(((size_t)T->n + 1) * sizeof *cw);
+    uint32_t n = s->T->n;
+    double *rw = wrt_xmalloc(((size_t)n + 1) * sizeof *rw), *cw = wrt_xmalloc(((size_t)n + 1) * sizeof *cw);
     double small = series_small_area(b);
-    for (uint32_t i = 0; i < T->n; i++) {
+    for (uint32_t i = 0; i < n; i++) {
         double a = b->quads[wrt_fkey_quad(res->fkeys[i])].area;
         rw[i] = 1 / sqrt(a);
         cw[i] = sqrt(a);
@@ -271,23 +208,44 @@ static void series_setup(series_state *s) {
     }
     /* power weights (irradiance x area per unit coefficient: sqrt(A) on a parallelogram's
      * root, 0 on its wavelets): compression keeps each column's power */
-    double *pw = wrt_power_weights(b, res->fkeys, T->n);
+    double *pw = wrt_power_weights(b, res->fkeys, n);
     s->rw = rw; s->cw = cw; s->pw = pw;
     s->W = (wrt_csc_weights){rw, cw, pw};
-    s->P = wrt_csc_copy_compress(T, s->eps, &s->W); /* without a full copy of T first */
+}
+
+/* T compressed at drop: from T (without a full copy first), or where T is streamed and
+ * gone, from its scratch file by blocks of columns (the same entries) */
+static wrt_csc series_compress_T(series_state *s, const wrt_csc *T, double drop) {
+    if (T) return wrt_csc_copy_compress(T, drop, &s->W);
+    wrt_csc m;
+    const double none[3] = {0, 0, 0};
+    if (wrt_sum_stream_final(&s->ss, NULL, none, NULL, drop, &s->W, NULL, NULL, &m) != 1) m = (wrt_csc){0};
+    return m;
+}
+
+/* Stage 1 too: the first term P = T compressed, and the later products' right factor
+ * (from T in memory, or from its scratch file once T is streamed: then T and the first
+ * term are never held together). 0 where the scratch file could not be read. */
+static int series_first_terms(series_state *s) {
+    const bake_ctx *b = s->b;
+    const wrt_csc *T = s->T ? s->T : s->streamed ? NULL : &s->S; /* consumed in memory: S is T still */
+    s->P = series_compress_T(s, T, s->eps);
+    if (!s->P.col) return 0;
     if (b->opt.series_right == 1) {
         /* the first term is that matrix already: one copy, not two (on the 12 x 12 maze
          * 260 MB of the peak) */
         s->Tr = s->P;
         s->shared = 1;
     } else if (b->opt.series_right > 0) {
-        s->Tr = wrt_csc_copy_compress(T, b->opt.series_right * s->eps, &s->W);
+        s->Tr = series_compress_T(s, T, b->opt.series_right * s->eps);
+        if (!s->Tr.col) return 0;
     }
     if (b->opt.series_coarse > 0) {
         if (!s->Tr.col || s->shared) s->Tr = wrt_csc_copy(s->Tr.col ? &s->Tr : T);
         s->shared = 0;
         series_coarse_rows(b, &s->Tr, s->res->fkeys, b->opt.series_coarse);
     }
+    return 1;
 }
 
 /* When the bake may consume T (wrt_bake_options.consume_dto: wrt-bake, whose file does
@@ -297,7 +255,12 @@ static void series_setup(series_state *s) {
  * so the same bits), T is written to a scratch file for the power iteration (spill_write;
  * each bounce reads it back once, in wrt_csc_apply's order: the same bits), and the
  * bounces hold S, Tr and the terms, not T beside them (on the 12 x 12 maze 515 MB of the
- * peak; issue 22). Where the file cannot be written, T stays and S is a copy. */
+ * peak; issue 22). Where the file cannot be written, T stays and S is a copy. Streamed
+ * (series_block >= 0, the default), S does not take T's arrays either: T's file is the
+ * sum's first state (series_stream.h), T is freed, and the first term and the right
+ * factor are then compressed from the file by blocks (series_first_terms), so the
+ * series' start holds T or its first term, not both, and the bounces hold neither T nor S
+ * (on the 12 x 12 maze the series' peak 1,288 -> about 500 MB). */
 static int series_can_consume(const bake_ctx *b) {
     return b->opt.consume_dto && !b->opt.gathered && !b->opt.report_gathered && b->opt.series_right > 0 &&
            b->opt.series_right_from <= 2;
@@ -305,14 +268,38 @@ static int series_can_consume(const bake_ctx *b) {
 
 static void series_consume(series_state *s) {
     const bake_ctx *b = s->b;
-    if (!series_can_consume(b) || !s->Tr.col || !s->pw || s->T != &s->res->dto) return;
+    if (!series_can_consume(b) || !s->pw || s->T != &s->res->dto) return;
     power_iter_start(&s->pi, s->T, s->pw);
-    if (!spill_write(&s->Tf, s->T)) return; /* the iteration goes on in memory */
+    if (!wrt_spill_write(&s->Tf, s->T)) return; /* the iteration goes on in memory */
     if (!b->opt.no_tail) s->u = wrt_series_power_targets(s->T, s->pw, s->threads, b->opt.max_bounces, &s->u_bounces);
-    s->S = s->res->dto; /* S = T, its first term, without a copy */
-    memset(&s->res->dto, 0, sizeof s->res->dto);
+    if (b->opt.series_block >= 0) {
+        /* streamed: the sum starts as T's scratch file, and T goes */
+        wrt_sum_stream_start(&s->ss, &s->Tf, b->opt.series_block ? (uint64_t)b->opt.series_block : WRT_SERIES_BLOCK_DEFAULT);
+        s->streamed = 1;
+        wrt_csc_free(&s->res->dto);
+        wrt_bake_memory_trim();
+    } else {
+        s->S = s->res->dto; /* S = T, its first term, without a copy */
+        memset(&s->res->dto, 0, sizeof s->res->dto);
+    }
     s->T = NULL;
     s->consumed = 1;
+}
+
+/* S += P, the new term; *sn the sum's norm: in place in memory, or streamed through the
+ * sum's scratch files (the same entries and bits) */
+static wrt_status series_add_term(series_state *s, double *sn) {
+    const double one[3] = {1, 1, 1};
+    if (!s->streamed) {
+        wrt_csc_add3_into(&s->S, &s->P, one); /* in place: no second copy of the sum */
+        *sn = wrt_csc_norm(&s->S);
+        return WRT_OK;
+    }
+    double sq;
+    if (!wrt_sum_stream_add(&s->ss, &s->P, one, &sq))
+        return wrt_fail(WRT_ERR_IO, "the series could not stream its sum through a scratch file");
+    *sn = sqrt(sq);
+    return WRT_OK;
 }
 
 /* The right factor of bounce k: T, or from series_right_from on (default: every product
@@ -388,9 +375,9 @@ static wrt_status series_bounces(series_state *s) {
         else wrt_csc_free(&s->P);       /* the last term, used: its product is made */
         s->P = N;
         C->bounces++;
-        const double one[3] = {1, 1, 1};
-        wrt_csc_add3_into(&s->S, &s->P, one); /* in place: no second copy of the sum */
-        double pn = wrt_csc_norm(&s->P), sn = wrt_csc_norm(&s->S);
+        double pn = wrt_csc_norm(&s->P), sn = 0;
+        wrt_status ast = series_add_term(s, &sn);
+        if (ast != WRT_OK) return ast;
         /* the next iterate's ratios (T in memory, or read back from its scratch file) */
         double rnext[3];
         if (!power_iter_step(&s->pi, T, &s->Tf, s->pw, rnext))
@@ -421,7 +408,7 @@ static wrt_status series_bounces(series_state *s) {
     }
     series_free_right(s);
     power_iter_free(&s->pi);
-    spill_free(&s->Tf);
+    if (!s->streamed) wrt_spill_free(&s->Tf); /* streamed, it may still be the sum */
     s->ratio = ratio;
     return WRT_OK;
 }
@@ -429,26 +416,59 @@ static wrt_status series_bounces(series_state *s) {
 /* The stored operator's compression: its own threshold (eps_final >= eps_compress drops
  * what the products needed but the display does not), weighted by the drop rule
  * (drop_rule.h) on top of the products' weights; the rule's scales are <= 1, so it only
- * drops more */
-static void series_final_compress(series_state *s) {
+ * drops more. The threshold returned; *W the weights, whose arrays *own (malloc'd, NULL
+ * where the rule is off and *W is the products') are the caller's to free. */
+static double series_final_weights(series_state *s, wrt_csc_weights *W, double **own) {
     const bake_ctx *b = s->b;
     double eps = b->opt.eps_final > s->eps ? b->opt.eps_final : s->eps;
     wrt_drop_rule r = {fmax(b->opt.drop_sender, 0), fmax(b->opt.drop_receiver, 0),
                        b->opt.drop_receiver_from > 0 ? b->opt.drop_receiver_from : 0,
                        fmax(b->opt.drop_sender_size, 0) * b->scene_size};
-    if (r.sender == 0 && r.receiver == 0) {
-        wrt_csc_compress(&s->S, eps, &s->W);
-        return;
-    }
-    uint32_t n = s->S.n;
-    double *rw = wrt_xmalloc(((size_t)n + 1) * sizeof *rw), *cw = wrt_xmalloc(((size_t)n + 1) * sizeof *cw);
+    *W = s->W;
+    *own = NULL;
+    if (r.sender == 0 && r.receiver == 0) return eps;
+    uint32_t n = s->res->nfuncs;
+    double *rw = *own = wrt_xmalloc(2 * ((size_t)n + 1) * sizeof *rw), *cw = rw + n + 1;
     for (uint32_t i = 0; i < n; i++) {
         rw[i] = s->rw[i] * wrt_drop_row_scale(&r, s->res->fkeys[i]);
         cw[i] = s->cw[i] * wrt_drop_col_scale_sized(&r, s->res->fkeys[i], sqrt(b->quads[wrt_fkey_quad(s->res->fkeys[i])].area));
     }
-    wrt_csc_weights W = {rw, cw, s->pw};
-    wrt_csc_compress(&s->S, eps, &W);
-    free(rw); free(cw);
+    *W = (wrt_csc_weights){rw, cw, s->pw};
+    return eps;
+}
+
+/* The streamed sum's last pass (series_tail): the memory the stored operator will take,
+ * projected from the columns done, against the budget */
+static int series_final_check(void *user, uint64_t kept, uint64_t projected) {
+    series_state *s = user;
+    return wrt_bake_memory_check(s->b->opt.max_memory_mb, &s->C->mem_estimate_mb, 16 * (projected - kept),
+                                 "the stored operator") == WRT_OK;
+}
+
+/* The sum plus k P where add (the tail), then compressed for storing, into s->S: in place
+ * in memory, or by the streamed sum's last pass; *sn the norm after the tail (if add) */
+static wrt_status series_final_sum(series_state *s, int add, const double k[3], double *sn) {
+    wrt_csc_weights W;
+    double *own;
+    double eps = series_final_weights(s, &W, &own);
+    wrt_status st = WRT_OK;
+    if (!s->streamed) {
+        if (add) {
+            wrt_csc_add3_into(&s->S, &s->P, k);
+            *sn = wrt_csc_norm(&s->S);
+        }
+        wrt_csc_compress(&s->S, eps, &W);
+    } else {
+        double sq = 0;
+        int r = wrt_sum_stream_final(&s->ss, add ? &s->P : NULL, k, &sq, eps, &W, series_final_check, s, &s->S);
+        if (r == 0) st = wrt_fail(WRT_ERR_IO, "the series could not read back its sum's scratch file");
+        else if (r < 0) st = WRT_ERR_NOMEM; /* the check's message stands */
+        if (add) *sn = sqrt(sq);
+        wrt_sum_stream_free(&s->ss);
+        wrt_spill_free(&s->Tf);
+    }
+    free(own);
+    return st;
 }
 
 /* Stage 3: refuse a diverging series, else add the geometric tail and compress the sum */
@@ -469,15 +489,13 @@ static wrt_status series_tail(series_state *s) {
                         "bounces (largest albedo %.4f; the discretised transport gains energy: lower the albedo or "
                         "raise the quality)", ratio, (unsigned long long)C->bounces, rmax);
     }
-    if (!b->opt.no_tail && s->P.nnz && ratio > 0 && ratio < 1) {
-        double k[3];
-        for (int ch = 0; ch < 3; ch++) k[ch] = rc[ch] > 0 && rc[ch] < 1 ? rc[ch] / (1 - rc[ch]) : 0;
-        wrt_csc_add3_into(&s->S, &s->P, k);
-        double sn = wrt_csc_norm(&s->S);
-        C->tail_fraction = sn > 0 ? fmax(k[0], fmax(k[1], k[2])) * wrt_csc_norm(&s->P) / sn : 0;
-    }
+    int add = !b->opt.no_tail && s->P.nnz && ratio > 0 && ratio < 1;
+    double k[3] = {0, 0, 0}, sn = 0;
+    for (int ch = 0; ch < 3 && add; ch++) k[ch] = rc[ch] > 0 && rc[ch] < 1 ? rc[ch] / (1 - rc[ch]) : 0;
+    wrt_status st = series_final_sum(s, add, k, &sn);
+    if (st != WRT_OK) return st;
+    if (add) C->tail_fraction = sn > 0 ? fmax(k[0], fmax(k[1], k[2])) * wrt_csc_norm(&s->P) / sn : 0;
     wrt_csc_free(&s->P);
-    series_final_compress(s);
     /* each column's power made the DTO's own series' (series_power.c), after the drop */
     if (!b->opt.no_tail && s->pw) {
         wrt_series_power_stats ps;
@@ -530,7 +548,8 @@ static void series_state_free(series_state *s) {
     series_free_right(s);
     power_iter_free(&s->pi);
     wrt_csc_free(&s->P); wrt_csc_free(&s->S);
-    spill_free(&s->Tf);
+    wrt_spill_free(&s->Tf);
+    wrt_sum_stream_free(&s->ss);
     free(s->rw); free(s->cw); free(s->pw); free(s->u);
     s->rw = s->cw = s->pw = s->u = NULL;
 }
@@ -540,13 +559,20 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
                       .threads = b->opt.threads};
     /* the start's memory: the first term (at most T's entries, 16 bytes each), a second
      * right factor where it is not the first term, and the sum's copy of T where T is
-     * not consumed (then the bounces' checks, series_memory_check) */
-    uint64_t copies = 1 + (b->opt.series_right != 1 || b->opt.series_coarse > 0) + !series_can_consume(b);
+     * not consumed; streamed, T goes to its scratch file before the first term is made,
+     * which then takes T's place instead of joining it (then the bounces' checks,
+     * series_memory_check, and the last pass's, series_final_check) */
+    int streamed = series_can_consume(b) && b->opt.series_block >= 0;
+    uint64_t copies = 1 + (b->opt.series_right != 1 || b->opt.series_coarse > 0) + !series_can_consume(b) - streamed;
     wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, copies * 16 * res->dto.nnz,
                                           "the series' first term");
     if (st != WRT_OK) return st;
-    series_setup(&s);
+    series_weights(&s);
     series_consume(&s);
+    if (!series_first_terms(&s)) {
+        series_state_free(&s);
+        return wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
+    }
     if (!s.consumed) s.S = wrt_csc_copy(s.T);
     st = series_bounces(&s);
     if (st == WRT_OK) st = series_tail(&s);

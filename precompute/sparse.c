@@ -42,6 +42,50 @@ static wrt_csc from_triplets_qsort(uint32_t n, wrt_triplet *t, uint64_t count) {
     return m;
 }
 
+/* The triplets t[0, count) scattered into m's arrays at next[col]++ in the order of their
+ * rows, those of one row in their order in t (a counting pass over the rows, its order
+ * kept as a 32-bit index, 4 bytes an entry), so rows ascend within a column. */
+static void scatter_by_row(uint32_t n, const wrt_triplet *t, uint64_t count, wrt_csc *m, uint64_t *next) {
+    uint64_t *rstart = wrt_xcalloc((size_t)n + 2, sizeof *rstart);
+    for (uint64_t i = 0; i < count; i++) rstart[t[i].row + 1]++;
+    for (uint32_t j = 0; j < n; j++) rstart[j + 1] += rstart[j];
+    uint32_t *order = wrt_xmalloc((count ? count : 1) * sizeof *order);
+    for (uint64_t i = 0; i < count; i++) order[rstart[t[i].row]++] = (uint32_t)i;
+    free(rstart);
+    for (uint64_t k = 0; k < count; k++) {
+        const wrt_triplet *e = &t[order[k]];
+        uint64_t at = next[e->col]++;
+        m->row[at] = e->row;
+        memcpy(&m->val[3 * at], e->v, sizeof e->v);
+    }
+    free(order);
+}
+
+/* Duplicates, side by side in their order in t after scatter_by_row, summed in place;
+ * the arrays cut to the entries left. */
+static void sum_duplicates(wrt_csc *m, uint64_t count) {
+    uint64_t k = 0, start = 0;
+    for (uint32_t j = 0; j < m->n; j++) {
+        uint64_t end = m->col[j + 1];
+        for (uint64_t i = start; i < end; i++) {
+            if (i > start && m->row[k - 1] == m->row[i]) {
+                for (int c = 0; c < 3; c++) m->val[3 * (k - 1) + c] += m->val[3 * i + c];
+                continue;
+            }
+            m->row[k] = m->row[i];
+            if (k != i) memcpy(&m->val[3 * k], &m->val[3 * i], 3 * sizeof *m->val);
+            k++;
+        }
+        start = end;
+        m->col[j + 1] = k;
+    }
+    m->nnz = k;
+    if (k < count) {
+        m->row = wrt_xrealloc(m->row, (k ? k : 1) * sizeof *m->row);
+        m->val = wrt_xrealloc(m->val, (k ? k : 1) * 3 * sizeof *m->val);
+    }
+}
+
 /* Builds from triplets: duplicates of one (row, col) are summed in their order in t (the
  * order a stable sort by (col, row) leaves them, as qsort's merge sort did). Two counting
  * passes instead of a comparison sort: the rows' order as an index (4 bytes an entry),
@@ -52,44 +96,57 @@ wrt_csc wrt_csc_from_triplets(uint32_t n, wrt_triplet *t, uint64_t count) {
     if (count >= UINT32_MAX) return from_triplets_qsort(n, t, count); /* the index is 32-bit */
     wrt_csc m = {.n = n};
     m.col = wrt_xcalloc((size_t)n + 2, sizeof *m.col);
-    uint64_t *rstart = wrt_xcalloc((size_t)n + 2, sizeof *rstart);
-    for (uint64_t i = 0; i < count; i++) { rstart[t[i].row + 1]++; m.col[t[i].col + 1]++; }
-    for (uint32_t j = 0; j < n; j++) { rstart[j + 1] += rstart[j]; m.col[j + 1] += m.col[j]; }
-    uint32_t *order = wrt_xmalloc((count ? count : 1) * sizeof *order);
-    for (uint64_t i = 0; i < count; i++) order[rstart[t[i].row]++] = (uint32_t)i;
-    free(rstart);
+    for (uint64_t i = 0; i < count; i++) m.col[t[i].col + 1]++;
+    for (uint32_t j = 0; j < n; j++) m.col[j + 1] += m.col[j];
     m.row = wrt_xmalloc((count ? count : 1) * sizeof *m.row);
     m.val = wrt_xmalloc((count ? count : 1) * 3 * sizeof *m.val);
     uint64_t *next = wrt_xmalloc(((size_t)n + 1) * sizeof *next);
     memcpy(next, m.col, ((size_t)n + 1) * sizeof *next);
-    for (uint64_t k = 0; k < count; k++) {
-        const wrt_triplet *e = &t[order[k]];
-        uint64_t at = next[e->col]++;
-        m.row[at] = e->row;
-        memcpy(&m.val[3 * at], e->v, sizeof e->v);
+    scatter_by_row(n, t, count, &m, next);
+    free(next);
+    sum_duplicates(&m, count);
+    return m;
+}
+
+/* The same matrix, built by ranges of columns (about a sixteenth of the entries each): a
+ * range's triplets are taken out of t in their order (the others moved up in theirs) and
+ * t is cut to what is left, then the range is scattered as above. The triplets (20 bytes
+ * an entry) shrink as the matrix (16) grows, instead of both being held with the index
+ * (40 bytes an entry: on the 12 x 12 maze the bake's peak, 1.35 GB, issue 22). */
+#define TRIPLET_RANGES 16
+wrt_csc wrt_csc_from_triplets_free(uint32_t n, wrt_triplet *t, uint64_t count) {
+    if (count >= UINT32_MAX || count < 2 * TRIPLET_RANGES) {
+        wrt_csc m = wrt_csc_from_triplets(n, t, count);
+        free(t);
+        return m;
     }
-    free(order); free(next);
-    /* duplicates are now side by side in their order in t: summed as before, in place */
-    uint64_t k = 0, start = 0;
-    for (uint32_t j = 0; j < n; j++) {
-        uint64_t end = m.col[j + 1];
-        for (uint64_t i = start; i < end; i++) {
-            if (i > start && m.row[k - 1] == m.row[i]) {
-                for (int c = 0; c < 3; c++) m.val[3 * (k - 1) + c] += m.val[3 * i + c];
-                continue;
-            }
-            m.row[k] = m.row[i];
-            if (k != i) memcpy(&m.val[3 * k], &m.val[3 * i], 3 * sizeof *m.val);
-            k++;
+    wrt_csc m = {.n = n};
+    m.col = wrt_xcalloc((size_t)n + 2, sizeof *m.col);
+    for (uint64_t i = 0; i < count; i++) m.col[t[i].col + 1]++;
+    for (uint32_t j = 0; j < n; j++) m.col[j + 1] += m.col[j];
+    /* untouched until written: the pages come as the ranges fill them */
+    m.row = wrt_xmalloc(count * sizeof *m.row);
+    m.val = wrt_xmalloc(count * 3 * sizeof *m.val);
+    uint64_t *next = wrt_xmalloc(((size_t)n + 1) * sizeof *next);
+    memcpy(next, m.col, ((size_t)n + 1) * sizeof *next);
+    uint64_t left = count;
+    for (uint32_t c0 = 0; c0 < n;) {
+        uint32_t c1 = c0 + 1;
+        while (c1 < n && m.col[c1 + 1] - m.col[c0] <= count / TRIPLET_RANGES) c1++;
+        uint64_t in = m.col[c1] - m.col[c0], w = 0, r = 0;
+        wrt_triplet *rt = wrt_xmalloc((in ? in : 1) * sizeof *rt);
+        for (uint64_t i = 0; i < left; i++) {
+            if (t[i].col >= c0 && t[i].col < c1) rt[r++] = t[i];
+            else t[w++] = t[i];
         }
-        start = end;
-        m.col[j + 1] = k;
+        left = w;
+        t = wrt_xrealloc(t, (left ? left : 1) * sizeof *t);
+        scatter_by_row(n, rt, in, &m, next);
+        free(rt);
+        c0 = c1;
     }
-    m.nnz = k;
-    if (k < count) {
-        m.row = wrt_xrealloc(m.row, (k ? k : 1) * sizeof *m.row);
-        m.val = wrt_xrealloc(m.val, (k ? k : 1) * 3 * sizeof *m.val);
-    }
+    free(t); free(next);
+    sum_duplicates(&m, count);
     return m;
 }
 
@@ -594,11 +651,14 @@ wrt_csc wrt_csc_copy_compress(const wrt_csc *m, double drop, const wrt_csc_weigh
     return c;
 }
 
-double wrt_csc_norm(const wrt_csc *m) {
-    double s = 0;
-    for (uint64_t i = 0; i < 3 * m->nnz; i++) s += (double)m->val[i] * m->val[i];
-    return sqrt(s);
+double wrt_csc_sumsq(const wrt_csc *m, double s) {
+    if (!m->nnz) return s;
+    const float *v = &m->val[3 * m->col[0]];
+    for (uint64_t i = 0; i < 3 * m->nnz; i++) s += (double)v[i] * v[i];
+    return s;
 }
+
+double wrt_csc_norm(const wrt_csc *m) { return sqrt(wrt_csc_sumsq(m, 0)); }
 
 double wrt_csc_max(const wrt_csc *m) {
     double mx = 0;

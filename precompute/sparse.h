@@ -20,6 +20,9 @@ typedef struct wrt_triplet { uint32_t row, col; float v[3]; } wrt_triplet;
 
 /* Builds from triplets (t is left as it was, or sorted; duplicates are summed in their order in t). */
 wrt_csc wrt_csc_from_triplets(uint32_t n, wrt_triplet *t, uint64_t count);
+/* The same matrix, t freed (malloc'd; it shrinks while the matrix grows: 20 bytes an entry
+ * at the most, not 40). */
+wrt_csc wrt_csc_from_triplets_free(uint32_t n, wrt_triplet *t, uint64_t count);
 void wrt_csc_free(wrt_csc *m);
 wrt_csc wrt_csc_copy(const wrt_csc *m);
 
@@ -54,6 +57,9 @@ wrt_csc wrt_csc_copy_compress(const wrt_csc *m, double drop, const wrt_csc_weigh
 void wrt_sort_u64(uint64_t *a, size_t n);
 /* Frobenius norm over all channels. */
 double wrt_csc_norm(const wrt_csc *m);
+/* s plus the squares of every value, in storage order (the norm's sum, continued from s:
+ * a matrix held by blocks of columns gives the whole one's bits) */
+double wrt_csc_sumsq(const wrt_csc *m, double s);
 /* Largest channel magnitude of any entry. */
 double wrt_csc_max(const wrt_csc *m);
 /* y += M x for RGB vectors (x, y of length 3n). */

@@ -706,9 +706,39 @@ static void test_threads_identical(void) {
  * iteration and the power targets computed before; the stored operator and the series'
  * figures must be the bits of the path that keeps T, and T gone. A coloured box with an
  * occluder (its series stops on the settled ratio and adds the tail) and the same box
- * at albedo 0.95 (more bounces, a larger tail). */
+ * at albedo 0.95 (more bounces, a larger tail). Consumed, the sum is streamed through
+ * scratch files by column blocks (series_stream.h): by default, by blocks of 3 entries
+ * (a block a column, the merges' and the norm's block boundaries everywhere), and in
+ * memory (series_block < 0), each the same bits. */
 static void test_consume_identical(void) {
-    for (int k = 0; k < 2; k++) {
+    for (int k = 0; k < 6; k++) {
+        if (k >= 2) { /* the streamed sum's block sizes */
+            long long blocks[2] = {3, -1};
+            wrt_scene s;
+            tsb_init(&s);
+            int m = k & 1 ? tsb_material(&s, 0.95, 0.9, 0.8) : tsb_material(&s, 0.7, 0.5, 0.3);
+            tsb_box_inward(&s, P(0, 0, 0), P(2, 1, 1.5), 1, m);
+            tsb_quad(&s, P(0.8, 0.2, 0.5), P(1.2, 0.2, 0.5), P(1.2, 0.6, 0.5), P(0.8, 0.6, 0.5), m);
+            wrt_bake_result a, b;
+            wrt_bake_options o1 = opts(4, 0, 0), o2 = opts(4, 0, 0);
+            o2.consume_dto = 1;
+            o2.series_block = blocks[(k - 2) / 2];
+            CHECK(wrt_bake_run(&s, &o1, &a) == WRT_OK, "%s", wrt_last_error());
+            CHECK(wrt_bake_run(&s, &o2, &b) == WRT_OK, "%s", wrt_last_error());
+            int same = a.op.nnz == b.op.nnz && a.nfuncs == b.nfuncs &&
+                       !memcmp(a.op.col, b.op.col, ((size_t)a.nfuncs + 1) * sizeof *a.op.col) &&
+                       !memcmp(a.op.row, b.op.row, a.op.nnz * sizeof *a.op.row) &&
+                       !memcmp(a.op.val, b.op.val, 3 * a.op.nnz * sizeof *a.op.val);
+            CHECK(same && a.c.bounces == b.c.bounces && a.c.energy_left == b.c.energy_left &&
+                      a.c.tail_fraction == b.c.tail_fraction && a.c.tail_fraction > 0,
+                  "series_block %lld, albedo case %d: the operator or the figures differ (%llu / %llu entries, "
+                  "energy left %.17g / %.17g)", o2.series_block, k & 1, (unsigned long long)a.op.nnz,
+                  (unsigned long long)b.op.nnz, a.c.energy_left, b.c.energy_left);
+            wrt_bake_result_free(&a);
+            wrt_bake_result_free(&b);
+            tsb_free(&s);
+            continue;
+        }
         wrt_scene s;
         tsb_init(&s);
         int m = k ? tsb_material(&s, 0.95, 0.9, 0.8) : tsb_material(&s, 0.7, 0.5, 0.3);

@@ -40,6 +40,55 @@ static void test_duplicates_in_order(void) {
     wrt_csc_free(&m);
 }
 
+/* Built by ranges of columns, freeing the triplets as it goes (T's assembly in the bake):
+ * every entry the float sum of its (row, col) triplets in their order in t, found by
+ * brute force, rows ascending within columns; large values (1e8 and 1 in one entry) make
+ * the sums depend on the order. */
+static void test_triplets_by_ranges(void) {
+    enum { N = 300, COUNT = 9000 };
+    uint32_t seed = 4242;
+    wrt_triplet *t = malloc(COUNT * sizeof *t);
+    for (int i = 0; i < COUNT; i++) {
+        t[i] = (wrt_triplet){lcg(&seed) % 40, lcg(&seed) % N, {0}};
+        for (int c = 0; c < 3; c++) {
+            uint32_t r = lcg(&seed) % 7;
+            t[i].v[c] = r == 0 ? 1e8f : r == 1 ? -1e8f : (float)(r - 3);
+        }
+    }
+    wrt_triplet *copy = malloc(COUNT * sizeof *copy);
+    memcpy(copy, t, COUNT * sizeof *t);
+    wrt_csc m = wrt_csc_from_triplets_free(N, copy, COUNT); /* copy freed */
+    int ok = 1, order_ok = 1;
+    uint64_t distinct = 0;
+    for (uint32_t j = 0; j < N; j++) {
+        for (uint64_t k = m.col[j]; k < m.col[j + 1]; k++) {
+            if (k > m.col[j] && m.row[k - 1] >= m.row[k]) order_ok = 0;
+            float want[3] = {0, 0, 0};
+            int first = 1;
+            for (int i = 0; i < COUNT; i++)
+                if (t[i].col == j && t[i].row == m.row[k]) {
+                    for (int c = 0; c < 3; c++) want[c] = first ? t[i].v[c] : want[c] + t[i].v[c];
+                    first = 0;
+                }
+            if (first || memcmp(want, &m.val[3 * k], sizeof want)) ok = 0;
+        }
+        uint8_t seen[40] = {0};
+        for (int i = 0; i < COUNT; i++)
+            if (t[i].col == j && !seen[t[i].row]) { seen[t[i].row] = 1; distinct++; }
+    }
+    CHECK(m.nnz == distinct, "%llu entries, %llu distinct (row, col) in the triplets", (unsigned long long)m.nnz,
+          (unsigned long long)distinct);
+    CHECK(order_ok, "rows ascend within columns");
+    CHECK(ok, "an entry is not the sum of its triplets in their order");
+    wrt_csc w = wrt_csc_from_triplets(N, t, COUNT);
+    CHECK(w.nnz == m.nnz && !memcmp(w.col, m.col, (N + 1) * sizeof *w.col) && !memcmp(w.row, m.row, m.nnz * 4) &&
+              !memcmp(w.val, m.val, 12 * m.nnz),
+          "the same bits as the whole build");
+    wrt_csc_free(&m);
+    wrt_csc_free(&w);
+    free(t);
+}
+
 /* C = A B at drop 0 against sum_k A_ik B_kj over the triplets; 1 and 2 threads give the same
  * bytes. n = 9,000: 32 chunks of 282 columns, 3 words of the upper row bitmap. */
 static void test_product_brute_force(void) {
@@ -172,6 +221,7 @@ static void test_series_right_furnace(void) {
 
 int main(int argc, char **argv) {
     TEST_RUN(test_duplicates_in_order);
+    TEST_RUN(test_triplets_by_ranges);
     TEST_RUN(test_product_brute_force);
     TEST_RUN(test_apply_brute_force);
     TEST_RUN(test_series_right_furnace);

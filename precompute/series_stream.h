@@ -1,0 +1,40 @@
+/* series_stream.h: the series' sum S = T + P_2 + ... held in a scratch file between
+ * bounces instead of memory (series_stream.c, issue 22). Each bounce merges the file with
+ * the new term by column blocks into a new file and measures the sum's norm on the way;
+ * the last pass adds the tail, compresses the columns for the stored operator and keeps
+ * only those. The entries, their order and every rounding are wrt_csc_add3's and
+ * wrt_csc_compress's, column by column, so the result is the in-memory series' to the bit
+ * whatever the block size. Depends on spill.h, sparse.h. */
+#ifndef WRT_SERIES_STREAM_H
+#define WRT_SERIES_STREAM_H
+
+#include "spill.h"
+
+/* Entries of the sum and the term read per block when wrt_bake_options.series_block is 0 */
+#define WRT_SERIES_BLOCK_DEFAULT (1u << 20)
+
+typedef struct wrt_sum_stream {
+    wrt_spill own;     /* the sum's file once a term has been added */
+    wrt_spill *cur;    /* the sum now: &own, or the first term's file (not owned) */
+    uint64_t block;    /* entries per block */
+} wrt_sum_stream;
+
+/* The sum starts as the matrix in `first` (a finished spill, which must outlive the
+ * stream; it is read, never written). */
+void wrt_sum_stream_start(wrt_sum_stream *ss, wrt_spill *first, uint64_t block);
+/* The sum's entries now. */
+uint64_t wrt_sum_stream_nnz(const wrt_sum_stream *ss);
+/* S += s P, per channel (P has the sum's columns); *sumsq the sum of the squares of the
+ * new sum's values in storage order (wrt_csc_sumsq's, the same bits). 0 on an I/O error. */
+int wrt_sum_stream_add(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], double *sumsq);
+/* The last pass: S + k P where P is not NULL (*sumsq as above, else untouched), each
+ * column compressed by wrt_csc_compress(drop, W), into *out (in memory, its own arrays).
+ * check(user, entries kept so far, their projected total) is called at each tenth of the
+ * input and stops the pass when it returns 0 (a memory budget). Returns 1, 0 on an I/O
+ * error, -1 where check stopped it. */
+int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3], double *sumsq, double drop,
+                         const wrt_csc_weights *W, int (*check)(void *user, uint64_t kept, uint64_t projected),
+                         void *user, wrt_csc *out);
+void wrt_sum_stream_free(wrt_sum_stream *ss);
+
+#endif
