@@ -420,22 +420,29 @@ static void blend_row(const float *const bt[4], const float w[4], const uint8_t 
     }
 }
 
-/* sum over a of lin[a] row[a], RGB interleaved, over the nb blocks blk[] (lin: NDIR x 3
- * floats, of which only those blocks are read; row: 12 bfloat16 a block, compact).
- * Vectorised over a block (three 4-lane vectors whose lanes hold the channels 0120,
- * 1201, 2012), folded at the end; the scalar loop sums the same terms in block order (the
- * two differ by float rounding only). */
-static void dot_row(const float *lin, const uint16_t *row, const uint8_t *blk, int nb, float out[3]) {
+/* sum over a of rad[cell[a]] row[a], RGB interleaved, over the nb blocks blk[] of GBLK
+ * cells (row: 12 bfloat16 a block, compact; rad: 3 floats a cell, one float after the
+ * last). Vectorised over a block: its four cells' radiances (one 4-float load each, the
+ * 4th lane the next float) shuffled into three 4-lane vectors whose lanes hold the
+ * channels 0120, 1201, 2012, folded at the end; the scalar loop sums the same terms in
+ * block order (the two differ by float rounding only). */
+static void dot_row(const float *rad, const int32_t *cell, const uint16_t *row, const uint8_t *blk, int nb,
+                    float out[3]) {
 #ifdef __SSE2__
     __m128 acc0 = _mm_setzero_ps(), acc1 = _mm_setzero_ps(), acc2 = _mm_setzero_ps();
     __m128i z = _mm_setzero_si128();
 #define ROW4(o) _mm_castsi128_ps(_mm_unpacklo_epi16(z, _mm_loadl_epi64((const __m128i *)(row + (o)))))
     for (int k = 0; k < nb; k++) {
-        const float *l = lin + blk[k] * GBLK * 3;
+        const int32_t *c = cell + blk[k] * GBLK;
+        __m128 c0 = _mm_loadu_ps(rad + (size_t)c[0] * 3), c1 = _mm_loadu_ps(rad + (size_t)c[1] * 3);
+        __m128 c2 = _mm_loadu_ps(rad + (size_t)c[2] * 3), c3 = _mm_loadu_ps(rad + (size_t)c[3] * 3);
+        __m128 v0 = _mm_shuffle_ps(c0, _mm_shuffle_ps(c1, c0, _MM_SHUFFLE(2, 2, 0, 0)), _MM_SHUFFLE(0, 2, 1, 0));
+        __m128 v1 = _mm_shuffle_ps(c1, c2, _MM_SHUFFLE(1, 0, 2, 1));
+        __m128 v2 = _mm_shuffle_ps(_mm_shuffle_ps(c2, c3, _MM_SHUFFLE(0, 0, 2, 2)), c3, _MM_SHUFFLE(2, 1, 2, 0));
         int o = k * GBLK * 3;
-        acc0 = _mm_add_ps(acc0, _mm_mul_ps(_mm_loadu_ps(l), ROW4(o)));
-        acc1 = _mm_add_ps(acc1, _mm_mul_ps(_mm_loadu_ps(l + 4), ROW4(o + 4)));
-        acc2 = _mm_add_ps(acc2, _mm_mul_ps(_mm_loadu_ps(l + 8), ROW4(o + 8)));
+        acc0 = _mm_add_ps(acc0, _mm_mul_ps(v0, ROW4(o)));
+        acc1 = _mm_add_ps(acc1, _mm_mul_ps(v1, ROW4(o + 4)));
+        acc2 = _mm_add_ps(acc2, _mm_mul_ps(v2, ROW4(o + 8)));
     }
 #undef ROW4
     float a[12];
@@ -449,14 +456,14 @@ static void dot_row(const float *lin, const uint16_t *row, const uint8_t *blk, i
             uint32_t u = (uint32_t)row[k * GBLK * 3 + i] << 16;
             float f;
             memcpy(&f, &u, sizeof f);
-            out[i % 3] += lin[blk[k] * GBLK * 3 + i] * f;
+            out[i % 3] += rad[(size_t)cell[blk[k] * GBLK + i / 3] * 3 + i % 3] * f;
         }
 #endif
 }
 
 /* L_o at point p of a glossy quad toward the eye: the incident radiance of its cells
- * that see something read from the radiance grids (the cell table) into a scratch row,
- * then its sum against the point's row toward the eye (made again first when the eye
+ * that see something read from the radiance grids (the cell table) and summed against
+ * the point's row toward the eye (made again first when the eye
  * moved: the beta rows of the four outgoing directions around w_o, bilinear). */
 static void lout_point(void *user, size_t item) {
     wrt_gather *g = user;
@@ -492,19 +499,7 @@ static void lout_point(void *user, size_t item) {
         G->bvis[p] = 1;
     }
     if (!G->bvis[p] || nb == 0) return;
-    float lin[NDIR * 3 + 1];
-    const int32_t *cell = G->cell + p * NDIR;
-    const float *rad = g->rad;
-    for (int k = 0; k < nb; k++) { /* in increasing order: a block's last copy spills into the next */
-        for (int i = blk[k] * GBLK; i < (blk[k] + 1) * GBLK; i++) { /* 4 floats a copy: the 4th is the next cell's */
-#ifdef __SSE2__
-            _mm_storeu_ps(lin + i * 3, _mm_loadu_ps(rad + (size_t)cell[i] * 3));
-#else
-            memcpy(lin + i * 3, rad + (size_t)cell[i] * 3, 3 * sizeof(float));
-#endif
-        }
-    }
-    dot_row(lin, row, blk, nb, lo);
+    dot_row(g->rad, G->cell + p * NDIR, row, blk, nb, lo);
 }
 
 static void out_quad(void *user, size_t item) {
