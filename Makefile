@@ -239,6 +239,7 @@ TEST_PARTS_test_cluster := bake formats common
 TEST_PARTS_test_sparse := bake formats common
 TEST_PARTS_test_dist := bake formats common
 TEST_PARTS_test_relight := runtime formats common
+TEST_PARTS_test_gather := runtime formats common
 TEST_PARTS_test_reconstruct := bake runtime formats common
 TEST_PARTS_test_reference := verify formats common
 TEST_PARTS_test_accuracy := verify bake runtime formats common

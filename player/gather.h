@@ -16,7 +16,8 @@
  * a diffuse stand-in for its lobe (exact for uniform incident light; a glossy quad seen
  * in another shows no sharp reflection of its own). L_in itself is not stored: each
  * point reads its cells' radiance through the table when it sums (at a light change and
- * at an eye move). Everything is linear in the lights. Loops and memory are the caller's
+ * at an eye move), against its beta row toward the eye: the four table rows around w_o
+ * blended when the eye moves and kept (bfloat16) while it stays. Everything is linear in the lights. Loops and memory are the caller's
  * (wrt_gather_env: the relighter's job hook or pool, and its allocator). Depends on
  * Embree 3, common/brdf.h and common/basis.h. */
 #ifndef WRT_GATHER_H
