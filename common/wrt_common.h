@@ -45,6 +45,8 @@ void wrt_set_oom_handler(wrt_oom_handler h); /* NULL restores the default; set b
 void *wrt_xmalloc(size_t n);
 void *wrt_xcalloc(size_t count, size_t size);
 void *wrt_xrealloc(void *p, size_t n);
+/* n zeroed bytes on a 64-byte boundary (a cache line), released with free() */
+void *wrt_xcalloc_aligned64(size_t n);
 
 /* Monotonic wall-clock seconds. */
 double wrt_now(void);
