@@ -92,7 +92,7 @@ static uint32_t first_key_at_least(const uint64_t *keys, uint32_t n, uint64_t k)
 }
 
 double wrt_func_power(const wrt_quad *q, wrt_node n, int type) {
-    if (q->parallelogram) return type == 0 ? sqrt(q->area) * ldexp(1.0, -(int)n.level) : 0;
+    if (q->parallelogram) return type == 0 ? sqrt(q->area) * wrt_pow2(-(int)n.level) : 0;
     /* sqrt(J) is smooth (J is linear in u and v on a planar quad): 2 x 2 points per quadrant */
     double sz = wrt_node_size(n), x0 = wrt_node_x0(n), y0 = wrt_node_y0(n), acc = 0;
     for (int c = 0; c < 4; c++) {
@@ -103,7 +103,7 @@ double wrt_func_power(const wrt_quad *q, wrt_node n, int type) {
             acc += sign * sqrt(wrt_quad_jacobian(q, u, v));
         }
     }
-    return acc * sz * sz / 16 * ldexp(1.0, n.level);
+    return acc * sz * sz / 16 * wrt_pow2(n.level);
 }
 
 double *wrt_power_weights(const bake_ctx *b, const uint64_t *fkeys, uint32_t nf) {
@@ -216,7 +216,7 @@ static double walk_inside(const walk_ctx *w, wrt_node n, int inside) {
     double ch[4];
     for (int q = 0; q < 4; q++) ch[q] = walk_inside(w, wrt_node_child(n, q & 1, q >> 1), 1);
     if (inside) {
-        double sc = ldexp(1.0, n.level);
+        double sc = wrt_pow2(n.level);
         for (int t = 1; t <= 3; t++) {
             double a = 0;
             for (int q = 0; q < 4; q++) a += wrt_haar_sign(t, q & 1, q >> 1) * ch[q];
@@ -304,7 +304,7 @@ static void sender_leaf_values(sender_data *d) {
             double vis = lr->vis;
             if (vis <= 0) continue;
             double jr = sqrt(jac_at(Rq, Rn));
-            double aR = Rq->area * ldexp(1.0, -2 * (int)Rn.level);
+            double aR = Rq->area * wrt_pow2(-2 * (int)Rn.level);
             wrt_v3 cR = wrt_quad_point(Rq, wrt_node_x0(Rn) + 0.5 * wrt_node_size(Rn), wrt_node_y0(Rn) + 0.5 * wrt_node_size(Rn));
             /* evaluation cells: the tree leaves under Sn, or Sn itself inside a leaf */
             size_t ns = 0;
@@ -339,7 +339,7 @@ static void sender_leaf_values(sender_data *d) {
                  * on the smaller of the two (int_R sqrt(J_R) F(x -> e) du / sqrt(J_S)
                  * when that is the receiver cell) */
                 wrt_v3 ce = wrt_quad_point(Sq, wrt_node_x0(e) + 0.5 * wrt_node_size(e), wrt_node_y0(e) + 0.5 * wrt_node_size(e));
-                double ae = Sq->area * ldexp(1.0, -2 * (int)e.level);
+                double ae = Sq->area * wrt_pow2(-2 * (int)e.level);
                 if (v3_len(v3_sub(ce, cR)) < 3 * (sqrt(ae) + sqrt(aR)))
                     best = ae > aR * (1 + 1e-9) ? side_integral(Rq, Rn, Sq, e, b->plane_eps, 4) / sqrt(jac_at(Sq, e))
                                                 : side_integral(Sq, e, Rq, Rn, b->plane_eps, 4) / jr;
@@ -384,7 +384,7 @@ static void sender_analysis(sender_data *d) {
                 ch[q] = p >= 0 ? sum[p] : 0;
             }
             sum[find_u32(all, nall, tree[ti])] = ch[0] + ch[1] + ch[2] + ch[3];
-            double scale = ldexp(1.0, n.level);
+            double scale = wrt_pow2(n.level);
             for (int t = 1; t <= 3; t++) {
                 double w = 0;
                 for (int q = 0; q < 4; q++) w += wrt_haar_sign(t, q & 1, q >> 1) * ch[q];
@@ -725,7 +725,7 @@ static double leaf_value(wrt_node sn, int st, wrt_node f) {
     if ((f.x >> (f.level - sn.level)) != sn.x || (f.y >> (f.level - sn.level)) != sn.y) return 0;
     if (!st) return sn.level ? 0 : 1;
     int d = f.level - sn.level - 1;
-    return ldexp(1.0, sn.level) * wrt_haar_sign(st, (f.x >> d) & 1, (f.y >> d) & 1);
+    return wrt_pow2(sn.level) * wrt_haar_sign(st, (f.x >> d) & 1, (f.y >> d) & 1);
 }
 
 static void balance_glossy_sender(size_t si, int th, void *user) {
