@@ -134,10 +134,10 @@ static int caught(const bake_ctx *b, wrt_v3 o, wrt_v3 dir, int self) {
 
 
 /* int_c sqrt(J_A) F(y -> cell d of quad B) du' over cell c of quad A with 2 x 2 points on c
- * (param measure), without B's Jacobian */
-static double side_integral(const wrt_quad *A, wrt_node c, const wrt_quad *B, wrt_node d, double plane_eps, int npts) {
-    wrt_v3 poly[4];
-    wrt_cell_poly(B, d, poly);
+ * (param measure), without B's Jacobian; poly is cell d's polygon (wrt_cell_poly: the
+ * callers evaluate many cells c against one d and make it once) */
+static double side_integral(const wrt_quad *A, wrt_node c, const wrt_quad *B, const wrt_v3 poly[4], double plane_eps,
+                            int npts) {
     double sz = wrt_node_size(c), x0 = wrt_node_x0(c), y0 = wrt_node_y0(c), acc = 0;
     double off = npts == 1 ? 0 : GL2;
     for (int q = 0; q < npts; q++) {
@@ -203,6 +203,7 @@ static void sender_tree(const uint64_t *fkeys, uint32_t nf, int s, int angular_r
 typedef struct walk_ctx {
     const wrt_quad *Sq, *Rq;
     wrt_node Rn;
+    wrt_v3 Rpoly[4];   /* Rn's polygon */
     const uint32_t *tree;
     size_t nt;
     double scale;      /* vis / sqrt(J_R) */
@@ -212,7 +213,7 @@ typedef struct walk_ctx {
 
 static double walk_inside(const walk_ctx *w, wrt_node n, int inside) {
     ptrdiff_t ti = find_u32(w->tree, w->nt, wrt_node_pack(n));
-    if (ti < 0) return w->scale * side_integral(w->Sq, n, w->Rq, w->Rn, w->plane_eps, 1);
+    if (ti < 0) return w->scale * side_integral(w->Sq, n, w->Rq, w->Rpoly, w->plane_eps, 1);
     double ch[4];
     for (int q = 0; q < 4; q++) ch[q] = walk_inside(w, wrt_node_child(n, q & 1, q >> 1), 1);
     if (inside) {
@@ -293,6 +294,7 @@ static void sender_leaf_values(sender_data *d) {
                 wrt_node Sn = wrt_node_unpack(rf.swap ? lr->rn : lr->sn);
                 if (lr->vis <= 0 || !in_set(tree, nt, wrt_node_pack(Sn))) continue;
                 w.Rn = wrt_node_unpack(rf.swap ? lr->sn : lr->rn);
+                wrt_cell_poly(Rq, w.Rn, w.Rpoly);
                 w.scale = lr->vis / sqrt(jac_at(Rq, w.Rn));
                 walk_inside(&w, Sn, 0);
             }
@@ -303,6 +305,8 @@ static void sender_leaf_values(sender_data *d) {
             wrt_node Sn = wrt_node_unpack(rf.swap ? lr->rn : lr->sn), Rn = wrt_node_unpack(rf.swap ? lr->sn : lr->rn);
             double vis = lr->vis;
             if (vis <= 0) continue;
+            wrt_v3 Rpoly[4];
+            wrt_cell_poly(Rq, Rn, Rpoly);
             double jr = sqrt(jac_at(Rq, Rn));
             double aR = Rq->area * wrt_pow2(-2 * (int)Rn.level);
             wrt_v3 cR = wrt_quad_point(Rq, wrt_node_x0(Rn) + 0.5 * wrt_node_size(Rn), wrt_node_y0(Rn) + 0.5 * wrt_node_size(Rn));
@@ -334,15 +338,21 @@ static void sender_leaf_values(sender_data *d) {
                 size_t li = (size_t)lpos;
                 /* the total: one point at the centre of e for every link, so that at
                  * that point the closed forms of all links sum to the covered share */
-                double mid = side_integral(Sq, e, Rq, Rn, b->plane_eps, 1) / jr, best = mid;
+                double mid = side_integral(Sq, e, Rq, Rpoly, b->plane_eps, 1) / jr, best = mid;
                 /* the receiver's share: 2 x 2 points where the cells are near each other,
                  * on the smaller of the two (int_R sqrt(J_R) F(x -> e) du / sqrt(J_S)
                  * when that is the receiver cell) */
                 wrt_v3 ce = wrt_quad_point(Sq, wrt_node_x0(e) + 0.5 * wrt_node_size(e), wrt_node_y0(e) + 0.5 * wrt_node_size(e));
                 double ae = Sq->area * wrt_pow2(-2 * (int)e.level);
-                if (v3_len(v3_sub(ce, cR)) < 3 * (sqrt(ae) + sqrt(aR)))
-                    best = ae > aR * (1 + 1e-9) ? side_integral(Rq, Rn, Sq, e, b->plane_eps, 4) / sqrt(jac_at(Sq, e))
-                                                : side_integral(Sq, e, Rq, Rn, b->plane_eps, 4) / jr;
+                if (v3_len(v3_sub(ce, cR)) < 3 * (sqrt(ae) + sqrt(aR))) {
+                    if (ae > aR * (1 + 1e-9)) {
+                        wrt_v3 epoly[4];
+                        wrt_cell_poly(Sq, e, epoly);
+                        best = side_integral(Rq, Rn, Sq, epoly, b->plane_eps, 4) / sqrt(jac_at(Sq, e));
+                    } else {
+                        best = side_integral(Sq, e, Rq, Rpoly, b->plane_eps, 4) / jr;
+                    }
+                }
                 vr[li] += vis * best;
                 if (Sn.level == 255) break;
             }
