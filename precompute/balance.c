@@ -61,6 +61,7 @@ typedef struct bal_ctx {
     int closed;                     /* every ray from every quad meets a quad's front */
     wrt_triplet **res; uint64_t *nres;
     const int *owner; int rank;     /* wrt-bake-mpi: each sender's rank (NULL: all here; dist.h) */
+    int *order;                     /* the senders in the order the threads take them */
 } bal_ctx;
 
 static int cmp_u32(const void *pa, const void *pb) {
@@ -602,7 +603,7 @@ static void balance_sender(size_t si, int th, void *user) {
     (void)th;
     bal_ctx *c = user;
     const bake_ctx *b = c->b;
-    int s = (int)si;
+    int s = c->order ? c->order[si] : (int)si;
     c->res[s] = NULL; c->nres[s] = 0;
     if (!c->nrefs[s] || (c->owner && c->owner[s] != c->rank)) return;
     sender_data d = {.c = c, .b = b, .s = s, .Sq = &b->quads[s], .rho = b->rho[s]};
@@ -680,7 +681,22 @@ int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, 
         c.owner = owner;
         c.rank = b->opt.dist->rank;
     }
+    /* the senders taken largest first (by their leaf links), so that the threads do not
+     * wait at the end on one large sender that came late; each sender's entries stay in
+     * its own slot, merged in sender order below, so the result is the same */
+    c.order = wrt_xmalloc((size_t)(nq ? nq : 1) * sizeof *c.order);
+    uint64_t *key = wrt_xmalloc((size_t)(nq ? nq : 1) * sizeof *key);
+    for (int s = 0; s < nq; s++) {
+        uint64_t leaves = 0;
+        for (size_t i = 0; i < c.nrefs[s]; i++) leaves += out[c.refs[s][i].pair].nleaf;
+        if (leaves > 0xFFFFFFFFu) leaves = 0xFFFFFFFFu;
+        key[s] = ((0xFFFFFFFFu - leaves) << 32) | (uint32_t)s; /* descending leaves, then index */
+    }
+    wrt_sort_u64(key, (size_t)nq);
+    for (int s = 0; s < nq; s++) c.order[s] = (int)(key[s] & 0xFFFFFFFFu);
+    free(key);
     wrt_parallel_for((size_t)nq, b->opt.threads, balance_sender, &c);
+    free(c.order);
     if (owner && wrt_dist_merge_triplets(b->opt.dist, owner, c.res, c.nres, (size_t)nq) != WRT_OK)
         atomic_store(b->cancel, 1); /* the bake stops after the balance (bake.c) */
     free(owner);
