@@ -32,6 +32,8 @@
 #include <math.h>
 #include <stdint.h>
 
+#include "wrt_common.h"
+
 #define WRT_MAX_SLEVEL 10 /* deepest spatial level (1024 x 1024 cells) */
 #define WRT_MAX_ALEVEL 3  /* deepest angular level (8 x 8 direction cells) */
 /* The deepest outgoing angular level of the first-bounce operator K (16 x 16 direction
@@ -52,7 +54,7 @@ static inline wrt_node wrt_node_parent(wrt_node n) {
     return p;
 }
 /* Support of the node in [0,1]^2: [x0, x0 + size) x [y0, y0 + size). */
-static inline double wrt_node_size(wrt_node n) { return ldexp(1.0, -(int)n.level); }
+static inline double wrt_node_size(wrt_node n) { return wrt_pow2(-(int)n.level); }
 static inline double wrt_node_x0(wrt_node n) { return n.x * wrt_node_size(n); }
 static inline double wrt_node_y0(wrt_node n) { return n.y * wrt_node_size(n); }
 
@@ -60,7 +62,7 @@ static inline double wrt_node_y0(wrt_node n) { return n.y * wrt_node_size(n); }
 static inline double wrt_haar2(wrt_node n, int type, double u, double v) {
     if (u >= 1.0) u = 0x1.fffffffffffffp-1; /* the closed upper edge belongs to the last cell */
     if (v >= 1.0) v = 0x1.fffffffffffffp-1;
-    double s = ldexp(1.0, n.level);
+    double s = wrt_pow2(n.level);
     double lu = u * s - n.x, lv = v * s - n.y;
     if (lu < 0 || lu >= 1 || lv < 0 || lv >= 1) return 0;
     double su = lu < 0.5 ? 1.0 : -1.0, sv = lv < 0.5 ? 1.0 : -1.0;

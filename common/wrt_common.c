@@ -84,6 +84,15 @@ void *wrt_xcalloc(size_t count, size_t size) {
     return p;
 }
 
+void *wrt_xcalloc_aligned64(size_t n) {
+    size_t bytes = (n + 63) / 64 * 64; /* aligned_alloc wants a multiple of the alignment */
+    if (!bytes) bytes = 64;
+    void *p = aligned_alloc(64, bytes);
+    if (!p) oom(bytes);
+    memset(p, 0, bytes);
+    return p;
+}
+
 void *wrt_xrealloc(void *p, size_t n) {
     void *q = realloc(p, n ? n : 1);
     if (!q) oom(n);

@@ -61,6 +61,7 @@ typedef struct bal_ctx {
     int closed;                     /* every ray from every quad meets a quad's front */
     wrt_triplet **res; uint64_t *nres;
     const int *owner; int rank;     /* wrt-bake-mpi: each sender's rank (NULL: all here; dist.h) */
+    int *order;                     /* the senders in the order the threads take them */
 } bal_ctx;
 
 static int cmp_u32(const void *pa, const void *pb) {
@@ -92,7 +93,7 @@ static uint32_t first_key_at_least(const uint64_t *keys, uint32_t n, uint64_t k)
 }
 
 double wrt_func_power(const wrt_quad *q, wrt_node n, int type) {
-    if (q->parallelogram) return type == 0 ? sqrt(q->area) * ldexp(1.0, -(int)n.level) : 0;
+    if (q->parallelogram) return type == 0 ? sqrt(q->area) * wrt_pow2(-(int)n.level) : 0;
     /* sqrt(J) is smooth (J is linear in u and v on a planar quad): 2 x 2 points per quadrant */
     double sz = wrt_node_size(n), x0 = wrt_node_x0(n), y0 = wrt_node_y0(n), acc = 0;
     for (int c = 0; c < 4; c++) {
@@ -103,7 +104,7 @@ double wrt_func_power(const wrt_quad *q, wrt_node n, int type) {
             acc += sign * sqrt(wrt_quad_jacobian(q, u, v));
         }
     }
-    return acc * sz * sz / 16 * ldexp(1.0, n.level);
+    return acc * sz * sz / 16 * wrt_pow2(n.level);
 }
 
 double *wrt_power_weights(const bake_ctx *b, const uint64_t *fkeys, uint32_t nf) {
@@ -134,10 +135,10 @@ static int caught(const bake_ctx *b, wrt_v3 o, wrt_v3 dir, int self) {
 
 
 /* int_c sqrt(J_A) F(y -> cell d of quad B) du' over cell c of quad A with 2 x 2 points on c
- * (param measure), without B's Jacobian */
-static double side_integral(const wrt_quad *A, wrt_node c, const wrt_quad *B, wrt_node d, double plane_eps, int npts) {
-    wrt_v3 poly[4];
-    wrt_cell_poly(B, d, poly);
+ * (param measure), without B's Jacobian; poly is cell d's polygon (wrt_cell_poly: the
+ * callers evaluate many cells c against one d and make it once) */
+static double side_integral(const wrt_quad *A, wrt_node c, const wrt_quad *B, const wrt_v3 poly[4], double plane_eps,
+                            int npts) {
     double sz = wrt_node_size(c), x0 = wrt_node_x0(c), y0 = wrt_node_y0(c), acc = 0;
     double off = npts == 1 ? 0 : GL2;
     for (int q = 0; q < npts; q++) {
@@ -203,6 +204,7 @@ static void sender_tree(const uint64_t *fkeys, uint32_t nf, int s, int angular_r
 typedef struct walk_ctx {
     const wrt_quad *Sq, *Rq;
     wrt_node Rn;
+    wrt_v3 Rpoly[4];   /* Rn's polygon */
     const uint32_t *tree;
     size_t nt;
     double scale;      /* vis / sqrt(J_R) */
@@ -212,11 +214,11 @@ typedef struct walk_ctx {
 
 static double walk_inside(const walk_ctx *w, wrt_node n, int inside) {
     ptrdiff_t ti = find_u32(w->tree, w->nt, wrt_node_pack(n));
-    if (ti < 0) return w->scale * side_integral(w->Sq, n, w->Rq, w->Rn, w->plane_eps, 1);
+    if (ti < 0) return w->scale * side_integral(w->Sq, n, w->Rq, w->Rpoly, w->plane_eps, 1);
     double ch[4];
     for (int q = 0; q < 4; q++) ch[q] = walk_inside(w, wrt_node_child(n, q & 1, q >> 1), 1);
     if (inside) {
-        double sc = ldexp(1.0, n.level);
+        double sc = wrt_pow2(n.level);
         for (int t = 1; t <= 3; t++) {
             double a = 0;
             for (int q = 0; q < 4; q++) a += wrt_haar_sign(t, q & 1, q >> 1) * ch[q];
@@ -293,6 +295,7 @@ static void sender_leaf_values(sender_data *d) {
                 wrt_node Sn = wrt_node_unpack(rf.swap ? lr->rn : lr->sn);
                 if (lr->vis <= 0 || !in_set(tree, nt, wrt_node_pack(Sn))) continue;
                 w.Rn = wrt_node_unpack(rf.swap ? lr->sn : lr->rn);
+                wrt_cell_poly(Rq, w.Rn, w.Rpoly);
                 w.scale = lr->vis / sqrt(jac_at(Rq, w.Rn));
                 walk_inside(&w, Sn, 0);
             }
@@ -303,8 +306,10 @@ static void sender_leaf_values(sender_data *d) {
             wrt_node Sn = wrt_node_unpack(rf.swap ? lr->rn : lr->sn), Rn = wrt_node_unpack(rf.swap ? lr->sn : lr->rn);
             double vis = lr->vis;
             if (vis <= 0) continue;
+            wrt_v3 Rpoly[4];
+            wrt_cell_poly(Rq, Rn, Rpoly);
             double jr = sqrt(jac_at(Rq, Rn));
-            double aR = Rq->area * ldexp(1.0, -2 * (int)Rn.level);
+            double aR = Rq->area * wrt_pow2(-2 * (int)Rn.level);
             wrt_v3 cR = wrt_quad_point(Rq, wrt_node_x0(Rn) + 0.5 * wrt_node_size(Rn), wrt_node_y0(Rn) + 0.5 * wrt_node_size(Rn));
             /* evaluation cells: the tree leaves under Sn, or Sn itself inside a leaf */
             size_t ns = 0;
@@ -334,15 +339,21 @@ static void sender_leaf_values(sender_data *d) {
                 size_t li = (size_t)lpos;
                 /* the total: one point at the centre of e for every link, so that at
                  * that point the closed forms of all links sum to the covered share */
-                double mid = side_integral(Sq, e, Rq, Rn, b->plane_eps, 1) / jr, best = mid;
+                double mid = side_integral(Sq, e, Rq, Rpoly, b->plane_eps, 1) / jr, best = mid;
                 /* the receiver's share: 2 x 2 points where the cells are near each other,
                  * on the smaller of the two (int_R sqrt(J_R) F(x -> e) du / sqrt(J_S)
                  * when that is the receiver cell) */
                 wrt_v3 ce = wrt_quad_point(Sq, wrt_node_x0(e) + 0.5 * wrt_node_size(e), wrt_node_y0(e) + 0.5 * wrt_node_size(e));
-                double ae = Sq->area * ldexp(1.0, -2 * (int)e.level);
-                if (v3_len(v3_sub(ce, cR)) < 3 * (sqrt(ae) + sqrt(aR)))
-                    best = ae > aR * (1 + 1e-9) ? side_integral(Rq, Rn, Sq, e, b->plane_eps, 4) / sqrt(jac_at(Sq, e))
-                                                : side_integral(Sq, e, Rq, Rn, b->plane_eps, 4) / jr;
+                double ae = Sq->area * wrt_pow2(-2 * (int)e.level);
+                if (v3_len(v3_sub(ce, cR)) < 3 * (sqrt(ae) + sqrt(aR))) {
+                    if (ae > aR * (1 + 1e-9)) {
+                        wrt_v3 epoly[4];
+                        wrt_cell_poly(Sq, e, epoly);
+                        best = side_integral(Rq, Rn, Sq, epoly, b->plane_eps, 4) / sqrt(jac_at(Sq, e));
+                    } else {
+                        best = side_integral(Sq, e, Rq, Rpoly, b->plane_eps, 4) / jr;
+                    }
+                }
                 vr[li] += vis * best;
                 if (Sn.level == 255) break;
             }
@@ -384,7 +395,7 @@ static void sender_analysis(sender_data *d) {
                 ch[q] = p >= 0 ? sum[p] : 0;
             }
             sum[find_u32(all, nall, tree[ti])] = ch[0] + ch[1] + ch[2] + ch[3];
-            double scale = ldexp(1.0, n.level);
+            double scale = wrt_pow2(n.level);
             for (int t = 1; t <= 3; t++) {
                 double w = 0;
                 for (int q = 0; q < 4; q++) w += wrt_haar_sign(t, q & 1, q >> 1) * ch[q];
@@ -592,7 +603,7 @@ static void balance_sender(size_t si, int th, void *user) {
     (void)th;
     bal_ctx *c = user;
     const bake_ctx *b = c->b;
-    int s = (int)si;
+    int s = c->order ? c->order[si] : (int)si;
     c->res[s] = NULL; c->nres[s] = 0;
     if (!c->nrefs[s] || (c->owner && c->owner[s] != c->rank)) return;
     sender_data d = {.c = c, .b = b, .s = s, .Sq = &b->quads[s], .rho = b->rho[s]};
@@ -670,7 +681,22 @@ int wrt_balance_run(const bake_ctx *b, size_t np, const int *pr, const int *ps, 
         c.owner = owner;
         c.rank = b->opt.dist->rank;
     }
+    /* the senders taken largest first (by their leaf links), so that the threads do not
+     * wait at the end on one large sender that came late; each sender's entries stay in
+     * its own slot, merged in sender order below, so the result is the same */
+    c.order = wrt_xmalloc((size_t)(nq ? nq : 1) * sizeof *c.order);
+    uint64_t *key = wrt_xmalloc((size_t)(nq ? nq : 1) * sizeof *key);
+    for (int s = 0; s < nq; s++) {
+        uint64_t leaves = 0;
+        for (size_t i = 0; i < c.nrefs[s]; i++) leaves += out[c.refs[s][i].pair].nleaf;
+        if (leaves > 0xFFFFFFFFu) leaves = 0xFFFFFFFFu;
+        key[s] = ((0xFFFFFFFFu - leaves) << 32) | (uint32_t)s; /* descending leaves, then index */
+    }
+    wrt_sort_u64(key, (size_t)nq);
+    for (int s = 0; s < nq; s++) c.order[s] = (int)(key[s] & 0xFFFFFFFFu);
+    free(key);
     wrt_parallel_for((size_t)nq, b->opt.threads, balance_sender, &c);
+    free(c.order);
     if (owner && wrt_dist_merge_triplets(b->opt.dist, owner, c.res, c.nres, (size_t)nq) != WRT_OK)
         atomic_store(b->cancel, 1); /* the bake stops after the balance (bake.c) */
     free(owner);
@@ -725,7 +751,7 @@ static double leaf_value(wrt_node sn, int st, wrt_node f) {
     if ((f.x >> (f.level - sn.level)) != sn.x || (f.y >> (f.level - sn.level)) != sn.y) return 0;
     if (!st) return sn.level ? 0 : 1;
     int d = f.level - sn.level - 1;
-    return ldexp(1.0, sn.level) * wrt_haar_sign(st, (f.x >> d) & 1, (f.y >> d) & 1);
+    return wrt_pow2(sn.level) * wrt_haar_sign(st, (f.x >> d) & 1, (f.y >> d) & 1);
 }
 
 static void balance_glossy_sender(size_t si, int th, void *user) {

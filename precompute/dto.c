@@ -99,8 +99,11 @@ double wrt_ff_point_polygon(wrt_v3 x, wrt_v3 n, const wrt_v3 *poly, int count) {
         }
     }
     if (nc < 3) return 0;
+    /* each corner normalised once (it was twice, once for each of its edges: the same
+     * values, half the square roots and divisions) */
+    for (int i = 0; i < nc; i++) clip[i] = v3_norm(clip[i]);
     double sum = 0;
-    for (int i = 0; i < nc; i++) sum += ff_edge(v3_norm(clip[i]), v3_norm(clip[(i + 1) % nc]), n);
+    for (int i = 0; i < nc; i++) sum += ff_edge(clip[i], clip[(i + 1) % nc], n);
     return fabs(sum) / (2 * WRT_PI);
 }
 
@@ -404,7 +407,7 @@ static void k_dir_add(pair_ctx *pc, wrt_v3 x, const wrt_v3 poly[4], int depth, d
     const wrt_quad *R = &pc->b->quads[pc->r], *S = &pc->b->quads[pc->s];
     double f = wrt_ff_point_polygon(x, R->n, poly, 4);
     if (f <= 0) return;
-    if (depth < 4 && f > 0.25 * ldexp(1.0, -2 * pc->ls)) {
+    if (depth < 4 && f > 0.25 * wrt_pow2(-2 * pc->ls)) {
         wrt_v3 m01 = v3_scale(v3_add(poly[0], poly[1]), 0.5), m12 = v3_scale(v3_add(poly[1], poly[2]), 0.5);
         wrt_v3 m23 = v3_scale(v3_add(poly[2], poly[3]), 0.5), m30 = v3_scale(v3_add(poly[3], poly[0]), 0.5);
         wrt_v3 mc = v3_scale(v3_add(m01, m23), 0.5);
@@ -453,14 +456,14 @@ static int k_directions(pair_ctx *pc, wrt_v3 x, wrt_node sn, int t) {
 static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_samples *ls, int ns, int swapped) {
     const bake_ctx *b = pc->b;
     const wrt_quad *R = &b->quads[pc->r], *S = &b->quads[pc->s];
-    double scale = ldexp(1.0, (int)sn.level - (int)rn.level) / ns;
+    double scale = wrt_pow2((int)sn.level - (int)rn.level) / ns;
     size_t bi = get_block(pc, rn, sn);
     block *bl = &pc->blocks[bi];
     if (pc->nch == 1 && !pc->kmode) {
         /* c[i][j] = 2^ls 2^-lr / N sum_k sign_i(qr_k) sqrt(J_R) sum_q sign_j(q) G_kq; with
          * `swapped` the samples were taken on S and the closed form on R: the kernel is
          * symmetric, so the block is the transpose, with the levels exchanged */
-        if (swapped) scale = ldexp(1.0, (int)rn.level - (int)sn.level) / ns;
+        if (swapped) scale = wrt_pow2((int)rn.level - (int)sn.level) / ns;
         for (int k = 0; k < ns; k++) {
             int q = ls->qr[k];
             for (int i = 0; i < 4; i++) {
@@ -560,8 +563,8 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
      * directions with a symmetric kernel, so its roles can be exchanged freely. */
     int swapped = 0;
     if (pc->sym) {
-        double ar = b->quads[pc->r].area * ldexp(1.0, -2 * (int)rn.level);
-        double as = b->quads[pc->s].area * ldexp(1.0, -2 * (int)sn.level);
+        double ar = b->quads[pc->r].area * wrt_pow2(-2 * (int)rn.level);
+        double as = b->quads[pc->s].area * wrt_pow2(-2 * (int)sn.level);
         swapped = ar > as * (1 + 1e-9);
     }
     int invisible = swapped ? eval_link(pc, pc->s, pc->r, sn, rn, &ls, ns) : eval_link(pc, pc->r, pc->s, rn, sn, &ls, ns);
@@ -634,11 +637,11 @@ static void refine(pair_ctx *pc, wrt_node rn, wrt_node sn) {
      * receiver cell more than one sender angular cell (projected solid angle pi 4^-L);
      * weighted like the spreads above, since next to a shared edge a cell of any size
      * covers a large solid angle and no spatial refinement can resolve it */
-    if (pc->lr && sn.level < maxl && fmaxall * wrt_node_size(sn) > ldexp(1.0, -2 * pc->lr)) ref_s = 1;
+    if (pc->lr && sn.level < maxl && fmaxall * wrt_node_size(sn) > wrt_pow2(-2 * pc->lr)) ref_s = 1;
     if (pc->ls && rn.level < maxl) {
         const wrt_quad *R = &b->quads[pc->r], *S = &b->quads[pc->s];
-        double ar = R->area * ldexp(1.0, -2 * (int)rn.level), as = S->area * ldexp(1.0, -2 * (int)sn.level);
-        if (fsum / ns * ar / as * wrt_node_size(rn) > ldexp(1.0, -2 * pc->ls)) ref_r = 1;
+        double ar = R->area * wrt_pow2(-2 * (int)rn.level), as = S->area * wrt_pow2(-2 * (int)sn.level);
+        if (fsum / ns * ar / as * wrt_node_size(rn) > wrt_pow2(-2 * pc->ls)) ref_r = 1;
     }
     if (!ref_r && !ref_s) {
         pc->tc->links_leaf++;

@@ -67,8 +67,8 @@ mutation gauss-nodes: the 2 x 2 Gauss-Legendre nodes of a receiver quadrant move
 
 mutation swapped-levels: a swapped leaf keeps the unswapped level scale
   file precompute/dto.c
-  find if (swapped) scale = ldexp(1.0, (int)rn.level - (int)sn.level) / ns;
-  repl if (0) scale = ldexp(1.0, (int)rn.level - (int)sn.level) / ns;
+  find if (swapped) scale = wrt_pow2((int)rn.level - (int)sn.level) / ns;
+  repl if (0) scale = wrt_pow2((int)rn.level - (int)sn.level) / ns;
   run test_bake test_form_factors test_distribution
 
 mutation transposed-albedo: the symmetric entry T[s][r] takes the sender's albedo, not the receiver's
@@ -140,8 +140,8 @@ mutation series-stop: the series stops when the last term is 1% of the sum
 
 mutation compress-power: compression hands a column's dropped power to its kept entries twice
   file precompute/sparse.c
-  find acc[3 * i + ch] = v + lost * fabs(v) / wsum;
-  repl acc[3 * i + ch] = v + 2 * lost * fabs(v) / wsum;
+  find acc[ACC_STRIDE * i + ch] = v + lost * fabs(v) / wsum;
+  repl acc[ACC_STRIDE * i + ch] = v + 2 * lost * fabs(v) / wsum;
   run test_bake test_compression_keeps_power test_small_quads_furnace test_coloured_furnace
   run test_stress test_furnace test_furnace_occluded
   run test_accuracy
