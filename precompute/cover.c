@@ -17,10 +17,24 @@
  * A point is covered when it is inside closed geometry: every one of five rays from it
  * (along the normal and four at 60 degrees from it) first meets the back of a quad.
  * A point under a single-sided panel or in a narrow gap sees out along some ray and is
- * not covered. Depends on bake_ctx.h (Embree's scene of the quads). */
+ * not covered. Depends on bake_ctx.h (Embree's scene of the quads); the balance (balance.c)
+ * uses its first-hit query too. */
 #include <string.h>
 
 #include "cover.h"
+
+int wrt_bake_first_hit(const bake_ctx *b, wrt_v3 o, wrt_v3 dir) {
+    struct RTCIntersectContext ictx;
+    rtcInitIntersectContext(&ictx);
+    struct RTCRayHit rh;
+    memset(&rh, 0, sizeof rh);
+    rh.ray.org_x = (float)o.x; rh.ray.org_y = (float)o.y; rh.ray.org_z = (float)o.z;
+    rh.ray.dir_x = (float)dir.x; rh.ray.dir_y = (float)dir.y; rh.ray.dir_z = (float)dir.z;
+    rh.ray.tnear = 0; rh.ray.tfar = INFINITY; rh.ray.mask = 0xFFFFFFFF;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(b->rtc, &ictx, &rh);
+    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? -1 : (int)rh.hit.primID;
+}
 
 int wrt_bake_covered(const bake_ctx *b, wrt_v3 o, const wrt_quad *q) {
     for (int i = 0; i < 5; i++) {
@@ -30,17 +44,8 @@ int wrt_bake_covered(const bake_ctx *b, wrt_v3 o, const wrt_quad *q) {
             wrt_v3 t = v3_add(v3_scale(q->t, cos(a)), v3_scale(q->b, sin(a)));
             d = v3_norm(v3_add(v3_scale(q->n, 0.5), v3_scale(t, 0.8660254037844386)));
         }
-        struct RTCIntersectContext ictx;
-        rtcInitIntersectContext(&ictx);
-        struct RTCRayHit rh;
-        memset(&rh, 0, sizeof rh);
-        rh.ray.org_x = (float)o.x; rh.ray.org_y = (float)o.y; rh.ray.org_z = (float)o.z;
-        rh.ray.dir_x = (float)d.x; rh.ray.dir_y = (float)d.y; rh.ray.dir_z = (float)d.z;
-        rh.ray.tnear = 0; rh.ray.tfar = INFINITY; rh.ray.mask = 0xFFFFFFFF;
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(b->rtc, &ictx, &rh);
-        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return 0;
-        if (!(v3_dot(d, b->quads[rh.hit.primID].n) > 0)) return 0;
+        int hit = wrt_bake_first_hit(b, o, d);
+        if (hit < 0 || !(v3_dot(d, b->quads[hit].n) > 0)) return 0;
     }
     return 1;
 }

@@ -12,6 +12,9 @@
 /* sender points drawn in turn while they are covered, at most (dto.c) */
 #define WRT_COVER_REDRAWS 8
 
+/* The quad the ray from o along the unit dir meets first, or -1 (either side). */
+int wrt_bake_first_hit(const bake_ctx *b, wrt_v3 o, wrt_v3 dir);
+
 /* 1 if the point o (already lifted off quad q along its normal) is inside closed
  * geometry: five rays from it all meet the back of a quad first. */
 int wrt_bake_covered(const bake_ctx *b, wrt_v3 o, const wrt_quad *q);
