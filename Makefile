@@ -245,6 +245,7 @@ TEST_PARTS_test_reference := verify formats common
 TEST_PARTS_test_accuracy := verify bake runtime formats common
 TEST_PARTS_test_stress := verify bake runtime formats common
 TEST_PARTS_test_triangles := bake runtime formats common
+TEST_PARTS_test_cover := bake formats common
 TEST_PARTS_test_emit := verify bake runtime formats common
 TEST_PARTS_test_texture := verify bake runtime formats common
 TEST_PARTS_test_render := display cli formats common

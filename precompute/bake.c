@@ -17,6 +17,7 @@
 #include "../common/brdf_table.h"
 #include "../common/texture.h"
 #include "../common/rt_scene.h"
+#include "cover.h"
 #include "dto.h"
 #include "balance.h"
 #include "series.h"
@@ -335,7 +336,7 @@ static wrt_status bake_embree(bake_ctx *b) {
     b->dev = rs.dev;
     b->rtc = rs.scene;
     b->ray_eps = rs.eps;
-
+    b->cover = wrt_bake_cover_flags(b);
     return WRT_OK;
 }
 
@@ -387,7 +388,8 @@ static void bake_pairs(const bake_ctx *b, const wrt_scene *scene, wrt_bake_count
             uint8_t code = codes ? codes[(size_t)(r % block) * (size_t)b->nq + (size_t)s]
                                  : wrt_dist_on(b->opt.dist) ? 0 : pair_code(b, r, s);
             if (!code) { C->pairs_skipped_facing++; continue; }
-            int oc = code == 3;
+            /* a quad with covered parts (cover.c) needs its visibility sampled (dto.c) */
+            int oc = code == 3 || b->cover[r] || b->cover[s];
             if (np + 1 >= cap) {
                 cap *= 2;
                 pr = wrt_xrealloc(pr, cap * sizeof *pr); ps = wrt_xrealloc(ps, cap * sizeof *ps);
@@ -743,7 +745,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         if (glossy || b.opt.gathered) {
             rtcReleaseScene(b.rtc);
             rtcReleaseDevice(b.dev);
-            free(b.quads); free(b.rho); free(b.klevel); free(b.kbmax);
+            free(b.quads); free(b.rho); free(b.klevel); free(b.kbmax); free(b.cover);
             for (int m = 0; m < scene->nmaterials; m++) free(b.btilde[m]);
             free(b.btilde);
             wrt_bake_result_free(res);
@@ -801,7 +803,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     }
     rtcReleaseScene(b.rtc);
     rtcReleaseDevice(b.dev);
-    free(b.quads); free(b.rho); free(b.klevel); free(b.kbmax);
+    free(b.quads); free(b.rho); free(b.klevel); free(b.kbmax); free(b.cover);
     for (int m = 0; m < scene->nmaterials; m++) free(b.btilde[m]);
     free(b.btilde);
     if (b.opt.clusters) { /* the tree goes with the result when the operator is in its basis */

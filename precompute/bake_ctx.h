@@ -41,6 +41,7 @@ typedef struct bake_ctx {
     const struct wrt_clusters *cl;
     int balance_open;
     double depth_area;      /* depth_share x the scene's area (0: the share rule off; dto.c) */
+    uint8_t *cover;         /* per quad: 1 if some part is inside closed geometry (cover.c) */
 } bake_ctx;
 
 typedef struct bake_thread_counters {

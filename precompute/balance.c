@@ -41,6 +41,7 @@
 #include "../common/threads.h"
 #include "../common/brdf_table.h"
 #include "balance.h"
+#include "cover.h"
 #include "links.h"
 #include "dist.h"
 
@@ -119,17 +120,8 @@ double *wrt_power_weights(const bake_ctx *b, const uint64_t *fkeys, uint32_t nf)
 
 /* 1 if the ray from o along dir meets the front of a quad other than `self` */
 static int caught(const bake_ctx *b, wrt_v3 o, wrt_v3 dir, int self) {
-    struct RTCIntersectContext ictx;
-    rtcInitIntersectContext(&ictx);
-    struct RTCRayHit rh;
-    memset(&rh, 0, sizeof rh);
-    rh.ray.org_x = (float)o.x; rh.ray.org_y = (float)o.y; rh.ray.org_z = (float)o.z;
-    rh.ray.dir_x = (float)dir.x; rh.ray.dir_y = (float)dir.y; rh.ray.dir_z = (float)dir.z;
-    rh.ray.tnear = 0; rh.ray.tfar = INFINITY; rh.ray.mask = 0xFFFFFFFF;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(b->rtc, &ictx, &rh);
-    return rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && (int)rh.hit.primID != self &&
-           v3_dot(dir, b->quads[rh.hit.primID].n) < 0;
+    int hit = wrt_bake_first_hit(b, o, dir);
+    return hit >= 0 && hit != self && v3_dot(dir, b->quads[hit].n) < 0;
 }
 
 

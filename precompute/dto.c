@@ -54,6 +54,7 @@
 
 #include "../common/basis.h"
 #include "../common/reconstruct.h"
+#include "cover.h"
 #include "dto.h"
 
 /* ---- Lambert's closed form, clipped to the half-space in front of x ---- */
@@ -151,6 +152,8 @@ typedef struct pair_ctx {
     int r, s;
     int occluded;            /* some quad may lie between R and S */
     int sym;                 /* diffuse pair: links serve both directions (reciprocity) */
+    int dual;                /* sym, and a quad has covered parts (cover.c): each direction keeps its
+                              * own visibility, channel 0 for R <- S, 1 for S <- R */
     int kmode;               /* the first-bounce operator K: sender's outgoing functions, no albedo */
     double *kval; int *kidx; uint8_t *kseen; int nk; /* K: k_directions' scratch, nang each */
     double rho_max;
@@ -293,6 +296,7 @@ static int angular_values(int L, double a, double b, int *idx, double *val) {
 
 typedef struct link_samples {
     double G[MAX_RS][4];   /* visible form factor x_k -> sender quadrant q, times 1/sqrt(J_S) */
+    double G2[MAX_RS][4];  /* dual links: the same with x_k's side sending (cover.c) */
     double F[MAX_RS][4];   /* the same as a plain form factor (for the oracle) */
     int qr[MAX_RS];        /* receiver quadrant of x_k */
     double jr[MAX_RS];     /* sqrt(J_R) at x_k */
@@ -330,6 +334,14 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
     int any_geom = 0, any_vis = 0;
     int k = 0;
     ls->fgeom = ls->fvis = 0;
+    /* covered points (cover.c): a sender point inside closed geometry is no sample of its
+     * cell's visibility (the cell's mean already counts it dark). Where the far side sends
+     * (G), a covered target is replaced by another point of its quadrant; where x_k's side
+     * sends (G2, dual links), the quadrant's exposed samples stand for it: G2 is scaled by
+     * the quadrant's weight over its exposed samples' */
+    int redraw = pc->occluded && (!pc->sym || pc->dual) && b->cover && b->cover[si];
+    int xcov_test = pc->dual && b->cover[ri];
+    double wq_all[4] = {0, 0, 0, 0}, wq_exp[4] = {0, 0, 0, 0};
     for (int q = 0; q < 4; q++) {
         int cx = q & 1, cy = q >> 1;
         for (int s = 0; s < per_q; s++, k++) {
@@ -357,10 +369,14 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
             ls->qr[k] = q;
             ls->x[k] = x;
             ls->jr[k] = sqrt(wrt_quad_jacobian(R, u, v)) * wq;
+            if (pc->dual) {
+                wq_all[q] += ls->jr[k];
+                if (!xcov_test || !wrt_bake_covered(b, v3_mad(x, R->n, b->ray_eps), R)) wq_exp[q] += ls->jr[k];
+            }
             double sd = v3_dot(v3_sub(x, S->p[0]), S->n), fq[4];
             int shared = sd > b->plane_eps && ff_point_quadrants(x, R->n, sgrid, fq);
             for (int t = 0; t < 4; t++) {
-                ls->G[k][t] = ls->F[k][t] = 0;
+                ls->G[k][t] = ls->F[k][t] = ls->G2[k][t] = 0;
                 ls->d[k][t] = v3_norm(v3_sub(scentre[t], x));
                 if (sd <= b->plane_eps) { pc->tc->rays_skipped_facing++; continue; }
                 double f = shared ? fq[t] : wrt_ff_point_polygon(x, R->n, spoly[t], 4);
@@ -377,6 +393,17 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
                     wrt_v3 y = wrt_quad_point(S, tu, tv);
                     double t0 = wrt_now();
                     int blocked = wrt_bake_occluded(b, v3_mad(x, R->n, b->ray_eps), v3_mad(y, S->n, b->ray_eps));
+                    int blocked_far = blocked; /* the visibility where the far side sends */
+                    for (int tr = 0; blocked_far && redraw && tr < WRT_COVER_REDRAWS &&
+                                     wrt_bake_covered(b, v3_mad(y, S->n, b->ray_eps), S); tr++) {
+                        gu = fmod(gu + 0.618033988749895, 1.0);
+                        gv = fmod(gv + 0.754877666246693, 1.0);
+                        y = wrt_quad_point(S, wrt_node_x0(c) + gu * wrt_node_size(c), wrt_node_y0(c) + gv * wrt_node_size(c));
+                        blocked_far = wrt_bake_occluded(b, v3_mad(x, R->n, b->ray_eps), v3_mad(y, S->n, b->ray_eps));
+                        pc->tc->rays_traced++;
+                    }
+                    if (pc->dual && blocked && !blocked_far) { any_vis = 1; ls->G[k][t] = f * sinvj[t]; }
+                    if (!pc->dual) blocked = blocked_far;
                     pc->tc->t_rays += wrt_now() - t0;
                     pc->tc->rays_traced++;
                     if (blocked) continue;
@@ -386,10 +413,19 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
                 any_vis = 1;
                 ls->fvis += f;
                 ls->F[k][t] = f;
-                ls->G[k][t] = f * sinvj[t];
+                ls->G[k][t] = ls->G2[k][t] = f * sinvj[t];
             }
         }
     }
+    if (pc->dual)
+        for (k = 0; k < 4 * per_q; k++) {
+            int q = ls->qr[k];
+            double sc = wq_exp[q] > 0 ? wq_all[q] / wq_exp[q] : 0;
+            for (int t = 0; t < 4; t++) {
+                ls->G2[k][t] *= sc;
+                any_vis |= ls->G2[k][t] != 0;
+            }
+        }
     return any_geom && !any_vis;
 }
 
@@ -459,11 +495,13 @@ static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_sa
     double scale = wrt_pow2((int)sn.level - (int)rn.level) / ns;
     size_t bi = get_block(pc, rn, sn);
     block *bl = &pc->blocks[bi];
-    if (pc->nch == 1 && !pc->kmode) {
+    if ((pc->nch == 1 || pc->dual) && !pc->kmode) {
         /* c[i][j] = 2^ls 2^-lr / N sum_k sign_i(qr_k) sqrt(J_R) sum_q sign_j(q) G_kq; with
          * `swapped` the samples were taken on S and the closed form on R: the kernel is
          * symmetric, so the block is the transpose, with the levels exchanged */
         if (swapped) scale = wrt_pow2((int)rn.level - (int)sn.level) / ns;
+        /* a dual link (cover.c): G, the far side sending, is channel 0 (R <- S) unless the
+         * samples were taken on S; G2 the other channel */
         for (int k = 0; k < ns; k++) {
             int q = ls->qr[k];
             for (int i = 0; i < 4; i++) {
@@ -471,8 +509,13 @@ static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_sa
                 for (int j = 0; j < 4; j++) {
                     double acc = 0;
                     for (int t = 0; t < 4; t++) acc += wrt_haar_sign(j, t & 1, t >> 1) * ls->G[k][t];
-                    if (swapped) BV(pc, bl, j, i, 0, 0) += si * acc;
+                    if (swapped) BV(pc, bl, j, i, 0, pc->dual) += si * acc;
                     else BV(pc, bl, i, j, 0, 0) += si * acc;
+                    if (!pc->dual) continue;
+                    acc = 0;
+                    for (int t = 0; t < 4; t++) acc += wrt_haar_sign(j, t & 1, t >> 1) * ls->G2[k][t];
+                    if (swapped) BV(pc, bl, j, i, 0, 0) += si * acc;
+                    else BV(pc, bl, i, j, 0, 1) += si * acc;
                 }
             }
         }
@@ -701,7 +744,9 @@ static void push_up(pair_ctx *pc, int side) {
 }
 
 void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counters *tc, pair_out *out) {
-    pair_ctx pc = {.b = b, .r = r, .s = s, .occluded = flags & 1, .tc = tc};
+    /* a quad with covered parts (cover.c) has its visibility sampled, whatever lies between */
+    int cov = b->cover && (b->cover[r] || b->cover[s]);
+    pair_ctx pc = {.b = b, .r = r, .s = s, .occluded = (flags & 1) || cov, .tc = tc};
     int sym = (flags & 2) != 0;
     const double *rho = b->rho[s], *rho_r = b->rho[r];
     pc.rho_max = fmax(rho[0], fmax(rho[1], rho[2]));
@@ -716,6 +761,8 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
     pc.nas = 1 << (2 * pc.ls);
     pc.nang = pc.nar * pc.nas;
     pc.nch = pc.kmode ? 1 : (pc.lr || pc.ls) ? 3 : 1;
+    pc.dual = sym && cov;
+    if (pc.dual) pc.nch = 2;
     pc.bsize = 16 * (size_t)pc.nang * pc.nch;
     if (pc.kmode) {
         pc.kval = wrt_xcalloc((size_t)pc.nang, sizeof *pc.kval);
@@ -758,7 +805,7 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
                         if (pc.kmode) {
                             v[0] = v[1] = v[2] = BV(&pc, bl, ri, sj, a, 0);
                             wk = kbmax[is];
-                        } else if (pc.nch == 1) {
+                        } else if (pc.nch == 1 || pc.dual) {
                             double g = BV(&pc, bl, ri, sj, a, 0);
                             for (int ch = 0; ch < 3; ch++) v[ch] = g * rho[ch];
                         } else {
@@ -780,7 +827,7 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
                         if (sym) {
                             /* T[s][r] = rho_R K[r][s]: the kernel is symmetric under basis.h's
                              * normalisation, so the transposed entry needs no integral */
-                            double g = BV(&pc, bl, ri, sj, a, 0), mt = 0, vt[3];
+                            double g = BV(&pc, bl, ri, sj, a, pc.dual), mt = 0, vt[3];
                             for (int ch = 0; ch < 3; ch++) { vt[ch] = g * rho_r[ch]; mt = fmax(mt, fabs(vt[ch])); }
                             if (mt != 0 && mt / wfloor >= b->entry_floor) {
                                 pair_entry *e = &out->e[out->count++];
