@@ -143,6 +143,15 @@ one_line "wrt-bake --depth-share out of range" 1 wrt-bake "bad value for --depth
 "$build/wrt-bake" "$scene" -o "$tmp/x.gto" --quality 1 --depth-share 0 --json >"$tmp/ds.json" 2>/dev/null &&
     grep -q '"depth_share":0[,}]' "$tmp/ds.json" && ok "--depth-share 0: accepted, recorded as off" ||
     ko "--depth-share 0: accepted, recorded as off"
+# --small-lost: in --help, a value out of [0, 1] refused with nothing written, 0 (always) recorded
+"$build/wrt-bake" --help | grep -q -- "--small-lost F" && ok "--help lists --small-lost" || ko "--help lists --small-lost"
+rm -f "$tmp/x.gto"
+one_line "wrt-bake --small-lost out of range" 1 wrt-bake "bad value for --small-lost: '2' \(a number in \[0, 1\]\)$" \
+    "$scene" -o "$tmp/x.gto" --small-lost 2
+[ ! -e "$tmp/x.gto" ] && ok "--small-lost 2: nothing written" || ko "--small-lost 2: nothing written"
+"$build/wrt-bake" "$scene" -o "$tmp/x.gto" --quality 1 --small-lost 0 --json >"$tmp/sl.json" 2>/dev/null &&
+    grep -q '"small_lost":0[,}]' "$tmp/sl.json" && ok "--small-lost 0: accepted, recorded" ||
+    ko "--small-lost 0: accepted, recorded"
 
 # no display: exit 6
 expect "wrt-play without a display: exit 6" 6 "display|window" env -u DISPLAY -u WAYLAND_DISPLAY "$build/wrt-play" "$gto"
