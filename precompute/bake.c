@@ -87,6 +87,7 @@ void wrt_bake_defaults(wrt_bake_options *o) {
      * series_small_area): the icosphere furnace of 1,280 triangles at quality 1 G - I -99.2%
      * -> the DTO's series; the assets at quality 5 the same bytes. Negative: off. */
     if (o->small_share == 0) o->small_share = 10;
+    if (o->small_lost == 0) o->small_lost = WRT_SMALL_LOST_DEFAULT;
     /* the oracle's share rule (dto.c refine(), wrt_depth_weight): a quad under this share of
      * the scene's area has its detail weighed by sqrt(share / depth_share). 1e-3 is under
      * every exchanging quad of the assets (cornell's smallest 1.4e-2, glossy's 1.3e-2, the

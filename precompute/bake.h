@@ -84,7 +84,13 @@ typedef struct wrt_bake_options {
                             * final) scaled by its share / (small_share x eps_compress): an entry is then weighed as a kernel
                             * (form factor per sender area), so a closed scene of N small
                             * elements, whose entries are each about rho / N, keeps its
-                            * multi-bounce light at any N (series.c); 0: the default 10; < 0: off */
+                            * multi-bounce light at any N (series.c); 0: the default 10; < 0: off.
+                            * Only a quad's scaling function (its mean) is such a sender, and
+                            * only its entries at rows that carry power are held so */
+    double small_lost;     /* the small senders' rule applies to a column only where the plain
+                            * threshold would drop more than this share of the column's power
+                            * (series.c series_small_area); 0: the default
+                            * WRT_SMALL_LOST_DEFAULT; < 0: whenever the sender is small */
     double depth_share;    /* the oracle's share rule (dto.c refine()): a quad holding less than
                             * depth_share of the scene's area has the kernel's spreads over its
                             * cells weighted by sqrt(its share / depth_share), so small
@@ -99,6 +105,10 @@ typedef struct wrt_bake_options {
 
 /* the default depth_share (docs/bench.md "The oracle's depth by the scene's share") */
 #define WRT_DEPTH_SHARE_DEFAULT 1e-3
+
+/* the default small_lost: a small sender's column keeps the plain threshold where that
+ * drops at most 5% of its power (docs/algorithm.md "Small senders") */
+#define WRT_SMALL_LOST_DEFAULT 0.05
 
 /* --clusters' default series_coarse (docs/clusters.md "The series on a coarser cut") */
 #define WRT_SERIES_COARSE_CLUSTERS 1e-3

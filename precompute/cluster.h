@@ -64,9 +64,10 @@ uint64_t wrt_clusters_pushed_entries(const wrt_clusters *cl);
  * (cluster_ops.c). Replaces *M. */
 void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf, wrt_csc *M);
 /* The series' weights of the root slots for the tree functions: areas of their nodes
- * (rw = 1/sqrt(a), cw = sqrt(a)) and the power weights transformed (cluster_ops.c). */
+ * (rw = 1/sqrt(a), cw = sqrt(a)), the small senders' factor 1 there (boost, may be NULL:
+ * a node is not a small sender) and the power weights transformed (cluster_ops.c). */
 void wrt_clusters_series_weights(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
-                                 double *rw, double *cw, double *pw);
+                                 double *rw, double *cw, double *pw, double *boost);
 /* The root slot (function index) of every quad; malloc'd (cluster_ops.c). */
 uint32_t *wrt_clusters_root_index(const uint64_t *fkeys, uint32_t nf, uint32_t nq);
 

@@ -350,15 +350,17 @@ void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint6
 }
 
 void wrt_clusters_series_weights(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
-                                 double *rw, double *cw, double *pw) {
+                                 double *rw, double *cw, double *pw, double *boost) {
     const wrt_ctree *t = &cl->tree;
     uint32_t *root = wrt_clusters_root_index(fkeys, nf, (uint32_t)b->nq);
     for (uint32_t p = 0; p < t->nnodes; p++) {
         if (t->left[p] < 0) continue;
         uint32_t f = root[t->slot[p]];
         rw[f] = 1 / sqrt(t->area[p]); cw[f] = sqrt(t->area[p]);
+        if (boost) boost[f] = 1;
     }
     rw[root[t->root_slot]] = 1 / sqrt(t->area[0]); cw[root[t->root_slot]] = sqrt(t->area[0]);
+    if (boost) boost[root[t->root_slot]] = 1;
     double *scratch = wrt_xmalloc(2 * (size_t)t->nnodes * sizeof *scratch);
     wrt_ctree_forward_d(t, root, pw, 1, scratch);
     free(scratch);

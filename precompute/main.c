@@ -86,7 +86,10 @@ static void usage(FILE *f) {
         "  --small-share F        a sender quad under F x eps_compress of the scene's area has\n"
         "                         its compression threshold scaled by its share over that\n"
         "                         (many small elements keep their multi-bounce light;\n"
-        "                         default 10, 0: off)\n"
+        "                         default 10, 0: off); only a quad's mean is such a sender,\n"
+        "                         toward the rows that carry power\n"
+        "  --small-lost F         ... and only where the plain threshold would drop more\n"
+        "                         than F of its column's power (default 0.05; 0: always)\n"
         "  --depth-share S        the oracle weighs a quad's detail by its share of the\n"
         "                         scene's area: under S, the kernel's spread over its cells\n"
         "                         is weighted by sqrt(share / S), so small elements stop at\n"
@@ -222,6 +225,7 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
     if (o->series_coarse > 0) fprintf(f, ",\"series_coarse\":%.6g", o->series_coarse);
     /* only when not the default 10 (the default bake's bytes unchanged); 0: off */
     if (o->small_share != 10) fprintf(f, ",\"small_share\":%.6g", fmax(o->small_share, 0));
+    if (o->small_lost != WRT_SMALL_LOST_DEFAULT) fprintf(f, ",\"small_lost\":%.6g", fmax(o->small_lost, 0));
     /* only when not the default (the default bake's bytes unchanged); 0: off */
     if (o->depth_share != WRT_DEPTH_SHARE_DEFAULT) fprintf(f, ",\"depth_share\":%.6g", fmax(o->depth_share, 0));
     fputc('}', f);
@@ -388,6 +392,11 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--small-share")) {
             ok = opt_num(a, v, 0, 1e6, &o->small_share);
             if (ok && o->small_share == 0) o->small_share = -1; /* 0 on the command line: off */
+            i++;
+        }
+        else if (!strcmp(a, "--small-lost")) {
+            ok = opt_num(a, v, 0, 1, &o->small_lost);
+            if (ok && o->small_lost == 0) o->small_lost = -1; /* 0 on the command line: always */
             i++;
         }
         else if (!strcmp(a, "--no-tail")) o->no_tail = 1;

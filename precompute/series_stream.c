@@ -98,7 +98,9 @@ int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3]
         if (P) acc = wrt_csc_sumsq(&m, acc);
         /* the block's columns compressed with their own column weights */
         wrt_csc_weights wb = {0};
-        if (W) wb = (wrt_csc_weights){W->row_w, W->col_w ? W->col_w + j0 : NULL, W->power_w};
+        if (W)
+            wb = (wrt_csc_weights){W->row_w, W->col_w ? W->col_w + j0 : NULL, W->power_w,
+                                   W->boost_w ? W->boost_w + j0 : NULL, W->boost_lost};
         wrt_csc_compress(&m, drop, W ? &wb : NULL);
         if (out->nnz + m.nnz > cap) {
             while (cap < out->nnz + m.nnz) cap *= 2;

@@ -186,7 +186,33 @@ typedef struct mul_ctx {
     uint32_t **list;    /* per thread: touched rows */
     const double *power_w;
     int avx;            /* the scatter's 4-wide vectors in one AVX instruction */
+    const double *boost_w;
+    double boost_lost;
 } mul_ctx;
+
+/* The small senders' factor of a column (wrt_csc_weights boost_w): 1, or boost when the
+ * entries under the plain test drop more than boost_lost of the column's power. The n
+ * entries are at rows rows[t]; their values are acc[ACC_STRIDE rows[t]] (a product's accumulator)
+ * or, acc NULL, val[3 t] (a stored column). */
+static double column_boost(double boost, double boost_lost, const uint32_t *rows, uint64_t n, const double *acc,
+                           const float *val, double cw, const double *row_w, const double *pw, double drop) {
+    if (!(boost > 1) || !pw) return 1;
+    double all = 0, lost = 0;
+    for (uint64_t t = 0; t < n; t++) {
+        uint32_t i = rows[t];
+        if (pw[i] == 0) continue;
+        double m0, m1, m2;
+        if (acc) {
+            m0 = fabs(acc[ACC_STRIDE * (size_t)i]); m1 = fabs(acc[ACC_STRIDE * (size_t)i + 1]);
+            m2 = fabs(acc[ACC_STRIDE * (size_t)i + 2]);
+        }
+        else { m0 = fabs(val[3 * t]); m1 = fabs(val[3 * t + 1]); m2 = fabs(val[3 * t + 2]); }
+        double p = pw[i] * (m0 + m1 + m2), m = fmax(m0, fmax(m1, m2));
+        all += p;
+        if (!(m > 0 && m * cw * (row_w ? row_w[i] : 1.0) >= drop)) lost += p;
+    }
+    return lost > boost_lost * all ? boost : 1;
+}
 
 /* Compression without losing power: the power (sum of power_w x entry) of the entries a
  * column drops is given, channel by channel, to its kept entries that carry power and
@@ -308,12 +334,14 @@ static void mul_column(size_t j, int th, void *user) {
     uint32_t kept = 0, kept_power = 0, best = UINT32_MAX;
     double cw = c->col_w ? c->col_w[j] : 1.0, lost[3] = {0, 0, 0}, bestw = 0, bestv[3] = {0, 0, 0};
     const double *pw = c->power_w;
+    double bst = c->boost_w ? column_boost(c->boost_w[j], c->boost_lost, list, nl, acc, NULL, cw, c->row_w, pw, c->drop)
+                            : 1;
     for (uint32_t t = 0; t < nl; t++) {
         uint32_t i = list[t];
         double m0 = fabs(acc[ACC_STRIDE * i]), m1 = fabs(acc[ACC_STRIDE * i + 1]), m2 = fabs(acc[ACC_STRIDE * i + 2]);
         double m = m0 > m1 ? m0 : m1;
         m = m > m2 ? m : m2;
-        if (m > 0 && m * cw * (c->row_w ? c->row_w[i] : 1.0) >= c->drop) {
+        if (m > 0 && m * cw * (bst > 1 && pw[i] != 0 ? bst : 1) * (c->row_w ? c->row_w[i] : 1.0) >= c->drop) {
             list[kept++] = i;
             kept_power += pw && pw[i] != 0;
         } else {
@@ -382,7 +410,10 @@ void wrt_sort_u64(uint64_t *a, size_t n) {
 static mul_ctx mul_ctx_make(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int t) {
     uint32_t n = a->n;
     mul_ctx c = {.a = a, .b = b, .drop = drop};
-    if (w) { c.row_w = w->row_w; c.col_w = w->col_w; c.power_w = w->power_w; }
+    if (w) {
+        c.row_w = w->row_w; c.col_w = w->col_w; c.power_w = w->power_w;
+        c.boost_w = w->boost_w; c.boost_lost = w->boost_lost;
+    }
     c.out = wrt_xcalloc(n ? n : 1, sizeof *c.out);
 #if defined(__x86_64__) && defined(__GNUC__)
     c.avx = __builtin_cpu_supports("avx");
@@ -598,10 +629,12 @@ void wrt_csc_add3_into(wrt_csc *a, const wrt_csc *b, const double s[3]) {
  * destination may be the source (in place: k <= start, each entry read before it is
  * overwritten); drow NULL only counts. Returns the new k. */
 static uint64_t compress_column(const uint32_t *srow, const float *sval, uint64_t start, uint64_t end, uint32_t *drow,
-                                float *dval, uint64_t k, double cw, double drop, const wrt_csc_weights *w) {
+                                float *dval, uint64_t k, double cw, double boost, double drop, const wrt_csc_weights *w) {
     uint64_t first = k, best = UINT64_MAX;
     double lost[3] = {0, 0, 0};
     const double *pw = w ? w->power_w : NULL;
+    double bst = column_boost(boost, w ? w->boost_lost : 0, &srow[start], end - start, NULL, &sval[3 * start], cw,
+                              w ? w->row_w : NULL, pw, drop);
     if (pw) {
         /* if no entry that carries power would survive, the largest of them stays */
         double bestw = 0;
@@ -610,7 +643,7 @@ static uint64_t compress_column(const uint32_t *srow, const float *sval, uint64_
             const float *v = &sval[3 * i];
             double mx = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
             if (pw[srow[i]] == 0) continue;
-            if (mx > 0 && mx * cw * (w->row_w ? w->row_w[srow[i]] : 1.0) >= drop) any = 1;
+            if (mx > 0 && mx * cw * bst * (w->row_w ? w->row_w[srow[i]] : 1.0) >= drop) any = 1;
             else if (pw[srow[i]] * (fabs(v[0]) + fabs(v[1]) + fabs(v[2])) > bestw) {
                 bestw = pw[srow[i]] * (fabs(v[0]) + fabs(v[1]) + fabs(v[2]));
                 best = i;
@@ -621,7 +654,8 @@ static uint64_t compress_column(const uint32_t *srow, const float *sval, uint64_
     for (uint64_t i = start; i < end; i++) {
         const float *v = &sval[3 * i];
         double mx = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
-        if (i == best || (mx > 0 && mx * cw * (w && w->row_w ? w->row_w[srow[i]] : 1.0) >= drop)) {
+        double bi = bst > 1 && pw[srow[i]] != 0 ? bst : 1; /* bst > 1 only where pw is given */
+        if (i == best || (mx > 0 && mx * cw * bi * (w && w->row_w ? w->row_w[srow[i]] : 1.0) >= drop)) {
             if (drow) {
                 drow[k] = srow[i];
                 memmove(&dval[3 * k], v, 3 * sizeof *v);
@@ -655,12 +689,16 @@ static uint64_t compress_column(const uint32_t *srow, const float *sval, uint64_
     return k;
 }
 
+static double col_boost(const wrt_csc_weights *w, uint32_t j) {
+    return w && w->boost_w ? w->boost_w[j] : 1.0;
+}
+
 void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w) {
     uint64_t k = 0, start = 0;
     for (uint32_t j = 0; j < m->n; j++) {
         uint64_t end = m->col[j + 1];
         double cw = w && w->col_w ? w->col_w[j] : 1.0;
-        k = compress_column(m->row, m->val, start, end, m->row, m->val, k, cw, drop, w);
+        k = compress_column(m->row, m->val, start, end, m->row, m->val, k, cw, col_boost(w, j), drop, w);
         start = end;
         m->col[j + 1] = k;
     }
@@ -676,13 +714,13 @@ wrt_csc wrt_csc_copy_compress(const wrt_csc *m, double drop, const wrt_csc_weigh
     uint64_t k = 0;
     for (uint32_t j = 0; j < m->n; j++)
         k = compress_column(m->row, m->val, m->col[j], m->col[j + 1], NULL, NULL, k,
-                            w && w->col_w ? w->col_w[j] : 1.0, drop, w);
+                            w && w->col_w ? w->col_w[j] : 1.0, col_boost(w, j), drop, w);
     c.row = wrt_xmalloc((k ? k : 1) * sizeof *c.row);
     c.val = wrt_xmalloc((k ? k : 1) * 3 * sizeof *c.val);
     c.col[0] = k = 0;
     for (uint32_t j = 0; j < m->n; j++) {
         k = compress_column(m->row, m->val, m->col[j], m->col[j + 1], c.row, c.val, k,
-                            w && w->col_w ? w->col_w[j] : 1.0, drop, w);
+                            w && w->col_w ? w->col_w[j] : 1.0, col_boost(w, j), drop, w);
         c.col[j + 1] = k;
     }
     c.nnz = k;

@@ -30,7 +30,16 @@ wrt_csc wrt_csc_copy(const wrt_csc *m);
  * magnitude times row_w[i] times col_w[j] reaches `drop` (NULL weights are 1). */
 /* power_w (may be NULL): each row's power weight (0 for rows that carry no power); the
  * power of a column's dropped entries is then given to its kept ones, in proportion. */
-typedef struct wrt_csc_weights { const double *row_w, *col_w, *power_w; } wrt_csc_weights;
+/* boost_w (may be NULL): the small senders' rule (precompute/series.c): column j's entries
+ * at rows that carry power are held against drop / boost_w[j] instead of drop, but only
+ * where the entries the other weights would drop carry more than boost_lost of the
+ * column's power (sum over its power rows of power_w x |entry|, channels added): an
+ * error bound per column, so a column whose light the plain threshold already holds
+ * keeps the plain threshold's entries. */
+typedef struct wrt_csc_weights {
+    const double *row_w, *col_w, *power_w, *boost_w;
+    double boost_lost;
+} wrt_csc_weights;
 
 /* C = A B, compressed by `drop` and `w` (may be NULL). Deterministic whatever `threads`. */
 wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads);

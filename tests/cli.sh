@@ -134,15 +134,20 @@ one_line "wrt-ref no scene" 1 wrt-ref "no scene" --spp 4
 one_line "wrt-compare unknown option" 1 wrt-compare "unknown option --frobnicate" "$scene" "$gto" --frobnicate
 one_line "wrt-play light out of range" 1 wrt-play "--light 2: the scene has 1 light" "$gto" --headless -o "$tmp/x.png" --light 2 --light-pos 0,0.5,0
 one_line "wrt-bake unknown option" 1 wrt-bake "unknown option '--frobnicate'" "$scene" -o "$tmp/x.gto" --frobnicate
-# --depth-share: in --help, a value out of [0, 1] refused with nothing written, 0 (off) recorded
-"$build/wrt-bake" --help | grep -q -- "--depth-share S" && ok "--help lists --depth-share" || ko "--help lists --depth-share"
-rm -f "$tmp/x.gto"
-one_line "wrt-bake --depth-share out of range" 1 wrt-bake "bad value for --depth-share: '2' \(a number in \[0, 1\]\)$" \
-    "$scene" -o "$tmp/x.gto" --depth-share 2
-[ ! -e "$tmp/x.gto" ] && ok "--depth-share 2: nothing written" || ko "--depth-share 2: nothing written"
-"$build/wrt-bake" "$scene" -o "$tmp/x.gto" --quality 1 --depth-share 0 --json >"$tmp/ds.json" 2>/dev/null &&
-    grep -q '"depth_share":0[,}]' "$tmp/ds.json" && ok "--depth-share 0: accepted, recorded as off" ||
-    ko "--depth-share 0: accepted, recorded as off"
+# an option of [0, 1] whose 0 means something of its own: in --help, a value out of range
+# refused with nothing written, 0 accepted and recorded ($1 option, $2 its json key, $3 what 0 is)
+unit_option() {
+    "$build/wrt-bake" --help | grep -q -- "$1 [A-Z]" && ok "--help lists $1" || ko "--help lists $1"
+    rm -f "$tmp/x.gto"
+    one_line "wrt-bake $1 out of range" 1 wrt-bake "bad value for $1: '2' \(a number in \[0, 1\]\)$" \
+        "$scene" -o "$tmp/x.gto" "$1" 2
+    [ ! -e "$tmp/x.gto" ] && ok "$1 2: nothing written" || ko "$1 2: nothing written"
+    "$build/wrt-bake" "$scene" -o "$tmp/x.gto" --quality 1 "$1" 0 --json >"$tmp/opt0.json" 2>/dev/null &&
+        grep -q "\"$2\":0[,}]" "$tmp/opt0.json" && ok "$1 0: accepted, recorded as $3" ||
+        ko "$1 0: accepted, recorded as $3"
+}
+unit_option --depth-share depth_share off
+unit_option --small-lost small_lost always
 
 # no display: exit 6
 expect "wrt-play without a display: exit 6" 6 "display|window" env -u DISPLAY -u WAYLAND_DISPLAY "$build/wrt-play" "$gto"

@@ -529,7 +529,7 @@ static void test_compression_keeps_power(void) {
                 before[j][c] = 0;
                 for (uint64_t k = a.col[j]; k < a.col[j + 1]; k++) before[j][c] += pw[a.row[k]] * a.val[3 * k + c];
             }
-        wrt_csc_weights W = {rw, cw, pw};
+        wrt_csc_weights W = {rw, cw, pw, NULL, 0};
         wrt_csc m = wrt_csc_mul(&a, &id, 0.01, &W, 2);
         wrt_csc cc = wrt_csc_copy_compress(&a, 0.01, &W);
         wrt_csc_compress(&a, 0.01, &W);
@@ -567,6 +567,62 @@ static void test_compression_keeps_power(void) {
               checked[w], worst[w]);
         CHECK(checked[w] > C * N, "%s: %d columns x channels checked", what, checked[w]);
     }
+}
+
+/* The small senders' rule (sparse.h boost_w, series.c): a column whose light is spread
+ * thin over many receivers (every entry under the threshold: a closed scene of many small
+ * elements) keeps its entries at rows that carry power, at the boosted threshold; a
+ * column whose large entries already hold all but boost_lost of its power keeps the plain
+ * threshold's entries, the dropped power handed to them; rows that carry no power are
+ * never held by the rule. Checked against the column's own sums, in the compression and
+ * in a product's (times the identity). */
+static void test_small_sender_column(void) {
+    enum { N = 48 };
+    double pw[N], rw[N], cw[N], boost[N];
+    for (int i = 0; i < N; i++) { pw[i] = i < 40 ? 1 : 0; rw[i] = cw[i] = 1; boost[i] = 4; }
+    wrt_triplet t[3 * N], it[N];
+    uint64_t nt = 0;
+    for (uint32_t i = 0; i < N; i++) {
+        it[i].row = it[i].col = i;
+        it[i].v[0] = it[i].v[1] = it[i].v[2] = 1;
+        /* column 0: 0.005 on every row (power rows 0..39: 0.2 of power, all under 0.01);
+         * column 1: 0.9 on row 0, 0.004 on rows 1..20 (0.08: 8.2% of its power) and on
+         * the powerless rows 40..47 */
+        float v0 = 0.005f, v1 = i == 0 ? 0.9f : (i <= 20 || i >= 40) ? 0.004f : 0;
+        t[nt].row = i; t[nt].col = 0; t[nt].v[0] = t[nt].v[1] = t[nt].v[2] = v0; nt++;
+        if (v1 != 0) { t[nt].row = i; t[nt].col = 1; t[nt].v[0] = t[nt].v[1] = t[nt].v[2] = v1; nt++; }
+    }
+    wrt_csc id = wrt_csc_from_triplets(N, it, N);
+    /* boost_lost 0.1: column 1 loses 8.2% at the plain threshold, so it is not boosted;
+     * 0.05: it is. Column 0 loses all its power plainly: boosted in both. */
+    const double lost[2] = {0.1, 0.05};
+    for (int c = 0; c < 2; c++) {
+        wrt_csc_weights W = {rw, cw, pw, boost, lost[c]};
+        for (int prod = 0; prod < 2; prod++) {
+            wrt_csc a = wrt_csc_from_triplets(N, t, nt), m;
+            if (prod) m = wrt_csc_mul(&a, &id, 0.01, &W, 2);
+            else { wrt_csc_compress(&a, 0.01, &W); m = a; memset(&a, 0, sizeof a); }
+            uint64_t n0 = m.col[1] - m.col[0], n1 = m.col[2] - m.col[1];
+            double p0 = 0, p1 = 0, top = 0;
+            for (uint64_t k = m.col[0]; k < m.col[1]; k++) p0 += pw[m.row[k]] * m.val[3 * k];
+            for (uint64_t k = m.col[1]; k < m.col[2]; k++) {
+                p1 += pw[m.row[k]] * m.val[3 * k];
+                if (m.row[k] == 0) top = m.val[3 * k];
+            }
+            const char *what = prod ? "product" : "compression";
+            CHECK(n0 == 40 && fabs(p0 - 0.2) < 1e-6, "%s, lost %.2f: the spread column keeps %llu entries (40), power %.6f "
+                  "(0.2)", what, lost[c], (unsigned long long)n0, p0);
+            if (c == 0)
+                CHECK(n1 == 1 && fabs(top - 0.98) < 1e-6, "%s: the held column keeps %llu entries (1), row 0 %.6f "
+                      "(0.9 + the 0.08 dropped)", what, (unsigned long long)n1, top);
+            else
+                CHECK(n1 == 21 && fabs(top - 0.9) < 1e-6 && fabs(p1 - 0.98) < 1e-6, "%s: the boosted column keeps "
+                      "%llu entries (21: not the powerless rows), row 0 %.6f (0.9), power %.6f (0.98)", what,
+                      (unsigned long long)n1, top, p1);
+            wrt_csc_free(&a); wrt_csc_free(&m);
+        }
+    }
+    wrt_csc_free(&id);
 }
 
 /* The power balance (balance.c): links refined to mixed levels leave fine sender
@@ -1148,6 +1204,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_coloured_furnace);
     TEST_RUN(test_small_quads_furnace);
     TEST_RUN(test_compression_keeps_power);
+    TEST_RUN(test_small_sender_column);
     TEST_RUN(test_add_in_place);
     TEST_RUN(test_power_balance);
     TEST_RUN(test_glossy_power_balance);

@@ -449,14 +449,17 @@ static void test_icosphere_furnace(void) {
  * proj_flux_fix) the direct flux was -0.236% (the functions of level 0 hold a part's
  * constant irradiance only so far), and before the closed rule of cluster_ops.c counted
  * the wavelet rows' power the transport gained +0.58%: +0.345% in all. Now both +0.009%,
- * held at 0.1%; the worst element 5.5% from the mean (the compression's). About 18 s CPU. */
+ * held at 0.1%; the worst element was 5.5% from the mean while the rule held every
+ * function of a small quad against the lower threshold (the wavelet senders' thin rows:
+ * the compression's); since it holds only the quads' means toward the rows that carry
+ * power (session 7), 1.65%, held at 3%. About 18 s CPU. */
 static void test_icosphere_furnace_many(void) {
     double worst, e;
     furnace_clusters = 1;
     e = icosphere_furnace(2, 1, 0.9, &worst);
     furnace_clusters = 0;
     CHECK(fabs(e) <= 1e-3, "icosphere furnace, 320 triangles: indirect flux off by %.4f%%", 100 * e);
-    CHECK(worst <= 0.1, "icosphere furnace, 320 triangles: the worst element %.4f%% from the mean", 100 * worst);
+    CHECK(worst <= 0.03, "icosphere furnace, 320 triangles: the worst element %.4f%% from the mean", 100 * worst);
 }
 
 /* ------------------------------------------------------- vertex normals ---- */
