@@ -111,12 +111,12 @@ double wrt_scan_visible_fraction(const wrt_scene *s) {
 typedef struct scan_model { double c, step, a, g; } scan_model;
 /* [0] seconds, [1] peak MB over the base, [2] bytes: {c, step, a, g}; pasted from
  * tools/scan_fit.py's output */
-#define SCAN_PLAIN_VISIBLE_MIN 0.0503
+#define SCAN_PLAIN_VISIBLE_MIN 0.0168
 #define SCAN_CLUSTERS_VISIBLE_MIN 0.3613
 static const scan_model model_plain[3] = {
-    {229.7, 2.7461, 1.0086, 0.5327}, /* cpu_s */
-    {2396, 2.2573, 1.0731, 0.2991}, /* peak_mb */
-    {1.335e+08, 2.0359, 0.7732, 0.5232}, /* bytes */
+    {236.5, 2.7554, 1.0334, 0.4849}, /* cpu_s */
+    {2402, 2.2573, 1.0770, 0.2972}, /* peak_mb */
+    {1.561e+08, 1.8212, 0.8129, 0.2628}, /* bytes */
 };
 static const scan_model model_clusters[3] = {
     {140.6, 2.4854, 1.1662, 0.7141}, /* cpu_s */
