@@ -114,9 +114,9 @@ typedef struct scan_model { double c, step, a, g; } scan_model;
 #define SCAN_PLAIN_VISIBLE_MIN 0.0168
 #define SCAN_CLUSTERS_VISIBLE_MIN 0.3613
 static const scan_model model_plain[3] = {
-    {236.5, 2.7554, 1.0334, 0.4849}, /* cpu_s */
-    {2402, 2.2573, 1.0770, 0.2972}, /* peak_mb */
-    {1.561e+08, 1.8212, 0.8129, 0.2628}, /* bytes */
+    {236.7, 2.7554, 1.0346, 0.4841}, /* cpu_s */
+    {2394, 2.2454, 1.0631, 0.2948}, /* peak_mb */
+    {1.691e+08, 1.9751, 0.9529, 0.3036}, /* bytes */
 };
 static const scan_model model_clusters[3] = {
     {140.6, 2.4854, 1.1662, 0.7141}, /* cpu_s */
