@@ -3,14 +3,12 @@
  * the loader (formats/scene.c, loaded with report_only so that nothing is refused); this
  * file adds what --drop-bad would change and the estimate.
  *
- * The estimate is a model, not a dry run: time, peak memory and bytes grow as N^1.4 in
- * the number of elements N (the exponent the README states for the bake's cost), scaled
- * from two measured bakes of assets/test/cornell_shapes.gltf (240 elements: a Cornell
- * room with a UV sphere, a cylinder and a bevelled box of triangles) at quality 3 and 5,
- * with one factor per quality step between them (geometric, also beyond them). How much
- * each element sees moves the real figure: docs/triangles.md gives the measured bakes
- * beside the model's figures (a closed icosphere, where every element sees every other,
- * costs several times the model). Depends on the bake's options and the scene only. */
+ * The estimate is a model, not a dry run: time, peak memory and bytes as powers of the
+ * number of elements N and of how open the scene is (the share of point pairs that see
+ * each other, sampled here with one ray each), one factor per quality step, fitted to
+ * measured bakes (docs/scan_fit.csv, tools/scan_fit.py) and set above every one of them.
+ * docs/triangles.md ("--scan's estimate, refitted") gives each bake beside its estimate.
+ * Depends on the bake's options and the scene only. */
 #define _POSIX_C_SOURCE 200809L
 #include "scan.h"
 
@@ -18,53 +16,118 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* the anchors: cornell_shapes (240 elements), 2 cores, measured (docs/triangles.md) */
-#define SCAN_N0 240.0
-#define SCAN_EXPONENT 1.4
+#include "../common/rt_scene.h"
+
+/* How open the scene is: of SCAN_VIS_SAMPLES pairs of points drawn uniformly over the
+ * elements' area (a fixed sequence: the same scene gives the same figure), the share that
+ * face each other (each in front of the other's plane) and see each other (one ray
+ * through the scene). A maze's walls hide most pairs (0.05 for the 6 x 6 asset, 0.017 at
+ * 12 x 12 cells), the atrium's courtyard fewer (0.36), one furnished room fewest (0.52).
+ * The bake's cost per element follows it: the refinement between two large surfaces
+ * that see each other is what costs. Drawn by area, not by element: a mesh's many small
+ * facets would otherwise weigh more than the walls they face. */
+#define SCAN_VIS_SAMPLES 65536
+
+static uint64_t scan_rng(uint64_t *x) { /* splitmix64 */
+    uint64_t z = (*x += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+static double scan_u01(uint64_t *x) { return (double)(scan_rng(x) >> 11) * 0x1.0p-53; }
+
+static int quad_finite(const wrt_quad *q) {
+    for (int k = 0; k < 4; k++)
+        if (!isfinite(q->p[k].x) || !isfinite(q->p[k].y) || !isfinite(q->p[k].z)) return 0;
+    return isfinite(q->n.x) && isfinite(q->n.y) && isfinite(q->n.z);
+}
+
+static int pick_area(const double *cum, int n, double x) {
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (cum[mid] > x) hi = mid; else lo = mid + 1;
+    }
+    return lo;
+}
+
+double wrt_scan_visible_fraction(const wrt_scene *s) {
+    if (!s || s->nquads < 2) return 0;
+    int *idx = wrt_xmalloc((size_t)s->nquads * sizeof *idx);
+    int n = 0;
+    for (int i = 0; i < s->nquads; i++)
+        if (quad_finite(&s->quads[i]) && s->quads[i].area > 0) idx[n++] = i;
+    if (n < 2) { free(idx); return 0; }
+    wrt_v3 *corners = wrt_xmalloc((size_t)n * 4 * sizeof *corners);
+    for (int i = 0; i < n; i++)
+        for (int k = 0; k < 4; k++) corners[4 * i + k] = s->quads[idx[i]].p[k];
+    wrt_rt_scene rs;
+    wrt_status st = wrt_rt_scene_build(corners, n, v3(0, 0, 0), "threads=1", WRT_RT_ROBUST, &rs);
+    free(corners);
+    if (st != WRT_OK) { free(idx); return -1; }
+    double *cum = wrt_xmalloc((size_t)n * sizeof *cum);
+    for (int i = 0; i < n; i++) cum[i] = (i ? cum[i - 1] : 0) + s->quads[idx[i]].area;
+    uint64_t seed = 0x5CA9ull;
+    long seen = 0;
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    for (int k = 0; k < SCAN_VIS_SAMPLES; k++) {
+        int i = pick_area(cum, n, scan_u01(&seed) * cum[n - 1]), j = pick_area(cum, n, scan_u01(&seed) * cum[n - 1]);
+        if (i == j) continue; /* a planar element does not see itself */
+        const wrt_quad *a = &s->quads[idx[i]], *b = &s->quads[idx[j]];
+        double ua = scan_u01(&seed), va = scan_u01(&seed), ub = scan_u01(&seed), vb = scan_u01(&seed);
+        wrt_v3 pa = wrt_quad_point(a, ua, va), pb = wrt_quad_point(b, ub, vb);
+        wrt_v3 d = v3_sub(pb, pa);
+        if (v3_dot(a->n, d) <= rs.eps || v3_dot(b->n, d) >= -rs.eps) continue; /* not facing */
+        wrt_v3 o = v3_add(pa, v3_scale(a->n, rs.eps)), e = v3_add(pb, v3_scale(b->n, rs.eps));
+        wrt_v3 dir = v3_sub(e, o);
+        double len = v3_len(dir);
+        if (len <= 0) continue;
+        struct RTCRay ray;
+        ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
+        ray.dir_x = (float)(dir.x / len); ray.dir_y = (float)(dir.y / len); ray.dir_z = (float)(dir.z / len);
+        ray.tnear = 0;
+        ray.tfar = (float)(len * (1 - 1e-7));
+        ray.time = 0; ray.mask = 0xFFFFFFFF; ray.id = 0; ray.flags = 0;
+        rtcOccluded1(rs.scene, &ctx, &ray);
+        if (ray.tfar >= 0) seen++;
+    }
+    wrt_rt_scene_release(&rs);
+    free(idx);
+    free(cum);
+    return (double)seen / SCAN_VIS_SAMPLES;
+}
+
+/* The model: each figure y (CPU seconds; peak memory over SCAN_MB_BASE; bytes) is
+ *   y = c * step^(q - 5) * (N / 1000)^a * (f / 0.3)^g
+ * with N the elements, f the visible fraction above and q the quality, one set of
+ * constants for the plain bake and one for --clusters. Fitted by least squares on
+ * log y over the measured bakes in docs/scan_fit.csv (tools/scan_fit.py: quality 3
+ * and 5, cornell-shapes, mazes, the atrium, the Blender scenes), then c raised so that
+ * no measured bake lies above its estimate: the estimate is an upper bound, and
+ * docs/triangles.md ("--scan's estimate, refitted") gives how far above each bake it
+ * lies. Qualities other than 3 and 5 are extrapolated by the same step. */
 #define SCAN_MB_BASE 30.0 /* the process itself: libraries, the scene */
-static const double anchor_seconds[2] = {3.3, 44.5};    /* quality 3, 5: CPU seconds (user + system) */
-static const double anchor_mb[2] = {81.0, 387.0};        /* peak resident (after the bake frees each series term) */
-static const double anchor_bytes[2] = {4.11e6, 25.9e6}; /* the .gto, compact entries (2.0; float 1.x: 11.1e6, 70.1e6) */
+typedef struct scan_model { double c, step, a, g; } scan_model;
+/* [0] seconds, [1] peak MB over the base, [2] bytes: {c, step, a, g}; pasted from
+ * tools/scan_fit.py's output */
+#define SCAN_PLAIN_VISIBLE_MIN 0.0168
+#define SCAN_CLUSTERS_VISIBLE_MIN 0.3613
+static const scan_model model_plain[3] = {
+    {236.7, 2.7554, 1.0346, 0.4841}, /* cpu_s */
+    {2394, 2.2454, 1.0631, 0.2948}, /* peak_mb */
+    {1.691e+08, 1.9751, 0.9529, 0.3036}, /* bytes */
+};
+static const scan_model model_clusters[3] = {
+    {140.6, 2.4854, 1.1662, 0.7141}, /* cpu_s */
+    {910.2, 1.7375, 1.1182, 1.2515}, /* peak_mb */
+    {5.25e+07, 1.5350, 1.1338, 1.7918}, /* bytes */
+};
 
-static double at_quality(const double a[2], int q) {
-    double step = sqrt(a[1] / a[0]); /* per quality step, from 3 to 5 */
-    return a[1] * pow(step, q - 5);
-}
-
-/* --clusters: its own anchors, the atrium (wrt-scenegen atrium --detail 1: 2,704
- * elements) baked with --clusters at quality 1 (15.1 s CPU, 630 MB, 7.92 MB) and 5 (266.5 s,
- * 3,877 MB, 126.7 MB; docs/bench.md "Scale"), and its own exponents, the atrium's at
- * quality 1 over 1,060 to 8,172 elements (CPU 1.21, peak 1.04, bytes 0.71): steeper than
- * quality 5's two points (0.68, 0.66, 0.59 from 1,060 to 2,704), so the estimate errs
- * high above the anchor, which is what a memory cap needs. The plain bake's N^1.4 from
- * 240 elements put the atrium at detail 1 at 10.6 GB and detail 2 at 49.9 GB, which made
- * tools/bench_scale.sh skip every --clusters row unless CAP_MB was raised. */
-#define SCAN_CL_N0 2704.0
-/* quality 5's anchor and the exponents (above) */
-#define CL_Q5_SECONDS 266.5
-#define CL_Q5_MB 3877.0
-#define CL_Q5_BYTES 126.7e6
-#define CL_EXP_SECONDS 1.21
-#define CL_EXP_MB 1.04
-#define CL_EXP_BYTES 0.71
-static const double cl_anchor_seconds[2] = {15.1, CL_Q5_SECONDS}; /* quality 1, 5 */
-static const double cl_anchor_mb[2] = {630.0, CL_Q5_MB};
-static const double cl_anchor_bytes[2] = {7.92e6, CL_Q5_BYTES};
-static const double cl_exponent[3] = {CL_EXP_SECONDS, CL_EXP_MB, CL_EXP_BYTES}; /* time, peak, bytes */
-
-static double cl_at_quality(const double a[2], int q) {
-    double step = pow(a[1] / a[0], 0.25); /* per quality step, from 1 to 5 */
-    return a[1] * pow(step, q - 5);
-}
-
-static wrt_scan_estimate scan_estimate_clusters(int quality, int elements) {
-    wrt_scan_estimate e = {.quality = quality, .elements = elements};
-    double x = (double)elements / SCAN_CL_N0;
-    e.seconds = cl_at_quality(cl_anchor_seconds, quality) * pow(x, cl_exponent[0]);
-    e.memory_mb = SCAN_MB_BASE + (cl_at_quality(cl_anchor_mb, quality) - SCAN_MB_BASE) * pow(x, cl_exponent[1]);
-    e.bytes = cl_at_quality(cl_anchor_bytes, quality) * pow(x, cl_exponent[2]);
-    if (elements == 0) e.seconds = e.bytes = 0, e.memory_mb = SCAN_MB_BASE;
-    return e;
+/* f below the fitted bakes' smallest is taken at that smallest (the estimate errs high
+ * rather than extrapolate downwards) */
+static double model_at(const scan_model *m, int q, double n, double f, double fmin) {
+    return m->c * pow(m->step, q - 5) * pow(n / 1000.0, m->a) * pow(fmax(f, fmin) / 0.3, m->g);
 }
 
 wrt_scan_estimate wrt_scan_estimate_cost(const wrt_scene *s, const wrt_bake_options *o) {
@@ -72,12 +135,15 @@ wrt_scan_estimate wrt_scan_estimate_cost(const wrt_scene *s, const wrt_bake_opti
     memset(&e, 0, sizeof e);
     e.quality = o && o->quality ? o->quality : 5;
     e.elements = s ? s->nquads : 0;
-    if (o && o->clusters) return scan_estimate_clusters(e.quality, e.elements);
-    double g = pow((double)e.elements / SCAN_N0, SCAN_EXPONENT);
-    e.seconds = at_quality(anchor_seconds, e.quality) * g;
-    e.memory_mb = SCAN_MB_BASE + (at_quality(anchor_mb, e.quality) - SCAN_MB_BASE) * g;
-    e.bytes = at_quality(anchor_bytes, e.quality) * g;
-    if (e.elements == 0) e.seconds = e.bytes = 0, e.memory_mb = SCAN_MB_BASE;
+    e.visible = wrt_scan_visible_fraction(s);
+    if (e.elements == 0) { e.memory_mb = SCAN_MB_BASE; return e; }
+    int cl = o && o->clusters;
+    const scan_model *m = cl ? model_clusters : model_plain;
+    double fmin = cl ? SCAN_CLUSTERS_VISIBLE_MIN : SCAN_PLAIN_VISIBLE_MIN;
+    double f = e.visible > 0 ? e.visible : 1; /* no figure (Embree failed): the dense case */
+    e.seconds = model_at(&m[0], e.quality, e.elements, f, fmin);
+    e.memory_mb = SCAN_MB_BASE + model_at(&m[1], e.quality, e.elements, f, fmin);
+    e.bytes = model_at(&m[2], e.quality, e.elements, f, fmin);
     return e;
 }
 
@@ -91,8 +157,11 @@ static const char *human_time(double s, char *buf, size_t n) {
 void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad, int json, FILE *f) {
     if (!s || !f) return;
     wrt_scan_estimate e = wrt_scan_estimate_cost(s, o);
-    double ex = o && o->clusters ? cl_exponent[0] : SCAN_EXPONENT;
-    int refused = s->nnonfinite > 0 && !drop_bad;
+    int refused = s->nnonfinite > 0 && !drop_bad, glossy = 0;
+    for (int i = 0; i < s->nquads; i++) {
+        int m = s->quads[i].material;
+        glossy += m >= 0 && m < s->nmaterials && !s->materials[m].lambertian;
+    }
     if (json) {
         char *buf = NULL;
         size_t len = 0;
@@ -106,9 +175,10 @@ void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad,
         fwrite(buf, 1, len, f);
         free(buf);
         fprintf(f, ",\"refused\":%s,\"drop_bad\":%s,\"estimate\":{\"quality\":%d,\"elements\":%d,"
-                   "\"cpu_seconds\":%.3g,\"memory_mb\":%.4g,\"bytes\":%.4g,\"model\":\"N^%.1f from measured bakes\"}}\n",
-                refused ? "true" : "false", drop_bad ? "true" : "false", e.quality, e.elements, e.seconds,
-                e.memory_mb, e.bytes, ex);
+                   "\"visible_fraction\":%.4f,\"glossy_elements\":%d,\"cpu_seconds\":%.3g,\"memory_mb\":%.4g,\"bytes\":%.4g,"
+                   "\"model\":\"%s: elements and visible pairs, fitted to measured bakes, an upper bound\"}}\n",
+                refused ? "true" : "false", drop_bad ? "true" : "false", e.quality, e.elements, e.visible,
+                glossy, e.seconds, e.memory_mb, e.bytes, o && o->clusters ? "clusters" : "plain");
         return;
     }
     wrt_scene_print_summary(s, 0, f);
@@ -116,8 +186,13 @@ void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad,
         fprintf(f, "bake: %s\n", refused ? "refused: triangles with non-finite corners (--drop-bad drops them)"
                                          : "the non-finite triangles are dropped (--drop-bad)");
     char tb[32];
-    fprintf(f, "estimate at quality %d: %d elements, about %s of CPU (about half that on 2 idle cores), peak "
-               "memory about %.0f MB, file about %.0f MB (model: N^%.1f scaled from measured bakes; the real "
-               "cost varies by a factor of a few with how much each element sees)\n",
-            e.quality, e.elements, human_time(e.seconds, tb, sizeof tb), e.memory_mb, e.bytes / 1e6, ex);
+    fprintf(f, "estimate at quality %d%s: %d elements, %.0f%% of the point pairs on them see each other; at most about %s "
+               "of CPU (about half that on 2 idle cores), peak memory at most about %.0f MB, file at most about "
+               "%.0f MB (a model of the elements and visible pairs fitted to measured bakes, set above all of "
+               "them; docs/triangles.md)\n",
+            e.quality, o && o->clusters ? " with --clusters" : "", e.elements, 100 * e.visible,
+            human_time(e.seconds, tb, sizeof tb), e.memory_mb, e.bytes / 1e6);
+    if (glossy)
+        fprintf(f, "estimate: %d glossy elements; the model is fitted to diffuse scenes and a glossy surface's "
+                   "angular refinement can cost several times more\n", glossy);
 }

@@ -12,10 +12,17 @@
 typedef struct wrt_scan_estimate {
     int quality;        /* the quality the estimate is for (1..9) */
     int elements;       /* quads the bake would see (pairs, triangles' parts, twins) */
+    double visible;     /* share of the ordered pairs of elements that see each other
+                           (wrt_scan_visible_fraction; -1 if it could not be sampled) */
     double seconds;     /* CPU seconds (user + system; wall on 2 idle cores: about half) */
     double memory_mb;   /* peak resident memory */
     double bytes;       /* size of the .gto */
 } wrt_scan_estimate;
+
+/* The share of ordered pairs of distinct elements of s that face and see each other,
+ * sampled (a fixed sequence of random pairs and points: deterministic); 0 under two
+ * elements, -1 if Embree failed. */
+double wrt_scan_visible_fraction(const wrt_scene *s);
 
 /* The estimate for scene s under options o (zero fields: defaults). Pure. */
 wrt_scan_estimate wrt_scan_estimate_cost(const wrt_scene *s, const wrt_bake_options *o);

@@ -184,6 +184,37 @@ wait $p1; r1=$?; wait $p2; r2=$?
 [ "$(cat "$tmp/two.gto.check")" = mine ] && ok "a user's OUT.gto.check is left alone" || ko "a user's OUT.gto.check is left alone"
 [ -z "$(ls "$tmp" | grep -F '.tmp.')" ] && ok "no temporary left" || ko "no temporary left"
 
+# --scan's visible fraction (precompute/scan.c) against closed forms: of point pairs drawn
+# by area, those on different faces of a closed cube all see each other (5/6), those on
+# the two facing squares (1/2); 65,536 pairs: a standard deviation of 0.002.
+vis() { "$gen" "$1" --res "$2" -o "$tmp/vis.gltf" >/dev/null 2>&1 &&
+        "$bake" --scan "$tmp/vis.gltf" --json 2>/dev/null | tr -d '\n ' | grep -o '"visible_fraction":[0-9.]*' | cut -d: -f2; }
+fc=$(vis furnace 4); ff=$(vis facing 3)
+awk -v f="$fc" 'BEGIN { exit !(f != "" && f > 5 / 6 - 0.01 && f < 5 / 6 + 0.01) }' &&
+    ok "--scan: a closed cube's visible fraction $fc (5/6)" || ko "--scan: a closed cube's visible fraction ${fc:-?} (5/6)"
+awk -v f="$ff" 'BEGIN { exit !(f != "" && f > 0.49 && f < 0.51) }' &&
+    ok "--scan: two facing squares' visible fraction $ff (1/2)" || ko "--scan: two facing squares' visible fraction ${ff:-?} (1/2)"
+# --scan's estimate is an upper bound fitted to measured bakes (docs/triangles.md): for a
+# triangle scene at quality 3 the peak the kernel then measures and the file's bytes lie
+# under it, and within 1.5x and 2x of it (2 threads, as the fit).
+if "$bake" --scan assets/test/cornell_shapes.gltf -q 3 --json >"$tmp/cs.scan" 2>"$tmp/err" &&
+   "$bake" assets/test/cornell_shapes.gltf -q 3 --threads 2 -o "$tmp/cs.gto" --json --quiet >"$tmp/cs.json" 2>"$tmp/err"; then
+    tr -d '\n ' <"$tmp/cs.scan" | grep -o '"estimate":{[^}]*}' >"$tmp/cs.est"
+    se=$(jnum memory_mb "$tmp/cs.est"); sb=$(jnum bytes "$tmp/cs.est"); peak=$(jnum peak_rss "$tmp/cs.json"); bytes=$(stat -c %s "$tmp/cs.gto")
+    if [ "$asan" = 1 ]; then
+        skipped "--scan: peak estimate $se MB against the peak (AddressSanitizer's own memory counts in it)"
+    else
+        awk -v e="$se" -v p="$peak" 'BEGIN { exit !(p > 10 && e >= p && e <= 1.5 * p) }' &&
+            ok "--scan: peak estimate $se MB over the peak $peak MB, within 1.5x" ||
+            ko "--scan: peak estimate $se MB over the peak $peak MB, within 1.5x"
+    fi
+    awk -v e="$sb" -v b="$bytes" 'BEGIN { exit !(b > 0 && e >= b && e <= 2 * b) }' &&
+        ok "--scan: file estimate $sb bytes over the $bytes written, within 2x" ||
+        ko "--scan: file estimate $sb bytes over the $bytes written, within 2x"
+else
+    ko "cornell_shapes --scan and bake"
+fi
+
 # Memory: a glossy bake reports its peak resident memory and the largest need it
 # estimated before allocating; the estimate covers the peak the bake then had (measured
 # by the kernel, not by the bake's own accounting) and is at most 1.5x that peak, a budget under that peak is refused
