@@ -78,3 +78,33 @@ void wrt_rt_scene_release(wrt_rt_scene *s) {
     if (s->dev) rtcReleaseDevice(s->dev);
     memset(s, 0, sizeof *s);
 }
+
+int wrt_rt_blocked(RTCScene scene, wrt_v3 a, wrt_v3 b) {
+    wrt_v3 d = v3_sub(b, a);
+    double len = v3_len(d);
+    if (len <= 0) return 0;
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRay ray;
+    ray.org_x = (float)a.x; ray.org_y = (float)a.y; ray.org_z = (float)a.z;
+    ray.dir_x = (float)(d.x / len); ray.dir_y = (float)(d.y / len); ray.dir_z = (float)(d.z / len);
+    ray.tnear = 0;
+    ray.tfar = (float)(len * (1 - 1e-7));
+    ray.time = 0; ray.mask = 0xFFFFFFFF; ray.id = 0; ray.flags = 0;
+    if (ray.tfar <= ray.tnear) return 0;
+    rtcOccluded1(scene, &ctx, &ray);
+    return ray.tfar < 0;
+}
+
+int wrt_rt_first_hit(RTCScene scene, wrt_v3 o, wrt_v3 dir) {
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRayHit rh;
+    memset(&rh, 0, sizeof rh);
+    rh.ray.org_x = (float)o.x; rh.ray.org_y = (float)o.y; rh.ray.org_z = (float)o.z;
+    rh.ray.dir_x = (float)dir.x; rh.ray.dir_y = (float)dir.y; rh.ray.dir_z = (float)dir.z;
+    rh.ray.tnear = 0; rh.ray.tfar = INFINITY; rh.ray.mask = 0xFFFFFFFF;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene, &ctx, &rh);
+    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? -1 : (int)rh.hit.primID;
+}

@@ -35,4 +35,11 @@ wrt_status wrt_rt_scene_build(const wrt_v3 *corners, int nq, wrt_v3 origin, cons
                               wrt_rt_scene *s);
 void wrt_rt_scene_release(wrt_rt_scene *s); /* a zeroed s: no-op */
 
+/* 1 if the segment a -> b (frame coordinates, both ends already lifted off their surfaces)
+ * meets a primitive of `scene`; the far end is trimmed by 1e-7 of the length only, so a
+ * wall thinner than the ray offset still blocks. */
+int wrt_rt_blocked(RTCScene scene, wrt_v3 a, wrt_v3 b);
+/* The primitive a ray from o along dir (unit length) meets first, or -1. */
+int wrt_rt_first_hit(RTCScene scene, wrt_v3 o, wrt_v3 dir);
+
 #endif

@@ -19,21 +19,13 @@
  * A point under a single-sided panel or in a narrow gap sees out along some ray and is
  * not covered. Depends on bake_ctx.h (Embree's scene of the quads); the balance (balance.c)
  * uses its first-hit query too. */
-#include <string.h>
 
 #include "cover.h"
 
+#include "../common/rt_scene.h"
+
 int wrt_bake_first_hit(const bake_ctx *b, wrt_v3 o, wrt_v3 dir) {
-    struct RTCIntersectContext ictx;
-    rtcInitIntersectContext(&ictx);
-    struct RTCRayHit rh;
-    memset(&rh, 0, sizeof rh);
-    rh.ray.org_x = (float)o.x; rh.ray.org_y = (float)o.y; rh.ray.org_z = (float)o.z;
-    rh.ray.dir_x = (float)dir.x; rh.ray.dir_y = (float)dir.y; rh.ray.dir_z = (float)dir.z;
-    rh.ray.tnear = 0; rh.ray.tfar = INFINITY; rh.ray.mask = 0xFFFFFFFF;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(b->rtc, &ictx, &rh);
-    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? -1 : (int)rh.hit.primID;
+    return wrt_rt_first_hit(b->rtc, o, dir);
 }
 
 int wrt_bake_covered(const bake_ctx *b, wrt_v3 o, const wrt_quad *q) {

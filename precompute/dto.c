@@ -54,6 +54,7 @@
 
 #include "../common/basis.h"
 #include "../common/reconstruct.h"
+#include "../common/rt_scene.h"
 #include "cover.h"
 #include "dto.h"
 
@@ -240,24 +241,11 @@ static size_t get_block(pair_ctx *pc, wrt_node rn, wrt_node sn) {
 
 /* 1 if the segment a -> b is blocked by some quad (bake_ctx.h). */
 int wrt_bake_occluded(const bake_ctx *b, wrt_v3 a, wrt_v3 bpt) {
-    wrt_v3 d = v3_sub(bpt, a);
-    double len = v3_len(d);
-    if (len <= 0) return 0;
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    struct RTCRay ray;
-    ray.org_x = (float)a.x; ray.org_y = (float)a.y; ray.org_z = (float)a.z;
-    ray.dir_x = (float)(d.x / len); ray.dir_y = (float)(d.y / len); ray.dir_z = (float)(d.z / len);
     /* Both ends are already lifted off their quads by ray_eps along the normals, so the
      * ray cannot meet its own quads; trimming ray_eps off each end as well let rays
      * through walls thinner than ray_eps when an end lay within ray_eps of the wall's
      * foot (light leaked between two rooms sharing a zero-thickness wall). */
-    ray.tnear = 0;
-    ray.tfar = (float)(len * (1 - 1e-7));
-    ray.time = 0; ray.mask = 0xFFFFFFFF; ray.id = 0; ray.flags = 0;
-    if (ray.tfar <= ray.tnear) return 0;
-    rtcOccluded1(b->rtc, &ctx, &ray);
-    return ray.tfar < 0;
+    return wrt_rt_blocked(b->rtc, a, bpt);
 }
 
 

@@ -69,8 +69,6 @@ double wrt_scan_visible_fraction(const wrt_scene *s) {
     for (int i = 0; i < n; i++) cum[i] = (i ? cum[i - 1] : 0) + s->quads[idx[i]].area;
     uint64_t seed = 0x5CA9ull;
     long seen = 0;
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
     for (int k = 0; k < SCAN_VIS_SAMPLES; k++) {
         int i = pick_area(cum, n, scan_u01(&seed) * cum[n - 1]), j = pick_area(cum, n, scan_u01(&seed) * cum[n - 1]);
         if (i == j) continue; /* a planar element does not see itself */
@@ -80,17 +78,8 @@ double wrt_scan_visible_fraction(const wrt_scene *s) {
         wrt_v3 d = v3_sub(pb, pa);
         if (v3_dot(a->n, d) <= rs.eps || v3_dot(b->n, d) >= -rs.eps) continue; /* not facing */
         wrt_v3 o = v3_add(pa, v3_scale(a->n, rs.eps)), e = v3_add(pb, v3_scale(b->n, rs.eps));
-        wrt_v3 dir = v3_sub(e, o);
-        double len = v3_len(dir);
-        if (len <= 0) continue;
-        struct RTCRay ray;
-        ray.org_x = (float)o.x; ray.org_y = (float)o.y; ray.org_z = (float)o.z;
-        ray.dir_x = (float)(dir.x / len); ray.dir_y = (float)(dir.y / len); ray.dir_z = (float)(dir.z / len);
-        ray.tnear = 0;
-        ray.tfar = (float)(len * (1 - 1e-7));
-        ray.time = 0; ray.mask = 0xFFFFFFFF; ray.id = 0; ray.flags = 0;
-        rtcOccluded1(rs.scene, &ctx, &ray);
-        if (ray.tfar >= 0) seen++;
+        if (v3_len(v3_sub(e, o)) <= 0) continue;
+        if (!wrt_rt_blocked(rs.scene, o, e)) seen++;
     }
     wrt_rt_scene_release(&rs);
     free(idx);
