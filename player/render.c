@@ -19,6 +19,8 @@
 
 #include "../cli/cli.h"
 #include "render_tex.h"
+#include "../common/scene_types.h"
+#include "../common/smooth.h"
 
 #include <GL/glcorearb.h>
 #include <stdio.h>
@@ -40,8 +42,9 @@ static const char *scene_vs =
     "layout(location=8) in vec4 a_tuv;\n"   /* TEXCOORD_0, wrap modes */
     "layout(location=9) in vec3 a_tfac;\n"  /* baseColorFactor */
     "layout(location=10) in vec3 a_snrm;\n"  /* the mesh's vertex normal at the corner (flat: a_nrm) */
+    "layout(location=11) in vec4 a_w;\n"     /* the corner's weights over its smooth source (common/smooth.h) */
     "uniform mat4 u_vp;\n"
-    "out vec3 v_pos; out vec2 v_uv; out vec3 v_snrm;\n"
+    "out vec3 v_pos; out vec2 v_uv; out vec3 v_snrm; out vec4 v_w; flat out int v_q;\n"
     "flat out vec3 v_nrm; flat out vec4 v_base; flat out vec2 v_rough; flat out vec4 v_rect;\n"
     "flat out vec3 v_emit;\n"
     "flat out vec4 v_tex; out vec2 v_tuv; flat out vec2 v_twrap; flat out vec3 v_tfac;\n"
@@ -49,7 +52,8 @@ static const char *scene_vs =
     "  v_tex = a_tex; v_tuv = a_tuv.xy; v_twrap = a_tuv.zw; v_tfac = a_tfac;\n"
     "  v_pos = a_pos; v_nrm = a_nrm; v_uv = a_uv; v_base = a_base; v_rough = a_rough; v_rect = a_rect;\n"
     "  v_emit = a_emit;\n"
-    "  v_snrm = a_snrm;\n"
+    "  v_snrm = a_snrm; v_w = a_w;\n"
+    "  v_q = gl_VertexID / 4;\n" /* the quad: its corners are vertices 4q .. 4q + 3 */
     "  gl_Position = u_vp * vec4(a_pos, 1.0);\n"
     "}\n";
 
@@ -60,7 +64,11 @@ static const char *scene_fs =
     "#version 450 core\n"
     "#define MAXL 16\n"
     "#define SHADOW_NEAR 1e-3\n"
-    "in vec3 v_pos; in vec2 v_uv; in vec3 v_snrm;\n"
+    "in vec3 v_pos; in vec2 v_uv; in vec3 v_snrm; in vec4 v_w; flat in int v_q;\n"
+    /* per quad 8 records: its smooth source's vertices (w of the first: 1 if curved), then
+     * their normals (common/smooth.h) */
+    "layout(std430, binding = 0) readonly buffer smooth_src { vec4 u_src[]; };\n"
+    "uniform int u_smooth;\n"
     "flat in vec3 v_nrm; flat in vec4 v_base; flat in vec2 v_rough; flat in vec4 v_rect;\n"
     "flat in vec3 v_emit;\n"
     "flat in vec4 v_tex; in vec2 v_tuv; flat in vec2 v_twrap; flat in vec3 v_tfac;\n"
@@ -153,8 +161,22 @@ static const char *scene_fs =
     "    g_base = a;\n"
     "  }\n"
     /* the face's own normal decides which side is seen and offsets the shadow lookups;
-     * the mesh's interpolated vertex normal shades (flat faces: the same) */
-    "  vec3 fn = v_nrm, n = normalize(v_snrm);\n"
+     * the mesh's interpolated vertex normal shades (flat faces: the same). On a curved
+     * element, the smooth surface of its source's vertex normals (common/smooth.h): the
+     * normal interpolated over the source, and the shadow lookups from the point moved
+     * onto the blend of the vertices' tangent planes where that lies outside the facet
+     * (the shadow terminator of smooth normals on large facets) */
+    "  vec3 fn = v_nrm, n = normalize(v_snrm), ps = v_pos;\n"
+    "  if (u_smooth != 0 && u_src[8 * v_q].w > 0.5) {\n"
+    "    vec3 ns = vec3(0.0), t = vec3(0.0);\n"
+    "    for (int k = 0; k < 4; k++) {\n"
+    "      vec3 P = u_src[8 * v_q + k].xyz, N = u_src[8 * v_q + 4 + k].xyz;\n"
+    "      ns += v_w[k] * N;\n"
+    "      t += v_w[k] * (v_pos - dot(v_pos - P, N) * N);\n"
+    "    }\n"
+    "    n = normalize(ns);\n"
+    "    if (dot(t - v_pos, fn) > 0.0) ps = t;\n"
+    "  }\n"
     "  vec3 v = u_eye - v_pos;\n"
     "  float vl = length(v);\n"
     "  v /= vl;\n"
@@ -166,7 +188,7 @@ static const char *scene_fs =
     "        vec3 ls = -u_ldir[i].xyz;\n"
     "        float nls = dot(n, ls);\n"
     "        if (nls <= 0.0) continue;\n"
-    "        c += lit_sun(i, v_pos, fn) * nls * u_lcol[i].rgb * brdf(n, ls, v);\n"
+    "        c += lit_sun(i, ps, fn) * nls * u_lcol[i].rgb * brdf(n, ls, v);\n"
     "        continue;\n"
     "      }\n"
     "      vec3 l = u_lpos[i].xyz - v_pos;\n"
@@ -186,7 +208,7 @@ static const char *scene_fs =
     "        att *= w * w;\n"
     "      }\n"
     "      if (att <= 0.0) continue;\n"
-    "      float s = lit(i, v_pos, fn);\n"
+    "      float s = lit(i, ps, fn);\n"
     "      c += s * att * nl * u_lcol[i].rgb * brdf(n, l, v);\n"
     "    }\n"
     "    if (u_mode != 2) c += v_emit;\n" /* an emissive surface, seen from its front */
@@ -243,6 +265,8 @@ struct wrt_render {
     GLuint prog_scene, prog_shadow, prog_present;
     GLuint vao, vbo_geom, vbo_rect, ibo, vao_empty;
     GLuint vbo_emit;         /* per vertex: its material's emitted radiance x scale */
+    GLuint ssbo_smooth;      /* per quad: its smooth source (common/smooth.h), 8 vec4 */
+    int smooth;              /* 1: some quad is curved (the file's normals section) */
     GLuint vbo_tex, base_tex; /* base-colour textures (render_tex.h) */
     GLuint fbo, color, depth;
     int samples;             /* MSAA samples; > 1: draw into ms_fbo, resolve into fbo */
@@ -418,7 +442,7 @@ void wrt_render_light_from_gto(const wrt_gto_light *in, wrt_light *out) {
     out->outer_cone = in->outer_cone;
 }
 
-enum { VTX_FLOATS = 3 + 3 + 2 + 4 + 2 + 3 }; /* ..., the vertex normal last (location 10) */
+enum { VTX_FLOATS = 3 + 3 + 2 + 4 + 2 + 3 + 4 }; /* ..., the vertex normal (location 10), the smooth weights (11) */
 
 void wrt_render_set_emitter_scales(wrt_render *r, const float *scales) {
     const wrt_gto *g = r->g;
@@ -435,8 +459,57 @@ void wrt_render_set_emitter_scales(wrt_render *r, const float *scales) {
     free(e);
 }
 
+/* The quads' smooth sources (common/smooth.h), or NULL for a file without the normals
+ * section; *curved: how many quads are curved. A triangle's part is known by the source
+ * map, or without one by its corners. */
+static wrt_smooth_src *smooth_sources(const wrt_gto *g, int *curved) {
+    *curved = 0;
+    if (!g->normals || !g->nquads) return NULL;
+    wrt_smooth_src *src = wrt_xmalloc((size_t)g->nquads * sizeof *src);
+    for (uint32_t q = 0; q < g->nquads; q++) {
+        const wrt_gto_quad *Q = &g->quads[q];
+        wrt_v3 p[4];
+        for (int c = 0; c < 4; c++) p[c] = v3(Q->p[c][0], Q->p[c][1], Q->p[c][2]);
+        int part = g->srcmap ? g->srcmap[q].kind == WRT_ELEM_TRIANGLE : -1;
+        wrt_smooth_make(p, v3(Q->n[0], Q->n[1], Q->n[2]), (const float(*)[3])g->normals[q].n, part, &src[q]);
+        *curved += src[q].curved;
+    }
+    return src;
+}
+
+/* The shader's storage buffer of the sources: per quad its vertices relative to the
+ * origin (w of the first: 1 if curved) and their normals. */
+static void upload_smooth(wrt_render *r, const wrt_smooth_src *src) {
+    size_t n = src ? (size_t)r->g->nquads : 1;
+    float *b = wrt_xcalloc(n * 32, sizeof(float));
+    for (size_t q = 0; src && q < n; q++) {
+        const wrt_smooth_src *s = &src[q];
+        float *o = b + q * 32;
+        o[3] = (float)(s->curved != 0);
+        for (int k = 0; k < s->nsrc && s->curved; k++) {
+            o[4 * k + 0] = (float)(s->p[k].x - r->origin[0]);
+            o[4 * k + 1] = (float)(s->p[k].y - r->origin[1]);
+            o[4 * k + 2] = (float)(s->p[k].z - r->origin[2]);
+            o[16 + 4 * k + 0] = (float)s->n[k].x;
+            o[16 + 4 * k + 1] = (float)s->n[k].y;
+            o[16 + 4 * k + 2] = (float)s->n[k].z;
+        }
+    }
+    glCreateBuffers(1, &r->ssbo_smooth);
+    glNamedBufferStorage(r->ssbo_smooth, (GLsizeiptr)(n * 32 * sizeof(float)), b, 0);
+    free(b);
+}
+
 static void build_geometry(wrt_render *r) {
     const wrt_gto *g = r->g;
+    int curved;
+    wrt_smooth_src *src = smooth_sources(g, &curved);
+    r->smooth = curved > 0;
+    upload_smooth(r, curved > 0 ? src : NULL);
+    if (!curved) {
+        free(src);
+        src = NULL;
+    }
     size_t nv = (size_t)g->nquads * 4;
     float *vtx = wrt_xmalloc((nv ? nv : 1) * VTX_FLOATS * sizeof(float));
     uint32_t *idx = wrt_xmalloc(((size_t)g->nquads * 6 + 1) * sizeof(uint32_t));
@@ -455,10 +528,12 @@ static void build_geometry(wrt_render *r) {
             o[12] = m ? m->roughness : 1;
             o[13] = m ? (float)(m->lambertian != 0) : 1;
             for (int k = 0; k < 3; k++) o[14 + k] = g->normals ? g->normals[q].n[c][k] : Q->n[k];
+            for (int k = 0; k < 4; k++) o[17 + k] = src ? (float)src[q].w[c][k] : (float)(k == 0);
         }
         static const int tri[6] = {0, 1, 2, 0, 2, 3};
         for (int k = 0; k < 6; k++) idx[q * 6 + k] = q * 4 + (uint32_t)tri[k];
     }
+    free(src);
     glCreateBuffers(1, &r->vbo_geom);
     glNamedBufferStorage(r->vbo_geom, (GLsizeiptr)((nv ? nv : 1) * VTX_FLOATS * sizeof(float)), vtx, 0);
     glCreateBuffers(1, &r->vbo_rect);
@@ -496,6 +571,9 @@ static void build_geometry(wrt_render *r) {
     glEnableVertexArrayAttrib(a, 10);
     glVertexArrayAttribFormat(a, 10, 3, GL_FLOAT, GL_FALSE, (GLuint)(off * sizeof(float)));
     glVertexArrayAttribBinding(a, 10, 0);
+    glEnableVertexArrayAttrib(a, 11);
+    glVertexArrayAttribFormat(a, 11, 4, GL_FLOAT, GL_FALSE, (GLuint)((off + 3) * sizeof(float)));
+    glVertexArrayAttribBinding(a, 11, 0);
     glCreateVertexArrays(1, &r->vao_empty);
 }
 
@@ -641,6 +719,7 @@ void wrt_render_destroy(wrt_render *r) {
     glDeleteBuffers(1, &r->vbo_geom);
     glDeleteBuffers(1, &r->vbo_rect);
     glDeleteBuffers(1, &r->vbo_emit);
+    glDeleteBuffers(1, &r->ssbo_smooth);
     glDeleteBuffers(1, &r->vbo_tex);
     glDeleteTextures(1, &r->base_tex);
     glDeleteBuffers(1, &r->ibo);
@@ -1009,6 +1088,8 @@ void wrt_render_draw(wrt_render *r, const wrt_view *v, wrt_render_mode mode) {
     glBindTextureUnit(3, r->base_tex);
     glUniform1i(loc(p, "u_tex"), 3);
     glUniform2f(loc(p, "u_atlas_size"), (float)(r->atlas_w ? r->atlas_w : 1), (float)(r->atlas_h ? r->atlas_h : 1));
+    glUniform1i(loc(p, "u_smooth"), r->smooth);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, r->ssbo_smooth);
     glBindVertexArray(r->vao);
     glDrawElements(GL_TRIANGLES, (GLsizei)(r->g->nquads * 6), GL_UNSIGNED_INT, NULL);
     if (r->ms_fbo)

@@ -15,6 +15,11 @@
  * - A furnace: a closed icosphere of triangles facing inwards, albedo 0.9, a point light
  *   at its centre, lit through the runtime (projection, operator): the indirect flux must
  *   be 4 pi I rho / (1 - rho) (all light is caught, every bounce too).
+ * - The smooth surface of vertex normals (common/smooth.h) against closed forms: on a
+ *   triangle of the unit sphere and a quad of a unit cylinder (radial normals) the
+ *   shadow point at an edge's midpoint lies at cos t (1 + sin^2 t) from the centre along
+ *   it (t: half the angle between the edge's ends), the shading normal is radial; a flat
+ *   element is left exactly as it is.
  * Links: bake, runtime, formats, common. */
 #include <stdlib.h>
 #include <string.h>
@@ -22,6 +27,7 @@
 
 #include "common/basis.h"
 #include "common/cluster_tree.h"
+#include "common/smooth.h"
 #include "formats/gto.h"
 #include "formats/scene.h"
 #include "player/relight.h"
@@ -473,6 +479,77 @@ static void test_icosphere_furnace_many(void) {
  * every corner, to the exporter's rounding and its vertex normals' own tilt (0.34
  * degrees; flat normals would be 5.6 degrees off). The flat
  * cube's corners carry its faces' normals (within 0.1 degree). */
+/* A triangle's part or a paired quad, its shadow point and normal at x against the
+ * closed form: along `dir` at distance `r` from the origin, the normal `dir`. */
+static void smooth_check(const wrt_smooth_src *s, wrt_v3 x, wrt_v3 fn, wrt_v3 dir, double r, const char *what) {
+    double w[4];
+    wrt_v3 ns, xs;
+    wrt_smooth_weights(s, x, w);
+    wrt_smooth_at(s, w, x, fn, &ns, &xs);
+    wrt_v3 want = v3_scale(dir, r);
+    CHECK(v3_len(v3_sub(xs, want)) < 1e-6, "%s: shadow point (%.9f %.9f %.9f), closed form (%.9f %.9f %.9f)", what,
+          xs.x, xs.y, xs.z, want.x, want.y, want.z);
+    CHECK(v3_len(v3_sub(ns, dir)) < 1e-6, "%s: shading normal (%.6f %.6f %.6f)", what, ns.x, ns.y, ns.z);
+}
+
+static void test_smooth_surface(void) {
+    /* a triangle of the unit sphere, cut into its parts as the loader does, the corner
+     * normals as the loader sets them (formats/scene_normals.c: radial at the vertices,
+     * normalized means at the midpoints and the centroid) */
+    wrt_v3 V[3] = {v3_norm(v3(1, 0.1, 0.05)), v3_norm(v3(0.8, 0.6, 0)), v3_norm(v3(0.85, 0.2, 0.55))};
+    wrt_quad parts[3];
+    CHECK(wrt_triangle_quads(V[0], V[1], V[2], parts) == WRT_OK, "parts");
+    for (int k = 0; k < 3; k++) {
+        wrt_v3 a = V[k], b = V[(k + 1) % 3], c = V[(k + 2) % 3];
+        wrt_v3 m[4] = {a, v3_add(a, b), v3_add(v3_add(a, b), c), v3_add(c, a)};
+        float vn[4][3];
+        for (int i = 0; i < 4; i++) {
+            wrt_v3 n = v3_norm(m[i]);
+            vn[i][0] = (float)n.x; vn[i][1] = (float)n.y; vn[i][2] = (float)n.z;
+        }
+        wrt_smooth_src s;
+        wrt_smooth_make(parts[k].p, parts[k].n, (const float(*)[3])vn, k == 1 ? -1 : 1, &s); /* part 1 by its corners */
+        CHECK(s.curved == 1 && s.nsrc == 3, "part %d is a curved triangle's part (%d, %d)", k, s.curved, s.nsrc);
+        /* the vertex itself: on the sphere */
+        smooth_check(&s, a, parts[k].n, a, 1, "vertex");
+        /* both midpoints of the part's edges: cos t (1 + sin^2 t), cos 2t = a.b */
+        wrt_v3 ends[2] = {b, c};
+        for (int e = 0; e < 2; e++) {
+            double t = acos(v3_dot(a, ends[e])) / 2;
+            smooth_check(&s, v3_scale(v3_add(a, ends[e]), 0.5), parts[k].n, v3_norm(v3_add(a, ends[e])),
+                         cos(t) * (1 + sin(t) * sin(t)), "midpoint");
+        }
+    }
+    /* a quad of the unit cylinder about z, +-phi about the x axis, heights 0 and 1: at
+     * its centre (on the diagonal 0-2) cos phi (1 + sin^2 phi) along x */
+    double phi = 0.3, cp = cos(phi), sp = sin(phi);
+    wrt_v3 P[4] = {v3(cp, -sp, 0), v3(cp, sp, 0), v3(cp, sp, 1), v3(cp, -sp, 1)};
+    float vn[4][3];
+    for (int i = 0; i < 4; i++) {
+        vn[i][0] = (float)cp; vn[i][1] = (float)(i == 1 || i == 2 ? sp : -sp); vn[i][2] = 0;
+    }
+    wrt_smooth_src s;
+    wrt_smooth_make(P, v3(1, 0, 0), (const float(*)[3])vn, 0, &s);
+    CHECK(s.curved == 1 && s.nsrc == 4, "a paired quad (%d, %d)", s.curved, s.nsrc);
+    double w[4];
+    wrt_v3 ns, xs, x = v3(cp, 0, 0.5);
+    wrt_smooth_weights(&s, x, w);
+    wrt_smooth_at(&s, w, x, v3(1, 0, 0), &ns, &xs);
+    double r = cp * (1 + sp * sp);
+    CHECK(fabs(xs.x - r) < 1e-6 && fabs(xs.y) < 1e-6 && fabs(xs.z - 0.5) < 1e-12,
+          "cylinder: shadow point (%.9f %.9f %.9f), closed form (%.9f 0 0.5)", xs.x, xs.y, xs.z, r);
+    CHECK(v3_len(v3_sub(ns, v3(1, 0, 0))) < 1e-6, "cylinder: normal (%.6f %.6f %.6f)", ns.x, ns.y, ns.z);
+    /* a flat element: nothing moves, to the last bit (normals within half a degree) */
+    for (int i = 0; i < 4; i++) {
+        vn[i][0] = 1; vn[i][1] = i < 2 ? 0.001f : 0; vn[i][2] = 0;
+    }
+    wrt_smooth_make(P, v3(1, 0, 0), (const float(*)[3])vn, 0, &s);
+    wrt_smooth_weights(&s, v3(cp, 0.1, 0.2), w);
+    wrt_smooth_at(&s, w, v3(cp, 0.1, 0.2), v3(1, 0, 0), &ns, &xs);
+    CHECK(s.curved == 0 && xs.x == cp && xs.y == 0.1 && xs.z == 0.2 && ns.x == 1 && ns.y == 0 && ns.z == 0,
+          "a flat element is left alone");
+}
+
 static void test_loader_normals(void) {
     wrt_scene s;
     wrt_load_options lo;
@@ -533,6 +610,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_truth_itself);
     TEST_RUN(test_triangle_form_factors);
     TEST_RUN(test_loader_normals);
+    TEST_RUN(test_smooth_surface);
     TEST_RUN(test_icosphere_furnace);
     TEST_RUN(test_icosphere_furnace_many);
     rmdir(tmpdir);

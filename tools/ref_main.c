@@ -36,6 +36,8 @@ static void usage(FILE *f) {
             "  --spp N                 samples per pixel (default 64)\n"
             "  --width W --height H    image size (default 256 x 256)\n"
             "  --no-image              do not render an image\n"
+            "  --viewport-aspect       frame the image by its own width / height, as wrt-play\n"
+            "                          does, not by the camera's aspectRatio\n"
             "  -o, --out PREFIX        image files PREFIX_{direct,indirect,both,stderr}.exr\n"
             "                          and PREFIX_{both,direct}.png (default ref)\n"
             "  --pfm                   write .pfm files instead (always, without OpenImageIO)\n"
@@ -159,7 +161,7 @@ typedef struct {
     const char *scene_path, *out_prefix, *points_path;
     double exposure;
     int pfm;
-    int spp, width, height, image;
+    int spp, width, height, image, viewport_aspect;
     int samples, max_bounces, threads, json, cell_quad, cell_n;
     long long seed;
     wrt_cli_lights L;
@@ -188,6 +190,7 @@ static int ref_parse(int argc, char **argv, ref_opts *o) {
         else if (!strcmp(a, "--version")) { wrt_cli_version(T); return 0; }
         else if (!strcmp(a, "--json")) o->json = 1;
         else if (!strcmp(a, "--no-image")) o->image = 0;
+        else if (!strcmp(a, "--viewport-aspect")) o->viewport_aspect = 1;
         else if (!strcmp(a, "--pfm")) o->pfm = 1;
         else if (!strcmp(a, "--exposure")) { if (!wrt_cli_num(T, a, v, -64, 64, &o->exposure)) return WRT_EXIT_USAGE; i++; }
         else if (!strcmp(a, "--spp")) INT(1, 1 << 24, o->spp);
@@ -265,7 +268,9 @@ static int ref_image(const ref_opts *o, wrt_ref *ref, const wrt_scene *scene, co
     float *d = wrt_xmalloc(n * sizeof(float)), *ind = wrt_xmalloc(n * sizeof(float));
     float *both = wrt_xmalloc(n * sizeof(float)), *se = wrt_xmalloc(n * sizeof(float));
     double t0 = wrt_now();
-    wrt_status st = wrt_ref_render(ref, lights, nlights, &scene->camera, o->width, o->height, o->spp, o->max_bounces,
+    wrt_camera cam = scene->camera;
+    if (o->viewport_aspect) cam.aspect = 0; /* wrt_ref_render: 0 = width / height */
+    wrt_status st = wrt_ref_render(ref, lights, nlights, &cam, o->width, o->height, o->spp, o->max_bounces,
                                    o->threads, (uint64_t)o->seed, d, ind, both, se);
     f->t_image = wrt_now() - t0;
     if (st == WRT_OK) {

@@ -14,6 +14,7 @@
 #include "common/threads.h"
 #include "common/rt_scene.h"
 #include "common/texture.h"
+#include "common/smooth.h"
 
 #include <embree3/rtcore.h>
 #include <stdatomic.h>
@@ -29,6 +30,7 @@ typedef struct ref_quad {
     wrt_v3 n, t, b;  /* unit normal (from the corners) and a tangent frame */
     double d;        /* plane: dot(n, x) = d */
     const wrt_material *m;
+    int sm;          /* its smooth surface in wrt_ref.smooth (a curved element), or -1 */
 } ref_quad;
 
 struct wrt_ref {
@@ -36,6 +38,7 @@ struct wrt_ref {
     RTCDevice device;
     RTCScene rtc;
     ref_quad *quads;
+    wrt_smooth_src *smooth; /* the curved elements' smooth surfaces (common/smooth.h) */
     double eps;      /* origin offset along the normal */
     _Atomic uint64_t rays;
 };
@@ -77,6 +80,7 @@ wrt_ref *wrt_ref_create(const wrt_scene *scene) {
     wrt_ref *r = wrt_xcalloc(1, sizeof *r);
     r->scene = scene;
     r->quads = wrt_xcalloc((size_t)scene->nquads, sizeof *r->quads);
+    int nsmooth = 0;
     for (int i = 0; i < scene->nquads; i++) {
         const wrt_quad *q = &scene->quads[i];
         if (q->material < 0 || q->material >= scene->nmaterials) {
@@ -96,6 +100,15 @@ wrt_ref *wrt_ref_create(const wrt_scene *scene) {
         frame_of(n, &rq->t, &rq->b);
         rq->d = v3_dot(n, q->p[0]);
         rq->m = &scene->materials[q->material];
+        rq->sm = -1;
+        wrt_smooth_src src;
+        wrt_smooth_make(q->p, n, q->has_nrm ? (const float(*)[3])q->vn : NULL,
+                        q->kind == WRT_ELEM_TRIANGLE, &src);
+        if (src.curved) {
+            if (!r->smooth) r->smooth = wrt_xmalloc((size_t)scene->nquads * sizeof *r->smooth);
+            rq->sm = nsmooth;
+            r->smooth[nsmooth++] = src;
+        }
     }
     wrt_v3 *corners = malloc((size_t)(scene->nquads > 0 ? scene->nquads : 1) * 4 * sizeof *corners);
     if (!corners) {
@@ -123,6 +136,7 @@ void wrt_ref_destroy(wrt_ref *r) {
     if (r->rtc) rtcReleaseScene(r->rtc);
     if (r->device) rtcReleaseDevice(r->device);
     free(r->quads);
+    free(r->smooth);
     free(r);
 }
 
@@ -268,20 +282,27 @@ static const wrt_material *hit_material(const wrt_ref *r, int qi, wrt_v3 y, wrt_
     return tmp;
 }
 
-/* Direct light reflected at x toward wo (material m): sum over lights f(wl, wo) E_l. */
-static void direct_radiance(ref_thread *th, const ref_quad *q, const wrt_material *m, wrt_v3 x, wrt_v3 wo,
-                            double out[3]) {
+/* Direct light reflected at x toward wo (material m): sum over lights f(wl, wo) E_l,
+ * shaded with normal ns, the shadow rays leaving from xs (off the face of normal fn). */
+static void direct_radiance_at(ref_thread *th, wrt_v3 fn, wrt_v3 ns, const wrt_material *m, wrt_v3 x, wrt_v3 xs,
+                               wrt_v3 wo, double out[3]) {
     out[0] = out[1] = out[2] = 0;
-    wrt_v3 o = v3_mad(x, q->n, th->r->eps);
+    wrt_v3 o = v3_mad(xs, fn, th->r->eps);
     for (int i = 0; i < th->nlights; i++) {
         double el[3], f[3];
         wrt_v3 wl;
-        if (!light_irradiance(&th->lights[i], x, q->n, &wl, el)) continue;
-        wrt_brdf_eval(m, q->n, wl, wo, f);
+        if (!light_irradiance(&th->lights[i], x, ns, &wl, el)) continue;
+        wrt_brdf_eval(m, ns, wl, wo, f);
         if (f[0] == 0 && f[1] == 0 && f[2] == 0) continue;
         if (!light_seen(th, o, &th->lights[i], wl)) continue;
         for (int c = 0; c < 3; c++) out[c] += f[c] * el[c];
     }
+}
+
+/* The same on the flat element q (the transport's: every bounce after the camera's). */
+static void direct_radiance(ref_thread *th, const ref_quad *q, const wrt_material *m, wrt_v3 x, wrt_v3 wo,
+                            double out[3]) {
+    direct_radiance_at(th, q->n, q->n, m, x, x, wo, out);
 }
 
 /* Radiance arriving at o from direction d (o already offset off its surface), with
@@ -519,11 +540,22 @@ static void render_row(ref_job *job, ref_thread *th, int y) {
                 double dr[3];
                 wrt_material mt;
                 const wrt_material *m = hit_material(job->r, qi, p, &mt);
-                direct_radiance(th, q, m, p, wo, dr);
+                /* the smooth surface of a curved element (common/smooth.h): shaded with the
+                 * interpolated normal, its shadow rays from the point moved towards it */
+                wrt_v3 ns = q->n, ps = p;
+                if (q->sm >= 0) {
+                    double sw[4];
+                    wrt_smooth_weights(&job->r->smooth[q->sm], p, sw);
+                    wrt_smooth_at(&job->r->smooth[q->sm], sw, p, q->n, &ns, &ps);
+                }
+                direct_radiance_at(th, q->n, ns, m, p, ps, wo, dr);
                 for (int ch = 0; ch < 3; ch++) sd[ch] += dr[ch] + q->m->emissive[ch]; /* emitter seen */
                 double w[3];
                 double u1 = rng_next(&rng), u2 = rng_next(&rng), u3 = rng_next(&rng);
-                wrt_v3 wi = wrt_brdf_sample(m, q->n, wo, u1, u2, u3, w);
+                wrt_v3 wi = wrt_brdf_sample(m, ns, wo, u1, u2, u3, w);
+                /* about a shading normal a direction may go below the facet: light from
+                 * inside the object, none */
+                if (q->sm >= 0 && !(v3_dot(wi, q->n) > 0)) w[0] = w[1] = w[2] = 0;
                 if (w[0] > 0 || w[1] > 0 || w[2] > 0)
                     trace(th, &rng, v3_mad(p, q->n, job->r->eps), wi, w, 1, ind);
             }

@@ -68,7 +68,14 @@ wrt_status wrt_ref_cell_irradiance(wrt_ref *r, const wrt_light *lights, int nlig
 /* An image of radiance leaving the first surface hit toward the camera: width x height
  * RGB floats, row 0 at the top, in `direct`, `indirect` and `both` (direct + indirect),
  * and the standard error of the indirect per pixel and channel in `indirect_stderr`.
- * spp jittered samples per pixel; camera aspect 0 = width / height. Outputs may be NULL. */
+ * spp jittered samples per pixel; camera aspect 0 = width / height. Outputs may be NULL.
+ * The image is of the surface the player shows: where the first hit is a curved element
+ * (vertex normals off its plane, common/smooth.h) it is shaded with the interpolated
+ * normal (the direct light's cosine and BRDF, and the first reflection's directions,
+ * those below the flat facet carrying nothing) and its shadow rays leave from the point
+ * moved towards the smooth surface; every later bounce, and the point and cell
+ * irradiance above, are the flat elements' (the transport the bake computes). Flat
+ * elements (every scene without curved meshes) are as before, sample for sample. */
 wrt_status wrt_ref_render(wrt_ref *r, const wrt_light *lights, int nlights,
                           const wrt_camera *camera, int width, int height, int spp,
                           int max_bounces, int threads, uint64_t seed, float *direct,
