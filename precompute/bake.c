@@ -551,7 +551,7 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
         double all = (double)ent * scale, kall = (double)kent * scale, hall = (double)held * scale;
         double done = (double)ndone / (double)np, left = (1 - done) / done;
         /* 38 an entry at the assembly, less what the entries already take (resident:
-         * diffuse pairs' compact records, about 9 bytes an entry on the mazes, dto.h) */
+         * diffuse pairs' compact records, 8 to 16 bytes an entry, dto.h) */
         uint64_t need = (uint64_t)((all * 38.0 + kall * 24) * (1 + left) - hall);
         uint64_t known = (uint64_t)(all * 38.0 + kall * 24 - hall);
         /* the extrapolation from under a tenth of the pairs is noise: it refuses only from
