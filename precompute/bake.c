@@ -205,7 +205,7 @@ static void k_assemble(wrt_bake_result *res, const pair_out *out, size_t n, uint
     uint64_t m = 0;
     for (size_t i = 0; i < n; i++)
         for (size_t k = 0; k < out[i].count; k++) {
-            const pair_entry *e = &out[i].e[k];
+            const pair_entry *e = &out[i].e[k]; /* K's pairs hold full entries (dto.c) */
             t[m++] = (k_trip){e->s, (uint32_t)wrt_fkey_find(res->fkeys, res->nfuncs, e->r), e->v[0]};
         }
     qsort(t, m, sizeof *t, cmp_kt);
@@ -503,7 +503,7 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
      * whole (in scene order, blender_shapes' first tenth of the pairs extrapolated to 13.4
      * GB and was refused; it needs 2.7 GB). The order does not change the result. */
     size_t chunk = np / 50 + 1, nch = np ? (np + chunk - 1) / chunk : 0, ndone = 0, nown = 0;
-    uint64_t ent = 0, kent = 0;
+    uint64_t ent = 0, kent = 0, held = 0; /* held: the bytes the entries so far take */
     wrt_status mst = WRT_OK;
     /* the pairs' link tables may use what the budget leaves beside what is resident now */
     atomic_init(pool_bytes, 0);
@@ -541,17 +541,19 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
         for (size_t k = 0; k < n; k++)
             if (!job->owner || job->owner[c + k * nch] == job->rank) {
                 ent += job->out[c + k * nch].count;
+                held += wrt_pair_bytes(&job->out[c + k * nch]);
                 if (job->out[c + k * nch].kmode) kent += job->out[c + k * nch].count;
                 nown++;
             }
         /* wrt-bake-mpi: this rank's pairs so far stand for all the pairs so far, whose
          * entries the merge then gives every rank (the assembly holds them all) */
         double scale = nown == ndone ? 1 : nown ? (double)ndone / (double)nown : 0;
-        double all = (double)ent * scale, kall = (double)kent * scale;
+        double all = (double)ent * scale, kall = (double)kent * scale, hall = (double)held * scale;
         double done = (double)ndone / (double)np, left = (1 - done) / done;
-        double per = 38.0 - (double)sizeof(pair_entry); /* beyond the entries already resident */
-        uint64_t need = (uint64_t)(all * left * sizeof(pair_entry) + (all * per + kall * 24) * (1 + left));
-        uint64_t known = (uint64_t)(all * per + kall * 24);
+        /* 38 an entry at the assembly, less what the entries already take (resident:
+         * diffuse pairs' compact records, 8 to 16 bytes an entry, dto.h) */
+        uint64_t need = (uint64_t)((all * 38.0 + kall * 24) * (1 + left) - hall);
+        uint64_t known = (uint64_t)(all * 38.0 + kall * 24 - hall);
         /* the extrapolation from under a tenth of the pairs is noise: it refuses only from
          * there on, what is already computed at any time; the figure recorded is the last */
         double keep = C->mem_estimate_mb;
@@ -612,15 +614,20 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
          * (2.0 GB); the set holds the 2.3 MB of distinct keys */
         wrt_fkey_set ks = {0};
         for (int q = 0; q < b->nq; q++) wrt_fkey_set_add(&ks, wrt_fkey_make((uint32_t)q, wrt_node_root(), 0, wrt_node_root(), 0));
-        for (size_t i = 0; i < np; i++)
+        pair_entry *ebuf = NULL; /* a compact pair's entries, decoded (wrt_pair_entries) */
+        size_t ecap = 0;
+        for (size_t i = 0; i < np; i++) {
+            const pair_entry *pe = wrt_pair_entries(b, &job->out[i], &ebuf, &ecap);
             for (size_t k = 0; k < job->out[i].count; k++) {
-                wrt_fkey_set_add(&ks, job->out[i].e[k].r);
-                if (!job->out[i].kmode) wrt_fkey_set_add(&ks, job->out[i].e[k].s);
+                wrt_fkey_set_add(&ks, pe[k].r);
+                if (!job->out[i].kmode) wrt_fkey_set_add(&ks, pe[k].s);
             }
+        }
         uint64_t nu = ks.n;
         if (nu > UINT32_MAX - 1) {
             st = wrt_fail(WRT_ERR_INVALID_ARG, "too many basis functions (%llu)", (unsigned long long)nu);
             wrt_fkey_set_free(&ks);
+            free(ebuf);
         } else {
             uint64_t *keys = wrt_fkey_set_sorted(&ks);
             if (!keys) keys = wrt_xmalloc(sizeof *keys);
@@ -635,17 +642,26 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             size_t trim_every = npt / 32 + 1;
             for (size_t i = 0; i < npt; i++) {
                 pair_out *o = &job->out[i];
+                /* a compact pair's entries are decoded into ebuf and its kept ones
+                 * gathered there (in order), then copied out */
+                pair_entry *pe = (pair_entry *)wrt_pair_entries(b, o, &ebuf, &ecap);
                 size_t keep = 0;
                 for (size_t k = 0; k < o->count; k++) {
-                    const pair_entry *e = &o->e[k];
+                    const pair_entry *e = &pe[k];
                     tr[t].row = (uint32_t)wrt_fkey_set_find(&ks, e->r);
                     tr[t].col = (uint32_t)wrt_fkey_set_find(&ks, e->s);
                     memcpy(tr[t].v, e->v, sizeof e->v);
                     t++;
-                    if (!b->opt.no_balance && wrt_balance_reads_entry(b, e)) o->e[keep++] = *e;
+                    if (!b->opt.no_balance && wrt_balance_reads_entry(b, e)) pe[keep++] = *e;
                 }
                 o->count = keep;
-                if (!keep) {
+                if (o->d) {
+                    free(o->d);
+                    o->d = NULL;
+                    o->nd = 0;
+                    o->e = keep ? wrt_xmalloc(keep * sizeof *o->e) : NULL;
+                    if (keep) memcpy(o->e, pe, keep * sizeof *o->e);
+                } else if (!keep) {
                     free(o->e);
                     o->e = NULL;
                 } else {
@@ -654,6 +670,7 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
                 if ((i + 1) % trim_every == 0) wrt_bake_memory_trim();
             }
             wrt_fkey_set_free(&ks);
+            free(ebuf);
             /* the balance: per leaf link a reference and the power entries it sets (about
              * three of 24 bytes each, measured on the maze: 606k entries from 263k leaves) */
             uint64_t nleaf = 0;
@@ -765,6 +782,8 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     wrt_status st = bake_dto(&b, C, &pl, &job, &pool_bytes, &pool_refused);
     if (lst != WRT_OK) st = lst;
     if (job.owner) { /* wrt-bake-mpi: every rank gets every pair's links, and the counters' sums */
+        /* the exchange sends full entries (dist.c) */
+        for (size_t i = 0; i < pl.np; i++) wrt_pair_expand(&b, &job.out[i]);
         if (st == WRT_OK) st = wrt_dist_merge_pairs(b.opt.dist, job.owner, job.out, pl.np);
         uint64_t sums[7] = {C->samples, C->rays_traced, C->rays_skipped_facing, C->rays_skipped_unoccluded,
                             C->links_refined, C->links_leaf, C->links_invisible};
@@ -782,7 +801,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     int *pr = pl.pr, *ps = pl.ps;
     uint8_t *occl = pl.occl;
     size_t np = pl.np;
-    for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].leaf); }
+    for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].d); free(job.out[i].leaf); }
     free(job.out); free(job.tc); free(pr); free(ps); free(occl);
     double t_end = wrt_now(), cpu1 = wrt_dist_cpu_now();
     if (b.opt.dist) {

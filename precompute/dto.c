@@ -731,6 +731,102 @@ static void push_up(pair_ctx *pc, int side) {
     }
 }
 
+/* ---- a diffuse pair's compact entries (dto.h's pair_dent) ---- */
+
+#define DENT_LOC_BITS 26
+#define DENT_LOC_MASK ((UINT64_C(1) << DENT_LOC_BITS) - 1)
+#define DENT_FWD (UINT64_C(1) << 52)
+#define DENT_TR (UINT64_C(1) << 53)
+
+/* A function's key within its quad: wrt_fkey's cell and type (bits 16..41), the angular
+ * part being the root (bits 0..15 zero). */
+static uint64_t dent_loc(wrt_node n, int type) { return wrt_fkey_make(0, n, type, wrt_node_root(), 0) >> 16; }
+
+/* The entries of block bl of a diffuse pair (one channel, no angular function), kept by
+ * the same rule as wrt_dto_pair's general loop and in its order, as records: one per
+ * receiver and sender function with a kept entry or transposed entry. */
+static void emit_dents(pair_ctx *pc, const block *bl, double wfloor, pair_out *out, size_t *cap) {
+    const bake_ctx *b = pc->b;
+    const double *rho = b->rho[pc->s], *rho_r = b->rho[pc->r];
+    int any = 0, anyt = 0;
+    for (int ri = 0; ri < 4; ri++) {
+        if (ri == 0 && bl->rn.level != 0) continue;
+        for (int sj = 0; sj < 4; sj++) {
+            if (sj == 0 && bl->sn.level != 0) continue;
+            double g = BV(pc, bl, ri, sj, 0, 0), m = 0, mt = 0;
+            for (int ch = 0; ch < 3; ch++) m = fmax(m, fabs(g * rho[ch]));
+            int fwd = m != 0 && m * wfloor >= b->entry_floor, tr = 0;
+            if (pc->sym) {
+                for (int ch = 0; ch < 3; ch++) mt = fmax(mt, fabs(g * rho_r[ch]));
+                tr = mt != 0 && mt / wfloor >= b->entry_floor;
+            }
+            if (!fwd && !tr) continue;
+            if (out->nd == *cap) {
+                *cap = *cap ? 2 * *cap : 64;
+                out->d = wrt_xrealloc(out->d, *cap * sizeof *out->d);
+            }
+            uint64_t keys = dent_loc(bl->rn, ri) | dent_loc(bl->sn, sj) << DENT_LOC_BITS;
+            out->d[out->nd++] = (pair_dent){keys | (fwd ? DENT_FWD : 0) | (tr ? DENT_TR : 0), g};
+            out->count += (size_t)(fwd + tr);
+            any |= fwd;
+            anyt |= tr;
+        }
+    }
+    out->links += (uint64_t)(any + anyt);
+}
+
+/* The arrays cut to what they hold (they grew by doubling). */
+static void pair_shrink(pair_out *o) {
+    if (o->d) {
+        o->d = wrt_xrealloc(o->d, (o->nd ? o->nd : 1) * sizeof *o->d);
+    } else if (o->e) {
+        o->e = wrt_xrealloc(o->e, (o->count ? o->count : 1) * sizeof *o->e);
+    }
+}
+
+const pair_entry *wrt_pair_entries(const bake_ctx *b, const pair_out *o, pair_entry **buf, size_t *cap) {
+    if (!o->d) return o->e;
+    if (o->count > *cap) {
+        *cap = o->count;
+        free(*buf);
+        *buf = wrt_xmalloc(*cap * sizeof **buf);
+    }
+    const double *rho = b->rho[o->s], *rho_r = b->rho[o->r];
+    uint64_t qr = (uint64_t)(uint32_t)o->r << 42, qs = (uint64_t)(uint32_t)o->s << 42;
+    pair_entry *e = *buf;
+    size_t n = 0;
+    for (size_t i = 0; i < o->nd; i++) {
+        const pair_dent *d = &o->d[i];
+        uint64_t rk = qr | (d->keys & DENT_LOC_MASK) << 16, sk = qs | (d->keys >> DENT_LOC_BITS & DENT_LOC_MASK) << 16;
+        if (d->keys & DENT_FWD) {
+            e[n] = (pair_entry){.r = rk, .s = sk};
+            for (int ch = 0; ch < 3; ch++) e[n].v[ch] = (float)(d->g * rho[ch]);
+            n++;
+        }
+        if (d->keys & DENT_TR) {
+            e[n] = (pair_entry){.r = sk, .s = rk};
+            for (int ch = 0; ch < 3; ch++) e[n].v[ch] = (float)(d->g * rho_r[ch]);
+            n++;
+        }
+    }
+    return e;
+}
+
+void wrt_pair_expand(const bake_ctx *b, pair_out *o) {
+    if (!o->d) return;
+    pair_entry *e = NULL;
+    size_t cap = 0;
+    wrt_pair_entries(b, o, &e, &cap);
+    free(o->d);
+    o->d = NULL;
+    o->nd = 0;
+    o->e = e;
+}
+
+size_t wrt_pair_bytes(const pair_out *o) {
+    return o->d ? o->nd * sizeof *o->d : o->count * sizeof *o->e;
+}
+
 void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counters *tc, pair_out *out) {
     /* a quad with covered parts (cover.c) has its visibility sampled, whatever lies between */
     int cov = b->cover && (b->cover[r] || b->cover[s]);
@@ -778,9 +874,17 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
     int at[1 << (2 * WRT_K_MAX_LEVEL)];
     const double *kbmax = b->kbmax[b->scene->quads[s].material];
     for (int a = 0; a < pc.nar || a < pc.nas; a++) wrt_angular_func(a, &an[a], &at[a]);
+    out->r = r; out->s = s;
+    /* a diffuse pair's entries are held as compact records (pair_dent) */
+    int compact = !pc.kmode && pc.nch == 1;
+    size_t dcap = 0;
     for (size_t i = 0; i < pc.nblocks; i++) {
         const block *bl = &pc.blocks[i];
         int any = 0, anyt = 0;
+        if (compact) {
+            emit_dents(&pc, bl, wfloor, out, &dcap);
+            continue;
+        }
         for (int ri = 0; ri < 4; ri++) {
             if (ri == 0 && bl->rn.level != 0) continue;
             for (int sj = 0; sj < 4; sj++) {
@@ -833,6 +937,7 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
     }
     out->glossy = pc.lr || pc.ls;
     out->kmode = pc.kmode;
+    pair_shrink(out);
 done:
     if (b->pool_bytes) atomic_fetch_sub(b->pool_bytes, (unsigned long long)pc.pool_cap * sizeof *pc.pool);
     free(pc.blocks); free(pc.pool); free(pc.hkeys); free(pc.hvals); free(pc.leaf);

@@ -7,12 +7,22 @@
 #include "bake_ctx.h"
 
 typedef struct pair_entry { uint64_t r, s; float v[3]; } pair_entry;
+/* A diffuse pair's entries, held compactly until they are assembled (dto.c): one record
+ * per receiver and sender function of a link whose entry T[r][s] or transposed entry
+ * T[s][r] was kept: the two functions' keys within their quads (wrt_fkey bits 16..41:
+ * cell and type; the angular part is the root), the two kept bits, and the kernel's
+ * value g, of which the entries are (float)(g rho_S) and (float)(g rho_R) exactly as the
+ * DTO made them. 16 bytes for up to two entries, where a pair_entry is 32 for one (the
+ * 12 x 12 maze's 30.1M entries were 918 MB, the bake's peak). */
+typedef struct pair_dent { uint64_t keys; double g; } pair_dent;
 /* A leaf link of a pair with a diffuse sender, kept for the power balance (balance.c):
  * the receiver and sender cells (dto.c's node packing) and the visible share of the
  * link's sampled form factor (1 where no occluder can lie between the quads). */
 typedef struct leaf_rec { uint32_t rn, sn; float vis; } leaf_rec;
 typedef struct pair_out {
-    pair_entry *e; size_t count;
+    pair_entry *e; size_t count; /* count: the pair's entries, in e or in d */
+    pair_dent *d; size_t nd;     /* the compact records (diffuse pairs; e is then NULL) */
+    int r, s;                    /* the quads (receiver, sender) wrt_dto_pair was given */
     leaf_rec *leaf; size_t nleaf;
     int occluded;          /* an occluder may lie between the quads */
     int leaf_dirs;         /* bit 0: the leaves serve sender s; bit 1: also sender r (reciprocal pair) */
@@ -28,6 +38,14 @@ typedef struct pair_out {
  * directions (the entries of T[s][r] are emitted too), bit 2 the first-bounce operator K
  * instead of T (s glossy; one value, copied to the three channels of each entry). */
 void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counters *tc, pair_out *out);
+
+/* The entries of a pair in the order the DTO made them: o->e, or o's compact records
+ * decoded into *buf (grown as needed, *cap its length; the caller frees it). */
+const pair_entry *wrt_pair_entries(const bake_ctx *b, const pair_out *o, pair_entry **buf, size_t *cap);
+/* Replaces o's compact records by full entries (the same entries, the same order). */
+void wrt_pair_expand(const bake_ctx *b, pair_out *o);
+/* The bytes o's entries hold (records or entries, not the leaves). */
+size_t wrt_pair_bytes(const pair_out *o);
 
 /* The angular function of index idx (common/brdf_table.h's order): node and type. */
 void wrt_angular_func(int idx, wrt_node *n, int *type);
