@@ -566,24 +566,30 @@ wrt_csc wrt_csc_add3(const wrt_csc *a, const wrt_csc *b, const double s[3]) {
     m.row = wrt_xmalloc((cap ? cap : 1) * sizeof *m.row);
     m.val = wrt_xmalloc((cap ? cap : 1) * 3 * sizeof *m.val);
     uint64_t k = 0;
+    /* a's entries before b's next row (all the rest where b's column is done) are copied
+     * as one run: the series' sum S + P, where P holds a few entries a column and S
+     * millions, was copied entry by entry, serially, at every bounce. The same entries. */
     for (uint32_t j = 0; j < n; j++) {
         uint64_t ia = a->col[j], ea = a->col[j + 1], ib = b->col[j], eb = b->col[j + 1];
         while (ia < ea || ib < eb) {
-            uint32_t ra = ia < ea ? a->row[ia] : UINT32_MAX, rb = ib < eb ? b->row[ib] : UINT32_MAX;
-            if (ra <= rb) {
-                m.row[k] = ra;
-                for (int c = 0; c < 3; c++) m.val[3 * k + c] = a->val[3 * ia + c];
-                if (rb == ra) {
-                    for (int c = 0; c < 3; c++)
-                        m.val[3 * k + c] = (float)((double)m.val[3 * k + c] + s[c] * b->val[3 * ib + c]);
-                    ib++;
-                }
+            uint32_t rb = ib < eb ? b->row[ib] : UINT32_MAX;
+            uint64_t run = ia;
+            while (run < ea && a->row[run] < rb) run++;
+            if (run > ia) {
+                memcpy(&m.row[k], &a->row[ia], (run - ia) * sizeof *m.row);
+                memcpy(&m.val[3 * k], &a->val[3 * ia], 3 * (run - ia) * sizeof *m.val);
+                k += run - ia;
+                ia = run;
+            }
+            if (ib == eb) break;
+            m.row[k] = rb;
+            if (ia < ea && a->row[ia] == rb) {
+                for (int c = 0; c < 3; c++) m.val[3 * k + c] = (float)((double)a->val[3 * ia + c] + s[c] * b->val[3 * ib + c]);
                 ia++;
             } else {
-                m.row[k] = rb;
                 for (int c = 0; c < 3; c++) m.val[3 * k + c] = (float)(s[c] * b->val[3 * ib + c]);
-                ib++;
             }
+            ib++;
             k++;
         }
         m.col[j + 1] = k;
