@@ -88,6 +88,11 @@ static inline double ff_edge(wrt_v3 a, wrt_v3 b, wrt_v3 n) {
     return atan2(sl, d) * v3_dot(c, n) / sl;
 }
 
+/* The form factor from the sum of a polygon's edge terms (both paths below). */
+static inline double ff_of_sum(double sum) {
+    return fabs(sum) / (2 * WRT_PI);
+}
+
 /* A quad seen wholly from the front of x's plane: the clipping below keeps its four
  * corners as they are, so this takes each corner's difference and its dot with n once
  * (not twice) and walks the edges without the general loop's two integer divisions an
@@ -105,7 +110,7 @@ static inline double ff_point_quad_front(wrt_v3 x, wrt_v3 n, const wrt_v3 *poly)
     sum += ff_edge(d[1], d[2], n);
     sum += ff_edge(d[2], d[3], n);
     sum += ff_edge(d[3], d[0], n);
-    return fabs(sum) / (2 * WRT_PI);
+    return ff_of_sum(sum);
 }
 
 double wrt_ff_point_polygon(wrt_v3 x, wrt_v3 n, const wrt_v3 *poly, int count) {
@@ -130,7 +135,7 @@ double wrt_ff_point_polygon(wrt_v3 x, wrt_v3 n, const wrt_v3 *poly, int count) {
     for (int i = 0; i < nc; i++) clip[i] = v3_norm(clip[i]);
     double sum = 0;
     for (int i = 0; i < nc; i++) sum += ff_edge(clip[i], clip[(i + 1) % nc], n);
-    return fabs(sum) / (2 * WRT_PI);
+    return ff_of_sum(sum);
 }
 
 /* The form factors from x (normal n) to the four quadrants of a sender cell, given its
