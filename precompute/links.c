@@ -96,17 +96,36 @@ static int cmp_lp(const void *pa, const void *pb) {
     return a->s < b->s ? -1 : a->s > b->s;
 }
 
+/* Links are counted a group of columns at a time: the columns whose keys share the
+ * sender's spatial node (key >> 18: quad, level, y, x) are adjacent in the sorted keys
+ * and hold every link of their sender supports (a support differs from its node only by
+ * the angular cell), so their distinct pairs add up. The scratch is the largest group's
+ * entries, not the whole matrix's: a copy of every entry (16 bytes each, the operator's
+ * own size) was the bake's peak at its end, uncounted by its memory estimate (the
+ * 10,065-triangle --clusters bake: 2.3 GB of its 6.6 GB). Unsorted keys: one group. */
 uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys) {
     if (!m->nnz) return 0;
-    link_pair *lp = wrt_xmalloc(m->nnz * sizeof *lp);
-    uint64_t k = 0;
-    for (uint32_t j = 0; j < m->n; j++)
-        for (uint64_t i = m->col[j]; i < m->col[j + 1]; i++)
-            lp[k++] = (link_pair){support_of(fkeys[m->row[i]]), support_of(fkeys[j])};
-    qsort(lp, k, sizeof *lp, cmp_lp);
-    uint64_t links = 0;
-    for (uint64_t i = 0; i < k; i++)
-        if (i == 0 || lp[i].r != lp[i - 1].r || lp[i].s != lp[i - 1].s) links++;
+    int sorted = 1;
+    for (uint32_t j = 1; j < m->n && sorted; j++) sorted = fkeys[j] >> 18 >= fkeys[j - 1] >> 18;
+    link_pair *lp = NULL;
+    uint64_t cap = 0, links = 0;
+    for (uint32_t j0 = 0; j0 < m->n;) {
+        uint32_t j1 = sorted ? j0 + 1 : m->n;
+        while (j1 < m->n && fkeys[j1] >> 18 == fkeys[j0] >> 18) j1++;
+        uint64_t k = 0, need = m->col[j1] - m->col[j0];
+        if (need > cap) {
+            free(lp);
+            cap = need;
+            lp = wrt_xmalloc(cap * sizeof *lp);
+        }
+        for (uint32_t j = j0; j < j1; j++)
+            for (uint64_t i = m->col[j]; i < m->col[j + 1]; i++)
+                lp[k++] = (link_pair){support_of(fkeys[m->row[i]]), support_of(fkeys[j])};
+        if (k) qsort(lp, k, sizeof *lp, cmp_lp);
+        for (uint64_t i = 0; i < k; i++)
+            if (i == 0 || lp[i].r != lp[i - 1].r || lp[i].s != lp[i - 1].s) links++;
+        j0 = j1;
+    }
     free(lp);
     return links;
 }
