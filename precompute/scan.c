@@ -139,13 +139,13 @@ typedef struct scan_model { double c, step, a, g, h; } scan_model;
 static const double scan_plain_range[2][2] = {{0.0168, 0.5658}, {0.0081, 0.5401}}; /* f, x */
 static const double scan_clusters_range[2][2] = {{0.3625, 0.5188}, {0, 1}};
 static const scan_model model_plain[3] = {
-    {189.1, 2.8301, 1.2306, 0.5212, 0.4051}, /* cpu_s */
-    {2018, 2.4420, 1.2307, 0.3149, 0.4143}, /* peak_mb */
-    {1.572e+08, 2.1188, 0.9240, 0.1578, 0.0103}, /* bytes */
+    {213.8, 3.0709, 1.2752, 0.5724, 0.4305}, /* cpu_s */
+    {2017, 2.4417, 1.2307, 0.3148, 0.4143}, /* peak_mb */
+    {1.54e+08, 2.1177, 0.9113, 0.1501, -0.0071}, /* bytes */
 };
 static const scan_model model_clusters[3] = {
     {350.3, 3.4326, 1.1761, -1.4178, 0}, /* cpu_s */
-    {2851, 2.6380, 1.0308, -1.6130, 0}, /* peak_mb */
+    {2066, 2.3628, 1.0151, -1.0705, 0}, /* peak_mb */
     {1.032e+08, 2.0930, 1.2452, 0.4749, 0}, /* bytes */
 };
 
