@@ -671,6 +671,42 @@ static wrt_status bake_dto(bake_ctx *b, wrt_bake_counters *C, const pair_list *p
     return st;
 }
 
+/* The power balance's memory (balance.c), counted before it runs: its entries and each
+ * thread's working arrays.
+ * - Entries: a sender's deltas, one per receiver root and sender column that changed,
+ *   held per sender (arrays grown by doubling) until they are appended to the triplets:
+ *   at most 60 bytes each. Their number is at most the receivers times the columns summed
+ *   over the senders, but that bound is 4 to 8 times what they are (cornell_shapes q3
+ *   0.47M against 0.11M, the atrium 6.8M against 0.85M, the maze 1.5M against 0.61M);
+ *   measured they are 2.3 (cornell_shapes, the maze) to 5.7 (the atrium) per leaf link,
+ *   so 8 per leaf are counted where that is under the bound. (Three a leaf of 24 bytes
+ *   were counted before: the atrium's balance passed it by 42 MB.)
+ * - Working arrays: for the sender it is on, arrays over (receiver, column) of about 97
+ *   bytes (the deltas' and the emitted values' three doubles each, the wavelet rows'
+ *   power, the occluded share, the rule's values), with the sender's receivers its leaf
+ *   pairs and its columns its functions of the angular root; counted for the `threads`
+ *   largest senders at once. */
+static uint64_t balance_need(const bake_ctx *b, const pair_list *pl, const dto_job *job, const uint64_t *keys,
+                             uint32_t nkeys, uint64_t nleaf) {
+    int nq = b->nq, nt = wrt_threads_resolve(b->opt.threads);
+    uint64_t *cells = wrt_xcalloc((size_t)nq + 1, sizeof *cells), *cols = wrt_xcalloc((size_t)nq + 1, sizeof *cols);
+    for (size_t i = 0; i < pl->npt; i++)
+        for (int d = 0; d < 2 && job->out[i].nleaf; d++)
+            if (job->out[i].leaf_dirs & (1 << d)) cells[d ? pl->pr[i] : pl->ps[i]]++;
+    for (uint32_t f = 0; f < nkeys; f++)
+        if (wrt_fkey_angular_root(keys[f]) && wrt_fkey_quad(keys[f]) < (uint32_t)nq) cols[wrt_fkey_quad(keys[f])]++;
+    uint64_t bound = 0;
+    for (int q = 0; q < nq; q++) {
+        cells[q] = b->alevel[b->scene->quads[q].material] ? 0 : cells[q] * (cols[q] + 1);
+        bound += cells[q];
+    }
+    wrt_sort_u64(cells, (size_t)nq);
+    uint64_t work = 0;
+    for (int k = 0; k < nt && k < nq; k++) work += 97 * cells[nq - 1 - k];
+    free(cells); free(cols);
+    return 60 * (8 * nleaf < bound ? 8 * nleaf : bound) + work;
+}
+
 /* Stage 6: the basis functions indexed, T assembled and balanced, K assembled and
  * balanced; the status */
 static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const pair_list *pl, const dto_job *job,
@@ -755,12 +791,13 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             }
             wrt_fkey_set_free(&ks);
             free(ebuf);
-            /* the balance: per leaf link a reference and the power entries it sets (about
-             * three of 24 bytes each, measured on the maze: 606k entries from 263k leaves) */
+            /* the balance: per leaf link a reference, the entries it sets and the threads'
+             * working arrays (balance_need) */
             uint64_t nleaf = 0;
             for (size_t i = 0; i < npt; i++) nleaf += job->out[i].nleaf;
             if (!b->opt.no_balance)
-                st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, nleaf * (8 + 3 * 24),
+                st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb,
+                                           8 * nleaf + balance_need(b, pl, job, keys, res->nfuncs, nleaf),
                                            "the power balance");
             if (!b->opt.no_balance && st == WRT_OK) {
                 if (b->opt.progress) b->opt.progress("balance", -1, b->opt.progress_user); /* no fraction known */

@@ -4,8 +4,9 @@
  * file adds what --drop-bad would change and the estimate.
  *
  * The estimate is a model, not a dry run: time, peak memory and bytes as powers of the
- * number of elements N and of how open the scene is (the share of point pairs that see
- * each other, sampled here with one ray each), one factor per quality step, fitted to
+ * number of elements N, of how open the scene is (the share of point pairs that see
+ * each other, sampled here with one ray each) and of the share of element pairs that
+ * face each other (the plain bake's pair list), one factor per quality step, fitted to
  * measured bakes (docs/scan_fit.csv, tools/scan_fit.py) and set above every one of them.
  * docs/triangles.md ("--scan's estimate, refitted") gives each bake beside its estimate.
  * Depends on the bake's options and the scene only. */
@@ -87,36 +88,72 @@ double wrt_scan_visible_fraction(const wrt_scene *s) {
     return (double)seen / SCAN_VIS_SAMPLES;
 }
 
+double wrt_scan_exchange_fraction(const wrt_scene *s) {
+    if (!s || s->nquads < 2) return 0;
+    int n = s->nquads;
+    /* the bake's tolerance (bake.c: 1e-7 of the scene's size, its bounding box's diagonal) */
+    wrt_v3 lo = s->quads[0].p[0], hi = lo;
+    for (int i = 0; i < n; i++)
+        for (int k = 0; k < 4; k++) {
+            wrt_v3 p = s->quads[i].p[k];
+            lo = v3(fmin(lo.x, p.x), fmin(lo.y, p.y), fmin(lo.z, p.z));
+            hi = v3(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
+        }
+    double eps = 1e-7 * v3_len(v3_sub(hi, lo));
+    uint64_t seed = 0xE7C4ull;
+    long facing = 0;
+    for (int k = 0; k < SCAN_VIS_SAMPLES; k++) {
+        int i = (int)(scan_u01(&seed) * n), j = (int)(scan_u01(&seed) * (n - 1));
+        if (i >= n) i = n - 1;
+        if (j >= n - 1) j = n - 2;
+        if (j >= i) j++; /* distinct */
+        const wrt_quad *a = &s->quads[i], *b = &s->quads[j];
+        int ab = 0, ba = 0;
+        for (int c = 0; c < 4; c++) {
+            ab |= v3_dot(v3_sub(b->p[c], a->p[0]), a->n) > eps;
+            ba |= v3_dot(v3_sub(a->p[c], b->p[0]), b->n) > eps;
+        }
+        facing += ab && ba;
+    }
+    return (double)facing / SCAN_VIS_SAMPLES;
+}
+
 /* The model: each figure y (CPU seconds; peak memory over SCAN_MB_BASE; bytes) is
- *   y = c * step^(q - 5) * (N / 1000)^a * (f / 0.3)^g
- * with N the elements, f the visible fraction above and q the quality, one set of
- * constants for the plain bake and one for --clusters. Fitted by least squares on
- * log y over the measured bakes in docs/scan_fit.csv (tools/scan_fit.py: quality 3
- * and 5, cornell-shapes, mazes, the atrium, the Blender scenes), then c raised so that
- * no measured bake lies above its estimate: the estimate is an upper bound, and
- * docs/triangles.md ("--scan's estimate, refitted") gives how far above each bake it
- * lies. Qualities other than 3 and 5 are extrapolated by the same step. */
+ *   y = c * step^(q - 5) * (N / 1000)^a * (f / 0.3)^g * (x / 0.1)^h
+ * with N the elements, f the visible fraction and x the exchange fraction above and q
+ * the quality, one set of constants for the plain bake and one for --clusters (h = 0:
+ * it links clusters, not every pair of elements that face each other). Fitted over the
+ * measured bakes in docs/scan_fit.csv (tools/scan_fit.py: quality 3 and 5, cornell-shapes,
+ * mazes, the atrium, the Blender scenes) to make the band of estimate / measured
+ * narrowest, then c raised so that no measured bake lies above its estimate: the
+ * estimate is an upper bound, and docs/triangles.md ("--scan's estimate, refitted
+ * (session 8)") gives how far above each bake it lies. Without x (session 7's model) the
+ * plain bake's band was 3.2x in CPU and 3.3x in peak after the session-7 merge: the
+ * atrium's 1,060 elements, 30% of whose pairs face each other, cost more than
+ * cornell-shapes' 1,885 with 1.6%. Qualities other than 3 and 5 are extrapolated by the
+ * same step; f and x are taken within the fitted bakes' range (no extrapolation in them). */
 #define SCAN_MB_BASE 30.0 /* the process itself: libraries, the scene */
-typedef struct scan_model { double c, step, a, g; } scan_model;
-/* [0] seconds, [1] peak MB over the base, [2] bytes: {c, step, a, g}; pasted from
+typedef struct scan_model { double c, step, a, g, h; } scan_model;
+/* [0] seconds, [1] peak MB over the base, [2] bytes: {c, step, a, g, h}; pasted from
  * tools/scan_fit.py's output */
-#define SCAN_PLAIN_VISIBLE_MIN 0.0168
-#define SCAN_CLUSTERS_VISIBLE_MIN 0.3613
+static const double scan_plain_range[2][2] = {{0.0168, 0.5658}, {0.0081, 0.5401}}; /* f, x */
+static const double scan_clusters_range[2][2] = {{0.3625, 0.5188}, {0, 1}};
 static const scan_model model_plain[3] = {
-    {236.7, 2.7554, 1.0346, 0.4841}, /* cpu_s */
-    {2394, 2.2454, 1.0631, 0.2948}, /* peak_mb */
-    {1.691e+08, 1.9751, 0.9529, 0.3036}, /* bytes */
+    {213.8, 3.0709, 1.2752, 0.5724, 0.4305}, /* cpu_s */
+    {2017, 2.4417, 1.2307, 0.3148, 0.4143}, /* peak_mb */
+    {1.54e+08, 2.1177, 0.9113, 0.1501, -0.0071}, /* bytes */
 };
 static const scan_model model_clusters[3] = {
-    {140.6, 2.4854, 1.1662, 0.7141}, /* cpu_s */
-    {910.2, 1.7375, 1.1182, 1.2515}, /* peak_mb */
-    {5.25e+07, 1.5350, 1.1338, 1.7918}, /* bytes */
+    {350.3, 3.4326, 1.1761, -1.4178, 0}, /* cpu_s */
+    {2066, 2.3628, 1.0151, -1.0705, 0}, /* peak_mb */
+    {1.032e+08, 2.0930, 1.2452, 0.4749, 0}, /* bytes */
 };
 
-/* f below the fitted bakes' smallest is taken at that smallest (the estimate errs high
- * rather than extrapolate downwards) */
-static double model_at(const scan_model *m, int q, double n, double f, double fmin) {
-    return m->c * pow(m->step, q - 5) * pow(n / 1000.0, m->a) * pow(fmax(f, fmin) / 0.3, m->g);
+static double clampd(double v, const double r[2]) { return v < r[0] ? r[0] : v > r[1] ? r[1] : v; }
+
+static double model_at(const scan_model *m, int q, double n, double f, double x, const double range[2][2]) {
+    return m->c * pow(m->step, q - 5) * pow(n / 1000.0, m->a) * pow(clampd(f, range[0]) / 0.3, m->g) *
+           (m->h != 0 ? pow(clampd(x, range[1]) / 0.1, m->h) : 1);
 }
 
 wrt_scan_estimate wrt_scan_estimate_cost(const wrt_scene *s, const wrt_bake_options *o) {
@@ -125,14 +162,15 @@ wrt_scan_estimate wrt_scan_estimate_cost(const wrt_scene *s, const wrt_bake_opti
     e.quality = o && o->quality ? o->quality : 5;
     e.elements = s ? s->nquads : 0;
     e.visible = wrt_scan_visible_fraction(s);
+    e.exchange = wrt_scan_exchange_fraction(s);
     if (e.elements == 0) { e.memory_mb = SCAN_MB_BASE; return e; }
     int cl = o && o->clusters;
     const scan_model *m = cl ? model_clusters : model_plain;
-    double fmin = cl ? SCAN_CLUSTERS_VISIBLE_MIN : SCAN_PLAIN_VISIBLE_MIN;
+    const double(*range)[2] = cl ? scan_clusters_range : scan_plain_range;
     double f = e.visible > 0 ? e.visible : 1; /* no figure (Embree failed): the dense case */
-    e.seconds = model_at(&m[0], e.quality, e.elements, f, fmin);
-    e.memory_mb = SCAN_MB_BASE + model_at(&m[1], e.quality, e.elements, f, fmin);
-    e.bytes = model_at(&m[2], e.quality, e.elements, f, fmin);
+    e.seconds = model_at(&m[0], e.quality, e.elements, f, e.exchange, range);
+    e.memory_mb = SCAN_MB_BASE + model_at(&m[1], e.quality, e.elements, f, e.exchange, range);
+    e.bytes = model_at(&m[2], e.quality, e.elements, f, e.exchange, range);
     return e;
 }
 
@@ -164,9 +202,9 @@ void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad,
         fwrite(buf, 1, len, f);
         free(buf);
         fprintf(f, ",\"refused\":%s,\"drop_bad\":%s,\"estimate\":{\"quality\":%d,\"elements\":%d,"
-                   "\"visible_fraction\":%.4f,\"glossy_elements\":%d,\"cpu_seconds\":%.3g,\"memory_mb\":%.4g,\"bytes\":%.4g,"
-                   "\"model\":\"%s: elements and visible pairs, fitted to measured bakes, an upper bound\"}}\n",
-                refused ? "true" : "false", drop_bad ? "true" : "false", e.quality, e.elements, e.visible,
+                   "\"visible_fraction\":%.4f,\"exchange_fraction\":%.4f,\"glossy_elements\":%d,\"cpu_seconds\":%.3g,\"memory_mb\":%.4g,\"bytes\":%.4g,"
+                   "\"model\":\"%s: elements, visible and facing pairs, fitted to measured bakes, an upper bound\"}}\n",
+                refused ? "true" : "false", drop_bad ? "true" : "false", e.quality, e.elements, e.visible, e.exchange,
                 glossy, e.seconds, e.memory_mb, e.bytes, o && o->clusters ? "clusters" : "plain");
         return;
     }
@@ -177,7 +215,7 @@ void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad,
     char tb[32];
     fprintf(f, "estimate at quality %d%s: %d elements, %.0f%% of the point pairs on them see each other; at most about %s "
                "of CPU (about half that on 2 idle cores), peak memory at most about %.0f MB, file at most about "
-               "%.0f MB (a model of the elements and visible pairs fitted to measured bakes, set above all of "
+               "%.0f MB (a model of the elements, visible and facing pairs fitted to measured bakes, set above all of "
                "them; docs/triangles.md)\n",
             e.quality, o && o->clusters ? " with --clusters" : "", e.elements, 100 * e.visible,
             human_time(e.seconds, tb, sizeof tb), e.memory_mb, e.bytes / 1e6);

@@ -14,6 +14,8 @@ typedef struct wrt_scan_estimate {
     int elements;       /* quads the bake would see (pairs, triangles' parts, twins) */
     double visible;     /* share of the ordered pairs of elements that see each other
                            (wrt_scan_visible_fraction; -1 if it could not be sampled) */
+    double exchange;    /* share of the ordered pairs of elements, counted by element, that face
+                           each other (wrt_scan_exchange_fraction): the plain bake's pairs */
     double seconds;     /* CPU seconds (user + system; wall on 2 idle cores: about half) */
     double memory_mb;   /* peak resident memory */
     double bytes;       /* size of the .gto */
@@ -23,6 +25,10 @@ typedef struct wrt_scan_estimate {
  * sampled (a fixed sequence of random pairs and points: deterministic); 0 under two
  * elements, -1 if Embree failed. */
 double wrt_scan_visible_fraction(const wrt_scene *s);
+/* Of SCAN_VIS_SAMPLES ordered pairs of distinct elements drawn uniformly by element (a
+ * fixed sequence), the share that face each other as the plain bake's pair list counts
+ * them (some corner of each in front of the other's plane): its pairs over N (N - 1). */
+double wrt_scan_exchange_fraction(const wrt_scene *s);
 
 /* The estimate for scene s under options o (zero fields: defaults). Pure. */
 wrt_scan_estimate wrt_scan_estimate_cost(const wrt_scene *s, const wrt_bake_options *o);

@@ -31,16 +31,27 @@
 #include "spill.h"
 #include "series_stream.h"
 
+/* The streamed sum's working memory (series_stream.c): a block of the sum read back and
+ * the block merged with the term's columns, at most the block size each (16 bytes an
+ * entry), fewer where the sum and the term hold fewer. `entries`: the sum's and the
+ * term's; 0 where the sum is in memory. Uncounted it was the peak of the small bakes
+ * (cornell_shapes q3: 30 MB over the 44 MB counted). */
+static uint64_t series_stream_need(const bake_ctx *b, uint64_t entries) {
+    uint64_t block = b->opt.series_block > 0 ? (uint64_t)b->opt.series_block : WRT_SERIES_BLOCK_DEFAULT;
+    return 2 * 16 * (entries < block ? entries : block);
+}
+
 /* Memory before each product: the product's entries, estimated from every 64th of its
  * columns (sparse.h; computed and discarded), and again from every 16th where that
  * estimate passes a quarter of the budget. The product holds its entries once, plus the
  * arrays of the 32nd of its columns being computed (wrt_csc_mul); the sum that follows
  * grows S in place by at most as many (wrt_csc_add3_into), while the term before is gone.
+ * Streamed, the sum's blocks are added (series_stream_need).
  * The estimate is what is checked and recorded. (An upper bound from the column counts
  * decided the finer sample before; on the mazes it always passed, so every product paid
  * a 16th of itself to be estimated: 4% of the series.) */
 static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, const wrt_csc *P, const wrt_csc *T,
-                                      double eps, const wrt_csc_weights *W, int bounce) {
+                                      double eps, const wrt_csc_weights *W, int bounce, uint64_t sum_entries) {
     const double per = 16.0; /* bytes per entry: row index and three floats */
     char what[96];
     if (bounce > 0) snprintf(what, sizeof what, "bounce %d of the series", bounce);
@@ -52,6 +63,7 @@ static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, c
         est = wrt_csc_mul_estimate(P, T, eps, W, 16, b->opt.threads);
         need = per * 1.25 * (1 + 1.0 / 32) * (double)est;
     }
+    if (sum_entries) need += (double)series_stream_need(b, sum_entries + est);
     return wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, (uint64_t)need, what);
 }
 
@@ -363,7 +375,8 @@ static wrt_status series_bounces(series_state *s) {
     C->bounces = 1;
     while ((int)C->bounces < b->opt.max_bounces && s->P.nnz) {
         const wrt_csc *R = series_right(s, (int)C->bounces + 1);
-        wrt_status mst = series_memory_check(b, C, &s->P, R, eps, &s->W, (int)C->bounces + 1);
+        wrt_status mst = series_memory_check(b, C, &s->P, R, eps, &s->W, (int)C->bounces + 1,
+                                             s->streamed ? wrt_sum_stream_nnz(&s->ss) : 0);
         if (mst != WRT_OK) {
             char msg[1024];
             snprintf(msg, sizeof msg, "%s", wrt_last_error());
@@ -449,8 +462,9 @@ static double series_final_weights(series_state *s, wrt_csc_weights *W, double *
  * projected from the columns done, against the budget */
 static int series_final_check(void *user, uint64_t kept, uint64_t projected) {
     series_state *s = user;
-    return wrt_bake_memory_check(s->b->opt.max_memory_mb, &s->C->mem_estimate_mb, 16 * (projected - kept),
-                                 "the stored operator") == WRT_OK;
+    uint64_t sum = s->ss.cur ? wrt_sum_stream_nnz(&s->ss) + s->P.nnz : 0;
+    return wrt_bake_memory_check(s->b->opt.max_memory_mb, &s->C->mem_estimate_mb,
+                                 16 * (projected - kept) + series_stream_need(s->b, sum), "the stored operator") == WRT_OK;
 }
 
 /* The sum plus k P where add (the tail), then compressed for storing, into s->S: in place
@@ -528,7 +542,7 @@ static wrt_status series_gathered(series_state *s) {
     /* gathered: T + T S, computed when stored or when its figures are asked for */
     if (b->opt.gathered || b->opt.report_gathered) {
         /* T S: the same check, with T on the left (column j of T S gathers T's columns) */
-        wrt_status mst = series_memory_check(b, C, T, &s->S, s->eps, &s->W, 0);
+        wrt_status mst = series_memory_check(b, C, T, &s->S, s->eps, &s->W, 0, 0);
         if (mst != WRT_OK) {
             char msg[1024];
             snprintf(msg, sizeof msg, "%s", wrt_last_error());

@@ -7,17 +7,19 @@ bake's CPU seconds, peak resident MB and .gto bytes) and fits, for the plain bak
 for --clusters separately, each figure y (CPU seconds; peak MB over the process's base;
 bytes) as
 
-    y = c * step^(q - 5) * (N / 1000)^a * (f / 0.3)^g
+    y = c * step^(q - 5) * (N / 1000)^a * (f / 0.3)^g * (x / 0.1)^h
 
-(N the elements, f the visible fraction, q the quality): the exponents that make the
+(N the elements, f the visible fraction, x the exchange fraction: the share of element
+pairs that face each other, q the quality): the exponents that make the
 band of log(measured / model) over the bakes narrowest (a minimax fit, started from least
 squares on log y), then c set so that no measured bake lies above its estimate: the
 estimate is an upper bound, and the band is how far above a bake it can lie. Prints the constants as scan.c's
 initializers and, for every bake, the estimate over the measured figure.
 
-Usage: tools/scan_fit.py [docs/scan_fit.csv] [--markdown] [--no-visible]
+Usage: tools/scan_fit.py [docs/scan_fit.csv] [--markdown] [--no-visible] [--no-exchange]
     --markdown: the residual table as docs/triangles.md shows it
-    --no-visible: the elements alone (g = 0), to compare
+    --no-visible: the elements alone (g = 0, h = 0), to compare
+    --no-exchange: without the exchange fraction (h = 0: session 7's model), to compare
 No third-party modules (the normal equations are solved here).
 """
 import csv
@@ -48,11 +50,15 @@ def solve(a, b):
 
 
 USE_VISIBLE = "--no-visible" not in sys.argv
+# the exchange fraction for the plain bake only: it links every pair of elements that face
+# each other (its pair list); --clusters links clusters, not element pairs
+USE_EXCHANGE = USE_VISIBLE and "--no-exchange" not in sys.argv
 
 
 def features(r):
     g = math.log(max(r["visible"], 1e-3) / 0.3) if USE_VISIBLE else 0.0
-    return [1.0, r["quality"] - 5.0, math.log(r["elements"] / 1000.0), g]
+    h = math.log(max(r["exchange"], 1e-4) / 0.1) if USE_EXCHANGE and r["bake"] == "plain" else 0.0
+    return [1.0, r["quality"] - 5.0, math.log(r["elements"] / 1000.0), g, h]
 
 
 def target(r, fig):
@@ -97,27 +103,37 @@ def fit(rows, fig):
     within a factor needs); returns (c, step, a, g) with c raised to bound every row."""
     x = [features(r) for r in rows]
     y = [math.log(target(r, fig)) for r in rows]
+    exch = any(xi[4] != 0 for xi in x)
     n = len(x[0])
     # a small ridge on the visible fraction's exponent keeps it defined when the rows'
     # fractions barely vary (one family of scenes)
-    ata = [[sum(xi[i] * xi[j] for xi in x) + (1e-3 if i == j == 3 else 0) for j in range(n)] for i in range(n)]
+    ata = [[sum(xi[i] * xi[j] for xi in x) + (1e-3 if i == j and i >= 3 else 0) for j in range(n)] for i in range(n)]
     aty = [sum(xi[i] * yi for xi, yi in zip(x, y)) for i in range(n)]
     b = solve(ata, aty)
 
-    def band(e):  # the spread of the residuals for exponents e = (log step, a, g)
-        res = [yi - (e[0] * xi[1] + e[1] * xi[2] + e[2] * xi[3]) for xi, yi in zip(x, y)]
+    def pred(e, xi):
+        return e[0] * xi[1] + e[1] * xi[2] + e[2] * xi[3] + e[3] * xi[4]
+
+    def band(e):  # the spread of the residuals for exponents e = (log step, a, g, h)
+        res = [yi - pred(e, xi) for xi, yi in zip(x, y)]
         return max(res) - min(res)
 
-    e = nelder_mead(band, b[1:], [0.1, 0.1, 0.1 if USE_VISIBLE else 0.0])
+    e = b[1:]
+    for _ in range(3):  # restarted: the simplex stalls on the band's corners
+        e = nelder_mead(band, e, [0.1, 0.1, 0.1 if USE_VISIBLE else 0.0, 0.1 if exch else 0.0])
     if not USE_VISIBLE:
         e[2] = 0.0
-    top = max(yi - (e[0] * xi[1] + e[1] * xi[2] + e[2] * xi[3]) for xi, yi in zip(x, y))
-    return (math.exp(top), math.exp(e[0]), e[1], e[2])
+    if not exch:
+        e[3] = 0.0
+    top = max(yi - pred(e, xi) for xi, yi in zip(x, y))
+    return (math.exp(top), math.exp(e[0]), e[1], e[2], e[3])
 
 
 def estimate(m, r, fig):
-    c, step, a, g = m
+    c, step, a, g, h = m
     e = c * step ** (r["quality"] - 5) * (r["elements"] / 1000.0) ** a * (max(r["visible"], 1e-3) / 0.3) ** g
+    if h:
+        e *= (max(r["exchange"], 1e-4) / 0.1) ** h
     return e + MB_BASE if fig == "peak_mb" else e
 
 
@@ -127,7 +143,7 @@ def load(path):
         for r in csv.DictReader(line for line in f if not line.startswith("#")):
             for k in ("elements", "quality"):
                 r[k] = int(r[k])
-            for k in ("visible",) + FIGURES:
+            for k in ("visible", "exchange") + FIGURES:
                 r[k] = float(r[k])
             rows.append(r)
     return rows
@@ -143,13 +159,15 @@ def main():
             print("%s: %d bakes, too few to fit" % (kind, len(sel)), file=sys.stderr)
             continue
         models = {fig: fit(sel, fig) for fig in FIGURES}
-        print("/* %s: %d bakes; visible fractions from %.4f */" % (kind, len(sel), min(r["visible"] for r in sel)))
+        print("/* %s: %d bakes; visible fractions from %.4f, exchange fractions %.4f to %.4f */" % (
+            kind, len(sel), min(r["visible"] for r in sel), min(r["exchange"] for r in sel),
+            max(r["exchange"] for r in sel)))
         for fig in FIGURES:
-            c, step, a, g = models[fig]
-            print("    {%.4g, %.4f, %.4f, %.4f}, /* %s */" % (c, step, a, g, fig))
+            c, step, a, g, h = models[fig]
+            print("    {%.4g, %.4f, %.4f, %.4f, %.4f}, /* %s */" % (c, step, a, g, h, fig))
         if md:
-            print("\n| scene | elements | visible | quality | bake | CPU s | est. / CPU | peak MB | est. / peak | MB | est. / MB |")
-            print("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|")
+            print("\n| scene | elements | visible | exchange | quality | bake | CPU s | est. / CPU | peak MB | est. / peak | MB | est. / MB |")
+            print("|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|")
         worst = {fig: (9e9, 0.0) for fig in FIGURES}
         for r in sel:
             ratio = {fig: estimate(models[fig], r, fig) / r[fig] for fig in FIGURES}
@@ -157,8 +175,8 @@ def main():
                 lo, hi = worst[fig]
                 worst[fig] = (min(lo, ratio[fig]), max(hi, ratio[fig]))
             if md:
-                print("| %s | %d | %.3f | %d | %s | %.1f | %.2f | %.0f | %.2f | %.1f | %.2f |" % (
-                    r["scene"], r["elements"], r["visible"], r["quality"], kind, r["cpu_s"], ratio["cpu_s"],
+                print("| %s | %d | %.3f | %.4f | %d | %s | %.1f | %.2f | %.0f | %.2f | %.1f | %.2f |" % (
+                    r["scene"], r["elements"], r["visible"], r["exchange"], r["quality"], kind, r["cpu_s"], ratio["cpu_s"],
                     r["peak_mb"], ratio["peak_mb"], r["bytes"] / 1e6, ratio["bytes"]))
         print("/* estimate / measured: " + ", ".join(
             "%s %.2f-%.2f" % (fig, worst[fig][0], worst[fig][1]) for fig in FIGURES) + " */\n")
