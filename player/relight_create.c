@@ -454,7 +454,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (!r) return;
     wrt_pool_destroy(r->pool);
     wrt_gather_destroy(r->gat.gather);
-    for (int k = 0; k < 3; k++) relight_free(r, r->mul.own[k]);
+    for (int k = 0; k < 5; k++) relight_free(r, r->mul.own[k]);
     if (r->gat.diff) for (uint32_t q = 0; q < r->g->nquads; q++) relight_free(r, r->gat.diff[q]);
     relight_free(r, r->gat.tex); relight_free(r, r->gat.out); relight_free(r, r->gat.res); relight_free(r, r->gat.ires); relight_free(r, r->gat.diff); relight_free(r, r->gat.alb);
     if (r->rt.scene) rtcReleaseScene(r->rt.scene);

@@ -156,7 +156,7 @@ typedef struct rl_proj {
 /* The multiply (relight_multiply.c): the operator it streams and its scratch. */
 typedef struct rl_mul {
     op_view op;
-    void *own[3];                   /* op's arrays when they are the relighter's copy */
+    void *own[5];                   /* op's arrays when they are the relighter's copy */
     float *X4;                      /* X being summed: 4 floats a function (RGB, unused) */
     uint32_t *cols;                 /* non-zero columns of E */
     int per_light;                  /* X = sum of scale x each light's X4 (no K, no emitters):
