@@ -55,6 +55,8 @@ typedef struct wrt_gather_env {
      * fraction of the creation done, rising to 1; returning 0 cancels it. */
     int (*progress)(void *user, double fraction);
     int piece;  /* points (or table rows) a piece: a few for each thread of `run`; 0: 8 */
+    int simd;   /* the light change's sums: 0 the widest the processor has (AVX2 or SSE2), 1
+                 * plain loops, 2 SSE2 (the same bits whichever: tests and A/B timings) */
 } wrt_gather_env;
 
 /* Direct irradiance (RGB, shadows included) at x with unit normal n, from the lights. */

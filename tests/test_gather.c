@@ -49,7 +49,7 @@ static void *alloc_z(void *user, size_t bytes) { (void)user; return calloc(1, by
 static void free_z(void *user, void *p) { (void)user; free(p); }
 
 static wrt_gather *gather_make(box *b) {
-    wrt_gather_env env = {run_serial, alloc_z, free_z, NULL, NULL, 0};
+    wrt_gather_env env = {run_serial, alloc_z, free_z, NULL, NULL, 0, 0};
     wrt_gather *g = NULL;
     int res[NQ] = {16, 16, 16, 16, 16, 16};
     if (wrt_gather_create(NQ, b->q, res, b->rt.scene, b->rt.origin, b->rt.eps, 16, &env, &g) != WRT_OK) return NULL;
