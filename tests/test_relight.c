@@ -1464,6 +1464,86 @@ static double ff_point_poly(wrt_v3 x, wrt_v3 n, const wrt_v3 *p, int cnt) {
     return fabs(sum) / (2 * WRT_PI);
 }
 
+/* K's rows in fours hold their values as half-precision floats, each four scaled by a
+ * power of two (relight_bounce.c k_halves): Y = K c then is K's product within the halves'
+ * rounding, 2^-11 of each term's magnitude. The floor's 256 K columns of
+ * first_bounce_projection(2, 2, 3) onto the wall's 256 rows (its nodes' wavelets in
+ * threes: fours), 6 entries a column of both signs over nine decades. c comes from a K
+ * whose column j is wall row j (value 1, exact as a half); the truth is K's floats times
+ * it in double, row by row, against 2^-10 of the sum of the terms' magnitudes. With and
+ * without AVX (no_avx: the halves as floats, the SSE loop) the same bits. */
+static void test_first_bounce_halves(void) {
+    ts_scene s;
+    ts_init(&s);
+    ts_metal(&s, 2, 0.3f, 2);
+    int qf = ts_quad(&s, k_floor, 2, 1, 2), qw = ts_quad(&s, k_wall_x, 0, 3, 0);
+    ts_identity(&s, 0.5f);
+    ts_finish(&s);
+    uint32_t w0 = s.quads[qw].func_first, nw = s.quads[qw].func_count;
+    kop k;
+    kop_columns(&k, (uint32_t)qf, 2, 2);
+    kop_alloc(&k, 6);
+    for (uint32_t j = 0; j < k.n; j++) { k.cs[j] = j; k.rows[j] = w0 + j; k.vals[j] = 1; }
+    k.cs[k.n] = k.nnz = k.n;
+    kop_attach(&s, &k);
+    wrt_light l = point_light(0.25, 0.4, 0.9, 3);
+    l.color[0] = 1; l.color[1] = 0.7f; l.color[2] = 0.4f;
+    wrt_relight_options o = {.no_gather = 1};
+    wrt_relight *r0 = NULL, *ra = NULL, *rb = NULL;
+    CHECK(wrt_relight_create(&s.g, &o, &r0) == WRT_OK, "%s", wrt_last_error());
+    wrt_relight_set_lights(r0, &l, NULL, 1);
+    wrt_relight_update(r0, NULL);
+    double *c = malloc((size_t)k.n * 3 * sizeof *c);
+    for (uint32_t j = 0; j < k.n * 3; j++) c[j] = wrt_relight_Y(r0)[(size_t)w0 * 3 + j];
+    /* K: 6 rows a column, ascending, values 10^-3 .. 10^-12 of both signs */
+    uint64_t e = 0;
+    for (uint32_t j = 0; j < k.n; j++) {
+        k.cs[j] = e;
+        uint32_t r = (j * 37) % (nw - 6 * 40);
+        for (int t = 0; t < 6; t++, e++) {
+            k.rows[e] = w0 + r + (uint32_t)t * (1 + (j + (uint32_t)t) % 40);
+            k.vals[e] = (float)((lcg() < 0.3 ? -1 : 1) * pow(10.0, -3 - 9 * lcg()));
+        }
+    }
+    k.cs[k.n] = k.nnz = e;
+    kop_attach(&s, &k);
+    CHECK(wrt_relight_create(&s.g, &o, &ra) == WRT_OK, "%s", wrt_last_error());
+    o.no_avx = 1;
+    CHECK(wrt_relight_create(&s.g, &o, &rb) == WRT_OK, "%s", wrt_last_error());
+    if (!r0 || !ra || !rb) { free(c); kop_free(&k); ts_free(&s); return; }
+    wrt_relight_set_lights(ra, &l, NULL, 1);
+    wrt_relight_update(ra, NULL);
+    wrt_relight_set_lights(rb, &l, NULL, 1);
+    wrt_relight_update(rb, NULL);
+    const float *Ya = wrt_relight_Y(ra), *Yb = wrt_relight_Y(rb);
+    double *ref = calloc((size_t)s.nf * 3, sizeof *ref), *mag = calloc((size_t)s.nf * 3, sizeof *mag);
+    for (uint32_t j = 0; j < k.n; j++)
+        for (uint64_t i = k.cs[j]; i < k.cs[j + 1]; i++)
+            for (int ch = 0; ch < 3; ch++) {
+                ref[(size_t)k.rows[i] * 3 + ch] += (double)k.vals[i] * c[j * 3 + ch];
+                mag[(size_t)k.rows[i] * 3 + ch] += fabs((double)k.vals[i] * c[j * 3 + ch]);
+            }
+    double worst = 0, seen = 0;
+    uint32_t bad = 0, nz = 0;
+    for (size_t i = 0; i < (size_t)s.nf * 3; i++) {
+        if (mag[i] == 0) continue;
+        nz++;
+        double d = fabs(Ya[i] - ref[i]) / mag[i];
+        worst = fmax(worst, d);
+        seen = fmax(seen, d);
+        bad += d > ldexp(1.0, -10);
+    }
+    CHECK(nz > 100 && bad == 0, "Y off K c (double) by more than 2^-10 of its terms' magnitude on %u of %u values (worst %.3g)",
+          bad, nz, worst);
+    CHECK(memcmp(Ya, Yb, (size_t)s.nf * 3 * sizeof *Ya) == 0, "Y the same bits with and without AVX");
+    printf("first bounce, K's values as halves: %u values of Y, worst %.3g of their terms' magnitude (2^-11 = %.3g)\n",
+           nz, seen, ldexp(1.0, -11));
+    free(ref); free(mag); free(c);
+    wrt_relight_destroy(r0); wrt_relight_destroy(ra); wrt_relight_destroy(rb);
+    kop_free(&k);
+    ts_free(&s);
+}
+
 /* Y = K c against the first bounce computed by brute force. A metal floor (roughness
  * 0.5) lit by a point light reflects onto a Lambertian wall and a glossy one (incident
  * angular functions). K is built here by the brute-force method: receiver points (2 x 2
@@ -1890,6 +1970,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_exact_zeros);
     TEST_RUN(test_glossy_beta);
     TEST_RUN(test_first_bounce_projection);
+    TEST_RUN(test_first_bounce_halves);
     TEST_RUN(test_first_bounce_brute_force);
     TEST_RUN(test_first_bounce_cache);
     TEST_RUN(test_first_bounce_refused);
