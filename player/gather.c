@@ -27,7 +27,8 @@
 #define GATHER_RG 64    /* outgoing-radiance grid a side on it (what a gather entry reads) */
 
 #define NDIR (GATHER_DIRS * GATHER_DIRS)
-#define GLANE 4                /* floats a radiance cell (RGB, 0) and bfloat16s a sum entry's beta (RGB, 0) */
+#define GLANE 4                /* floats a radiance cell (RGB, 0) */
+#define EB 3                   /* bfloat16s a sum entry's beta (RGB) */
 #define GROUP 4                /* a point's sum entries come in groups of 4 (four partial sums) */
 #define AM_FIRST 0x8000u       /* amap: the first incident cell of its entry */
 /* A beta row's cost (NDIR x 9 BRDF values) in rays, for the creation's progress: with it
@@ -48,8 +49,8 @@ typedef struct gquad {
     ghit *hits;       /* npt x NDIR (glossy quads): what each ray sees (at creation) */
     size_t *e0;       /* npt + 1: where a point's entries start in eoff / ebeta */
     uint32_t *eoff;   /* per entry: its radiance cell's byte offset in rad (GLANE floats a cell) */
-    uint16_t *ebeta;  /* per entry: beta toward the eye (bfloat16, GLANE: R, G, B, 0), made
-                       * when the eye moves, read at a light change */
+    uint16_t *ebeta;  /* per entry: beta toward the eye (bfloat16, EB: R, G, B), made when the
+                       * eye moves, read at a light change */
     size_t *a0;       /* npt + 1: where a point's seen incident cells start in amap */
     uint16_t *amap;   /* per seen incident cell (by entry): a | AM_FIRST on an entry's first */
     uint8_t *bvis;    /* npt: 1 if the point faces the eye (its row was made) */
@@ -249,7 +250,7 @@ static int make_entries(wrt_gather *g, gquad *G) {
         }
         if (pass) { G->e0[G->npt] = ne; G->a0[G->npt] = na; break; }
         G->eoff = ga(g, (ne ? ne : 1) * sizeof *G->eoff);
-        G->ebeta = ga(g, (ne ? ne : 1) * GLANE * sizeof *G->ebeta);
+        G->ebeta = ga(g, (ne * EB + 8) * sizeof *G->ebeta); /* + 8: the 8-byte loads of the last entry */
         G->amap = ga(g, (na ? na : 1) * sizeof *G->amap);
         if (!G->eoff || !G->ebeta || !G->amap) { gf(g, key); return -1; }
     }
@@ -498,27 +499,28 @@ static uint16_t to_bf16(float f) {
 
 /* A point's betas toward the eye: for each of its seen incident cells amap[0..na) the four
  * beta rows bt[] blended with weights w (the bilinear outgoing direction), summed over the
- * incident cells of an entry (in amap's order), kept as bfloat16 in eb (GLANE an entry,
- * the fourth 0). */
+ * incident cells of an entry (in amap's order), kept as bfloat16 in eb (EB an entry). */
 static void blend_row(const float *const bt[4], const float w[4], const uint16_t *amap, size_t na, uint16_t *eb) {
-    uint16_t *e = eb - GLANE;
+    uint16_t *e = eb - EB;
 #ifdef __SSE2__
     /* the scalar loop's operations, four lanes at once (the fourth, the next cell's red,
      * dropped): the same bits */
     __m128 w0 = _mm_set1_ps(w[0]), w1 = _mm_set1_ps(w[1]), w2 = _mm_set1_ps(w[2]), w3 = _mm_set1_ps(w[3]), acc = _mm_setzero_ps();
-    const __m128i one = _mm_set1_epi32(1), half = _mm_set1_epi32(0x7fff), m3 = _mm_set_epi32(0, -1, -1, -1);
+    const __m128i one = _mm_set1_epi32(1), half = _mm_set1_epi32(0x7fff);
 #define BF16_STORE(dst_, v_) do { \
         __m128i u_ = _mm_castps_si128(v_); \
         u_ = _mm_add_epi32(u_, _mm_add_epi32(half, _mm_and_si128(_mm_srli_epi32(u_, 16), one))); \
-        u_ = _mm_and_si128(_mm_srli_epi32(u_, 16), m3); /* beta >= 0: under 0x8000, so the signed pack keeps it */ \
-        _mm_storel_epi64((__m128i *)(dst_), _mm_packs_epi32(u_, u_)); } while (0)
+        u_ = _mm_srli_epi32(u_, 16); /* beta >= 0: under 0x8000, so the signed pack keeps it */ \
+        uint16_t h_[8]; \
+        _mm_storeu_si128((__m128i *)h_, _mm_packs_epi32(u_, u_)); \
+        memcpy(dst_, h_, EB * sizeof *h_); } while (0)
     for (size_t k = 0; k < na; k++) {
         size_t o = (size_t)(amap[k] & ~AM_FIRST) * 3;
         __m128 t = _mm_add_ps(_mm_add_ps(_mm_mul_ps(w0, _mm_loadu_ps(bt[0] + o)), _mm_mul_ps(w1, _mm_loadu_ps(bt[1] + o))),
                               _mm_add_ps(_mm_mul_ps(w2, _mm_loadu_ps(bt[2] + o)), _mm_mul_ps(w3, _mm_loadu_ps(bt[3] + o))));
         if (amap[k] & AM_FIRST) {
             if (e >= eb) BF16_STORE(e, acc);
-            e += GLANE;
+            e += EB;
             acc = t;
         } else acc = _mm_add_ps(acc, t);
     }
@@ -530,7 +532,7 @@ static void blend_row(const float *const bt[4], const float w[4], const uint16_t
         if (k == na || (amap[k] & AM_FIRST)) {
             if (e >= eb) for (int c = 0; c < 3; c++) e[c] = to_bf16(acc[c]);
             if (k == na) break;
-            e += GLANE;
+            e += EB;
         }
         size_t o = (size_t)(amap[k] & ~AM_FIRST) * 3;
         for (int c = 0; c < 3; c++) {
@@ -542,15 +544,15 @@ static void blend_row(const float *const bt[4], const float w[4], const uint16_t
 }
 
 /* sum over a point's entries of rad[cell] beta (RGB): entries k = 4j + l summed into four
- * partial sums l (each an entry's RGB in four lanes, the fourth 0 x 0), folded as
- * (s0 + s1) + (s2 + s3). n: a multiple of GROUP. The plain, SSE2 and AVX2 loops add the
- * same products in the same order: the same bits. */
+ * partial sums l (each an entry's RGB in lanes 0-2), folded as (s0 + s1) + (s2 + s3). n: a
+ * multiple of GROUP. The plain, SSE2 and AVX2 loops add the same products in the same
+ * order: the same bits (a fourth lane, where there is one, is rad's 0 times a beta). */
 static void dot_plain(const float *rad, const uint32_t *eoff, const uint16_t *eb, size_t n, float out[3]) {
     float s[GROUP][3] = {{0}};
     for (size_t k = 0; k < n; k++) {
         const float *r = (const float *)((const char *)rad + eoff[k]);
         for (int c = 0; c < 3; c++) {
-            uint32_t u = (uint32_t)eb[k * GLANE + c] << 16;
+            uint32_t u = (uint32_t)eb[k * EB + c] << 16;
             float f;
             memcpy(&f, &u, sizeof f);
             s[k % GROUP][c] += r[c] * f;
@@ -564,14 +566,17 @@ static void dot_sse2(const float *rad, const uint32_t *eoff, const uint16_t *eb,
     const char *rb = (const char *)rad;
     __m128 s0 = _mm_setzero_ps(), s1 = s0, s2 = s0, s3 = s0;
     const __m128i z = _mm_setzero_si128();
+    /* an entry's beta: 8 bytes from its first (the fourth, the next entry's red, meets rad's 0) */
+#define BETA4(k_) _mm_castsi128_ps(_mm_unpacklo_epi16(z, _mm_loadl_epi64((const __m128i *)(eb + (k_) * EB))))
+#define RAD4(k_) _mm_loadu_ps((const float *)(rb + eoff[k_]))
     for (size_t k = 0; k < n; k += GROUP) {
-        __m128i b01 = _mm_loadu_si128((const __m128i *)(eb + k * GLANE));
-        __m128i b23 = _mm_loadu_si128((const __m128i *)(eb + k * GLANE + 8));
-        s0 = _mm_add_ps(s0, _mm_mul_ps(_mm_loadu_ps((const float *)(rb + eoff[k])), _mm_castsi128_ps(_mm_unpacklo_epi16(z, b01))));
-        s1 = _mm_add_ps(s1, _mm_mul_ps(_mm_loadu_ps((const float *)(rb + eoff[k + 1])), _mm_castsi128_ps(_mm_unpackhi_epi16(z, b01))));
-        s2 = _mm_add_ps(s2, _mm_mul_ps(_mm_loadu_ps((const float *)(rb + eoff[k + 2])), _mm_castsi128_ps(_mm_unpacklo_epi16(z, b23))));
-        s3 = _mm_add_ps(s3, _mm_mul_ps(_mm_loadu_ps((const float *)(rb + eoff[k + 3])), _mm_castsi128_ps(_mm_unpackhi_epi16(z, b23))));
+        s0 = _mm_add_ps(s0, _mm_mul_ps(RAD4(k), BETA4(k)));
+        s1 = _mm_add_ps(s1, _mm_mul_ps(RAD4(k + 1), BETA4(k + 1)));
+        s2 = _mm_add_ps(s2, _mm_mul_ps(RAD4(k + 2), BETA4(k + 2)));
+        s3 = _mm_add_ps(s3, _mm_mul_ps(RAD4(k + 3), BETA4(k + 3)));
     }
+#undef BETA4
+#undef RAD4
     float a[4];
     _mm_storeu_ps(a, _mm_add_ps(_mm_add_ps(s0, s1), _mm_add_ps(s2, s3)));
     for (int c = 0; c < 3; c++) out[c] = a[c];
@@ -580,18 +585,25 @@ static void dot_sse2(const float *rad, const uint32_t *eoff, const uint16_t *eb,
 
 #ifdef WRT_GATHER_AVX2
 /* dot_sse2 eight lanes wide: entries 4j, 4j + 1 in one vector (partial sums 0 and 1 in its
- * halves), 4j + 2, 4j + 3 in the other. */
+ * halves), 4j + 2, 4j + 3 in the other; a group's 12 betas (24 bytes) as two 16-byte
+ * loads, each broadcast to both halves and shuffled into floats (bfloat16 in the upper 16
+ * bits, the fourth lane 0). */
 __attribute__((target("avx2"))) static void dot_avx2(const float *rad, const uint32_t *eoff, const uint16_t *eb, size_t n,
                                                      float out[3]) {
     const char *rb = (const char *)rad;
+    const char Z = (char)0x80;
+    const __m256i m01 = _mm256_setr_epi8(Z, Z, 0, 1, Z, Z, 2, 3, Z, Z, 4, 5, Z, Z, Z, Z,    /* entry 0: bytes 0-5 */
+                                         Z, Z, 6, 7, Z, Z, 8, 9, Z, Z, 10, 11, Z, Z, Z, Z); /* entry 1: 6-11 */
+    const __m256i m23 = _mm256_setr_epi8(Z, Z, 4, 5, Z, Z, 6, 7, Z, Z, 8, 9, Z, Z, Z, Z,    /* entry 2: bytes 12-17, 4-9 of the load at 8 */
+                                         Z, Z, 10, 11, Z, Z, 12, 13, Z, Z, 14, 15, Z, Z, Z, Z); /* entry 3 */
     __m256 s01 = _mm256_setzero_ps(), s23 = _mm256_setzero_ps();
     for (size_t k = 0; k < n; k += GROUP) {
         __m256 r01 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps((const float *)(rb + eoff[k]))),
                                           _mm_loadu_ps((const float *)(rb + eoff[k + 1])), 1);
         __m256 r23 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps((const float *)(rb + eoff[k + 2]))),
                                           _mm_loadu_ps((const float *)(rb + eoff[k + 3])), 1);
-        __m256i b01 = _mm256_slli_epi32(_mm256_cvtepu16_epi32(_mm_loadu_si128((const __m128i *)(eb + k * GLANE))), 16);
-        __m256i b23 = _mm256_slli_epi32(_mm256_cvtepu16_epi32(_mm_loadu_si128((const __m128i *)(eb + k * GLANE + 8))), 16);
+        __m256i b01 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB))), m01);
+        __m256i b23 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB + 4))), m23);
         s01 = _mm256_add_ps(s01, _mm256_mul_ps(r01, _mm256_castsi256_ps(b01)));
         s23 = _mm256_add_ps(s23, _mm256_mul_ps(r23, _mm256_castsi256_ps(b23)));
     }
@@ -626,7 +638,7 @@ static void lout_point(void *user, size_t item) {
     lo[0] = lo[1] = lo[2] = 0;
     int np = G->pts;
     size_t e0 = G->e0[p], ne = G->e0[p + 1] - e0;
-    uint16_t *eb = G->ebeta + e0 * GLANE;
+    uint16_t *eb = G->ebeta + e0 * EB;
     if (g->rows_eye) {
         G->bvis[p] = 0;
         wrt_v3 x = qpoint(Q, ((p % np) + 0.5) / np, ((p / np) + 0.5) / np);
