@@ -388,11 +388,12 @@ static void direct_row(void *user, size_t item) {
     int s = (int)(item / GATHER_DTEX), j = (int)(item % GATHER_DTEX);
     const wrt_gather_quad *Q = &g->q[g->slot_quad[s]];
     float *d = g->direct + ((size_t)s * GATHER_DTEX + j) * GATHER_DTEX * GLANE;
-    for (int i = 0; i < GATHER_DTEX; i++) {
-        double e[3];
-        g->dfn(g->duser, qpoint(Q, (i + 0.5) / GATHER_DTEX, (j + 0.5) / GATHER_DTEX), Q->n, e);
-        for (int c = 0; c < 3; c++) d[i * GLANE + c] = (float)e[c];
-    }
+    wrt_v3 x[GATHER_DTEX];
+    double e[GATHER_DTEX * 3];
+    for (int i = 0; i < GATHER_DTEX; i++) x[i] = qpoint(Q, (i + 0.5) / GATHER_DTEX, (j + 0.5) / GATHER_DTEX);
+    g->dfn(g->duser, x, GATHER_DTEX, Q->n, e);
+    for (int i = 0; i < GATHER_DTEX; i++)
+        for (int c = 0; c < 3; c++) d[i * GLANE + c] = (float)e[i * 3 + c];
 }
 
 /* lerp_cell's sum on an n x n grid of cells `lane` floats apart (3 or GLANE): the weights

@@ -60,11 +60,13 @@ static wrt_gather *gather_make(box *b) { return gather_make_simd(b, 0); }
 /* Direct irradiance: pi x scale (a wall of albedo 0.6 then sends 0.6 x scale), times a
  * ramp in x when *user asks for light that varies. */
 typedef struct light { double scale; int ramp; } light;
-static void direct(void *user, wrt_v3 x, wrt_v3 n, double out[3]) {
-    (void)n;
+static void direct(void *user, const wrt_v3 *x, int n, wrt_v3 nrm, double *out) {
+    (void)nrm;
     const light *l = user;
-    double e = WRT_PI * l->scale * (l->ramp ? 1.5 + x.x : 1.0);
-    out[0] = e; out[1] = 0.5 * e; out[2] = 0.25 * e;
+    for (int k = 0; k < n; k++) {
+        double e = WRT_PI * l->scale * (l->ramp ? 1.5 + x[k].x : 1.0);
+        out[3 * k] = e; out[3 * k + 1] = 0.5 * e; out[3 * k + 2] = 0.25 * e;
+    }
 }
 
 /* rho(w_o) per channel by the midpoint rule in (theta, phi): 500 x 500 nodes. */
