@@ -153,8 +153,10 @@ static uint32_t entry_at(const wrt_gto *g, entry_walk *wk, uint64_t i, float v[3
 
 /* The compact file's copy without the rows nothing shows: each kept entry keeps its code
  * and its block's base (so the multiply's products are the file's, to the bit); a block
- * of the copy holds kept entries of one block of the file, and a new one starts where the
- * row step between kept entries would not fit a delta byte. keep: the kept entries. */
+ * of the copy holds kept entries of consecutive blocks of the file with the same base (a
+ * third of the entries kept: fewer, fuller blocks, each set up once), and a new one starts
+ * at another base, where the row step between kept entries would not fit a delta byte, or
+ * at 255 entries. keep: the kept entries. */
 static int display_rows_compact(wrt_relight *r, uint64_t keep) {
     const wrt_gto *g = r->g;
     uint32_t nf = g->nfuncs;
@@ -178,19 +180,23 @@ static int display_rows_compact(wrt_relight *r, uint64_t keep) {
         uint64_t n = 0, i = 0, m = 0;
         for (uint32_t c = 0; c < nf; c++) {
             if (pass) { cs[c] = n; bc[c] = (uint32_t)m; }
+            uint32_t last = 0, cnt = 0;
+            int open = 0, base = 0; /* a block of the copy is open (its base, its entries) */
             for (uint32_t b = g->op_bcol[c]; b < g->op_bcol[c + 1]; b++) {
                 const wrt_gto_block *fb = &g->op_blocks[b];
-                uint32_t row = fb->row0, last = 0;
-                int open = 0; /* a block of the copy is open for this block's entries */
+                uint32_t row = fb->row0;
                 for (uint32_t j = 0; j < fb->n; j++, i++) {
                     row += g->op_deltas[i];
                     if (r->fn_ang[row] != 0) continue;
-                    if (!open || row - last > 255) {
+                    if (!open || fb->base != base || row - last > 255 || cnt == 255) {
                         if (pass) bk[m] = (wrt_gto_block){row, 0, 0, fb->base};
                         m++;
                         open = 1;
+                        base = fb->base;
+                        cnt = 0;
                         last = row;
                     }
+                    cnt++;
                     if (pass) {
                         bk[m - 1].n++;
                         codes[n] = g->op_codes[i];
