@@ -7,6 +7,10 @@
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define WRT_GATHER_AVX2 1 /* the light change's sums eight lanes wide where the processor has AVX2 */
+#endif
 
 #include "../common/basis.h"
 #include "../common/brdf.h"
@@ -23,8 +27,10 @@
 #define GATHER_RG 64    /* outgoing-radiance grid a side on it (what a gather entry reads) */
 
 #define NDIR (GATHER_DIRS * GATHER_DIRS)
-#define GBLK 4                 /* incident cells a block of the sum (12 floats: three SSE vectors) */
-#define NBLK (NDIR / GBLK)     /* blocks a point: 256, so a block's number fits a byte */
+#define GLANE 4                /* floats a radiance cell (RGB, 0) */
+#define EB 3                   /* bfloat16s a sum entry's beta (RGB) */
+#define GROUP 4                /* a point's sum entries come in groups of 4 (four partial sums) */
+#define AM_FIRST 0x8000u       /* amap: the first incident cell of its entry */
 /* A beta row's cost (NDIR x 9 BRDF values) in rays, for the creation's progress: with it
  * the glossy asset's progress runs even in time (2 threads: 0.30 at 2.8 s, 0.65 at 6.9 s,
  * 1 at 9.6 s). */
@@ -33,18 +39,20 @@
 typedef struct ghit { int32_t quad; float u, v; } ghit;
 #define RG2 (GATHER_RG * GATHER_RG)
 
+/* A point's sum: its entries, one per radiance cell that some of its incident cells read
+ * (those cells' beta toward the eye summed), ascending by cell, padded with the black cell
+ * to a multiple of GROUP; and, for the eye move, its seen incident cells in the same
+ * order (amap: the cell's index a, | AM_FIRST on the first of each entry). */
 typedef struct gquad {
     int glossy;
     int pts, npt;     /* points a side, pts^2 */
     ghit *hits;       /* npt x NDIR (glossy quads): what each ray sees (at creation) */
-    int32_t *cell;    /* npt x NDIR: slot x RG2 + radiance cell it reads (nslot x RG2: the
-                       * black cell after the grids, for a ray that sees nothing or a back) */
-    uint8_t *blk;     /* npt x NBLK: a point's blocks of GBLK cells that see something, in
-                       * order (the sum skips the others: they read 0 and add 0) */
-    uint16_t *nblk;   /* npt: how many */
-    size_t *boff;     /* npt: where a point's row starts in brow */
-    uint16_t *brow;   /* per point, its blocks' beta toward the eye (the four rows blended,
-                       * bfloat16, 12 a block): made when the eye moves, read at a light change */
+    size_t *e0;       /* npt + 1: where a point's entries start in eoff / ebeta */
+    uint32_t *eoff;   /* per entry: its radiance cell's byte offset in rad (GLANE floats a cell) */
+    uint16_t *ebeta;  /* per entry: beta toward the eye (bfloat16, EB: R, G, B), made when the
+                       * eye moves, read at a light change */
+    size_t *a0;       /* npt + 1: where a point's seen incident cells start in amap */
+    uint16_t *amap;   /* per seen incident cell (by entry): a | AM_FIRST on an entry's first */
     uint8_t *bvis;    /* npt: 1 if the point faces the eye (its row was made) */
     float *lout;      /* npt x 3: L_o toward the eye at the points */
     int beta_id;      /* index into g->beta */
@@ -72,9 +80,10 @@ struct wrt_gather {
     int *glossy; int nglossy;
     int32_t *slot;     /* per quad: its slot among the diffuse quads some ray sees, -1 */
     int *slot_quad; int nslot;
-    float *direct;     /* nslot x GATHER_DTEX^2 x 3: direct irradiance */
-    float *rad;        /* (nslot x RG2 + 1) x 3 (+ 1 float): outgoing radiance (direct +
-                        * indirect), then a black cell (0) */
+    float *direct;     /* nslot x GATHER_DTEX^2 x GLANE: direct irradiance (RGB, 0) */
+    float *rad;        /* (nslot x RG2 + 1) x GLANE: outgoing radiance (direct + indirect;
+                        * RGB, 0), then a black cell (0) */
+    int simd, avx2;    /* the sums 4 lanes wide (SSE2), 8 (AVX2 at run time): the same bits */
     float **beta;      /* per glossy quad's material: GATHER_BRES^2 x NDIR x 3 */
     axis *dax;  /* GATHER_RG: the direct grid's cells at the radiance grid's */
     axis *tax;  /* nslot x GATHER_RG: each slot's texture cells at the radiance grid's */
@@ -187,6 +196,70 @@ static void beta_row(void *user, size_t item) {
     }
 }
 
+/* The radiance cell a ray reads (the nearest of its quad's radiance grid; the black cell
+ * after the grids for a ray that sees nothing or a back). */
+static uint32_t ray_cell(const wrt_gather *g, const ghit *h) {
+    if (h->quad < 0 || g->slot[h->quad] < 0) return (uint32_t)g->nslot * RG2;
+    int cx = (int)(h->u * GATHER_RG), cy = (int)(h->v * GATHER_RG);
+    cx = cx < 0 ? 0 : cx >= GATHER_RG ? GATHER_RG - 1 : cx;
+    cy = cy < 0 ? 0 : cy >= GATHER_RG ? GATHER_RG - 1 : cy;
+    return (uint32_t)g->slot[h->quad] * RG2 + (uint32_t)(cy * GATHER_RG + cx);
+}
+
+static int cmp_u64(const void *a, const void *b) {
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* A glossy quad's sums (gquad): per point its seen incident cells sorted by the radiance
+ * cell they read (then by index), one entry per distinct cell, padded to a multiple of
+ * GROUP; frees the hits. In an open scene many incident cells see only the sky (the
+ * glossy asset: floor points' upper hemisphere): they have no entry. -1: no memory. */
+static int make_entries(wrt_gather *g, gquad *G) {
+    uint32_t black = (uint32_t)g->nslot * RG2;
+    G->e0 = ga(g, ((size_t)G->npt + 1) * sizeof *G->e0);
+    G->a0 = ga(g, ((size_t)G->npt + 1) * sizeof *G->a0);
+    G->bvis = ga(g, (size_t)G->npt);
+    uint64_t *key = ga(g, NDIR * sizeof *key);
+    if (!G->e0 || !G->a0 || !G->bvis || !key) { gf(g, key); return -1; }
+    for (int pass = 0; pass < 2; pass++) { /* 0: count, 1: fill */
+        size_t ne = 0, na = 0;
+        for (size_t p = 0; p < (size_t)G->npt; p++) {
+            const ghit *h = G->hits + p * NDIR;
+            int n = 0;
+            for (int a = 0; a < NDIR; a++) {
+                uint32_t c = ray_cell(g, &h[a]);
+                if (c != black) key[n++] = (uint64_t)c << 16 | (uint64_t)a;
+            }
+            qsort(key, (size_t)n, sizeof *key, cmp_u64);
+            size_t e = ne;
+            for (int k = 0; k < n; k++) {
+                int first = k == 0 || key[k] >> 16 != key[k - 1] >> 16;
+                if (pass) {
+                    if (first) G->eoff[e++] = (uint32_t)(key[k] >> 16) * GLANE * sizeof(float);
+                    G->amap[na + k] = (uint16_t)((key[k] & 0xFFFFu) | (first ? AM_FIRST : 0));
+                } else e += first;
+            }
+            if (pass) {
+                G->e0[p] = ne;
+                G->a0[p] = na;
+                for (; (e - ne) % GROUP; e++) G->eoff[e] = black * GLANE * sizeof(float); /* beta 0 */
+            } else e += (GROUP - (e - ne) % GROUP) % GROUP;
+            ne = e;
+            na += (size_t)n;
+        }
+        if (pass) { G->e0[G->npt] = ne; G->a0[G->npt] = na; break; }
+        G->eoff = ga(g, (ne ? ne : 1) * sizeof *G->eoff);
+        G->ebeta = ga(g, (ne * EB + 8) * sizeof *G->ebeta); /* + 8: the 8-byte loads of the last entry */
+        G->amap = ga(g, (na ? na : 1) * sizeof *G->amap);
+        if (!G->eoff || !G->ebeta || !G->amap) { gf(g, key); return -1; }
+    }
+    gf(g, key);
+    gf(g, G->hits);
+    G->hits = NULL;
+    return 0;
+}
+
 wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_res, RTCScene scene, wrt_v3 origin,
                              double eps, int points, const wrt_gather_env *env, wrt_gather **out) {
     *out = NULL;
@@ -196,6 +269,11 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_re
     wrt_gather *g = env->alloc(env->user, sizeof *g);
     if (!g) return WRT_ERR_NOMEM;
     g->env = *env;
+    g->simd = env->simd != 1; /* 1: the plain loops (tests) */
+#ifdef WRT_GATHER_AVX2
+    __builtin_cpu_init();
+    g->avx2 = env->simd == 0 && __builtin_cpu_supports("avx2");
+#endif
     /* points = 16 or 32: every glossy quad's points a side (before/after figures and the
      * test that tells the two apart); 0: chosen per quad. */
     int force_pts = points == 16 || points == 32 ? points : 0;
@@ -237,7 +315,8 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_re
         if (G->beta_id < 0) {
             G->beta_id = g->nbeta;
             g->beta_mat[g->nbeta] = q[i].mat;
-            g->beta[g->nbeta] = ga(g, (size_t)GATHER_BRES * GATHER_BRES * NDIR * 3 * sizeof(float));
+            /* + GLANE: the eye move's 4-float loads of the last row's last cell */
+            g->beta[g->nbeta] = ga(g, ((size_t)GATHER_BRES * GATHER_BRES * NDIR * 3 + GLANE) * sizeof(float));
             if (!g->beta[g->nbeta]) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
             g->nbeta++;
         }
@@ -276,47 +355,12 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_re
             g->slot_quad[g->nslot++] = hq;
         }
     }
-    /* Each ray reads the nearest cell of its quad's radiance grid: a table, not a search. */
-    for (int k = 0; k < g->nglossy; k++) {
-        gquad *G = &g->gq[g->glossy[k]];
-        G->cell = ga(g, (size_t)G->npt * NDIR * sizeof(int32_t));
-        if (!G->cell) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
-        for (size_t e = 0; e < (size_t)G->npt * NDIR; e++) {
-            const ghit *h = &G->hits[e];
-            if (h->quad < 0 || g->slot[h->quad] < 0) { G->cell[e] = g->nslot * RG2; continue; } /* the black cell */
-            int cx = (int)(h->u * GATHER_RG), cy = (int)(h->v * GATHER_RG);
-            cx = cx < 0 ? 0 : cx >= GATHER_RG ? GATHER_RG - 1 : cx;
-            cy = cy < 0 ? 0 : cy >= GATHER_RG ? GATHER_RG - 1 : cy;
-            G->cell[e] = g->slot[h->quad] * RG2 + cy * GATHER_RG + cx;
-        }
-        /* Each point's blocks that see something: in an open scene many see only the sky
-         * (the glossy asset: floor points' upper hemisphere), whose terms are exact zeros. */
-        G->blk = ga(g, (size_t)G->npt * NBLK);
-        G->nblk = ga(g, (size_t)G->npt * sizeof *G->nblk);
-        if (!G->blk || !G->nblk) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
-        for (size_t p = 0; p < (size_t)G->npt; p++) {
-            const int32_t *c = G->cell + p * NDIR;
-            uint8_t *b = G->blk + p * NBLK;
-            int n = 0;
-            for (int bk = 0; bk < NBLK; bk++) {
-                int seen = 0;
-                for (int j = 0; j < GBLK; j++) seen |= c[bk * GBLK + j] != g->nslot * RG2;
-                if (seen) b[n++] = (uint8_t)bk;
-            }
-            G->nblk[p] = (uint16_t)n;
-        }
-        G->boff = ga(g, (size_t)G->npt * sizeof *G->boff);
-        G->bvis = ga(g, (size_t)G->npt);
-        if (!G->boff || !G->bvis) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
-        size_t tot = 0;
-        for (size_t p = 0; p < (size_t)G->npt; p++) { G->boff[p] = tot; tot += (size_t)G->nblk[p] * GBLK * 3; }
-        G->brow = ga(g, (tot + 8) * sizeof *G->brow); /* + 8: the last block's 8-byte loads */
-        if (!G->brow) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
-        gf(g, G->hits);
-        G->hits = NULL;
-    }
-    g->direct = ga(g, ((size_t)(g->nslot ? g->nslot : 1) * GATHER_DTEX * GATHER_DTEX * 3) * sizeof(float));
-    g->rad = ga(g, ((size_t)g->nslot * RG2 + 1) * 3 * sizeof(float) + sizeof(float)); /* + the black cell, + 1 float */
+    /* rad's byte offsets (uint32) reach every cell */
+    if (((size_t)g->nslot * RG2 + 1) * GLANE * sizeof(float) > UINT32_MAX) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
+    for (int k = 0; k < g->nglossy; k++)
+        if (make_entries(g, &g->gq[g->glossy[k]]) != 0) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
+    g->direct = ga(g, ((size_t)(g->nslot ? g->nslot : 1) * GATHER_DTEX * GATHER_DTEX * GLANE) * sizeof(float));
+    g->rad = ga(g, ((size_t)g->nslot * RG2 + 1) * GLANE * sizeof(float)); /* + the black cell */
     g->dax = ga(g, GATHER_RG * sizeof *g->dax);
     g->tax = ga(g, ((size_t)g->nslot * GATHER_RG + 1) * sizeof *g->tax);
     if (!g->direct || !g->rad || !g->dax || !g->tax) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
@@ -329,9 +373,8 @@ void wrt_gather_destroy(wrt_gather *g) {
     if (!g) return;
     if (g->gq)
         for (int i = 0; i < g->nq; i++) {
-            gf(g, g->gq[i].hits); gf(g, g->gq[i].cell); gf(g, g->gq[i].lout);
-            gf(g, g->gq[i].blk); gf(g, g->gq[i].nblk);
-            gf(g, g->gq[i].boff); gf(g, g->gq[i].brow); gf(g, g->gq[i].bvis);
+            gf(g, g->gq[i].hits); gf(g, g->gq[i].lout); gf(g, g->gq[i].e0); gf(g, g->gq[i].eoff);
+            gf(g, g->gq[i].ebeta); gf(g, g->gq[i].a0); gf(g, g->gq[i].amap); gf(g, g->gq[i].bvis);
         }
     for (int b = 0; b < g->nbeta; b++) gf(g, g->beta[b]);
     gf(g, g->beta); gf(g, g->beta_mat); gf(g, g->direct); gf(g, g->rad); gf(g, g->dax); gf(g, g->tax); gf(g, g->slot); gf(g, g->slot_quad); gf(g, g->glossy); gf(g, g->gq); gf(g, g->q);
@@ -344,19 +387,22 @@ static void direct_row(void *user, size_t item) {
     wrt_gather *g = user;
     int s = (int)(item / GATHER_DTEX), j = (int)(item % GATHER_DTEX);
     const wrt_gather_quad *Q = &g->q[g->slot_quad[s]];
-    float *d = g->direct + ((size_t)s * GATHER_DTEX + j) * GATHER_DTEX * 3;
-    for (int i = 0; i < GATHER_DTEX; i++) {
-        double e[3];
-        g->dfn(g->duser, qpoint(Q, (i + 0.5) / GATHER_DTEX, (j + 0.5) / GATHER_DTEX), Q->n, e);
-        for (int c = 0; c < 3; c++) d[i * 3 + c] = (float)e[c];
-    }
+    float *d = g->direct + ((size_t)s * GATHER_DTEX + j) * GATHER_DTEX * GLANE;
+    wrt_v3 x[GATHER_DTEX];
+    double e[GATHER_DTEX * 3];
+    for (int i = 0; i < GATHER_DTEX; i++) x[i] = qpoint(Q, (i + 0.5) / GATHER_DTEX, (j + 0.5) / GATHER_DTEX);
+    g->dfn(g->duser, x, GATHER_DTEX, Q->n, e);
+    for (int i = 0; i < GATHER_DTEX; i++)
+        for (int c = 0; c < 3; c++) d[i * GLANE + c] = (float)e[i * 3 + c];
 }
 
-static inline void lerp_cell(const float *t, int n, const axis *x, const axis *y, float out[3]) {
+/* lerp_cell's sum on an n x n grid of cells `lane` floats apart (3 or GLANE): the weights
+ * (double products rounded to float) and their sum in float in a fixed order. */
+static inline void lerp_cell_w(const float *t, int n, int lane, const axis *x, const axis *y, float out[3]) {
     float w0 = (float)((1 - x->t) * (1 - y->t)), w1 = (float)(x->t * (1 - y->t));
     float w2 = (float)((1 - x->t) * y->t), w3 = (float)(x->t * y->t);
-    const float *p0 = t + ((size_t)y->a * n + x->a) * 3, *p1 = t + ((size_t)y->a * n + x->b) * 3;
-    const float *p2 = t + ((size_t)y->b * n + x->a) * 3, *p3 = t + ((size_t)y->b * n + x->b) * 3;
+    const float *p0 = t + ((size_t)y->a * n + x->a) * lane, *p1 = t + ((size_t)y->a * n + x->b) * lane;
+    const float *p2 = t + ((size_t)y->b * n + x->a) * lane, *p3 = t + ((size_t)y->b * n + x->b) * lane;
     for (int c = 0; c < 3; c++) {
         float s = w0 * p0[c];
         s += w1 * p1[c];
@@ -366,24 +412,66 @@ static inline void lerp_cell(const float *t, int n, const axis *x, const axis *y
     }
 }
 
+static inline void lerp_cell(const float *t, int n, const axis *x, const axis *y, float out[3]) {
+    lerp_cell_w(t, n, 3, x, y, out);
+}
+
+/* A radiance cell of slot s's grid: albedo/pi x the direct grid's bilinear value + the
+ * texture's (RGB, the fourth float 0). */
 static void rad_row(void *user, size_t item) {
     wrt_gather *g = user;
     int s = (int)(item / GATHER_RG), j = (int)(item % GATHER_RG), hq = g->slot_quad[s];
     const float *base = g->q[hq].albedo;
-    const float *dt = g->direct + (size_t)s * GATHER_DTEX * GATHER_DTEX * 3;
-    float *o = g->rad + ((size_t)s * RG2 + (size_t)j * GATHER_RG) * 3;
+    const float *dt = g->direct + (size_t)s * GATHER_DTEX * GATHER_DTEX * GLANE;
+    float *o = g->rad + ((size_t)s * RG2 + (size_t)j * GATHER_RG) * GLANE;
     const axis *dx = g->dax, *tx = g->tax + (size_t)s * GATHER_RG;
     const float *it = g->tex[hq];
     int tn = it ? g->tex_res[hq] : 0;
     axis dy = dx[j], ty = tx[j];
     float kb[3];
     for (int c = 0; c < 3; c++) kb[c] = (float)(base[c] / M_PI);
+#ifdef __SSE2__
+    /* lerp_cell_w's operations four lanes at once (the same bits; the direct grid's fourth
+     * lane is 0, the texture's three floats loaded as three) */
+    const __m128 kv = _mm_set_ps(0.0f, kb[2], kb[1], kb[0]);
+    const __m128d dy01 = _mm_set_pd(dy.t, 1 - dy.t), ty01 = _mm_set_pd(ty.t, 1 - ty.t);
+#define W4(ax_, y01_, w_) do { /* w0, w1, w2, w3 */ \
+        __m128 a_ = _mm_cvtpd_ps(_mm_mul_pd(_mm_set1_pd(1 - (ax_)->t), y01_)); \
+        __m128 b_ = _mm_cvtpd_ps(_mm_mul_pd(_mm_set1_pd((ax_)->t), y01_)); \
+        w_ = _mm_unpacklo_ps(a_, b_); } while (0)
+#define LOAD3(p_) _mm_movelh_ps(_mm_castpd_ps(_mm_load_sd((const double *)(p_))), _mm_load_ss((p_) + 2))
+    for (int i = 0; i < GATHER_RG; i++) {
+        __m128 w;
+        W4(&dx[i], dy01, w);
+        const float *d0 = dt + ((size_t)dy.a * GATHER_DTEX + dx[i].a) * GLANE, *d1 = dt + ((size_t)dy.a * GATHER_DTEX + dx[i].b) * GLANE;
+        const float *d2 = dt + ((size_t)dy.b * GATHER_DTEX + dx[i].a) * GLANE, *d3 = dt + ((size_t)dy.b * GATHER_DTEX + dx[i].b) * GLANE;
+        __m128 v = _mm_mul_ps(_mm_shuffle_ps(w, w, 0x00), _mm_loadu_ps(d0));
+        v = _mm_add_ps(v, _mm_mul_ps(_mm_shuffle_ps(w, w, 0x55), _mm_loadu_ps(d1)));
+        v = _mm_add_ps(v, _mm_mul_ps(_mm_shuffle_ps(w, w, 0xAA), _mm_loadu_ps(d2)));
+        v = _mm_add_ps(v, _mm_mul_ps(_mm_shuffle_ps(w, w, 0xFF), _mm_loadu_ps(d3)));
+        v = _mm_mul_ps(kv, v);
+        if (tn > 0) {
+            W4(&tx[i], ty01, w);
+            const float *t0 = it + ((size_t)ty.a * tn + tx[i].a) * 3, *t1 = it + ((size_t)ty.a * tn + tx[i].b) * 3;
+            const float *t2 = it + ((size_t)ty.b * tn + tx[i].a) * 3, *t3 = it + ((size_t)ty.b * tn + tx[i].b) * 3;
+            __m128 iv = _mm_mul_ps(_mm_shuffle_ps(w, w, 0x00), LOAD3(t0));
+            iv = _mm_add_ps(iv, _mm_mul_ps(_mm_shuffle_ps(w, w, 0x55), LOAD3(t1)));
+            iv = _mm_add_ps(iv, _mm_mul_ps(_mm_shuffle_ps(w, w, 0xAA), LOAD3(t2)));
+            iv = _mm_add_ps(iv, _mm_mul_ps(_mm_shuffle_ps(w, w, 0xFF), LOAD3(t3)));
+            v = _mm_add_ps(v, iv);
+        } else v = _mm_add_ps(v, _mm_setzero_ps());
+        _mm_storeu_ps(o + (size_t)i * GLANE, v);
+    }
+#undef W4
+#undef LOAD3
+#else
     for (int i = 0; i < GATHER_RG; i++) {
         float dv[3], iv[3] = {0, 0, 0};
-        lerp_cell(dt, GATHER_DTEX, &dx[i], &dy, dv);
-        if (tn > 0) lerp_cell(it, tn, &tx[i], &ty, iv);
-        for (int c = 0; c < 3; c++) o[i * 3 + c] = kb[c] * dv[c] + iv[c];
+        lerp_cell_w(dt, GATHER_DTEX, GLANE, &dx[i], &dy, dv);
+        if (tn > 0) lerp_cell_w(it, tn, 3, &tx[i], &ty, iv);
+        for (int c = 0; c < 3; c++) o[i * GLANE + c] = kb[c] * dv[c] + iv[c];
     }
+#endif
 }
 
 void wrt_gather_lights(wrt_gather *g, wrt_gather_direct_fn direct, void *user, const float *const *tex,
@@ -400,6 +488,7 @@ void wrt_gather_lights(wrt_gather *g, wrt_gather_direct_fn direct, void *user, c
 
 /* ------------------------------------------------------------- eye move ---- */
 
+#ifndef __SSE2__
 /* bfloat16: a float's upper 16 bits, rounded to nearest even (beta is finite, >= 0). */
 static uint16_t to_bf16(float f) {
     uint32_t u;
@@ -407,80 +496,139 @@ static uint16_t to_bf16(float f) {
     u += 0x7fffu + ((u >> 16) & 1u);
     return (uint16_t)(u >> 16);
 }
-
-/* A point's row toward the eye: on each of its nb blocks blk[] the four beta rows bt[]
- * blended with weights w (the bilinear outgoing direction), kept as bfloat16 in row. */
-static void blend_row(const float *const bt[4], const float w[4], const uint8_t *blk, int nb, uint16_t *row) {
-#ifdef __SSE2__
-    /* the scalar loop's operations, four lanes at once: the same bits */
-    __m128 w0 = _mm_set1_ps(w[0]), w1 = _mm_set1_ps(w[1]), w2 = _mm_set1_ps(w[2]), w3 = _mm_set1_ps(w[3]);
-    __m128i one = _mm_set1_epi32(1), half = _mm_set1_epi32(0x7fff);
-    for (int k = 0; k < nb; k++)
-        for (int i = 0; i < GBLK * 3; i += 4) {
-            int o = blk[k] * GBLK * 3 + i;
-            __m128 t = _mm_add_ps(_mm_add_ps(_mm_mul_ps(w0, _mm_loadu_ps(bt[0] + o)), _mm_mul_ps(w1, _mm_loadu_ps(bt[1] + o))),
-                                  _mm_add_ps(_mm_mul_ps(w2, _mm_loadu_ps(bt[2] + o)), _mm_mul_ps(w3, _mm_loadu_ps(bt[3] + o))));
-            __m128i u = _mm_castps_si128(t);
-            u = _mm_add_epi32(u, _mm_add_epi32(half, _mm_and_si128(_mm_srli_epi32(u, 16), one)));
-            u = _mm_srli_epi32(u, 16); /* beta >= 0: under 0x8000, so the signed pack keeps it */
-            _mm_storel_epi64((__m128i *)(row + k * GBLK * 3 + i), _mm_packs_epi32(u, u));
-        }
-    return;
 #endif
-    for (int k = 0; k < nb; k++) {
-        int o = blk[k] * GBLK * 3;
-        for (int i = 0; i < GBLK * 3; i++) {
-            float t = (w[0] * bt[0][o + i] + w[1] * bt[1][o + i]) + (w[2] * bt[2][o + i] + w[3] * bt[3][o + i]);
-            row[k * GBLK * 3 + i] = to_bf16(t);
+
+/* A point's betas toward the eye: for each of its seen incident cells amap[0..na) the four
+ * beta rows bt[] blended with weights w (the bilinear outgoing direction), summed over the
+ * incident cells of an entry (in amap's order), kept as bfloat16 in eb (EB an entry). */
+static void blend_row(const float *const bt[4], const float w[4], const uint16_t *amap, size_t na, uint16_t *eb) {
+    uint16_t *e = eb - EB;
+#ifdef __SSE2__
+    /* the scalar loop's operations, four lanes at once (the fourth, the next cell's red,
+     * dropped): the same bits */
+    __m128 w0 = _mm_set1_ps(w[0]), w1 = _mm_set1_ps(w[1]), w2 = _mm_set1_ps(w[2]), w3 = _mm_set1_ps(w[3]), acc = _mm_setzero_ps();
+    const __m128i one = _mm_set1_epi32(1), half = _mm_set1_epi32(0x7fff);
+#define BF16_STORE(dst_, v_) do { \
+        __m128i u_ = _mm_castps_si128(v_); \
+        u_ = _mm_add_epi32(u_, _mm_add_epi32(half, _mm_and_si128(_mm_srli_epi32(u_, 16), one))); \
+        u_ = _mm_srli_epi32(u_, 16); /* beta >= 0: under 0x8000, so the signed pack keeps it */ \
+        uint16_t h_[8]; \
+        _mm_storeu_si128((__m128i *)h_, _mm_packs_epi32(u_, u_)); \
+        memcpy(dst_, h_, EB * sizeof *h_); } while (0)
+    for (size_t k = 0; k < na; k++) {
+        size_t o = (size_t)(amap[k] & ~AM_FIRST) * 3;
+        __m128 t = _mm_add_ps(_mm_add_ps(_mm_mul_ps(w0, _mm_loadu_ps(bt[0] + o)), _mm_mul_ps(w1, _mm_loadu_ps(bt[1] + o))),
+                              _mm_add_ps(_mm_mul_ps(w2, _mm_loadu_ps(bt[2] + o)), _mm_mul_ps(w3, _mm_loadu_ps(bt[3] + o))));
+        if (amap[k] & AM_FIRST) {
+            if (e >= eb) BF16_STORE(e, acc);
+            e += EB;
+            acc = t;
+        } else acc = _mm_add_ps(acc, t);
+    }
+    if (na) BF16_STORE(e, acc);
+#undef BF16_STORE
+#else
+    float acc[3] = {0, 0, 0};
+    for (size_t k = 0; k <= na; k++) {
+        if (k == na || (amap[k] & AM_FIRST)) {
+            if (e >= eb) for (int c = 0; c < 3; c++) e[c] = to_bf16(acc[c]);
+            if (k == na) break;
+            e += EB;
+        }
+        size_t o = (size_t)(amap[k] & ~AM_FIRST) * 3;
+        for (int c = 0; c < 3; c++) {
+            float t = (w[0] * bt[0][o + c] + w[1] * bt[1][o + c]) + (w[2] * bt[2][o + c] + w[3] * bt[3][o + c]);
+            acc[c] = (amap[k] & AM_FIRST) ? t : acc[c] + t;
         }
     }
+#endif
 }
 
-/* sum over a of rad[cell[a]] row[a], RGB interleaved, over the nb blocks blk[] of GBLK
- * cells (row: 12 bfloat16 a block, compact; rad: 3 floats a cell, one float after the
- * last). Vectorised over a block: its four cells' radiances (one 4-float load each, the
- * 4th lane the next float) shuffled into three 4-lane vectors whose lanes hold the
- * channels 0120, 1201, 2012, folded at the end; the scalar loop sums the same terms in
- * block order (the two differ by float rounding only). */
-static void dot_row(const float *rad, const int32_t *cell, const uint16_t *row, const uint8_t *blk, int nb,
-                    float out[3]) {
-#ifdef __SSE2__
-    __m128 acc0 = _mm_setzero_ps(), acc1 = _mm_setzero_ps(), acc2 = _mm_setzero_ps();
-    __m128i z = _mm_setzero_si128();
-#define ROW4(o) _mm_castsi128_ps(_mm_unpacklo_epi16(z, _mm_loadl_epi64((const __m128i *)(row + (o)))))
-    for (int k = 0; k < nb; k++) {
-        const int32_t *c = cell + blk[k] * GBLK;
-        __m128 c0 = _mm_loadu_ps(rad + (size_t)c[0] * 3), c1 = _mm_loadu_ps(rad + (size_t)c[1] * 3);
-        __m128 c2 = _mm_loadu_ps(rad + (size_t)c[2] * 3), c3 = _mm_loadu_ps(rad + (size_t)c[3] * 3);
-        __m128 v0 = _mm_shuffle_ps(c0, _mm_shuffle_ps(c1, c0, _MM_SHUFFLE(2, 2, 0, 0)), _MM_SHUFFLE(0, 2, 1, 0));
-        __m128 v1 = _mm_shuffle_ps(c1, c2, _MM_SHUFFLE(1, 0, 2, 1));
-        __m128 v2 = _mm_shuffle_ps(_mm_shuffle_ps(c2, c3, _MM_SHUFFLE(0, 0, 2, 2)), c3, _MM_SHUFFLE(2, 1, 2, 0));
-        int o = k * GBLK * 3;
-        acc0 = _mm_add_ps(acc0, _mm_mul_ps(v0, ROW4(o)));
-        acc1 = _mm_add_ps(acc1, _mm_mul_ps(v1, ROW4(o + 4)));
-        acc2 = _mm_add_ps(acc2, _mm_mul_ps(v2, ROW4(o + 8)));
-    }
-#undef ROW4
-    float a[12];
-    _mm_storeu_ps(a, acc0); _mm_storeu_ps(a + 4, acc1); _mm_storeu_ps(a + 8, acc2);
-    for (int c = 0; c < 3; c++) out[c] = 0;
-    for (int k = 0; k < 12; k++) out[k % 3] += a[k];
-#else
-    out[0] = out[1] = out[2] = 0;
-    for (int k = 0; k < nb; k++)
-        for (int i = 0; i < GBLK * 3; i++) {
-            uint32_t u = (uint32_t)row[k * GBLK * 3 + i] << 16;
+/* sum over a point's entries of rad[cell] beta (RGB): entries k = 4j + l summed into four
+ * partial sums l (each an entry's RGB in lanes 0-2), folded as (s0 + s1) + (s2 + s3). n: a
+ * multiple of GROUP. The plain, SSE2 and AVX2 loops add the same products in the same
+ * order: the same bits (a fourth lane, where there is one, is rad's 0 times a beta). */
+static void dot_plain(const float *rad, const uint32_t *eoff, const uint16_t *eb, size_t n, float out[3]) {
+    float s[GROUP][3] = {{0}};
+    for (size_t k = 0; k < n; k++) {
+        const float *r = (const float *)((const char *)rad + eoff[k]);
+        for (int c = 0; c < 3; c++) {
+            uint32_t u = (uint32_t)eb[k * EB + c] << 16;
             float f;
             memcpy(&f, &u, sizeof f);
-            out[i % 3] += rad[(size_t)cell[blk[k] * GBLK + i / 3] * 3 + i % 3] * f;
+            s[k % GROUP][c] += r[c] * f;
         }
-#endif
+    }
+    for (int c = 0; c < 3; c++) out[c] = (s[0][c] + s[1][c]) + (s[2][c] + s[3][c]);
 }
 
-/* L_o at point p of a glossy quad toward the eye: the incident radiance of its cells
- * that see something read from the radiance grids (the cell table) and summed against
- * the point's row toward the eye (made again first when the eye
- * moved: the beta rows of the four outgoing directions around w_o, bilinear). */
+#ifdef __SSE2__
+static void dot_sse2(const float *rad, const uint32_t *eoff, const uint16_t *eb, size_t n, float out[3]) {
+    const char *rb = (const char *)rad;
+    __m128 s0 = _mm_setzero_ps(), s1 = s0, s2 = s0, s3 = s0;
+    const __m128i z = _mm_setzero_si128();
+    /* an entry's beta: 8 bytes from its first (the fourth, the next entry's red, meets rad's 0) */
+#define BETA4(k_) _mm_castsi128_ps(_mm_unpacklo_epi16(z, _mm_loadl_epi64((const __m128i *)(eb + (k_) * EB))))
+#define RAD4(k_) _mm_loadu_ps((const float *)(rb + eoff[k_]))
+    for (size_t k = 0; k < n; k += GROUP) {
+        s0 = _mm_add_ps(s0, _mm_mul_ps(RAD4(k), BETA4(k)));
+        s1 = _mm_add_ps(s1, _mm_mul_ps(RAD4(k + 1), BETA4(k + 1)));
+        s2 = _mm_add_ps(s2, _mm_mul_ps(RAD4(k + 2), BETA4(k + 2)));
+        s3 = _mm_add_ps(s3, _mm_mul_ps(RAD4(k + 3), BETA4(k + 3)));
+    }
+#undef BETA4
+#undef RAD4
+    float a[4];
+    _mm_storeu_ps(a, _mm_add_ps(_mm_add_ps(s0, s1), _mm_add_ps(s2, s3)));
+    for (int c = 0; c < 3; c++) out[c] = a[c];
+}
+#endif
+
+#ifdef WRT_GATHER_AVX2
+/* dot_sse2 eight lanes wide: entries 4j, 4j + 1 in one vector (partial sums 0 and 1 in its
+ * halves), 4j + 2, 4j + 3 in the other; a group's 12 betas (24 bytes) as two 16-byte
+ * loads, each broadcast to both halves and shuffled into floats (bfloat16 in the upper 16
+ * bits, the fourth lane 0). */
+__attribute__((target("avx2"))) static void dot_avx2(const float *rad, const uint32_t *eoff, const uint16_t *eb, size_t n,
+                                                     float out[3]) {
+    const char *rb = (const char *)rad;
+    const char Z = (char)0x80;
+    const __m256i m01 = _mm256_setr_epi8(Z, Z, 0, 1, Z, Z, 2, 3, Z, Z, 4, 5, Z, Z, Z, Z,    /* entry 0: bytes 0-5 */
+                                         Z, Z, 6, 7, Z, Z, 8, 9, Z, Z, 10, 11, Z, Z, Z, Z); /* entry 1: 6-11 */
+    const __m256i m23 = _mm256_setr_epi8(Z, Z, 4, 5, Z, Z, 6, 7, Z, Z, 8, 9, Z, Z, Z, Z,    /* entry 2: bytes 12-17, 4-9 of the load at 8 */
+                                         Z, Z, 10, 11, Z, Z, 12, 13, Z, Z, 14, 15, Z, Z, Z, Z); /* entry 3 */
+    __m256 s01 = _mm256_setzero_ps(), s23 = _mm256_setzero_ps();
+    for (size_t k = 0; k < n; k += GROUP) {
+        __m256 r01 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps((const float *)(rb + eoff[k]))),
+                                          _mm_loadu_ps((const float *)(rb + eoff[k + 1])), 1);
+        __m256 r23 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps((const float *)(rb + eoff[k + 2]))),
+                                          _mm_loadu_ps((const float *)(rb + eoff[k + 3])), 1);
+        __m256i b01 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB))), m01);
+        __m256i b23 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB + 4))), m23);
+        s01 = _mm256_add_ps(s01, _mm256_mul_ps(r01, _mm256_castsi256_ps(b01)));
+        s23 = _mm256_add_ps(s23, _mm256_mul_ps(r23, _mm256_castsi256_ps(b23)));
+    }
+    __m128 t = _mm_add_ps(_mm_add_ps(_mm256_castps256_ps128(s01), _mm256_extractf128_ps(s01, 1)),
+                          _mm_add_ps(_mm256_castps256_ps128(s23), _mm256_extractf128_ps(s23, 1)));
+    float a[4];
+    _mm_storeu_ps(a, t);
+    for (int c = 0; c < 3; c++) out[c] = a[c];
+}
+#endif
+
+static void dot_row(const wrt_gather *g, const uint32_t *eoff, const uint16_t *eb, size_t n, float out[3]) {
+#ifdef WRT_GATHER_AVX2
+    if (g->avx2) { dot_avx2(g->rad, eoff, eb, n, out); return; }
+#endif
+#ifdef __SSE2__
+    if (g->simd) { dot_sse2(g->rad, eoff, eb, n, out); return; }
+#endif
+    dot_plain(g->rad, eoff, eb, n, out);
+}
+
+/* L_o at point p of a glossy quad toward the eye: the radiance of its entries' cells
+ * summed against their beta toward the eye (made again first when the eye moved: the
+ * beta rows of the four outgoing directions around w_o, bilinear). */
 static void lout_point(void *user, size_t item) {
     wrt_gather *g = user;
     int q = g->lq;
@@ -489,9 +637,9 @@ static void lout_point(void *user, size_t item) {
     gquad *G = &g->gq[q];
     float *lo = G->lout + p * 3;
     lo[0] = lo[1] = lo[2] = 0;
-    int np = G->pts, nb = G->nblk[p];
-    const uint8_t *blk = G->blk + p * NBLK;
-    uint16_t *row = G->brow + G->boff[p];
+    int np = G->pts;
+    size_t e0 = G->e0[p], ne = G->e0[p + 1] - e0;
+    uint16_t *eb = G->ebeta + e0 * EB;
     if (g->rows_eye) {
         G->bvis[p] = 0;
         wrt_v3 x = qpoint(Q, ((p % np) + 0.5) / np, ((p / np) + 0.5) / np);
@@ -511,11 +659,11 @@ static void lout_point(void *user, size_t item) {
             w[k] = (float)(((k & 1) ? tx : 1 - tx) * ((k >> 1) ? ty : 1 - ty));
             bt[k] = g->beta[G->beta_id] + ((size_t)cy * GATHER_BRES + cx) * NDIR * 3;
         }
-        blend_row(bt, w, blk, nb, row);
+        blend_row(bt, w, G->amap + G->a0[p], G->a0[p + 1] - G->a0[p], eb);
         G->bvis[p] = 1;
     }
-    if (!G->bvis[p] || nb == 0) return;
-    dot_row(g->rad, G->cell + p * NDIR, row, blk, nb, lo);
+    if (!G->bvis[p] || ne == 0) return;
+    dot_row(g, G->eoff + e0, eb, ne, lo);
 }
 
 static void out_quad(void *user, size_t item) {

@@ -55,10 +55,14 @@ typedef struct wrt_gather_env {
      * fraction of the creation done, rising to 1; returning 0 cancels it. */
     int (*progress)(void *user, double fraction);
     int piece;  /* points (or table rows) a piece: a few for each thread of `run`; 0: 8 */
+    int simd;   /* the light change's sums: 0 the widest the processor has (AVX2 or SSE2), 1
+                 * plain loops, 2 SSE2 (the same bits whichever: tests and A/B timings) */
 } wrt_gather_env;
 
-/* Direct irradiance (RGB, shadows included) at x with unit normal n, from the lights. */
-typedef void (*wrt_gather_direct_fn)(void *user, wrt_v3 x, wrt_v3 n, double out[3]);
+/* Direct irradiance (RGB, shadows included) from the lights at the n points x[0..n) of a
+ * quad with unit normal nrm (a row of the direct grid: the caller may trace their shadow
+ * rays as packets): out[3 k + c] at x[k]. */
+typedef void (*wrt_gather_direct_fn)(void *user, const wrt_v3 *x, int n, wrt_v3 nrm, double *out);
 
 /* NULL *out and WRT_OK when no quad is glossy. out_res[q] (may be NULL): the side of the
  * texture wrt_gather_eye will write for quad q (a narrow lobe gets a point per texel).

@@ -121,6 +121,50 @@ static void k_fill(wrt_relight *r, const uint32_t *ts, const kt_entry *te, const
     }
 }
 
+/* A half-precision float (IEEE 754 binary16) from a float of magnitude below 65520,
+ * rounded to nearest even, and back (exact). */
+static uint16_t half_of(float f) {
+    double a = fabs((double)f);
+    uint16_t sign = signbit(f) ? 0x8000u : 0;
+    if (a < ldexp(1.0, -14)) return (uint16_t)(sign | (uint16_t)rint(ldexp(a, 24))); /* subnormal (or 1024: the least normal) */
+    int e;
+    double m = frexp(a, &e); /* a = m 2^e, m in [0.5, 1) */
+    double q = rint(ldexp(m, 11)); /* 1024..2048: the significand */
+    if (q == 2048) { q = 1024; e++; }
+    return (uint16_t)(sign | (uint16_t)((e + 14) << 10) | (uint16_t)(q - 1024));
+}
+
+static float half_value(uint16_t h) {
+    int e = (h >> 10) & 31, m = h & 1023;
+    double v = e ? ldexp(1024 + m, e - 25) : ldexp(m, -24);
+    return (float)(h & 0x8000u ? -v : v);
+}
+
+/* The fours' values as halves: each four's scaled by 2^-k4_exp[i] so that its largest
+ * lies in [2^14, 2^15) (K's values are far below half precision's least normal, 2^-14),
+ * then rounded to half precision (11 significant bits, the file's compact K has 14):
+ * with F16C the multiply reads 8 bytes an entry's values instead of 16, and converts them
+ * in one instruction; without, k4_vals holds the same halves as floats (the same sums). */
+static void k_halves(wrt_relight *r, uint64_t n4) {
+    for (uint32_t i = 0; i < r->k.nk4; i++) {
+        uint32_t b0 = r->k.k4_start[i], b1 = r->k.k4_start[i + 1];
+        float mx = 0;
+        for (size_t k = (size_t)b0 * 4; k < (size_t)b1 * 4; k++) mx = fmaxf(mx, fabsf(r->k.k4_vals[k]));
+        int e = 0;
+        if (mx > 0) frexp(mx, &e);
+        int sx = e - 15;
+        sx = sx < -126 ? -126 : sx > 127 ? 127 : sx; /* 2^sx a normal float */
+        r->k.k4_exp[i] = (int16_t)sx;
+        for (size_t k = (size_t)b0 * 4; k < (size_t)b1 * 4; k++) {
+            uint16_t h = half_of((float)ldexp(r->k.k4_vals[k], -sx));
+            if (r->k.f16c) r->k.k4_h[k] = h;
+            else r->k.k4_vals[k] = half_value(h);
+        }
+    }
+    if (r->k.f16c) { relight_free(r, r->k.k4_vals); r->k.k4_vals = NULL; }
+    (void)n4;
+}
+
 /* K by rows: Y = K c sums each row in registers, in column order (no store per entry).
  * Two to four consecutive rows of one quad and spatial node (a glossy receiver's
  * incident angular functions; a node's wavelets) have nearly the same columns (97% on
@@ -151,8 +195,11 @@ static wrt_status k_by_rows(wrt_relight *r) {
     r->k.kt = relight_calloc(r, (size_t)n1 + 1, sizeof(kt_entry));
     r->k.k4_cols = relight_calloc(r, (size_t)n4 + 1, sizeof(uint32_t));
     r->k.k4_vals = relight_calloc(r, (size_t)n4 * 4 + 4, sizeof(float)); /* malloc: 16-byte aligned */
+    r->k.k4_exp = relight_calloc(r, (size_t)r->k.nk4 + 1, sizeof(int16_t));
+    if (r->k.f16c) r->k.k4_h = relight_calloc(r, (size_t)n4 * 4 + 8, sizeof(uint16_t));
     if (r->oom) goto done;
     k_fill(r, ts, te, in4);
+    k_halves(r, n4);
 done:
     if (r->oom) st = wrt_fail(WRT_ERR_NOMEM, "relight: out of memory");
     relight_free(r, ts); relight_free(r, te); relight_free(r, in4); relight_free(r, drows); relight_free(r, dvals);
@@ -203,12 +250,20 @@ wrt_status relight_setup_first_bounce(wrt_relight *r) {
 #ifdef WRT_K_AVX
     __builtin_cpu_init();
     r->k.avx = __builtin_cpu_supports("avx") && !r->opt.no_avx; /* no_avx: tests, A/B */
+    r->k.f16c = r->k.avx && __builtin_cpu_supports("f16c");
 #endif
     if (g->knnz > UINT32_MAX) return wrt_fail(WRT_ERR_NOMEM, "relight: first-bounce operator of %llu entries: too large",
                                               (unsigned long long)g->knnz);
     if ((st = k_by_rows(r)) != WRT_OK) return st;
     k_columns(r);
     return WRT_OK;
+}
+
+/* 2^e, a normal float (e in -126..127). */
+static inline float k_scale(int e) {
+    union { uint32_t u; float f; } v;
+    v.u = (uint32_t)(e + 127) << 23;
+    return v.f;
 }
 
 /* Y = K c on the rows in fours (K by rows, r->k.k4_*): one load of c serves four rows. Each
@@ -235,22 +290,26 @@ static void k_fours(wrt_relight *r) {
         }
         if (b < end) K_FOUR(e0, e1, e2, e3, b);
         int n = r->k.k4_n[i]; /* 2 to 4 rows: the next group's rows follow */
-        _mm_store_ps(y, _mm_add_ps(e0, o0)); _mm_store_ps(y + 4, _mm_add_ps(e1, o1));
-        if (n > 2) _mm_store_ps(y + 8, _mm_add_ps(e2, o2));
-        if (n > 3) _mm_store_ps(y + 12, _mm_add_ps(e3, o3));
+        __m128 sc = _mm_set1_ps(k_scale(r->k.k4_exp[i]));
+        _mm_store_ps(y, _mm_mul_ps(_mm_add_ps(e0, o0), sc)); _mm_store_ps(y + 4, _mm_mul_ps(_mm_add_ps(e1, o1), sc));
+        if (n > 2) _mm_store_ps(y + 8, _mm_mul_ps(_mm_add_ps(e2, o2), sc));
+        if (n > 3) _mm_store_ps(y + 12, _mm_mul_ps(_mm_add_ps(e3, o3), sc));
 #else
-        float a[2][4][3] = {{{0}}};
+        float a[2][4][3] = {{{0}}}, sc = k_scale(r->k.k4_exp[i]);
         for (uint32_t n = 0; b < end; b++, n++)
             for (int k = 0; k < 4; k++)
                 for (int c = 0; c < 3; c++) a[n & 1][k][c] += C[(size_t)kc[b] * 4 + c] * kv[(size_t)b * 4 + k];
-        for (int k = 0; k < r->k.k4_n[i]; k++) for (int c = 0; c < 3; c++) y[k * 4 + c] = a[0][k][c] + a[1][k][c];
+        for (int k = 0; k < r->k.k4_n[i]; k++) for (int c = 0; c < 3; c++) y[k * 4 + c] = (a[0][k][c] + a[1][k][c]) * sc;
 #endif
     }
 }
 
 #ifdef WRT_K_AVX
-__attribute__((target("avx"))) static void k_fours_avx(wrt_relight *r) {
-    const float *C = r->k.C, *kv = r->k.k4_vals;
+/* The AVX loop with the values as halves (F16C): the same products of the same values in
+ * the same order as k_fours over k4_vals' floats. */
+__attribute__((target("avx,f16c"))) static void k_fours_avx(wrt_relight *r) {
+    const float *C = r->k.C;
+    const uint16_t *kh = r->k.k4_h;
     const uint32_t *kc = r->k.k4_cols;
     for (uint32_t i = 0; i < r->k.nk4; i++) {
         float *y = r->k.Y4 + (size_t)r->k.k4_row[i] * 4;
@@ -259,7 +318,7 @@ __attribute__((target("avx"))) static void k_fours_avx(wrt_relight *r) {
         for (; b + 2 <= end; b += 2) { /* low half: entry b (even), high half: b + 1 (odd) */
             __m256 cv = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_load_ps(C + (size_t)kc[b] * 4)),
                                              _mm_load_ps(C + (size_t)kc[b + 1] * 4), 1);
-            __m256 v = _mm256_loadu_ps(kv + (size_t)b * 4);
+            __m256 v = _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)(kh + (size_t)b * 4)));
             a0 = _mm256_add_ps(a0, _mm256_mul_ps(cv, _mm256_permute_ps(v, 0x00)));
             a1 = _mm256_add_ps(a1, _mm256_mul_ps(cv, _mm256_permute_ps(v, 0x55)));
             a2 = _mm256_add_ps(a2, _mm256_mul_ps(cv, _mm256_permute_ps(v, 0xAA)));
@@ -267,12 +326,19 @@ __attribute__((target("avx"))) static void k_fours_avx(wrt_relight *r) {
         }
         __m128 e0 = _mm256_castps256_ps128(a0), e1 = _mm256_castps256_ps128(a1), e2 = _mm256_castps256_ps128(a2),
                e3 = _mm256_castps256_ps128(a3);
-        if (b < end) K_FOUR(e0, e1, e2, e3, b); /* a last, even entry */
+        if (b < end) { /* a last, even entry */
+            __m128 cv = _mm_load_ps(C + (size_t)kc[b] * 4), v = _mm_cvtph_ps(_mm_loadl_epi64((const __m128i *)(kh + (size_t)b * 4)));
+            e0 = _mm_add_ps(e0, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0x00)));
+            e1 = _mm_add_ps(e1, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0x55)));
+            e2 = _mm_add_ps(e2, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0xAA)));
+            e3 = _mm_add_ps(e3, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0xFF)));
+        }
         int n = r->k.k4_n[i]; /* 2 to 4 rows: the next group's rows follow */
-        _mm_store_ps(y, _mm_add_ps(e0, _mm256_extractf128_ps(a0, 1)));
-        _mm_store_ps(y + 4, _mm_add_ps(e1, _mm256_extractf128_ps(a1, 1)));
-        if (n > 2) _mm_store_ps(y + 8, _mm_add_ps(e2, _mm256_extractf128_ps(a2, 1)));
-        if (n > 3) _mm_store_ps(y + 12, _mm_add_ps(e3, _mm256_extractf128_ps(a3, 1)));
+        __m128 sc = _mm_set1_ps(k_scale(r->k.k4_exp[i]));
+        _mm_store_ps(y, _mm_mul_ps(_mm_add_ps(e0, _mm256_extractf128_ps(a0, 1)), sc));
+        _mm_store_ps(y + 4, _mm_mul_ps(_mm_add_ps(e1, _mm256_extractf128_ps(a1, 1)), sc));
+        if (n > 2) _mm_store_ps(y + 8, _mm_mul_ps(_mm_add_ps(e2, _mm256_extractf128_ps(a2, 1)), sc));
+        if (n > 3) _mm_store_ps(y + 12, _mm_mul_ps(_mm_add_ps(e3, _mm256_extractf128_ps(a3, 1)), sc));
     }
 }
 #endif
@@ -318,7 +384,7 @@ void relight_first_bounce(wrt_relight *r) {
 #endif
     }
 #ifdef WRT_K_AVX
-    if (r->k.avx) k_fours_avx(r);
+    if (r->k.f16c) k_fours_avx(r);
     else
 #endif
         k_fours(r);

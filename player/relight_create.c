@@ -454,7 +454,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     if (!r) return;
     wrt_pool_destroy(r->pool);
     wrt_gather_destroy(r->gat.gather);
-    for (int k = 0; k < 3; k++) relight_free(r, r->mul.own[k]);
+    for (int k = 0; k < 5; k++) relight_free(r, r->mul.own[k]);
     if (r->gat.diff) for (uint32_t q = 0; q < r->g->nquads; q++) relight_free(r, r->gat.diff[q]);
     relight_free(r, r->gat.tex); relight_free(r, r->gat.out); relight_free(r, r->gat.res); relight_free(r, r->gat.ires); relight_free(r, r->gat.diff); relight_free(r, r->gat.alb);
     if (r->rt.scene) rtcReleaseScene(r->rt.scene);
@@ -488,7 +488,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     relight_free(r, r->sm.rin); relight_free(r, r->sm.rknown); relight_free(r, r->sm.rout);
     relight_free(r, r->k.fn_slevel); relight_free(r, r->k.fn_ang); relight_free(r, r->k.fn_spidx);
     relight_free(r, r->k.kt_start); relight_free(r, r->k.kt);
-    relight_free(r, r->k.k4_row); relight_free(r, r->k.k4_start); relight_free(r, r->k.k4_n); relight_free(r, r->k.k4_cols); relight_free(r, r->k.k4_vals);
+    relight_free(r, r->k.k4_row); relight_free(r, r->k.k4_start); relight_free(r, r->k.k4_n); relight_free(r, r->k.k4_cols); relight_free(r, r->k.k4_vals); relight_free(r, r->k.k4_h); relight_free(r, r->k.k4_exp);
     relight_free(r, r->k.C); relight_free(r, r->k.Y); relight_free(r, r->k.Y4); relight_free(r, r->k.Ep);
     relight_free(r, r);
 }

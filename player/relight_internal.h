@@ -156,7 +156,7 @@ typedef struct rl_proj {
 /* The multiply (relight_multiply.c): the operator it streams and its scratch. */
 typedef struct rl_mul {
     op_view op;
-    void *own[3];                   /* op's arrays when they are the relighter's copy */
+    void *own[5];                   /* op's arrays when they are the relighter's copy */
     float *X4;                      /* X being summed: 4 floats a function (RGB, unused) */
     uint32_t *cols;                 /* non-zero columns of E */
     int per_light;                  /* X = sum of scale x each light's X4 (no K, no emitters):
@@ -174,7 +174,12 @@ typedef struct rl_bounce {
     uint32_t nk4, *k4_row, *k4_start; /* rows in fours (below): the k4_n[i] rows from */
     uint8_t *k4_n;                  /* k4_row[i] are entries [k4_start[i], k4_start[i + 1]) of */
     uint32_t *k4_cols; float *k4_vals; /* k4_cols, with 4 values each in k4_vals (0 where a
-                                    * row has none, and for rows past k4_n[i]) */
+                                    * row has none, and for rows past k4_n[i]), scaled by
+                                    * 2^-k4_exp[i] and rounded to half precision; with F16C
+                                    * the halves k4_h instead (k4_vals NULL) */
+    uint16_t *k4_h;
+    int16_t *k4_exp;
+    int f16c;                       /* the fours' values read as halves (AVX and F16C) */
     float *Y;                       /* Y = K c: nfuncs x 3 */
     float *Y4;                      /* Y being summed: 4 floats a function (RGB, unused) */
     int avx;                        /* the processor has AVX (Y's rows in fours with it) */

@@ -134,10 +134,10 @@ static void mul_chunk_compact(wrt_relight *r, worker *w, int item, void *vctx) {
 /* With the final gather nothing shows the rows of X that are a glossy quad's angular
  * (non-root) functions: glossy quads are drawn from the gather, which reads every quad's
  * angular-root functions only (a diffuse quad has no others). The multiply then streams a
- * copy of the operator without those rows (on the glossy asset 15% of the entries are
+ * copy of the operator without those rows (on the glossy asset 34% of the entries are
  * kept), in the file's order, so every displayed row of X sums the same terms in the same
- * order (bit-identical); the others stay 0. Kept as the file's when it would save < 10%
- * (a compact file's: < 70%, its entries being a third of the copy's bytes).
+ * order (bit-identical); the others stay 0. A float file's copy is floats; a compact
+ * file's is compact (display_rows_compact). Kept as the file's when it would save < 10%.
  * Returns -1 if there is no memory. */
 /* Entry i's row and value (decoded from the compact entries when the file has them). The
  * compact walk keeps its place: it visits the entries in order. */
@@ -151,6 +151,71 @@ static uint32_t entry_at(const wrt_gto *g, entry_walk *wk, uint64_t i, float v[3
     return wk->row;
 }
 
+/* The compact file's copy without the rows nothing shows: each kept entry keeps its code
+ * and its block's base (so the multiply's products are the file's, to the bit); a block
+ * of the copy holds kept entries of consecutive blocks of the file with the same base (a
+ * third of the entries kept: fewer, fuller blocks, each set up once), and a new one starts
+ * at another base, where the row step between kept entries would not fit a delta byte, or
+ * at 255 entries. keep: the kept entries. */
+static int display_rows_compact(wrt_relight *r, uint64_t keep) {
+    const wrt_gto *g = r->g;
+    uint32_t nf = g->nfuncs;
+    uint64_t nb = 0;
+    for (int pass = 0; pass < 2; pass++) { /* 0: count the blocks, 1: fill */
+        uint64_t *cs = NULL;
+        uint32_t *bc = NULL, *codes = NULL;
+        wrt_gto_block *bk = NULL;
+        uint8_t *dl = NULL;
+        if (pass) {
+            cs = relight_calloc(r, (size_t)nf + 1, sizeof *cs);
+            bc = relight_calloc(r, (size_t)nf + 1, sizeof *bc);
+            bk = relight_calloc(r, nb ? nb : 1, sizeof *bk);
+            codes = relight_calloc(r, keep ? keep : 1, sizeof *codes);
+            dl = relight_calloc(r, keep ? keep : 1, 1);
+            if (!cs || !bc || !bk || !codes || !dl) {
+                relight_free(r, cs); relight_free(r, bc); relight_free(r, bk); relight_free(r, codes); relight_free(r, dl);
+                return -1;
+            }
+        }
+        uint64_t n = 0, i = 0, m = 0;
+        for (uint32_t c = 0; c < nf; c++) {
+            if (pass) { cs[c] = n; bc[c] = (uint32_t)m; }
+            uint32_t last = 0, cnt = 0;
+            int open = 0, base = 0; /* a block of the copy is open (its base, its entries) */
+            for (uint32_t b = g->op_bcol[c]; b < g->op_bcol[c + 1]; b++) {
+                const wrt_gto_block *fb = &g->op_blocks[b];
+                uint32_t row = fb->row0;
+                for (uint32_t j = 0; j < fb->n; j++, i++) {
+                    row += g->op_deltas[i];
+                    if (r->fn_ang[row] != 0) continue;
+                    if (!open || fb->base != base || row - last > 255 || cnt == 255) {
+                        if (pass) bk[m] = (wrt_gto_block){row, 0, 0, fb->base};
+                        m++;
+                        open = 1;
+                        base = fb->base;
+                        cnt = 0;
+                        last = row;
+                    }
+                    cnt++;
+                    if (pass) {
+                        bk[m - 1].n++;
+                        codes[n] = g->op_codes[i];
+                        dl[n] = (uint8_t)(row - last);
+                    }
+                    last = row;
+                    n++;
+                }
+            }
+        }
+        if (!pass) { nb = m; continue; }
+        cs[nf] = n; bc[nf] = (uint32_t)m;
+        op_view *op = &r->mul.op;
+        op->col_start = cs; op->bcol = bc; op->blocks = bk; op->codes = codes; op->deltas = dl; op->nnz = n;
+        r->mul.own[0] = cs; r->mul.own[1] = bc; r->mul.own[2] = bk; r->mul.own[3] = codes; r->mul.own[4] = dl;
+    }
+    return 0;
+}
+
 int relight_display_rows_operator(wrt_relight *r) {
     const wrt_gto *g = r->g;
     uint32_t nf = g->nfuncs;
@@ -158,8 +223,8 @@ int relight_display_rows_operator(wrt_relight *r) {
     entry_walk wk = {0, 0, 0};
     float v[3];
     for (uint64_t i = 0; i < g->nnz; i++) keep += r->fn_ang[entry_at(g, &wk, i, v)] == 0;
-    /* a compact file's entries take a third of the floats' bytes */
-    if (keep >= (g->rows ? 0.9 : 0.3) * (double)g->nnz) return 0;
+    if (keep >= 0.9 * (double)g->nnz) return 0;
+    if (!g->rows) return display_rows_compact(r, keep);
     uint64_t *cs = relight_calloc(r, (size_t)nf + 1, sizeof *cs);
     uint32_t *rows = relight_calloc(r, keep ? keep : 1, sizeof *rows);
     float *vals = relight_calloc(r, (keep ? keep : 1) * 3 + 1, sizeof *vals); /* + 1: 4-float loads */

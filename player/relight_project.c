@@ -46,6 +46,9 @@
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
+#ifdef WRT_K_AVX
+#include <immintrin.h>
+#endif
 
 #define PROJ_CELL_K 8.0      /* cells at most d / PROJ_CELL_K wide */
 #define PROJ_CELL_K_GLOSSY 11.3 /* on quads with angular functions (measured: error below 1.2x)*/
@@ -101,7 +104,23 @@ typedef struct proj_setup {
     int nkang;                      /* K's angular indices 0..nkang-1 on the quad: 3 slots */
                                     /* each, after the E slots (nslot - 3 nkang of them) */
     const float *beta;              /* the quad's material's BRDF table (with K) */
+    int avx;                        /* K's slots eight lanes at a time (AVX at run time) */
 } proj_setup;
+
+#ifdef WRT_K_AVX
+/* k_sample's blend eight lanes at a time (the SSE loop's operations on each value: the
+ * same bits); returns the values done. */
+__attribute__((target("avx"))) static int k_sample_avx(const float wt[4], const float *const row[4], int n, float *acc) {
+    __m256 w0 = _mm256_set1_ps(wt[0]), w1 = _mm256_set1_ps(wt[1]), w2 = _mm256_set1_ps(wt[2]), w3 = _mm256_set1_ps(wt[3]);
+    int i = 0;
+    for (; i + 8 <= n; i += 8) {
+        __m256 s01 = _mm256_add_ps(_mm256_mul_ps(w0, _mm256_loadu_ps(row[0] + i)), _mm256_mul_ps(w1, _mm256_loadu_ps(row[1] + i)));
+        __m256 s23 = _mm256_add_ps(_mm256_mul_ps(w2, _mm256_loadu_ps(row[2] + i)), _mm256_mul_ps(w3, _mm256_loadu_ps(row[3] + i)));
+        _mm256_storeu_ps(acc + i, _mm256_add_ps(_mm256_loadu_ps(acc + i), _mm256_add_ps(s01, s23)));
+    }
+    return i;
+}
+#endif
 
 /* K's slots of one sample (K-SPEC, "The maths"): the sample's weight `val` (E_dir V
  * sqrt(J/pi) x its share of the cell) times btilde_g(w_l), the BRDF table's beta_g at the
@@ -124,6 +143,9 @@ static void k_sample(const proj_setup *ps, double a, double b, double val, float
         row[k] = ps->beta + (size_t)(cy * BETA_RES + cx) * NANG * 3;
     }
     int n = 3 * ps->nkang, i = 0;
+#ifdef WRT_K_AVX
+    if (ps->avx) i = k_sample_avx(wt, row, n, acc);
+#endif
 #ifdef __SSE2__
     __m128 w0 = _mm_set1_ps(wt[0]), w1 = _mm_set1_ps(wt[1]), w2 = _mm_set1_ps(wt[2]), w3 = _mm_set1_ps(wt[3]);
     for (; i + 4 <= n; i += 4) {
@@ -460,7 +482,7 @@ static void proj_slots(const wrt_relight *r, const quad_info *q, const light_c *
     if (eang) for (int s = 0; s < q->nang; s++) slot_of[alist[s]] = (int16_t)s;
     else slot_of[0] = 0;
     nslot += 3 * q->nkang;
-    proj_setup p = {q, lc, nslot, 4, 0, 1, 0, slot_of, q->nkang, r->beta[q->material]};
+    proj_setup p = {q, lc, nslot, 4, 0, 1, 0, slot_of, q->nkang, r->beta[q->material], r->k.avx};
     if (eang && q->nang > 1) p.ang_res = 2 << q->alevel;
     *ps = p;
 }

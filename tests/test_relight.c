@@ -999,9 +999,46 @@ static void test_multiply_dense(void) {
  * product of the unquantized floats it is off by no more than the encoding's step (each
  * value within half a step: 1/511 of the larger of its entry's largest channel and an
  * eighth of its block's, the 2-bit exponent's reach). */
-static void multiply_compact(int gather) {
+/* A room of six walls, one glossy (material 1) with its angular functions to level 3:
+ * each of its 4 spatial functions has 256 rows, its angular root first, then 255 that
+ * nothing displays with the final gather; the others diffuse. Every column's entries at
+ * rows 0, 100, 200, 256, 400, 512, 700, 768, one block of the file (row steps up to
+ * 188), of which the displayed rows 0, 256, 512, 768 follow each other 256 apart, one
+ * more than a delta byte holds. */
+static void build_gap_room(ts_scene *s) {
+    ts_init(s);
+    static const double org[6][3] = {{0, 0, 0}, {1, 0, 0}, {0, 0, 0}, {0, 1, 0}, {0, 0, 0}, {0, 0, 1}};
+    static const double e1[6][3] = {{0, 1, 0}, {0, 0, 1}, {0, 0, 1}, {1, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    static const double e2[6][3] = {{0, 0, 1}, {0, 1, 0}, {1, 0, 0}, {0, 0, 1}, {0, 1, 0}, {1, 0, 0}};
+    for (int w = 0; w < 6; w++) {
+        double c[4][3];
+        for (int x = 0; x < 3; x++) {
+            c[0][x] = org[w][x]; c[1][x] = org[w][x] + e1[w][x];
+            c[2][x] = org[w][x] + e1[w][x] + e2[w][x]; c[3][x] = org[w][x] + e2[w][x];
+        }
+        ts_quad(s, (const double(*)[3])c, w == 0 ? 1 : 0, 0, w == 0 ? 4 : 0);
+    }
+    static const uint32_t rows[8] = {0, 100, 200, 256, 400, 512, 700, 768};
+    s->col = calloc(s->nf + 1, sizeof(uint64_t));
+    s->rows = calloc((size_t)s->nf * 8 + 1, sizeof(uint32_t));
+    s->vals = calloc((size_t)s->nf * 24 + 1, sizeof(float));
+    size_t k = 0;
+    for (uint32_t f = 0; f < s->nf; f++) {
+        s->col[f] = k;
+        for (int e = 0; e < 8; e++, k++) {
+            s->rows[k] = rows[e];
+            for (int c = 0; c < 3; c++) s->vals[k * 3 + c] = (float)(0.01 * (lcg() - 0.3));
+        }
+    }
+    s->col[s->nf] = k;
+    s->g.nnz = k;
+    ts_finish(s);
+}
+
+static void multiply_compact(int gather, int gap) {
     ts_scene s;
-    build_room(&s, 2, 2, 100); /* 100 entries a column: two blocks */
+    if (gap) build_gap_room(&s);
+    else build_room(&s, 2, 2, 100); /* 100 entries a column: two blocks */
     uint32_t nf = s.nf;
     size_t n3 = (size_t)nf * 3;
     uint64_t nnz = s.col[nf], size = 0;
@@ -1076,9 +1113,11 @@ static void multiply_compact(int gather) {
             worst = fmax(worst, fabs(Xc[3 * r + c] - ref[3 * r + c]));
         }
     }
-    CHECK(mx > 0 && worst <= mx / 511, "compact X off the float operator's by %.3g of %.3g", worst, mx);
-    printf("compact multiply%s: %u functions, %llu entries in %llu blocks (%.2f bytes an entry); "
-           "worst value error %.2e; X off the float operator's by %.2e of max\n", gather ? " (final gather)" : "", nf,
+    /* (the gap room's 8 entries a row meet E's wavelets of both signs: its sums cancel, so
+     * it is held to the bit-identity above only) */
+    if (!gap) CHECK(mx > 0 && worst <= mx / 511, "compact X off the float operator's by %.3g of %.3g", worst, mx);
+    printf("compact multiply%s%s: %u functions, %llu entries in %llu blocks (%.2f bytes an entry); "
+           "worst value error %.2e; X off the float operator's by %.2e of max\n", gather ? " (final gather)" : "", gap ? " (displayed rows 256 apart)" : "", nf,
            (unsigned long long)nnz, (unsigned long long)gc.nblocks, (double)size / (double)nnz, qerr, worst / mx);
     wrt_relight_destroy(rc);
     wrt_relight_destroy(rf);
@@ -1087,8 +1126,9 @@ static void multiply_compact(int gather) {
 }
 
 static void test_multiply_compact(void) {
-    multiply_compact(0);
-    multiply_compact(1);
+    multiply_compact(0, 0);
+    multiply_compact(1, 0);
+    multiply_compact(1, 1); /* the display rows' compact copy splits a block */
 }
 
 /* skip_below: a light change that moves E by less than the fraction (measured here from
@@ -1422,6 +1462,86 @@ static double ff_point_poly(wrt_v3 x, wrt_v3 n, const wrt_v3 *p, int cnt) {
         sum += atan2(sl, v3_dot(a, b)) * v3_dot(c, n) / sl;
     }
     return fabs(sum) / (2 * WRT_PI);
+}
+
+/* K's rows in fours hold their values as half-precision floats, each four scaled by a
+ * power of two (relight_bounce.c k_halves): Y = K c then is K's product within the halves'
+ * rounding, 2^-11 of each term's magnitude. The floor's 256 K columns of
+ * first_bounce_projection(2, 2, 3) onto the wall's 256 rows (its nodes' wavelets in
+ * threes: fours), 6 entries a column of both signs over nine decades. c comes from a K
+ * whose column j is wall row j (value 1, exact as a half); the truth is K's floats times
+ * it in double, row by row, against 2^-10 of the sum of the terms' magnitudes. With and
+ * without AVX (no_avx: the halves as floats, the SSE loop) the same bits. */
+static void test_first_bounce_halves(void) {
+    ts_scene s;
+    ts_init(&s);
+    ts_metal(&s, 2, 0.3f, 2);
+    int qf = ts_quad(&s, k_floor, 2, 1, 2), qw = ts_quad(&s, k_wall_x, 0, 3, 0);
+    ts_identity(&s, 0.5f);
+    ts_finish(&s);
+    uint32_t w0 = s.quads[qw].func_first, nw = s.quads[qw].func_count;
+    kop k;
+    kop_columns(&k, (uint32_t)qf, 2, 2);
+    kop_alloc(&k, 6);
+    for (uint32_t j = 0; j < k.n; j++) { k.cs[j] = j; k.rows[j] = w0 + j; k.vals[j] = 1; }
+    k.cs[k.n] = k.nnz = k.n;
+    kop_attach(&s, &k);
+    wrt_light l = point_light(0.25, 0.4, 0.9, 3);
+    l.color[0] = 1; l.color[1] = 0.7f; l.color[2] = 0.4f;
+    wrt_relight_options o = {.no_gather = 1};
+    wrt_relight *r0 = NULL, *ra = NULL, *rb = NULL;
+    CHECK(wrt_relight_create(&s.g, &o, &r0) == WRT_OK, "%s", wrt_last_error());
+    wrt_relight_set_lights(r0, &l, NULL, 1);
+    wrt_relight_update(r0, NULL);
+    double *c = malloc((size_t)k.n * 3 * sizeof *c);
+    for (uint32_t j = 0; j < k.n * 3; j++) c[j] = wrt_relight_Y(r0)[(size_t)w0 * 3 + j];
+    /* K: 6 rows a column, ascending, values 10^-3 .. 10^-12 of both signs */
+    uint64_t e = 0;
+    for (uint32_t j = 0; j < k.n; j++) {
+        k.cs[j] = e;
+        uint32_t r = (j * 37) % (nw - 6 * 40);
+        for (int t = 0; t < 6; t++, e++) {
+            k.rows[e] = w0 + r + (uint32_t)t * (1 + (j + (uint32_t)t) % 40);
+            k.vals[e] = (float)((lcg() < 0.3 ? -1 : 1) * pow(10.0, -3 - 9 * lcg()));
+        }
+    }
+    k.cs[k.n] = k.nnz = e;
+    kop_attach(&s, &k);
+    CHECK(wrt_relight_create(&s.g, &o, &ra) == WRT_OK, "%s", wrt_last_error());
+    o.no_avx = 1;
+    CHECK(wrt_relight_create(&s.g, &o, &rb) == WRT_OK, "%s", wrt_last_error());
+    if (!r0 || !ra || !rb) { free(c); kop_free(&k); ts_free(&s); return; }
+    wrt_relight_set_lights(ra, &l, NULL, 1);
+    wrt_relight_update(ra, NULL);
+    wrt_relight_set_lights(rb, &l, NULL, 1);
+    wrt_relight_update(rb, NULL);
+    const float *Ya = wrt_relight_Y(ra), *Yb = wrt_relight_Y(rb);
+    double *ref = calloc((size_t)s.nf * 3, sizeof *ref), *mag = calloc((size_t)s.nf * 3, sizeof *mag);
+    for (uint32_t j = 0; j < k.n; j++)
+        for (uint64_t i = k.cs[j]; i < k.cs[j + 1]; i++)
+            for (int ch = 0; ch < 3; ch++) {
+                ref[(size_t)k.rows[i] * 3 + ch] += (double)k.vals[i] * c[j * 3 + ch];
+                mag[(size_t)k.rows[i] * 3 + ch] += fabs((double)k.vals[i] * c[j * 3 + ch]);
+            }
+    double worst = 0, seen = 0;
+    uint32_t bad = 0, nz = 0;
+    for (size_t i = 0; i < (size_t)s.nf * 3; i++) {
+        if (mag[i] == 0) continue;
+        nz++;
+        double d = fabs(Ya[i] - ref[i]) / mag[i];
+        worst = fmax(worst, d);
+        seen = fmax(seen, d);
+        bad += d > ldexp(1.0, -10);
+    }
+    CHECK(nz > 100 && bad == 0, "Y off K c (double) by more than 2^-10 of its terms' magnitude on %u of %u values (worst %.3g)",
+          bad, nz, worst);
+    CHECK(memcmp(Ya, Yb, (size_t)s.nf * 3 * sizeof *Ya) == 0, "Y the same bits with and without AVX");
+    printf("first bounce, K's values as halves: %u values of Y, worst %.3g of their terms' magnitude (2^-11 = %.3g)\n",
+           nz, seen, ldexp(1.0, -11));
+    free(ref); free(mag); free(c);
+    wrt_relight_destroy(r0); wrt_relight_destroy(ra); wrt_relight_destroy(rb);
+    kop_free(&k);
+    ts_free(&s);
 }
 
 /* Y = K c against the first bounce computed by brute force. A metal floor (roughness
@@ -1850,6 +1970,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_exact_zeros);
     TEST_RUN(test_glossy_beta);
     TEST_RUN(test_first_bounce_projection);
+    TEST_RUN(test_first_bounce_halves);
     TEST_RUN(test_first_bounce_brute_force);
     TEST_RUN(test_first_bounce_cache);
     TEST_RUN(test_first_bounce_refused);
