@@ -272,3 +272,128 @@ uint8_t *wrt_dist_gather_rows(wrt_bake_dist *d, const int *owner, size_t nrows, 
     free(at); free(lens); free(all);
     return rows;
 }
+
+/* ---------------------------------------------------------------- the series by shares */
+
+uint8_t *wrt_dist_share_need(const wrt_csc *r, int nranks, const uint32_t *cut) {
+    size_t n = r->n;
+    uint8_t *need = wrt_xcalloc((size_t)nranks * n + 1, 1);
+    for (int q = 0; q < nranks; q++)
+        for (uint32_t j = cut[q]; j < cut[q + 1]; j++)
+            for (uint64_t k = r->col[j]; k < r->col[j + 1]; k++) need[(size_t)q * n + r->row[k]] = 1;
+    return need;
+}
+
+/* A column's record: its index and count (uint32 each), its rows, its values */
+static uint64_t col_record_size(const wrt_csc *m, uint32_t j) { return 8 + 16 * (m->col[j + 1] - m->col[j]); }
+
+static uint8_t *col_record_put(const wrt_csc *m, uint32_t j, uint8_t *p) {
+    uint32_t cnt = (uint32_t)(m->col[j + 1] - m->col[j]);
+    memcpy(p, &j, 4);
+    memcpy(p + 4, &cnt, 4);
+    p += 8;
+    memcpy(p, m->row + m->col[j], (size_t)cnt * 4);
+    p += (size_t)cnt * 4;
+    memcpy(p, m->val + 3 * m->col[j], (size_t)cnt * 12);
+    return p + (size_t)cnt * 12;
+}
+
+/* The matrix of n columns made of the records in `buf` (len bytes, columns ascending), the
+ * others empty. */
+static wrt_csc col_records_read(uint32_t n, const uint8_t *buf, uint64_t len) {
+    wrt_csc m = {.n = n};
+    m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
+    uint64_t total = 0;
+    for (const uint8_t *p = buf; p < buf + len;) {
+        uint32_t h[2];
+        memcpy(h, p, 8);
+        m.col[h[0] + 1] = h[1];
+        total += h[1];
+        p += 8 + 16ull * h[1];
+    }
+    for (uint32_t j = 0; j < n; j++) m.col[j + 1] += m.col[j];
+    m.nnz = total;
+    m.row = wrt_xmalloc((total ? total : 1) * sizeof *m.row);
+    m.val = wrt_xmalloc((total ? total : 1) * 3 * sizeof *m.val);
+    for (const uint8_t *p = buf; p < buf + len;) {
+        uint32_t h[2];
+        memcpy(h, p, 8);
+        p += 8;
+        memcpy(m.row + m.col[h[0]], p, (size_t)h[1] * 4);
+        p += (size_t)h[1] * 4;
+        memcpy(m.val + 3 * m.col[h[0]], p, (size_t)h[1] * 12);
+        p += (size_t)h[1] * 12;
+    }
+    return m;
+}
+
+/* The all-to-all of the segments that want(q, j) picks among this rank's columns: the
+ * records addressed to this rank, every rank's in rank order, read into *in. */
+static wrt_status share_send(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut,
+                             int (*want)(const void *user, int q, uint32_t j), const void *user, wrt_csc *in) {
+    int nr = d->nranks, me = d->rank;
+    uint64_t *sl = wrt_xcalloc((size_t)nr, sizeof *sl), *rl = wrt_xcalloc((size_t)nr, sizeof *rl), total = 0;
+    for (int q = 0; q < nr; q++)
+        for (uint32_t j = cut[me]; j < cut[me + 1]; j++)
+            if (own->col[j + 1] > own->col[j] && want(user, q, j)) sl[q] += col_record_size(own, j);
+    for (int q = 0; q < nr; q++) total += sl[q];
+    uint8_t *buf = wrt_xmalloc(total ? total : 1), *p = buf;
+    for (int q = 0; q < nr; q++)
+        for (uint32_t j = cut[me]; j < cut[me + 1]; j++)
+            if (own->col[j + 1] > own->col[j] && want(user, q, j)) p = col_record_put(own, j, p);
+    void *rv = NULL;
+    wrt_status st = d->alltoall(d->user, buf, sl, &rv, rl);
+    free(buf);
+    if (st == WRT_OK) {
+        uint64_t got = 0;
+        for (int q = 0; q < nr; q++) {
+            got += rl[q];
+            if (q != me) {
+                d->bytes_sent[WRT_DIST_SERIES] += sl[q];
+                d->bytes_recv[WRT_DIST_SERIES] += rl[q];
+            }
+        }
+        *in = col_records_read(own->n, rv, got);
+    }
+    free(rv); free(sl); free(rl);
+    return st;
+}
+
+typedef struct need_user { const uint8_t *need; uint32_t n; } need_user;
+
+static int want_needed(const void *user, int q, uint32_t j) {
+    const need_user *u = user;
+    return u->need[(size_t)q * u->n + j];
+}
+
+wrt_status wrt_dist_share_fetch(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, const uint8_t *need,
+                                wrt_csc *in) {
+    need_user u = {need, own->n};
+    return share_send(d, own, cut, want_needed, &u, in);
+}
+
+static int want_root(const void *user, int q, uint32_t j) {
+    (void)user; (void)j;
+    return q == 0;
+}
+
+wrt_status wrt_dist_share_to_root(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, wrt_csc *all) {
+    return share_send(d, own, cut, want_root, NULL, all);
+}
+
+wrt_status wrt_dist_chain_sum(wrt_bake_dist *d, double *acc, int (*fn)(void *user, double *acc), void *user) {
+    for (int t = 0; t < d->nranks; t++) {
+        /* rank t's running sum and whether it could be made */
+        double rec[2] = {*acc, 1};
+        if (d->rank == t) rec[1] = fn(user, &rec[0]);
+        uint8_t *all;
+        uint64_t *lens;
+        wrt_status st = dist_exchange(d, WRT_DIST_SERIES, rec, d->rank == t ? sizeof rec : 0, &all, &lens);
+        if (st != WRT_OK) return st;
+        memcpy(rec, all, sizeof rec); /* rank t's is the only record */
+        free(all); free(lens);
+        if (rec[1] == 0) return wrt_fail(WRT_ERR_IO, "rank %d of %d could not sum its share of the series", t, d->nranks);
+        *acc = rec[0];
+    }
+    return WRT_OK;
+}
