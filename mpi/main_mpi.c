@@ -99,8 +99,11 @@ static wrt_status mpi_alltoall_timed(const void *send, const uint64_t *sendlens,
         return wrt_fail(WRT_ERR_IO, "MPI_Allreduce of the block sizes failed");
     }
     uint8_t *buf = wrt_xmalloc(rtot ? rtot : 1);
-    size_t cap = (size_t)(all_most < chunk ? all_most : chunk) * (size_t)nr + 1;
-    uint8_t *stmp = wrt_xmalloc(cap), *rtmp = wrt_xmalloc(cap);
+    /* one round whose offsets fit in ints: straight from and into the callers' buffers (no
+     * packed copies: the series' gather of the stored operator on rank 0 is its size) */
+    int direct = all_most <= chunk && stot <= INT32_MAX && rtot <= INT32_MAX;
+    size_t cap = direct ? 1 : (size_t)(all_most < chunk ? all_most : chunk) * (size_t)nr + 1;
+    uint8_t *stmp = direct ? (uint8_t *)send : wrt_xmalloc(cap), *rtmp = direct ? buf : wrt_xmalloc(cap);
     int *sc = wrt_xcalloc((size_t)nr, sizeof *sc), *sd = wrt_xcalloc((size_t)nr, sizeof *sd);
     int *rc = wrt_xcalloc((size_t)nr, sizeof *rc), *rd = wrt_xcalloc((size_t)nr, sizeof *rd);
     wrt_status st = WRT_OK;
@@ -110,9 +113,9 @@ static wrt_status mpi_alltoall_timed(const void *send, const uint64_t *sendlens,
             uint64_t sl = sendlens[q] > off ? sendlens[q] - off : 0, rl = recvlens[q] > off ? recvlens[q] - off : 0;
             sc[q] = (int)(sl < chunk ? sl : chunk);
             rc[q] = (int)(rl < chunk ? rl : chunk);
-            sd[q] = ss;
-            rd[q] = rs;
-            if (sc[q]) memcpy(stmp + ss, (const uint8_t *)send + sat[q] + off, (size_t)sc[q]);
+            sd[q] = direct ? (int)sat[q] : ss;
+            rd[q] = direct ? (int)rat[q] : rs;
+            if (sc[q] && !direct) memcpy(stmp + ss, (const uint8_t *)send + sat[q] + off, (size_t)sc[q]);
             ss += sc[q];
             rs += rc[q];
         }
@@ -120,10 +123,10 @@ static wrt_status mpi_alltoall_timed(const void *send, const uint64_t *sendlens,
             st = wrt_fail(WRT_ERR_IO, "MPI_Alltoallv failed");
             break;
         }
-        for (int q = 0; q < nr; q++)
+        for (int q = 0; q < nr && !direct; q++)
             if (rc[q]) memcpy(buf + rat[q] + off, rtmp + rd[q], (size_t)rc[q]);
     }
-    free(stmp); free(rtmp); free(sc); free(sd); free(rc); free(rd); free(sat); free(rat);
+    if (!direct) { free(stmp); free(rtmp); } free(sc); free(sd); free(rc); free(rd); free(sat); free(rat);
     if (st != WRT_OK) { free(buf); return st; }
     *recv = buf;
     return WRT_OK;

@@ -329,7 +329,7 @@ static wrt_csc col_records_read(uint32_t n, const uint8_t *buf, uint64_t len) {
 
 /* The all-to-all of the segments that want(q, j) picks among this rank's columns: the
  * records addressed to this rank, every rank's in rank order, read into *in. */
-static wrt_status share_send(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut,
+static wrt_status share_send(wrt_bake_dist *d, wrt_csc *own, int free_own, const uint32_t *cut,
                              int (*want)(const void *user, int q, uint32_t j), const void *user, wrt_csc *in) {
     int nr = d->nranks, me = d->rank;
     uint64_t *sl = wrt_xcalloc((size_t)nr, sizeof *sl), *rl = wrt_xcalloc((size_t)nr, sizeof *rl), total = 0;
@@ -341,6 +341,8 @@ static wrt_status share_send(wrt_bake_dist *d, const wrt_csc *own, const uint32_
     for (int q = 0; q < nr; q++)
         for (uint32_t j = cut[me]; j < cut[me + 1]; j++)
             if (own->col[j + 1] > own->col[j] && want(user, q, j)) p = col_record_put(own, j, p);
+    uint32_t n = own->n;
+    if (free_own) wrt_csc_free(own);
     void *rv = NULL;
     wrt_status st = d->alltoall(d->user, buf, sl, &rv, rl);
     free(buf);
@@ -353,7 +355,7 @@ static wrt_status share_send(wrt_bake_dist *d, const wrt_csc *own, const uint32_
                 d->bytes_recv[WRT_DIST_SERIES] += rl[q];
             }
         }
-        *in = col_records_read(own->n, rv, got);
+        *in = col_records_read(n, rv, got);
     }
     free(rv); free(sl); free(rl);
     return st;
@@ -369,7 +371,7 @@ static int want_needed(const void *user, int q, uint32_t j) {
 wrt_status wrt_dist_share_fetch(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, const uint8_t *need,
                                 wrt_csc *in) {
     need_user u = {need, own->n};
-    return share_send(d, own, cut, want_needed, &u, in);
+    return share_send(d, (wrt_csc *)own, 0, cut, want_needed, &u, in);
 }
 
 static int want_root(const void *user, int q, uint32_t j) {
@@ -377,8 +379,8 @@ static int want_root(const void *user, int q, uint32_t j) {
     return q == 0;
 }
 
-wrt_status wrt_dist_share_to_root(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, wrt_csc *all) {
-    return share_send(d, own, cut, want_root, NULL, all);
+wrt_status wrt_dist_share_to_root(wrt_bake_dist *d, wrt_csc *own, const uint32_t *cut, wrt_csc *all) {
+    return share_send(d, own, 1, cut, want_root, NULL, all);
 }
 
 wrt_status wrt_dist_chain_sum(wrt_bake_dist *d, double *acc, int (*fn)(void *user, double *acc), void *user) {

@@ -68,9 +68,10 @@ uint8_t *wrt_dist_share_need(const wrt_csc *r, int nranks, const uint32_t *cut);
 wrt_status wrt_dist_share_fetch(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, const uint8_t *need,
                                 wrt_csc *in);
 
-/* Every rank's columns of a matrix (own: its range filled) gathered on rank 0 as one
- * matrix in column order (*all); on the other ranks *all is empty (n columns, no entries). */
-wrt_status wrt_dist_share_to_root(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, wrt_csc *all);
+/* Every rank's columns of a matrix (own: its range filled; freed once packed) gathered on
+ * rank 0 as one matrix in column order (*all); on the other ranks *all is empty (n
+ * columns, no entries). */
+wrt_status wrt_dist_share_to_root(wrt_bake_dist *d, wrt_csc *own, const uint32_t *cut, wrt_csc *all);
 
 /* A sum in the single process's order over the ranks' shares: rank 0 calls fn(user, acc)
  * from *acc, then rank 1 from rank 0's result, ...; every rank ends with the last (the
