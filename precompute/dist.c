@@ -298,41 +298,32 @@ static uint8_t *col_record_put(const wrt_csc *m, uint32_t j, uint8_t *p) {
     return p + (size_t)cnt * 12;
 }
 
-/* The matrix of n columns made of the records in `buf` (len bytes, columns ascending), the
- * others empty. */
-static wrt_csc col_records_read(uint32_t n, const uint8_t *buf, uint64_t len) {
-    wrt_csc m = {.n = n};
-    m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
-    uint64_t total = 0;
-    for (const uint8_t *p = buf; p < buf + len;) {
-        uint32_t h[2];
-        memcpy(h, p, 8);
-        m.col[h[0] + 1] = h[1];
-        total += h[1];
-        p += 8 + 16ull * h[1];
-    }
-    for (uint32_t j = 0; j < n; j++) m.col[j + 1] += m.col[j];
-    m.nnz = total;
-    m.row = wrt_xmalloc((total ? total : 1) * sizeof *m.row);
-    m.val = wrt_xmalloc((total ? total : 1) * 3 * sizeof *m.val);
+/* Appends the records in `buf` (len bytes, columns ascending, after every column already
+ * in m) to m's arrays, their counts to cnt[j + 1] */
+static void col_records_append(wrt_csc *m, uint64_t *cnt, const uint8_t *buf, uint64_t len) {
     for (const uint8_t *p = buf; p < buf + len;) {
         uint32_t h[2];
         memcpy(h, p, 8);
         p += 8;
-        memcpy(m.row + m.col[h[0]], p, (size_t)h[1] * 4);
+        cnt[h[0] + 1] = h[1];
+        memcpy(m->row + m->nnz, p, (size_t)h[1] * 4);
         p += (size_t)h[1] * 4;
-        memcpy(m.val + 3 * m.col[h[0]], p, (size_t)h[1] * 12);
+        memcpy(m->val + 3 * m->nnz, p, (size_t)h[1] * 12);
         p += (size_t)h[1] * 12;
+        m->nnz += h[1];
     }
-    return m;
 }
 
-/* The all-to-all of the segments that want(q, j) picks among this rank's columns: the
- * records addressed to this rank, every rank's in rank order, read into *in. */
+/* The exchange of the columns that want(q, j) picks among this rank's, in one all-to-all a
+ * rank (rank t sends in round t), each round's records appended to *in as they come: the
+ * receiver holds the matrix it builds and one rank's share of it, not all of it twice.
+ * The sizes go first (an all-gather), so the arrays are made once. */
 static wrt_status share_send(wrt_bake_dist *d, wrt_csc *own, int free_own, const uint32_t *cut,
                              int (*want)(const void *user, int q, uint32_t j), const void *user, wrt_csc *in) {
     int nr = d->nranks, me = d->rank;
+    uint32_t n = own->n;
     uint64_t *sl = wrt_xcalloc((size_t)nr, sizeof *sl), *rl = wrt_xcalloc((size_t)nr, sizeof *rl), total = 0;
+    uint64_t *none = wrt_xcalloc((size_t)nr, sizeof *none);
     for (int q = 0; q < nr; q++)
         for (uint32_t j = cut[me]; j < cut[me + 1]; j++)
             if (own->col[j + 1] > own->col[j] && want(user, q, j)) sl[q] += col_record_size(own, j);
@@ -341,24 +332,48 @@ static wrt_status share_send(wrt_bake_dist *d, wrt_csc *own, int free_own, const
     for (int q = 0; q < nr; q++)
         for (uint32_t j = cut[me]; j < cut[me + 1]; j++)
             if (own->col[j + 1] > own->col[j] && want(user, q, j)) p = col_record_put(own, j, p);
-    uint32_t n = own->n;
     if (free_own) wrt_csc_free(own);
-    void *rv = NULL;
-    wrt_status st = d->alltoall(d->user, buf, sl, &rv, rl);
-    free(buf);
+    uint8_t *all;
+    uint64_t *lens;
+    wrt_status st = dist_exchange(d, WRT_DIST_SERIES, sl, (uint64_t)nr * 8, &all, &lens);
+    wrt_csc m = {.n = n};
+    uint64_t *cnt = wrt_xcalloc((size_t)n + 1, sizeof *cnt);
     if (st == WRT_OK) {
-        uint64_t got = 0;
-        for (int q = 0; q < nr; q++) {
-            got += rl[q];
-            if (q != me) {
-                d->bytes_sent[WRT_DIST_SERIES] += sl[q];
-                d->bytes_recv[WRT_DIST_SERIES] += rl[q];
-            }
+        uint64_t bytes = 0; /* at most bytes / 16 entries */
+        for (int t = 0; t < nr; t++) {
+            uint64_t x;
+            memcpy(&x, all + 8 * ((size_t)t * nr + me), 8);
+            bytes += x;
         }
-        *in = col_records_read(n, rv, got);
+        free(all); free(lens);
+        m.row = wrt_xmalloc((bytes / 16 + 1) * sizeof *m.row);
+        m.val = wrt_xmalloc((bytes / 16 + 1) * 3 * sizeof *m.val);
     }
-    free(rv); free(sl); free(rl);
-    return st;
+    for (int t = 0; t < nr && st == WRT_OK; t++) {
+        void *rv = NULL;
+        st = d->alltoall(d->user, buf, t == me ? sl : none, &rv, rl);
+        if (st == WRT_OK) {
+            if (t == me) {
+                for (int q = 0; q < nr; q++) if (q != me) d->bytes_sent[WRT_DIST_SERIES] += sl[q];
+            } else {
+                d->bytes_recv[WRT_DIST_SERIES] += rl[t];
+            }
+            col_records_append(&m, cnt, rv, rl[t]);
+        }
+        free(rv);
+    }
+    free(buf); free(sl); free(rl); free(none);
+    if (st != WRT_OK) {
+        free(cnt);
+        wrt_csc_free(&m);
+        return st;
+    }
+    m.col = cnt;
+    for (uint32_t j = 0; j < n; j++) m.col[j + 1] += m.col[j];
+    m.row = wrt_xrealloc(m.row, (m.nnz + 1) * sizeof *m.row);
+    m.val = wrt_xrealloc(m.val, (m.nnz + 1) * 3 * sizeof *m.val);
+    *in = m;
+    return WRT_OK;
 }
 
 typedef struct need_user { const uint8_t *need; uint32_t n; } need_user;
