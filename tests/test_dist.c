@@ -223,12 +223,17 @@ static int same_operator(int k, const bake_arg *a, const wrt_bake_result *want) 
 
 /* A closed box of 3 x 3 quads a face with a floating panel inside (occluded pairs): T,
  * G - I and the counters the file records are the single process's on every rank. */
+/* The unit box of 3 x 3 quads a face with a floating panel inside, albedo r, g, b */
+static void box_with_panel(wrt_scene *s, double r, double g, double b) {
+    tsb_init(s);
+    int mat = tsb_material(s, r, g, b);
+    tsb_box_inward(s, P(0, 0, 0), P(1, 1, 1), 3, mat);
+    tsb_quad(s, P(0.3, 0.5, 0.3), P(0.7, 0.5, 0.3), P(0.7, 0.5, 0.7), P(0.3, 0.5, 0.7), mat);
+}
+
 static void dist_bake_same(void) {
     wrt_scene s;
-    tsb_init(&s);
-    int mat = tsb_material(&s, 0.7, 0.6, 0.5);
-    tsb_box_inward(&s, P(0, 0, 0), P(1, 1, 1), 3, mat);
-    tsb_quad(&s, P(0.3, 0.5, 0.3), P(0.7, 0.5, 0.3), P(0.7, 0.5, 0.7), P(0.3, 0.5, 0.7), mat);
+    box_with_panel(&s, 0.7, 0.6, 0.5);
     wrt_bake_options o = opts(2, 0, 3);
     o.threads = 1;
     wrt_bake_result want;
@@ -298,10 +303,7 @@ static void dist_clusters_same(void) {
  * no operator, and every rank met in the same all-to-alls. */
 static void dist_share_same(void) {
     wrt_scene s;
-    tsb_init(&s);
-    int mat = tsb_material(&s, 0.8, 0.7, 0.6);
-    tsb_box_inward(&s, P(0, 0, 0), P(1, 1, 1), 3, mat);
-    tsb_quad(&s, P(0.3, 0.5, 0.3), P(0.7, 0.5, 0.3), P(0.7, 0.5, 0.7), P(0.3, 0.5, 0.7), mat);
+    box_with_panel(&s, 0.8, 0.7, 0.6);
     wrt_bake_options o = opts(2, 0, 3);
     o.threads = 1;
     o.consume_dto = 1;
