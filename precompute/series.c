@@ -142,6 +142,7 @@ typedef struct {
     int share;
     uint32_t *cut;
     uint8_t *need;
+    uint64_t p_all; /* by shares: the term's entries on all the ranks */
 } series_state;
 
 /* The coarse cut (--series-coarse F, on by default with --clusters): the right factor of
@@ -340,6 +341,7 @@ static void series_share_start(series_state *s) {
     s->need = wrt_dist_share_need(&s->Tr, nr, s->cut);
     uint32_t c0 = s->cut[d->rank], c1 = s->cut[d->rank + 1];
     wrt_csc p = csc_range(&s->P, c0, c1), r = csc_range(&s->Tr, c0, c1);
+    s->p_all = s->P.nnz;
     series_free_right(s);
     wrt_csc_free(&s->P);
     s->P = p;
@@ -348,6 +350,10 @@ static void series_share_start(series_state *s) {
     s->share = 1;
     wrt_bake_memory_trim();
 }
+
+/* The term's entries: this rank's are not all of them by shares (every rank must take
+ * the same turns) */
+static uint64_t series_term_nnz(const series_state *s) { return s->share ? s->p_all : s->P.nnz; }
 
 /* A product by shares: the needed columns of P fetched, the memory checked, this rank's
  * columns computed */
@@ -464,7 +470,7 @@ static wrt_status series_bounces(series_state *s) {
     double ratio = 0;
     int stable = 0;
     C->bounces = 1;
-    while ((int)C->bounces < b->opt.max_bounces && s->P.nnz) {
+    while ((int)C->bounces < b->opt.max_bounces && series_term_nnz(s)) {
         const wrt_csc *R = series_right(s, (int)C->bounces + 1);
         wrt_csc N;
         uint64_t nnz;
@@ -497,6 +503,7 @@ static wrt_status series_bounces(series_state *s) {
         if (s->shared) s->shared = 0; /* the first term stays on as the right factor */
         else wrt_csc_free(&s->P);       /* the last term, used: its product is made */
         s->P = N;
+        s->p_all = nnz;
         C->bounces++;
         double pn, sn = 0;
         wrt_status ast = series_term_norm(s, &s->P, &pn);
@@ -613,7 +620,7 @@ static wrt_status series_tail(series_state *s) {
     /* Terms that keep growing (the ratio settled at or above 1, or still above 1 at the
      * cap) mean the discrete operator's dominant eigenvalue is >= 1: the sum so far is
      * a truncation of a divergent series, not an approximation of G - I. */
-    if (s->P.nnz && ratio >= 1 && C->energy_left >= 1e-6) {
+    if (series_term_nnz(s) && ratio >= 1 && C->energy_left >= 1e-6) {
         double rmax = 0;
         for (int q = 0; q < b->nq; q++) rmax = fmax(rmax, fmax(b->rho[q][0], fmax(b->rho[q][1], b->rho[q][2])));
         return wrt_fail(WRT_ERR_ACCURACY,
@@ -621,7 +628,7 @@ static wrt_status series_tail(series_state *s) {
                         "bounces (largest albedo %.4f; the discretised transport gains energy: lower the albedo or "
                         "raise the quality)", ratio, (unsigned long long)C->bounces, rmax);
     }
-    int add = !b->opt.no_tail && s->P.nnz && ratio > 0 && ratio < 1;
+    int add = !b->opt.no_tail && series_term_nnz(s) && ratio > 0 && ratio < 1;
     double k[3] = {0, 0, 0}, sn = 0;
     for (int ch = 0; ch < 3 && add; ch++) k[ch] = rc[ch] > 0 && rc[ch] < 1 ? rc[ch] / (1 - rc[ch]) : 0;
     wrt_status st = series_final_sum(s, add, k, &sn);
