@@ -75,6 +75,72 @@ static wrt_status mpi_allgather_timed(void *user, const void *mine, uint64_t len
     return WRT_OK;
 }
 
+/* The all-to-all (dist.h): the counts, then the bytes in rounds of at most ROUND_BYTES
+ * from each rank (each pair's share of a round ROUND_BYTES / nranks), through packed
+ * buffers whose displacements are ints */
+static wrt_status mpi_alltoall_timed(const void *send, const uint64_t *sendlens, void **recv, uint64_t *recvlens) {
+    int nr;
+    MPI_Comm_size(MPI_COMM_WORLD, &nr);
+    if (MPI_Alltoall((void *)sendlens, 1, MPI_UINT64_T, recvlens, 1, MPI_UINT64_T, MPI_COMM_WORLD) != MPI_SUCCESS)
+        return wrt_fail(WRT_ERR_IO, "MPI_Alltoall of the block sizes failed");
+    uint64_t stot = 0, rtot = 0, most = 0, chunk = ROUND_BYTES / (uint64_t)nr;
+    uint64_t *sat = wrt_xcalloc((size_t)nr, sizeof *sat), *rat = wrt_xcalloc((size_t)nr, sizeof *rat);
+    for (int q = 0; q < nr; q++) {
+        sat[q] = stot;
+        rat[q] = rtot;
+        stot += sendlens[q];
+        rtot += recvlens[q];
+        if (sendlens[q] > most) most = sendlens[q];
+        if (recvlens[q] > most) most = recvlens[q];
+    }
+    uint64_t all_most;
+    if (MPI_Allreduce(&most, &all_most, 1, MPI_UINT64_T, MPI_MAX, MPI_COMM_WORLD) != MPI_SUCCESS) {
+        free(sat); free(rat);
+        return wrt_fail(WRT_ERR_IO, "MPI_Allreduce of the block sizes failed");
+    }
+    uint8_t *buf = wrt_xmalloc(rtot ? rtot : 1);
+    /* one round whose offsets fit in ints: straight from and into the callers' buffers (no
+     * packed copies: the series' gather of the stored operator on rank 0 is its size) */
+    int direct = all_most <= chunk && stot <= INT32_MAX && rtot <= INT32_MAX;
+    size_t cap = direct ? 1 : (size_t)(all_most < chunk ? all_most : chunk) * (size_t)nr + 1;
+    uint8_t *stmp = direct ? (uint8_t *)send : wrt_xmalloc(cap), *rtmp = direct ? buf : wrt_xmalloc(cap);
+    int *sc = wrt_xcalloc((size_t)nr, sizeof *sc), *sd = wrt_xcalloc((size_t)nr, sizeof *sd);
+    int *rc = wrt_xcalloc((size_t)nr, sizeof *rc), *rd = wrt_xcalloc((size_t)nr, sizeof *rd);
+    wrt_status st = WRT_OK;
+    for (uint64_t off = 0; off < all_most; off += chunk) {
+        int ss = 0, rs = 0;
+        for (int q = 0; q < nr; q++) {
+            uint64_t sl = sendlens[q] > off ? sendlens[q] - off : 0, rl = recvlens[q] > off ? recvlens[q] - off : 0;
+            sc[q] = (int)(sl < chunk ? sl : chunk);
+            rc[q] = (int)(rl < chunk ? rl : chunk);
+            sd[q] = direct ? (int)sat[q] : ss;
+            rd[q] = direct ? (int)rat[q] : rs;
+            if (sc[q] && !direct) memcpy(stmp + ss, (const uint8_t *)send + sat[q] + off, (size_t)sc[q]);
+            ss += sc[q];
+            rs += rc[q];
+        }
+        if (MPI_Alltoallv(stmp, sc, sd, MPI_BYTE, rtmp, rc, rd, MPI_BYTE, MPI_COMM_WORLD) != MPI_SUCCESS) {
+            st = wrt_fail(WRT_ERR_IO, "MPI_Alltoallv failed");
+            break;
+        }
+        for (int q = 0; q < nr && !direct; q++)
+            if (rc[q]) memcpy(buf + rat[q] + off, rtmp + rd[q], (size_t)rc[q]);
+    }
+    if (!direct) { free(stmp); free(rtmp); } free(sc); free(sd); free(rc); free(rd); free(sat); free(rat);
+    if (st != WRT_OK) { free(buf); return st; }
+    *recv = buf;
+    return WRT_OK;
+}
+
+static wrt_status mpi_alltoall(void *user, const void *send, const uint64_t *sendlens, void **recv, uint64_t *recvlens) {
+    (void)user;
+    double c0 = wrt_dist_cpu_now(), w0 = wrt_now();
+    wrt_status st = mpi_alltoall_timed(send, sendlens, recv, recvlens);
+    gather_cpu += wrt_dist_cpu_now() - c0;
+    gather_wall += wrt_now() - w0;
+    return st;
+}
+
 static void report(const wrt_bake_dist *d) {
     const char *e = getenv("WRT_MPI_REPORT");
     if (!e || strcmp(e, "1")) return;
@@ -93,7 +159,11 @@ int main(int argc, char **argv) {
         fprintf(stderr, "wrt-bake-mpi: error: MPI_Init failed (run it with mpirun)\n");
         return 1;
     }
-    wrt_bake_dist d = {.allgather = mpi_allgather};
+    wrt_bake_dist d = {.allgather = mpi_allgather, .alltoall = mpi_alltoall};
+    /* WRT_MPI_SHARE=0: every rank holds the series' terms whole (the products gathered),
+     * for comparison (docs/mpi.md) */
+    const char *share = getenv("WRT_MPI_SHARE");
+    if (share && !strcmp(share, "0")) d.alltoall = NULL;
     MPI_Comm_rank(MPI_COMM_WORLD, &d.rank);
     MPI_Comm_size(MPI_COMM_WORLD, &d.nranks);
     int rc = wrt_bake_cli(argc, argv, &d);

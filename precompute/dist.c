@@ -272,3 +272,145 @@ uint8_t *wrt_dist_gather_rows(wrt_bake_dist *d, const int *owner, size_t nrows, 
     free(at); free(lens); free(all);
     return rows;
 }
+
+/* ---------------------------------------------------------------- the series by shares */
+
+uint8_t *wrt_dist_share_need(const wrt_csc *r, int nranks, const uint32_t *cut) {
+    size_t n = r->n;
+    uint8_t *need = wrt_xcalloc((size_t)nranks * n + 1, 1);
+    for (int q = 0; q < nranks; q++)
+        for (uint32_t j = cut[q]; j < cut[q + 1]; j++)
+            for (uint64_t k = r->col[j]; k < r->col[j + 1]; k++) need[(size_t)q * n + r->row[k]] = 1;
+    return need;
+}
+
+/* A column's record: its index and count (uint32 each), its rows, its values */
+static uint64_t col_record_size(const wrt_csc *m, uint32_t j) { return 8 + 16 * (m->col[j + 1] - m->col[j]); }
+
+static uint8_t *col_record_put(const wrt_csc *m, uint32_t j, uint8_t *p) {
+    uint32_t cnt = (uint32_t)(m->col[j + 1] - m->col[j]);
+    memcpy(p, &j, 4);
+    memcpy(p + 4, &cnt, 4);
+    p += 8;
+    memcpy(p, m->row + m->col[j], (size_t)cnt * 4);
+    p += (size_t)cnt * 4;
+    memcpy(p, m->val + 3 * m->col[j], (size_t)cnt * 12);
+    return p + (size_t)cnt * 12;
+}
+
+/* Appends the records in `buf` (len bytes, columns ascending, after every column already
+ * in m) to m's arrays, their counts to cnt[j + 1] */
+static void col_records_append(wrt_csc *m, uint64_t *cnt, const uint8_t *buf, uint64_t len) {
+    for (const uint8_t *p = buf; p < buf + len;) {
+        uint32_t h[2];
+        memcpy(h, p, 8);
+        p += 8;
+        cnt[h[0] + 1] = h[1];
+        memcpy(m->row + m->nnz, p, (size_t)h[1] * 4);
+        p += (size_t)h[1] * 4;
+        memcpy(m->val + 3 * m->nnz, p, (size_t)h[1] * 12);
+        p += (size_t)h[1] * 12;
+        m->nnz += h[1];
+    }
+}
+
+/* The exchange of the columns that want(q, j) picks among this rank's, in one all-to-all a
+ * rank (rank t sends in round t), each round's records appended to *in as they come: the
+ * receiver holds the matrix it builds and one rank's share of it, not all of it twice.
+ * The sizes go first (an all-gather), so the arrays are made once. */
+static wrt_status share_send(wrt_bake_dist *d, wrt_csc *own, int free_own, const uint32_t *cut,
+                             int (*want)(const void *user, int q, uint32_t j), const void *user, wrt_csc *in) {
+    int nr = d->nranks, me = d->rank;
+    uint32_t n = own->n;
+    uint64_t *sl = wrt_xcalloc((size_t)nr, sizeof *sl), *rl = wrt_xcalloc((size_t)nr, sizeof *rl), total = 0;
+    uint64_t *none = wrt_xcalloc((size_t)nr, sizeof *none);
+    for (int q = 0; q < nr; q++)
+        for (uint32_t j = cut[me]; j < cut[me + 1]; j++)
+            if (own->col[j + 1] > own->col[j] && want(user, q, j)) sl[q] += col_record_size(own, j);
+    for (int q = 0; q < nr; q++) total += sl[q];
+    uint8_t *buf = wrt_xmalloc(total ? total : 1), *p = buf;
+    for (int q = 0; q < nr; q++)
+        for (uint32_t j = cut[me]; j < cut[me + 1]; j++)
+            if (own->col[j + 1] > own->col[j] && want(user, q, j)) p = col_record_put(own, j, p);
+    if (free_own) wrt_csc_free(own);
+    uint8_t *all;
+    uint64_t *lens;
+    wrt_status st = dist_exchange(d, WRT_DIST_SERIES, sl, (uint64_t)nr * 8, &all, &lens);
+    wrt_csc m = {.n = n};
+    uint64_t *cnt = wrt_xcalloc((size_t)n + 1, sizeof *cnt);
+    if (st == WRT_OK) {
+        uint64_t bytes = 0; /* at most bytes / 16 entries */
+        for (int t = 0; t < nr; t++) {
+            uint64_t x;
+            memcpy(&x, all + 8 * ((size_t)t * nr + me), 8);
+            bytes += x;
+        }
+        free(all); free(lens);
+        m.row = wrt_xmalloc((bytes / 16 + 1) * sizeof *m.row);
+        m.val = wrt_xmalloc((bytes / 16 + 1) * 3 * sizeof *m.val);
+    }
+    for (int t = 0; t < nr && st == WRT_OK; t++) {
+        void *rv = NULL;
+        st = d->alltoall(d->user, buf, t == me ? sl : none, &rv, rl);
+        if (st == WRT_OK) {
+            if (t == me) {
+                for (int q = 0; q < nr; q++) if (q != me) d->bytes_sent[WRT_DIST_SERIES] += sl[q];
+            } else {
+                d->bytes_recv[WRT_DIST_SERIES] += rl[t];
+            }
+            col_records_append(&m, cnt, rv, rl[t]);
+        }
+        free(rv);
+    }
+    free(buf); free(sl); free(rl); free(none);
+    if (st != WRT_OK) {
+        free(cnt);
+        wrt_csc_free(&m);
+        return st;
+    }
+    m.col = cnt;
+    for (uint32_t j = 0; j < n; j++) m.col[j + 1] += m.col[j];
+    m.row = wrt_xrealloc(m.row, (m.nnz + 1) * sizeof *m.row);
+    m.val = wrt_xrealloc(m.val, (m.nnz + 1) * 3 * sizeof *m.val);
+    *in = m;
+    return WRT_OK;
+}
+
+typedef struct need_user { const uint8_t *need; uint32_t n; } need_user;
+
+static int want_needed(const void *user, int q, uint32_t j) {
+    const need_user *u = user;
+    return u->need[(size_t)q * u->n + j];
+}
+
+wrt_status wrt_dist_share_fetch(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, const uint8_t *need,
+                                wrt_csc *in) {
+    need_user u = {need, own->n};
+    return share_send(d, (wrt_csc *)own, 0, cut, want_needed, &u, in);
+}
+
+static int want_root(const void *user, int q, uint32_t j) {
+    (void)user; (void)j;
+    return q == 0;
+}
+
+wrt_status wrt_dist_share_to_root(wrt_bake_dist *d, wrt_csc *own, const uint32_t *cut, wrt_csc *all) {
+    return share_send(d, own, 1, cut, want_root, NULL, all);
+}
+
+wrt_status wrt_dist_chain_sum(wrt_bake_dist *d, double *acc, int (*fn)(void *user, double *acc), void *user) {
+    for (int t = 0; t < d->nranks; t++) {
+        /* rank t's running sum and whether it could be made */
+        double rec[2] = {*acc, 1};
+        if (d->rank == t) rec[1] = fn(user, &rec[0]);
+        uint8_t *all;
+        uint64_t *lens;
+        wrt_status st = dist_exchange(d, WRT_DIST_SERIES, rec, d->rank == t ? sizeof rec : 0, &all, &lens);
+        if (st != WRT_OK) return st;
+        memcpy(rec, all, sizeof rec); /* rank t's is the only record */
+        free(all); free(lens);
+        if (rec[1] == 0) return wrt_fail(WRT_ERR_IO, "rank %d of %d could not sum its share of the series", t, d->nranks);
+        *acc = rec[0];
+    }
+    return WRT_OK;
+}

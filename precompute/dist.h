@@ -21,6 +21,12 @@ typedef struct wrt_bake_dist {
      * bake stops. */
     wrt_status (*allgather)(void *user, const void *mine, uint64_t len, void **all, uint64_t *lens);
     void *user;
+    /* Optional (NULL: the series gathers every product whole on every rank): every rank
+     * calls it with nranks segments one after the other at `send`, sendlens[q] bytes for
+     * rank q; it returns in *recv (malloc'd) the segments addressed to this rank, from
+     * rank 0 to nranks - 1, and in recvlens[q] rank q's byte count. WRT_OK, or a failure
+     * (wrt_fail) after which the bake stops. */
+    wrt_status (*alltoall)(void *user, const void *send, const uint64_t *sendlens, void **recv, uint64_t *recvlens);
     /* what this rank sent and received, per phase (filled by the bake; docs/mpi.md) */
     uint64_t bytes_sent[3], bytes_recv[3]; /* WRT_DIST_DTO, WRT_DIST_SERIES, WRT_DIST_COUNTERS */
     double cpu_dto, cpu_series;           /* this process's CPU seconds in each phase */
@@ -47,6 +53,31 @@ void wrt_dist_mul_cuts(const wrt_csc *a, const wrt_csc *b, int nranks, uint32_t 
 /* C = A B as wrt_csc_mul, each rank computing its columns, the result on every rank. */
 wrt_status wrt_dist_mul(wrt_bake_dist *d, const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w,
                         int threads, wrt_csc *out);
+
+/* The series by shares (series.c, docs/mpi.md "Each rank holds its share of the
+ * series"): a term's columns [cut[r], cut[r + 1]) are rank r's alone, and a product's
+ * column j reads the previous term's columns that the right factor's column j names. */
+
+/* Every rank's needed columns of a term: need[q * n + i] is 1 where a column j of rank q's
+ * range [cut[q], cut[q + 1]) of the right factor r has an entry at row i (r whole). */
+uint8_t *wrt_dist_share_need(const wrt_csc *r, int nranks, const uint32_t *cut);
+
+/* From this rank's columns of a term (own: its range filled, the others empty), the
+ * columns this rank needs (need as above): each rank sends each other the columns of its
+ * range that the other needs (an all-to-all). *in: those columns, the others empty. */
+wrt_status wrt_dist_share_fetch(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, const uint8_t *need,
+                                wrt_csc *in);
+
+/* Every rank's columns of a matrix (own: its range filled; freed once packed) gathered on
+ * rank 0 as one matrix in column order (*all); on the other ranks *all is empty (n
+ * columns, no entries). */
+wrt_status wrt_dist_share_to_root(wrt_bake_dist *d, wrt_csc *own, const uint32_t *cut, wrt_csc *all);
+
+/* A sum in the single process's order over the ranks' shares: rank 0 calls fn(user, acc)
+ * from *acc, then rank 1 from rank 0's result, ...; every rank ends with the last (the
+ * same bits as one process summing its whole storage order). fn returns 0 on a failure,
+ * which then fails every rank. */
+wrt_status wrt_dist_chain_sum(wrt_bake_dist *d, double *acc, int (*fn)(void *user, double *acc), void *user);
 
 /* Per-item records merged: item i (of n) is computed by rank owner[i], which packs it
  * into size(user, i) bytes; after the exchange every other rank unpacks it (len bytes),

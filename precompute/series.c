@@ -148,6 +148,13 @@ typedef struct {
     double *u;      /* 3n: the power targets (series_power.h) */
     int u_bounces;
     power_iter pi;
+    /* wrt-bake-mpi by shares (series_share_start): P, Tr and the streamed sum hold only
+     * this rank's columns [cut[rank], cut[rank + 1]); need: every rank's needed columns
+     * of a term (dist.h) */
+    int share;
+    uint32_t *cut;
+    uint8_t *need;
+    uint64_t p_all; /* by shares: the term's entries on all the ranks */
 } series_state;
 
 /* The coarse cut (--series-coarse F, on by default with --clusters): the right factor of
@@ -306,6 +313,104 @@ static void series_consume(series_state *s) {
     s->consumed = 1;
 }
 
+/* ---- wrt-bake-mpi by shares (docs/mpi.md "Each rank holds its share of the series").
+ * Streamed, a term's column j is made from the right factor's column j and the columns
+ * of the term before that it names, and is added to the sum's column j alone; so with one
+ * column range a rank for the whole series (cut once, by the first product's cost), a
+ * rank keeps its range of the terms, of the right factor and of the sum, and fetches
+ * before each product only the other ranks' columns that its range of the right factor
+ * names (dist.h, an all-to-all). Every column is computed as in the single process; the
+ * norms are summed in its order, rank after rank (wrt_dist_chain_sum); the stored
+ * operator is gathered on rank 0, the rank that writes. */
+
+static void series_free_right(series_state *s);
+
+/* Columns [c0, c1) of m (the others empty), in arrays of their own */
+static wrt_csc csc_range(const wrt_csc *m, uint32_t c0, uint32_t c1) {
+    wrt_csc r = {.n = m->n};
+    r.col = wrt_xcalloc((size_t)m->n + 1, sizeof *r.col);
+    uint64_t a = m->col[c0], z = m->col[c1];
+    for (uint32_t j = c0; j < c1; j++) r.col[j + 1] = m->col[j + 1] - a;
+    for (uint32_t j = c1; j < m->n; j++) r.col[j + 1] = z - a;
+    r.nnz = z - a;
+    r.row = wrt_xmalloc((r.nnz ? r.nnz : 1) * sizeof *r.row);
+    r.val = wrt_xmalloc((r.nnz ? r.nnz : 1) * 3 * sizeof *r.val);
+    if (r.nnz) {
+        memcpy(r.row, m->row + a, r.nnz * sizeof *r.row);
+        memcpy(r.val, m->val + 3 * a, r.nnz * 3 * sizeof *r.val);
+    }
+    return r;
+}
+
+/* Under wrt-bake-mpi with an all-to-all, streamed: the ranges cut by the first product's
+ * cost, every rank's needed columns, and this rank's share of P, Tr and the sum kept */
+static void series_share_start(series_state *s) {
+    wrt_bake_dist *d = s->b->opt.dist;
+    if (!wrt_dist_on(d) || !d->alltoall || !s->streamed || !s->Tr.col) return;
+    int nr = d->nranks;
+    s->cut = wrt_xmalloc(((size_t)nr + 1) * sizeof *s->cut);
+    wrt_dist_mul_cuts(&s->P, &s->Tr, nr, s->cut);
+    s->need = wrt_dist_share_need(&s->Tr, nr, s->cut);
+    uint32_t c0 = s->cut[d->rank], c1 = s->cut[d->rank + 1];
+    wrt_csc p = csc_range(&s->P, c0, c1), r = csc_range(&s->Tr, c0, c1);
+    s->p_all = s->P.nnz;
+    series_free_right(s);
+    wrt_csc_free(&s->P);
+    s->P = p;
+    s->Tr = r;
+    wrt_sum_stream_range(&s->ss, c0, c1);
+    s->share = 1;
+    wrt_bake_memory_trim();
+}
+
+/* The term's entries: this rank's are not all of them by shares (every rank must take
+ * the same turns) */
+static uint64_t series_term_nnz(const series_state *s) { return s->share ? s->p_all : s->P.nnz; }
+
+/* A product by shares: the needed columns of P fetched, the memory checked, this rank's
+ * columns computed */
+static wrt_status series_share_mul(series_state *s, const wrt_csc *R, int bounce, wrt_csc *out) {
+    wrt_bake_dist *d = s->b->opt.dist;
+    wrt_csc in;
+    wrt_status st = wrt_dist_share_fetch(d, &s->P, s->cut, s->need, &in);
+    if (st != WRT_OK) return st;
+    st = series_memory_check(s->b, s->C, &in, R, s->eps, &s->W, bounce, s->streamed ? wrt_sum_stream_nnz(&s->ss) : 0);
+    if (st == WRT_OK) *out = wrt_csc_mul_cols(&in, R, s->eps, &s->W, s->threads, s->cut[d->rank], s->cut[d->rank + 1]);
+    wrt_csc_free(&in);
+    return st;
+}
+
+static int csc_sumsq_fn(void *user, double *acc) {
+    *acc = wrt_csc_sumsq(user, *acc);
+    return 1;
+}
+
+/* A term's norm: its own, or by shares summed in the single process's order */
+static wrt_status series_term_norm(const series_state *s, const wrt_csc *P, double *pn) {
+    if (!s->share) {
+        *pn = wrt_csc_norm(P);
+        return WRT_OK;
+    }
+    double acc = 0;
+    wrt_status st = wrt_dist_chain_sum(s->b->opt.dist, &acc, csc_sumsq_fn, (void *)P);
+    *pn = sqrt(acc);
+    return st;
+}
+
+typedef struct { wrt_sum_stream *ss; const wrt_csc *P; const double *k; } stream_sumsq;
+
+static int stream_sumsq_fn(void *user, double *acc) {
+    stream_sumsq *u = user;
+    return wrt_sum_stream_sumsq(u->ss, u->P, u->k, acc);
+}
+
+/* The streamed sum's (plus k P where P) squares by shares, in the single process's order */
+static wrt_status series_share_sumsq(series_state *s, const wrt_csc *P, const double k[3], double *sq) {
+    stream_sumsq u = {&s->ss, P, k};
+    *sq = 0;
+    return wrt_dist_chain_sum(s->b->opt.dist, sq, stream_sumsq_fn, &u);
+}
+
 /* S += P, the new term; *sn the sum's norm: in place in memory, or streamed through the
  * sum's scratch files (the same entries and bits) */
 static wrt_status series_add_term(series_state *s, double *sn) {
@@ -318,6 +423,10 @@ static wrt_status series_add_term(series_state *s, double *sn) {
     double sq;
     if (!wrt_sum_stream_add(&s->ss, &s->P, one, &sq))
         return wrt_fail(WRT_ERR_IO, "the series could not stream its sum through a scratch file");
+    if (s->share) { /* this rank's squares alone: again in the single process's order */
+        wrt_status st = series_share_sumsq(s, NULL, one, &sq);
+        if (st != WRT_OK) return st;
+    }
     *sn = sqrt(sq);
     return WRT_OK;
 }
@@ -373,19 +482,31 @@ static wrt_status series_bounces(series_state *s) {
     double ratio = 0;
     int stable = 0;
     C->bounces = 1;
-    while ((int)C->bounces < b->opt.max_bounces && s->P.nnz) {
+    while ((int)C->bounces < b->opt.max_bounces && series_term_nnz(s)) {
         const wrt_csc *R = series_right(s, (int)C->bounces + 1);
-        wrt_status mst = series_memory_check(b, C, &s->P, R, eps, &s->W, (int)C->bounces + 1,
-                                             s->streamed ? wrt_sum_stream_nnz(&s->ss) : 0);
-        if (mst != WRT_OK) {
-            char msg[1024];
-            snprintf(msg, sizeof msg, "%s", wrt_last_error());
-            return wrt_fail(mst, "%s", msg);
-        }
         wrt_csc N;
-        wrt_status pst = series_mul(b, &s->P, R, eps, &s->W, threads, &N);
-        if (pst != WRT_OK) return pst;
-        if (!N.nnz) {
+        uint64_t nnz;
+        if (s->share) {
+            wrt_status pst = series_share_mul(s, R, (int)C->bounces + 1, &N);
+            if (pst != WRT_OK) return pst;
+            nnz = N.nnz;
+            if ((pst = wrt_dist_sum_u64(b->opt.dist, &nnz, 1)) != WRT_OK) {
+                wrt_csc_free(&N);
+                return pst;
+            }
+        } else {
+            wrt_status mst = series_memory_check(b, C, &s->P, R, eps, &s->W, (int)C->bounces + 1,
+                                                 s->streamed ? wrt_sum_stream_nnz(&s->ss) : 0);
+            if (mst != WRT_OK) {
+                char msg[1024];
+                snprintf(msg, sizeof msg, "%s", wrt_last_error());
+                return wrt_fail(mst, "%s", msg);
+            }
+            wrt_status pst = series_mul(b, &s->P, R, eps, &s->W, threads, &N);
+            if (pst != WRT_OK) return pst;
+            nnz = N.nnz;
+        }
+        if (!nnz) {
             /* every entry of the next term fell under the threshold, but together they
              * still carry ratio / (1 - ratio) of the last term (0.2% of the total at
              * albedo 0.5, measured): the last term stays for the tail estimate below */
@@ -395,9 +516,11 @@ static wrt_status series_bounces(series_state *s) {
         if (s->shared) s->shared = 0; /* the first term stays on as the right factor */
         else wrt_csc_free(&s->P);       /* the last term, used: its product is made */
         s->P = N;
+        s->p_all = nnz;
         C->bounces++;
-        double pn = wrt_csc_norm(&s->P), sn = 0;
-        wrt_status ast = series_add_term(s, &sn);
+        double pn, sn = 0;
+        wrt_status ast = series_term_norm(s, &s->P, &pn);
+        if (ast == WRT_OK) ast = series_add_term(s, &sn);
         if (ast != WRT_OK) return ast;
         /* the next iterate's ratios (T in memory, or read back from its scratch file) */
         double rnext[3];
@@ -481,11 +604,19 @@ static wrt_status series_final_sum(series_state *s, int add, const double k[3], 
         }
         wrt_csc_compress(&s->S, eps, &W);
     } else {
-        double sq = 0;
-        int r = wrt_sum_stream_final(&s->ss, add ? &s->P : NULL, k, &sq, eps, &W, series_final_check, s, &s->S);
+        double sq = 0, mine;
+        if (s->share && add) st = series_share_sumsq(s, &s->P, k, &sq); /* in the single process's order */
+        int r = st != WRT_OK ? 1 : wrt_sum_stream_final(&s->ss, add ? &s->P : NULL, k, s->share ? &mine : &sq, eps, &W,
+                                                        series_final_check, s, &s->S);
         if (r == 0) st = wrt_fail(WRT_ERR_IO, "the series could not read back its sum's scratch file");
         else if (r < 0) st = WRT_ERR_NOMEM; /* the check's message stands */
         if (add) *sn = sqrt(sq);
+        if (st == WRT_OK && s->share) { /* the stored operator whole on rank 0, the rank that writes */
+            wrt_csc all;
+            st = wrt_dist_share_to_root(s->b->opt.dist, &s->S, s->cut, &all);
+            wrt_csc_free(&s->S);
+            if (st == WRT_OK) s->S = all;
+        }
         wrt_sum_stream_free(&s->ss);
         wrt_spill_free(&s->Tf);
     }
@@ -503,7 +634,7 @@ static wrt_status series_tail(series_state *s) {
     /* Terms that keep growing (the ratio settled at or above 1, or still above 1 at the
      * cap) mean the discrete operator's dominant eigenvalue is >= 1: the sum so far is
      * a truncation of a divergent series, not an approximation of G - I. */
-    if (s->P.nnz && ratio >= 1 && C->energy_left >= 1e-6) {
+    if (series_term_nnz(s) && ratio >= 1 && C->energy_left >= 1e-6) {
         double rmax = 0;
         for (int q = 0; q < b->nq; q++) rmax = fmax(rmax, fmax(b->rho[q][0], fmax(b->rho[q][1], b->rho[q][2])));
         return wrt_fail(WRT_ERR_ACCURACY,
@@ -511,13 +642,20 @@ static wrt_status series_tail(series_state *s) {
                         "bounces (largest albedo %.4f; the discretised transport gains energy: lower the albedo or "
                         "raise the quality)", ratio, (unsigned long long)C->bounces, rmax);
     }
-    int add = !b->opt.no_tail && s->P.nnz && ratio > 0 && ratio < 1;
+    int add = !b->opt.no_tail && series_term_nnz(s) && ratio > 0 && ratio < 1;
     double k[3] = {0, 0, 0}, sn = 0;
     for (int ch = 0; ch < 3 && add; ch++) k[ch] = rc[ch] > 0 && rc[ch] < 1 ? rc[ch] / (1 - rc[ch]) : 0;
     wrt_status st = series_final_sum(s, add, k, &sn);
     if (st != WRT_OK) return st;
-    if (add) C->tail_fraction = sn > 0 ? fmax(k[0], fmax(k[1], k[2])) * wrt_csc_norm(&s->P) / sn : 0;
+    if (add) {
+        double pn;
+        st = series_term_norm(s, &s->P, &pn);
+        if (st != WRT_OK) return st;
+        C->tail_fraction = sn > 0 ? fmax(k[0], fmax(k[1], k[2])) * pn / sn : 0;
+    }
     wrt_csc_free(&s->P);
+    /* by shares, the ranks but 0 hold no operator now: nothing to fix or count */
+    if (s->share && b->opt.dist->rank != 0) return WRT_OK;
     /* each column's power made the DTO's own series' (series_power.c), after the drop */
     if (!b->opt.no_tail && s->pw) {
         wrt_series_power_stats ps;
@@ -574,6 +712,9 @@ static void series_state_free(series_state *s) {
     wrt_sum_stream_free(&s->ss);
     free(s->rw); free(s->cw); free(s->pw); free(s->u); free(s->boost);
     s->rw = s->cw = s->pw = s->u = s->boost = NULL;
+    free(s->cut); free(s->need);
+    s->cut = NULL;
+    s->need = NULL;
 }
 
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
@@ -596,6 +737,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         return wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
     }
     if (!s.consumed) s.S = wrt_csc_copy(s.T);
+    series_share_start(&s);
     st = series_bounces(&s);
     if (st == WRT_OK) st = series_tail(&s);
     if (st == WRT_OK) st = series_gathered(&s);
@@ -603,7 +745,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         series_state_free(&s);
         return st;
     }
-    if (b->cl && b->opt.cluster_tree) {
+    if (b->cl && b->opt.cluster_tree && !(s.share && b->opt.dist->rank != 0)) {
         /* --clusters-tree-basis: the operator in the tree's basis, compressed there with
          * the tree's weights, is stored when it has fewer entries than in the quads' (else
          * the file keeps the quads' basis and no tree). Not by default: the trial costs a

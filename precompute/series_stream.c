@@ -18,6 +18,12 @@ void wrt_sum_stream_start(wrt_sum_stream *ss, wrt_spill *first, uint64_t block) 
     memset(ss, 0, sizeof *ss);
     ss->cur = first;
     ss->block = block ? block : 1;
+    ss->c1 = UINT32_MAX;
+}
+
+void wrt_sum_stream_range(wrt_sum_stream *ss, uint32_t c0, uint32_t c1) {
+    ss->c0 = c0;
+    ss->c1 = c1;
 }
 
 uint64_t wrt_sum_stream_nnz(const wrt_sum_stream *ss) { return ss->cur->nnz; }
@@ -47,6 +53,40 @@ static int merged_block(wrt_sum_stream *ss, const wrt_csc *P, const double s[3],
     return 1;
 }
 
+/* The block's columns outside the kept range [c0, c1) emptied (block m starts at column j0) */
+static void keep_range(const wrt_sum_stream *ss, uint32_t j0, wrt_csc *m) {
+    if (ss->c0 <= j0 && (uint64_t)j0 + m->n <= ss->c1) return;
+    uint64_t w = 0, k = 0;
+    for (uint32_t c = 0; c < m->n; c++) {
+        uint64_t end = m->col[c + 1];
+        int keep = j0 + c >= ss->c0 && j0 + c < ss->c1;
+        for (; k < end; k++) {
+            if (!keep) continue;
+            m->row[w] = m->row[k];
+            memmove(&m->val[3 * w], &m->val[3 * k], 3 * sizeof *m->val);
+            w++;
+        }
+        m->col[c + 1] = w;
+    }
+    m->nnz = w;
+}
+
+int wrt_sum_stream_sumsq(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], double *sumsq) {
+    if (!wrt_spill_rewind(ss->cur)) return 0;
+    double acc = *sumsq;
+    for (uint32_t j0 = 0, n = ss->cur->n; j0 < n;) {
+        uint32_t j1 = block_end(ss, P, j0);
+        wrt_csc m;
+        if (!merged_block(ss, P, s, j0, j1, &m)) return 0;
+        keep_range(ss, j0, &m);
+        acc = wrt_csc_sumsq(&m, acc);
+        wrt_csc_free(&m);
+        j0 = j1;
+    }
+    *sumsq = acc;
+    return 1;
+}
+
 int wrt_sum_stream_add(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], double *sumsq) {
     wrt_spill next;
     if (!wrt_spill_rewind(ss->cur) || !wrt_spill_open(&next, ss->cur->n)) return 0;
@@ -57,6 +97,7 @@ int wrt_sum_stream_add(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], 
         wrt_csc m;
         ok = merged_block(ss, P, s, j0, j1, &m);
         if (!ok) break;
+        keep_range(ss, j0, &m);
         acc = wrt_csc_sumsq(&m, acc);
         ok = wrt_spill_append(&next, &m);
         wrt_csc_free(&m);
@@ -94,6 +135,7 @@ int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3]
             ret = 0;
             break;
         }
+        keep_range(ss, j0, &m);
         done += (ss->cur->col[j1] - ss->cur->col[j0]) + (P ? P->col[j1] - P->col[j0] : 0);
         if (P) acc = wrt_csc_sumsq(&m, acc);
         /* the block's columns compressed with their own column weights */

@@ -17,11 +17,19 @@ typedef struct wrt_sum_stream {
     wrt_spill own;     /* the sum's file once a term has been added */
     wrt_spill *cur;    /* the sum now: &own, or the first term's file (not owned) */
     uint64_t block;    /* entries per block */
+    uint32_t c0, c1;   /* the columns kept (wrt-bake-mpi's share of the sum); all by default */
 } wrt_sum_stream;
 
 /* The sum starts as the matrix in `first` (a finished spill, which must outlive the
  * stream; it is read, never written). */
 void wrt_sum_stream_start(wrt_sum_stream *ss, wrt_spill *first, uint64_t block);
+/* From the next pass on, the sum keeps only columns [c0, c1) (the others are dropped:
+ * a rank's share of the sum, docs/mpi.md). */
+void wrt_sum_stream_range(wrt_sum_stream *ss, uint32_t c0, uint32_t c1);
+/* *sumsq continued over the values of S + s P (P may be NULL: S alone) in storage order,
+ * as wrt_sum_stream_add's (the same bits from the same start), nothing written. 0 on an
+ * I/O error. */
+int wrt_sum_stream_sumsq(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], double *sumsq);
 /* The sum's entries now. */
 uint64_t wrt_sum_stream_nnz(const wrt_sum_stream *ss);
 /* S += s P, per channel (P has the sum's columns); *sumsq the sum of the squares of the

@@ -84,21 +84,32 @@ wait_ranks() { # MPIRUN-PID N: the ranks' pids once N are running (empty after 2
         sleep 0.25
     done
 }
-for how in KILL-rank INT-mpirun; do
+# KILL-rank-series: rank 1 killed in the series, where the ranks exchange their shares of
+# the terms (an all-to-all) and sum the norms rank after rank: rank 0's progress line
+# "series" (--progress) says when
+for how in KILL-rank INT-mpirun KILL-rank-series; do
     rm -rf "$tmp/w" && mkdir -p "$tmp/w"
+    show=--quiet
+    [ $how = KILL-rank-series ] && show=--progress
     env --default-signal=INT mpirun --allow-run-as-root --oversubscribe -np 3 "$mpibake" "$tmp/maze9.gltf" \
-        -o "$tmp/w/out.gto" --quiet -q 2 >"$tmp/out" 2>"$tmp/err" &
+        -o "$tmp/w/out.gto" $show -q 2 >"$tmp/out" 2>"$tmp/err" &
     run=$!
     ranks=$(wait_ranks $run 3)
     if [ -z "$ranks" ]; then ko "$how: the 3 ranks did not start"; kill -9 $run 2>/dev/null; wait $run; continue; fi
-    sleep 2 # into the DTO
-    if [ $how = KILL-rank ]; then kill -9 "$(awk '{print $2}' <<<"$ranks")"; else kill -INT $run; fi
+    if [ $how = KILL-rank-series ]; then
+        for ((t = 0; t < 1200; t++)); do grep -q series "$tmp/err" && break; sleep 0.1; done
+        grep -q series "$tmp/err" || ko "$how: the series did not start in 120 s"
+        sleep 0.2
+    else
+        sleep 2 # into the DTO
+    fi
+    if [ $how != INT-mpirun ]; then kill -9 "$(awk '{print $2}' <<<"$ranks")"; else kill -INT $run; fi
     wait $run; rc=$?
     [ $rc -ne 0 ] && ok "$how: mpirun exits $rc" || ko "$how: mpirun exits 0"
     gone $ranks && ok "$how: every rank is gone" || ko "$how: a rank is still running"
     left=$(ls -A "$tmp/w")
     [ -z "$left" ] && ok "$how: no file left" || ko "$how: left $left"
-    if [ $how = KILL-rank ]; then
+    if [ $how != INT-mpirun ]; then
         grep -Eqi "signal 9|killed" "$tmp/err" && ok "$how: the message names the killed rank" || { ko "$how: no message"; show_err; }
     fi
     kill -9 $ranks 2>/dev/null # only ours, should any have stayed

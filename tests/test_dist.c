@@ -23,6 +23,8 @@ typedef struct sim {
     const void *buf[MAXR];
     uint64_t len[MAXR];
     uint64_t calls[MAXR];
+    const uint64_t *lens[MAXR]; /* the all-to-all's segment sizes */
+    uint64_t a2a[MAXR];          /* all-to-alls per rank */
 } sim;
 
 static __thread int sim_rank; /* the calling thread's rank */
@@ -39,6 +41,28 @@ static wrt_status sim_allgather(void *user, const void *mine, uint64_t len, void
     for (int k = 0; k < s->nranks; k++) { if (s->len[k]) memcpy(p, s->buf[k], s->len[k]); p += s->len[k]; }
     pthread_barrier_wait(&s->bar); /* every rank has copied before any buffer is reused */
     *all = out;
+    return WRT_OK;
+}
+
+/* The all-to-all (dist.h) through the same barrier: each rank copies its segment out of
+ * every rank's buffer */
+static wrt_status sim_alltoall(void *user, const void *send, const uint64_t *sendlens, void **recv, uint64_t *recvlens) {
+    sim *s = user;
+    s->buf[sim_rank] = send;
+    s->lens[sim_rank] = sendlens;
+    s->a2a[sim_rank]++;
+    pthread_barrier_wait(&s->bar);
+    uint64_t total = 0;
+    for (int k = 0; k < s->nranks; k++) { recvlens[k] = s->lens[k][sim_rank]; total += recvlens[k]; }
+    uint8_t *out = malloc(total ? total : 1), *p = out;
+    for (int k = 0; k < s->nranks; k++) {
+        uint64_t at = 0;
+        for (int q = 0; q < sim_rank; q++) at += s->lens[k][q];
+        if (recvlens[k]) memcpy(p, (const uint8_t *)s->buf[k] + at, recvlens[k]);
+        p += recvlens[k];
+    }
+    pthread_barrier_wait(&s->bar);
+    *recv = out;
     return WRT_OK;
 }
 
@@ -158,11 +182,13 @@ typedef struct bake_arg {
     wrt_bake_options o;
     wrt_bake_result r;
     wrt_status st;
+    int share; /* the ranks given an all-to-all: the series by shares */
 } bake_arg;
 
 static void *bake_rank(void *p) {
     bake_arg *a = p;
     wrt_bake_dist d = {.rank = sim_rank, .nranks = a->s->nranks, .allgather = sim_allgather, .user = a->s};
+    if (a->share) d.alltoall = sim_alltoall;
     a->o.dist = &d;
     a->st = wrt_bake_run(a->scene, &a->o, &a->r);
     a->o.dist = NULL;
@@ -197,12 +223,17 @@ static int same_operator(int k, const bake_arg *a, const wrt_bake_result *want) 
 
 /* A closed box of 3 x 3 quads a face with a floating panel inside (occluded pairs): T,
  * G - I and the counters the file records are the single process's on every rank. */
+/* The unit box of 3 x 3 quads a face with a floating panel inside, albedo r, g, b */
+static void box_with_panel(wrt_scene *s, double r, double g, double b) {
+    tsb_init(s);
+    int mat = tsb_material(s, r, g, b);
+    tsb_box_inward(s, P(0, 0, 0), P(1, 1, 1), 3, mat);
+    tsb_quad(s, P(0.3, 0.5, 0.3), P(0.7, 0.5, 0.3), P(0.7, 0.5, 0.7), P(0.3, 0.5, 0.7), mat);
+}
+
 static void dist_bake_same(void) {
     wrt_scene s;
-    tsb_init(&s);
-    int mat = tsb_material(&s, 0.7, 0.6, 0.5);
-    tsb_box_inward(&s, P(0, 0, 0), P(1, 1, 1), 3, mat);
-    tsb_quad(&s, P(0.3, 0.5, 0.3), P(0.7, 0.5, 0.3), P(0.7, 0.5, 0.7), P(0.3, 0.5, 0.7), mat);
+    box_with_panel(&s, 0.7, 0.6, 0.5);
     wrt_bake_options o = opts(2, 0, 3);
     o.threads = 1;
     wrt_bake_result want;
@@ -263,10 +294,56 @@ static void dist_clusters_same(void) {
     tsb_free(&s);
 }
 
+/* The series by shares (series.c; wrt-bake's consumed, streamed series, the ranks given an
+ * all-to-all): each rank holds its columns of the terms, the right factor and the sum,
+ * fetches the columns it needs, and sums the norms in the single process's order. On a
+ * closed box with a panel (occluded pairs, 3 ranks, blocks of 500 entries so that the
+ * sum is streamed through many blocks), rank 0 ends with the single process's G - I bit
+ * for bit and its bounces and energy left (the norms' bits decide both), the others with
+ * no operator, and every rank met in the same all-to-alls. */
+static void dist_share_same(void) {
+    wrt_scene s;
+    box_with_panel(&s, 0.8, 0.7, 0.6);
+    wrt_bake_options o = opts(2, 0, 3);
+    o.threads = 1;
+    o.consume_dto = 1;
+    o.series_block = 500;
+    wrt_bake_result want;
+    wrt_status st = wrt_bake_run(&s, &o, &want);
+    CHECK(st == WRT_OK && want.op.nnz > 0 && want.c.bounces > 3, "the single process bakes (%llu bounces; %s)",
+          (unsigned long long)want.c.bounces, wrt_last_error());
+    sim sm = {.nranks = NR_BAKE};
+    pthread_barrier_init(&sm.bar, NULL, NR_BAKE);
+    bake_arg a[NR_BAKE];
+    for (int k = 0; k < NR_BAKE; k++) a[k] = (bake_arg){.s = &sm, .scene = &s, .o = o, .share = 1};
+    run_ranks(NR_BAKE, bake_rank, a, sizeof *a);
+    for (int k = 0; k < NR_BAKE; k++) {
+        CHECK(a[k].st == WRT_OK, "rank %d baked (%s)", k, wrt_last_error());
+        if (a[k].st != WRT_OK) continue;
+        if (k == 0) {
+            CHECK(csc_same(&a[k].r.op, &want.op), "rank 0: the same G - I (%llu entries, want %llu)",
+                  (unsigned long long)a[k].r.op.nnz, (unsigned long long)want.op.nnz);
+            CHECK(a[k].r.c.bounces == want.c.bounces && a[k].r.c.energy_left == want.c.energy_left &&
+                      a[k].r.c.tail_fraction == want.c.tail_fraction && a[k].r.c.links_gto == want.c.links_gto,
+                  "rank 0: the same bounces (%llu / %llu), energy left, tail and links",
+                  (unsigned long long)a[k].r.c.bounces, (unsigned long long)want.c.bounces);
+        } else {
+            CHECK(a[k].r.op.nnz == 0, "rank %d holds no operator (%llu entries)", k, (unsigned long long)a[k].r.op.nnz);
+        }
+        wrt_bake_result_free(&a[k].r);
+    }
+    CHECK(sm.a2a[0] > 3 && sm.a2a[0] == sm.a2a[1] && sm.a2a[1] == sm.a2a[2],
+          "the ranks met in the same %llu all-to-alls", (unsigned long long)sm.a2a[0]);
+    pthread_barrier_destroy(&sm.bar);
+    wrt_bake_result_free(&want);
+    tsb_free(&s);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(dist_mul_same);
     TEST_RUN(dist_assign_bound);
     TEST_RUN(dist_bake_same);
     TEST_RUN(dist_clusters_same);
+    TEST_RUN(dist_share_same);
     TEST_END();
 }
