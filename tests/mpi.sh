@@ -89,10 +89,13 @@ wait_ranks() { # MPIRUN-PID N: the ranks' pids once N are running (empty after 2
 # "series" (--progress) says when
 for how in KILL-rank INT-mpirun KILL-rank-series; do
     rm -rf "$tmp/w" && mkdir -p "$tmp/w"
-    show=--quiet
-    [ $how = KILL-rank-series ] && show=--progress
+    # KILL-rank and INT-mpirun wait for rank 0's "dto" progress line and bake at quality 3
+    # (6 s on 3 ranks): at quality 2 the whole bake (3 s since session 8) could end inside
+    # a fixed 2 s sleep, and the file was then rightly left
+    show=--progress q=3
+    [ $how = KILL-rank-series ] && q=2
     env --default-signal=INT mpirun --allow-run-as-root --oversubscribe -np 3 "$mpibake" "$tmp/maze9.gltf" \
-        -o "$tmp/w/out.gto" $show -q 2 >"$tmp/out" 2>"$tmp/err" &
+        -o "$tmp/w/out.gto" $show -q $q >"$tmp/out" 2>"$tmp/err" &
     run=$!
     ranks=$(wait_ranks $run 3)
     if [ -z "$ranks" ]; then ko "$how: the 3 ranks did not start"; kill -9 $run 2>/dev/null; wait $run; continue; fi
@@ -101,7 +104,9 @@ for how in KILL-rank INT-mpirun KILL-rank-series; do
         grep -q series "$tmp/err" || ko "$how: the series did not start in 120 s"
         sleep 0.2
     else
-        sleep 2 # into the DTO
+        for ((t = 0; t < 1200; t++)); do grep -q dto "$tmp/err" && break; sleep 0.1; done
+        grep -q dto "$tmp/err" || ko "$how: the DTO did not start in 120 s"
+        sleep 0.5 # into the DTO
     fi
     if [ $how != INT-mpirun ]; then kill -9 "$(awk '{print $2}' <<<"$ranks")"; else kill -INT $run; fi
     wait $run; rc=$?
