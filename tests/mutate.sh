@@ -55,8 +55,8 @@ mutation kernel-closed-form: Lambert's point-to-polygon form factor 1% high
 
 mutation link-kernel-x1.05: every diffuse link's value scaled by 1.05
   file precompute/dto.c
-  find for (int ch = 0; ch < 3; ch++) v[ch] = g * rho[ch];
-  repl for (int ch = 0; ch < 3; ch++) v[ch] = 1.05 * g * rho[ch];
+  find for (int ch = 0; ch < 3; ch++) e[n].v[ch] = (float)(d->g * rho[ch]);
+  repl for (int ch = 0; ch < 3; ch++) e[n].v[ch] = (float)(1.05 * d->g * rho[ch]);
   run test_bake test_form_factors test_distribution test_reciprocity
 
 mutation gauss-nodes: the 2 x 2 Gauss-Legendre nodes of a receiver quadrant moved (0.2887 -> 0.3)
