@@ -707,6 +707,77 @@ static uint64_t balance_need(const bake_ctx *b, const pair_list *pl, const dto_j
     return 60 * (8 * nleaf < bound ? 8 * nleaf : bound) + work;
 }
 
+/* The assembly's passes over the pairs on the bake's threads: each thread its own
+ * decoding buffer (and key set); the results do not depend on which thread took which
+ * pair. */
+typedef struct assemble_job {
+    const bake_ctx *b;
+    pair_out *out;
+    size_t p0;              /* the pairs of this run: p0 + item */
+    int nt;
+    pair_entry **ebuf;      /* a thread's decoded entries (wrt_pair_entries) */
+    size_t *ecap;
+    wrt_fkey_set *sets;     /* keys: a thread's set */
+    const wrt_fkey_set *ks; /* triplets: the functions' indices */
+    const uint64_t *off;    /* triplets: each pair's first triplet */
+    wrt_triplet *tr;
+} assemble_job;
+
+static void assemble_job_init(assemble_job *j, const bake_ctx *b, pair_out *out) {
+    *j = (assemble_job){.b = b, .out = out, .nt = wrt_threads_resolve(b->opt.threads)};
+    j->ebuf = wrt_xcalloc((size_t)j->nt, sizeof *j->ebuf);
+    j->ecap = wrt_xcalloc((size_t)j->nt, sizeof *j->ecap);
+}
+
+static void assemble_job_free(assemble_job *j) {
+    for (int t = 0; t < j->nt; t++) free(j->ebuf[t]);
+    free(j->ebuf); free(j->ecap);
+}
+
+/* Pair p0 + i's functions into its thread's key set */
+static void pair_keys(size_t i, int th, void *user) {
+    assemble_job *j = user;
+    const pair_out *o = &j->out[j->p0 + i];
+    const pair_entry *pe = wrt_pair_entries(j->b, o, &j->ebuf[th], &j->ecap[th]);
+    for (size_t k = 0; k < o->count; k++) {
+        wrt_fkey_set_add(&j->sets[th], pe[k].r);
+        if (!o->kmode) wrt_fkey_set_add(&j->sets[th], pe[k].s);
+    }
+}
+
+/* Pair p0 + i's entries as triplets from its first one on, and the pair cut to the
+ * entries the balance reads (wrt_balance_reads_entry, in their order) */
+static void pair_triplets(size_t i, int th, void *user) {
+    assemble_job *j = user;
+    const bake_ctx *b = j->b;
+    pair_out *o = &j->out[j->p0 + i];
+    wrt_triplet *tr = j->tr + j->off[j->p0 + i];
+    /* a compact pair's entries are decoded into the thread's buffer and its kept ones
+     * gathered there (in order), then copied out */
+    pair_entry *pe = (pair_entry *)wrt_pair_entries(b, o, &j->ebuf[th], &j->ecap[th]);
+    size_t keep = 0;
+    for (size_t k = 0; k < o->count; k++) {
+        const pair_entry *e = &pe[k];
+        tr[k].row = (uint32_t)wrt_fkey_set_find(j->ks, e->r);
+        tr[k].col = (uint32_t)wrt_fkey_set_find(j->ks, e->s);
+        memcpy(tr[k].v, e->v, sizeof e->v);
+        if (!b->opt.no_balance && wrt_balance_reads_entry(b, e)) pe[keep++] = *e;
+    }
+    o->count = keep;
+    if (o->d) {
+        free(o->d);
+        o->d = NULL;
+        o->nd = 0;
+        o->e = keep ? wrt_xmalloc(keep * sizeof *o->e) : NULL;
+        if (keep) memcpy(o->e, pe, keep * sizeof *o->e);
+    } else if (!keep) {
+        free(o->e);
+        o->e = NULL;
+    } else {
+        o->e = wrt_xrealloc(o->e, keep * sizeof *o->e);
+    }
+}
+
 /* Stage 6: the basis functions indexed, T assembled and balanced, K assembled and
  * balanced; the status */
 static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const pair_list *pl, const dto_job *job,
@@ -734,63 +805,52 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
          * (2.0 GB); the set holds the 2.3 MB of distinct keys */
         wrt_fkey_set ks = {0};
         for (int q = 0; q < b->nq; q++) wrt_fkey_set_add(&ks, wrt_fkey_make((uint32_t)q, wrt_node_root(), 0, wrt_node_root(), 0));
-        pair_entry *ebuf = NULL; /* a compact pair's entries, decoded (wrt_pair_entries) */
-        size_t ecap = 0;
-        for (size_t i = 0; i < np; i++) {
-            const pair_entry *pe = wrt_pair_entries(b, &job->out[i], &ebuf, &ecap);
-            for (size_t k = 0; k < job->out[i].count; k++) {
-                wrt_fkey_set_add(&ks, pe[k].r);
-                if (!job->out[i].kmode) wrt_fkey_set_add(&ks, pe[k].s);
-            }
+        /* each thread's pairs into its own set, then the sets' keys into one (a set: the
+         * same keys whatever the threads) */
+        assemble_job aj;
+        assemble_job_init(&aj, b, job->out);
+        aj.sets = wrt_xcalloc((size_t)aj.nt, sizeof *aj.sets);
+        wrt_parallel_for(np, aj.nt, pair_keys, &aj);
+        for (int t = 0; t < aj.nt; t++) {
+            for (size_t h = 0; h < aj.sets[t].cap; h++)
+                if (aj.sets[t].idx[h] != UINT32_MAX) wrt_fkey_set_add(&ks, aj.sets[t].key[h]);
+            wrt_fkey_set_free(&aj.sets[t]);
         }
+        free(aj.sets);
+        aj.sets = NULL;
         uint64_t nu = ks.n;
         if (nu > UINT32_MAX - 1) {
             st = wrt_fail(WRT_ERR_INVALID_ARG, "too many basis functions (%llu)", (unsigned long long)nu);
             wrt_fkey_set_free(&ks);
-            free(ebuf);
+            assemble_job_free(&aj);
         } else {
             uint64_t *keys = wrt_fkey_set_sorted(&ks);
             if (!keys) keys = wrt_xmalloc(sizeof *keys);
             res->nfuncs = (uint32_t)nu;
             res->fkeys = keys;
             wrt_triplet *tr = wrt_xmalloc((nent ? nent : 1) * sizeof *tr);
-            uint64_t t = 0;
             /* each pair's entries, once they are triplets, cut to those the balance reads
              * (wrt_balance_reads_entry, in their order; on the mazes their roots' rows):
              * the entries (32 bytes each) and the triplets (20) were held together, 1.72 GB
-             * on the 12 x 12 maze; the freed pages go back every 32nd of the pairs */
+             * on the 12 x 12 maze; the freed pages go back after every 32nd of the pairs.
+             * Each pair's triplets start after the earlier pairs' (the order of before),
+             * the pairs on the bake's threads. */
+            uint64_t *off = wrt_xmalloc((npt + 1) * sizeof *off);
+            off[0] = 0;
+            for (size_t i = 0; i < npt; i++) off[i + 1] = off[i] + job->out[i].count;
+            uint64_t t = off[npt];
+            aj.ks = &ks;
+            aj.off = off;
+            aj.tr = tr;
             size_t trim_every = npt / 32 + 1;
-            for (size_t i = 0; i < npt; i++) {
-                pair_out *o = &job->out[i];
-                /* a compact pair's entries are decoded into ebuf and its kept ones
-                 * gathered there (in order), then copied out */
-                pair_entry *pe = (pair_entry *)wrt_pair_entries(b, o, &ebuf, &ecap);
-                size_t keep = 0;
-                for (size_t k = 0; k < o->count; k++) {
-                    const pair_entry *e = &pe[k];
-                    tr[t].row = (uint32_t)wrt_fkey_set_find(&ks, e->r);
-                    tr[t].col = (uint32_t)wrt_fkey_set_find(&ks, e->s);
-                    memcpy(tr[t].v, e->v, sizeof e->v);
-                    t++;
-                    if (!b->opt.no_balance && wrt_balance_reads_entry(b, e)) pe[keep++] = *e;
-                }
-                o->count = keep;
-                if (o->d) {
-                    free(o->d);
-                    o->d = NULL;
-                    o->nd = 0;
-                    o->e = keep ? wrt_xmalloc(keep * sizeof *o->e) : NULL;
-                    if (keep) memcpy(o->e, pe, keep * sizeof *o->e);
-                } else if (!keep) {
-                    free(o->e);
-                    o->e = NULL;
-                } else {
-                    o->e = wrt_xrealloc(o->e, keep * sizeof *o->e);
-                }
-                if ((i + 1) % trim_every == 0) wrt_bake_memory_trim();
+            for (size_t i0 = 0; i0 < npt; i0 += trim_every) {
+                aj.p0 = i0;
+                wrt_parallel_for(npt - i0 < trim_every ? npt - i0 : trim_every, aj.nt, pair_triplets, &aj);
+                wrt_bake_memory_trim();
             }
+            free(off);
             wrt_fkey_set_free(&ks);
-            free(ebuf);
+            assemble_job_free(&aj);
             /* the balance: per leaf link a reference, the entries it sets and the threads'
              * working arrays (balance_need) */
             uint64_t nleaf = 0;

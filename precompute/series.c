@@ -19,6 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/threads.h"
 #include "../formats/gto.h"
 #include "series.h"
 #include "series_power.h"
@@ -38,7 +39,8 @@
  * (cornell_shapes q3: 30 MB over the 44 MB counted). */
 static uint64_t series_stream_need(const bake_ctx *b, uint64_t entries) {
     uint64_t block = b->opt.series_block > 0 ? (uint64_t)b->opt.series_block : WRT_SERIES_BLOCK_DEFAULT;
-    return 2 * 16 * (entries < block ? entries : block);
+    /* and the overlay of the small terms, the old and the new one at their cap */
+    return 2 * 16 * (entries < block ? entries : block) + 2 * 16 * (entries / WRT_SUM_OVERLAY_SHARE);
 }
 
 /* Memory before each product: the product's entries, estimated from every 64th of its
@@ -456,6 +458,29 @@ static void series_free_right(series_state *s) {
     s->shared = 0;
 }
 
+/* A bounce's passes that do not depend on each other, on two threads where the bake has
+ * them: the sum's (S += P and its norm; item 0) and the power iteration's step with the
+ * term's norm (item 1). Each is one pass in its own order: the same bits. Not under
+ * wrt-bake-mpi, whose sum's pass exchanges with the other ranks. */
+typedef struct {
+    series_state *s;
+    const wrt_csc *T;
+    double sn, pn, rnext[3];
+    wrt_status ast;
+    int pok;
+} bounce_pass;
+
+static void bounce_pass_run(size_t i, int th, void *user) {
+    (void)th;
+    bounce_pass *bp = user;
+    if (i == 0) {
+        bp->ast = series_add_term(bp->s, &bp->sn);
+    } else {
+        bp->pn = wrt_csc_norm(&bp->s->P);
+        bp->pok = power_iter_step(&bp->s->pi, bp->T, &bp->s->Tf, bp->s->pw, bp->rnext);
+    }
+}
+
 /* Stage 2: the bounces, each term the previous one times T, with the power iteration that
  * measures the tail's ratio; stops as described at the top of the file */
 static wrt_status series_bounces(series_state *s) {
@@ -519,13 +544,24 @@ static wrt_status series_bounces(series_state *s) {
         s->p_all = nnz;
         C->bounces++;
         double pn, sn = 0;
-        wrt_status ast = series_term_norm(s, &s->P, &pn);
-        if (ast == WRT_OK) ast = series_add_term(s, &sn);
-        if (ast != WRT_OK) return ast;
         /* the next iterate's ratios (T in memory, or read back from its scratch file) */
         double rnext[3];
-        if (!power_iter_step(&s->pi, T, &s->Tf, s->pw, rnext))
-            return wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
+        if (!wrt_dist_on(b->opt.dist)) {
+            bounce_pass bp = {.s = s, .T = T};
+            wrt_parallel_for(2, threads, bounce_pass_run, &bp);
+            if (bp.ast != WRT_OK) /* said again on this thread (the error text is the thread's) */
+                return wrt_fail(bp.ast, "the series could not stream its sum through a scratch file");
+            if (!bp.pok) return wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
+            pn = bp.pn;
+            sn = bp.sn;
+            memcpy(rnext, bp.rnext, sizeof rnext);
+        } else {
+            wrt_status ast = series_term_norm(s, &s->P, &pn);
+            if (ast == WRT_OK) ast = series_add_term(s, &sn);
+            if (ast != WRT_OK) return ast;
+            if (!power_iter_step(&s->pi, T, &s->Tf, s->pw, rnext))
+                return wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
+        }
         int settled = 1;
         ratio = 0;
         C->energy_left = sn > 0 ? pn / sn : 0;
@@ -617,6 +653,8 @@ static wrt_status series_final_sum(series_state *s, int add, const double k[3], 
             wrt_csc_free(&s->S);
             if (st == WRT_OK) s->S = all;
         }
+        s->C->sum_kept = s->ss.kept;
+        s->C->sum_written = s->ss.written;
         wrt_sum_stream_free(&s->ss);
         wrt_spill_free(&s->Tf);
     }

@@ -19,6 +19,7 @@ void wrt_sum_stream_start(wrt_sum_stream *ss, wrt_spill *first, uint64_t block) 
     ss->cur = first;
     ss->block = block ? block : 1;
     ss->c1 = UINT32_MAX;
+    ss->nnz = first->nnz;
 }
 
 void wrt_sum_stream_range(wrt_sum_stream *ss, uint32_t c0, uint32_t c1) {
@@ -26,29 +27,117 @@ void wrt_sum_stream_range(wrt_sum_stream *ss, uint32_t c0, uint32_t c1) {
     ss->c1 = c1;
 }
 
-uint64_t wrt_sum_stream_nnz(const wrt_sum_stream *ss) { return ss->cur->nnz; }
+uint64_t wrt_sum_stream_nnz(const wrt_sum_stream *ss) { return ss->nnz; }
 
-/* The end of the block that starts at column j0: columns until the sum's and the term's
- * entries in them reach the block size (one column at least). */
+static uint64_t overlay_cap(const wrt_sum_stream *ss) {
+    return ss->c0 == 0 && ss->c1 == UINT32_MAX ? ss->nnz / WRT_SUM_OVERLAY_SHARE : 0;
+}
+
+/* The end of the block that starts at column j0: columns until the file's, the overlay's
+ * and the term's entries in them reach the block size (one column at least). */
 static uint32_t block_end(const wrt_sum_stream *ss, const wrt_csc *P, uint32_t j0) {
-    const uint64_t *c = ss->cur->col;
+    const uint64_t *c = ss->cur->col, *o = ss->over.col;
     uint32_t n = ss->cur->n, j1 = j0 + 1;
-    while (j1 < n && (c[j1 + 1] - c[j0]) + (P ? P->col[j1 + 1] - P->col[j0] : 0) <= ss->block) j1++;
+    while (j1 < n && (c[j1 + 1] - c[j0]) + (P ? P->col[j1 + 1] - P->col[j0] : 0) + (o ? o[j1 + 1] - o[j0] : 0) <=
+                         ss->block)
+        j1++;
     return j1;
 }
 
+/* An entry's three values appended to the outputs of merge3 */
+typedef struct {
+    wrt_csc *full; /* the whole block (columns from 0), or NULL */
+    wrt_csc *ov;   /* the new overlay (the whole matrix's columns), or NULL */
+    double *acc;   /* the squares' sum, or NULL */
+} merge_out;
+
+static inline void emit(merge_out *mo, uint32_t r, const float v[3]) {
+    if (mo->full) {
+        mo->full->row[mo->full->nnz] = r;
+        memcpy(&mo->full->val[3 * mo->full->nnz++], v, 3 * sizeof *v);
+    }
+    if (mo->ov) {
+        mo->ov->row[mo->ov->nnz] = r;
+        memcpy(&mo->ov->val[3 * mo->ov->nnz++], v, 3 * sizeof *v);
+    }
+    if (mo->acc) /* wrt_csc_sumsq's order: entry after entry, channel after channel */
+        for (int c = 0; c < 3; c++) *mo->acc += (double)v[c] * v[c];
+}
+
+/* Columns [j0, j1) of S + s P: a the file's block (columns from 0), o the overlay and p
+ * the term (each NULL where there is none; their own column starts). An entry of the
+ * overlay replaces the file's; a term's entry is added to the value there as
+ * wrt_csc_add3 adds it, or is s times its own where there is none. Written to mo's
+ * outputs: the full block, the entries in the overlay's or the term's places (the next
+ * overlay), the squares. Returns the block's entries. */
+static uint64_t merge3(const wrt_csc *a, const wrt_csc *o, const wrt_csc *p, const double s[3], uint32_t j0, uint32_t j1,
+                       merge_out *mo) {
+    uint64_t total = 0;
+    if (mo->full) mo->full->nnz = 0;
+    for (uint32_t j = j0; j < j1; j++) {
+        uint64_t ia = a->col[j - j0], ea = a->col[j - j0 + 1];
+        uint64_t io = o ? o->col[j] : 0, eo = o ? o->col[j + 1] : 0, ip = p ? p->col[j] : 0, ep = p ? p->col[j + 1] : 0;
+        for (;;) {
+            uint32_t ro = io < eo ? o->row[io] : UINT32_MAX, rp = ip < ep ? p->row[ip] : UINT32_MAX;
+            uint32_t rn = ro < rp ? ro : rp;
+            /* the file's entries before the next overlay or term entry, as one run */
+            uint64_t run = ia;
+            while (run < ea && a->row[run] < rn) run++;
+            if (run > ia) {
+                if (mo->full) {
+                    memcpy(&mo->full->row[mo->full->nnz], &a->row[ia], (run - ia) * sizeof *a->row);
+                    memcpy(&mo->full->val[3 * mo->full->nnz], &a->val[3 * ia], 3 * (run - ia) * sizeof *a->val);
+                    mo->full->nnz += run - ia;
+                }
+                if (mo->acc) {
+                    double acc = *mo->acc;
+                    for (uint64_t i = 3 * ia; i < 3 * run; i++) acc += (double)a->val[i] * a->val[i];
+                    *mo->acc = acc;
+                }
+                total += run - ia;
+                ia = run;
+            }
+            if (rn == UINT32_MAX) break;
+            float v[3];
+            int have = 0;
+            if (ia < ea && a->row[ia] == rn) {
+                memcpy(v, &a->val[3 * ia++], sizeof v);
+                have = 1;
+            }
+            if (ro == rn) {
+                memcpy(v, &o->val[3 * io++], sizeof v);
+                have = 1;
+            }
+            if (rp == rn) {
+                const float *b = &p->val[3 * ip++];
+                for (int c = 0; c < 3; c++) v[c] = have ? (float)((double)v[c] + s[c] * b[c]) : (float)(s[c] * b[c]);
+            }
+            emit(mo, rn, v);
+            total++;
+        }
+        if (mo->full) mo->full->col[j - j0 + 1] = mo->full->nnz;
+        if (mo->ov) mo->ov->col[j + 1] = mo->ov->nnz;
+    }
+    return total;
+}
+
 /* Columns [j0, j1) of S + s P (P may be NULL: S's block alone), from the sum's file (read
- * in order) into *m. 0 on a read error. */
+ * in order) and its overlay into *m. 0 on a read error. */
 static int merged_block(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], uint32_t j0, uint32_t j1, wrt_csc *m) {
     wrt_csc a;
     if (!wrt_spill_read(ss->cur, j1 - j0, &a)) return 0;
-    if (!P) {
+    const wrt_csc *o = ss->over.col ? &ss->over : NULL;
+    if (!P && !o) {
         *m = a;
         return 1;
     }
-    /* the term's columns as a view: its column starts index its own arrays */
-    wrt_csc pv = {.n = j1 - j0, .nnz = P->col[j1] - P->col[j0], .col = P->col + j0, .row = P->row, .val = P->val};
-    *m = wrt_csc_add3(&a, &pv, s);
+    uint64_t cap = a.nnz + (P ? P->col[j1] - P->col[j0] : 0) + (o ? o->col[j1] - o->col[j0] : 0);
+    *m = (wrt_csc){.n = j1 - j0};
+    m->col = wrt_xcalloc((size_t)m->n + 1, sizeof *m->col);
+    m->row = wrt_xmalloc((cap ? cap : 1) * sizeof *m->row);
+    m->val = wrt_xmalloc((cap ? cap : 1) * 3 * sizeof *m->val);
+    merge_out mo = {m, NULL, NULL};
+    merge3(&a, o, P, s, j0, j1, &mo);
     wrt_csc_free(&a);
     return 1;
 }
@@ -87,7 +176,43 @@ int wrt_sum_stream_sumsq(wrt_sum_stream *ss, const wrt_csc *P, const double s[3]
     return 1;
 }
 
+/* S += s P into the overlay: the file read block by block, the next overlay made of the
+ * entries in the old one's or P's places, the squares summed on the way. */
+static int add_to_overlay(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], double *sumsq) {
+    if (!wrt_spill_rewind(ss->cur)) return 0;
+    uint32_t n = ss->cur->n;
+    const wrt_csc *o = ss->over.col ? &ss->over : NULL;
+    uint64_t cap = P->nnz + (o ? o->nnz : 0), total = 0;
+    wrt_csc ov = {.n = n};
+    ov.col = wrt_xcalloc((size_t)n + 1, sizeof *ov.col);
+    ov.row = wrt_xmalloc((cap ? cap : 1) * sizeof *ov.row);
+    ov.val = wrt_xmalloc((cap ? cap : 1) * 3 * sizeof *ov.val);
+    double acc = 0;
+    merge_out mo = {NULL, &ov, &acc};
+    for (uint32_t j0 = 0; j0 < n;) {
+        uint32_t j1 = block_end(ss, P, j0);
+        wrt_csc a;
+        if (!wrt_spill_read(ss->cur, j1 - j0, &a)) {
+            wrt_csc_free(&ov);
+            return 0;
+        }
+        total += merge3(&a, o, P, s, j0, j1, &mo);
+        wrt_csc_free(&a);
+        j0 = j1;
+    }
+    ov.nnz = ov.col[n];
+    ov.row = wrt_xrealloc(ov.row, (ov.nnz ? ov.nnz : 1) * sizeof *ov.row);
+    ov.val = wrt_xrealloc(ov.val, (ov.nnz ? ov.nnz : 1) * 3 * sizeof *ov.val);
+    wrt_csc_free(&ss->over);
+    ss->over = ov;
+    ss->nnz = total;
+    ss->kept++;
+    *sumsq = acc;
+    return 1;
+}
+
 int wrt_sum_stream_add(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], double *sumsq) {
+    if (P->nnz + ss->over.nnz <= overlay_cap(ss)) return add_to_overlay(ss, P, s, sumsq);
     wrt_spill next;
     if (!wrt_spill_rewind(ss->cur) || !wrt_spill_open(&next, ss->cur->n)) return 0;
     double acc = 0;
@@ -111,6 +236,9 @@ int wrt_sum_stream_add(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], 
     if (ss->cur == &ss->own) wrt_spill_free(&ss->own);
     ss->own = next;
     ss->cur = &ss->own;
+    wrt_csc_free(&ss->over); /* in the file now */
+    ss->nnz = ss->own.nnz;
+    ss->written++;
     *sumsq = acc;
     return 1;
 }
@@ -123,7 +251,7 @@ int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3]
     if (!wrt_spill_rewind(ss->cur)) return 0;
     out->n = n;
     out->col = wrt_xcalloc((size_t)n + 1, sizeof *out->col);
-    uint64_t cap = 1, total = ss->cur->nnz + (P ? P->nnz : 0), done = 0, last = 0;
+    uint64_t cap = 1, total = ss->cur->nnz + ss->over.nnz + (P ? P->nnz : 0), done = 0, last = 0;
     out->row = wrt_xmalloc(cap * sizeof *out->row);
     out->val = wrt_xmalloc(3 * cap * sizeof *out->val);
     double acc = 0;
@@ -136,7 +264,8 @@ int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3]
             break;
         }
         keep_range(ss, j0, &m);
-        done += (ss->cur->col[j1] - ss->cur->col[j0]) + (P ? P->col[j1] - P->col[j0] : 0);
+        done += (ss->cur->col[j1] - ss->cur->col[j0]) + (P ? P->col[j1] - P->col[j0] : 0) +
+                (ss->over.col ? ss->over.col[j1] - ss->over.col[j0] : 0);
         if (P) acc = wrt_csc_sumsq(&m, acc);
         /* the block's columns compressed with their own column weights */
         wrt_csc_weights wb = {0};
@@ -179,5 +308,6 @@ int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3]
 
 void wrt_sum_stream_free(wrt_sum_stream *ss) {
     wrt_spill_free(&ss->own);
+    wrt_csc_free(&ss->over);
     memset(ss, 0, sizeof *ss);
 }

@@ -13,11 +13,21 @@
 /* Entries of the sum and the term read per block when wrt_bake_options.series_block is 0 */
 #define WRT_SERIES_BLOCK_DEFAULT (1u << 20)
 
+/* A term whose entries, with the overlay's, are at most the sum's over this is kept in the
+ * overlay instead of rewriting the sum's file (wrt_sum_stream_add) */
+#define WRT_SUM_OVERLAY_SHARE 8
+
 typedef struct wrt_sum_stream {
     wrt_spill own;     /* the sum's file once a term has been added */
-    wrt_spill *cur;    /* the sum now: &own, or the first term's file (not owned) */
+    wrt_spill *cur;    /* the sum's file: &own, or the first term's file (not owned) */
     uint64_t block;    /* entries per block */
     uint32_t c0, c1;   /* the columns kept (wrt-bake-mpi's share of the sum); all by default */
+    /* The sum is the file's entries with the overlay's in their places: the overlay holds
+     * the sum's values (n columns, its own arrays) wherever a term added since the file
+     * was written has an entry (col NULL: none). */
+    wrt_csc over;
+    uint64_t nnz;      /* the sum's entries: the file's and the overlay's others */
+    uint64_t kept, written; /* the terms added in the overlay, and by rewriting the file */
 } wrt_sum_stream;
 
 /* The sum starts as the matrix in `first` (a finished spill, which must outlive the
@@ -33,7 +43,11 @@ int wrt_sum_stream_sumsq(wrt_sum_stream *ss, const wrt_csc *P, const double s[3]
 /* The sum's entries now. */
 uint64_t wrt_sum_stream_nnz(const wrt_sum_stream *ss);
 /* S += s P, per channel (P has the sum's columns); *sumsq the sum of the squares of the
- * new sum's values in storage order (wrt_csc_sumsq's, the same bits). 0 on an I/O error. */
+ * new sum's values in storage order (wrt_csc_sumsq's, the same bits). 0 on an I/O error.
+ * A small term (with the overlay, at most 1 / WRT_SUM_OVERLAY_SHARE of the sum's entries;
+ * all columns kept) goes to the overlay: the file is read, not rewritten. The values are
+ * the same either way: each entry is the file's, then every term's added in order with
+ * wrt_csc_add3's rounding. */
 int wrt_sum_stream_add(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], double *sumsq);
 /* The last pass: S + k P where P is not NULL (*sumsq as above, else untouched), each
  * column compressed by wrt_csc_compress(drop, W), into *out (in memory, its own arrays).

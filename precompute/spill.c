@@ -5,6 +5,7 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "../common/wrt_common.h"
 
@@ -100,20 +101,41 @@ int wrt_spill_read(wrt_spill *sp, uint32_t count, wrt_csc *out) {
     return 1;
 }
 
-int wrt_spill_apply(wrt_spill *sp, const double *x, double *y) {
-    if (!wrt_spill_rewind(sp)) return 0;
-    for (uint32_t j = 0; j < sp->n; j++) {
+/* Entries [k, k + count) of a finished file, at most the rest of their block, read at
+ * their offsets (pread: the stream's position and buffers are not touched). */
+static int spill_pread(const wrt_spill *sp, uint64_t k, uint64_t count, uint32_t *row, float *val) {
+    uint64_t blk = k / SPILL_BLOCK, in = k % SPILL_BLOCK, len = sp->nnz - blk * SPILL_BLOCK;
+    if (len > SPILL_BLOCK) len = SPILL_BLOCK;
+    off_t at = (off_t)(blk * SPILL_BLOCK * (sizeof *row + 3 * sizeof *val));
+    size_t rb = (size_t)count * sizeof *row, vb = (size_t)count * 3 * sizeof *val;
+    int fd = fileno(sp->f);
+    return pread(fd, row, rb, at + (off_t)(in * sizeof *row)) == (ssize_t)rb &&
+           pread(fd, val, vb, at + (off_t)(len * sizeof *row + in * 3 * sizeof *val)) == (ssize_t)vb;
+}
+
+int wrt_spill_apply(const wrt_spill *sp, const double *x, double *y) {
+    uint32_t *row = wrt_xmalloc(SPILL_BLOCK * sizeof *row);
+    float *val = wrt_xmalloc(3 * SPILL_BLOCK * sizeof *val);
+    int ok = 1;
+    uint64_t base = 0, have = 0;
+    for (uint32_t j = 0; j < sp->n && ok; j++) {
         const double *xj = &x[3 * j];
         int zero = xj[0] == 0 && xj[1] == 0 && xj[2] == 0;
         for (uint64_t k = sp->col[j]; k < sp->col[j + 1]; k++) {
-            if (!spill_reach(sp, k)) return 0;
+            if (k >= base + have) {
+                base = k;
+                have = SPILL_BLOCK - k % SPILL_BLOCK;
+                if (have > sp->nnz - k) have = sp->nnz - k;
+                if (!(ok = spill_pread(sp, k, have, row, val))) break;
+            }
             if (zero) continue;
-            uint32_t i = sp->row[k - sp->base];
-            const float *v = &sp->val[3 * (k - sp->base)];
+            uint32_t i = row[k - base];
+            const float *v = &val[3 * (k - base)];
             for (int c = 0; c < 3; c++) y[3 * i + c] += (double)v[c] * xj[c];
         }
     }
-    return 1;
+    free(row); free(val);
+    return ok;
 }
 
 void wrt_spill_free(wrt_spill *sp) {

@@ -4,7 +4,7 @@
  * when it streams, its sum S between bounces (series_stream.c): the file's pages are the
  * page cache's, which the system can write out and drop, not the bake's resident memory;
  * the file goes with the process however it ends. Depends on sparse.h. Not thread-safe:
- * one reader or writer at a time. */
+ * one reader or writer at a time (wrt_spill_apply apart: it has its own buffers). */
 #ifndef WRT_SPILL_H
 #define WRT_SPILL_H
 
@@ -38,9 +38,10 @@ int wrt_spill_rewind(wrt_spill *sp);
 /* The next columns [ncols, ncols + count) read into out (out->n = count, its own arrays,
  * malloc'd, column starts from 0). 0 on a read error (out then empty). */
 int wrt_spill_read(wrt_spill *sp, uint32_t count, wrt_csc *out);
-/* y += M x, read from the start: wrt_csc_apply's operations in its order (the same bits).
- * 0 on a read error. */
-int wrt_spill_apply(wrt_spill *sp, const double *x, double *y);
+/* y += M x of a finished file: wrt_csc_apply's operations in its order (the same bits).
+ * It reads at the entries' offsets with its own buffers, so it may run beside a reader of
+ * the same file (the sum's first state is T's file). 0 on a read error. */
+int wrt_spill_apply(const wrt_spill *sp, const double *x, double *y);
 /* Closes the file and frees the arrays; a zeroed or freed one is a no-op. */
 void wrt_spill_free(wrt_spill *sp);
 
