@@ -876,7 +876,7 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
                 free(job->out[i].e); free(job->out[i].leaf);
                 job->out[i].e = NULL; job->out[i].leaf = NULL;
             }
-            res->dto = wrt_csc_from_triplets_free(res->nfuncs, tr, t); /* tr freed as T grows */
+            res->dto = wrt_csc_from_triplets_free(res->nfuncs, tr, t, b->opt.threads); /* tr freed as T grows */
             if (b->cl && st == WRT_OK) /* --clusters: the links pushed down to the quads' roots,
                                         * as triplets twice and the matrix (cluster_ops.c) */
                 st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb,

@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/threads.h"
 #include "../common/wrt_common.h"
 
 int64_t wrt_fkey_find(const uint64_t *fkeys, uint32_t n, uint64_t key) {
@@ -111,7 +112,33 @@ static int cmp_u64(const void *pa, const void *pb) {
  * Within a group each entry's pair of supports is one 64-bit number (the supports
  * numbered in key order), radix-sorted and counted: qsort of 16-byte pairs with its
  * comparator was 1.5% of a maze bake, serial (perf). */
-uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys) {
+/* The link count's groups on the threads: each thread its scratch and its count */
+typedef struct {
+    const wrt_csc *m;
+    const uint32_t *id, *g0; /* the supports' numbers; group i is columns [g0[i], g0[i + 1]) */
+    uint64_t **lp, *cap, *links;
+} links_job;
+
+static void count_group(size_t i, int th, void *user) {
+    links_job *c = user;
+    const wrt_csc *m = c->m;
+    uint32_t j0 = c->g0[i], j1 = c->g0[i + 1];
+    uint64_t k = 0, need = m->col[j1] - m->col[j0];
+    if (need > c->cap[th]) {
+        free(c->lp[th]);
+        c->cap[th] = need;
+        c->lp[th] = wrt_xmalloc(need * sizeof *c->lp[th]);
+    }
+    uint64_t *lp = c->lp[th];
+    for (uint32_t j = j0; j < j1; j++)
+        for (uint64_t e = m->col[j]; e < m->col[j + 1]; e++) lp[k++] = (uint64_t)c->id[m->row[e]] << 32 | c->id[j];
+    /* the radix sort clears a 65,536-count table a digit: for a small group qsort */
+    if (k < 16384) qsort(lp, k, sizeof *lp, cmp_u64);
+    else wrt_sort_u64(lp, k);
+    c->links[th] += count_distinct(lp, k);
+}
+
+uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys, int threads) {
     if (!m->nnz) return 0;
     uint32_t n = m->n;
     uint64_t *sup = wrt_xmalloc(((size_t)n + 1) * sizeof *sup);
@@ -134,25 +161,27 @@ uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys) {
     free(sup);
     int sorted = 1;
     for (uint32_t j = 1; j < n && sorted; j++) sorted = fkeys[j] >> 18 >= fkeys[j - 1] >> 18;
-    uint64_t *lp = NULL, cap = 0, links = 0;
+    /* the groups' first columns, then each group on a thread (a count: the same whatever
+     * the threads) */
+    uint32_t *g0 = wrt_xmalloc(((size_t)n + 1) * sizeof *g0), ng = 0;
     for (uint32_t j0 = 0; j0 < n;) {
         uint32_t j1 = sorted ? j0 + 1 : n;
         while (j1 < n && fkeys[j1] >> 18 == fkeys[j0] >> 18) j1++;
-        uint64_t k = 0, need = m->col[j1] - m->col[j0];
-        if (need > cap) {
-            free(lp);
-            cap = need;
-            lp = wrt_xmalloc(cap * sizeof *lp);
-        }
-        for (uint32_t j = j0; j < j1; j++)
-            for (uint64_t i = m->col[j]; i < m->col[j + 1]; i++) lp[k++] = (uint64_t)id[m->row[i]] << 32 | id[j];
-        /* the radix sort clears a 65,536-count table a digit: for a small group qsort */
-        if (k < 16384) qsort(lp, k, sizeof *lp, cmp_u64);
-        else wrt_sort_u64(lp, k);
-        links += count_distinct(lp, k);
+        g0[ng++] = j0;
         j0 = j1;
     }
+    g0[ng] = n;
+    int nt = wrt_threads_resolve(threads);
+    links_job c = {m, id, g0, wrt_xcalloc((size_t)nt, sizeof *c.lp), wrt_xcalloc((size_t)nt, sizeof *c.cap),
+                   wrt_xcalloc((size_t)nt, sizeof *c.links)};
+    wrt_parallel_for(ng, nt, count_group, &c);
+    uint64_t links = 0;
+    for (int t = 0; t < nt; t++) {
+        links += c.links[t];
+        free(c.lp[t]);
+    }
+    free(c.lp); free(c.cap); free(c.links);
+    free(g0);
     free(id);
-    free(lp);
     return links;
 }

@@ -7,8 +7,9 @@
 
 #include "sparse.h"
 
-/* Counts links (groups of entries sharing the four supports) of a matrix over fkeys. */
-uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys);
+/* Counts links (groups of entries sharing the four supports) of a matrix over fkeys, on
+ * `threads` threads (0: all cores). */
+uint64_t wrt_count_links(const wrt_csc *m, const uint64_t *fkeys, int threads);
 
 /* Index of a key in the sorted fkeys, or -1. */
 int64_t wrt_fkey_find(const uint64_t *fkeys, uint32_t n, uint64_t key);

@@ -303,7 +303,8 @@ static void series_consume(series_state *s) {
     if (!b->opt.no_tail) s->u = wrt_series_power_targets(s->T, s->pw, s->threads, b->opt.max_bounces, &s->u_bounces);
     if (b->opt.series_block >= 0) {
         /* streamed: the sum starts as T's scratch file, and T goes */
-        wrt_sum_stream_start(&s->ss, &s->Tf, b->opt.series_block ? (uint64_t)b->opt.series_block : WRT_SERIES_BLOCK_DEFAULT);
+        wrt_sum_stream_start(&s->ss, &s->Tf, b->opt.series_block ? (uint64_t)b->opt.series_block : WRT_SERIES_BLOCK_DEFAULT,
+                             s->threads);
         s->streamed = 1;
         wrt_csc_free(&s->res->dto);
         wrt_bake_memory_trim();
@@ -706,7 +707,7 @@ static wrt_status series_tail(series_state *s) {
         }
     }
     C->entries_gto = s->S.nnz;
-    C->links_gto = wrt_count_links(&s->S, s->res->fkeys);
+    C->links_gto = wrt_count_links(&s->S, s->res->fkeys, s->threads);
     return WRT_OK;
 }
 
@@ -730,7 +731,7 @@ static wrt_status series_gathered(series_state *s) {
         wrt_csc Gg = wrt_csc_add(&TS, T, 1.0);
         wrt_csc_free(&TS);
         C->entries_gathered = Gg.nnz;
-        C->links_gathered = wrt_count_links(&Gg, s->res->fkeys);
+        C->links_gathered = wrt_count_links(&Gg, s->res->fkeys, s->threads);
         if (b->opt.gathered) {
             wrt_csc_free(&s->S);
             s->S = Gg;

@@ -12,10 +12,12 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/threads.h"
 #include "../common/wrt_common.h"
 
-void wrt_sum_stream_start(wrt_sum_stream *ss, wrt_spill *first, uint64_t block) {
+void wrt_sum_stream_start(wrt_sum_stream *ss, wrt_spill *first, uint64_t block, int threads) {
     memset(ss, 0, sizeof *ss);
+    ss->threads = threads;
     ss->cur = first;
     ss->block = block ? block : 1;
     ss->c1 = UINT32_MAX;
@@ -121,24 +123,31 @@ static uint64_t merge3(const wrt_csc *a, const wrt_csc *o, const wrt_csc *p, con
     return total;
 }
 
-/* Columns [j0, j1) of S + s P (P may be NULL: S's block alone), from the sum's file (read
- * in order) and its overlay into *m. 0 on a read error. */
-static int merged_block(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], uint32_t j0, uint32_t j1, wrt_csc *m) {
-    wrt_csc a;
-    if (!wrt_spill_read(ss->cur, j1 - j0, &a)) return 0;
+/* Columns [j0, j1) of S + s P (P may be NULL: S's block alone) into *m, from a, the
+ * file's block (taken: freed, or become *m), and the overlay. */
+static void merge_block(const wrt_sum_stream *ss, const wrt_csc *P, const double s[3], uint32_t j0, uint32_t j1,
+                        wrt_csc *a, wrt_csc *m) {
     const wrt_csc *o = ss->over.col ? &ss->over : NULL;
     if (!P && !o) {
-        *m = a;
-        return 1;
+        *m = *a;
+        memset(a, 0, sizeof *a);
+        return;
     }
-    uint64_t cap = a.nnz + (P ? P->col[j1] - P->col[j0] : 0) + (o ? o->col[j1] - o->col[j0] : 0);
+    uint64_t cap = a->nnz + (P ? P->col[j1] - P->col[j0] : 0) + (o ? o->col[j1] - o->col[j0] : 0);
     *m = (wrt_csc){.n = j1 - j0};
     m->col = wrt_xcalloc((size_t)m->n + 1, sizeof *m->col);
     m->row = wrt_xmalloc((cap ? cap : 1) * sizeof *m->row);
     m->val = wrt_xmalloc((cap ? cap : 1) * 3 * sizeof *m->val);
     merge_out mo = {m, NULL, NULL};
-    merge3(&a, o, P, s, j0, j1, &mo);
-    wrt_csc_free(&a);
+    merge3(a, o, P, s, j0, j1, &mo);
+    wrt_csc_free(a);
+}
+
+/* The same, the file's block read in order first. 0 on a read error. */
+static int merged_block(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], uint32_t j0, uint32_t j1, wrt_csc *m) {
+    wrt_csc a;
+    if (!wrt_spill_read(ss->cur, j1 - j0, &a)) return 0;
+    merge_block(ss, P, s, j0, j1, &a, m);
     return 1;
 }
 
@@ -243,6 +252,39 @@ int wrt_sum_stream_add(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], 
     return 1;
 }
 
+/* The last pass's blocks, FINAL_GROUP at a time: read in order, then merged on the
+ * stream's threads, their squares summed in order, compressed on the threads, appended
+ * in order. */
+#define FINAL_GROUP 2
+typedef struct {
+    const wrt_sum_stream *ss;
+    const wrt_csc *P;
+    const double *k;
+    double drop;
+    const wrt_csc_weights *W;
+    int stage; /* 0: merge, 1: compress */
+    uint32_t j0[FINAL_GROUP], j1[FINAL_GROUP];
+    wrt_csc a[FINAL_GROUP], m[FINAL_GROUP];
+} final_group;
+
+static void final_item(size_t i, int th, void *user) {
+    (void)th;
+    final_group *g = user;
+    uint32_t j0 = g->j0[i];
+    if (g->stage == 0) {
+        merge_block(g->ss, g->P, g->k, j0, g->j1[i], &g->a[i], &g->m[i]);
+        keep_range(g->ss, j0, &g->m[i]);
+        return;
+    }
+    /* the block's columns compressed with their own column weights */
+    const wrt_csc_weights *W = g->W;
+    wrt_csc_weights wb = {0};
+    if (W)
+        wb = (wrt_csc_weights){W->row_w, W->col_w ? W->col_w + j0 : NULL, W->power_w,
+                               W->boost_w ? W->boost_w + j0 : NULL, W->boost_lost};
+    wrt_csc_compress(&g->m[i], g->drop, W ? &wb : NULL);
+}
+
 int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3], double *sumsq, double drop,
                          const wrt_csc_weights *W, int (*check)(void *user, uint64_t kept, uint64_t projected),
                          void *user, wrt_csc *out) {
@@ -256,43 +298,54 @@ int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3]
     out->val = wrt_xmalloc(3 * cap * sizeof *out->val);
     double acc = 0;
     int ret = 1;
-    for (uint32_t j0 = 0; j0 < n;) {
-        uint32_t j1 = block_end(ss, P, j0);
-        wrt_csc m;
-        if (!merged_block(ss, P, k, j0, j1, &m)) {
-            ret = 0;
+    final_group g = {.ss = ss, .P = P, .k = k, .drop = drop, .W = W};
+    for (uint32_t j0 = 0; j0 < n && ret == 1;) {
+        size_t ng = 0;
+        for (; ng < FINAL_GROUP && j0 < n; ng++) {
+            uint32_t j1 = block_end(ss, P, j0);
+            if (!wrt_spill_read(ss->cur, j1 - j0, &g.a[ng])) {
+                ret = 0;
+                break;
+            }
+            g.j0[ng] = j0;
+            g.j1[ng] = j1;
+            j0 = j1;
+        }
+        if (ret != 1) {
+            for (size_t i = 0; i < ng; i++) wrt_csc_free(&g.a[i]);
             break;
         }
-        keep_range(ss, j0, &m);
-        done += (ss->cur->col[j1] - ss->cur->col[j0]) + (P ? P->col[j1] - P->col[j0] : 0) +
-                (ss->over.col ? ss->over.col[j1] - ss->over.col[j0] : 0);
-        if (P) acc = wrt_csc_sumsq(&m, acc);
-        /* the block's columns compressed with their own column weights */
-        wrt_csc_weights wb = {0};
-        if (W)
-            wb = (wrt_csc_weights){W->row_w, W->col_w ? W->col_w + j0 : NULL, W->power_w,
-                                   W->boost_w ? W->boost_w + j0 : NULL, W->boost_lost};
-        wrt_csc_compress(&m, drop, W ? &wb : NULL);
-        if (out->nnz + m.nnz > cap) {
-            while (cap < out->nnz + m.nnz) cap *= 2;
-            out->row = wrt_xrealloc(out->row, cap * sizeof *out->row);
-            out->val = wrt_xrealloc(out->val, 3 * cap * sizeof *out->val);
-        }
-        memcpy(&out->row[out->nnz], m.row, m.nnz * sizeof *m.row);
-        memcpy(&out->val[3 * out->nnz], m.val, 3 * m.nnz * sizeof *m.val);
-        for (uint32_t j = j0; j < j1; j++) out->col[j + 1] = out->nnz + m.col[j - j0 + 1];
-        out->nnz += m.nnz;
-        wrt_csc_free(&m);
-        j0 = j1;
-        /* at each tenth of the input, the kept entries' total projected from there (the
-         * first tenth: what is kept so far) */
-        uint64_t tenth = total ? done * 10 / total : 10;
-        if (tenth == last) continue;
-        last = tenth;
-        uint64_t projected = tenth ? (uint64_t)((double)out->nnz * (double)total / (double)done) : out->nnz;
-        if (check && !check(user, out->nnz, projected)) {
-            ret = -1;
-            break;
+        g.stage = 0;
+        wrt_parallel_for(ng, ss->threads, final_item, &g);
+        if (P)
+            for (size_t i = 0; i < ng; i++) acc = wrt_csc_sumsq(&g.m[i], acc);
+        g.stage = 1;
+        wrt_parallel_for(ng, ss->threads, final_item, &g);
+        for (size_t i = 0; i < ng; i++) {
+            wrt_csc *m = &g.m[i];
+            uint32_t b0 = g.j0[i], b1 = g.j1[i];
+            if (ret == 1) {
+                done += (ss->cur->col[b1] - ss->cur->col[b0]) + (P ? P->col[b1] - P->col[b0] : 0) +
+                        (ss->over.col ? ss->over.col[b1] - ss->over.col[b0] : 0);
+                if (out->nnz + m->nnz > cap) {
+                    while (cap < out->nnz + m->nnz) cap *= 2;
+                    out->row = wrt_xrealloc(out->row, cap * sizeof *out->row);
+                    out->val = wrt_xrealloc(out->val, 3 * cap * sizeof *out->val);
+                }
+                memcpy(&out->row[out->nnz], m->row, m->nnz * sizeof *m->row);
+                memcpy(&out->val[3 * out->nnz], m->val, 3 * m->nnz * sizeof *m->val);
+                for (uint32_t j = b0; j < b1; j++) out->col[j + 1] = out->nnz + m->col[j - b0 + 1];
+                out->nnz += m->nnz;
+                /* at each tenth of the input, the kept entries' total projected from there
+                 * (the first tenth: what is kept so far) */
+                uint64_t tenth = total ? done * 10 / total : 10;
+                if (tenth != last) {
+                    last = tenth;
+                    uint64_t projected = tenth ? (uint64_t)((double)out->nnz * (double)total / (double)done) : out->nnz;
+                    if (check && !check(user, out->nnz, projected)) ret = -1;
+                }
+            }
+            wrt_csc_free(m);
         }
     }
     if (ret != 1) {

@@ -28,11 +28,12 @@ typedef struct wrt_sum_stream {
     wrt_csc over;
     uint64_t nnz;      /* the sum's entries: the file's and the overlay's others */
     uint64_t kept, written; /* the terms added in the overlay, and by rewriting the file */
+    int threads;       /* the last pass's (wrt_sum_stream_final) */
 } wrt_sum_stream;
 
 /* The sum starts as the matrix in `first` (a finished spill, which must outlive the
  * stream; it is read, never written). */
-void wrt_sum_stream_start(wrt_sum_stream *ss, wrt_spill *first, uint64_t block);
+void wrt_sum_stream_start(wrt_sum_stream *ss, wrt_spill *first, uint64_t block, int threads);
 /* From the next pass on, the sum keeps only columns [c0, c1) (the others are dropped:
  * a rank's share of the sum, docs/mpi.md). */
 void wrt_sum_stream_range(wrt_sum_stream *ss, uint32_t c0, uint32_t c1);
@@ -52,8 +53,9 @@ int wrt_sum_stream_add(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], 
 /* The last pass: S + k P where P is not NULL (*sumsq as above, else untouched), each
  * column compressed by wrt_csc_compress(drop, W), into *out (in memory, its own arrays).
  * check(user, entries kept so far, their projected total) is called at each tenth of the
- * input and stops the pass when it returns 0 (a memory budget). Returns 1, 0 on an I/O
- * error, -1 where check stopped it. */
+ * input and stops the pass when it returns 0 (a memory budget). The blocks are merged and
+ * compressed two at a time on the stream's threads (column by column: the same entries).
+ * Returns 1, 0 on an I/O error, -1 where check stopped it. */
 int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3], double *sumsq, double drop,
                          const wrt_csc_weights *W, int (*check)(void *user, uint64_t kept, uint64_t projected),
                          void *user, wrt_csc *out);

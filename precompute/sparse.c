@@ -108,13 +108,29 @@ wrt_csc wrt_csc_from_triplets(uint32_t n, wrt_triplet *t, uint64_t count) {
     return m;
 }
 
-/* The same matrix, built by ranges of columns (about a sixteenth of the entries each): a
- * range's triplets are taken out of t in their order (the others moved up in theirs) and
- * t is cut to what is left, then the range is scattered as above. The triplets (20 bytes
- * an entry) shrink as the matrix (16) grows, instead of both being held with the index
- * (40 bytes an entry: on the 12 x 12 maze the bake's peak, 1.35 GB, issue 22). */
-#define TRIPLET_RANGES 16
-wrt_csc wrt_csc_from_triplets_free(uint32_t n, wrt_triplet *t, uint64_t count) {
+/* The same matrix, built by ranges of columns (about a 32nd of the entries each, taken two
+ * at a time): the two ranges' triplets are taken out of t in their order in one pass (the
+ * others moved up in theirs) and t is cut to what is left, then each range is scattered as
+ * above, the two on two threads (their columns, and so their places in the matrix, are
+ * apart; the same matrix whatever the threads). The triplets (20 bytes an entry) shrink as
+ * the matrix (16) grows, instead of both being held with the index (40 bytes an entry: on
+ * the 12 x 12 maze the bake's peak, 1.35 GB, issue 22). */
+#define TRIPLET_RANGES 32
+typedef struct {
+    uint32_t n;
+    wrt_triplet *rt[2];
+    uint64_t in[2];
+    wrt_csc *m;
+    uint64_t *next;
+} range_job;
+
+static void scatter_range(size_t i, int th, void *user) {
+    (void)th;
+    range_job *j = user;
+    scatter_by_row(j->n, j->rt[i], j->in[i], j->m, j->next);
+}
+
+wrt_csc wrt_csc_from_triplets_free(uint32_t n, wrt_triplet *t, uint64_t count, int threads) {
     if (count >= UINT32_MAX || count < 2 * TRIPLET_RANGES) {
         wrt_csc m = wrt_csc_from_triplets(n, t, count);
         free(t);
@@ -131,19 +147,26 @@ wrt_csc wrt_csc_from_triplets_free(uint32_t n, wrt_triplet *t, uint64_t count) {
     memcpy(next, m.col, ((size_t)n + 1) * sizeof *next);
     uint64_t left = count;
     for (uint32_t c0 = 0; c0 < n;) {
-        uint32_t c1 = c0 + 1;
-        while (c1 < n && m.col[c1 + 1] - m.col[c0] <= count / TRIPLET_RANGES) c1++;
-        uint64_t in = m.col[c1] - m.col[c0], w = 0, r = 0;
-        wrt_triplet *rt = wrt_xmalloc((in ? in : 1) * sizeof *rt);
+        uint32_t cut[3] = {c0, 0, 0};
+        for (int r = 1; r < 3; r++) { /* range r - 1 is [cut[r - 1], cut[r]), empty past the end */
+            uint32_t a = cut[r - 1], c1 = a < n ? a + 1 : n;
+            while (c1 < n && m.col[c1 + 1] - m.col[a] <= count / TRIPLET_RANGES) c1++;
+            cut[r] = c1;
+        }
+        range_job rj = {n, {NULL, NULL}, {m.col[cut[1]] - m.col[cut[0]], m.col[cut[2]] - m.col[cut[1]]}, &m, next};
+        for (int r = 0; r < 2; r++) rj.rt[r] = wrt_xmalloc((rj.in[r] ? rj.in[r] : 1) * sizeof *rj.rt[r]);
+        uint64_t w = 0, k0 = 0, k1 = 0;
         for (uint64_t i = 0; i < left; i++) {
-            if (t[i].col >= c0 && t[i].col < c1) rt[r++] = t[i];
+            uint32_t c = t[i].col;
+            if (c >= cut[0] && c < cut[1]) rj.rt[0][k0++] = t[i];
+            else if (c >= cut[1] && c < cut[2]) rj.rt[1][k1++] = t[i];
             else t[w++] = t[i];
         }
         left = w;
         t = wrt_xrealloc(t, (left ? left : 1) * sizeof *t);
-        scatter_by_row(n, rt, in, &m, next);
-        free(rt);
-        c0 = c1;
+        wrt_parallel_for(2, threads, scatter_range, &rj);
+        free(rj.rt[0]); free(rj.rt[1]);
+        c0 = cut[2];
     }
     free(t); free(next);
     sum_duplicates(&m, count);

@@ -21,8 +21,8 @@ typedef struct wrt_triplet { uint32_t row, col; float v[3]; } wrt_triplet;
 /* Builds from triplets (t is left as it was, or sorted; duplicates are summed in their order in t). */
 wrt_csc wrt_csc_from_triplets(uint32_t n, wrt_triplet *t, uint64_t count);
 /* The same matrix, t freed (malloc'd; it shrinks while the matrix grows: 20 bytes an entry
- * at the most, not 40). */
-wrt_csc wrt_csc_from_triplets_free(uint32_t n, wrt_triplet *t, uint64_t count);
+ * at the most, not 40), on `threads` threads (0: all cores). */
+wrt_csc wrt_csc_from_triplets_free(uint32_t n, wrt_triplet *t, uint64_t count, int threads);
 void wrt_csc_free(wrt_csc *m);
 wrt_csc wrt_csc_copy(const wrt_csc *m);
 

@@ -57,7 +57,7 @@ static void test_triplets_by_ranges(void) {
     }
     wrt_triplet *copy = malloc(COUNT * sizeof *copy);
     memcpy(copy, t, COUNT * sizeof *t);
-    wrt_csc m = wrt_csc_from_triplets_free(N, copy, COUNT); /* copy freed */
+    wrt_csc m = wrt_csc_from_triplets_free(N, copy, COUNT, 1); /* copy freed */
     int ok = 1, order_ok = 1;
     uint64_t distinct = 0;
     for (uint32_t j = 0; j < N; j++) {
@@ -84,7 +84,15 @@ static void test_triplets_by_ranges(void) {
     CHECK(w.nnz == m.nnz && !memcmp(w.col, m.col, (N + 1) * sizeof *w.col) && !memcmp(w.row, m.row, m.nnz * 4) &&
               !memcmp(w.val, m.val, 12 * m.nnz),
           "the same bits as the whole build");
+    /* the ranges scattered two at a time on two threads: the same bits */
+    copy = malloc(COUNT * sizeof *copy);
+    memcpy(copy, t, COUNT * sizeof *t);
+    wrt_csc m2 = wrt_csc_from_triplets_free(N, copy, COUNT, 2);
+    CHECK(m2.nnz == m.nnz && !memcmp(m2.col, m.col, (N + 1) * sizeof *m.col) && !memcmp(m2.row, m.row, m.nnz * 4) &&
+              !memcmp(m2.val, m.val, 12 * m.nnz),
+          "two threads: the same bits as one");
     wrt_csc_free(&m);
+    wrt_csc_free(&m2);
     wrt_csc_free(&w);
     free(t);
 }
