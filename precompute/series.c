@@ -36,11 +36,18 @@
  * the block merged with the term's columns, at most the block size each (16 bytes an
  * entry), fewer where the sum and the term hold fewer. `entries`: the sum's and the
  * term's; 0 where the sum is in memory. Uncounted it was the peak of the small bakes
- * (cornell_shapes q3: 30 MB over the 44 MB counted). */
+ * (cornell_shapes q3: 30 MB over the 44 MB counted). The last pass holds its blocks
+ * WRT_SUM_FINAL_GROUP at a time, each that much smaller: the same. */
 static uint64_t series_stream_need(const bake_ctx *b, uint64_t entries) {
     uint64_t block = b->opt.series_block > 0 ? (uint64_t)b->opt.series_block : WRT_SERIES_BLOCK_DEFAULT;
-    /* and the overlay of the small terms, the old and the new one at their cap */
-    return 2 * 16 * (entries < block ? entries : block) + 2 * 16 * (entries / WRT_SUM_OVERLAY_SHARE);
+    return 2 * 16 * (entries < block ? entries : block);
+}
+
+/* The sum's overlay (series_stream.h) during the pass that adds a term of `est` entries:
+ * the overlay held, and the next one where the term goes there (16 bytes an entry) */
+static uint64_t series_overlay_need(const wrt_sum_stream *ss, uint64_t est) {
+    uint64_t held = ss->over.nnz, next = held + est;
+    return 16 * (held + (next <= ss->nnz / WRT_SUM_OVERLAY_SHARE ? next : 0));
 }
 
 /* Memory before each product: the product's entries, estimated from every 64th of its
@@ -48,12 +55,13 @@ static uint64_t series_stream_need(const bake_ctx *b, uint64_t entries) {
  * estimate passes a quarter of the budget. The product holds its entries once, plus the
  * arrays of the 32nd of its columns being computed (wrt_csc_mul); the sum that follows
  * grows S in place by at most as many (wrt_csc_add3_into), while the term before is gone.
- * Streamed, the sum's blocks are added (series_stream_need).
+ * Streamed (ss), the sum's blocks are added (series_stream_need), and its overlay
+ * (series_overlay_need).
  * The estimate is what is checked and recorded. (An upper bound from the column counts
  * decided the finer sample before; on the mazes it always passed, so every product paid
  * a 16th of itself to be estimated: 4% of the series.) */
 static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, const wrt_csc *P, const wrt_csc *T,
-                                      double eps, const wrt_csc_weights *W, int bounce, uint64_t sum_entries) {
+                                      double eps, const wrt_csc_weights *W, int bounce, const wrt_sum_stream *ss) {
     const double per = 16.0; /* bytes per entry: row index and three floats */
     char what[96];
     if (bounce > 0) snprintf(what, sizeof what, "bounce %d of the series", bounce);
@@ -65,7 +73,7 @@ static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, c
         est = wrt_csc_mul_estimate(P, T, eps, W, 16, b->opt.threads);
         need = per * 1.25 * (1 + 1.0 / 32) * (double)est;
     }
-    if (sum_entries) need += (double)series_stream_need(b, sum_entries + est);
+    if (ss) need += (double)series_stream_need(b, wrt_sum_stream_nnz(ss) + est) + (double)series_overlay_need(ss, est);
     return wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, (uint64_t)need, what);
 }
 
@@ -377,7 +385,7 @@ static wrt_status series_share_mul(series_state *s, const wrt_csc *R, int bounce
     wrt_csc in;
     wrt_status st = wrt_dist_share_fetch(d, &s->P, s->cut, s->need, &in);
     if (st != WRT_OK) return st;
-    st = series_memory_check(s->b, s->C, &in, R, s->eps, &s->W, bounce, s->streamed ? wrt_sum_stream_nnz(&s->ss) : 0);
+    st = series_memory_check(s->b, s->C, &in, R, s->eps, &s->W, bounce, s->streamed ? &s->ss : NULL);
     if (st == WRT_OK) *out = wrt_csc_mul_cols(&in, R, s->eps, &s->W, s->threads, s->cut[d->rank], s->cut[d->rank + 1]);
     wrt_csc_free(&in);
     return st;
@@ -522,7 +530,7 @@ static wrt_status series_bounces(series_state *s) {
             }
         } else {
             wrt_status mst = series_memory_check(b, C, &s->P, R, eps, &s->W, (int)C->bounces + 1,
-                                                 s->streamed ? wrt_sum_stream_nnz(&s->ss) : 0);
+                                                 s->streamed ? &s->ss : NULL);
             if (mst != WRT_OK) {
                 char msg[1024];
                 snprintf(msg, sizeof msg, "%s", wrt_last_error());
@@ -623,8 +631,11 @@ static double series_final_weights(series_state *s, wrt_csc_weights *W, double *
 static int series_final_check(void *user, uint64_t kept, uint64_t projected) {
     series_state *s = user;
     uint64_t sum = s->ss.cur ? wrt_sum_stream_nnz(&s->ss) + s->P.nnz : 0;
+    /* the pass's blocks and the overlay it reads */
     return wrt_bake_memory_check(s->b->opt.max_memory_mb, &s->C->mem_estimate_mb,
-                                 16 * (projected - kept) + series_stream_need(s->b, sum), "the stored operator") == WRT_OK;
+                                 16 * (projected - kept) + series_stream_need(s->b, sum) +
+                                     16 * s->ss.over.nnz,
+                                 "the stored operator") == WRT_OK;
 }
 
 /* The sum plus k P where add (the tail), then compressed for storing, into s->S: in place
@@ -719,7 +730,7 @@ static wrt_status series_gathered(series_state *s) {
     /* gathered: T + T S, computed when stored or when its figures are asked for */
     if (b->opt.gathered || b->opt.report_gathered) {
         /* T S: the same check, with T on the left (column j of T S gathers T's columns) */
-        wrt_status mst = series_memory_check(b, C, T, &s->S, s->eps, &s->W, 0, 0);
+        wrt_status mst = series_memory_check(b, C, T, &s->S, s->eps, &s->W, 0, NULL);
         if (mst != WRT_OK) {
             char msg[1024];
             snprintf(msg, sizeof msg, "%s", wrt_last_error());

@@ -37,13 +37,16 @@ static uint64_t overlay_cap(const wrt_sum_stream *ss) {
 
 /* The end of the block that starts at column j0: columns until the file's, the overlay's
  * and the term's entries in them reach the block size (one column at least). */
-static uint32_t block_end(const wrt_sum_stream *ss, const wrt_csc *P, uint32_t j0) {
+static uint32_t block_end_at(const wrt_sum_stream *ss, const wrt_csc *P, uint32_t j0, uint64_t block) {
     const uint64_t *c = ss->cur->col, *o = ss->over.col;
     uint32_t n = ss->cur->n, j1 = j0 + 1;
-    while (j1 < n && (c[j1 + 1] - c[j0]) + (P ? P->col[j1 + 1] - P->col[j0] : 0) + (o ? o[j1 + 1] - o[j0] : 0) <=
-                         ss->block)
+    while (j1 < n && (c[j1 + 1] - c[j0]) + (P ? P->col[j1 + 1] - P->col[j0] : 0) + (o ? o[j1 + 1] - o[j0] : 0) <= block)
         j1++;
     return j1;
+}
+
+static uint32_t block_end(const wrt_sum_stream *ss, const wrt_csc *P, uint32_t j0) {
+    return block_end_at(ss, P, j0, ss->block);
 }
 
 /* An entry's three values appended to the outputs of merge3 */
@@ -252,10 +255,10 @@ int wrt_sum_stream_add(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], 
     return 1;
 }
 
-/* The last pass's blocks, FINAL_GROUP at a time: read in order, then merged on the
- * stream's threads, their squares summed in order, compressed on the threads, appended
- * in order. */
-#define FINAL_GROUP 2
+/* The last pass's blocks, WRT_SUM_FINAL_GROUP at a time and each that much smaller (the
+ * memory of one block of before): read in order, then merged on the stream's threads,
+ * their squares summed in order, compressed on the threads, appended in order. */
+#define FINAL_GROUP WRT_SUM_FINAL_GROUP
 typedef struct {
     const wrt_sum_stream *ss;
     const wrt_csc *P;
@@ -302,7 +305,7 @@ int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3]
     for (uint32_t j0 = 0; j0 < n && ret == 1;) {
         size_t ng = 0;
         for (; ng < FINAL_GROUP && j0 < n; ng++) {
-            uint32_t j1 = block_end(ss, P, j0);
+            uint32_t j1 = block_end_at(ss, P, j0, (ss->block + FINAL_GROUP - 1) / FINAL_GROUP);
             if (!wrt_spill_read(ss->cur, j1 - j0, &g.a[ng])) {
                 ret = 0;
                 break;

@@ -16,6 +16,9 @@
 /* A term whose entries, with the overlay's, are at most the sum's over this is kept in the
  * overlay instead of rewriting the sum's file (wrt_sum_stream_add) */
 #define WRT_SUM_OVERLAY_SHARE 8
+/* Blocks the last pass (wrt_sum_stream_final) holds at once, each of 1 / this of the
+ * block size */
+#define WRT_SUM_FINAL_GROUP 2
 
 typedef struct wrt_sum_stream {
     wrt_spill own;     /* the sum's file once a term has been added */
@@ -54,7 +57,8 @@ int wrt_sum_stream_add(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], 
  * column compressed by wrt_csc_compress(drop, W), into *out (in memory, its own arrays).
  * check(user, entries kept so far, their projected total) is called at each tenth of the
  * input and stops the pass when it returns 0 (a memory budget). The blocks are merged and
- * compressed two at a time on the stream's threads (column by column: the same entries).
+ * compressed WRT_SUM_FINAL_GROUP at a time on the stream's threads (column by column: the
+ * same entries).
  * Returns 1, 0 on an I/O error, -1 where check stopped it. */
 int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3], double *sumsq, double drop,
                          const wrt_csc_weights *W, int (*check)(void *user, uint64_t kept, uint64_t projected),
