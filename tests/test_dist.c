@@ -259,45 +259,26 @@ static void dist_bake_same(void) {
           (unsigned long long)want.c.pairs_unoccluded, (unsigned long long)want.c.pairs_exchange);
     CHECK(sm.calls[0] > 3 && sm.calls[0] == sm.calls[1] && sm.calls[1] == sm.calls[2],
           "the ranks met in the same %llu all-gathers", (unsigned long long)sm.calls[0]);
-    pthread_barrier_destroy(&sm.bar);
-    wrt_bake_result_free(&want);
-    tsb_free(&s);
-}
-
-/* The merges in small rounds (2 KiB of every rank's records a round, where the default
- * takes the box's whole DTO in one): the ranks meet in many more all-gathers, every one of
- * them the same on each rank, and every rank still holds the single process's T and
- * G - I bit for bit. The pairs travel as the DTO keeps them, a diffuse pair's entries two
- * to a 16-byte record: a rank receives less than the 32 bytes a full entry would take for
- * the other ranks' share of T's entries (at least 2/3 of them on 3 ranks, within the
- * balance's and the closed rule's few). */
-static void dist_bake_pieces(void) {
-    wrt_scene s;
-    box_with_panel(&s, 0.7, 0.6, 0.5);
-    wrt_bake_options o = opts(2, 0, 3);
-    o.threads = 1;
-    wrt_bake_result want;
-    sim sm;
-    bake_arg a[NR_BAKE];
-    wrt_status st = bake_on_ranks(&sm, a, &s, o, &want);
-    CHECK(st == WRT_OK, "the single process bakes (%s)", wrt_last_error());
-    uint64_t calls_whole = sm.calls[0], recv_whole = a[1].recv_dto;
-    for (int k = 0; k < NR_BAKE; k++) wrt_bake_result_free(&a[k].r);
+    /* The pairs travel as the DTO keeps them, a diffuse pair's entries two to a 16-byte
+     * record: a rank receives less than the 32 bytes a full entry would take for the other
+     * ranks' share of T's entries (at least 2/3 of them on 3 ranks, less the balance's few) */
+    CHECK(a[1].recv_dto > 0 && (double)a[1].recv_dto < 32.0 * 2.0 / 3.0 * (double)want.c.entries_dto,
+          "rank 1 received %llu bytes in the DTO phase, under 32 a full entry for 2/3 of T's %llu",
+          (unsigned long long)a[1].recv_dto, (unsigned long long)want.c.entries_dto);
+    /* The merges in rounds of 2 KiB of every rank's records (the default takes the box's
+     * whole DTO in one): the ranks meet in many more all-gathers, the same on each, and
+     * every rank still holds the single process's T and G - I bit for bit */
+    uint64_t calls_whole = sm.calls[0];
     pthread_barrier_destroy(&sm.bar);
     sm = (sim){.nranks = NR_BAKE};
     pthread_barrier_init(&sm.bar, NULL, NR_BAKE);
     for (int k = 0; k < NR_BAKE; k++) a[k] = (bake_arg){.s = &sm, .scene = &s, .o = o, .piece = 2048};
     run_ranks(NR_BAKE, bake_rank, a, sizeof *a);
-    for (int k = 0; k < NR_BAKE; k++) {
-        same_operator(k, &a[k], &want);
-        wrt_bake_result_free(&a[k].r);
-    }
+    for (int k = 0; k < NR_BAKE; k++)
+        if (same_operator(k, &a[k], &want)) wrt_bake_result_free(&a[k].r);
     CHECK(sm.calls[0] > calls_whole + 10 && sm.calls[0] == sm.calls[1] && sm.calls[1] == sm.calls[2],
-          "the ranks met in the same %llu all-gathers (%llu in whole merges)", (unsigned long long)sm.calls[0],
-          (unsigned long long)calls_whole);
-    CHECK(a[1].recv_dto > 0 && (double)recv_whole < 32.0 * 2.0 / 3.0 * (double)want.c.entries_dto,
-          "rank 1 received %llu bytes in the DTO phase, under 32 a full entry for 2/3 of T's %llu",
-          (unsigned long long)recv_whole, (unsigned long long)want.c.entries_dto);
+          "in 2 KiB rounds the ranks met in the same %llu all-gathers (%llu in whole merges)",
+          (unsigned long long)sm.calls[0], (unsigned long long)calls_whole);
     pthread_barrier_destroy(&sm.bar);
     wrt_bake_result_free(&want);
     tsb_free(&s);
@@ -386,7 +367,6 @@ int main(int argc, char **argv) {
     TEST_RUN(dist_mul_same);
     TEST_RUN(dist_assign_bound);
     TEST_RUN(dist_bake_same);
-    TEST_RUN(dist_bake_pieces);
     TEST_RUN(dist_clusters_same);
     TEST_RUN(dist_share_same);
     TEST_END();
