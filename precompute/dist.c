@@ -166,10 +166,11 @@ static size_t piece_end(const wrt_bake_dist *d, const int *owner, size_t n, cons
     return i;
 }
 
-/* In pieces: each rank sends about piece_bytes / nranks a round (its items in index
- * order), and each round's items are unpacked before the next is gathered, so a rank holds
- * the merged items and one round's bytes, not every rank's bytes at once beside them (on the 12 x 12 maze's DTO the whole gather was the peak: docs/mpi.md). The
- * rounds' count is agreed first (the most any rank needs). */
+/* In rounds: each rank sends about piece_bytes / nranks a round (its items in index
+ * order), and each round's items are unpacked before the next is gathered, so a rank
+ * holds the merged items and one round's bytes, not every rank's bytes at once beside
+ * them (on the 12 x 12 maze the whole gather set a rank's peak: docs/mpi.md). The rounds'
+ * count is agreed first (the most any rank needs). */
 wrt_status wrt_dist_merge_items(wrt_bake_dist *d, int phase, const int *owner, size_t n, const wrt_dist_items *f) {
     uint64_t cap = (d->piece_bytes ? d->piece_bytes : DIST_ROUND_BYTES) / (uint64_t)d->nranks, len, rounds = 0;
     if (cap < 65536 && !d->piece_bytes) cap = 65536;
