@@ -4,7 +4,8 @@
  * below (precompute/dist.h) and rank 0 writes the file as wrt-bake does (a temporary
  * renamed over the target). A rank that fails ends every rank (MPI_Abort); a rank that
  * is killed is seen by mpirun, which ends the others, whose signal handler removes the
- * temporary. WRT_MPI_REPORT=1 prints each rank's CPU seconds, peak memory and bytes. */
+ * temporary. WRT_MPI_REPORT=1 prints each rank's CPU seconds, peak memory and bytes;
+ * WRT_MPI_MERGE_BYTES sets the merges' round size. */
 #include <mpi.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -48,9 +49,23 @@ static wrt_status mpi_allgather_timed(void *user, const void *mine, uint64_t len
         if (lens[r] > most) most = lens[r];
     }
     uint8_t *buf = wrt_xmalloc(total ? total : 1);
-    /* in rounds of at most ROUND_BYTES from each rank, straight into each rank's place */
-    uint8_t *tmp = wrt_xmalloc((size_t)(most < ROUND_BYTES ? most : ROUND_BYTES) * (size_t)nr + 1);
+    int rank;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     wrt_status st = WRT_OK;
+    if (most <= ROUND_BYTES && total <= INT32_MAX) { /* one round: straight into buf, no copy */
+        for (int r = 0; r < nr; r++) {
+            cnt[r] = (int)lens[r];
+            disp[r] = (int)at[r];
+        }
+        if (MPI_Allgatherv(mine, cnt[rank], MPI_BYTE, buf, cnt, disp, MPI_BYTE, MPI_COMM_WORLD) != MPI_SUCCESS)
+            st = wrt_fail(WRT_ERR_IO, "MPI_Allgatherv failed");
+        free(at); free(cnt); free(disp);
+        if (st != WRT_OK) { free(buf); return st; }
+        *all = buf;
+        return WRT_OK;
+    }
+    /* in rounds of at most ROUND_BYTES from each rank, through a packed buffer */
+    uint8_t *tmp = wrt_xmalloc((size_t)(most < ROUND_BYTES ? most : ROUND_BYTES) * (size_t)nr + 1);
     for (uint64_t off = 0; off < most && st == WRT_OK; off += ROUND_BYTES) {
         int sum = 0;
         for (int r = 0; r < nr; r++) {
@@ -59,8 +74,6 @@ static wrt_status mpi_allgather_timed(void *user, const void *mine, uint64_t len
             disp[r] = sum;
             sum += cnt[r];
         }
-        int rank;
-        MPI_Comm_rank(MPI_COMM_WORLD, &rank);
         if (MPI_Allgatherv((const uint8_t *)mine + (cnt[rank] ? off : 0), cnt[rank], MPI_BYTE, tmp, cnt, disp,
                            MPI_BYTE, MPI_COMM_WORLD) != MPI_SUCCESS) {
             st = wrt_fail(WRT_ERR_IO, "MPI_Allgatherv failed");
@@ -164,6 +177,10 @@ int main(int argc, char **argv) {
      * for comparison (docs/mpi.md) */
     const char *share = getenv("WRT_MPI_SHARE");
     if (share && !strcmp(share, "0")) d.alltoall = NULL;
+    /* WRT_MPI_MERGE_BYTES=N: the per-item merges in rounds of N bytes of all the ranks'
+     * records (dist.h's piece_bytes; default 32 MiB), for tests/mpi.sh's many rounds */
+    const char *mb = getenv("WRT_MPI_MERGE_BYTES");
+    if (mb && *mb) d.piece_bytes = strtoull(mb, NULL, 10);
     MPI_Comm_rank(MPI_COMM_WORLD, &d.rank);
     MPI_Comm_size(MPI_COMM_WORLD, &d.nranks);
     int rc = wrt_bake_cli(argc, argv, &d);

@@ -963,8 +963,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     wrt_status st = bake_dto(&b, C, &pl, &job, &pool_bytes, &pool_refused);
     if (lst != WRT_OK) st = lst;
     if (job.owner) { /* wrt-bake-mpi: every rank gets every pair's links, and the counters' sums */
-        /* the exchange sends full entries (dist.c) */
-        for (size_t i = 0; i < pl.np; i++) wrt_pair_expand(&b, &job.out[i]);
+        /* the exchange sends the pairs as the DTO keeps them (compact records), in pieces */
         if (st == WRT_OK) st = wrt_dist_merge_pairs(b.opt.dist, job.owner, job.out, pl.np);
         uint64_t sums[7] = {C->samples, C->rays_traced, C->rays_skipped_facing, C->rays_skipped_unoccluded,
                             C->links_refined, C->links_leaf, C->links_invisible};

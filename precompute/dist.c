@@ -146,59 +146,104 @@ wrt_status wrt_dist_sum_u64(wrt_bake_dist *d, uint64_t *v, int n) {
 
 /* ---------------------------------------------------------------- per-item records */
 
-wrt_status wrt_dist_merge_items(wrt_bake_dist *d, int phase, const int *owner, size_t n, const wrt_dist_items *f) {
-    uint64_t len = 0;
-    for (size_t i = 0; i < n; i++)
-        if (owner[i] == d->rank) len += 16 + f->size(f->user, i);
-    uint8_t *buf = wrt_xmalloc(len ? len : 1), *p = buf;
-    for (size_t i = 0; i < n; i++) {
+/* The bytes all the ranks send together in one round of a merge (wrt_bake_dist.piece_bytes;
+ * 0: this), each rank a share (at least 64 KiB); an item larger than its share goes alone. */
+#define DIST_ROUND_BYTES ((uint64_t)32 << 20)
+
+/* The items from `from` on that this rank owns and that fit in one piece (at least one):
+ * their bytes with headers in *len; returns the index after the last taken. */
+static size_t piece_end(const wrt_bake_dist *d, const int *owner, size_t n, const wrt_dist_items *f, size_t from,
+                        uint64_t cap, uint64_t *len) {
+    uint64_t l = 0;
+    size_t i = from;
+    for (; i < n; i++) {
         if (owner[i] != d->rank) continue;
-        uint64_t h[2] = {i, f->size(f->user, i)};
-        memcpy(p, h, 16);
-        f->pack(f->user, i, p + 16);
-        p += 16 + h[1];
+        uint64_t sz = 16 + f->size(f->user, i);
+        if (l && l + sz > cap) break;
+        l += sz;
+    }
+    *len = l;
+    return i;
+}
+
+/* In rounds: each rank sends about piece_bytes / nranks a round (its items in index
+ * order), and each round's items are unpacked before the next is gathered, so a rank
+ * holds the merged items and one round's bytes, not every rank's bytes at once beside
+ * them (on the 12 x 12 maze the whole gather set a rank's peak: docs/mpi.md). The rounds'
+ * count is agreed first (the most any rank needs). */
+wrt_status wrt_dist_merge_items(wrt_bake_dist *d, int phase, const int *owner, size_t n, const wrt_dist_items *f) {
+    uint64_t cap = (d->piece_bytes ? d->piece_bytes : DIST_ROUND_BYTES) / (uint64_t)d->nranks, len, rounds = 0;
+    if (cap < 65536 && !d->piece_bytes) cap = 65536;
+    for (size_t i = 0; i < n; rounds++) {
+        i = piece_end(d, owner, n, f, i, cap, &len);
+        if (!len) break;
     }
     uint8_t *all;
     uint64_t *lens;
-    wrt_status st = dist_exchange(d, phase, buf, len, &all, &lens);
-    free(buf);
+    wrt_status st = dist_exchange(d, phase, &rounds, 8, &all, &lens);
     if (st != WRT_OK) return st;
-    const uint8_t *q = all;
+    uint64_t most = 0;
     for (int r = 0; r < d->nranks; r++) {
-        const uint8_t *end = q + lens[r];
-        if (r == d->rank) { q = end; continue; }
-        while (q < end) {
-            uint64_t h[2];
-            memcpy(h, q, 16);
-            f->unpack(f->user, (size_t)h[0], q + 16, h[1]);
-            q += 16 + h[1];
-        }
+        uint64_t x;
+        memcpy(&x, all + 8 * (size_t)r, 8);
+        if (x > most) most = x;
     }
     free(all); free(lens);
-    return WRT_OK;
+    size_t next = 0;
+    for (uint64_t k = 0; k < most && st == WRT_OK; k++) {
+        size_t end = piece_end(d, owner, n, f, next, cap, &len);
+        uint8_t *buf = wrt_xmalloc(len ? len : 1), *p = buf;
+        for (size_t i = next; i < end; i++) {
+            if (owner[i] != d->rank) continue;
+            uint64_t h[2] = {i, f->size(f->user, i)};
+            memcpy(p, h, 16);
+            f->pack(f->user, i, p + 16);
+            p += 16 + h[1];
+        }
+        next = end;
+        st = dist_exchange(d, phase, buf, len, &all, &lens);
+        free(buf);
+        if (st != WRT_OK) break;
+        const uint8_t *q = all;
+        for (int r = 0; r < d->nranks; r++) {
+            const uint8_t *stop = q + lens[r];
+            if (r == d->rank) { q = stop; continue; }
+            while (q < stop) {
+                uint64_t h[2];
+                memcpy(h, q, 16);
+                f->unpack(f->user, (size_t)h[0], q + 16, h[1]);
+                q += 16 + h[1];
+            }
+        }
+        free(all); free(lens);
+    }
+    return st;
 }
 
 /* ---------------------------------------------------------------- the DTO's pairs */
 
-/* One pair's record: its sizes and flags, then its entries and leaves. */
+/* One pair's record: its sizes and flags, then its entries (a diffuse pair's compact
+ * records, 16 bytes for up to two entries, as the DTO keeps them; else full entries) and
+ * its leaves. */
 typedef struct pair_head {
-    uint64_t count, nleaf, links, angular;
-    int32_t occluded, leaf_dirs, glossy, kmode, cancelled, pad;
+    uint64_t count, nd, nleaf, links, angular;
+    int32_t r, s, occluded, leaf_dirs, glossy, kmode, cancelled, compact;
 } pair_head;
 
 static uint64_t pair_size(void *user, size_t i) {
     const pair_out *o = (const pair_out *)user + i;
-    return sizeof(pair_head) + o->count * sizeof(pair_entry) + o->nleaf * sizeof(leaf_rec);
+    return sizeof(pair_head) + wrt_pair_bytes(o) + o->nleaf * sizeof(leaf_rec);
 }
 
 static void pair_pack(void *user, size_t i, uint8_t *p) {
     const pair_out *o = (const pair_out *)user + i;
-    pair_head h = {o->count, o->nleaf, o->links, o->angular, o->occluded, o->leaf_dirs, o->glossy, o->kmode,
-                   o->cancelled, 0};
+    pair_head h = {o->count, o->nd, o->nleaf, o->links, o->angular, o->r, o->s, o->occluded, o->leaf_dirs, o->glossy,
+                   o->kmode, o->cancelled, o->d != NULL};
     memcpy(p, &h, sizeof h);
     p += sizeof h;
-    if (o->count) memcpy(p, o->e, o->count * sizeof(pair_entry));
-    p += o->count * sizeof(pair_entry);
+    uint64_t eb = wrt_pair_bytes(o);
+    if (eb) memcpy(p, o->d ? (const void *)o->d : (const void *)o->e, eb);
+    p += eb;
     if (o->nleaf) memcpy(p, o->leaf, o->nleaf * sizeof(leaf_rec));
 }
 
@@ -208,12 +253,18 @@ static void pair_unpack(void *user, size_t i, const uint8_t *q, uint64_t len) {
     pair_head h;
     memcpy(&h, q, sizeof h);
     q += sizeof h;
-    *o = (pair_out){.count = h.count, .nleaf = h.nleaf, .links = h.links, .angular = h.angular,
+    *o = (pair_out){.count = h.count, .nleaf = h.nleaf, .links = h.links, .angular = h.angular, .r = h.r, .s = h.s,
                     .occluded = h.occluded, .leaf_dirs = h.leaf_dirs, .glossy = h.glossy, .kmode = h.kmode,
                     .cancelled = h.cancelled};
-    o->e = h.count ? wrt_xmalloc(h.count * sizeof(pair_entry)) : NULL;
-    if (h.count) memcpy(o->e, q, h.count * sizeof(pair_entry));
-    q += h.count * sizeof(pair_entry);
+    if (h.compact) {
+        o->nd = h.nd;
+        o->d = wrt_xmalloc((h.nd ? h.nd : 1) * sizeof(pair_dent));
+        if (h.nd) memcpy(o->d, q, h.nd * sizeof(pair_dent));
+    } else if (h.count) {
+        o->e = wrt_xmalloc(h.count * sizeof(pair_entry));
+        memcpy(o->e, q, h.count * sizeof(pair_entry));
+    }
+    q += wrt_pair_bytes(o);
     o->leaf = h.nleaf ? wrt_xmalloc(h.nleaf * sizeof(leaf_rec)) : NULL;
     if (h.nleaf) memcpy(o->leaf, q, h.nleaf * sizeof(leaf_rec));
 }

@@ -33,6 +33,8 @@ typedef struct wrt_bake_dist {
     double cpu_links, cpu_assemble;       /* parts of cpu_dto: the cluster tree and its links
                                            * (--clusters), and T's assembly (keys, balance, matrix) */
     uint64_t peak_dto;                    /* this process's peak resident bytes up to the series */
+    uint64_t piece_bytes;                 /* the bytes of one round of a per-item merge, all the
+                                           * ranks' shares (wrt_dist_merge_items; 0: 32 MiB) */
 } wrt_bake_dist;
 
 enum { WRT_DIST_DTO = 0, WRT_DIST_SERIES = 1, WRT_DIST_COUNTERS = 2 };
@@ -81,7 +83,8 @@ wrt_status wrt_dist_chain_sum(wrt_bake_dist *d, double *acc, int (*fn)(void *use
 
 /* Per-item records merged: item i (of n) is computed by rank owner[i], which packs it
  * into size(user, i) bytes; after the exchange every other rank unpacks it (len bytes),
- * items in rank order and, within a rank, in index order. The bytes count in `phase`. */
+ * within a rank's items in index order (the ranks' items interleaved by rounds: the
+ * merge goes in rounds of about piece_bytes). The bytes count in `phase`. */
 typedef struct wrt_dist_items {
     uint64_t (*size)(void *user, size_t i);
     void (*pack)(void *user, size_t i, uint8_t *p);
@@ -91,7 +94,8 @@ typedef struct wrt_dist_items {
 wrt_status wrt_dist_merge_items(wrt_bake_dist *d, int phase, const int *owner, size_t n, const wrt_dist_items *f);
 
 /* The DTO's pairs (dto.h): each rank has computed out[i] for the pairs it owns
- * (owner[i] == rank); afterwards every rank holds every pair's out[i]. */
+ * (owner[i] == rank); afterwards every rank holds every pair's out[i] as the DTO made it
+ * (a diffuse pair's compact records stay compact). */
 struct pair_out;
 wrt_status wrt_dist_merge_pairs(wrt_bake_dist *d, const int *owner, struct pair_out *out, size_t np);
 

@@ -841,17 +841,6 @@ const pair_entry *wrt_pair_entries(const bake_ctx *b, const pair_out *o, pair_en
     return e;
 }
 
-void wrt_pair_expand(const bake_ctx *b, pair_out *o) {
-    if (!o->d) return;
-    pair_entry *e = NULL;
-    size_t cap = 0;
-    wrt_pair_entries(b, o, &e, &cap);
-    free(o->d);
-    o->d = NULL;
-    o->nd = 0;
-    o->e = e;
-}
-
 size_t wrt_pair_bytes(const pair_out *o) {
     return o->d ? o->nd * sizeof *o->d : o->count * sizeof *o->e;
 }

@@ -42,8 +42,6 @@ void wrt_dto_pair(const bake_ctx *b, int r, int s, int flags, bake_thread_counte
 /* The entries of a pair in the order the DTO made them: o->e, or o's compact records
  * decoded into *buf (grown as needed, *cap its length; the caller frees it). */
 const pair_entry *wrt_pair_entries(const bake_ctx *b, const pair_out *o, pair_entry **buf, size_t *cap);
-/* Replaces o's compact records by full entries (the same entries, the same order). */
-void wrt_pair_expand(const bake_ctx *b, pair_out *o);
 /* The bytes o's entries hold (records or entries, not the leaves). */
 size_t wrt_pair_bytes(const pair_out *o);
 

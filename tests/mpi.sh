@@ -25,7 +25,7 @@ if [ ! -x "$mpibake" ]; then
 fi
 tmp=$(mktemp -d /tmp/wrt_mpi_XXXXXX)
 trap 'rm -rf "$tmp"' EXIT
-mpi() { mpirun --allow-run-as-root --oversubscribe -np "$@"; }
+mpi() { mpirun --allow-run-as-root --oversubscribe ${MPIX:-} -np "$@"; }
 # config=sanitize: Open MPI's own allocations outlive MPI_Finalize; not ours to report
 [[ "$build" == *sanitize* ]] && export ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_leaks=0"
 
@@ -48,6 +48,15 @@ same() { # NAME NPS SCENE OPTIONS...
 }
 same cornell "1 2 3" assets/cornell.gltf -q 3
 same maze9 "2 3" "$tmp/maze9.gltf" -q 1
+# the DTO's merges in rounds of 256 KiB (the pairs' 12 MB in tens of rounds, where the
+# default 32 MiB takes each in one): the rounds' count agreed, each rank's pairs in order
+if MPIX="-x WRT_MPI_MERGE_BYTES=262144" mpi 3 "$mpibake" "$tmp/maze9.gltf" -o "$tmp/maze9-r.gto" --quiet -q 1 \
+    >"$tmp/out" 2>"$tmp/err"; then
+    cmp -s "$tmp/maze9.gto" "$tmp/maze9-r.gto" && ok "maze9 -np 3, merges in 256 KiB rounds: the same bytes" ||
+        ko "maze9 -np 3, merges in 256 KiB rounds: the file differs from wrt-bake's"
+else
+    ko "maze9: wrt-bake-mpi -np 3 in 256 KiB rounds failed"; show_err
+fi
 # the atrium at detail 0.5 (1,060 elements; the cluster links' tasks divided too), the
 # series capped at 3 bounces (each bounce is the same divided product): 26 s of CPU for
 # the three bakes (detail 0.25 with the whole series took 15 s; detail 1, 93 s for one)

@@ -183,15 +183,19 @@ typedef struct bake_arg {
     wrt_bake_result r;
     wrt_status st;
     int share; /* the ranks given an all-to-all: the series by shares */
+    uint64_t piece; /* the merges' round size (dist.h's piece_bytes; 0: the default) */
+    uint64_t recv_dto; /* the bytes the rank received in the DTO phase */
 } bake_arg;
 
 static void *bake_rank(void *p) {
     bake_arg *a = p;
     wrt_bake_dist d = {.rank = sim_rank, .nranks = a->s->nranks, .allgather = sim_allgather, .user = a->s};
     if (a->share) d.alltoall = sim_alltoall;
+    d.piece_bytes = a->piece;
     a->o.dist = &d;
     a->st = wrt_bake_run(a->scene, &a->o, &a->r);
     a->o.dist = NULL;
+    a->recv_dto = d.bytes_recv[WRT_DIST_DTO];
     return NULL;
 }
 
@@ -255,6 +259,26 @@ static void dist_bake_same(void) {
           (unsigned long long)want.c.pairs_unoccluded, (unsigned long long)want.c.pairs_exchange);
     CHECK(sm.calls[0] > 3 && sm.calls[0] == sm.calls[1] && sm.calls[1] == sm.calls[2],
           "the ranks met in the same %llu all-gathers", (unsigned long long)sm.calls[0]);
+    /* The pairs travel as the DTO keeps them, a diffuse pair's entries two to a 16-byte
+     * record: a rank receives less than the 32 bytes a full entry would take for the other
+     * ranks' share of T's entries (at least 2/3 of them on 3 ranks, less the balance's few) */
+    CHECK(a[1].recv_dto > 0 && (double)a[1].recv_dto < 32.0 * 2.0 / 3.0 * (double)want.c.entries_dto,
+          "rank 1 received %llu bytes in the DTO phase, under 32 a full entry for 2/3 of T's %llu",
+          (unsigned long long)a[1].recv_dto, (unsigned long long)want.c.entries_dto);
+    /* The merges in rounds of 2 KiB of every rank's records (the default takes the box's
+     * whole DTO in one): the ranks meet in many more all-gathers, the same on each, and
+     * every rank still holds the single process's T and G - I bit for bit */
+    uint64_t calls_whole = sm.calls[0];
+    pthread_barrier_destroy(&sm.bar);
+    sm = (sim){.nranks = NR_BAKE};
+    pthread_barrier_init(&sm.bar, NULL, NR_BAKE);
+    for (int k = 0; k < NR_BAKE; k++) a[k] = (bake_arg){.s = &sm, .scene = &s, .o = o, .piece = 2048};
+    run_ranks(NR_BAKE, bake_rank, a, sizeof *a);
+    for (int k = 0; k < NR_BAKE; k++)
+        if (same_operator(k, &a[k], &want)) wrt_bake_result_free(&a[k].r);
+    CHECK(sm.calls[0] > calls_whole + 10 && sm.calls[0] == sm.calls[1] && sm.calls[1] == sm.calls[2],
+          "in 2 KiB rounds the ranks met in the same %llu all-gathers (%llu in whole merges)",
+          (unsigned long long)sm.calls[0], (unsigned long long)calls_whole);
     pthread_barrier_destroy(&sm.bar);
     wrt_bake_result_free(&want);
     tsb_free(&s);

@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
-"""mpi_model.py LOG [--tag TAG]: docs/mpi.md's model ("A model for 16 to 256 ranks") from
+"""mpi_model.py LOG [--tag TAG] [--at N]: docs/mpi.md's model ("A model for 16 to 256 ranks") from
 wrt-bake-mpi's report lines (WRT_MPI_REPORT=1). LOG holds, for each run, a line
 "TAG SCENE npN rc=R wall=W load=L" and then that run's report lines (one a rank). The
 1-rank runs may carry any tag (one rank is the same code in every version); the 4-rank
 runs are those tagged TAG (default fin). SCENE is atrium05 or atrium1: the generator's
 atrium at detail 0.5 and 1 (1,060 and 2,704 elements). Prints the inputs' table and the
-model's table in Markdown."""
+model's table in Markdown; with --at N, also the model's figures a rank at 1, 2 and 4 ranks
+for an atrium of N elements (to check it against a run it was not fitted to)."""
 import math
 import re
 import sys
@@ -49,6 +50,11 @@ def main():
         i = args.index("--tag")
         tag = args[i + 1]
         del args[i:i + 2]
+    at_n = None
+    if "--at" in args:
+        i = args.index("--at")
+        at_n = int(args[i + 1])
+        del args[i:i + 2]
     if len(args) != 1:
         sys.exit(__doc__)
     runs = read(args[0])
@@ -80,6 +86,18 @@ def main():
         b1, b0 = fit["atrium1", key], fit["atrium05", key]
         ex[key] = expo(b0, b1)
         print(f"| {name} | {b1:.1f} MB ({b0:.1f} MB) | {ex[key]:.2f} |")
+    if at_n:
+        s = at_n / ELEMENTS["atrium1"]
+
+        def pred(key, n):
+            r, d = fit["atrium1", key]
+            return (r * s ** ex[key][0] if r > 0 else 0.0) + (d * s ** ex[key][1] if d > 0 else 0.0) / n
+
+        print(f"\n| {at_n} elements | ranks | DTO phase CPU s / rank | series CPU s / rank | peak MB / rank | "
+              "the DTO phase's peak MB / rank |\n|---|---|---|---|---|---|")
+        for n in (1, 2, 4):
+            print(f"| | {n} | {pred('dto', n):.1f} | {pred('series', n):.1f} | {pred('peak', n):.0f} | "
+                  f"{pred('peak_dto', n):.0f} |")
     print("\n| scene | ranks | time / rank | speed-up | DTO phase / rank (its speed-up) | memory / rank | received / rank |")
     print("|---|---|---|---|---|---|---|")
     for label, tri in (("10^5 triangles", 1e5), ("10^6 triangles", 1e6)):
