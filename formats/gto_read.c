@@ -14,6 +14,7 @@
 #include <inttypes.h>
 #include <stdalign.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
@@ -110,13 +111,14 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
         if (s->offset != gto_align_up(prev_end))
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 ", expected %" PRIu64
                             " (sections follow each other)", nm, s->offset, gto_align_up(prev_end));
-        int crit_known = s->id == SEC_CTREE || s->id == SEC_KCODE;
+        int crit_known = s->id == SEC_CTREE || s->id == SEC_KCODE || s->id == SEC_OPSTREAM;
         if (s->id >= SEC_CRITICAL && !crit_known)
             return wrt_fail(WRT_ERR_UNSUPPORTED, "section id %u is critical (ids from %u on must be understood) "
                             "and unknown to this reader: it cannot read this file", s->id, SEC_CRITICAL);
-        if (crit_known && h->version_major < 2)
-            return wrt_fail(WRT_ERR_CORRUPT, "section %s in a version %u.%u file (it needs version 2.0)", nm,
-                            h->version_major, h->version_minor);
+        int needs = s->id == SEC_OPSTREAM ? 3 : 2;
+        if (crit_known && h->version_major < needs)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s in a version %u.%u file (it needs version %d.0)", nm,
+                            h->version_major, h->version_minor, needs);
         if ((gto_sec_known(s->id) || crit_known) && s->elem_size != gto_sec_elem(s->id))
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: element size %u, expected %u", nm,
                             s->elem_size, gto_sec_elem(s->id));
@@ -127,6 +129,7 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
         if (gto_sec_known(s->id)) L->sec[s->id] = s;
         if (s->id == SEC_CTREE) L->ctree = s;
         if (s->id == SEC_KCODE) L->kcode = s;
+        if (s->id == SEC_OPSTREAM) L->opstream = s;
         prev_end = s->offset + s->size;
     }
     if (prev_end != len)
@@ -139,8 +142,17 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
     if (L->sec[SEC_OPCODE] && (L->sec[SEC_ROWS] || L->sec[SEC_VALS]))
         return wrt_fail(WRT_ERR_CORRUPT, "section opcode beside section %s (the entries are compact or "
                         "float, not both)", L->sec[SEC_ROWS] ? "rows" : "vals");
+    /* Or as the compact stream (opstream, 3.0), which also stands for col_start. */
+    if (L->opstream) {
+        uint32_t beside = L->sec[SEC_OPCODE] ? SEC_OPCODE : L->sec[SEC_ROWS] ? SEC_ROWS : L->sec[SEC_VALS] ? SEC_VALS
+                          : L->sec[SEC_COL_START] ? SEC_COL_START : 0;
+        if (beside)
+            return wrt_fail(WRT_ERR_CORRUPT, "section opstream beside section %s (it holds the operator's entries and "
+                            "the columns' starts are rebuilt from it)", gto_sec_name(beside));
+    }
     for (uint32_t id = 1; id <= SEC_REQUIRED; id++)
-        if (!L->sec[id] && !((id == SEC_ROWS || id == SEC_VALS) && L->sec[SEC_OPCODE]))
+        if (!L->sec[id] && !((id == SEC_ROWS || id == SEC_VALS) && (L->sec[SEC_OPCODE] || L->opstream)) &&
+            !(id == SEC_COL_START && L->opstream))
             return wrt_fail(WRT_ERR_CORRUPT, "missing section %s", gto_sec_name(id));
     /* The first-bounce operator: all four sections or none; or kkeys, kcol_start and kcode
      * (2.0, its entries compact). */
@@ -202,9 +214,59 @@ static wrt_status check_opcode_counts(const uint8_t *b, const gto_section *const
     g->nnz = h.nnz;
     g->nblocks = h.nblocks;
     g->op_bcol = (const uint32_t *)(p + o.bcol);
-    g->op_blocks = (const wrt_gto_block *)(p + o.blocks);
     g->op_codes = (const uint32_t *)(p + o.codes);
     g->op_deltas = p + o.deltas;
+    return WRT_OK;
+}
+
+/* The compact stream's counts (section opstream, 3.0): its header says how many blocks
+ * and entries, which must give the section's size; fills g's counts and pointers, and
+ * col_start with an array of its own (g->owned), filled when the section is checked. */
+static wrt_status check_opstream_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
+    const gto_section *s = L->opstream;
+    if (s->size < sizeof(gto_opcode_head))
+        return wrt_fail(WRT_ERR_CORRUPT, "section opstream: %" PRIu64 " bytes, less than its %zu-byte header", s->size,
+                        sizeof(gto_opcode_head));
+    gto_opcode_head h;
+    memcpy(&h, b + s->offset, sizeof h);
+    uint64_t nf = L->sec[SEC_FKEYS]->count;
+    if (h.nnz > s->size || h.nblocks > s->size / 5 || h.nblocks > UINT32_MAX || nf > UINT32_MAX - 1 ||
+        gto_opstream_place((uint32_t)nf, h.nblocks, h.nnz).size != s->size) {
+        uint64_t computed = wrt_gto_checksum(b + s->offset, (size_t)s->size);
+        if (computed != s->checksum)
+            return wrt_fail(WRT_ERR_CORRUPT, "section opstream: checksum mismatch (stored 0x%016" PRIx64
+                            ", computed 0x%016" PRIx64 ")", s->checksum, computed);
+        return wrt_fail(WRT_ERR_CORRUPT, "section opstream: %" PRIu64 " bytes do not hold the %" PRIu64 " blocks and %"
+                        PRIu64 " entries its header says (with %" PRIu64 " columns)", s->size, h.nblocks, h.nnz, nf);
+    }
+    gto_opstream_layout o = gto_opstream_place((uint32_t)nf, h.nblocks, h.nnz);
+    const uint8_t *p = b + s->offset;
+    uint64_t *cs = calloc((size_t)nf + 1, sizeof *cs);
+    if (!cs) return wrt_fail(WRT_ERR_NOMEM, "no memory for the %" PRIu64 " columns' starts", nf + 1);
+    g->owned = cs;
+    g->col_start = cs;
+    g->nnz = h.nnz;
+    g->nblocks = h.nblocks;
+    g->op_bcol = (const uint32_t *)(p + o.bcol);
+    g->op_row0 = (const uint32_t *)(p + o.row0);
+    g->op_base = (const int8_t *)(p + o.base);
+    g->op_codes = (const uint32_t *)(p + o.codes);
+    g->op_deltas = p + o.deltas;
+    return WRT_OK;
+}
+
+/* A 2.0 file's blocks in the view both versions share (gto.h): each block's first row
+ * and base copied out of its record (g->owned), once the file is known to be sound. */
+static wrt_status opcode_view(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
+    gto_opcode_layout o = gto_opcode_place(g->nfuncs, g->nblocks, g->nnz);
+    const wrt_gto_block *blk = (const wrt_gto_block *)(b + L->sec[SEC_OPCODE]->offset + o.blocks);
+    uint32_t *row0 = malloc(g->nblocks ? 5 * (size_t)g->nblocks : 1);
+    if (!row0) return wrt_fail(WRT_ERR_NOMEM, "no memory for the %" PRIu64 " blocks' rows", g->nblocks);
+    int8_t *base = (int8_t *)(row0 + g->nblocks);
+    for (uint64_t k = 0; k < g->nblocks; k++) { row0[k] = blk[k].row0; base[k] = (int8_t)blk[k].base; }
+    g->owned = row0;
+    g->op_row0 = row0;
+    g->op_base = base;
     return WRT_OK;
 }
 
@@ -255,7 +317,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     if (S[SEC_STATS]->count != 1)
         return wrt_fail(WRT_ERR_CORRUPT, "section stats: %" PRIu64 " records, expected 1",
                         S[SEC_STATS]->count);
-    wrt_status st = S[SEC_OPCODE] ? check_opcode_counts(b, S, g)
+    wrt_status st = L->opstream ? WRT_OK : S[SEC_OPCODE] ? check_opcode_counts(b, S, g)
                                   : check_csc_counts(S, SEC_FKEYS, SEC_COL_START, SEC_ROWS, SEC_VALS, "functions");
     if (st != WRT_OK) return st;
     if (S[SEC_KKEYS]) { /* then all four (gto_parse_layout) */
@@ -304,7 +366,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     g->camera = SECPTR(SEC_CAMERA);
     g->names = SECPTR(SEC_NAMES);
     g->fkeys = SECPTR(SEC_FKEYS);
-    g->col_start = SECPTR(SEC_COL_START);
+    if (!L->opstream) g->col_start = SECPTR(SEC_COL_START);
     if (S[SEC_ROWS]) { g->rows = SECPTR(SEC_ROWS); g->vals = SECPTR(SEC_VALS); }
     g->stats = SECPTR(SEC_STATS);
     g->provenance = SECPTR(SEC_PROVENANCE);
@@ -329,6 +391,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     }
     if (L->ctree) { g->ctree = (const void *)(b + L->ctree->offset); g->nctree = (uint32_t)L->ctree->count; }
 #undef SECPTR
+    if (L->opstream) return check_opstream_counts(b, L, g); /* last: it allocates */
     return WRT_OK;
 }
 
@@ -337,6 +400,7 @@ wrt_status gto_check_payload(const uint8_t *b, const gto_layout *L, const wrt_gt
     vctx v;
     memset(&v, 0, sizeof v);
     v.g = g;
+    if (L->opstream) v.col_out = g->owned; /* col_start, rebuilt by the section's check */
     for (uint32_t i = 0; i < L->h.nsections; i++) {
         const gto_section *s = &L->table[i];
         uint64_t sum = gto_scan_section(b + s->offset, s->count, s->elem_size, gto_sec_checker(s->id), &v);
@@ -356,6 +420,8 @@ static wrt_status validate(const uint8_t *b, size_t len, wrt_gto *out) {
     wrt_status st = gto_parse_layout(b, len, &L);
     if (st == WRT_OK) st = gto_check_counts(b, &L, out);
     if (st == WRT_OK) st = gto_check_payload(b, &L, out);
+    if (st == WRT_OK && L.sec[SEC_OPCODE]) st = opcode_view(b, &L, out);
+    if (st != WRT_OK) { free(out->owned); out->owned = NULL; }
     return st;
 }
 
@@ -434,5 +500,6 @@ wrt_status wrt_gto_open(const char *path, wrt_gto *out) {
 void wrt_gto_close(wrt_gto *g) {
     if (!g) return;
     if (g->owns_map && g->map) munmap(g->map, g->size);
+    free(g->owned);
     memset(g, 0, sizeof *g);
 }
