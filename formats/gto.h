@@ -16,8 +16,8 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
 /* Format version. The major version (WRT_GTO_VERSION) changes when an older reader
  * would misread a newer file; the minor version when a newer file only adds what an
  * older reader may skip (a new section id below 256, a field in a reserved slot whose
- * zero means "as before"). A reader accepts every minor of the majors it knows (1 and
- * 2) and refuses any other major with WRT_ERR_UNSUPPORTED, naming both versions. Since
+ * zero means "as before"). A reader accepts every minor of the majors it knows (1 to
+ * 3) and refuses any other major with WRT_ERR_UNSUPPORTED, naming both versions. Since
  * 2.0 a section id >= 256 is critical: a reader that does not know it refuses the file,
  * naming the section; ids below 256 that it does not know it skips.
  * Checklist for a bump (GTO_FORMAT.md, "Changing the format", says the same):

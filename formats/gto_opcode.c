@@ -1,4 +1,7 @@
-/* gto_opcode.c: the compact operator of .gto version 2.0 (section opcode; GTO_FORMAT.md
+/* gto_opcode.c: the compact operator of .gto versions 2.0 (section opcode) and 3.0 (section
+ * opstream, 261: the same blocks, codes and deltas without the blocks' counts and
+ * col_start, which the reader rebuilds; GTO_FORMAT.md "The compact operator's stream").
+ * Version 2.0's section opcode (GTO_FORMAT.md
  * "The compact operator"; issue 23). Each column's entries are cut into blocks of up to
  * 64 whose rows step by less than 256; a block has its first row and a base exponent,
  * an entry a u8 row delta and a 32-bit code: three 10-bit signed mantissas sharing a
