@@ -228,6 +228,9 @@ typedef struct wrt_gto {
     const uint32_t *op_codes;         /* nnz */
     const uint8_t *op_deltas;         /* nnz */
     void *owned;                      /* what the reader allocated for this view (close frees it) */
+    void *(*owned_alloc)(void *user, size_t size); /* where `owned` came from (NULL: malloc) */
+    void (*owned_free)(void *user, void *p);
+    void *owned_user;
     /* The compact first-bounce operator (version 2.0, critical section kcode, 260): then
      * krows and kvals are NULL and K's column j holds entries [kcol_start[j],
      * kcol_start[j+1]) in blocks [k_bcol[j], k_bcol[j+1]), laid out as the operator's
@@ -287,7 +290,15 @@ wrt_status wrt_gto_open(const char *path, wrt_gto *out);
 /* Same checks on a file image in memory (`data` must stay valid and unchanged while
  * `out` is used, and be 8-byte aligned; used by tests and fuzzing). */
 wrt_status wrt_gto_open_memory(const void *data, size_t size, wrt_gto *out);
-/* Unmaps (if wrt_gto_open mapped it) and zeroes *g. NULL or a zeroed g: no-op. */
+/* The same, with the arrays the reader keeps for the compact entries' view (a 3.0 file's
+ * column starts, a 2.0 file's block rows and bases: `owned`) taken from alloc(user, n)
+ * and given back by free(user, p) on close (both NULL: malloc and free). For a library
+ * whose caller supplies the memory (libwrt's wrt_allocator). */
+wrt_status wrt_gto_open_alloc(const char *path, void *(*alloc)(void *, size_t), void (*free_fn)(void *, void *),
+                              void *user, wrt_gto *out);
+wrt_status wrt_gto_open_memory_alloc(const void *data, size_t size, void *(*alloc)(void *, size_t),
+                                     void (*free_fn)(void *, void *), void *user, wrt_gto *out);
+/* Unmaps (if wrt_gto_open mapped it), frees what it keeps, and zeroes *g. NULL or a zeroed g: no-op. */
 void wrt_gto_close(wrt_gto *g);
 
 /* Prints what a file holds: header, section table (bytes per section), counts, the

@@ -219,6 +219,16 @@ static wrt_status check_opcode_counts(const uint8_t *b, const gto_section *const
     return WRT_OK;
 }
 
+/* The reader's own arrays (g->owned): from the caller's allocator when it gave one. */
+static void *gto_owned_alloc(const wrt_gto *g, size_t n) {
+    return g->owned_alloc ? g->owned_alloc(g->owned_user, n) : malloc(n);
+}
+static void gto_owned_free(wrt_gto *g) {
+    if (g->owned && g->owned_free) g->owned_free(g->owned_user, g->owned);
+    else free(g->owned);
+    g->owned = NULL;
+}
+
 /* The compact stream's counts (section opstream, 3.0): its header says how many blocks
  * and entries, which must give the section's size; fills g's counts and pointers, and
  * col_start with an array of its own (g->owned), filled when the section is checked. */
@@ -241,8 +251,9 @@ static wrt_status check_opstream_counts(const uint8_t *b, const gto_layout *L, w
     }
     gto_opstream_layout o = gto_opstream_place((uint32_t)nf, h.nblocks, h.nnz);
     const uint8_t *p = b + s->offset;
-    uint64_t *cs = calloc((size_t)nf + 1, sizeof *cs);
+    uint64_t *cs = gto_owned_alloc(g, ((size_t)nf + 1) * sizeof *cs);
     if (!cs) return wrt_fail(WRT_ERR_NOMEM, "no memory for the %" PRIu64 " columns' starts", nf + 1);
+    memset(cs, 0, ((size_t)nf + 1) * sizeof *cs);
     g->owned = cs;
     g->col_start = cs;
     g->nnz = h.nnz;
@@ -260,7 +271,7 @@ static wrt_status check_opstream_counts(const uint8_t *b, const gto_layout *L, w
 static wrt_status opcode_view(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     gto_opcode_layout o = gto_opcode_place(g->nfuncs, g->nblocks, g->nnz);
     const wrt_gto_block *blk = (const wrt_gto_block *)(b + L->sec[SEC_OPCODE]->offset + o.blocks);
-    uint32_t *row0 = malloc(g->nblocks ? 5 * (size_t)g->nblocks : 1);
+    uint32_t *row0 = gto_owned_alloc(g, g->nblocks ? 5 * (size_t)g->nblocks : 1);
     if (!row0) return wrt_fail(WRT_ERR_NOMEM, "no memory for the %" PRIu64 " blocks' rows", g->nblocks);
     int8_t *base = (int8_t *)(row0 + g->nblocks);
     for (uint64_t k = 0; k < g->nblocks; k++) { row0[k] = blk[k].row0; base[k] = (int8_t)blk[k].base; }
@@ -421,20 +432,34 @@ static wrt_status validate(const uint8_t *b, size_t len, wrt_gto *out) {
     if (st == WRT_OK) st = gto_check_counts(b, &L, out);
     if (st == WRT_OK) st = gto_check_payload(b, &L, out);
     if (st == WRT_OK && L.sec[SEC_OPCODE]) st = opcode_view(b, &L, out);
-    if (st != WRT_OK) { free(out->owned); out->owned = NULL; }
+    if (st != WRT_OK) gto_owned_free(out);
     return st;
 }
 
-wrt_status wrt_gto_open_memory(const void *data, size_t size, wrt_gto *out) {
+/* The allocator kept in out across the memset that starts every open. */
+static void keep_alloc(wrt_gto *out, void *(*alloc)(void *, size_t), void (*free_fn)(void *, void *), void *user) {
     memset(out, 0, sizeof *out);
-    if (!data && size) return wrt_fail(WRT_ERR_INVALID_ARG, "no data");
-    if ((uintptr_t)data % 8) return wrt_fail(WRT_ERR_INVALID_ARG, ".gto image not 8-byte aligned");
+    out->owned_alloc = alloc;
+    out->owned_free = free_fn;
+    out->owned_user = user;
+}
+
+wrt_status wrt_gto_open_memory_alloc(const void *data, size_t size, void *(*alloc)(void *, size_t),
+                                     void (*free_fn)(void *, void *), void *user, wrt_gto *out) {
+    keep_alloc(out, alloc, free_fn, user);
+    if (!alloc != !free_fn) { memset(out, 0, sizeof *out); return wrt_fail(WRT_ERR_INVALID_ARG, "an allocator needs both alloc and free"); }
+    if (!data && size) { memset(out, 0, sizeof *out); return wrt_fail(WRT_ERR_INVALID_ARG, "no data"); }
+    if ((uintptr_t)data % 8) { memset(out, 0, sizeof *out); return wrt_fail(WRT_ERR_INVALID_ARG, ".gto image not 8-byte aligned"); }
     wrt_status st = validate(data, size, out);
     if (st != WRT_OK) { memset(out, 0, sizeof *out); return st; }
     out->map = (void *)data;
     out->size = size;
     out->owns_map = 0;
     return WRT_OK;
+}
+
+wrt_status wrt_gto_open_memory(const void *data, size_t size, wrt_gto *out) {
+    return wrt_gto_open_memory_alloc(data, size, NULL, NULL, NULL, out);
 }
 
 /* Maps the whole of an open regular file read-only. *map is NULL for an empty file. */
@@ -489,17 +514,21 @@ wrt_status gto_adopt_map(void *map, size_t len, const char *path, wrt_gto *out) 
     return WRT_OK;
 }
 
-wrt_status wrt_gto_open(const char *path, wrt_gto *out) {
-    memset(out, 0, sizeof *out);
+wrt_status wrt_gto_open_alloc(const char *path, void *(*alloc)(void *, size_t), void (*free_fn)(void *, void *),
+                              void *user, wrt_gto *out) {
+    keep_alloc(out, alloc, free_fn, user);
+    if (!alloc != !free_fn) { memset(out, 0, sizeof *out); return wrt_fail(WRT_ERR_INVALID_ARG, "an allocator needs both alloc and free"); }
     void *map; size_t len;
     wrt_status st = gto_map_file(path, &map, &len);
-    if (st != WRT_OK) return st;
+    if (st != WRT_OK) { memset(out, 0, sizeof *out); return st; }
     return gto_adopt_map(map, len, path, out);
 }
+
+wrt_status wrt_gto_open(const char *path, wrt_gto *out) { return wrt_gto_open_alloc(path, NULL, NULL, NULL, out); }
 
 void wrt_gto_close(wrt_gto *g) {
     if (!g) return;
     if (g->owns_map && g->map) munmap(g->map, g->size);
-    free(g->owned);
+    gto_owned_free(g);
     memset(g, 0, sizeof *g);
 }

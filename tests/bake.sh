@@ -67,13 +67,13 @@ else
 fi
 # the first-bounce operator: written for glossy quads at the lobe's level (3 for the
 # glossy asset's floor, roughness 0.3), none with --first-bounce-level 0 (no K sections;
-# both files are version 2.0 for their compact entries, with the quad-to-source map)
+# both files are version 3.0 for their compact entries, with the quad-to-source map)
 if "$bake" assets/glossy.gltf -q 1 -o "$tmp/k.gto" --quiet >/dev/null 2>&1 &&
    "$bake" assets/glossy.gltf -q 1 -o "$tmp/k0.gto" --first-bounce-level 0 --quiet >/dev/null 2>&1; then
     k=$("$bake" --info "$tmp/k.gto" --json | jq -r '"\(.version) \(.first_bounce.max_angular_node_level)"')
     k0=$("$bake" --info "$tmp/k0.gto" --json | jq -r '"\(.version) \(.first_bounce) \(.source_map != null)"')
-    [ "$k" = "2.0 2" ] && ok "glossy bake: first-bounce operator to outgoing level 3 ($k)" || ko "glossy bake: first-bounce operator ($k)"
-    [ "$k0" = "2.0 null true" ] && ok "--first-bounce-level 0: no K, the source map (2.0)" || ko "--first-bounce-level 0: $k0"
+    [ "$k" = "3.0 2" ] && ok "glossy bake: first-bounce operator to outgoing level 3 ($k)" || ko "glossy bake: first-bounce operator ($k)"
+    [ "$k0" = "3.0 null true" ] && ok "--first-bounce-level 0: no K, the source map (3.0)" || ko "--first-bounce-level 0: $k0"
 else
     ko "glossy bakes with and without the first-bounce operator"
 fi

@@ -489,6 +489,41 @@ static void test_v3_forged(void) {
     free(b);
 }
 
+
+/* The reader's own arrays come from the caller's allocator when it gives one: a 3.0
+ * file's rebuilt col_start (8 bytes a function), a 2.0 file's block rows and bases (5
+ * bytes a block); close gives them back. */
+static long n_alloc, n_free;
+static size_t last_size;
+static void *count_alloc(void *user, size_t n) { (void)user; n_alloc++; last_size = n; return malloc(n); }
+static void count_free(void *user, void *p) { (void)user; if (p) n_free++; free(p); }
+static void test_v3_allocator(void) {
+    build();
+    for (int v2 = 0; v2 <= 1; v2++) {
+        contents.opcode_v2 = v2;
+        size_t n;
+        uint8_t *b = written("al.gto", &n);
+        if (!b) return;
+        wrt_gto g;
+        n_alloc = n_free = 0;
+        wrt_status st = wrt_gto_open_memory_alloc(b, n, count_alloc, count_free, NULL, &g);
+        size_t want = v2 ? 5 * (size_t)g.nblocks : 8 * ((size_t)nfuncs + 1);
+        CHECK(st == WRT_OK && n_alloc == 1 && last_size == want && g.owned, "%s: %ld allocation of %zu bytes (want %zu): %s",
+              v2 ? "2.0" : "3.0", n_alloc, last_size, want, wrt_last_error());
+        wrt_gto_close(&g);
+        CHECK(n_free == 1, "%s: close gives it back (%ld frees)", v2 ? "2.0" : "3.0", n_free);
+        /* a refused image gives back what the reader took */
+        b[n - 1] ^= 1;
+        n_alloc = n_free = 0;
+        st = wrt_gto_open_memory_alloc(b, n, count_alloc, count_free, NULL, &g);
+        CHECK(st == WRT_ERR_CORRUPT && n_alloc == n_free, "%s refused: %ld allocations, %ld frees", v2 ? "2.0" : "3.0",
+              n_alloc, n_free);
+        free(b);
+    }
+    wrt_gto g;
+    CHECK(wrt_gto_open_memory_alloc(NULL, 0, count_alloc, NULL, NULL, &g) == WRT_ERR_INVALID_ARG, "alloc without free refused");
+}
+
 /* ---- version rules ---- */
 
 static void test_critical(void) {
@@ -529,6 +564,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_v3_same_entries);
     TEST_RUN(test_v3_damaged);
     TEST_RUN(test_v3_forged);
+    TEST_RUN(test_v3_allocator);
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
     if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", tmpdir);
