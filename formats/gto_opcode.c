@@ -65,36 +65,62 @@ uint64_t gto_block_end(const uint32_t *rows, uint64_t a, uint64_t end) {
     return b;
 }
 
-uint8_t *gto_blocks_encode(uint32_t ncols, const uint64_t *col_start, const uint32_t *rows, const float *vals,
-                           uint32_t codec, uint32_t code_bytes, gto_block_coder code, uint64_t *size) {
-    uint64_t nnz = col_start[ncols], nb = 0;
-    for (uint32_t s = 0; s < ncols; s++)
-        for (uint64_t a = col_start[s]; a < col_start[s + 1]; a = gto_block_end(rows, a, col_start[s + 1])) nb++;
-    gto_opcode_layout o = gto_blocks_place(ncols, nb, nnz, code_bytes);
-    uint8_t *p = calloc(1, o.size);
+/* Cuts ncols columns of entries into blocks (gto_block_end) in column order: the number
+ * of blocks, and with bcol given, each column's first block in bcol, each entry's row
+ * delta (0 at a block's first) and, for block k of entries [a, b), block(ctx, k, a, b). */
+typedef void (*block_fn)(void *ctx, uint64_t k, uint64_t a, uint64_t b);
+static uint64_t cut_blocks(uint32_t ncols, const uint64_t *col_start, const uint32_t *rows, uint32_t *bcol,
+                           uint8_t *deltas, block_fn block, void *ctx) {
+    uint64_t k = 0;
+    for (uint32_t s = 0; s < ncols; s++) {
+        if (bcol) bcol[s] = (uint32_t)k;
+        uint64_t end = col_start[s + 1];
+        for (uint64_t a = col_start[s], b; a < end; a = b, k++) {
+            b = gto_block_end(rows, a, end);
+            if (!bcol) continue;
+            block(ctx, k, a, b);
+            deltas[a] = 0;
+            for (uint64_t i = a + 1; i < b; i++) deltas[i] = (uint8_t)(rows[i] - rows[i - 1]);
+        }
+    }
+    if (bcol) bcol[ncols] = (uint32_t)k;
+    return k;
+}
+
+/* A new compact payload of `size` bytes with its header, or NULL. */
+static uint8_t *new_payload(uint64_t size, uint32_t codec, uint64_t nb, uint64_t nnz) {
+    uint8_t *p = calloc(1, size);
     if (!p) return NULL;
     gto_opcode_head *h = (gto_opcode_head *)p;
     h->codec = codec;
     h->block_max = WRT_GTO_BLOCK_MAX;
     h->nblocks = nb;
     h->nnz = nnz;
-    uint32_t *bcol = (uint32_t *)(p + o.bcol);
-    wrt_gto_block *blk = (wrt_gto_block *)(p + o.blocks);
-    uint8_t *deltas = p + o.deltas;
-    uint64_t k = 0;
-    for (uint32_t s = 0; s < ncols; s++) {
-        bcol[s] = (uint32_t)k;
-        uint64_t end = col_start[s + 1];
-        for (uint64_t a = col_start[s], b; a < end; a = b, k++) {
-            b = gto_block_end(rows, a, end);
-            blk[k].row0 = rows[a];
-            blk[k].n = (uint8_t)(b - a);
-            blk[k].base = code(vals, a, b, p + o.codes);
-            deltas[a] = 0;
-            for (uint64_t i = a + 1; i < b; i++) deltas[i] = (uint8_t)(rows[i] - rows[i - 1]);
-        }
-    }
-    bcol[ncols] = (uint32_t)k;
+    return p;
+}
+
+/* Where the blocks' records go: 2.0's wrt_gto_block (blk) or 3.0's row0 and base arrays. */
+typedef struct block_out {
+    const uint32_t *rows; const float *vals;
+    gto_block_coder code; uint8_t *codes;
+    wrt_gto_block *blk;
+    uint32_t *row0; int8_t *base;
+} block_out;
+static void put_block(void *ctx, uint64_t k, uint64_t a, uint64_t b) {
+    block_out *o = ctx;
+    int16_t base = o->code(o->vals, a, b, o->codes);
+    if (o->blk) o->blk[k] = (wrt_gto_block){o->rows[a], (uint8_t)(b - a), 0, base};
+    else { o->row0[k] = o->rows[a]; o->base[k] = (int8_t)base; }
+}
+
+uint8_t *gto_blocks_encode(uint32_t ncols, const uint64_t *col_start, const uint32_t *rows, const float *vals,
+                           uint32_t codec, uint32_t code_bytes, gto_block_coder code, uint64_t *size) {
+    uint64_t nnz = col_start[ncols], nb = cut_blocks(ncols, col_start, rows, NULL, NULL, NULL, NULL);
+    gto_opcode_layout o = gto_blocks_place(ncols, nb, nnz, code_bytes);
+    uint8_t *p = new_payload(o.size, codec, nb, nnz);
+    if (!p) return NULL;
+    block_out bo = {rows, vals, code, p + o.codes, (wrt_gto_block *)(p + o.blocks), NULL, NULL};
+    cut_blocks(ncols, col_start, rows, (uint32_t *)(p + o.bcol), p + o.deltas, put_block, &bo);
     *size = o.size;
     return p;
 }
@@ -108,33 +134,12 @@ uint8_t *gto_opcode_encode(uint32_t nfuncs, const uint64_t *col_start, const uin
  * counts (a block's first delta, 0, marks its start) and without col_start. */
 uint8_t *gto_opstream_encode(uint32_t nfuncs, const uint64_t *col_start, const uint32_t *rows,
                              const float *vals, uint64_t *size) {
-    uint64_t nnz = col_start[nfuncs], nb = 0;
-    for (uint32_t s = 0; s < nfuncs; s++)
-        for (uint64_t a = col_start[s]; a < col_start[s + 1]; a = gto_block_end(rows, a, col_start[s + 1])) nb++;
+    uint64_t nnz = col_start[nfuncs], nb = cut_blocks(nfuncs, col_start, rows, NULL, NULL, NULL, NULL);
     gto_opstream_layout o = gto_opstream_place(nfuncs, nb, nnz);
-    uint8_t *p = calloc(1, o.size);
+    uint8_t *p = new_payload(o.size, WRT_GTO_CODEC3, nb, nnz);
     if (!p) return NULL;
-    gto_opcode_head *h = (gto_opcode_head *)p;
-    h->codec = WRT_GTO_CODEC3;
-    h->block_max = WRT_GTO_BLOCK_MAX;
-    h->nblocks = nb;
-    h->nnz = nnz;
-    uint32_t *bcol = (uint32_t *)(p + o.bcol), *row0 = (uint32_t *)(p + o.row0);
-    int8_t *base = (int8_t *)(p + o.base);
-    uint8_t *deltas = p + o.deltas;
-    uint64_t k = 0;
-    for (uint32_t s = 0; s < nfuncs; s++) {
-        bcol[s] = (uint32_t)k;
-        uint64_t end = col_start[s + 1];
-        for (uint64_t a = col_start[s], b; a < end; a = b, k++) {
-            b = gto_block_end(rows, a, end);
-            row0[k] = rows[a];
-            base[k] = (int8_t)encode_block(vals, a, b, p + o.codes);
-            deltas[a] = 0;
-            for (uint64_t i = a + 1; i < b; i++) deltas[i] = (uint8_t)(rows[i] - rows[i - 1]);
-        }
-    }
-    bcol[nfuncs] = (uint32_t)k;
+    block_out bo = {rows, vals, encode_block, p + o.codes, NULL, (uint32_t *)(p + o.row0), (int8_t *)(p + o.base)};
+    cut_blocks(nfuncs, col_start, rows, (uint32_t *)(p + o.bcol), p + o.deltas, put_block, &bo);
     *size = o.size;
     return p;
 }

@@ -185,6 +185,33 @@ static wrt_status check_csc_counts(const gto_section *const *S, uint32_t keys, u
     return WRT_OK;
 }
 
+/* A compact section's header (opcode, kcode, opstream: read here, checksummed in stage 3):
+ * its counts must lay out exactly the section's size for ncols columns (size_of, the
+ * section's layout; at least min_block bytes a block). A header whose counts do not fit
+ * is reported as the checksum mismatch when the checksum is wrong: the damage it is. */
+static wrt_status compact_head(const uint8_t *b, const gto_section *s, uint64_t ncols, uint64_t min_block,
+                               uint64_t (*size_of)(uint32_t, uint64_t, uint64_t), gto_opcode_head *h) {
+    const char *nm = gto_sec_name(s->id);
+    if (s->size < sizeof(gto_opcode_head))
+        return wrt_fail(WRT_ERR_CORRUPT, "section %s: %" PRIu64 " bytes, less than its %zu-byte header", nm, s->size,
+                        sizeof(gto_opcode_head));
+    memcpy(h, b + s->offset, sizeof *h);
+    if (h->nnz > s->size || h->nblocks > s->size / min_block || h->nblocks > UINT32_MAX || ncols > UINT32_MAX - 1 ||
+        size_of((uint32_t)ncols, h->nblocks, h->nnz) != s->size) {
+        uint64_t computed = wrt_gto_checksum(b + s->offset, (size_t)s->size);
+        if (computed != s->checksum)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: checksum mismatch (stored 0x%016" PRIx64
+                            ", computed 0x%016" PRIx64 ")", nm, s->checksum, computed);
+        return wrt_fail(WRT_ERR_CORRUPT, "section %s: %" PRIu64 " bytes do not hold the %" PRIu64 " blocks and %"
+                        PRIu64 " entries its header says (with %" PRIu64 " columns)", nm, s->size, h->nblocks, h->nnz,
+                        ncols);
+    }
+    return WRT_OK;
+}
+static uint64_t opcode_size(uint32_t nc, uint64_t nb, uint64_t nnz) { return gto_opcode_place(nc, nb, nnz).size; }
+static uint64_t kcode_size(uint32_t nc, uint64_t nb, uint64_t nnz) { return gto_kcode_place(nc, nb, nnz).size; }
+static uint64_t opstream_size(uint32_t nc, uint64_t nb, uint64_t nnz) { return gto_opstream_place(nc, nb, nnz).size; }
+
 /* The compact operator's counts: its header (read here, checksummed in stage 3) says
  * how many blocks and entries, which must give the section's size exactly; fills g's
  * counts and pointers. */
@@ -193,22 +220,10 @@ static wrt_status check_opcode_counts(const uint8_t *b, const gto_section *const
     if (S[SEC_COL_START]->count != S[SEC_FKEYS]->count + 1)
         return wrt_fail(WRT_ERR_CORRUPT, "section col_start: %" PRIu64 " entries, expected %" PRIu64 " (functions + 1)",
                         S[SEC_COL_START]->count, S[SEC_FKEYS]->count + 1);
-    if (s->size < sizeof(gto_opcode_head))
-        return wrt_fail(WRT_ERR_CORRUPT, "section opcode: %" PRIu64 " bytes, less than its %zu-byte header", s->size,
-                        sizeof(gto_opcode_head));
     gto_opcode_head h;
-    memcpy(&h, b + s->offset, sizeof h);
     uint64_t nf = S[SEC_FKEYS]->count;
-    if (h.nnz > s->size || h.nblocks > s->size / 8 || h.nblocks > UINT32_MAX || nf > UINT32_MAX - 1 ||
-        gto_opcode_place((uint32_t)nf, h.nblocks, h.nnz).size != s->size) {
-        /* a damaged header reads as the damage it is, as in stage 3 */
-        uint64_t computed = wrt_gto_checksum(b + s->offset, (size_t)s->size);
-        if (computed != s->checksum)
-            return wrt_fail(WRT_ERR_CORRUPT, "section opcode: checksum mismatch (stored 0x%016" PRIx64
-                            ", computed 0x%016" PRIx64 ")", s->checksum, computed);
-        return wrt_fail(WRT_ERR_CORRUPT, "section opcode: %" PRIu64 " bytes do not hold the %" PRIu64 " blocks and %"
-                        PRIu64 " entries its header says (with %" PRIu64 " columns)", s->size, h.nblocks, h.nnz, nf);
-    }
+    wrt_status st = compact_head(b, s, nf, 8, opcode_size, &h);
+    if (st != WRT_OK) return st;
     gto_opcode_layout o = gto_opcode_place((uint32_t)nf, h.nblocks, h.nnz);
     const uint8_t *p = b + s->offset;
     g->nnz = h.nnz;
@@ -234,21 +249,10 @@ static void gto_owned_free(wrt_gto *g) {
  * col_start with an array of its own (g->owned), filled when the section is checked. */
 static wrt_status check_opstream_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     const gto_section *s = L->opstream;
-    if (s->size < sizeof(gto_opcode_head))
-        return wrt_fail(WRT_ERR_CORRUPT, "section opstream: %" PRIu64 " bytes, less than its %zu-byte header", s->size,
-                        sizeof(gto_opcode_head));
     gto_opcode_head h;
-    memcpy(&h, b + s->offset, sizeof h);
     uint64_t nf = L->sec[SEC_FKEYS]->count;
-    if (h.nnz > s->size || h.nblocks > s->size / 5 || h.nblocks > UINT32_MAX || nf > UINT32_MAX - 1 ||
-        gto_opstream_place((uint32_t)nf, h.nblocks, h.nnz).size != s->size) {
-        uint64_t computed = wrt_gto_checksum(b + s->offset, (size_t)s->size);
-        if (computed != s->checksum)
-            return wrt_fail(WRT_ERR_CORRUPT, "section opstream: checksum mismatch (stored 0x%016" PRIx64
-                            ", computed 0x%016" PRIx64 ")", s->checksum, computed);
-        return wrt_fail(WRT_ERR_CORRUPT, "section opstream: %" PRIu64 " bytes do not hold the %" PRIu64 " blocks and %"
-                        PRIu64 " entries its header says (with %" PRIu64 " columns)", s->size, h.nblocks, h.nnz, nf);
-    }
+    wrt_status st = compact_head(b, s, nf, 5, opstream_size, &h);
+    if (st != WRT_OK) return st;
     gto_opstream_layout o = gto_opstream_place((uint32_t)nf, h.nblocks, h.nnz);
     const uint8_t *p = b + s->offset;
     uint64_t *cs = gto_owned_alloc(g, ((size_t)nf + 1) * sizeof *cs);
@@ -288,21 +292,10 @@ static wrt_status check_kcode_counts(const uint8_t *b, const gto_layout *L, wrt_
     if (S[SEC_KCOL_START]->count != S[SEC_KKEYS]->count + 1)
         return wrt_fail(WRT_ERR_CORRUPT, "section kcol_start: %" PRIu64 " entries, expected %" PRIu64
                         " (K's columns + 1)", S[SEC_KCOL_START]->count, S[SEC_KKEYS]->count + 1);
-    if (s->size < sizeof(gto_opcode_head))
-        return wrt_fail(WRT_ERR_CORRUPT, "section kcode: %" PRIu64 " bytes, less than its %zu-byte header", s->size,
-                        sizeof(gto_opcode_head));
     gto_opcode_head h;
-    memcpy(&h, b + s->offset, sizeof h);
     uint64_t nk = S[SEC_KKEYS]->count;
-    if (h.nnz > s->size || h.nblocks > s->size / 8 || h.nblocks > UINT32_MAX ||
-        gto_kcode_place((uint32_t)nk, h.nblocks, h.nnz).size != s->size) {
-        uint64_t computed = wrt_gto_checksum(b + s->offset, (size_t)s->size);
-        if (computed != s->checksum)
-            return wrt_fail(WRT_ERR_CORRUPT, "section kcode: checksum mismatch (stored 0x%016" PRIx64
-                            ", computed 0x%016" PRIx64 ")", s->checksum, computed);
-        return wrt_fail(WRT_ERR_CORRUPT, "section kcode: %" PRIu64 " bytes do not hold the %" PRIu64 " blocks and %"
-                        PRIu64 " entries its header says (with %" PRIu64 " columns)", s->size, h.nblocks, h.nnz, nk);
-    }
+    wrt_status st = compact_head(b, s, nk, 8, kcode_size, &h);
+    if (st != WRT_OK) return st;
     gto_opcode_layout o = gto_kcode_place((uint32_t)nk, h.nblocks, h.nnz);
     const uint8_t *p = b + s->offset;
     g->knnz = h.nnz;

@@ -145,15 +145,40 @@ static void expect(wrt_status got, wrt_status want, const char *substr, const ch
  * multiple of 64 of the payload. */
 typedef struct opc { size_t sec, bcol, blocks, codes, deltas; uint64_t nblocks, nnz; } opc;
 static size_t al64(size_t x) { return (x + 63) / 64 * 64; }
+/* Section id's payload offset and its header's counts, then where its n arrays of
+ * bytes[i] (in order after the 64-byte header, each at a multiple of 64 of the payload)
+ * start: at[i]. */
+static void arrays_at(const uint8_t *b, uint32_t id, size_t *sec, uint64_t *nblocks, uint64_t *nnz, int n,
+                      const uint64_t *per_func_block_entry, size_t *at) {
+    *sec = (size_t)rd64(b, entry_of(b, id) + 8);
+    *nblocks = rd64(b, *sec + 8);
+    *nnz = rd64(b, *sec + 16);
+    size_t off = 64;
+    for (int i = 0; i < n; i++) { /* bytes a function (+ 1), a block, an entry */
+        const uint64_t *m = per_func_block_entry + 3 * i;
+        at[i] = *sec + off;
+        off = al64(off + m[0] * ((size_t)nfuncs + 1) + m[1] * *nblocks + m[2] * *nnz);
+    }
+}
 static opc locate(const uint8_t *b) {
     opc o;
-    o.sec = (size_t)rd64(b, entry_of(b, 17) + 8);
-    o.nblocks = rd64(b, o.sec + 8);
-    o.nnz = rd64(b, o.sec + 16);
-    o.bcol = o.sec + 64;
-    o.blocks = o.sec + al64(64 + 4 * ((size_t)nfuncs + 1));
-    o.codes = o.sec + al64(o.blocks - o.sec + 8 * o.nblocks);
-    o.deltas = o.sec + al64(o.codes - o.sec + 4 * o.nnz);
+    static const uint64_t m[4][3] = {{4, 0, 0}, {0, 8, 0}, {0, 0, 4}, {0, 0, 1}};
+    size_t at[4];
+    arrays_at(b, 17, &o.sec, &o.nblocks, &o.nnz, 4, &m[0][0], at);
+    o.bcol = at[0]; o.blocks = at[1]; o.codes = at[2]; o.deltas = at[3];
+    return o;
+}
+
+/* Where the opstream section's arrays are (GTO_FORMAT.md): header 64 bytes, then bcol
+ * (u32, nfuncs + 1), row0 (u32, nblocks), codes (u32, nnz), base (i8, nblocks), deltas
+ * (u8, nnz), each from a multiple of 64 of the payload. */
+typedef struct ops { size_t sec, bcol, row0, codes, base, deltas; uint64_t nblocks, nnz; } ops;
+static ops locate3(const uint8_t *b) {
+    ops o;
+    static const uint64_t m[5][3] = {{4, 0, 0}, {0, 4, 0}, {0, 0, 4}, {0, 1, 0}, {0, 0, 1}};
+    size_t at[5];
+    arrays_at(b, 261, &o.sec, &o.nblocks, &o.nnz, 5, &m[0][0], at);
+    o.bcol = at[0]; o.row0 = at[1]; o.codes = at[2]; o.base = at[3]; o.deltas = at[4];
     return o;
 }
 
@@ -232,26 +257,42 @@ static void test_roundtrip(void) {
 
 /* ---- damage ---- */
 
-static void test_truncated_and_flipped(void) {
+/* Every truncation refused, and a flipped byte in each of the section's arrays (2.0's
+ * opcode or 3.0's opstream) found by its checksum. */
+static void damaged(int v2) {
     build();
+    contents.opcode_v2 = v2;
     size_t n;
-    uint8_t *b = written("d.gto", &n);
+    uint8_t *b = written(v2 ? "d.gto" : "d3.gto", &n);
     if (!b) return;
     wrt_gto g;
     int refused = 0, tries = 0;
     for (size_t len = 0; len < n; len += 1 + len / 16, tries++) refused += open_copy(b, len, &g) != WRT_OK;
     CHECK(refused == tries, "every truncation refused (%d of %d)", refused, tries);
-    opc o = locate(b);
-    size_t at[5] = {o.sec + 8, o.bcol + 40, o.blocks + 13, o.codes + 4 * 1000 + 2, o.deltas + 777};
-    for (int k = 0; k < 5; k++) {
+    size_t at[6];
+    int na;
+    if (v2) {
+        opc o = locate(b);
+        size_t a2[5] = {o.sec + 8, o.bcol + 40, o.blocks + 13, o.codes + 4 * 1000 + 2, o.deltas + 777};
+        memcpy(at, a2, sizeof a2);
+        na = 5;
+    } else {
+        ops o = locate3(b);
+        size_t a3[6] = {o.sec + 8, o.bcol + 40, o.row0 + 13, o.codes + 4 * 1000 + 2, o.base + 7, o.deltas + 777};
+        memcpy(at, a3, sizeof a3);
+        na = 6;
+    }
+    for (int k = 0; k < na; k++) {
         b[at[k]] ^= 0x10;
-        expect(open_copy(b, n, &g), WRT_ERR_CORRUPT, "section opcode: checksum mismatch", "flipped byte");
+        expect(open_copy(b, n, &g), WRT_ERR_CORRUPT, v2 ? "section opcode: checksum mismatch"
+                                                        : "section opstream: checksum mismatch", "flipped byte");
         b[at[k]] ^= 0x10;
     }
     CHECK(open_copy(b, n, &g) == WRT_OK, "the undamaged copy opens: %s", wrt_last_error());
-    wrt_gto_close(&g);
     free(b);
 }
+
+static void test_truncated_and_flipped(void) { damaged(1); }
 
 /* One forged change (then the checksums made right): refused with `msg`. */
 static void forged(const uint8_t *b, size_t n, size_t at, const void *val, size_t len, wrt_status want,
@@ -265,6 +306,34 @@ static void forged(const uint8_t *b, size_t n, size_t at, const void *val, size_
     free(c);
 }
 
+/* The forgeries both compact sections (opcode, opstream) answer alike: a mantissa -512,
+ * bcol out of order or not ending at nblocks, another codec, one entry more in the
+ * header, a padding byte, a block's first row not above the previous block's last in
+ * its column (block k's row0 at row0 + stride k). */
+static void forged_shared(const uint8_t *b, size_t n, size_t sec, size_t bcol, size_t codes, size_t row0, size_t stride,
+                          size_t pad, uint64_t nblocks, uint64_t nnz, uint32_t wrong_codec) {
+    uint32_t u32 = 0x200u << 10;
+    uint64_t u64;
+    uint8_t u8;
+    char msg[64];
+    forged(b, n, codes + 4 * 123, &u32, 4, WRT_ERR_CORRUPT, "entry 123 channel 1: mantissa -512", "mantissa -512");
+    u32 = 0xffffffu; forged(b, n, bcol + 4 * 3, &u32, 4, WRT_ERR_CORRUPT, "bcol not monotone at column 4", "bcol");
+    u32 = (uint32_t)nblocks + 1;
+    forged(b, n, bcol + 4 * (size_t)nfuncs, &u32, 4, WRT_ERR_CORRUPT, "bcol runs from 0 to", "bcol end");
+    snprintf(msg, sizeof msg, "unknown encoding %u", wrong_codec);
+    forged(b, n, sec, &wrong_codec, 4, WRT_ERR_CORRUPT, msg, "codec");
+    u64 = nnz + 1; forged(b, n, sec + 16, &u64, 8, WRT_ERR_CORRUPT, "do not hold the", "header's entry count");
+    u8 = 1; forged(b, n, pad, &u8, 1, WRT_ERR_CORRUPT, "non-zero padding", "padding");
+    for (uint32_t s = 0; s < nfuncs; s++) {
+        uint32_t k0 = rd32(b, bcol + 4 * s), k1 = rd32(b, bcol + 4 * (s + 1));
+        if (k1 - k0 < 2) continue;
+        u32 = rd32(b, row0 + stride * k0);
+        forged(b, n, row0 + stride * (k0 + 1), &u32, 4, WRT_ERR_CORRUPT, "not above the previous block's last",
+               "rows across blocks");
+        break;
+    }
+}
+
 static void test_forged(void) {
     build();
     size_t n;
@@ -276,7 +345,6 @@ static void test_forged(void) {
     uint8_t u8;
     int16_t i16;
     uint32_t u32;
-    uint64_t u64;
     u8 = 0; forged(b, n, b5 + 4, &u8, 1, WRT_ERR_CORRUPT, "block 5 (column", "block of 0 entries");
     u8 = 65; forged(b, n, b5 + 4, &u8, 1, WRT_ERR_CORRUPT, "65 entries (1..64)", "block of 65 entries");
     u8 = 1; forged(b, n, b5 + 5, &u8, 1, WRT_ERR_CORRUPT, "reserved byte 1", "reserved byte");
@@ -290,23 +358,7 @@ static void test_forged(void) {
     if (b[o.blocks + 8 * 5 + 4] > 1) {
         u8 = 0; forged(b, n, o.deltas + e5 + 1, &u8, 1, WRT_ERR_CORRUPT, "row delta 0, rows must ascend", "delta 0");
     }
-    u32 = 0x200u << 10; forged(b, n, o.codes + 4 * 123, &u32, 4, WRT_ERR_CORRUPT, "entry 123 channel 1: mantissa -512",
-                               "mantissa -512");
-    u32 = 0xffffffu; forged(b, n, o.bcol + 4 * 3, &u32, 4, WRT_ERR_CORRUPT, "bcol not monotone at column 4", "bcol");
-    u32 = (uint32_t)o.nblocks + 1;
-    forged(b, n, o.bcol + 4 * (size_t)nfuncs, &u32, 4, WRT_ERR_CORRUPT, "bcol runs from 0 to", "bcol end");
-    u32 = 2; forged(b, n, o.sec, &u32, 4, WRT_ERR_CORRUPT, "unknown encoding 2", "codec");
-    u64 = o.nnz + 1; forged(b, n, o.sec + 16, &u64, 8, WRT_ERR_CORRUPT, "do not hold the", "header's entry count");
-    u8 = 1; forged(b, n, o.codes - 1, &u8, 1, WRT_ERR_CORRUPT, "non-zero padding", "padding");
-    /* a block's first row at or below the previous block's last (same column) */
-    for (uint32_t s = 0; s < nfuncs; s++) {
-        uint32_t k0 = rd32(b, o.bcol + 4 * s), k1 = rd32(b, o.bcol + 4 * (s + 1));
-        if (k1 - k0 < 2) continue;
-        u32 = rd32(b, o.blocks + 8 * (size_t)k0);
-        forged(b, n, o.blocks + 8 * (size_t)(k0 + 1), &u32, 4, WRT_ERR_CORRUPT, "not above the previous block's last",
-               "rows across blocks");
-        break;
-    }
+    forged_shared(b, n, o.sec, o.bcol, o.codes, o.blocks, 8, o.codes - 1, o.nblocks, o.nnz, 2);
     /* one entry more in a block than its column has */
     u8 = (uint8_t)(b[blast + 4] + 1);
     if (u8 <= 64) forged(b, n, blast + 4, &u8, 1, WRT_ERR_CORRUPT, "hold", "block count against col_start");
@@ -317,23 +369,6 @@ static void test_forged(void) {
 
 
 /* ---- version 3.0: section opstream ---- */
-
-/* Where the opstream section's arrays are (GTO_FORMAT.md): header 64 bytes, then bcol
- * (u32, nfuncs + 1), row0 (u32, nblocks), codes (u32, nnz), base (i8, nblocks), deltas
- * (u8, nnz), each from a multiple of 64 of the payload. */
-typedef struct ops { size_t sec, bcol, row0, codes, base, deltas; uint64_t nblocks, nnz; } ops;
-static ops locate3(const uint8_t *b) {
-    ops o;
-    o.sec = (size_t)rd64(b, entry_of(b, 261) + 8);
-    o.nblocks = rd64(b, o.sec + 8);
-    o.nnz = rd64(b, o.sec + 16);
-    o.bcol = o.sec + 64;
-    o.row0 = o.sec + al64(64 + 4 * ((size_t)nfuncs + 1));
-    o.codes = o.sec + al64(o.row0 - o.sec + 4 * o.nblocks);
-    o.base = o.sec + al64(o.codes - o.sec + 4 * o.nnz);
-    o.deltas = o.sec + al64(o.base - o.sec + o.nblocks);
-    return o;
-}
 
 /* The same contents written as 2.0 (opcode, col_start) and 3.0 (opstream): the 3.0 file
  * is version 3.0 without sections 7 and 17, smaller by col_start and 3 bytes a block,
@@ -383,26 +418,7 @@ static void test_v3_same_entries(void) {
     free(b2); free(b3); free(b4);
 }
 
-static void test_v3_damaged(void) {
-    build();
-    contents.opcode_v2 = 0;
-    size_t n;
-    uint8_t *b = written("d3.gto", &n);
-    if (!b) return;
-    wrt_gto g;
-    int refused = 0, tries = 0;
-    for (size_t len = 0; len < n; len += 1 + len / 16, tries++) refused += open_copy(b, len, &g) != WRT_OK;
-    CHECK(refused == tries, "every truncation refused (%d of %d)", refused, tries);
-    ops o = locate3(b);
-    size_t at[6] = {o.sec + 8, o.bcol + 40, o.row0 + 13, o.codes + 4 * 1000 + 2, o.base + 7, o.deltas + 777};
-    for (int k = 0; k < 6; k++) {
-        b[at[k]] ^= 0x10;
-        expect(open_copy(b, n, &g), WRT_ERR_CORRUPT, "section opstream: checksum mismatch", "flipped byte");
-        b[at[k]] ^= 0x10;
-    }
-    CHECK(open_copy(b, n, &g) == WRT_OK, "the undamaged copy opens: %s", wrt_last_error());
-    free(b);
-}
+static void test_v3_damaged(void) { damaged(0); }
 
 /* Entry index where block k starts (the k-th delta 0). */
 static uint64_t block_entry(const uint8_t *b, const ops *o, uint64_t k) {
@@ -453,24 +469,8 @@ static void test_v3_forged(void) {
         forged(b, n, o.deltas + c, &u8, 1, WRT_ERR_CORRUPT, "entries (1..64)", "block of more than 64");
         break;
     }
-    u32 = 0x200u << 20; forged(b, n, o.codes + 4 * 123, &u32, 4, WRT_ERR_CORRUPT, "entry 123 channel 2: mantissa -512",
-                               "mantissa -512");
-    u32 = 0xffffffu; forged(b, n, o.bcol + 4 * 3, &u32, 4, WRT_ERR_CORRUPT, "bcol not monotone at column 4", "bcol");
-    u32 = (uint32_t)o.nblocks + 1;
-    forged(b, n, o.bcol + 4 * (size_t)nfuncs, &u32, 4, WRT_ERR_CORRUPT, "bcol runs from 0 to", "bcol end");
-    u32 = 1; forged(b, n, o.sec, &u32, 4, WRT_ERR_CORRUPT, "unknown encoding 1", "codec");
-    u64 = o.nnz + 1; forged(b, n, o.sec + 16, &u64, 8, WRT_ERR_CORRUPT, "do not hold the", "header's entry count");
+    forged_shared(b, n, o.sec, o.bcol, o.codes, o.row0, 4, o.base - 1, o.nblocks, o.nnz, 1);
     u64 = o.nblocks - 64; forged(b, n, o.sec + 8, &u64, 8, WRT_ERR_CORRUPT, "do not hold the", "header's block count");
-    u8 = 1; forged(b, n, o.base - 1, &u8, 1, WRT_ERR_CORRUPT, "non-zero padding", "padding");
-    /* a block's first row at or below the previous block's last (same column) */
-    for (uint32_t s = 0; s < nfuncs; s++) {
-        uint32_t k0 = rd32(b, o.bcol + 4 * s), k1 = rd32(b, o.bcol + 4 * (s + 1));
-        if (k1 - k0 < 2) continue;
-        u32 = rd32(b, o.row0 + 4 * (size_t)k0);
-        forged(b, n, o.row0 + 4 * (size_t)(k0 + 1), &u32, 4, WRT_ERR_CORRUPT, "not above the previous block's last",
-               "rows across blocks");
-        break;
-    }
     /* opstream in a 2.0 file; beside col_start (section 7 renamed to it is not possible:
      * the ids must ascend, so the opstream entry is given id 17's place instead) */
     u8 = 2; forged(b, n, 12, &u8, 1, WRT_ERR_CORRUPT, "section opstream in a version 2.0 file (it needs version 3.0)",
