@@ -11,7 +11,8 @@
  * refused naming it, an unknown id below 256 skipped. The 3.0 file of the same contents
  * decodes to the 2.0 file's operator to the bit, and its own damage and forgeries (a
  * block start lost or made up, a row past the last function, a block over 64 entries,
- * bcol, header, padding, version) are refused by name. The layout is read from
+ * bcol, header, padding, version) are refused by name. `--seed FILE` writes the 3.0
+ * fuzz seed. The layout is read from
  * GTO_FORMAT.md's description, independently of gto_layout.h. */
 #ifndef _GNU_SOURCE
 #define _GNU_SOURCE
@@ -554,7 +555,19 @@ static void test_critical(void) {
     free(b);
 }
 
+/* The fuzz seed tests/data/gto/v3.0_opstream_seed.gto (`--seed FILE`): the operator of
+ * build() with entries in its first 80 columns only (blocks cut by both rules, a few
+ * thousand entries), as 3.0, small enough for the fuzzer's 64 KB inputs. */
+static void write_seed(const char *path) {
+    build();
+    for (uint32_t s = 81; s <= nfuncs; s++) col_start[s] = col_start[80];
+    contents.opcode_v2 = 0;
+    wrt_status st = wrt_gto_write(path, &contents);
+    printf("%s: %s\n", path, st == WRT_OK ? "written" : wrt_last_error());
+}
+
 int main(int argc, char **argv) {
+    if (argc > 2 && strcmp(argv[1], "--seed") == 0) { write_seed(argv[2]); return 0; }
     snprintf(tmpdir, sizeof tmpdir, "%s/wrt_test_gto_compact.XXXXXX", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp");
     if (!mkdtemp(tmpdir)) { perror("mkdtemp"); return 1; }
     TEST_RUN(test_roundtrip);

@@ -8,9 +8,9 @@
  * by `make fuzz`; the seeds are tests/data/fuzz_gto and tests/data/gto (which holds a
  * file with K, v1.1_k_small.gto, so that mutations reach K's checks, and a compact 2.0
  * file, v2.0_compact_small.gto, for the opcode section's, one with the compact K,
- * v2.0_kcode_small.gto, for section kcode's, and a 3.0 file, v3.0_compact_small.gto,
- * for section opstream's: its block starts, rows, bases and the col_start rebuilt from
- * them). */
+ * v2.0_kcode_small.gto, for section kcode's, and 3.0 files, v3.0_compact_small.gto and
+ * v3.0_opstream_seed.gto (80 columns, blocks cut by both rules), for section opstream's:
+ * its block starts, rows, bases and the col_start rebuilt from them). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
