@@ -77,6 +77,18 @@ if "$bake" assets/glossy.gltf -q 1 -o "$tmp/k.gto" --quiet >/dev/null 2>&1 &&
 else
     ko "glossy bakes with and without the first-bounce operator"
 fi
+# format 3.0 (the default) and --compact-v2 (2.0, for a 2.x reader): the same decoded
+# operator, every key, row and value bit (tools/gto_same), the 3.0 file the smaller
+if "$bake" assets/glossy.gltf -q 1 -o "$tmp/f3.gto" --quiet >/dev/null 2>&1 &&
+   "$bake" assets/glossy.gltf -q 1 -o "$tmp/f2.gto" --compact-v2 --quiet >/dev/null 2>&1; then
+    v=$("$bake" --info "$tmp/f3.gto" --json | jq -r .version)/$("$bake" --info "$tmp/f2.gto" --json | jq -r .version)
+    same=$("$build/tools/gto_same" "$tmp/f2.gto" "$tmp/f3.gto" 2>&1)
+    s3=$(stat -c %s "$tmp/f3.gto"); s2=$(stat -c %s "$tmp/f2.gto")
+    [ "$v" = "3.0/2.0" ] && [[ "$same" == *"the same operator"* ]] && [ "$s3" -lt "$s2" ] &&
+        ok "3.0 and --compact-v2's 2.0: the same operator, $s3 < $s2 bytes" || ko "3.0 against 2.0: $v, $s3 / $s2 bytes: $same"
+else
+    ko "glossy bakes as 3.0 and 2.0"
+fi
 expect_exit "first-bounce level 5 refused: exit 1" 1 "first-bounce-level.*\[0, 4\]" "$bake" assets/glossy.gltf -o "$tmp/x.gto" --first-bounce-level 5
 expect_exit "memory budget 0 refused: exit 1" 1 "max-memory.*\[1," "$bake" assets/cornell.gltf -o "$tmp/x.gto" --max-memory 0
 expect_exit "min level above max level: exit 1" 1 "deeper" "$bake" assets/cornell.gltf -o "$tmp/x.gto" --min-level 5 --max-level 3
