@@ -342,7 +342,7 @@ typedef struct wrt_gto_contents {
     const wrt_gto_cnode *ctree;
     uint32_t nctree;
     /* 1: the operator's entries are written compact (section opstream, version 3.0:
-     * GTO_FORMAT.md "The compact operator"; about 5.2 bytes an entry instead of 16, each
+     * GTO_FORMAT.md "The compact operator"; 5.2-5.5 bytes an entry instead of 16, each
      * value within 2^-10 of its entry's largest channel); 0: as floats (sections rows
      * and vals, version 1.x). */
     int compact;
