@@ -81,7 +81,7 @@ TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 .PHONY: all deps demo test tests stress study fuzz fuzz-fast clean assets bench bench-scale timings mutate install
 all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/examples/engine $(BUILD)/tests/runtime_instances \
      $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core $(BUILD)/tests/runtime_budget $(BUILD)/tools/codec_study \
-     $(BUILD)/tools/light_bw $(BUILD)/tools/op_kinds
+     $(BUILD)/tools/light_bw $(BUILD)/tools/op_kinds $(BUILD)/tools/gto_same
 
 deps:
 	@bash tools/install-deps.sh
@@ -214,6 +214,12 @@ $(BUILD)/tools/codec_study: $(call obj,tools/codec_study.c) $(BAKE_OBJ) $(BAKE_C
 
 # The stored operator's entries by kind (issue 22, docs/bench.md): not installed.
 $(BUILD)/tools/op_kinds: $(call obj,tools/op_kinds.c) $(BAKE_OBJ) $(BAKE_CORE_OBJ)
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
+
+# Whether two .gto files hold the same decoded operator (format 3.0's check): not installed.
+$(BUILD)/tools/gto_same: $(call obj,tools/gto_same.c) $(BAKE_OBJ) $(BAKE_CORE_OBJ)
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE)

@@ -16,8 +16,8 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
 /* Format version. The major version (WRT_GTO_VERSION) changes when an older reader
  * would misread a newer file; the minor version when a newer file only adds what an
  * older reader may skip (a new section id below 256, a field in a reserved slot whose
- * zero means "as before"). A reader accepts every minor of the majors it knows (1 and
- * 2) and refuses any other major with WRT_ERR_UNSUPPORTED, naming both versions. Since
+ * zero means "as before"). A reader accepts every minor of the majors it knows (1 to
+ * 3) and refuses any other major with WRT_ERR_UNSUPPORTED, naming both versions. Since
  * 2.0 a section id >= 256 is critical: a reader that does not know it refuses the file,
  * naming the section; ids below 256 that it does not know it skips.
  * Checklist for a bump (GTO_FORMAT.md, "Changing the format", says the same):
@@ -28,7 +28,7 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
  *   4. Keep tests/data/gto/v1_small.gto: a major bump makes the test expect
  *      WRT_ERR_UNSUPPORTED for it (or add a converter); a minor bump must still open it.
  *   5. Regenerate the golden file of the new version (test_gto --regen) and commit it. */
-#define WRT_GTO_VERSION 2
+#define WRT_GTO_VERSION 3
 #define WRT_GTO_VERSION_MINOR 0 /* 1.1: the optional first-bounce operator K (sections 12-15).
                                  * 1.2: the optional quad-to-source map (section 16).
                                  * 1.3: the optional corner normals (section 18) and
@@ -36,10 +36,15 @@ typedef struct wrt_scene wrt_scene; /* formats/scene.h: only the writer takes on
                                  * 2.0: the compact operator (section 17 in place of 8 and 9),
                                  * critical section ids (>= 256), the cluster tree (257),
                                  * K's entries compact (260, in place of 14 and 15).
+                                 * 3.0: the compact operator's stream (261, in place of 7
+                                 * and 17): the same codes and row deltas, the blocks'
+                                 * first rows and bases without their counts, col_start
+                                 * rebuilt on load.
                                  * The writer puts the lowest version that has what the file
                                  * holds: float entries without K or the map are 1.0, byte
                                  * for byte as before. */
 #define WRT_GTO_VERSION_FLOAT 1 /* the major of files with float entries (sections 8, 9) */
+#define WRT_GTO_VERSION_OPCODE 2 /* the major of files with section opcode (17), or only ctree / kcode */
 /* Critical sections (GTO_FORMAT.md): a section id >= 256 is critical: a reader that does
  * not know it refuses the file, naming it. The cluster tree (section 257, from `wrt-bake
  * --clusters`) is one: the quads' root slots then hold the tree's functions (docs/clusters.md).
@@ -140,7 +145,8 @@ typedef struct wrt_gto_block {
 #define WRT_GTO_BLOCK_MAX 64
 #define WRT_GTO_BASE_MIN (-126)
 #define WRT_GTO_BASE_MAX 36 /* 511 * 2^(36 + 3) < 2^48, the largest value a file may hold */
-#define WRT_GTO_CODEC 1     /* the encoding of this version: 3 x 10-bit mantissas, 2-bit e */
+#define WRT_GTO_CODEC 1     /* section opcode's encoding (2.0): 3 x 10-bit mantissas, 2-bit e */
+#define WRT_GTO_CODEC3 3    /* section opstream's (3.0): the same entries, blocks without counts */
 #define WRT_GTO_KCODEC 2    /* K's compact encoding (section kcode): a 14-bit mantissa, 2-bit e */
 #define WRT_GTO_KMANT_MAX 8191 /* |K mantissa| <= 8191: 14 bits, two's complement, -8192 unused */
 
@@ -206,17 +212,25 @@ typedef struct wrt_gto {
      * reader (common/cluster_tree.h's rules); NULL when the file has none. */
     const wrt_gto_cnode *ctree;
     uint32_t nctree;
-    /* The compact operator (version 2.0, section opcode): then rows and vals are NULL and
-     * column s's entries [col_start[s], col_start[s+1]) are in blocks
-     * [op_bcol[s], op_bcol[s+1]); block b's entries follow those of block b - 1, entry i
-     * has the code op_codes[i] (wrt_gto_decode with the block's base) and the row
-     * (previous row of the block) + op_deltas[i] (the block's row0 for its first, whose
-     * delta is 0). NULL / 0 in a file with float entries. */
+    /* The compact operator (version 2.0, section opcode; version 3.0, section opstream):
+     * then rows and vals are NULL and column s's entries [col_start[s], col_start[s+1])
+     * are in blocks [op_bcol[s], op_bcol[s+1]); block b's entries follow those of block
+     * b - 1. Entry i starts a block exactly when op_deltas[i] is 0: its row is then the
+     * block's op_row0, else the previous entry's row + op_deltas[i]; its value is
+     * wrt_gto_decode(op_codes[i], the block's op_base). The same view for both versions:
+     * a 2.0 file's row0 and base are copied out of its block records on load, a 3.0
+     * file's col_start is rebuilt on load (both in `owned`). NULL / 0 in a file with float
+     * entries. */
     uint64_t nblocks;
     const uint32_t *op_bcol;          /* nfuncs + 1 */
-    const wrt_gto_block *op_blocks;   /* nblocks */
+    const uint32_t *op_row0;          /* nblocks: each block's first row */
+    const int8_t *op_base;            /* nblocks: each block's base exponent */
     const uint32_t *op_codes;         /* nnz */
     const uint8_t *op_deltas;         /* nnz */
+    void *owned;                      /* what the reader allocated for this view (close frees it) */
+    void *(*owned_alloc)(void *user, size_t size); /* where `owned` came from (NULL: malloc) */
+    void (*owned_free)(void *user, void *p);
+    void *owned_user;
     /* The compact first-bounce operator (version 2.0, critical section kcode, 260): then
      * krows and kvals are NULL and K's column j holds entries [kcol_start[j],
      * kcol_start[j+1]) in blocks [k_bcol[j], k_bcol[j+1]), laid out as the operator's
@@ -227,6 +241,24 @@ typedef struct wrt_gto {
     const uint16_t *k_codes;          /* knnz */
     const uint8_t *k_deltas;          /* knnz */
 } wrt_gto;
+
+/* The operator's entries one by one, whichever form the file holds them in: call
+ * wrt_gto_entry for entries i, i + 1, ... in order, starting with a column's first entry
+ * (col_start[s]) and a walk made by wrt_gto_walk_at(g, s) (a walk started at column 0
+ * may run on across columns). Returns entry i's row and puts its value in v (the
+ * compact entries' exact decode). */
+typedef struct wrt_gto_walk { uint64_t b; uint32_t row; int base; } wrt_gto_walk;
+static inline wrt_gto_walk wrt_gto_walk_at(const wrt_gto *g, uint32_t s) {
+    wrt_gto_walk w = {g->op_bcol ? g->op_bcol[s] : 0, 0, 0};
+    return w;
+}
+static inline uint32_t wrt_gto_entry(const wrt_gto *g, wrt_gto_walk *w, uint64_t i, float v[3]) {
+    if (g->rows) { for (int c = 0; c < 3; c++) v[c] = g->vals[i * 3 + c]; return g->rows[i]; }
+    if (g->op_deltas[i] == 0) { w->row = g->op_row0[w->b]; w->base = g->op_base[w->b]; w->b++; }
+    else w->row += g->op_deltas[i];
+    wrt_gto_decode(g->op_codes[i], w->base, v);
+    return w->row;
+}
 
 /* K's entries in compressed-column order, whichever form the file holds them in: rows
  * (fkeys indices) and values into caller arrays of g->knnz each. The compact form's
@@ -258,7 +290,15 @@ wrt_status wrt_gto_open(const char *path, wrt_gto *out);
 /* Same checks on a file image in memory (`data` must stay valid and unchanged while
  * `out` is used, and be 8-byte aligned; used by tests and fuzzing). */
 wrt_status wrt_gto_open_memory(const void *data, size_t size, wrt_gto *out);
-/* Unmaps (if wrt_gto_open mapped it) and zeroes *g. NULL or a zeroed g: no-op. */
+/* The same, with the arrays the reader keeps for the compact entries' view (a 3.0 file's
+ * column starts, a 2.0 file's block rows and bases: `owned`) taken from alloc(user, n)
+ * and given back by free(user, p) on close (both NULL: malloc and free). For a library
+ * whose caller supplies the memory (libwrt's wrt_allocator). */
+wrt_status wrt_gto_open_alloc(const char *path, void *(*alloc)(void *, size_t), void (*free_fn)(void *, void *),
+                              void *user, wrt_gto *out);
+wrt_status wrt_gto_open_memory_alloc(const void *data, size_t size, void *(*alloc)(void *, size_t),
+                                     void (*free_fn)(void *, void *), void *user, wrt_gto *out);
+/* Unmaps (if wrt_gto_open mapped it), frees what it keeps, and zeroes *g. NULL or a zeroed g: no-op. */
 void wrt_gto_close(wrt_gto *g);
 
 /* Prints what a file holds: header, section table (bytes per section), counts, the
@@ -301,11 +341,14 @@ typedef struct wrt_gto_contents {
      * (257), and the file as version 2.0. */
     const wrt_gto_cnode *ctree;
     uint32_t nctree;
-    /* 1: the operator's entries are written compact (section opcode, version 2.0:
-     * GTO_FORMAT.md "The compact operator"; about 5.5 bytes an entry instead of 16, each
+    /* 1: the operator's entries are written compact (section opstream, version 3.0:
+     * GTO_FORMAT.md "The compact operator"; 5.2-5.5 bytes an entry instead of 16, each
      * value within 2^-10 of its entry's largest channel); 0: as floats (sections rows
      * and vals, version 1.x). */
     int compact;
+    /* With compact: 1 writes the same entries as version 2.0's section opcode (17, with
+     * col_start), for a 2.x reader; 0 (default) version 3.0's opstream (261). */
+    int opcode_v2;
     /* With compact: 0 writes K compact too (section kcode, 260, in place of krows and
      * kvals; about 3 bytes an entry instead of 8, each value within 1/8191 of the larger
      * of itself and an eighth of its block's largest); 1 keeps K's float sections. */

@@ -598,6 +598,7 @@ chunk_check gto_sec_checker(uint32_t id) {
     case SEC_NORMALS: return check_normals;
     case SEC_OPCODE: return gto_check_opcode;
     case SEC_KCODE: return gto_check_kcode;
+    case SEC_OPSTREAM: return gto_check_opstream;
     default: return NULL;
     }
 }

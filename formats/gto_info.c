@@ -9,6 +9,7 @@
 
 #include <inttypes.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
 
@@ -186,8 +187,8 @@ static void info_figures(gto_info *I) {
             if (n > I->max_col) I->max_col = (uint32_t)n;
             if (!wrt_fkey_angular_root(g->fkeys[s])) I->nangular++;
         }
-        I->op_bytes = L->sec[SEC_FKEYS]->size + L->sec[SEC_COL_START]->size +
-                      (L->sec[SEC_OPCODE] ? L->sec[SEC_OPCODE]->size : L->sec[SEC_ROWS]->size + L->sec[SEC_VALS]->size);
+        I->op_bytes = L->sec[SEC_FKEYS]->size + (L->opstream ? L->opstream->size : L->sec[SEC_COL_START]->size +
+                      (L->sec[SEC_OPCODE] ? L->sec[SEC_OPCODE]->size : L->sec[SEC_ROWS]->size + L->sec[SEC_VALS]->size));
     }
     I->density = g->nfuncs ? (double)g->nnz / ((double)g->nfuncs * g->nfuncs) : 0;
     if (I->ok && g->nkcols) {
@@ -347,7 +348,7 @@ static void text_figures(FILE *f, const gto_info *I) {
     if (g->op_codes)
         fprintf(f, "            compact entries: %" PRIu64 " blocks (mean %.1f entries), %.2f bytes an entry\n",
                 g->nblocks, g->nblocks ? (double)g->nnz / g->nblocks : 0.0,
-                g->nnz ? (double)I->L.sec[SEC_OPCODE]->size / g->nnz : 0.0);
+                g->nnz ? (double)(I->L.opstream ? I->L.opstream : I->L.sec[SEC_OPCODE])->size / g->nnz : 0.0);
     fprintf(f, "            entries per column: mean %.1f, max %u; functions per quad: max %u; "
             "deepest level: spatial %u, angular %u\n",
             g->nfuncs ? (double)g->nnz / g->nfuncs : 0.0, I->max_col, I->max_fpq, I->max_sl, I->max_al);
@@ -453,6 +454,7 @@ wrt_status wrt_gto_print_info(const char *path, int json, FILE *f) {
     if (json) print_json(f, &I);
     else print_text(f, &I);
     if (map) munmap(map, I.len);
+    free(I.g.owned);
     if (!I.ok && map_ok) wrt_fail(I.st, "%s: %s", path, I.err);
     return I.st;
 }

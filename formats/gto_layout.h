@@ -125,7 +125,8 @@ enum {
 #define SEC_CRITICAL 256            /* ids from here on: a reader that does not know one refuses the file */
 #define SEC_CTREE 257               /* the cluster tree (version 2.0) */
 #define SEC_KCODE 260               /* the compact first-bounce operator (version 2.0), in place of krows, kvals */
-#define GTO_MAX_WRITTEN (SEC_KNOWN + 2) /* sections a file can hold: the known ones, ctree and kcode */
+#define SEC_OPSTREAM 261            /* the compact operator (version 3.0), in place of col_start and opcode */
+#define GTO_MAX_WRITTEN (SEC_KNOWN + 3) /* sections a file can hold: the known ones, ctree, kcode, opstream */
 #define SEC_REQUIRED SEC_PROVENANCE /* ids 1 .. this are in every file */
 #define GTO_MINOR_K 1               /* the minor version that added K */
 #define GTO_MINOR_SRCMAP 2          /* the minor version that added the quad-to-source map */
@@ -162,6 +163,32 @@ static inline gto_opcode_layout gto_blocks_place(uint32_t ncols, uint64_t nblock
 static inline gto_opcode_layout gto_opcode_place(uint32_t nfuncs, uint64_t nblocks, uint64_t nnz) {
     return gto_blocks_place(nfuncs, nblocks, nnz, 4);
 }
+
+/* The compact operator's stream (opstream, 261, version 3.0): the opcode's header (codec
+ * WRT_GTO_CODEC3), then at multiples of 64 from the payload's start (zero bytes
+ * between): bcol (u32, nfuncs + 1), each block's first row (u32, nblocks), the codes
+ * (u32, nnz), each block's base (i8, nblocks) and the row deltas (u8, nnz; 0 exactly at
+ * each block's first entry), which end the payload. No col_start: rebuilt on load. */
+struct vctx;
+typedef struct gto_opstream_layout { uint64_t bcol, row0, codes, base, deltas, size; } gto_opstream_layout;
+static inline gto_opstream_layout gto_opstream_place(uint32_t nfuncs, uint64_t nblocks, uint64_t nnz) {
+    gto_opstream_layout o;
+    o.bcol = sizeof(gto_opcode_head);
+    o.row0 = gto_align_up(o.bcol + 4 * ((uint64_t)nfuncs + 1));
+    o.codes = gto_align_up(o.row0 + 4 * nblocks);
+    o.base = gto_align_up(o.codes + 4 * nnz);
+    o.deltas = gto_align_up(o.base + nblocks);
+    o.size = o.deltas + nnz;
+    return o;
+}
+/* The checker of section opstream (gto_opcode.c), once its last chunk has been summed:
+ * its structure, and col_start rebuilt into v->col_out (the reader's, nfuncs + 1) or,
+ * without one (the writer), compared with v->g->col_start. The encoder: float entries
+ * into a new payload (*size bytes, malloc'd; NULL without memory), the same blocks,
+ * codes and deltas as section opcode's. Deterministic. */
+void gto_check_opstream(struct vctx *v, const uint8_t *base, uint64_t first, uint64_t n);
+uint8_t *gto_opstream_encode(uint32_t nfuncs, const uint64_t *col_start, const uint32_t *rows,
+                             const float *vals, uint64_t *size);
 
 /* The compact operator (gto_opcode.c). The checker of section opcode: the whole
  * section's structure once its last chunk has been summed (GTO_FORMAT.md). */
@@ -227,12 +254,13 @@ static inline int gto_sec_known(uint32_t id) { return id >= 1 && id <= SEC_KNOWN
 static inline const char *gto_sec_name(uint32_t id) {
     if (id == SEC_CTREE) return "ctree";
     if (id == SEC_KCODE) return "kcode";
+    if (id == SEC_OPSTREAM) return "opstream";
     return gto_sec_known(id) ? gto_sec_info[id].name : "unknown";
 }
 
 /* Element size of a section this code writes or reads (known ids and ctree). */
 static inline uint32_t gto_sec_elem(uint32_t id) {
-    if (id == SEC_KCODE) return 1;
+    if (id == SEC_KCODE || id == SEC_OPSTREAM) return 1;
     return id == SEC_CTREE ? (uint32_t)sizeof(wrt_gto_cnode) : gto_sec_info[id].elem_size;
 }
 _Static_assert(sizeof(wrt_gto_cnode) == 16, "ctree record");
@@ -253,6 +281,7 @@ typedef struct vctx {
     uint64_t kcol;      /* krows: current column */
     uint32_t kq;        /* krows: quad + 1 whose function range is [kq_lo, kq_hi) (0: none) */
     uint32_t kq_lo, kq_hi;
+    uint64_t *col_out;  /* opstream: where the reader rebuilds col_start (NULL: the writer's, compared) */
 } vctx;
 
 /* Checks elements [first, first + n) of a section whose payload starts at `base`. */
@@ -280,6 +309,7 @@ typedef struct gto_layout {
     const gto_section *sec[SEC_KNOWN_END];
     const gto_section *ctree; /* section ctree (257), or NULL */
     const gto_section *kcode; /* section kcode (260), or NULL */
+    const gto_section *opstream; /* section opstream (261), or NULL */
 } gto_layout;
 
 /* Stage 1: the header and the section table, no payload byte read. */

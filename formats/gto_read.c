@@ -14,6 +14,7 @@
 #include <inttypes.h>
 #include <stdalign.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
@@ -110,13 +111,14 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
         if (s->offset != gto_align_up(prev_end))
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 ", expected %" PRIu64
                             " (sections follow each other)", nm, s->offset, gto_align_up(prev_end));
-        int crit_known = s->id == SEC_CTREE || s->id == SEC_KCODE;
+        int crit_known = s->id == SEC_CTREE || s->id == SEC_KCODE || s->id == SEC_OPSTREAM;
         if (s->id >= SEC_CRITICAL && !crit_known)
             return wrt_fail(WRT_ERR_UNSUPPORTED, "section id %u is critical (ids from %u on must be understood) "
                             "and unknown to this reader: it cannot read this file", s->id, SEC_CRITICAL);
-        if (crit_known && h->version_major < 2)
-            return wrt_fail(WRT_ERR_CORRUPT, "section %s in a version %u.%u file (it needs version 2.0)", nm,
-                            h->version_major, h->version_minor);
+        int needs = s->id == SEC_OPSTREAM ? 3 : 2;
+        if (crit_known && h->version_major < needs)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s in a version %u.%u file (it needs version %d.0)", nm,
+                            h->version_major, h->version_minor, needs);
         if ((gto_sec_known(s->id) || crit_known) && s->elem_size != gto_sec_elem(s->id))
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: element size %u, expected %u", nm,
                             s->elem_size, gto_sec_elem(s->id));
@@ -127,6 +129,7 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
         if (gto_sec_known(s->id)) L->sec[s->id] = s;
         if (s->id == SEC_CTREE) L->ctree = s;
         if (s->id == SEC_KCODE) L->kcode = s;
+        if (s->id == SEC_OPSTREAM) L->opstream = s;
         prev_end = s->offset + s->size;
     }
     if (prev_end != len)
@@ -139,8 +142,17 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
     if (L->sec[SEC_OPCODE] && (L->sec[SEC_ROWS] || L->sec[SEC_VALS]))
         return wrt_fail(WRT_ERR_CORRUPT, "section opcode beside section %s (the entries are compact or "
                         "float, not both)", L->sec[SEC_ROWS] ? "rows" : "vals");
+    /* Or as the compact stream (opstream, 3.0), which also stands for col_start. */
+    if (L->opstream) {
+        uint32_t beside = L->sec[SEC_OPCODE] ? SEC_OPCODE : L->sec[SEC_ROWS] ? SEC_ROWS : L->sec[SEC_VALS] ? SEC_VALS
+                          : L->sec[SEC_COL_START] ? SEC_COL_START : 0;
+        if (beside)
+            return wrt_fail(WRT_ERR_CORRUPT, "section opstream beside section %s (it holds the operator's entries and "
+                            "the columns' starts are rebuilt from it)", gto_sec_name(beside));
+    }
     for (uint32_t id = 1; id <= SEC_REQUIRED; id++)
-        if (!L->sec[id] && !((id == SEC_ROWS || id == SEC_VALS) && L->sec[SEC_OPCODE]))
+        if (!L->sec[id] && !((id == SEC_ROWS || id == SEC_VALS) && (L->sec[SEC_OPCODE] || L->opstream)) &&
+            !(id == SEC_COL_START && L->opstream))
             return wrt_fail(WRT_ERR_CORRUPT, "missing section %s", gto_sec_name(id));
     /* The first-bounce operator: all four sections or none; or kkeys, kcol_start and kcode
      * (2.0, its entries compact). */
@@ -173,6 +185,33 @@ static wrt_status check_csc_counts(const gto_section *const *S, uint32_t keys, u
     return WRT_OK;
 }
 
+/* A compact section's header (opcode, kcode, opstream: read here, checksummed in stage 3):
+ * its counts must lay out exactly the section's size for ncols columns (size_of, the
+ * section's layout; at least min_block bytes a block). A header whose counts do not fit
+ * is reported as the checksum mismatch when the checksum is wrong: the damage it is. */
+static wrt_status compact_head(const uint8_t *b, const gto_section *s, uint64_t ncols, uint64_t min_block,
+                               uint64_t (*size_of)(uint32_t, uint64_t, uint64_t), gto_opcode_head *h) {
+    const char *nm = gto_sec_name(s->id);
+    if (s->size < sizeof(gto_opcode_head))
+        return wrt_fail(WRT_ERR_CORRUPT, "section %s: %" PRIu64 " bytes, less than its %zu-byte header", nm, s->size,
+                        sizeof(gto_opcode_head));
+    memcpy(h, b + s->offset, sizeof *h);
+    if (h->nnz > s->size || h->nblocks > s->size / min_block || h->nblocks > UINT32_MAX || ncols > UINT32_MAX - 1 ||
+        size_of((uint32_t)ncols, h->nblocks, h->nnz) != s->size) {
+        uint64_t computed = wrt_gto_checksum(b + s->offset, (size_t)s->size);
+        if (computed != s->checksum)
+            return wrt_fail(WRT_ERR_CORRUPT, "section %s: checksum mismatch (stored 0x%016" PRIx64
+                            ", computed 0x%016" PRIx64 ")", nm, s->checksum, computed);
+        return wrt_fail(WRT_ERR_CORRUPT, "section %s: %" PRIu64 " bytes do not hold the %" PRIu64 " blocks and %"
+                        PRIu64 " entries its header says (with %" PRIu64 " columns)", nm, s->size, h->nblocks, h->nnz,
+                        ncols);
+    }
+    return WRT_OK;
+}
+static uint64_t opcode_size(uint32_t nc, uint64_t nb, uint64_t nnz) { return gto_opcode_place(nc, nb, nnz).size; }
+static uint64_t kcode_size(uint32_t nc, uint64_t nb, uint64_t nnz) { return gto_kcode_place(nc, nb, nnz).size; }
+static uint64_t opstream_size(uint32_t nc, uint64_t nb, uint64_t nnz) { return gto_opstream_place(nc, nb, nnz).size; }
+
 /* The compact operator's counts: its header (read here, checksummed in stage 3) says
  * how many blocks and entries, which must give the section's size exactly; fills g's
  * counts and pointers. */
@@ -181,30 +220,68 @@ static wrt_status check_opcode_counts(const uint8_t *b, const gto_section *const
     if (S[SEC_COL_START]->count != S[SEC_FKEYS]->count + 1)
         return wrt_fail(WRT_ERR_CORRUPT, "section col_start: %" PRIu64 " entries, expected %" PRIu64 " (functions + 1)",
                         S[SEC_COL_START]->count, S[SEC_FKEYS]->count + 1);
-    if (s->size < sizeof(gto_opcode_head))
-        return wrt_fail(WRT_ERR_CORRUPT, "section opcode: %" PRIu64 " bytes, less than its %zu-byte header", s->size,
-                        sizeof(gto_opcode_head));
     gto_opcode_head h;
-    memcpy(&h, b + s->offset, sizeof h);
     uint64_t nf = S[SEC_FKEYS]->count;
-    if (h.nnz > s->size || h.nblocks > s->size / 8 || h.nblocks > UINT32_MAX || nf > UINT32_MAX - 1 ||
-        gto_opcode_place((uint32_t)nf, h.nblocks, h.nnz).size != s->size) {
-        /* a damaged header reads as the damage it is, as in stage 3 */
-        uint64_t computed = wrt_gto_checksum(b + s->offset, (size_t)s->size);
-        if (computed != s->checksum)
-            return wrt_fail(WRT_ERR_CORRUPT, "section opcode: checksum mismatch (stored 0x%016" PRIx64
-                            ", computed 0x%016" PRIx64 ")", s->checksum, computed);
-        return wrt_fail(WRT_ERR_CORRUPT, "section opcode: %" PRIu64 " bytes do not hold the %" PRIu64 " blocks and %"
-                        PRIu64 " entries its header says (with %" PRIu64 " columns)", s->size, h.nblocks, h.nnz, nf);
-    }
+    wrt_status st = compact_head(b, s, nf, 8, opcode_size, &h);
+    if (st != WRT_OK) return st;
     gto_opcode_layout o = gto_opcode_place((uint32_t)nf, h.nblocks, h.nnz);
     const uint8_t *p = b + s->offset;
     g->nnz = h.nnz;
     g->nblocks = h.nblocks;
     g->op_bcol = (const uint32_t *)(p + o.bcol);
-    g->op_blocks = (const wrt_gto_block *)(p + o.blocks);
     g->op_codes = (const uint32_t *)(p + o.codes);
     g->op_deltas = p + o.deltas;
+    return WRT_OK;
+}
+
+/* The reader's own arrays (g->owned): from the caller's allocator when it gave one. */
+static void *gto_owned_alloc(const wrt_gto *g, size_t n) {
+    return g->owned_alloc ? g->owned_alloc(g->owned_user, n) : malloc(n);
+}
+static void gto_owned_free(wrt_gto *g) {
+    if (g->owned && g->owned_free) g->owned_free(g->owned_user, g->owned);
+    else free(g->owned);
+    g->owned = NULL;
+}
+
+/* The compact stream's counts (section opstream, 3.0): its header says how many blocks
+ * and entries, which must give the section's size; fills g's counts and pointers, and
+ * col_start with an array of its own (g->owned), filled when the section is checked. */
+static wrt_status check_opstream_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
+    const gto_section *s = L->opstream;
+    gto_opcode_head h;
+    uint64_t nf = L->sec[SEC_FKEYS]->count;
+    wrt_status st = compact_head(b, s, nf, 5, opstream_size, &h);
+    if (st != WRT_OK) return st;
+    gto_opstream_layout o = gto_opstream_place((uint32_t)nf, h.nblocks, h.nnz);
+    const uint8_t *p = b + s->offset;
+    uint64_t *cs = gto_owned_alloc(g, ((size_t)nf + 1) * sizeof *cs);
+    if (!cs) return wrt_fail(WRT_ERR_NOMEM, "no memory for the %" PRIu64 " columns' starts", nf + 1);
+    memset(cs, 0, ((size_t)nf + 1) * sizeof *cs);
+    g->owned = cs;
+    g->col_start = cs;
+    g->nnz = h.nnz;
+    g->nblocks = h.nblocks;
+    g->op_bcol = (const uint32_t *)(p + o.bcol);
+    g->op_row0 = (const uint32_t *)(p + o.row0);
+    g->op_base = (const int8_t *)(p + o.base);
+    g->op_codes = (const uint32_t *)(p + o.codes);
+    g->op_deltas = p + o.deltas;
+    return WRT_OK;
+}
+
+/* A 2.0 file's blocks in the view both versions share (gto.h): each block's first row
+ * and base copied out of its record (g->owned), once the file is known to be sound. */
+static wrt_status opcode_view(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
+    gto_opcode_layout o = gto_opcode_place(g->nfuncs, g->nblocks, g->nnz);
+    const wrt_gto_block *blk = (const wrt_gto_block *)(b + L->sec[SEC_OPCODE]->offset + o.blocks);
+    uint32_t *row0 = gto_owned_alloc(g, g->nblocks ? 5 * (size_t)g->nblocks : 1);
+    if (!row0) return wrt_fail(WRT_ERR_NOMEM, "no memory for the %" PRIu64 " blocks' rows", g->nblocks);
+    int8_t *base = (int8_t *)(row0 + g->nblocks);
+    for (uint64_t k = 0; k < g->nblocks; k++) { row0[k] = blk[k].row0; base[k] = (int8_t)blk[k].base; }
+    g->owned = row0;
+    g->op_row0 = row0;
+    g->op_base = base;
     return WRT_OK;
 }
 
@@ -215,21 +292,10 @@ static wrt_status check_kcode_counts(const uint8_t *b, const gto_layout *L, wrt_
     if (S[SEC_KCOL_START]->count != S[SEC_KKEYS]->count + 1)
         return wrt_fail(WRT_ERR_CORRUPT, "section kcol_start: %" PRIu64 " entries, expected %" PRIu64
                         " (K's columns + 1)", S[SEC_KCOL_START]->count, S[SEC_KKEYS]->count + 1);
-    if (s->size < sizeof(gto_opcode_head))
-        return wrt_fail(WRT_ERR_CORRUPT, "section kcode: %" PRIu64 " bytes, less than its %zu-byte header", s->size,
-                        sizeof(gto_opcode_head));
     gto_opcode_head h;
-    memcpy(&h, b + s->offset, sizeof h);
     uint64_t nk = S[SEC_KKEYS]->count;
-    if (h.nnz > s->size || h.nblocks > s->size / 8 || h.nblocks > UINT32_MAX ||
-        gto_kcode_place((uint32_t)nk, h.nblocks, h.nnz).size != s->size) {
-        uint64_t computed = wrt_gto_checksum(b + s->offset, (size_t)s->size);
-        if (computed != s->checksum)
-            return wrt_fail(WRT_ERR_CORRUPT, "section kcode: checksum mismatch (stored 0x%016" PRIx64
-                            ", computed 0x%016" PRIx64 ")", s->checksum, computed);
-        return wrt_fail(WRT_ERR_CORRUPT, "section kcode: %" PRIu64 " bytes do not hold the %" PRIu64 " blocks and %"
-                        PRIu64 " entries its header says (with %" PRIu64 " columns)", s->size, h.nblocks, h.nnz, nk);
-    }
+    wrt_status st = compact_head(b, s, nk, 8, kcode_size, &h);
+    if (st != WRT_OK) return st;
     gto_opcode_layout o = gto_kcode_place((uint32_t)nk, h.nblocks, h.nnz);
     const uint8_t *p = b + s->offset;
     g->knnz = h.nnz;
@@ -255,7 +321,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     if (S[SEC_STATS]->count != 1)
         return wrt_fail(WRT_ERR_CORRUPT, "section stats: %" PRIu64 " records, expected 1",
                         S[SEC_STATS]->count);
-    wrt_status st = S[SEC_OPCODE] ? check_opcode_counts(b, S, g)
+    wrt_status st = L->opstream ? WRT_OK : S[SEC_OPCODE] ? check_opcode_counts(b, S, g)
                                   : check_csc_counts(S, SEC_FKEYS, SEC_COL_START, SEC_ROWS, SEC_VALS, "functions");
     if (st != WRT_OK) return st;
     if (S[SEC_KKEYS]) { /* then all four (gto_parse_layout) */
@@ -304,7 +370,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     g->camera = SECPTR(SEC_CAMERA);
     g->names = SECPTR(SEC_NAMES);
     g->fkeys = SECPTR(SEC_FKEYS);
-    g->col_start = SECPTR(SEC_COL_START);
+    if (!L->opstream) g->col_start = SECPTR(SEC_COL_START);
     if (S[SEC_ROWS]) { g->rows = SECPTR(SEC_ROWS); g->vals = SECPTR(SEC_VALS); }
     g->stats = SECPTR(SEC_STATS);
     g->provenance = SECPTR(SEC_PROVENANCE);
@@ -329,6 +395,7 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     }
     if (L->ctree) { g->ctree = (const void *)(b + L->ctree->offset); g->nctree = (uint32_t)L->ctree->count; }
 #undef SECPTR
+    if (L->opstream) return check_opstream_counts(b, L, g); /* last: it allocates */
     return WRT_OK;
 }
 
@@ -337,6 +404,7 @@ wrt_status gto_check_payload(const uint8_t *b, const gto_layout *L, const wrt_gt
     vctx v;
     memset(&v, 0, sizeof v);
     v.g = g;
+    if (L->opstream) v.col_out = g->owned; /* col_start, rebuilt by the section's check */
     for (uint32_t i = 0; i < L->h.nsections; i++) {
         const gto_section *s = &L->table[i];
         uint64_t sum = gto_scan_section(b + s->offset, s->count, s->elem_size, gto_sec_checker(s->id), &v);
@@ -356,19 +424,35 @@ static wrt_status validate(const uint8_t *b, size_t len, wrt_gto *out) {
     wrt_status st = gto_parse_layout(b, len, &L);
     if (st == WRT_OK) st = gto_check_counts(b, &L, out);
     if (st == WRT_OK) st = gto_check_payload(b, &L, out);
+    if (st == WRT_OK && L.sec[SEC_OPCODE]) st = opcode_view(b, &L, out);
+    if (st != WRT_OK) gto_owned_free(out);
     return st;
 }
 
-wrt_status wrt_gto_open_memory(const void *data, size_t size, wrt_gto *out) {
+/* The allocator kept in out across the memset that starts every open. */
+static void keep_alloc(wrt_gto *out, void *(*alloc)(void *, size_t), void (*free_fn)(void *, void *), void *user) {
     memset(out, 0, sizeof *out);
-    if (!data && size) return wrt_fail(WRT_ERR_INVALID_ARG, "no data");
-    if ((uintptr_t)data % 8) return wrt_fail(WRT_ERR_INVALID_ARG, ".gto image not 8-byte aligned");
+    out->owned_alloc = alloc;
+    out->owned_free = free_fn;
+    out->owned_user = user;
+}
+
+wrt_status wrt_gto_open_memory_alloc(const void *data, size_t size, void *(*alloc)(void *, size_t),
+                                     void (*free_fn)(void *, void *), void *user, wrt_gto *out) {
+    keep_alloc(out, alloc, free_fn, user);
+    if (!alloc != !free_fn) { memset(out, 0, sizeof *out); return wrt_fail(WRT_ERR_INVALID_ARG, "an allocator needs both alloc and free"); }
+    if (!data && size) { memset(out, 0, sizeof *out); return wrt_fail(WRT_ERR_INVALID_ARG, "no data"); }
+    if ((uintptr_t)data % 8) { memset(out, 0, sizeof *out); return wrt_fail(WRT_ERR_INVALID_ARG, ".gto image not 8-byte aligned"); }
     wrt_status st = validate(data, size, out);
     if (st != WRT_OK) { memset(out, 0, sizeof *out); return st; }
     out->map = (void *)data;
     out->size = size;
     out->owns_map = 0;
     return WRT_OK;
+}
+
+wrt_status wrt_gto_open_memory(const void *data, size_t size, wrt_gto *out) {
+    return wrt_gto_open_memory_alloc(data, size, NULL, NULL, NULL, out);
 }
 
 /* Maps the whole of an open regular file read-only. *map is NULL for an empty file. */
@@ -423,16 +507,21 @@ wrt_status gto_adopt_map(void *map, size_t len, const char *path, wrt_gto *out) 
     return WRT_OK;
 }
 
-wrt_status wrt_gto_open(const char *path, wrt_gto *out) {
-    memset(out, 0, sizeof *out);
+wrt_status wrt_gto_open_alloc(const char *path, void *(*alloc)(void *, size_t), void (*free_fn)(void *, void *),
+                              void *user, wrt_gto *out) {
+    keep_alloc(out, alloc, free_fn, user);
+    if (!alloc != !free_fn) { memset(out, 0, sizeof *out); return wrt_fail(WRT_ERR_INVALID_ARG, "an allocator needs both alloc and free"); }
     void *map; size_t len;
     wrt_status st = gto_map_file(path, &map, &len);
-    if (st != WRT_OK) return st;
+    if (st != WRT_OK) { memset(out, 0, sizeof *out); return st; }
     return gto_adopt_map(map, len, path, out);
 }
+
+wrt_status wrt_gto_open(const char *path, wrt_gto *out) { return wrt_gto_open_alloc(path, NULL, NULL, NULL, out); }
 
 void wrt_gto_close(wrt_gto *g) {
     if (!g) return;
     if (g->owns_map && g->map) munmap(g->map, g->size);
+    gto_owned_free(g);
     memset(g, 0, sizeof *g);
 }

@@ -261,6 +261,7 @@ typedef struct gto_records {
     wrt_gto_normals *normals; /* NULL: not written (no quad's corner normals leave its plane) */
     uint8_t *opcode;        /* the compact operator's section (contents.compact), else NULL */
     uint64_t opcode_size, nblocks;
+    uint32_t opcode_id;     /* SEC_OPSTREAM (3.0) or, with contents.opcode_v2, SEC_OPCODE (2.0) */
     uint8_t *kcode;         /* K's compact section (compact and not k_float, with K), else NULL */
     uint64_t kcode_size, knblocks;
 } gto_records;
@@ -316,7 +317,9 @@ static wrt_status encode_entries(const char *path, const wrt_gto_contents *c, gt
     if (view.nnz > UINT32_MAX * (uint64_t)WRT_GTO_BLOCK_MAX)
         return wrt_fail(WRT_ERR_INVALID_ARG, "refusing to write %s: %" PRIu64 " entries, too many to encode", path,
                         view.nnz);
-    R->opcode = gto_opcode_encode(nf, cs, c->rows, c->vals, &R->opcode_size);
+    R->opcode_id = c->opcode_v2 ? SEC_OPCODE : SEC_OPSTREAM;
+    R->opcode = c->opcode_v2 ? gto_opcode_encode(nf, cs, c->rows, c->vals, &R->opcode_size)
+                             : gto_opstream_encode(nf, cs, c->rows, c->vals, &R->opcode_size);
     if (!R->opcode) return wrt_fail(WRT_ERR_NOMEM, "cannot write %s: no memory to encode the entries", path);
     memcpy(&R->nblocks, R->opcode + offsetof(gto_opcode_head, nblocks), 8);
     return WRT_OK;
@@ -454,7 +457,7 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
         {SEC_VALS, nnz, c->vals}, {SEC_STATS, 1, &R->stats}, {SEC_PROVENANCE, strlen(prov), prov},
         {SEC_KKEYS, nk, c->kkeys}, {SEC_KCOL_START, (uint64_t)nk + 1, c->kcol_start},
         {SEC_KROWS, knnz, c->krows}, {SEC_KVALS, knnz, c->kvals}, {SEC_SRCMAP, R->nq, R->srcmap},
-        {SEC_OPCODE, R->opcode_size, R->opcode},
+        {SEC_OPCODE, R->opcode_id == SEC_OPCODE ? R->opcode_size : 0, R->opcode},
         {SEC_NORMALS, R->nq, R->normals},
         {SEC_TEXTURES, R->textures_size, R->textures},
     };
@@ -468,11 +471,14 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
             (id == SEC_TEXTURES && !R->textures) || (id == SEC_NORMALS && !R->normals) ||
             ((id == SEC_KROWS || id == SEC_KVALS) && R->kcode))
             continue;
-        if ((id == SEC_ROWS || id == SEC_VALS) ? R->opcode != NULL : id == SEC_OPCODE && !R->opcode) continue;
+        if ((id == SEC_ROWS || id == SEC_VALS) ? R->opcode != NULL : id == SEC_OPCODE && R->opcode_id != SEC_OPCODE)
+            continue;
+        if (id == SEC_COL_START && R->opcode_id == SEC_OPSTREAM) continue; /* rebuilt on load from opstream */
         P->secs[P->nsec++] = secs[i];
     }
     if (c->nctree) P->secs[P->nsec++] = (wsec){SEC_CTREE, c->nctree, c->ctree}; /* critical: version 2.0 */
     if (R->kcode) P->secs[P->nsec++] = (wsec){SEC_KCODE, R->kcode_size, R->kcode}; /* critical: version 2.0 */
+    if (R->opcode_id == SEC_OPSTREAM) P->secs[P->nsec++] = (wsec){SEC_OPSTREAM, R->opcode_size, R->opcode}; /* 3.0 */
 
     static const uint64_t nothing = 0;
     for (int i = 0; i < P->nsec; i++)
@@ -491,9 +497,11 @@ static wrt_status plan_header(const char *path, const wrt_gto_contents *c, const
     gto_section *tab = (gto_section *)(head + sizeof(gto_header));
     memcpy(h->magic, GTO_MAGIC, GTO_MAGIC_LEN);
     h->byte_order = GTO_BOM;
-    /* compact entries or a cluster tree: 2.0; float entries: 1.x as before (the lowest that has it all) */
-    h->version_major = R->opcode || c->nctree || R->kcode ? WRT_GTO_VERSION : WRT_GTO_VERSION_FLOAT;
-    h->version_minor = h->version_major == WRT_GTO_VERSION ? 0 : R->textures ? GTO_MINOR_TEXTURES
+    /* compact entries: 3.0 (2.0 with opcode_v2); a cluster tree or compact K: 2.0; float
+     * entries: 1.x as before (the lowest that has it all) */
+    h->version_major = R->opcode_id == SEC_OPSTREAM ? WRT_GTO_VERSION
+                       : R->opcode || c->nctree || R->kcode ? WRT_GTO_VERSION_OPCODE : WRT_GTO_VERSION_FLOAT;
+    h->version_minor = h->version_major != WRT_GTO_VERSION_FLOAT ? 0 : R->textures ? GTO_MINOR_TEXTURES
                        : R->normals ? GTO_MINOR_NORMALS : R->srcmap ? GTO_MINOR_SRCMAP : nk ? GTO_MINOR_K : 0;
     h->nsections = (uint32_t)nsec;
     h->header_size = hsize;

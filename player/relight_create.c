@@ -56,7 +56,7 @@ static wrt_status create_base(const wrt_gto *g, const wrt_relight_options *opt, 
     memset(r, 0, sizeof *r);
     r->g = g;
     r->mul.op.col_start = g->col_start; r->mul.op.rows = g->rows; r->mul.op.vals = g->vals; r->mul.op.nnz = g->nnz;
-    r->mul.op.bcol = g->op_bcol; r->mul.op.blocks = g->op_blocks; r->mul.op.codes = g->op_codes;
+    r->mul.op.bcol = g->op_bcol; r->mul.op.row0 = g->op_row0; r->mul.op.base = g->op_base; r->mul.op.codes = g->op_codes;
     r->mul.op.deltas = g->op_deltas;
     r->opt = o;
     if (r->opt.proj_level < 0 || r->opt.proj_level > PROJ_MAX_LEVEL) {

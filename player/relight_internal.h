@@ -131,9 +131,11 @@ typedef struct op_view {
     const uint32_t *rows;      /* NULL: the compact entries below */
     const float *vals;         /* nnz x 3 */
     uint64_t nnz;
-    /* The compact operator (version 2.0; wrt_gto's op_*), used when rows is NULL. */
+    /* The compact operator (versions 2.0 and 3.0; wrt_gto's op_*), used when rows is NULL:
+     * a block starts at each entry whose delta is 0 (its row row0, its base base). */
     const uint32_t *bcol;
-    const wrt_gto_block *blocks;
+    const uint32_t *row0;
+    const int8_t *base;
     const uint32_t *codes;
     const uint8_t *deltas;
 } op_view;

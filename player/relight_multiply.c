@@ -65,26 +65,31 @@ static void mul_chunk(wrt_relight *r, worker *w, int item, void *vctx) {
  * all): the code's mantissas times the source scaled by 2^(base + e), ev4[e]. That is
  * the float operator's product to the bit (the decoded value m 2^(base + e) is exact,
  * and so is the source times a power of two unless it leaves the normal range), so a row sums the same terms in the same
- * order as from the decoded floats. SSE4.1: the three mantissas sign-extended in one
- * multiply and shift. */
-static inline __attribute__((always_inline)) void mul_block(float *X4, const float (*ev4)[4], const uint32_t *codes, const uint8_t *deltas,
-                             uint32_t row, uint32_t n, uint32_t lo, uint32_t hi, int all) {
+ * order as from the decoded floats. The block is the first entry (its delta 0, its row
+ * row0) and those after it up to the next delta 0, m at most; returns how many.
+ * SSE4.1: the three mantissas sign-extended in one multiply and shift. */
+static inline __attribute__((always_inline)) uint64_t mul_block(float *X4, const float (*ev4)[4], const uint32_t *codes,
+                             const uint8_t *deltas, uint32_t row, uint64_t m, uint32_t lo, uint32_t hi, int all) {
 #ifdef __SSE4_1__
     const __m128i sh = _mm_set_epi32(0, 1 << 2, 1 << 12, 1 << 22);
 #endif
-    for (uint32_t j = 0; j < n; j++) {
+    uint64_t j = 0;
+    do {
         row += deltas[j];
-        if (!all && (row < lo || row >= hi)) continue;
-        uint32_t c = codes[j];
-        float *x = X4 + (size_t)row * 4;
+        if (all || (row >= lo && row < hi)) {
+            uint32_t c = codes[j];
+            float *x = X4 + (size_t)row * 4;
 #ifdef __SSE4_1__
-        __m128i m = _mm_srai_epi32(_mm_mullo_epi32(_mm_set1_epi32((int32_t)c), sh), 22);
-        _mm_store_ps(x, _mm_add_ps(_mm_load_ps(x), _mm_mul_ps(_mm_cvtepi32_ps(m), _mm_load_ps(ev4[c >> 30]))));
+            __m128i mm = _mm_srai_epi32(_mm_mullo_epi32(_mm_set1_epi32((int32_t)c), sh), 22);
+            _mm_store_ps(x, _mm_add_ps(_mm_load_ps(x), _mm_mul_ps(_mm_cvtepi32_ps(mm), _mm_load_ps(ev4[c >> 30]))));
 #else
-        const float *e = ev4[c >> 30];
-        for (int k = 0; k < 3; k++) x[k] += (float)((int32_t)(c << (22 - 10 * k)) >> 22) * e[k];
+            const float *e = ev4[c >> 30];
+            for (int k = 0; k < 3; k++) x[k] += (float)((int32_t)(c << (22 - 10 * k)) >> 22) * e[k];
 #endif
-    }
+        }
+        j++;
+    } while (j < m && deltas[j] != 0);
+    return j;
 }
 
 /* Rows [lo, hi) of X = Op E from the compact operator, as mul_chunk does from floats. */
@@ -100,33 +105,33 @@ static void mul_chunk_compact(wrt_relight *r, worker *w, int item, void *vctx) {
     for (uint32_t k = 0; k < mc->ncols; k++) {
         uint32_t s = mc->cols[k];
         const float *e = mc->src + (size_t)s * 3;
-        uint64_t i = op->col_start[s];
+        uint64_t i = op->col_start[s], end = op->col_start[s + 1];
 #ifdef __SSE2__
         const __m128 e3 = _mm_set_ps(0.0f, e[2], e[1], e[0]);
 #endif
         for (uint32_t b = op->bcol[s]; b < op->bcol[s + 1]; b++) {
-            const wrt_gto_block *bk = &op->blocks[b];
-            if (bk->row0 >= hi) break; /* rows ascend within the column */
+            uint32_t row0 = op->row0[b];
+            int base = op->base[b];
+            if (row0 >= hi) break; /* rows ascend within the column */
             alignas(16) float ev4[4][4];
 #ifdef __SSE2__
             /* the scalar loop's products e[c] x 2^(base + x), four lanes at once (the
              * fourth 0 x 2^(base + x) = 0): the same bits, a fifth of the instructions of
              * a block's set-up (13.8 entries a block on the maze) */
             const __m128i one = _mm_set1_epi32(1 << 23);
-            __m128i p2 = _mm_set1_epi32((bk->base + 127) * (1 << 23)); /* 2^(base + x), a normal float */
+            __m128i p2 = _mm_set1_epi32((base + 127) * (1 << 23)); /* 2^(base + x), a normal float */
             for (int x = 0; x < 4; x++, p2 = _mm_add_epi32(p2, one)) _mm_store_ps(ev4[x], _mm_mul_ps(e3, _mm_castsi128_ps(p2)));
 #else
             union { uint32_t u; float f; } p2;
             for (int x = 0; x < 4; x++) {
-                p2.u = (uint32_t)(bk->base + x + 127) << 23; /* 2^(base + x), a normal float */
+                p2.u = (uint32_t)(base + x + 127) << 23; /* 2^(base + x), a normal float */
                 for (int c = 0; c < 3; c++) ev4[x][c] = e[c] * p2.f;
                 ev4[x][3] = 0.0f;
             }
 #endif
             /* the whole range (one chunk, the usual case): the row test compiled out */
-            if (all) mul_block(mc->X4, ev4, op->codes + i, op->deltas + i, bk->row0, bk->n, 0, nf, 1);
-            else mul_block(mc->X4, ev4, op->codes + i, op->deltas + i, bk->row0, bk->n, lo, hi, 0);
-            i += bk->n;
+            if (all) i += mul_block(mc->X4, ev4, op->codes + i, op->deltas + i, row0, end - i, 0, nf, 1);
+            else i += mul_block(mc->X4, ev4, op->codes + i, op->deltas + i, row0, end - i, lo, hi, 0);
         }
     }
 }
@@ -139,79 +144,64 @@ static void mul_chunk_compact(wrt_relight *r, worker *w, int item, void *vctx) {
  * order (bit-identical); the others stay 0. A float file's copy is floats; a compact
  * file's is compact (display_rows_compact). Kept as the file's when it would save < 10%.
  * Returns -1 if there is no memory. */
-/* Entry i's row and value (decoded from the compact entries when the file has them). The
- * compact walk keeps its place: it visits the entries in order. */
-typedef struct entry_walk { uint64_t b; uint32_t left, row; } entry_walk;
-static uint32_t entry_at(const wrt_gto *g, entry_walk *wk, uint64_t i, float v[3]) {
-    if (g->rows) { memcpy(v, g->vals + i * 3, 3 * sizeof *v); return g->rows[i]; }
-    if (wk->left == 0) { wk->row = g->op_blocks[wk->b].row0; wk->left = g->op_blocks[wk->b].n; wk->b++; }
-    wk->row += g->op_deltas[i];
-    wk->left--;
-    wrt_gto_decode(g->op_codes[i], g->op_blocks[wk->b - 1].base, v);
-    return wk->row;
-}
-
 /* The compact file's copy without the rows nothing shows: each kept entry keeps its code
  * and its block's base (so the multiply's products are the file's, to the bit); a block
  * of the copy holds kept entries of consecutive blocks of the file with the same base (a
  * third of the entries kept: fewer, fuller blocks, each set up once), and a new one starts
- * at another base, where the row step between kept entries would not fit a delta byte, or
- * at 255 entries. keep: the kept entries. */
+ * at another base or where the row step between kept entries would not fit a delta byte.
+ * keep: the kept entries. */
 static int display_rows_compact(wrt_relight *r, uint64_t keep) {
     const wrt_gto *g = r->g;
     uint32_t nf = g->nfuncs;
     uint64_t nb = 0;
     for (int pass = 0; pass < 2; pass++) { /* 0: count the blocks, 1: fill */
         uint64_t *cs = NULL;
-        uint32_t *bc = NULL, *codes = NULL;
-        wrt_gto_block *bk = NULL;
+        uint32_t *bc = NULL, *codes = NULL, *row0 = NULL;
+        int8_t *base = NULL;
         uint8_t *dl = NULL;
         if (pass) {
             cs = relight_calloc(r, (size_t)nf + 1, sizeof *cs);
             bc = relight_calloc(r, (size_t)nf + 1, sizeof *bc);
-            bk = relight_calloc(r, nb ? nb : 1, sizeof *bk);
+            row0 = relight_calloc(r, nb ? nb * 5 : 1, 1); /* row0, then base */
             codes = relight_calloc(r, keep ? keep : 1, sizeof *codes);
             dl = relight_calloc(r, keep ? keep : 1, 1);
-            if (!cs || !bc || !bk || !codes || !dl) {
-                relight_free(r, cs); relight_free(r, bc); relight_free(r, bk); relight_free(r, codes); relight_free(r, dl);
+            if (!cs || !bc || !row0 || !codes || !dl) {
+                relight_free(r, cs); relight_free(r, bc); relight_free(r, row0); relight_free(r, codes); relight_free(r, dl);
                 return -1;
             }
+            base = (int8_t *)(row0 + nb);
         }
-        uint64_t n = 0, i = 0, m = 0;
+        uint64_t n = 0, m = 0;
+        wrt_gto_walk wk = wrt_gto_walk_at(g, 0);
+        float v[3];
         for (uint32_t c = 0; c < nf; c++) {
             if (pass) { cs[c] = n; bc[c] = (uint32_t)m; }
-            uint32_t last = 0, cnt = 0;
-            int open = 0, base = 0; /* a block of the copy is open (its base, its entries) */
-            for (uint32_t b = g->op_bcol[c]; b < g->op_bcol[c + 1]; b++) {
-                const wrt_gto_block *fb = &g->op_blocks[b];
-                uint32_t row = fb->row0;
-                for (uint32_t j = 0; j < fb->n; j++, i++) {
-                    row += g->op_deltas[i];
-                    if (r->fn_ang[row] != 0) continue;
-                    if (!open || fb->base != base || row - last > 255 || cnt == 255) {
-                        if (pass) bk[m] = (wrt_gto_block){row, 0, 0, fb->base};
-                        m++;
-                        open = 1;
-                        base = fb->base;
-                        cnt = 0;
-                        last = row;
-                    }
-                    cnt++;
-                    if (pass) {
-                        bk[m - 1].n++;
-                        codes[n] = g->op_codes[i];
-                        dl[n] = (uint8_t)(row - last);
-                    }
-                    last = row;
-                    n++;
+            uint32_t last = 0;
+            int open = 0, cbase = 0; /* a block of the copy is open (its base) */
+            for (uint64_t i = g->col_start[c]; i < g->col_start[c + 1]; i++) {
+                uint32_t row = wrt_gto_entry(g, &wk, i, v);
+                if (r->fn_ang[row] != 0) continue;
+                int start = !open || wk.base != cbase || row - last > 255;
+                if (start) {
+                    if (pass) { row0[m] = row; base[m] = (int8_t)wk.base; }
+                    m++;
+                    open = 1;
+                    cbase = wk.base;
                 }
+                if (pass) {
+                    codes[n] = g->op_codes[i];
+                    dl[n] = start ? 0 : (uint8_t)(row - last);
+                }
+                last = row;
+                n++;
             }
         }
         if (!pass) { nb = m; continue; }
         cs[nf] = n; bc[nf] = (uint32_t)m;
         op_view *op = &r->mul.op;
-        op->col_start = cs; op->bcol = bc; op->blocks = bk; op->codes = codes; op->deltas = dl; op->nnz = n;
-        r->mul.own[0] = cs; r->mul.own[1] = bc; r->mul.own[2] = bk; r->mul.own[3] = codes; r->mul.own[4] = dl;
+        op->col_start = cs; op->bcol = bc; op->row0 = row0; op->base = base; op->codes = codes; op->deltas = dl;
+        op->nnz = n;
+        r->mul.own[0] = cs; r->mul.own[1] = bc; r->mul.own[2] = row0; r->mul.own[3] = codes; r->mul.own[4] = dl;
     }
     return 0;
 }
@@ -220,9 +210,9 @@ int relight_display_rows_operator(wrt_relight *r) {
     const wrt_gto *g = r->g;
     uint32_t nf = g->nfuncs;
     uint64_t keep = 0;
-    entry_walk wk = {0, 0, 0};
+    wrt_gto_walk wk = wrt_gto_walk_at(g, 0);
     float v[3];
-    for (uint64_t i = 0; i < g->nnz; i++) keep += r->fn_ang[entry_at(g, &wk, i, v)] == 0;
+    for (uint64_t i = 0; i < g->nnz; i++) keep += r->fn_ang[wrt_gto_entry(g, &wk, i, v)] == 0;
     if (keep >= 0.9 * (double)g->nnz) return 0;
     if (!g->rows) return display_rows_compact(r, keep);
     uint64_t *cs = relight_calloc(r, (size_t)nf + 1, sizeof *cs);
@@ -230,11 +220,11 @@ int relight_display_rows_operator(wrt_relight *r) {
     float *vals = relight_calloc(r, (keep ? keep : 1) * 3 + 1, sizeof *vals); /* + 1: 4-float loads */
     if (!cs || !rows || !vals) { relight_free(r, cs); relight_free(r, rows); relight_free(r, vals); return -1; }
     uint64_t n = 0;
-    wk = (entry_walk){0, 0, 0};
+    wk = wrt_gto_walk_at(g, 0);
     for (uint32_t c = 0; c < nf; c++) {
         cs[c] = n;
         for (uint64_t i = g->col_start[c]; i < g->col_start[c + 1]; i++) {
-            uint32_t row = entry_at(g, &wk, i, v);
+            uint32_t row = wrt_gto_entry(g, &wk, i, v);
             if (r->fn_ang[row] != 0) continue;
             rows[n] = row;
             memcpy(vals + n * 3, v, 3 * sizeof *vals);

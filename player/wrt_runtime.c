@@ -145,12 +145,15 @@ static wrt_status read_private(const char *path, const wrt_allocator *al, void *
 /* The file into rt->g: mapped (path, !private), read into rt->copy (path, private), or
  * the caller's bytes (no path). The reader's messages get the path in front once. */
 static wrt_status open_gto(wrt_runtime *rt, const char *path, int private_copy, const void *data, size_t size) {
-    if (!path) return wrt_gto_open_memory(data, size, &rt->g);
-    if (!private_copy) return wrt_gto_open(path, &rt->g);
+    /* the reader's arrays for the compact entries (col_start of a 3.0 file, a 2.0 file's
+     * block rows and bases) come from the caller's allocator too */
+    const wrt_allocator *al = &rt->al;
+    if (!path) return wrt_gto_open_memory_alloc(data, size, al->alloc, al->free, al->user, &rt->g);
+    if (!private_copy) return wrt_gto_open_alloc(path, al->alloc, al->free, al->user, &rt->g);
     size_t len = 0;
     wrt_status s = read_private(path, &rt->al, &rt->copy, &len);
     if (s) return s;
-    if ((s = wrt_gto_open_memory(rt->copy, len, &rt->g))) {
+    if ((s = wrt_gto_open_memory_alloc(rt->copy, len, al->alloc, al->free, al->user, &rt->g))) {
         char msg[200];
         snprintf(msg, sizeof msg, "%s", wrt_last_error());
         rt->al.free(rt->al.user, rt->copy);

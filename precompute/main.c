@@ -73,7 +73,10 @@ static void usage(FILE *f) {
         "  --gathered             store the gathered GTO (T_fine G) instead of G - I\n"
         "  --report-gathered      compute the gathered GTO's link count without storing it\n"
         "  --float-entries        store the operator as floats (a version 1.x file, 16 bytes an\n"
-        "                         entry) instead of compact (version 2.0, about 5.5 bytes)\n"
+        "                         entry) instead of compact (version 3.0, about 5.3 bytes)\n"
+        "  --compact-v2           the compact entries as version 2.0 (section opcode, with\n"
+        "                         col_start: about 5.6 bytes an entry) for a 2.x reader; the\n"
+        "                         same decoded operator as 3.0's\n"
         "  --float-k              with compact entries, keep the first-bounce operator K's as\n"
         "                         floats (8 bytes an entry) instead of compact (3 bytes)\n"
         "  --no-tail              do not add the estimated tail of the series\n"
@@ -238,7 +241,8 @@ typedef struct bake_args {
     const char *scene_path, *out_path, *scan, *info;
     int scan_positional; /* --scan followed by an option: the scene is the positional argument */
     int json, force_progress, quiet, print_config, timings, drop_bad, allow_outside;
-    int float_entries;  /* --float-entries: a 1.x file, not the compact 2.0 */
+    int float_entries;  /* --float-entries: a 1.x file, not the compact 3.0 */
+    int compact_v2;     /* --compact-v2: the compact entries as 2.0's section opcode */
     int float_k;        /* --float-k: K's entries as floats in a compact file (sections 14, 15) */
     double max_error;   /* < 0: no accuracy check */
     int check_paths;
@@ -366,6 +370,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--gathered")) o->gathered = 1;
         else if (!strcmp(a, "--report-gathered")) o->report_gathered = 1;
         else if (!strcmp(a, "--float-entries")) A->float_entries = 1;
+        else if (!strcmp(a, "--compact-v2")) A->compact_v2 = 1;
         else if (!strcmp(a, "--float-k")) A->float_k = 1;
         else if (!strcmp(a, "--series-right")) {
             ok = opt_num(a, v, 0, 1e6, &o->series_right);
@@ -611,7 +616,7 @@ static int write_pending(const bake_args *A, const wrt_scene *s, const wrt_bake_
         .col_start = r->op.col, .rows = r->op.row, .vals = r->op.val,
         .op_kind = (uint32_t)r->op_kind, .material_alevel = r->material_alevel, .provenance = prov,
         .nkcols = r->nkcols, .kkeys = r->kkeys, .kcol_start = r->kcol_start, .krows = r->krows, .kvals = r->kvals,
-        .compact = !A->float_entries, .k_float = A->float_k,
+        .compact = !A->float_entries, .k_float = A->float_k, .opcode_v2 = A->compact_v2,
     };
     wrt_gto_cnode *cn = NULL;
     if (r->ctree.nnodes) { /* --clusters: the tree (section ctree, version 2.0) */

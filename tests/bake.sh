@@ -67,15 +67,27 @@ else
 fi
 # the first-bounce operator: written for glossy quads at the lobe's level (3 for the
 # glossy asset's floor, roughness 0.3), none with --first-bounce-level 0 (no K sections;
-# both files are version 2.0 for their compact entries, with the quad-to-source map)
+# both files are version 3.0 for their compact entries, with the quad-to-source map)
 if "$bake" assets/glossy.gltf -q 1 -o "$tmp/k.gto" --quiet >/dev/null 2>&1 &&
    "$bake" assets/glossy.gltf -q 1 -o "$tmp/k0.gto" --first-bounce-level 0 --quiet >/dev/null 2>&1; then
     k=$("$bake" --info "$tmp/k.gto" --json | jq -r '"\(.version) \(.first_bounce.max_angular_node_level)"')
     k0=$("$bake" --info "$tmp/k0.gto" --json | jq -r '"\(.version) \(.first_bounce) \(.source_map != null)"')
-    [ "$k" = "2.0 2" ] && ok "glossy bake: first-bounce operator to outgoing level 3 ($k)" || ko "glossy bake: first-bounce operator ($k)"
-    [ "$k0" = "2.0 null true" ] && ok "--first-bounce-level 0: no K, the source map (2.0)" || ko "--first-bounce-level 0: $k0"
+    [ "$k" = "3.0 2" ] && ok "glossy bake: first-bounce operator to outgoing level 3 ($k)" || ko "glossy bake: first-bounce operator ($k)"
+    [ "$k0" = "3.0 null true" ] && ok "--first-bounce-level 0: no K, the source map (3.0)" || ko "--first-bounce-level 0: $k0"
 else
     ko "glossy bakes with and without the first-bounce operator"
+fi
+# format 3.0 (the default) and --compact-v2 (2.0, for a 2.x reader): the same decoded
+# operator, every key, row and value bit (tools/gto_same), the 3.0 file the smaller
+if "$bake" assets/glossy.gltf -q 1 -o "$tmp/f3.gto" --quiet >/dev/null 2>&1 &&
+   "$bake" assets/glossy.gltf -q 1 -o "$tmp/f2.gto" --compact-v2 --quiet >/dev/null 2>&1; then
+    v=$("$bake" --info "$tmp/f3.gto" --json | jq -r .version)/$("$bake" --info "$tmp/f2.gto" --json | jq -r .version)
+    same=$("$build/tools/gto_same" "$tmp/f2.gto" "$tmp/f3.gto" 2>&1)
+    s3=$(stat -c %s "$tmp/f3.gto"); s2=$(stat -c %s "$tmp/f2.gto")
+    [ "$v" = "3.0/2.0" ] && [[ "$same" == *"the same operator"* ]] && [ "$s3" -lt "$s2" ] &&
+        ok "3.0 and --compact-v2's 2.0: the same operator, $s3 < $s2 bytes" || ko "3.0 against 2.0: $v, $s3 / $s2 bytes: $same"
+else
+    ko "glossy bakes as 3.0 and 2.0"
 fi
 expect_exit "first-bounce level 5 refused: exit 1" 1 "first-bounce-level.*\[0, 4\]" "$bake" assets/glossy.gltf -o "$tmp/x.gto" --first-bounce-level 5
 expect_exit "memory budget 0 refused: exit 1" 1 "max-memory.*\[1," "$bake" assets/cornell.gltf -o "$tmp/x.gto" --max-memory 0

@@ -660,7 +660,7 @@ static void test_open_path(const char *path) {
           (int)cm.allocs, (size_t)cm.bytes, (long long)sb.st_size);
     wrt_runtime_file_info fi;
     CHECK(wrt_runtime_get_file_info(priv, &fi, &err) == WRT_OK && fi.bytes == (unsigned long long)sb.st_size &&
-          fi.private_copy == 1 && fi.version_major == 2 && fi.functions > 0 && fi.entries > 0,
+          fi.private_copy == 1 && fi.version_major == 3 && fi.functions > 0 && fi.entries > 0,
           "file info: %llu bytes (on disk %lld), private %d, version %u.%u, %llu functions, %llu entries", fi.bytes,
           (long long)sb.st_size, fi.private_copy, fi.version_major, fi.version_minor, fi.functions, fi.entries);
     CHECK(wrt_runtime_get_file_info(priv, NULL, &err) == WRT_ERR_INVALID_ARG, "file info out NULL");

@@ -52,6 +52,7 @@ static const char *golden_s_path = "tests/data/gto/v1.2_srcmap_small.gto";
 /* Version 2.0: the compact operator (section 17 for 8 and 9); tests/test_gto_compact.c
  * tests it, this file keeps its golden file. */
 static const char *golden_c_path = "tests/data/gto/v2.0_compact_small.gto";
+static const char *golden_c3_path = "tests/data/gto/v3.0_compact_small.gto";
 /* Version 1.2: the quad-to-source map, id 16, after the 11 (no K here). */
 #define S_SRCMAP 11
 #define F_NSEC_S 12
@@ -630,11 +631,16 @@ static void test_versions(void) {
     uint8_t *b = written("ver_src.gto", write_good, &n);
     if (!b) return;
     wrt_gto g;
+    b[F_VERSION_MAJOR] = 4;
+    fix_header_sum(b);
+    write_raw(tpath("v4.gto"), b, n);
+    expect(wrt_gto_open(tpath("v4.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 4.0 is newer than this reader's version 3.0",
+           "newer major");
+    /* Version 3.0 with float entries: it opens (3.0 only adds the compact stream). */
     b[F_VERSION_MAJOR] = 3;
     fix_header_sum(b);
-    write_raw(tpath("v3.gto"), b, n);
-    expect(wrt_gto_open(tpath("v3.gto"), &g), WRT_ERR_UNSUPPORTED, "file version 3.0 is newer than this reader's version 2.0",
-           "newer major");
+    wrt_status st3 = open_copy(b, n, &g);
+    CHECK(st3 == WRT_OK && g.version == 3 && g.rows && !g.op_codes, "3.0 with float entries opens: %s", wrt_last_error());
     /* Version 2.0 with float entries (a 2.0 writer that needs a critical section but
      * writes floats): it opens. */
     b[F_VERSION_MAJOR] = 2;
@@ -1804,9 +1810,10 @@ static void test_srcmap_bad(void) {
     free(b);
 }
 
-static int write_good_c(const char *path) {
+static int write_c(const char *path, int v2) {
     wrt_gto_contents c = contents;
     c.compact = 1;
+    c.opcode_v2 = v2;
     wrt_status st = wrt_gto_write(path, &c);
     CHECK(st == WRT_OK, "write %s: %s", path, wrt_last_error());
     return st == WRT_OK;
@@ -1814,6 +1821,9 @@ static int write_good_c(const char *path) {
 
 /* The committed 2.0 file opens with the same operator as the 1.0 golden (rows exactly,
  * values within the encoding's step) and today's writer reproduces it. */
+static int write_good_c(const char *path) { return write_c(path, 1); }
+static int write_good_c3(const char *path) { return write_c(path, 0); }
+
 static void test_c_golden(void) {
     build();
     wrt_gto g;
@@ -1823,24 +1833,51 @@ static void test_c_golden(void) {
         CHECK(g.version == 2 && g.version_minor == 0 && g.nfuncs == 7 && g.nnz == 12 && !g.rows && g.op_codes,
               "golden compact counts");
         int ok = 1;
-        for (uint32_t s = 0; s < g.nfuncs; s++) {
-            uint64_t e = g.col_start[s];
-            for (uint32_t k = g.op_bcol[s]; k < g.op_bcol[s + 1]; k++) {
-                uint32_t row = g.op_blocks[k].row0;
-                for (uint32_t j = 0; j < g.op_blocks[k].n; j++, e++) {
-                    float v[3];
-                    row += g.op_deltas[e];
-                    wrt_gto_decode(g.op_codes[e], g.op_blocks[k].base, v);
-                    double m = fmax(fabs(vals[3 * e]), fmax(fabs(vals[3 * e + 1]), fabs(vals[3 * e + 2])));
-                    ok &= row == rows[e];
-                    for (int c = 0; c < 3; c++) ok &= fabs(v[c] - vals[3 * e + c]) <= m / 511;
-                }
-            }
+        wrt_gto_walk wk = wrt_gto_walk_at(&g, 0);
+        for (uint64_t e = 0; e < g.nnz; e++) {
+            float v[3];
+            uint32_t row = wrt_gto_entry(&g, &wk, e, v);
+            double m = fmax(fabs(vals[3 * e]), fmax(fabs(vals[3 * e + 1]), fabs(vals[3 * e + 2])));
+            ok &= row == rows[e];
+            for (int c = 0; c < 3; c++) ok &= fabs(v[c] - vals[3 * e + c]) <= m / 511;
         }
         CHECK(ok, "the golden compact file holds the operator of the 1.0 golden (within 1/511)");
         wrt_gto_close(&g);
     }
     writer_reproduces(golden_c_path, "golden_c_now.gto", write_good_c);
+}
+
+/* The committed 3.0 file (section opstream, no col_start) opens with the 2.0 golden's
+ * operator to the bit: the same columns, rows and value bits, entry by entry; a 2.x
+ * reader would refuse it by its major version; today's writer reproduces it. */
+static void test_c3_golden(void) {
+    build();
+    wrt_gto g2, g3;
+    wrt_status st2 = wrt_gto_open(golden_c_path, &g2), st3 = wrt_gto_open(golden_c3_path, &g3);
+    CHECK(st2 == WRT_OK && st3 == WRT_OK, "golden compact files: %s", wrt_last_error());
+    if (st2 == WRT_OK && st3 == WRT_OK) {
+        CHECK(g3.version == 3 && g3.version_minor == 0 && g3.nfuncs == 7 && g3.nnz == 12 && !g3.rows && g3.op_codes &&
+              g3.nblocks == g2.nblocks, "golden 3.0 counts: version %u.%u, %llu blocks", g3.version, g3.version_minor,
+              (unsigned long long)g3.nblocks);
+        int same = 1;
+        for (uint32_t s = 0; s <= g3.nfuncs; s++) same &= g3.col_start[s] == g2.col_start[s];
+        CHECK(same, "col_start rebuilt as the 2.0 file stores it");
+        wrt_gto_walk w2 = wrt_gto_walk_at(&g2, 0), w3 = wrt_gto_walk_at(&g3, 0);
+        for (uint64_t e = 0; e < g3.nnz; e++) {
+            float v2[3], v3[3];
+            uint32_t r2 = wrt_gto_entry(&g2, &w2, e, v2), r3 = wrt_gto_entry(&g3, &w3, e, v3);
+            same &= r2 == r3 && r3 == rows[e];
+            same &= memcmp(v2, v3, sizeof v2) == 0;
+        }
+        CHECK(same, "every entry's row and value bits as the 2.0 golden's");
+    }
+    wrt_gto_close(&g2);
+    wrt_gto_close(&g3);
+    size_t n;
+    uint8_t *b = read_all(golden_c3_path, &n);
+    CHECK(b && n > 16 && b[12] == 3 && b[13] == 0, "the 3.0 golden's header says major 3");
+    free(b);
+    writer_reproduces(golden_c3_path, "golden_c3_now.gto", write_good_c3);
 }
 
 static void regen(void) {
@@ -1854,6 +1891,7 @@ static void regen(void) {
     st = wrt_gto_write(golden_s_path, &contents_s);
     printf("%s: %s\n", golden_s_path, st == WRT_OK ? "written" : wrt_last_error());
     printf("%s: %s\n", golden_c_path, write_good_c(golden_c_path) ? "written" : wrt_last_error());
+    printf("%s: %s\n", golden_c3_path, write_good_c3(golden_c3_path) ? "written" : wrt_last_error());
 }
 
 int main(int argc, char **argv) {
@@ -1882,6 +1920,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_k_roundtrip);
     TEST_RUN(test_k_golden);
     TEST_RUN(test_c_golden);
+    TEST_RUN(test_c3_golden);
     TEST_RUN(test_k_damaged);
     TEST_RUN(test_k_bad);
     TEST_RUN(test_k_write_errors);

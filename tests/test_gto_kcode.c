@@ -193,7 +193,7 @@ static void test_roundtrip(void) {
     CHECK(st == WRT_OK, "open: %s", wrt_last_error());
     if (st != WRT_OK) { free(b); return; }
     uint64_t knnz = kcol_start[NK];
-    CHECK(g.version == 2 && g.version_minor == 0, "version %u.%u", g.version, g.version_minor);
+    CHECK(g.version == 3 && g.version_minor == 0, "version %u.%u", g.version, g.version_minor);
     CHECK(!g.krows && !g.kvals && g.k_codes && g.knnz == knnz && g.nkcols == NK, "compact K: %llu entries",
           (unsigned long long)g.knnz);
     CHECK(!entry_of(b, 14) && !entry_of(b, 15) && entry_of(b, 12) && entry_of(b, 13) && entry_of(b, 260),
@@ -319,8 +319,8 @@ static void test_forged(void) {
     forged(b, n, o.sec + 16, &u64, 8, WRT_ERR_CORRUPT, "do not hold", "entries in the header");
     uint16_t v1 = 1; /* a 1.x file may not hold it */
     forged(b, n, 12, &v1, 2, WRT_ERR_CORRUPT, "section kcode in a version 1.0 file", "kcode in 1.0");
-    u32 = 261; /* an unknown critical id: refused naming it */
-    forged(b, n, entry_of(b, 260), &u32, 4, WRT_ERR_UNSUPPORTED, "section id 261 is critical", "id 261");
+    u32 = 259; /* an unknown critical id (between ctree and opstream): refused naming it */
+    forged(b, n, entry_of(b, 260), &u32, 4, WRT_ERR_UNSUPPORTED, "section id 259 is critical", "id 259");
     u32 = 22; /* an id below 256 is skipped: K then lacks its entries */
     forged(b, n, entry_of(b, 260), &u32, 4, WRT_ERR_CORRUPT, "missing section krows", "kcode as id 22");
     /* the writer refuses K it cannot store (checked as the float sections would be) */

@@ -1042,43 +1042,46 @@ static void multiply_compact(int gather, int gap) {
     uint32_t nf = s.nf;
     size_t n3 = (size_t)nf * 3;
     uint64_t nnz = s.col[nf], size = 0;
-    uint8_t *enc = gto_opcode_encode(nf, s.col, s.rows, s.vals, &size);
+    uint8_t *enc = gto_opstream_encode(nf, s.col, s.rows, s.vals, &size);
     CHECK(enc != NULL, "encode");
     if (!enc) { ts_free(&s); return; }
-    gto_opcode_layout o = gto_opcode_place(nf, ((const gto_opcode_head *)enc)->nblocks, nnz);
+    gto_opstream_layout o = gto_opstream_place(nf, ((const gto_opcode_head *)enc)->nblocks, nnz);
     wrt_gto gc = s.g;
     gc.rows = NULL; gc.vals = NULL;
     gc.nblocks = ((const gto_opcode_head *)enc)->nblocks;
     gc.op_bcol = (const uint32_t *)(enc + o.bcol);
-    gc.op_blocks = (const wrt_gto_block *)(enc + o.blocks);
+    gc.op_row0 = (const uint32_t *)(enc + o.row0);
+    gc.op_base = (const int8_t *)(enc + o.base);
     gc.op_codes = (const uint32_t *)(enc + o.codes);
     gc.op_deltas = enc + o.deltas;
-    /* the decoded floats, independently of the multiply: rows from the deltas */
+    /* the decoded floats, independently of the multiply: rows from the deltas, a block
+     * from each delta 0 to the next */
     float *dec = calloc(nnz * 3 + 1, sizeof *dec);
     uint32_t *drow = calloc(nnz + 1, sizeof *drow);
-    uint64_t i = 0;
-    for (uint64_t b = 0; b < gc.nblocks; b++) {
-        uint32_t row = gc.op_blocks[b].row0;
-        for (uint32_t j = 0; j < gc.op_blocks[b].n; j++, i++) {
-            row += gc.op_deltas[i];
-            drow[i] = row;
-            wrt_gto_decode(gc.op_codes[i], gc.op_blocks[b].base, dec + i * 3);
-        }
+    uint64_t *bstart = calloc(gc.nblocks + 1, sizeof *bstart);
+    uint64_t i = 0, nb = 0;
+    uint32_t row = 0;
+    int base = 0;
+    for (; i < nnz; i++) {
+        if (gc.op_deltas[i] == 0) { bstart[nb] = i; row = gc.op_row0[nb]; base = gc.op_base[nb]; nb++; }
+        else row += gc.op_deltas[i];
+        drow[i] = row;
+        wrt_gto_decode(gc.op_codes[i], base, dec + i * 3);
     }
-    CHECK(i == nnz && memcmp(drow, s.rows, nnz * sizeof *drow) == 0, "the rows decode exactly (%llu of %llu entries)",
-          (unsigned long long)i, (unsigned long long)nnz);
+    bstart[nb] = nnz;
+    CHECK(nb == gc.nblocks && memcmp(drow, s.rows, nnz * sizeof *drow) == 0,
+          "the rows decode exactly (%llu entries, %llu blocks)", (unsigned long long)i, (unsigned long long)nb);
     double qerr = 0;
-    i = 0;
-    for (uint64_t b = 0; b < gc.nblocks; b++) {
+    for (uint64_t b = 0; b < nb; b++) {
         double bm = 0;
-        for (uint64_t k = i; k < i + gc.op_blocks[b].n; k++)
+        for (uint64_t k = bstart[b]; k < bstart[b + 1]; k++)
             for (int c = 0; c < 3; c++) bm = fmax(bm, fabs(s.vals[3 * k + c]));
-        for (uint64_t k = i; k < i + gc.op_blocks[b].n; k++) {
+        for (uint64_t k = bstart[b]; k < bstart[b + 1]; k++) {
             double m = fmax(fabs(s.vals[3 * k]), fmax(fabs(s.vals[3 * k + 1]), fabs(s.vals[3 * k + 2])));
             for (int c = 0; c < 3; c++) qerr = fmax(qerr, fabs(dec[3 * k + c] - s.vals[3 * k + c]) / fmax(m, bm / 8));
         }
-        i += gc.op_blocks[b].n;
     }
+    free(bstart);
     CHECK(qerr <= 1.0 / 511, "each value within 1/511 of max(its largest channel, its block's / 8) (worst %.3g)", qerr);
     wrt_gto gf = s.g;
     gf.vals = dec;

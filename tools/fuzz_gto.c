@@ -7,8 +7,10 @@
  * hands out, the way the player uses it, the first-bounce operator K included. Built
  * by `make fuzz`; the seeds are tests/data/fuzz_gto and tests/data/gto (which holds a
  * file with K, v1.1_k_small.gto, so that mutations reach K's checks, and a compact 2.0
- * file, v2.0_compact_small.gto, for the opcode section's, and one with the compact K,
- * v2.0_kcode_small.gto, for section kcode's). */
+ * file, v2.0_compact_small.gto, for the opcode section's, one with the compact K,
+ * v2.0_kcode_small.gto, for section kcode's, and 3.0 files, v3.0_compact_small.gto and
+ * v3.0_opstream_seed.gto (80 columns, blocks cut by both rules), for section opstream's:
+ * its block starts, rows, bases and the col_start rebuilt from them). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -75,19 +77,15 @@ static double touch(const wrt_gto *g) {
             for (uint64_t e = g->col_start[f]; e < g->col_start[f + 1]; e++)
                 s += g->rows[e] + g->vals[3 * e] + g->vals[3 * e + 2];
     }
-    /* The compact operator (2.0): each column's blocks decoded as the multiply does, the
-     * rows looked up in fkeys (so a row out of range shows). */
+    /* The compact operator (2.0, 3.0): each column's entries decoded as the multiply
+     * does, the rows looked up in fkeys (so a row out of range shows). */
     if (g->op_codes)
         for (uint32_t f = 0; f < g->nfuncs; f++) {
-            uint64_t e = g->col_start[f];
-            for (uint32_t k = g->op_bcol[f]; k < g->op_bcol[f + 1]; k++) {
-                uint32_t row = g->op_blocks[k].row0;
-                for (uint32_t j = 0; j < g->op_blocks[k].n; j++, e++) {
-                    float v[3];
-                    row += g->op_deltas[e];
-                    wrt_gto_decode(g->op_codes[e], g->op_blocks[k].base, v);
-                    s += (double)g->fkeys[row] + v[0] + v[2];
-                }
+            wrt_gto_walk wk = wrt_gto_walk_at(g, f);
+            for (uint64_t e = g->col_start[f]; e < g->col_start[f + 1]; e++) {
+                float v[3];
+                uint32_t row = wrt_gto_entry(g, &wk, e, v);
+                s += (double)g->fkeys[row] + v[0] + v[2];
             }
         }
     for (size_t i = 0; i < g->provenance_len; i++) s += g->provenance[i];

@@ -71,32 +71,16 @@ int main(int argc, char **argv) {
         cw[i] = wrt_drop_col_scale_sized(&r, g.fkeys[i], sqrt(a)) * sqrt(a);
     }
     kinds k = {0};
-    uint64_t small_quads = 0, b = 0;
+    uint64_t small_quads = 0;
     for (uint32_t q = 0; q < g.nquads; q++) small_quads += g.quads[q].area < small;
     for (uint32_t s = 0; s < g.nfuncs; s++) {
         int smean = wrt_fkey_stype(g.fkeys[s]) == 0;
         int ssmall = g.quads[wrt_fkey_quad(g.fkeys[s])].area < small;
         uint64_t e = g.col_start[s], end = g.col_start[s + 1];
-        uint32_t row = 0;
-        int left = 0, base = 0;
-        if (g.op_bcol) b = g.op_bcol[s];
+        wrt_gto_walk wk = wrt_gto_walk_at(&g, s);
         for (; e < end; e++) {
             float v[3];
-            if (g.op_bcol) {
-                if (left == 0) {
-                    row = g.op_blocks[b].row0;
-                    left = g.op_blocks[b].n;
-                    base = g.op_blocks[b].base;
-                    b++;
-                } else {
-                    row += g.op_deltas[e];
-                }
-                left--;
-                wrt_gto_decode(g.op_codes[e], base, v);
-            } else {
-                row = g.rows[e];
-                for (int c = 0; c < 3; c++) v[c] = g.vals[3 * e + c];
-            }
+            uint32_t row = wrt_gto_entry(&g, &wk, e, v);
             double m = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
             int rmean = wrt_fkey_stype(g.fkeys[row]) == 0;
             int plain = m * cw[s] * rw[row] >= eps_final;
