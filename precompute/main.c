@@ -110,11 +110,11 @@ static void usage(FILE *f) {
         "  --clusters-tree-basis  --clusters, and the operator stored in the cluster tree's\n"
         "                         basis when it has fewer entries there (a version 2.0 file;\n"
         "                         --clusters-tree-basis-always: whatever its size)\n"
-        "  --clusters-quads-senders  --clusters with the stored operator's columns in the\n"
-        "                         quads' basis (by default its senders' side is in the\n"
-        "                         cluster tree's basis: a small quad's far light held once\n"
-        "                         per cluster, where that has fewer entries; section csend,\n"
-        "                         docs/clusters.md; --clusters-senders-always: whatever its size)\n"
+        "  --clusters-quads-senders  --clusters, the operator's columns in the quads'\n"
+        "                         basis (by default the senders' side is in the cluster\n"
+        "                         tree's basis where that has fewer entries: a small\n"
+        "                         quad's far light held once per cluster; section csend;\n"
+        "                         --clusters-senders-always: whatever its size)\n"
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --max-memory MB        memory budget: the bake estimates what each stage needs\n"
         "                         before allocating it and refuses (exit 7, naming the figure)\n"
@@ -416,7 +416,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
             i++;
         }
         else if (!strcmp(a, "--clusters-tree-basis")) { o->clusters = 1; o->cluster_tree = 1; }
-        else if (!strcmp(a, "--clusters-quads-senders")) o->cluster_senders = -1;
+        else if (!strcmp(a, "--clusters-quads-senders")) { o->clusters = 1; o->cluster_senders = -1; }
         else if (!strcmp(a, "--clusters-senders-always")) { o->clusters = 1; o->cluster_senders = 1; }
         else if (!strcmp(a, "--clusters-tree-basis-always")) { o->clusters = 1; o->cluster_tree = 2; }
         else if (!strcmp(a, "--drop-bad")) A->drop_bad = 1;
