@@ -212,6 +212,11 @@ typedef struct wrt_gto {
      * reader (common/cluster_tree.h's rules); NULL when the file has none. */
     const wrt_gto_cnode *ctree;
     uint32_t nctree;
+    /* 1: the tree's basis is on the senders' side only (section csend, 270): the columns
+     * in the quads' root slots are the tree's functions, the rows the quads' functions as
+     * in a file without a tree (the runtime transforms the light forward, no inverse on
+     * the result); 0: both sides (or no tree). */
+    int ctree_senders;
     /* The compact operator (version 2.0, section opcode; version 3.0, section opstream):
      * then rows and vals are NULL and column s's entries [col_start[s], col_start[s+1])
      * are in blocks [op_bcol[s], op_bcol[s+1]); block b's entries follow those of block
@@ -341,6 +346,8 @@ typedef struct wrt_gto_contents {
      * (257), and the file as version 2.0. */
     const wrt_gto_cnode *ctree;
     uint32_t nctree;
+    /* 1 (with a tree): the tree's basis on the senders' side only, section csend (270) */
+    int ctree_senders;
     /* 1: the operator's entries are written compact (section opstream, version 3.0:
      * GTO_FORMAT.md "The compact operator"; 5.2-5.5 bytes an entry instead of 16, each
      * value within 2^-10 of its entry's largest channel); 0: as floats (sections rows

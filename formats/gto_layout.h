@@ -126,7 +126,8 @@ enum {
 #define SEC_CTREE 257               /* the cluster tree (version 2.0) */
 #define SEC_KCODE 260               /* the compact first-bounce operator (version 2.0), in place of krows, kvals */
 #define SEC_OPSTREAM 261            /* the compact operator (version 3.0), in place of col_start and opcode */
-#define GTO_MAX_WRITTEN (SEC_KNOWN + 3) /* sections a file can hold: the known ones, ctree, kcode, opstream */
+#define SEC_CSEND 270              /* the cluster tree's basis on the senders' side only (version 2.0 on) */
+#define GTO_MAX_WRITTEN (SEC_KNOWN + 4) /* sections a file can hold: the known ones, ctree, kcode, opstream, csend */
 #define SEC_REQUIRED SEC_PROVENANCE /* ids 1 .. this are in every file */
 #define GTO_MINOR_K 1               /* the minor version that added K */
 #define GTO_MINOR_SRCMAP 2          /* the minor version that added the quad-to-source map */
@@ -255,12 +256,14 @@ static inline const char *gto_sec_name(uint32_t id) {
     if (id == SEC_CTREE) return "ctree";
     if (id == SEC_KCODE) return "kcode";
     if (id == SEC_OPSTREAM) return "opstream";
+    if (id == SEC_CSEND) return "csend";
     return gto_sec_known(id) ? gto_sec_info[id].name : "unknown";
 }
 
 /* Element size of a section this code writes or reads (known ids and ctree). */
 static inline uint32_t gto_sec_elem(uint32_t id) {
     if (id == SEC_KCODE || id == SEC_OPSTREAM) return 1;
+    if (id == SEC_CSEND) return 4;
     return id == SEC_CTREE ? (uint32_t)sizeof(wrt_gto_cnode) : gto_sec_info[id].elem_size;
 }
 _Static_assert(sizeof(wrt_gto_cnode) == 16, "ctree record");
@@ -310,6 +313,7 @@ typedef struct gto_layout {
     const gto_section *ctree; /* section ctree (257), or NULL */
     const gto_section *kcode; /* section kcode (260), or NULL */
     const gto_section *opstream; /* section opstream (261), or NULL */
+    const gto_section *csend; /* section csend (270), or NULL */
 } gto_layout;
 
 /* Stage 1: the header and the section table, no payload byte read. */

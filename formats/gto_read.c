@@ -111,7 +111,7 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
         if (s->offset != gto_align_up(prev_end))
             return wrt_fail(WRT_ERR_CORRUPT, "section %s: offset %" PRIu64 ", expected %" PRIu64
                             " (sections follow each other)", nm, s->offset, gto_align_up(prev_end));
-        int crit_known = s->id == SEC_CTREE || s->id == SEC_KCODE || s->id == SEC_OPSTREAM;
+        int crit_known = s->id == SEC_CTREE || s->id == SEC_KCODE || s->id == SEC_OPSTREAM || s->id == SEC_CSEND;
         if (s->id >= SEC_CRITICAL && !crit_known)
             return wrt_fail(WRT_ERR_UNSUPPORTED, "section id %u is critical (ids from %u on must be understood) "
                             "and unknown to this reader: it cannot read this file", s->id, SEC_CRITICAL);
@@ -130,6 +130,7 @@ wrt_status gto_parse_layout(const uint8_t *b, size_t len, gto_layout *L) {
         if (s->id == SEC_CTREE) L->ctree = s;
         if (s->id == SEC_KCODE) L->kcode = s;
         if (s->id == SEC_OPSTREAM) L->opstream = s;
+        if (s->id == SEC_CSEND) L->csend = s;
         prev_end = s->offset + s->size;
     }
     if (prev_end != len)
@@ -344,6 +345,9 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
     if (L->ctree && (S[SEC_QUADS]->count == 0 || L->ctree->count != 2 * S[SEC_QUADS]->count - 1))
         return wrt_fail(WRT_ERR_CORRUPT, "section ctree: %" PRIu64 " nodes, expected %" PRIu64 " (2 x quads - 1)",
                         L->ctree->count, S[SEC_QUADS]->count ? 2 * S[SEC_QUADS]->count - 1 : 0);
+    if (L->csend && (!L->ctree || L->csend->count != 1))
+        return wrt_fail(WRT_ERR_CORRUPT, "section csend: %s", !L->ctree ? "no section ctree (the senders' basis is its tree's)"
+                                                                      : "not one u32");
     /* Every byte outside the sections is header, table or zero padding. */
     uint64_t prev_end = L->h.header_size;
     for (uint32_t i = 0; i < L->h.nsections; i++) {
@@ -394,6 +398,12 @@ wrt_status gto_check_counts(const uint8_t *b, const gto_layout *L, wrt_gto *g) {
         if (st != WRT_OK) return st;
     }
     if (L->ctree) { g->ctree = (const void *)(b + L->ctree->offset); g->nctree = (uint32_t)L->ctree->count; }
+    if (L->csend) {
+        uint32_t v;
+        memcpy(&v, b + L->csend->offset, 4);
+        if (v != 1) return wrt_fail(WRT_ERR_CORRUPT, "section csend: value %u, expected 1", v);
+        g->ctree_senders = 1;
+    }
 #undef SECPTR
     if (L->opstream) return check_opstream_counts(b, L, g); /* last: it allocates */
     return WRT_OK;

@@ -479,6 +479,8 @@ static void plan_sections(const wrt_gto_contents *c, const gto_records *R, gto_p
     if (c->nctree) P->secs[P->nsec++] = (wsec){SEC_CTREE, c->nctree, c->ctree}; /* critical: version 2.0 */
     if (R->kcode) P->secs[P->nsec++] = (wsec){SEC_KCODE, R->kcode_size, R->kcode}; /* critical: version 2.0 */
     if (R->opcode_id == SEC_OPSTREAM) P->secs[P->nsec++] = (wsec){SEC_OPSTREAM, R->opcode_size, R->opcode}; /* 3.0 */
+    static const uint32_t csend_one = 1;
+    if (c->nctree && c->ctree_senders) P->secs[P->nsec++] = (wsec){SEC_CSEND, 1, &csend_one}; /* critical: 2.0 */
 
     static const uint64_t nothing = 0;
     for (int i = 0; i < P->nsec; i++)

@@ -2,7 +2,9 @@
  * common/cluster_tree.h). A file baked with `--clusters` stores the operator with the
  * quads' root slots holding the tree's orthonormal functions: the projected light E is
  * taken to that basis before the multiply (O(N)) and the result X back to the quads'
- * roots before synthesis (O(N)); everything else is unchanged. Linear, and exact up to
+ * roots before synthesis (O(N)); everything else is unchanged. With section csend the
+ * tree's basis is on the senders' side only (the columns): the light goes forward, the
+ * result is already on the quads' functions, no inverse. Linear, and exact up to
  * float rounding: the light change stays linear in the lights and exact in the mean.
  * Depends on relight_internal.h. */
 #include "relight_internal.h"
@@ -32,6 +34,7 @@ wrt_status relight_setup_clusters(wrt_relight *r) {
     st = wrt_ctree_finish(&r->ct.t, "relight: cluster tree");
     if (st != WRT_OK) { wrt_ctree_free(&r->ct.t); return st; }
     r->ct.on = 1;
+    r->ct.inv = !g->ctree_senders; /* senders only: the result is the quads' already */
     return WRT_OK;
 }
 
@@ -43,7 +46,7 @@ const float *relight_cluster_forward(wrt_relight *r, const float *src) {
 }
 
 void relight_cluster_inverse(wrt_relight *r) {
-    if (!r->ct.on) return;
+    if (!r->ct.on || !r->ct.inv) return;
     const wrt_gto *g = r->g;
     wrt_ctree_inverse_f(&r->ct.t, r->ct.root, r->X, r->ct.scratch);
     /* relight_multiply compared the tree's coefficients with the last X: again, on the quads' */

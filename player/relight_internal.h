@@ -233,7 +233,7 @@ struct wrt_relight {
     /* The cluster tree of a `--clusters` file (relight_cluster.c): the operator's quad
      * root slots hold the tree's functions; E is taken there (Et) before the multiply and
      * X back after it. on 0: none. */
-    struct { int on; wrt_ctree t; uint32_t *root; float *Et; double *scratch; } ct;
+    struct { int on, inv; wrt_ctree t; uint32_t *root; float *Et; double *scratch; } ct; /* inv: the result back too */
     float *Eapplied;                /* skip_below > 0: the E of the last multiply */
     /* The time budget (options.budget_ms; relight.c): the current call's deadline and
      * whether it did a unit yet, what waits for a later call, and the work counters. */

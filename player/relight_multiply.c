@@ -272,7 +272,7 @@ static void x_store(wrt_relight *r, const float *const *x4, const float *sc, int
      * other over every function: gto_check_quad_ranges). With the cluster tree the
      * values compared are the tree's: relight_cluster_inverse compares again, on the
      * quads' functions, against this copy of the last X. */
-    if (r->ct.on) memcpy(r->Xprev, r->X, (size_t)nf * 3 * sizeof(float));
+    if (r->ct.inv) memcpy(r->Xprev, r->X, (size_t)nf * 3 * sizeof(float));
     const float *Y = g->nkcols ? r->k.Y : NULL;
     for (uint32_t q = 0; q < nq; q++) {
         const wrt_gto_quad *gq = &g->quads[q];
@@ -318,7 +318,7 @@ static void x_store(wrt_relight *r, const float *const *x4, const float *sc, int
                 r->X[f * 3 + c] = v;
             }
         }
-        if (r->ct.on) continue; /* relight_cluster_inverse marks the quads */
+        if (r->ct.inv) continue; /* relight_cluster_inverse marks the quads */
         if (changed) r->resynth[q] = 1;
         r->x_nonzero[q] = (uint8_t)(nz != 0);
     }

@@ -1007,7 +1007,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     for (int m = 0; m < scene->nmaterials; m++) free(b.btilde[m]);
     free(b.btilde);
     if (b.opt.clusters) { /* the tree goes with the result when the operator is in its basis */
-        if (C->cluster_tree_basis) {
+        if (C->cluster_tree_basis || C->cluster_senders_basis) {
             res->ctree = cl.tree;
             memset(&cl.tree, 0, sizeof cl.tree);
         }

@@ -71,6 +71,10 @@ typedef struct wrt_bake_options {
     double cluster_sep;    /* its separation threshold (0: WRT_CLUSTER_SEP_DEFAULT) */
     double cluster_spread; /* its oracle's spread threshold (0: WRT_CLUSTER_SPREAD_DEFAULT) */
     double cluster_eps;    /* its power criterion (0: WRT_CLUSTER_EPS_DEFAULT; < 0: off) */
+    int cluster_senders;   /* with --clusters: 0 (the default): the stored operator's columns
+                            * in the tree's basis (the senders' side only, where the small
+                            * senders' light is held once per cluster: cluster_send.c) when
+                            * it has fewer entries there; 1: always; -1: the quads' basis */
     int cluster_tree;      /* 1: store the operator in the tree's basis when it has fewer entries
                             * there (a trial: a copy and a transform of G - I); 2: always */
     double series_coarse;  /* the series' right factor from the second term on keeps only the
@@ -164,6 +168,9 @@ typedef struct wrt_bake_counters {
     uint64_t cluster_tree_entries;  /* G - I's entries in the tree basis before its compression */
     uint64_t cluster_tree_compressed; /* and after */
     int cluster_tree_basis;
+    int cluster_senders_basis;      /* 1: the columns in the tree's basis (res->ctree set) */
+    uint64_t cluster_senders_raw;   /* the tree columns' entries before their compression */
+    uint64_t cluster_senders_quads; /* G - I's entries in the quads' basis, before */
     uint64_t cluster_refused_visibility, cluster_refused_spread; /* the oracle's refusals */         /* 1: the operator is stored in the tree's basis (res->ctree set) */
     uint64_t cluster_partial;      /* cluster links with some of their rays blocked */
     uint32_t cluster_depth;

@@ -63,6 +63,15 @@ uint64_t wrt_clusters_pushed_entries(const wrt_clusters *cl);
 /* A matrix of the quads' basis (nf x nf) expressed in the tree basis: rows, then columns
  * (cluster_ops.c). Replaces *M. */
 void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf, wrt_csc *M);
+/* The stored operator M (nf x nf, quads' basis) with the tree's basis on the senders'
+ * side only, M W^T (cluster_send.c): the quads' root columns replaced by the columns of
+ * phi_root and each internal node's psi_P in their slots (common/cluster_tree.h), each
+ * compressed as it is made by `drop` and W (indexed by the slot: the caller gives the
+ * node's weights there); the other columns as they are. root: per quad its root slot.
+ * Replaces *M and returns 1 where the result has fewer entries than *M, or always; else
+ * 0, *M unchanged. *raw: the tree columns' entries before their compression. */
+int wrt_clusters_senders(const wrt_ctree *t, const uint32_t *root, wrt_csc *M, double drop,
+                         const wrt_csc_weights *W, int always, uint64_t *raw);
 /* The series' weights of the root slots for the tree functions: areas of their nodes
  * (rw = 1/sqrt(a), cw = sqrt(a)), the small senders' factor 1 there (boost, may be NULL:
  * a node is not a small sender) and the power weights transformed (cluster_ops.c). */

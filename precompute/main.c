@@ -113,6 +113,11 @@ static void usage(FILE *f) {
         "  --clusters-tree-basis  --clusters, and the operator stored in the cluster tree's\n"
         "                         basis when it has fewer entries there (a version 2.0 file;\n"
         "                         --clusters-tree-basis-always: whatever its size)\n"
+        "  --clusters-quads-senders  --clusters, the operator's columns in the quads'\n"
+        "                         basis (by default the senders' side is in the cluster\n"
+        "                         tree's basis where that has fewer entries: a small\n"
+        "                         quad's far light held once per cluster; section csend;\n"
+        "                         --clusters-senders-always: whatever its size)\n"
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --max-memory MB        memory budget: the bake estimates what each stage needs\n"
         "                         before allocating it and refuses (exit 7, naming the figure)\n"
@@ -200,13 +205,14 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
     if (c->cluster_visits || c->cluster_leaf_pairs || c->cluster_links)
         fprintf(f, ",\"clusters\":{\"links\":%llu,\"leaf_pairs\":%llu,\"visits\":%llu,\"oracle\":%llu,"
                 "\"partial\":%llu,\"refused_visibility\":%llu,\"refused_spread\":%llu,\"rays\":%llu,\"closed_entries\":%llu,\"tree_entries\":%llu,\"tree_compressed\":%llu,"
-                "\"tree_basis\":%s,\"depth\":%u}",
+                "\"tree_basis\":%s,\"senders_basis\":%s,\"senders_quads\":%llu,\"senders_raw\":%llu,\"depth\":%u}",
                 (unsigned long long)c->cluster_links, (unsigned long long)c->cluster_leaf_pairs,
                 (unsigned long long)c->cluster_visits, (unsigned long long)c->cluster_oracle,
                 (unsigned long long)c->cluster_partial, (unsigned long long)c->cluster_refused_visibility, (unsigned long long)c->cluster_refused_spread,
                 (unsigned long long)c->cluster_rays, (unsigned long long)c->cluster_fix_entries,
                 (unsigned long long)c->cluster_tree_entries, (unsigned long long)c->cluster_tree_compressed,
-                c->cluster_tree_basis ? "true" : "false", c->cluster_depth);
+                c->cluster_tree_basis ? "true" : "false", c->cluster_senders_basis ? "true" : "false",
+                (unsigned long long)c->cluster_senders_quads, (unsigned long long)c->cluster_senders_raw, c->cluster_depth);
 }
 
 static void json_options(FILE *f, const wrt_bake_options *o) {
@@ -415,6 +421,8 @@ static int parse_args(int argc, char **argv, bake_args *A) {
             i++;
         }
         else if (!strcmp(a, "--clusters-tree-basis")) { o->clusters = 1; o->cluster_tree = 1; }
+        else if (!strcmp(a, "--clusters-quads-senders")) { o->clusters = 1; o->cluster_senders = -1; }
+        else if (!strcmp(a, "--clusters-senders-always")) { o->clusters = 1; o->cluster_senders = 1; }
         else if (!strcmp(a, "--clusters-tree-basis-always")) { o->clusters = 1; o->cluster_tree = 2; }
         else if (!strcmp(a, "--drop-bad")) A->drop_bad = 1;
         else if (!strcmp(a, "--allow-outside-files")) A->allow_outside = 1;
@@ -625,6 +633,7 @@ static int write_pending(const bake_args *A, const wrt_scene *s, const wrt_bake_
             cn[i] = (wrt_gto_cnode){r->ctree.left[i], r->ctree.right[i], r->ctree.area[i]};
         gc.ctree = cn;
         gc.nctree = r->ctree.nnodes;
+        gc.ctree_senders = c->cluster_senders_basis;
     }
     gc.stats.links_dto = c->links_dto;
     gc.stats.links_gto = c->links_gto;

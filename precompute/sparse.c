@@ -740,6 +740,11 @@ static double col_boost(const wrt_csc_weights *w, uint32_t j) {
     return w && w->boost_w ? w->boost_w[j] : 1.0;
 }
 
+uint64_t wrt_csc_compress_col(uint32_t *row, float *val, uint64_t n, uint32_t j, double drop,
+                              const wrt_csc_weights *w) {
+    return compress_column(row, val, 0, n, row, val, 0, w && w->col_w ? w->col_w[j] : 1.0, col_boost(w, j), drop, w);
+}
+
 void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w) {
     uint64_t k = 0, start = 0;
     for (uint32_t j = 0; j < m->n; j++) {

@@ -59,6 +59,10 @@ wrt_csc wrt_csc_add3(const wrt_csc *a, const wrt_csc *b, const double s[3]);
 void wrt_csc_add3_into(wrt_csc *a, const wrt_csc *b, const double s[3]);
 /* Removes entries below `drop` (weighted as in wrt_csc_mul). */
 void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w);
+/* One column's entries (row, val)[0, n), as column j of a matrix, compressed in place
+ * with the same rule as wrt_csc_compress; returns the entries kept. */
+uint64_t wrt_csc_compress_col(uint32_t *row, float *val, uint64_t n, uint32_t j, double drop,
+                              const wrt_csc_weights *w);
 /* A compressed copy of m: the same entries and values as wrt_csc_compress on a copy,
  * without the copy. */
 wrt_csc wrt_csc_copy_compress(const wrt_csc *m, double drop, const wrt_csc_weights *w);

@@ -119,7 +119,8 @@ static void face(wrt_scene *s, wrt_v3 o, wrt_v3 u, wrt_v3 v, int n, int m, int m
 }
 
 /* Irradiance e_q of every quad (channel 0) after G - I from irradiance in[q] on each quad,
- * through the tree's basis when the bake has one. */
+ * through the tree's basis when the bake has one (the light forward; the result back
+ * where the rows are in it too, not with the senders' side alone). */
 static double *response(const wrt_scene *s, const wrt_bake_result *r, const wrt_csc *m, const double *in) {
     double *x = calloc(3 * (size_t)r->nfuncs, sizeof *x), *y = calloc(3 * (size_t)r->nfuncs, sizeof *y);
     double *e = calloc((size_t)s->nquads, sizeof *e);
@@ -129,7 +130,7 @@ static double *response(const wrt_scene *s, const wrt_bake_result *r, const wrt_
         for (int c = 0; c < 3; c++) x[3 * root[q] + c] = in[q] * sqrt(s->quads[q].area / M_PI);
     if (r->ctree.nq) wrt_ctree_forward_d(&r->ctree, root, x, 3, sc);
     wrt_csc_apply(m, x, y);
-    if (r->ctree.nq) wrt_ctree_inverse_d(&r->ctree, root, y, 3, sc);
+    if (r->ctree.nq && !r->c.cluster_senders_basis) wrt_ctree_inverse_d(&r->ctree, root, y, 3, sc);
     for (int q = 0; q < s->nquads; q++) e[q] = y[3 * root[q]] * sqrt(M_PI / s->quads[q].area);
     free(x); free(y); free(root); free(sc);
     return e;
@@ -208,6 +209,7 @@ static void test_two_rooms(void) {
     int half = s.nquads / 2;
     wrt_bake_options o = opts(3, 0, 0);
     o.clusters = 1;
+    o.cluster_senders = 1; /* the senders' side in the tree's basis, whatever its size */
     wrt_bake_result r;
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
     double *in = calloc((size_t)s.nquads, sizeof *in);
@@ -221,6 +223,26 @@ static void test_two_rooms(void) {
     printf("two rooms (%d quads, wall 8 x 8 a side): lit mean %.4f (truth of the closed room 0.8/0.2 = 4), "
            "dark room max %.3g; %llu cluster links, %llu leaf pairs\n", s.nquads, lit, dark,
            (unsigned long long)r.c.cluster_links, (unsigned long long)r.c.cluster_leaf_pairs);
+    /* the senders' side in the tree's basis against the quads' basis
+     * (--clusters-quads-senders): the same light on every quad of the lit room, to the
+     * compression of the tree's columns, under a light that varies from quad to quad */
+    CHECK(r.c.cluster_senders_basis == 1, "the senders' tree basis asked for");
+    wrt_bake_result rq;
+    o.cluster_senders = -1;
+    CHECK(wrt_bake_run(&s, &o, &rq) == WRT_OK, "%s", wrt_last_error());
+    CHECK(rq.c.cluster_senders_basis == 0 && rq.ctree.nq == 0, "quads' basis asked for");
+    uint64_t rs = 5;
+    for (int q = 0; q < half; q++) in[q] = 0.2 + urand(&rs);
+    free(e);
+    e = response(&s, &r, &r.op, in);
+    double *eq = response(&s, &rq, &rq.op, in), mean = 0, diff = 0;
+    for (int q = 0; q < half; q++) mean += eq[q] / half;
+    for (int q = 0; q < s.nquads; q++) diff = fmax(diff, fabs(e[q] - eq[q]));
+    CHECK(diff <= 0.01 * mean, "senders' tree basis against the quads': largest difference %.3g, mean %.3g", diff, mean);
+    printf("two rooms, varied light: the senders' tree basis (%llu entries) against the quads' (%llu): largest "
+           "difference %.3g of the mean\n", (unsigned long long)r.op.nnz, (unsigned long long)rq.op.nnz, diff / mean);
+    free(eq);
+    wrt_bake_result_free(&rq);
     free(in); free(e);
     wrt_bake_result_free(&r);
     tsb_free(&s);
@@ -262,6 +284,9 @@ static void test_furnace(void) {
      * series stops after one term (flux 0.125 of the truth, the plain bake's rule too), so
      * the compression is set to 1e-5 there */
     int n = getenv("WRT_FURNACE_N") ? atoi(getenv("WRT_FURNACE_N")) : 8;
+    /* mode 0: the tree's basis on both sides; 1: on the senders' side only (cluster_send.c:
+     * the light forward, the result on the quads' functions) */
+    for (int mode = 0; mode < 2; mode++)
     for (int i = 0; i < 2; i++) {
         wrt_scene s;
         tsb_init(&s);
@@ -269,10 +294,13 @@ static void test_furnace(void) {
         tsb_box_inward(&s, P(0, 0, 0), P(1, 1, 1), n, m);
         wrt_bake_options o = opts(1, 0, 0);
         o.clusters = 1;
-        o.cluster_tree = 1; /* the tree's basis when smaller (in a closed box it is) */
+        o.cluster_tree = mode == 0; /* the tree's basis when smaller (in a closed box it is) */
+        o.cluster_senders = mode; /* mode 1: whatever its size */
         if (n > 8) o.eps_compress = 1e-5;
         wrt_bake_result r;
         CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+        CHECK(r.c.cluster_senders_basis == mode && r.ctree.nq == (uint32_t)s.nquads, "mode %d: senders' basis %d",
+              mode, r.c.cluster_senders_basis);
         double *in = malloc((size_t)s.nquads * sizeof *in);
         for (int q = 0; q < s.nquads; q++) in[q] = 1;
         double *e = response(&s, &r, &r.op, in);
@@ -300,10 +328,12 @@ static void test_furnace(void) {
         printf("furnace rho %.2f, light varied from quad to quad (the series' coarse cut on): flux / truth %.6f\n",
                rhos[i], vratio);
         printf("furnace rho %.2f, %d quads (%d x %d a face), --clusters q1: flux / truth %.6f, worst quad %.4f%%, "
-               "%llu cluster links, %llu leaf pairs, %llu entries the closed rule added (closed %d, tree basis %d), T %llu, G-I %llu entries\n",
+               "%llu cluster links, %llu leaf pairs, %llu entries the closed rule added (closed %d, tree basis %d, senders %d), T %llu, "
+               "G-I %llu entries (quads' basis %llu)\n",
                rhos[i], s.nquads, n, n, ratio, 100 * worst, (unsigned long long)r.c.cluster_links,
                (unsigned long long)r.c.cluster_leaf_pairs, (unsigned long long)r.c.cluster_fix_entries, r.c.closed, r.c.cluster_tree_basis,
-               (unsigned long long)r.dto.nnz, (unsigned long long)r.op.nnz);
+               r.c.cluster_senders_basis, (unsigned long long)r.dto.nnz, (unsigned long long)r.op.nnz,
+               (unsigned long long)r.c.cluster_senders_quads);
         free(in); free(e);
         wrt_bake_result_free(&r);
         tsb_free(&s);
@@ -450,6 +480,30 @@ static void test_gto_section(void) {
     wr64(d, 64 + (size_t)sec * 48 + 16, 224);
     fix_sums(d, -1);
     CHECK(open_image(d, n, &g) != WRT_OK, "14 nodes for 8 quads refused");
+    /* the senders' side only (section csend, 270, after ctree): read back as such; a
+     * value other than 1 and the section in a 1.x file refused */
+    c.ctree_senders = 1;
+    CHECK(wrt_gto_write(path, &c) == WRT_OK, "%s", wrt_last_error());
+    CHECK(wrt_gto_open(path, &g) == WRT_OK, "%s", wrt_last_error());
+    CHECK(g.ctree_senders == 1 && g.nctree == 15 && g.version == 2, "csend read back: %d", g.ctree_senders);
+    size_t n2 = g.size;
+    uint8_t *b2 = malloc(n2);
+    memcpy(b2, g.map, n2);
+    wrt_gto_close(&g);
+    memcpy(&ns, b2 + 28, 4);
+    int sec2 = (int)ns - 1;
+    memcpy(&id, b2 + 64 + (size_t)sec2 * 48, 4);
+    CHECK(id == 270, "last section id %u", id);
+    uint32_t two = 2;
+    memcpy(b2 + rd64(b2, 64 + (size_t)sec2 * 48 + 8), &two, 4);
+    fix_sums(b2, sec2);
+    CHECK(open_image(b2, n2, &g) == WRT_ERR_CORRUPT && strstr(wrt_last_error(), "section csend: value 2"), "%s",
+          wrt_last_error());
+    b2[12] = 1;
+    fix_sums(b2, -1);
+    CHECK(open_image(b2, n2, &g) == WRT_ERR_CORRUPT && strstr(wrt_last_error(), "needs version 2.0"), "%s", wrt_last_error());
+    free(b2);
+    c.ctree_senders = 0;
     /* the writer refuses a bad tree */
     cn[0].area = 5;
     CHECK(wrt_gto_write(path, &c) == WRT_ERR_INVALID_ARG && strstr(wrt_last_error(), "cluster tree"), "%s", wrt_last_error());

@@ -345,6 +345,7 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
         for (uint32_t i = 0; i < r.ctree.nnodes; i++) cn[i] = (wrt_gto_cnode){r.ctree.left[i], r.ctree.right[i], r.ctree.area[i]};
         gc.ctree = cn;
         gc.nctree = r.ctree.nnodes;
+        gc.ctree_senders = r.c.cluster_senders_basis; /* the tree's basis on the senders' side only */
     }
     CHECK(wrt_gto_write(path, &gc) == WRT_OK, "gto write: %s", wrt_last_error());
     free(cn);
@@ -405,13 +406,14 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
             memset(yv, 0, 3 * r.nfuncs * sizeof *yv);
             uint32_t *root = NULL;
             double *sc = NULL;
-            if (r.ctree.nq) { /* G - I in the tree's basis: the quads' roots there and back */
+            if (r.ctree.nq) { /* G - I in the tree's basis: the light there, and the result back
+                               * where the rows are in it too */
                 root = wrt_clusters_root_index(r.fkeys, r.nfuncs, (uint32_t)s.nquads);
                 sc = malloc((6 * (size_t)r.ctree.nnodes + 1) * sizeof *sc);
                 wrt_ctree_forward_d(&r.ctree, root, xv, 3, sc);
             }
             wrt_csc_apply(&r.op, xv, yv);
-            if (r.ctree.nq) wrt_ctree_inverse_d(&r.ctree, root, yv, 3, sc);
+            if (r.ctree.nq && !r.c.cluster_senders_basis) wrt_ctree_inverse_d(&r.ctree, root, yv, 3, sc);
             free(root); free(sc);
             double gacc = 0;
             for (uint32_t f = 0; f < r.nfuncs; f++) gacc += mh[f] * yv[3 * f];
@@ -429,6 +431,10 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
         }
         err = indirect / want - 1;
         CHECK(r.c.closed, "the balance finds the icosphere closed");
+        if (furnace_clusters)
+            printf("--clusters: G - I in the tree's basis on the senders' side %d (%llu entries in the quads' basis), "
+                   "on both sides %d\n", r.c.cluster_senders_basis, (unsigned long long)r.c.cluster_senders_quads,
+                   r.c.cluster_tree_basis);
         printf("icosphere %d triangles (%d elements), quality %d, albedo %.2f: direct flux %.6f vs 4 pi %.6f "
                "(%+.4f%%), indirect %.6f vs 4 pi rho/(1-rho) %.6f (%+.4f%%); the runtime's root-only means give "
                "%+.4f%%; worst element (%d, part %d) %.4f%% from the mean; bake %.1f s, %u functions, G-I %llu "

@@ -6,8 +6,10 @@
  * default 10) and whether the entry passes the final threshold without the small senders'
  * factor (the drop rule's default weights, drop_rule.h: sender 0.5, receiver 1 from depth 3,
  * size 0.05 of the scene's diagonal; those of a bake with other options differ). Prints one
- * JSON object. A file in the cluster tree's basis is refused (its root slots are not the
- * quads' means). Not installed. */
+ * JSON object. A file in the cluster tree's basis on both sides is refused (its root
+ * slots are not the quads' means); one with it on the senders' side only (section csend)
+ * has its root slots' columns counted as the tree's columns, by the receiver's kind
+ * ("cluster_to_mean", "cluster_to_wavelet"). Not installed. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -43,7 +45,7 @@ int main(int argc, char **argv) {
         fprintf(stderr, "op_kinds: %s: %s\n", argv[1], wrt_last_error());
         return 1;
     }
-    if (g.ctree) {
+    if (g.ctree && !g.ctree_senders) {
         fprintf(stderr, "op_kinds: %s holds the operator in the cluster tree's basis\n", argv[1]);
         return 1;
     }
@@ -71,6 +73,7 @@ int main(int argc, char **argv) {
         cw[i] = wrt_drop_col_scale_sized(&r, g.fkeys[i], sqrt(a)) * sqrt(a);
     }
     kinds k = {0};
+    uint64_t kc[2] = {0, 0}; /* the tree's columns (senders only), by the receiver's kind */
     uint64_t small_quads = 0;
     for (uint32_t q = 0; q < g.nquads; q++) small_quads += g.quads[q].area < small;
     for (uint32_t s = 0; s < g.nfuncs; s++) {
@@ -83,6 +86,10 @@ int main(int argc, char **argv) {
             uint32_t row = wrt_gto_entry(&g, &wk, e, v);
             double m = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
             int rmean = wrt_fkey_stype(g.fkeys[row]) == 0;
+            if (g.ctree_senders && smean) {
+                kc[rmean]++;
+                continue;
+            }
             int plain = m * cw[s] * rw[row] >= eps_final;
             k.n[smean][rmean][ssmall][plain]++;
         }
@@ -96,6 +103,9 @@ int main(int argc, char **argv) {
                 for (int p = 1; p >= 0; p--)
                     printf(",\n \"%s_to_%s_%s_%s\": %llu", fn[sm], fn[rm], sq ? "small" : "large",
                            p ? "plain" : "held", (unsigned long long)k.n[sm][rm][sq][p]);
+    if (g.ctree_senders)
+        printf(",\n \"cluster_to_mean\": %llu,\n \"cluster_to_wavelet\": %llu", (unsigned long long)kc[1],
+               (unsigned long long)kc[0]);
     printf("}\n");
     free(rw); free(cw);
     return 0;

@@ -1,0 +1,169 @@
+/* cluster_send.c: the stored operator with the cluster tree's basis on the senders' side
+ * only, G W^T (cluster.h, docs/clusters.md "The senders' side in the tree's basis").
+ *
+ * The small senders' rule (series.c) holds a small quad's mean-to-mean light to every
+ * receiver whose kernel is above a fixed share: one entry per (small sender, receiver),
+ * O(N^2) in the quads' basis. Seen from a receiver far from a cluster, its quads' entries
+ * are proportional to sqrt(a_q) (the same kernel over the cluster): then the cluster's
+ * scaling function phi_C = sum_q sqrt(a_q / a_C) phi_q carries them all, and the wavelets
+ * psi_P below C (the differences of the halves) are near 0 there and are dropped. So the
+ * quads' root columns are replaced by the columns of the tree's orthonormal functions
+ * (phi_root and every internal node's psi_P, in the slots of common/cluster_tree.h's
+ * bijection), built bottom-up per node (phi_P = wL phi_L + wR phi_R, psi_P = wR phi_L -
+ * wL phi_R, on the columns), each psi_P compressed as soon as it is made with the
+ * series' rule (its weight sqrt(a_P), the small senders' factor of a node under the
+ * share); the rows stay the quads'. Only the columns of the current path from the root
+ * are held uncompressed (depth x one column), so memory is the result's.
+ * The transform is exact (orthonormal); what compression drops is what the psi_P carry
+ * under the threshold, and each column's power is kept (the dropped power handed to the
+ * kept entries, sparse.c). The runtime takes the projected light forward to the tree's
+ * basis (O(N)) and multiplies; the result is in the quads' basis, no inverse.
+ * Depends on cluster.h, sparse.h. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cluster.h"
+
+/* a column in double precision: rows ascending */
+typedef struct {
+    uint32_t *row;
+    double *val; /* 3 per row */
+    uint64_t n;
+} dcol;
+
+typedef struct {
+    const wrt_ctree *t;
+    const uint32_t *root; /* per quad: its root slot */
+    const wrt_csc *M;
+    double drop;
+    const wrt_csc_weights *W;
+    uint32_t **orow;      /* per slot: the tree function's compressed column */
+    float **oval;
+    uint64_t *on;
+    uint64_t raw;         /* the tree columns' entries before compression */
+} send_ctx;
+
+static void dcol_free(dcol *c) {
+    free(c->row); free(c->val);
+    c->row = NULL; c->val = NULL; c->n = 0;
+}
+
+/* compresses the column c (float copy) as slot's and stores it */
+static void emit(send_ctx *x, uint32_t slot, const uint32_t *row, const double *val, uint64_t n) {
+    uint32_t *r = wrt_xmalloc((n ? n : 1) * sizeof *r);
+    float *v = wrt_xmalloc((n ? n : 1) * 3 * sizeof *v);
+    uint64_t k = 0;
+    for (uint64_t i = 0; i < n; i++) {
+        float f[3] = {(float)val[3 * i], (float)val[3 * i + 1], (float)val[3 * i + 2]};
+        if (f[0] == 0 && f[1] == 0 && f[2] == 0) continue;
+        r[k] = row[i];
+        memcpy(&v[3 * k], f, sizeof f);
+        k++;
+    }
+    x->raw += k;
+    k = wrt_csc_compress_col(r, v, k, slot, x->drop, x->W);
+    x->orow[slot] = r; x->oval[slot] = v; x->on[slot] = k;
+}
+
+/* phi of node p's column; psi of every internal node below (and p) emitted */
+static dcol node_phi(send_ctx *x, uint32_t p) {
+    const wrt_ctree *t = x->t;
+    dcol out = {0};
+    if (t->left[p] < 0) {
+        uint32_t c = x->root[t->right[p]];
+        uint64_t a = x->M->col[c], e = x->M->col[c + 1];
+        out.n = e - a;
+        out.row = wrt_xmalloc((out.n ? out.n : 1) * sizeof *out.row);
+        out.val = wrt_xmalloc((out.n ? out.n : 1) * 3 * sizeof *out.val);
+        for (uint64_t k = a; k < e; k++) {
+            out.row[k - a] = x->M->row[k];
+            for (int ch = 0; ch < 3; ch++) out.val[3 * (k - a) + ch] = x->M->val[3 * k + ch];
+        }
+        return out;
+    }
+    dcol L = node_phi(x, (uint32_t)t->left[p]);
+    dcol R = node_phi(x, (uint32_t)t->right[p]);
+    double wl = sqrt(t->area[t->left[p]] / t->area[p]), wr = sqrt(t->area[t->right[p]] / t->area[p]);
+    uint64_t cap = L.n + R.n;
+    out.row = wrt_xmalloc((cap ? cap : 1) * sizeof *out.row);
+    out.val = wrt_xmalloc((cap ? cap : 1) * 3 * sizeof *out.val);
+    double *dv = wrt_xmalloc((cap ? cap : 1) * 3 * sizeof *dv);
+    uint64_t i = 0, j = 0, n = 0;
+    while (i < L.n || j < R.n) {
+        uint32_t r;
+        double sl[3] = {0, 0, 0}, sr[3] = {0, 0, 0};
+        if (j >= R.n || (i < L.n && L.row[i] < R.row[j])) {
+            r = L.row[i];
+            memcpy(sl, &L.val[3 * i++], sizeof sl);
+        } else if (i >= L.n || R.row[j] < L.row[i]) {
+            r = R.row[j];
+            memcpy(sr, &R.val[3 * j++], sizeof sr);
+        } else {
+            r = L.row[i];
+            memcpy(sl, &L.val[3 * i++], sizeof sl);
+            memcpy(sr, &R.val[3 * j++], sizeof sr);
+        }
+        out.row[n] = r;
+        for (int ch = 0; ch < 3; ch++) {
+            out.val[3 * n + ch] = wl * sl[ch] + wr * sr[ch];
+            dv[3 * n + ch] = wr * sl[ch] - wl * sr[ch];
+        }
+        n++;
+    }
+    out.n = n;
+    dcol_free(&L);
+    dcol_free(&R);
+    emit(x, x->root[t->slot[p]], out.row, dv, n);
+    free(dv);
+    return out;
+}
+
+int wrt_clusters_senders(const wrt_ctree *t, const uint32_t *root, wrt_csc *M, double drop,
+                         const wrt_csc_weights *W, int always, uint64_t *raw) {
+    uint32_t nf = M->n;
+    send_ctx x = {.t = t, .root = root, .M = M, .drop = drop, .W = W};
+    x.orow = wrt_xcalloc((size_t)nf + 1, sizeof *x.orow);
+    x.oval = wrt_xcalloc((size_t)nf + 1, sizeof *x.oval);
+    x.on = wrt_xcalloc((size_t)nf + 1, sizeof *x.on);
+    uint8_t *tree = wrt_xcalloc((size_t)nf + 1, 1);
+    for (uint32_t q = 0; q < t->nq; q++) tree[root[q]] = 1;
+    dcol top = node_phi(&x, 0);
+    emit(&x, root[t->root_slot], top.row, top.val, top.n);
+    dcol_free(&top);
+    /* the result: the tree columns in their slots, the other columns as they were; kept
+     * only where it has fewer entries (or always) */
+    uint64_t total = 0;
+    for (uint32_t c = 0; c < nf; c++) total += tree[c] ? x.on[c] : M->col[c + 1] - M->col[c];
+    *raw = x.raw;
+    int use = always || total < M->nnz;
+    if (!use) {
+        for (uint32_t c = 0; c < nf; c++) { free(x.orow[c]); free(x.oval[c]); }
+        free(x.orow); free(x.oval); free(x.on); free(tree);
+        return 0;
+    }
+    wrt_csc o = {.n = nf, .nnz = total};
+    o.col = wrt_xmalloc(((size_t)nf + 1) * sizeof *o.col);
+    o.row = wrt_xmalloc((total ? total : 1) * sizeof *o.row);
+    o.val = wrt_xmalloc((total ? total : 1) * 3 * sizeof *o.val);
+    uint64_t k = 0;
+    o.col[0] = 0;
+    for (uint32_t c = 0; c < nf; c++) {
+        if (tree[c]) {
+            memcpy(&o.row[k], x.orow[c], x.on[c] * sizeof *o.row);
+            memcpy(&o.val[3 * k], x.oval[c], 3 * x.on[c] * sizeof *o.val);
+            k += x.on[c];
+            free(x.orow[c]); free(x.oval[c]);
+        } else {
+            uint64_t a = M->col[c], e = M->col[c + 1];
+            memcpy(&o.row[k], &M->row[a], (e - a) * sizeof *o.row);
+            memcpy(&o.val[3 * k], &M->val[3 * a], 3 * (e - a) * sizeof *o.val);
+            k += e - a;
+        }
+        o.col[c + 1] = k;
+    }
+    free(x.orow); free(x.oval); free(x.on); free(tree);
+    wrt_csc_free(M);
+    *M = o;
+    return 1;
+}
