@@ -585,13 +585,17 @@ static void blend_row(const float *const bt[4], const float w[4], const uint16_t
 /* sum over a point's entries of rad[cell] beta (RGB): entries k = 4j + l summed into four
  * partial sums l (each an entry's RGB in lanes 0-2), folded as (s0 + s1) + (s2 + s3). n: a
  * multiple of GROUP. The plain, SSE2 and AVX2 loops add the same products in the same
- * order: the same bits (a fourth lane, where there is one, is rad's 0 times a beta). */
-static void dot_plain(const float *rad, const uint32_t *eoff, const uint16_t *eb, size_t n, float out[3]) {
+ * order: the same bits (a fourth lane, where there is one, is rad's 0 times a beta). An
+ * entry is general (eoff: a byte offset into rad, EB betas) or, with idx non-NULL, narrow
+ * (idx: a cell index, one beta for R, G and B): the same products, so the same bits as the
+ * general entries of the same betas (test_gather `test_narrow_same_bits`). */
+static void dot_plain(const float *rad, const uint32_t *eoff, const uint16_t *idx, const uint16_t *eb, size_t n,
+                      float out[3]) {
     float s[GROUP][3] = {{0}};
     for (size_t k = 0; k < n; k++) {
-        const float *r = (const float *)((const char *)rad + eoff[k]);
+        const float *r = idx ? rad + (size_t)idx[k] * GLANE : (const float *)((const char *)rad + eoff[k]);
         for (int c = 0; c < 3; c++) {
-            uint32_t u = (uint32_t)eb[k * EB + c] << 16;
+            uint32_t u = (uint32_t)eb[idx ? k : k * EB + c] << 16;
             float f;
             memcpy(&f, &u, sizeof f);
             s[k % GROUP][c] += r[c] * f;
@@ -601,13 +605,22 @@ static void dot_plain(const float *rad, const uint32_t *eoff, const uint16_t *eb
 }
 
 #ifdef __SSE2__
-static void dot_sse2(const float *rad, const uint32_t *eoff, const uint16_t *eb, size_t n, float out[3]) {
+static void store3(__m128 t, float out[3]) {
+    float a[4];
+    _mm_storeu_ps(a, t);
+    for (int c = 0; c < 3; c++) out[c] = a[c];
+}
+
+static void dot_sse2(const float *rad, const uint32_t *eoff, const uint16_t *idx, const uint16_t *eb, size_t n,
+                     float out[3]) {
     const char *rb = (const char *)rad;
     __m128 s0 = _mm_setzero_ps(), s1 = s0, s2 = s0, s3 = s0;
     const __m128i z = _mm_setzero_si128();
-    /* an entry's beta: 8 bytes from its first (the fourth, the next entry's red, meets rad's 0) */
-#define BETA4(k_) _mm_castsi128_ps(_mm_unpacklo_epi16(z, _mm_loadl_epi64((const __m128i *)(eb + (k_) * EB))))
-#define RAD4(k_) _mm_loadu_ps((const float *)(rb + eoff[k_]))
+    /* a general entry's beta: 8 bytes from its first (the fourth, the next entry's red,
+     * meets rad's 0); a narrow one's: its one beta in every lane */
+#define BETA4(k_) (idx ? _mm_castsi128_ps(_mm_set1_epi32((int)((uint32_t)eb[k_] << 16))) \
+                       : _mm_castsi128_ps(_mm_unpacklo_epi16(z, _mm_loadl_epi64((const __m128i *)(eb + (k_) * EB)))))
+#define RAD4(k_) _mm_loadu_ps(idx ? rad + (size_t)idx[k_] * GLANE : (const float *)(rb + eoff[k_]))
     for (size_t k = 0; k < n; k += GROUP) {
         s0 = _mm_add_ps(s0, _mm_mul_ps(RAD4(k), BETA4(k)));
         s1 = _mm_add_ps(s1, _mm_mul_ps(RAD4(k + 1), BETA4(k + 1)));
@@ -616,124 +629,64 @@ static void dot_sse2(const float *rad, const uint32_t *eoff, const uint16_t *eb,
     }
 #undef BETA4
 #undef RAD4
-    float a[4];
-    _mm_storeu_ps(a, _mm_add_ps(_mm_add_ps(s0, s1), _mm_add_ps(s2, s3)));
-    for (int c = 0; c < 3; c++) out[c] = a[c];
+    store3(_mm_add_ps(_mm_add_ps(s0, s1), _mm_add_ps(s2, s3)), out);
 }
 #endif
 
 #ifdef WRT_GATHER_AVX2
 /* dot_sse2 eight lanes wide: entries 4j, 4j + 1 in one vector (partial sums 0 and 1 in its
- * halves), 4j + 2, 4j + 3 in the other; a group's 12 betas (24 bytes) as two 16-byte
- * loads, each broadcast to both halves and shuffled into floats (bfloat16 in the upper 16
- * bits, the fourth lane 0). */
-__attribute__((target("avx2"))) static void dot_avx2(const float *rad, const uint32_t *eoff, const uint16_t *eb, size_t n,
-                                                     float out[3]) {
+ * halves), 4j + 2, 4j + 3 in the other. General entries: a group's 12 betas (24 bytes) as
+ * two 16-byte loads, each broadcast to both halves and shuffled into floats (bfloat16 in
+ * the upper 16 bits, the fourth lane 0); narrow ones: its four betas (8 bytes) loaded
+ * once and spread, each to the four lanes of its entry. */
+__attribute__((target("avx2"))) static void dot_avx2(const float *rad, const uint32_t *eoff, const uint16_t *idx,
+                                                     const uint16_t *eb, size_t n, float out[3]) {
     const char *rb = (const char *)rad;
     const char Z = (char)0x80;
-    const __m256i m01 = _mm256_setr_epi8(Z, Z, 0, 1, Z, Z, 2, 3, Z, Z, 4, 5, Z, Z, Z, Z,    /* entry 0: bytes 0-5 */
+    const __m256i g01 = _mm256_setr_epi8(Z, Z, 0, 1, Z, Z, 2, 3, Z, Z, 4, 5, Z, Z, Z, Z,    /* entry 0: bytes 0-5 */
                                          Z, Z, 6, 7, Z, Z, 8, 9, Z, Z, 10, 11, Z, Z, Z, Z); /* entry 1: 6-11 */
-    const __m256i m23 = _mm256_setr_epi8(Z, Z, 4, 5, Z, Z, 6, 7, Z, Z, 8, 9, Z, Z, Z, Z,    /* entry 2: bytes 12-17, 4-9 of the load at 8 */
+    const __m256i g23 = _mm256_setr_epi8(Z, Z, 4, 5, Z, Z, 6, 7, Z, Z, 8, 9, Z, Z, Z, Z,    /* entry 2: bytes 12-17, 4-9 of the load at 8 */
                                          Z, Z, 10, 11, Z, Z, 12, 13, Z, Z, 14, 15, Z, Z, Z, Z); /* entry 3 */
-    __m256 s01 = _mm256_setzero_ps(), s23 = _mm256_setzero_ps();
-    for (size_t k = 0; k < n; k += GROUP) {
-        __m256 r01 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps((const float *)(rb + eoff[k]))),
-                                          _mm_loadu_ps((const float *)(rb + eoff[k + 1])), 1);
-        __m256 r23 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps((const float *)(rb + eoff[k + 2]))),
-                                          _mm_loadu_ps((const float *)(rb + eoff[k + 3])), 1);
-        __m256i b01 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB))), m01);
-        __m256i b23 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB + 4))), m23);
-        s01 = _mm256_add_ps(s01, _mm256_mul_ps(r01, _mm256_castsi256_ps(b01)));
-        s23 = _mm256_add_ps(s23, _mm256_mul_ps(r23, _mm256_castsi256_ps(b23)));
-    }
-    __m128 t = _mm_add_ps(_mm_add_ps(_mm256_castps256_ps128(s01), _mm256_extractf128_ps(s01, 1)),
-                          _mm_add_ps(_mm256_castps256_ps128(s23), _mm256_extractf128_ps(s23, 1)));
-    float a[4];
-    _mm_storeu_ps(a, t);
-    for (int c = 0; c < 3; c++) out[c] = a[c];
-}
-#endif
-
-/* The narrow entries' sums (a 2-byte cell index, one beta for R, G and B): dot_plain's
- * products, each lane's in the same order, so the same bits as the general entries of the
- * same betas (test_gather `test_narrow_same_bits`). */
-static void dotn_plain(const float *rad, const uint16_t *idx, const uint16_t *eb, size_t n, float out[3]) {
-    float s[GROUP][3] = {{0}};
-    for (size_t k = 0; k < n; k++) {
-        const float *r = rad + (size_t)idx[k] * GLANE;
-        uint32_t u = (uint32_t)eb[k] << 16;
-        float f;
-        memcpy(&f, &u, sizeof f);
-        for (int c = 0; c < 3; c++) s[k % GROUP][c] += r[c] * f;
-    }
-    for (int c = 0; c < 3; c++) out[c] = (s[0][c] + s[1][c]) + (s[2][c] + s[3][c]);
-}
-
-#ifdef __SSE2__
-static void dotn_sse2(const float *rad, const uint16_t *idx, const uint16_t *eb, size_t n, float out[3]) {
-    __m128 s0 = _mm_setzero_ps(), s1 = s0, s2 = s0, s3 = s0;
-#define BETA1(k_) _mm_castsi128_ps(_mm_set1_epi32((int)((uint32_t)eb[k_] << 16)))
-#define RAD1(k_) _mm_loadu_ps(rad + (size_t)idx[k_] * GLANE)
-    for (size_t k = 0; k < n; k += GROUP) {
-        s0 = _mm_add_ps(s0, _mm_mul_ps(RAD1(k), BETA1(k)));
-        s1 = _mm_add_ps(s1, _mm_mul_ps(RAD1(k + 1), BETA1(k + 1)));
-        s2 = _mm_add_ps(s2, _mm_mul_ps(RAD1(k + 2), BETA1(k + 2)));
-        s3 = _mm_add_ps(s3, _mm_mul_ps(RAD1(k + 3), BETA1(k + 3)));
-    }
-#undef BETA1
-#undef RAD1
-    float a[4];
-    _mm_storeu_ps(a, _mm_add_ps(_mm_add_ps(s0, s1), _mm_add_ps(s2, s3)));
-    for (int c = 0; c < 3; c++) out[c] = a[c];
-}
-#endif
-
-#ifdef WRT_GATHER_AVX2
-/* dotn_sse2 eight lanes wide, as dot_avx2: a group's four betas (8 bytes) loaded once and
- * spread, each to the four lanes of its entry. */
-__attribute__((target("avx2"))) static void dotn_avx2(const float *rad, const uint16_t *idx, const uint16_t *eb, size_t n,
-                                                      float out[3]) {
-    const char Z = (char)0x80;
-    const __m256i m01 = _mm256_setr_epi8(Z, Z, 0, 1, Z, Z, 0, 1, Z, Z, 0, 1, Z, Z, 0, 1, /* entry 0 */
-                                         Z, Z, 2, 3, Z, Z, 2, 3, Z, Z, 2, 3, Z, Z, 2, 3); /* entry 1 */
-    const __m256i m23 = _mm256_setr_epi8(Z, Z, 4, 5, Z, Z, 4, 5, Z, Z, 4, 5, Z, Z, 4, 5,
+    const __m256i n01 = _mm256_setr_epi8(Z, Z, 0, 1, Z, Z, 0, 1, Z, Z, 0, 1, Z, Z, 0, 1,    /* narrow: entry 0 */
+                                         Z, Z, 2, 3, Z, Z, 2, 3, Z, Z, 2, 3, Z, Z, 2, 3);   /* entry 1 */
+    const __m256i n23 = _mm256_setr_epi8(Z, Z, 4, 5, Z, Z, 4, 5, Z, Z, 4, 5, Z, Z, 4, 5,
                                          Z, Z, 6, 7, Z, Z, 6, 7, Z, Z, 6, 7, Z, Z, 6, 7);
     __m256 s01 = _mm256_setzero_ps(), s23 = _mm256_setzero_ps();
-    for (size_t k = 0; k < n; k += GROUP) {
-        __m256 r01 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(rad + (size_t)idx[k] * GLANE)),
-                                          _mm_loadu_ps(rad + (size_t)idx[k + 1] * GLANE), 1);
-        __m256 r23 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(rad + (size_t)idx[k + 2] * GLANE)),
-                                          _mm_loadu_ps(rad + (size_t)idx[k + 3] * GLANE), 1);
-        __m256i bb = _mm256_broadcastsi128_si256(_mm_loadl_epi64((const __m128i *)(eb + k)));
-        s01 = _mm256_add_ps(s01, _mm256_mul_ps(r01, _mm256_castsi256_ps(_mm256_shuffle_epi8(bb, m01))));
-        s23 = _mm256_add_ps(s23, _mm256_mul_ps(r23, _mm256_castsi256_ps(_mm256_shuffle_epi8(bb, m23))));
-    }
-    __m128 t = _mm_add_ps(_mm_add_ps(_mm256_castps256_ps128(s01), _mm256_extractf128_ps(s01, 1)),
-                          _mm_add_ps(_mm256_castps256_ps128(s23), _mm256_extractf128_ps(s23, 1)));
-    float a[4];
-    _mm_storeu_ps(a, t);
-    for (int c = 0; c < 3; c++) out[c] = a[c];
+#define PAIR(a_, b_) _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(a_)), _mm_loadu_ps(b_), 1)
+    if (idx)
+        for (size_t k = 0; k < n; k += GROUP) {
+            __m256 r01 = PAIR(rad + (size_t)idx[k] * GLANE, rad + (size_t)idx[k + 1] * GLANE);
+            __m256 r23 = PAIR(rad + (size_t)idx[k + 2] * GLANE, rad + (size_t)idx[k + 3] * GLANE);
+            __m256i bb = _mm256_broadcastsi128_si256(_mm_loadl_epi64((const __m128i *)(eb + k)));
+            s01 = _mm256_add_ps(s01, _mm256_mul_ps(r01, _mm256_castsi256_ps(_mm256_shuffle_epi8(bb, n01))));
+            s23 = _mm256_add_ps(s23, _mm256_mul_ps(r23, _mm256_castsi256_ps(_mm256_shuffle_epi8(bb, n23))));
+        }
+    else
+        for (size_t k = 0; k < n; k += GROUP) {
+            __m256 r01 = PAIR((const float *)(rb + eoff[k]), (const float *)(rb + eoff[k + 1]));
+            __m256 r23 = PAIR((const float *)(rb + eoff[k + 2]), (const float *)(rb + eoff[k + 3]));
+            __m256i b01 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB))), g01);
+            __m256i b23 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB + 4))), g23);
+            s01 = _mm256_add_ps(s01, _mm256_mul_ps(r01, _mm256_castsi256_ps(b01)));
+            s23 = _mm256_add_ps(s23, _mm256_mul_ps(r23, _mm256_castsi256_ps(b23)));
+        }
+#undef PAIR
+    store3(_mm_add_ps(_mm_add_ps(_mm256_castps256_ps128(s01), _mm256_extractf128_ps(s01, 1)),
+                      _mm_add_ps(_mm256_castps256_ps128(s23), _mm256_extractf128_ps(s23, 1))),
+           out);
 }
 #endif
 
-static void dotn_row(const wrt_gather *g, const uint16_t *idx, const uint16_t *eb, size_t n, float out[3]) {
+/* eoff (general entries) or idx (narrow ones, eoff NULL) */
+static void dot_row(const wrt_gather *g, const uint32_t *eoff, const uint16_t *idx, const uint16_t *eb, size_t n,
+                    float out[3]) {
 #ifdef WRT_GATHER_AVX2
-    if (g->avx2) { dotn_avx2(g->rad, idx, eb, n, out); return; }
+    if (g->avx2) { dot_avx2(g->rad, eoff, idx, eb, n, out); return; }
 #endif
 #ifdef __SSE2__
-    if (g->simd) { dotn_sse2(g->rad, idx, eb, n, out); return; }
+    if (g->simd) { dot_sse2(g->rad, eoff, idx, eb, n, out); return; }
 #endif
-    dotn_plain(g->rad, idx, eb, n, out);
-}
-
-static void dot_row(const wrt_gather *g, const uint32_t *eoff, const uint16_t *eb, size_t n, float out[3]) {
-#ifdef WRT_GATHER_AVX2
-    if (g->avx2) { dot_avx2(g->rad, eoff, eb, n, out); return; }
-#endif
-#ifdef __SSE2__
-    if (g->simd) { dot_sse2(g->rad, eoff, eb, n, out); return; }
-#endif
-    dot_plain(g->rad, eoff, eb, n, out);
+    dot_plain(g->rad, eoff, idx, eb, n, out);
 }
 
 /* L_o at point p of a glossy quad toward the eye: the radiance of its entries' cells
@@ -774,8 +727,8 @@ static void lout_point(void *user, size_t item) {
         G->bvis[p] = 1;
     }
     if (!G->bvis[p] || ne == 0) return;
-    if (G->narrow) dotn_row(g, G->eidx + e0, eb, ne, lo);
-    else dot_row(g, G->eoff + e0, eb, ne, lo);
+    if (G->narrow) dot_row(g, NULL, G->eidx + e0, eb, ne, lo);
+    else dot_row(g, G->eoff + e0, NULL, eb, ne, lo);
 }
 
 static void out_quad(void *user, size_t item) {

@@ -169,6 +169,17 @@ static void test_rows_follow_eye(void) {
     wrt_rt_scene_release(&b.rt);
 }
 
+/* Walls 1-5 with 8 x 8 textures of a pattern (mul, mod) and the floor without; every
+ * output 16 texels a side. */
+static void walls_textured(float tx[NQ][8 * 8 * 3], int mul, int mod, const float *tex[NQ], int tres[NQ], int ores[NQ]) {
+    for (int q = 0; q < NQ; q++) {
+        for (int k = 0; k < 8 * 8 * 3; k++) tx[q][k] = (float)(0.05 + 0.01 * ((k * mul + q * 3) % mod));
+        tex[q] = q ? tx[q] : NULL;
+        tres[q] = 8;
+        ores[q] = 16;
+    }
+}
+
 /* The light change's sums, plain loops, four lanes (SSE2) and eight (AVX2 where the
  * processor has it): the same bits, under light that varies across the walls and walls
  * with textures (a case where a lane out of order would change the rounding). */
@@ -177,11 +188,9 @@ static void test_sums_same_bits(void) {
     if (!box_make(&b)) { CHECK(0, "Embree scene"); return; }
     wrt_gather *g[3];
     static float o[3][NQ][16 * 16 * 3], tx[NQ][8 * 8 * 3];
-    for (int q = 0; q < NQ; q++)
-        for (int k = 0; k < 8 * 8 * 3; k++) tx[q][k] = (float)(0.05 + 0.01 * ((k * 7 + q * 3) % 11));
     const float *tex[NQ];
     int tres[NQ], ores[NQ];
-    for (int q = 0; q < NQ; q++) { tex[q] = q ? tx[q] : NULL; tres[q] = 8; ores[q] = 16; }
+    walls_textured(tx, 7, 11, tex, tres, ores);
     light l = {1.0, 1};
     double eye[3] = {-0.3, 0.6, 0.45};
     for (int v = 0; v < 3; v++) {
@@ -204,17 +213,16 @@ static void test_sums_same_bits(void) {
 
 /* A grey lobe's narrow entries (a 2-byte cell index, one beta for R, G and B) against the
  * general ones (a 4-byte offset, three betas): the same bits from every loop (plain, SSE2,
- * the widest; the general entries' plain loop), in fewer bytes, under light that varies across the walls and textures. */
+ * the widest; the general entries' plain loop), in fewer bytes, under light that varies
+ * across the walls and textures. */
 static void test_narrow_same_bits(void) {
     box b;
     if (!box_make(&b)) { CHECK(0, "Embree scene"); return; }
     for (int c = 0; c < 3; c++) b.mat.base_color[c] = 0.55f; /* grey */
     static float o[4][NQ][16 * 16 * 3], tx[NQ][8 * 8 * 3];
-    for (int q = 0; q < NQ; q++)
-        for (int k = 0; k < 8 * 8 * 3; k++) tx[q][k] = (float)(0.05 + 0.01 * ((k * 5 + q * 3) % 13));
     const float *tex[NQ];
     int tres[NQ], ores[NQ];
-    for (int q = 0; q < NQ; q++) { tex[q] = q ? tx[q] : NULL; tres[q] = 8; ores[q] = 16; }
+    walls_textured(tx, 5, 13, tex, tres, ores);
     light l = {1.0, 1};
     double eye[3] = {0.35, 0.5, -0.6};
     size_t bytes[2] = {0, 0}, ent[2] = {0, 0};
