@@ -49,8 +49,10 @@ typedef struct gquad {
     ghit *hits;       /* npt x NDIR (glossy quads): what each ray sees (at creation) */
     size_t *e0;       /* npt + 1: where a point's entries start in eoff / ebeta */
     uint32_t *eoff;   /* per entry: its radiance cell's byte offset in rad (GLANE floats a cell) */
-    uint16_t *ebeta;  /* per entry: beta toward the eye (bfloat16, EB: R, G, B), made when the
-                       * eye moves, read at a light change */
+    uint16_t *ebeta;  /* per entry: beta toward the eye (bfloat16, EB: R, G, B; narrow: one),
+                       * made when the eye moves, read at a light change */
+    int narrow;       /* the narrow entries (eidx, one beta) instead of eoff and EB betas */
+    uint16_t *eidx;   /* narrow: per entry its radiance cell's index in rad */
     size_t *a0;       /* npt + 1: where a point's seen incident cells start in amap */
     uint16_t *amap;   /* per seen incident cell (by entry): a | AM_FIRST on an entry's first */
     uint8_t *bvis;    /* npt: 1 if the point faces the eye (its row was made) */
@@ -85,6 +87,8 @@ struct wrt_gather {
                         * RGB, 0), then a black cell (0) */
     int simd, avx2;    /* the sums 4 lanes wide (SSE2), 8 (AVX2 at run time): the same bits */
     float **beta;      /* per glossy quad's material: GATHER_BRES^2 x NDIR x 3 */
+    uint8_t *grey;     /* per beta table: 1 if its R, G and B are the same floats everywhere */
+    int wide;          /* env->wide: no narrow entries */
     axis *dax;  /* GATHER_RG: the direct grid's cells at the radiance grid's */
     axis *tax;  /* nslot x GATHER_RG: each slot's texture cells at the radiance grid's */
     const wrt_material **beta_mat; int nbeta;
@@ -214,9 +218,14 @@ static int cmp_u64(const void *a, const void *b) {
 /* A glossy quad's sums (gquad): per point its seen incident cells sorted by the radiance
  * cell they read (then by index), one entry per distinct cell, padded to a multiple of
  * GROUP; frees the hits. In an open scene many incident cells see only the sky (the
- * glossy asset: floor points' upper hemisphere): they have no entry. -1: no memory. */
+ * glossy asset: floor points' upper hemisphere): they have no entry. The narrow form,
+ * where the quad's lobe is grey (its BRDF table's R, G and B the same floats: one beta
+ * an entry serves the three) and every cell has a 16-bit index (up to 15 seen quads):
+ * 4 bytes an entry instead of 10, the same products in the same order. -1: no memory. */
 static int make_entries(wrt_gather *g, gquad *G) {
     uint32_t black = (uint32_t)g->nslot * RG2;
+    G->narrow = !g->wide && g->grey[G->beta_id] && black <= UINT16_MAX;
+    size_t nb = G->narrow ? 1 : EB;
     G->e0 = ga(g, ((size_t)G->npt + 1) * sizeof *G->e0);
     G->a0 = ga(g, ((size_t)G->npt + 1) * sizeof *G->a0);
     G->bvis = ga(g, (size_t)G->npt);
@@ -250,14 +259,34 @@ static int make_entries(wrt_gather *g, gquad *G) {
         }
         if (pass) { G->e0[G->npt] = ne; G->a0[G->npt] = na; break; }
         G->eoff = ga(g, (ne ? ne : 1) * sizeof *G->eoff);
-        G->ebeta = ga(g, (ne * EB + 8) * sizeof *G->ebeta); /* + 8: the 8-byte loads of the last entry */
+        G->ebeta = ga(g, (ne * nb + 8) * sizeof *G->ebeta); /* + 8: the 8-byte loads of the last entry */
         G->amap = ga(g, (na ? na : 1) * sizeof *G->amap);
         if (!G->eoff || !G->ebeta || !G->amap) { gf(g, key); return -1; }
     }
     gf(g, key);
     gf(g, G->hits);
     G->hits = NULL;
+    if (G->narrow) {
+        size_t ne = G->e0[G->npt];
+        G->eidx = ga(g, (ne ? ne : 1) * sizeof *G->eidx);
+        if (!G->eidx) return -1;
+        for (size_t e = 0; e < ne; e++) G->eidx[e] = (uint16_t)(G->eoff[e] / (GLANE * sizeof(float)));
+        gf(g, G->eoff);
+        G->eoff = NULL;
+    }
     return 0;
+}
+
+size_t wrt_gather_entry_bytes(const wrt_gather *g, size_t *entries) {
+    size_t n = 0, bytes = 0;
+    for (int k = 0; g && k < g->nglossy; k++) {
+        const gquad *G = &g->gq[g->glossy[k]];
+        size_t ne = G->e0 ? G->e0[G->npt] : 0;
+        n += ne;
+        bytes += ne * (G->narrow ? sizeof *G->eidx + sizeof *G->ebeta : sizeof *G->eoff + EB * sizeof *G->ebeta);
+    }
+    if (entries) *entries = n;
+    return bytes;
 }
 
 wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_res, RTCScene scene, wrt_v3 origin,
@@ -285,7 +314,9 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_re
     g->slot_quad = ga(g, (size_t)nq * sizeof(int));
     g->beta = ga(g, ((size_t)ng) * sizeof(float *));
     g->beta_mat = ga(g, ((size_t)ng) * sizeof(wrt_material *));
-    if (!g->q || !g->gq || !g->glossy || !g->slot || !g->slot_quad || !g->beta || !g->beta_mat) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
+    g->grey = ga(g, (size_t)ng);
+    g->wide = env->wide;
+    if (!g->q || !g->gq || !g->glossy || !g->slot || !g->slot_quad || !g->beta || !g->beta_mat || !g->grey) { wrt_gather_destroy(g); return WRT_ERR_NOMEM; }
     memcpy(g->q, q, (size_t)nq * sizeof *g->q);
     for (int i = 0; i < nq; i++) g->slot[i] = -1;
     for (int i = 0; i < nq; i++) {
@@ -335,6 +366,12 @@ wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_re
             done += (double)n * BETA_ROW_RAYS;
             if (env->progress && !env->progress(env->user, done / total)) { wrt_gather_destroy(g); return WRT_ERR_CANCELLED; }
         }
+    for (int b = 0; b < g->nbeta; b++) { /* a grey lobe: R, G and B the same floats (bits) */
+        const float *t = g->beta[b];
+        size_t k = 0, n = (size_t)GATHER_BRES * GATHER_BRES * NDIR;
+        while (k < n && !memcmp(t + 3 * k, t + 3 * k + 1, sizeof *t) && !memcmp(t + 3 * k, t + 3 * k + 2, sizeof *t)) k++;
+        g->grey[b] = k == n;
+    }
     for (int k = 0; k < g->nglossy; k++) {
         int i = g->glossy[k];
         gquad *G = &g->gq[i];
@@ -374,10 +411,10 @@ void wrt_gather_destroy(wrt_gather *g) {
     if (g->gq)
         for (int i = 0; i < g->nq; i++) {
             gf(g, g->gq[i].hits); gf(g, g->gq[i].lout); gf(g, g->gq[i].e0); gf(g, g->gq[i].eoff);
-            gf(g, g->gq[i].ebeta); gf(g, g->gq[i].a0); gf(g, g->gq[i].amap); gf(g, g->gq[i].bvis);
+            gf(g, g->gq[i].ebeta); gf(g, g->gq[i].a0); gf(g, g->gq[i].amap); gf(g, g->gq[i].bvis); gf(g, g->gq[i].eidx);
         }
     for (int b = 0; b < g->nbeta; b++) gf(g, g->beta[b]);
-    gf(g, g->beta); gf(g, g->beta_mat); gf(g, g->direct); gf(g, g->rad); gf(g, g->dax); gf(g, g->tax); gf(g, g->slot); gf(g, g->slot_quad); gf(g, g->glossy); gf(g, g->gq); gf(g, g->q);
+    gf(g, g->beta); gf(g, g->beta_mat); gf(g, g->grey); gf(g, g->direct); gf(g, g->rad); gf(g, g->dax); gf(g, g->tax); gf(g, g->slot); gf(g, g->slot_quad); gf(g, g->glossy); gf(g, g->gq); gf(g, g->q);
     gf(g, g);
 }
 
@@ -500,9 +537,10 @@ static uint16_t to_bf16(float f) {
 
 /* A point's betas toward the eye: for each of its seen incident cells amap[0..na) the four
  * beta rows bt[] blended with weights w (the bilinear outgoing direction), summed over the
- * incident cells of an entry (in amap's order), kept as bfloat16 in eb (EB an entry). */
-static void blend_row(const float *const bt[4], const float w[4], const uint16_t *amap, size_t na, uint16_t *eb) {
-    uint16_t *e = eb - EB;
+ * incident cells of an entry (in amap's order), kept as bfloat16 in eb (nb an entry: EB,
+ * or 1 for a grey lobe's narrow entries, R, which the three channels' equal floats give). */
+static void blend_row(const float *const bt[4], const float w[4], const uint16_t *amap, size_t na, uint16_t *eb, int nb) {
+    uint16_t *e = eb - nb;
 #ifdef __SSE2__
     /* the scalar loop's operations, four lanes at once (the fourth, the next cell's red,
      * dropped): the same bits */
@@ -514,14 +552,14 @@ static void blend_row(const float *const bt[4], const float w[4], const uint16_t
         u_ = _mm_srli_epi32(u_, 16); /* beta >= 0: under 0x8000, so the signed pack keeps it */ \
         uint16_t h_[8]; \
         _mm_storeu_si128((__m128i *)h_, _mm_packs_epi32(u_, u_)); \
-        memcpy(dst_, h_, EB * sizeof *h_); } while (0)
+        memcpy(dst_, h_, (size_t)nb * sizeof *h_); } while (0)
     for (size_t k = 0; k < na; k++) {
         size_t o = (size_t)(amap[k] & ~AM_FIRST) * 3;
         __m128 t = _mm_add_ps(_mm_add_ps(_mm_mul_ps(w0, _mm_loadu_ps(bt[0] + o)), _mm_mul_ps(w1, _mm_loadu_ps(bt[1] + o))),
                               _mm_add_ps(_mm_mul_ps(w2, _mm_loadu_ps(bt[2] + o)), _mm_mul_ps(w3, _mm_loadu_ps(bt[3] + o))));
         if (amap[k] & AM_FIRST) {
             if (e >= eb) BF16_STORE(e, acc);
-            e += EB;
+            e += nb;
             acc = t;
         } else acc = _mm_add_ps(acc, t);
     }
@@ -531,9 +569,9 @@ static void blend_row(const float *const bt[4], const float w[4], const uint16_t
     float acc[3] = {0, 0, 0};
     for (size_t k = 0; k <= na; k++) {
         if (k == na || (amap[k] & AM_FIRST)) {
-            if (e >= eb) for (int c = 0; c < 3; c++) e[c] = to_bf16(acc[c]);
+            if (e >= eb) for (int c = 0; c < nb; c++) e[c] = to_bf16(acc[c]);
             if (k == na) break;
-            e += EB;
+            e += nb;
         }
         size_t o = (size_t)(amap[k] & ~AM_FIRST) * 3;
         for (int c = 0; c < 3; c++) {
@@ -547,13 +585,17 @@ static void blend_row(const float *const bt[4], const float w[4], const uint16_t
 /* sum over a point's entries of rad[cell] beta (RGB): entries k = 4j + l summed into four
  * partial sums l (each an entry's RGB in lanes 0-2), folded as (s0 + s1) + (s2 + s3). n: a
  * multiple of GROUP. The plain, SSE2 and AVX2 loops add the same products in the same
- * order: the same bits (a fourth lane, where there is one, is rad's 0 times a beta). */
-static void dot_plain(const float *rad, const uint32_t *eoff, const uint16_t *eb, size_t n, float out[3]) {
+ * order: the same bits (a fourth lane, where there is one, is rad's 0 times a beta). An
+ * entry is general (eoff: a byte offset into rad, EB betas) or, with idx non-NULL, narrow
+ * (idx: a cell index, one beta for R, G and B): the same products, so the same bits as the
+ * general entries of the same betas (test_gather `test_narrow_same_bits`). */
+static void dot_plain(const float *rad, const uint32_t *eoff, const uint16_t *idx, const uint16_t *eb, size_t n,
+                      float out[3]) {
     float s[GROUP][3] = {{0}};
     for (size_t k = 0; k < n; k++) {
-        const float *r = (const float *)((const char *)rad + eoff[k]);
+        const float *r = idx ? rad + (size_t)idx[k] * GLANE : (const float *)((const char *)rad + eoff[k]);
         for (int c = 0; c < 3; c++) {
-            uint32_t u = (uint32_t)eb[k * EB + c] << 16;
+            uint32_t u = (uint32_t)eb[idx ? k : k * EB + c] << 16;
             float f;
             memcpy(&f, &u, sizeof f);
             s[k % GROUP][c] += r[c] * f;
@@ -563,13 +605,22 @@ static void dot_plain(const float *rad, const uint32_t *eoff, const uint16_t *eb
 }
 
 #ifdef __SSE2__
-static void dot_sse2(const float *rad, const uint32_t *eoff, const uint16_t *eb, size_t n, float out[3]) {
+static void store3(__m128 t, float out[3]) {
+    float a[4];
+    _mm_storeu_ps(a, t);
+    for (int c = 0; c < 3; c++) out[c] = a[c];
+}
+
+static void dot_sse2(const float *rad, const uint32_t *eoff, const uint16_t *idx, const uint16_t *eb, size_t n,
+                     float out[3]) {
     const char *rb = (const char *)rad;
     __m128 s0 = _mm_setzero_ps(), s1 = s0, s2 = s0, s3 = s0;
     const __m128i z = _mm_setzero_si128();
-    /* an entry's beta: 8 bytes from its first (the fourth, the next entry's red, meets rad's 0) */
-#define BETA4(k_) _mm_castsi128_ps(_mm_unpacklo_epi16(z, _mm_loadl_epi64((const __m128i *)(eb + (k_) * EB))))
-#define RAD4(k_) _mm_loadu_ps((const float *)(rb + eoff[k_]))
+    /* a general entry's beta: 8 bytes from its first (the fourth, the next entry's red,
+     * meets rad's 0); a narrow one's: its one beta in every lane */
+#define BETA4(k_) (idx ? _mm_castsi128_ps(_mm_set1_epi32((int)((uint32_t)eb[k_] << 16))) \
+                       : _mm_castsi128_ps(_mm_unpacklo_epi16(z, _mm_loadl_epi64((const __m128i *)(eb + (k_) * EB)))))
+#define RAD4(k_) _mm_loadu_ps(idx ? rad + (size_t)idx[k_] * GLANE : (const float *)(rb + eoff[k_]))
     for (size_t k = 0; k < n; k += GROUP) {
         s0 = _mm_add_ps(s0, _mm_mul_ps(RAD4(k), BETA4(k)));
         s1 = _mm_add_ps(s1, _mm_mul_ps(RAD4(k + 1), BETA4(k + 1)));
@@ -578,52 +629,64 @@ static void dot_sse2(const float *rad, const uint32_t *eoff, const uint16_t *eb,
     }
 #undef BETA4
 #undef RAD4
-    float a[4];
-    _mm_storeu_ps(a, _mm_add_ps(_mm_add_ps(s0, s1), _mm_add_ps(s2, s3)));
-    for (int c = 0; c < 3; c++) out[c] = a[c];
+    store3(_mm_add_ps(_mm_add_ps(s0, s1), _mm_add_ps(s2, s3)), out);
 }
 #endif
 
 #ifdef WRT_GATHER_AVX2
 /* dot_sse2 eight lanes wide: entries 4j, 4j + 1 in one vector (partial sums 0 and 1 in its
- * halves), 4j + 2, 4j + 3 in the other; a group's 12 betas (24 bytes) as two 16-byte
- * loads, each broadcast to both halves and shuffled into floats (bfloat16 in the upper 16
- * bits, the fourth lane 0). */
-__attribute__((target("avx2"))) static void dot_avx2(const float *rad, const uint32_t *eoff, const uint16_t *eb, size_t n,
-                                                     float out[3]) {
+ * halves), 4j + 2, 4j + 3 in the other. General entries: a group's 12 betas (24 bytes) as
+ * two 16-byte loads, each broadcast to both halves and shuffled into floats (bfloat16 in
+ * the upper 16 bits, the fourth lane 0); narrow ones: its four betas (8 bytes) loaded
+ * once and spread, each to the four lanes of its entry. */
+__attribute__((target("avx2"))) static void dot_avx2(const float *rad, const uint32_t *eoff, const uint16_t *idx,
+                                                     const uint16_t *eb, size_t n, float out[3]) {
     const char *rb = (const char *)rad;
     const char Z = (char)0x80;
-    const __m256i m01 = _mm256_setr_epi8(Z, Z, 0, 1, Z, Z, 2, 3, Z, Z, 4, 5, Z, Z, Z, Z,    /* entry 0: bytes 0-5 */
+    const __m256i g01 = _mm256_setr_epi8(Z, Z, 0, 1, Z, Z, 2, 3, Z, Z, 4, 5, Z, Z, Z, Z,    /* entry 0: bytes 0-5 */
                                          Z, Z, 6, 7, Z, Z, 8, 9, Z, Z, 10, 11, Z, Z, Z, Z); /* entry 1: 6-11 */
-    const __m256i m23 = _mm256_setr_epi8(Z, Z, 4, 5, Z, Z, 6, 7, Z, Z, 8, 9, Z, Z, Z, Z,    /* entry 2: bytes 12-17, 4-9 of the load at 8 */
+    const __m256i g23 = _mm256_setr_epi8(Z, Z, 4, 5, Z, Z, 6, 7, Z, Z, 8, 9, Z, Z, Z, Z,    /* entry 2: bytes 12-17, 4-9 of the load at 8 */
                                          Z, Z, 10, 11, Z, Z, 12, 13, Z, Z, 14, 15, Z, Z, Z, Z); /* entry 3 */
+    const __m256i n01 = _mm256_setr_epi8(Z, Z, 0, 1, Z, Z, 0, 1, Z, Z, 0, 1, Z, Z, 0, 1,    /* narrow: entry 0 */
+                                         Z, Z, 2, 3, Z, Z, 2, 3, Z, Z, 2, 3, Z, Z, 2, 3);   /* entry 1 */
+    const __m256i n23 = _mm256_setr_epi8(Z, Z, 4, 5, Z, Z, 4, 5, Z, Z, 4, 5, Z, Z, 4, 5,
+                                         Z, Z, 6, 7, Z, Z, 6, 7, Z, Z, 6, 7, Z, Z, 6, 7);
     __m256 s01 = _mm256_setzero_ps(), s23 = _mm256_setzero_ps();
-    for (size_t k = 0; k < n; k += GROUP) {
-        __m256 r01 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps((const float *)(rb + eoff[k]))),
-                                          _mm_loadu_ps((const float *)(rb + eoff[k + 1])), 1);
-        __m256 r23 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps((const float *)(rb + eoff[k + 2]))),
-                                          _mm_loadu_ps((const float *)(rb + eoff[k + 3])), 1);
-        __m256i b01 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB))), m01);
-        __m256i b23 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB + 4))), m23);
-        s01 = _mm256_add_ps(s01, _mm256_mul_ps(r01, _mm256_castsi256_ps(b01)));
-        s23 = _mm256_add_ps(s23, _mm256_mul_ps(r23, _mm256_castsi256_ps(b23)));
-    }
-    __m128 t = _mm_add_ps(_mm_add_ps(_mm256_castps256_ps128(s01), _mm256_extractf128_ps(s01, 1)),
-                          _mm_add_ps(_mm256_castps256_ps128(s23), _mm256_extractf128_ps(s23, 1)));
-    float a[4];
-    _mm_storeu_ps(a, t);
-    for (int c = 0; c < 3; c++) out[c] = a[c];
+#define PAIR(a_, b_) _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(a_)), _mm_loadu_ps(b_), 1)
+    if (idx)
+        for (size_t k = 0; k < n; k += GROUP) {
+            __m256 r01 = PAIR(rad + (size_t)idx[k] * GLANE, rad + (size_t)idx[k + 1] * GLANE);
+            __m256 r23 = PAIR(rad + (size_t)idx[k + 2] * GLANE, rad + (size_t)idx[k + 3] * GLANE);
+            __m256i bb = _mm256_broadcastsi128_si256(_mm_loadl_epi64((const __m128i *)(eb + k)));
+            s01 = _mm256_add_ps(s01, _mm256_mul_ps(r01, _mm256_castsi256_ps(_mm256_shuffle_epi8(bb, n01))));
+            s23 = _mm256_add_ps(s23, _mm256_mul_ps(r23, _mm256_castsi256_ps(_mm256_shuffle_epi8(bb, n23))));
+        }
+    else
+        for (size_t k = 0; k < n; k += GROUP) {
+            __m256 r01 = PAIR((const float *)(rb + eoff[k]), (const float *)(rb + eoff[k + 1]));
+            __m256 r23 = PAIR((const float *)(rb + eoff[k + 2]), (const float *)(rb + eoff[k + 3]));
+            __m256i b01 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB))), g01);
+            __m256i b23 = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(_mm_loadu_si128((const __m128i *)(eb + k * EB + 4))), g23);
+            s01 = _mm256_add_ps(s01, _mm256_mul_ps(r01, _mm256_castsi256_ps(b01)));
+            s23 = _mm256_add_ps(s23, _mm256_mul_ps(r23, _mm256_castsi256_ps(b23)));
+        }
+#undef PAIR
+    store3(_mm_add_ps(_mm_add_ps(_mm256_castps256_ps128(s01), _mm256_extractf128_ps(s01, 1)),
+                      _mm_add_ps(_mm256_castps256_ps128(s23), _mm256_extractf128_ps(s23, 1))),
+           out);
 }
 #endif
 
-static void dot_row(const wrt_gather *g, const uint32_t *eoff, const uint16_t *eb, size_t n, float out[3]) {
+/* eoff (general entries) or idx (narrow ones, eoff NULL) */
+static void dot_row(const wrt_gather *g, const uint32_t *eoff, const uint16_t *idx, const uint16_t *eb, size_t n,
+                    float out[3]) {
 #ifdef WRT_GATHER_AVX2
-    if (g->avx2) { dot_avx2(g->rad, eoff, eb, n, out); return; }
+    if (g->avx2) { dot_avx2(g->rad, eoff, idx, eb, n, out); return; }
 #endif
 #ifdef __SSE2__
-    if (g->simd) { dot_sse2(g->rad, eoff, eb, n, out); return; }
+    if (g->simd) { dot_sse2(g->rad, eoff, idx, eb, n, out); return; }
 #endif
-    dot_plain(g->rad, eoff, eb, n, out);
+    dot_plain(g->rad, eoff, idx, eb, n, out);
 }
 
 /* L_o at point p of a glossy quad toward the eye: the radiance of its entries' cells
@@ -639,7 +702,8 @@ static void lout_point(void *user, size_t item) {
     lo[0] = lo[1] = lo[2] = 0;
     int np = G->pts;
     size_t e0 = G->e0[p], ne = G->e0[p + 1] - e0;
-    uint16_t *eb = G->ebeta + e0 * EB;
+    int nb = G->narrow ? 1 : EB;
+    uint16_t *eb = G->ebeta + e0 * (size_t)nb;
     if (g->rows_eye) {
         G->bvis[p] = 0;
         wrt_v3 x = qpoint(Q, ((p % np) + 0.5) / np, ((p / np) + 0.5) / np);
@@ -659,11 +723,12 @@ static void lout_point(void *user, size_t item) {
             w[k] = (float)(((k & 1) ? tx : 1 - tx) * ((k >> 1) ? ty : 1 - ty));
             bt[k] = g->beta[G->beta_id] + ((size_t)cy * GATHER_BRES + cx) * NDIR * 3;
         }
-        blend_row(bt, w, G->amap + G->a0[p], G->a0[p + 1] - G->a0[p], eb);
+        blend_row(bt, w, G->amap + G->a0[p], G->a0[p + 1] - G->a0[p], eb, nb);
         G->bvis[p] = 1;
     }
     if (!G->bvis[p] || ne == 0) return;
-    dot_row(g, G->eoff + e0, eb, ne, lo);
+    if (G->narrow) dot_row(g, NULL, G->eidx + e0, eb, ne, lo);
+    else dot_row(g, G->eoff + e0, NULL, eb, ne, lo);
 }
 
 static void out_quad(void *user, size_t item) {

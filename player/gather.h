@@ -57,6 +57,9 @@ typedef struct wrt_gather_env {
     int piece;  /* points (or table rows) a piece: a few for each thread of `run`; 0: 8 */
     int simd;   /* the light change's sums: 0 the widest the processor has (AVX2 or SSE2), 1
                  * plain loops, 2 SSE2 (the same bits whichever: tests and A/B timings) */
+    int wide;   /* 1: every quad's sum entries in the general form (a 4-byte offset, RGB betas);
+                 * 0: the narrow form where it holds (gather.c: a 2-byte cell index and one
+                 * beta for a grey lobe), the same bits (tests and A/B timings) */
 } wrt_gather_env;
 
 /* Direct irradiance (RGB, shadows included) from the lights at the n points x[0..n) of a
@@ -72,6 +75,10 @@ typedef void (*wrt_gather_direct_fn)(void *user, const wrt_v3 *x, int n, wrt_v3 
 wrt_status wrt_gather_create(int nq, const wrt_gather_quad *q, const int *out_res, RTCScene scene, wrt_v3 origin,
                              double eps, int points, const wrt_gather_env *env, wrt_gather **out);
 void wrt_gather_destroy(wrt_gather *g); /* NULL: no-op */
+
+/* What a light change's sums read: their entries (*entries, may be NULL) and the bytes
+ * those take (offsets or indices and betas; the radiance cells they read not counted). */
+size_t wrt_gather_entry_bytes(const wrt_gather *g, size_t *entries);
 
 /* Rebuilds L_in from the lights (direct) and the quads' displayed textures tex[q] of
  * tex_res[q] texels a side (outgoing indirect radiance, RGB). */

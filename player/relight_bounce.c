@@ -200,6 +200,13 @@ static wrt_status k_by_rows(wrt_relight *r) {
     if (r->oom) goto done;
     k_fill(r, ts, te, in4);
     k_halves(r, n4);
+    if (g->nkcols <= 65536) { /* the columns in 16 bits: 10 bytes a union entry instead of 12 */
+        r->k.k4_c16 = relight_calloc(r, (size_t)n4 + 1, sizeof(uint16_t));
+        if (r->oom) goto done;
+        for (uint64_t b = 0; b < n4; b++) r->k.k4_c16[b] = (uint16_t)r->k.k4_cols[b];
+        relight_free(r, r->k.k4_cols);
+        r->k.k4_cols = NULL;
+    }
 done:
     if (r->oom) st = wrt_fail(WRT_ERR_NOMEM, "relight: out of memory");
     relight_free(r, ts); relight_free(r, te); relight_free(r, in4); relight_free(r, drows); relight_free(r, dvals);
@@ -266,80 +273,99 @@ static inline float k_scale(int e) {
     return v.f;
 }
 
+/* A union entry's column (k4_c16 or k4_cols). */
+#define K_COL(c16_, c32_, b_) ((size_t)((c16_) ? (c16_)[b_] : (c32_)[b_]))
+
 /* Y = K c on the rows in fours (K by rows, r->k.k4_*): one load of c serves four rows. Each
- * row sums its even-numbered and its odd-numbered entries apart, then adds the two: the
- * same operations, in the same order, as the AVX version below, which runs an even and an
- * odd entry side by side (so Y is the same to the bit with or without AVX). */
+ * row sums its entries in four partial sums (entry k of the four's union into sum k mod 4),
+ * folded as (s0 + s1) + (s2 + s3): the same operations, in the same order, as the AVX
+ * version below, which runs entries 4j and 4j + 1 side by side in one register and 4j + 2,
+ * 4j + 3 in another (so Y is the same to the bit with or without AVX). Four sums rather
+ * than two: the adds' latency, not the loads, bound the loop with two. */
 static void k_fours(wrt_relight *r) {
     const float *C = r->k.C, *kv = r->k.k4_vals;
     const uint32_t *kc = r->k.k4_cols;
+    const uint16_t *kc16 = r->k.k4_c16;
     for (uint32_t i = 0; i < r->k.nk4; i++) {
         float *y = r->k.Y4 + (size_t)r->k.k4_row[i] * 4;
-        uint32_t b = r->k.k4_start[i], end = r->k.k4_start[i + 1];
+        uint32_t b = r->k.k4_start[i], end = r->k.k4_start[i + 1], b0 = b;
 #ifdef __SSE2__
-        __m128 e0 = _mm_setzero_ps(), e1 = e0, e2 = e0, e3 = e0, o0 = e0, o1 = e0, o2 = e0, o3 = e0;
-#define K_FOUR(a0, a1, a2, a3, bb) do { \
-            __m128 cv_ = _mm_load_ps(C + (size_t)kc[bb] * 4), v_ = _mm_load_ps(kv + (size_t)(bb) * 4); \
-            a0 = _mm_add_ps(a0, _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0x00))); \
-            a1 = _mm_add_ps(a1, _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0x55))); \
-            a2 = _mm_add_ps(a2, _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0xAA))); \
-            a3 = _mm_add_ps(a3, _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0xFF))); } while (0)
-        for (; b + 2 <= end; b += 2) {
-            K_FOUR(e0, e1, e2, e3, b);
-            K_FOUR(o0, o1, o2, o3, b + 1);
-        }
-        if (b < end) K_FOUR(e0, e1, e2, e3, b);
+        __m128 a[4][4]; /* [partial sum][row] */
+        for (int p = 0; p < 4; p++) for (int k = 0; k < 4; k++) a[p][k] = _mm_setzero_ps();
+#define K_FOUR(p_, bb) do { \
+            __m128 cv_ = _mm_load_ps(C + K_COL(kc16, kc, bb) * 4), v_ = _mm_load_ps(kv + (size_t)(bb) * 4); \
+            a[p_][0] = _mm_add_ps(a[p_][0], _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0x00))); \
+            a[p_][1] = _mm_add_ps(a[p_][1], _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0x55))); \
+            a[p_][2] = _mm_add_ps(a[p_][2], _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0xAA))); \
+            a[p_][3] = _mm_add_ps(a[p_][3], _mm_mul_ps(cv_, _mm_shuffle_ps(v_, v_, 0xFF))); } while (0)
+        for (; b < end; b++) K_FOUR((b - b0) & 3, b);
+#undef K_FOUR
         int n = r->k.k4_n[i]; /* 2 to 4 rows: the next group's rows follow */
         __m128 sc = _mm_set1_ps(k_scale(r->k.k4_exp[i]));
-        _mm_store_ps(y, _mm_mul_ps(_mm_add_ps(e0, o0), sc)); _mm_store_ps(y + 4, _mm_mul_ps(_mm_add_ps(e1, o1), sc));
-        if (n > 2) _mm_store_ps(y + 8, _mm_mul_ps(_mm_add_ps(e2, o2), sc));
-        if (n > 3) _mm_store_ps(y + 12, _mm_mul_ps(_mm_add_ps(e3, o3), sc));
+        for (int k = 0; k < n; k++)
+            _mm_store_ps(y + 4 * k, _mm_mul_ps(_mm_add_ps(_mm_add_ps(a[0][k], a[1][k]), _mm_add_ps(a[2][k], a[3][k])), sc));
 #else
-        float a[2][4][3] = {{{0}}}, sc = k_scale(r->k.k4_exp[i]);
-        for (uint32_t n = 0; b < end; b++, n++)
+        float a[4][4][3] = {{{0}}}, sc = k_scale(r->k.k4_exp[i]);
+        for (; b < end; b++)
             for (int k = 0; k < 4; k++)
-                for (int c = 0; c < 3; c++) a[n & 1][k][c] += C[(size_t)kc[b] * 4 + c] * kv[(size_t)b * 4 + k];
-        for (int k = 0; k < r->k.k4_n[i]; k++) for (int c = 0; c < 3; c++) y[k * 4 + c] = (a[0][k][c] + a[1][k][c]) * sc;
+                for (int c = 0; c < 3; c++) a[(b - b0) & 3][k][c] += C[K_COL(kc16, kc, b) * 4 + c] * kv[(size_t)b * 4 + k];
+        for (int k = 0; k < r->k.k4_n[i]; k++)
+            for (int c = 0; c < 3; c++) y[k * 4 + c] = ((a[0][k][c] + a[1][k][c]) + (a[2][k][c] + a[3][k][c])) * sc;
 #endif
     }
 }
 
 #ifdef WRT_K_AVX
 /* The AVX loop with the values as halves (F16C): the same products of the same values in
- * the same order as k_fours over k4_vals' floats. */
-__attribute__((target("avx,f16c"))) static void k_fours_avx(wrt_relight *r) {
+ * the same order as k_fours over k4_vals' floats. c16: the columns are k4_c16's (a
+ * constant in each caller below, so each gets its own loop). */
+__attribute__((target("avx,f16c"), always_inline)) static inline void k_fours_avx_in(wrt_relight *r, int c16) {
     const float *C = r->k.C;
     const uint16_t *kh = r->k.k4_h;
     const uint32_t *kc = r->k.k4_cols;
+    const uint16_t *kc16 = r->k.k4_c16;
+#define KC(b_) ((size_t)(c16 ? kc16[b_] : kc[b_]))
     for (uint32_t i = 0; i < r->k.nk4; i++) {
         float *y = r->k.Y4 + (size_t)r->k.k4_row[i] * 4;
         uint32_t b = r->k.k4_start[i], end = r->k.k4_start[i + 1];
-        __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps(), a3 = _mm256_setzero_ps();
-        for (; b + 2 <= end; b += 2) { /* low half: entry b (even), high half: b + 1 (odd) */
-            __m256 cv = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_load_ps(C + (size_t)kc[b] * 4)),
-                                             _mm_load_ps(C + (size_t)kc[b + 1] * 4), 1);
-            __m256 v = _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)(kh + (size_t)b * 4)));
-            a0 = _mm256_add_ps(a0, _mm256_mul_ps(cv, _mm256_permute_ps(v, 0x00)));
-            a1 = _mm256_add_ps(a1, _mm256_mul_ps(cv, _mm256_permute_ps(v, 0x55)));
-            a2 = _mm256_add_ps(a2, _mm256_mul_ps(cv, _mm256_permute_ps(v, 0xAA)));
-            a3 = _mm256_add_ps(a3, _mm256_mul_ps(cv, _mm256_permute_ps(v, 0xFF)));
+        /* a: partial sums 0 (low half) and 1 (high); d: 2 and 3 */
+        __m256 a0 = _mm256_setzero_ps(), a1 = a0, a2 = a0, a3 = a0, d0 = a0, d1 = a0, d2 = a0, d3 = a0;
+#define K_PAIR(s0_, s1_, s2_, s3_, bb_) do { \
+            __m256 cv_ = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_load_ps(C + KC(bb_) * 4)), \
+                                              _mm_load_ps(C + KC((bb_) + 1) * 4), 1); \
+            __m256 v_ = _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)(kh + (size_t)(bb_) * 4))); \
+            s0_ = _mm256_add_ps(s0_, _mm256_mul_ps(cv_, _mm256_permute_ps(v_, 0x00))); \
+            s1_ = _mm256_add_ps(s1_, _mm256_mul_ps(cv_, _mm256_permute_ps(v_, 0x55))); \
+            s2_ = _mm256_add_ps(s2_, _mm256_mul_ps(cv_, _mm256_permute_ps(v_, 0xAA))); \
+            s3_ = _mm256_add_ps(s3_, _mm256_mul_ps(cv_, _mm256_permute_ps(v_, 0xFF))); } while (0)
+        for (; b + 4 <= end; b += 4) {
+            K_PAIR(a0, a1, a2, a3, b);
+            K_PAIR(d0, d1, d2, d3, b + 2);
         }
-        __m128 e0 = _mm256_castps256_ps128(a0), e1 = _mm256_castps256_ps128(a1), e2 = _mm256_castps256_ps128(a2),
-               e3 = _mm256_castps256_ps128(a3);
-        if (b < end) { /* a last, even entry */
-            __m128 cv = _mm_load_ps(C + (size_t)kc[b] * 4), v = _mm_cvtph_ps(_mm_loadl_epi64((const __m128i *)(kh + (size_t)b * 4)));
-            e0 = _mm_add_ps(e0, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0x00)));
-            e1 = _mm_add_ps(e1, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0x55)));
-            e2 = _mm_add_ps(e2, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0xAA)));
-            e3 = _mm_add_ps(e3, _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0xFF)));
+        if (b + 2 <= end) { K_PAIR(a0, a1, a2, a3, b); b += 2; }
+#undef K_PAIR
+        __m128 p[4][4] = {{_mm256_castps256_ps128(a0), _mm256_castps256_ps128(a1), _mm256_castps256_ps128(a2), _mm256_castps256_ps128(a3)},
+                          {_mm256_extractf128_ps(a0, 1), _mm256_extractf128_ps(a1, 1), _mm256_extractf128_ps(a2, 1), _mm256_extractf128_ps(a3, 1)},
+                          {_mm256_castps256_ps128(d0), _mm256_castps256_ps128(d1), _mm256_castps256_ps128(d2), _mm256_castps256_ps128(d3)},
+                          {_mm256_extractf128_ps(d0, 1), _mm256_extractf128_ps(d1, 1), _mm256_extractf128_ps(d2, 1), _mm256_extractf128_ps(d3, 1)}};
+        if (b < end) { /* a last entry: number 4j or 4j + 2 of the union (partial sum 0 or 2) */
+            int ps = (int)((b - r->k.k4_start[i]) & 3);
+            __m128 cv = _mm_load_ps(C + KC(b) * 4), v = _mm_cvtph_ps(_mm_loadl_epi64((const __m128i *)(kh + (size_t)b * 4)));
+            p[ps][0] = _mm_add_ps(p[ps][0], _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0x00)));
+            p[ps][1] = _mm_add_ps(p[ps][1], _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0x55)));
+            p[ps][2] = _mm_add_ps(p[ps][2], _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0xAA)));
+            p[ps][3] = _mm_add_ps(p[ps][3], _mm_mul_ps(cv, _mm_shuffle_ps(v, v, 0xFF)));
         }
         int n = r->k.k4_n[i]; /* 2 to 4 rows: the next group's rows follow */
         __m128 sc = _mm_set1_ps(k_scale(r->k.k4_exp[i]));
-        _mm_store_ps(y, _mm_mul_ps(_mm_add_ps(e0, _mm256_extractf128_ps(a0, 1)), sc));
-        _mm_store_ps(y + 4, _mm_mul_ps(_mm_add_ps(e1, _mm256_extractf128_ps(a1, 1)), sc));
-        if (n > 2) _mm_store_ps(y + 8, _mm_mul_ps(_mm_add_ps(e2, _mm256_extractf128_ps(a2, 1)), sc));
-        if (n > 3) _mm_store_ps(y + 12, _mm_mul_ps(_mm_add_ps(e3, _mm256_extractf128_ps(a3, 1)), sc));
+        for (int k = 0; k < n; k++)
+            _mm_store_ps(y + 4 * k, _mm_mul_ps(_mm_add_ps(_mm_add_ps(p[0][k], p[1][k]), _mm_add_ps(p[2][k], p[3][k])), sc));
     }
+#undef KC
+}
+__attribute__((target("avx,f16c"))) static void k_fours_avx(wrt_relight *r) {
+    if (r->k.k4_c16) k_fours_avx_in(r, 1);
+    else k_fours_avx_in(r, 0);
 }
 #endif
 

@@ -488,7 +488,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     relight_free(r, r->sm.rin); relight_free(r, r->sm.rknown); relight_free(r, r->sm.rout);
     relight_free(r, r->k.fn_slevel); relight_free(r, r->k.fn_ang); relight_free(r, r->k.fn_spidx);
     relight_free(r, r->k.kt_start); relight_free(r, r->k.kt);
-    relight_free(r, r->k.k4_row); relight_free(r, r->k.k4_start); relight_free(r, r->k.k4_n); relight_free(r, r->k.k4_cols); relight_free(r, r->k.k4_vals); relight_free(r, r->k.k4_h); relight_free(r, r->k.k4_exp);
+    relight_free(r, r->k.k4_row); relight_free(r, r->k.k4_start); relight_free(r, r->k.k4_n); relight_free(r, r->k.k4_cols); relight_free(r, r->k.k4_vals); relight_free(r, r->k.k4_h); relight_free(r, r->k.k4_c16); relight_free(r, r->k.k4_exp);
     relight_free(r, r->k.C); relight_free(r, r->k.Y); relight_free(r, r->k.Y4); relight_free(r, r->k.Ep);
     relight_free(r, r);
 }

@@ -116,7 +116,7 @@ wrt_status relight_setup_gather(wrt_relight *r) {
     }
     /* pieces of 4 points a thread between progress calls: 8192 rays on 2 threads, 20-90 ms
      * on this loaded 2-core machine */
-    wrt_gather_env genv = {gather_run, gather_alloc, gather_free, r, gather_progress, 4 * r->nthreads, r->opt.no_avx ? 2 : 0};
+    wrt_gather_env genv = {gather_run, gather_alloc, gather_free, r, gather_progress, 4 * r->nthreads, r->opt.no_avx ? 2 : 0, 0};
     wrt_status gs = wrt_gather_create((int)nq, gqs, r->gat.res, r->rt.scene, r->rt.origin, r->rt.eps,
                                       r->opt.gather_points, &genv, &r->gat.gather);
     relight_free(r, gqs);

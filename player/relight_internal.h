@@ -180,6 +180,8 @@ typedef struct rl_bounce {
                                     * 2^-k4_exp[i] and rounded to half precision; with F16C
                                     * the halves k4_h instead (k4_vals NULL) */
     uint16_t *k4_h;
+    uint16_t *k4_c16;               /* k4_cols in 16 bits where K has at most 65,536 columns
+                                    * (k4_cols NULL then) */
     int16_t *k4_exp;
     int f16c;                       /* the fours' values read as halves (AVX and F16C) */
     float *Y;                       /* Y = K c: nfuncs x 3 */

@@ -48,13 +48,14 @@ static void run_serial(void *user, size_t n, wrt_gather_item_fn fn, void *ctx) {
 static void *alloc_z(void *user, size_t bytes) { (void)user; return calloc(1, bytes); }
 static void free_z(void *user, void *p) { (void)user; free(p); }
 
-static wrt_gather *gather_make_simd(box *b, int simd) {
-    wrt_gather_env env = {run_serial, alloc_z, free_z, NULL, NULL, 0, simd};
+static wrt_gather *gather_make_form(box *b, int simd, int wide) {
+    wrt_gather_env env = {run_serial, alloc_z, free_z, NULL, NULL, 0, simd, wide};
     wrt_gather *g = NULL;
     int res[NQ] = {16, 16, 16, 16, 16, 16};
     if (wrt_gather_create(NQ, b->q, res, b->rt.scene, b->rt.origin, b->rt.eps, 16, &env, &g) != WRT_OK) return NULL;
     return g;
 }
+static wrt_gather *gather_make_simd(box *b, int simd) { return gather_make_form(b, simd, 0); }
 static wrt_gather *gather_make(box *b) { return gather_make_simd(b, 0); }
 
 /* Direct irradiance: pi x scale (a wall of albedo 0.6 then sends 0.6 x scale), times a
@@ -168,6 +169,17 @@ static void test_rows_follow_eye(void) {
     wrt_rt_scene_release(&b.rt);
 }
 
+/* Walls 1-5 with 8 x 8 textures of a pattern (mul, mod) and the floor without; every
+ * output 16 texels a side. */
+static void walls_textured(float tx[NQ][8 * 8 * 3], int mul, int mod, const float *tex[NQ], int tres[NQ], int ores[NQ]) {
+    for (int q = 0; q < NQ; q++) {
+        for (int k = 0; k < 8 * 8 * 3; k++) tx[q][k] = (float)(0.05 + 0.01 * ((k * mul + q * 3) % mod));
+        tex[q] = q ? tx[q] : NULL;
+        tres[q] = 8;
+        ores[q] = 16;
+    }
+}
+
 /* The light change's sums, plain loops, four lanes (SSE2) and eight (AVX2 where the
  * processor has it): the same bits, under light that varies across the walls and walls
  * with textures (a case where a lane out of order would change the rounding). */
@@ -176,11 +188,9 @@ static void test_sums_same_bits(void) {
     if (!box_make(&b)) { CHECK(0, "Embree scene"); return; }
     wrt_gather *g[3];
     static float o[3][NQ][16 * 16 * 3], tx[NQ][8 * 8 * 3];
-    for (int q = 0; q < NQ; q++)
-        for (int k = 0; k < 8 * 8 * 3; k++) tx[q][k] = (float)(0.05 + 0.01 * ((k * 7 + q * 3) % 11));
     const float *tex[NQ];
     int tres[NQ], ores[NQ];
-    for (int q = 0; q < NQ; q++) { tex[q] = q ? tx[q] : NULL; tres[q] = 8; ores[q] = 16; }
+    walls_textured(tx, 7, 11, tex, tres, ores);
     light l = {1.0, 1};
     double eye[3] = {-0.3, 0.6, 0.45};
     for (int v = 0; v < 3; v++) {
@@ -201,9 +211,49 @@ static void test_sums_same_bits(void) {
     wrt_rt_scene_release(&b.rt);
 }
 
+/* A grey lobe's narrow entries (a 2-byte cell index, one beta for R, G and B) against the
+ * general ones (a 4-byte offset, three betas): the same bits from every loop (plain, SSE2,
+ * the widest; the general entries' plain loop), in fewer bytes, under light that varies
+ * across the walls and textures. */
+static void test_narrow_same_bits(void) {
+    box b;
+    if (!box_make(&b)) { CHECK(0, "Embree scene"); return; }
+    for (int c = 0; c < 3; c++) b.mat.base_color[c] = 0.55f; /* grey */
+    static float o[4][NQ][16 * 16 * 3], tx[NQ][8 * 8 * 3];
+    const float *tex[NQ];
+    int tres[NQ], ores[NQ];
+    walls_textured(tx, 5, 13, tex, tres, ores);
+    light l = {1.0, 1};
+    double eye[3] = {0.35, 0.5, -0.6};
+    size_t bytes[2] = {0, 0}, ent[2] = {0, 0};
+    for (int v = 0; v < 4; v++) { /* narrow: simd 0, 1, 2; wide: the plain loops */
+        int wide = v / 3, simd = v < 3 ? v : 1;
+        wrt_gather *g = gather_make_form(&b, simd, wide);
+        CHECK(g != NULL, "gather made (simd %d, wide %d)", simd, wide);
+        if (!g) continue;
+        float *p[NQ];
+        for (int q = 0; q < NQ; q++) p[q] = o[v][q];
+        wrt_gather_lights(g, direct, &l, tex, tres);
+        wrt_gather_eye(g, eye, p, ores);
+        bytes[wide] = wrt_gather_entry_bytes(g, &ent[wide]);
+        wrt_gather_destroy(g);
+    }
+    double m = 0;
+    for (int k = 0; k < 16 * 16 * 3; k++) m = fmax(m, o[0][0][k]);
+    CHECK(m > 0, "the floor gathers light");
+    for (int v = 1; v < 4; v++)
+        CHECK(memcmp(o[0][0], o[v][0], sizeof o[0][0]) == 0, "narrow, widest sums and form %d (simd %d, wide %d): the same bits",
+              v, v < 3 ? v : 1, v / 3);
+    printf("narrow entries: %zu entries, %zu bytes (general %zu)\n", ent[0], bytes[0], bytes[1]);
+    CHECK(ent[0] == ent[1] && ent[0] > 0, "the same entries (%zu, %zu)", ent[0], ent[1]);
+    CHECK(bytes[0] * 10 == bytes[1] * 4, "4 bytes an entry instead of 10 (%zu, %zu)", bytes[0], bytes[1]);
+    wrt_rt_scene_release(&b.rt);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(test_uniform_box);
     TEST_RUN(test_rows_follow_eye);
     TEST_RUN(test_sums_same_bits);
+    TEST_RUN(test_narrow_same_bits);
     TEST_END();
 }
