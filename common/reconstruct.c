@@ -53,6 +53,7 @@ struct wrt_recon {
     int (*bvid)[4];
     float (*bw)[4];
     int *gnv;                    /* group g's source vertices (0: the group is not blended) */
+    uint8_t *gall;               /* 1: every member of group g shows the blend (only the means are read) */
     wrt_recon_allocator al;      /* alloc NULL: malloc and free */
 };
 
@@ -444,9 +445,10 @@ static int recon_blend_setup(wrt_recon *rc, int n, const double (*corners)[4][3]
     rc->bvid = rc_alloc(al, m * sizeof *rc->bvid);
     rc->bw = rc_alloc(al, m * sizeof *rc->bw);
     rc->gnv = rc_alloc(al, ((size_t)rc->ngroups + 1) * sizeof(int));
+    rc->gall = rc_alloc(al, (size_t)rc->ngroups + 1);
     uint8_t *gcurved = rc_alloc(al, (size_t)rc->ngroups + 1);
     src_point *sp = rc_alloc(al, 4 * m * sizeof *sp);
-    if (!rc->bkind || !rc->bshow || !rc->bvid || !rc->bw || !rc->gnv || !gcurved || !sp) {
+    if (!rc->gall || !rc->bkind || !rc->bshow || !rc->bvid || !rc->bw || !rc->gnv || !gcurved || !sp) {
         rc_free(al, gcurved); rc_free(al, sp);
         return -1;
     }
@@ -497,6 +499,8 @@ static int recon_blend_setup(wrt_recon *rc, int n, const double (*corners)[4][3]
         if (id < 0) id = rc->gnv[sp[i].g]++;
         rc->bvid[sp[i].slot / 4][sp[i].slot % 4] = id;
     }
+    for (int g = 0; g < rc->ngroups; g++) rc->gall[g] = gcurved[g];
+    for (int q = 0; q < n; q++) rc->gall[rc->group[q]] &= rc->bshow[q];
     rc_free(al, gcurved);
     rc_free(al, sp);
     return 0;
@@ -573,7 +577,7 @@ void wrt_recon_destroy(wrt_recon *rc) {
     rc_free(&al, rc->group); rc_free(&al, rc->slot);
     rc_free(&al, rc->gfirst); rc_free(&al, rc->gquads); rc_free(&al, rc->around);
     rc_free(&al, rc->pfirst); rc_free(&al, rc->pnb);
-    rc_free(&al, rc->bkind); rc_free(&al, rc->bshow); rc_free(&al, rc->bvid); rc_free(&al, rc->bw); rc_free(&al, rc->gnv);
+    rc_free(&al, rc->bkind); rc_free(&al, rc->bshow); rc_free(&al, rc->bvid); rc_free(&al, rc->bw); rc_free(&al, rc->gnv); rc_free(&al, rc->gall);
     rc_free(&al, rc);
 }
 
@@ -1201,22 +1205,12 @@ static void recon_blend(const wrt_recon *rc, int gr, int nm, const int *mem, int
     }
 }
 
-void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
-                      const uint8_t *const *known, float *const *out, const wrt_recon_params *prm, float *buf) {
-    int keep = prm ? prm->keep : WRT_RECON_KEEP, limit = prm ? prm->limit : 1, linear = prm ? prm->linear : 0;
-    int facets = prm ? prm->facets : 0, facet_means = prm ? prm->facet_means : 0;
-    float sharp = prm ? prm->sharp : WRT_RECON_SHARP;
-    if (linear) { /* a choice from the mask and `keep` alone */
-        limit = 0;
-        sharp = 0;
-    }
-    int nm;
-    const int *mem = wrt_recon_members(rc, gr, &nm);
-    if (nm == 0) return;
-    size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
-    size_t full = ((size_t)1 << (2 * Lo)) * nc;
+/* Stages 2 to 5 for a group not wholly blended: the levels, the output, then the blend
+ * where some member shows it. */
+static void recon_levels(const wrt_recon *rc, int nm, const int *mem, int L, int Lo, int nc, const uint8_t *const *known,
+                         float *const *out, float *buf, size_t pyr_n, size_t full, int keep, float sharp, int limit,
+                         int facets, int blend, int gr) {
     float *ext = buf + (size_t)nm * (pyr_n + 2 * full);
-    recon_pyramids(nm, mem, L, nc, in, buf, pyr_n);
     int cur_half = 0;
     for (int s = 0; s < nm; s++) memcpy(CUR(s), buf + (size_t)s * pyr_n, nc * sizeof(float));
     for (int l = 0; l < Lo; l++) {
@@ -1237,8 +1231,30 @@ void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const 
         cur_half = 1 - cur_half;
     }
     recon_output(rc, nm, mem, Lo, nc, out, buf, pyr_n, full, cur_half, limit);
-    if (rc->gnv && rc->gnv[gr] > 0 && !facets && !facet_means)
+    if (blend) recon_blend(rc, gr, nm, mem, Lo, nc, out, buf, pyr_n, ext);
+}
+
+void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
+                      const uint8_t *const *known, float *const *out, const wrt_recon_params *prm, float *buf) {
+    int keep = prm ? prm->keep : WRT_RECON_KEEP, limit = prm ? prm->limit : 1, linear = prm ? prm->linear : 0;
+    int facets = prm ? prm->facets : 0, facet_means = prm ? prm->facet_means : 0;
+    float sharp = prm ? prm->sharp : WRT_RECON_SHARP;
+    if (linear) { /* a choice from the mask and `keep` alone */
+        limit = 0;
+        sharp = 0;
+    }
+    int nm;
+    const int *mem = wrt_recon_members(rc, gr, &nm);
+    if (nm == 0) return;
+    size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
+    size_t full = ((size_t)1 << (2 * Lo)) * nc;
+    float *ext = buf + (size_t)nm * (pyr_n + 2 * full);
+    recon_pyramids(nm, mem, L, nc, in, buf, pyr_n);
+    int blend = rc->gnv && rc->gnv[gr] > 0 && !facets && !facet_means;
+    if (blend && rc->gall[gr]) /* every member shows the blend: only the means are read */
         recon_blend(rc, gr, nm, mem, Lo, nc, out, buf, pyr_n, ext);
+    else
+        recon_levels(rc, nm, mem, L, Lo, nc, known, out, buf, pyr_n, full, keep, sharp, limit, facets, blend, gr);
     /* Light is never negative: the prediction can undershoot beside a sharp edge (the
      * linear display keeps the undershoot: a clamp does not superpose). */
     for (int s = 0; s < nm && !linear; s++) {

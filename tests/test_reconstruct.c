@@ -467,6 +467,30 @@ static void smooth_cells(int nq, const double (*c)[4][3], int n, float *in) {
     }
 }
 
+/* The icosphere's quads, corner normals, one material, and n x n input and no x no output
+ * cells for each (ico_free frees them). */
+typedef struct ico_bufs {
+    double (*c)[4][3];
+    float (*nrm)[4][3];
+    uint32_t *mat;
+    float *in, *out;
+    int nq;
+} ico_bufs;
+
+static ico_bufs ico_make(int n, int no) {
+    ico_bufs b;
+    b.c = malloc(240 * sizeof *b.c);
+    b.nrm = malloc(240 * sizeof *b.nrm);
+    b.nq = icosphere(b.c, b.nrm);
+    CHECK(b.nq == 240, "icosphere of %d quads", b.nq);
+    b.mat = calloc(240, sizeof *b.mat);
+    b.in = malloc((size_t)240 * n * n * sizeof(float));
+    b.out = malloc((size_t)240 * no * no * sizeof(float));
+    return b;
+}
+
+static void ico_free(ico_bufs *b) { free(b->c); free(b->nrm); free(b->mat); free(b->in); free(b->out); }
+
 /* A smooth-shaded icosphere: with its corner normals the display joins all 240 quads in
  * one group and is continuous across every edge between triangles (the texels on both
  * sides agree at the edge); without them (the flat rule) each triangle is its own group
@@ -475,13 +499,12 @@ static void smooth_cells(int nq, const double (*c)[4][3], int n, float *in) {
  * are creases and stay so, and a fold of 2 degrees whose two sides keep their own normals
  * (a crease below the tolerance's 1.1 degrees would be joined) is not joined either. */
 static void test_smooth_mesh(void) {
-    double (*c)[4][3] = malloc(240 * sizeof *c);
-    float (*nrm)[4][3] = malloc(240 * sizeof *nrm);
-    int nq = icosphere(c, nrm);
-    CHECK(nq == 240, "icosphere of %d quads", nq);
-    uint32_t *mat = calloc(240, sizeof *mat);
     int L = 3, Lo = 4, n = 1 << L, no = 1 << Lo;
-    float *in = malloc((size_t)240 * n * n * sizeof(float)), *out = malloc((size_t)240 * no * no * sizeof(float));
+    ico_bufs ib = ico_make(n, no);
+    double (*c)[4][3] = ib.c;
+    float (*nrm)[4][3] = ib.nrm, *in = ib.in, *out = ib.out;
+    uint32_t *mat = ib.mat;
+    int nq = ib.nq;
     const float *ip[240];
     float *op[240];
     smooth_cells(nq, (const double (*)[4][3])c, n, in);
@@ -554,7 +577,7 @@ static void test_smooth_mesh(void) {
               wrt_recon_ngroups(rc));
         wrt_recon_destroy(rc);
     }
-    free(c); free(nrm); free(mat); free(in); free(out);
+    ico_free(&ib);
 }
 
 /* The three quads of triangle (a, b, c) split through its centroid and edge midpoints,
@@ -675,13 +698,12 @@ static void test_smooth_strip(void) {
  * truth's own; session 7's display (each facet its own mean) for comparison, which keeps
  * the facets: about a facet's spread of E inside each. */
 static void test_smooth_blend(void) {
-    double (*c)[4][3] = malloc(240 * sizeof *c);
-    float (*nrm)[4][3] = malloc(240 * sizeof *nrm);
-    int nq = icosphere(c, nrm);
-    CHECK(nq == 240, "icosphere of %d quads", nq);
-    uint32_t *mat = calloc(240, sizeof *mat);
     int L = 3, Lo = 4, n = 1 << L, no = 1 << Lo;
-    float *in = malloc((size_t)240 * n * n * sizeof(float)), *out = malloc((size_t)240 * no * no * sizeof(float));
+    ico_bufs ib = ico_make(n, no);
+    double (*c)[4][3] = ib.c;
+    float (*nrm)[4][3] = ib.nrm, *in = ib.in, *out = ib.out;
+    uint32_t *mat = ib.mat;
+    int nq = ib.nq;
     const float *ip[240];
     float *op[240];
     wrt_v3 d = v3_norm(v3(1, 2, 3));
@@ -763,7 +785,8 @@ static void test_smooth_blend(void) {
     CHECK(across[0] < 1e-5, "vertex blend: continuous across the triangles' edges (%g)", across[0]);
     CHECK(step[1] > 8 * tstep, "session 7's display keeps the facets: a step of %g between texels (truth %g)", step[1], tstep);
     wrt_recon_destroy(rc);
-    free(c); free(nrm); free(mat); free(in); free(out); free(src);
+    ico_free(&ib);
+    free(src);
 }
 
 /* ------------------------------------------------------- through the player ---- */
