@@ -700,28 +700,24 @@ static void test_smooth_strip(void) {
 static void test_smooth_blend(void) {
     int L = 3, Lo = 4, n = 1 << L, no = 1 << Lo;
     ico_bufs ib = ico_make(n, no);
-    double (*c)[4][3] = ib.c;
-    float (*nrm)[4][3] = ib.nrm, *in = ib.in, *out = ib.out;
-    uint32_t *mat = ib.mat;
-    int nq = ib.nq;
     const float *ip[240];
     float *op[240];
     wrt_v3 d = v3_norm(v3(1, 2, 3));
     const double Ea = 1, Eb = 0.5; /* pi a and (2 pi / 3) b */
     wrt_smooth_src *src = malloc(240 * sizeof *src);
-    for (int q = 0; q < nq; q++) {
+    for (int q = 0; q < ib.nq; q++) {
         wrt_v3 p[4];
-        for (int k = 0; k < 4; k++) p[k] = v3(c[q][k][0], c[q][k][1], c[q][k][2]);
+        for (int k = 0; k < 4; k++) p[k] = v3(ib.c[q][k][0], ib.c[q][k][1], ib.c[q][k][2]);
         wrt_v3 fn = v3_norm(v3_cross(v3_sub(p[2], p[0]), v3_sub(p[3], p[1])));
         if (v3_dot(fn, p[0]) < 0) fn = v3_scale(fn, -1);
-        wrt_smooth_make(p, fn, (const float (*)[3])nrm[q], -1, &src[q]);
-        ip[q] = in + (size_t)q * n * n;
-        op[q] = out + (size_t)q * no * no;
-        for (int k = 0; k < n * n; k++) in[(size_t)q * n * n + k] = (float)(Ea + Eb * v3_dot(fn, d));
+        wrt_smooth_make(p, fn, (const float (*)[3])ib.nrm[q], -1, &src[q]);
+        ip[q] = ib.in + (size_t)q * n * n;
+        op[q] = ib.out + (size_t)q * no * no;
+        for (int k = 0; k < n * n; k++) ib.in[(size_t)q * n * n + k] = (float)(Ea + Eb * v3_dot(fn, d));
     }
     CHECK(src[0].curved && src[0].nsrc == 3, "the icosphere's quads are curved triangle parts (%d, %d)", src[0].curved,
           src[0].nsrc);
-    wrt_recon *rc = wrt_recon_create_smooth(nq, (const double (*)[4][3])c, mat, (const float (*)[4][3])nrm,
+    wrt_recon *rc = wrt_recon_create_smooth(ib.nq, (const double (*)[4][3])ib.c, ib.mat, (const float (*)[4][3])ib.nrm,
                                             WRT_RECON_SMOOTH_COS, NULL);
     CHECK(wrt_recon_ngroups(rc) == 1, "one group (%d)", wrt_recon_ngroups(rc));
     double worst[2], rms[2], step[2], tstep = 0, across[2];
@@ -730,10 +726,10 @@ static void test_smooth_blend(void) {
         CHECK(wrt_recon_run(rc, 0, L, Lo, 1, ip, NULL, op, mode ? &means : NULL) == 0, "run");
         double w = 0, s2 = 0, st = 0;
         int cnt = 0;
-        for (int q = 0; q < nq; q++) {
+        for (int q = 0; q < ib.nq; q++) {
             wrt_quad Q;
             memset(&Q, 0, sizeof Q);
-            for (int k = 0; k < 4; k++) Q.p[k] = v3(c[q][k][0], c[q][k][1], c[q][k][2]);
+            for (int k = 0; k < 4; k++) Q.p[k] = v3(ib.c[q][k][0], ib.c[q][k][1], ib.c[q][k][2]);
             for (int y = 0; y < 8; y++)
                 for (int x = 0; x < 8; x++) {
                     double u = (x + 0.5) / 8, v = (y + 0.5) / 8, sw[4];
@@ -767,7 +763,7 @@ static void test_smooth_blend(void) {
         worst[mode] = w;
         rms[mode] = sqrt(s2 / cnt);
         step[mode] = st;
-        across[mode] = curved_edge_jump(nq, (const double (*)[4][3])c, op, Lo, &ne);
+        across[mode] = curved_edge_jump(ib.nq, (const double (*)[4][3])ib.c, op, Lo, &ne);
     }
     printf("icosphere lit as flat facets, against E at the smooth normal: vertex blend worst %.2f%% rms %.2f%%, largest "
            "step between texels %.3f%%, across edges %.3g%%; session 7's display worst %.2f%% rms %.2f%%, step %.3f%%, "
