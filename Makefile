@@ -81,7 +81,7 @@ TESTS := $(patsubst tests/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 .PHONY: all deps demo test tests stress study fuzz fuzz-fast clean assets bench bench-scale timings mutate install
 all: $(PROGRAMS) $(TESTS) $(LIBWRT) $(BUILD)/examples/relight $(BUILD)/examples/engine $(BUILD)/tests/runtime_instances \
      $(BUILD)/tests/runtime_api $(BUILD)/tests/runtime_core $(BUILD)/tests/runtime_budget $(BUILD)/tools/codec_study \
-     $(BUILD)/tools/light_bw $(BUILD)/tools/op_kinds $(BUILD)/tools/gto_same
+     $(BUILD)/tools/light_bw $(BUILD)/tools/op_kinds $(BUILD)/tools/gto_same $(BUILD)/tools/image_err
 
 deps:
 	@bash tools/install-deps.sh
@@ -223,6 +223,12 @@ $(BUILD)/tools/gto_same: $(call obj,tools/gto_same.c) $(BAKE_OBJ) $(BAKE_CORE_OB
 	@mkdir -p $(dir $@)
 	@$(if $(Q),echo "  LINK    $@")
 	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_CORE)
+
+# The image error of a picture against the path tracer's (docs/triangles.md): not installed.
+$(BUILD)/tools/image_err: $(call obj,tools/image_err.c) $(CORE_OBJ)
+	@mkdir -p $(dir $@)
+	@$(if $(Q),echo "  LINK    $@")
+	$(Q)$(CXX) $(LDFLAGS) $^ -o $@ $(LIBS_IMG) $(LIBS_CORE)
 
 $(BUILD)/wrt-scenegen: $(call obj,tools/scenegen.c tools/scenegen_gltf.c tools/scenegen_atrium.c) $(CORE_OBJ)
 	@$(if $(Q),echo "  LINK    $@")

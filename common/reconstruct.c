@@ -44,6 +44,16 @@ struct wrt_recon {
     corner_set (*around)[4];     /* quads around each corner (itself included), ascending */
     int *pfirst;                 /* edge e of quad q: its partial neighbours pnb[pfirst[4q+e] .. pfirst[4q+e+1]) */
     part_nb *pnb;                /* ascending quad, edge, t0 */
+    /* The vertex blend (groups with a curved quad; NULL without normals): each member's
+     * smooth source (a triangle's part: its triangle; a paired quad: its corners), its
+     * vertices numbered within the group, and the weight the member's mean gives each of
+     * them (its interior angle at that vertex where it is one of its own corners, else 0). */
+    uint8_t *bkind;              /* 0: no blend (the group has no curved quad), 3: a triangle's part, 4: a paired quad */
+    uint8_t *bshow;              /* 1: shows the blend (curved, or its corner normals leave its plane) */
+    int (*bvid)[4];
+    float (*bw)[4];
+    int *gnv;                    /* group g's source vertices (0: the group is not blended) */
+    uint8_t *gall;               /* 1: every member of group g shows the blend (only the means are read) */
     wrt_recon_allocator al;      /* alloc NULL: malloc and free */
 };
 
@@ -401,6 +411,101 @@ static void recon_corner_sets(wrt_recon *rc, int n) {
         }
 }
 
+/* A corner normal further than this cosine from its quad's normal leaves the plane: half a
+ * degree, common/smooth.h's WRT_SMOOTH_COS (the .gto's normals section's rule). */
+#define BLEND_COS (1 - 4e-5)
+
+/* A source vertex while they are numbered: its group, position and (quad, vertex) slot. */
+typedef struct src_point { int g, slot; double p[3]; } src_point;
+
+static int cmp_src(const void *x, const void *y) {
+    const src_point *a = x, *b = y;
+    if (a->g != b->g) return a->g < b->g ? -1 : 1;
+    if (a->p[0] != b->p[0]) return a->p[0] < b->p[0] ? -1 : 1;
+    return a->slot - b->slot;
+}
+
+/* Angle at corner a between the directions to b and c. */
+static double corner_angle(v3 a, v3 b, v3 c) {
+    v3 u = sub(b, a), w = sub(c, a);
+    return atan2(len(cross(u, w)), dot(u, w));
+}
+
+/* Stage 5 (with corner normals): the vertex blend's sources in every group that holds a
+ * curved quad. A member is a triangle's part when its corner 2 is the centroid of the
+ * triangle its corners 0, 1, 3 (a vertex and two edge midpoints) describe, as
+ * common/smooth.c decides; the part's far vertices are 2 x midpoint - corner 0. Source
+ * vertices within 10 x tol of each other in one group are one vertex. -1 on out of memory. */
+static int recon_blend_setup(wrt_recon *rc, int n, const double (*corners)[4][3], const float (*normals)[4][3],
+                             double tol) {
+    const wrt_recon_allocator *al = &rc->al;
+    size_t m = n > 0 ? (size_t)n : 1;
+    rc->bkind = rc_alloc(al, m);
+    rc->bshow = rc_alloc(al, m);
+    rc->bvid = rc_alloc(al, m * sizeof *rc->bvid);
+    rc->bw = rc_alloc(al, m * sizeof *rc->bw);
+    rc->gnv = rc_alloc(al, ((size_t)rc->ngroups + 1) * sizeof(int));
+    rc->gall = rc_alloc(al, (size_t)rc->ngroups + 1);
+    uint8_t *gcurved = rc_alloc(al, (size_t)rc->ngroups + 1);
+    src_point *sp = rc_alloc(al, 4 * m * sizeof *sp);
+    if (!rc->gall || !rc->bkind || !rc->bshow || !rc->bvid || !rc->bw || !rc->gnv || !gcurved || !sp) {
+        rc_free(al, gcurved); rc_free(al, sp);
+        return -1;
+    }
+    memset(gcurved, 0, (size_t)rc->ngroups + 1);
+    for (int q = 0; q < n; q++) gcurved[rc->group[q]] |= rc->curved[q];
+    size_t np = 0;
+    for (int q = 0; q < n; q++) {
+        rc->bkind[q] = rc->bshow[q] = 0;
+        for (int i = 0; i < 4; i++) rc->bvid[q][i] = -1, rc->bw[q][i] = 0;
+        if (!gcurved[rc->group[q]]) continue;
+        v3 p[4], fn = quad_normal(corners[q]);
+        rc->bshow[q] = rc->curved[q];
+        for (int k = 0; k < 4; k++) {
+            p[k] = mk(corners[q][k]);
+            v3 cn = {normals[q][k][0], normals[q][k][1], normals[q][k][2]};
+            if (dot(cn, fn) < BLEND_COS) rc->bshow[q] = 1;
+        }
+        v3 g = {(2 * (p[1].x + p[3].x) - p[0].x) / 3, (2 * (p[1].y + p[3].y) - p[0].y) / 3,
+                (2 * (p[1].z + p[3].z) - p[0].z) / 3};
+        double size = len(sub(p[1], p[0])) + len(sub(p[3], p[0]));
+        int part = len(sub(g, p[2])) <= 1e-6 * size;
+        v3 src[4] = {p[0], p[1], p[2], p[3]};
+        if (part) {
+            v3 f1 = {2 * p[1].x - p[0].x, 2 * p[1].y - p[0].y, 2 * p[1].z - p[0].z};
+            v3 f3 = {2 * p[3].x - p[0].x, 2 * p[3].y - p[0].y, 2 * p[3].z - p[0].z};
+            src[1] = f1;
+            src[2] = f3;
+            rc->bw[q][0] = (float)corner_angle(p[0], p[1], p[3]);
+        } else {
+            for (int k = 0; k < 4; k++) rc->bw[q][k] = (float)corner_angle(p[k], p[(k + 1) % 4], p[(k + 3) % 4]);
+        }
+        rc->bkind[q] = part ? 3 : 4;
+        for (int i = 0; i < rc->bkind[q]; i++) {
+            src_point x = {rc->group[q], 4 * q + i, {src[i].x, src[i].y, src[i].z}};
+            sp[np++] = x;
+        }
+    }
+    qsort(sp, np, sizeof *sp, cmp_src);
+    double tv = 10 * tol;
+    for (int g = 0; g < rc->ngroups; g++) rc->gnv[g] = 0;
+    for (size_t i = 0; i < np; i++) {
+        int id = -1;
+        for (size_t j = i; j-- > 0 && sp[j].g == sp[i].g && sp[i].p[0] - sp[j].p[0] <= tv;)
+            if (fabs(sp[i].p[1] - sp[j].p[1]) <= tv && fabs(sp[i].p[2] - sp[j].p[2]) <= tv) {
+                id = rc->bvid[sp[j].slot / 4][sp[j].slot % 4];
+                break;
+            }
+        if (id < 0) id = rc->gnv[sp[i].g]++;
+        rc->bvid[sp[i].slot / 4][sp[i].slot % 4] = id;
+    }
+    for (int g = 0; g < rc->ngroups; g++) rc->gall[g] = gcurved[g];
+    for (int q = 0; q < n; q++) rc->gall[rc->group[q]] &= rc->bshow[q];
+    rc_free(al, gcurved);
+    rc_free(al, sp);
+    return 0;
+}
+
 wrt_recon *wrt_recon_create_with(int n, const double (*corners)[4][3], const uint32_t *material,
                                  const wrt_recon_allocator *alloc) {
     return wrt_recon_create_smooth(n, corners, material, NULL, 1, alloc);
@@ -458,6 +563,10 @@ wrt_recon *wrt_recon_create_smooth(int n, const double (*corners)[4][3], const u
     recon_corner_sets(rc, n);
     rc_free(&al, nrm);
     rc_free(&al, stack);
+    if (normals && recon_blend_setup(rc, n, corners, normals, tol) != 0) {
+        wrt_recon_destroy(rc);
+        return NULL;
+    }
     return rc;
 }
 
@@ -468,6 +577,7 @@ void wrt_recon_destroy(wrt_recon *rc) {
     rc_free(&al, rc->group); rc_free(&al, rc->slot);
     rc_free(&al, rc->gfirst); rc_free(&al, rc->gquads); rc_free(&al, rc->around);
     rc_free(&al, rc->pfirst); rc_free(&al, rc->pnb);
+    rc_free(&al, rc->bkind); rc_free(&al, rc->bshow); rc_free(&al, rc->bvid); rc_free(&al, rc->bw); rc_free(&al, rc->gnv); rc_free(&al, rc->gall);
     rc_free(&al, rc);
 }
 
@@ -667,7 +777,8 @@ size_t wrt_recon_scratch(const wrt_recon *rc, int gr, int L, int Lo, int nc) {
     size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
     size_t full = ((size_t)1 << (2 * Lo)) * nc;
     size_t ext_n = (((size_t)1 << Lo) + 2) * (((size_t)1 << Lo) + 2) * nc;
-    return (size_t)nm * (pyr_n + 2 * full) + ext_n + 4; /* + 4: the RGB loads' fourth lane */
+    size_t blend_n = rc->gnv && gr >= 0 && gr < rc->ngroups ? (size_t)rc->gnv[gr] * (nc + 1) + (size_t)nm * 4 * nc : 0;
+    return (size_t)nm * (pyr_n + 2 * full) + (ext_n > blend_n ? ext_n : blend_n) + 4; /* + 4: the RGB loads' fourth lane */
 }
 
 int wrt_recon_run(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
@@ -972,22 +1083,134 @@ static void recon_output(const wrt_recon *rc, int nm, const int *mem, int Lo, in
     }
 }
 
-void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
-                      const uint8_t *const *known, float *const *out, const wrt_recon_params *prm, float *buf) {
-    int keep = prm ? prm->keep : WRT_RECON_KEEP, limit = prm ? prm->limit : 1, linear = prm ? prm->linear : 0;
-    int facets = prm ? prm->facets : 0;
-    float sharp = prm ? prm->sharp : WRT_RECON_SHARP;
-    if (linear) { /* a choice from the mask and `keep` alone */
-        limit = 0;
-        sharp = 0;
+/* The position of texel i of m along u or v for the vertex blend: the edge itself for the
+ * edge texels (what a clamped bilinear lookup shows at the edge, so that both sides show
+ * the same value there), the texel's centre inside. */
+static double blend_pos(int i, int m) {
+    return m == 1 ? 0.5 : i == 0 ? 0 : i == m - 1 ? 1 : (i + 0.5) / m;
+}
+
+/* Corner values cv (4 x nc) bilinearly at (u, v), channel ch. */
+static float blend_at(const float *cv, int nc, int ch, double u, double v) {
+    return (float)((1 - u) * (1 - v) * cv[ch] + u * (1 - v) * cv[nc + ch] + u * v * cv[2 * nc + ch] +
+                   (1 - u) * v * cv[3 * nc + ch]);
+}
+
+/* 1 if quad q's edge e borders a quad that shows the vertex blend (a whole or a partial neighbour). */
+static int edge_to_blend(const wrt_recon *rc, int q, int e) {
+    if (rc->nb[q][e] >= 0) return rc->bshow[rc->nb[q][e]];
+    for (int k = rc->pfirst[4 * q + e]; k < rc->pfirst[4 * q + e + 1]; k++)
+        if (rc->bshow[rc->pnb[k].o]) return 1;
+    return 0;
+}
+
+/* Stage 5, a group with a curved quad: the vertex blend. Each source vertex takes the
+ * mean of the members' means around it, weighted by their interior angles there (the
+ * weights of the mesh's vertex normals); a quad that shows the blend (bshow) shows that of
+ * its source's vertex values (barycentric over a triangle, bilinear over a paired quad;
+ * bilinear in the part's (u, v) is exact, the weights being affine in the position),
+ * sampled at blend_pos, so that the two sides of a whole shared edge hold the same values.
+ * A shorter edge inside a longer one (a T-junction) then shows the longer edge's display,
+ * as in recon_output. Any other member's texels on an edge or corner it shares with a
+ * blended quad show the blend of its own source there (the same values: the blend is
+ * continuous); nothing is given back inside (no member's mean is kept: a facet's own
+ * light is spread to its vertices). tmp: blend_n floats (wrt_recon_scratch). */
+static void recon_blend(const wrt_recon *rc, int gr, int nm, const int *mem, int Lo, int nc, float *const *out,
+                        const float *buf, size_t pyr_n, float *tmp) {
+    static const float W3[4][3] = {{1, 0, 0}, {0.5f, 0.5f, 0}, {1.0f / 3, 1.0f / 3, 1.0f / 3}, {0.5f, 0, 0.5f}};
+    int nv = rc->gnv[gr], m = 1 << Lo;
+    float *vs = tmp, *vw = tmp + (size_t)nv * nc, *cv = vw + nv;
+    memset(vs, 0, ((size_t)nv * (nc + 1)) * sizeof(float));
+    for (int s = 0; s < nm; s++) { /* the means: level 0 of each member's pyramid */
+        int q = mem[s];
+        const float *mean = buf + (size_t)s * pyr_n;
+        for (int i = 0; i < rc->bkind[q]; i++) {
+            float w = rc->bw[q][i];
+            if (!(w > 0)) continue;
+            int v = rc->bvid[q][i];
+            for (int ch = 0; ch < nc; ch++) vs[(size_t)v * nc + ch] += w * mean[ch];
+            vw[v] += w;
+        }
     }
-    int nm;
-    const int *mem = wrt_recon_members(rc, gr, &nm);
-    if (nm == 0) return;
-    size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
-    size_t full = ((size_t)1 << (2 * Lo)) * nc;
+    for (int s = 0; s < nm; s++) { /* each member's corner values */
+        int q = mem[s], k3 = rc->bkind[q] == 3;
+        const float *mean = buf + (size_t)s * pyr_n;
+        float *c = cv + (size_t)s * 4 * nc;
+        for (int k = 0; k < 4; k++)
+            for (int ch = 0; ch < nc; ch++) {
+                double acc = 0;
+                for (int i = 0; i < rc->bkind[q]; i++) {
+                    double wi = k3 ? W3[k][i] : (i == k);
+                    if (wi == 0) continue;
+                    int v = rc->bvid[q][i];
+                    acc += wi * (vw[v] > 0 ? vs[(size_t)v * nc + ch] / vw[v] : mean[ch]);
+                }
+                c[k * nc + ch] = (float)acc;
+            }
+    }
+    for (int s = 0; s < nm; s++) {
+        int q = mem[s];
+        const float *c = cv + (size_t)s * 4 * nc;
+        float *o = out[q];
+        if (rc->bshow[q]) {
+            for (int j = 0; j < m; j++)
+                for (int i = 0; i < m; i++)
+                    for (int ch = 0; ch < nc; ch++)
+                        o[((size_t)j * m + i) * nc + ch] = blend_at(c, nc, ch, blend_pos(i, m), blend_pos(j, m));
+            continue;
+        }
+        if (m < 2) continue;
+        for (int e = 0; e < 4; e++) {
+            if (!edge_to_blend(rc, q, e)) continue;
+            for (int k = 1; k < m - 1; k++) {
+                double t = blend_pos(k, m), u = e == 1 ? 1 : e == 3 ? 0 : t, v = e == 0 ? 0 : e == 2 ? 1 : t;
+                size_t mi = edge_cell(e, m, k) * nc;
+                for (int ch = 0; ch < nc; ch++) o[mi + ch] = blend_at(c, nc, ch, u, v);
+            }
+        }
+        for (int k = 0; k < 4; k++) {
+            const corner_set *cs = &rc->around[q][k];
+            int touch = 0;
+            for (int t = 0; t < cs->n; t++) touch |= rc->bshow[cs->quad[t]];
+            for (int t = 0; t < cs->nt; t++) touch |= rc->bshow[cs->tquad[t]];
+            if (!touch) continue;
+            size_t mi = corner_cell(k, m) * nc;
+            for (int ch = 0; ch < nc; ch++) o[mi + ch] = c[k * nc + ch];
+        }
+    }
+    if (m < 2) return;
+    for (int s = 0; s < nm; s++) { /* T-junctions: the shorter edges show the longer one's display */
+        int q = mem[s];
+        float *o = out[q];
+        if (!rc->bshow[q]) continue;
+        for (int e = 0; e < 4; e++) {
+            if (!edge_inside(rc, q, e)) continue;
+            const part_nb *p = &rc->pnb[rc->pfirst[4 * q + e]];
+            for (int k = 1; k < m - 1; k++) {
+                size_t mi = edge_cell(e, m, k) * nc;
+                double sv = p->s0 + ((k + 0.5) / m) * (p->s1 - p->s0);
+                for (int ch = 0; ch < nc; ch++) o[mi + ch] = (float)row_point(out[p->o], p->f, m, nc, ch, sv);
+            }
+        }
+        for (int k = 0; k < 4; k++) {
+            const corner_set *cs = &rc->around[q][k];
+            if (!cs->nt) continue;
+            size_t mi = corner_cell(k, m) * nc;
+            for (int ch = 0; ch < nc; ch++) {
+                double ts = 0;
+                for (int t = 0; t < cs->nt; t++) ts += row_point(out[cs->tquad[t]], cs->tedge[t], m, nc, ch, cs->ts[t]);
+                o[mi + ch] = (float)(ts / cs->nt);
+            }
+        }
+    }
+}
+
+/* Stages 2 to 5 for a group not wholly blended: the levels, the output, then the blend
+ * where some member shows it. */
+static void recon_levels(const wrt_recon *rc, int nm, const int *mem, int L, int Lo, int nc, const uint8_t *const *known,
+                         float *const *out, float *buf, size_t pyr_n, size_t full, int keep, float sharp, int limit,
+                         int facets, int blend, int gr) {
     float *ext = buf + (size_t)nm * (pyr_n + 2 * full);
-    recon_pyramids(nm, mem, L, nc, in, buf, pyr_n);
     int cur_half = 0;
     for (int s = 0; s < nm; s++) memcpy(CUR(s), buf + (size_t)s * pyr_n, nc * sizeof(float));
     for (int l = 0; l < Lo; l++) {
@@ -1008,6 +1231,30 @@ void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const 
         cur_half = 1 - cur_half;
     }
     recon_output(rc, nm, mem, Lo, nc, out, buf, pyr_n, full, cur_half, limit);
+    if (blend) recon_blend(rc, gr, nm, mem, Lo, nc, out, buf, pyr_n, ext);
+}
+
+void wrt_recon_run_in(const wrt_recon *rc, int gr, int L, int Lo, int nc, const float *const *in,
+                      const uint8_t *const *known, float *const *out, const wrt_recon_params *prm, float *buf) {
+    int keep = prm ? prm->keep : WRT_RECON_KEEP, limit = prm ? prm->limit : 1, linear = prm ? prm->linear : 0;
+    int facets = prm ? prm->facets : 0, facet_means = prm ? prm->facet_means : 0;
+    float sharp = prm ? prm->sharp : WRT_RECON_SHARP;
+    if (linear) { /* a choice from the mask and `keep` alone */
+        limit = 0;
+        sharp = 0;
+    }
+    int nm;
+    const int *mem = wrt_recon_members(rc, gr, &nm);
+    if (nm == 0) return;
+    size_t pyr_n = (((size_t)1 << (2 * (L + 1))) - 1) / 3 * nc; /* levels 0..L */
+    size_t full = ((size_t)1 << (2 * Lo)) * nc;
+    float *ext = buf + (size_t)nm * (pyr_n + 2 * full);
+    recon_pyramids(nm, mem, L, nc, in, buf, pyr_n);
+    int blend = rc->gnv && rc->gnv[gr] > 0 && !facets && !facet_means;
+    if (blend && rc->gall[gr]) /* every member shows the blend: only the means are read */
+        recon_blend(rc, gr, nm, mem, Lo, nc, out, buf, pyr_n, ext);
+    else
+        recon_levels(rc, nm, mem, L, Lo, nc, known, out, buf, pyr_n, full, keep, sharp, limit, facets, blend, gr);
     /* Light is never negative: the prediction can undershoot beside a sharp edge (the
      * linear display keeps the undershoot: a clamp does not superpose). */
     for (int s = 0; s < nm && !linear; s++) {

@@ -122,8 +122,19 @@ static inline uint32_t wrt_recon_node(int l, int x, int y) {
  * half of `sharp`, and its prediction is not limited: its bake cells and means are those of a flat
  * facet, and kept as they are they showed each facet as a tile of its own, bordered where
  * the edges are averaged (docs/triangles.md). `facets` 1: curved quads as flat ones (the
- * display before; for comparisons). */
-typedef struct wrt_recon_params { int keep; float sharp; int limit; int linear; int facets; } wrt_recon_params;
+ * display before; for comparisons).
+ * The vertex blend (default; created with corner normals): in a group holding a curved
+ * quad, each vertex of the mesh (a paired quad's corner, a triangle's vertex; triangles are
+ * rebuilt from their parts as common/smooth.h does) takes the mean of the members' means
+ * around it, weighted by their interior angles there, and every curved quad shows the
+ * blend of its source polygon's vertex values (barycentric over a triangle, bilinear over
+ * a paired quad), edge texels at the edge, the others at their centres: no facet is seen,
+ * and the display is continuous across every edge and T-junction of the mesh. Its means
+ * are not kept (a facet's own light is spread to its vertices). A flat member's edge and
+ * corner texels beside a curved quad take the same blend (given back inside, as above).
+ * Linear in the input. `facet_means` 1: curved quads keep their facets' means as above
+ * (the display of session 7; for comparisons). */
+typedef struct wrt_recon_params { int keep; float sharp; int limit; int linear; int facets; int facet_means; } wrt_recon_params;
 #define WRT_RECON_KEEP 3
 #define WRT_RECON_SHARP 0.1f
 

@@ -87,3 +87,9 @@ void wrt_smooth_at(const wrt_smooth_src *s, const double w[4], wrt_v3 x, wrt_v3 
     if (v3_len(n) > 1e-9) *ns = v3_norm(n);
     if (v3_dot(v3_sub(t, x), fn) > 0) *xs = t;
 }
+
+wrt_v3 wrt_smooth_facing(wrt_v3 n, wrt_v3 v) {
+    double nv = v3_dot(n, v);
+    if (!(nv < 0)) return n;
+    return v3_norm(v3_mad(n, v, WRT_SMOOTH_FACING_EPS - nv));
+}

@@ -46,4 +46,11 @@ void wrt_smooth_weights(const wrt_smooth_src *s, wrt_v3 x, double w[4]);
 /* Shading normal ns and shadow point xs at x with weights w (flat element: fn and x). */
 void wrt_smooth_at(const wrt_smooth_src *s, const double w[4], wrt_v3 x, wrt_v3 fn, wrt_v3 *ns, wrt_v3 *xs);
 
+/* The shading normal n bent toward the eye where it faces away from it (n.v < 0, v the
+ * unit direction toward the eye; a curved mesh's grazing outline, where the interpolated
+ * normal turns past the silhouette): n - (n.v - eps) v, normalized, which sees the eye at
+ * n.v = eps > 0; else n. The player's shader applies the same rule. */
+#define WRT_SMOOTH_FACING_EPS 0.01
+wrt_v3 wrt_smooth_facing(wrt_v3 n, wrt_v3 v);
+
 #endif

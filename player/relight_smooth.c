@@ -152,7 +152,7 @@ static void recon_item(wrt_relight *r, worker *w, int item, void *vctx) {
         out[mem[k]] = r->sm.stex + qi->stex_off;
     }
     wrt_recon_params rp = {r->opt.recon_keep > 0 ? r->opt.recon_keep : WRT_RECON_KEEP, WRT_RECON_SHARP, 1,
-                           r->opt.linear_display, 0};
+                           r->opt.linear_display, 0, 0};
     wrt_recon_run_in(r->sm.recon, gr, q0->tex_level, q0->stex_level, 3, in, kn, out, &rp, w->rbuf);
 }
 

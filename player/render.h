@@ -16,6 +16,7 @@
 #include "../formats/gto.h"
 
 #define WRT_RENDER_MAX_LIGHTS 16
+#define WRT_RENDER_SHADOW_RES_CURVED 2048 /* the default shadow map size of a scene with curved elements */
 
 typedef enum wrt_render_mode {
     WRT_MODE_BOTH = 0,     /* direct + indirect */
@@ -32,7 +33,8 @@ typedef struct wrt_view {
 
 typedef struct wrt_render_options {
     int width, height;  /* size of the picture (framebuffer object) */
-    int shadow_res;     /* cube shadow map face size; 0 = 512 */
+    int shadow_res;     /* cube shadow map face size; 0 = 512, or WRT_RENDER_SHADOW_RES_CURVED
+                         * for a file with curved elements (its normals section) */
     int msaa;           /* multisample anti-aliasing samples per pixel; 0 or 1 = none (capped
                          * at what the GPU allows) */
 } wrt_render_options;

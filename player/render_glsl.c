@@ -156,6 +156,9 @@ const char *const wrt_glsl_scene_fs =
     "  vec3 v = u_eye - v_pos;\n"
     "  float vl = length(v);\n"
     "  v /= vl;\n"
+    /* a curved mesh's grazing outline: a normal turned from the eye is bent toward it
+     * (common/smooth.h, wrt_smooth_facing) */
+    "  if (u_smooth != 0 && u_src[8 * v_q].w > 0.5 && dot(n, v) < 0.0) n = normalize(n + (0.01 - dot(n, v)) * v);\n"
     "  vec3 c = vec3(0.0);\n"
     "  if (dot(fn, v) > 0.0) {\n"
     "    if (u_mode != 2) for (int i = 0; i < u_nlights; i++) {\n"

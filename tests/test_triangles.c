@@ -513,6 +513,29 @@ static void smooth_check(const wrt_smooth_src *s, wrt_v3 x, wrt_v3 fn, wrt_v3 di
     CHECK(v3_len(v3_sub(ns, dir)) < 1e-6, "%s: shading normal (%.6f %.6f %.6f)", what, ns.x, ns.y, ns.z);
 }
 
+/* The outline rule (wrt_smooth_facing): a shading normal n that faces away from the eye
+ * direction v (n.v = c < 0) is bent to m = n - (c - eps) v, normalized: m.v = eps, so the
+ * bent normal sees the eye at eps / |m|, |m|^2 = 1 - c^2 + eps^2 (closed form), and it
+ * stays in the plane of n and v; a normal that faces the eye is returned bit for bit. */
+static void test_smooth_facing(void) {
+    double worst = 0;
+    for (int k = 1; k <= 40; k++) {
+        double t = WRT_PI / 2 + k * (WRT_PI / 2) / 41; /* angle between n and v: 90 to 180 degrees */
+        wrt_v3 n = v3_norm(v3(0.3, -0.2, 1)), a = v3_norm(v3_cross(n, v3(1, 0, 0)));
+        wrt_v3 v = v3_add(v3_scale(n, cos(t)), v3_scale(a, sin(t)));
+        double c = v3_dot(n, v), e = WRT_SMOOTH_FACING_EPS;
+        wrt_v3 b = wrt_smooth_facing(n, v);
+        double want = e / sqrt(1 - c * c + e * e);
+        worst = fmax(worst, fabs(v3_dot(b, v) - want));
+        worst = fmax(worst, fabs(v3_len(b) - 1));
+        worst = fmax(worst, fabs(v3_dot(b, v3_cross(n, v))));
+    }
+    wrt_v3 n = v3_norm(v3(0.3, -0.2, 1)), v = v3_norm(v3(0.1, 0.5, 0.2)), b = wrt_smooth_facing(n, v);
+    printf("outline rule: 40 normals from 92 to 178 degrees off the eye, worst %.2g against the closed form\n", worst);
+    CHECK(worst < 1e-12, "a normal turned from the eye is bent to n.v = eps / |m| in its plane (worst %g)", worst);
+    CHECK(b.x == n.x && b.y == n.y && b.z == n.z, "a normal facing the eye is kept bit for bit");
+}
+
 static void test_smooth_surface(void) {
     /* a triangle of the unit sphere, cut into its parts as the loader does, the corner
      * normals as the loader sets them (formats/scene_normals.c: radial at the vertices,
@@ -692,6 +715,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_triangle_form_factors);
     TEST_RUN(test_loader_normals);
     TEST_RUN(test_smooth_surface);
+    TEST_RUN(test_smooth_facing);
     TEST_RUN(test_smooth_path_tracer);
     TEST_RUN(test_icosphere_furnace);
     TEST_RUN(test_icosphere_furnace_many);

@@ -547,6 +547,7 @@ static void render_row(ref_job *job, ref_thread *th, int y) {
                     double sw[4];
                     wrt_smooth_weights(&job->r->smooth[q->sm], p, sw);
                     wrt_smooth_at(&job->r->smooth[q->sm], sw, p, q->n, &ns, &ps);
+                    ns = wrt_smooth_facing(ns, wo); /* the grazing outline: not black */
                 }
                 direct_radiance_at(th, q->n, ns, m, p, ps, wo, dr);
                 for (int ch = 0; ch < 3; ch++) sd[ch] += dr[ch] + q->m->emissive[ch]; /* emitter seen */
