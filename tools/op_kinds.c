@@ -9,7 +9,9 @@
  * JSON object. A file in the cluster tree's basis on both sides is refused (its root
  * slots are not the quads' means); one with it on the senders' side only (section csend)
  * has its root slots' columns counted as the tree's columns, by the receiver's kind
- * ("cluster_to_mean", "cluster_to_wavelet"). Not installed. */
+ * ("cluster_to_mean", "cluster_to_wavelet"). "by_depth" counts the entries by the sender's
+ * depth (rows) and the receiver's (columns), drop_rule.h's depth: 0 for a quad's mean,
+ * node level + 1 for a wavelet; a tree column (csend) counts as depth 0. Not installed. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -75,6 +77,13 @@ int main(int argc, char **argv) {
     kinds k = {0};
     uint64_t kc[2] = {0, 0}; /* the tree's columns (senders only), by the receiver's kind */
     uint64_t small_quads = 0;
+    enum { ND = 12 }; /* depths 0..11: spatial levels up to 10 */
+    uint64_t (*bd)[ND] = calloc(ND, sizeof *bd);
+    if (!bd) {
+        fprintf(stderr, "op_kinds: out of memory\n");
+        return 1;
+    }
+    int dmax = 0;
     for (uint32_t q = 0; q < g.nquads; q++) small_quads += g.quads[q].area < small;
     for (uint32_t s = 0; s < g.nfuncs; s++) {
         int smean = wrt_fkey_stype(g.fkeys[s]) == 0;
@@ -86,6 +95,11 @@ int main(int argc, char **argv) {
             uint32_t row = wrt_gto_entry(&g, &wk, e, v);
             double m = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
             int rmean = wrt_fkey_stype(g.fkeys[row]) == 0;
+            int ds = g.ctree_senders && smean ? 0 : wrt_drop_depth(g.fkeys[s]), dr = wrt_drop_depth(g.fkeys[row]);
+            ds = ds < ND ? ds : ND - 1;
+            dr = dr < ND ? dr : ND - 1;
+            bd[ds][dr]++;
+            dmax = ds > dmax ? ds : dr > dmax ? dr : dmax;
             if (g.ctree_senders && smean) {
                 kc[rmean]++;
                 continue;
@@ -106,7 +120,14 @@ int main(int argc, char **argv) {
     if (g.ctree_senders)
         printf(",\n \"cluster_to_mean\": %llu,\n \"cluster_to_wavelet\": %llu", (unsigned long long)kc[1],
                (unsigned long long)kc[0]);
-    printf("}\n");
+    printf(",\n \"by_depth\": [");
+    for (int a = 0; a <= dmax; a++) {
+        printf("%s[", a ? ",\n  " : "");
+        for (int b = 0; b <= dmax; b++) printf("%s%llu", b ? ", " : "", (unsigned long long)bd[a][b]);
+        printf("]");
+    }
+    printf("]}\n");
+    free(bd);
     free(rw); free(cw);
     return 0;
 }
