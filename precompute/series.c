@@ -529,11 +529,23 @@ static void bounce_pass_run(size_t i, int th, void *user) {
     }
 }
 
-/* The term after P: P times the right factor of `bounce`, with its memory check (ss and
- * beside: series_memory_check_beside's; NULL, NULL: the sum as it is, the product's own
- * pass counted). By shares, *nnz is the term's entries on every rank. */
-static wrt_status series_next_term(series_state *s, int bounce, const wrt_sum_stream *ss, const wrt_csc *beside,
-                                   wrt_csc *N, uint64_t *nnz) {
+/* The memory check of the term after P, the product by the right factor of `bounce` (ss
+ * and beside: series_memory_check_beside's; NULL, NULL: the sum as it is, the product's
+ * own pass counted), the message said on this thread */
+static wrt_status series_next_check(series_state *s, int bounce, const wrt_sum_stream *ss, const wrt_csc *beside) {
+    wrt_status mst = series_memory_check_beside(s->b, s->C, &s->P, series_right(s, bounce), s->eps, &s->W, bounce,
+                                                ss ? ss : s->streamed ? &s->ss : NULL, beside);
+    if (mst != WRT_OK) {
+        char msg[1024];
+        snprintf(msg, sizeof msg, "%s", wrt_last_error());
+        return wrt_fail(mst, "%s", msg);
+    }
+    return WRT_OK;
+}
+
+/* The term after P: checked first unless `checked`; by shares, *nnz is the term's entries
+ * on every rank */
+static wrt_status series_next_term(series_state *s, int bounce, int checked, wrt_csc *N, uint64_t *nnz) {
     const bake_ctx *b = s->b;
     const wrt_csc *R = series_right(s, bounce);
     memset(N, 0, sizeof *N);
@@ -544,28 +556,35 @@ static wrt_status series_next_term(series_state *s, int bounce, const wrt_sum_st
         if ((pst = wrt_dist_sum_u64(b->opt.dist, nnz, 1)) != WRT_OK) wrt_csc_free(N);
         return pst;
     }
-    wrt_status mst = series_memory_check_beside(b, s->C, &s->P, R, s->eps, &s->W, bounce,
-                                                ss ? ss : s->streamed ? &s->ss : NULL, beside);
-    if (mst != WRT_OK) {
-        char msg[1024];
-        snprintf(msg, sizeof msg, "%s", wrt_last_error());
-        return wrt_fail(mst, "%s", msg);
-    }
+    wrt_status mst = checked ? WRT_OK : series_next_check(s, bounce, NULL, NULL);
+    if (mst != WRT_OK) return mst;
     wrt_status pst = series_mul(b, &s->P, R, s->eps, &s->W, s->threads, N);
     *nnz = N->nnz;
     return pst;
 }
 
-/* A bounce's sum pass on a thread of its own (wrt_task), beside the next product */
+/* Beside a bounce's sum pass (series_bounces), on a thread of its own (wrt_task): the
+ * term's norm, the power step and, where `next` and its memory check passed (st), the
+ * next term, with its status and message (the error text is the thread's) */
 typedef struct {
     series_state *s;
-    double sn;
+    const wrt_csc *T;
+    int next, pok;
+    double pn, rnext[3];
     wrt_status st;
-} sum_task;
+    char msg[1024];
+    wrt_csc N;
+    uint64_t nnz;
+} next_task;
 
-static void sum_task_run(void *user) {
-    sum_task *t = user;
-    t->st = series_add_term(t->s, &t->sn);
+static void next_task_run(void *user) {
+    next_task *t = user;
+    series_state *s = t->s;
+    t->pn = wrt_csc_norm(&s->P);
+    t->pok = power_iter_step(&s->pi, t->T, &s->Tf, s->pw, t->rnext);
+    if (!t->pok || !t->next || t->st != WRT_OK) return;
+    t->st = series_next_term(s, (int)s->C->bounces + 1, 1, &t->N, &t->nnz);
+    if (t->st != WRT_OK) snprintf(t->msg, sizeof t->msg, "%s", wrt_last_error());
 }
 
 /* Stage 2: the bounces, each term the previous one times T, with the power iteration that
@@ -593,15 +612,16 @@ static wrt_status series_bounces(series_state *s) {
     double ratio = 0;
     int stable = 0;
     C->bounces = 1;
-    /* Overlapped (one process, two threads or more): the sum's pass of a bounce runs on a
-     * thread of its own while this one takes the term's norm and the power step, then
-     * makes the next term (the product reads the term and the right factor, the pass the
-     * term and the sum's files: neither writes what the other reads). Whether that next
-     * term is wanted is known only from the pass's norm: where the series stops at this
-     * bounce, it is discarded. The same terms, sums and bits as one after the other; the
-     * pass (on the 12 x 12 maze two rewrites of a 640 MB file and eight reads of it) no
-     * longer leaves the other core idle. */
-    int overlap = !wrt_dist_on(b->opt.dist) && wrt_threads_resolve(threads) > 1;
+    /* Overlapped (the streamed sum, one process, two threads or more; in memory the sum
+     * would grow beside the product, uncounted): while this thread makes a bounce's sum
+     * pass, a thread of its own takes the term's norm and the power step and then makes
+     * the next term on the bake's threads (the product reads the term and the right
+     * factor, the pass the term and the sum's files: neither writes what the other
+     * reads). Whether that next term is wanted is known only from the pass's norm: where
+     * the series stops at this bounce, it is discarded. The same terms, sums and bits as
+     * one after the other; the pass (on the 12 x 12 maze two rewrites of a 640 MB file and
+     * eight reads of it) no longer leaves the other core idle. */
+    int overlap = s->streamed && !wrt_dist_on(b->opt.dist) && wrt_threads_resolve(threads) > 1;
     wrt_csc N = {0};
     uint64_t nnz = 0;
     int have = 0;                /* N is the next term, made beside the last pass */
@@ -613,7 +633,7 @@ static wrt_status series_bounces(series_state *s) {
             st = wrt_fail(nst, "%s", nmsg);
             break;
         }
-        if (!have && (st = series_next_term(s, (int)C->bounces + 1, NULL, NULL, &N, &nnz)) != WRT_OK) break;
+        if (!have && (st = series_next_term(s, (int)C->bounces + 1, 0, &N, &nnz)) != WRT_OK) break;
         have = 0;
         if (!nnz) {
             /* every entry of the next term fell under the threshold, but together they
@@ -632,24 +652,31 @@ static wrt_status series_bounces(series_state *s) {
         /* the next iterate's ratios (T in memory, or read back from its scratch file) */
         double rnext[3];
         if (overlap) {
-            sum_task sk = {.s = s};
-            wrt_sum_stream before = s->ss; /* what the pass starts from, for the product's check */
+            /* the next product's memory checked before the pass starts (the resident
+             * memory then does not hold the pass's blocks, which the check counts); the
+             * pass on this thread (its blocks and overlay in this thread's heap, as
+             * before: from another thread's, glibc's, they stayed resident after it) */
+            next_task nt = {.s = s, .T = T, .next = (int)C->bounces < b->opt.max_bounces};
+            if (nt.next && (nt.st = series_next_check(s, (int)C->bounces + 1, &s->ss, &s->P)) != WRT_OK)
+                snprintf(nt.msg, sizeof nt.msg, "%s", wrt_last_error());
             wrt_task task;
-            wrt_task_start(&task, sum_task_run, &sk);
-            pn = wrt_csc_norm(&s->P);
-            int pok = power_iter_step(&s->pi, T, &s->Tf, s->pw, rnext);
-            if (pok && (int)C->bounces < b->opt.max_bounces) {
-                nst = series_next_term(s, (int)C->bounces + 1, s->streamed ? &before : NULL, &s->P, &N, &nnz);
-                if (nst != WRT_OK) snprintf(nmsg, sizeof nmsg, "%s", wrt_last_error());
+            wrt_task_start(&task, next_task_run, &nt);
+            wrt_status ast = series_add_term(s, &sn);
+            wrt_task_join(&task);
+            pn = nt.pn;
+            memcpy(rnext, nt.rnext, sizeof rnext);
+            if (nt.pok && nt.next) {
+                N = nt.N;
+                nnz = nt.nnz;
+                nst = nt.st;
+                memcpy(nmsg, nt.msg, sizeof nmsg);
                 have = 1;
             }
-            wrt_task_join(&task);
-            sn = sk.sn;
-            if (sk.st != WRT_OK) { /* said again on this thread (the error text is the thread's) */
-                st = wrt_fail(sk.st, "the series could not stream its sum through a scratch file");
+            if (ast != WRT_OK) {
+                st = ast;
                 break;
             }
-            if (!pok) {
+            if (!nt.pok) {
                 st = wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
                 break;
             }
@@ -733,10 +760,10 @@ static double series_final_weights(series_state *s, wrt_csc_weights *W, double *
 static int series_final_check(void *user, uint64_t kept, uint64_t projected) {
     series_state *s = user;
     uint64_t sum = s->ss.cur ? wrt_sum_stream_nnz(&s->ss) + s->P.nnz : 0;
-    /* the pass's blocks, the next group read beside them (half as many) and the overlay
-     * it reads */
+    /* the pass's blocks and the overlay it reads (the next group, read beside them, is
+     * resident as this is checked) */
     return wrt_bake_memory_check(s->b->opt.max_memory_mb, &s->C->mem_estimate_mb,
-                                 16 * (projected - kept) + series_stream_need(s->b, sum) * 3 / 2 +
+                                 16 * (projected - kept) + series_stream_need(s->b, sum) +
                                      16 * s->ss.over.nnz,
                                  "the stored operator") == WRT_OK;
 }
