@@ -132,3 +132,21 @@ void wrt_parallel_for(size_t n, int threads, wrt_parallel_fn fn, void *user) {
     }
     for (size_t i = 0; i < n; i++) fn(i, 0, user); /* one thread, or no memory for a pool */
 }
+
+static void *task_main(void *arg) {
+    wrt_task *t = arg;
+    t->fn(t->user);
+    return NULL;
+}
+
+void wrt_task_start(wrt_task *t, void (*fn)(void *user), void *user) {
+    t->fn = fn;
+    t->user = user;
+    t->started = pthread_create(&t->tid, NULL, task_main, t) == 0;
+}
+
+void wrt_task_join(wrt_task *t) {
+    if (t->started) pthread_join(t->tid, NULL);
+    else t->fn(t->user);
+    t->started = 0;
+}

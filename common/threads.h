@@ -6,6 +6,7 @@
 #ifndef WRT_THREADS_H
 #define WRT_THREADS_H
 
+#include <pthread.h>
 #include <stddef.h>
 
 #include "../include/wrt.h"
@@ -29,6 +30,18 @@ int wrt_pool_run(wrt_pool *p, size_t n, int max_threads, wrt_parallel_fn fn, voi
 
 /* One loop on `threads` threads (0 = all cores) of a pool made for it. */
 void wrt_parallel_for(size_t n, int threads, wrt_parallel_fn fn, void *user);
+
+/* One call fn(user) on a thread of its own beside the caller's, for work that overlaps
+ * the caller's own loops (wrt_task_start; the caller's pools are not touched). Where no
+ * thread can be started, fn runs on the caller's thread at wrt_task_join. */
+typedef struct wrt_task {
+    pthread_t tid;
+    int started;
+    void (*fn)(void *user);
+    void *user;
+} wrt_task;
+void wrt_task_start(wrt_task *t, void (*fn)(void *user), void *user);
+void wrt_task_join(wrt_task *t); /* returns when fn has returned */
 
 /* The number of threads `threads` means (0 = online cores, capped at 64). */
 int wrt_threads_resolve(int threads);

@@ -60,8 +60,21 @@ static uint64_t series_overlay_need(const wrt_sum_stream *ss, uint64_t est) {
  * The estimate is what is checked and recorded. (An upper bound from the column counts
  * decided the finer sample before; on the mazes it always passed, so every product paid
  * a 16th of itself to be estimated: 4% of the series.) */
+static wrt_status series_memory_check_beside(const bake_ctx *b, wrt_bake_counters *C, const wrt_csc *P,
+                                             const wrt_csc *T, double eps, const wrt_csc_weights *W, int bounce,
+                                             const wrt_sum_stream *ss, const wrt_csc *beside);
+
 static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, const wrt_csc *P, const wrt_csc *T,
                                       double eps, const wrt_csc_weights *W, int bounce, const wrt_sum_stream *ss) {
+    return series_memory_check_beside(b, C, P, T, eps, W, bounce, ss, NULL);
+}
+
+/* The same, for a product made while the sum's pass adds the term `beside` (NULL: none;
+ * series_bounces): ss the sum as that pass found it, and the overlay counted is that
+ * pass's, old and new (the product's own pass comes with the next product's check). */
+static wrt_status series_memory_check_beside(const bake_ctx *b, wrt_bake_counters *C, const wrt_csc *P,
+                                             const wrt_csc *T, double eps, const wrt_csc_weights *W, int bounce,
+                                             const wrt_sum_stream *ss, const wrt_csc *beside) {
     const double per = 16.0; /* bytes per entry: row index and three floats */
     char what[96];
     if (bounce > 0) snprintf(what, sizeof what, "bounce %d of the series", bounce);
@@ -73,7 +86,9 @@ static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, c
         est = wrt_csc_mul_estimate(P, T, eps, W, 16, b->opt.threads);
         need = per * 1.25 * (1 + 1.0 / 32) * (double)est;
     }
-    if (ss) need += (double)series_stream_need(b, wrt_sum_stream_nnz(ss) + est) + (double)series_overlay_need(ss, est);
+    if (ss)
+        need += (double)series_stream_need(b, wrt_sum_stream_nnz(ss) + est) +
+                (double)series_overlay_need(ss, beside ? beside->nnz : est);
     return wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb, (uint64_t)need, what);
 }
 
@@ -303,12 +318,36 @@ static int series_can_consume(const bake_ctx *b) {
            b->opt.series_right_from <= 2;
 }
 
+/* T written to its scratch file (series_consume), on a thread of its own */
+typedef struct {
+    wrt_spill *sp;
+    const wrt_csc *T;
+    int ok;
+} spill_task;
+
+static void spill_task_run(void *user) {
+    spill_task *t = user;
+    t->ok = wrt_spill_write(t->sp, t->T);
+}
+
 static void series_consume(series_state *s) {
     const bake_ctx *b = s->b;
     if (!series_can_consume(b) || !s->pw || s->T != &s->res->dto) return;
+    /* the file is written while the power targets are computed (both read T; on the 12 x
+     * 12 maze the 480 MB write was a second of one thread alone) */
+    spill_task sk = {&s->Tf, s->T, 0};
+    wrt_task task;
+    int beside = wrt_threads_resolve(s->threads) > 1;
+    if (beside) wrt_task_start(&task, spill_task_run, &sk);
     power_iter_start(&s->pi, s->T, s->pw);
-    if (!wrt_spill_write(&s->Tf, s->T)) return; /* the iteration goes on in memory */
     if (!b->opt.no_tail) s->u = wrt_series_power_targets(s->T, s->pw, s->threads, b->opt.max_bounces, &s->u_bounces);
+    if (beside) wrt_task_join(&task);
+    else spill_task_run(&sk);
+    if (!sk.ok) { /* the iteration goes on in memory, the targets are made again at the tail */
+        free(s->u);
+        s->u = NULL;
+        return;
+    }
     if (b->opt.series_block >= 0) {
         /* streamed: the sum starts as T's scratch file, and T goes */
         wrt_sum_stream_start(&s->ss, &s->Tf, b->opt.series_block ? (uint64_t)b->opt.series_block : WRT_SERIES_BLOCK_DEFAULT,
@@ -490,13 +529,70 @@ static void bounce_pass_run(size_t i, int th, void *user) {
     }
 }
 
+/* The memory check of the term after P, the product by the right factor of `bounce` (ss
+ * and beside: series_memory_check_beside's; NULL, NULL: the sum as it is, the product's
+ * own pass counted), the message said on this thread */
+static wrt_status series_next_check(series_state *s, int bounce, const wrt_sum_stream *ss, const wrt_csc *beside) {
+    wrt_status mst = series_memory_check_beside(s->b, s->C, &s->P, series_right(s, bounce), s->eps, &s->W, bounce,
+                                                ss ? ss : s->streamed ? &s->ss : NULL, beside);
+    if (mst != WRT_OK) {
+        char msg[1024];
+        snprintf(msg, sizeof msg, "%s", wrt_last_error());
+        return wrt_fail(mst, "%s", msg);
+    }
+    return WRT_OK;
+}
+
+/* The term after P: checked first unless `checked`; by shares, *nnz is the term's entries
+ * on every rank */
+static wrt_status series_next_term(series_state *s, int bounce, int checked, wrt_csc *N, uint64_t *nnz) {
+    const bake_ctx *b = s->b;
+    const wrt_csc *R = series_right(s, bounce);
+    memset(N, 0, sizeof *N);
+    if (s->share) {
+        wrt_status pst = series_share_mul(s, R, bounce, N);
+        if (pst != WRT_OK) return pst;
+        *nnz = N->nnz;
+        if ((pst = wrt_dist_sum_u64(b->opt.dist, nnz, 1)) != WRT_OK) wrt_csc_free(N);
+        return pst;
+    }
+    wrt_status mst = checked ? WRT_OK : series_next_check(s, bounce, NULL, NULL);
+    if (mst != WRT_OK) return mst;
+    wrt_status pst = series_mul(b, &s->P, R, s->eps, &s->W, s->threads, N);
+    *nnz = N->nnz;
+    return pst;
+}
+
+/* Beside a bounce's sum pass (series_bounces), on a thread of its own (wrt_task): the
+ * term's norm, the power step and, where `next` and its memory check passed (st), the
+ * next term, with its status and message (the error text is the thread's) */
+typedef struct {
+    series_state *s;
+    const wrt_csc *T;
+    int next, pok;
+    double pn, rnext[3];
+    wrt_status st;
+    char msg[1024];
+    wrt_csc N;
+    uint64_t nnz;
+} next_task;
+
+static void next_task_run(void *user) {
+    next_task *t = user;
+    series_state *s = t->s;
+    t->pn = wrt_csc_norm(&s->P);
+    t->pok = power_iter_step(&s->pi, t->T, &s->Tf, s->pw, t->rnext);
+    if (!t->pok || !t->next || t->st != WRT_OK) return;
+    t->st = series_next_term(s, (int)s->C->bounces + 1, 1, &t->N, &t->nnz);
+    if (t->st != WRT_OK) snprintf(t->msg, sizeof t->msg, "%s", wrt_last_error());
+}
+
 /* Stage 2: the bounces, each term the previous one times T, with the power iteration that
  * measures the tail's ratio; stops as described at the top of the file */
 static wrt_status series_bounces(series_state *s) {
     const bake_ctx *b = s->b;
     wrt_bake_counters *C = s->C;
     const wrt_csc *T = s->T;
-    double eps = s->eps;
     int threads = s->threads;
     double *rc = s->rc;
     /* The tail's ratio is measured by power iteration on a smooth start vector (each quad's
@@ -516,30 +612,29 @@ static wrt_status series_bounces(series_state *s) {
     double ratio = 0;
     int stable = 0;
     C->bounces = 1;
+    /* Overlapped (the streamed sum, one process, two threads or more; in memory the sum
+     * would grow beside the product, uncounted): while this thread makes a bounce's sum
+     * pass, a thread of its own takes the term's norm and the power step and then makes
+     * the next term on the bake's threads (the product reads the term and the right
+     * factor, the pass the term and the sum's files: neither writes what the other
+     * reads). Whether that next term is wanted is known only from the pass's norm: where
+     * the series stops at this bounce, it is discarded. The same terms, sums and bits as
+     * one after the other; the pass (on the 12 x 12 maze two rewrites of a 640 MB file and
+     * eight reads of it) no longer leaves the other core idle. */
+    int overlap = s->streamed && !wrt_dist_on(b->opt.dist) && wrt_threads_resolve(threads) > 1;
+    wrt_csc N = {0};
+    uint64_t nnz = 0;
+    int have = 0;                /* N is the next term, made beside the last pass */
+    wrt_status nst = WRT_OK;     /* and its product's status, with the message */
+    char nmsg[1024] = "";
+    wrt_status st = WRT_OK;
     while ((int)C->bounces < b->opt.max_bounces && series_term_nnz(s)) {
-        const wrt_csc *R = series_right(s, (int)C->bounces + 1);
-        wrt_csc N;
-        uint64_t nnz;
-        if (s->share) {
-            wrt_status pst = series_share_mul(s, R, (int)C->bounces + 1, &N);
-            if (pst != WRT_OK) return pst;
-            nnz = N.nnz;
-            if ((pst = wrt_dist_sum_u64(b->opt.dist, &nnz, 1)) != WRT_OK) {
-                wrt_csc_free(&N);
-                return pst;
-            }
-        } else {
-            wrt_status mst = series_memory_check(b, C, &s->P, R, eps, &s->W, (int)C->bounces + 1,
-                                                 s->streamed ? &s->ss : NULL);
-            if (mst != WRT_OK) {
-                char msg[1024];
-                snprintf(msg, sizeof msg, "%s", wrt_last_error());
-                return wrt_fail(mst, "%s", msg);
-            }
-            wrt_status pst = series_mul(b, &s->P, R, eps, &s->W, threads, &N);
-            if (pst != WRT_OK) return pst;
-            nnz = N.nnz;
+        if (have && nst != WRT_OK) {
+            st = wrt_fail(nst, "%s", nmsg);
+            break;
         }
+        if (!have && (st = series_next_term(s, (int)C->bounces + 1, 0, &N, &nnz)) != WRT_OK) break;
+        have = 0;
         if (!nnz) {
             /* every entry of the next term fell under the threshold, but together they
              * still carry ratio / (1 - ratio) of the last term (0.2% of the total at
@@ -550,12 +645,42 @@ static wrt_status series_bounces(series_state *s) {
         if (s->shared) s->shared = 0; /* the first term stays on as the right factor */
         else wrt_csc_free(&s->P);       /* the last term, used: its product is made */
         s->P = N;
+        memset(&N, 0, sizeof N);
         s->p_all = nnz;
         C->bounces++;
         double pn, sn = 0;
         /* the next iterate's ratios (T in memory, or read back from its scratch file) */
         double rnext[3];
-        if (!wrt_dist_on(b->opt.dist)) {
+        if (overlap) {
+            /* the next product's memory checked before the pass starts (the resident
+             * memory then does not hold the pass's blocks, which the check counts); the
+             * pass on this thread (its blocks and overlay in this thread's heap, as
+             * before: from another thread's, glibc's, they stayed resident after it) */
+            next_task nt = {.s = s, .T = T, .next = (int)C->bounces < b->opt.max_bounces};
+            if (nt.next && (nt.st = series_next_check(s, (int)C->bounces + 1, &s->ss, &s->P)) != WRT_OK)
+                snprintf(nt.msg, sizeof nt.msg, "%s", wrt_last_error());
+            wrt_task task;
+            wrt_task_start(&task, next_task_run, &nt);
+            wrt_status ast = series_add_term(s, &sn);
+            wrt_task_join(&task);
+            pn = nt.pn;
+            memcpy(rnext, nt.rnext, sizeof rnext);
+            if (nt.pok && nt.next) {
+                N = nt.N;
+                nnz = nt.nnz;
+                nst = nt.st;
+                memcpy(nmsg, nt.msg, sizeof nmsg);
+                have = 1;
+            }
+            if (ast != WRT_OK) {
+                st = ast;
+                break;
+            }
+            if (!nt.pok) {
+                st = wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
+                break;
+            }
+        } else if (!wrt_dist_on(b->opt.dist)) {
             bounce_pass bp = {.s = s, .T = T};
             wrt_parallel_for(2, threads, bounce_pass_run, &bp);
             if (bp.ast != WRT_OK) /* said again on this thread (the error text is the thread's) */
@@ -590,11 +715,15 @@ static wrt_status series_bounces(series_state *s) {
         /* how far: the light left on its way from 1 down to the 1e-6 where the series stops
          * at the latest (it often stops sooner, when the tail can be added) */
         double done = C->energy_left > 0 ? log(C->energy_left) / log(1e-6) : 1;
-        if (b->opt.progress && !b->opt.progress("gto", fmin(1.0, fmax(done, 0.0)), b->opt.progress_user))
-            return wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
+        if (b->opt.progress && !b->opt.progress("gto", fmin(1.0, fmax(done, 0.0)), b->opt.progress_user)) {
+            st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
+            break;
+        }
         if (C->energy_left < 1e-6) break;
         if (!b->opt.no_tail && stable >= 3 && C->bounces >= 8) break;
     }
+    wrt_csc_free(&N); /* a next term the series did not take */
+    if (st != WRT_OK) return st;
     series_free_right(s);
     power_iter_free(&s->pi);
     if (!s->streamed) wrt_spill_free(&s->Tf); /* streamed, it may still be the sum */
@@ -631,7 +760,8 @@ static double series_final_weights(series_state *s, wrt_csc_weights *W, double *
 static int series_final_check(void *user, uint64_t kept, uint64_t projected) {
     series_state *s = user;
     uint64_t sum = s->ss.cur ? wrt_sum_stream_nnz(&s->ss) + s->P.nnz : 0;
-    /* the pass's blocks and the overlay it reads */
+    /* the pass's blocks and the overlay it reads (the next group, read beside them, is
+     * resident as this is checked) */
     return wrt_bake_memory_check(s->b->opt.max_memory_mb, &s->C->mem_estimate_mb,
                                  16 * (projected - kept) + series_stream_need(s->b, sum) +
                                      16 * s->ss.over.nnz,

@@ -256,8 +256,9 @@ int wrt_sum_stream_add(wrt_sum_stream *ss, const wrt_csc *P, const double s[3], 
 }
 
 /* The last pass's blocks, WRT_SUM_FINAL_GROUP at a time and each that much smaller (the
- * memory of one block of before): read in order, then merged on the stream's threads,
- * their squares summed in order, compressed on the threads, appended in order. */
+ * memory of one block of before): read in order (the next group while this one is
+ * worked on), then merged on the stream's threads, their squares summed in order,
+ * compressed on the threads, appended in order. */
 #define FINAL_GROUP WRT_SUM_FINAL_GROUP
 typedef struct {
     const wrt_sum_stream *ss;
@@ -288,6 +289,40 @@ static void final_item(size_t i, int th, void *user) {
     wrt_csc_compress(&g->m[i], g->drop, W ? &wb : NULL);
 }
 
+/* The last pass's next group of blocks read from the sum's file (on a thread of its own
+ * while the group before is merged and compressed: the file is read by nothing else
+ * then). ok 0 on a read error, the blocks read so far kept for freeing. */
+typedef struct {
+    wrt_sum_stream *ss;
+    const wrt_csc *P;
+    uint32_t j0;        /* the group's first column; past its last after the read */
+    size_t ng;
+    int ok;
+    uint32_t b0[FINAL_GROUP], b1[FINAL_GROUP];
+    wrt_csc a[FINAL_GROUP];
+} group_read;
+
+static void group_read_run(void *user) {
+    group_read *r = user;
+    uint32_t n = r->ss->cur->n;
+    r->ok = 1;
+    for (r->ng = 0; r->ng < FINAL_GROUP && r->j0 < n; r->ng++) {
+        uint32_t j1 = block_end_at(r->ss, r->P, r->j0, (r->ss->block + FINAL_GROUP - 1) / FINAL_GROUP);
+        if (!wrt_spill_read(r->ss->cur, j1 - r->j0, &r->a[r->ng])) {
+            r->ok = 0;
+            break;
+        }
+        r->b0[r->ng] = r->j0;
+        r->b1[r->ng] = j1;
+        r->j0 = j1;
+    }
+}
+
+static void group_read_free(group_read *r) {
+    for (size_t i = 0; i < r->ng; i++) wrt_csc_free(&r->a[i]);
+    r->ng = 0;
+}
+
 int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3], double *sumsq, double drop,
                          const wrt_csc_weights *W, int (*check)(void *user, uint64_t kept, uint64_t projected),
                          void *user, wrt_csc *out) {
@@ -300,23 +335,27 @@ int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3]
     out->row = wrt_xmalloc(cap * sizeof *out->row);
     out->val = wrt_xmalloc(3 * cap * sizeof *out->val);
     double acc = 0;
-    int ret = 1;
+    int ret = 1, ahead = wrt_threads_resolve(ss->threads) > 1;
     final_group g = {.ss = ss, .P = P, .k = k, .drop = drop, .W = W};
-    for (uint32_t j0 = 0; j0 < n && ret == 1;) {
-        size_t ng = 0;
-        for (; ng < FINAL_GROUP && j0 < n; ng++) {
-            uint32_t j1 = block_end_at(ss, P, j0, (ss->block + FINAL_GROUP - 1) / FINAL_GROUP);
-            if (!wrt_spill_read(ss->cur, j1 - j0, &g.a[ng])) {
-                ret = 0;
-                break;
-            }
-            g.j0[ng] = j0;
-            g.j1[ng] = j1;
-            j0 = j1;
-        }
-        if (ret != 1) {
-            for (size_t i = 0; i < ng; i++) wrt_csc_free(&g.a[i]);
+    group_read cur = {.ss = ss, .P = P, .j0 = 0};
+    group_read_run(&cur);
+    while (ret == 1) {
+        if (!cur.ok) {
+            group_read_free(&cur);
+            ret = 0;
             break;
+        }
+        size_t ng = cur.ng;
+        if (!ng) break;
+        /* the next group read beside this one's merge and compression */
+        group_read next = {.ss = ss, .P = P, .j0 = cur.j0};
+        wrt_task task;
+        int more = next.j0 < n;
+        if (more && ahead) wrt_task_start(&task, group_read_run, &next);
+        for (size_t i = 0; i < ng; i++) {
+            g.j0[i] = cur.b0[i];
+            g.j1[i] = cur.b1[i];
+            g.a[i] = cur.a[i];
         }
         g.stage = 0;
         wrt_parallel_for(ng, ss->threads, final_item, &g);
@@ -350,6 +389,11 @@ int wrt_sum_stream_final(wrt_sum_stream *ss, const wrt_csc *P, const double k[3]
             }
             wrt_csc_free(m);
         }
+        if (more && ahead) wrt_task_join(&task);
+        else if (more && ret == 1) group_read_run(&next);
+        else next.ok = 1;
+        cur = next;
+        if (ret != 1) group_read_free(&cur);
     }
     if (ret != 1) {
         wrt_csc_free(out);

@@ -109,25 +109,59 @@ wrt_csc wrt_csc_from_triplets(uint32_t n, wrt_triplet *t, uint64_t count) {
 }
 
 /* The same matrix, built by ranges of columns (about a 32nd of the entries each, taken two
- * at a time): the two ranges' triplets are taken out of t in their order in one pass (the
- * others moved up in theirs) and t is cut to what is left, then each range is scattered as
- * above, the two on two threads (their columns, and so their places in the matrix, are
- * apart; the same matrix whatever the threads). The triplets (20 bytes an entry) shrink as
- * the matrix (16) grows, instead of both being held with the index (40 bytes an entry: on
- * the 12 x 12 maze the bake's peak, 1.35 GB, issue 22). */
+ * at a time): the two ranges' triplets are taken out of t in their order and t is cut to
+ * what is left, then each range is scattered as above, the two on two threads (their
+ * columns, and so their places in the matrix, are apart). The triplets (20 bytes an
+ * entry) shrink as the matrix (16) grows, instead of both being held with the index (40
+ * bytes an entry: on the 12 x 12 maze the bake's peak, 1.35 GB, issue 22).
+ * The triplets are held as two arrays, t's first half and its second (moved out of t's
+ * end a 64th at a time, t cut behind each piece), and each pass over them runs on two
+ * threads, one an array: the first takes its ranges' triplets out in order to the front
+ * of each range's buffer, the second from the back in reverse (turned round before the
+ * scatter), so every range's triplets are in t's order, and the matrix is the same
+ * whatever the threads (on the 12 x 12 maze the passes, 16 over 30M triplets, were a
+ * second of one thread while the other waited). */
 #define TRIPLET_RANGES 32
 typedef struct {
     uint32_t n;
     wrt_triplet *rt[2];
-    uint64_t in[2];
+    uint64_t in[2], front[2]; /* range r's triplets; those from the first array */
     wrt_csc *m;
     uint64_t *next;
+    /* the passes: the two arrays and their triplets, the pass's columns */
+    wrt_triplet *t[2];
+    uint64_t left[2];
+    uint32_t cut[3];
 } range_job;
+
+static void take_ranges(size_t h, int th, void *user) {
+    (void)th;
+    range_job *j = user;
+    wrt_triplet *t = j->t[h];
+    const uint32_t *cut = j->cut;
+    uint64_t w = 0, k[2] = {0, 0};
+    for (uint64_t i = 0; i < j->left[h]; i++) {
+        uint32_t c = t[i].col;
+        int r = c >= cut[0] && c < cut[1] ? 0 : c >= cut[1] && c < cut[2] ? 1 : -1;
+        if (r < 0) t[w++] = t[i];
+        else if (h == 0) j->rt[r][k[r]++] = t[i];
+        else j->rt[r][j->in[r] - 1 - k[r]++] = t[i];
+    }
+    j->left[h] = w;
+    j->t[h] = wrt_xrealloc(t, (w ? w : 1) * sizeof *t);
+    if (h == 0) memcpy(j->front, k, sizeof k);
+}
 
 static void scatter_range(size_t i, int th, void *user) {
     (void)th;
     range_job *j = user;
-    scatter_by_row(j->n, j->rt[i], j->in[i], j->m, j->next);
+    wrt_triplet *rt = j->rt[i];
+    for (uint64_t a = j->front[i], b = j->in[i]; b > a + 1; a++, b--) { /* the second array's, in order */
+        wrt_triplet x = rt[a];
+        rt[a] = rt[b - 1];
+        rt[b - 1] = x;
+    }
+    scatter_by_row(j->n, rt, j->in[i], j->m, j->next);
 }
 
 wrt_csc wrt_csc_from_triplets_free(uint32_t n, wrt_triplet *t, uint64_t count, int threads) {
@@ -145,30 +179,37 @@ wrt_csc wrt_csc_from_triplets_free(uint32_t n, wrt_triplet *t, uint64_t count, i
     m.val = wrt_xmalloc(count * 3 * sizeof *m.val);
     uint64_t *next = wrt_xmalloc(((size_t)n + 1) * sizeof *next);
     memcpy(next, m.col, ((size_t)n + 1) * sizeof *next);
-    uint64_t left = count;
+    range_job rj = {.n = n, .m = &m, .next = next};
+    /* the second half moved out, from t's end back, t cut behind each piece */
+    uint64_t half = count / 2, piece = count / 64 + 1;
+    rj.left[0] = half;
+    rj.left[1] = count - half;
+    rj.t[1] = wrt_xmalloc(rj.left[1] * sizeof *rj.t[1]);
+    for (uint64_t end = count; end > half;) {
+        uint64_t from = end - half > piece ? end - piece : half;
+        memcpy(rj.t[1] + (from - half), t + from, (end - from) * sizeof *t);
+        t = wrt_xrealloc(t, from * sizeof *t);
+        end = from;
+    }
+    rj.t[0] = t;
     for (uint32_t c0 = 0; c0 < n;) {
-        uint32_t cut[3] = {c0, 0, 0};
+        uint32_t *cut = rj.cut;
+        cut[0] = c0;
         for (int r = 1; r < 3; r++) { /* range r - 1 is [cut[r - 1], cut[r]), empty past the end */
             uint32_t a = cut[r - 1], c1 = a < n ? a + 1 : n;
             while (c1 < n && m.col[c1 + 1] - m.col[a] <= count / TRIPLET_RANGES) c1++;
             cut[r] = c1;
         }
-        range_job rj = {n, {NULL, NULL}, {m.col[cut[1]] - m.col[cut[0]], m.col[cut[2]] - m.col[cut[1]]}, &m, next};
-        for (int r = 0; r < 2; r++) rj.rt[r] = wrt_xmalloc((rj.in[r] ? rj.in[r] : 1) * sizeof *rj.rt[r]);
-        uint64_t w = 0, k0 = 0, k1 = 0;
-        for (uint64_t i = 0; i < left; i++) {
-            uint32_t c = t[i].col;
-            if (c >= cut[0] && c < cut[1]) rj.rt[0][k0++] = t[i];
-            else if (c >= cut[1] && c < cut[2]) rj.rt[1][k1++] = t[i];
-            else t[w++] = t[i];
+        for (int r = 0; r < 2; r++) {
+            rj.in[r] = m.col[cut[r + 1]] - m.col[cut[r]];
+            rj.rt[r] = wrt_xmalloc((rj.in[r] ? rj.in[r] : 1) * sizeof *rj.rt[r]);
         }
-        left = w;
-        t = wrt_xrealloc(t, (left ? left : 1) * sizeof *t);
+        wrt_parallel_for(2, threads, take_ranges, &rj);
         wrt_parallel_for(2, threads, scatter_range, &rj);
         free(rj.rt[0]); free(rj.rt[1]);
         c0 = cut[2];
     }
-    free(t); free(next);
+    free(rj.t[0]); free(rj.t[1]); free(next);
     sum_duplicates(&m, count);
     return m;
 }

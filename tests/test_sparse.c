@@ -91,6 +91,16 @@ static void test_triplets_by_ranges(void) {
     CHECK(m2.nnz == m.nnz && !memcmp(m2.col, m.col, (N + 1) * sizeof *m.col) && !memcmp(m2.row, m.row, m.nnz * 4) &&
               !memcmp(m2.val, m.val, 12 * m.nnz),
           "two threads: the same bits as one");
+    /* an odd count (the triplets' two halves unequal, the last piece of the second short) */
+    enum { ODD = COUNT - 7 };
+    copy = malloc(ODD * sizeof *copy);
+    memcpy(copy, t, ODD * sizeof *t);
+    wrt_csc m3 = wrt_csc_from_triplets_free(N, copy, ODD, 2), w3 = wrt_csc_from_triplets(N, t, ODD);
+    CHECK(m3.nnz == w3.nnz && !memcmp(m3.col, w3.col, (N + 1) * sizeof *m3.col) &&
+              !memcmp(m3.row, w3.row, m3.nnz * 4) && !memcmp(m3.val, w3.val, 12 * m3.nnz),
+          "%d triplets by ranges on two threads: the same bits as the whole build", (int)ODD);
+    wrt_csc_free(&m3);
+    wrt_csc_free(&w3);
     wrt_csc_free(&m);
     wrt_csc_free(&m2);
     wrt_csc_free(&w);
