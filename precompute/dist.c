@@ -474,16 +474,17 @@ static wrt_status share_send(wrt_bake_dist *d, wrt_csc *own, int free_own, const
     return WRT_OK;
 }
 
-typedef struct need_user { const uint8_t *need; uint32_t n; } need_user;
+typedef struct need_user { const uint8_t *need; uint32_t n; int self; } need_user;
 
+/* a rank's own columns all go to itself (the term's share the caller may then free) */
 static int want_needed(const void *user, int q, uint32_t j) {
     const need_user *u = user;
-    return u->need[(size_t)q * u->n + j];
+    return q == u->self || u->need[(size_t)q * u->n + j];
 }
 
 wrt_status wrt_dist_share_fetch(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, const uint8_t *need,
                                 wrt_csc *in) {
-    need_user u = {need, own->n};
+    need_user u = {need, own->n, d->rank};
     return share_send(d, (wrt_csc *)own, 0, cut, want_needed, &u, in);
 }
 

@@ -378,15 +378,26 @@ static void series_share_start(series_state *s) {
  * the same turns) */
 static uint64_t series_term_nnz(const series_state *s) { return s->share ? s->p_all : s->P.nnz; }
 
-/* A product by shares: the needed columns of P fetched, the memory checked, this rank's
- * columns computed */
-static wrt_status series_share_mul(series_state *s, const wrt_csc *R, int bounce, wrt_csc *out) {
+/* A product by shares: the needed columns of P fetched with every one of this rank's own,
+ * whose share of P is then freed (the fetched matrix holds it: the product holds one copy
+ * of the term, not two of this rank's columns), the memory checked, this rank's columns
+ * computed; *nnz: the product's entries on all the ranks. Where that is none, the rank's
+ * share of P is taken back from the fetched columns (the tail reads the last term). */
+static wrt_status series_share_mul(series_state *s, const wrt_csc *R, int bounce, wrt_csc *out, uint64_t *nnz) {
     wrt_bake_dist *d = s->b->opt.dist;
+    uint32_t c0 = s->cut[d->rank], c1 = s->cut[d->rank + 1];
     wrt_csc in;
     wrt_status st = wrt_dist_share_fetch(d, &s->P, s->cut, s->need, &in);
     if (st != WRT_OK) return st;
+    wrt_csc_free(&s->P);
     st = series_memory_check(s->b, s->C, &in, R, s->eps, &s->W, bounce, s->streamed ? &s->ss : NULL);
-    if (st == WRT_OK) *out = wrt_csc_mul_cols(&in, R, s->eps, &s->W, s->threads, s->cut[d->rank], s->cut[d->rank + 1]);
+    if (st == WRT_OK) {
+        *out = wrt_csc_mul_cols(&in, R, s->eps, &s->W, s->threads, c0, c1);
+        *nnz = out->nnz;
+        st = wrt_dist_sum_u64(d, nnz, 1);
+        if (st != WRT_OK) wrt_csc_free(out);
+    }
+    if (st != WRT_OK || !*nnz) s->P = csc_range(&in, c0, c1);
     wrt_csc_free(&in);
     return st;
 }
@@ -521,13 +532,8 @@ static wrt_status series_bounces(series_state *s) {
         wrt_csc N;
         uint64_t nnz;
         if (s->share) {
-            wrt_status pst = series_share_mul(s, R, (int)C->bounces + 1, &N);
+            wrt_status pst = series_share_mul(s, R, (int)C->bounces + 1, &N, &nnz);
             if (pst != WRT_OK) return pst;
-            nnz = N.nnz;
-            if ((pst = wrt_dist_sum_u64(b->opt.dist, &nnz, 1)) != WRT_OK) {
-                wrt_csc_free(&N);
-                return pst;
-            }
         } else {
             wrt_status mst = series_memory_check(b, C, &s->P, R, eps, &s->W, (int)C->bounces + 1,
                                                  s->streamed ? &s->ss : NULL);
