@@ -670,6 +670,7 @@ static wrt_status series_final_sum(series_state *s, int add, const double k[3], 
             st = wrt_dist_share_to_root(s->b->opt.dist, &s->S, s->cut, &all);
             wrt_csc_free(&s->S);
             if (st == WRT_OK) s->S = all;
+            wrt_bake_memory_trim(); /* the rounds' buffers, freed, back to the system */
         }
         s->C->sum_kept = s->ss.kept;
         s->C->sum_written = s->ss.written;
