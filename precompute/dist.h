@@ -71,7 +71,7 @@ uint8_t *wrt_dist_share_need(const wrt_csc *r, int nranks, const uint32_t *cut);
 wrt_status wrt_dist_share_fetch(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, const uint8_t *need,
                                 wrt_csc *in);
 
-/* Every rank's columns of a matrix (own: its range filled; freed once packed) gathered on
+/* Every rank's columns of a matrix (own: its range filled; freed once sent) gathered on
  * rank 0 as one matrix in column order (*all); on the other ranks *all is empty (n
  * columns, no entries). */
 wrt_status wrt_dist_share_to_root(wrt_bake_dist *d, wrt_csc *own, const uint32_t *cut, wrt_csc *all);
