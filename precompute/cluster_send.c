@@ -142,28 +142,41 @@ int wrt_clusters_senders(const wrt_ctree *t, const uint32_t *root, wrt_csc *M, d
         free(x.orow); free(x.oval); free(x.on); free(tree);
         return 0;
     }
-    wrt_csc o = {.n = nf, .nnz = total};
-    o.col = wrt_xmalloc(((size_t)nf + 1) * sizeof *o.col);
-    o.row = wrt_xmalloc((total ? total : 1) * sizeof *o.row);
-    o.val = wrt_xmalloc((total ? total : 1) * 3 * sizeof *o.val);
-    uint64_t k = 0;
-    o.col[0] = 0;
+    /* built in M's own arrays, not beside them (here the whole gathered operator: on rank
+     * 0 of wrt-bake-mpi the bake's peak, docs/mpi.md session 10): the columns are written
+     * in order over what is read already, M's entries moved up first by the most that a
+     * column's new end passes the next column's old start (d) */
+    uint64_t k = 0, d = 0, nnz = M->nnz;
     for (uint32_t c = 0; c < nf; c++) {
+        k += tree[c] ? x.on[c] : M->col[c + 1] - M->col[c];
+        if (k > M->col[c + 1] && k - M->col[c + 1] > d) d = k - M->col[c + 1];
+    }
+    if (d) {
+        M->row = wrt_xrealloc(M->row, (nnz + d) * sizeof *M->row);
+        M->val = wrt_xrealloc(M->val, (nnz + d) * 3 * sizeof *M->val);
+        memmove(&M->row[d], M->row, nnz * sizeof *M->row);
+        memmove(&M->val[3 * d], M->val, 3 * nnz * sizeof *M->val);
+    }
+    uint64_t a = M->col[0] + d;
+    k = 0;
+    for (uint32_t c = 0; c < nf; c++) {
+        uint64_t e = M->col[c + 1] + d;
         if (tree[c]) {
-            memcpy(&o.row[k], x.orow[c], x.on[c] * sizeof *o.row);
-            memcpy(&o.val[3 * k], x.oval[c], 3 * x.on[c] * sizeof *o.val);
+            memcpy(&M->row[k], x.orow[c], x.on[c] * sizeof *M->row);
+            memcpy(&M->val[3 * k], x.oval[c], 3 * x.on[c] * sizeof *M->val);
             k += x.on[c];
             free(x.orow[c]); free(x.oval[c]);
         } else {
-            uint64_t a = M->col[c], e = M->col[c + 1];
-            memcpy(&o.row[k], &M->row[a], (e - a) * sizeof *o.row);
-            memcpy(&o.val[3 * k], &M->val[3 * a], 3 * (e - a) * sizeof *o.val);
+            memmove(&M->row[k], &M->row[a], (e - a) * sizeof *M->row);
+            memmove(&M->val[3 * k], &M->val[3 * a], 3 * (e - a) * sizeof *M->val);
             k += e - a;
         }
-        o.col[c + 1] = k;
+        M->col[c + 1] = k;
+        a = e;
     }
+    M->nnz = total;
+    M->row = wrt_xrealloc(M->row, (total ? total : 1) * sizeof *M->row);
+    M->val = wrt_xrealloc(M->val, (total ? total : 1) * 3 * sizeof *M->val);
     free(x.orow); free(x.oval); free(x.on); free(tree);
-    wrt_csc_free(M);
-    *M = o;
     return 1;
 }

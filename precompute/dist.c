@@ -349,71 +349,120 @@ static uint8_t *col_record_put(const wrt_csc *m, uint32_t j, uint8_t *p) {
     return p + (size_t)cnt * 12;
 }
 
-/* Appends the records in `buf` (len bytes, columns ascending, after every column already
- * in m) to m's arrays, their counts to cnt[j + 1] */
-static void col_records_append(wrt_csc *m, uint64_t *cnt, const uint8_t *buf, uint64_t len) {
+/* A sender's place in its records: the receiver q it packs for, and the column from which */
+typedef struct share_cursor { int q; uint32_t j; } share_cursor;
+
+typedef int (*share_want)(const void *user, int q, uint32_t j);
+
+/* Packs (p non-NULL) or counts this rank's records from *c on, receivers in order and each
+ * one's columns ascending, while they fit in cap bytes (at least one record); a
+ * receiver's bytes in sl[q] (added to), its entries in ent[q] (when non-NULL); returns the
+ * bytes taken. */
+static uint64_t share_piece(const wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, share_want want,
+                            const void *user, share_cursor *c, uint64_t cap, uint8_t *p, uint64_t *sl, uint64_t *ent) {
+    uint64_t l = 0;
+    uint32_t c1 = cut[d->rank + 1];
+    for (; c->q < d->nranks; c->q++, c->j = cut[d->rank]) {
+        for (; c->j < c1; c->j++) {
+            uint32_t j = c->j;
+            if (own->col[j + 1] == own->col[j] || !want(user, c->q, j)) continue;
+            uint64_t sz = col_record_size(own, j);
+            if (l && l + sz > cap) return l;
+            if (p) p = col_record_put(own, j, p);
+            l += sz;
+            sl[c->q] += sz;
+            if (ent) ent[c->q] += own->col[j + 1] - own->col[j];
+        }
+    }
+    return l;
+}
+
+/* Puts the records in `buf` (len bytes, one sender's, columns ascending) into m's arrays
+ * from entry *at on, their counts into cnt[j + 1] */
+static void col_records_place(wrt_csc *m, uint64_t *cnt, uint64_t *at, const uint8_t *buf, uint64_t len) {
     for (const uint8_t *p = buf; p < buf + len;) {
         uint32_t h[2];
         memcpy(h, p, 8);
         p += 8;
         cnt[h[0] + 1] = h[1];
-        memcpy(m->row + m->nnz, p, (size_t)h[1] * 4);
+        memcpy(m->row + *at, p, (size_t)h[1] * 4);
         p += (size_t)h[1] * 4;
-        memcpy(m->val + 3 * m->nnz, p, (size_t)h[1] * 12);
+        memcpy(m->val + 3 * *at, p, (size_t)h[1] * 12);
         p += (size_t)h[1] * 12;
-        m->nnz += h[1];
+        *at += h[1];
     }
 }
 
-/* The exchange of the columns that want(q, j) picks among this rank's, in one all-to-all a
- * rank (rank t sends in round t), each round's records appended to *in as they come: the
- * receiver holds the matrix it builds and one rank's share of it, not all of it twice.
- * The sizes go first (an all-gather), so the arrays are made once. */
-static wrt_status share_send(wrt_bake_dist *d, wrt_csc *own, int free_own, const uint32_t *cut,
-                             int (*want)(const void *user, int q, uint32_t j), const void *user, wrt_csc *in) {
+/* The exchange of the columns that want(q, j) picks among this rank's, streamed: in
+ * rounds of an all-to-all where each rank sends at most piece_bytes / nranks (its records
+ * in receiver and column order), each round's records put straight into *in at their
+ * sender's place (the ranks' ranges are in column order) and freed before the next. Each
+ * rank's entries for every other and its rounds go first (an all-gather), so *in is made
+ * once at its size and every rank takes the same turns. A rank holds its share, the
+ * matrix it builds and one round, not the records it sends (on the atrium at detail 1.5
+ * the sender's whole buffer, its range about three times over, set the peak:
+ * docs/mpi.md); with free_own, its share is freed once sent. */
+static wrt_status share_send(wrt_bake_dist *d, wrt_csc *own, int free_own, const uint32_t *cut, share_want want,
+                             const void *user, wrt_csc *in) {
     int nr = d->nranks, me = d->rank;
     uint32_t n = own->n;
-    uint64_t *sl = wrt_xcalloc((size_t)nr, sizeof *sl), *rl = wrt_xcalloc((size_t)nr, sizeof *rl), total = 0;
-    uint64_t *none = wrt_xcalloc((size_t)nr, sizeof *none);
-    for (int q = 0; q < nr; q++)
-        for (uint32_t j = cut[me]; j < cut[me + 1]; j++)
-            if (own->col[j + 1] > own->col[j] && want(user, q, j)) sl[q] += col_record_size(own, j);
-    for (int q = 0; q < nr; q++) total += sl[q];
-    uint8_t *buf = wrt_xmalloc(total ? total : 1), *p = buf;
-    for (int q = 0; q < nr; q++)
-        for (uint32_t j = cut[me]; j < cut[me + 1]; j++)
-            if (own->col[j + 1] > own->col[j] && want(user, q, j)) p = col_record_put(own, j, p);
-    if (free_own) wrt_csc_free(own);
+    uint64_t cap = (d->piece_bytes ? d->piece_bytes : DIST_ROUND_BYTES) / (uint64_t)nr;
+    if (cap < 65536 && !d->piece_bytes) cap = 65536;
+    uint64_t *sl = wrt_xcalloc((size_t)nr, sizeof *sl), *rl = wrt_xcalloc((size_t)nr, sizeof *rl);
+    /* what every rank tells the others: its rounds, then its entries for each rank */
+    uint64_t *head = wrt_xcalloc((size_t)nr + 1, sizeof *head);
+    share_cursor c = {0, cut[me]};
+    while (share_piece(d, own, cut, want, user, &c, cap, NULL, sl, head + 1)) head[0]++;
     uint8_t *all;
     uint64_t *lens;
-    wrt_status st = dist_exchange(d, WRT_DIST_SERIES, sl, (uint64_t)nr * 8, &all, &lens);
+    wrt_status st = dist_exchange(d, WRT_DIST_SERIES, head, ((uint64_t)nr + 1) * 8, &all, &lens);
+    free(head);
     wrt_csc m = {.n = n};
-    uint64_t *cnt = wrt_xcalloc((size_t)n + 1, sizeof *cnt);
+    uint64_t *cnt = wrt_xcalloc((size_t)n + 1, sizeof *cnt), *at = wrt_xcalloc((size_t)nr, sizeof *at), rounds = 0;
     if (st == WRT_OK) {
-        uint64_t bytes = 0; /* at most bytes / 16 entries */
+        uint64_t total = 0;
         for (int t = 0; t < nr; t++) {
-            uint64_t x;
-            memcpy(&x, all + 8 * ((size_t)t * nr + me), 8);
-            bytes += x;
+            uint64_t h[2];
+            memcpy(&h[0], all + 8 * ((size_t)t * (nr + 1)), 8);
+            memcpy(&h[1], all + 8 * ((size_t)t * (nr + 1) + 1 + me), 8);
+            if (h[0] > rounds) rounds = h[0];
+            at[t] = total; /* rank t's columns go after the lower ranks' */
+            total += h[1];
         }
         free(all); free(lens);
-        m.row = wrt_xmalloc((bytes / 16 + 1) * sizeof *m.row);
-        m.val = wrt_xmalloc((bytes / 16 + 1) * 3 * sizeof *m.val);
+        m.nnz = total;
+        m.row = wrt_xmalloc((total + 1) * sizeof *m.row);
+        m.val = wrt_xmalloc((total + 1) * 3 * sizeof *m.val);
     }
-    for (int t = 0; t < nr && st == WRT_OK; t++) {
+    c = (share_cursor){0, cut[me]};
+    for (uint64_t k = 0; k < rounds && st == WRT_OK; k++) {
+        memset(sl, 0, (size_t)nr * sizeof *sl);
+        share_cursor c0 = c;
+        uint64_t len = own->col ? share_piece(d, own, cut, want, user, &c, cap, NULL, sl, NULL) : 0;
+        uint8_t *buf = wrt_xmalloc(len ? len : 1);
+        if (len) {
+            memset(sl, 0, (size_t)nr * sizeof *sl);
+            share_piece(d, own, cut, want, user, &c0, cap, buf, sl, NULL);
+        }
+        if (free_own && c.q == nr) wrt_csc_free(own); /* every record sent: the share is done */
         void *rv = NULL;
-        st = d->alltoall(d->user, buf, t == me ? sl : none, &rv, rl);
+        st = d->alltoall(d->user, buf, sl, &rv, rl);
+        free(buf);
         if (st == WRT_OK) {
-            if (t == me) {
-                for (int q = 0; q < nr; q++) if (q != me) d->bytes_sent[WRT_DIST_SERIES] += sl[q];
-            } else {
-                d->bytes_recv[WRT_DIST_SERIES] += rl[t];
+            const uint8_t *p = rv;
+            for (int t = 0; t < nr; t++) {
+                if (t != me) {
+                    d->bytes_sent[WRT_DIST_SERIES] += sl[t];
+                    d->bytes_recv[WRT_DIST_SERIES] += rl[t];
+                }
+                col_records_place(&m, cnt, &at[t], p, rl[t]);
+                p += rl[t];
             }
-            col_records_append(&m, cnt, rv, rl[t]);
         }
         free(rv);
     }
-    free(buf); free(sl); free(rl); free(none);
+    if (free_own && own->col) wrt_csc_free(own);
+    free(sl); free(rl); free(at);
     if (st != WRT_OK) {
         free(cnt);
         wrt_csc_free(&m);
@@ -421,22 +470,21 @@ static wrt_status share_send(wrt_bake_dist *d, wrt_csc *own, int free_own, const
     }
     m.col = cnt;
     for (uint32_t j = 0; j < n; j++) m.col[j + 1] += m.col[j];
-    m.row = wrt_xrealloc(m.row, (m.nnz + 1) * sizeof *m.row);
-    m.val = wrt_xrealloc(m.val, (m.nnz + 1) * 3 * sizeof *m.val);
     *in = m;
     return WRT_OK;
 }
 
-typedef struct need_user { const uint8_t *need; uint32_t n; } need_user;
+typedef struct need_user { const uint8_t *need; uint32_t n; int self; } need_user;
 
+/* a rank's own columns all go to itself (the term's share the caller may then free) */
 static int want_needed(const void *user, int q, uint32_t j) {
     const need_user *u = user;
-    return u->need[(size_t)q * u->n + j];
+    return q == u->self || u->need[(size_t)q * u->n + j];
 }
 
 wrt_status wrt_dist_share_fetch(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, const uint8_t *need,
                                 wrt_csc *in) {
-    need_user u = {need, own->n};
+    need_user u = {need, own->n, d->rank};
     return share_send(d, (wrt_csc *)own, 0, cut, want_needed, &u, in);
 }
 

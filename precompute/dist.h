@@ -66,11 +66,12 @@ uint8_t *wrt_dist_share_need(const wrt_csc *r, int nranks, const uint32_t *cut);
 
 /* From this rank's columns of a term (own: its range filled, the others empty), the
  * columns this rank needs (need as above): each rank sends each other the columns of its
- * range that the other needs (an all-to-all). *in: those columns, the others empty. */
+ * range that the other needs (all-to-alls in rounds of piece_bytes). *in: those columns
+ * and every one of this rank's own (so that own may be freed), the others empty. */
 wrt_status wrt_dist_share_fetch(wrt_bake_dist *d, const wrt_csc *own, const uint32_t *cut, const uint8_t *need,
                                 wrt_csc *in);
 
-/* Every rank's columns of a matrix (own: its range filled; freed once packed) gathered on
+/* Every rank's columns of a matrix (own: its range filled; freed once sent) gathered on
  * rank 0 as one matrix in column order (*all); on the other ranks *all is empty (n
  * columns, no entries). */
 wrt_status wrt_dist_share_to_root(wrt_bake_dist *d, wrt_csc *own, const uint32_t *cut, wrt_csc *all);

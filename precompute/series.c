@@ -417,15 +417,26 @@ static void series_share_start(series_state *s) {
  * the same turns) */
 static uint64_t series_term_nnz(const series_state *s) { return s->share ? s->p_all : s->P.nnz; }
 
-/* A product by shares: the needed columns of P fetched, the memory checked, this rank's
- * columns computed */
-static wrt_status series_share_mul(series_state *s, const wrt_csc *R, int bounce, wrt_csc *out) {
+/* A product by shares: the needed columns of P fetched with every one of this rank's own,
+ * whose share of P is then freed (the fetched matrix holds it: the product holds one copy
+ * of the term, not two of this rank's columns), the memory checked, this rank's columns
+ * computed; *nnz: the product's entries on all the ranks. Where that is none, the rank's
+ * share of P is taken back from the fetched columns (the tail reads the last term). */
+static wrt_status series_share_mul(series_state *s, const wrt_csc *R, int bounce, wrt_csc *out, uint64_t *nnz) {
     wrt_bake_dist *d = s->b->opt.dist;
+    uint32_t c0 = s->cut[d->rank], c1 = s->cut[d->rank + 1];
     wrt_csc in;
     wrt_status st = wrt_dist_share_fetch(d, &s->P, s->cut, s->need, &in);
     if (st != WRT_OK) return st;
+    wrt_csc_free(&s->P);
     st = series_memory_check(s->b, s->C, &in, R, s->eps, &s->W, bounce, s->streamed ? &s->ss : NULL);
-    if (st == WRT_OK) *out = wrt_csc_mul_cols(&in, R, s->eps, &s->W, s->threads, s->cut[d->rank], s->cut[d->rank + 1]);
+    if (st == WRT_OK) {
+        *out = wrt_csc_mul_cols(&in, R, s->eps, &s->W, s->threads, c0, c1);
+        *nnz = out->nnz;
+        st = wrt_dist_sum_u64(d, nnz, 1);
+        if (st != WRT_OK) wrt_csc_free(out);
+    }
+    if (st != WRT_OK || !*nnz) s->P = csc_range(&in, c0, c1);
     wrt_csc_free(&in);
     return st;
 }
@@ -549,13 +560,7 @@ static wrt_status series_next_term(series_state *s, int bounce, int checked, wrt
     const bake_ctx *b = s->b;
     const wrt_csc *R = series_right(s, bounce);
     memset(N, 0, sizeof *N);
-    if (s->share) {
-        wrt_status pst = series_share_mul(s, R, bounce, N);
-        if (pst != WRT_OK) return pst;
-        *nnz = N->nnz;
-        if ((pst = wrt_dist_sum_u64(b->opt.dist, nnz, 1)) != WRT_OK) wrt_csc_free(N);
-        return pst;
-    }
+    if (s->share) return series_share_mul(s, R, bounce, N, nnz);
     wrt_status mst = checked ? WRT_OK : series_next_check(s, bounce, NULL, NULL);
     if (mst != WRT_OK) return mst;
     wrt_status pst = series_mul(b, &s->P, R, s->eps, &s->W, s->threads, N);
@@ -794,6 +799,7 @@ static wrt_status series_final_sum(series_state *s, int add, const double k[3], 
             st = wrt_dist_share_to_root(s->b->opt.dist, &s->S, s->cut, &all);
             wrt_csc_free(&s->S);
             if (st == WRT_OK) s->S = all;
+            wrt_bake_memory_trim(); /* the rounds' buffers, freed, back to the system */
         }
         s->C->sum_kept = s->ss.kept;
         s->C->sum_written = s->ss.written;

@@ -25,6 +25,7 @@ typedef struct sim {
     uint64_t calls[MAXR];
     const uint64_t *lens[MAXR]; /* the all-to-all's segment sizes */
     uint64_t a2a[MAXR];          /* all-to-alls per rank */
+    uint64_t a2a_most[MAXR];     /* the most bytes a rank sent in one all-to-all */
 } sim;
 
 static __thread int sim_rank; /* the calling thread's rank */
@@ -51,6 +52,9 @@ static wrt_status sim_alltoall(void *user, const void *send, const uint64_t *sen
     s->buf[sim_rank] = send;
     s->lens[sim_rank] = sendlens;
     s->a2a[sim_rank]++;
+    uint64_t sent = 0;
+    for (int q = 0; q < s->nranks; q++) sent += sendlens[q];
+    if (sent > s->a2a_most[sim_rank]) s->a2a_most[sim_rank] = sent;
     pthread_barrier_wait(&s->bar);
     uint64_t total = 0;
     for (int k = 0; k < s->nranks; k++) { recvlens[k] = s->lens[k][sim_rank]; total += recvlens[k]; }
@@ -324,7 +328,37 @@ static void dist_clusters_same(void) {
  * closed box with a panel (occluded pairs, 3 ranks, blocks of 500 entries so that the
  * sum is streamed through many blocks), rank 0 ends with the single process's G - I bit
  * for bit and its bounces and energy left (the norms' bits decide both), the others with
- * no operator, and every rank met in the same all-to-alls. */
+ * no operator, and every rank met in the same all-to-alls. Then again with the exchange
+ * in rounds of 2 KiB of all the ranks' records: the same G - I from many more
+ * all-to-alls, none of which sends more than a round's share (2048 / 3 bytes) or one
+ * column (8 + 16 bytes an entry, at most a column's every function). */
+static void share_on_ranks(const wrt_scene *s, wrt_bake_options o, uint64_t piece, const wrt_bake_result *want,
+                           sim *sm) {
+    *sm = (sim){.nranks = NR_BAKE};
+    pthread_barrier_init(&sm->bar, NULL, NR_BAKE);
+    bake_arg a[NR_BAKE];
+    for (int k = 0; k < NR_BAKE; k++) a[k] = (bake_arg){.s = sm, .scene = s, .o = o, .share = 1, .piece = piece};
+    run_ranks(NR_BAKE, bake_rank, a, sizeof *a);
+    for (int k = 0; k < NR_BAKE; k++) {
+        CHECK(a[k].st == WRT_OK, "rank %d baked (%s)", k, wrt_last_error());
+        if (a[k].st != WRT_OK) continue;
+        if (k == 0) {
+            CHECK(csc_same(&a[k].r.op, &want->op), "rank 0: the same G - I (%llu entries, want %llu; rounds %llu)",
+                  (unsigned long long)a[k].r.op.nnz, (unsigned long long)want->op.nnz, (unsigned long long)piece);
+            CHECK(a[k].r.c.bounces == want->c.bounces && a[k].r.c.energy_left == want->c.energy_left &&
+                      a[k].r.c.tail_fraction == want->c.tail_fraction && a[k].r.c.links_gto == want->c.links_gto,
+                  "rank 0: the same bounces (%llu / %llu), energy left, tail and links",
+                  (unsigned long long)a[k].r.c.bounces, (unsigned long long)want->c.bounces);
+        } else {
+            CHECK(a[k].r.op.nnz == 0, "rank %d holds no operator (%llu entries)", k, (unsigned long long)a[k].r.op.nnz);
+        }
+        wrt_bake_result_free(&a[k].r);
+    }
+    CHECK(sm->a2a[0] > 3 && sm->a2a[0] == sm->a2a[1] && sm->a2a[1] == sm->a2a[2],
+          "the ranks met in the same %llu all-to-alls", (unsigned long long)sm->a2a[0]);
+    pthread_barrier_destroy(&sm->bar);
+}
+
 static void dist_share_same(void) {
     wrt_scene s;
     box_with_panel(&s, 0.8, 0.7, 0.6);
@@ -336,29 +370,19 @@ static void dist_share_same(void) {
     wrt_status st = wrt_bake_run(&s, &o, &want);
     CHECK(st == WRT_OK && want.op.nnz > 0 && want.c.bounces > 3, "the single process bakes (%llu bounces; %s)",
           (unsigned long long)want.c.bounces, wrt_last_error());
-    sim sm = {.nranks = NR_BAKE};
-    pthread_barrier_init(&sm.bar, NULL, NR_BAKE);
-    bake_arg a[NR_BAKE];
-    for (int k = 0; k < NR_BAKE; k++) a[k] = (bake_arg){.s = &sm, .scene = &s, .o = o, .share = 1};
-    run_ranks(NR_BAKE, bake_rank, a, sizeof *a);
+    sim one, many;
+    share_on_ranks(&s, o, 0, &want, &one);
+    share_on_ranks(&s, o, 2048, &want, &many);
+    uint64_t most = 0, bound = 2048 / NR_BAKE + 8 + 16 * (uint64_t)want.nfuncs, whole = 0;
     for (int k = 0; k < NR_BAKE; k++) {
-        CHECK(a[k].st == WRT_OK, "rank %d baked (%s)", k, wrt_last_error());
-        if (a[k].st != WRT_OK) continue;
-        if (k == 0) {
-            CHECK(csc_same(&a[k].r.op, &want.op), "rank 0: the same G - I (%llu entries, want %llu)",
-                  (unsigned long long)a[k].r.op.nnz, (unsigned long long)want.op.nnz);
-            CHECK(a[k].r.c.bounces == want.c.bounces && a[k].r.c.energy_left == want.c.energy_left &&
-                      a[k].r.c.tail_fraction == want.c.tail_fraction && a[k].r.c.links_gto == want.c.links_gto,
-                  "rank 0: the same bounces (%llu / %llu), energy left, tail and links",
-                  (unsigned long long)a[k].r.c.bounces, (unsigned long long)want.c.bounces);
-        } else {
-            CHECK(a[k].r.op.nnz == 0, "rank %d holds no operator (%llu entries)", k, (unsigned long long)a[k].r.op.nnz);
-        }
-        wrt_bake_result_free(&a[k].r);
+        if (many.a2a_most[k] > most) most = many.a2a_most[k];
+        if (one.a2a_most[k] > whole) whole = one.a2a_most[k];
     }
-    CHECK(sm.a2a[0] > 3 && sm.a2a[0] == sm.a2a[1] && sm.a2a[1] == sm.a2a[2],
-          "the ranks met in the same %llu all-to-alls", (unsigned long long)sm.a2a[0]);
-    pthread_barrier_destroy(&sm.bar);
+    CHECK(many.a2a[0] > 4 * one.a2a[0] && most <= bound && most < whole,
+          "in 2 KiB rounds: %llu all-to-alls (%llu in one round a product), at most %llu bytes sent in one "
+          "(bound %llu; %llu in one round)",
+          (unsigned long long)many.a2a[0], (unsigned long long)one.a2a[0], (unsigned long long)most,
+          (unsigned long long)bound, (unsigned long long)whole);
     wrt_bake_result_free(&want);
     tsb_free(&s);
 }
