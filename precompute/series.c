@@ -909,7 +909,7 @@ static void series_senders(series_state *s) {
     free(root); free(cw); free(boost); free(own);
 }
 
-/* ---- The series in the senders' tree basis (--clusters-series-tree; docs/clusters.md
+/* ---- The series in the senders' tree basis (the default with --clusters; docs/clusters.md
  * "The series in the senders' tree basis"). Every term is held as P_k W^T, the stored
  * operator's form (cluster_send.c): the rows the quads' functions, the quads' root
  * columns replaced by the tree's functions, a small quad's far light held once per
@@ -935,7 +935,7 @@ static void series_senders(series_state *s) {
 #endif
 
 static int series_tree_on(const bake_ctx *b) {
-    return b->cl && b->opt.cluster_series > 0 && !b->opt.cluster_tree && b->opt.cluster_senders >= 0 &&
+    return b->cl && b->opt.cluster_series >= 0 && !b->opt.cluster_tree && b->opt.cluster_senders >= 0 &&
            !b->opt.gathered && !b->opt.report_gathered;
 }
 

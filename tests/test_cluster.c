@@ -210,6 +210,7 @@ static void test_two_rooms(void) {
     wrt_bake_options o = opts(3, 0, 0);
     o.clusters = 1;
     o.cluster_senders = 1; /* the senders' side in the tree's basis, whatever its size */
+    o.cluster_series = -1; /* after the quads' series (cluster_send.c); the tree's series below */
     wrt_bake_result r;
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
     double *in = calloc((size_t)s.nquads, sizeof *in);
@@ -273,9 +274,11 @@ static void test_threads(void) {
     int m = tsb_material(&s, 0.8, 0.6, 0.4);
     two_rooms(&s, m);
     wrt_bake_result r[2];
+    /* run 0: the tree's basis on both sides; 1: the series in the senders' tree basis */
+    for (int run = 0; run < 2; run++) {
     for (int i = 0; i < 2; i++) {
         wrt_bake_options o = opts(1, 0, 0);
-        o.clusters = 1; o.cluster_tree = 2;
+        o.clusters = 1; o.cluster_tree = run == 0 ? 2 : 0;
         o.threads = i ? 2 : 1;
         CHECK(wrt_bake_run(&s, &o, &r[i]) == WRT_OK, "%s", wrt_last_error());
     }
@@ -285,9 +288,12 @@ static void test_threads(void) {
                memcmp(r[0].op.val, r[1].op.val, r[0].op.nnz * 3 * sizeof *r[0].op.val) == 0 &&
                r[0].c.cluster_links == r[1].c.cluster_links &&
                memcmp(r[0].ctree.left, r[1].ctree.left, r[0].ctree.nnodes * sizeof *r[0].ctree.left) == 0;
-    CHECK(same, "1 and 2 threads: %llu and %llu entries, %llu and %llu cluster links", (unsigned long long)r[0].op.nnz,
-          (unsigned long long)r[1].op.nnz, (unsigned long long)r[0].c.cluster_links, (unsigned long long)r[1].c.cluster_links);
+    CHECK(same, "run %d, 1 and 2 threads: %llu and %llu entries, %llu and %llu cluster links", run,
+          (unsigned long long)r[0].op.nnz, (unsigned long long)r[1].op.nnz, (unsigned long long)r[0].c.cluster_links,
+          (unsigned long long)r[1].c.cluster_links);
+    CHECK(r[0].c.cluster_senders_basis == run, "run %d: senders' basis %d", run, r[0].c.cluster_senders_basis);
     wrt_bake_result_free(&r[0]); wrt_bake_result_free(&r[1]);
+    }
     tsb_free(&s);
 }
 
