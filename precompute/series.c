@@ -312,8 +312,8 @@ static int series_first_terms(series_state *s) {
 static int series_tree_on(const bake_ctx *b);
 
 static int series_can_consume(const bake_ctx *b) {
-    return !series_tree_on(b) && b->opt.consume_dto && !b->opt.gathered && !b->opt.report_gathered && b->opt.series_right > 0 &&
-           b->opt.series_right_from <= 2;
+    return !series_tree_on(b) && b->opt.consume_dto && !b->opt.gathered && !b->opt.report_gathered &&
+           b->opt.series_right > 0 && b->opt.series_right_from <= 2;
 }
 
 static void series_consume(series_state *s) {
@@ -747,7 +747,8 @@ static void series_tree_power(series_state *s, wrt_series_power_stats *ps) {
     uint32_t n = s->S.n, nq = (uint32_t)b->nq;
     memset(ps, 0, sizeof *ps);
     double *u = wrt_series_power_targets(T, pw, s->threads, b->opt.max_bounces, &ps->bounces);
-    double *d = wrt_xcalloc(3 * (size_t)n + 1, sizeof *d), *scratch = wrt_xmalloc((6 * (size_t)t->nnodes + 1) * sizeof *scratch);
+    double *d = wrt_xcalloc(3 * (size_t)n + 1, sizeof *d);
+    double *scratch = wrt_xmalloc((6 * (size_t)t->nnodes + 1) * sizeof *scratch);
     for (uint32_t q = 0; q < nq; q++) {
         uint32_t f = s->troot[q];
         for (uint64_t e = s->S.col[f]; e < s->S.col[f + 1]; e++)
@@ -772,7 +773,8 @@ static void series_tree_power(series_state *s, wrt_series_power_stats *ps) {
             double tp[3] = {0, 0, 0}, scale[3];
             for (uint64_t e = T->col[f]; e < T->col[f + 1]; e++)
                 for (int ch = 0; ch < 3; ch++) tp[ch] += pw[T->row[e]] * T->val[3 * e + ch];
-            for (int ch = 0; ch < 3; ch++) scale[ch] = tp[ch] > 0 ? (u[3 * (size_t)f + ch] - d[3 * (size_t)f + ch]) / tp[ch] : 0;
+            for (int ch = 0; ch < 3; ch++)
+                scale[ch] = tp[ch] > 0 ? (u[3 * (size_t)f + ch] - d[3 * (size_t)f + ch]) / tp[ch] : 0;
             for (uint64_t e = T->col[f]; e < T->col[f + 1]; e++) {
                 if (pw[T->row[e]] == 0) continue;
                 C.row[k] = T->row[e];
