@@ -75,6 +75,12 @@ typedef struct wrt_bake_options {
                             * in the tree's basis (the senders' side only, where the small
                             * senders' light is held once per cluster: cluster_send.c) when
                             * it has fewer entries there; 1: always; -1: the quads' basis */
+    int cluster_series;    /* with --clusters and the senders' tree basis: 1: the series' terms
+                            * held in that basis from the first on and multiplied from the
+                            * left, P_{k+1} = T P_k (series.c "The series in the senders'
+                            * tree basis"); 0: the default (on, where the senders' tree basis
+                            * is stored and the operator is not gathered); -1: off, the terms
+                            * in the quads' basis (the stored columns then chosen by size) */
     int cluster_tree;      /* 1: store the operator in the tree's basis when it has fewer entries
                             * there (a trial: a copy and a transform of G - I); 2: always */
     double series_coarse;  /* the series' right factor from the second term on keeps only the

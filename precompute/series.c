@@ -180,6 +180,12 @@ typedef struct {
     uint32_t *cut;
     uint8_t *need;
     uint64_t p_all; /* by shares: the term's entries on all the ranks */
+    /* the terms in the senders' tree basis (series_tree_on): TW the products' weights with
+     * the tree's columns (tcw, tboost), troot each quad's root slot */
+    int tree;
+    uint32_t *troot;
+    double *tcw, *tboost;
+    wrt_csc_weights TW;
 } series_state;
 
 /* The coarse cut (--series-coarse F, on by default with --clusters): the right factor of
@@ -196,19 +202,24 @@ typedef struct {
  * term's receivers stay exact, only the re-emitted light is averaged below the cut's
  * size. The products then read only the cut's columns of each term (docs/clusters.md has
  * the figures). */
-static void series_coarse_rows(const bake_ctx *b, wrt_csc *m, const uint64_t *fkeys, double F) {
+static int series_coarse_keep(const bake_ctx *b, uint64_t f, double amin) {
+    int d = wrt_drop_depth(f);
+    /* angular functions (glossy) are kept whole */
+    return !(wrt_fkey_angular_root(f) && d > 0 && ldexp(b->quads[wrt_fkey_quad(f)].area, -2 * (d - 1)) < amin);
+}
+
+/* cols 0: the rows of m cut (P_k (D T), the terms multiplied from the right); 1: its
+ * columns ((T D) P_k, from the left: series_tree_on) */
+static void series_coarse_cut(const bake_ctx *b, wrt_csc *m, const uint64_t *fkeys, double F, int cols) {
     double total = 0;
     for (int q = 0; q < b->nq; q++) total += b->quads[q].area;
     double amin = F * total;
     uint64_t w = 0, k = 0;
     for (uint32_t c = 0; c < m->n; c++) {
         uint64_t end = m->col[c + 1];
+        int keep_col = !cols || series_coarse_keep(b, fkeys[c], amin);
         for (; k < end; k++) {
-            uint64_t f = fkeys[m->row[k]];
-            int d = wrt_drop_depth(f);
-            /* angular functions (glossy) are kept whole */
-            if (wrt_fkey_angular_root(f) && d > 0 && ldexp(b->quads[wrt_fkey_quad(f)].area, -2 * (d - 1)) < amin)
-                continue;
+            if (!keep_col || (!cols && !series_coarse_keep(b, fkeys[m->row[k]], amin))) continue;
             m->row[w] = m->row[k];
             memmove(&m->val[3 * w], &m->val[3 * k], 3 * sizeof *m->val);
             w++;
@@ -295,7 +306,7 @@ static int series_first_terms(series_state *s) {
     if (b->opt.series_coarse > 0) {
         if (!s->Tr.col || s->shared) s->Tr = wrt_csc_copy(s->Tr.col ? &s->Tr : T);
         s->shared = 0;
-        series_coarse_rows(b, &s->Tr, s->res->fkeys, b->opt.series_coarse);
+        series_coarse_cut(b, &s->Tr, s->res->fkeys, b->opt.series_coarse, s->tree);
     }
     return 1;
 }
@@ -313,9 +324,11 @@ static int series_first_terms(series_state *s) {
  * factor are then compressed from the file by blocks (series_first_terms), so the
  * series' start holds T or its first term, not both, and the bounces hold neither T nor S
  * (on the 12 x 12 maze the series' peak 1,288 -> about 500 MB). */
+static int series_tree_on(const bake_ctx *b);
+
 static int series_can_consume(const bake_ctx *b) {
-    return b->opt.consume_dto && !b->opt.gathered && !b->opt.report_gathered && b->opt.series_right > 0 &&
-           b->opt.series_right_from <= 2;
+    return !series_tree_on(b) && b->opt.consume_dto && !b->opt.gathered && !b->opt.report_gathered &&
+           b->opt.series_right > 0 && b->opt.series_right_from <= 2;
 }
 
 /* T written to its scratch file (series_consume), on a thread of its own */
@@ -544,7 +557,10 @@ static void bounce_pass_run(size_t i, int th, void *user) {
  * and beside: series_memory_check_beside's; NULL, NULL: the sum as it is, the product's
  * own pass counted), the message said on this thread */
 static wrt_status series_next_check(series_state *s, int bounce, const wrt_sum_stream *ss, const wrt_csc *beside) {
-    wrt_status mst = series_memory_check_beside(s->b, s->C, &s->P, series_right(s, bounce), s->eps, &s->W, bounce,
+    /* in the senders' tree basis from the left, T P_k (series_tree_on) */
+    const wrt_csc *R = series_right(s, bounce);
+    const wrt_csc *La = s->tree ? R : &s->P, *Rb = s->tree ? &s->P : R;
+    wrt_status mst = series_memory_check_beside(s->b, s->C, La, Rb, s->eps, s->tree ? &s->TW : &s->W, bounce,
                                                 ss ? ss : s->streamed ? &s->ss : NULL, beside);
     if (mst != WRT_OK) {
         char msg[1024];
@@ -563,7 +579,8 @@ static wrt_status series_next_term(series_state *s, int bounce, int checked, wrt
     if (s->share) return series_share_mul(s, R, bounce, N, nnz);
     wrt_status mst = checked ? WRT_OK : series_next_check(s, bounce, NULL, NULL);
     if (mst != WRT_OK) return mst;
-    wrt_status pst = series_mul(b, &s->P, R, s->eps, &s->W, s->threads, N);
+    const wrt_csc *La = s->tree ? R : &s->P, *Rb = s->tree ? &s->P : R;
+    wrt_status pst = series_mul(b, La, Rb, s->eps, s->tree ? &s->TW : &s->W, s->threads, N);
     *nnz = N->nnz;
     return pst;
 }
@@ -760,6 +777,44 @@ static double series_final_weights(series_state *s, wrt_csc_weights *W, double *
     return eps;
 }
 
+/* The senders' tree basis's column weights (series_senders, series_tree_start): the
+ * columns of W (cw, boost may be NULL: 1) with the root slots taken by the tree's
+ * functions, weight sqrt(a_P), and the small senders' factor of a node under the share
+ * as of a quad (phi_root is never under it); into *cw and *boost (n + 1 each, malloc'd) */
+static void series_tree_cols(const series_state *s, const uint32_t *root, const double *cw_in, double **cw_out,
+                             double **boost_out) {
+    const bake_ctx *b = s->b;
+    const wrt_ctree *t = &b->cl->tree;
+    uint32_t n = s->res->nfuncs;
+    double *cw = wrt_xmalloc(((size_t)n + 1) * sizeof *cw), *boost = wrt_xmalloc(((size_t)n + 1) * sizeof *boost);
+    for (uint32_t i = 0; i < n; i++) {
+        cw[i] = cw_in ? cw_in[i] : 1;
+        boost[i] = 1;
+    }
+    double small = series_small_area(b);
+    for (uint32_t p = 0; p < t->nnodes; p++)
+        if (t->left[p] >= 0) {
+            cw[root[t->slot[p]]] = sqrt(t->area[p]);
+            if (t->area[p] < small) boost[root[t->slot[p]]] = small / t->area[p];
+        }
+    cw[root[t->root_slot]] = sqrt(t->area[0]);
+    *cw_out = cw;
+    *boost_out = boost;
+}
+
+/* The series' final weights (series_final_weights), in the senders' tree basis where the
+ * terms are (series_tree_on); own[0..2] the arrays to free */
+static double series_final_weights_tree(series_state *s, wrt_csc_weights *W, double *own[3]) {
+    double eps = series_final_weights(s, W, &own[0]);
+    own[1] = own[2] = NULL;
+    if (s->tree) {
+        series_tree_cols(s, s->troot, W->col_w, &own[1], &own[2]);
+        W->col_w = own[1];
+        W->boost_w = own[2];
+    }
+    return eps;
+}
+
 /* The streamed sum's last pass (series_tail): the memory the stored operator will take,
  * projected from the columns done, against the budget */
 static int series_final_check(void *user, uint64_t kept, uint64_t projected) {
@@ -777,8 +832,8 @@ static int series_final_check(void *user, uint64_t kept, uint64_t projected) {
  * in memory, or by the streamed sum's last pass; *sn the norm after the tail (if add) */
 static wrt_status series_final_sum(series_state *s, int add, const double k[3], double *sn) {
     wrt_csc_weights W;
-    double *own;
-    double eps = series_final_weights(s, &W, &own);
+    double *own[3];
+    double eps = series_final_weights_tree(s, &W, own);
     wrt_status st = WRT_OK;
     if (!s->streamed) {
         if (add) {
@@ -806,8 +861,83 @@ static wrt_status series_final_sum(series_state *s, int add, const double k[3], 
         wrt_sum_stream_free(&s->ss);
         wrt_spill_free(&s->Tf);
     }
-    free(own);
+    free(own[0]); free(own[1]); free(own[2]);
     return st;
+}
+
+/* The column power rule (series_power.c) with the terms in the senders' tree basis
+ * (series_tree_on). A tree column spans parts of the scene that may not see each other
+ * (two rooms), its rows there cancelling for a light on one side alone: spreading its
+ * difference over its own entries, as a quad's column's is, broke that (the dark room at
+ * 1.6e-3 of the lit room's light). So the root columns' powers are taken back to the
+ * quads' basis (the inverse transform of the row vector), each quad's difference to its
+ * target is carried where its own light lands first, along T's column (its rows that
+ * carry power, in proportion), and that correction, a matrix of the quads' root columns,
+ * is added in the tree's basis (cluster_send.c, the products' weights). The quads' other
+ * columns (their wavelets) are fixed as in the quads' series. Without it the 320-triangle
+ * icosphere furnace's G - I was 0.14% under the DTO's own series. */
+static void series_tree_power(series_state *s, wrt_series_power_stats *ps) {
+    const bake_ctx *b = s->b;
+    const wrt_ctree *t = &b->cl->tree;
+    const wrt_csc *T = s->T;
+    const double *pw = s->pw;
+    uint32_t n = s->S.n, nq = (uint32_t)b->nq;
+    memset(ps, 0, sizeof *ps);
+    double *u = wrt_series_power_targets(T, pw, s->threads, b->opt.max_bounces, &ps->bounces);
+    double *d = wrt_xcalloc(3 * (size_t)n + 1, sizeof *d);
+    double *scratch = wrt_xmalloc((6 * (size_t)t->nnodes + 1) * sizeof *scratch);
+    for (uint32_t q = 0; q < nq; q++) {
+        uint32_t f = s->troot[q];
+        for (uint64_t e = s->S.col[f]; e < s->S.col[f + 1]; e++)
+            for (int ch = 0; ch < 3; ch++) d[3 * (size_t)f + ch] += pw[s->S.row[e]] * s->S.val[3 * e + ch];
+    }
+    wrt_ctree_inverse_d(t, s->troot, d, 3, scratch);
+    /* C: column root(q) = (u_q - have_q) times T's column there, its power 1 */
+    wrt_csc C = {.n = n};
+    C.col = wrt_xcalloc((size_t)n + 1, sizeof *C.col);
+    uint64_t cnt = 0;
+    for (uint32_t q = 0; q < nq; q++) {
+        uint32_t f = s->troot[q];
+        for (uint64_t e = T->col[f]; e < T->col[f + 1]; e++) cnt += pw[T->row[e]] != 0;
+    }
+    C.row = wrt_xmalloc((cnt ? cnt : 1) * sizeof *C.row);
+    C.val = wrt_xmalloc((cnt ? cnt : 1) * 3 * sizeof *C.val);
+    uint8_t *isroot = wrt_xcalloc((size_t)n + 1, 1);
+    for (uint32_t q = 0; q < nq; q++) isroot[s->troot[q]] = 1;
+    uint64_t k = 0;
+    for (uint32_t f = 0; f < n; f++) {
+        if (isroot[f]) {
+            double tp[3] = {0, 0, 0}, scale[3];
+            for (uint64_t e = T->col[f]; e < T->col[f + 1]; e++)
+                for (int ch = 0; ch < 3; ch++) tp[ch] += pw[T->row[e]] * T->val[3 * e + ch];
+            for (int ch = 0; ch < 3; ch++)
+                scale[ch] = tp[ch] > 0 ? (u[3 * (size_t)f + ch] - d[3 * (size_t)f + ch]) / tp[ch] : 0;
+            for (uint64_t e = T->col[f]; e < T->col[f + 1]; e++) {
+                if (pw[T->row[e]] == 0) continue;
+                C.row[k] = T->row[e];
+                for (int ch = 0; ch < 3; ch++) C.val[3 * k + ch] = (float)(scale[ch] * T->val[3 * e + ch]);
+                k++;
+            }
+        }
+        C.col[f + 1] = k;
+    }
+    C.nnz = k;
+    uint64_t raw;
+    wrt_clusters_senders(t, s->troot, &C, s->eps, &s->TW, 1, &raw);
+    const double one[3] = {1, 1, 1};
+    wrt_csc_add3_into(&s->S, &C, one);
+    wrt_csc_free(&C);
+    /* the tree's columns now hold their targets: the rule leaves them as they are */
+    for (uint32_t q = 0; q < nq; q++) {
+        uint32_t f = s->troot[q];
+        for (int ch = 0; ch < 3; ch++) {
+            double have = 0;
+            for (uint64_t e = s->S.col[f]; e < s->S.col[f + 1]; e++) have += pw[s->S.row[e]] * s->S.val[3 * e + ch];
+            u[3 * (size_t)f + ch] = have;
+        }
+    }
+    wrt_series_power_apply(u, pw, s->threads, &s->S, ps);
+    free(u); free(d); free(scratch); free(isroot);
 }
 
 /* Stage 3: refuse a diverging series, else add the geometric tail and compress the sum */
@@ -849,6 +979,8 @@ static wrt_status series_tail(series_state *s) {
             memset(&ps, 0, sizeof ps);
             ps.bounces = s->u_bounces;
             wrt_series_power_apply(s->u, s->pw, s->threads, &s->S, &ps);
+        } else if (s->tree) {
+            series_tree_power(s, &ps);
         } else {
             wrt_series_power_fix(s->T, s->pw, s->threads, b->opt.max_bounces, &s->S, &ps);
         }
@@ -901,30 +1033,79 @@ static wrt_status series_gathered(series_state *s) {
 static void series_senders(series_state *s) {
     const bake_ctx *b = s->b;
     wrt_bake_result *res = s->res;
-    const wrt_ctree *t = &b->cl->tree;
-    uint32_t n = res->nfuncs;
     wrt_csc_weights W;
     double *own;
     double eps = series_final_weights(s, &W, &own);
-    double *cw = wrt_xmalloc(((size_t)n + 1) * sizeof *cw);
-    for (uint32_t i = 0; i < n; i++) cw[i] = W.col_w ? W.col_w[i] : 1;
-    uint32_t *root = wrt_clusters_root_index(res->fkeys, n, (uint32_t)b->nq);
-    for (uint32_t p = 0; p < t->nnodes; p++)
-        if (t->left[p] >= 0) cw[root[t->slot[p]]] = sqrt(t->area[p]);
-    cw[root[t->root_slot]] = sqrt(t->area[0]);
+    uint32_t *root = wrt_clusters_root_index(res->fkeys, res->nfuncs, (uint32_t)b->nq);
+    double *cw, *boost;
+    series_tree_cols(s, root, W.col_w, &cw, &boost);
     W.col_w = cw;
-    /* the small senders' factor of a node under the share, as of a quad (phi_root is never
-     * under it): only the tree's columns are compressed here */
-    double small = series_small_area(b), *boost = wrt_xmalloc(((size_t)n + 1) * sizeof *boost);
-    for (uint32_t i = 0; i < n; i++) boost[i] = 1;
-    for (uint32_t p = 0; p < t->nnodes; p++)
-        if (t->left[p] >= 0 && t->area[p] < small) boost[root[t->slot[p]]] = small / t->area[p];
-    W.boost_w = boost;
+    W.boost_w = boost; /* only the tree's columns are compressed here */
     res->c.cluster_senders_quads = s->S.nnz;
-    res->c.cluster_senders_basis =
-        wrt_clusters_senders(t, root, &s->S, eps, &W, b->opt.cluster_senders > 0, &res->c.cluster_senders_raw);
+    res->c.cluster_senders_basis = wrt_clusters_senders(&b->cl->tree, root, &s->S, eps, &W, b->opt.cluster_senders > 0,
+                                                        &res->c.cluster_senders_raw);
     res->c.entries_gto = s->S.nnz;
     free(root); free(cw); free(boost); free(own);
+}
+
+/* ---- The series in the senders' tree basis (the default with --clusters; docs/clusters.md
+ * "The series in the senders' tree basis"). Every term is held as P_k W^T, the stored
+ * operator's form (cluster_send.c): the rows the quads' functions, the quads' root
+ * columns replaced by the tree's functions, a small quad's far light held once per
+ * cluster instead of once per (quad, receiver). The terms are then multiplied from the
+ * left, P_{k+1} W^T = (T D)(P_k W^T), which keeps every column's basis as it is: T in the
+ * quads' basis on both sides, D the coarse cut (series_coarse_cut on T's columns: the
+ * same products as P_k (D T) from the right, P_k = T (D T)^{k-1} = (T D)^{k-1} T), and
+ * the product's cost the term's entries at coarse rows times T's column there, so the
+ * fewer entries of the tree's columns make it cheaper. The first term is T W^T, each tree
+ * column compressed as cluster_send.c does (the products' threshold, the node's weight
+ * sqrt(a_P), the small senders' factor of a node under the share); every product's columns
+ * the same (TW); the stored compression the same with the final threshold
+ * (series_final_weights_tree); the column power rule's targets taken forward to the tree's
+ * basis (u W^T: series_tail). The sum is held in memory and T is kept (no streaming,
+ * no MPI shares: a product is divided among the ranks by series_mul's columns). */
+/* The products keep a tree column's entries down to this many times less than a quad's:
+ * its rows cancel where its functions' light does (two rooms: a light in one room has
+ * coefficients on tree functions spanning both, whose rows in the other room sum to 0),
+ * and an entry dropped there is light through the wall. Two rooms at quality 3: the dark
+ * room at 1.6e-3 of the lit room's mean with 1, 2.7e-5 with 10, 5.4e-6 with 30. */
+#ifndef WRT_SERIES_TREE_TIGHT
+#define WRT_SERIES_TREE_TIGHT 10.0
+#endif
+
+static int series_tree_on(const bake_ctx *b) {
+    return b->cl && b->opt.cluster_series >= 0 && !b->opt.cluster_tree && b->opt.cluster_senders >= 0 &&
+           !b->opt.gathered && !b->opt.report_gathered;
+}
+
+/* The sum's first state and the first term, T W^T, from T (still in memory) */
+static void series_tree_start(series_state *s) {
+    const bake_ctx *b = s->b;
+    wrt_bake_result *res = s->res;
+    s->troot = wrt_clusters_root_index(res->fkeys, res->nfuncs, (uint32_t)b->nq);
+    series_tree_cols(s, s->troot, s->W.col_w, &s->tcw, &s->tboost);
+    s->TW = s->W;
+    s->TW.col_w = s->tcw;
+    s->TW.boost_w = s->tboost;
+    /* the products' threshold on the tree's columns WRT_SERIES_TREE_TIGHT times lower */
+    const wrt_ctree *t = &b->cl->tree;
+    double tight = WRT_SERIES_TREE_TIGHT;
+    for (uint32_t p = 0; p < t->nnodes; p++)
+        if (t->left[p] >= 0) s->tcw[s->troot[t->slot[p]]] *= tight;
+    s->tcw[s->troot[t->root_slot]] *= tight;
+    /* the right factor is its own matrix (the first term takes the tree's columns) */
+    if (s->shared) {
+        s->Tr = wrt_csc_copy(&s->P);
+        s->shared = 0;
+    }
+    /* the sum from T itself (its other columns uncompressed, as the quads' series' sum
+     * starts), the term from T compressed */
+    uint64_t raw;
+    s->S = wrt_csc_copy(s->T);
+    wrt_clusters_senders(&b->cl->tree, s->troot, &s->S, s->eps, &s->TW, 1, &res->c.cluster_senders_raw);
+    wrt_clusters_senders(&b->cl->tree, s->troot, &s->P, s->eps, &s->TW, 1, &raw);
+    res->c.cluster_senders_basis = 1;
+    res->c.cluster_senders_quads = 0;
 }
 
 /* Frees what the state holds (after a failure: the sum too) */
@@ -937,20 +1118,23 @@ static void series_state_free(series_state *s) {
     free(s->rw); free(s->cw); free(s->pw); free(s->u); free(s->boost);
     s->rw = s->cw = s->pw = s->u = s->boost = NULL;
     free(s->cut); free(s->need);
+    free(s->troot); free(s->tcw); free(s->tboost);
+    s->troot = NULL; s->tcw = s->tboost = NULL;
     s->cut = NULL;
     s->need = NULL;
 }
 
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     series_state s = {.b = b, .res = res, .C = &res->c, .T = &res->dto, .eps = b->opt.eps_compress,
-                      .threads = b->opt.threads};
+                      .threads = b->opt.threads, .tree = series_tree_on(b)};
     /* the start's memory: the first term (at most T's entries, 16 bytes each), a second
      * right factor where it is not the first term, and the sum's copy of T where T is
      * not consumed; streamed, T goes to its scratch file before the first term is made,
      * which then takes T's place instead of joining it (then the bounces' checks,
      * series_memory_check, and the last pass's, series_final_check) */
     int streamed = series_can_consume(b) && b->opt.series_block >= 0;
-    uint64_t copies = 1 + (b->opt.series_right != 1 || b->opt.series_coarse > 0) + !series_can_consume(b) - streamed;
+    uint64_t copies = 1 + (b->opt.series_right != 1 || b->opt.series_coarse > 0) + !series_can_consume(b) - streamed +
+                      s.tree; /* the tree's first term beside the sum */
     wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, copies * 16 * res->dto.nnz,
                                           "the series' first term");
     if (st != WRT_OK) return st;
@@ -960,7 +1144,8 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         series_state_free(&s);
         return wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
     }
-    if (!s.consumed) s.S = wrt_csc_copy(s.T);
+    if (s.tree) series_tree_start(&s);
+    else if (!s.consumed) s.S = wrt_csc_copy(s.T);
     series_share_start(&s);
     st = series_bounces(&s);
     if (st == WRT_OK) st = series_tail(&s);
@@ -969,8 +1154,9 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         series_state_free(&s);
         return st;
     }
-    if (b->cl && !b->opt.cluster_tree && b->opt.cluster_senders >= 0 && !b->opt.gathered &&
-        !(s.share && b->opt.dist->rank != 0))
+    if (s.tree) res->c.entries_gto = s.S.nnz; /* the senders' tree basis already */
+    else if (b->cl && !b->opt.cluster_tree && b->opt.cluster_senders >= 0 && !b->opt.gathered &&
+             !(s.share && b->opt.dist->rank != 0))
         series_senders(&s);
     if (b->cl && b->opt.cluster_tree && !(s.share && b->opt.dist->rank != 0)) {
         /* --clusters-tree-basis: the operator in the tree's basis, compressed there with

@@ -61,6 +61,9 @@ fi
 # series capped at 3 bounces (each bounce is the same divided product): 26 s of CPU for
 # the three bakes (detail 0.25 with the whole series took 15 s; detail 1, 93 s for one)
 same atrium-clusters "2 3" "$tmp/atrium.gltf" -q 1 --clusters --max-bounces 3
+# --clusters' series runs in the senders' tree basis (series.c), its products divided by
+# columns; the quads' series (--clusters-series-quads) by the ranks' shares
+same atrium-quads-series "2" "$tmp/atrium.gltf" -q 1 --clusters --clusters-series-quads --max-bounces 3
 same glossy "3" assets/glossy.gltf -q 1   # the first-bounce operator K's pairs and the glossy balances
 # the summary on stdout is rank 0's alone, once
 mpi 2 "$mpibake" assets/cornell.gltf -o "$tmp/c.gto" -q 2 >"$tmp/out" 2>"$tmp/err"

@@ -210,6 +210,7 @@ static void test_two_rooms(void) {
     wrt_bake_options o = opts(3, 0, 0);
     o.clusters = 1;
     o.cluster_senders = 1; /* the senders' side in the tree's basis, whatever its size */
+    o.cluster_series = -1; /* after the quads' series (cluster_send.c); the tree's series below */
     wrt_bake_result r;
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
     double *in = calloc((size_t)s.nquads, sizeof *in);
@@ -241,6 +242,24 @@ static void test_two_rooms(void) {
     CHECK(diff <= 0.01 * mean, "senders' tree basis against the quads': largest difference %.3g, mean %.3g", diff, mean);
     printf("two rooms, varied light: the senders' tree basis (%llu entries) against the quads' (%llu): largest "
            "difference %.3g of the mean\n", (unsigned long long)r.op.nnz, (unsigned long long)rq.op.nnz, diff / mean);
+    /* the series' terms in the senders' tree basis, multiplied from the left (series.c):
+     * the rooms still apart, and the same light as the quads' series to the compression */
+    wrt_bake_result rt;
+    o.cluster_senders = 1;
+    o.cluster_series = 1;
+    CHECK(wrt_bake_run(&s, &o, &rt) == WRT_OK, "%s", wrt_last_error());
+    CHECK(rt.c.cluster_senders_basis == 1 && rt.ctree.nq == (uint32_t)s.nquads, "the series' tree basis asked for");
+    double *et = response(&s, &rt, &rt.op, in), tdiff = 0, tdark = 0;
+    for (int q = 0; q < s.nquads; q++) tdiff = fmax(tdiff, fabs(et[q] - eq[q]));
+    for (int q = half; q < s.nquads; q++) tdark = fmax(tdark, fabs(et[q]));
+    CHECK(tdiff <= 0.01 * mean, "the series in the senders' tree basis against the quads': largest difference %.3g, "
+          "mean %.3g", tdiff, mean);
+    CHECK(tdark < 1e-4 * mean, "the series in the senders' tree basis: dark room %.3g, lit room's mean %.3g", tdark, mean);
+    printf("two rooms, varied light: the series in the senders' tree basis (%llu entries) against the quads' "
+           "series: largest difference %.3g of the mean, dark room %.3g\n", (unsigned long long)rt.op.nnz, tdiff / mean,
+           tdark / mean);
+    free(et);
+    wrt_bake_result_free(&rt);
     free(eq);
     wrt_bake_result_free(&rq);
     free(in); free(e);
@@ -255,9 +274,11 @@ static void test_threads(void) {
     int m = tsb_material(&s, 0.8, 0.6, 0.4);
     two_rooms(&s, m);
     wrt_bake_result r[2];
+    /* run 0: the tree's basis on both sides; 1: the series in the senders' tree basis */
+    for (int run = 0; run < 2; run++) {
     for (int i = 0; i < 2; i++) {
         wrt_bake_options o = opts(1, 0, 0);
-        o.clusters = 1; o.cluster_tree = 2;
+        o.clusters = 1; o.cluster_tree = run == 0 ? 2 : 0;
         o.threads = i ? 2 : 1;
         CHECK(wrt_bake_run(&s, &o, &r[i]) == WRT_OK, "%s", wrt_last_error());
     }
@@ -267,9 +288,12 @@ static void test_threads(void) {
                memcmp(r[0].op.val, r[1].op.val, r[0].op.nnz * 3 * sizeof *r[0].op.val) == 0 &&
                r[0].c.cluster_links == r[1].c.cluster_links &&
                memcmp(r[0].ctree.left, r[1].ctree.left, r[0].ctree.nnodes * sizeof *r[0].ctree.left) == 0;
-    CHECK(same, "1 and 2 threads: %llu and %llu entries, %llu and %llu cluster links", (unsigned long long)r[0].op.nnz,
-          (unsigned long long)r[1].op.nnz, (unsigned long long)r[0].c.cluster_links, (unsigned long long)r[1].c.cluster_links);
+    CHECK(same, "run %d, 1 and 2 threads: %llu and %llu entries, %llu and %llu cluster links", run,
+          (unsigned long long)r[0].op.nnz, (unsigned long long)r[1].op.nnz, (unsigned long long)r[0].c.cluster_links,
+          (unsigned long long)r[1].c.cluster_links);
+    CHECK(r[0].c.cluster_senders_basis == run, "run %d: senders' basis %d", run, r[0].c.cluster_senders_basis);
     wrt_bake_result_free(&r[0]); wrt_bake_result_free(&r[1]);
+    }
     tsb_free(&s);
 }
 
@@ -285,8 +309,9 @@ static void test_furnace(void) {
      * the compression is set to 1e-5 there */
     int n = getenv("WRT_FURNACE_N") ? atoi(getenv("WRT_FURNACE_N")) : 8;
     /* mode 0: the tree's basis on both sides; 1: on the senders' side only (cluster_send.c:
-     * the light forward, the result on the quads' functions) */
-    for (int mode = 0; mode < 2; mode++)
+     * the light forward, the result on the quads' functions); 2: that with the series'
+     * terms in the senders' tree basis, multiplied from the left (series.c) */
+    for (int mode = 0; mode < 3; mode++)
     for (int i = 0; i < 2; i++) {
         wrt_scene s;
         tsb_init(&s);
@@ -295,11 +320,12 @@ static void test_furnace(void) {
         wrt_bake_options o = opts(1, 0, 0);
         o.clusters = 1;
         o.cluster_tree = mode == 0; /* the tree's basis when smaller (in a closed box it is) */
-        o.cluster_senders = mode; /* mode 1: whatever its size */
+        o.cluster_senders = mode > 0; /* modes 1, 2: whatever its size */
+        o.cluster_series = mode == 2 ? 1 : -1;
         if (n > 8) o.eps_compress = 1e-5;
         wrt_bake_result r;
         CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
-        CHECK(r.c.cluster_senders_basis == mode && r.ctree.nq == (uint32_t)s.nquads, "mode %d: senders' basis %d",
+        CHECK(r.c.cluster_senders_basis == (mode > 0) && r.ctree.nq == (uint32_t)s.nquads, "mode %d: senders' basis %d",
               mode, r.c.cluster_senders_basis);
         double *in = malloc((size_t)s.nquads * sizeof *in);
         for (int q = 0; q < s.nquads; q++) in[q] = 1;
@@ -328,11 +354,11 @@ static void test_furnace(void) {
         printf("furnace rho %.2f, light varied from quad to quad (the series' coarse cut on): flux / truth %.6f\n",
                rhos[i], vratio);
         printf("furnace rho %.2f, %d quads (%d x %d a face), --clusters q1: flux / truth %.6f, worst quad %.4f%%, "
-               "%llu cluster links, %llu leaf pairs, %llu entries the closed rule added (closed %d, tree basis %d, senders %d), T %llu, "
+               "%llu cluster links, %llu leaf pairs, %llu entries the closed rule added (closed %d, tree basis %d, senders %d, series %d), T %llu, "
                "G-I %llu entries (quads' basis %llu)\n",
                rhos[i], s.nquads, n, n, ratio, 100 * worst, (unsigned long long)r.c.cluster_links,
                (unsigned long long)r.c.cluster_leaf_pairs, (unsigned long long)r.c.cluster_fix_entries, r.c.closed, r.c.cluster_tree_basis,
-               r.c.cluster_senders_basis, (unsigned long long)r.dto.nnz, (unsigned long long)r.op.nnz,
+               r.c.cluster_senders_basis, mode == 2, (unsigned long long)r.dto.nnz, (unsigned long long)r.op.nnz,
                (unsigned long long)r.c.cluster_senders_quads);
         free(in); free(e);
         wrt_bake_result_free(&r);

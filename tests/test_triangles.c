@@ -319,7 +319,7 @@ static void icosphere(wrt_scene *s, int sub, int mat, int outward) {
  * fluxes are summed with the exact flux functional of each basis function
  * (haar_sqrtj), and each element's mean indirect irradiance is compared with the
  * sphere's mean. Returns the relative error of the indirect flux. */
-static int furnace_clusters; /* `furnace SUB Q clusters|tree` on the command line: 1, 2 */
+static int furnace_clusters; /* `furnace SUB Q clusters|tree|series` on the command line: 1, 2, 3 */
 static const double furnace_tol = 1e-3; /* the DTO's series and the direct flux against their truths */
 static double icosphere_furnace(int sub, int quality, double rho, double *worst_out) {
     wrt_scene s;
@@ -330,6 +330,7 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
     wrt_bake_options o = opts(quality, 0, 0);
     o.clusters = furnace_clusters != 0;
     if (furnace_clusters == 2) o.cluster_tree = 2; /* G - I in the cluster tree's basis */
+    if (furnace_clusters == 3) o.cluster_series = 1; /* the series' terms in the senders' tree basis */
     double t0 = wrt_now();
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "icosphere: %s", wrt_last_error());
     double tb = wrt_now() - t0;
@@ -705,7 +706,11 @@ int main(int argc, char **argv) {
     if (argc >= 4 && !strcmp(argv[1], "furnace")) {
         /* a measurement, not part of the suite: `furnace SUB QUALITY [clusters|tree]`, the
          * icosphere of 20 x 4^SUB triangles (SUB 3: 1,280) at albedo 0.9 */
-        furnace_clusters = argc < 5 ? 0 : !strcmp(argv[4], "clusters") ? 1 : !strcmp(argv[4], "tree") ? 2 : 0;
+        furnace_clusters = argc < 5                        ? 0
+                           : !strcmp(argv[4], "clusters") ? 1
+                           : !strcmp(argv[4], "tree")     ? 2
+                           : !strcmp(argv[4], "series")   ? 3
+                                                          : 0;
         double worst, e = icosphere_furnace(atoi(argv[2]), atoi(argv[3]), 0.9, &worst);
         printf("furnace: indirect flux %+.4f%%, worst element %.4f%% from the mean\n", 100 * e, 100 * worst);
         rmdir(tmpdir);
