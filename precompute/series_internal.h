@@ -1,0 +1,71 @@
+/* series_internal.h: the Neumann series' working state (series.c) and the stages kept in
+ * files of their own: the series in the senders' tree basis (series_tree.c). Not part of
+ * the bake's interface: only series*.c include it. */
+#ifndef WRT_SERIES_INTERNAL_H
+#define WRT_SERIES_INTERNAL_H
+
+#include "bake_ctx.h"
+#include "series_power.h"
+#include "spill.h"
+#include "series_stream.h"
+
+/* The power iteration of series_bounces (see there) on T (in memory, or spilled): the
+ * start vector's image, then one step an iteration giving the ratios rc[3] */
+typedef struct {
+    uint32_t n;
+    double *x, *y, vp_prev[3];
+} power_iter;
+
+/* The series' working state, shared by its stages */
+typedef struct {
+    const bake_ctx *b;
+    wrt_bake_result *res;
+    wrt_bake_counters *C;
+    const wrt_csc *T;
+    double eps;
+    int threads;
+    double *rw, *cw, *pw, *boost;
+    wrt_csc_weights W;
+    wrt_csc S, P;
+    wrt_csc Tr;     /* --series-right: T compressed, the right factor of the later bounces */
+    int shared;     /* 1 while P and Tr are one matrix (the first term, at 1 x eps) */
+    double rc[3], ratio;
+    /* series_consume: T's arrays taken by S; what the bounces and the tail needed of T
+     * computed before: the power iteration's ratios and the power targets */
+    int consumed;
+    wrt_spill Tf;   /* T in the scratch file, for the power iteration */
+    /* streamed: S in scratch files between bounces (series_stream.h), not in memory */
+    int streamed;
+    wrt_sum_stream ss;
+    double *u;      /* 3n: the power targets (series_power.h) */
+    int u_bounces;
+    power_iter pi;
+    /* wrt-bake-mpi by shares (series_share_start): P, Tr and the streamed sum hold only
+     * this rank's columns [cut[rank], cut[rank + 1]); need: every rank's needed columns
+     * of a term (dist.h) */
+    int share;
+    uint32_t *cut;
+    uint8_t *need;
+    uint64_t p_all; /* by shares: the term's entries on all the ranks */
+    /* the terms in the senders' tree basis (series_tree_on): TW the products' weights with
+     * the tree's columns (tcw, tboost), troot each quad's root slot */
+    int tree;
+    uint32_t *troot;
+    double *tcw, *tboost;
+    wrt_csc_weights TW;
+} series_state;
+
+/* The small senders' rule's area (series.c): a quad under it holds its mean's light */
+double wrt_series_small_area(const bake_ctx *b);
+/* The stored operator's compression threshold and weights (series.c); *own to free */
+double wrt_series_final_weights(series_state *s, wrt_csc_weights *W, double **own);
+
+/* The series in the senders' tree basis (series_tree.c; docs/clusters.md) */
+int wrt_series_tree_on(const bake_ctx *b);
+void wrt_series_tree_start(series_state *s);
+void wrt_series_tree_cols(const series_state *s, const uint32_t *root, const double *cw_in, double **cw_out,
+                          double **boost_out);
+double wrt_series_final_weights_tree(series_state *s, wrt_csc_weights *W, double *own[3]);
+void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps);
+
+#endif

@@ -1,0 +1,184 @@
+/* series_tree.c: the Neumann series with its terms in the senders' tree basis, the
+ * default with --clusters (docs/clusters.md "The series in the senders' tree basis"): the
+ * first term T W^T, the tree columns' weights, the stored compression's weights in that
+ * basis and the column power rule carried into it. The bounces themselves are series.c's,
+ * with T as the left factor. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cluster.h"
+#include "series_internal.h"
+
+/* The senders' tree basis's column weights (series_senders, series_tree_start): the
+ * columns of W (cw, boost may be NULL: 1) with the root slots taken by the tree's
+ * functions, weight sqrt(a_P), and the small senders' factor of a node under the share
+ * as of a quad (phi_root is never under it); into *cw and *boost (n + 1 each, malloc'd) */
+void wrt_series_tree_cols(const series_state *s, const uint32_t *root, const double *cw_in, double **cw_out,
+                             double **boost_out) {
+    const bake_ctx *b = s->b;
+    const wrt_ctree *t = &b->cl->tree;
+    uint32_t n = s->res->nfuncs;
+    double *cw = wrt_xmalloc(((size_t)n + 1) * sizeof *cw), *boost = wrt_xmalloc(((size_t)n + 1) * sizeof *boost);
+    for (uint32_t i = 0; i < n; i++) {
+        cw[i] = cw_in ? cw_in[i] : 1;
+        boost[i] = 1;
+    }
+    double small = wrt_series_small_area(b);
+    for (uint32_t p = 0; p < t->nnodes; p++)
+        if (t->left[p] >= 0) {
+            cw[root[t->slot[p]]] = sqrt(t->area[p]);
+            if (t->area[p] < small) boost[root[t->slot[p]]] = small / t->area[p];
+        }
+    cw[root[t->root_slot]] = sqrt(t->area[0]);
+    *cw_out = cw;
+    *boost_out = boost;
+}
+
+/* The series' final weights (series_final_weights), in the senders' tree basis where the
+ * terms are (series_tree_on); own[0..2] the arrays to free */
+double wrt_series_final_weights_tree(series_state *s, wrt_csc_weights *W, double *own[3]) {
+    double eps = wrt_series_final_weights(s, W, &own[0]);
+    own[1] = own[2] = NULL;
+    if (s->tree) {
+        wrt_series_tree_cols(s, s->troot, W->col_w, &own[1], &own[2]);
+        W->col_w = own[1];
+        W->boost_w = own[2];
+    }
+    return eps;
+}
+
+/* The column power rule (series_power.c) with the terms in the senders' tree basis
+ * (series_tree_on). A tree column spans parts of the scene that may not see each other
+ * (two rooms), its rows there cancelling for a light on one side alone: spreading its
+ * difference over its own entries, as a quad's column's is, broke that (the dark room at
+ * 1.6e-3 of the lit room's light). So the root columns' powers are taken back to the
+ * quads' basis (the inverse transform of the row vector), each quad's difference to its
+ * target is carried where its own light lands first, along T's column (its rows that
+ * carry power, in proportion), and that correction, a matrix of the quads' root columns,
+ * is added in the tree's basis (cluster_send.c, the products' weights). The quads' other
+ * columns (their wavelets) are fixed as in the quads' series. Without it the 320-triangle
+ * icosphere furnace's G - I was 0.14% under the DTO's own series. */
+void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps) {
+    const bake_ctx *b = s->b;
+    const wrt_ctree *t = &b->cl->tree;
+    const wrt_csc *T = s->T;
+    const double *pw = s->pw;
+    uint32_t n = s->S.n, nq = (uint32_t)b->nq;
+    memset(ps, 0, sizeof *ps);
+    double *u = wrt_series_power_targets(T, pw, s->threads, b->opt.max_bounces, &ps->bounces);
+    double *d = wrt_xcalloc(3 * (size_t)n + 1, sizeof *d);
+    double *scratch = wrt_xmalloc((6 * (size_t)t->nnodes + 1) * sizeof *scratch);
+    for (uint32_t q = 0; q < nq; q++) {
+        uint32_t f = s->troot[q];
+        for (uint64_t e = s->S.col[f]; e < s->S.col[f + 1]; e++)
+            for (int ch = 0; ch < 3; ch++) d[3 * (size_t)f + ch] += pw[s->S.row[e]] * s->S.val[3 * e + ch];
+    }
+    wrt_ctree_inverse_d(t, s->troot, d, 3, scratch);
+    /* C: column root(q) = (u_q - have_q) times T's column there, its power 1 */
+    wrt_csc C = {.n = n};
+    C.col = wrt_xcalloc((size_t)n + 1, sizeof *C.col);
+    uint64_t cnt = 0;
+    for (uint32_t q = 0; q < nq; q++) {
+        uint32_t f = s->troot[q];
+        for (uint64_t e = T->col[f]; e < T->col[f + 1]; e++) cnt += pw[T->row[e]] != 0;
+    }
+    C.row = wrt_xmalloc((cnt ? cnt : 1) * sizeof *C.row);
+    C.val = wrt_xmalloc((cnt ? cnt : 1) * 3 * sizeof *C.val);
+    uint8_t *isroot = wrt_xcalloc((size_t)n + 1, 1);
+    for (uint32_t q = 0; q < nq; q++) isroot[s->troot[q]] = 1;
+    uint64_t k = 0;
+    for (uint32_t f = 0; f < n; f++) {
+        if (isroot[f]) {
+            double tp[3] = {0, 0, 0}, scale[3];
+            for (uint64_t e = T->col[f]; e < T->col[f + 1]; e++)
+                for (int ch = 0; ch < 3; ch++) tp[ch] += pw[T->row[e]] * T->val[3 * e + ch];
+            for (int ch = 0; ch < 3; ch++)
+                scale[ch] = tp[ch] > 0 ? (u[3 * (size_t)f + ch] - d[3 * (size_t)f + ch]) / tp[ch] : 0;
+            for (uint64_t e = T->col[f]; e < T->col[f + 1]; e++) {
+                if (pw[T->row[e]] == 0) continue;
+                C.row[k] = T->row[e];
+                for (int ch = 0; ch < 3; ch++) C.val[3 * k + ch] = (float)(scale[ch] * T->val[3 * e + ch]);
+                k++;
+            }
+        }
+        C.col[f + 1] = k;
+    }
+    C.nnz = k;
+    uint64_t raw;
+    wrt_clusters_senders(t, s->troot, &C, s->eps, &s->TW, 1, &raw);
+    const double one[3] = {1, 1, 1};
+    wrt_csc_add3_into(&s->S, &C, one);
+    wrt_csc_free(&C);
+    /* the tree's columns now hold their targets: the rule leaves them as they are */
+    for (uint32_t q = 0; q < nq; q++) {
+        uint32_t f = s->troot[q];
+        for (int ch = 0; ch < 3; ch++) {
+            double have = 0;
+            for (uint64_t e = s->S.col[f]; e < s->S.col[f + 1]; e++) have += pw[s->S.row[e]] * s->S.val[3 * e + ch];
+            u[3 * (size_t)f + ch] = have;
+        }
+    }
+    wrt_series_power_apply(u, pw, s->threads, &s->S, ps);
+    free(u); free(d); free(scratch); free(isroot);
+}
+
+/* ---- The series in the senders' tree basis (the default with --clusters; docs/clusters.md
+ * "The series in the senders' tree basis"). Every term is held as P_k W^T, the stored
+ * operator's form (cluster_send.c): the rows the quads' functions, the quads' root
+ * columns replaced by the tree's functions, a small quad's far light held once per
+ * cluster instead of once per (quad, receiver). The terms are then multiplied from the
+ * left, P_{k+1} W^T = (T D)(P_k W^T), which keeps every column's basis as it is: T in the
+ * quads' basis on both sides, D the coarse cut (series_coarse_cut on T's columns: the
+ * same products as P_k (D T) from the right, P_k = T (D T)^{k-1} = (T D)^{k-1} T), and
+ * the product's cost the term's entries at coarse rows times T's column there, so the
+ * fewer entries of the tree's columns make it cheaper. The first term is T W^T, each tree
+ * column compressed as cluster_send.c does (the products' threshold, the node's weight
+ * sqrt(a_P), the small senders' factor of a node under the share); every product's columns
+ * the same (TW); the stored compression the same with the final threshold
+ * (series_final_weights_tree); the column power rule's targets taken forward to the tree's
+ * basis (u W^T: series_tail). The sum is held in memory and T is kept (no streaming,
+ * no MPI shares: a product is divided among the ranks by series_mul's columns). */
+/* The products keep a tree column's entries down to this many times less than a quad's:
+ * its rows cancel where its functions' light does (two rooms: a light in one room has
+ * coefficients on tree functions spanning both, whose rows in the other room sum to 0),
+ * and an entry dropped there is light through the wall. Two rooms at quality 3: the dark
+ * room at 1.6e-3 of the lit room's mean with 1, 2.7e-5 with 10, 5.4e-6 with 30. */
+#ifndef WRT_SERIES_TREE_TIGHT
+#define WRT_SERIES_TREE_TIGHT 10.0
+#endif
+
+int wrt_series_tree_on(const bake_ctx *b) {
+    return b->cl && b->opt.cluster_series >= 0 && !b->opt.cluster_tree && b->opt.cluster_senders >= 0 &&
+           !b->opt.gathered && !b->opt.report_gathered;
+}
+
+/* The sum's first state and the first term, T W^T, from T (still in memory) */
+void wrt_series_tree_start(series_state *s) {
+    const bake_ctx *b = s->b;
+    wrt_bake_result *res = s->res;
+    s->troot = wrt_clusters_root_index(res->fkeys, res->nfuncs, (uint32_t)b->nq);
+    wrt_series_tree_cols(s, s->troot, s->W.col_w, &s->tcw, &s->tboost);
+    s->TW = s->W;
+    s->TW.col_w = s->tcw;
+    s->TW.boost_w = s->tboost;
+    /* the products' threshold on the tree's columns WRT_SERIES_TREE_TIGHT times lower */
+    const wrt_ctree *t = &b->cl->tree;
+    double tight = WRT_SERIES_TREE_TIGHT;
+    for (uint32_t p = 0; p < t->nnodes; p++)
+        if (t->left[p] >= 0) s->tcw[s->troot[t->slot[p]]] *= tight;
+    s->tcw[s->troot[t->root_slot]] *= tight;
+    /* the right factor is its own matrix (the first term takes the tree's columns) */
+    if (s->shared) {
+        s->Tr = wrt_csc_copy(&s->P);
+        s->shared = 0;
+    }
+    /* the sum from T itself (its other columns uncompressed, as the quads' series' sum
+     * starts), the term from T compressed */
+    uint64_t raw;
+    s->S = wrt_csc_copy(s->T);
+    wrt_clusters_senders(&b->cl->tree, s->troot, &s->S, s->eps, &s->TW, 1, &res->c.cluster_senders_raw);
+    wrt_clusters_senders(&b->cl->tree, s->troot, &s->P, s->eps, &s->TW, 1, &raw);
+    res->c.cluster_senders_basis = 1;
+    res->c.cluster_senders_quads = 0;
+}
