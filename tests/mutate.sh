@@ -245,13 +245,13 @@ mutation triangle-centroid: a triangle's three quads meet 3% off its centroid (t
   run test_triangles test_triangle_form_factors test_icosphere_furnace
 
 mutation linear-display-limited: the linear display keeps the slope limiter (data-dependent again)
-  file common/reconstruct.c
+  file common/reconstruct_run.c
   find limit = 0;
   repl limit = 1;
   run test_reconstruct test_linear_superposes
 
 mutation curved-as-flat: a curved mesh's quads keep their facets' cells and limited slopes (the tiles)
-  file common/reconstruct.c
+  file common/reconstruct_run.c
   find int curved = rc->curved[q] && !facets;
   repl int curved = 0 && rc->curved[q] && !facets;
   run test_reconstruct test_smooth_strip
