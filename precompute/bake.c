@@ -883,7 +883,8 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
                                            (wrt_clusters_pushed_entries(b->cl) + res->dto.nnz) *
                                                (2 * sizeof(wrt_triplet) + 16), "the cluster links' push-down");
             if (b->cl && st == WRT_OK) /* --clusters: the links added, the closed rule, the tree basis */
-                C->cluster_fix_entries = wrt_clusters_assemble(b, b->cl, keys, res->nfuncs, C->closed, &res->dto);
+                C->cluster_fix_entries = wrt_clusters_assemble(b, b->cl, keys, res->nfuncs, C->closed, &res->dto,
+                                                                b->opt.cluster_factored > 0 ? &res->dto_e1 : NULL);
             if (!b->opt.no_balance && st == WRT_OK) {
                 double tb = wrt_now();
                 C->balance_entries += wrt_balance_glossy(b, keys, res->nfuncs, &res->dto);
@@ -1025,6 +1026,7 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
 void wrt_bake_result_free(wrt_bake_result *res) {
     free(res->fkeys);
     wrt_csc_free(&res->dto);
+    wrt_csc_free(&res->dto_e1);
     wrt_csc_free(&res->op);
     free(res->material_alevel);
     free(res->kkeys); free(res->kcol_start); free(res->krows); free(res->kvals);

@@ -81,6 +81,10 @@ typedef struct wrt_bake_options {
                             * tree basis"); 0: the default (on, where the senders' tree basis
                             * is stored and the operator is not gathered); -1: off, the terms
                             * in the quads' basis (the stored columns then chosen by size) */
+    int cluster_factored;  /* with the series in the senders' tree basis: 1: its products'
+                            * left factor T kept as T = E1 U, the cluster links' senders not
+                            * pushed down (series_tree.c); 0: the default; -1: off; 2: 1,
+                            * with E1 kept in the result (dto_e1; tests) */
     int cluster_tree;      /* 1: store the operator in the tree's basis when it has fewer entries
                             * there (a trial: a copy and a transform of G - I); 2: always */
     double series_coarse;  /* the series' right factor from the second term on keeps only the
@@ -186,6 +190,7 @@ typedef struct wrt_bake_result {
     uint32_t nfuncs;
     uint64_t *fkeys;       /* sorted basis function keys; index = matrix row/column */
     wrt_csc dto;           /* T */
+    wrt_csc dto_e1;        /* --clusters factored: T's left factor E1 (T = E1 U, cluster.h) */
     wrt_csc op;            /* what is stored: G - I, or T G if gathered */
     int op_kind;           /* WRT_GTO_OP_* */
     uint8_t *material_alevel;

@@ -54,9 +54,21 @@ void wrt_clusters_free(wrt_clusters *cl);
 
 /* T (quads' basis, balanced) with the cluster links added, in a closed scene each
  * column's power made what its function emits, the links then pushed down to the quads'
- * roots (cluster_ops.c). Replaces *T. Returns the entries the closed-scene rule added. */
+ * roots (cluster_ops.c). Replaces *T. Returns the entries the closed-scene rule added.
+ * E1 (may be NULL): the left factor of T = E1 U, kept: the links' receivers pushed down
+ * (rows: the quads' functions), their senders not (columns: the quads' functions, then
+ * phi_node at nf + node; n = nf + nodes, the rows beyond nf empty). U is the uniform
+ * pull-up of the senders, column q of T = E1's column q plus sqrt(a_q / a_B) times E1's
+ * column of phi_B for every ancestor B of q's leaf (wrt_clusters_pull_up). */
 uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
-                               int closed, wrt_csc *T);
+                               int closed, wrt_csc *T, wrt_csc *E1);
+/* U X for X of the quads' basis (nf rows; columns up to E1->n): X's entries with, per
+ * column, the node rows nf + B, Y_B = sum over the quads q of B of sqrt(a_q / a_B) X at
+ * q's root (root: per quad its root slot), kept where E1's column nf + B has entries.
+ * n = E1->n (the columns beyond X's empty). Then T X = E1 (U X) (cluster_ops.c). On
+ * `threads` threads (0: all cores), the same entries whatever their number. */
+wrt_csc wrt_clusters_pull_up(const wrt_ctree *t, const uint32_t *root, uint32_t nq, const wrt_csc *E1, uint32_t nf,
+                             const wrt_csc *X, int threads);
 /* The entries the cluster links become once pushed down to the quads' roots: 2 |A| |B|
  * per link (an upper bound: quads facing away get none) (cluster_ops.c). */
 uint64_t wrt_clusters_pushed_entries(const wrt_clusters *cl);

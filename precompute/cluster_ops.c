@@ -23,6 +23,7 @@
 #include "balance.h"
 #include "cluster.h"
 #include "links.h"
+#include "common/threads.h"
 
 uint32_t *wrt_clusters_root_index(const uint64_t *fkeys, uint32_t nf, uint32_t nq) {
     uint32_t *r = wrt_xmalloc((nq ? nq : 1) * sizeof *r);
@@ -290,8 +291,26 @@ static void ops_free(ops *o) {
     free((void *)o->root); free(o->node_of); free(o->wl); free(o->wr);
 }
 
+/* M^T: a counting pass per row, then the entries in column order (rows ascending) */
+static wrt_csc transpose(const wrt_csc *M) {
+    uint32_t n = M->n;
+    wrt_csc R = {.n = n, .nnz = M->nnz};
+    R.col = wrt_xcalloc((size_t)n + 2, sizeof *R.col);
+    R.row = wrt_xmalloc((M->nnz ? M->nnz : 1) * sizeof *R.row);
+    R.val = wrt_xmalloc((M->nnz ? M->nnz : 1) * 3 * sizeof *R.val);
+    for (uint64_t k = 0; k < M->nnz; k++) R.col[M->row[k] + 2]++;
+    for (uint32_t i = 0; i < n; i++) R.col[i + 2] += R.col[i + 1];
+    for (uint32_t c = 0; c < n; c++)
+        for (uint64_t k = M->col[c]; k < M->col[c + 1]; k++) {
+            uint64_t d = R.col[M->row[k] + 1]++;
+            R.row[d] = c;
+            memcpy(&R.val[3 * d], &M->val[3 * k], 3 * sizeof *R.val);
+        }
+    return R;
+}
+
 uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
-                               int closed, wrt_csc *T) {
+                               int closed, wrt_csc *T, wrt_csc *E1) {
     const wrt_ctree *t = &cl->tree;
     ops o;
     ops_init(&o, cl, fkeys, nf, (uint32_t)b->nq);
@@ -319,12 +338,127 @@ uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const 
     wrt_csc_free(&E);
     E = wrt_csc_from_triplets(ne, t1, n1);
     free(t1);
+    if (E1) *E1 = transpose(&E); /* E is E1's transpose here (push_down swaps) */
     wrt_triplet *t2 = push_down(&o, b, &E, 0, &n2);
     wrt_csc_free(&E);
     *T = wrt_csc_from_triplets(nf, t2, n2);
     free(t2);
     ops_free(&o);
     return added;
+}
+
+/* X with the node rows appended (cluster.h): per column, each quad root's coefficient
+ * summed into its leaf, then up the tree, Y_P = wL Y_L + wR Y_R (children before
+ * parents: descending node numbers); a node row kept where E1's column there has
+ * entries. Each column alone, on `threads` threads, into its own arrays, then joined in
+ * column order: the same entries whatever the thread count. */
+typedef struct pull_ctx {
+    const wrt_ctree *t;
+    const wrt_csc *E1, *X;
+    uint32_t nf;
+    const int32_t *leaf_of;
+    const double *wl, *wr;
+    double **s;               /* per thread: 3 per node, kept zero between columns */
+    uint32_t **mark, **touched;
+    uint32_t **nrow;          /* per column: its node rows (NULL: none) */
+    float **nval;
+    uint32_t *ncount;
+} pull_ctx;
+
+static int desc_u32(const void *a, const void *b) {
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x < y) - (x > y);
+}
+
+static void pull_column(size_t ci, int th, void *user) {
+    pull_ctx *c = user;
+    const wrt_ctree *t = c->t;
+    const wrt_csc *X = c->X, *E1 = c->E1;
+    uint32_t col = (uint32_t)ci, nt = 0, epoch = col + 1, nf = c->nf, ne = E1->n;
+    double *s = c->s[th];
+    uint32_t *mark = c->mark[th], *touched = c->touched[th];
+    for (uint64_t k = X->col[col]; k < X->col[col + 1]; k++) {
+        uint32_t r = X->row[k];
+        int32_t p = r < nf ? c->leaf_of[r] : -1;
+        if (p < 0) continue;
+        for (int ch = 0; ch < 3; ch++) s[(size_t)p * 3 + ch] += X->val[3 * k + ch];
+        for (int32_t a = p; a >= 0 && mark[a] != epoch; a = t->parent[a]) { mark[a] = epoch; touched[nt++] = (uint32_t)a; }
+    }
+    if (!nt) return;
+    qsort(touched, nt, sizeof *touched, desc_u32);
+    for (uint32_t i = 0; i < nt; i++) {
+        uint32_t p = touched[i];
+        if (t->left[p] < 0) continue;
+        int32_t L = t->left[p], R = t->right[p];
+        for (int ch = 0; ch < 3; ch++)
+            s[(size_t)p * 3 + ch] = c->wl[p] * s[(size_t)L * 3 + ch] + c->wr[p] * s[(size_t)R * 3 + ch];
+    }
+    uint32_t n = 0;
+    uint32_t *row = wrt_xmalloc((size_t)nt * sizeof *row);
+    float *val = wrt_xmalloc((size_t)nt * 3 * sizeof *val);
+    /* ascending rows: parents first */
+    for (uint32_t i = nt; i-- > 0;) {
+        uint32_t p = touched[i], e = nf + p;
+        double *v = &s[(size_t)p * 3];
+        if (e < ne && E1->col[e + 1] > E1->col[e] && (v[0] != 0 || v[1] != 0 || v[2] != 0)) {
+            row[n] = e;
+            for (int ch = 0; ch < 3; ch++) val[3 * n + ch] = (float)v[ch];
+            n++;
+        }
+        v[0] = v[1] = v[2] = 0;
+    }
+    c->nrow[col] = row; c->nval[col] = val; c->ncount[col] = n;
+}
+
+wrt_csc wrt_clusters_pull_up(const wrt_ctree *t, const uint32_t *root, uint32_t nq, const wrt_csc *E1, uint32_t nf,
+                             const wrt_csc *X, int threads) {
+    uint32_t ne = E1->n, nc = X->n < ne ? X->n : ne;
+    int th = wrt_threads_resolve(threads);
+    int32_t *leaf_of = wrt_xmalloc(((size_t)nf + 1) * sizeof *leaf_of);
+    for (uint32_t f = 0; f < nf; f++) leaf_of[f] = -1;
+    for (uint32_t q = 0; q < nq; q++) leaf_of[root[q]] = (int32_t)t->leaf[q];
+    double *wl = wrt_xcalloc((size_t)t->nnodes + 1, sizeof *wl), *wr = wrt_xcalloc((size_t)t->nnodes + 1, sizeof *wr);
+    for (uint32_t p = 0; p < t->nnodes; p++)
+        if (t->left[p] >= 0) {
+            wl[p] = sqrt(t->area[t->left[p]] / t->area[p]);
+            wr[p] = sqrt(t->area[t->right[p]] / t->area[p]);
+        }
+    pull_ctx c = {.t = t, .E1 = E1, .X = X, .nf = nf, .leaf_of = leaf_of, .wl = wl, .wr = wr};
+    c.s = wrt_xmalloc((size_t)th * sizeof *c.s);
+    c.mark = wrt_xmalloc((size_t)th * sizeof *c.mark);
+    c.touched = wrt_xmalloc((size_t)th * sizeof *c.touched);
+    for (int i = 0; i < th; i++) {
+        c.s[i] = wrt_xcalloc((size_t)t->nnodes * 3 + 3, sizeof *c.s[i]);
+        c.mark[i] = wrt_xcalloc((size_t)t->nnodes + 1, sizeof *c.mark[i]);
+        c.touched[i] = wrt_xmalloc(((size_t)t->nnodes + 1) * sizeof *c.touched[i]);
+    }
+    c.nrow = wrt_xcalloc((size_t)nc + 1, sizeof *c.nrow);
+    c.nval = wrt_xcalloc((size_t)nc + 1, sizeof *c.nval);
+    c.ncount = wrt_xcalloc((size_t)nc + 1, sizeof *c.ncount);
+    wrt_parallel_for(nc, th, pull_column, &c);
+    uint64_t total = X->col[nc];
+    for (uint32_t j = 0; j < nc; j++) total += c.ncount[j];
+    wrt_csc Y = {.n = ne, .nnz = total};
+    Y.col = wrt_xcalloc((size_t)ne + 1, sizeof *Y.col);
+    Y.row = wrt_xmalloc((total ? total : 1) * sizeof *Y.row);
+    Y.val = wrt_xmalloc((total ? total : 1) * 3 * sizeof *Y.val);
+    uint64_t n = 0;
+    for (uint32_t j = 0; j < nc; j++) {
+        uint64_t k0 = X->col[j], m = X->col[j + 1] - k0;
+        memcpy(&Y.row[n], &X->row[k0], m * sizeof *Y.row);
+        memcpy(&Y.val[3 * n], &X->val[3 * k0], 3 * m * sizeof *Y.val);
+        n += m;
+        memcpy(&Y.row[n], c.nrow[j] ? c.nrow[j] : Y.row, c.ncount[j] * sizeof *Y.row);
+        memcpy(&Y.val[3 * n], c.nval[j] ? c.nval[j] : Y.val, 3 * (size_t)c.ncount[j] * sizeof *Y.val);
+        n += c.ncount[j];
+        free(c.nrow[j]); free(c.nval[j]);
+        Y.col[j + 1] = n;
+    }
+    for (uint32_t j = nc; j < ne; j++) Y.col[j + 1] = n;
+    for (int i = 0; i < th; i++) { free(c.s[i]); free(c.mark[i]); free(c.touched[i]); }
+    free(c.s); free(c.mark); free(c.touched); free(c.nrow); free(c.nval); free(c.ncount);
+    free(leaf_of); free(wl); free(wr);
+    return Y;
 }
 
 uint64_t wrt_clusters_pushed_entries(const wrt_clusters *cl) {

@@ -122,6 +122,9 @@ static void usage(FILE *f) {
         "                         default they are in the senders' tree basis, multiplied\n"
         "                         from the left: a small quad's far light held once per\n"
         "                         cluster in every bounce; docs/clusters.md)\n"
+        "  --clusters-factored / --clusters-pushed  --clusters, the products' left factor\n"
+        "                         T kept as E1 U (the links' senders not pushed down to\n"
+        "                         the quads) / T with the links pushed down\n"
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --max-memory MB        memory budget: the bake estimates what each stage needs\n"
         "                         before allocating it and refuses (exit 7, naming the figure)\n"
@@ -429,6 +432,8 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--clusters-senders-always")) { o->clusters = 1; o->cluster_senders = 1; }
         else if (!strcmp(a, "--clusters-series-tree")) { o->clusters = 1; o->cluster_series = 1; }
         else if (!strcmp(a, "--clusters-series-quads")) { o->clusters = 1; o->cluster_series = -1; }
+        else if (!strcmp(a, "--clusters-factored")) { o->clusters = 1; o->cluster_factored = 1; }
+        else if (!strcmp(a, "--clusters-pushed")) { o->clusters = 1; o->cluster_factored = -1; }
         else if (!strcmp(a, "--clusters-tree-basis-always")) { o->clusters = 1; o->cluster_tree = 2; }
         else if (!strcmp(a, "--drop-bad")) A->drop_bad = 1;
         else if (!strcmp(a, "--allow-outside-files")) A->allow_outside = 1;

@@ -165,14 +165,15 @@ static int series_coarse_keep(const bake_ctx *b, uint64_t f, double amin) {
 
 /* cols 0: the rows of m cut (P_k (D T), the terms multiplied from the right); 1: its
  * columns ((T D) P_k, from the left: series_tree_on) */
-static void series_coarse_cut(const bake_ctx *b, wrt_csc *m, const uint64_t *fkeys, double F, int cols) {
+static void series_coarse_cut(const bake_ctx *b, wrt_csc *m, const uint64_t *fkeys, uint32_t nkeys, double F,
+                              int cols) {
     double total = 0;
     for (int q = 0; q < b->nq; q++) total += b->quads[q].area;
     double amin = F * total;
     uint64_t w = 0, k = 0;
     for (uint32_t c = 0; c < m->n; c++) {
         uint64_t end = m->col[c + 1];
-        int keep_col = !cols || series_coarse_keep(b, fkeys[c], amin);
+        int keep_col = !cols || c >= nkeys || series_coarse_keep(b, fkeys[c], amin); /* nodes' (factored) kept */
         for (; k < end; k++) {
             if (!keep_col || (!cols && !series_coarse_keep(b, fkeys[m->row[k]], amin))) continue;
             m->row[w] = m->row[k];
@@ -249,6 +250,7 @@ static int series_first_terms(series_state *s) {
     const wrt_csc *T = s->T ? s->T : s->streamed ? NULL : &s->S; /* consumed in memory: S is T still */
     s->P = series_compress_T(s, T, s->eps);
     if (!s->P.col) return 0;
+    if (s->fac) return 1; /* the right factor is E1's (wrt_series_factored_start) */
     if (b->opt.series_right == 1) {
         /* the first term is that matrix already: one copy, not two (on the 12 x 12 maze
          * 260 MB of the peak) */
@@ -261,7 +263,7 @@ static int series_first_terms(series_state *s) {
     if (b->opt.series_coarse > 0) {
         if (!s->Tr.col || s->shared) s->Tr = wrt_csc_copy(s->Tr.col ? &s->Tr : T);
         s->shared = 0;
-        series_coarse_cut(b, &s->Tr, s->res->fkeys, b->opt.series_coarse, s->tree);
+        series_coarse_cut(b, &s->Tr, s->res->fkeys, s->res->nfuncs, b->opt.series_coarse, s->tree);
     }
     return 1;
 }
@@ -523,6 +525,25 @@ static wrt_status series_next_check(series_state *s, int bounce, const wrt_sum_s
     return WRT_OK;
 }
 
+/* The term after P with the left factor kept as T = E1 U (series_tree.c): E1 (U D P),
+ * the memory checked on that product unless `checked` */
+static wrt_status series_factored_term(series_state *s, int bounce, int checked, wrt_csc *N, uint64_t *nnz) {
+    wrt_csc X = wrt_series_factored_right(s, &s->P);
+    wrt_status st = checked ? WRT_OK
+                            : series_memory_check_beside(s->b, s->C, &s->Tr, &X, s->eps, &s->FW, bounce, NULL, NULL);
+    if (st != WRT_OK) {
+        char msg[1024];
+        snprintf(msg, sizeof msg, "%s", wrt_last_error());
+        wrt_csc_free(&X);
+        return wrt_fail(st, "%s", msg);
+    }
+    st = series_mul(s->b, &s->Tr, &X, s->eps, &s->FW, s->threads, N);
+    wrt_csc_free(&X);
+    wrt_series_factored_trim(s, N);
+    *nnz = N->nnz;
+    return st;
+}
+
 /* The term after P: checked first unless `checked`; by shares, *nnz is the term's entries
  * on every rank */
 static wrt_status series_next_term(series_state *s, int bounce, int checked, wrt_csc *N, uint64_t *nnz) {
@@ -530,6 +551,7 @@ static wrt_status series_next_term(series_state *s, int bounce, int checked, wrt
     const wrt_csc *R = series_right(s, bounce);
     memset(N, 0, sizeof *N);
     if (s->share) return series_share_mul(s, R, bounce, N, nnz);
+    if (s->fac && R == &s->Tr) return series_factored_term(s, bounce, checked, N, nnz);
     wrt_status mst = checked ? WRT_OK : series_next_check(s, bounce, NULL, NULL);
     if (mst != WRT_OK) return mst;
     const wrt_csc *La = s->tree ? R : &s->P, *Rb = s->tree ? &s->P : R;
@@ -898,15 +920,18 @@ static void series_state_free(series_state *s) {
     free(s->rw); free(s->cw); free(s->pw); free(s->u); free(s->boost);
     s->rw = s->cw = s->pw = s->u = s->boost = NULL;
     free(s->cut); free(s->need);
-    free(s->troot); free(s->tcw); free(s->tboost);
-    s->troot = NULL; s->tcw = s->tboost = NULL;
+    free(s->troot); free(s->tcw); free(s->tboost); free(s->fcw); free(s->fboost);
+    s->troot = NULL; s->tcw = s->tboost = s->fcw = s->fboost = NULL;
+    if (s->b->opt.cluster_factored < 2) wrt_csc_free(&s->res->dto_e1);
     s->cut = NULL;
     s->need = NULL;
 }
 
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     series_state s = {.b = b, .res = res, .C = &res->c, .T = &res->dto, .eps = b->opt.eps_compress,
-                      .threads = b->opt.threads, .tree = wrt_series_tree_on(b)};
+                      .threads = b->opt.threads, .tree = wrt_series_tree_on(b),
+                      .fac = wrt_series_factored_on(b, res)};
+    if (!s.fac) wrt_csc_free(&res->dto_e1);
     /* the start's memory: the first term (at most T's entries, 16 bytes each), a second
      * right factor where it is not the first term, and the sum's copy of T where T is
      * not consumed; streamed, T goes to its scratch file before the first term is made,
@@ -926,6 +951,11 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     }
     if (s.tree) wrt_series_tree_start(&s);
     else if (!s.consumed) s.S = wrt_csc_copy(s.T);
+    if (s.fac) {
+        wrt_series_factored_start(&s);
+        if (b->opt.series_coarse > 0)
+            series_coarse_cut(b, &s.Tr, res->fkeys, res->nfuncs, b->opt.series_coarse, 1);
+    }
     series_share_start(&s);
     st = series_bounces(&s);
     if (st == WRT_OK) st = series_tail(&s);

@@ -53,6 +53,12 @@ typedef struct {
     uint32_t *troot;
     double *tcw, *tboost;
     wrt_csc_weights TW;
+    /* the products' left factor kept as T = E1 U (wrt_series_factored_on): Tr is then E1
+     * compressed and cut (nf + nodes columns), each product E1 (U P_k); FW the products'
+     * weights with the node columns' (fcw, fboost: 1) */
+    int fac;
+    double *fcw, *fboost;
+    wrt_csc_weights FW;
 } series_state;
 
 /* The small senders' rule's area (series.c): a quad under it holds its mean's light */
@@ -67,5 +73,10 @@ void wrt_series_tree_cols(const series_state *s, const uint32_t *root, const dou
                           double **boost_out);
 double wrt_series_final_weights_tree(series_state *s, wrt_csc_weights *W, double *own[3]);
 void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps);
+/* The left factor kept as T = E1 U (series_tree.c) */
+int wrt_series_factored_on(const bake_ctx *b, const wrt_bake_result *res);
+void wrt_series_factored_start(series_state *s);
+wrt_csc wrt_series_factored_right(const series_state *s, const wrt_csc *P);
+void wrt_series_factored_trim(const series_state *s, wrt_csc *N);
 
 #endif

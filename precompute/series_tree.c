@@ -182,3 +182,65 @@ void wrt_series_tree_start(series_state *s) {
     res->c.cluster_senders_basis = 1;
     res->c.cluster_senders_quads = 0;
 }
+
+/* ---- The left factor kept factored (docs/clusters.md "The left factor kept factored"):
+ * T = E1 U, E1 with the cluster links' receivers pushed down to the quads and their
+ * senders not (column nf + B: phi_B), U the uniform pull-up of the senders
+ * (wrt_clusters_pull_up). A product T D P_k is then E1 (U D P_k): U D P_k is the term with
+ * one row per linked node, Y_B = sum over B's quads of sqrt(a_q / a_B) times the term's
+ * row at q's root, and the product reads E1's column of phi_B once per entry of that row
+ * instead of T's columns of all of B's quads, each of which held the link's |A| entries.
+ * Used by the series in the senders' tree basis where the bake kept E1
+ * (--clusters-factored) and the scene has no angular functions (the glossy balance
+ * changes T after E1 is taken). */
+int wrt_series_factored_on(const bake_ctx *b, const wrt_bake_result *res) {
+    return wrt_series_tree_on(b) && b->opt.cluster_factored > 0 && res->dto_e1.col && res->c.nfuncs_angular == 0;
+}
+
+/* Tr = E1 compressed at the products' threshold: a node column's entry weighed as a
+ * sender of the node's area (sqrt(a_B), the small senders' factor of a node under the
+ * share), a quad function's as in T; the products' weights with the node columns'; E1
+ * freed. The coarse cut is series.c's, on Tr's function columns. */
+void wrt_series_factored_start(series_state *s) {
+    const bake_ctx *b = s->b;
+    wrt_bake_result *res = s->res;
+    const wrt_ctree *t = &b->cl->tree;
+    uint32_t nf = res->nfuncs, ne = res->dto_e1.n;
+    double small = wrt_series_small_area(b);
+    double *cw = wrt_xmalloc(((size_t)ne + 1) * sizeof *cw), *boost = wrt_xmalloc(((size_t)ne + 1) * sizeof *boost);
+    s->fcw = wrt_xmalloc(((size_t)ne + 1) * sizeof *s->fcw);
+    s->fboost = wrt_xmalloc(((size_t)ne + 1) * sizeof *s->fboost);
+    for (uint32_t c = 0; c <= ne; c++) {
+        int node = c >= nf && c < ne;
+        double a = node ? t->area[c - nf] : 0;
+        cw[c] = node ? sqrt(a) : c < nf && s->W.col_w ? s->W.col_w[c] : 1;
+        boost[c] = node ? (a < small ? small / a : 1) : c < nf && s->W.boost_w ? s->W.boost_w[c] : 1;
+        s->fcw[c] = c < nf && s->TW.col_w ? s->TW.col_w[c] : 1;
+        s->fboost[c] = c < nf && s->TW.boost_w ? s->TW.boost_w[c] : 1;
+    }
+    wrt_csc_weights W1 = s->W;
+    W1.col_w = cw;
+    W1.boost_w = s->W.boost_w ? boost : NULL;
+    s->FW = s->TW;
+    s->FW.col_w = s->fcw;
+    s->FW.boost_w = s->TW.boost_w ? s->fboost : NULL;
+    double right = b->opt.series_right > 0 ? b->opt.series_right : 0;
+    s->Tr = right > 0 ? wrt_csc_copy_compress(&res->dto_e1, right * s->eps, &W1) : wrt_csc_copy(&res->dto_e1);
+    s->shared = 0;
+    if (b->opt.cluster_factored < 2) wrt_csc_free(&res->dto_e1); /* 2: kept in the result (tests) */
+    free(cw); free(boost);
+}
+
+/* U P: the term with its node rows, for the product E1 (U P) */
+wrt_csc wrt_series_factored_right(const series_state *s, const wrt_csc *P) {
+    const bake_ctx *b = s->b;
+    return wrt_clusters_pull_up(&b->cl->tree, s->troot, (uint32_t)b->nq, &s->Tr, s->res->nfuncs, P, s->threads);
+}
+
+/* The product's columns back to the functions' (the node columns are empty) */
+void wrt_series_factored_trim(const series_state *s, wrt_csc *N) {
+    uint32_t nf = s->res->nfuncs;
+    if (N->n <= nf) return;
+    N->n = nf;
+    N->col = wrt_xrealloc(N->col, ((size_t)nf + 1) * sizeof *N->col);
+}

@@ -297,6 +297,81 @@ static void test_threads(void) {
     tsb_free(&s);
 }
 
+/* The products' left factor kept factored (--clusters-factored, series_tree.c): T X against
+ * E1 (U X), entry by entry, for X the identity plus random entries, T the links pushed
+ * down by the bake's own assembly (res->dto) and E1 the factor the same bake kept; then
+ * the two rooms through the factored series: the dark room dark, the light the pushed
+ * series' to the compression. */
+static void test_factored(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int m = tsb_material(&s, 0.8, 0.7, 0.6);
+    two_rooms(&s, m);
+    int half = s.nquads / 2;
+    wrt_bake_options o = opts(3, 0, 0);
+    o.clusters = 1;
+    o.cluster_factored = 2;
+    wrt_bake_result r;
+    CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
+    CHECK(r.dto_e1.col && r.ctree.nq == (uint32_t)s.nquads && r.c.cluster_links > 0, "E1 kept, the tree's series");
+    uint32_t nf = r.nfuncs, ne = r.dto_e1.n;
+    CHECK(ne > nf, "E1 has node columns (%u, %u functions)", ne, nf);
+    /* X: the identity, and about 8 random entries a column */
+    uint64_t rs = 7, nx = 0;
+    wrt_triplet *tx = malloc(((size_t)nf * 9 + 1) * sizeof *tx);
+    for (uint32_t c = 0; c < nf; c++) {
+        tx[nx++] = (wrt_triplet){c, c, {1, 1, 1}};
+        for (int k = 0; k < 8; k++) {
+            uint32_t rr = (uint32_t)(urand(&rs) * nf) % nf;
+            tx[nx++] = (wrt_triplet){rr, c, {(float)urand(&rs), (float)urand(&rs), (float)(urand(&rs) - 0.5)}};
+        }
+    }
+    wrt_csc X = wrt_csc_from_triplets(nf, tx, nx);
+    free(tx);
+    uint32_t *root = wrt_clusters_root_index(r.fkeys, nf, (uint32_t)s.nquads);
+    wrt_csc Y = wrt_clusters_pull_up(&r.ctree, root, (uint32_t)s.nquads, &r.dto_e1, nf, &X, 2);
+    CHECK(Y.nnz > X.nnz, "U X has node rows (%llu, X %llu)", (unsigned long long)Y.nnz, (unsigned long long)X.nnz);
+    wrt_csc A = wrt_csc_mul(&r.dto, &X, 0, NULL, 1), B = wrt_csc_mul(&r.dto_e1, &Y, 0, NULL, 1);
+    /* dense compare, column by column */
+    double *d = calloc(3 * (size_t)ne, sizeof *d), worst = 0, big = wrt_csc_max(&A);
+    for (uint32_t c = 0; c < nf; c++) {
+        for (uint64_t k = A.col[c]; k < A.col[c + 1]; k++)
+            for (int ch = 0; ch < 3; ch++) d[3 * (size_t)A.row[k] + ch] += A.val[3 * k + ch];
+        for (uint64_t k = B.col[c]; k < B.col[c + 1]; k++)
+            for (int ch = 0; ch < 3; ch++) d[3 * (size_t)B.row[k] + ch] -= B.val[3 * k + ch];
+        for (size_t i = 0; i < 3 * (size_t)ne; i++) {
+            worst = fmax(worst, fabs(d[i]));
+            d[i] = 0;
+        }
+    }
+    for (uint32_t c = nf; c < ne; c++) CHECK(B.col[c + 1] == B.col[c], "E1 (U X) column %u beyond the functions", c);
+    CHECK(big > 0 && worst <= 1e-5 * big, "T X against E1 (U X): largest difference %.3g, largest entry %.3g", worst, big);
+    printf("factored: T %llu entries, E1 %llu; T X (%llu) against E1 (U X) (%llu): largest difference %.3g of the "
+           "largest entry\n", (unsigned long long)r.dto.nnz, (unsigned long long)r.dto_e1.nnz,
+           (unsigned long long)A.nnz, (unsigned long long)B.nnz, worst / big);
+    free(d); free(root);
+    wrt_csc_free(&A); wrt_csc_free(&B); wrt_csc_free(&X); wrt_csc_free(&Y);
+    /* the factored series against the pushed one (--clusters-pushed) */
+    wrt_bake_result rp;
+    o.cluster_factored = -1;
+    CHECK(wrt_bake_run(&s, &o, &rp) == WRT_OK, "%s", wrt_last_error());
+    double *in = calloc((size_t)s.nquads, sizeof *in);
+    for (int q = 0; q < half; q++) in[q] = 0.2 + urand(&rs);
+    double *e = response(&s, &r, &r.op, in), *ep = response(&s, &rp, &rp.op, in), mean = 0, diff = 0, dark = 0;
+    for (int q = 0; q < half; q++) mean += ep[q] / half;
+    for (int q = 0; q < s.nquads; q++) diff = fmax(diff, fabs(e[q] - ep[q]));
+    for (int q = half; q < s.nquads; q++) dark = fmax(dark, fabs(e[q]));
+    CHECK(diff <= 0.01 * mean, "factored against pushed: largest difference %.3g, mean %.3g", diff, mean);
+    CHECK(dark < 1e-4 * mean, "factored: dark room %.3g, lit room's mean %.3g", dark, mean);
+    printf("two rooms, factored series (%llu entries) against the pushed (%llu): largest difference %.3g of the "
+           "mean, dark room %.3g\n", (unsigned long long)r.op.nnz, (unsigned long long)rp.op.nnz, diff / mean,
+           dark / mean);
+    free(in); free(e); free(ep);
+    wrt_bake_result_free(&rp);
+    wrt_bake_result_free(&r);
+    tsb_free(&s);
+}
+
 /* A closed unit box of albedo rho, n x n quads a face, --clusters: the flux of the indirect
  * light from a uniform irradiance 1 over its truth rho / (1 - rho). */
 static void test_furnace(void) {
@@ -547,6 +622,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_gto_section);
     TEST_RUN(test_two_rooms);
     TEST_RUN(test_threads);
+    TEST_RUN(test_factored);
     TEST_RUN(test_furnace);
     TEST_RUN(test_furnace_blocker);
     TEST_END();
