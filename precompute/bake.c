@@ -884,7 +884,7 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
                                                (2 * sizeof(wrt_triplet) + 16), "the cluster links' push-down");
             if (b->cl && st == WRT_OK) /* --clusters: the links added, the closed rule, the tree basis */
                 C->cluster_fix_entries = wrt_clusters_assemble(b, b->cl, keys, res->nfuncs, C->closed, &res->dto,
-                                                                b->opt.cluster_factored > 0 ? &res->dto_e1 : NULL);
+                                                                wrt_series_factored_wanted(b) ? &res->dto_e1 : NULL);
             if (!b->opt.no_balance && st == WRT_OK) {
                 double tb = wrt_now();
                 C->balance_entries += wrt_balance_glossy(b, keys, res->nfuncs, &res->dto);

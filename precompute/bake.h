@@ -81,10 +81,11 @@ typedef struct wrt_bake_options {
                             * tree basis"); 0: the default (on, where the senders' tree basis
                             * is stored and the operator is not gathered); -1: off, the terms
                             * in the quads' basis (the stored columns then chosen by size) */
-    int cluster_factored;  /* with the series in the senders' tree basis: 1: its products'
-                            * left factor T kept as T = E1 U, the cluster links' senders not
-                            * pushed down (series_tree.c); 0: the default; -1: off; 2: 1,
-                            * with E1 kept in the result (dto_e1; tests) */
+    int cluster_factored;  /* with the series in the senders' tree basis: 0 (the default),
+                            * 1: its products' left factor T kept as T = E1 U, the cluster
+                            * links' senders not pushed down (series_tree.c); -1: off, T
+                            * with the links pushed down; 2: on, with E1 kept in the result
+                            * (dto_e1; tests) */
     int cluster_tree;      /* 1: store the operator in the tree's basis when it has fewer entries
                             * there (a trial: a copy and a transform of G - I); 2: always */
     double series_coarse;  /* the series' right factor from the second term on keeps only the
@@ -179,6 +180,8 @@ typedef struct wrt_bake_counters {
     uint64_t cluster_tree_compressed; /* and after */
     int cluster_tree_basis;
     int cluster_senders_basis;      /* 1: the columns in the tree's basis (res->ctree set) */
+    uint64_t cluster_factored_entries; /* the products' left factor E1's entries (T = E1 U;
+                                        * 0: T itself, pushed down) */
     uint64_t cluster_senders_raw;   /* the tree columns' entries before their compression */
     uint64_t cluster_senders_quads; /* G - I's entries in the quads' basis, before */
     uint64_t cluster_refused_visibility, cluster_refused_spread; /* the oracle's refusals */         /* 1: the operator is stored in the tree's basis (res->ctree set) */

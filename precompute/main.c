@@ -122,9 +122,9 @@ static void usage(FILE *f) {
         "                         default they are in the senders' tree basis, multiplied\n"
         "                         from the left: a small quad's far light held once per\n"
         "                         cluster in every bounce; docs/clusters.md)\n"
-        "  --clusters-factored / --clusters-pushed  --clusters, the products' left factor\n"
-        "                         T kept as E1 U (the links' senders not pushed down to\n"
-        "                         the quads) / T with the links pushed down\n"
+        "  --clusters-pushed      --clusters, the series' products by T with the cluster\n"
+        "                         links pushed down to the quads (by default T is kept as\n"
+        "                         E1 U, the links' senders on their nodes; docs/clusters.md)\n"
         "  --max-bounces N        cap on the series (default 2000)\n"
         "  --max-memory MB        memory budget: the bake estimates what each stage needs\n"
         "                         before allocating it and refuses (exit 7, naming the figure)\n"
@@ -212,14 +212,15 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
     if (c->cluster_visits || c->cluster_leaf_pairs || c->cluster_links)
         fprintf(f, ",\"clusters\":{\"links\":%llu,\"leaf_pairs\":%llu,\"visits\":%llu,\"oracle\":%llu,"
                 "\"partial\":%llu,\"refused_visibility\":%llu,\"refused_spread\":%llu,\"rays\":%llu,\"closed_entries\":%llu,\"tree_entries\":%llu,\"tree_compressed\":%llu,"
-                "\"tree_basis\":%s,\"senders_basis\":%s,\"senders_quads\":%llu,\"senders_raw\":%llu,\"depth\":%u}",
+                "\"tree_basis\":%s,\"senders_basis\":%s,\"senders_quads\":%llu,\"senders_raw\":%llu,\"depth\":%u,\"factored_entries\":%llu}",
                 (unsigned long long)c->cluster_links, (unsigned long long)c->cluster_leaf_pairs,
                 (unsigned long long)c->cluster_visits, (unsigned long long)c->cluster_oracle,
                 (unsigned long long)c->cluster_partial, (unsigned long long)c->cluster_refused_visibility, (unsigned long long)c->cluster_refused_spread,
                 (unsigned long long)c->cluster_rays, (unsigned long long)c->cluster_fix_entries,
                 (unsigned long long)c->cluster_tree_entries, (unsigned long long)c->cluster_tree_compressed,
                 c->cluster_tree_basis ? "true" : "false", c->cluster_senders_basis ? "true" : "false",
-                (unsigned long long)c->cluster_senders_quads, (unsigned long long)c->cluster_senders_raw, c->cluster_depth);
+                (unsigned long long)c->cluster_senders_quads, (unsigned long long)c->cluster_senders_raw, c->cluster_depth,
+                (unsigned long long)c->cluster_factored_entries);
 }
 
 static void json_options(FILE *f, const wrt_bake_options *o) {
@@ -432,7 +433,6 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--clusters-senders-always")) { o->clusters = 1; o->cluster_senders = 1; }
         else if (!strcmp(a, "--clusters-series-tree")) { o->clusters = 1; o->cluster_series = 1; }
         else if (!strcmp(a, "--clusters-series-quads")) { o->clusters = 1; o->cluster_series = -1; }
-        else if (!strcmp(a, "--clusters-factored")) { o->clusters = 1; o->cluster_factored = 1; }
         else if (!strcmp(a, "--clusters-pushed")) { o->clusters = 1; o->cluster_factored = -1; }
         else if (!strcmp(a, "--clusters-tree-basis-always")) { o->clusters = 1; o->cluster_tree = 2; }
         else if (!strcmp(a, "--drop-bad")) A->drop_bad = 1;

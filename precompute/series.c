@@ -526,7 +526,10 @@ static wrt_status series_next_check(series_state *s, int bounce, const wrt_sum_s
 }
 
 /* The term after P with the left factor kept as T = E1 U (series_tree.c): E1 (U D P),
- * the memory checked on that product unless `checked` */
+ * the memory checked on that product unless `checked`. U D P holds P's entries, so P's
+ * arrays are freed while the product is made (P is not read again once its successor
+ * exists) and taken back from it where the product failed or came out empty (the last
+ * term then stays for the tail): the same values. */
 static wrt_status series_factored_term(series_state *s, int bounce, int checked, wrt_csc *N, uint64_t *nnz) {
     wrt_csc X = wrt_series_factored_right(s, &s->P);
     wrt_status st = checked ? WRT_OK
@@ -537,9 +540,12 @@ static wrt_status series_factored_term(series_state *s, int bounce, int checked,
         wrt_csc_free(&X);
         return wrt_fail(st, "%s", msg);
     }
+    int own = !s->shared;
+    if (own) wrt_csc_free(&s->P);
     st = series_mul(s->b, &s->Tr, &X, s->eps, &s->FW, s->threads, N);
-    wrt_csc_free(&X);
     wrt_series_factored_trim(s, N);
+    if (own && (st != WRT_OK || N->nnz == 0)) s->P = wrt_series_factored_left(s, &X);
+    wrt_csc_free(&X);
     *nnz = N->nnz;
     return st;
 }
@@ -955,6 +961,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         wrt_series_factored_start(&s);
         if (b->opt.series_coarse > 0)
             series_coarse_cut(b, &s.Tr, res->fkeys, res->nfuncs, b->opt.series_coarse, 1);
+        res->c.cluster_factored_entries = s.Tr.nnz;
     }
     series_share_start(&s);
     st = series_bounces(&s);

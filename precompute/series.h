@@ -7,6 +7,9 @@
 
 /* The Neumann series (series.c): fills res->op and the series counters. */
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res);
+/* Whether the series will multiply by T kept as E1 U (series_tree.c): the bake's assembly
+ * then keeps E1 (wrt_clusters_assemble) */
+int wrt_series_factored_wanted(const bake_ctx *b);
 
 
 #endif

@@ -78,5 +78,6 @@ int wrt_series_factored_on(const bake_ctx *b, const wrt_bake_result *res);
 void wrt_series_factored_start(series_state *s);
 wrt_csc wrt_series_factored_right(const series_state *s, const wrt_csc *P);
 void wrt_series_factored_trim(const series_state *s, wrt_csc *N);
+wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X);
 
 #endif

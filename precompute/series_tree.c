@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "cluster.h"
+#include "series.h"
 #include "series_internal.h"
 
 /* The senders' tree basis's column weights (series_senders, series_tree_start): the
@@ -190,11 +191,15 @@ void wrt_series_tree_start(series_state *s) {
  * one row per linked node, Y_B = sum over B's quads of sqrt(a_q / a_B) times the term's
  * row at q's root, and the product reads E1's column of phi_B once per entry of that row
  * instead of T's columns of all of B's quads, each of which held the link's |A| entries.
- * Used by the series in the senders' tree basis where the bake kept E1
- * (--clusters-factored) and the scene has no angular functions (the glossy balance
+ * Used by the series in the senders' tree basis (by default; --clusters-pushed: T with
+ * the links pushed down, as before) where the bake kept E1 and the scene has no angular functions (the glossy balance
  * changes T after E1 is taken). */
+int wrt_series_factored_wanted(const bake_ctx *b) {
+    return wrt_series_tree_on(b) && b->opt.cluster_factored >= 0;
+}
+
 int wrt_series_factored_on(const bake_ctx *b, const wrt_bake_result *res) {
-    return wrt_series_tree_on(b) && b->opt.cluster_factored > 0 && res->dto_e1.col && res->c.nfuncs_angular == 0;
+    return wrt_series_factored_wanted(b) && res->dto_e1.col && res->c.nfuncs_angular == 0;
 }
 
 /* Tr = E1 compressed at the products' threshold: a node column's entry weighed as a
@@ -243,4 +248,29 @@ void wrt_series_factored_trim(const series_state *s, wrt_csc *N) {
     if (N->n <= nf) return;
     N->n = nf;
     N->col = wrt_xrealloc(N->col, ((size_t)nf + 1) * sizeof *N->col);
+}
+
+/* P back from U P: its rows of the functions, the first columns */
+wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X) {
+    uint32_t nf = s->res->nfuncs;
+    wrt_csc P = {.n = nf};
+    P.col = wrt_xcalloc((size_t)nf + 1, sizeof *P.col);
+    uint64_t n = 0;
+    for (uint32_t c = 0; c < nf && c < X->n; c++)
+        for (uint64_t k = X->col[c]; k < X->col[c + 1]; k++) n += X->row[k] < nf;
+    P.row = wrt_xmalloc((n ? n : 1) * sizeof *P.row);
+    P.val = wrt_xmalloc((n ? n : 1) * 3 * sizeof *P.val);
+    n = 0;
+    for (uint32_t c = 0; c < nf; c++) {
+        if (c < X->n)
+            for (uint64_t k = X->col[c]; k < X->col[c + 1]; k++) {
+                if (X->row[k] >= nf) continue;
+                P.row[n] = X->row[k];
+                memcpy(&P.val[3 * n], &X->val[3 * k], 3 * sizeof *P.val);
+                n++;
+            }
+        P.col[c + 1] = n;
+    }
+    P.nnz = n;
+    return P;
 }

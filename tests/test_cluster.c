@@ -297,7 +297,7 @@ static void test_threads(void) {
     tsb_free(&s);
 }
 
-/* The products' left factor kept factored (--clusters-factored, series_tree.c): T X against
+/* The products' left factor kept factored (the default with --clusters, series_tree.c): T X against
  * E1 (U X), entry by entry, for X the identity plus random entries, T the links pushed
  * down by the bake's own assembly (res->dto) and E1 the factor the same bake kept; then
  * the two rooms through the factored series: the dark room dark, the light the pushed
@@ -402,6 +402,9 @@ static void test_furnace(void) {
         CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
         CHECK(r.c.cluster_senders_basis == (mode > 0) && r.ctree.nq == (uint32_t)s.nquads, "mode %d: senders' basis %d",
               mode, r.c.cluster_senders_basis);
+        /* mode 2 by the default factored products, T = E1 U (series_tree.c) */
+        CHECK((mode == 2) == (r.c.cluster_factored_entries > 0), "mode %d: factored %llu", mode,
+              (unsigned long long)r.c.cluster_factored_entries);
         double *in = malloc((size_t)s.nquads * sizeof *in);
         for (int q = 0; q < s.nquads; q++) in[q] = 1;
         double *e = response(&s, &r, &r.op, in);
