@@ -15,6 +15,8 @@
  * (s_L, s_R) -> (s_P = wL s_L + wR s_R, d_P = wR s_L - wL s_R), and d_P lands in psi_P's
  * root slot, s_root in phi_root's (common/cluster_tree.h's bijection). The transform is
  * exact (orthonormal); the file then holds the same operator in another basis.
+ * The series' products use T factored, T = E1 U (wrt_clusters_assemble's E1: the links'
+ * receivers pushed down, their senders on the nodes; wrt_clusters_pull_up: U X).
  * Depends on cluster.h, balance.h (power weights), links.h and sparse.h. */
 #include <math.h>
 #include <stdlib.h>

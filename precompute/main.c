@@ -212,15 +212,19 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
     if (c->cluster_visits || c->cluster_leaf_pairs || c->cluster_links)
         fprintf(f, ",\"clusters\":{\"links\":%llu,\"leaf_pairs\":%llu,\"visits\":%llu,\"oracle\":%llu,"
                 "\"partial\":%llu,\"refused_visibility\":%llu,\"refused_spread\":%llu,\"rays\":%llu,\"closed_entries\":%llu,\"tree_entries\":%llu,\"tree_compressed\":%llu,"
-                "\"tree_basis\":%s,\"senders_basis\":%s,\"senders_quads\":%llu,\"senders_raw\":%llu,\"depth\":%u,\"factored_entries\":%llu}",
+                "\"tree_basis\":%s,\"senders_basis\":%s,\"senders_quads\":%llu,\"senders_raw\":%llu,\"depth\":%u",
                 (unsigned long long)c->cluster_links, (unsigned long long)c->cluster_leaf_pairs,
                 (unsigned long long)c->cluster_visits, (unsigned long long)c->cluster_oracle,
                 (unsigned long long)c->cluster_partial, (unsigned long long)c->cluster_refused_visibility, (unsigned long long)c->cluster_refused_spread,
                 (unsigned long long)c->cluster_rays, (unsigned long long)c->cluster_fix_entries,
                 (unsigned long long)c->cluster_tree_entries, (unsigned long long)c->cluster_tree_compressed,
                 c->cluster_tree_basis ? "true" : "false", c->cluster_senders_basis ? "true" : "false",
-                (unsigned long long)c->cluster_senders_quads, (unsigned long long)c->cluster_senders_raw, c->cluster_depth,
-                (unsigned long long)c->cluster_factored_entries);
+                (unsigned long long)c->cluster_senders_quads, (unsigned long long)c->cluster_senders_raw, c->cluster_depth);
+    /* the series' products by T = E1 U: E1's entries (only then: the files of the
+     * products by T pushed down keep their bytes) */
+    if (c->cluster_factored_entries)
+        fprintf(f, ",\"factored_entries\":%llu", (unsigned long long)c->cluster_factored_entries);
+    if (c->cluster_visits || c->cluster_leaf_pairs || c->cluster_links) fputc('}', f);
 }
 
 static void json_options(FILE *f, const wrt_bake_options *o) {

@@ -201,14 +201,19 @@ static void two_rooms(wrt_scene *s, int m) {
     }
 }
 
-static void test_two_rooms(void) {
-    wrt_scene s;
-    tsb_init(&s);
-    int m = tsb_material(&s, 0.8, 0.8, 0.8);
-    two_rooms(&s, m);
-    int half = s.nquads / 2;
+/* The two rooms of one material, and --clusters' options at quality 3 */
+static wrt_bake_options two_rooms_q3(wrt_scene *s, double r, double g, double b) {
+    tsb_init(s);
+    two_rooms(s, tsb_material(s, r, g, b));
     wrt_bake_options o = opts(3, 0, 0);
     o.clusters = 1;
+    return o;
+}
+
+static void test_two_rooms(void) {
+    wrt_scene s;
+    wrt_bake_options o = two_rooms_q3(&s, 0.8, 0.8, 0.8);
+    int half = s.nquads / 2;
     o.cluster_senders = 1; /* the senders' side in the tree's basis, whatever its size */
     o.cluster_series = -1; /* after the quads' series (cluster_send.c); the tree's series below */
     wrt_bake_result r;
@@ -297,19 +302,15 @@ static void test_threads(void) {
     tsb_free(&s);
 }
 
-/* The products' left factor kept factored (the default with --clusters, series_tree.c): T X against
- * E1 (U X), entry by entry, for X the identity plus random entries, T the links pushed
+/* The products' left factor kept factored (the default with --clusters, series_tree.c):
+ * T X against E1 (U X), entry by entry, for X the identity plus random entries, T the links pushed
  * down by the bake's own assembly (res->dto) and E1 the factor the same bake kept; then
  * the two rooms through the factored series: the dark room dark, the light the pushed
  * series' to the compression. */
 static void test_factored(void) {
     wrt_scene s;
-    tsb_init(&s);
-    int m = tsb_material(&s, 0.8, 0.7, 0.6);
-    two_rooms(&s, m);
+    wrt_bake_options o = two_rooms_q3(&s, 0.8, 0.7, 0.6);
     int half = s.nquads / 2;
-    wrt_bake_options o = opts(3, 0, 0);
-    o.clusters = 1;
     o.cluster_factored = 2;
     wrt_bake_result r;
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
