@@ -3,6 +3,7 @@
  * normal cones, the sampled oracle that makes cluster links, and the leaf pairs handed
  * to the per-pair DTO. Depends on cluster.h, Embree 3 and common/threads.h. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -18,6 +19,8 @@ typedef struct sink {
     wrt_clink *l; size_t nl, capl;
     int *pr, *ps; uint8_t *oc; size_t np, capp;
     uint64_t visited, culled, oracle, refused_vis, refused_spread, rays, partial;
+    uint64_t occ_tests, occ_nodes; /* WRT_DTO_TIMES: may_occlude calls, tree nodes visited */
+    double t_oracle, t_leaf;       /* WRT_DTO_TIMES: thread-seconds */
 } sink;
 
 typedef struct lctx {
@@ -28,6 +31,7 @@ typedef struct lctx {
     task *tasks; size_t nt, capt; /* the serial top's hand-off */
     sink *sinks;
     const int *owner; int rank;   /* wrt-bake-mpi: each task's rank (NULL: all here; dist.h) */
+    int timing;                   /* WRT_DTO_TIMES set: the sinks' timers run */
 } lctx;
 
 static uint32_t count(const wrt_clusters *cl, uint32_t a) { return cl->hi[a] - cl->lo[a]; }
@@ -60,16 +64,19 @@ static int behind(const lctx *c, uint32_t a, uint32_t bn) {
 
 /* Can a quad under node p lie between quads r and s (bake.c's test, on the quads whose
  * boxes meet the shrunk box of r and s)? */
-static int occ_query(const lctx *c, uint32_t p, wrt_v3 lo, wrt_v3 hi, int r, int s) {
+static int occ_query(const lctx *c, sink *k, uint32_t p, wrt_v3 lo, wrt_v3 hi, int r, int s) {
     const wrt_clusters *cl = c->cl;
+    k->occ_nodes++;
     const wrt_v3 *a = &cl->bmin[p], *z = &cl->bmax[p];
     if (!(a->x < hi.x && z->x > lo.x && a->y < hi.y && z->y > lo.y && a->z < hi.z && z->z > lo.z)) return 0;
     if (is_leaf(cl, p)) {
         int o = cl->tree.right[p];
         const bake_ctx *b = c->b;
+        if (o != r && o != s) k->occ_tests++;
         return o != r && o != s && wrt_bake_may_occlude(b, &b->quads[r], &b->quads[s], &b->quads[o]);
     }
-    return occ_query(c, (uint32_t)cl->tree.left[p], lo, hi, r, s) || occ_query(c, (uint32_t)cl->tree.right[p], lo, hi, r, s);
+    return occ_query(c, k, (uint32_t)cl->tree.left[p], lo, hi, r, s) ||
+           occ_query(c, k, (uint32_t)cl->tree.right[p], lo, hi, r, s);
 }
 
 static void leaf_pair(const lctx *c, sink *k, int qa, int qb) {
@@ -83,7 +90,7 @@ static void leaf_pair(const lctx *c, sink *k, int qa, int qb) {
         hi = v3(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
     }
     double e = b->plane_eps;
-    int oc = occ_query(c, 0, v3_add(lo, v3(e, e, e)), v3_sub(hi, v3(e, e, e)), r, s);
+    int oc = occ_query(c, k, 0, v3_add(lo, v3(e, e, e)), v3_sub(hi, v3(e, e, e)), r, s);
     if (k->np == k->capp) {
         k->capp = k->capp ? 2 * k->capp : 64;
         k->pr = wrt_xrealloc(k->pr, k->capp * sizeof *k->pr);
@@ -245,8 +252,18 @@ static void link_pair(lctx *c, sink *k, uint32_t a, uint32_t bn, int serial) {
     k->visited++;
     if (behind(c, a, bn) || behind(c, bn, a)) { k->culled++; return; }
     int la = is_leaf(cl, a), lb = is_leaf(cl, bn);
-    if (la && lb) { leaf_pair(c, k, cl->tree.right[a], cl->tree.right[bn]); return; }
-    if (cl->uniform[a] && cl->uniform[bn] && separated(c, a, bn) && oracle(c, k, a, bn)) return;
+    if (la && lb) {
+        double t0 = c->timing ? wrt_now() : 0;
+        leaf_pair(c, k, cl->tree.right[a], cl->tree.right[bn]);
+        if (c->timing) k->t_leaf += wrt_now() - t0;
+        return;
+    }
+    if (cl->uniform[a] && cl->uniform[bn] && separated(c, a, bn)) {
+        double t0 = c->timing ? wrt_now() : 0;
+        int done = oracle(c, k, a, bn);
+        if (c->timing) k->t_oracle += wrt_now() - t0;
+        if (done) return;
+    }
     int split_a = lb || (!la && radius(cl, a) >= radius(cl, bn));
     if (split_a) {
         link_pair(c, k, (uint32_t)cl->tree.left[a], bn, serial);
@@ -350,8 +367,11 @@ wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
     c.spread = b->opt.cluster_spread > 0 ? b->opt.cluster_spread : WRT_CLUSTER_SPREAD_DEFAULT;
     c.eps = b->opt.cluster_eps > 0 ? b->opt.cluster_eps : b->opt.cluster_eps < 0 ? 0 : WRT_CLUSTER_EPS_DEFAULT;
     c.grain = (uint32_t)fmax(32, b->nq / 128);
+    c.timing = getenv("WRT_DTO_TIMES") != NULL;
+    double t_start = wrt_now();
     sink top = {0};
     link_self(&c, &top, 0, 1);
+    double t_top = wrt_now();
     /* sinks[0]: the serial top's own results, first; then the tasks' in order */
     c.sinks = wrt_xcalloc(c.nt + 1, sizeof *c.sinks);
     c.sinks[0] = top;
@@ -363,6 +383,20 @@ wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
         c.rank = d->rank;
     }
     wrt_parallel_for(c.nt, b->opt.threads, run_task, &c);
+    double t_tasks = wrt_now();
+    if (c.timing) {
+        sink s = {0};
+        for (size_t i = 0; i <= c.nt; i++) {
+            const sink *k = &c.sinks[i];
+            s.t_oracle += k->t_oracle; s.t_leaf += k->t_leaf; s.occ_tests += k->occ_tests;
+            s.occ_nodes += k->occ_nodes; s.np += k->np; s.oracle += k->oracle; s.visited += k->visited;
+        }
+        fprintf(stderr, "dto-times: link top %.3f s (%zu tasks), tasks %.3f s wall; thread-s: oracle %.3f, leaf pairs %.3f "
+                "(%llu pairs, %.1f may_occlude tests and %.1f tree nodes a pair); visits %llu, oracle calls %llu\n",
+                t_top - t_start, c.nt, t_tasks - t_top, s.t_oracle, s.t_leaf, (unsigned long long)s.np,
+                s.np ? (double)s.occ_tests / (double)s.np : 0, s.np ? (double)s.occ_nodes / (double)s.np : 0,
+                (unsigned long long)s.visited, (unsigned long long)s.oracle);
+    }
     wrt_status st = WRT_OK;
     if (owner) {
         wrt_dist_items f = {sink_size, sink_pack, sink_unpack, c.sinks + 1};
