@@ -3,6 +3,7 @@
  * normal cones, the sampled oracle that makes cluster links, and the leaf pairs handed
  * to the per-pair DTO. Depends on cluster.h, Embree 3 and common/threads.h. */
 #include <math.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -32,7 +33,22 @@ typedef struct lctx {
     sink *sinks;
     const int *owner; int rank;   /* wrt-bake-mpi: each task's rank (NULL: all here; dist.h) */
     int timing;                   /* WRT_DTO_TIMES set: the sinks' timers run */
+    _Atomic uint64_t (*why)[24];  /* WRT_DTO_TIMES: the pairs' outcomes by log2 of the quads */
 } lctx;
+
+/* WRT_DTO_TIMES: what became of the node pairs, by the log2 of their quads: the oracle's
+ * outcomes, and the pairs refined before it (several albedos, not separated) or culled */
+enum { W_AGREE, W_POWER, W_DROP, W_BLOCKED, W_HIDDEN, W_PARTIAL, W_SPREAD, W_MIXED_ALBEDO, W_NEAR, W_CULLED, W_N };
+static const char *why_name[W_N] = {"linked: agree", "linked: power", "dropped: blocked", "refused: all blocked",
+                                    "refused: hidden", "refused: partial", "refused: spread",
+                                    "refined: albedos", "refined: near", "culled"};
+static void tally(const lctx *c, uint32_t a, uint32_t bn, int w) {
+    if (!c->why) return;
+    uint32_t n = c->cl->hi[a] - c->cl->lo[a] + c->cl->hi[bn] - c->cl->lo[bn];
+    int l = 0;
+    while ((1u << l) < n && l < 23) l++;
+    atomic_fetch_add_explicit(&c->why[w][l], 1, memory_order_relaxed);
+}
 
 static uint32_t count(const wrt_clusters *cl, uint32_t a) { return cl->hi[a] - cl->lo[a]; }
 static int is_leaf(const wrt_clusters *cl, uint32_t a) { return cl->tree.left[a] < 0; }
@@ -211,7 +227,8 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
          * so no rule restores it: flux 0.986 of the truth dropping every blocked pair,
          * 0.992 so; the maze asset at quality 1: 7,849 leaf pairs against 7,816) */
         double lost = fmax(rho, rhob) * aa * ab * unocc / (S * S);
-        if (nblk && !(ma & PT_AWAY) && !(mb & PT_AWAY) && lost <= bound) return 1;
+        if (nblk && !(ma & PT_AWAY) && !(mb & PT_AWAY) && lost <= bound) { tally(c, a, bn, W_DROP); return 1; }
+        tally(c, a, bn, W_BLOCKED);
         k->refused_spread++;
         return 0;
     }
@@ -222,9 +239,11 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
     int agree = !mixed && da <= c->spread * ha && db <= c->spread * hb;
     if (!agree && !(err <= bound)) {
         if (mixed || nblk) k->refused_vis++; else k->refused_spread++;
+        tally(c, a, bn, mixed ? W_HIDDEN : nblk ? W_PARTIAL : W_SPREAD);
         return 0;
     }
     if (nblk) k->partial++;
+    tally(c, a, bn, agree ? W_AGREE : W_POWER);
     double t = sqrt(aa * ab) * sum / (S * S);
     float tab[3], tba[3];
     for (int ch = 0; ch < 3; ch++) { tab[ch] = (float)(cl->rho[bn][ch] * t); tba[ch] = (float)(cl->rho[a][ch] * t); }
@@ -250,7 +269,7 @@ static void link_pair(lctx *c, sink *k, uint32_t a, uint32_t bn, int serial) {
     const wrt_clusters *cl = c->cl;
     if (serial && count(cl, a) + count(cl, bn) <= c->grain) { push_task(c, a, bn); return; }
     k->visited++;
-    if (behind(c, a, bn) || behind(c, bn, a)) { k->culled++; return; }
+    if (behind(c, a, bn) || behind(c, bn, a)) { k->culled++; tally(c, a, bn, W_CULLED); return; }
     int la = is_leaf(cl, a), lb = is_leaf(cl, bn);
     if (la && lb) {
         double t0 = c->timing ? wrt_now() : 0;
@@ -258,6 +277,8 @@ static void link_pair(lctx *c, sink *k, uint32_t a, uint32_t bn, int serial) {
         if (c->timing) k->t_leaf += wrt_now() - t0;
         return;
     }
+    if (c->why && !(cl->uniform[a] && cl->uniform[bn])) tally(c, a, bn, W_MIXED_ALBEDO);
+    else if (c->why && !separated(c, a, bn)) tally(c, a, bn, W_NEAR);
     if (cl->uniform[a] && cl->uniform[bn] && separated(c, a, bn)) {
         double t0 = c->timing ? wrt_now() : 0;
         int done = oracle(c, k, a, bn);
@@ -368,6 +389,7 @@ wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
     c.eps = b->opt.cluster_eps > 0 ? b->opt.cluster_eps : b->opt.cluster_eps < 0 ? 0 : WRT_CLUSTER_EPS_DEFAULT;
     c.grain = (uint32_t)fmax(32, b->nq / 128);
     c.timing = getenv("WRT_DTO_TIMES") != NULL;
+    if (c.timing) c.why = wrt_xcalloc(W_N, sizeof *c.why);
     double t_start = wrt_now();
     sink top = {0};
     link_self(&c, &top, 0, 1);
@@ -396,6 +418,15 @@ wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
                 t_top - t_start, c.nt, t_tasks - t_top, s.t_oracle, s.t_leaf, (unsigned long long)s.np,
                 s.np ? (double)s.occ_tests / (double)s.np : 0, s.np ? (double)s.occ_nodes / (double)s.np : 0,
                 (unsigned long long)s.visited, (unsigned long long)s.oracle);
+        fprintf(stderr, "dto-times:   the node pairs' outcomes by their quads (up to 2^l):\ndto-times:   %-20s", "l");
+        for (int l = 1; l < 24; l++) fprintf(stderr, " %7d", l);
+        fprintf(stderr, "\n");
+        for (int w = 0; w < W_N; w++) {
+            fprintf(stderr, "dto-times:   %-20s", why_name[w]);
+            for (int l = 1; l < 24; l++) fprintf(stderr, " %7llu", (unsigned long long)atomic_load(&c.why[w][l]));
+            fprintf(stderr, "\n");
+        }
+        free(c.why);
     }
     wrt_status st = WRT_OK;
     if (owner) {
