@@ -38,8 +38,9 @@ typedef struct lctx {
 
 /* WRT_DTO_TIMES: what became of the node pairs, by the log2 of their quads: the oracle's
  * outcomes, and the pairs refined before it (several albedos, not separated) or culled */
-enum { W_AGREE, W_POWER, W_DROP, W_BLOCKED, W_HIDDEN, W_PARTIAL, W_SPREAD, W_MIXED_ALBEDO, W_NEAR, W_CULLED, W_N };
-static const char *why_name[W_N] = {"linked: agree", "linked: power", "dropped: blocked", "refused: all blocked",
+enum { W_AGREE, W_POWER, W_DROP, W_NONE_FACING, W_BLOCKED_AWAY, W_BLOCKED, W_HIDDEN, W_PARTIAL, W_SPREAD, W_MIXED_ALBEDO, W_NEAR, W_CULLED, W_N };
+static const char *why_name[W_N] = {"linked: agree", "linked: power", "dropped: blocked", "refused: none facing",
+                                    "refused: blocked, away", "refused: blocked, lost",
                                     "refused: hidden", "refused: partial", "refused: spread",
                                     "refined: albedos", "refined: near", "culled"};
 static void tally(const lctx *c, uint32_t a, uint32_t bn, int w) {
@@ -228,7 +229,7 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
          * 0.992 so; the maze asset at quality 1: 7,849 leaf pairs against 7,816) */
         double lost = fmax(rho, rhob) * aa * ab * unocc / (S * S);
         if (nblk && !(ma & PT_AWAY) && !(mb & PT_AWAY) && lost <= bound) { tally(c, a, bn, W_DROP); return 1; }
-        tally(c, a, bn, W_BLOCKED);
+        tally(c, a, bn, !nblk ? W_NONE_FACING : (ma & PT_AWAY) || (mb & PT_AWAY) ? W_BLOCKED_AWAY : W_BLOCKED);
         k->refused_spread++;
         return 0;
     }

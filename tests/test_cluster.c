@@ -296,7 +296,8 @@ static void test_albedo_split(void) {
         links[split] = r.c.cluster_links;
         CHECK(r.c.cluster_links > 0, "split %d: no cluster links", split);
         /* the default tree leaks here: 4.1e-4 of the lit room's mean at quality 1, 1.07e-4 at
-         * quality 3 (docs/clusters.md, "The linking's growth": not this test's subject) */
+         * quality 3, through the senders' tree basis, not the links (docs/clusters.md, "The
+         * linking's growth"; not this test's subject) */
         CHECK(!split || dark[split] < 1e-4 * lit[split], "split %d: dark room %.3g against the lit room's mean %.3g",
               split, dark[split], lit[split]);
         /* two albedos: not the closed-scene rule (balance.c), so the flux is the series' and
