@@ -118,6 +118,16 @@ static void bake_btilde_build(bake_ctx *b) {
     }
 }
 
+/* WRT_DTO_TIMES set: each stage's wall and CPU seconds since the last mark, on stderr
+ * (docs/clusters.md, "The linking's growth") */
+static void stage_mark(stage_clock *k, const char *what) {
+    if (!k || !k->on) return;
+    double w = wrt_now(), c = wrt_dist_cpu_now();
+    fprintf(stderr, "dto-times: %-22s %8.3f s wall %8.3f s cpu\n", what, w - k->w, c - k->c);
+    k->w = w;
+    k->c = c;
+}
+
 static double signed_dist(const wrt_quad *q, wrt_v3 p) { return v3_dot(v3_sub(p, q->p[0]), q->n); }
 
 /* Can light leave s and reach r: some of s in front of r and some of r in front of s. */
@@ -828,6 +838,7 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             if (!keys) keys = wrt_xmalloc(sizeof *keys);
             res->nfuncs = (uint32_t)nu;
             res->fkeys = keys;
+            stage_mark(b->clock, "keys");
             wrt_triplet *tr = wrt_xmalloc((nent ? nent : 1) * sizeof *tr);
             /* each pair's entries, once they are triplets, cut to those the balance reads
              * (wrt_balance_reads_entry, in their order; on the mazes their roots' rows):
@@ -851,6 +862,7 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             free(off);
             wrt_fkey_set_free(&ks);
             assemble_job_free(&aj);
+            stage_mark(b->clock, "triplets");
             /* the balance: per leaf link a reference, the entries it sets and the threads'
              * working arrays (balance_need) */
             uint64_t nleaf = 0;
@@ -876,7 +888,9 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
                 free(job->out[i].e); free(job->out[i].leaf);
                 job->out[i].e = NULL; job->out[i].leaf = NULL;
             }
+            stage_mark(b->clock, "balance");
             res->dto = wrt_csc_from_triplets_free(res->nfuncs, tr, t, b->opt.threads); /* tr freed as T grows */
+            stage_mark(b->clock, "T");
             if (b->cl && st == WRT_OK) /* --clusters: the links pushed down to the quads' roots,
                                         * as triplets twice and the matrix (cluster_ops.c) */
                 st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb,
@@ -885,6 +899,7 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             if (b->cl && st == WRT_OK) /* --clusters: the links added, the closed rule, the tree basis */
                 C->cluster_fix_entries = wrt_clusters_assemble(b, b->cl, keys, res->nfuncs, C->closed, &res->dto,
                                                                 wrt_series_factored_wanted(b) ? &res->dto_e1 : NULL);
+            stage_mark(b->clock, "cluster links into T");
             if (!b->opt.no_balance && st == WRT_OK) {
                 double tb = wrt_now();
                 C->balance_entries += wrt_balance_glossy(b, keys, res->nfuncs, &res->dto);
@@ -927,6 +942,8 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     b.cancel = &cancel;
     wrt_bake_counters *C = &res->c;
     double t0 = wrt_now(), cpu0 = wrt_dist_cpu_now();
+    stage_clock clock = {getenv("WRT_DTO_TIMES") != NULL, t0, cpu0};
+    b.clock = &clock;
     C->open_quad = -1;
     /* the dto phase starts here, with its preparation (frame, materials, ray tracer, pairs) */
     if (b.opt.progress) b.opt.progress("dto", 0, b.opt.progress_user);
@@ -936,6 +953,12 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     bake_materials(&b, scene, res);
     wrt_status est = bake_embree(&b);
     if (est != WRT_OK) return est;
+    if (clock.on) {
+        int ncov = 0;
+        for (int q = 0; q < b.nq; q++) ncov += b.cover[q] != 0;
+        stage_mark(&clock, "preparation");
+        fprintf(stderr, "dto-times:   %d quads, %d with covered parts\n", b.nq, ncov);
+    }
     pair_list pl;
     wrt_clusters cl = {0};
     wrt_status lst = WRT_OK; /* the cluster links' exchange */
@@ -954,14 +977,23 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
         }
         double c0 = wrt_dist_cpu_now();
         lst = bake_cluster_pairs(&b, &cl, C, &pl);
+        stage_mark(&clock, "tree and linking");
         if (b.opt.dist) b.opt.dist->cpu_links = wrt_dist_cpu_now() - c0;
     } else {
         bake_pairs(&b, scene, C, &pl);
+        stage_mark(&clock, "pairs");
     }
     /* the DTO's link pool (bake_ctx.h), counted across its threads */
     atomic_ullong pool_bytes, pool_refused;
     dto_job job;
     wrt_status st = bake_dto(&b, C, &pl, &job, &pool_bytes, &pool_refused);
+    if (clock.on) {
+        uint64_t cx = 0, cy = 0;
+        for (int t = 0; t < wrt_threads_resolve(b.opt.threads); t++) { cx += job.tc[t].cover_x; cy += job.tc[t].cover_y; }
+        stage_mark(&clock, "per-pair DTO");
+        fprintf(stderr, "dto-times:   %zu pairs, %llu rays, cover tests at %llu receiver and %llu sender points\n", pl.np,
+                (unsigned long long)C->rays_traced, (unsigned long long)cx, (unsigned long long)cy);
+    }
     if (lst != WRT_OK) st = lst;
     if (job.owner) { /* wrt-bake-mpi: every rank gets every pair's links, and the counters' sums */
         /* the exchange sends the pairs as the DTO keeps them (compact records), in pieces */
@@ -984,12 +1016,14 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     size_t np = pl.np;
     for (size_t i = 0; i < np; i++) { free(job.out[i].e); free(job.out[i].d); free(job.out[i].leaf); }
     free(job.out); free(job.tc); free(pr); free(ps); free(occl);
+    stage_mark(&clock, "the rest");
     double t_end = wrt_now(), cpu1 = wrt_dist_cpu_now();
     if (b.opt.dist) {
         b.opt.dist->cpu_dto = cpu1 - cpu0;
         b.opt.dist->peak_dto = wrt_bake_peak_rss_bytes(); /* the high-water mark: the DTO phase's peak */
     }
     C->t_dto = t_end - t0;
+    if (clock.on) fprintf(stderr, "dto-times: the phase %.3f s wall, %.3f s cpu\n", t_end - t0, cpu1 - cpu0);
     C->t_balance_phase = C->t_balance_begin > 0 ? t_end - C->t_balance_begin : 0;
 
     if (st == WRT_OK && !b.opt.dto_only) {

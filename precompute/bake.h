@@ -71,6 +71,8 @@ typedef struct wrt_bake_options {
     double cluster_sep;    /* its separation threshold (0: WRT_CLUSTER_SEP_DEFAULT) */
     double cluster_spread; /* its oracle's spread threshold (0: WRT_CLUSTER_SPREAD_DEFAULT) */
     double cluster_eps;    /* its power criterion (0: WRT_CLUSTER_EPS_DEFAULT; < 0: off) */
+    int cluster_albedo_split; /* 1: the cluster tree splits a node of several albedos by albedo
+                               * before orientation and position (cluster.c) */
     int cluster_senders;   /* with --clusters: 0 (the default): the stored operator's columns
                             * in the tree's basis (the senders' side only, where the small
                             * senders' light is held once per cluster: cluster_send.c) when

@@ -42,11 +42,16 @@ typedef struct bake_ctx {
     int balance_open;
     double depth_area;      /* depth_share x the scene's area (0: the share rule off; dto.c) */
     uint8_t *cover;         /* per quad: 1 if some part is inside closed geometry (cover.c) */
+    struct stage_clock *clock; /* WRT_DTO_TIMES: the DTO phase's stage timer (bake.c) */
 } bake_ctx;
+
+/* The DTO phase's stage timer (WRT_DTO_TIMES): on, and the last mark's wall and CPU */
+typedef struct stage_clock { int on; double w, c; } stage_clock;
 
 typedef struct bake_thread_counters {
     uint64_t samples, rays_traced, rays_skipped_facing, rays_skipped_unoccluded;
     uint64_t links_refined, links_leaf, links_invisible;
+    uint64_t cover_x, cover_y; /* WRT_DTO_TIMES: receiver and sender points tested for cover */
     double t_rays;
     char pad[64];
 } bake_thread_counters;

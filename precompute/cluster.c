@@ -41,9 +41,47 @@ static wrt_v3 centroid(const wrt_quad *q) {
     return v3_scale(v3_add(v3_add(q->p[0], q->p[1]), v3_add(q->p[2], q->p[3])), 0.25);
 }
 
+typedef struct key_rho { double r[3]; uint32_t q; } key_rho;
+static int cmp_rho(const void *pa, const void *pb) {
+    const key_rho *a = pa, *b = pb;
+    for (int c = 0; c < 3; c++)
+        if (a->r[c] != b->r[c]) return a->r[c] < b->r[c] ? -1 : 1;
+    return a->q < b->q ? -1 : a->q > b->q;
+}
+
+/* --clusters-albedo-split: quads of several albedos are split by albedo, at the boundary
+ * between two albedos nearest the middle; 0 if they have one albedo. */
+static uint32_t split_albedo(const bake_ctx *b, uint32_t *perm, uint32_t lo, uint32_t hi) {
+    uint32_t n = hi - lo;
+    int one = 1;
+    for (uint32_t i = lo + 1; i < hi && one; i++)
+        one = memcmp(b->rho[perm[i]], b->rho[perm[lo]], sizeof b->rho[perm[lo]]) == 0;
+    if (one) return 0;
+    key_rho *k = wrt_xmalloc(n * sizeof *k);
+    for (uint32_t i = 0; i < n; i++) {
+        memcpy(k[i].r, b->rho[perm[lo + i]], sizeof k[i].r);
+        k[i].q = perm[lo + i];
+    }
+    qsort(k, n, sizeof *k, cmp_rho);
+    uint32_t best = 0, bd = UINT32_MAX;
+    for (uint32_t i = 0; i < n; i++) {
+        perm[lo + i] = k[i].q;
+        if (i && memcmp(k[i].r, k[i - 1].r, sizeof k[i].r) != 0) {
+            uint32_t d = i > n / 2 ? i - n / 2 : n / 2 - i;
+            if (d < bd) { bd = d; best = i; }
+        }
+    }
+    free(k);
+    return lo + best;
+}
+
 /* Where to split perm[lo, hi) (sorted in place): the index of the right half's start. */
 static uint32_t split_at(const bake_ctx *b, uint32_t *perm, uint32_t lo, uint32_t hi, key_q *tmp) {
     uint32_t n = hi - lo;
+    if (b->opt.cluster_albedo_split) {
+        uint32_t m = split_albedo(b, perm, lo, hi);
+        if (m) return m;
+    }
     double nmin[3] = {2, 2, 2}, nmax[3] = {-2, -2, -2}, cmin[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, cmax[3];
     for (int k = 0; k < 3; k++) cmax[k] = -HUGE_VAL;
     for (uint32_t i = lo; i < hi; i++) {

@@ -3,6 +3,8 @@
  * normal cones, the sampled oracle that makes cluster links, and the leaf pairs handed
  * to the per-pair DTO. Depends on cluster.h, Embree 3 and common/threads.h. */
 #include <math.h>
+#include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -18,6 +20,8 @@ typedef struct sink {
     wrt_clink *l; size_t nl, capl;
     int *pr, *ps; uint8_t *oc; size_t np, capp;
     uint64_t visited, culled, oracle, refused_vis, refused_spread, rays, partial;
+    uint64_t occ_tests, occ_nodes; /* WRT_DTO_TIMES: may_occlude calls, tree nodes visited */
+    double t_oracle, t_leaf;       /* WRT_DTO_TIMES: thread-seconds */
 } sink;
 
 typedef struct lctx {
@@ -28,7 +32,24 @@ typedef struct lctx {
     task *tasks; size_t nt, capt; /* the serial top's hand-off */
     sink *sinks;
     const int *owner; int rank;   /* wrt-bake-mpi: each task's rank (NULL: all here; dist.h) */
+    int timing;                   /* WRT_DTO_TIMES set: the sinks' timers run */
+    _Atomic uint64_t (*why)[24];  /* WRT_DTO_TIMES: the pairs' outcomes by log2 of the quads */
 } lctx;
+
+/* WRT_DTO_TIMES: what became of the node pairs, by the log2 of their quads: the oracle's
+ * outcomes, and the pairs refined before it (several albedos, not separated) or culled */
+enum { W_AGREE, W_POWER, W_DROP, W_NONE_FACING, W_BLOCKED_AWAY, W_BLOCKED, W_HIDDEN, W_PARTIAL, W_SPREAD, W_MIXED_ALBEDO, W_NEAR, W_CULLED, W_N };
+static const char *why_name[W_N] = {"linked: agree", "linked: power", "dropped: blocked", "refused: none facing",
+                                    "refused: blocked, away", "refused: blocked, lost",
+                                    "refused: hidden", "refused: partial", "refused: spread",
+                                    "refined: albedos", "refined: near", "culled"};
+static void tally(const lctx *c, uint32_t a, uint32_t bn, int w) {
+    if (!c->why) return;
+    uint32_t n = c->cl->hi[a] - c->cl->lo[a] + c->cl->hi[bn] - c->cl->lo[bn];
+    int l = 0;
+    while ((1u << l) < n && l < 23) l++;
+    atomic_fetch_add_explicit(&c->why[w][l], 1, memory_order_relaxed);
+}
 
 static uint32_t count(const wrt_clusters *cl, uint32_t a) { return cl->hi[a] - cl->lo[a]; }
 static int is_leaf(const wrt_clusters *cl, uint32_t a) { return cl->tree.left[a] < 0; }
@@ -60,16 +81,19 @@ static int behind(const lctx *c, uint32_t a, uint32_t bn) {
 
 /* Can a quad under node p lie between quads r and s (bake.c's test, on the quads whose
  * boxes meet the shrunk box of r and s)? */
-static int occ_query(const lctx *c, uint32_t p, wrt_v3 lo, wrt_v3 hi, int r, int s) {
+static int occ_query(const lctx *c, sink *k, uint32_t p, wrt_v3 lo, wrt_v3 hi, int r, int s) {
     const wrt_clusters *cl = c->cl;
+    k->occ_nodes++;
     const wrt_v3 *a = &cl->bmin[p], *z = &cl->bmax[p];
     if (!(a->x < hi.x && z->x > lo.x && a->y < hi.y && z->y > lo.y && a->z < hi.z && z->z > lo.z)) return 0;
     if (is_leaf(cl, p)) {
         int o = cl->tree.right[p];
         const bake_ctx *b = c->b;
+        if (o != r && o != s) k->occ_tests++;
         return o != r && o != s && wrt_bake_may_occlude(b, &b->quads[r], &b->quads[s], &b->quads[o]);
     }
-    return occ_query(c, (uint32_t)cl->tree.left[p], lo, hi, r, s) || occ_query(c, (uint32_t)cl->tree.right[p], lo, hi, r, s);
+    return occ_query(c, k, (uint32_t)cl->tree.left[p], lo, hi, r, s) ||
+           occ_query(c, k, (uint32_t)cl->tree.right[p], lo, hi, r, s);
 }
 
 static void leaf_pair(const lctx *c, sink *k, int qa, int qb) {
@@ -83,7 +107,7 @@ static void leaf_pair(const lctx *c, sink *k, int qa, int qb) {
         hi = v3(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
     }
     double e = b->plane_eps;
-    int oc = occ_query(c, 0, v3_add(lo, v3(e, e, e)), v3_sub(hi, v3(e, e, e)), r, s);
+    int oc = occ_query(c, k, 0, v3_add(lo, v3(e, e, e)), v3_sub(hi, v3(e, e, e)), r, s);
     if (k->np == k->capp) {
         k->capp = k->capp ? 2 * k->capp : 64;
         k->pr = wrt_xrealloc(k->pr, k->capp * sizeof *k->pr);
@@ -204,7 +228,8 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
          * so no rule restores it: flux 0.986 of the truth dropping every blocked pair,
          * 0.992 so; the maze asset at quality 1: 7,849 leaf pairs against 7,816) */
         double lost = fmax(rho, rhob) * aa * ab * unocc / (S * S);
-        if (nblk && !(ma & PT_AWAY) && !(mb & PT_AWAY) && lost <= bound) return 1;
+        if (nblk && !(ma & PT_AWAY) && !(mb & PT_AWAY) && lost <= bound) { tally(c, a, bn, W_DROP); return 1; }
+        tally(c, a, bn, !nblk ? W_NONE_FACING : (ma & PT_AWAY) || (mb & PT_AWAY) ? W_BLOCKED_AWAY : W_BLOCKED);
         k->refused_spread++;
         return 0;
     }
@@ -215,9 +240,11 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
     int agree = !mixed && da <= c->spread * ha && db <= c->spread * hb;
     if (!agree && !(err <= bound)) {
         if (mixed || nblk) k->refused_vis++; else k->refused_spread++;
+        tally(c, a, bn, mixed ? W_HIDDEN : nblk ? W_PARTIAL : W_SPREAD);
         return 0;
     }
     if (nblk) k->partial++;
+    tally(c, a, bn, agree ? W_AGREE : W_POWER);
     double t = sqrt(aa * ab) * sum / (S * S);
     float tab[3], tba[3];
     for (int ch = 0; ch < 3; ch++) { tab[ch] = (float)(cl->rho[bn][ch] * t); tba[ch] = (float)(cl->rho[a][ch] * t); }
@@ -243,10 +270,22 @@ static void link_pair(lctx *c, sink *k, uint32_t a, uint32_t bn, int serial) {
     const wrt_clusters *cl = c->cl;
     if (serial && count(cl, a) + count(cl, bn) <= c->grain) { push_task(c, a, bn); return; }
     k->visited++;
-    if (behind(c, a, bn) || behind(c, bn, a)) { k->culled++; return; }
+    if (behind(c, a, bn) || behind(c, bn, a)) { k->culled++; tally(c, a, bn, W_CULLED); return; }
     int la = is_leaf(cl, a), lb = is_leaf(cl, bn);
-    if (la && lb) { leaf_pair(c, k, cl->tree.right[a], cl->tree.right[bn]); return; }
-    if (cl->uniform[a] && cl->uniform[bn] && separated(c, a, bn) && oracle(c, k, a, bn)) return;
+    if (la && lb) {
+        double t0 = c->timing ? wrt_now() : 0;
+        leaf_pair(c, k, cl->tree.right[a], cl->tree.right[bn]);
+        if (c->timing) k->t_leaf += wrt_now() - t0;
+        return;
+    }
+    if (c->why && !(cl->uniform[a] && cl->uniform[bn])) tally(c, a, bn, W_MIXED_ALBEDO);
+    else if (c->why && !separated(c, a, bn)) tally(c, a, bn, W_NEAR);
+    if (cl->uniform[a] && cl->uniform[bn] && separated(c, a, bn)) {
+        double t0 = c->timing ? wrt_now() : 0;
+        int done = oracle(c, k, a, bn);
+        if (c->timing) k->t_oracle += wrt_now() - t0;
+        if (done) return;
+    }
     int split_a = lb || (!la && radius(cl, a) >= radius(cl, bn));
     if (split_a) {
         link_pair(c, k, (uint32_t)cl->tree.left[a], bn, serial);
@@ -350,8 +389,12 @@ wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
     c.spread = b->opt.cluster_spread > 0 ? b->opt.cluster_spread : WRT_CLUSTER_SPREAD_DEFAULT;
     c.eps = b->opt.cluster_eps > 0 ? b->opt.cluster_eps : b->opt.cluster_eps < 0 ? 0 : WRT_CLUSTER_EPS_DEFAULT;
     c.grain = (uint32_t)fmax(32, b->nq / 128);
+    c.timing = getenv("WRT_DTO_TIMES") != NULL;
+    if (c.timing) c.why = wrt_xcalloc(W_N, sizeof *c.why);
+    double t_start = wrt_now();
     sink top = {0};
     link_self(&c, &top, 0, 1);
+    double t_top = wrt_now();
     /* sinks[0]: the serial top's own results, first; then the tasks' in order */
     c.sinks = wrt_xcalloc(c.nt + 1, sizeof *c.sinks);
     c.sinks[0] = top;
@@ -363,6 +406,29 @@ wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
         c.rank = d->rank;
     }
     wrt_parallel_for(c.nt, b->opt.threads, run_task, &c);
+    double t_tasks = wrt_now();
+    if (c.timing) {
+        sink s = {0};
+        for (size_t i = 0; i <= c.nt; i++) {
+            const sink *k = &c.sinks[i];
+            s.t_oracle += k->t_oracle; s.t_leaf += k->t_leaf; s.occ_tests += k->occ_tests;
+            s.occ_nodes += k->occ_nodes; s.np += k->np; s.oracle += k->oracle; s.visited += k->visited;
+        }
+        fprintf(stderr, "dto-times: link top %.3f s (%zu tasks), tasks %.3f s wall; thread-s: oracle %.3f, leaf pairs %.3f "
+                "(%llu pairs, %.1f may_occlude tests and %.1f tree nodes a pair); visits %llu, oracle calls %llu\n",
+                t_top - t_start, c.nt, t_tasks - t_top, s.t_oracle, s.t_leaf, (unsigned long long)s.np,
+                s.np ? (double)s.occ_tests / (double)s.np : 0, s.np ? (double)s.occ_nodes / (double)s.np : 0,
+                (unsigned long long)s.visited, (unsigned long long)s.oracle);
+        fprintf(stderr, "dto-times:   the node pairs' outcomes by their quads (up to 2^l):\ndto-times:   %-20s", "l");
+        for (int l = 1; l < 24; l++) fprintf(stderr, " %7d", l);
+        fprintf(stderr, "\n");
+        for (int w = 0; w < W_N; w++) {
+            fprintf(stderr, "dto-times:   %-20s", why_name[w]);
+            for (int l = 1; l < 24; l++) fprintf(stderr, " %7llu", (unsigned long long)atomic_load(&c.why[w][l]));
+            fprintf(stderr, "\n");
+        }
+        free(c.why);
+    }
     wrt_status st = WRT_OK;
     if (owner) {
         wrt_dist_items f = {sink_size, sink_pack, sink_unpack, c.sinks + 1};

@@ -388,6 +388,7 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
             ls->jr[k] = sqrt(wrt_quad_jacobian(R, u, v)) * wq;
             if (pc->dual) {
                 wq_all[q] += ls->jr[k];
+                pc->tc->cover_x += xcov_test;
                 if (!xcov_test || !wrt_bake_covered(b, v3_mad(x, R->n, b->ray_eps), R)) wq_exp[q] += ls->jr[k];
             }
             double sd = v3_dot(v3_sub(x, S->p[0]), S->n), fq[4];
@@ -412,7 +413,7 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
                     int blocked = wrt_bake_occluded(b, v3_mad(x, R->n, b->ray_eps), v3_mad(y, S->n, b->ray_eps));
                     int blocked_far = blocked; /* the visibility where the far side sends */
                     for (int tr = 0; blocked_far && redraw && tr < WRT_COVER_REDRAWS &&
-                                     wrt_bake_covered(b, v3_mad(y, S->n, b->ray_eps), S); tr++) {
+                                     (pc->tc->cover_y++, wrt_bake_covered(b, v3_mad(y, S->n, b->ray_eps), S)); tr++) {
                         gu = fmod(gu + 0.618033988749895, 1.0);
                         gv = fmod(gv + 0.754877666246693, 1.0);
                         y = wrt_quad_point(S, wrt_node_x0(c) + gu * wrt_node_size(c), wrt_node_y0(c) + gv * wrt_node_size(c));

@@ -110,6 +110,9 @@ static void usage(FILE *f) {
         "  --cluster-eps E        --clusters, and the oracle's power criterion: a cluster pair\n"
         "                         whose estimated error is at most E of the scene's power is\n"
         "                         linked at cluster level (default 1e-4; 0: off)\n"
+        "  --clusters-albedo-split  --clusters, and the cluster tree split by albedo first,\n"
+        "                         so that clusters of one albedo, which the oracle can link,\n"
+        "                         are as large as the materials allow (docs/clusters.md)\n"
         "  --clusters-tree-basis  --clusters, and the operator stored in the cluster tree's\n"
         "                         basis when it has fewer entries there (a version 2.0 file;\n"
         "                         --clusters-tree-basis-always: whatever its size)\n"
@@ -432,6 +435,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
             o->cluster_eps = e > 0 ? e : -1; /* 0: the power criterion off */
             i++;
         }
+        else if (!strcmp(a, "--clusters-albedo-split")) { o->clusters = 1; o->cluster_albedo_split = 1; }
         else if (!strcmp(a, "--clusters-tree-basis")) { o->clusters = 1; o->cluster_tree = 1; }
         else if (!strcmp(a, "--clusters-quads-senders")) { o->clusters = 1; o->cluster_senders = -1; }
         else if (!strcmp(a, "--clusters-senders-always")) { o->clusters = 1; o->cluster_senders = 1; }
