@@ -891,14 +891,21 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
             stage_mark(b->clock, "balance");
             res->dto = wrt_csc_from_triplets_free(res->nfuncs, tr, t, b->opt.threads); /* tr freed as T grows */
             stage_mark(b->clock, "T");
+            /* --clusters with the factored series (and no angular function): T itself is
+             * never formed, only E1 (T = E1 U; series_first.c), unless the DTO is the result */
+            int fac = b->cl && wrt_series_factored_wanted(b), build_t = !fac || b->opt.dto_only || b->opt.cluster_factored == 3;
+            for (uint32_t f = 0; f < res->nfuncs && !build_t; f++) build_t = !wrt_fkey_angular_root(keys[f]);
             if (b->cl && st == WRT_OK) /* --clusters: the links pushed down to the quads' roots,
-                                        * as triplets twice and the matrix (cluster_ops.c) */
+                                        * as triplets twice and the matrix (cluster_ops.c); E1
+                                        * alone: its triplets, the matrix and its row index */
                 st = wrt_bake_memory_check(b->opt.max_memory_mb, &C->mem_estimate_mb,
-                                           (wrt_clusters_pushed_entries(b->cl) + res->dto.nnz) *
-                                               (2 * sizeof(wrt_triplet) + 16), "the cluster links' push-down");
+                                           (wrt_clusters_pushed_entries(b->cl, build_t) + res->dto.nnz) *
+                                               (build_t ? 2 * sizeof(wrt_triplet) + 16 : sizeof(wrt_triplet) + 20),
+                                           "the cluster links' push-down");
             if (b->cl && st == WRT_OK) /* --clusters: the links added, the closed rule, the tree basis */
-                C->cluster_fix_entries = wrt_clusters_assemble(b, b->cl, keys, res->nfuncs, C->closed, &res->dto,
-                                                                wrt_series_factored_wanted(b) ? &res->dto_e1 : NULL);
+                C->cluster_fix_entries = wrt_clusters_assemble(b, b->cl, keys, res->nfuncs, C->closed, build_t,
+                                                                &res->dto, fac ? &res->dto_e1 : NULL);
+            C->t_unformed = b->cl && !build_t && st == WRT_OK;
             stage_mark(b->clock, "cluster links into T");
             if (!b->opt.no_balance && st == WRT_OK) {
                 double tb = wrt_now();

@@ -87,7 +87,9 @@ typedef struct wrt_bake_options {
                             * 1: its products' left factor T kept as T = E1 U, the cluster
                             * links' senders not pushed down (series_tree.c); -1: off, T
                             * with the links pushed down; 2: on, with E1 kept in the result
-                            * (dto_e1; tests) */
+                            * (dto_e1; tests); 3: that with T formed too and read by the
+                            * series' first term, power iteration and power rule, as before
+                            * T was left unformed (series_first.c; tests) */
     int cluster_tree;      /* 1: store the operator in the tree's basis when it has fewer entries
                             * there (a trial: a copy and a transform of G - I); 2: always */
     double series_coarse;  /* the series' right factor from the second term on keeps only the
@@ -182,6 +184,8 @@ typedef struct wrt_bake_counters {
     uint64_t cluster_tree_compressed; /* and after */
     int cluster_tree_basis;
     int cluster_senders_basis;      /* 1: the columns in the tree's basis (res->ctree set) */
+    int t_unformed;                /* --clusters, factored: T never formed, only E1 (res->dto empty;
+                                    * series_first.c); not in the JSON, which the file records */
     uint64_t cluster_factored_entries; /* the products' left factor E1's entries (T = E1 U;
                                         * 0: T itself, pushed down) */
     uint64_t cluster_senders_raw;   /* the tree columns' entries before their compression */
@@ -194,7 +198,8 @@ typedef struct wrt_bake_counters {
 typedef struct wrt_bake_result {
     uint32_t nfuncs;
     uint64_t *fkeys;       /* sorted basis function keys; index = matrix row/column */
-    wrt_csc dto;           /* T */
+    wrt_csc dto;           /* T (empty where c.t_unformed: --clusters' factored series, the DTO
+                            * then held as E1 U only; dto_only keeps T) */
     wrt_csc dto_e1;        /* --clusters factored: T's left factor E1 (T = E1 U, cluster.h) */
     wrt_csc op;            /* what is stored: G - I, or T G if gathered */
     int op_kind;           /* WRT_GTO_OP_* */

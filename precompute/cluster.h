@@ -59,9 +59,11 @@ void wrt_clusters_free(wrt_clusters *cl);
  * (rows: the quads' functions), their senders not (columns: the quads' functions, then
  * phi_node at nf + node; n = nf + nodes, the rows beyond nf empty). U is the uniform
  * pull-up of the senders, column q of T = E1's column q plus sqrt(a_q / a_B) times E1's
- * column of phi_B for every ancestor B of q's leaf (wrt_clusters_pull_up). */
+ * column of phi_B for every ancestor B of q's leaf (wrt_clusters_pull_up). build_t 0
+ * (with E1): T is not formed (the second push-down skipped), *T left an empty nf x nf
+ * matrix; the series then works from E1 and U alone (series_first.c). */
 uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
-                               int closed, wrt_csc *T, wrt_csc *E1);
+                               int closed, int build_t, wrt_csc *T, wrt_csc *E1);
 /* U X for X of the quads' basis (nf rows; columns up to E1->n): X's entries with, per
  * column, the node rows nf + B, Y_B = sum over the quads q of B of sqrt(a_q / a_B) X at
  * q's root (root: per quad its root slot), kept where E1's column nf + B has entries.
@@ -70,8 +72,9 @@ uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const 
 wrt_csc wrt_clusters_pull_up(const wrt_ctree *t, const uint32_t *root, uint32_t nq, const wrt_csc *E1, uint32_t nf,
                              const wrt_csc *X, int threads);
 /* The entries the cluster links become once pushed down to the quads' roots: 2 |A| |B|
- * per link (an upper bound: quads facing away get none) (cluster_ops.c). */
-uint64_t wrt_clusters_pushed_entries(const wrt_clusters *cl);
+ * per link where senders (T), |A| + |B| where only the receivers are (E1) (an upper
+ * bound: quads facing away get none) (cluster_ops.c). */
+uint64_t wrt_clusters_pushed_entries(const wrt_clusters *cl, int senders);
 /* A matrix of the quads' basis (nf x nf) expressed in the tree basis: rows, then columns
  * (cluster_ops.c). Replaces *M. */
 void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf, wrt_csc *M);
@@ -84,6 +87,15 @@ void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint6
  * 0, *M unchanged. *raw: the tree columns' entries before their compression. */
 int wrt_clusters_senders(const wrt_ctree *t, const uint32_t *root, wrt_csc *M, double drop,
                          const wrt_csc_weights *W, int always, uint64_t *raw);
+/* A column of a matrix given on demand: column f's entries (rows ascending, 3 floats
+ * each) in arrays malloc'd by the callee and freed by the caller; returns their number */
+typedef uint64_t (*wrt_col_fn)(void *user, uint32_t f, uint32_t **row, float **val);
+/* wrt_clusters_senders with the matrix's columns from fn (the matrix is never held whole),
+ * always in the tree's basis, only columns [c0, c1) kept (the others empty; the tree is
+ * still walked whole, a node's function needing all its quads' columns): the tree columns
+ * compressed as there, the others as fn gives them (cluster_send.c). */
+wrt_csc wrt_clusters_senders_cols(const wrt_ctree *t, const uint32_t *root, uint32_t nf, wrt_col_fn fn, void *user,
+                                  double drop, const wrt_csc_weights *W, uint32_t c0, uint32_t c1, uint64_t *raw);
 /* The series' weights of the root slots for the tree functions: areas of their nodes
  * (rw = 1/sqrt(a), cw = sqrt(a)), the small senders' factor 1 there (boost, may be NULL:
  * a node is not a small sender) and the power weights transformed (cluster_ops.c). */

@@ -312,7 +312,7 @@ static wrt_csc transpose(const wrt_csc *M) {
 }
 
 uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
-                               int closed, wrt_csc *T, wrt_csc *E1) {
+                               int closed, int build_t, wrt_csc *T, wrt_csc *E1) {
     const wrt_ctree *t = &cl->tree;
     ops o;
     ops_init(&o, cl, fkeys, nf, (uint32_t)b->nq);
@@ -341,6 +341,12 @@ uint64_t wrt_clusters_assemble(const bake_ctx *b, const wrt_clusters *cl, const 
     E = wrt_csc_from_triplets(ne, t1, n1);
     free(t1);
     if (E1) *E1 = transpose(&E); /* E is E1's transpose here (push_down swaps) */
+    if (!build_t && E1) { /* T = E1 U never formed (series_first.c): T left empty */
+        wrt_csc_free(&E);
+        *T = (wrt_csc){.n = nf, .col = wrt_xcalloc((size_t)nf + 1, sizeof *T->col)};
+        ops_free(&o);
+        return added;
+    }
     wrt_triplet *t2 = push_down(&o, b, &E, 0, &n2);
     wrt_csc_free(&E);
     *T = wrt_csc_from_triplets(nf, t2, n2);
@@ -463,10 +469,12 @@ wrt_csc wrt_clusters_pull_up(const wrt_ctree *t, const uint32_t *root, uint32_t 
     return Y;
 }
 
-uint64_t wrt_clusters_pushed_entries(const wrt_clusters *cl) {
+uint64_t wrt_clusters_pushed_entries(const wrt_clusters *cl, int senders) {
     uint64_t n = 0;
-    for (size_t i = 0; i < cl->nlinks; i++)
-        n += 2 * (uint64_t)(cl->hi[cl->links[i].a] - cl->lo[cl->links[i].a]) * (cl->hi[cl->links[i].b] - cl->lo[cl->links[i].b]);
+    for (size_t i = 0; i < cl->nlinks; i++) {
+        uint64_t na = cl->hi[cl->links[i].a] - cl->lo[cl->links[i].a], nb = cl->hi[cl->links[i].b] - cl->lo[cl->links[i].b];
+        n += senders ? 2 * na * nb : na + nb;
+    }
     return n;
 }
 

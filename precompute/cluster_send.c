@@ -36,6 +36,9 @@ typedef struct {
     const wrt_ctree *t;
     const uint32_t *root; /* per quad: its root slot */
     const wrt_csc *M;
+    wrt_col_fn fn;        /* or the columns from here (M NULL) */
+    void *user;
+    uint32_t c0, c1;      /* the slots stored: [c0, c1) */
     double drop;
     const wrt_csc_weights *W;
     uint32_t **orow;      /* per slot: the tree function's compressed column */
@@ -51,6 +54,7 @@ static void dcol_free(dcol *c) {
 
 /* compresses the column c (float copy) as slot's and stores it */
 static void emit(send_ctx *x, uint32_t slot, const uint32_t *row, const double *val, uint64_t n) {
+    if (slot < x->c0 || slot >= x->c1) return;
     uint32_t *r = wrt_xmalloc((n ? n : 1) * sizeof *r);
     float *v = wrt_xmalloc((n ? n : 1) * 3 * sizeof *v);
     uint64_t k = 0;
@@ -72,14 +76,26 @@ static dcol node_phi(send_ctx *x, uint32_t p) {
     dcol out = {0};
     if (t->left[p] < 0) {
         uint32_t c = x->root[t->right[p]];
-        uint64_t a = x->M->col[c], e = x->M->col[c + 1];
-        out.n = e - a;
+        const uint32_t *row = NULL;
+        const float *val = NULL;
+        uint32_t *frow = NULL;
+        float *fval = NULL;
+        if (x->M) {
+            out.n = x->M->col[c + 1] - x->M->col[c];
+            row = x->M->row + x->M->col[c];
+            val = x->M->val + 3 * x->M->col[c];
+        } else {
+            out.n = x->fn(x->user, c, &frow, &fval);
+            row = frow;
+            val = fval;
+        }
         out.row = wrt_xmalloc((out.n ? out.n : 1) * sizeof *out.row);
         out.val = wrt_xmalloc((out.n ? out.n : 1) * 3 * sizeof *out.val);
-        for (uint64_t k = a; k < e; k++) {
-            out.row[k - a] = x->M->row[k];
-            for (int ch = 0; ch < 3; ch++) out.val[3 * (k - a) + ch] = x->M->val[3 * k + ch];
+        for (uint64_t k = 0; k < out.n; k++) {
+            out.row[k] = row[k];
+            for (int ch = 0; ch < 3; ch++) out.val[3 * k + ch] = val[3 * k + ch];
         }
+        free(frow); free(fval);
         return out;
     }
     dcol L = node_phi(x, (uint32_t)t->left[p]);
@@ -119,18 +135,26 @@ static dcol node_phi(send_ctx *x, uint32_t p) {
     return out;
 }
 
+/* The tree walked: every tree column made, compressed and kept in its slot (x's arrays,
+ * allocated here for nf functions); the functions that are tree slots marked (returned) */
+static uint8_t *send_walk(send_ctx *x, uint32_t nf) {
+    const wrt_ctree *t = x->t;
+    x->orow = wrt_xcalloc((size_t)nf + 1, sizeof *x->orow);
+    x->oval = wrt_xcalloc((size_t)nf + 1, sizeof *x->oval);
+    x->on = wrt_xcalloc((size_t)nf + 1, sizeof *x->on);
+    uint8_t *tree = wrt_xcalloc((size_t)nf + 1, 1);
+    for (uint32_t q = 0; q < t->nq; q++) tree[x->root[q]] = 1;
+    dcol top = node_phi(x, 0);
+    emit(x, x->root[t->root_slot], top.row, top.val, top.n);
+    dcol_free(&top);
+    return tree;
+}
+
 int wrt_clusters_senders(const wrt_ctree *t, const uint32_t *root, wrt_csc *M, double drop,
                          const wrt_csc_weights *W, int always, uint64_t *raw) {
     uint32_t nf = M->n;
-    send_ctx x = {.t = t, .root = root, .M = M, .drop = drop, .W = W};
-    x.orow = wrt_xcalloc((size_t)nf + 1, sizeof *x.orow);
-    x.oval = wrt_xcalloc((size_t)nf + 1, sizeof *x.oval);
-    x.on = wrt_xcalloc((size_t)nf + 1, sizeof *x.on);
-    uint8_t *tree = wrt_xcalloc((size_t)nf + 1, 1);
-    for (uint32_t q = 0; q < t->nq; q++) tree[root[q]] = 1;
-    dcol top = node_phi(&x, 0);
-    emit(&x, root[t->root_slot], top.row, top.val, top.n);
-    dcol_free(&top);
+    send_ctx x = {.t = t, .root = root, .M = M, .c1 = nf, .drop = drop, .W = W};
+    uint8_t *tree = send_walk(&x, nf);
     /* the result: the tree columns in their slots, the other columns as they were; kept
      * only where it has fewer entries (or always) */
     uint64_t total = 0;
@@ -179,4 +203,42 @@ int wrt_clusters_senders(const wrt_ctree *t, const uint32_t *root, wrt_csc *M, d
     M->val = wrt_xrealloc(M->val, (total ? total : 1) * 3 * sizeof *M->val);
     free(x.orow); free(x.oval); free(x.on); free(tree);
     return 1;
+}
+
+wrt_csc wrt_clusters_senders_cols(const wrt_ctree *t, const uint32_t *root, uint32_t nf, wrt_col_fn fn, void *user,
+                                  double drop, const wrt_csc_weights *W, uint32_t c0, uint32_t c1, uint64_t *raw) {
+    send_ctx x = {.t = t, .root = root, .fn = fn, .user = user, .c0 = c0, .c1 = c1, .drop = drop, .W = W};
+    uint8_t *tree = send_walk(&x, nf);
+    /* the columns in order, appended (the arrays grow by doubling: realloc moves large
+     * blocks by remapping, so the result is held about once) */
+    wrt_csc M = {.n = nf};
+    M.col = wrt_xcalloc((size_t)nf + 1, sizeof *M.col);
+    uint64_t cap = 1024, k = 0;
+    M.row = wrt_xmalloc(cap * sizeof *M.row);
+    M.val = wrt_xmalloc(cap * 3 * sizeof *M.val);
+    for (uint32_t c = 0; c < nf; c++) {
+        uint32_t *r = NULL;
+        float *v = NULL;
+        uint64_t n = 0;
+        if (tree[c]) { r = x.orow[c]; v = x.oval[c]; n = x.on[c]; }
+        else if (c >= c0 && c < c1) n = fn(user, c, &r, &v);
+        if (k + n > cap) {
+            while (k + n > cap) cap *= 2;
+            M.row = wrt_xrealloc(M.row, cap * sizeof *M.row);
+            M.val = wrt_xrealloc(M.val, cap * 3 * sizeof *M.val);
+        }
+        if (n) {
+            memcpy(&M.row[k], r, n * sizeof *r);
+            memcpy(&M.val[3 * k], v, 3 * n * sizeof *v);
+        }
+        k += n;
+        free(r); free(v);
+        M.col[c + 1] = k;
+    }
+    M.nnz = k;
+    M.row = wrt_xrealloc(M.row, (k ? k : 1) * sizeof *M.row);
+    M.val = wrt_xrealloc(M.val, (k ? k : 1) * 3 * sizeof *M.val);
+    *raw = x.raw;
+    free(x.orow); free(x.oval); free(x.on); free(tree);
+    return M;
 }

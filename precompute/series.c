@@ -105,13 +105,14 @@ static wrt_status series_mul(const bake_ctx *b, const wrt_csc *a, const wrt_csc 
 }
 
 static void power_iter_start(power_iter *p, const wrt_csc *T, const double *pw) {
-    uint32_t n = T->n;
+    uint32_t n = p->apply ? p->n : T->n;
     p->n = n;
     p->x = wrt_xcalloc(3 * (size_t)n + 1, sizeof *p->x);
     p->y = wrt_xcalloc(3 * (size_t)n + 1, sizeof *p->y);
     for (uint32_t i = 0; i < n; i++)
         if (pw[i] != 0) p->x[3 * i] = p->x[3 * i + 1] = p->x[3 * i + 2] = pw[i];
-    wrt_csc_apply(T, p->x, p->y);
+    if (p->apply) p->apply(p->user, p->x, p->y);
+    else wrt_csc_apply(T, p->x, p->y);
     for (int ch = 0; ch < 3; ch++) p->vp_prev[ch] = 0;
     for (uint32_t i = 0; i < n; i++)
         for (int ch = 0; ch < 3; ch++) p->vp_prev[ch] += pw[i] * p->y[3 * i + ch];
@@ -126,7 +127,8 @@ static int power_iter_step(power_iter *p, const wrt_csc *T, wrt_spill *sp, const
     for (size_t i = 0; i < 3 * (size_t)n; i++) x[i] = vs > 0 ? y[i] / vs : 0;
     for (int ch = 0; ch < 3; ch++) vp_prev[ch] = vs > 0 ? vp_prev[ch] / vs : 0;
     memset(y, 0, 3 * (size_t)n * sizeof *y);
-    if (T) wrt_csc_apply(T, x, y);
+    if (p->apply) p->apply(p->user, x, y);
+    else if (T) wrt_csc_apply(T, x, y);
     else if (!wrt_spill_apply(sp, x, y)) return 0;
     double vp[3] = {0, 0, 0};
     for (uint32_t i = 0; i < n; i++)
@@ -215,7 +217,7 @@ double wrt_series_small_area(const bake_ctx *b) {
 static void series_weights(series_state *s) {
     const bake_ctx *b = s->b;
     wrt_bake_result *res = s->res;
-    uint32_t n = s->T->n;
+    uint32_t n = res->nfuncs;
     double *rw = wrt_xmalloc(((size_t)n + 1) * sizeof *rw), *cw = wrt_xmalloc(((size_t)n + 1) * sizeof *cw);
     double small = wrt_series_small_area(b);
     double *boost = small > 0 ? wrt_xmalloc(((size_t)n + 1) * sizeof *boost) : NULL;
@@ -247,6 +249,7 @@ static wrt_csc series_compress_T(series_state *s, const wrt_csc *T, double drop)
  * term are never held together). 0 where the scratch file could not be read. */
 static int series_first_terms(series_state *s) {
     const bake_ctx *b = s->b;
+    if (s->no_t) return 1; /* the first term made with the sum's first state (series_first.c) */
     const wrt_csc *T = s->T ? s->T : s->streamed ? NULL : &s->S; /* consumed in memory: S is T still */
     s->P = series_compress_T(s, T, s->eps);
     if (!s->P.col) return 0;
@@ -938,6 +941,14 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
                       .threads = b->opt.threads, .tree = wrt_series_tree_on(b),
                       .fac = wrt_series_factored_on(b, res)};
     if (!s.fac) wrt_csc_free(&res->dto_e1);
+    s.no_t = s.fac && res->c.t_unformed;
+    if (s.no_t) { /* T = E1 U read from E1 (series_first.c) */
+        s.T = NULL;
+        s.E1 = &res->dto_e1;
+        s.pi.apply = wrt_series_factored_apply;
+        s.pi.user = &s;
+        s.pi.n = res->nfuncs;
+    }
     /* the start's memory: the first term (at most T's entries, 16 bytes each), a second
      * right factor where it is not the first term, and the sum's copy of T where T is
      * not consumed; streamed, T goes to its scratch file before the first term is made,
@@ -946,7 +957,11 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     int streamed = series_can_consume(b) && b->opt.series_block >= 0;
     uint64_t copies = 1 + (b->opt.series_right != 1 || b->opt.series_coarse > 0) + !series_can_consume(b) - streamed +
                       s.tree; /* the tree's first term beside the sum */
-    wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, copies * 16 * res->dto.nnz,
+    /* T never formed: E1 held to the end, its compressed copy, and the sum's first state
+     * and the first term (T W^T: their tree columns compressed, about E1's entries each,
+     * docs/clusters.md "T never formed") */
+    uint64_t start_need = s.no_t ? 4 * 16 * res->dto_e1.nnz : copies * 16 * res->dto.nnz;
+    wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, start_need,
                                           "the series' first term");
     if (st != WRT_OK) return st;
     series_weights(&s);

@@ -14,6 +14,9 @@
 typedef struct {
     uint32_t n;
     double *x, *y, vp_prev[3];
+    /* y += T x made by apply(user, x, y) where T is not held (series_first.c); n set */
+    void (*apply)(void *user, const double *x, double *y);
+    void *user;
 } power_iter;
 
 /* The series' working state, shared by its stages */
@@ -59,6 +62,9 @@ typedef struct {
     int fac;
     double *fcw, *fboost;
     wrt_csc_weights FW;
+    /* T never formed (series_first.c): T = E1 U read from E1 (the bake's, kept to the end) */
+    int no_t;
+    const wrt_csc *E1;
 } series_state;
 
 /* The small senders' rule's area (series.c): a quad under it holds its mean's light */
@@ -79,5 +85,13 @@ void wrt_series_factored_start(series_state *s);
 wrt_csc wrt_series_factored_right(const series_state *s, const wrt_csc *P);
 void wrt_series_factored_trim(const series_state *s, wrt_csc *N);
 wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X);
+
+/* T never formed (series_first.c): the sum's first state and the first term, T W^T, for
+ * the columns [c0, c1) (S or P may be NULL); y += T x (a power_iter's apply); the power
+ * targets; the column power rule's correction in the senders' tree basis, compressed */
+void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_csc *S, wrt_csc *P);
+void wrt_series_factored_apply(void *user, const double *x, double *y);
+double *wrt_series_factored_targets(series_state *s, int *bounces);
+wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d);
 
 #endif

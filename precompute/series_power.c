@@ -44,17 +44,31 @@ static void rowmul_col(size_t j, int th, void *user) {
     memcpy(&c->out[3 * j], a, sizeof a);
 }
 
-/* u = sum_{n >= 1} pw^T T^n per channel (3n values). Returns the bounces iterated. */
-static int power_targets(const wrt_csc *T, const double *pw, int threads, int max_bounces, double *u) {
-    size_t n = T->n;
+void wrt_csc_rowmul(const wrt_csc *M, const double *v, double *out, int threads) {
+    rowmul_ctx c = {M, v, out};
+    wrt_parallel_for(M->n, threads, rowmul_col, &c);
+}
+
+typedef struct {
+    const wrt_csc *T;
+    int threads;
+} rowmul_t;
+
+static void rowmul_t_run(void *user, const double *v, double *out) {
+    const rowmul_t *r = user;
+    wrt_csc_rowmul(r->T, v, out, r->threads);
+}
+
+/* u = sum_{n >= 1} pw^T T^n per channel (3n values), v T made by mul. Returns the bounces
+ * iterated. */
+static int power_targets(size_t n, wrt_rowmul_fn mul, void *user, const double *pw, int max_bounces, double *u) {
     double *v = wrt_xcalloc(3 * n + 1, sizeof *v), *w = wrt_xcalloc(3 * n + 1, sizeof *w);
     for (size_t i = 0; i < n; i++) v[3 * i] = v[3 * i + 1] = v[3 * i + 2] = pw[i];
     memset(u, 0, 3 * n * sizeof *u);
     double prev[3] = {-1, -1, -1}, rprev[3] = {-1, -1, -1}, tot[3] = {0, 0, 0};
     int it, stable = 0;
     for (it = 1; it <= max_bounces; it++) {
-        rowmul_ctx c = {T, v, w};
-        wrt_parallel_for(n, threads, rowmul_col, &c);
+        mul(user, v, w);
         double norm[3] = {0, 0, 0}, r[3];
         for (size_t i = 0; i < 3 * n; i++) { u[i] += w[i]; norm[i % 3] += fabs(w[i]); tot[i % 3] += fabs(w[i]); }
         int settled = 1, small = 1;
@@ -150,12 +164,17 @@ static void fix_col(size_t j, int th, void *user) {
     c->state[j] = st;
 }
 
-double *wrt_series_power_targets(const wrt_csc *T, const double *pw, int threads, int max_bounces, int *bounces) {
-    size_t n = T->n;
+double *wrt_series_power_targets_fn(size_t n, wrt_rowmul_fn mul, void *user, const double *pw, int max_bounces,
+                                    int *bounces) {
     double *u = wrt_xmalloc((3 * n + 1) * sizeof *u);
-    int it = n ? power_targets(T, pw, threads, max_bounces, u) : 0;
+    int it = n ? power_targets(n, mul, user, pw, max_bounces, u) : 0;
     if (bounces) *bounces = it;
     return u;
+}
+
+double *wrt_series_power_targets(const wrt_csc *T, const double *pw, int threads, int max_bounces, int *bounces) {
+    rowmul_t r = {T, threads};
+    return wrt_series_power_targets_fn(T->n, rowmul_t_run, &r, pw, max_bounces, bounces);
 }
 
 void wrt_series_power_apply(const double *u, const double *pw, int threads, wrt_csc *S, wrt_series_power_stats *stats) {

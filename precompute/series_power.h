@@ -23,6 +23,14 @@ void wrt_series_power_fix(const wrt_csc *T, const double *pw, int threads, int m
  * terms iterated), then their spreading over S's columns (stats' sums added to; zero
  * them first). wrt_series_power_fix is the two in a row. */
 double *wrt_series_power_targets(const wrt_csc *T, const double *pw, int threads, int max_bounces, int *bounces);
+/* The targets with v T made by mul(user, v, out) (3n values each): T given as a product
+ * (series_first.c, T = E1 U) */
+typedef void (*wrt_rowmul_fn)(void *user, const double *v, double *out);
+double *wrt_series_power_targets_fn(size_t n, wrt_rowmul_fn mul, void *user, const double *pw, int max_bounces,
+                                    int *bounces);
+/* out = v M (3 values a column of M, each a dot product with its column), on `threads`
+ * threads: the same bits whatever their number */
+void wrt_csc_rowmul(const wrt_csc *M, const double *v, double *out, int threads);
 void wrt_series_power_apply(const double *u, const double *pw, int threads, wrt_csc *S, wrt_series_power_stats *stats);
 
 #endif

@@ -49,34 +49,13 @@ double wrt_series_final_weights_tree(series_state *s, wrt_csc_weights *W, double
     return eps;
 }
 
-/* The column power rule (series_power.c) with the terms in the senders' tree basis
- * (series_tree_on). A tree column spans parts of the scene that may not see each other
- * (two rooms), its rows there cancelling for a light on one side alone: spreading its
- * difference over its own entries, as a quad's column's is, broke that (the dark room at
- * 1.6e-3 of the lit room's light). So the root columns' powers are taken back to the
- * quads' basis (the inverse transform of the row vector), each quad's difference to its
- * target is carried where its own light lands first, along T's column (its rows that
- * carry power, in proportion), and that correction, a matrix of the quads' root columns,
- * is added in the tree's basis (cluster_send.c, the products' weights). The quads' other
- * columns (their wavelets) are fixed as in the quads' series. Without it the 320-triangle
- * icosphere furnace's G - I was 0.14% under the DTO's own series. */
-void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps) {
-    const bake_ctx *b = s->b;
-    const wrt_ctree *t = &b->cl->tree;
+/* The column power rule's correction from T (series_tree_power): column root(q) =
+ * (u_q - have_q) times T's column there (its rows that carry power), its power 1, in the
+ * senders' tree basis */
+static wrt_csc tree_power_cols(const series_state *s, const double *u, const double *d) {
     const wrt_csc *T = s->T;
     const double *pw = s->pw;
-    uint32_t n = s->S.n, nq = (uint32_t)b->nq;
-    memset(ps, 0, sizeof *ps);
-    double *u = wrt_series_power_targets(T, pw, s->threads, b->opt.max_bounces, &ps->bounces);
-    double *d = wrt_xcalloc(3 * (size_t)n + 1, sizeof *d);
-    double *scratch = wrt_xmalloc((6 * (size_t)t->nnodes + 1) * sizeof *scratch);
-    for (uint32_t q = 0; q < nq; q++) {
-        uint32_t f = s->troot[q];
-        for (uint64_t e = s->S.col[f]; e < s->S.col[f + 1]; e++)
-            for (int ch = 0; ch < 3; ch++) d[3 * (size_t)f + ch] += pw[s->S.row[e]] * s->S.val[3 * e + ch];
-    }
-    wrt_ctree_inverse_d(t, s->troot, d, 3, scratch);
-    /* C: column root(q) = (u_q - have_q) times T's column there, its power 1 */
+    uint32_t n = s->S.n, nq = (uint32_t)s->b->nq;
     wrt_csc C = {.n = n};
     C.col = wrt_xcalloc((size_t)n + 1, sizeof *C.col);
     uint64_t cnt = 0;
@@ -107,7 +86,39 @@ void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps) {
     }
     C.nnz = k;
     uint64_t raw;
-    wrt_clusters_senders(t, s->troot, &C, s->eps, &s->TW, 1, &raw);
+    wrt_clusters_senders(&s->b->cl->tree, s->troot, &C, s->eps, &s->TW, 1, &raw);
+    free(isroot);
+    return C;
+}
+
+/* The column power rule (series_power.c) with the terms in the senders' tree basis
+ * (series_tree_on). A tree column spans parts of the scene that may not see each other
+ * (two rooms), its rows there cancelling for a light on one side alone: spreading its
+ * difference over its own entries, as a quad's column's is, broke that (the dark room at
+ * 1.6e-3 of the lit room's light). So the root columns' powers are taken back to the
+ * quads' basis (the inverse transform of the row vector), each quad's difference to its
+ * target is carried where its own light lands first, along T's column (its rows that
+ * carry power, in proportion), and that correction, a matrix of the quads' root columns,
+ * is added in the tree's basis (cluster_send.c, the products' weights). The quads' other
+ * columns (their wavelets) are fixed as in the quads' series. Without it the 320-triangle
+ * icosphere furnace's G - I was 0.14% under the DTO's own series. */
+void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps) {
+    const bake_ctx *b = s->b;
+    const wrt_ctree *t = &b->cl->tree;
+    const double *pw = s->pw;
+    uint32_t n = s->S.n, nq = (uint32_t)b->nq;
+    memset(ps, 0, sizeof *ps);
+    double *u = s->no_t ? wrt_series_factored_targets(s, &ps->bounces)
+                        : wrt_series_power_targets(s->T, pw, s->threads, b->opt.max_bounces, &ps->bounces);
+    double *d = wrt_xcalloc(3 * (size_t)n + 1, sizeof *d);
+    double *scratch = wrt_xmalloc((6 * (size_t)t->nnodes + 1) * sizeof *scratch);
+    for (uint32_t q = 0; q < nq; q++) {
+        uint32_t f = s->troot[q];
+        for (uint64_t e = s->S.col[f]; e < s->S.col[f + 1]; e++)
+            for (int ch = 0; ch < 3; ch++) d[3 * (size_t)f + ch] += pw[s->S.row[e]] * s->S.val[3 * e + ch];
+    }
+    wrt_ctree_inverse_d(t, s->troot, d, 3, scratch);
+    wrt_csc C = s->no_t ? wrt_series_factored_power_cols(s, u, d) : tree_power_cols(s, u, d);
     const double one[3] = {1, 1, 1};
     wrt_csc_add3_into(&s->S, &C, one);
     wrt_csc_free(&C);
@@ -121,7 +132,7 @@ void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps) {
         }
     }
     wrt_series_power_apply(u, pw, s->threads, &s->S, ps);
-    free(u); free(d); free(scratch); free(isroot);
+    free(u); free(d); free(scratch);
 }
 
 /* ---- The series in the senders' tree basis (the default with --clusters; docs/clusters.md
@@ -169,6 +180,12 @@ void wrt_series_tree_start(series_state *s) {
     for (uint32_t p = 0; p < t->nnodes; p++)
         if (t->left[p] >= 0) s->tcw[s->troot[t->slot[p]]] *= tight;
     s->tcw[s->troot[t->root_slot]] *= tight;
+    if (s->no_t) { /* T W^T from E1 (series_first.c) */
+        wrt_series_factored_first(s, 0, res->nfuncs, &s->S, &s->P);
+        res->c.cluster_senders_basis = 1;
+        res->c.cluster_senders_quads = 0;
+        return;
+    }
     /* the right factor is its own matrix (the first term takes the tree's columns) */
     if (s->shared) {
         s->Tr = wrt_csc_copy(&s->P);
@@ -232,7 +249,7 @@ void wrt_series_factored_start(series_state *s) {
     double right = b->opt.series_right > 0 ? b->opt.series_right : 0;
     s->Tr = right > 0 ? wrt_csc_copy_compress(&res->dto_e1, right * s->eps, &W1) : wrt_csc_copy(&res->dto_e1);
     s->shared = 0;
-    if (b->opt.cluster_factored < 2) wrt_csc_free(&res->dto_e1); /* 2: kept in the result (tests) */
+    if (b->opt.cluster_factored < 2 && !s->no_t) wrt_csc_free(&res->dto_e1); /* 2: kept in the result (tests) */
     free(cw); free(boost);
 }
 

@@ -14,6 +14,7 @@
 #include "common/cluster_tree.h"
 #include "formats/gto.h"
 #include "precompute/cluster.h"
+#include "precompute/series_first.h"
 
 static double urand(uint64_t *s) {
     *s = *s * 6364136223846793005ULL + 1442695040888963407ULL;
@@ -348,23 +349,100 @@ static void test_threads(void) {
     tsb_free(&s);
 }
 
-/* The products' left factor kept factored (the default with --clusters, series_tree.c):
- * T X against E1 (U X), entry by entry, for X the identity plus random entries, T the links pushed
- * down by the bake's own assembly (res->dto) and E1 the factor the same bake kept; then
- * the two rooms through the factored series: the dark room dark, the light the pushed
- * series' to the compression. */
+/* The products' left factor kept factored (the default with --clusters, series_tree.c),
+ * and T never formed (series_first.c): T from the pushed bake (--clusters-pushed: the same
+ * assembly, T formed) against what the factored bake reads from its E1 alone: every
+ * column of T rebuilt from E1 to the bit; T x and v T against E1 (U x) and (v E1) U; the
+ * first term's senders' transform with T's columns from E1 against the one over T itself;
+ * T X against E1 (U X) for X the identity plus random entries; then the series with T
+ * unformed against the one reading the formed T (cluster_factored 3: the same entries,
+ * the values to rounding), and the two rooms through the factored series: the dark room
+ * dark, the light the pushed series' to the compression. */
+static int csc_same_bits(const wrt_csc *a, const wrt_csc *b) {
+    return a->n == b->n && a->nnz == b->nnz && !memcmp(a->col, b->col, ((size_t)a->n + 1) * sizeof *a->col) &&
+           !memcmp(a->row, b->row, a->nnz * sizeof *a->row) && !memcmp(a->val, b->val, 3 * a->nnz * sizeof *a->val);
+}
+
+static uint64_t test_tcol(void *user, uint32_t f, uint32_t **row, float **val) {
+    return wrt_tcols_col(user, f, row, val);
+}
+
 static void test_factored(void) {
     wrt_scene s;
     wrt_bake_options o = two_rooms_q3(&s, 0.8, 0.7, 0.6);
     int half = s.nquads / 2;
     o.cluster_factored = 2;
-    wrt_bake_result r;
+    wrt_bake_result r, rp;
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
     CHECK(r.dto_e1.col && r.ctree.nq == (uint32_t)s.nquads && r.c.cluster_links > 0, "E1 kept, the tree's series");
+    CHECK(r.c.t_unformed && r.dto.nnz == 0, "T not formed (%llu entries)", (unsigned long long)r.dto.nnz);
+    wrt_bake_options op = o;
+    op.cluster_factored = -1;
+    CHECK(wrt_bake_run(&s, &op, &rp) == WRT_OK, "%s", wrt_last_error());
+    const wrt_csc *T = &rp.dto;
     uint32_t nf = r.nfuncs, ne = r.dto_e1.n;
-    CHECK(ne > nf, "E1 has node columns (%u, %u functions)", ne, nf);
+    CHECK(ne > nf && rp.nfuncs == nf && T->n == nf, "E1 has node columns (%u, %u functions)", ne, nf);
+    CHECK(r.c.entries_dto == T->nnz, "T's entries counted without T: %llu, T %llu", (unsigned long long)r.c.entries_dto,
+          (unsigned long long)T->nnz);
+    uint32_t *root = wrt_clusters_root_index(r.fkeys, nf, (uint32_t)s.nquads);
+    /* every column of T from E1, to the bit */
+    wrt_tcols tc;
+    wrt_tcols_init(&tc, &r.ctree, root, &r.dto_e1, nf);
+    uint64_t cols_bad = 0, seen = 0;
+    for (uint32_t f = 0; f < nf; f++) {
+        uint32_t *cr;
+        float *cv;
+        uint64_t n = wrt_tcols_col(&tc, f, &cr, &cv), a = T->col[f];
+        seen += n;
+        cols_bad += n != T->col[f + 1] - a || memcmp(cr, &T->row[a], n * sizeof *cr) ||
+                    memcmp(cv, &T->val[3 * a], 3 * n * sizeof *cv);
+        free(cr); free(cv);
+    }
+    CHECK(cols_bad == 0 && seen == T->nnz, "T's columns from E1: %llu of %u differ (%llu entries, T %llu)",
+          (unsigned long long)cols_bad, nf, (unsigned long long)seen, (unsigned long long)T->nnz);
+    /* T x and v T for random x, v */
+    uint64_t rs = 7;
+    double *x = calloc(3 * (size_t)nf, sizeof *x), *y0 = calloc(3 * (size_t)nf, sizeof *y0),
+           *y1 = calloc(3 * (size_t)nf, sizeof *y1), *w0 = calloc(3 * (size_t)nf, sizeof *w0),
+           *w1 = calloc(3 * (size_t)nf, sizeof *w1);
+    for (size_t i = 0; i < 3 * (size_t)nf; i++) x[i] = urand(&rs) - 0.25;
+    wrt_csc_apply(T, x, y0);
+    wrt_factored_apply(&r.ctree, root, &r.dto_e1, nf, x, y1);
+    for (uint32_t j = 0; j < nf; j++)
+        for (uint64_t k = T->col[j]; k < T->col[j + 1]; k++)
+            for (int ch = 0; ch < 3; ch++) w0[3 * (size_t)j + ch] += x[3 * (size_t)T->row[k] + ch] * T->val[3 * k + ch];
+    wrt_factored_rowmul(&r.ctree, root, &r.dto_e1, nf, x, w1, 2);
+    double dy = 0, by = 0, dw = 0, bw = 0;
+    for (size_t i = 0; i < 3 * (size_t)nf; i++) {
+        dy = fmax(dy, fabs(y0[i] - y1[i])); by = fmax(by, fabs(y0[i]));
+        dw = fmax(dw, fabs(w0[i] - w1[i])); bw = fmax(bw, fabs(w0[i]));
+    }
+    CHECK(by > 0 && dy <= 1e-6 * by, "T x against E1 (U x): %.3g of %.3g", dy, by);
+    CHECK(bw > 0 && dw <= 1e-6 * bw, "v T against (v E1) U: %.3g of %.3g", dw, bw);
+    free(x); free(y0); free(y1); free(w0); free(w1);
+    /* the first term's transform: over T itself, and with T's columns from E1 */
+    wrt_csc M = wrt_csc_copy(T);
+    uint64_t raw0, raw1;
+    wrt_clusters_senders(&r.ctree, root, &M, 1e-3, NULL, 1, &raw0);
+    wrt_csc M1 = wrt_clusters_senders_cols(&r.ctree, root, nf, test_tcol, &tc, 1e-3, NULL, 0, nf, &raw1);
+    CHECK(csc_same_bits(&M, &M1) && raw0 == raw1, "T W^T without T: %llu entries (%llu raw), with T %llu (%llu)",
+          (unsigned long long)M1.nnz, (unsigned long long)raw1, (unsigned long long)M.nnz, (unsigned long long)raw0);
+    /* a column range alone: those columns, the others empty */
+    uint32_t c0 = nf / 3, c1 = 2 * nf / 3;
+    wrt_csc M2 = wrt_clusters_senders_cols(&r.ctree, root, nf, test_tcol, &tc, 1e-3, NULL, c0, c1, &raw1);
+    int range_ok = M2.col[c0] == 0 && M2.nnz == M.col[c1] - M.col[c0];
+    for (uint32_t c = c0; c < c1 && range_ok; c++)
+        range_ok = M2.col[c + 1] - M2.col[c] == M.col[c + 1] - M.col[c] &&
+                   !memcmp(&M2.row[M2.col[c]], &M.row[M.col[c]], (M.col[c + 1] - M.col[c]) * sizeof *M.row);
+    CHECK(range_ok, "T W^T's columns [%u, %u) alone: %llu entries, want %llu", c0, c1, (unsigned long long)M2.nnz,
+          (unsigned long long)(M.col[c1] - M.col[c0]));
+    wrt_tcols_free(&tc);
+    printf("T never formed: T %llu entries, E1 %llu; T's %u columns from E1 to the bit; T x and v T to %.2g and %.2g; "
+           "T W^T the same (%llu entries)\n", (unsigned long long)T->nnz, (unsigned long long)r.dto_e1.nnz, nf, dy / by,
+           dw / bw, (unsigned long long)M.nnz);
+    wrt_csc_free(&M); wrt_csc_free(&M1); wrt_csc_free(&M2);
     /* X: the identity, and about 8 random entries a column */
-    uint64_t rs = 7, nx = 0;
+    uint64_t nx = 0;
     wrt_triplet *tx = malloc(((size_t)nf * 9 + 1) * sizeof *tx);
     for (uint32_t c = 0; c < nf; c++) {
         tx[nx++] = (wrt_triplet){c, c, {1, 1, 1}};
@@ -375,10 +453,9 @@ static void test_factored(void) {
     }
     wrt_csc X = wrt_csc_from_triplets(nf, tx, nx);
     free(tx);
-    uint32_t *root = wrt_clusters_root_index(r.fkeys, nf, (uint32_t)s.nquads);
     wrt_csc Y = wrt_clusters_pull_up(&r.ctree, root, (uint32_t)s.nquads, &r.dto_e1, nf, &X, 2);
     CHECK(Y.nnz > X.nnz, "U X has node rows (%llu, X %llu)", (unsigned long long)Y.nnz, (unsigned long long)X.nnz);
-    wrt_csc A = wrt_csc_mul(&r.dto, &X, 0, NULL, 1), B = wrt_csc_mul(&r.dto_e1, &Y, 0, NULL, 1);
+    wrt_csc A = wrt_csc_mul(T, &X, 0, NULL, 1), B = wrt_csc_mul(&r.dto_e1, &Y, 0, NULL, 1);
     /* dense compare, column by column */
     double *d = calloc(3 * (size_t)ne, sizeof *d), worst = 0, big = wrt_csc_max(&A);
     for (uint32_t c = 0; c < nf; c++) {
@@ -394,14 +471,28 @@ static void test_factored(void) {
     for (uint32_t c = nf; c < ne; c++) CHECK(B.col[c + 1] == B.col[c], "E1 (U X) column %u beyond the functions", c);
     CHECK(big > 0 && worst <= 1e-5 * big, "T X against E1 (U X): largest difference %.3g, largest entry %.3g", worst, big);
     printf("factored: T %llu entries, E1 %llu; T X (%llu) against E1 (U X) (%llu): largest difference %.3g of the "
-           "largest entry\n", (unsigned long long)r.dto.nnz, (unsigned long long)r.dto_e1.nnz,
+           "largest entry\n", (unsigned long long)T->nnz, (unsigned long long)r.dto_e1.nnz,
            (unsigned long long)A.nnz, (unsigned long long)B.nnz, worst / big);
     free(d); free(root);
     wrt_csc_free(&A); wrt_csc_free(&B); wrt_csc_free(&X); wrt_csc_free(&Y);
+    /* the series reading the formed T (as before T was left unformed): the same entries,
+     * the values to rounding (the power iteration's and targets' sums in another order) */
+    wrt_bake_result rt;
+    wrt_bake_options ot = o;
+    ot.cluster_factored = 3;
+    CHECK(wrt_bake_run(&s, &ot, &rt) == WRT_OK, "%s", wrt_last_error());
+    CHECK(!rt.c.t_unformed && rt.dto.nnz == T->nnz, "cluster_factored 3: T formed (%llu entries)",
+          (unsigned long long)rt.dto.nnz);
+    int same_places = rt.op.nnz == r.op.nnz && !memcmp(rt.op.col, r.op.col, ((size_t)nf + 1) * sizeof *r.op.col) &&
+                      !memcmp(rt.op.row, r.op.row, r.op.nnz * sizeof *r.op.row);
+    double dop = 0, bop = wrt_csc_max(&rt.op);
+    for (uint64_t k = 0; same_places && k < 3 * r.op.nnz; k++) dop = fmax(dop, fabs(rt.op.val[k] - r.op.val[k]));
+    CHECK(same_places && bop > 0 && dop <= 1e-5 * bop, "G - I with T unformed against T formed: %llu and %llu entries, "
+          "largest difference %.3g of %.3g", (unsigned long long)r.op.nnz, (unsigned long long)rt.op.nnz, dop, bop);
+    printf("G - I with T unformed against the series reading T: the same %llu entries, largest difference %.3g of the "
+           "largest\n", (unsigned long long)r.op.nnz, dop / bop);
+    wrt_bake_result_free(&rt);
     /* the factored series against the pushed one (--clusters-pushed) */
-    wrt_bake_result rp;
-    o.cluster_factored = -1;
-    CHECK(wrt_bake_run(&s, &o, &rp) == WRT_OK, "%s", wrt_last_error());
     double *in = calloc((size_t)s.nquads, sizeof *in);
     for (int q = 0; q < half; q++) in[q] = 0.2 + urand(&rs);
     double *e = response(&s, &r, &r.op, in), *ep = response(&s, &rp, &rp.op, in), mean = 0, diff = 0, dark = 0;
