@@ -93,7 +93,7 @@ typedef uint64_t (*wrt_col_fn)(void *user, uint32_t f, uint32_t **row, float **v
 /* wrt_clusters_senders with the matrix's columns from fn (the matrix is never held whole),
  * always in the tree's basis, only columns [c0, c1) kept (the others empty; the tree is
  * still walked whole, a node's function needing all its quads' columns): the tree columns
- * compressed as there, the others as fn gives them (cluster_send.c). */
+ * compressed as there, the others as fn gives them; *raw the whole walk's (cluster_send.c). */
 wrt_csc wrt_clusters_senders_cols(const wrt_ctree *t, const uint32_t *root, uint32_t nf, wrt_col_fn fn, void *user,
                                   double drop, const wrt_csc_weights *W, uint32_t c0, uint32_t c1, uint64_t *raw);
 /* The series' weights of the root slots for the tree functions: areas of their nodes

@@ -54,7 +54,11 @@ static void dcol_free(dcol *c) {
 
 /* compresses the column c (float copy) as slot's and stores it */
 static void emit(send_ctx *x, uint32_t slot, const uint32_t *row, const double *val, uint64_t n) {
-    if (slot < x->c0 || slot >= x->c1) return;
+    if (slot < x->c0 || slot >= x->c1) { /* not kept: counted (raw) as a whole walk's */
+        for (uint64_t i = 0; i < n; i++)
+            x->raw += (float)val[3 * i] != 0 || (float)val[3 * i + 1] != 0 || (float)val[3 * i + 2] != 0;
+        return;
+    }
     uint32_t *r = wrt_xmalloc((n ? n : 1) * sizeof *r);
     float *v = wrt_xmalloc((n ? n : 1) * 3 * sizeof *v);
     uint64_t k = 0;

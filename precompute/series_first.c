@@ -125,7 +125,7 @@ static uint64_t tcol_fn(void *user, uint32_t f, uint32_t **row, float **val) {
     }
     uint64_t n = wrt_tcols_col(&c->tc, f, row, val);
     if (c->mode == TCOL_SUM) {
-        c->entries += n;
+        if (c->tc.leaf_of[f] >= 0) c->entries += n; /* the other columns counted whole after */
     } else if (c->mode == TCOL_TERM) {
         n = wrt_csc_compress_col(*row, *val, n, f, s->eps, &s->W);
     } else {
@@ -156,10 +156,12 @@ void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_cs
         tcol_init(&c, s, TCOL_SUM);
         *S = wrt_clusters_senders_cols(t, s->troot, nf, tcol_fn, &c, s->eps, &s->TW, c0, c1,
                                        &s->res->c.cluster_senders_raw);
-        if (c0 == 0 && c1 == nf) { /* T's entries, as the file's statistics count them */
-            s->res->c.entries_dto = c.entries;
-            s->res->c.entries_spatial = c.entries - s->res->c.entries_angular;
-        }
+        /* T's entries, as the file's statistics count them (whatever the range): its root
+         * columns, all made by the walk, and the others, E1's */
+        for (uint32_t f = 0; f < nf; f++)
+            if (c.tc.leaf_of[f] < 0) c.entries += s->E1->col[f + 1] - s->E1->col[f];
+        s->res->c.entries_dto = c.entries;
+        s->res->c.entries_spatial = c.entries - s->res->c.entries_angular;
         wrt_tcols_free(&c.tc);
     }
     if (P) {
