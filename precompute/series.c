@@ -382,9 +382,6 @@ static void series_tree_share_start(series_state *s) {
     s->p_all = s->P.nnz;
     wrt_csc_free(&s->P);
     s->P = p;
-    wrt_csc sum = csc_range(&s->S, c0, c1);
-    wrt_csc_free(&s->S);
-    s->S = sum;
     s->share = 1;
     wrt_bake_memory_trim();
 }
@@ -987,6 +984,8 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     if (s.tree) wrt_series_tree_start(&s);
     else if (!s.consumed) s.S = wrt_csc_copy(s.T);
     series_share_start(&s);
+    if (s.tree) /* the sum's first state: by shares, this rank's columns */
+        wrt_series_tree_sum_start(&s, s.share ? s.cut[b->opt.dist->rank] : 0, s.share ? s.cut[b->opt.dist->rank + 1] : s.T->n);
     st = series_bounces(&s);
     if (st == WRT_OK) st = series_tail(&s);
     if (st == WRT_OK) st = series_gathered(&s);
