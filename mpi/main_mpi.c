@@ -11,6 +11,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 
 #include "../precompute/bake_cli.h"
 #include "../precompute/budget.h"
@@ -172,6 +175,15 @@ int main(int argc, char **argv) {
         fprintf(stderr, "wrt-bake-mpi: error: MPI_Init failed (run it with mpirun)\n");
         return 1;
     }
+#ifdef __GLIBC__
+    /* Blocks of 1 MiB and more mapped on their own, not from the heap: freed, they go
+     * back to the system at once, and the series' sum grows in place (mremap) instead of
+     * being copied beside itself. glibc's threshold otherwise rises with the largest
+     * block freed (up to 32 MiB), after which a rank's terms and sum came from the heap,
+     * whose freed holes stayed resident: the same rank's peak differed by up to 40 MB
+     * between runs (docs/mpi.md, session 11). */
+    mallopt(M_MMAP_THRESHOLD, 1 << 20);
+#endif
     wrt_bake_dist d = {.allgather = mpi_allgather, .alltoall = mpi_alltoall};
     /* WRT_MPI_SHARE=0: every rank holds the series' terms whole (the products gathered),
      * for comparison (docs/mpi.md) */
