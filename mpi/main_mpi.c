@@ -163,11 +163,12 @@ static void report(const wrt_bake_dist *d) {
     fprintf(stderr,
             "wrt-bake-mpi: rank %d of %d: cpu dto %.2f s (cluster links %.2f, assembly %.2f) series %.2f s; peak rss %.1f MB (to the series %.1f MB); sent dto %llu series %llu "
             "counters %llu bytes; received dto %llu series %llu counters %llu bytes; in all-gathers cpu %.2f s "
-            "wall %.2f s\n",
+            "wall %.2f s; the tree series' products cpu %.2f s\n",
             d->rank, d->nranks, d->cpu_dto, d->cpu_links, d->cpu_assemble, d->cpu_series, (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), (double)d->peak_dto / (1024.0 * 1024.0),
             (unsigned long long)d->bytes_sent[0], (unsigned long long)d->bytes_sent[1],
             (unsigned long long)d->bytes_sent[2], (unsigned long long)d->bytes_recv[0],
-            (unsigned long long)d->bytes_recv[1], (unsigned long long)d->bytes_recv[2], gather_cpu, gather_wall);
+            (unsigned long long)d->bytes_recv[1], (unsigned long long)d->bytes_recv[2], gather_cpu, gather_wall,
+            d->cpu_products);
 }
 
 int main(int argc, char **argv) {

@@ -563,8 +563,10 @@ static wrt_status series_tree_share_mul(series_state *s, const wrt_csc *R, int b
     wrt_bake_dist *d = s->b->opt.dist;
     wrt_status st = checked ? WRT_OK : series_next_check(s, bounce, NULL, NULL);
     /* every rank takes the same turns: a rank that failed its check still sums the count */
+    double c0 = wrt_dist_cpu_now();
     *out = st == WRT_OK ? wrt_csc_mul_cols(R, &s->P, s->eps, &s->TW, s->threads, s->cut[d->rank], s->cut[d->rank + 1])
                         : (wrt_csc){0};
+    d->cpu_products += wrt_dist_cpu_now() - c0;
     *nnz = out->nnz;
     wrt_status cst = wrt_dist_sum_u64(d, nnz, 1);
     if (st == WRT_OK) st = cst;
