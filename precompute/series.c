@@ -358,12 +358,10 @@ static wrt_csc csc_range(const wrt_csc *m, uint32_t c0, uint32_t c1) {
     return r;
 }
 
-/* Under wrt-bake-mpi with an all-to-all, streamed: the ranges cut by the first product's
- * cost, every rank's needed columns, and this rank's share of P, Tr and the sum kept */
 static const wrt_csc *series_right(const series_state *s, int bounce);
 
-/* The series in the senders' tree basis by shares (series_tree_on, docs/mpi.md "The tree
- * series by column shares"): multiplied from the left, a term's column j is T's
+/* The series in the senders' tree basis by shares (series_tree_on, docs/mpi.md "Session 11
+ * (s11-mpi)"): multiplied from the left, a term's column j is T's
  * coarse-cut columns (every rank holds T and its cut whole) times the term before's
  * column j alone, and the sum's column j is the terms' columns j. So each rank keeps one
  * column range of the terms and of the sum for the whole series, cut once by the first
@@ -386,6 +384,9 @@ static void series_tree_share_start(series_state *s) {
     wrt_bake_memory_trim();
 }
 
+/* Under wrt-bake-mpi with an all-to-all, streamed (or the tree series in memory:
+ * series_tree_share_start): the ranges cut by the first product's
+ * cost, every rank's needed columns, and this rank's share of P, Tr and the sum kept */
 static void series_share_start(series_state *s) {
     wrt_bake_dist *d = s->b->opt.dist;
     if (wrt_dist_on(d) && d->alltoall && s->tree && !s->streamed) {

@@ -295,13 +295,19 @@ static void dist_bake_same(void) {
  * walls linked as clusters, near ones refined to leaf pairs) gives every rank the single
  * process's links, leaf pairs, oracle counts, T and G - I; 2 threads a rank, so the ranks'
  * tasks also run in parallel within each. */
-static void dist_clusters_same(void) {
-    wrt_scene s;
-    tsb_init(&s);
-    int mat = tsb_material(&s, 0.7, 0.6, 0.5);
-    tsb_box_inward(&s, P(0, 0, 0), P(4, 1, 1), 4, mat);
+/* The long box, 4 x 1 x 1 with 4 x 4 quads a face, albedo r, g, b, and its --clusters
+ * options */
+static wrt_bake_options long_box(wrt_scene *s, double r, double g, double b) {
+    tsb_init(s);
+    tsb_box_inward(s, P(0, 0, 0), P(4, 1, 1), 4, tsb_material(s, r, g, b));
     wrt_bake_options o = opts(1, 0, 2);
     o.clusters = 1;
+    return o;
+}
+
+static void dist_clusters_same(void) {
+    wrt_scene s;
+    wrt_bake_options o = long_box(&s, 0.7, 0.6, 0.5);
     wrt_bake_result want;
     sim sm;
     bake_arg a[NR_BAKE];
@@ -401,11 +407,7 @@ static void dist_share_same(void) {
  * norms' chains); the products gathered whole (no all-to-all) send more than that. */
 static void dist_tree_share_same(void) {
     wrt_scene s;
-    tsb_init(&s);
-    int mat = tsb_material(&s, 0.8, 0.75, 0.7);
-    tsb_box_inward(&s, P(0, 0, 0), P(4, 1, 1), 4, mat);
-    wrt_bake_options o = opts(1, 0, 2);
-    o.clusters = 1;
+    wrt_bake_options o = long_box(&s, 0.8, 0.75, 0.7);
     o.threads = 1;
     wrt_bake_result want;
     wrt_status st = wrt_bake_run(&s, &o, &want);
