@@ -9,7 +9,7 @@
 # failures: a rank that fails (rank 0 cannot write its output), a rank killed with
 # SIGKILL, and SIGINT to mpirun each end every rank with a non-zero exit and a message,
 # and leave no file. Skipped, with the reason, where mpirun or build/wrt-bake-mpi is
-# missing (`make deps` installs Open MPI; `make` then builds it). About 60 s of CPU.
+# missing (`make deps` installs Open MPI; `make` then builds it). About 75 s of CPU.
 # Usage: tests/mpi.sh BUILD. Prints "mpi: N passed, N failed".
 set -u
 build=${1:-build}
