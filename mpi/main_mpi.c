@@ -181,8 +181,8 @@ int main(int argc, char **argv) {
      * back to the system at once, and the series' sum grows in place (mremap) instead of
      * being copied beside itself. glibc's threshold otherwise rises with the largest
      * block freed (up to 32 MiB), after which a rank's terms and sum came from the heap,
-     * whose freed holes stayed resident: the same rank's peak differed by up to 40 MB
-     * between runs (docs/mpi.md, session 11). */
+     * whose freed holes stayed resident: on the atrium at detail 1, rank 1 of 2 peaked at
+     * 384.6 MB so and at 314.5 MB with the threshold fixed (docs/mpi.md, session 11). */
     mallopt(M_MMAP_THRESHOLD, 1 << 20);
 #endif
     wrt_bake_dist d = {.allgather = mpi_allgather, .alltoall = mpi_alltoall};
