@@ -156,6 +156,8 @@ typedef struct wrt_bake_counters {
     uint64_t bounces;              /* terms of the series computed */
     uint64_t sum_kept, sum_written; /* streamed: terms added to the sum's overlay, and by
                                      * rewriting its file (series_stream.h) */
+    uint64_t sum_held;             /* in memory: the sum's entries before the stored
+                                    * compression (by shares, this rank's columns') */
     double energy_left;            /* norm of the last term kept / norm of the sum */
     double tail_fraction;          /* norm of the tail estimate added / norm of the sum */
     double series_ratio;           /* norm(T^n) / norm(T^(n-1)) at the stop */

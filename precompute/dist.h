@@ -30,6 +30,8 @@ typedef struct wrt_bake_dist {
     /* what this rank sent and received, per phase (filled by the bake; docs/mpi.md) */
     uint64_t bytes_sent[3], bytes_recv[3]; /* WRT_DIST_DTO, WRT_DIST_SERIES, WRT_DIST_COUNTERS */
     double cpu_dto, cpu_series;           /* this process's CPU seconds in each phase */
+    double cpu_products;                  /* part of cpu_series: the tree series' products by
+                                           * column ranges (series.c), this rank's columns */
     double cpu_links, cpu_assemble;       /* parts of cpu_dto: the cluster tree and its links
                                            * (--clusters), and T's assembly (keys, balance, matrix) */
     uint64_t peak_dto;                    /* this process's peak resident bytes up to the series */

@@ -363,10 +363,48 @@ static wrt_csc csc_range(const wrt_csc *m, uint32_t c0, uint32_t c1) {
     return r;
 }
 
-/* Under wrt-bake-mpi with an all-to-all, streamed: the ranges cut by the first product's
+static const wrt_csc *series_right(const series_state *s, int bounce);
+
+/* The series in the senders' tree basis by shares (series_tree_on, docs/mpi.md "Session 11
+ * (s11-mpi)"): multiplied from the left, a term's column j is T's
+ * coarse-cut columns (every rank holds T and its cut whole) times the term before's
+ * column j alone, and the sum's column j is the terms' columns j. So each rank keeps one
+ * column range of the terms and of the sum for the whole series, cut once by the first
+ * product's cost (wrt_dist_mul_cuts: per column, the first term's entries times the
+ * right factor's columns they read), and nothing travels during the products but the
+ * terms' entry counts and the norms, summed in the single process's order
+ * (wrt_dist_chain_sum). The final compression is per column (wrt_csc_compress), so each
+ * rank compresses its own range and only the stored columns go to rank 0, in rounds. */
+static void series_tree_share_start(series_state *s) {
+    wrt_bake_dist *d = s->b->opt.dist;
+    int nr = d->nranks;
+    s->cut = wrt_xmalloc(((size_t)nr + 1) * sizeof *s->cut);
+    if (s->fac) { /* the product E1 (U P): its cost read from U P */
+        wrt_csc X = wrt_series_factored_right(s, &s->P);
+        wrt_series_factored_trim(s, &X);
+        wrt_dist_mul_cuts(&s->Tr, &X, nr, s->cut);
+        wrt_csc_free(&X);
+    } else {
+        wrt_dist_mul_cuts(series_right(s, 2), &s->P, nr, s->cut);
+    }
+    uint32_t c0 = s->cut[d->rank], c1 = s->cut[d->rank + 1];
+    wrt_csc p = csc_range(&s->P, c0, c1);
+    s->p_all = s->P.nnz;
+    wrt_csc_free(&s->P);
+    s->P = p;
+    s->share = 1;
+    wrt_bake_memory_trim();
+}
+
+/* Under wrt-bake-mpi with an all-to-all, streamed (or the tree series in memory:
+ * series_tree_share_start): the ranges cut by the first product's
  * cost, every rank's needed columns, and this rank's share of P, Tr and the sum kept */
 static void series_share_start(series_state *s) {
     wrt_bake_dist *d = s->b->opt.dist;
+    if (wrt_dist_on(d) && d->alltoall && s->tree && !s->streamed) {
+        series_tree_share_start(s);
+        return;
+    }
     if (!wrt_dist_on(d) || !d->alltoall || !s->streamed || !s->Tr.col) return;
     int nr = d->nranks;
     s->cut = wrt_xmalloc(((size_t)nr + 1) * sizeof *s->cut);
@@ -412,6 +450,12 @@ static wrt_status series_share_mul(series_state *s, const wrt_csc *R, int bounce
     return st;
 }
 
+/* A product of the tree series by shares (series_tree_share_start): this rank's columns
+ * of T D P_k from its own columns of P_k, checked first unless `checked` (the estimate
+ * then samples this rank's columns: its share); *nnz the term's entries on every rank */
+static wrt_status series_tree_share_mul(series_state *s, const wrt_csc *R, int bounce, int checked, wrt_csc *out,
+                                        uint64_t *nnz);
+
 static int csc_sumsq_fn(void *user, double *acc) {
     *acc = wrt_csc_sumsq(user, *acc);
     return 1;
@@ -449,8 +493,7 @@ static wrt_status series_add_term(series_state *s, double *sn) {
     const double one[3] = {1, 1, 1};
     if (!s->streamed) {
         wrt_csc_add3_into(&s->S, &s->P, one); /* in place: no second copy of the sum */
-        *sn = wrt_csc_norm(&s->S);
-        return WRT_OK;
+        return series_term_norm(s, &s->S, sn); /* by tree shares, in the single process's order */
     }
     double sq;
     if (!wrt_sum_stream_add(&s->ss, &s->P, one, &sq))
@@ -532,24 +575,55 @@ static wrt_status series_next_check(series_state *s, int bounce, const wrt_sum_s
  * the memory checked on that product unless `checked`. U D P holds P's entries, so P's
  * arrays are freed while the product is made (P is not read again once its successor
  * exists) and taken back from it where the product failed or came out empty (the last
- * term then stays for the tail): the same values. */
-static wrt_status series_factored_term(series_state *s, int bounce, int checked, wrt_csc *N, uint64_t *nnz) {
+ * term then stays for the tail): the same values. By tree shares (range: this rank's
+ * columns [range[0], range[1]), which alone P holds): U P on those columns (U acts on a
+ * column alone) and the same columns of E1 (U P), series_mul's entries; every rank takes
+ * the same turns, *nnz the term's entries on all of them, P taken back where that is 0. */
+static wrt_status series_factored_term(series_state *s, int bounce, int checked, const uint32_t *range, wrt_csc *N,
+                                       uint64_t *nnz) {
+    wrt_bake_dist *d = s->b->opt.dist;
+    double t0 = wrt_dist_cpu_now(), t1 = t0;
     wrt_csc X = wrt_series_factored_right(s, &s->P);
+    if (range) t1 = wrt_dist_cpu_now();
     wrt_status st = checked ? WRT_OK
                             : series_memory_check_beside(s->b, s->C, &s->Tr, &X, s->eps, &s->FW, bounce, NULL, NULL);
-    if (st != WRT_OK) {
-        char msg[1024];
-        snprintf(msg, sizeof msg, "%s", wrt_last_error());
-        wrt_csc_free(&X);
-        return wrt_fail(st, "%s", msg);
+    char msg[1024] = "";
+    if (st != WRT_OK) snprintf(msg, sizeof msg, "%s", wrt_last_error());
+    int freed = st == WRT_OK && !s->shared;
+    if (freed) wrt_csc_free(&s->P);
+    if (st == WRT_OK && range) {
+        double t2 = wrt_dist_cpu_now();
+        *N = wrt_csc_mul_cols(&s->Tr, &X, s->eps, &s->FW, s->threads, range[0], range[1]);
+        d->cpu_products += (t1 - t0) + (wrt_dist_cpu_now() - t2);
+    } else if (st == WRT_OK) {
+        st = series_mul(s->b, &s->Tr, &X, s->eps, &s->FW, s->threads, N);
     }
-    int own = !s->shared;
-    if (own) wrt_csc_free(&s->P);
-    st = series_mul(s->b, &s->Tr, &X, s->eps, &s->FW, s->threads, N);
-    wrt_series_factored_trim(s, N);
-    if (own && (st != WRT_OK || N->nnz == 0)) s->P = wrt_series_factored_left(s, &X);
-    wrt_csc_free(&X);
+    if (N->col) wrt_series_factored_trim(s, N);
     *nnz = N->nnz;
+    if (range) {
+        wrt_status cst = wrt_dist_sum_u64(d, nnz, 1);
+        if (st == WRT_OK) st = cst;
+    }
+    if (freed && (st != WRT_OK || *nnz == 0)) s->P = wrt_series_factored_left(s, &X);
+    wrt_csc_free(&X);
+    if (st != WRT_OK) wrt_csc_free(N);
+    return st != WRT_OK && msg[0] ? wrt_fail(st, "%s", msg) : st;
+}
+
+static wrt_status series_tree_share_mul(series_state *s, const wrt_csc *R, int bounce, int checked, wrt_csc *out,
+                                        uint64_t *nnz) {
+    wrt_bake_dist *d = s->b->opt.dist;
+    if (s->fac && R == &s->Tr) return series_factored_term(s, bounce, checked, s->cut + d->rank, out, nnz);
+    wrt_status st = checked ? WRT_OK : series_next_check(s, bounce, NULL, NULL);
+    /* every rank takes the same turns: a rank that failed its check still sums the count */
+    double c0 = wrt_dist_cpu_now();
+    *out = st == WRT_OK ? wrt_csc_mul_cols(R, &s->P, s->eps, &s->TW, s->threads, s->cut[d->rank], s->cut[d->rank + 1])
+                        : (wrt_csc){0};
+    d->cpu_products += wrt_dist_cpu_now() - c0;
+    *nnz = out->nnz;
+    wrt_status cst = wrt_dist_sum_u64(d, nnz, 1);
+    if (st == WRT_OK) st = cst;
+    if (st != WRT_OK) wrt_csc_free(out);
     return st;
 }
 
@@ -559,8 +633,9 @@ static wrt_status series_next_term(series_state *s, int bounce, int checked, wrt
     const bake_ctx *b = s->b;
     const wrt_csc *R = series_right(s, bounce);
     memset(N, 0, sizeof *N);
+    if (s->share && s->tree) return series_tree_share_mul(s, R, bounce, checked, N, nnz);
     if (s->share) return series_share_mul(s, R, bounce, N, nnz);
-    if (s->fac && R == &s->Tr) return series_factored_term(s, bounce, checked, N, nnz);
+    if (s->fac && R == &s->Tr) return series_factored_term(s, bounce, checked, NULL, N, nnz);
     wrt_status mst = checked ? WRT_OK : series_next_check(s, bounce, NULL, NULL);
     if (mst != WRT_OK) return mst;
     const wrt_csc *La = s->tree ? R : &s->P, *Rb = s->tree ? &s->P : R;
@@ -774,6 +849,17 @@ static int series_final_check(void *user, uint64_t kept, uint64_t projected) {
                                  "the stored operator") == WRT_OK;
 }
 
+/* By shares: the stored operator whole on rank 0, the rank that writes (the others' S
+ * then empty) */
+static wrt_status series_share_root(series_state *s) {
+    wrt_csc all;
+    wrt_status st = wrt_dist_share_to_root(s->b->opt.dist, &s->S, s->cut, &all);
+    wrt_csc_free(&s->S);
+    if (st == WRT_OK) s->S = all;
+    wrt_bake_memory_trim(); /* the rounds' buffers, freed, back to the system */
+    return st;
+}
+
 /* The sum plus k P where add (the tail), then compressed for storing, into s->S: in place
  * in memory, or by the streamed sum's last pass; *sn the norm after the tail (if add) */
 static wrt_status series_final_sum(series_state *s, int add, const double k[3], double *sn) {
@@ -784,9 +870,11 @@ static wrt_status series_final_sum(series_state *s, int add, const double k[3], 
     if (!s->streamed) {
         if (add) {
             wrt_csc_add3_into(&s->S, &s->P, k);
-            *sn = wrt_csc_norm(&s->S);
+            st = series_term_norm(s, &s->S, sn);
         }
-        wrt_csc_compress(&s->S, eps, &W);
+        s->C->sum_held = s->S.nnz;
+        wrt_csc_compress(&s->S, eps, &W); /* column by column: by shares, this rank's */
+        if (st == WRT_OK && s->share) st = series_share_root(s);
     } else {
         double sq = 0, mine;
         if (s->share && add) st = series_share_sumsq(s, &s->P, k, &sq); /* in the single process's order */
@@ -795,13 +883,7 @@ static wrt_status series_final_sum(series_state *s, int add, const double k[3], 
         if (r == 0) st = wrt_fail(WRT_ERR_IO, "the series could not read back its sum's scratch file");
         else if (r < 0) st = WRT_ERR_NOMEM; /* the check's message stands */
         if (add) *sn = sqrt(sq);
-        if (st == WRT_OK && s->share) { /* the stored operator whole on rank 0, the rank that writes */
-            wrt_csc all;
-            st = wrt_dist_share_to_root(s->b->opt.dist, &s->S, s->cut, &all);
-            wrt_csc_free(&s->S);
-            if (st == WRT_OK) s->S = all;
-            wrt_bake_memory_trim(); /* the rounds' buffers, freed, back to the system */
-        }
+        if (st == WRT_OK && s->share) st = series_share_root(s);
         s->C->sum_kept = s->ss.kept;
         s->C->sum_written = s->ss.written;
         wrt_sum_stream_free(&s->ss);
@@ -979,6 +1061,8 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         res->c.cluster_factored_entries = s.Tr.nnz;
     }
     series_share_start(&s);
+    if (s.tree) /* the sum's first state: by shares, this rank's columns */
+        wrt_series_tree_sum_start(&s, s.share ? s.cut[b->opt.dist->rank] : 0, s.share ? s.cut[b->opt.dist->rank + 1] : s.T->n);
     st = series_bounces(&s);
     if (st == WRT_OK) st = series_tail(&s);
     if (st == WRT_OK) st = series_gathered(&s);

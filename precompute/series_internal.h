@@ -75,6 +75,7 @@ double wrt_series_final_weights(series_state *s, wrt_csc_weights *W, double **ow
 /* The series in the senders' tree basis (series_tree.c; docs/clusters.md) */
 int wrt_series_tree_on(const bake_ctx *b);
 void wrt_series_tree_start(series_state *s);
+void wrt_series_tree_sum_start(series_state *s, uint32_t c0, uint32_t c1);
 void wrt_series_tree_cols(const series_state *s, const uint32_t *root, const double *cw_in, double **cw_out,
                           double **boost_out);
 double wrt_series_final_weights_tree(series_state *s, wrt_csc_weights *W, double *own[3]);

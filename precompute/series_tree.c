@@ -149,8 +149,10 @@ void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps) {
  * sqrt(a_P), the small senders' factor of a node under the share); every product's columns
  * the same (TW); the stored compression the same with the final threshold
  * (series_final_weights_tree); the column power rule's targets taken forward to the tree's
- * basis (u W^T: series_tail). The sum is held in memory and T is kept (no streaming,
- * no MPI shares: a product is divided among the ranks by series_mul's columns). */
+ * basis (u W^T: series_tail). The sum is held in memory and T is kept (no streaming).
+ * Under wrt-bake-mpi each rank holds one column range of the terms and of the sum
+ * (series.c series_tree_share_start: a column of the next term needs T and the same
+ * column of the term before alone). */
 /* The products keep a tree column's entries down to this many times less than a quad's:
  * its rows cancel where its functions' light does (two rooms: a light in one room has
  * coefficients on tree functions spanning both, whose rows in the other room sum to 0),
@@ -191,11 +193,8 @@ void wrt_series_tree_start(series_state *s) {
         s->Tr = wrt_csc_copy(&s->P);
         s->shared = 0;
     }
-    /* the sum from T itself (its other columns uncompressed, as the quads' series' sum
-     * starts), the term from T compressed */
+    /* the term from T compressed (the sum follows: wrt_series_tree_sum_start) */
     uint64_t raw;
-    s->S = wrt_csc_copy(s->T);
-    wrt_clusters_senders(&b->cl->tree, s->troot, &s->S, s->eps, &s->TW, 1, &res->c.cluster_senders_raw);
     wrt_clusters_senders(&b->cl->tree, s->troot, &s->P, s->eps, &s->TW, 1, &raw);
     res->c.cluster_senders_basis = 1;
     res->c.cluster_senders_quads = 0;
@@ -290,4 +289,48 @@ wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X) {
     }
     P.nnz = n;
     return P;
+}
+
+/* The sum's first state, from T itself (its other columns uncompressed, as the quads'
+ * series' sum starts), its columns [c0, c1) alone (by shares: this rank's), the others
+ * empty. The tree's columns are made from the quads' root columns alone
+ * (wrt_clusters_senders), so the copy holds the range and every root column, not the
+ * whole of T, and the roots outside the range go once transformed. */
+void wrt_series_tree_sum_start(series_state *s, uint32_t c0, uint32_t c1) {
+    const bake_ctx *b = s->b;
+    const wrt_csc *T = s->T;
+    uint32_t n = T->n;
+    if (c0 == 0 && c1 == n) {
+        s->S = wrt_csc_copy(T);
+    } else {
+        uint8_t *keep = wrt_xcalloc((size_t)n + 1, 1);
+        for (uint32_t q = 0; q < (uint32_t)b->nq; q++) keep[s->troot[q]] = 1;
+        memset(keep + c0, 1, c1 - c0);
+        wrt_csc m = {.n = n};
+        m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
+        for (uint32_t j = 0; j < n; j++) m.col[j + 1] = m.col[j] + (keep[j] ? T->col[j + 1] - T->col[j] : 0);
+        m.nnz = m.col[n];
+        m.row = wrt_xmalloc((m.nnz ? m.nnz : 1) * sizeof *m.row);
+        m.val = wrt_xmalloc((m.nnz ? m.nnz : 1) * 3 * sizeof *m.val);
+        for (uint32_t j = 0; j < n; j++)
+            if (keep[j]) {
+                memcpy(m.row + m.col[j], T->row + T->col[j], (m.col[j + 1] - m.col[j]) * sizeof *m.row);
+                memcpy(m.val + 3 * m.col[j], T->val + 3 * T->col[j], (m.col[j + 1] - m.col[j]) * 3 * sizeof *m.val);
+            }
+        free(keep);
+        s->S = m;
+    }
+    wrt_clusters_senders(&b->cl->tree, s->troot, &s->S, s->eps, &s->TW, 1, &s->res->c.cluster_senders_raw);
+    if (c0 == 0 && c1 == n) return;
+    /* the range kept, in place: the columns before it dropped, its entries moved down */
+    wrt_csc *m = &s->S;
+    uint64_t a = m->col[c0], z = m->col[c1];
+    memmove(m->row, m->row + a, (z - a) * sizeof *m->row);
+    memmove(m->val, m->val + 3 * a, (z - a) * 3 * sizeof *m->val);
+    for (uint32_t j = 0; j < c0; j++) m->col[j + 1] = 0;
+    for (uint32_t j = c0; j < c1; j++) m->col[j + 1] -= a;
+    for (uint32_t j = c1; j < n; j++) m->col[j + 1] = z - a;
+    m->nnz = z - a;
+    m->row = wrt_xrealloc(m->row, (m->nnz ? m->nnz : 1) * sizeof *m->row);
+    m->val = wrt_xrealloc(m->val, (m->nnz ? m->nnz : 1) * 3 * sizeof *m->val);
 }

@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # mpi.sh: wrt-bake-mpi (docs/mpi.md) against wrt-bake. The same bytes at -np 1, 2 and 3
-# (oversubscribed) on cornell, a 9 x 9 maze, the atrium with --clusters and the glossy
-# asset (its first-bounce operator K), each compared
+# (oversubscribed) on cornell and a 9 x 9 maze (with and without --clusters), the atrium
+# with --clusters (the tree series and the quads') and the glossy asset (its first-bounce
+# operator K), each compared
 # with the single process's file: the ranks divide the DTO's pairs, the balance's senders,
 # the pair list's occluder search and the series' product columns, and any slip in a
 # merge's order or a share computed twice or not at all changes the file. Then the
 # failures: a rank that fails (rank 0 cannot write its output), a rank killed with
 # SIGKILL, and SIGINT to mpirun each end every rank with a non-zero exit and a message,
 # and leave no file. Skipped, with the reason, where mpirun or build/wrt-bake-mpi is
-# missing (`make deps` installs Open MPI; `make` then builds it). About 50 s of CPU.
+# missing (`make deps` installs Open MPI; `make` then builds it). About 75 s of CPU.
 # Usage: tests/mpi.sh BUILD. Prints "mpi: N passed, N failed".
 set -u
 build=${1:-build}
@@ -48,6 +49,10 @@ same() { # NAME NPS SCENE OPTIONS...
 }
 same cornell "1 2 3" assets/cornell.gltf -q 3
 same maze9 "2 3" "$tmp/maze9.gltf" -q 1
+# --clusters: the series in the senders' tree basis, each rank holding its column range
+# of the terms and the sum (series.c series_tree_share_start)
+same cornell-clusters "2 3" assets/cornell.gltf -q 3 --clusters
+same maze9-clusters "2 3" "$tmp/maze9.gltf" -q 1 --clusters
 # the DTO's merges in rounds of 256 KiB (the pairs' 12 MB in tens of rounds, where the
 # default 32 MiB takes each in one): the rounds' count agreed, each rank's pairs in order
 if MPIX="-x WRT_MPI_MERGE_BYTES=262144" mpi 3 "$mpibake" "$tmp/maze9.gltf" -o "$tmp/maze9-r.gto" --quiet -q 1 \
@@ -61,9 +66,10 @@ fi
 # series capped at 3 bounces (each bounce is the same divided product): 26 s of CPU for
 # the three bakes (detail 0.25 with the whole series took 15 s; detail 1, 93 s for one)
 same atrium-clusters "2 3" "$tmp/atrium.gltf" -q 1 --clusters --max-bounces 3
-# --clusters' series runs in the senders' tree basis (series.c), its products divided by
-# columns; the quads' series (--clusters-series-quads) by the ranks' shares
-same atrium-quads-series "2" "$tmp/atrium.gltf" -q 1 --clusters --clusters-series-quads --max-bounces 3
+# --clusters' series runs in the senders' tree basis (series.c), each rank its column
+# range of the terms and the sum; the quads' series (--clusters-series-quads) streamed, by
+# the ranks' shares of the terms and the right factor
+same atrium-quads-series "2 3" "$tmp/atrium.gltf" -q 1 --clusters --clusters-series-quads --max-bounces 3
 same glossy "3" assets/glossy.gltf -q 1   # the first-bounce operator K's pairs and the glossy balances
 # the summary on stdout is rank 0's alone, once
 mpi 2 "$mpibake" assets/cornell.gltf -o "$tmp/c.gto" -q 2 >"$tmp/out" 2>"$tmp/err"

@@ -189,6 +189,7 @@ typedef struct bake_arg {
     int share; /* the ranks given an all-to-all: the series by shares */
     uint64_t piece; /* the merges' round size (dist.h's piece_bytes; 0: the default) */
     uint64_t recv_dto; /* the bytes the rank received in the DTO phase */
+    uint64_t sent_series; /* and sent in the series */
 } bake_arg;
 
 static void *bake_rank(void *p) {
@@ -200,6 +201,7 @@ static void *bake_rank(void *p) {
     a->st = wrt_bake_run(a->scene, &a->o, &a->r);
     a->o.dist = NULL;
     a->recv_dto = d.bytes_recv[WRT_DIST_DTO];
+    a->sent_series = d.bytes_sent[WRT_DIST_SERIES];
     return NULL;
 }
 
@@ -293,13 +295,19 @@ static void dist_bake_same(void) {
  * walls linked as clusters, near ones refined to leaf pairs) gives every rank the single
  * process's links, leaf pairs, oracle counts, T and G - I; 2 threads a rank, so the ranks'
  * tasks also run in parallel within each. */
-static void dist_clusters_same(void) {
-    wrt_scene s;
-    tsb_init(&s);
-    int mat = tsb_material(&s, 0.7, 0.6, 0.5);
-    tsb_box_inward(&s, P(0, 0, 0), P(4, 1, 1), 4, mat);
+/* The long box, 4 x 1 x 1 with 4 x 4 quads a face, albedo r, g, b, and its --clusters
+ * options */
+static wrt_bake_options long_box(wrt_scene *s, double r, double g, double b) {
+    tsb_init(s);
+    tsb_box_inward(s, P(0, 0, 0), P(4, 1, 1), 4, tsb_material(s, r, g, b));
     wrt_bake_options o = opts(1, 0, 2);
     o.clusters = 1;
+    return o;
+}
+
+static void dist_clusters_same(void) {
+    wrt_scene s;
+    wrt_bake_options o = long_box(&s, 0.7, 0.6, 0.5);
     wrt_bake_result want;
     sim sm;
     bake_arg a[NR_BAKE];
@@ -387,11 +395,74 @@ static void dist_share_same(void) {
     tsb_free(&s);
 }
 
+/* --clusters' series in the senders' tree basis by column shares (series.c
+ * series_tree_share_start; the ranks given an all-to-all): on a long box of 4 x 4 quads a
+ * face at albedo 0.8 on 3 ranks, rank 0 ends with the single process's G - I bit for bit,
+ * its bounces, energy left, tail and links (the norms' bits decide them), the others with
+ * no operator. Each rank holds its own columns of the sum: the ranks' sums before the
+ * stored compression add up to the single process's, entry for entry, and none holds
+ * more than 3/4 of it. Nothing travels in the products: the series' bytes, all the ranks
+ * together, stay under 24 an entry of the stored operator (each rank's stored columns
+ * sent to rank 0 once, 8 bytes a column and 16 an entry) and 256 a bounce a rank (the
+ * norms' chains); the products gathered whole (no all-to-all) send more than that. */
+static void dist_tree_share_same(void) {
+    wrt_scene s;
+    wrt_bake_options o = long_box(&s, 0.8, 0.75, 0.7);
+    o.threads = 1;
+    wrt_bake_result want;
+    wrt_status st = wrt_bake_run(&s, &o, &want);
+    CHECK(st == WRT_OK && want.op.nnz > 0 && want.c.bounces > 3 && want.c.cluster_senders_basis &&
+              want.c.cluster_factored_entries > 0,
+          "the single process bakes in the senders' tree basis, its products factored E1 (U P) (%llu bounces, "
+          "E1 %llu entries; %s)",
+          (unsigned long long)want.c.bounces, (unsigned long long)want.c.cluster_factored_entries, wrt_last_error());
+    uint64_t sent[2] = {0, 0};
+    for (int share = 1; share >= 0; share--) {
+        sim sm = {.nranks = NR_BAKE};
+        pthread_barrier_init(&sm.bar, NULL, NR_BAKE);
+        bake_arg a[NR_BAKE];
+        for (int k = 0; k < NR_BAKE; k++) a[k] = (bake_arg){.s = &sm, .scene = &s, .o = o, .share = share};
+        run_ranks(NR_BAKE, bake_rank, a, sizeof *a);
+        uint64_t held = 0, most = 0;
+        for (int k = 0; k < NR_BAKE; k++) {
+            CHECK(a[k].st == WRT_OK, "rank %d baked (%s)", k, wrt_last_error());
+            if (a[k].st != WRT_OK) continue;
+            sent[share] += a[k].sent_series;
+            held += a[k].r.c.sum_held;
+            if (a[k].r.c.sum_held > most) most = a[k].r.c.sum_held;
+            if (share && k > 0)
+                CHECK(a[k].r.op.nnz == 0, "rank %d holds no operator (%llu entries)", k,
+                      (unsigned long long)a[k].r.op.nnz);
+            if (k == 0 || !share) {
+                CHECK(csc_same(&a[k].r.op, &want.op), "rank %d (shares %d): the same G - I (%llu entries, want %llu)",
+                      k, share, (unsigned long long)a[k].r.op.nnz, (unsigned long long)want.op.nnz);
+                CHECK(a[k].r.c.bounces == want.c.bounces && a[k].r.c.energy_left == want.c.energy_left &&
+                          a[k].r.c.tail_fraction == want.c.tail_fraction && a[k].r.c.links_gto == want.c.links_gto,
+                      "rank %d (shares %d): the same bounces (%llu / %llu), energy left, tail and links", k, share,
+                      (unsigned long long)a[k].r.c.bounces, (unsigned long long)want.c.bounces);
+            }
+            wrt_bake_result_free(&a[k].r);
+        }
+        if (share)
+            CHECK(held == want.c.sum_held && most > 0 && 4 * most <= 3 * want.c.sum_held,
+                  "the ranks' sums hold %llu entries together (one process %llu), the most on one rank %llu", 
+                  (unsigned long long)held, (unsigned long long)want.c.sum_held, (unsigned long long)most);
+        pthread_barrier_destroy(&sm.bar);
+    }
+    uint64_t bound = 24 * want.op.nnz + 256 * want.c.bounces * NR_BAKE;
+    CHECK(sent[1] <= bound && sent[0] > bound,
+          "the series sent %llu bytes by shares (bound %llu), %llu with its products gathered",
+          (unsigned long long)sent[1], (unsigned long long)bound, (unsigned long long)sent[0]);
+    wrt_bake_result_free(&want);
+    tsb_free(&s);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(dist_mul_same);
     TEST_RUN(dist_assign_bound);
     TEST_RUN(dist_bake_same);
     TEST_RUN(dist_clusters_same);
     TEST_RUN(dist_share_same);
+    TEST_RUN(dist_tree_share_same);
     TEST_END();
 }
