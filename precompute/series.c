@@ -1062,7 +1062,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     }
     series_share_start(&s);
     if (s.tree) /* the sum's first state: by shares, this rank's columns */
-        wrt_series_tree_sum_start(&s, s.share ? s.cut[b->opt.dist->rank] : 0, s.share ? s.cut[b->opt.dist->rank + 1] : s.T->n);
+        wrt_series_tree_sum_start(&s, s.share ? s.cut[b->opt.dist->rank] : 0, s.share ? s.cut[b->opt.dist->rank + 1] : res->nfuncs);
     st = series_bounces(&s);
     if (st == WRT_OK) st = series_tail(&s);
     if (st == WRT_OK) st = series_gathered(&s);

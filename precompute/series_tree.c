@@ -182,8 +182,8 @@ void wrt_series_tree_start(series_state *s) {
     for (uint32_t p = 0; p < t->nnodes; p++)
         if (t->left[p] >= 0) s->tcw[s->troot[t->slot[p]]] *= tight;
     s->tcw[s->troot[t->root_slot]] *= tight;
-    if (s->no_t) { /* T W^T from E1 (series_first.c) */
-        wrt_series_factored_first(s, 0, res->nfuncs, &s->S, &s->P);
+    if (s->no_t) { /* T W^T from E1 (series_first.c); the sum follows */
+        wrt_series_factored_first(s, 0, res->nfuncs, NULL, &s->P);
         res->c.cluster_senders_basis = 1;
         res->c.cluster_senders_quads = 0;
         return;
@@ -299,6 +299,10 @@ wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X) {
 void wrt_series_tree_sum_start(series_state *s, uint32_t c0, uint32_t c1) {
     const bake_ctx *b = s->b;
     const wrt_csc *T = s->T;
+    if (s->no_t) { /* T unformed: its columns from E1 (series_first.c) */
+        wrt_series_factored_first(s, c0, c1, &s->S, NULL);
+        return;
+    }
     uint32_t n = T->n;
     if (c0 == 0 && c1 == n) {
         s->S = wrt_csc_copy(T);
