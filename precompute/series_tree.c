@@ -149,7 +149,8 @@ void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps) {
  * sqrt(a_P), the small senders' factor of a node under the share); every product's columns
  * the same (TW); the stored compression the same with the final threshold
  * (series_final_weights_tree); the column power rule's targets taken forward to the tree's
- * basis (u W^T: series_tail). The sum is held in memory and T is kept (no streaming).
+ * basis (u W^T: series_tail). The sum is held in memory and T is kept (no streaming),
+ * or with T unformed E1 (series_first.c).
  * Under wrt-bake-mpi each rank holds one column range of the terms and of the sum
  * (series.c series_tree_share_start: a column of the next term needs T and the same
  * column of the term before alone). */
@@ -167,7 +168,7 @@ int wrt_series_tree_on(const bake_ctx *b) {
            !b->opt.gathered && !b->opt.report_gathered;
 }
 
-/* The sum's first state and the first term, T W^T, from T (still in memory) */
+/* The first term, T W^T, from T (still in memory), or from E1 where T is unformed */
 void wrt_series_tree_start(series_state *s) {
     const bake_ctx *b = s->b;
     wrt_bake_result *res = s->res;
