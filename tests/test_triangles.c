@@ -36,6 +36,7 @@
 #include "player/relight.h"
 #include "precompute/bake.h"
 #include "precompute/cluster.h"
+#include "precompute/series_first.h"
 #include "verify/reference.h"
 #include "bake_helpers.h"
 #include "ff_closed.h"
@@ -331,6 +332,7 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
     o.clusters = furnace_clusters != 0;
     if (furnace_clusters == 2) o.cluster_tree = 2; /* G - I in the cluster tree's basis */
     if (furnace_clusters == 3) o.cluster_series = 1; /* the series' terms in the senders' tree basis */
+    if (o.clusters) o.cluster_factored = 2; /* T unformed, E1 kept: the DTO's own series read through it */
     double t0 = wrt_now();
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "icosphere: %s", wrt_last_error());
     double tb = wrt_now() - t0;
@@ -390,12 +392,16 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
         {
             double *xv = calloc(3 * r.nfuncs, sizeof *xv), *yv = calloc(3 * r.nfuncs, sizeof *yv), acc = 0;
             for (size_t k = 0; k < 3 * (size_t)r.nfuncs; k++) xv[k] = E[k];
+            /* T unformed (--clusters' factored series): T x = E1 (U x) */
+            uint32_t *troot = r.c.t_unformed ? wrt_clusters_root_index(r.fkeys, r.nfuncs, (uint32_t)s.nquads) : NULL;
             for (int it = 0; it < 300; it++) { /* 0.9^300 = 2e-14 */
                 memset(yv, 0, 3 * r.nfuncs * sizeof *yv);
-                wrt_csc_apply(&r.dto, xv, yv);
+                if (troot) wrt_factored_apply(&r.ctree, troot, &r.dto_e1, r.nfuncs, xv, yv);
+                else wrt_csc_apply(&r.dto, xv, yv);
                 for (uint32_t f = 0; f < r.nfuncs; f++) acc += mh[f] * yv[3 * f];
                 double *t = xv; xv = yv; yv = t;
             }
+            free(troot);
             double want = 4 * M_PI * rho / (1 - rho);
             printf("the series summed from the DTO: indirect flux %.6f vs %.6f (%+.4f%%)\n", acc, want,
                    100 * (acc / want - 1));
