@@ -163,12 +163,12 @@ static void report(const wrt_bake_dist *d) {
     fprintf(stderr,
             "wrt-bake-mpi: rank %d of %d: cpu dto %.2f s (cluster links %.2f, assembly %.2f) series %.2f s; peak rss %.1f MB (to the series %.1f MB); sent dto %llu series %llu "
             "counters %llu bytes; received dto %llu series %llu counters %llu bytes; in all-gathers cpu %.2f s "
-            "wall %.2f s; the tree series' products cpu %.2f s\n",
+            "wall %.2f s; the tree series' products cpu %.2f s, cost %llu, re-cut %u times, %llu bytes sent in them\n",
             d->rank, d->nranks, d->cpu_dto, d->cpu_links, d->cpu_assemble, d->cpu_series, (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), (double)d->peak_dto / (1024.0 * 1024.0),
             (unsigned long long)d->bytes_sent[0], (unsigned long long)d->bytes_sent[1],
             (unsigned long long)d->bytes_sent[2], (unsigned long long)d->bytes_recv[0],
             (unsigned long long)d->bytes_recv[1], (unsigned long long)d->bytes_recv[2], gather_cpu, gather_wall,
-            d->cpu_products);
+            d->cpu_products, (unsigned long long)d->products_cost, d->recuts, (unsigned long long)d->recut_bytes);
 }
 
 int main(int argc, char **argv) {
@@ -194,6 +194,10 @@ int main(int argc, char **argv) {
      * records (dist.h's piece_bytes; default 32 MiB), for tests/mpi.sh's many rounds */
     const char *mb = getenv("WRT_MPI_MERGE_BYTES");
     if (mb && *mb) d.piece_bytes = strtoull(mb, NULL, 10);
+    /* WRT_MPI_RECUT=X: the tree series' ranges re-cut wherever a rank's cost is above X
+     * times the mean (tests/mpi.sh's many re-cuts); -1: cut once (docs/mpi.md's comparison) */
+    const char *rc_at = getenv("WRT_MPI_RECUT");
+    if (rc_at && *rc_at) d.recut_at = strtod(rc_at, NULL);
     MPI_Comm_rank(MPI_COMM_WORLD, &d.rank);
     MPI_Comm_size(MPI_COMM_WORLD, &d.nranks);
     int rc = wrt_bake_cli(argc, argv, &d);

@@ -513,3 +513,73 @@ wrt_status wrt_dist_chain_sum(wrt_bake_dist *d, double *acc, int (*fn)(void *use
     }
     return WRT_OK;
 }
+
+void wrt_dist_cost_cuts(const uint64_t *cost, uint32_t n, int nranks, uint32_t *cut) {
+    uint64_t total = 0, run = 0;
+    for (uint32_t j = 0; j < n; j++) total += cost[j];
+    /* rank r's columns end where the running cost first reaches (r + 1) / nranks of it */
+    int r = 0;
+    cut[0] = 0;
+    for (uint32_t j = 0; j < n && r < nranks - 1; j++) {
+        run += cost[j];
+        while (r < nranks - 1 && (double)run * nranks >= (double)total * (r + 1)) cut[++r] = j + 1;
+    }
+    while (r < nranks - 1) cut[++r] = n;
+    cut[nranks] = n;
+}
+
+wrt_status wrt_dist_share_costs(wrt_bake_dist *d, const uint64_t *mine, const uint32_t *cut, uint64_t *all) {
+    uint32_t c0 = cut[d->rank], c1 = cut[d->rank + 1];
+    uint8_t *got;
+    uint64_t *lens;
+    wrt_status st = dist_exchange(d, WRT_DIST_SERIES, mine, 8ull * (c1 - c0), &got, &lens);
+    if (st != WRT_OK) return st;
+    /* the ranks' ranges in rank order are the columns in order */
+    memcpy(all, got, 8ull * cut[d->nranks]);
+    free(got); free(lens);
+    return WRT_OK;
+}
+
+typedef struct move_user { const uint32_t *to; int self; } move_user;
+
+/* the columns another rank's new range holds */
+static int want_moved(const void *user, int q, uint32_t j) {
+    const move_user *u = user;
+    return q != u->self && j >= u->to[q] && j < u->to[q + 1];
+}
+
+wrt_status wrt_dist_share_move(wrt_bake_dist *d, wrt_csc *m, const uint32_t *cut, const uint32_t *to) {
+    int me = d->rank;
+    move_user u = {to, me};
+    wrt_csc in;
+    wrt_status st = share_send(d, m, 0, cut, want_moved, &u, &in);
+    if (st != WRT_OK) return st;
+    /* the columns kept, [k0, k1), stay one block: moved to their new place in the arrays,
+     * the arrivals (before k0 and from k1 on: the ranges are contiguous) copied around it */
+    uint32_t n = m->n, t0 = to[me], t1 = to[me + 1];
+    uint32_t k0 = cut[me] > t0 ? cut[me] : t0, k1 = cut[me + 1] < t1 ? cut[me + 1] : t1;
+    if (k1 < k0) k1 = k0;
+    uint64_t a = m->col[k0], z = m->col[k1], before = in.col[k0], nnz = in.nnz + (z - a);
+    if (nnz > m->nnz) {
+        m->row = wrt_xrealloc(m->row, nnz * sizeof *m->row);
+        m->val = wrt_xrealloc(m->val, nnz * 3 * sizeof *m->val);
+    }
+    memmove(m->row + before, m->row + a, (z - a) * sizeof *m->row);
+    memmove(m->val + 3 * before, m->val + 3 * a, (z - a) * 3 * sizeof *m->val);
+    memcpy(m->row, in.row, before * sizeof *m->row);
+    memcpy(m->val, in.val, before * 3 * sizeof *m->val);
+    memcpy(m->row + before + (z - a), in.row + before, (in.nnz - before) * sizeof *m->row);
+    memcpy(m->val + 3 * (before + (z - a)), in.val + 3 * before, (in.nnz - before) * 3 * sizeof *m->val);
+    uint64_t *col = wrt_xcalloc((size_t)n + 1, sizeof *col);
+    for (uint32_t j = 0; j < n; j++) {
+        int kept = j >= k0 && j < k1;
+        col[j + 1] = col[j] + (kept ? m->col[j + 1] - m->col[j] : in.col[j + 1] - in.col[j]);
+    }
+    free(m->col);
+    m->col = col;
+    m->nnz = nnz;
+    m->row = wrt_xrealloc(m->row, (nnz ? nnz : 1) * sizeof *m->row);
+    m->val = wrt_xrealloc(m->val, (nnz ? nnz : 1) * 3 * sizeof *m->val);
+    wrt_csc_free(&in);
+    return WRT_OK;
+}

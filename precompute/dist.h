@@ -32,6 +32,15 @@ typedef struct wrt_bake_dist {
     double cpu_dto, cpu_series;           /* this process's CPU seconds in each phase */
     double cpu_products;                  /* part of cpu_series: the tree series' products by
                                            * column ranges (series.c), this rank's columns */
+    double recut_at;                      /* the tree series' ranges re-cut where the most
+                                           * loaded rank's cost is above this many times the
+                                           * mean, whatever the work saved (0: the defaults of
+                                           * series_recut.c; below 0: cut once, never again) */
+    uint32_t recuts;                      /* the tree series' ranges re-cut (series_recut.c) */
+    uint64_t recut_bytes;                 /* the bytes this rank sent in those re-cuts */
+    uint64_t products_cost;               /* the cost model's units of this rank's products
+                                           * (series_recut.c), for the report */
+    uint64_t products_peak;               /* the largest product's cost, all the ranks' */
     double cpu_links, cpu_assemble;       /* parts of cpu_dto: the cluster tree and its links
                                            * (--clusters), and T's assembly (keys, balance, matrix) */
     uint64_t peak_dto;                    /* this process's peak resident bytes up to the series */
@@ -77,6 +86,20 @@ wrt_status wrt_dist_share_fetch(wrt_bake_dist *d, const wrt_csc *own, const uint
  * rank 0 as one matrix in column order (*all); on the other ranks *all is empty (n
  * columns, no entries). */
 wrt_status wrt_dist_share_to_root(wrt_bake_dist *d, wrt_csc *own, const uint32_t *cut, wrt_csc *all);
+
+/* The contiguous column ranges of n columns of integer cost cost[j] (the same cut on every
+ * rank): rank r's ends where the running cost first reaches (r + 1) / nranks of the
+ * total. cut has nranks + 1 slots. */
+void wrt_dist_cost_cuts(const uint64_t *cost, uint32_t n, int nranks, uint32_t *cut);
+
+/* Every rank's costs of its range [cut[rank], cut[rank + 1]) (mine, one per column)
+ * gathered: all[j] for the cut[nranks] columns, on every rank. */
+wrt_status wrt_dist_share_costs(wrt_bake_dist *d, const uint64_t *mine, const uint32_t *cut, uint64_t *all);
+
+/* A share re-cut: m holds this rank's range of cut (the others empty) and afterwards its
+ * range of `to`, the columns that change owner sent in the rounds of share_send and the
+ * ones it keeps moved in place (the matrix is not copied whole). */
+wrt_status wrt_dist_share_move(wrt_bake_dist *d, wrt_csc *m, const uint32_t *cut, const uint32_t *to);
 
 /* A sum in the single process's order over the ranks' shares: rank 0 calls fn(user, acc)
  * from *acc, then rank 1 from rank 0's result, ...; every rank ends with the last (the

@@ -379,6 +379,7 @@ static void series_tree_share_start(series_state *s) {
     wrt_bake_dist *d = s->b->opt.dist;
     int nr = d->nranks;
     s->cut = wrt_xmalloc(((size_t)nr + 1) * sizeof *s->cut);
+    d->products_peak = 0; /* the re-cuts' measure (series_recut.c) */
     if (s->fac) { /* the product E1 (U P): its cost read from U P */
         wrt_csc X = wrt_series_factored_right(s, &s->P);
         wrt_series_factored_trim(s, &X);
@@ -584,13 +585,18 @@ static wrt_status series_factored_term(series_state *s, int bounce, int checked,
     wrt_bake_dist *d = s->b->opt.dist;
     double t0 = wrt_dist_cpu_now(), t1 = t0;
     wrt_csc X = wrt_series_factored_right(s, &s->P);
-    if (range) t1 = wrt_dist_cpu_now();
-    wrt_status st = checked ? WRT_OK
-                            : series_memory_check_beside(s->b, s->C, &s->Tr, &X, s->eps, &s->FW, bounce, NULL, NULL);
+    int freed = 0;
+    wrt_status st = WRT_OK;
+    if (range) { /* P, now in X, re-cut with it (P taken back from X below where needed) */
+        t1 = wrt_dist_cpu_now();
+        if ((freed = !s->shared)) wrt_csc_free(&s->P);
+        st = wrt_series_share_recut(s, &s->Tr, &X);
+    }
+    if (st == WRT_OK && !checked)
+        st = series_memory_check_beside(s->b, s->C, &s->Tr, &X, s->eps, &s->FW, bounce, NULL, NULL);
     char msg[1024] = "";
     if (st != WRT_OK) snprintf(msg, sizeof msg, "%s", wrt_last_error());
-    int freed = st == WRT_OK && !s->shared;
-    if (freed) wrt_csc_free(&s->P);
+    if (st == WRT_OK && !range && (freed = !s->shared)) wrt_csc_free(&s->P);
     if (st == WRT_OK && range) {
         double t2 = wrt_dist_cpu_now();
         *N = wrt_csc_mul_cols(&s->Tr, &X, s->eps, &s->FW, s->threads, range[0], range[1]);
@@ -614,7 +620,8 @@ static wrt_status series_tree_share_mul(series_state *s, const wrt_csc *R, int b
                                         uint64_t *nnz) {
     wrt_bake_dist *d = s->b->opt.dist;
     if (s->fac && R == &s->Tr) return series_factored_term(s, bounce, checked, s->cut + d->rank, out, nnz);
-    wrt_status st = checked ? WRT_OK : series_next_check(s, bounce, NULL, NULL);
+    wrt_status st = wrt_series_share_recut(s, R, &s->P);
+    if (st == WRT_OK && !checked) st = series_next_check(s, bounce, NULL, NULL);
     /* every rank takes the same turns: a rank that failed its check still sums the count */
     double c0 = wrt_dist_cpu_now();
     *out = st == WRT_OK ? wrt_csc_mul_cols(R, &s->P, s->eps, &s->TW, s->threads, s->cut[d->rank], s->cut[d->rank + 1])

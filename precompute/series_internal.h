@@ -76,6 +76,10 @@ double wrt_series_final_weights(series_state *s, wrt_csc_weights *W, double **ow
 int wrt_series_tree_on(const bake_ctx *b);
 void wrt_series_tree_start(series_state *s);
 void wrt_series_tree_sum_start(series_state *s, uint32_t c0, uint32_t c1);
+/* Under wrt-bake-mpi by tree shares, before the product a y (y: this rank's columns of the
+ * right factor): the ranges re-cut by the product's cost where it is uneven, y's and the
+ * sum's columns moved with them (series_recut.c) */
+wrt_status wrt_series_share_recut(series_state *s, const wrt_csc *a, wrt_csc *y);
 void wrt_series_tree_cols(const series_state *s, const uint32_t *root, const double *cw_in, double **cw_out,
                           double **boost_out);
 double wrt_series_final_weights_tree(series_state *s, wrt_csc_weights *W, double *own[3]);

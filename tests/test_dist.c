@@ -156,6 +156,78 @@ static void dist_mul_same(void) {
     free(rw); free(cw); free(pw);
 }
 
+/* Columns [c0, c1) of m, the others empty */
+static wrt_csc csc_cols(const wrt_csc *m, uint32_t c0, uint32_t c1) {
+    wrt_csc r = {.n = m->n};
+    r.col = calloc((size_t)m->n + 1, sizeof *r.col);
+    for (uint32_t j = 0; j < m->n; j++) r.col[j + 1] = r.col[j] + (j >= c0 && j < c1 ? m->col[j + 1] - m->col[j] : 0);
+    r.nnz = r.col[m->n];
+    r.row = malloc((r.nnz + 1) * sizeof *r.row);
+    r.val = malloc((r.nnz + 1) * 3 * sizeof *r.val);
+    memcpy(r.row, m->row + m->col[c0], r.nnz * sizeof *r.row);
+    memcpy(r.val, m->val + 3 * m->col[c0], r.nnz * 3 * sizeof *r.val);
+    return r;
+}
+
+typedef struct move_arg {
+    sim *s;
+    wrt_csc m;
+    const uint32_t *cut, *to;
+    wrt_status st;
+} move_arg;
+
+static void *move_rank(void *p) {
+    move_arg *a = p;
+    wrt_bake_dist d = {.rank = sim_rank, .nranks = a->s->nranks, .allgather = sim_allgather,
+                       .alltoall = sim_alltoall, .user = a->s, .piece_bytes = 3000};
+    a->st = wrt_dist_share_move(&d, &a->m, a->cut, a->to);
+    return NULL;
+}
+
+/* A re-cut's move (wrt_dist_share_move, in rounds of 3000 bytes): every rank ends with
+ * exactly the columns of its new range of one matrix, whatever the old and new ranges
+ * share (overlapping, disjoint, empty); and the cut by costs holds each rank's cost
+ * within the largest column's of the mean. */
+static void dist_share_move_same(void) {
+    uint32_t n = 300;
+    wrt_csc m = random_csc(n, 0.05, 3);
+    uint64_t cost[300], total = 0, big = 0;
+    for (uint32_t j = 0; j < n; j++) {
+        cost[j] = (m.col[j + 1] - m.col[j]) * (1 + j % 5);
+        total += cost[j];
+        if (cost[j] > big) big = cost[j];
+    }
+    uint32_t bycost[4];
+    wrt_dist_cost_cuts(cost, n, 3, bycost);
+    int bad = bycost[0] != 0 || bycost[3] != n;
+    for (int r = 0; r < 3; r++) {
+        uint64_t l = 0;
+        for (uint32_t j = bycost[r]; j < bycost[r + 1]; j++) l += cost[j];
+        bad |= bycost[r] > bycost[r + 1] || 3 * l > total + 3 * big;
+    }
+    CHECK(!bad, "the cut by costs 0 %u %u %u: contiguous, each rank within the largest column of the mean", bycost[1],
+          bycost[2], bycost[3]);
+    const uint32_t cuts[][4] = {{0, 100, 200, 300}, {0, 250, 280, 300}, {0, 0, 150, 300}, {0, 290, 300, 300}};
+    for (int c = 0; c < 4; c++) {
+        const uint32_t *cut = cuts[c], *to = c < 3 ? cuts[c + 1] : bycost;
+        sim s = {.nranks = 3};
+        pthread_barrier_init(&s.bar, NULL, 3);
+        move_arg a[3];
+        for (int k = 0; k < 3; k++) a[k] = (move_arg){.s = &s, .m = csc_cols(&m, cut[k], cut[k + 1]), .cut = cut, .to = to};
+        run_ranks(3, move_rank, a, sizeof *a);
+        for (int k = 0; k < 3; k++) {
+            wrt_csc want = csc_cols(&m, to[k], to[k + 1]);
+            CHECK(a[k].st == WRT_OK && csc_same(&a[k].m, &want), "ranges %u %u -> %u %u: rank %d holds its new columns",
+                  cut[1], cut[2], to[1], to[2], k);
+            wrt_csc_free(&want);
+            wrt_csc_free(&a[k].m);
+        }
+        CHECK(s.a2a[0] > 1, "the move went in rounds (%llu)", (unsigned long long)s.a2a[0]);
+        pthread_barrier_destroy(&s.bar);
+    }
+    wrt_csc_free(&m);
+}
+
 /* The greedy division (largest first to the least loaded): every item has a rank, and
  * the loads differ by at most the largest item (the bound of that rule). */
 static void dist_assign_bound(void) {
@@ -190,6 +262,8 @@ typedef struct bake_arg {
     uint64_t piece; /* the merges' round size (dist.h's piece_bytes; 0: the default) */
     uint64_t recv_dto; /* the bytes the rank received in the DTO phase */
     uint64_t sent_series; /* and sent in the series */
+    double recut_at; /* dist.h's: re-cut wherever a rank's cost is above that times the mean */
+    uint32_t recuts; /* the tree series' ranges re-cut (series_recut.c) */
 } bake_arg;
 
 static void *bake_rank(void *p) {
@@ -197,11 +271,13 @@ static void *bake_rank(void *p) {
     wrt_bake_dist d = {.rank = sim_rank, .nranks = a->s->nranks, .allgather = sim_allgather, .user = a->s};
     if (a->share) d.alltoall = sim_alltoall;
     d.piece_bytes = a->piece;
+    d.recut_at = a->recut_at;
     a->o.dist = &d;
     a->st = wrt_bake_run(a->scene, &a->o, &a->r);
     a->o.dist = NULL;
     a->recv_dto = d.bytes_recv[WRT_DIST_DTO];
     a->sent_series = d.bytes_sent[WRT_DIST_SERIES];
+    a->recuts = d.recuts;
     return NULL;
 }
 
@@ -417,17 +493,19 @@ static void dist_tree_share_same(void) {
           "E1 %llu entries; %s)",
           (unsigned long long)want.c.bounces, (unsigned long long)want.c.cluster_factored_entries, wrt_last_error());
     uint64_t sent[2] = {0, 0};
+    uint32_t recuts = 0;
     for (int share = 1; share >= 0; share--) {
         sim sm = {.nranks = NR_BAKE};
         pthread_barrier_init(&sm.bar, NULL, NR_BAKE);
         bake_arg a[NR_BAKE];
-        for (int k = 0; k < NR_BAKE; k++) a[k] = (bake_arg){.s = &sm, .scene = &s, .o = o, .share = share};
+        for (int k = 0; k < NR_BAKE; k++) a[k] = (bake_arg){.s = &sm, .scene = &s, .o = o, .share = share, .recut_at = 1.001};
         run_ranks(NR_BAKE, bake_rank, a, sizeof *a);
         uint64_t held = 0, most = 0;
         for (int k = 0; k < NR_BAKE; k++) {
             CHECK(a[k].st == WRT_OK, "rank %d baked (%s)", k, wrt_last_error());
             if (a[k].st != WRT_OK) continue;
             sent[share] += a[k].sent_series;
+            if (share) recuts += a[k].recuts;
             held += a[k].r.c.sum_held;
             if (a[k].r.c.sum_held > most) most = a[k].r.c.sum_held;
             if (share && k > 0)
@@ -449,6 +527,7 @@ static void dist_tree_share_same(void) {
                   (unsigned long long)held, (unsigned long long)want.c.sum_held, (unsigned long long)most);
         pthread_barrier_destroy(&sm.bar);
     }
+    CHECK(recuts > 0 && recuts % NR_BAKE == 0, "the ranges were re-cut on every rank alike (%u re-cuts in all)", recuts);
     uint64_t bound = 24 * want.op.nnz + 256 * want.c.bounces * NR_BAKE;
     CHECK(sent[1] <= bound && sent[0] > bound,
           "the series sent %llu bytes by shares (bound %llu), %llu with its products gathered",
@@ -460,6 +539,7 @@ static void dist_tree_share_same(void) {
 int main(int argc, char **argv) {
     TEST_RUN(dist_mul_same);
     TEST_RUN(dist_assign_bound);
+    TEST_RUN(dist_share_move_same);
     TEST_RUN(dist_bake_same);
     TEST_RUN(dist_clusters_same);
     TEST_RUN(dist_share_same);
