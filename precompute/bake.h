@@ -190,6 +190,8 @@ typedef struct wrt_bake_counters {
                                     * series_first.c); not in the JSON, which the file records */
     uint64_t cluster_factored_entries; /* the products' left factor E1's entries (T = E1 U;
                                         * 0: T itself, pushed down) */
+    uint32_t cluster_apart_nodes;   /* the tree's nodes whose columns the series' products keep
+                                     * finer (series_tree.c, wrt_clusters_apart) */
     uint64_t cluster_senders_raw;   /* the tree columns' entries before their compression */
     uint64_t cluster_senders_quads; /* G - I's entries in the quads' basis, before */
     uint64_t cluster_refused_visibility, cluster_refused_spread; /* the oracle's refusals */         /* 1: the operator is stored in the tree's basis (res->ctree set) */

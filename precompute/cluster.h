@@ -101,6 +101,15 @@ wrt_csc wrt_clusters_senders_cols(const wrt_ctree *t, const uint32_t *root, uint
  * a node is not a small sender) and the power weights transformed (cluster_ops.c). */
 void wrt_clusters_series_weights(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
                                  double *rw, double *cw, double *pw, double *boost);
+/* Per node of t, 1 where the node or a node below it has two halves whose light (the
+ * quads' root columns of M, nf x nf, the quads' basis: wr phi_L and wl phi_R) lands on
+ * rows apart: the rows' power (pw) both reach is under WRT_CLUSTER_APART of the smaller
+ * half's (two rooms sharing a wall). A light on one side alone has coefficients on such
+ * nodes' functions whose rows on the other side cancel (cluster_send.c, series_tree.c).
+ * M NULL: the columns from fn, as wrt_clusters_senders_cols. */
+#define WRT_CLUSTER_APART 0.01
+void wrt_clusters_apart(const wrt_ctree *t, const uint32_t *root, const wrt_csc *M, wrt_col_fn fn, void *user,
+                        const double *pw, uint8_t *apart);
 /* The root slot (function index) of every quad; malloc'd (cluster_ops.c). */
 uint32_t *wrt_clusters_root_index(const uint64_t *fkeys, uint32_t nf, uint32_t nq);
 

@@ -45,6 +45,8 @@ typedef struct {
     float **oval;
     uint64_t *on;
     uint64_t raw;         /* the tree columns' entries before compression */
+    const double *pw;     /* wrt_clusters_apart: the rows' power weights, and per node the */
+    uint8_t *apart;       /* result (orow NULL: nothing is emitted) */
 } send_ctx;
 
 static void dcol_free(dcol *c) {
@@ -72,6 +74,31 @@ static void emit(send_ctx *x, uint32_t slot, const uint32_t *row, const double *
     x->raw += k;
     k = wrt_csc_compress_col(r, v, k, slot, x->drop, x->W);
     x->orow[slot] = r; x->oval[slot] = v; x->on[slot] = k;
+}
+
+static double cmax(const double *v) { return fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2]))); }
+
+/* Whether node p's halves are apart (wrt_clusters_apart): of the light of each half (the
+ * columns wr phi_L and wl phi_R, each row's largest channel times its power weight), the
+ * share that lands on rows the other half's light reaches too (the smaller of the two
+ * there), under WRT_CLUSTER_APART of the smaller half's: 1 for halves whose light meets
+ * everywhere, 0 for two rooms that do not see each other. */
+static int halves_apart(const send_ctx *x, const dcol *L, const dcol *R, double wl, double wr) {
+    double a = 0, b = 0, both = 0;
+    uint64_t i = 0, j = 0;
+    while (i < L->n || j < R->n) {
+        int l = j >= R->n || (i < L->n && L->row[i] <= R->row[j]);
+        int r = i >= L->n || (j < R->n && R->row[j] <= L->row[i]);
+        double u = l ? wr * cmax(&L->val[3 * i]) : 0, v = r ? wl * cmax(&R->val[3 * j]) : 0;
+        double p = x->pw[l ? L->row[i] : R->row[j]];
+        a += p * u;
+        b += p * v;
+        both += p * fmin(u, v);
+        i += l;
+        j += r;
+    }
+    double small = fmin(a, b);
+    return small > 0 && both < WRT_CLUSTER_APART * small;
 }
 
 /* phi of node p's column; psi of every internal node below (and p) emitted */
@@ -132,9 +159,10 @@ static dcol node_phi(send_ctx *x, uint32_t p) {
         n++;
     }
     out.n = n;
+    if (x->apart) x->apart[p] = halves_apart(x, &L, &R, wl, wr) || x->apart[t->left[p]] || x->apart[t->right[p]];
     dcol_free(&L);
     dcol_free(&R);
-    emit(x, x->root[t->slot[p]], out.row, dv, n);
+    if (x->orow) emit(x, x->root[t->slot[p]], out.row, dv, n);
     free(dv);
     return out;
 }
@@ -152,6 +180,14 @@ static uint8_t *send_walk(send_ctx *x, uint32_t nf) {
     emit(x, x->root[t->root_slot], top.row, top.val, top.n);
     dcol_free(&top);
     return tree;
+}
+
+void wrt_clusters_apart(const wrt_ctree *t, const uint32_t *root, const wrt_csc *M, wrt_col_fn fn, void *user,
+                        const double *pw, uint8_t *apart) {
+    send_ctx x = {.t = t, .root = root, .M = M, .fn = fn, .user = user, .pw = pw, .apart = apart};
+    memset(apart, 0, t->nnodes);
+    dcol top = node_phi(&x, 0);
+    dcol_free(&top);
 }
 
 int wrt_clusters_senders(const wrt_ctree *t, const uint32_t *root, wrt_csc *M, double drop,

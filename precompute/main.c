@@ -227,6 +227,7 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
      * products by T pushed down keep their bytes) */
     if (c->cluster_factored_entries)
         fprintf(f, ",\"factored_entries\":%llu", (unsigned long long)c->cluster_factored_entries);
+    if (c->cluster_apart_nodes) fprintf(f, ",\"apart_nodes\":%u", c->cluster_apart_nodes);
     if (c->cluster_visits || c->cluster_leaf_pairs || c->cluster_links) fputc('}', f);
 }
 

@@ -171,6 +171,13 @@ void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_cs
     }
 }
 
+void wrt_series_factored_apart(series_state *s, uint8_t *apart) {
+    tcol_ctx c;
+    tcol_init(&c, s, TCOL_SUM);
+    wrt_clusters_apart(&s->b->cl->tree, s->troot, NULL, tcol_fn, &c, s->pw, apart);
+    wrt_tcols_free(&c.tc);
+}
+
 wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d) {
     tcol_ctx c;
     uint64_t raw;

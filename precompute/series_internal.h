@@ -95,6 +95,8 @@ wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X);
  * the columns [c0, c1) (S or P may be NULL); y += T x (a power_iter's apply); the power
  * targets; the column power rule's correction in the senders' tree basis, compressed */
 void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_csc *S, wrt_csc *P);
+/* wrt_clusters_apart on T's root columns made from E1 (series_tree.c's nodes apart) */
+void wrt_series_factored_apart(series_state *s, uint8_t *apart);
 void wrt_series_factored_apply(void *user, const double *x, double *y);
 double *wrt_series_factored_targets(series_state *s, int *bounces);
 wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d);
