@@ -104,47 +104,6 @@ static wrt_status series_mul(const bake_ctx *b, const wrt_csc *a, const wrt_csc 
     return wrt_dist_mul(b->opt.dist, a, m, eps, W, threads, out);
 }
 
-static void power_iter_start(power_iter *p, const wrt_csc *T, const double *pw) {
-    uint32_t n = p->apply ? p->n : T->n;
-    p->n = n;
-    p->x = wrt_xcalloc(3 * (size_t)n + 1, sizeof *p->x);
-    p->y = wrt_xcalloc(3 * (size_t)n + 1, sizeof *p->y);
-    for (uint32_t i = 0; i < n; i++)
-        if (pw[i] != 0) p->x[3 * i] = p->x[3 * i + 1] = p->x[3 * i + 2] = pw[i];
-    if (p->apply) p->apply(p->user, p->x, p->y);
-    else wrt_csc_apply(T, p->x, p->y);
-    for (int ch = 0; ch < 3; ch++) p->vp_prev[ch] = 0;
-    for (uint32_t i = 0; i < n; i++)
-        for (int ch = 0; ch < 3; ch++) p->vp_prev[ch] += pw[i] * p->y[3 * i + ch];
-}
-
-/* next iterate: x = y / its power, y = T x; rc the ratio of the powers. 0 where the
- * spilled T could not be read back. */
-static int power_iter_step(power_iter *p, const wrt_csc *T, wrt_spill *sp, const double *pw, double rc[3]) {
-    uint32_t n = p->n;
-    double *x = p->x, *y = p->y, *vp_prev = p->vp_prev;
-    double vs = fmax(vp_prev[0], fmax(vp_prev[1], vp_prev[2]));
-    for (size_t i = 0; i < 3 * (size_t)n; i++) x[i] = vs > 0 ? y[i] / vs : 0;
-    for (int ch = 0; ch < 3; ch++) vp_prev[ch] = vs > 0 ? vp_prev[ch] / vs : 0;
-    memset(y, 0, 3 * (size_t)n * sizeof *y);
-    if (p->apply) p->apply(p->user, x, y);
-    else if (T) wrt_csc_apply(T, x, y);
-    else if (!wrt_spill_apply(sp, x, y)) return 0;
-    double vp[3] = {0, 0, 0};
-    for (uint32_t i = 0; i < n; i++)
-        for (int ch = 0; ch < 3; ch++) vp[ch] += pw[i] * y[3 * i + ch];
-    for (int ch = 0; ch < 3; ch++) {
-        rc[ch] = vp_prev[ch] > 0 ? vp[ch] / vp_prev[ch] : 0;
-        vp_prev[ch] = vp[ch];
-    }
-    return 1;
-}
-
-static void power_iter_free(power_iter *p) {
-    free(p->x); free(p->y);
-    p->x = p->y = NULL;
-}
-
 /* The coarse cut (--series-coarse F, on by default with --clusters): the right factor of
  * the products from the second term on keeps only the rows of the spatial functions whose
  * support is at least F of the scene's area (a wavelet of node level l on quad q: a_q /
@@ -310,7 +269,7 @@ static void series_consume(series_state *s) {
     wrt_task task;
     int beside = wrt_threads_resolve(s->threads) > 1;
     if (beside) wrt_task_start(&task, spill_task_run, &sk);
-    power_iter_start(&s->pi, s->T, s->pw);
+    wrt_power_iter_start(&s->pi, s->T, s->pw);
     if (!b->opt.no_tail) s->u = wrt_series_power_targets(s->T, s->pw, s->threads, b->opt.max_bounces, &s->u_bounces);
     if (beside) wrt_task_join(&task);
     else spill_task_run(&sk);
@@ -551,7 +510,7 @@ static void bounce_pass_run(size_t i, int th, void *user) {
         bp->ast = series_add_term(bp->s, &bp->sn);
     } else {
         bp->pn = wrt_csc_norm(&bp->s->P);
-        bp->pok = power_iter_step(&bp->s->pi, bp->T, &bp->s->Tf, bp->s->pw, bp->rnext);
+        bp->pok = wrt_power_iter_step(&bp->s->pi, bp->T, &bp->s->Tf, bp->s->pw, bp->rnext);
     }
 }
 
@@ -669,7 +628,7 @@ static void next_task_run(void *user) {
     next_task *t = user;
     series_state *s = t->s;
     t->pn = wrt_csc_norm(&s->P);
-    t->pok = power_iter_step(&s->pi, t->T, &s->Tf, s->pw, t->rnext);
+    t->pok = wrt_power_iter_step(&s->pi, t->T, &s->Tf, s->pw, t->rnext);
     if (!t->pok || !t->next || t->st != WRT_OK) return;
     t->st = series_next_term(s, (int)s->C->bounces + 1, 1, &t->N, &t->nnz);
     if (t->st != WRT_OK) snprintf(t->msg, sizeof t->msg, "%s", wrt_last_error());
@@ -695,7 +654,7 @@ static wrt_status series_bounces(series_state *s) {
     /* the iteration runs on T itself, not on the compressed terms, whose power drifts by
      * what compression drops (at albedo 0.999 a drift of 2e-5 per bounce is 2% of the tail);
      * started here, or in series_consume before T was consumed */
-    if (!s->pi.x) power_iter_start(&s->pi, T, s->pw);
+    if (!s->pi.x) wrt_power_iter_start(&s->pi, T, s->pw);
     double rc_prev[3] = {-1, -1, -1};
     double ratio = 0;
     int stable = 0;
@@ -781,7 +740,7 @@ static wrt_status series_bounces(series_state *s) {
             wrt_status ast = series_term_norm(s, &s->P, &pn);
             if (ast == WRT_OK) ast = series_add_term(s, &sn);
             if (ast != WRT_OK) return ast;
-            if (!power_iter_step(&s->pi, T, &s->Tf, s->pw, rnext))
+            if (!wrt_power_iter_step(&s->pi, T, &s->Tf, s->pw, rnext))
                 return wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
         }
         int settled = 1;
@@ -813,7 +772,7 @@ static wrt_status series_bounces(series_state *s) {
     wrt_csc_free(&N); /* a next term the series did not take */
     if (st != WRT_OK) return st;
     series_free_right(s);
-    power_iter_free(&s->pi);
+    wrt_power_iter_free(&s->pi);
     if (!s->streamed) wrt_spill_free(&s->Tf); /* streamed, it may still be the sum */
     s->ratio = ratio;
     return WRT_OK;
@@ -1011,7 +970,7 @@ static void series_senders(series_state *s) {
 /* Frees what the state holds (after a failure: the sum too) */
 static void series_state_free(series_state *s) {
     series_free_right(s);
-    power_iter_free(&s->pi);
+    wrt_power_iter_free(&s->pi);
     wrt_csc_free(&s->P); wrt_csc_free(&s->S);
     wrt_spill_free(&s->Tf);
     wrt_sum_stream_free(&s->ss);

@@ -18,6 +18,12 @@ typedef struct {
     void (*apply)(void *user, const double *x, double *y);
     void *user;
 } power_iter;
+/* The iteration started at the power weights pw (series_iter.c) */
+void wrt_power_iter_start(power_iter *p, const wrt_csc *T, const double *pw);
+/* The next iterate: x = y / its power, y = T x (T, or the scratch file sp where T is
+ * NULL, or p->apply); rc the ratio of the powers. 0 where sp could not be read back. */
+int wrt_power_iter_step(power_iter *p, const wrt_csc *T, wrt_spill *sp, const double *pw, double rc[3]);
+void wrt_power_iter_free(power_iter *p);
 
 /* The series' working state, shared by its stages */
 typedef struct {
