@@ -63,19 +63,27 @@ static uint64_t series_overlay_need(const wrt_sum_stream *ss, uint64_t est) {
  * a 16th of itself to be estimated: 4% of the series.) */
 static wrt_status series_memory_check_beside(const bake_ctx *b, wrt_bake_counters *C, const wrt_csc *P,
                                              const wrt_csc *T, double eps, const wrt_csc_weights *W, int bounce,
-                                             const wrt_sum_stream *ss, const wrt_csc *beside);
+                                             const wrt_sum_stream *ss, const wrt_csc *beside, const wrt_csc *X);
 
 static wrt_status series_memory_check(const bake_ctx *b, wrt_bake_counters *C, const wrt_csc *P, const wrt_csc *T,
                                       double eps, const wrt_csc_weights *W, int bounce, const wrt_sum_stream *ss) {
-    return series_memory_check_beside(b, C, P, T, eps, W, bounce, ss, NULL);
+    return series_memory_check_beside(b, C, P, T, eps, W, bounce, ss, NULL, NULL);
 }
 
 /* The same, for a product made while the sum's pass adds the term `beside` (NULL: none;
  * series_bounces): ss the sum as that pass found it, and the overlay counted is that
- * pass's, old and new (the product's own pass comes with the next product's check). */
+ * pass's, old and new (the product's own pass comes with the next product's check).
+ * X: the right factor U P of the factored product (series_factored_term; NULL: not that
+ * product), freed after it. There the resident memory rose by about twice the product's
+ * entries while it was made (the chunks appended by realloc, the threads' freed column
+ * arrays: 54 MB for 1.80M entries on the atrium at 1,060 elements), and the sum's pass
+ * then grows S in memory by the term's entries, of which X's freed arrays hold some: so
+ * twice the product's need, plus what of it X does not cover. Measured on the atrium at
+ * 1,060, 2,704 and 5,048 elements, --clusters -q 1: each bounce's peak under its check's
+ * total (docs/clusters.md "The memory estimate with T never formed"). */
 static wrt_status series_memory_check_beside(const bake_ctx *b, wrt_bake_counters *C, const wrt_csc *P,
                                              const wrt_csc *T, double eps, const wrt_csc_weights *W, int bounce,
-                                             const wrt_sum_stream *ss, const wrt_csc *beside) {
+                                             const wrt_sum_stream *ss, const wrt_csc *beside, const wrt_csc *X) {
     const double per = 16.0; /* bytes per entry: row index and three floats */
     char what[96];
     if (bounce > 0) snprintf(what, sizeof what, "bounce %d of the series", bounce);
@@ -87,6 +95,7 @@ static wrt_status series_memory_check_beside(const bake_ctx *b, wrt_bake_counter
         est = wrt_csc_mul_estimate(P, T, eps, W, 16, b->opt.threads);
         need = per * 1.25 * (1 + 1.0 / 32) * (double)est;
     }
+    if (X) need = 2 * need + fmax(0, need - per * (double)X->nnz);
     if (ss)
         need += (double)series_stream_need(b, wrt_sum_stream_nnz(ss) + est) +
                 (double)series_overlay_need(ss, beside ? beside->nnz : est);
@@ -522,7 +531,7 @@ static wrt_status series_next_check(series_state *s, int bounce, const wrt_sum_s
     const wrt_csc *R = series_right(s, bounce);
     const wrt_csc *La = s->tree ? R : &s->P, *Rb = s->tree ? &s->P : R;
     wrt_status mst = series_memory_check_beside(s->b, s->C, La, Rb, s->eps, s->tree ? &s->TW : &s->W, bounce,
-                                                ss ? ss : s->streamed ? &s->ss : NULL, beside);
+                                                ss ? ss : s->streamed ? &s->ss : NULL, beside, NULL);
     if (mst != WRT_OK) {
         char msg[1024];
         snprintf(msg, sizeof msg, "%s", wrt_last_error());
@@ -538,21 +547,36 @@ static wrt_status series_next_check(series_state *s, int bounce, const wrt_sum_s
  * term then stays for the tail): the same values. By tree shares (range: this rank's
  * columns [range[0], range[1]), which alone P holds): U P on those columns (U acts on a
  * column alone) and the same columns of E1 (U P), series_mul's entries; every rank takes
- * the same turns, *nnz the term's entries on all of them, P taken back where that is 0. */
+ * the same turns, *nnz the term's entries on all of them, P taken back where that is 0.
+ * In one process U P's memory is checked before it is made: its arrays and the pull-up's
+ * freed scratch, 2.6 bytes for every byte of P (X holds 1.28 to 1.52 times P's entries on
+ * the atrium, and the build raised the resident memory by 1.5 times X's bytes); by shares
+ * the ranks' turns must stay the same, and the product's check counts X once made. The
+ * freed memory of the last product and sum pass goes back to the system first: the
+ * pull-up stacked on it was the bake's peak (the atrium at 1,060 elements: 224 to 249 MB
+ * against 198 to 202 MB with it given back). */
 static wrt_status series_factored_term(series_state *s, int bounce, int checked, const uint32_t *range, wrt_csc *N,
                                        uint64_t *nnz) {
     wrt_bake_dist *d = s->b->opt.dist;
     double t0 = wrt_dist_cpu_now(), t1 = t0;
-    wrt_csc X = wrt_series_factored_right(s, &s->P);
-    int freed = 0;
     wrt_status st = WRT_OK;
+    if (!range && !checked) { /* wrt_bake_memory_check gives the freed memory back first */
+        char what[64];
+        snprintf(what, sizeof what, "bounce %d of the series, U P", bounce);
+        st = wrt_bake_memory_check(s->b->opt.max_memory_mb, &s->C->mem_estimate_mb,
+                                   (uint64_t)(16 * 2.6 * (double)s->P.nnz), what);
+    } else {
+        wrt_bake_memory_trim();
+    }
+    wrt_csc X = st == WRT_OK ? wrt_series_factored_right(s, &s->P) : (wrt_csc){0};
+    int freed = 0;
     if (range) { /* P, now in X, re-cut with it (P taken back from X below where needed) */
         t1 = wrt_dist_cpu_now();
         if ((freed = !s->shared)) wrt_csc_free(&s->P);
         st = wrt_series_share_recut(s, &s->Tr, &X);
     }
     if (st == WRT_OK && !checked)
-        st = series_memory_check_beside(s->b, s->C, &s->Tr, &X, s->eps, &s->FW, bounce, NULL, NULL);
+        st = series_memory_check_beside(s->b, s->C, &s->Tr, &X, s->eps, &s->FW, bounce, NULL, NULL, &X);
     char msg[1024] = "";
     if (st != WRT_OK) snprintf(msg, sizeof msg, "%s", wrt_last_error());
     if (st == WRT_OK && !range && (freed = !s->shared)) wrt_csc_free(&s->P);
@@ -1007,8 +1031,9 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
                       s.tree; /* the tree's first term beside the sum */
     /* T never formed: E1 held to the end, its compressed copy, and the sum's first state
      * and the first term (T W^T: their tree columns compressed, about E1's entries each,
-     * docs/clusters.md "T never formed") */
-    uint64_t start_need = s.no_t ? 4 * 16 * res->dto_e1.nnz : copies * 16 * res->dto.nnz;
+     * docs/clusters.md "T never formed"), and the sum's start beside them: 4.6 and 5.4
+     * times E1's bytes above the check's on the atrium at 1,060 and 2,704 elements, so 6 */
+    uint64_t start_need = s.no_t ? 6 * 16 * res->dto_e1.nnz : copies * 16 * res->dto.nnz;
     wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, start_need,
                                           "the series' first term");
     if (st != WRT_OK) return st;
