@@ -61,6 +61,10 @@ typedef struct wrt_bake_options {
                             * series_right x eps_compress (power kept) instead of the full T
                             * (series.c); 0: the default, 1; < 0: the full T */
     int series_right_from; /* the first bounce that does (2 or more; default 2) */
+    double series_skip;    /* the factored tree series' products (--clusters): a single
+                            * contribution under series_skip x eps_compress (weighted as the
+                            * compression's test) is not summed, its power kept (sparse.h
+                            * wrt_csc_bands); 0: the default, WRT_SERIES_SKIP_DEFAULT; < 0: off */
     int no_balance;        /* 1: keep T's root rows as the links integrate them (no power balance) */
     double max_memory_mb;  /* memory budget; default half the physical memory (wrt_bake_memory_default) */
     int first_bounce_level; /* outgoing angular level of the first-bounce operator K of glossy
@@ -129,6 +133,9 @@ typedef struct wrt_bake_options {
  * drops at most 5% of its power (docs/algorithm.md "Small senders") */
 #define WRT_SMALL_LOST_DEFAULT 0.05
 
+/* The products' skipped contributions' default share of the threshold (docs/clusters.md
+ * "Contributions under the threshold not summed") */
+#define WRT_SERIES_SKIP_DEFAULT (1.0 / 64)
 /* --clusters' default series_coarse (docs/clusters.md "The series on a coarser cut") */
 #define WRT_SERIES_COARSE_CLUSTERS 1e-3
 

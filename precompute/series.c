@@ -199,7 +199,7 @@ static void series_weights(series_state *s) {
      * root, 0 on its wavelets): compression keeps each column's power */
     double *pw = wrt_power_weights(b, res->fkeys, n);
     s->rw = rw; s->cw = cw; s->pw = pw; s->boost = boost;
-    s->W = (wrt_csc_weights){rw, cw, pw, boost, fmax(b->opt.small_lost, 0)};
+    s->W = (wrt_csc_weights){rw, cw, pw, boost, fmax(b->opt.small_lost, 0), NULL, 0};
 }
 
 /* T compressed at drop: from T (without a full copy first), or where T is streamed and
@@ -498,6 +498,10 @@ static void series_free_right(series_state *s) {
     if (s->shared) memset(&s->Tr, 0, sizeof s->Tr);
     else wrt_csc_free(&s->Tr);
     s->shared = 0;
+    s->Trb.a.row = NULL; /* Tr's (wrt_series_factored_bands) */
+    s->Trb.a.val = NULL;
+    wrt_csc_bands_free(&s->Trb);
+    s->FW.bands = NULL;
 }
 
 /* A bounce's passes that do not depend on each other, on two threads where the bake has
@@ -568,7 +572,10 @@ static wrt_status series_factored_term(series_state *s, int bounce, int checked,
     } else {
         wrt_bake_memory_trim();
     }
+    double w0 = wrt_now(), c0 = wrt_dist_cpu_now();
+    uint64_t p_nnz = s->P.nnz;
     wrt_csc X = st == WRT_OK ? wrt_series_factored_right(s, &s->P) : (wrt_csc){0};
+    double w1 = wrt_now(), c1 = wrt_dist_cpu_now();
     int freed = 0;
     if (range) { /* P, now in X, re-cut with it (P taken back from X below where needed) */
         t1 = wrt_dist_cpu_now();
@@ -587,6 +594,12 @@ static wrt_status series_factored_term(series_state *s, int bounce, int checked,
     } else if (st == WRT_OK) {
         st = series_mul(s->b, &s->Tr, &X, s->eps, &s->FW, s->threads, N);
     }
+    if (s->timing) /* WRT_DTO_TIMES: the bake's stages timed (bake.c) */
+        fprintf(stderr,
+                "series-times: bounce %2d  U P %6.2f s wall %6.2f cpu  product %7.2f s wall %7.2f cpu  P %llu  U P %llu"
+                "  next %llu\n",
+                bounce, w1 - w0, c1 - c0, wrt_now() - w1, wrt_dist_cpu_now() - c1, (unsigned long long)p_nnz,
+                (unsigned long long)X.nnz, (unsigned long long)N->nnz);
     if (N->col) wrt_series_factored_trim(s, N);
     *nnz = N->nnz;
     if (range) {
@@ -822,7 +835,7 @@ double wrt_series_final_weights(series_state *s, wrt_csc_weights *W, double **ow
         rw[i] = s->rw[i] * wrt_drop_row_scale(&r, s->res->fkeys[i]);
         cw[i] = s->cw[i] * wrt_drop_col_scale_sized(&r, s->res->fkeys[i], sqrt(b->quads[wrt_fkey_quad(s->res->fkeys[i])].area));
     }
-    *W = (wrt_csc_weights){rw, cw, s->pw, s->boost, s->W.boost_lost};
+    *W = (wrt_csc_weights){rw, cw, s->pw, s->boost, s->W.boost_lost, NULL, 0};
     return eps;
 }
 
@@ -1010,6 +1023,7 @@ static void series_state_free(series_state *s) {
 
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     series_state s = {.b = b, .res = res, .C = &res->c, .T = &res->dto, .eps = b->opt.eps_compress,
+                      .timing = getenv("WRT_DTO_TIMES") != NULL,
                       .threads = b->opt.threads, .tree = wrt_series_tree_on(b),
                       .fac = wrt_series_factored_on(b, res)};
     if (!s.fac) wrt_csc_free(&res->dto_e1);
@@ -1050,6 +1064,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         if (b->opt.series_coarse > 0)
             series_coarse_cut(b, &s.Tr, res->fkeys, res->nfuncs, b->opt.series_coarse, 1);
         res->c.cluster_factored_entries = s.Tr.nnz;
+        wrt_series_factored_bands(&s);
     }
     series_share_start(&s);
     if (s.tree) /* the sum's first state: by shares, this rank's columns */

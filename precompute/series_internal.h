@@ -68,6 +68,8 @@ typedef struct {
     int fac;
     double *fcw, *fboost;
     wrt_csc_weights FW;
+    int timing;        /* WRT_DTO_TIMES set: each product's times on stderr */
+    wrt_csc_bands Trb; /* Tr by bands, with series_skip (FW.bands) */
     /* T never formed (series_first.c): T = E1 U read from E1 (the bake's, kept to the end) */
     int no_t;
     const wrt_csc *E1;
@@ -93,6 +95,7 @@ void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps);
 /* The left factor kept as T = E1 U (series_tree.c) */
 int wrt_series_factored_on(const bake_ctx *b, const wrt_bake_result *res);
 void wrt_series_factored_start(series_state *s);
+void wrt_series_factored_bands(series_state *s);
 wrt_csc wrt_series_factored_right(const series_state *s, const wrt_csc *P);
 void wrt_series_factored_trim(const series_state *s, wrt_csc *N);
 wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X);

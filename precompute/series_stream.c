@@ -285,7 +285,7 @@ static void final_item(size_t i, int th, void *user) {
     wrt_csc_weights wb = {0};
     if (W)
         wb = (wrt_csc_weights){W->row_w, W->col_w ? W->col_w + j0 : NULL, W->power_w,
-                               W->boost_w ? W->boost_w + j0 : NULL, W->boost_lost};
+                               W->boost_w ? W->boost_w + j0 : NULL, W->boost_lost, NULL, 0};
     wrt_csc_compress(&g->m[i], g->drop, W ? &wb : NULL);
 }
 

@@ -284,6 +284,21 @@ void wrt_series_factored_start(series_state *s) {
     free(cw); free(boost);
 }
 
+/* Tr's entries by size, once Tr is final (compressed and cut): the products then skip the
+ * contributions under series_skip x eps (sparse.h wrt_csc_bands; docs/clusters.md
+ * "Contributions under the threshold not summed") */
+void wrt_series_factored_bands(series_state *s) {
+    if (!(s->b->opt.series_skip > 0)) return;
+    wrt_csc_bands_make(&s->Tr, s->FW.row_w, s->FW.power_w, &s->Trb);
+    /* Tr takes the bands' entries (its other readers, the pull-up and the ranks' cuts, read
+     * only its column counts): one copy held, not two (series.c series_free_right) */
+    free(s->Tr.row); free(s->Tr.val);
+    s->Tr.row = s->Trb.a.row;
+    s->Tr.val = s->Trb.a.val;
+    s->FW.bands = &s->Trb;
+    s->FW.skip = s->b->opt.series_skip;
+}
+
 /* U P: the term with its node rows, for the product E1 (U P) */
 wrt_csc wrt_series_factored_right(const series_state *s, const wrt_csc *P) {
     const bake_ctx *b = s->b;

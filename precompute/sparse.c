@@ -252,6 +252,8 @@ typedef struct mul_ctx {
     int avx;            /* the scatter's 4-wide vectors in one AVX instruction */
     const double *boost_w;
     double boost_lost;
+    const wrt_csc_bands *bands; /* with skip > 0: A by bands (wrt_csc_bands) */
+    double skip;
 } mul_ctx;
 
 /* The small senders' factor of a column (wrt_csc_weights boost_w): 1, or boost when the
@@ -259,9 +261,10 @@ typedef struct mul_ctx {
  * entries are at rows rows[t]; their values are acc[ACC_STRIDE rows[t]] (a product's accumulator)
  * or, acc NULL, val[3 t] (a stored column). */
 static double column_boost(double boost, double boost_lost, const uint32_t *rows, uint64_t n, const double *acc,
-                           const float *val, double cw, const double *row_w, const double *pw, double drop) {
+                           const float *val, double cw, const double *row_w, const double *pw, double drop,
+                           double skipped) {
     if (!(boost > 1) || !pw) return 1;
-    double all = 0, lost = 0;
+    double all = skipped, lost = skipped;
     for (uint64_t t = 0; t < n; t++) {
         uint32_t i = rows[t];
         if (pw[i] == 0) continue;
@@ -341,8 +344,17 @@ static inline __attribute__((always_inline)) void scatter_entry(uint32_t i, acc_
  * (the maze asset's first two, replayed from their dumped factors on one thread, the
  * output's hash unchanged). A's last entry, which has no float after it, is read alone. */
 static inline __attribute__((always_inline)) void scatter_column(const mul_ctx *c, size_t j, double *acc,
-                                                                 uint64_t *bits, uint64_t *top) {
+                                                                 uint64_t *bits, uint64_t *top, double *skipped) {
     const wrt_csc *a = c->a, *b = c->b;
+    /* with bands: of column k only the bands whose largest weighted contribution can reach
+     * skip x drop (lim, in units of B's entry's largest channel); the rest's power is
+     * summed into skipped[0..2], its magnitude into skipped[3] */
+    const wrt_csc_bands *bd = c->bands;
+    double lim = 0;
+    if (bd) {
+        double cw = (c->col_w ? c->col_w[j] : 1.0) * (c->boost_w && c->boost_w[j] > 1 ? c->boost_w[j] : 1.0);
+        lim = cw > 0 ? c->skip * c->drop / cw : 0;
+    }
     /* A's arrays in locals: the stores through acc and the bitmaps could alias *a, and
      * the compiler reloaded a->val and a->col[k + 1] at every entry */
     const uint64_t *acol = a->col;
@@ -355,6 +367,19 @@ static inline __attribute__((always_inline)) void scatter_column(const mul_ctx *
         uint64_t ka = acol[k], ke = acol[k + 1];
         if (ka == ke) continue;
         acc_v4 bw = {(double)bv[0], (double)bv[1], (double)bv[2], 0};
+        if (bd && lim > 0) {
+            double bm = fmax(fabs(bw[0]), fmax(fabs(bw[1]), fabs(bw[2])));
+            int e = 0;
+            (void)frexp(bd->top[k] * bm / lim, &e); /* r = f 2^e, f in [0.5, 1): log2 r < e */
+            int from = e + 1 < 0 ? 0 : e + 1 > WRT_CSC_BANDS ? WRT_CSC_BANDS : e + 1;
+            if (from < WRT_CSC_BANDS) {
+                const double *r = &bd->rest[((size_t)k * (WRT_CSC_BANDS + 1) + (size_t)from) * 4];
+                skipped[0] += bw[0] * r[0]; skipped[1] += bw[1] * r[1]; skipped[2] += bw[2] * r[2];
+                skipped[3] += bm * r[3];
+                ke = bd->start[(size_t)k * (WRT_CSC_BANDS + 1) + (size_t)from];
+                if (ka == ke) continue;
+            }
+        }
         uint32_t cw = arow[ka] >> 6;
         uint64_t word = 0, kf = ke < last ? ke : last;
         for (; ka < kf; ka++) {
@@ -373,14 +398,14 @@ static inline __attribute__((always_inline)) void scatter_column(const mul_ctx *
     }
 }
 
-static void scatter_plain(const mul_ctx *c, size_t j, double *acc, uint64_t *bits, uint64_t *top) {
-    scatter_column(c, j, acc, bits, top);
+static void scatter_plain(const mul_ctx *c, size_t j, double *acc, uint64_t *bits, uint64_t *top, double *skipped) {
+    scatter_column(c, j, acc, bits, top, skipped);
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
 __attribute__((target("avx"))) static void scatter_avx(const mul_ctx *c, size_t j, double *acc, uint64_t *bits,
-                                                       uint64_t *top) {
-    scatter_column(c, j, acc, bits, top);
+                                                       uint64_t *top, double *skipped) {
+    scatter_column(c, j, acc, bits, top, skipped);
 }
 #endif
 
@@ -390,11 +415,12 @@ static void mul_column(size_t j, int th, void *user) {
     uint32_t *list = c->list[th];
     uint64_t *bits = c->bits[th], *top = c->top[th];
     const wrt_csc *a = c->a;
+    double skipped[4] = {0, 0, 0, 0};
 #if defined(__x86_64__) && defined(__GNUC__)
-    if (c->avx) scatter_avx(c, j, acc, bits, top);
+    if (c->avx) scatter_avx(c, j, acc, bits, top, skipped);
     else
 #endif
-        scatter_plain(c, j, acc, bits, top);
+        scatter_plain(c, j, acc, bits, top, skipped);
     /* The touched rows in ascending order, read off the two bitmaps (and cleared on the
      * way): sorting each column's touched rows (a radix sort, qsort before it) took 13% of
      * the 12 x 12 maze's bake (perf), reading the bitmaps a few words per 4,096 rows. */
@@ -416,8 +442,11 @@ static void mul_column(size_t j, int th, void *user) {
     uint32_t kept = 0, kept_power = 0, best = UINT32_MAX;
     double cw = c->col_w ? c->col_w[j] : 1.0, lost[3] = {0, 0, 0}, bestw = 0, bestv[3] = {0, 0, 0};
     const double *pw = c->power_w;
-    double bst = c->boost_w ? column_boost(c->boost_w[j], c->boost_lost, list, nl, acc, NULL, cw, c->row_w, pw, c->drop)
+    double bst = c->boost_w ? column_boost(c->boost_w[j], c->boost_lost, list, nl, acc, NULL, cw, c->row_w, pw, c->drop,
+                                           skipped[3])
                             : 1;
+    if (pw)
+        for (int ch = 0; ch < 3; ch++) lost[ch] = skipped[ch];
     for (uint32_t t = 0; t < nl; t++) {
         uint32_t i = list[t];
         double m0 = fabs(acc[ACC_STRIDE * i]), m1 = fabs(acc[ACC_STRIDE * i + 1]), m2 = fabs(acc[ACC_STRIDE * i + 2]);
@@ -461,6 +490,71 @@ static void mul_column(size_t j, int th, void *user) {
     }
 }
 
+/* An entry's band in its column (wrt_csc_bands): its weighted size against the column's top */
+static int band_of(double m, double top) {
+    if (!(m > 0) || !(top > 0)) return WRT_CSC_BANDS - 1;
+    int e = 0;
+    (void)frexp(m / top, &e); /* m / top in [2^(e-1), 2^e), e <= 1 */
+    int b = 1 - e;
+    return b < 0 ? 0 : b >= WRT_CSC_BANDS ? WRT_CSC_BANDS - 1 : b;
+}
+
+static double entry_size(const float *v, const double *row_w, uint32_t i) {
+    double m = fmax(fabs((double)v[0]), fmax(fabs((double)v[1]), fabs((double)v[2])));
+    return m * (row_w ? row_w[i] : 1.0);
+}
+
+void wrt_csc_bands_make(const wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out) {
+    const size_t nb = WRT_CSC_BANDS + 1;
+    uint32_t n = a->n;
+    memset(out, 0, sizeof *out);
+    out->a.n = n;
+    out->a.nnz = a->nnz;
+    out->a.col = wrt_xmalloc(((size_t)n + 1) * sizeof *out->a.col);
+    memcpy(out->a.col, a->col, ((size_t)n + 1) * sizeof *out->a.col);
+    out->a.row = wrt_xmalloc((a->nnz ? a->nnz : 1) * sizeof *out->a.row);
+    out->a.val = wrt_xmalloc((a->nnz ? a->nnz : 1) * 3 * sizeof *out->a.val);
+    out->start = wrt_xmalloc(((size_t)n * nb + 1) * sizeof *out->start);
+    out->top = wrt_xcalloc((size_t)n + 1, sizeof *out->top);
+    out->rest = wrt_xcalloc((size_t)n * nb * 4 + 1, sizeof *out->rest);
+    for (uint32_t k = 0; k < n; k++) {
+        uint64_t c0 = a->col[k], c1 = a->col[k + 1];
+        double top = 0;
+        for (uint64_t e = c0; e < c1; e++) top = fmax(top, entry_size(&a->val[3 * e], row_w, a->row[e]));
+        out->top[k] = top;
+        uint64_t count[WRT_CSC_BANDS + 1] = {0};
+        for (uint64_t e = c0; e < c1; e++) count[band_of(entry_size(&a->val[3 * e], row_w, a->row[e]), top) + 1]++;
+        uint64_t *st = &out->start[(size_t)k * nb];
+        st[0] = c0;
+        for (int b = 0; b < WRT_CSC_BANDS; b++) st[b + 1] = st[b] + count[b + 1];
+        uint64_t next[WRT_CSC_BANDS];
+        for (int b = 0; b < WRT_CSC_BANDS; b++) next[b] = st[b];
+        double *r = &out->rest[(size_t)k * nb * 4];
+        for (uint64_t e = c0; e < c1; e++) { /* rows ascend within each band, as in A */
+            const float *v = &a->val[3 * e];
+            uint32_t i = a->row[e];
+            int b = band_of(entry_size(v, row_w, i), top);
+            uint64_t to = next[b]++;
+            out->a.row[to] = i;
+            memcpy(&out->a.val[3 * to], v, 3 * sizeof *v);
+            double p = power_w ? power_w[i] : 0;
+            if (p != 0) {
+                double *rb = &r[(size_t)b * 4];
+                rb[0] += p * v[0]; rb[1] += p * v[1]; rb[2] += p * v[2];
+                rb[3] += p * fmax(fabs((double)v[0]), fmax(fabs((double)v[1]), fabs((double)v[2])));
+            }
+        }
+        for (int b = WRT_CSC_BANDS - 1; b >= 0; b--) /* from band b on */
+            for (int q = 0; q < 4; q++) r[(size_t)b * 4 + q] += r[(size_t)(b + 1) * 4 + q];
+    }
+}
+
+void wrt_csc_bands_free(wrt_csc_bands *b) {
+    wrt_csc_free(&b->a);
+    free(b->start); free(b->top); free(b->rest);
+    memset(b, 0, sizeof *b);
+}
+
 void wrt_sort_u64(uint64_t *a, size_t n) {
     if (n < 64) {
         for (size_t i = 1; i < n; i++) {
@@ -495,6 +589,11 @@ static mul_ctx mul_ctx_make(const wrt_csc *a, const wrt_csc *b, double drop, con
     if (w) {
         c.row_w = w->row_w; c.col_w = w->col_w; c.power_w = w->power_w;
         c.boost_w = w->boost_w; c.boost_lost = w->boost_lost;
+        if (w->bands && w->skip > 0 && w->bands->a.n == a->n) {
+            c.bands = w->bands;
+            c.skip = w->skip;
+            c.a = &w->bands->a;
+        }
     }
     c.out = wrt_xcalloc(n ? n : 1, sizeof *c.out);
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -722,7 +821,7 @@ static uint64_t compress_column(const uint32_t *srow, const float *sval, uint64_
     double lost[3] = {0, 0, 0};
     const double *pw = w ? w->power_w : NULL;
     double bst = column_boost(boost, w ? w->boost_lost : 0, &srow[start], end - start, NULL, &sval[3 * start], cw,
-                              w ? w->row_w : NULL, pw, drop);
+                              w ? w->row_w : NULL, pw, drop, 0);
     if (pw) {
         /* if no entry that carries power would survive, the largest of them stays */
         double bestw = 0;

@@ -36,10 +36,32 @@ wrt_csc wrt_csc_copy(const wrt_csc *m);
  * column's power (sum over its power rows of power_w x |entry|, channels added): an
  * error bound per column, so a column whose light the plain threshold already holds
  * keeps the plain threshold's entries. */
+/* bands, skip (bands may be NULL; see wrt_csc_bands): a product's single contributions
+ * a_ik b_kj whose weighted size is under skip x drop are not summed; their power goes to
+ * the column's kept entries with what the compression drops. */
+struct wrt_csc_bands;
 typedef struct wrt_csc_weights {
     const double *row_w, *col_w, *power_w, *boost_w;
     double boost_lost;
+    const struct wrt_csc_bands *bands;
+    double skip;
 } wrt_csc_weights;
+
+/* A product's left factor A with each column's entries ordered by size (series' products,
+ * issue 22): band b of column k holds the entries whose largest channel times row_w is in
+ * [top_k 2^-b, top_k 2^(1-b)) (the last band everything smaller), each band by row; rest
+ * the power (power_w x entry, per channel, then of the channels' magnitudes) of the bands
+ * from b on. A product whose weights carry these bands (and skip > 0) reads them in place
+ * of A, and reads of column k only the bands that can reach skip x drop. */
+#define WRT_CSC_BANDS 16
+typedef struct wrt_csc_bands {
+    wrt_csc a;
+    uint64_t *start;  /* n x (WRT_CSC_BANDS + 1): where band b of column k starts in a */
+    double *top;      /* n */
+    double *rest;     /* n x (WRT_CSC_BANDS + 1) x 4 */
+} wrt_csc_bands;
+void wrt_csc_bands_make(const wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out);
+void wrt_csc_bands_free(wrt_csc_bands *b);
 
 /* C = A B, compressed by `drop` and `w` (may be NULL). Deterministic whatever `threads`. */
 wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads);

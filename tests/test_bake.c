@@ -529,7 +529,7 @@ static void test_compression_keeps_power(void) {
                 before[j][c] = 0;
                 for (uint64_t k = a.col[j]; k < a.col[j + 1]; k++) before[j][c] += pw[a.row[k]] * a.val[3 * k + c];
             }
-        wrt_csc_weights W = {rw, cw, pw, NULL, 0};
+        wrt_csc_weights W = {rw, cw, pw, NULL, 0, NULL, 0};
         wrt_csc m = wrt_csc_mul(&a, &id, 0.01, &W, 2);
         wrt_csc cc = wrt_csc_copy_compress(&a, 0.01, &W);
         wrt_csc_compress(&a, 0.01, &W);
@@ -597,7 +597,7 @@ static void test_small_sender_column(void) {
      * 0.05: it is. Column 0 loses all its power plainly: boosted in both. */
     const double lost[2] = {0.1, 0.05};
     for (int c = 0; c < 2; c++) {
-        wrt_csc_weights W = {rw, cw, pw, boost, lost[c]};
+        wrt_csc_weights W = {rw, cw, pw, boost, lost[c], NULL, 0};
         for (int prod = 0; prod < 2; prod++) {
             wrt_csc a = wrt_csc_from_triplets(N, t, nt), m;
             if (prod) m = wrt_csc_mul(&a, &id, 0.01, &W, 2);

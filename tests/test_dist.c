@@ -131,7 +131,7 @@ static void dist_mul_same(void) {
     wrt_csc a = random_csc(n, 0.03, 1), b = random_csc(n, 0.05, 2);
     double *rw = malloc(n * sizeof *rw), *cw = malloc(n * sizeof *cw), *pw = malloc(n * sizeof *pw);
     for (uint32_t i = 0; i < n; i++) { rw[i] = 1.0 + (i % 7) * 0.1; cw[i] = 1.0 / rw[i]; pw[i] = i % 3 ? 0 : 1.0; }
-    wrt_csc_weights w = {rw, cw, pw, NULL, 0};
+    wrt_csc_weights w = {rw, cw, pw, NULL, 0, NULL, 0};
     wrt_csc want = wrt_csc_mul(&a, &b, 0.02, &w, 2);
     CHECK(want.nnz > 1000 && want.nnz < (uint64_t)n * n, "the product keeps %llu entries: some dropped, many kept",
           (unsigned long long)want.nnz);

@@ -164,6 +164,102 @@ static void test_product_brute_force(void) {
 }
 
 
+/* The products' skipped contributions (wrt_csc_bands, series_skip): against the product that
+ * sums everything, on a matrix whose column sums are known by brute force.
+ * - Each of A's columns has its largest entry 11.3 times the small one, elsewhere (rows
+ *   150 on), so the small entries lie in band 4 of their column, not at its top.
+ * - Column j of B reads 64 columns of A whose only entries, at row 0 and row 1, are
+ *   contributions of 1.02 and of 0.45 times skip x drop (weighted): 64 of each sum to
+ *   about 4 and 1.8 times the threshold, so the plain product keeps both rows. The rule
+ *   must sum every contribution at or above skip x drop (row 0 kept, at its plain value)
+ *   and never any under half of it (row 1 dropped, its power carried to row 0): the band
+ *   boundary, to within the factor 2 of a band.
+ * - Each column also reads one large entry whose own row stays, so the power has where to go.
+ * - The power (power_w x entry) of every column is the plain product's, channel by channel.
+ * - A skip too small to reach any band gives the plain product's entries. */
+static void test_product_skip(void) {
+    enum { NA = 200, PER = 64 };
+    const double drop = 0.01, skip = 1.0 / 16;
+    double rw[NA], cw[NA], pw[NA];
+    /* rows 100 on carry no power (so the plain product's row 0 is its brute-force sum) */
+    for (uint32_t i = 0; i < NA; i++) { rw[i] = 1; cw[i] = 1; pw[i] = i < 100 ? 1.0 + (i % 3) : 0; }
+    rw[1] = 2; /* row 1's contributions weighed twice: the rule reads the weighted size */
+    /* A: column k < 2 PER: row 0 at 1.02 skip drop (k even) or row 1 at 0.45 skip drop / 2
+     * (k odd, weighed by rw = 2), with two other rows far smaller; column 2 PER + m: row 2 + m
+     * at 5 drop (the large entries) */
+    wrt_triplet ta[3 * 2 * PER + 64];
+    uint32_t na = 0;
+    for (uint32_t k = 0; k < 2 * PER; k++) {
+        double v = k % 2 == 0 ? 1.02 * skip * drop : 0.45 * skip * drop / 2;
+        double top = 11.3 * v * (k % 2 ? 2 : 1); /* weighed as row 1's, rw = 2 */
+        ta[na++] = (wrt_triplet){k % 2, k, {(float)v, (float)(0.7 * v), (float)(0.3 * v)}};
+        ta[na++] = (wrt_triplet){100 + k % 50, k, {(float)(1e-4 * v), 0, (float)(1e-4 * v)}};
+        ta[na++] = (wrt_triplet){150 + k % 50, k, {(float)top, (float)top, (float)top}};
+    }
+    for (uint32_t m = 0; m < 64; m++) ta[na++] = (wrt_triplet){2 + m, 2 * PER + m, {0.05f, 0.04f, 0.03f}};
+    /* B: 8 columns, each reading all 2 PER small columns with 1 and one large column */
+    wrt_triplet tb[8 * (2 * PER + 1)];
+    uint32_t nb = 0;
+    for (uint32_t j = 0; j < 8; j++) {
+        for (uint32_t k = 0; k < 2 * PER; k++) tb[nb++] = (wrt_triplet){k, j, {1, 1, 1}};
+        tb[nb++] = (wrt_triplet){2 * PER + j * 7 % 64, j, {1, 1, 1}};
+    }
+    wrt_csc a = wrt_csc_from_triplets(NA, ta, na), b = wrt_csc_from_triplets(NA, tb, nb);
+    wrt_csc_weights w = {rw, cw, pw, NULL, 0, NULL, 0};
+    wrt_csc plain = wrt_csc_mul(&a, &b, drop, &w, 2);
+    wrt_csc_bands bands;
+    wrt_csc_bands_make(&a, rw, pw, &bands);
+    wrt_csc_weights ws = w;
+    ws.bands = &bands;
+    ws.skip = skip;
+    wrt_csc sk1 = wrt_csc_mul(&a, &b, drop, &ws, 1), sk2 = wrt_csc_mul(&a, &b, drop, &ws, 2);
+    CHECK(sk1.nnz == sk2.nnz && !memcmp(sk1.row, sk2.row, sk1.nnz * 4) && !memcmp(sk1.val, sk2.val, 12 * sk1.nnz),
+          "skipping: 1 and 2 threads give different products");
+    int rows_ok = 1, power_ok = 1, row0_ok = 1;
+    double worst_power = 0, worst0 = 0;
+    for (uint32_t j = 0; j < 8; j++) {
+        int p0 = 0, p1 = 0, s0 = 0, s1 = 0;
+        double pp[3] = {0}, sp[3] = {0}, v0p = 0, v0s = 0;
+        for (uint64_t e = plain.col[j]; e < plain.col[j + 1]; e++) {
+            p0 |= plain.row[e] == 0; p1 |= plain.row[e] == 1;
+            for (int c = 0; c < 3; c++) pp[c] += pw[plain.row[e]] * plain.val[3 * e + c];
+        }
+        for (uint64_t e = sk1.col[j]; e < sk1.col[j + 1]; e++) {
+            s0 |= sk1.row[e] == 0; s1 |= sk1.row[e] == 1;
+            for (int c = 0; c < 3; c++) sp[c] += pw[sk1.row[e]] * sk1.val[3 * e + c];
+        }
+        /* row 0's value: the plain product's, give or take the power row 1 hands over */
+        double brute0 = PER * 1.02 * skip * drop;
+        for (uint64_t e = plain.col[j]; e < plain.col[j + 1]; e++) if (plain.row[e] == 0) v0p = plain.val[3 * e];
+        for (uint64_t e = sk1.col[j]; e < sk1.col[j + 1]; e++) if (sk1.row[e] == 0) v0s = sk1.val[3 * e];
+        rows_ok &= p0 && p1 && s0 && !s1;
+        row0_ok &= v0s >= brute0 * (1 - 1e-5);
+        worst0 = fmax(worst0, fabs(v0p - brute0) / brute0);
+        for (int c = 0; c < 3; c++) {
+            double d = fabs(sp[c] - pp[c]) / fabs(pp[c]);
+            worst_power = fmax(worst_power, d);
+            power_ok &= d < 1e-6;
+        }
+    }
+    CHECK(worst0 < 1e-5, "plain product's row 0 off the brute-force sum by %.3g", worst0);
+    CHECK(rows_ok, "rows kept: the plain product keeps rows 0 and 1; skipping keeps row 0 (contributions at 1.02 x "
+                   "skip x drop) and drops row 1 (at 0.45 x)");
+    CHECK(row0_ok, "skipping lost some of row 0's contributions (at 1.02 x skip x drop)");
+    CHECK(power_ok, "skipping: a column's power off the plain product's by %.3g", worst_power);
+    /* a skip under every band: the plain product's entries */
+    ws.skip = 1e-12;
+    wrt_csc tiny = wrt_csc_mul(&a, &b, drop, &ws, 2);
+    double worst = 0;
+    int same_rows = tiny.nnz == plain.nnz && !memcmp(tiny.row, plain.row, tiny.nnz * 4);
+    for (uint64_t e = 0; same_rows && e < tiny.nnz * 3; e++)
+        worst = fmax(worst, fabs(tiny.val[e] - plain.val[e]) / fmax(fabs(plain.val[e]), 1e-30));
+    CHECK(same_rows && worst < 1e-6, "a skip under every band: not the plain product (%.3g)", worst);
+    printf("skip %g: %llu entries against %llu plain; column power within %.2e; row 0 plain within %.2e of brute "
+           "force\n", skip, (unsigned long long)sk1.nnz, (unsigned long long)plain.nnz, worst_power, worst0);
+    wrt_csc_bands_free(&bands);
+    wrt_csc_free(&a); wrt_csc_free(&b); wrt_csc_free(&plain); wrt_csc_free(&sk1); wrt_csc_free(&sk2);
+    wrt_csc_free(&tiny);
+}
 
 /* wrt_csc_apply against a plain loop over the matrix's entries, with a vector whose three channels
  * differ (a furnace's uniform light has equal channels and cannot tell them apart) */
@@ -243,5 +339,6 @@ int main(int argc, char **argv) {
     TEST_RUN(test_product_brute_force);
     TEST_RUN(test_apply_brute_force);
     TEST_RUN(test_series_right_furnace);
+    TEST_RUN(test_product_skip);
     TEST_END();
 }

@@ -283,7 +283,7 @@ static int drop_study(const wrt_gto *g, const char *prefix, int nspec, char **sp
         memcpy(m.row, g->rows, g->nnz * sizeof(uint32_t));
         memcpy(m.val, g->vals, g->nnz * 3 * sizeof(float));
         m.nnz = g->nnz;
-        wrt_csc_weights W = {rw, cw, pw, NULL, 0};
+        wrt_csc_weights W = {rw, cw, pw, NULL, 0, NULL, 0};
         wrt_csc_compress(&m, d.e, &W);
         /* back in the file's places: a kept entry where its row is, 0 elsewhere */
         memset(q, 0, g->nnz * 3 * sizeof *q);
