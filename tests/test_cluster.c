@@ -5,6 +5,7 @@
  * pair the DTO is the plain bake's exactly, up to the transform; two rooms sharing a wall
  * of 64 quads keep the dark room dark; a closed box of 16 x 16 quads a face is a furnace
  * whose flux is rho / (1 - rho); the .gto section is read back and its damage refused. */
+#include <malloc.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -378,6 +379,22 @@ static uint64_t test_tcol(void *user, uint32_t f, uint32_t **row, float **val) {
     return wrt_tcols_col(user, f, row, val);
 }
 
+/* The heap in use (glibc: the arenas' and the mapped blocks' bytes) */
+static size_t heap_in_use(void) {
+    struct mallinfo2 m = mallinfo2();
+    return m.uordblks + m.hblkhd;
+}
+
+/* test_tcol, noting the most heap in use at any column asked for (the transform's held
+ * slots are all there by the last one) */
+typedef struct { wrt_tcols *tc; size_t most; } tcol_watch;
+static uint64_t watched_tcol(void *user, uint32_t f, uint32_t **row, float **val) {
+    tcol_watch *w = user;
+    size_t h = heap_in_use();
+    if (w->tc->leaf_of[f] >= 0 && h > w->most) w->most = h; /* a quad's root: asked during the walk */
+    return wrt_tcols_col(w->tc, f, row, val);
+}
+
 static void test_factored(void) {
     wrt_scene s;
     wrt_bake_options o = two_rooms_q3(&s, 0.8, 0.7, 0.6);
@@ -438,6 +455,23 @@ static void test_factored(void) {
     wrt_csc M1 = wrt_clusters_senders_cols(&r.ctree, root, nf, test_tcol, &tc, 1e-3, NULL, 0, nf, &raw1);
     CHECK(csc_same_bits(&M, &M1) && raw0 == raw1, "T W^T without T: %llu entries (%llu raw), with T %llu (%llu)",
           (unsigned long long)M1.nnz, (unsigned long long)raw1, (unsigned long long)M.nnz, (unsigned long long)raw0);
+    /* the transform holds its compressed columns, not their uncompressed lengths: at a
+     * coarse threshold (most of each tree column dropped) the heap it holds grows by the
+     * result's bytes, not the raw columns' (which it held before session 13: 16.6 GB of
+     * the 43,780-element atrium's series start under a 12,000 MB budget) */
+    tcol_watch tw = {&tc, 0};
+    size_t h0 = heap_in_use();
+    uint64_t raw2;
+    wrt_csc M3 = wrt_clusters_senders_cols(&r.ctree, root, nf, watched_tcol, &tw, 3e-2, NULL, 0, nf, &raw2);
+    double grew = tw.most > h0 ? (double)(tw.most - h0) : 0;
+    uint64_t kept = 0;
+    for (uint32_t q = 0; q < r.ctree.nq; q++) kept += M3.col[root[q] + 1] - M3.col[root[q]];
+    CHECK(raw2 > 4 * kept && grew < 2.0 * 16 * (double)kept + 1e6,
+          "the transform at a coarse threshold held %.0f bytes during its walk for %llu tree entries kept (%llu raw)",
+          grew, (unsigned long long)kept, (unsigned long long)raw2);
+    printf("the transform's held heap during its walk at threshold 3e-2: %.2f MB for %llu tree entries kept of %llu "
+           "raw\n", grew / 1e6, (unsigned long long)kept, (unsigned long long)raw2);
+    wrt_csc_free(&M3);
     /* a column range alone: those columns, the others empty */
     uint32_t c0 = nf / 3, c1 = 2 * nf / 3;
     wrt_csc M2 = wrt_clusters_senders_cols(&r.ctree, root, nf, test_tcol, &tc, 1e-3, NULL, c0, c1, &raw1);
