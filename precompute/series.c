@@ -552,9 +552,10 @@ static wrt_status series_next_check(series_state *s, int bounce, const wrt_sum_s
  * columns [range[0], range[1]), which alone P holds): U P on those columns (U acts on a
  * column alone) and the same columns of E1 (U P), series_mul's entries; every rank takes
  * the same turns, *nnz the term's entries on all of them, P taken back where that is 0.
- * In one process U P's memory is checked before it is made: its arrays and the pull-up's
- * freed scratch, 2.6 bytes for every byte of P (X holds 1.28 to 1.52 times P's entries on
- * the atrium, and the build raised the resident memory by 1.5 times X's bytes); by shares
+ * In one process, by blocks of P's columns (series_blocks.c: the same entries, a block of
+ * U P held, not the whole); under wrt-bake-mpi unshared U P's memory is checked before it
+ * is made: 2.6 bytes for every byte of P (X holds 1.28 to 1.52 times P's entries on the
+ * atrium, and the build raised the resident memory by 1.5 times X's bytes); by shares
  * the ranks' turns must stay the same, and the product's check counts X once made. The
  * freed memory of the last product and sum pass goes back to the system first: the
  * pull-up stacked on it was the bake's peak (the atrium at 1,060 elements: 224 to 249 MB
@@ -562,6 +563,11 @@ static wrt_status series_next_check(series_state *s, int bounce, const wrt_sum_s
 static wrt_status series_factored_term(series_state *s, int bounce, int checked, const uint32_t *range, wrt_csc *N,
                                        uint64_t *nnz) {
     wrt_bake_dist *d = s->b->opt.dist;
+    if (!range && !wrt_dist_on(d)) { /* one process: by blocks (series_blocks.c), P freed once used */
+        wrt_status bst = wrt_series_factored_blocks(s, bounce, checked, N);
+        if ((*nnz = N->nnz) && !s->shared) wrt_csc_free(&s->P);
+        return bst;
+    }
     double t0 = wrt_dist_cpu_now(), t1 = t0;
     wrt_status st = WRT_OK;
     if (!range && !checked) { /* wrt_bake_memory_check gives the freed memory back first */

@@ -99,6 +99,9 @@ void wrt_series_factored_bands(series_state *s);
 wrt_csc wrt_series_factored_right(const series_state *s, const wrt_csc *P);
 void wrt_series_factored_trim(const series_state *s, wrt_csc *N);
 wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X);
+/* In one process, the term after P, E1 (U P), by blocks of P's columns, its memory checked
+ * unless `checked` (series_blocks.c); P kept */
+wrt_status wrt_series_factored_blocks(series_state *s, int bounce, int checked, wrt_csc *N);
 
 /* T never formed (series_first.c): the sum's first state and the first term, T W^T, for
  * the columns [c0, c1) (S or P may be NULL); y += T x (a power_iter's apply); the power

@@ -657,14 +657,22 @@ wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_c
 wrt_csc wrt_csc_mul_cols(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads,
                          uint32_t c0, uint32_t c1) {
     uint32_t n = a->n;
-    if (c1 > n) c1 = n;
-    if (c0 > c1) c0 = c1;
-    int t = wrt_threads_resolve(threads);
-    mul_ctx c = mul_ctx_make(a, b, drop, w, t);
     wrt_csc m = {.n = n};
     m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
     m.row = wrt_xmalloc(sizeof *m.row);
     m.val = wrt_xmalloc(3 * sizeof *m.val);
+    wrt_csc_mul_append(a, b, drop, w, threads, c0, c1, &m);
+    return m;
+}
+
+void wrt_csc_mul_append(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads,
+                        uint32_t c0, uint32_t c1, wrt_csc *out) {
+    uint32_t n = a->n;
+    if (c1 > n) c1 = n;
+    if (c0 > c1) c0 = c1;
+    int t = wrt_threads_resolve(threads);
+    mul_ctx c = mul_ctx_make(a, b, drop, w, t);
+    wrt_csc m = *out;
     wrt_pool *pool = NULL;
     if (t > 1 && wrt_pool_create(t, &pool) != WRT_OK) pool = NULL;
     uint32_t chunk = n / 32 + 1;
@@ -678,7 +686,7 @@ wrt_csc wrt_csc_mul_cols(const wrt_csc *a, const wrt_csc *b, double drop, const 
     for (uint32_t j = c1; j < n; j++) m.col[j + 1] = m.col[c1];
     if (pool) wrt_pool_destroy(pool);
     mul_ctx_free(&c, t);
-    return m;
+    *out = m;
 }
 
 typedef struct mul_sample_ctx { mul_ctx *c; uint32_t stride; } mul_sample_ctx;

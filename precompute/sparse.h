@@ -68,6 +68,10 @@ wrt_csc wrt_csc_mul(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_c
 /* Only columns [c0, c1) of that product (the others empty), the same entries. */
 wrt_csc wrt_csc_mul_cols(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads,
                          uint32_t c0, uint32_t c1);
+/* Columns [c0, c1) of that product appended to m (a->n columns, complete up to c0, the
+ * others set to end at c1), grown as the product grows (series_blocks.c) */
+void wrt_csc_mul_append(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads,
+                        uint32_t c0, uint32_t c1, wrt_csc *m);
 /* Estimated entries of wrt_csc_mul(a, b, drop, w) from every stride-th column of the
  * product (computed and discarded), scaled by the share of B's entries those columns
  * hold: what the product will allocate, known before it is allocated. */

@@ -3,7 +3,8 @@
  * on a matrix large enough for several of the product's column chunks and several words
  * of its row bitmaps; the construction from triplets against a sequential float sum of
  * the duplicates in their input order (the order the bake's power entries rely on); the
- * series' coarse right factor (--series-right) against a furnace's closed form. */
+ * product by blocks of columns against the whole; the series' coarse right factor
+ * (--series-right) against a furnace's closed form. */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -129,6 +130,18 @@ static void test_product_brute_force(void) {
     int same = c1.nnz == c2.nnz && !memcmp(c1.col, c2.col, (N + 1) * sizeof *c1.col) &&
                !memcmp(c1.row, c2.row, c1.nnz * sizeof *c1.row) && !memcmp(c1.val, c2.val, 3 * c1.nnz * sizeof *c1.val);
     CHECK(same, "1 and 2 threads give different products");
+    /* by blocks of columns appended one after the other (series_blocks.c), uneven and one
+     * of them inside a chunk: the same columns, entries and order as the whole product */
+    wrt_csc cb = {.n = N};
+    cb.col = calloc(N + 1, sizeof *cb.col);
+    cb.row = malloc(sizeof *cb.row);
+    cb.val = malloc(3 * sizeof *cb.val);
+    const uint32_t cuts[] = {0, 17, 5000, 5001, N};
+    for (int i = 0; i < 4; i++) wrt_csc_mul_append(&a, &b, 0, NULL, 2, cuts[i], cuts[i + 1], &cb);
+    CHECK(cb.nnz == c1.nnz && !memcmp(cb.col, c1.col, (N + 1) * sizeof *cb.col) &&
+              !memcmp(cb.row, c1.row, c1.nnz * sizeof *cb.row) && !memcmp(cb.val, c1.val, 3 * c1.nnz * sizeof *cb.val),
+          "the product by blocks of columns differs from the whole product");
+    wrt_csc_free(&cb);
     /* the truth, column by column, from the triplets */
     double *col = calloc(3 * (size_t)N, sizeof *col);
     uint8_t *hit = calloc(N, 1);
