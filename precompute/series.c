@@ -578,10 +578,7 @@ static wrt_status series_factored_term(series_state *s, int bounce, int checked,
     } else {
         wrt_bake_memory_trim();
     }
-    double w0 = wrt_now(), c0 = wrt_dist_cpu_now();
-    uint64_t p_nnz = s->P.nnz;
     wrt_csc X = st == WRT_OK ? wrt_series_factored_right(s, &s->P) : (wrt_csc){0};
-    double w1 = wrt_now(), c1 = wrt_dist_cpu_now();
     int freed = 0;
     if (range) { /* P, now in X, re-cut with it (P taken back from X below where needed) */
         t1 = wrt_dist_cpu_now();
@@ -600,12 +597,6 @@ static wrt_status series_factored_term(series_state *s, int bounce, int checked,
     } else if (st == WRT_OK) {
         st = series_mul(s->b, &s->Tr, &X, s->eps, &s->FW, s->threads, N);
     }
-    if (s->timing) /* WRT_DTO_TIMES: the bake's stages timed (bake.c) */
-        fprintf(stderr,
-                "series-times: bounce %2d  U P %6.2f s wall %6.2f cpu  product %7.2f s wall %7.2f cpu  P %llu  U P %llu"
-                "  next %llu\n",
-                bounce, w1 - w0, c1 - c0, wrt_now() - w1, wrt_dist_cpu_now() - c1, (unsigned long long)p_nnz,
-                (unsigned long long)X.nnz, (unsigned long long)N->nnz);
     if (N->col) wrt_series_factored_trim(s, N);
     *nnz = N->nnz;
     if (range) {
@@ -983,33 +974,6 @@ static wrt_status series_gathered(series_state *s) {
     return WRT_OK;
 }
 
-/* --clusters: the stored operator's columns in the tree's basis (cluster_send.c), each
- * tree column compressed by the stored operator's rule (series_final_weights) with its
- * node's weight sqrt(a_P), and the small senders' factor (series_small_area) on the psi_P
- * of a node under the share as on a small quad's mean: a cluster of small quads holds its
- * far light at the kernel's level as each of its quads did, once for the cluster. Kept
- * where it has fewer entries (b->opt.cluster_senders). Measured on the atrium at 2,704
- * elements, quality 1, against the path tracer (docs/clusters.md): without the factor on
- * the psi_P, 1.99M entries and cells +0.41 points, with its square root 2.47M and +0.22,
- * with it 3.51M and +0.10 (the quads' basis: 6.58M). */
-static void series_senders(series_state *s) {
-    const bake_ctx *b = s->b;
-    wrt_bake_result *res = s->res;
-    wrt_csc_weights W;
-    double *own;
-    double eps = wrt_series_final_weights(s, &W, &own);
-    uint32_t *root = wrt_clusters_root_index(res->fkeys, res->nfuncs, (uint32_t)b->nq);
-    double *cw, *boost;
-    wrt_series_tree_cols(s, root, W.col_w, &cw, &boost);
-    W.col_w = cw;
-    W.boost_w = boost; /* only the tree's columns are compressed here */
-    res->c.cluster_senders_quads = s->S.nnz;
-    res->c.cluster_senders_basis = wrt_clusters_senders(&b->cl->tree, root, &s->S, eps, &W, b->opt.cluster_senders > 0,
-                                                        &res->c.cluster_senders_raw);
-    res->c.entries_gto = s->S.nnz;
-    free(root); free(cw); free(boost); free(own);
-}
-
 /* Frees what the state holds (after a failure: the sum too) */
 static void series_state_free(series_state *s) {
     series_free_right(s);
@@ -1085,7 +1049,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     if (s.tree) res->c.entries_gto = s.S.nnz; /* the senders' tree basis already */
     else if (b->cl && !b->opt.cluster_tree && b->opt.cluster_senders >= 0 && !b->opt.gathered &&
              !(s.share && b->opt.dist->rank != 0))
-        series_senders(&s);
+        wrt_series_senders(&s);
     if (b->cl && b->opt.cluster_tree && !(s.share && b->opt.dist->rank != 0)) {
         /* --clusters-tree-basis: the operator in the tree's basis, compressed there with
          * the tree's weights, is stored when it has fewer entries than in the quads' (else

@@ -96,6 +96,8 @@ void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps);
 int wrt_series_factored_on(const bake_ctx *b, const wrt_bake_result *res);
 void wrt_series_factored_start(series_state *s);
 void wrt_series_factored_bands(series_state *s);
+/* --clusters: the stored operator's columns in the tree's basis (series_tree.c) */
+void wrt_series_senders(series_state *s);
 wrt_csc wrt_series_factored_right(const series_state *s, const wrt_csc *P);
 void wrt_series_factored_trim(const series_state *s, wrt_csc *N);
 wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X);
