@@ -589,7 +589,9 @@ static mul_ctx mul_ctx_make(const wrt_csc *a, const wrt_csc *b, double drop, con
     if (w) {
         c.row_w = w->row_w; c.col_w = w->col_w; c.power_w = w->power_w;
         c.boost_w = w->boost_w; c.boost_lost = w->boost_lost;
-        if (w->bands && w->skip > 0 && w->bands->a.n == a->n) {
+        /* the bands only as A itself (its arrays: Tr takes the bands', series_tree.c); for
+         * another matrix of the same size they would stand in for it */
+        if (w->bands && w->skip > 0 && w->bands->a.row == a->row && w->bands->a.val == a->val) {
             c.bands = w->bands;
             c.skip = w->skip;
             c.a = &w->bands->a;
