@@ -84,6 +84,7 @@ void wrt_bake_defaults(wrt_bake_options *o) {
     if (o->series_right == 0) o->series_right = 1;
     if (o->series_right_from <= 0) o->series_right_from = 2;
     if (o->series_skip == 0) o->series_skip = WRT_SERIES_SKIP_DEFAULT;
+    if (o->series_columns == 0) o->series_columns = WRT_SERIES_COLUMNS_DEFAULT;
     /* the small senders' share of the scene's area, in units of eps_compress (series.c
      * series_small_area): the icosphere furnace of 1,280 triangles at quality 1 G - I -99.2%
      * -> the DTO's series; the assets at quality 5 the same bytes. Negative: off. */

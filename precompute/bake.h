@@ -65,6 +65,10 @@ typedef struct wrt_bake_options {
                             * contribution under series_skip x eps_compress (weighted as the
                             * compression's test) is not summed, its power kept (sparse.h
                             * wrt_csc_bands); 0: the default, WRT_SERIES_SKIP_DEFAULT; < 0: off */
+    int series_columns;    /* the factored tree series in one process (--clusters): this many
+                            * blocks of columns, each taken through every bounce and stored
+                            * before the next starts (series_cols.c); 0: the default,
+                            * WRT_SERIES_COLUMNS_DEFAULT; < 0: off (the terms whole) */
     int no_balance;        /* 1: keep T's root rows as the links integrate them (no power balance) */
     double max_memory_mb;  /* memory budget; default half the physical memory (wrt_bake_memory_default) */
     int first_bounce_level; /* outgoing angular level of the first-bounce operator K of glossy
@@ -136,6 +140,7 @@ typedef struct wrt_bake_options {
 /* The products' skipped contributions' default share of the threshold (docs/clusters.md
  * "Contributions under the threshold not summed") */
 #define WRT_SERIES_SKIP_DEFAULT (1.0 / 64)
+#define WRT_SERIES_COLUMNS_DEFAULT 16
 /* --clusters' default series_coarse (docs/clusters.md "The series on a coarser cut") */
 #define WRT_SERIES_COARSE_CLUSTERS 1e-3
 

@@ -89,6 +89,9 @@ static void usage(FILE *f) {
         "  --series-skip F        with --clusters, the series' products do not sum a single\n"
         "                         contribution under F x --eps-compress (weighted as the\n"
         "                         compression), its power kept (default 1/64; 0: sum all)\n"
+        "  --series-columns K     with --clusters, the series takes K blocks of columns one at a\n"
+        "                         time through every bounce, each stored before the next\n"
+        "                         starts (default 16; 0: the terms whole, held together)\n"
         "  --small-share F        a sender quad under F x eps_compress of the scene's area has\n"
         "                         its compression threshold scaled by its share over that\n"
         "                         (many small elements keep their multi-bounce light;\n"
@@ -252,6 +255,8 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
     /* only when on (the default bake's provenance, and so its bytes, unchanged) */
     if (o->series_coarse > 0) fprintf(f, ",\"series_coarse\":%.6g", o->series_coarse);
     if (o->clusters) fprintf(f, ",\"series_skip\":%.6g", o->series_skip > 0 ? o->series_skip : 0);
+    /* only when off: the blocks' count does not change the operator */
+    if (o->clusters && o->series_columns < 0) fprintf(f, ",\"series_columns\":0");
     /* only when not the default 10 (the default bake's bytes unchanged); 0: off */
     if (o->small_share != 10) fprintf(f, ",\"small_share\":%.6g", fmax(o->small_share, 0));
     if (o->small_lost != WRT_SMALL_LOST_DEFAULT) fprintf(f, ",\"small_lost\":%.6g", fmax(o->small_lost, 0));
@@ -412,6 +417,11 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--series-skip")) {
             ok = opt_num(a, v, 0, 1, &o->series_skip);
             if (ok && o->series_skip == 0) o->series_skip = -1; /* 0 on the command line: off */
+            i++;
+        }
+        else if (!strcmp(a, "--series-columns")) {
+            ok = opt_int(a, v, 0, 1000000, &o->series_columns);
+            if (ok && o->series_columns == 0) o->series_columns = -1; /* 0 on the command line: off */
             i++;
         }
         else if (!strcmp(a, "--series-right-from")) { ok = opt_int(a, v, 2, 1000000, &o->series_right_from); i++; }

@@ -893,6 +893,8 @@ static wrt_status series_final_sum(series_state *s, int add, const double k[3], 
     return st;
 }
 
+static wrt_status series_finish(series_state *s);
+
 /* Stage 3: refuse a diverging series, else add the geometric tail and compress the sum */
 static wrt_status series_tail(series_state *s) {
     const bake_ctx *b = s->b;
@@ -900,16 +902,9 @@ static wrt_status series_tail(series_state *s) {
     const double *rc = s->rc;
     double ratio = s->ratio;
     C->series_ratio = ratio;
-    /* Terms that keep growing (the ratio settled at or above 1, or still above 1 at the
-     * cap) mean the discrete operator's dominant eigenvalue is >= 1: the sum so far is
-     * a truncation of a divergent series, not an approximation of G - I. */
-    if (series_term_nnz(s) && ratio >= 1 && C->energy_left >= 1e-6) {
-        double rmax = 0;
-        for (int q = 0; q < b->nq; q++) rmax = fmax(rmax, fmax(b->rho[q][0], fmax(b->rho[q][1], b->rho[q][2])));
-        return wrt_fail(WRT_ERR_ACCURACY,
-                        "the light transport series diverges: each bounce multiplies the light by %.4f after %llu "
-                        "bounces (largest albedo %.4f; the discretised transport gains energy: lower the albedo or "
-                        "raise the quality)", ratio, (unsigned long long)C->bounces, rmax);
+    if (series_term_nnz(s)) {
+        wrt_status dst = wrt_series_diverging(s, C->energy_left, (int)C->bounces);
+        if (dst != WRT_OK) return dst;
     }
     int add = !b->opt.no_tail && series_term_nnz(s) && ratio > 0 && ratio < 1;
     double k[3] = {0, 0, 0}, sn = 0;
@@ -923,6 +918,13 @@ static wrt_status series_tail(series_state *s) {
         C->tail_fraction = sn > 0 ? fmax(k[0], fmax(k[1], k[2])) * pn / sn : 0;
     }
     wrt_csc_free(&s->P);
+    return series_finish(s);
+}
+
+/* Stage 3's end: each column's power fixed, the stored operator counted */
+static wrt_status series_finish(series_state *s) {
+    const bake_ctx *b = s->b;
+    wrt_bake_counters *C = s->C;
     /* by shares, the ranks but 0 hold no operator now: nothing to fix or count */
     if (s->share && b->opt.dist->rank != 0) return WRT_OK;
     /* each column's power made the DTO's own series' (series_power.c), after the drop */
@@ -1039,8 +1041,15 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     series_share_start(&s);
     if (s.tree) /* the sum's first state: by shares, this rank's columns */
         wrt_series_tree_sum_start(&s, s.share ? s.cut[b->opt.dist->rank] : 0, s.share ? s.cut[b->opt.dist->rank + 1] : res->nfuncs);
-    st = series_bounces(&s);
-    if (st == WRT_OK) st = series_tail(&s);
+    if (wrt_series_cols_on(&s)) { /* one block of columns through every bounce at a time */
+        st = wrt_series_cols(&s);
+        series_free_right(&s);
+        if (st == WRT_OK && s.share) st = series_share_root(&s);
+        if (st == WRT_OK) st = series_finish(&s);
+    } else {
+        st = series_bounces(&s);
+        if (st == WRT_OK) st = series_tail(&s);
+    }
     if (st == WRT_OK) st = series_gathered(&s);
     if (st != WRT_OK) {
         series_state_free(&s);

@@ -89,7 +89,7 @@ static wrt_status blocks_check(series_state *s, int bounce, uint64_t block_max) 
 
 wrt_status wrt_series_factored_blocks(series_state *s, int bounce, int checked, wrt_csc *N) {
     const wrt_csc *P = &s->P;
-    uint64_t target = P->nnz / WRT_FAC_BLOCKS, block_max = 0;
+    uint64_t target = P->nnz / (uint64_t)(s->fac_parts > 0 ? s->fac_parts : WRT_FAC_BLOCKS), block_max = 0;
     for (uint32_t c0 = 0, c1; c0 < P->n; c0 = c1) {
         c1 = block_end(P, c0, target);
         if (P->col[c1] - P->col[c0] > block_max) block_max = P->col[c1] - P->col[c0];

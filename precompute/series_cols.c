@@ -1,0 +1,257 @@
+/* series_cols.c: the factored tree series (--clusters, one process) by blocks of columns
+ * through every bounce (docs/clusters.md "The series by blocks of columns").
+ *
+ * Multiplied from the left, term k+1's column j is E1 (U P_k)'s column j: it reads term
+ * k's column j alone, and the products' compression, the sum and the stored operator's
+ * compression are column by column too. So a block of columns can go through every
+ * bounce on its own, its sum compressed for storing as soon as its last term is added,
+ * and the next block starts from nothing. Held beside E1 and the stored operator are
+ * then one block's terms and sum, not the whole of them (at 22,224 atrium elements the
+ * third term alone held 78.6M entries, at 43,780 216M: 3.5 GB).
+ *
+ * What the whole-term series decided from the terms' norms is decided here before any
+ * block starts, from the power iteration alone (so every column takes the same number of
+ * bounces and the same tail ratios whatever the blocks):
+ *  - the bounces: the ratios' settling rule of series.c, with the light left measured as
+ *    the power iteration's term over its sum (the smooth light's share; the terms' norms
+ *    fall faster, their detail decaying first, so this stops no sooner);
+ *  - the tail's ratios, the same iteration's.
+ * A block whose next term is empty (every entry under the threshold) stops there, its
+ * tail from its last term, as the whole series stopped when its next term was empty.
+ * The norms the bake reports (energy_left, tail_fraction) are summed over the blocks. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "budget.h"
+#include "dist.h"
+#include "series_internal.h"
+
+int wrt_series_cols_on(const series_state *s) {
+    const bake_ctx *b = s->b;
+    /* under wrt-bake-mpi by tree shares, each rank its range (the blocks do not change a
+     * column's entries: the same bytes as one process) */
+    return s->tree && s->fac && (s->share || !wrt_dist_on(b->opt.dist)) && b->opt.series_columns > 0 &&
+           !b->opt.gathered && !b->opt.report_gathered;
+}
+
+/* The bounces and the tail's ratios from the power iteration alone (series.c's rules) */
+static wrt_status cols_plan(series_state *s, int *bounces, double *energy, double tail[3]) {
+    const bake_ctx *b = s->b;
+    if (!s->pi.x) wrt_power_iter_start(&s->pi, s->T, s->pw);
+    double rc_prev[3] = {-1, -1, -1}, v[3] = {1, 1, 1}, sum[3] = {1, 1, 1};
+    int stable = 0, n = 1;
+    double e = 1;
+    s->ratio = 0;
+    while (n < b->opt.max_bounces) {
+        double r[3];
+        if (!wrt_power_iter_step(&s->pi, s->T, &s->Tf, s->pw, r))
+            return wrt_fail(WRT_ERR_IO, "the series could not read back its scratch copy of T");
+        n++;
+        e = 0;
+        for (int ch = 0; ch < 3; ch++) {
+            v[ch] *= fmax(r[ch], 0);
+            sum[ch] += v[ch];
+            e = fmax(e, sum[ch] > 0 ? v[ch] / sum[ch] : 0);
+        }
+        int settled = 1;
+        s->ratio = 0;
+        for (int ch = 0; ch < 3; ch++) {
+            s->rc[ch] = r[ch];
+            s->ratio = fmax(s->ratio, r[ch]);
+            double dr = fabs(r[ch] - rc_prev[ch]);
+            settled &= rc_prev[ch] >= 0 &&
+                       (dr <= 1e-5 * r[ch] || (r[ch] < 1 && dr / ((1 - r[ch]) * (1 - r[ch])) * e <= 1e-6));
+            rc_prev[ch] = r[ch];
+        }
+        stable = settled ? stable + 1 : 0;
+        if (e < 1e-6) break;
+        if (!b->opt.no_tail && stable >= 3 && n >= 8) break;
+    }
+    *bounces = n;
+    *energy = e;
+    /* the tail's share of the light, were it added: k v / (sum + k v) */
+    for (int ch = 0; ch < 3; ch++) {
+        double k = s->rc[ch] > 0 && s->rc[ch] < 1 ? s->rc[ch] / (1 - s->rc[ch]) : 0;
+        tail[ch] = sum[ch] + k * v[ch] > 0 ? k * v[ch] / (sum[ch] + k * v[ch]) : 0;
+    }
+    return WRT_OK;
+}
+
+wrt_status wrt_series_diverging(const series_state *s, double energy, int bounces) {
+    /* Terms that keep growing (the ratio settled at or above 1, or still above 1 at the
+     * cap) mean the discrete operator's dominant eigenvalue is >= 1: the sum so far is
+     * a truncation of a divergent series, not an approximation of G - I. */
+    const bake_ctx *b = s->b;
+    if (!(s->ratio >= 1 && energy >= 1e-6)) return WRT_OK;
+    double rmax = 0;
+    for (int q = 0; q < b->nq; q++) rmax = fmax(rmax, fmax(b->rho[q][0], fmax(b->rho[q][1], b->rho[q][2])));
+    return wrt_fail(WRT_ERR_ACCURACY,
+                    "the light transport series diverges: each bounce multiplies the light by %.4f after %d "
+                    "bounces (largest albedo %.4f; the discretised transport gains energy: lower the albedo or "
+                    "raise the quality)", s->ratio, bounces, rmax);
+}
+
+/* Columns [c0, c1) of m in arrays of their own, the others empty */
+static wrt_csc cols_range(const wrt_csc *m, uint32_t c0, uint32_t c1) {
+    wrt_csc r = {.n = m->n};
+    r.col = wrt_xcalloc((size_t)m->n + 1, sizeof *r.col);
+    uint64_t a = m->col[c0], z = m->col[c1];
+    for (uint32_t j = c0; j < m->n; j++) r.col[j + 1] = (j < c1 ? m->col[j + 1] : z) - a;
+    r.nnz = z - a;
+    r.row = wrt_xmalloc((r.nnz ? r.nnz : 1) * sizeof *r.row);
+    r.val = wrt_xmalloc((r.nnz ? r.nnz : 1) * 3 * sizeof *r.val);
+    if (r.nnz) {
+        memcpy(r.row, m->row + a, r.nnz * sizeof *r.row);
+        memcpy(r.val, m->val + 3 * a, r.nnz * 3 * sizeof *r.val);
+    }
+    return r;
+}
+
+/* The stored operator so far, F, takes m's columns [c0, c1) (its arrays grow by doubling;
+ * *cap their length) */
+static void cols_append(wrt_csc *F, uint64_t *cap, const wrt_csc *m, uint32_t c0, uint32_t c1) {
+    uint64_t a = m->col[c0], k = m->col[c1] - a;
+    if (F->nnz + k > *cap) {
+        while (F->nnz + k > *cap) *cap *= 2;
+        F->row = wrt_xrealloc(F->row, *cap * sizeof *F->row);
+        F->val = wrt_xrealloc(F->val, *cap * 3 * sizeof *F->val);
+    }
+    if (k) {
+        memcpy(F->row + F->nnz, m->row + a, k * sizeof *F->row);
+        memcpy(F->val + 3 * F->nnz, m->val + 3 * a, 3 * k * sizeof *F->val);
+    }
+    for (uint32_t j = c0; j < c1; j++) F->col[j + 1] = F->nnz + m->col[j + 1] - a;
+    F->nnz += k;
+}
+
+/* S += k P on the columns where P has entries and N none (a column ended) */
+static void cols_tail_ended(wrt_csc *S, const wrt_csc *P, const wrt_csc *N, const double k[3]) {
+    uint32_t n = P->n < N->n ? P->n : N->n;
+    uint64_t m = 0;
+    for (uint32_t j = 0; j < n; j++)
+        if (N->col[j + 1] == N->col[j]) m += P->col[j + 1] - P->col[j];
+    if (!m) return;
+    wrt_csc D = {.n = P->n, .nnz = m};
+    D.col = wrt_xcalloc((size_t)P->n + 1, sizeof *D.col);
+    D.row = wrt_xmalloc(m * sizeof *D.row);
+    D.val = wrt_xmalloc(3 * m * sizeof *D.val);
+    m = 0;
+    for (uint32_t j = 0; j < P->n; j++) {
+        if (j < n && N->col[j + 1] == N->col[j]) {
+            uint64_t a = P->col[j], z = P->col[j + 1];
+            memcpy(D.row + m, P->row + a, (z - a) * sizeof *D.row);
+            memcpy(D.val + 3 * m, P->val + 3 * a, 3 * (z - a) * sizeof *D.val);
+            m += z - a;
+        }
+        D.col[j + 1] = m;
+    }
+    wrt_csc_add3_into(S, &D, k);
+    wrt_csc_free(&D);
+}
+
+/* The end of the block that starts at c0: at most `target` of P's entries (a column more
+ * where one column alone passes it) */
+static uint32_t cols_end(const wrt_csc *P, uint32_t c0, uint64_t target) {
+    uint32_t c1 = c0 + 1;
+    while (c1 < P->n && P->col[c1 + 1] - P->col[c0] <= target) c1++;
+    return c1;
+}
+
+wrt_status wrt_series_cols(series_state *s) {
+    const bake_ctx *b = s->b;
+    wrt_bake_counters *C = s->C;
+    int bounces = 1;
+    double energy = 0, tail[3];
+    wrt_status st = cols_plan(s, &bounces, &energy, tail);
+    if (st != WRT_OK) return st;
+    C->series_ratio = s->ratio;
+    C->bounces = (uint64_t)bounces;
+    C->energy_left = energy;
+    if ((st = wrt_series_diverging(s, energy, bounces)) != WRT_OK) return st;
+    int add = !b->opt.no_tail && s->ratio > 0 && s->ratio < 1;
+    double k[3] = {0, 0, 0};
+    for (int ch = 0; ch < 3 && add; ch++) k[ch] = s->rc[ch] > 0 && s->rc[ch] < 1 ? s->rc[ch] / (1 - s->rc[ch]) : 0;
+    wrt_csc_weights W;
+    double *own[3];
+    double eps = wrt_series_final_weights_tree(s, &W, own);
+    /* the first term and the sum's first state, whole (made once: the senders' transform
+     * walks the whole tree for any range), cut into the blocks as they come */
+    wrt_csc P1 = s->P, S0 = s->S;
+    memset(&s->P, 0, sizeof s->P);
+    memset(&s->S, 0, sizeof s->S);
+    uint32_t n = S0.n;
+    int nblocks = b->opt.series_columns;
+    uint64_t target = P1.nnz / (uint64_t)nblocks, cap = 1024;
+    wrt_csc F = {.n = n};
+    F.col = wrt_xcalloc((size_t)n + 1, sizeof *F.col);
+    F.row = wrt_xmalloc(cap * sizeof *F.row);
+    F.val = wrt_xmalloc(cap * 3 * sizeof *F.val);
+    int timing = s->timing;
+    s->timing = 0; /* the products' own lines: one a block below instead */
+    /* each product whole on the block's columns (a block of U P is then a block's share
+     * of it: in 16 parts again, the pull-up's pass over every column, 16 x 16 times a
+     * bounce, cost 25% of the series at 5,048 atrium elements) */
+    s->fac_parts = 1;
+    const double one[3] = {1, 1, 1};
+    for (uint32_t c0 = 0, c1; c0 < n && st == WRT_OK; c0 = c1) {
+        c1 = P1.n == n ? cols_end(&P1, c0, target) : n;
+        double w0 = wrt_now(), t0 = wrt_dist_cpu_now();
+        s->P = cols_range(&P1, c0, c1);
+        wrt_csc Sb = cols_range(&S0, c0, c1);
+        uint64_t first = s->P.nnz, largest = s->P.nnz;
+        int made = 1;
+        while (made < bounces && s->P.nnz) {
+            wrt_csc N;
+            st = wrt_series_factored_blocks(s, made + 1, 0, &N);
+            if (st != WRT_OK) break;
+            /* a column whose next term is empty (every entry under the threshold) ends
+             * there, its tail from its last term */
+            if (add) cols_tail_ended(&Sb, &s->P, &N, k);
+            if (!N.nnz) {
+                wrt_csc_free(&N);
+                break;
+            }
+            wrt_csc_add3_into(&Sb, &N, one);
+            wrt_csc_free(&s->P);
+            s->P = N;
+            if (N.nnz > largest) largest = N.nnz;
+            made++;
+        }
+        if (st == WRT_OK) {
+            /* the columns still going at the last bounce: their tail */
+            if (add && made == bounces) wrt_csc_add3_into(&Sb, &s->P, k);
+            C->sum_held += Sb.nnz;
+            wrt_csc_compress(&Sb, eps, &W);
+            cols_append(&F, &cap, &Sb, c0, c1);
+        }
+        wrt_csc_free(&Sb);
+        wrt_csc_free(&s->P);
+        if (timing)
+            fprintf(stderr,
+                    "series-cols: columns %6u-%6u  bounces %2d  first %10llu  largest term %10llu  stored %10llu"
+                    "  %7.2f s wall %7.2f cpu\n",
+                    c0, c1, made, (unsigned long long)first, (unsigned long long)largest,
+                    (unsigned long long)(F.col[c1] - F.col[c0]), wrt_now() - w0, wrt_dist_cpu_now() - t0);
+        if (st == WRT_OK && b->opt.progress &&
+            !b->opt.progress("gto", P1.nnz ? (double)P1.col[c1] / (double)P1.nnz : 1, b->opt.progress_user))
+            st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
+    }
+    s->timing = timing;
+    s->fac_parts = 0;
+    wrt_csc_free(&P1);
+    wrt_csc_free(&S0);
+    free(own[0]); free(own[1]); free(own[2]);
+    if (st != WRT_OK) {
+        wrt_csc_free(&F);
+        return st;
+    }
+    F.row = wrt_xrealloc(F.row, (F.nnz ? F.nnz : 1) * sizeof *F.row);
+    F.val = wrt_xrealloc(F.val, (F.nnz ? F.nnz : 1) * 3 * sizeof *F.val);
+    s->S = F;
+    C->tail_fraction = add ? fmax(tail[0], fmax(tail[1], tail[2])) : 0;
+    wrt_power_iter_free(&s->pi);
+    wrt_bake_memory_trim();
+    return WRT_OK;
+}
