@@ -96,6 +96,11 @@ typedef uint64_t (*wrt_col_fn)(void *user, uint32_t f, uint32_t **row, float **v
  * compressed as there, the others as fn gives them; *raw the whole walk's (cluster_send.c). */
 wrt_csc wrt_clusters_senders_cols(const wrt_ctree *t, const uint32_t *root, uint32_t nf, wrt_col_fn fn, void *user,
                                   double drop, const wrt_csc_weights *W, uint32_t c0, uint32_t c1, uint64_t *raw);
+/* The same on nusers threads, each with its own fn user (the tree's subtrees walked on
+ * them): the same result */
+wrt_csc wrt_clusters_senders_cols_th(const wrt_ctree *t, const uint32_t *root, uint32_t nf, wrt_col_fn fn,
+                                     void *const *users, int nusers, double drop, const wrt_csc_weights *W,
+                                     uint32_t c0, uint32_t c1, uint64_t *raw);
 /* The series' weights of the root slots for the tree functions: areas of their nodes
  * (rw = 1/sqrt(a), cw = sqrt(a)), the small senders' factor 1 there (boost, may be NULL:
  * a node is not a small sender) and the power weights transformed (cluster_ops.c). */
@@ -110,6 +115,8 @@ void wrt_clusters_series_weights(const bake_ctx *b, const wrt_clusters *cl, cons
 #define WRT_CLUSTER_APART 0.01
 void wrt_clusters_apart(const wrt_ctree *t, const uint32_t *root, const wrt_csc *M, wrt_col_fn fn, void *user,
                         const double *pw, uint8_t *apart);
+void wrt_clusters_apart_th(const wrt_ctree *t, const uint32_t *root, const wrt_csc *M, wrt_col_fn fn,
+                           void *const *users, int nusers, const double *pw, uint8_t *apart);
 /* The root slot (function index) of every quad; malloc'd (cluster_ops.c). */
 uint32_t *wrt_clusters_root_index(const uint64_t *fkeys, uint32_t nf, uint32_t nq);
 

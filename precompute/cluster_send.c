@@ -23,10 +23,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/threads.h"
 #include "cluster.h"
 
 /* a column in double precision: rows ascending */
-typedef struct {
+typedef struct dcol_s {
     uint32_t *row;
     double *val; /* 3 per row */
     uint64_t n;
@@ -47,6 +48,10 @@ typedef struct {
     uint64_t raw;         /* the tree columns' entries before compression */
     const double *pw;     /* wrt_clusters_apart: the rows' power weights, and per node the */
     uint8_t *apart;       /* result (orow NULL: nothing is emitted) */
+    void *const *users;   /* send_split: one fn user a thread (users[0] is user) */
+    int nusers;
+    struct dcol_s *pre;   /* send_split: the subtrees' phi columns made on the threads, */
+    uint8_t *pre_have;    /* per node, taken by node_phi instead of walking them */
 } send_ctx;
 
 static void dcol_free(dcol *c) {
@@ -110,6 +115,10 @@ static int halves_apart(const send_ctx *x, const dcol *L, const dcol *R, double 
 static dcol node_phi(send_ctx *x, uint32_t p) {
     const wrt_ctree *t = x->t;
     dcol out = {0};
+    if (x->pre_have && x->pre_have[p]) { /* walked on a thread (send_split) */
+        x->pre_have[p] = 0;
+        return x->pre[p];
+    }
     if (t->left[p] < 0) {
         uint32_t c = x->root[t->right[p]];
         const uint32_t *row = NULL;
@@ -172,6 +181,68 @@ static dcol node_phi(send_ctx *x, uint32_t p) {
     return out;
 }
 
+typedef struct {
+    send_ctx *cx; /* one a thread */
+    const uint32_t *nodes;
+    dcol *pre;
+} split_ctx;
+
+static void split_run(size_t i, int th, void *user) {
+    split_ctx *sc = user;
+    sc->pre[sc->nodes[i]] = node_phi(&sc->cx[th], sc->nodes[i]);
+}
+
+/* With a fn user a thread: the tree cut at the first level with 8 subtrees a thread (or
+ * 256; the leaves above it kept), each subtree walked on a thread with its own user, its
+ * phi column kept for node_phi, its tree columns emitted into their own slots and its
+ * halves' test into its own nodes; the walk from the root then takes them. The same
+ * columns, bits and counts as one thread (raw: a sum of counts). */
+static void send_split(send_ctx *x) {
+    const wrt_ctree *t = x->t;
+    if (x->nusers < 2 || t->nnodes < 2) return;
+    uint32_t cap = 2 * 256 + 2, n = 1, *nodes = wrt_xmalloc(cap * sizeof *nodes), *next = wrt_xmalloc(cap * sizeof *next);
+    nodes[0] = 0;
+    while (n < 8 * (uint32_t)x->nusers && n < 256) {
+        uint32_t m = 0, grew = 0;
+        for (uint32_t i = 0; i < n; i++) {
+            uint32_t p = nodes[i];
+            if (t->left[p] >= 0) {
+                next[m++] = (uint32_t)t->left[p];
+                next[m++] = (uint32_t)t->right[p];
+                grew = 1;
+            } else {
+                next[m++] = p;
+            }
+        }
+        uint32_t *tmp = nodes;
+        nodes = next;
+        next = tmp;
+        n = m;
+        if (!grew) break;
+    }
+    send_ctx *cx = wrt_xmalloc((size_t)x->nusers * sizeof *cx);
+    for (int i = 0; i < x->nusers; i++) {
+        cx[i] = *x;
+        cx[i].user = x->users[i];
+        cx[i].raw = 0;
+        cx[i].pre = NULL;
+        cx[i].pre_have = NULL;
+    }
+    x->pre = wrt_xcalloc((size_t)t->nnodes + 1, sizeof *x->pre);
+    x->pre_have = wrt_xcalloc((size_t)t->nnodes + 1, 1);
+    split_ctx sc = {cx, nodes, x->pre};
+    wrt_parallel_for(n, x->nusers, split_run, &sc);
+    for (int i = 0; i < x->nusers; i++) x->raw += cx[i].raw;
+    for (uint32_t i = 0; i < n; i++) x->pre_have[nodes[i]] = 1;
+    free(cx); free(nodes); free(next);
+}
+
+static void send_split_free(send_ctx *x) {
+    free(x->pre); free(x->pre_have);
+    x->pre = NULL;
+    x->pre_have = NULL;
+}
+
 /* The tree walked: every tree column made, compressed and kept in its slot (x's arrays,
  * allocated here for nf functions); the functions that are tree slots marked (returned) */
 static uint8_t *send_walk(send_ctx *x, uint32_t nf) {
@@ -181,7 +252,9 @@ static uint8_t *send_walk(send_ctx *x, uint32_t nf) {
     x->on = wrt_xcalloc((size_t)nf + 1, sizeof *x->on);
     uint8_t *tree = wrt_xcalloc((size_t)nf + 1, 1);
     for (uint32_t q = 0; q < t->nq; q++) tree[x->root[q]] = 1;
+    send_split(x);
     dcol top = node_phi(x, 0);
+    send_split_free(x);
     emit(x, x->root[t->root_slot], top.row, top.val, top.n);
     dcol_free(&top);
     return tree;
@@ -189,9 +262,17 @@ static uint8_t *send_walk(send_ctx *x, uint32_t nf) {
 
 void wrt_clusters_apart(const wrt_ctree *t, const uint32_t *root, const wrt_csc *M, wrt_col_fn fn, void *user,
                         const double *pw, uint8_t *apart) {
-    send_ctx x = {.t = t, .root = root, .M = M, .fn = fn, .user = user, .pw = pw, .apart = apart};
+    wrt_clusters_apart_th(t, root, M, fn, &user, 1, pw, apart);
+}
+
+void wrt_clusters_apart_th(const wrt_ctree *t, const uint32_t *root, const wrt_csc *M, wrt_col_fn fn,
+                           void *const *users, int nusers, const double *pw, uint8_t *apart) {
+    send_ctx x = {.t = t, .root = root, .M = M, .fn = fn, .user = users[0], .pw = pw, .apart = apart,
+                  .users = users, .nusers = nusers};
     memset(apart, 0, t->nnodes);
+    send_split(&x);
     dcol top = node_phi(&x, 0);
+    send_split_free(&x);
     dcol_free(&top);
 }
 
@@ -252,7 +333,15 @@ int wrt_clusters_senders(const wrt_ctree *t, const uint32_t *root, wrt_csc *M, d
 
 wrt_csc wrt_clusters_senders_cols(const wrt_ctree *t, const uint32_t *root, uint32_t nf, wrt_col_fn fn, void *user,
                                   double drop, const wrt_csc_weights *W, uint32_t c0, uint32_t c1, uint64_t *raw) {
-    send_ctx x = {.t = t, .root = root, .fn = fn, .user = user, .c0 = c0, .c1 = c1, .drop = drop, .W = W};
+    return wrt_clusters_senders_cols_th(t, root, nf, fn, &user, 1, drop, W, c0, c1, raw);
+}
+
+wrt_csc wrt_clusters_senders_cols_th(const wrt_ctree *t, const uint32_t *root, uint32_t nf, wrt_col_fn fn,
+                                     void *const *users, int nusers, double drop, const wrt_csc_weights *W,
+                                     uint32_t c0, uint32_t c1, uint64_t *raw) {
+    void *user = users[0];
+    send_ctx x = {.t = t, .root = root, .fn = fn, .user = user, .c0 = c0, .c1 = c1, .drop = drop, .W = W,
+                  .users = users, .nusers = nusers};
     uint8_t *tree = send_walk(&x, nf);
     /* the columns in order, appended (the arrays grow by doubling: realloc moves large
      * blocks by remapping, so the result is held about once) */

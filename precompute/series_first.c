@@ -21,11 +21,14 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/threads.h"
 #include "cluster.h"
 #include "series_first.h"
 #include "series_internal.h"
 
 enum { TCOL_SUM, TCOL_TERM, TCOL_POWER };
+/* the most threads the senders' walk takes (one column builder each) */
+#define WRT_TCOL_THREADS 64
 
 void wrt_tcols_init(wrt_tcols *c, const wrt_ctree *t, const uint32_t *root, const wrt_csc *E1, uint32_t nf) {
     memset(c, 0, sizeof *c);
@@ -147,35 +150,62 @@ static uint64_t tcol_fn(void *user, uint32_t f, uint32_t **row, float **val) {
     return n;
 }
 
+/* One tcol context a thread of the walk (cluster_send.c send_split), mode's */
+typedef struct {
+    tcol_ctx c[WRT_TCOL_THREADS];
+    void *u[WRT_TCOL_THREADS];
+    int n;
+} tcol_set;
+
+static void tcol_set_init(tcol_set *set, const series_state *s, int mode) {
+    int th = wrt_threads_resolve(s->threads);
+    set->n = th < 1 ? 1 : th > WRT_TCOL_THREADS ? WRT_TCOL_THREADS : th;
+    for (int i = 0; i < set->n; i++) {
+        tcol_init(&set->c[i], s, mode);
+        set->u[i] = &set->c[i];
+    }
+}
+
+/* the entries counted (TCOL_SUM), summed over the threads' contexts; freed */
+static uint64_t tcol_set_free(tcol_set *set) {
+    uint64_t e = 0;
+    for (int i = 0; i < set->n; i++) {
+        e += set->c[i].entries;
+        wrt_tcols_free(&set->c[i].tc);
+    }
+    return e;
+}
+
 void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_csc *S, wrt_csc *P) {
     const wrt_ctree *t = &s->b->cl->tree;
     uint32_t nf = s->res->nfuncs;
     uint64_t raw;
-    tcol_ctx c;
+    tcol_set set;
     if (S) {
-        tcol_init(&c, s, TCOL_SUM);
-        *S = wrt_clusters_senders_cols(t, s->troot, nf, tcol_fn, &c, s->eps, &s->TW, c0, c1,
-                                       &s->res->c.cluster_senders_raw);
+        tcol_set_init(&set, s, TCOL_SUM);
+        *S = wrt_clusters_senders_cols_th(t, s->troot, nf, tcol_fn, set.u, set.n, s->eps, &s->TW, c0, c1,
+                                          &s->res->c.cluster_senders_raw);
         /* T's entries, as the file's statistics count them (whatever the range): its root
          * columns, all made by the walk, and the others, E1's */
+        uint64_t entries = 0;
         for (uint32_t f = 0; f < nf; f++)
-            if (c.tc.leaf_of[f] < 0) c.entries += s->E1->col[f + 1] - s->E1->col[f];
-        s->res->c.entries_dto = c.entries;
-        s->res->c.entries_spatial = c.entries - s->res->c.entries_angular;
-        wrt_tcols_free(&c.tc);
+            if (set.c[0].tc.leaf_of[f] < 0) entries += s->E1->col[f + 1] - s->E1->col[f];
+        entries += tcol_set_free(&set);
+        s->res->c.entries_dto = entries;
+        s->res->c.entries_spatial = entries - s->res->c.entries_angular;
     }
     if (P) {
-        tcol_init(&c, s, TCOL_TERM);
-        *P = wrt_clusters_senders_cols(t, s->troot, nf, tcol_fn, &c, s->eps, &s->TW, c0, c1, &raw);
-        wrt_tcols_free(&c.tc);
+        tcol_set_init(&set, s, TCOL_TERM);
+        *P = wrt_clusters_senders_cols_th(t, s->troot, nf, tcol_fn, set.u, set.n, s->eps, &s->TW, c0, c1, &raw);
+        tcol_set_free(&set);
     }
 }
 
 void wrt_series_factored_apart(series_state *s, uint8_t *apart) {
-    tcol_ctx c;
-    tcol_init(&c, s, TCOL_SUM);
-    wrt_clusters_apart(&s->b->cl->tree, s->troot, NULL, tcol_fn, &c, s->pw, apart);
-    wrt_tcols_free(&c.tc);
+    tcol_set set;
+    tcol_set_init(&set, s, TCOL_SUM);
+    wrt_clusters_apart_th(&s->b->cl->tree, s->troot, NULL, tcol_fn, set.u, set.n, s->pw, apart);
+    tcol_set_free(&set);
 }
 
 wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d) {
