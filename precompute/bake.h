@@ -181,7 +181,7 @@ typedef struct wrt_bake_counters {
      * t_gto. t_balance_begin: wrt_now() at that call (0: no balance). */
     double t_balance_phase, t_balance_begin;
     int open_quad;                 /* an open scene: the first quad with a ray that met no surface (-1: closed) */
-    double t_rays;                 /* thread-seconds spent in visibility rays */
+    double t_rays;                 /* thread-seconds spent in visibility rays (WRT_DTO_TIMES; else 0) */
     double mem_estimate_mb;        /* the largest memory need the bake estimated before allocating */
     uint64_t entries_k, links_k;   /* the first-bounce operator K: entries and links */
     uint32_t nkcols;               /* its columns (outgoing functions of glossy quads) */
