@@ -107,14 +107,16 @@ uint8_t *wrt_bake_cover_flags(const bake_ctx *b) {
     return f;
 }
 
-int wrt_bake_covered_uv(const bake_ctx *b, int qi, double u, double v, wrt_v3 o) {
+int wrt_bake_covered_uv(const bake_ctx *b, int qi, double u, double v, wrt_v3 o, uint64_t *rays) {
     const wrt_quad *Q = &b->quads[qi];
     uint32_t n = ((const uint32_t *)(b->cover + flags_bytes(b->nq)))[qi];
-    if (!n) return wrt_bake_covered(b, o, Q);
+    if (!n) return ++*rays, wrt_bake_covered(b, o, Q);
     int x = (int)(u * WRT_COVER_MAP), y = (int)(v * WRT_COVER_MAP);
     x = x < 0 ? 0 : x >= WRT_COVER_MAP ? WRT_COVER_MAP - 1 : x;
     y = y < 0 ? 0 : y >= WRT_COVER_MAP ? WRT_COVER_MAP - 1 : y;
     const uint8_t *m = b->cover + flags_bytes(b->nq) + (size_t)b->nq * sizeof(uint32_t) + (size_t)(n - 1) * MAP_BYTES;
     int st = m[MAP_SIDE * MAP_SIDE + y * WRT_COVER_MAP + x];
-    return st == CELL_MIXED ? wrt_bake_covered(b, o, Q) : st == CELL_COVERED;
+    if (st != CELL_MIXED) return st == CELL_COVERED;
+    ++*rays;
+    return wrt_bake_covered(b, o, Q);
 }

@@ -27,7 +27,8 @@ int wrt_bake_covered(const bake_ctx *b, wrt_v3 o, const wrt_quad *q);
 uint8_t *wrt_bake_cover_flags(const bake_ctx *b);
 
 /* wrt_bake_covered at the point (u, v) of quad qi (o: that point lifted along the
- * normal), answered from the quad's map where its cell's four corners agree. */
-int wrt_bake_covered_uv(const bake_ctx *b, int qi, double u, double v, wrt_v3 o);
+ * normal), answered from the quad's map where its cell's four corners agree; else
+ * tested with rays, counted in *rays. */
+int wrt_bake_covered_uv(const bake_ctx *b, int qi, double u, double v, wrt_v3 o, uint64_t *rays);
 
 #endif

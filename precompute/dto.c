@@ -47,6 +47,7 @@
  * (formats/GTO_FORMAT.md, "First-bounce operator"). */
 #include <math.h>
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -390,7 +391,8 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
             if (pc->dual) {
                 wq_all[q] += ls->jr[k];
                 pc->tc->cover_x += xcov_test;
-                if (!xcov_test || !wrt_bake_covered_uv(b, ri, u, v, v3_mad(x, R->n, b->ray_eps))) wq_exp[q] += ls->jr[k];
+                if (!xcov_test || !wrt_bake_covered_uv(b, ri, u, v, v3_mad(x, R->n, b->ray_eps), &pc->tc->cover_exact))
+                    wq_exp[q] += ls->jr[k];
             }
             double sd = v3_dot(v3_sub(x, S->p[0]), S->n), fq[4];
             int shared = sd > b->plane_eps && ff_point_quadrants(x, R->n, sgrid, fq);
@@ -414,7 +416,9 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
                     int blocked = wrt_bake_occluded(b, v3_mad(x, R->n, b->ray_eps), v3_mad(y, S->n, b->ray_eps));
                     int blocked_far = blocked; /* the visibility where the far side sends */
                     for (int tr = 0; blocked_far && redraw && tr < WRT_COVER_REDRAWS &&
-                                     (pc->tc->cover_y++, wrt_bake_covered_uv(b, si, tu, tv, v3_mad(y, S->n, b->ray_eps))); tr++) {
+                                     (pc->tc->cover_y++, wrt_bake_covered_uv(b, si, tu, tv, v3_mad(y, S->n, b->ray_eps),
+                                                                             &pc->tc->cover_exact));
+                         tr++) {
                         gu = fmod(gu + 0.618033988749895, 1.0);
                         gv = fmod(gv + 0.754877666246693, 1.0);
                         tu = wrt_node_x0(c) + gu * wrt_node_size(c);
@@ -843,6 +847,14 @@ const pair_entry *wrt_pair_entries(const bake_ctx *b, const pair_out *o, pair_en
         }
     }
     return e;
+}
+
+void wrt_dto_times_cover(const bake_thread_counters *tc, int nt, size_t np, uint64_t rays) {
+    uint64_t cx = 0, cy = 0, ce = 0;
+    for (int t = 0; t < nt; t++) { cx += tc[t].cover_x; cy += tc[t].cover_y; ce += tc[t].cover_exact; }
+    fprintf(stderr, "dto-times:   %zu pairs, %llu rays, cover tests at %llu receiver and %llu sender points, %llu of "
+            "them with rays (the rest by the quads' maps, cover.c)\n", np, (unsigned long long)rays,
+            (unsigned long long)cx, (unsigned long long)cy, (unsigned long long)ce);
 }
 
 size_t wrt_pair_bytes(const pair_out *o) {
