@@ -34,6 +34,7 @@ typedef struct lctx {
     const int *owner; int rank;   /* wrt-bake-mpi: each task's rank (NULL: all here; dist.h) */
     int timing;                   /* WRT_DTO_TIMES set: the sinks' timers run */
     _Atomic uint64_t (*why)[24];  /* WRT_DTO_TIMES: the pairs' outcomes by log2 of the quads */
+    _Atomic uint64_t *why_rays;   /* and the oracle's rays by outcome */
     wrt_v3 *px;                   /* per uniform node: its CL_SAMPLES points (node_points) */
     uint32_t *pq;                 /* and their quads */
 } lctx;
@@ -45,8 +46,9 @@ static const char *why_name[W_N] = {"linked: agree", "linked: power", "dropped: 
                                     "refused: blocked, away", "refused: blocked, lost",
                                     "refused: hidden", "refused: partial", "refused: spread",
                                     "refined: albedos", "refined: near", "culled"};
-static void tally(const lctx *c, uint32_t a, uint32_t bn, int w) {
+static void tally(const lctx *c, uint32_t a, uint32_t bn, int w, uint64_t rays) {
     if (!c->why) return;
+    atomic_fetch_add_explicit(&c->why_rays[w], rays, memory_order_relaxed);
     uint32_t n = c->cl->hi[a] - c->cl->lo[a] + c->cl->hi[bn] - c->cl->lo[bn];
     int l = 0;
     while ((1u << l) < n && l < 23) l++;
@@ -229,7 +231,9 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
     int sa[S], sb[S], ma = 0, mb = 0;
     k->oracle++;
     double unocc = 0;
+    uint64_t r0 = k->rays;
     int nblk = sample_kernel(c, k, a, bn, kv, &unocc, sa, sb);
+    uint64_t nr = k->rays - r0;
     double aa = cl->tree.area[a], ab = cl->tree.area[bn];
     for (int i = 0; i < S; i++)
         for (int j = 0; j < S; j++) { fa[i] += ab * kv[i][j] / S; fb[j] += aa * kv[i][j] / S; sum += kv[i][j]; }
@@ -245,8 +249,8 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
          * so no rule restores it: flux 0.986 of the truth dropping every blocked pair,
          * 0.992 so; the maze asset at quality 1: 7,849 leaf pairs against 7,816) */
         double lost = fmax(rho, rhob) * aa * ab * unocc / (S * S);
-        if (nblk && !(ma & PT_AWAY) && !(mb & PT_AWAY) && lost <= bound) { tally(c, a, bn, W_DROP); return 1; }
-        tally(c, a, bn, !nblk ? W_NONE_FACING : (ma & PT_AWAY) || (mb & PT_AWAY) ? W_BLOCKED_AWAY : W_BLOCKED);
+        if (nblk && !(ma & PT_AWAY) && !(mb & PT_AWAY) && lost <= bound) { tally(c, a, bn, W_DROP, nr); return 1; }
+        tally(c, a, bn, !nblk ? W_NONE_FACING : (ma & PT_AWAY) || (mb & PT_AWAY) ? W_BLOCKED_AWAY : W_BLOCKED, nr);
         k->refused_spread++;
         return 0;
     }
@@ -257,11 +261,11 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
     int agree = !mixed && da <= c->spread * ha && db <= c->spread * hb;
     if (!agree && !(err <= bound)) {
         if (mixed || nblk) k->refused_vis++; else k->refused_spread++;
-        tally(c, a, bn, mixed ? W_HIDDEN : nblk ? W_PARTIAL : W_SPREAD);
+        tally(c, a, bn, mixed ? W_HIDDEN : nblk ? W_PARTIAL : W_SPREAD, nr);
         return 0;
     }
     if (nblk) k->partial++;
-    tally(c, a, bn, agree ? W_AGREE : W_POWER);
+    tally(c, a, bn, agree ? W_AGREE : W_POWER, nr);
     double t = sqrt(aa * ab) * sum / (S * S);
     float tab[3], tba[3];
     for (int ch = 0; ch < 3; ch++) { tab[ch] = (float)(cl->rho[bn][ch] * t); tba[ch] = (float)(cl->rho[a][ch] * t); }
@@ -287,7 +291,7 @@ static void link_pair(lctx *c, sink *k, uint32_t a, uint32_t bn, int serial) {
     const wrt_clusters *cl = c->cl;
     if (serial && count(cl, a) + count(cl, bn) <= c->grain) { push_task(c, a, bn); return; }
     k->visited++;
-    if (behind(c, a, bn) || behind(c, bn, a)) { k->culled++; tally(c, a, bn, W_CULLED); return; }
+    if (behind(c, a, bn) || behind(c, bn, a)) { k->culled++; tally(c, a, bn, W_CULLED, 0); return; }
     int la = is_leaf(cl, a), lb = is_leaf(cl, bn);
     if (la && lb) {
         double t0 = c->timing ? wrt_now() : 0;
@@ -295,8 +299,8 @@ static void link_pair(lctx *c, sink *k, uint32_t a, uint32_t bn, int serial) {
         if (c->timing) k->t_leaf += wrt_now() - t0;
         return;
     }
-    if (c->why && !(cl->uniform[a] && cl->uniform[bn])) tally(c, a, bn, W_MIXED_ALBEDO);
-    else if (c->why && !separated(c, a, bn)) tally(c, a, bn, W_NEAR);
+    if (c->why && !(cl->uniform[a] && cl->uniform[bn])) tally(c, a, bn, W_MIXED_ALBEDO, 0);
+    else if (c->why && !separated(c, a, bn)) tally(c, a, bn, W_NEAR, 0);
     if (cl->uniform[a] && cl->uniform[bn] && separated(c, a, bn)) {
         double t0 = c->timing ? wrt_now() : 0;
         int done = oracle(c, k, a, bn);
@@ -407,7 +411,7 @@ wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
     c.eps = b->opt.cluster_eps > 0 ? b->opt.cluster_eps : b->opt.cluster_eps < 0 ? 0 : WRT_CLUSTER_EPS_DEFAULT;
     c.grain = (uint32_t)fmax(32, b->nq / 128);
     c.timing = getenv("WRT_DTO_TIMES") != NULL;
-    if (c.timing) c.why = wrt_xcalloc(W_N, sizeof *c.why);
+    if (c.timing) c.why = wrt_xcalloc(W_N, sizeof *c.why), c.why_rays = wrt_xcalloc(W_N, sizeof *c.why_rays);
     double t_start = wrt_now();
     size_t nn = cl->tree.nnodes;
     c.px = wrt_xmalloc(nn * CL_SAMPLES * sizeof *c.px);
@@ -442,13 +446,13 @@ wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
                 (unsigned long long)s.visited, (unsigned long long)s.oracle);
         fprintf(stderr, "dto-times:   the node pairs' outcomes by their quads (up to 2^l):\ndto-times:   %-20s", "l");
         for (int l = 1; l < 24; l++) fprintf(stderr, " %7d", l);
-        fprintf(stderr, "\n");
+        fprintf(stderr, " %11s\n", "rays");
         for (int w = 0; w < W_N; w++) {
             fprintf(stderr, "dto-times:   %-20s", why_name[w]);
             for (int l = 1; l < 24; l++) fprintf(stderr, " %7llu", (unsigned long long)atomic_load(&c.why[w][l]));
-            fprintf(stderr, "\n");
+            fprintf(stderr, " %11llu\n", (unsigned long long)atomic_load(&c.why_rays[w]));
         }
-        free(c.why);
+        free(c.why); free((void *)c.why_rays);
     }
     wrt_status st = WRT_OK;
     if (owner) {
