@@ -77,6 +77,9 @@ typedef struct wrt_bake_options {
     double cluster_eps;    /* its power criterion (0: WRT_CLUSTER_EPS_DEFAULT; < 0: off) */
     int cluster_albedo_split; /* 1: the cluster tree splits a node of several albedos by albedo
                                * before orientation and position (cluster.c) */
+    int cluster_keep_away; /* 1: the oracle refines a pair whose facing rays are all blocked
+                            * and some point faces away, as before session 14 (by default it
+                            * drops it under the kernel's bound: cluster_link.c) */
     int cluster_senders;   /* with --clusters: 0 (the default): the stored operator's columns
                             * in the tree's basis (the senders' side only, where the small
                             * senders' light is held once per cluster: cluster_send.c) when
