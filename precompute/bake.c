@@ -997,11 +997,8 @@ wrt_status wrt_bake_run(const wrt_scene *scene, const wrt_bake_options *opt_in, 
     dto_job job;
     wrt_status st = bake_dto(&b, C, &pl, &job, &pool_bytes, &pool_refused);
     if (clock.on) {
-        uint64_t cx = 0, cy = 0;
-        for (int t = 0; t < wrt_threads_resolve(b.opt.threads); t++) { cx += job.tc[t].cover_x; cy += job.tc[t].cover_y; }
         stage_mark(&clock, "per-pair DTO");
-        fprintf(stderr, "dto-times:   %zu pairs, %llu rays, cover tests at %llu receiver and %llu sender points\n", pl.np,
-                (unsigned long long)C->rays_traced, (unsigned long long)cx, (unsigned long long)cy);
+        wrt_dto_times_cover(job.tc, wrt_threads_resolve(b.opt.threads), pl.np, C->rays_traced);
     }
     if (lst != WRT_OK) st = lst;
     if (job.owner) { /* wrt-bake-mpi: every rank gets every pair's links, and the counters' sums */

@@ -81,6 +81,9 @@ typedef struct wrt_bake_options {
     double cluster_eps;    /* its power criterion (0: WRT_CLUSTER_EPS_DEFAULT; < 0: off) */
     int cluster_albedo_split; /* 1: the cluster tree splits a node of several albedos by albedo
                                * before orientation and position (cluster.c) */
+    int cluster_keep_away; /* 1: the oracle refines a pair whose facing rays are all blocked
+                            * and some point faces away, as before session 14 (by default it
+                            * drops it under the kernel's bound: cluster_link.c) */
     int cluster_senders;   /* with --clusters: 0 (the default): the stored operator's columns
                             * in the tree's basis (the senders' side only, where the small
                             * senders' light is held once per cluster: cluster_send.c) when
@@ -186,7 +189,7 @@ typedef struct wrt_bake_counters {
      * t_gto. t_balance_begin: wrt_now() at that call (0: no balance). */
     double t_balance_phase, t_balance_begin;
     int open_quad;                 /* an open scene: the first quad with a ray that met no surface (-1: closed) */
-    double t_rays;                 /* thread-seconds spent in visibility rays */
+    double t_rays;                 /* thread-seconds spent in visibility rays (WRT_DTO_TIMES; else 0) */
     double mem_estimate_mb;        /* the largest memory need the bake estimated before allocating */
     uint64_t entries_k, links_k;   /* the first-bounce operator K: entries and links */
     uint32_t nkcols;               /* its columns (outgoing functions of glossy quads) */

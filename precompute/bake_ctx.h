@@ -52,6 +52,7 @@ typedef struct bake_thread_counters {
     uint64_t samples, rays_traced, rays_skipped_facing, rays_skipped_unoccluded;
     uint64_t links_refined, links_leaf, links_invisible;
     uint64_t cover_x, cover_y; /* WRT_DTO_TIMES: receiver and sender points tested for cover */
+    uint64_t cover_exact;      /* those tested with rays, not by the quad's map (cover.c) */
     double t_rays;
     char pad[64];
 } bake_thread_counters;

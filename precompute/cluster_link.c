@@ -34,6 +34,9 @@ typedef struct lctx {
     const int *owner; int rank;   /* wrt-bake-mpi: each task's rank (NULL: all here; dist.h) */
     int timing;                   /* WRT_DTO_TIMES set: the sinks' timers run */
     _Atomic uint64_t (*why)[24];  /* WRT_DTO_TIMES: the pairs' outcomes by log2 of the quads */
+    _Atomic uint64_t *why_rays;   /* and the oracle's rays by outcome */
+    wrt_v3 *px;                   /* per uniform node: its CL_SAMPLES points (node_points) */
+    uint32_t *pq;                 /* and their quads */
 } lctx;
 
 /* WRT_DTO_TIMES: what became of the node pairs, by the log2 of their quads: the oracle's
@@ -43,8 +46,9 @@ static const char *why_name[W_N] = {"linked: agree", "linked: power", "dropped: 
                                     "refused: blocked, away", "refused: blocked, lost",
                                     "refused: hidden", "refused: partial", "refused: spread",
                                     "refined: albedos", "refined: near", "culled"};
-static void tally(const lctx *c, uint32_t a, uint32_t bn, int w) {
+static void tally(const lctx *c, uint32_t a, uint32_t bn, int w, uint64_t rays) {
     if (!c->why) return;
+    atomic_fetch_add_explicit(&c->why_rays[w], rays, memory_order_relaxed);
     uint32_t n = c->cl->hi[a] - c->cl->lo[a] + c->cl->hi[bn] - c->cl->lo[bn];
     int l = 0;
     while ((1u << l) < n && l < 23) l++;
@@ -119,8 +123,9 @@ static void leaf_pair(const lctx *c, sink *k, int qa, int qb) {
 
 static double u01(uint64_t h) { return (double)(h >> 11) * 0x1.0p-53; }
 
-/* CL_SAMPLES area-stratified points of node p (and their quads' normals) */
-static void node_points(const lctx *c, uint32_t p, wrt_v3 *x, wrt_v3 *n) {
+/* CL_SAMPLES area-stratified points of node p and their quads, computed once per node
+ * (the oracle meets a node in many pairs: 22M calls at 43,780 elements) */
+static void node_points_make(const lctx *c, uint32_t p, wrt_v3 *x, uint32_t *qi) {
     const wrt_clusters *cl = c->cl;
     double a0 = cl->pref[cl->lo[p]], a1 = cl->pref[cl->hi[p]];
     for (int i = 0; i < CL_SAMPLES; i++) {
@@ -134,7 +139,21 @@ static void node_points(const lctx *c, uint32_t p, wrt_v3 *x, wrt_v3 *n) {
         const wrt_quad *q = &c->b->quads[cl->perm[lo]];
         uint64_t h2 = wrt_mix64(h);
         x[i] = v3_mad(wrt_quad_point(q, u01(h2), u01(wrt_mix64(h2))), q->n, c->b->ray_eps);
-        n[i] = q->n;
+        qi[i] = cl->perm[lo];
+    }
+}
+
+static void node_points_task(size_t p, int th, void *user) {
+    (void)th;
+    const lctx *c = user;
+    if (c->cl->uniform[p]) node_points_make(c, (uint32_t)p, c->px + p * CL_SAMPLES, c->pq + p * CL_SAMPLES);
+}
+
+/* node p's points (and their quads' normals) */
+static void node_points(const lctx *c, uint32_t p, wrt_v3 *x, wrt_v3 *n) {
+    for (int i = 0; i < CL_SAMPLES; i++) {
+        x[i] = c->px[(size_t)p * CL_SAMPLES + i];
+        n[i] = c->b->quads[c->pq[(size_t)p * CL_SAMPLES + i]].n;
     }
 }
 
@@ -212,7 +231,9 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
     int sa[S], sb[S], ma = 0, mb = 0;
     k->oracle++;
     double unocc = 0;
+    uint64_t r0 = k->rays;
     int nblk = sample_kernel(c, k, a, bn, kv, &unocc, sa, sb);
+    uint64_t nr = k->rays - r0;
     double aa = cl->tree.area[a], ab = cl->tree.area[bn];
     for (int i = 0; i < S; i++)
         for (int j = 0; j < S; j++) { fa[i] += ab * kv[i][j] / S; fb[j] += aa * kv[i][j] / S; sum += kv[i][j]; }
@@ -221,15 +242,34 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
     double rhob = fmax(fmax(cl->rho[bn][0], cl->rho[bn][1]), cl->rho[bn][2]);
     double bound = c->eps * cl->tree.area[0];
     if (sum == 0) {
-        /* every facing ray blocked, and no point facing away: no light, dropped if the
-         * light that the 64 rays could have missed through an opening between them (at
-         * most the transfer without visibility) is within the bound; else refined, as
+        /* every facing ray blocked: no light, dropped if the light that the 64 rays
+         * could have missed through an opening between them (at most the transfer
+         * without visibility; with a point facing away, below) is within the bound; else refined, as
          * dropping always loses light (an open box with a plate across it, not closed
          * so no rule restores it: flux 0.986 of the truth dropping every blocked pair,
          * 0.992 so; the maze asset at quality 1: 7,849 leaf pairs against 7,816) */
         double lost = fmax(rho, rhob) * aa * ab * unocc / (S * S);
-        if (nblk && !(ma & PT_AWAY) && !(mb & PT_AWAY) && lost <= bound) { tally(c, a, bn, W_DROP); return 1; }
-        tally(c, a, bn, !nblk ? W_NONE_FACING : (ma & PT_AWAY) || (mb & PT_AWAY) ? W_BLOCKED_AWAY : W_BLOCKED);
+        int away = (ma & PT_AWAY) || (mb & PT_AWAY);
+        if (nblk && away && !c->b->opt.cluster_keep_away) {
+            /* some point faces away: it may stand for facing quads the samples missed, so
+             * the light the rays could have missed is bounded by the kernel's bound instead,
+             * 1 / (pi d^2) at the boxes' distance d. Refining these pairs instead (before
+             * session 14, --clusters-keep-away) took most of them down to leaf pairs: 3.4M
+             * of the 7.5M oracle calls and 0.46M leaf pairs at 22,224 elements, the same
+             * path tracer's error at 5,048 (docs/clusters.md, "The DTO phase's growth") */
+            double d2 = 0;
+            for (int ax = 0; ax < 3; ax++) {
+                double lo_a = ax == 0 ? cl->bmin[a].x : ax == 1 ? cl->bmin[a].y : cl->bmin[a].z;
+                double hi_a = ax == 0 ? cl->bmax[a].x : ax == 1 ? cl->bmax[a].y : cl->bmax[a].z;
+                double lo_b = ax == 0 ? cl->bmin[bn].x : ax == 1 ? cl->bmin[bn].y : cl->bmin[bn].z;
+                double hi_b = ax == 0 ? cl->bmax[bn].x : ax == 1 ? cl->bmax[bn].y : cl->bmax[bn].z;
+                double g = fmax(0, fmax(lo_b - hi_a, lo_a - hi_b));
+                d2 += g * g;
+            }
+            if (d2 > 0 && fmax(rho, rhob) * aa * ab / (WRT_PI * d2) <= bound) { tally(c, a, bn, W_DROP, nr); return 1; }
+        }
+        if (nblk && !away && lost <= bound) { tally(c, a, bn, W_DROP, nr); return 1; }
+        tally(c, a, bn, !nblk ? W_NONE_FACING : (ma & PT_AWAY) || (mb & PT_AWAY) ? W_BLOCKED_AWAY : W_BLOCKED, nr);
         k->refused_spread++;
         return 0;
     }
@@ -240,11 +280,11 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
     int agree = !mixed && da <= c->spread * ha && db <= c->spread * hb;
     if (!agree && !(err <= bound)) {
         if (mixed || nblk) k->refused_vis++; else k->refused_spread++;
-        tally(c, a, bn, mixed ? W_HIDDEN : nblk ? W_PARTIAL : W_SPREAD);
+        tally(c, a, bn, mixed ? W_HIDDEN : nblk ? W_PARTIAL : W_SPREAD, nr);
         return 0;
     }
     if (nblk) k->partial++;
-    tally(c, a, bn, agree ? W_AGREE : W_POWER);
+    tally(c, a, bn, agree ? W_AGREE : W_POWER, nr);
     double t = sqrt(aa * ab) * sum / (S * S);
     float tab[3], tba[3];
     for (int ch = 0; ch < 3; ch++) { tab[ch] = (float)(cl->rho[bn][ch] * t); tba[ch] = (float)(cl->rho[a][ch] * t); }
@@ -270,7 +310,7 @@ static void link_pair(lctx *c, sink *k, uint32_t a, uint32_t bn, int serial) {
     const wrt_clusters *cl = c->cl;
     if (serial && count(cl, a) + count(cl, bn) <= c->grain) { push_task(c, a, bn); return; }
     k->visited++;
-    if (behind(c, a, bn) || behind(c, bn, a)) { k->culled++; tally(c, a, bn, W_CULLED); return; }
+    if (behind(c, a, bn) || behind(c, bn, a)) { k->culled++; tally(c, a, bn, W_CULLED, 0); return; }
     int la = is_leaf(cl, a), lb = is_leaf(cl, bn);
     if (la && lb) {
         double t0 = c->timing ? wrt_now() : 0;
@@ -278,8 +318,8 @@ static void link_pair(lctx *c, sink *k, uint32_t a, uint32_t bn, int serial) {
         if (c->timing) k->t_leaf += wrt_now() - t0;
         return;
     }
-    if (c->why && !(cl->uniform[a] && cl->uniform[bn])) tally(c, a, bn, W_MIXED_ALBEDO);
-    else if (c->why && !separated(c, a, bn)) tally(c, a, bn, W_NEAR);
+    if (c->why && !(cl->uniform[a] && cl->uniform[bn])) tally(c, a, bn, W_MIXED_ALBEDO, 0);
+    else if (c->why && !separated(c, a, bn)) tally(c, a, bn, W_NEAR, 0);
     if (cl->uniform[a] && cl->uniform[bn] && separated(c, a, bn)) {
         double t0 = c->timing ? wrt_now() : 0;
         int done = oracle(c, k, a, bn);
@@ -390,8 +430,12 @@ wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
     c.eps = b->opt.cluster_eps > 0 ? b->opt.cluster_eps : b->opt.cluster_eps < 0 ? 0 : WRT_CLUSTER_EPS_DEFAULT;
     c.grain = (uint32_t)fmax(32, b->nq / 128);
     c.timing = getenv("WRT_DTO_TIMES") != NULL;
-    if (c.timing) c.why = wrt_xcalloc(W_N, sizeof *c.why);
+    if (c.timing) c.why = wrt_xcalloc(W_N, sizeof *c.why), c.why_rays = wrt_xcalloc(W_N, sizeof *c.why_rays);
     double t_start = wrt_now();
+    size_t nn = cl->tree.nnodes;
+    c.px = wrt_xmalloc(nn * CL_SAMPLES * sizeof *c.px);
+    c.pq = wrt_xmalloc(nn * CL_SAMPLES * sizeof *c.pq);
+    wrt_parallel_for(nn, b->opt.threads, node_points_task, &c);
     sink top = {0};
     link_self(&c, &top, 0, 1);
     double t_top = wrt_now();
@@ -421,13 +465,13 @@ wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
                 (unsigned long long)s.visited, (unsigned long long)s.oracle);
         fprintf(stderr, "dto-times:   the node pairs' outcomes by their quads (up to 2^l):\ndto-times:   %-20s", "l");
         for (int l = 1; l < 24; l++) fprintf(stderr, " %7d", l);
-        fprintf(stderr, "\n");
+        fprintf(stderr, " %11s\n", "rays");
         for (int w = 0; w < W_N; w++) {
             fprintf(stderr, "dto-times:   %-20s", why_name[w]);
             for (int l = 1; l < 24; l++) fprintf(stderr, " %7llu", (unsigned long long)atomic_load(&c.why[w][l]));
-            fprintf(stderr, "\n");
+            fprintf(stderr, " %11llu\n", (unsigned long long)atomic_load(&c.why_rays[w]));
         }
-        free(c.why);
+        free(c.why); free((void *)c.why_rays);
     }
     wrt_status st = WRT_OK;
     if (owner) {
@@ -455,6 +499,6 @@ wrt_status wrt_clusters_link(const bake_ctx *b, wrt_clusters *cl) {
         cl->rays += k->rays; cl->links_partial += k->partial;
         free(k->l); free(k->pr); free(k->ps); free(k->oc);
     }
-    free(c.sinks); free(c.tasks);
+    free(c.sinks); free(c.tasks); free(c.px); free(c.pq);
     return st;
 }

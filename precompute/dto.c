@@ -47,6 +47,7 @@
  * (formats/GTO_FORMAT.md, "First-bounce operator"). */
 #include <math.h>
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -358,6 +359,7 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
      * the quadrant's weight over its exposed samples' */
     int redraw = pc->occluded && (!pc->sym || pc->dual) && b->cover && b->cover[si];
     int xcov_test = pc->dual && b->cover[ri];
+    int timed = b->clock && b->clock->on; /* WRT_DTO_TIMES: the rays' thread time */
     double wq_all[4] = {0, 0, 0, 0}, wq_exp[4] = {0, 0, 0, 0};
     for (int q = 0; q < 4; q++) {
         int cx = q & 1, cy = q >> 1;
@@ -389,7 +391,8 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
             if (pc->dual) {
                 wq_all[q] += ls->jr[k];
                 pc->tc->cover_x += xcov_test;
-                if (!xcov_test || !wrt_bake_covered(b, v3_mad(x, R->n, b->ray_eps), R)) wq_exp[q] += ls->jr[k];
+                if (!xcov_test || !wrt_bake_covered_uv(b, ri, u, v, v3_mad(x, R->n, b->ray_eps), &pc->tc->cover_exact))
+                    wq_exp[q] += ls->jr[k];
             }
             double sd = v3_dot(v3_sub(x, S->p[0]), S->n), fq[4];
             int shared = sd > b->plane_eps && ff_point_quadrants(x, R->n, sgrid, fq);
@@ -409,20 +412,24 @@ static int eval_link(pair_ctx *pc, int ri, int si, wrt_node rn, wrt_node sn, lin
                     wrt_node c = wrt_node_child(sn, t & 1, t >> 1);
                     double tu = wrt_node_x0(c) + gu * wrt_node_size(c), tv = wrt_node_y0(c) + gv * wrt_node_size(c);
                     wrt_v3 y = wrt_quad_point(S, tu, tv);
-                    double t0 = wrt_now();
+                    double t0 = timed ? wrt_now() : 0; /* a clock read per ray costs 4% of the phase */
                     int blocked = wrt_bake_occluded(b, v3_mad(x, R->n, b->ray_eps), v3_mad(y, S->n, b->ray_eps));
                     int blocked_far = blocked; /* the visibility where the far side sends */
                     for (int tr = 0; blocked_far && redraw && tr < WRT_COVER_REDRAWS &&
-                                     (pc->tc->cover_y++, wrt_bake_covered(b, v3_mad(y, S->n, b->ray_eps), S)); tr++) {
+                                     (pc->tc->cover_y++, wrt_bake_covered_uv(b, si, tu, tv, v3_mad(y, S->n, b->ray_eps),
+                                                                             &pc->tc->cover_exact));
+                         tr++) {
                         gu = fmod(gu + 0.618033988749895, 1.0);
                         gv = fmod(gv + 0.754877666246693, 1.0);
-                        y = wrt_quad_point(S, wrt_node_x0(c) + gu * wrt_node_size(c), wrt_node_y0(c) + gv * wrt_node_size(c));
+                        tu = wrt_node_x0(c) + gu * wrt_node_size(c);
+                        tv = wrt_node_y0(c) + gv * wrt_node_size(c);
+                        y = wrt_quad_point(S, tu, tv);
                         blocked_far = wrt_bake_occluded(b, v3_mad(x, R->n, b->ray_eps), v3_mad(y, S->n, b->ray_eps));
                         pc->tc->rays_traced++;
                     }
                     if (pc->dual && blocked && !blocked_far) { any_vis = 1; ls->G[k][t] = f * sinvj[t]; }
                     if (!pc->dual) blocked = blocked_far;
-                    pc->tc->t_rays += wrt_now() - t0;
+                    if (timed) pc->tc->t_rays += wrt_now() - t0;
                     pc->tc->rays_traced++;
                     if (blocked) continue;
                 } else {
@@ -840,6 +847,14 @@ const pair_entry *wrt_pair_entries(const bake_ctx *b, const pair_out *o, pair_en
         }
     }
     return e;
+}
+
+void wrt_dto_times_cover(const bake_thread_counters *tc, int nt, size_t np, uint64_t rays) {
+    uint64_t cx = 0, cy = 0, ce = 0;
+    for (int t = 0; t < nt; t++) { cx += tc[t].cover_x; cy += tc[t].cover_y; ce += tc[t].cover_exact; }
+    fprintf(stderr, "dto-times:   %zu pairs, %llu rays, cover tests at %llu receiver and %llu sender points, %llu of "
+            "them with rays (the rest by the quads' maps, cover.c)\n", np, (unsigned long long)rays,
+            (unsigned long long)cx, (unsigned long long)cy, (unsigned long long)ce);
 }
 
 size_t wrt_pair_bytes(const pair_out *o) {

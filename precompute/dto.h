@@ -45,6 +45,10 @@ const pair_entry *wrt_pair_entries(const bake_ctx *b, const pair_out *o, pair_en
 /* The bytes o's entries hold (records or entries, not the leaves). */
 size_t wrt_pair_bytes(const pair_out *o);
 
+/* WRT_DTO_TIMES: the per-pair DTO's pairs, rays and cover tests (nt threads' counters)
+ * on stderr. */
+void wrt_dto_times_cover(const bake_thread_counters *tc, int nt, size_t np, uint64_t rays);
+
 /* The angular function of index idx (common/brdf_table.h's order): node and type. */
 void wrt_angular_func(int idx, wrt_node *n, int *type);
 

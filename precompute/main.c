@@ -116,6 +116,9 @@ static void usage(FILE *f) {
         "  --cluster-eps E        --clusters, and the oracle's power criterion: a cluster pair\n"
         "                         whose estimated error is at most E of the scene's power is\n"
         "                         linked at cluster level (default 1e-4; 0: off)\n"
+        "  --clusters-keep-away   --clusters, and a pair whose sampled facing rays are all\n"
+        "                         blocked while some point faces away refined, not dropped\n"
+        "                         under the kernel's bound (before session 14; docs/clusters.md)\n"
         "  --clusters-albedo-split  --clusters, and the cluster tree split by albedo first,\n"
         "                         so that clusters of one albedo, which the oracle can link,\n"
         "                         are as large as the materials allow (docs/clusters.md)\n"
@@ -456,6 +459,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
             i++;
         }
         else if (!strcmp(a, "--clusters-albedo-split")) { o->clusters = 1; o->cluster_albedo_split = 1; }
+        else if (!strcmp(a, "--clusters-keep-away")) { o->clusters = 1; o->cluster_keep_away = 1; }
         else if (!strcmp(a, "--clusters-tree-basis")) { o->clusters = 1; o->cluster_tree = 1; }
         else if (!strcmp(a, "--clusters-quads-senders")) { o->clusters = 1; o->cluster_senders = -1; }
         else if (!strcmp(a, "--clusters-senders-always")) { o->clusters = 1; o->cluster_senders = 1; }

@@ -19,7 +19,9 @@
 #include <string.h>
 
 #include "common/basis.h"
+#include "common/rt_scene.h"
 #include "precompute/bake.h"
+#include "precompute/cover.h"
 #include "bake_helpers.h"
 #include "ff_closed.h"
 #include "scene_build.h"
@@ -100,8 +102,81 @@ static void test_covered_floor(void) {
     }
 }
 
+/* The prism over the polygon poly (n corners, counter-clockwise seen from +z) from z = 0
+ * to z = h: its sides outward, its top cap as the quads (0, k, k + 1, k + 2) of a fan (n
+ * even), no bottom (the floor's points see only upwards). */
+static void prism(wrt_scene *s, const double (*poly)[2], int n, double h, int mat) {
+    for (int i = 0; i < n; i++) {
+        const double *a = poly[i], *b = poly[(i + 1) % n];
+        tsb_quad(s, P(a[0], a[1], 0), P(b[0], b[1], 0), P(b[0], b[1], h), P(a[0], a[1], h), mat);
+    }
+    for (int k = 1; k + 2 < n; k += 2)
+        tsb_quad(s, P(poly[0][0], poly[0][1], h), P(poly[k][0], poly[k][1], h), P(poly[k + 1][0], poly[k + 1][1], h),
+                 P(poly[k + 2][0], poly[k + 2][1], h), mat);
+}
+
+/* The covered quads' maps (cover.c) against the rays they stand for: a unit floor under
+ * a convex octagonal column and a non-convex L-shaped block. At random points of the
+ * floor the map's answer must be the five rays' wherever a cell's corners agree: the
+ * octagon's cover is convex, so every disagreement is the L's, in the cells around its
+ * one reflex corner (at most 4 of the 32 x 32). The covered share of the floor must be
+ * the two footprints' area. */
+static void test_cover_map(void) {
+    wrt_scene s;
+    tsb_init(&s);
+    int white = tsb_material(&s, 1, 1, 1);
+    tsb_quad(&s, P(0, 0, 0), P(1, 0, 0), P(1, 1, 0), P(0, 1, 0), white);
+    double oct[8][2], r = 0.15;
+    for (int i = 0; i < 8; i++) {
+        double a = (i + 0.5) * M_PI / 4;
+        oct[i][0] = 0.3 + r * cos(a); oct[i][1] = 0.5 + r * sin(a);
+    }
+    prism(&s, (const double (*)[2])oct, 8, 0.3, white);
+    static const double ell[6][2] = {{0.61, 0.2}, {0.9, 0.2}, {0.9, 0.5}, {0.7, 0.5}, {0.7, 0.83}, {0.61, 0.83}};
+    prism(&s, ell, 6, 0.3, white);
+    double truth = 2 * sqrt(2) * r * r + 0.29 * 0.3 + 0.09 * 0.33;
+    bake_ctx b;
+    memset(&b, 0, sizeof b);
+    b.nq = s.nquads;
+    b.quads = s.quads;
+    b.opt.threads = 2;
+    wrt_v3 *corners = malloc((size_t)s.nquads * 4 * sizeof *corners);
+    for (int i = 0; i < s.nquads; i++)
+        for (int k = 0; k < 4; k++) corners[4 * i + k] = s.quads[i].p[k];
+    wrt_rt_scene rs;
+    CHECK(wrt_rt_scene_build(corners, s.nquads, v3(0, 0, 0), "threads=1", WRT_RT_ROBUST, &rs) == WRT_OK, "embree");
+    free(corners);
+    b.rtc = rs.scene;
+    b.ray_eps = rs.eps;
+    b.cover = wrt_bake_cover_flags(&b);
+    CHECK(b.cover[0] == 1, "the floor is flagged");
+    const int n = 40000;
+    int covered = 0, differ = 0, uneq = 0;
+    uint64_t h = 1, rays = 0;
+    for (int i = 0; i < n; i++) {
+        double u = (double)((h = wrt_mix64(h)) >> 11) * 0x1.0p-53, v = (double)((h = wrt_mix64(h)) >> 11) * 0x1.0p-53;
+        wrt_v3 o = v3_mad(wrt_quad_point(&b.quads[0], u, v), b.quads[0].n, b.ray_eps);
+        int exact = wrt_bake_covered(&b, o, &b.quads[0]), map = wrt_bake_covered_uv(&b, 0, u, v, o, &rays);
+        covered += exact;
+        differ += exact != map;
+        uneq += exact != map && u < 0.5; /* the octagon's side */
+    }
+    double share = (double)covered / n, sd = sqrt(truth * (1 - truth) / n);
+    printf("cover map: covered share %.4f (footprints %.4f, sd %.4f); map and rays differ at %d of %d points "
+           "(%d on the convex side), %.1f%% of the points tested with rays\n", share, truth, sd, differ, n, uneq,
+           100.0 * (double)rays / n);
+    CHECK(fabs(share - truth) < 5 * sd, "covered share %.4f vs %.4f", share, truth);
+    CHECK(uneq == 0, "the convex cover's map differs from its rays at %d points", uneq);
+    CHECK(differ <= n * 4 / (WRT_COVER_MAP * WRT_COVER_MAP), "map and rays differ at %d points", differ);
+    CHECK(rays < (uint64_t)n / 4, "%llu of %d points tested with rays", (unsigned long long)rays, n);
+    free(b.cover);
+    wrt_rt_scene_release(&rs);
+    tsb_free(&s);
+}
+
 int main(int argc, char **argv) {
     setvbuf(stdout, NULL, _IOLBF, 0);
+    TEST_RUN(test_cover_map);
     TEST_RUN(test_covered_floor);
     TEST_END();
 }
