@@ -30,10 +30,10 @@
 
 int wrt_series_cols_on(const series_state *s) {
     const bake_ctx *b = s->b;
-    /* under wrt-bake-mpi by tree shares, each rank its range (the blocks do not change a
-     * column's entries: the same bytes as one process) */
-    return s->tree && s->fac && (s->share || !wrt_dist_on(b->opt.dist)) && b->opt.series_columns > 0 &&
-           !b->opt.gathered && !b->opt.report_gathered;
+    /* under wrt-bake-mpi by tree shares, each rank its range; without shares
+     * (WRT_MPI_SHARE=0, a comparison) each rank all of them (the blocks do not change a
+     * column's entries: the same bytes as one process either way) */
+    return s->tree && s->fac && b->opt.series_columns > 0 && !b->opt.gathered && !b->opt.report_gathered;
 }
 
 /* The bounces and the tail's ratios from the power iteration alone (series.c's rules) */

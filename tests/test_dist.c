@@ -485,6 +485,7 @@ static void dist_tree_share_same(void) {
     wrt_scene s;
     wrt_bake_options o = long_box(&s, 0.8, 0.75, 0.7);
     o.threads = 1;
+    o.series_columns = -1; /* the terms whole, each product divided (dist_tree_cols_same: by blocks) */
     wrt_bake_result want;
     wrt_status st = wrt_bake_run(&s, &o, &want);
     CHECK(st == WRT_OK && want.op.nnz > 0 && want.c.bounces > 3 && want.c.cluster_senders_basis &&
@@ -536,6 +537,52 @@ static void dist_tree_share_same(void) {
     tsb_free(&s);
 }
 
+/* The series by blocks of columns (series_cols.c, the default with --clusters) on 3 ranks:
+ * by shares each rank takes its own range through every bounce, without shares every rank
+ * all of them; rank 0 ends with the single process's G - I bit for bit, its bounces,
+ * energy left and tail (from the power iteration, which every rank runs), and by shares
+ * nothing travels but the stored columns, once, to rank 0 (8 bytes a column and 16 an
+ * entry) and the power iteration's nothing: under 24 bytes an entry of the stored
+ * operator. */
+static void dist_tree_cols_same(void) {
+    wrt_scene s;
+    wrt_bake_options o = long_box(&s, 0.8, 0.75, 0.7);
+    o.threads = 1;
+    wrt_bake_result want;
+    wrt_status st = wrt_bake_run(&s, &o, &want);
+    CHECK(st == WRT_OK && want.op.nnz > 0 && want.c.bounces > 3 && want.c.cluster_senders_basis,
+          "the single process bakes by blocks of columns (%llu bounces; %s)", (unsigned long long)want.c.bounces,
+          wrt_last_error());
+    for (int share = 1; share >= 0; share--) {
+        sim sm = {.nranks = NR_BAKE};
+        pthread_barrier_init(&sm.bar, NULL, NR_BAKE);
+        bake_arg a[NR_BAKE];
+        for (int k = 0; k < NR_BAKE; k++) a[k] = (bake_arg){.s = &sm, .scene = &s, .o = o, .share = share};
+        run_ranks(NR_BAKE, bake_rank, a, sizeof *a);
+        uint64_t sent = 0;
+        for (int k = 0; k < NR_BAKE; k++) {
+            CHECK(a[k].st == WRT_OK, "rank %d baked (%s)", k, wrt_last_error());
+            if (a[k].st != WRT_OK) continue;
+            sent += a[k].sent_series;
+            if (k == 0 || !share) {
+                CHECK(csc_same(&a[k].r.op, &want.op), "blocks, rank %d (shares %d): the same G - I (%llu entries, want %llu)",
+                      k, share, (unsigned long long)a[k].r.op.nnz, (unsigned long long)want.op.nnz);
+                CHECK(a[k].r.c.bounces == want.c.bounces && a[k].r.c.energy_left == want.c.energy_left &&
+                          a[k].r.c.tail_fraction == want.c.tail_fraction,
+                      "blocks, rank %d (shares %d): the same bounces (%llu / %llu), energy left and tail", k, share,
+                      (unsigned long long)a[k].r.c.bounces, (unsigned long long)want.c.bounces);
+            }
+            wrt_bake_result_free(&a[k].r);
+        }
+        if (share)
+            CHECK(sent <= 24 * want.op.nnz, "blocks by shares: the series sent %llu bytes (bound %llu)",
+                  (unsigned long long)sent, (unsigned long long)(24 * want.op.nnz));
+        pthread_barrier_destroy(&sm.bar);
+    }
+    wrt_bake_result_free(&want);
+    tsb_free(&s);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(dist_mul_same);
     TEST_RUN(dist_assign_bound);
@@ -544,5 +591,6 @@ int main(int argc, char **argv) {
     TEST_RUN(dist_clusters_same);
     TEST_RUN(dist_share_same);
     TEST_RUN(dist_tree_share_same);
+    TEST_RUN(dist_tree_cols_same);
     TEST_END();
 }
