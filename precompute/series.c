@@ -315,7 +315,7 @@ static void series_consume(series_state *s) {
 static void series_free_right(series_state *s);
 
 /* Columns [c0, c1) of m (the others empty), in arrays of their own */
-static wrt_csc csc_range(const wrt_csc *m, uint32_t c0, uint32_t c1) {
+wrt_csc wrt_series_csc_range(const wrt_csc *m, uint32_t c0, uint32_t c1) {
     wrt_csc r = {.n = m->n};
     r.col = wrt_xcalloc((size_t)m->n + 1, sizeof *r.col);
     uint64_t a = m->col[c0], z = m->col[c1];
@@ -357,7 +357,7 @@ static void series_tree_share_start(series_state *s) {
         wrt_dist_mul_cuts(series_right(s, 2), &s->P, nr, s->cut);
     }
     uint32_t c0 = s->cut[d->rank], c1 = s->cut[d->rank + 1];
-    wrt_csc p = csc_range(&s->P, c0, c1);
+    wrt_csc p = wrt_series_csc_range(&s->P, c0, c1);
     s->p_all = s->P.nnz;
     wrt_csc_free(&s->P);
     s->P = p;
@@ -380,7 +380,7 @@ static void series_share_start(series_state *s) {
     wrt_dist_mul_cuts(&s->P, &s->Tr, nr, s->cut);
     s->need = wrt_dist_share_need(&s->Tr, nr, s->cut);
     uint32_t c0 = s->cut[d->rank], c1 = s->cut[d->rank + 1];
-    wrt_csc p = csc_range(&s->P, c0, c1), r = csc_range(&s->Tr, c0, c1);
+    wrt_csc p = wrt_series_csc_range(&s->P, c0, c1), r = wrt_series_csc_range(&s->Tr, c0, c1);
     s->p_all = s->P.nnz;
     series_free_right(s);
     wrt_csc_free(&s->P);
@@ -414,7 +414,7 @@ static wrt_status series_share_mul(series_state *s, const wrt_csc *R, int bounce
         st = wrt_dist_sum_u64(d, nnz, 1);
         if (st != WRT_OK) wrt_csc_free(out);
     }
-    if (st != WRT_OK || !*nnz) s->P = csc_range(&in, c0, c1);
+    if (st != WRT_OK || !*nnz) s->P = wrt_series_csc_range(&in, c0, c1);
     wrt_csc_free(&in);
     return st;
 }

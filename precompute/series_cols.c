@@ -93,22 +93,6 @@ wrt_status wrt_series_diverging(const series_state *s, double energy, int bounce
                     "raise the quality)", s->ratio, bounces, rmax);
 }
 
-/* Columns [c0, c1) of m in arrays of their own, the others empty */
-static wrt_csc cols_range(const wrt_csc *m, uint32_t c0, uint32_t c1) {
-    wrt_csc r = {.n = m->n};
-    r.col = wrt_xcalloc((size_t)m->n + 1, sizeof *r.col);
-    uint64_t a = m->col[c0], z = m->col[c1];
-    for (uint32_t j = c0; j < m->n; j++) r.col[j + 1] = (j < c1 ? m->col[j + 1] : z) - a;
-    r.nnz = z - a;
-    r.row = wrt_xmalloc((r.nnz ? r.nnz : 1) * sizeof *r.row);
-    r.val = wrt_xmalloc((r.nnz ? r.nnz : 1) * 3 * sizeof *r.val);
-    if (r.nnz) {
-        memcpy(r.row, m->row + a, r.nnz * sizeof *r.row);
-        memcpy(r.val, m->val + 3 * a, r.nnz * 3 * sizeof *r.val);
-    }
-    return r;
-}
-
 /* The stored operator so far, F, takes m's columns [c0, c1) (its arrays grow by doubling;
  * *cap their length) */
 static void cols_append(wrt_csc *F, uint64_t *cap, const wrt_csc *m, uint32_t c0, uint32_t c1) {
@@ -198,8 +182,8 @@ wrt_status wrt_series_cols(series_state *s) {
     for (uint32_t c0 = 0, c1; c0 < n && st == WRT_OK; c0 = c1) {
         c1 = P1.n == n ? cols_end(&P1, c0, target) : n;
         double w0 = wrt_now(), t0 = wrt_dist_cpu_now();
-        s->P = cols_range(&P1, c0, c1);
-        wrt_csc Sb = cols_range(&S0, c0, c1);
+        s->P = wrt_series_csc_range(&P1, c0, c1);
+        wrt_csc Sb = wrt_series_csc_range(&S0, c0, c1);
         uint64_t first = s->P.nnz, largest = s->P.nnz;
         int made = 1;
         while (made < bounces && s->P.nnz) {

@@ -81,6 +81,8 @@ typedef struct {
  * (the first term s->P and the sum's first state s->S consumed); a diverging series
  * refused (ratio >= 1 with `energy`, the light left, not yet under 1e-6) */
 int wrt_series_cols_on(const series_state *s);
+/* Columns [c0, c1) of m in arrays of their own, the others empty (series.c) */
+wrt_csc wrt_series_csc_range(const wrt_csc *m, uint32_t c0, uint32_t c1);
 wrt_status wrt_series_cols(series_state *s);
 wrt_status wrt_series_diverging(const series_state *s, double energy, int bounces);
 
@@ -113,14 +115,6 @@ wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X);
 /* In one process, the term after P, E1 (U P), by blocks of P's columns, its memory checked
  * unless `checked` (series_blocks.c); P kept */
 wrt_status wrt_series_factored_blocks(series_state *s, int bounce, int checked, wrt_csc *N);
-
-/* The factored tree series by blocks of columns through every bounce (series_cols.c):
- * whether it runs; the bounces, the tail and the stored operator's compression into s->S
- * (the first term s->P and the sum's first state s->S consumed); a diverging series
- * refused (ratio >= 1 with `energy`, the light left, not yet under 1e-6) */
-int wrt_series_cols_on(const series_state *s);
-wrt_status wrt_series_cols(series_state *s);
-wrt_status wrt_series_diverging(const series_state *s, double energy, int bounces);
 
 /* T never formed (series_first.c): the sum's first state and the first term, T W^T, for
  * the columns [c0, c1) (S or P may be NULL); y += T x (a power_iter's apply); the power
