@@ -44,20 +44,168 @@ static double line_dist(v3 p, v3 a, v3 b) {
     return l > 0 ? len(cross(sub(p, a), d)) / l : len(sub(p, a));
 }
 
+/* A uniform grid over the quads' boxes, each grown by tol, for the neighbour and the
+ * blocked-edge searches: the quads whose grown box meets a query box, in ascending order
+ * (the order the searches scanned every quad in, so the same results), without scanning
+ * every quad: the scans made the create O(N^2) (a 53,122-element atrium did not open in
+ * 5 minutes). A quad over more than QGRID_BIG cells is on a list every query returns. */
+#define QGRID_BIG 64
+typedef struct {
+    const wrt_recon_allocator *al;
+    double lo[3], h;
+    int dim[3];
+    int *start, *item; /* cell c's quads: item[start[c] .. start[c + 1]) */
+    int *big, nbig;
+    int *stamp, epoch; /* per quad: the query that last took it */
+    int n;
+    int *out;          /* edge_blocked's query's quads */
+} qgrid;
+
+static int cmp_int(const void *x, const void *y) {
+    int a = *(const int *)x, b = *(const int *)y;
+    return (a > b) - (a < b);
+}
+
+static void quad_box(const double (*c)[3], double tol, double *lo, double *hi) {
+    for (int a = 0; a < 3; a++) {
+        lo[a] = fmin(fmin(c[0][a], c[1][a]), fmin(c[2][a], c[3][a])) - tol;
+        hi[a] = fmax(fmax(c[0][a], c[1][a]), fmax(c[2][a], c[3][a])) + tol;
+    }
+}
+
+static int qg_cell(const qgrid *g, int a, double x) {
+    double t = floor((x - g->lo[a]) / g->h);
+    return !(t >= 0) ? 0 : t >= g->dim[a] ? g->dim[a] - 1 : (int)t;
+}
+
+/* The cells [i0, i1] of box lo-hi, per axis; their count */
+static double qg_range(const qgrid *g, const double *lo, const double *hi, int *i0, int *i1) {
+    double c = 1;
+    for (int a = 0; a < 3; a++) {
+        i0[a] = qg_cell(g, a, lo[a]);
+        i1[a] = qg_cell(g, a, hi[a]);
+        c *= i1[a] - i0[a] + 1;
+    }
+    return c;
+}
+
+static void qgrid_free(qgrid *g) {
+    rc_free(g->al, g->start); rc_free(g->al, g->item); rc_free(g->al, g->big);
+    rc_free(g->al, g->stamp); rc_free(g->al, g->out);
+    memset(g, 0, sizeof *g);
+}
+
+/* 0, or -1 on out of memory */
+static int qgrid_build(qgrid *g, int n, const double (*corners)[4][3], double tol, const wrt_recon_allocator *al) {
+    memset(g, 0, sizeof *g);
+    g->al = al;
+    g->n = n;
+    double hi[3] = {-INFINITY, -INFINITY, -INFINITY}, mean = 0, blo[3], bhi[3];
+    for (int a = 0; a < 3; a++) g->lo[a] = INFINITY;
+    for (int q = 0; q < n; q++) {
+        quad_box(corners[q], tol, blo, bhi);
+        double ext = 0;
+        for (int a = 0; a < 3; a++) {
+            g->lo[a] = fmin(g->lo[a], blo[a]);
+            hi[a] = fmax(hi[a], bhi[a]);
+            ext = fmax(ext, bhi[a] - blo[a]);
+        }
+        mean += ext / n;
+    }
+    if (n == 0) for (int a = 0; a < 3; a++) g->lo[a] = hi[a] = 0;
+    g->h = mean > 0 && isfinite(mean) ? mean : 1;
+    for (;;) { /* at most about 4 cells a quad */
+        double cells = 1;
+        for (int a = 0; a < 3; a++) {
+            double d = floor((hi[a] - g->lo[a]) / g->h) + 1;
+            g->dim[a] = d > 1 && d < 1e6 ? (int)d : d >= 1e6 ? 1000000 : 1;
+            cells *= g->dim[a];
+        }
+        if (cells <= 4.0 * n + 64) break;
+        g->h *= 1.5;
+    }
+    size_t nc = (size_t)g->dim[0] * g->dim[1] * g->dim[2];
+    g->start = rc_alloc(al, (nc + 1) * sizeof *g->start);
+    g->stamp = rc_alloc(al, ((size_t)n + 1) * sizeof *g->stamp);
+    g->out = rc_alloc(al, ((size_t)n + 1) * sizeof *g->out);
+    g->big = rc_alloc(al, ((size_t)n + 1) * sizeof *g->big);
+    if (!g->start || !g->stamp || !g->out || !g->big) { qgrid_free(g); return -1; }
+    memset(g->start, 0, (nc + 1) * sizeof *g->start);
+    memset(g->stamp, 0, ((size_t)n + 1) * sizeof *g->stamp);
+    int i0[3], i1[3];
+    size_t total = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        for (int q = 0; q < n; q++) {
+            quad_box(corners[q], tol, blo, bhi);
+            if (qg_range(g, blo, bhi, i0, i1) > QGRID_BIG) {
+                if (pass == 0) g->big[g->nbig++] = q;
+                continue;
+            }
+            for (int z = i0[2]; z <= i1[2]; z++)
+                for (int y = i0[1]; y <= i1[1]; y++)
+                    for (int x = i0[0]; x <= i1[0]; x++) {
+                        size_t c = ((size_t)z * g->dim[1] + y) * g->dim[0] + x;
+                        if (pass == 0) g->start[c + 1]++;
+                        else g->item[g->start[c]++] = q;
+                    }
+        }
+        if (pass == 0) {
+            for (size_t c = 0; c < nc; c++) g->start[c + 1] += g->start[c];
+            total = g->start[nc];
+            g->item = rc_alloc(al, (total ? total : 1) * sizeof *g->item);
+            if (!g->item) { qgrid_free(g); return -1; }
+        } else { /* start[c] now holds cell c's end: back to its start */
+            for (size_t c = nc; c > 0; c--) g->start[c] = g->start[c - 1];
+            g->start[0] = 0;
+        }
+    }
+    return 0;
+}
+
+/* The quads whose grown box meets box lo-hi, ascending, into out; their number */
+static int qgrid_query(qgrid *g, const double *lo, const double *hi, int *out) {
+    if (++g->epoch == 0x7fffffff) {
+        memset(g->stamp, 0, ((size_t)g->n + 1) * sizeof *g->stamp);
+        g->epoch = 1;
+    }
+    int i0[3], i1[3], m = 0;
+    qg_range(g, lo, hi, i0, i1);
+    for (int z = i0[2]; z <= i1[2]; z++)
+        for (int y = i0[1]; y <= i1[1]; y++)
+            for (int x = i0[0]; x <= i1[0]; x++) {
+                size_t c = ((size_t)z * g->dim[1] + y) * g->dim[0] + x;
+                for (int k = g->start[c]; k < g->start[c + 1]; k++) {
+                    int q = g->item[k];
+                    if (g->stamp[q] != g->epoch) { g->stamp[q] = g->epoch; out[m++] = q; }
+                }
+            }
+    for (int k = 0; k < g->nbig; k++) {
+        int q = g->big[k];
+        if (g->stamp[q] != g->epoch) { g->stamp[q] = g->epoch; out[m++] = q; }
+    }
+    qsort(out, (size_t)m, sizeof *out, cmp_int);
+    return m;
+}
+
 /* 1 if some quad other than q and o has an edge lying along segment a-b (collinear and
- * overlapping it by more than tol): a wall or a box's side standing on the edge. */
-static int edge_blocked(int n, const double (*corners)[4][3], int q, int o, v3 a, v3 b, double tol) {
+ * overlapping it by more than tol): a wall or a box's side standing on the edge. Such an
+ * edge lies within tol of the segment where they overlap, so its quad's grown box meets
+ * the segment's box: the grid's quads there are all that can. */
+static int edge_blocked(qgrid *g, const double (*corners)[4][3], int q, int o, v3 a, v3 b, double tol) {
     v3 d = sub(b, a);
     double l = len(d);
     if (!(l > 0)) return 1;
-    for (int k = 0; k < n; k++) {
+    double lo[3] = {fmin(a.x, b.x), fmin(a.y, b.y), fmin(a.z, b.z)}, hi[3] = {fmax(a.x, b.x), fmax(a.y, b.y), fmax(a.z, b.z)};
+    int m = qgrid_query(g, lo, hi, g->out);
+    for (int i = 0; i < m; i++) {
+        int k = g->out[i];
         if (k == q || k == o) continue;
         for (int e = 0; e < 4; e++) {
             v3 c0 = mk(corners[k][E_END[e][0]]), c1 = mk(corners[k][E_END[e][1]]);
             if (line_dist(c0, a, b) > tol || line_dist(c1, a, b) > tol) continue;
             double t0 = dot(sub(c0, a), d) / l, t1 = dot(sub(c1, a), d) / l;
-            double lo = fmax(fmin(t0, t1), 0), hi = fmin(fmax(t0, t1), l);
-            if (hi - lo > tol) return 1;
+            double lo2 = fmax(fmin(t0, t1), 0), hi2 = fmin(fmax(t0, t1), l);
+            if (hi2 - lo2 > tol) return 1;
         }
     }
     return 0;
@@ -97,7 +245,7 @@ static int smooth_edge(const float (*normals)[4][3], double cos_tol, const v3 *n
 
 /* Stage 2: each quad edge's smooth neighbour (same material; coplanar, or with corner
  * normals agreeing along the edge; a shared edge), mutual. */
-static void recon_neighbours(wrt_recon *rc, int n, const double (*corners)[4][3], const uint32_t *material, v3 *nrm,
+static void recon_neighbours(wrt_recon *rc, qgrid *g, int *cand, int n, const double (*corners)[4][3], const uint32_t *material, v3 *nrm,
                              double tol, const float (*normals)[4][3], double cos_tol) {
     for (int q = 0; q < n; q++) {
         nrm[q] = quad_normal(corners[q]);
@@ -108,7 +256,10 @@ static void recon_neighbours(wrt_recon *rc, int n, const double (*corners)[4][3]
         for (int e = 0; e < 4; e++) {
             uint8_t *bent = rc->bent[q];
             const double *a = corners[q][E_END[e][0]], *b = corners[q][E_END[e][1]];
-            for (int o = 0; o < n && rc->nb[q][e] < 0; o++) {
+            /* a neighbour has a corner within tol of a: its grown box holds a */
+            int m = qgrid_query(g, a, a, cand);
+            for (int i = 0; i < m && rc->nb[q][e] < 0; i++) {
+                int o = cand[i];
                 if (o == q || material[o] != material[q]) continue;
                 int coplanar = dot(nrm[q], nrm[o]) >= 1 - 1e-9;
                 for (int k = 0; k < 4 && coplanar; k++)
@@ -121,7 +272,7 @@ static void recon_neighbours(wrt_recon *rc, int n, const double (*corners)[4][3]
                     else if (same_point(a, d, tol) && same_point(b, c, tol)) fl = 1;
                     else continue;
                     if (!coplanar && !smooth_edge(normals, cos_tol, nrm, q, e, o, f, fl)) break;
-                    if (edge_blocked(n, corners, q, o, mk(a), mk(b), tol)) break;
+                    if (edge_blocked(g, corners, q, o, mk(a), mk(b), tol)) break;
                     rc->nb[q][e] = o; rc->nbe[q][e] = f; rc->flip[q][e] = fl;
                     bent[e] = !coplanar;
                     break;
@@ -198,7 +349,7 @@ static v3 quad_centre(const double (*c)[3]) {
  * either side of the line, coplanar or with corner normals agreeing at both ends of the
  * overlap (no fold), and no other quad's edge along the overlap. Fills *pq (q's view) and
  * *po (o's view). */
-static int partial_pair(int n, const double (*corners)[4][3], const v3 *nrm, double tol, const float (*normals)[4][3],
+static int partial_pair(qgrid *g, const double (*corners)[4][3], const v3 *nrm, double tol, const float (*normals)[4][3],
                         double cos_tol, int q, int e, int o, int f, part_nb *pq, part_nb *po) {
     v3 a = mk(corners[q][E_END[e][0]]), b = mk(corners[q][E_END[e][1]]);
     v3 c = mk(corners[o][E_END[f][0]]), d = mk(corners[o][E_END[f][1]]);
@@ -220,7 +371,7 @@ static int partial_pair(int n, const double (*corners)[4][3], const v3 *nrm, dou
         if (dot(edge_normal(normals, q, e, t0), edge_normal(normals, o, f, s0)) < cos_tol ||
             dot(edge_normal(normals, q, e, t1), edge_normal(normals, o, f, s1)) < cos_tol) return 0;
     }
-    if (edge_blocked(n, corners, q, o, p0, p1, tol)) return 0;
+    if (edge_blocked(g, corners, q, o, p0, p1, tol)) return 0;
     part_nb x = {o, f, !coplanar, t0, t1, s0, s1};
     part_nb y = {q, e, !coplanar, s0 < s1 ? s0 : s1, s0 < s1 ? s1 : s0, s0 < s1 ? t0 : t1, s0 < s1 ? t1 : t0};
     *pq = x;
@@ -231,7 +382,7 @@ static int partial_pair(int n, const double (*corners)[4][3], const v3 *nrm, dou
 /* Stage 2b: the partial neighbours of the edges left without a whole one (T-junctions:
  * a paired quad's whole edge against the two half-edges of a triangle's quads). Open
  * edges are swept along x; a pair is tested where their extents meet. -1 on out of memory. */
-static int recon_partial(wrt_recon *rc, int n, const double (*corners)[4][3], const uint32_t *material, const v3 *nrm,
+static int recon_partial(wrt_recon *rc, qgrid *g, int n, const double (*corners)[4][3], const uint32_t *material, const v3 *nrm,
                          double tol, const float (*normals)[4][3], double cos_tol) {
     const wrt_recon_allocator *al = &rc->al;
     size_t nopen = 0, cap = 16, np = 0;
@@ -259,7 +410,7 @@ static int recon_partial(wrt_recon *rc, int n, const double (*corners)[4][3], co
             if (u->q == w->q || material[u->q] != material[w->q] || u->box[0] > w->box[1] || w->box[0] > u->box[1] ||
                 u->box[2] > w->box[3] || w->box[2] > u->box[3]) continue;
             part_nb pq, po;
-            if (!partial_pair(n, corners, nrm, tol, normals, cos_tol, u->q, u->e, w->q, w->e, &pq, &po)) continue;
+            if (!partial_pair(g, corners, nrm, tol, normals, cos_tol, u->q, u->e, w->q, w->e, &pq, &po)) continue;
             if (np + 2 > cap) {
                 part_entry *grown = rc_alloc(al, 2 * cap * sizeof *pe);
                 if (!grown) { rc_free(al, op); rc_free(al, pe); return -1; }
@@ -496,8 +647,17 @@ wrt_recon *wrt_recon_create_smooth(int n, const double (*corners)[4][3], const u
         return NULL;
     }
     double tol = recon_tolerance(n, corners);
-    recon_neighbours(rc, n, corners, material, nrm, tol, normals, cos_tol);
-    if (recon_partial(rc, n, corners, material, nrm, tol, normals, cos_tol) != 0) {
+    qgrid grid;
+    int *cand = rc_alloc(&al, ((size_t)n + 1) * sizeof *cand);
+    if (!cand || qgrid_build(&grid, n, corners, tol, &al) != 0) {
+        rc_free(&al, cand); rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc);
+        return NULL;
+    }
+    recon_neighbours(rc, &grid, cand, n, corners, material, nrm, tol, normals, cos_tol);
+    int pst = recon_partial(rc, &grid, n, corners, material, nrm, tol, normals, cos_tol);
+    qgrid_free(&grid);
+    rc_free(&al, cand);
+    if (pst != 0) {
         rc_free(&al, nrm); rc_free(&al, stack); wrt_recon_destroy(rc);
         return NULL;
     }

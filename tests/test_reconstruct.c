@@ -14,7 +14,9 @@
 #include "scene_build.h"
 #include "test.h"
 
+#include <math.h>
 #include <stdlib.h>
+#include <string.h>
 #include <unistd.h>
 
 /* Every stored node's averages kept, slopes limited (the module's parts one at a time). */
@@ -1075,10 +1077,67 @@ static void test_box_no_seams(void) {
     tsb_free(&s);
 }
 
+/* The neighbour search's grid (reconstruct.c qgrid): on a 60 x 60 grid of unit quads whose
+ * shared corners are each quad's own copy, moved by up to 0.3 of the tolerance (1e-6 of
+ * the scene's size) per coordinate (x not on the line x = 30), every inner edge finds the quad across it; a wall
+ * standing on the line x = 30 over the whole grid (one quad over many of the grid's cells,
+ * on the list every query returns) blocks the 60 edges on that line on both sides. A
+ * search that missed a candidate in a neighbouring cell, or the wall, fails it. */
+static void test_neighbour_grid(void) {
+    enum { G = 60 };
+    int n = G * G + 1;
+    double (*c)[4][3] = malloc((size_t)n * sizeof *c);
+    uint32_t *m = calloc((size_t)n, sizeof *m);
+    double tol = 1e-6 * sqrt(2.0 * G * G + 6.0 * 6.0);
+    uint64_t h = 12345;
+    for (int j = 0; j < G; j++)
+        for (int i = 0; i < G; i++) {
+            int q = j * G + i;
+            double x[4] = {i, i + 1, i + 1, i}, y[4] = {j, j, j + 1, j + 1};
+            for (int k = 0; k < 4; k++) {
+                double *p = c[q][k];
+                p[0] = x[k]; p[1] = y[k]; p[2] = 0;
+                for (int a = 0; a < 2; a++) {
+                    h = h * 6364136223846793005ULL + 1442695040888963407ULL;
+                    /* the line x = 30 kept straight: the wall's edge, 60 long, must lie
+                     * within tol of each short edge's line there */
+                    if (a == 1 || x[k] != 30) p[a] += 0.3 * tol * (2.0 * (double)(h >> 11) / 9007199254740992.0 - 1);
+                }
+            }
+        }
+    double wall[4][3] = {{30, 0, 0}, {30, G, 0}, {30, G, 6}, {30, 0, 6}};
+    memcpy(c[G * G], wall, sizeof wall);
+    m[G * G] = 1;
+    wrt_recon *rc = wrt_recon_create(n, (const double (*)[4][3])c, m);
+    CHECK(rc != NULL, "the grid's reconstruction made");
+    int found = 0, blocked = 0, wrong = 0;
+    for (int j = 0; j < G && rc; j++)
+        for (int i = 0; i < G; i++) {
+            int q = j * G + i, ne, fl;
+            /* edges 0: v = 0 (below), 1: u = 1 (right), 2: v = 1 (above), 3: u = 0 (left) */
+            int want[4] = {j > 0 ? q - G : -1, i < G - 1 ? q + 1 : -1, j < G - 1 ? q + G : -1, i > 0 ? q - 1 : -1};
+            if (i == 29) want[1] = -1;
+            if (i == 30) want[3] = -1;
+            for (int e = 0; e < 4; e++) {
+                int o = wrt_recon_neighbour(rc, q, e, &ne, &fl);
+                if (o != want[e]) wrong++;
+                else if (o >= 0) found++;
+            }
+            blocked += (i == 29 && wrt_recon_neighbour(rc, q, 1, &ne, &fl) < 0) +
+                       (i == 30 && wrt_recon_neighbour(rc, q, 3, &ne, &fl) < 0);
+        }
+    CHECK(wrong == 0 && found == 4 * G * (G - 1) - 2 * G && blocked == 2 * G,
+          "grid of %d quads: %d edges with the quad across them (want %d), %d blocked by the wall (want %d), %d wrong",
+          G * G, found, 4 * G * (G - 1) - 2 * G, blocked, 2 * G, wrong);
+    wrt_recon_destroy(rc);
+    free(c); free(m);
+}
+
 int main(int argc, char **argv) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/wrt_test_reconstruct_XXXXXX");
     if (!mkdtemp(tmpdir)) { perror("mkdtemp"); return 1; }
     TEST_RUN(test_all_known_is_identity);
+    TEST_RUN(test_neighbour_grid);
     TEST_RUN(test_known_averages_kept);
     TEST_RUN(test_linear_reproduced);
     TEST_RUN(test_continuous_across_edges);
