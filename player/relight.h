@@ -34,6 +34,9 @@ typedef struct wrt_relight_options {
                           * 0 (the default): a point per texel on a sharp lobe, else 16 */
     int no_avx;          /* 1: K's rows in fours without AVX (the same sums to the bit;
                           * for the test that says so, and A/B timings) */
+    int occ_scan;        /* 1: the projection's occluder search tests every quad instead
+                          * of walking the tree of their spheres (the same occluders; for
+                          * the test that says so, and A/B timings) */
     int linear_display;  /* 1: the smooth reconstruction is a fixed linear operator
                           * (wrt_recon_params.linear: no limiter, no sharpness test, no
                           * clamp), so textures superpose across lights; 0: the default */
@@ -82,6 +85,7 @@ typedef struct wrt_relight_timings { /* milliseconds of the last update */
 typedef struct wrt_relight_counters {
     long long updates, projections, multiplies, skips, quads_synthesized, groups_smoothed, gathers;
     long long entries_streamed; /* the operator's entries the multiplies read (lit columns only) */
+    long long occluders;        /* the projections' possible occluders, summed over quads */
 } wrt_relight_counters;
 void wrt_relight_get_counters(const wrt_relight *r, wrt_relight_counters *out);
 

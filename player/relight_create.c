@@ -337,6 +337,7 @@ static wrt_status create_state(wrt_relight *r, size_t tex_total) {
     r->proj.recs = relight_calloc(r, nq + 1, sizeof(out_rec));
     r->proj.qlevel = relight_calloc(r, nq + 1, sizeof(int8_t));
     r->proj.cones = relight_calloc(r, nq + 1, sizeof(light_cone));
+    if (!r->oom && relight_occ_build(r) != 0) return WRT_ERR_NOMEM;
     r->synth_list = relight_calloc(r, nq + 1, sizeof(int));
     return r->oom ? WRT_ERR_NOMEM : WRT_OK;
 }
@@ -482,6 +483,7 @@ void wrt_relight_destroy(wrt_relight *r) {
     relight_free(r, r->ang_list); relight_free(r, r->ang_start); relight_free(r, r->ang_full); relight_free(r, r->ang_perm);
     relight_free(r, r->E); relight_free(r, r->X); relight_free(r, r->Xprev); relight_free(r, r->Eapplied); relight_free(r, r->mul.X4); relight_free(r, r->mul.Ed); relight_free(r, r->mul.cols); relight_free(r, r->tex); relight_free(r, r->texk); relight_free(r, r->tex_nonzero); relight_free(r, r->x_nonzero);
     relight_free(r, r->resynth); relight_free(r, r->proj.recs); relight_free(r, r->proj.qlevel); relight_free(r, r->proj.cones);
+    relight_free(r, r->proj.onode); relight_free(r, r->proj.ocones); relight_free(r, r->proj.oorder);
     relight_free(r, r->synth_list); relight_free(r, r->emit_scale);
     wrt_ctree_free(&r->ct.t); relight_free(r, r->ct.root); relight_free(r, r->ct.Et); relight_free(r, r->ct.scratch);
     wrt_recon_destroy(r->sm.recon); relight_free(r, r->sm.stex); relight_free(r, r->sm.regroup);

@@ -113,6 +113,7 @@ typedef struct worker {
                                      * largest group's: an update allocates nothing) */
     double brdf_time;
     long nsamples;                  /* samples and shadow rays of the projection */
+    long long noccs;                /* occluders found by the projection (all its quads) */
 } worker;
 
 typedef struct out_rec { int worker; size_t start, count; } out_rec;
@@ -148,9 +149,17 @@ typedef struct rl_rays {
 } rl_rays;
 
 /* The projection's per-light scratch (relight_project.c). */
+/* A node of the tree over the quads' bounding spheres (relight_occ.c): its sphere holds
+ * the spheres of its quads, occ_order[first, first + count) on a leaf; an inner node's
+ * children are the next node and `right`. */
+typedef struct occ_node { wrt_v3 c; double rad; uint32_t first, count, right; } occ_node;
+
 typedef struct rl_proj {
     int8_t *qlevel;                 /* projection level per quad for the light in progress */
     light_cone *cones;              /* per quad, as seen from the light in progress */
+    occ_node *onode; uint32_t nonode; /* the occluder search's tree (made at creation) */
+    uint32_t *oorder;               /* its leaves' quads */
+    light_cone *ocones;             /* per node, as seen from the light in progress */
     out_rec *recs;                  /* per quad: where its coefficients are in which worker */
     double size;                    /* per light: bounds the distances in the culling tests */
 } rl_proj;
@@ -429,6 +438,10 @@ void *relight_grow(wrt_relight *r, void *p, size_t *cap, size_t need, size_t ele
 void relight_log(const wrt_relight *r, int level, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
 double relight_quad_dist(const quad_info *q, wrt_v3 p);
+/* relight_occ.c: the tree over the quads' bounding spheres (0, or -1 without memory);
+ * the bounding cone of a sphere seen from a light (a sun: its extent along the light). */
+int relight_occ_build(wrt_relight *r);
+void relight_sphere_cone(const wrt_relight *r, const light_c *l, wrt_v3 centre, double radius, light_cone *cn);
 light_c relight_light_consts(const wrt_light *l);
 
 /* Haar analysis in place: `v` holds 4^L scaling coefficients of level L (row-major, nc

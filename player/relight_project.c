@@ -390,9 +390,50 @@ static int cell_clear(const wrt_relight *r, const worker *w, const quad_info *q,
     return 1;
 }
 
+/* Quad b against quad a's light cone (ca), pyramid (pp) and, for a sun, cylinder: 1 if
+ * b may shade some point of a. */
+static int may_shade(const wrt_relight *r, const light_c *l, const light_cone *ca, const quad_info *qa,
+                     const pyr_planes *pp, uint32_t b) {
+    const light_cone *cb = &r->proj.cones[b];
+    if (cb->dmin >= ca->dmax) return 0; /* entirely farther than a */
+    /* radii in [0, pi/2]: their sum in [0, pi], where cos decreases */
+    if (ca->cosa > -1 && cb->cosa > -1 && v3_dot(ca->u, cb->u) < ca->cosa * cb->cosa - ca->sina * cb->sina) return 0;
+    if (l->sun) { /* the two bounding spheres' shadows along the sun's direction are apart */
+        wrt_v3 dc = v3_sub(r->qi[b].centre, qa->centre);
+        wrt_v3 perp = v3_sub(dc, v3_scale(l->dir, v3_dot(dc, l->dir)));
+        if (v3_len(perp) >= qa->radius + r->qi[b].radius) return 0;
+    }
+    return !pyramid_clear(pp, &r->qi[b], r->proj.size);
+}
+
+/* 1 if no quad under node n (sphere nd, cone cn) can pass may_shade's tests against quad
+ * a. Each test is may_shade's on the node's sphere, with a margin far above rounding; it
+ * fails for every quad under the node because each quad's sphere lies in the node's:
+ *  - distance: a quad's nearest point to the light is no nearer than the node's;
+ *  - cones: a quad's cone lies in the node's, so the angle between a's axis and the
+ *    quad's exceeds a's radius plus the quad's when it exceeds a's plus the node's;
+ *  - a sun's cylinders: the distance across the light is 1-Lipschitz;
+ *  - the pyramid: a plane with the whole sphere below it has every corner below it. */
+static int node_clear(const wrt_relight *r, const light_c *l, const light_cone *ca, const quad_info *qa,
+                      const pyr_planes *pp, const double *nlen, const occ_node *nd, const light_cone *cn) {
+    double m = 1e-9 * r->proj.size;
+    if (cn->dmin >= ca->dmax + m) return 1;
+    if (ca->cosa > -1 && cn->cosa > -1 && v3_dot(ca->u, cn->u) < ca->cosa * cn->cosa - ca->sina * cn->sina - 1e-9)
+        return 1;
+    if (l->sun) {
+        wrt_v3 dc = v3_sub(nd->c, qa->centre);
+        wrt_v3 perp = v3_sub(dc, v3_scale(l->dir, v3_dot(dc, l->dir)));
+        if (v3_len(perp) >= qa->radius + nd->rad + m) return 1;
+    }
+    for (int k = 0; k < pp->np; k++)
+        if (v3_dot(v3_sub(nd->c, pp->o[k]), pp->nrm[k]) + nd->rad * nlen[k] <= 0) return 1;
+    return 0;
+}
+
 /* The quads that may shade some point of quad a (into w->occ): bounding cones from the
  * light first (for a sun: bounding cylinders along its direction), then the pyramid
- * tests. -1 if there is no memory for the list. */
+ * tests; by the tree over the quads' spheres (relight_occ.c), in its leaves' order.
+ * -1 if there is no memory for the list. */
 static int find_occluders(wrt_relight *r, worker *w, int a, const light_c *l) {
     uint32_t nq = r->g->nquads;
     w->nocc = 0;
@@ -403,20 +444,32 @@ static int find_occluders(wrt_relight *r, worker *w, int a, const light_c *l) {
     const quad_info *qa = &r->qi[a];
     pyr_planes pp;
     pyramid_setup(&pp, qa->p, qa->n, l, r->proj.size);
-    for (uint32_t b = 0; b < nq; b++) {
-        if ((int)b == a) continue;
-        const light_cone *cb = &r->proj.cones[b];
-        if (cb->dmin >= ca->dmax) continue; /* entirely farther than a */
-        /* radii in [0, pi/2]: their sum in [0, pi], where cos decreases */
-        if (ca->cosa > -1 && cb->cosa > -1 && v3_dot(ca->u, cb->u) < ca->cosa * cb->cosa - ca->sina * cb->sina) continue;
-        if (l->sun) { /* the two bounding spheres' shadows along the sun's direction are apart */
-            wrt_v3 dc = v3_sub(r->qi[b].centre, qa->centre);
-            wrt_v3 perp = v3_sub(dc, v3_scale(l->dir, v3_dot(dc, l->dir)));
-            if (v3_len(perp) >= qa->radius + r->qi[b].radius) continue;
-        }
-        if (pyramid_clear(&pp, &r->qi[b], r->proj.size)) continue;
-        w->occ[w->nocc++] = b;
+    double nlen[6];
+    for (int k = 0; k < pp.np; k++) nlen[k] = sqrt(v3_dot(pp.nrm[k], pp.nrm[k]));
+    if (r->opt.occ_scan) {
+        for (uint32_t b = 0; b < nq; b++)
+            if ((int)b != a && may_shade(r, l, ca, qa, &pp, b)) w->occ[w->nocc++] = b;
+        w->noccs += w->nocc;
+        return 0;
     }
+    uint32_t stack[128]; /* the tree's depth is at most 61 (relight_occ.c) */
+    int sp = 0;
+    if (r->proj.nonode) stack[sp++] = 0;
+    while (sp) {
+        uint32_t n = stack[--sp];
+        const occ_node *nd = &r->proj.onode[n];
+        if (node_clear(r, l, ca, qa, &pp, nlen, nd, &r->proj.ocones[n])) continue;
+        if (nd->count) {
+            for (uint32_t k = nd->first; k < nd->first + nd->count; k++) {
+                uint32_t b = r->proj.oorder[k];
+                if ((int)b != a && may_shade(r, l, ca, qa, &pp, b)) w->occ[w->nocc++] = b;
+            }
+            continue;
+        }
+        stack[sp++] = nd->right;
+        stack[sp++] = n + 1;
+    }
+    w->noccs += w->nocc;
     return 0;
 }
 
@@ -700,22 +753,7 @@ int relight_project_light(wrt_relight *r, light_state *ls) {
     /* Levels first (cheap), so that the loop knows its work; bounding cones. */
     double work = 0;
     for (uint32_t q = 0; q < r->g->nquads; q++) {
-        const quad_info *qi = &r->qi[q];
-        light_cone *cn = &r->proj.cones[q];
-        wrt_v3 dc = v3_sub(qi->centre, ls->light.pos);
-        double D = v3_len(dc);
-        cn->dmin = D > qi->radius ? D - qi->radius : 0;
-        cn->dmax = D + qi->radius;
-        if (sun) { /* distance along the sun's light (signed), no cone: find_occluders' cylinders */
-            double t = v3_dot(v3_sub(qi->centre, r->rt.origin), ls->light.dir);
-            cn->dmin = t - qi->radius;
-            cn->dmax = t + qi->radius;
-            cn->u = v3(0, 0, 1); cn->sina = 0; cn->cosa = -1;
-        } else if (D > qi->radius) {
-            cn->u = v3_scale(dc, 1.0 / D);
-            cn->sina = qi->radius / D;
-            cn->cosa = sqrt(1 - cn->sina * cn->sina);
-        } else { cn->u = v3(0, 0, 1); cn->sina = 0; cn->cosa = -1; } /* the light is inside */
+        relight_sphere_cone(r, &lc, r->qi[q].centre, r->qi[q].radius, &r->proj.cones[q]);
         /* A sun: no falloff, so the rule's distance is infinite and the level is the
          * coarsest the rule allows (proj_min_level's grid); only shadow edges split cells,
          * down to the cap (the finest level the quad's functions have). */
@@ -729,9 +767,12 @@ int relight_project_light(wrt_relight *r, light_state *ls) {
         }
         r->proj.qlevel[q] = (int8_t)L;
     }
+    for (uint32_t n = 0; n < r->proj.nonode; n++)
+        relight_sphere_cone(r, &lc, r->proj.onode[n].c, r->proj.onode[n].rad, &r->proj.ocones[n]);
     if (ls->last_work > 0) work = ls->last_work; /* the light moves a little: as much as last time */
-    for (int t = 0; t < r->nthreads; t++) r->workers[t].nsamples = 0;
+    for (int t = 0; t < r->nthreads; t++) r->workers[t].nsamples = r->workers[t].noccs = 0;
     relight_parallel_for(r, (int)r->g->nquads, work, project_quad, &ctx);
+    for (int t = 0; t < r->nthreads; t++) r->run.n.occluders += r->workers[t].noccs;
     if (atomic_load(&r->upd_oom)) return -1;
     ls->last_work = 0;
     for (int t = 0; t < r->nthreads; t++) ls->last_work += 0.25 * (double)r->workers[t].nsamples; /* ~50 ns each */

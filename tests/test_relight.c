@@ -1956,6 +1956,88 @@ static void test_steady_update_no_alloc(void) {
     ts_free(&s);
 }
 
+/* The occluder search by the tree of the quads' spheres (relight_occ.c) finds the same
+ * occluders as testing every quad (options.occ_scan): a floor of 10 x 10 quads under a
+ * cloud of 260 small quads at random places and slants (some crossing the floor, some
+ * behind it), lit by a point light inside the cloud, one above it, a spot, and two suns
+ * (one grazing). The possible occluders summed over the quads (the counters) and every
+ * coefficient of E agree exactly; and the cloud does shade the floor, so a dropped
+ * occluder would show in both. */
+static void test_occluder_tree(void) {
+    static ts_scene s;
+    ts_init(&s);
+    for (int j = 0; j < 10; j++)
+        for (int i = 0; i < 10; i++) {
+            double x0 = 0.4 * i - 2, y0 = 0.4 * j - 2;
+            const double c[4][3] = {{x0, y0, 0}, {x0 + 0.4, y0, 0}, {x0 + 0.4, y0 + 0.4, 0}, {x0, y0 + 0.4, 0}};
+            ts_quad(&s, c, 0, 2, 0);
+        }
+    uint64_t seed = 12345;
+    for (int k = 0; k < 260; k++) {
+        double u[9];
+        for (int t = 0; t < 9; t++) {
+            seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+            u[t] = (double)(seed >> 11) / 9007199254740992.0;
+        }
+        wrt_v3 o = v3(4 * u[0] - 2, 4 * u[1] - 2, 2.2 * u[2] - 0.2), a = v3_norm(v3(u[3] - 0.5, u[4] - 0.5, u[5] - 0.5));
+        wrt_v3 b = v3_norm(v3_cross(a, v3(u[6] - 0.5, u[7] - 0.5, u[8] - 0.5)));
+        double sa = 0.05 + 0.2 * u[6], sb = 0.05 + 0.2 * u[7];
+        wrt_v3 p1 = v3_add(o, v3_scale(a, sa)), p3 = v3_add(o, v3_scale(b, sb)), p2 = v3_add(p1, v3_scale(b, sb));
+        const double c[4][3] = {{o.x, o.y, o.z}, {p1.x, p1.y, p1.z}, {p2.x, p2.y, p2.z}, {p3.x, p3.y, p3.z}};
+        ts_quad(&s, c, 0, k % 3 == 0 ? 1 : 0, 0);
+    }
+    ts_identity(&s, 1);
+    ts_finish(&s);
+    size_t n3 = (size_t)s.nf * 3;
+    wrt_relight *rt, *rs;
+    wrt_relight_options ot = {.haar_blocks = 1, .threads = 2}, os = {.haar_blocks = 1, .threads = 2, .occ_scan = 1};
+    CHECK(wrt_relight_create(&s.g, &ot, &rt) == WRT_OK, "%s", wrt_last_error());
+    CHECK(wrt_relight_create(&s.g, &os, &rs) == WRT_OK, "%s", wrt_last_error());
+    wrt_light ls[5] = {point_light(0.1, 0.2, 0.9, 10), point_light(-0.5, 0.7, 3.5, 10), point_light(0.5, -0.3, 2.6, 10),
+                       sun_light(v3(0.3, 0.2, -1), 3), sun_light(v3(1, 0.2, -0.15), 3)};
+    ls[2].type = WRT_LIGHT_SPOT;
+    ls[2].dir = v3_norm(v3(-0.2, 0.1, -1));
+    ls[2].inner_cone = 0.3f; ls[2].outer_cone = 0.7f;
+    const char *name[5] = {"point in the cloud", "point above", "spot", "sun", "grazing sun"};
+    for (int k = 0; k < 5; k++) {
+        wrt_relight_counters c0, c1, t0, t1;
+        wrt_relight_get_counters(rt, &t0);
+        wrt_relight_get_counters(rs, &c0);
+        wrt_relight_set_lights(rt, &ls[k], NULL, 1);
+        wrt_relight_set_lights(rs, &ls[k], NULL, 1);
+        wrt_relight_update(rt, NULL);
+        wrt_relight_update(rs, NULL);
+        wrt_relight_get_counters(rt, &t1);
+        wrt_relight_get_counters(rs, &c1);
+        long long ntree = t1.occluders - t0.occluders, nscan = c1.occluders - c0.occluders;
+        CHECK(ntree == nscan, "%s: the tree finds %lld possible occluders, the scan %lld", name[k], ntree, nscan);
+        const float *Et = wrt_relight_E(rt), *Es = wrt_relight_E(rs);
+        size_t diff = 0;
+        for (size_t i = 0; i < n3; i++) diff += memcmp(&Et[i], &Es[i], sizeof(float)) != 0;
+        CHECK(diff == 0, "%s: %zu coefficients of E differ between the tree and the scan", name[k], diff);
+        /* the cloud shades the floor: the floor's mean direct light is below the unoccluded */
+        double shaded = 0;
+        for (int q = 0; q < 100; q++) {
+            double dir[3], ind[3];
+            wrt_relight_quad_irradiance(rt, q, dir, ind);
+            double want = 0;
+            wrt_v3 ctr = v3(0.4 * (q % 10) - 1.8, 0.4 * (q / 10) - 1.8, 0);
+            if (ls[k].type == WRT_LIGHT_DIRECTIONAL) want = ls[k].intensity * -ls[k].dir.z;
+            else if (ls[k].type == WRT_LIGHT_POINT) {
+                wrt_v3 d = v3_sub(ls[k].pos, ctr);
+                want = ls[k].intensity * d.z / pow(v3_dot(d, d), 1.5);
+            }
+            if (want > 0 && dir[0] < 0.7 * want) shaded++;
+        }
+        CHECK(ls[k].type == WRT_LIGHT_SPOT || shaded >= 3, "%s: only %g floor quads in the cloud's shadow", name[k], shaded);
+        printf("occluder tree, %s: %lld possible occluders over %u quads (both ways), %g floor quads shaded\n", name[k],
+               ntree, s.g.nquads, shaded);
+    }
+    wrt_relight_destroy(rt);
+    wrt_relight_destroy(rs);
+    ts_free(&s);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(test_far_light_root);
     TEST_RUN(test_cell_irradiance);
@@ -1965,6 +2047,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_shadow_refine);
     TEST_RUN(test_sun_closed_form);
     TEST_RUN(test_sun_shadow);
+    TEST_RUN(test_occluder_tree);
     TEST_RUN(test_adaptive_vs_reference);
     TEST_RUN(test_linearity);
     TEST_RUN(test_multiply_dense);
