@@ -209,14 +209,17 @@ void wrt_series_factored_apart(series_state *s, uint8_t *apart) {
 }
 
 wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d) {
-    tcol_ctx c;
+    tcol_set set;
     uint64_t raw;
-    tcol_init(&c, s, TCOL_POWER);
-    c.u = u;
-    c.d = d;
+    tcol_set_init(&set, s, TCOL_POWER);
+    for (int i = 0; i < set.n; i++) {
+        set.c[i].u = u;
+        set.c[i].d = d;
+    }
     uint32_t nf = s->res->nfuncs;
-    wrt_csc C = wrt_clusters_senders_cols(&s->b->cl->tree, s->troot, nf, tcol_fn, &c, s->eps, &s->TW, 0, nf, &raw);
-    wrt_tcols_free(&c.tc);
+    wrt_csc C = wrt_clusters_senders_cols_th(&s->b->cl->tree, s->troot, nf, tcol_fn, set.u, set.n, s->eps, &s->TW, 0, nf,
+                                             &raw);
+    tcol_set_free(&set);
     return C;
 }
 
