@@ -171,6 +171,12 @@ mutation projection-colour: the light's colour applied as channel 0 to every cha
   run test_relight test_multiply_dense
   run test_accuracy
 
+mutation occluder-tree-sphere: the occluder tree prunes a node by its centre, not its whole sphere
+  file player/relight_project.c
+  find if (v3_dot(v3_sub(nd->c, pp->o[k]), pp->nrm[k]) + nd->rad * nlen[k] <= 0) return 1;
+  repl if (v3_dot(v3_sub(nd->c, pp->o[k]), pp->nrm[k]) + 0.5 * nd->rad * nlen[k] <= 0) return 1;
+  run test_relight test_occluder_tree
+
 mutation multiply-channel-0: the player's multiply uses channel 0 of E for all three channels
   file player/relight_multiply.c
   find __m128 ev = _mm_set_ps(0.0f, e[2], e[1], e[0]);
