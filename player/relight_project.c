@@ -411,14 +411,23 @@ static int may_shade(const wrt_relight *r, const light_c *l, const light_cone *c
  * fails for every quad under the node because each quad's sphere lies in the node's:
  *  - distance: a quad's nearest point to the light is no nearer than the node's;
  *  - cones: a quad's cone lies in the node's, so the angle between a's axis and the
- *    quad's exceeds a's radius plus the quad's when it exceeds a's plus the node's;
+ *    quad's exceeds a's radius plus the quad's by at least d, the amount by which the
+ *    angle to the node's axis exceeds a's radius plus the node's. The test is on
+ *    cosines, and a cosine gap G >= 2 sin(d/2) on the node's gives the quad's only
+ *    G^2 / 2 in the worst case (tiny cones, where cos is flat: 2 sin(x + d/2) sin(d/2)
+ *    with x = a's radius plus the quad's, near 0); so the node's gap must be 1e-6, for
+ *    the quad's 5e-13, far above the rounding of may_shade's test (and above the ~2e-8
+ *    error of a cone's cosa near a hemisphere). A margin of 1e-9 left the quad's gap at
+ *    5e-19 at worst, below that rounding: a quad 4e-8 radians across, an occluder 4e-9
+ *    radians outside its cone (test_occluder_tree_tiny_cones), the scan kept it and
+ *    the tree did not;
  *  - a sun's cylinders: the distance across the light is 1-Lipschitz;
  *  - the pyramid: a plane with the whole sphere below it has every corner below it. */
 static int node_clear(const wrt_relight *r, const light_c *l, const light_cone *ca, const quad_info *qa,
                       const pyr_planes *pp, const double *nlen, const occ_node *nd, const light_cone *cn) {
     double m = 1e-9 * r->proj.size;
     if (cn->dmin >= ca->dmax + m) return 1;
-    if (ca->cosa > -1 && cn->cosa > -1 && v3_dot(ca->u, cn->u) < ca->cosa * cn->cosa - ca->sina * cn->sina - 1e-9)
+    if (ca->cosa > -1 && cn->cosa > -1 && v3_dot(ca->u, cn->u) < ca->cosa * cn->cosa - ca->sina * cn->sina - 1e-6)
         return 1;
     if (l->sun) {
         wrt_v3 dc = v3_sub(nd->c, qa->centre);

@@ -2038,6 +2038,56 @@ static void test_occluder_tree(void) {
     ts_free(&s);
 }
 
+/* The tree's cone test on tiny cones (session 15's review): quad a, a rhombus 4e-8
+ * radians long seen from a point light, and b, a thin quad facing the light just past
+ * a's acute tip, 4e-9 radians outside a's bounding cone but across the tip's outer
+ * wedge, so that no plane of a's pyramid has all of b below it: only the cone test can
+ * drop b, and on cones this small its cosine gap (~1e-16) is below the test's rounding,
+ * so the scan keeps b. b's leaf (b and a speck 0.5 beyond it) has a cone 0.46 radians
+ * wide, tangent to b's sphere, whose cosine gap to a's cone was above the old 1e-9
+ * margin: the tree dropped b (0 occluders against the scan's 1). */
+static void test_occluder_tree_tiny_cones(void) {
+    static ts_scene s;
+    ts_init(&s);
+    const double A = 2e-8, B = A * tan(0.4), d = 2.4e-8, r = 2e-8, w = 6e-11, db = 0.5, t = 0.25;
+    wrt_v3 ray = v3_norm(v3(1, A + d, 0)), out = v3_norm(v3(-(A + d), 1, 0));
+    wrt_v3 bc = v3_scale(ray, db), ta = v3(0, 0, r * db), wa = v3_scale(out, w * db);
+    wrt_v3 pb[4] = {v3_sub(v3_sub(bc, ta), wa), v3_sub(v3_add(bc, ta), wa), v3_add(v3_add(bc, ta), wa),
+                    v3_add(v3_sub(bc, ta), wa)};
+    if (v3_dot(v3_cross(v3_sub(pb[1], pb[0]), v3_sub(pb[3], pb[0])), ray) > 0) { wrt_v3 x = pb[1]; pb[1] = pb[3]; pb[3] = x; }
+    const double cb[4][3] = {{pb[0].x, pb[0].y, pb[0].z}, {pb[1].x, pb[1].y, pb[1].z}, {pb[2].x, pb[2].y, pb[2].z}, {pb[3].x, pb[3].y, pb[3].z}};
+    ts_quad(&s, cb, 0, 0, 0);                                  /* b */
+    wrt_v3 e = v3_add(bc, v3_scale(out, 2 * t));               /* a speck: b's leaf's far side */
+    const double ce[4][3] = {{e.x, e.y, e.z}, {e.x, e.y, e.z}, {e.x, e.y, e.z}, {e.x, e.y, e.z}};
+    ts_quad(&s, ce, 0, 0, 0);
+    const double ca[4][3] = {{1, -A, 0}, {1, 0, B}, {1, A, 0}, {1, 0, -B}}; /* a, facing the light */
+    ts_quad(&s, ca, 0, 0, 0);
+    const double c3[4][3] = {{1.2, 0, 0}, {1.2, 0, 0}, {1.2, 0, 0}, {1.2, 0, 0}}, c4[4][3] = {{1.1, 0, 1e-3}, {1.1, 0, 1e-3}, {1.1, 0, 1e-3}, {1.1, 0, 1e-3}};
+    ts_quad(&s, c3, 0, 0, 0);                                  /* specks beyond a: the root splits */
+    ts_quad(&s, c4, 0, 0, 0);                                  /* {b, speck} | {a, specks} */
+    ts_identity(&s, 1);
+    ts_finish(&s);
+    CHECK(s.quads[2].n[0] == -1, "a faces the light");
+    wrt_relight *rt, *rs;
+    wrt_relight_options ot = {.haar_blocks = 1, .threads = 1}, os = {.haar_blocks = 1, .threads = 1, .occ_scan = 1};
+    CHECK(wrt_relight_create(&s.g, &ot, &rt) == WRT_OK, "%s", wrt_last_error());
+    CHECK(wrt_relight_create(&s.g, &os, &rs) == WRT_OK, "%s", wrt_last_error());
+    wrt_light l = point_light(0, 0, 0, 1);
+    wrt_relight_set_lights(rt, &l, NULL, 1);
+    wrt_relight_set_lights(rs, &l, NULL, 1);
+    wrt_relight_update(rt, NULL);
+    wrt_relight_update(rs, NULL);
+    wrt_relight_counters ct, cs;
+    wrt_relight_get_counters(rt, &ct);
+    wrt_relight_get_counters(rs, &cs);
+    if (cs.occluders != 1) /* the scan's rounding kept b here (x86-64, no FMA); elsewhere it may not */
+        printf("occluder tree, tiny cones: the scan finds %lld possible occluders (1 expected): the case is not made\n", cs.occluders);
+    CHECK(ct.occluders == cs.occluders, "the tree finds %lld possible occluders, the scan %lld", ct.occluders, cs.occluders);
+    wrt_relight_destroy(rt);
+    wrt_relight_destroy(rs);
+    ts_free(&s);
+}
+
 int main(int argc, char **argv) {
     TEST_RUN(test_far_light_root);
     TEST_RUN(test_cell_irradiance);
@@ -2048,6 +2098,7 @@ int main(int argc, char **argv) {
     TEST_RUN(test_sun_closed_form);
     TEST_RUN(test_sun_shadow);
     TEST_RUN(test_occluder_tree);
+    TEST_RUN(test_occluder_tree_tiny_cones);
     TEST_RUN(test_adaptive_vs_reference);
     TEST_RUN(test_linearity);
     TEST_RUN(test_multiply_dense);
