@@ -208,7 +208,8 @@ void wrt_series_factored_apart(series_state *s, uint8_t *apart) {
     tcol_set_free(&set);
 }
 
-wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d) {
+wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d, double eps,
+                                       const wrt_csc_weights *W) {
     tcol_set set;
     uint64_t raw;
     tcol_set_init(&set, s, TCOL_POWER);
@@ -217,8 +218,7 @@ wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, c
         set.c[i].d = d;
     }
     uint32_t nf = s->res->nfuncs;
-    wrt_csc C = wrt_clusters_senders_cols_th(&s->b->cl->tree, s->troot, nf, tcol_fn, set.u, set.n, s->eps, &s->TW, 0, nf,
-                                             &raw);
+    wrt_csc C = wrt_clusters_senders_cols_th(&s->b->cl->tree, s->troot, nf, tcol_fn, set.u, set.n, eps, W, 0, nf, &raw);
     tcol_set_free(&set);
     return C;
 }

@@ -124,6 +124,7 @@ void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_cs
 void wrt_series_factored_apart(series_state *s, uint8_t *apart);
 void wrt_series_factored_apply(void *user, const double *x, double *y);
 double *wrt_series_factored_targets(series_state *s, int *bounces);
-wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d);
+wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d, double eps,
+                                       const wrt_csc_weights *W);
 
 #endif
