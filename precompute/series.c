@@ -312,7 +312,7 @@ static void series_consume(series_state *s) {
  * norms are summed in its order, rank after rank (wrt_dist_chain_sum); the stored
  * operator is gathered on rank 0, the rank that writes. */
 
-static void series_free_right(series_state *s);
+
 
 /* Columns [c0, c1) of m (the others empty), in arrays of their own */
 wrt_csc wrt_series_csc_range(const wrt_csc *m, uint32_t c0, uint32_t c1) {
@@ -382,7 +382,7 @@ static void series_share_start(series_state *s) {
     uint32_t c0 = s->cut[d->rank], c1 = s->cut[d->rank + 1];
     wrt_csc p = wrt_series_csc_range(&s->P, c0, c1), r = wrt_series_csc_range(&s->Tr, c0, c1);
     s->p_all = s->P.nnz;
-    series_free_right(s);
+    wrt_series_free_right(s);
     wrt_csc_free(&s->P);
     s->P = p;
     s->Tr = r;
@@ -494,7 +494,7 @@ static const wrt_csc *series_right(const series_state *s, int bounce) {
 }
 
 /* Frees the right factor, unless the term P still is that matrix (P then owns it). */
-static void series_free_right(series_state *s) {
+void wrt_series_free_right(series_state *s) {
     if (s->shared) memset(&s->Tr, 0, sizeof s->Tr);
     else wrt_csc_free(&s->Tr);
     s->shared = 0;
@@ -805,7 +805,7 @@ static wrt_status series_bounces(series_state *s) {
     }
     wrt_csc_free(&N); /* a next term the series did not take */
     if (st != WRT_OK) return st;
-    series_free_right(s);
+    wrt_series_free_right(s);
     wrt_power_iter_free(&s->pi);
     if (!s->streamed) wrt_spill_free(&s->Tf); /* streamed, it may still be the sum */
     s->ratio = ratio;
@@ -978,7 +978,7 @@ static wrt_status series_gathered(series_state *s) {
 
 /* Frees what the state holds (after a failure: the sum too) */
 static void series_state_free(series_state *s) {
-    series_free_right(s);
+    wrt_series_free_right(s);
     wrt_power_iter_free(&s->pi);
     wrt_csc_free(&s->P); wrt_csc_free(&s->S);
     wrt_spill_free(&s->Tf);
@@ -1043,7 +1043,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         wrt_series_tree_sum_start(&s, s.share ? s.cut[b->opt.dist->rank] : 0, s.share ? s.cut[b->opt.dist->rank + 1] : res->nfuncs);
     if (wrt_series_cols_on(&s)) { /* one block of columns through every bounce at a time */
         st = wrt_series_cols(&s);
-        series_free_right(&s);
+        wrt_series_free_right(&s);
         if (st == WRT_OK && s.share) st = series_share_root(&s);
         if (st == WRT_OK) st = series_finish(&s);
     } else {

@@ -221,6 +221,7 @@ wrt_status wrt_series_cols(series_state *s) {
     wrt_csc_free(&S0);
     free(own[0]); free(own[1]); free(own[2]);
     wrt_power_iter_free(&s->pi);
+    wrt_series_free_right(s);
     wrt_bake_memory_trim(); /* the series' arrays, freed, back to the system before F comes back */
     if (st == WRT_OK && !(wrt_spill_finish(&F) && wrt_spill_read(&F, n, &s->S)))
         st = wrt_fail(WRT_ERR_IO, "the series could not read back the stored operator from its scratch file");

@@ -124,6 +124,8 @@ void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_cs
 void wrt_series_factored_apart(series_state *s, uint8_t *apart);
 void wrt_series_factored_apply(void *user, const double *x, double *y);
 double *wrt_series_factored_targets(series_state *s, int *bounces);
+/* Frees the products' right factor (Tr and its bands); again: nothing */
+void wrt_series_free_right(series_state *s);
 wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d, double eps,
                                        const wrt_csc_weights *W);
 
