@@ -4,10 +4,11 @@
  * Multiplied from the left, term k+1's column j is E1 (U P_k)'s column j: it reads term
  * k's column j alone, and the products' compression, the sum and the stored operator's
  * compression are column by column too. So a block of columns can go through every
- * bounce on its own, its sum compressed for storing as soon as its last term is added,
- * and the next block starts from nothing. Held beside E1 and the stored operator are
- * then one block's terms and sum, not the whole of them (at 22,224 atrium elements the
- * third term alone held 78.6M entries, at 43,780 216M: 3.5 GB).
+ * bounce on its own, its sum compressed for storing as soon as its last term is added
+ * (and written to a scratch file, read back when the series has freed its arrays), and
+ * the next block starts from nothing. Held beside E1 are then one block's terms and sum,
+ * not the whole of them (at 22,224 atrium elements the third term alone held 78.6M
+ * entries, at 43,780 216M: 3.5 GB).
  *
  * What the whole-term series decided from the terms' norms is decided here before any
  * block starts, from the power iteration alone (so every column takes the same number of
