@@ -18,6 +18,7 @@
 
 #include <embree3/rtcore.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -516,16 +517,90 @@ static double dist3(const double a[3], const double b[3]) {
     return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
 }
 
+/* The quads' corners by grid cell (cells of 4 x the seams' tolerance; a 64-bit hash of
+ * the cell, sorted with the quad): the candidates of shared_edge, so that it reads the
+ * quads with a corner near the edge's end instead of every quad (O(N^2): about 10
+ * minutes at 100,256 atrium elements). */
+typedef struct corner_grid { size_t n; uint64_t *key; int *quad; double h; } corner_grid;
+
+static uint64_t cell_key(long long ix, long long iy, long long iz) {
+    uint64_t k = (uint64_t)ix * 0x9E3779B97F4A7C15ull ^ (uint64_t)iy * 0xC2B2AE3D27D4EB4Full ^ (uint64_t)iz * 0x165667B19E3779F9ull;
+    return k ^ (k >> 29);
+}
+
+static long long cell_of(double x, double h) { return (long long)floor(x / h); }
+
+typedef struct { uint64_t key; int quad; } corner_entry;
+
+static int corner_cmp(const void *a, const void *b) {
+    const corner_entry *x = a, *y = b;
+    if (x->key != y->key) return x->key < y->key ? -1 : 1;
+    return (x->quad > y->quad) - (x->quad < y->quad);
+}
+
+static int int_cmp(const void *a, const void *b) { return (*(const int *)a > *(const int *)b) - (*(const int *)a < *(const int *)b); }
+
+static int corner_grid_make(const wrt_gto *g, double tol, corner_grid *cg) {
+    cg->n = 4 * (size_t)g->nquads;
+    cg->h = 4 * tol;
+    corner_entry *e = malloc((cg->n ? cg->n : 1) * sizeof *e);
+    cg->key = malloc((cg->n ? cg->n : 1) * sizeof *cg->key);
+    cg->quad = malloc((cg->n ? cg->n : 1) * sizeof *cg->quad);
+    if (!e || !cg->key || !cg->quad) { free(e); free(cg->key); free(cg->quad); return -1; }
+    for (uint32_t q = 0; q < g->nquads; q++)
+        for (int k = 0; k < 4; k++) {
+            const double *p = g->quads[q].p[k];
+            e[4 * q + k] = (corner_entry){cell_key(cell_of(p[0], cg->h), cell_of(p[1], cg->h), cell_of(p[2], cg->h)), (int)q};
+        }
+    qsort(e, cg->n, sizeof *e, corner_cmp);
+    for (size_t i = 0; i < cg->n; i++) { cg->key[i] = e[i].key; cg->quad[i] = e[i].quad; }
+    free(e);
+    return 0;
+}
+
+/* The quads with a corner in the 27 cells around point a, ascending, once each, into
+ * out; the count, or SIZE_MAX where there were more than cap corners. */
+static size_t corner_near(const corner_grid *cg, const double a[3], int *out, size_t cap) {
+    size_t m = 0;
+    long long cx = cell_of(a[0], cg->h), cy = cell_of(a[1], cg->h), cz = cell_of(a[2], cg->h);
+    for (int dz = -1; dz <= 1; dz++)
+        for (int dy = -1; dy <= 1; dy++)
+            for (int dx = -1; dx <= 1; dx++) {
+                uint64_t k = cell_key(cx + dx, cy + dy, cz + dz);
+                size_t lo = 0, hi = cg->n;
+                while (lo < hi) {
+                    size_t mid = lo + (hi - lo) / 2;
+                    if (cg->key[mid] < k) lo = mid + 1;
+                    else hi = mid;
+                }
+                for (; lo < cg->n && cg->key[lo] == k; lo++) {
+                    if (m == cap) return SIZE_MAX;
+                    out[m++] = cg->quad[lo];
+                }
+            }
+    qsort(out, m, sizeof *out, int_cmp);
+    size_t u = 0;
+    for (size_t i = 0; i < m; i++)
+        if (!u || out[i] != out[u - 1]) out[u++] = out[i];
+    return u;
+}
+
 /* Quad q's neighbour across edge e, found here from the file's geometry alone (not from the
  * display's own adjacency, so that a neighbour the display misses still counts as a seam):
  * a quad of the same material, facing the same way in the same plane, whose edge has the
- * same two ends. -1 if none; *nedge its edge, *flip 1 if it runs the other way. */
-static int shared_edge(const wrt_gto *g, int q, int e, double tol, int *nedge, int *flip) {
+ * same two ends: the first in the quads' order, as a scan of every quad finds it (the
+ * candidates, those with a corner near the edge's first end, in that order). -1 if none;
+ * *nedge its edge, *flip 1 if it runs the other way. */
+static int shared_edge(const wrt_gto *g, const corner_grid *cg, int q, int e, double tol, int *nedge, int *flip) {
     double a[3], b[3], c[3], d[3];
     edge_point(g, q, e, 0, a);
     edge_point(g, q, e, 1, b);
     const float *nq = g->quads[q].n;
-    for (int o = 0; o < (int)g->nquads; o++) {
+    int cand[256];
+    size_t nc = corner_near(cg, a, cand, sizeof cand / sizeof *cand);
+    int scan = nc == SIZE_MAX; /* more corners there than cand holds: every quad, in order */
+    for (size_t i = 0; i < (scan ? g->nquads : nc); i++) {
+        int o = scan ? (int)i : cand[i];
         if (o == q || g->quads[o].material != g->quads[q].material) continue;
         const float *no = g->quads[o].n;
         if (nq[0] * no[0] + nq[1] * no[1] + nq[2] * no[2] < 1 - 1e-5) continue;
@@ -545,9 +620,12 @@ static int shared_edge(const wrt_gto *g, int q, int e, double tol, int *nedge, i
  * summed over RGB and divided by the sum of the values there. */
 static void seam_jumps(const wrt_gto *g, const wrt_runtime *r, double tol, double *across, double *inside) {
     double ja = 0, ji = 0, sa = 0, si = 0;
+    corner_grid cg;
+    *across = *inside = 0;
+    if (corner_grid_make(g, tol, &cg) != 0) return;
     for (int q = 0; q < (int)g->nquads; q++)
         for (int e = 0; e < 4; e++) {
-            int ne = 0, fl = 0, o = shared_edge(g, q, e, tol, &ne, &fl);
+            int ne = 0, fl = 0, o = shared_edge(g, &cg, q, e, tol, &ne, &fl);
             if (o < q) continue; /* none, or counted from the other side */
             int rq, ro;
             const float *tq = wrt_runtime_quad_texture(r, q, &rq), *to = wrt_runtime_quad_texture(r, o, &ro);
@@ -568,6 +646,7 @@ static void seam_jumps(const wrt_gto *g, const wrt_runtime *r, double tol, doubl
                 }
             }
         }
+    free(cg.key); free(cg.quad);
     *across = sa > 0 ? ja / sa : 0;
     *inside = si > 0 ? ji / si : 0;
 }
