@@ -101,6 +101,17 @@ wrt_csc wrt_clusters_senders_cols(const wrt_ctree *t, const uint32_t *root, uint
 wrt_csc wrt_clusters_senders_cols_th(const wrt_ctree *t, const uint32_t *root, uint32_t nf, wrt_col_fn fn,
                                      void *const *users, int nusers, double drop, const wrt_csc_weights *W,
                                      uint32_t c0, uint32_t c1, uint64_t *raw);
+/* ... and wrt_clusters_apart's test made in the same walk (ap NULL: not): ap->apart its
+ * result, and each node apart's slot weight in ap->w (W's column weights) times
+ * ap->factor before its column is compressed (the root slot's where the root is apart) */
+typedef struct {
+    const double *pw;
+    uint8_t *apart;
+    double *w, factor;
+} wrt_apart_opt;
+wrt_csc wrt_clusters_senders_cols_apart(const wrt_ctree *t, const uint32_t *root, uint32_t nf, wrt_col_fn fn,
+                                        void *const *users, int nusers, double drop, const wrt_csc_weights *W,
+                                        uint32_t c0, uint32_t c1, uint64_t *raw, const wrt_apart_opt *ap);
 /* The series' weights of the root slots for the tree functions: areas of their nodes
  * (rw = 1/sqrt(a), cw = sqrt(a)), the small senders' factor 1 there (boost, may be NULL:
  * a node is not a small sender) and the power weights transformed (cluster_ops.c). */

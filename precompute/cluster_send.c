@@ -48,6 +48,7 @@ typedef struct {
     uint64_t raw;         /* the tree columns' entries before compression */
     const double *pw;     /* wrt_clusters_apart: the rows' power weights, and per node the */
     uint8_t *apart;       /* result (orow NULL: nothing is emitted) */
+    double *apart_w, apart_f; /* emitting: the weight of a node apart's slot times apart_f first */
     void *const *users;   /* send_split: one fn user a thread (users[0] is user) */
     int nusers;
     struct dcol_s *pre;   /* send_split: the subtrees' phi columns made on the threads, */
@@ -174,6 +175,7 @@ static dcol node_phi(send_ctx *x, uint32_t p) {
     }
     out.n = n;
     if (x->apart) x->apart[p] = halves_apart(x, &L, &R, wl, wr) || x->apart[t->left[p]] || x->apart[t->right[p]];
+    if (x->apart_w && x->apart[p]) x->apart_w[x->root[t->slot[p]]] *= x->apart_f;
     dcol_free(&L);
     dcol_free(&R);
     if (x->orow) emit(x, x->root[t->slot[p]], out.row, dv, n);
@@ -255,6 +257,7 @@ static uint8_t *send_walk(send_ctx *x, uint32_t nf) {
     send_split(x);
     dcol top = node_phi(x, 0);
     send_split_free(x);
+    if (x->apart_w && x->apart[0]) x->apart_w[x->root[t->root_slot]] *= x->apart_f;
     emit(x, x->root[t->root_slot], top.row, top.val, top.n);
     dcol_free(&top);
     return tree;
@@ -339,9 +342,22 @@ wrt_csc wrt_clusters_senders_cols(const wrt_ctree *t, const uint32_t *root, uint
 wrt_csc wrt_clusters_senders_cols_th(const wrt_ctree *t, const uint32_t *root, uint32_t nf, wrt_col_fn fn,
                                      void *const *users, int nusers, double drop, const wrt_csc_weights *W,
                                      uint32_t c0, uint32_t c1, uint64_t *raw) {
+    return wrt_clusters_senders_cols_apart(t, root, nf, fn, users, nusers, drop, W, c0, c1, raw, NULL);
+}
+
+wrt_csc wrt_clusters_senders_cols_apart(const wrt_ctree *t, const uint32_t *root, uint32_t nf, wrt_col_fn fn,
+                                        void *const *users, int nusers, double drop, const wrt_csc_weights *W,
+                                        uint32_t c0, uint32_t c1, uint64_t *raw, const wrt_apart_opt *ap) {
     void *user = users[0];
     send_ctx x = {.t = t, .root = root, .fn = fn, .user = user, .c0 = c0, .c1 = c1, .drop = drop, .W = W,
                   .users = users, .nusers = nusers};
+    if (ap) { /* the halves' test on the same columns, their weights raised as it decides */
+        x.pw = ap->pw;
+        x.apart = ap->apart;
+        x.apart_w = ap->w;
+        x.apart_f = ap->factor;
+        memset(ap->apart, 0, t->nnodes);
+    }
     uint8_t *tree = send_walk(&x, nf);
     /* the columns in order, appended (the arrays grow by doubling: realloc moves large
      * blocks by remapping, so the result is held about once) */

@@ -936,6 +936,7 @@ static wrt_status series_finish(series_state *s) {
             wrt_series_power_apply(s->u, s->pw, s->threads, &s->S, &ps);
         } else if (s->tree) {
             wrt_series_tree_power(s, &ps);
+            wrt_series_mark(s, "power rule's correction");
         } else {
             wrt_series_power_fix(s->T, s->pw, s->threads, b->opt.max_bounces, &s->S, &ps);
         }
@@ -1023,6 +1024,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, start_need,
                                           "the series' first term");
     if (st != WRT_OK) return st;
+    wrt_series_mark(&s, "");
     series_weights(&s);
     series_consume(&s);
     if (!series_first_terms(&s)) {
@@ -1031,16 +1033,19 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     }
     if (s.tree) wrt_series_tree_start(&s);
     else if (!s.consumed) s.S = wrt_csc_copy(s.T);
+    wrt_series_mark(&s, "first term");
     if (s.fac) {
         wrt_series_factored_start(&s);
         if (b->opt.series_coarse > 0)
             series_coarse_cut(b, &s.Tr, res->fkeys, res->nfuncs, b->opt.series_coarse, 1);
         res->c.cluster_factored_entries = s.Tr.nnz;
         wrt_series_factored_bands(&s);
+        wrt_series_mark(&s, "right factor");
     }
     series_share_start(&s);
-    if (s.tree) /* the sum's first state: by shares, this rank's columns */
+    if (s.tree && !s.S.col) /* the sum's first state (unless made with the nodes apart): by shares, this rank's columns */
         wrt_series_tree_sum_start(&s, s.share ? s.cut[b->opt.dist->rank] : 0, s.share ? s.cut[b->opt.dist->rank + 1] : res->nfuncs);
+    wrt_series_mark(&s, "sum's first state");
     if (wrt_series_cols_on(&s)) { /* one block of columns through every bounce at a time */
         st = wrt_series_cols(&s);
         wrt_series_free_right(&s);

@@ -135,6 +135,7 @@ wrt_status wrt_series_cols(series_state *s) {
     double energy = 0, tail[3];
     wrt_status st = cols_plan(s, &bounces, &energy, tail);
     if (st != WRT_OK) return st;
+    wrt_series_mark(s, "power iteration");
     C->series_ratio = s->ratio;
     C->bounces = (uint64_t)bounces;
     C->energy_left = energy;
@@ -163,6 +164,12 @@ wrt_status wrt_series_cols(series_state *s) {
         free(own[0]); free(own[1]); free(own[2]);
         return wrt_fail(WRT_ERR_IO, "the series could not make a scratch file for the stored operator");
     }
+    /* E1 (T never formed) is read again only by the power rule's correction, after the
+     * blocks: it waits in a scratch file meanwhile (where none can be made, in memory) */
+    wrt_spill E1f = {0};
+    int e1_out = s->no_t && s->res->dto_e1.col && wrt_spill_write(&E1f, &s->res->dto_e1);
+    uint32_t ne = s->res->dto_e1.n;
+    if (e1_out) wrt_csc_free(&s->res->dto_e1);
     int timing = s->timing;
     s->timing = 0; /* the products' own lines: one a block below instead */
     /* each product whole on the block's columns (a block of U P is then a block's share
@@ -224,9 +231,13 @@ wrt_status wrt_series_cols(series_state *s) {
     wrt_power_iter_free(&s->pi);
     wrt_series_free_right(s);
     wrt_bake_memory_trim(); /* the series' arrays, freed, back to the system before F comes back */
+    if (st == WRT_OK && e1_out && !wrt_spill_read(&E1f, ne, &s->res->dto_e1))
+        st = wrt_fail(WRT_ERR_IO, "the series could not read back E1 from its scratch file");
+    wrt_spill_free(&E1f);
     if (st == WRT_OK && !(wrt_spill_finish(&F) && wrt_spill_read(&F, n, &s->S)))
         st = wrt_fail(WRT_ERR_IO, "the series could not read back the stored operator from its scratch file");
     wrt_spill_free(&F);
+    wrt_series_mark(s, "blocks");
     if (st != WRT_OK) return st;
     C->tail_fraction = add ? fmax(tail[0], fmax(tail[1], tail[2])) : 0;
     return WRT_OK;

@@ -176,15 +176,16 @@ static uint64_t tcol_set_free(tcol_set *set) {
     return e;
 }
 
-void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_csc *S, wrt_csc *P) {
+void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_csc *S, wrt_csc *P,
+                               const wrt_apart_opt *ap) {
     const wrt_ctree *t = &s->b->cl->tree;
     uint32_t nf = s->res->nfuncs;
     uint64_t raw;
     tcol_set set;
     if (S) {
         tcol_set_init(&set, s, TCOL_SUM);
-        *S = wrt_clusters_senders_cols_th(t, s->troot, nf, tcol_fn, set.u, set.n, s->eps, &s->TW, c0, c1,
-                                          &s->res->c.cluster_senders_raw);
+        *S = wrt_clusters_senders_cols_apart(t, s->troot, nf, tcol_fn, set.u, set.n, s->eps, &s->TW, c0, c1,
+                                             &s->res->c.cluster_senders_raw, ap);
         /* T's entries, as the file's statistics count them (whatever the range): its root
          * columns, all made by the walk, and the others, E1's */
         uint64_t entries = 0;

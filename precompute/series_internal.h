@@ -5,6 +5,7 @@
 #define WRT_SERIES_INTERNAL_H
 
 #include "bake_ctx.h"
+#include "cluster.h"
 #include "series_power.h"
 #include "spill.h"
 #include "series_stream.h"
@@ -74,7 +75,11 @@ typedef struct {
     int no_t;
     const wrt_csc *E1;
     int fac_parts;  /* wrt_series_factored_blocks' blocks a product (0: WRT_FAC_BLOCKS) */
+    double mark_w, mark_c; /* WRT_DTO_TIMES: the last stage's end (wrt_series_mark) */
 } series_state;
+
+/* WRT_DTO_TIMES set: the stage just ended, its wall and CPU seconds, on stderr */
+void wrt_series_mark(series_state *s, const char *stage);
 
 /* The factored tree series by blocks of columns through every bounce (series_cols.c):
  * whether it runs; the bounces, the tail and the stored operator's compression into s->S
@@ -119,7 +124,8 @@ wrt_status wrt_series_factored_blocks(series_state *s, int bounce, int checked, 
 /* T never formed (series_first.c): the sum's first state and the first term, T W^T, for
  * the columns [c0, c1) (S or P may be NULL); y += T x (a power_iter's apply); the power
  * targets; the column power rule's correction in the senders' tree basis, compressed */
-void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_csc *S, wrt_csc *P);
+void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_csc *S, wrt_csc *P,
+                               const wrt_apart_opt *ap);
 /* wrt_clusters_apart on T's root columns made from E1 (series_tree.c's nodes apart) */
 void wrt_series_factored_apart(series_state *s, uint8_t *apart);
 void wrt_series_factored_apply(void *user, const double *x, double *y);

@@ -3,11 +3,22 @@
  * iterated on T in memory, on T's scratch file (spill.h), or through apply where T is
  * not held (series_first.c). Depends on series_internal.h. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "../common/wrt_common.h"
+#include "dist.h"
 #include "series_internal.h"
+
+void wrt_series_mark(series_state *s, const char *stage) {
+    if (!s->timing) return;
+    double w = wrt_now(), c = wrt_dist_cpu_now();
+    if (s->mark_w > 0)
+        fprintf(stderr, "series-times: %-26s %9.3f s wall %9.3f s cpu\n", stage, w - s->mark_w, c - s->mark_c);
+    s->mark_w = w;
+    s->mark_c = c;
+}
 
 void wrt_power_iter_start(power_iter *p, const wrt_csc *T, const double *pw) {
     uint32_t n = p->apply ? p->n : T->n;

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "cluster.h"
+#include "dist.h"
 #include "series.h"
 #include "series_internal.h"
 
@@ -194,15 +195,26 @@ void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps) {
 static void series_tree_apart(series_state *s) {
     const wrt_ctree *t = &s->b->cl->tree;
     uint8_t *apart = wrt_xmalloc((size_t)t->nnodes + 1);
-    if (s->no_t) wrt_series_factored_apart(s, apart);
-    else wrt_clusters_apart(t, s->troot, s->T, NULL, NULL, s->pw, apart);
+    int walked = s->no_t && !wrt_dist_on(s->b->opt.dist);
+    if (walked) {
+        /* in one process the sum's first state is whole: made in the same walk as the
+         * test, each node's weight raised as the walk decides it, before its column is
+         * compressed (the same columns). T's root columns, made from E1 and each
+         * quad's ancestors, were a third of the series' start at 100,256 atrium elements */
+        wrt_apart_opt ap = {s->pw, apart, s->tcw, WRT_SERIES_TREE_APART};
+        wrt_series_factored_first(s, 0, s->res->nfuncs, &s->S, NULL, &ap);
+    } else if (s->no_t) {
+        wrt_series_factored_apart(s, apart);
+    } else {
+        wrt_clusters_apart(t, s->troot, s->T, NULL, NULL, s->pw, apart);
+    }
     uint32_t n = 0;
     for (uint32_t p = 0; p < t->nnodes; p++)
         if (t->left[p] >= 0 && apart[p]) {
-            s->tcw[s->troot[t->slot[p]]] *= WRT_SERIES_TREE_APART;
+            if (!walked) s->tcw[s->troot[t->slot[p]]] *= WRT_SERIES_TREE_APART;
             n++;
         }
-    if (apart[0]) s->tcw[s->troot[t->root_slot]] *= WRT_SERIES_TREE_APART;
+    if (apart[0] && !walked) s->tcw[s->troot[t->root_slot]] *= WRT_SERIES_TREE_APART;
     s->res->c.cluster_apart_nodes = n;
     free(apart);
 }
@@ -228,8 +240,9 @@ void wrt_series_tree_start(series_state *s) {
         if (t->left[p] >= 0) s->tcw[s->troot[t->slot[p]]] *= tight;
     s->tcw[s->troot[t->root_slot]] *= tight;
     series_tree_apart(s);
+    wrt_series_mark(s, "nodes apart");
     if (s->no_t) { /* T W^T from E1 (series_first.c); the sum follows */
-        wrt_series_factored_first(s, 0, res->nfuncs, NULL, &s->P);
+        wrt_series_factored_first(s, 0, res->nfuncs, NULL, &s->P, NULL);
         res->c.cluster_senders_basis = 1;
         res->c.cluster_senders_quads = 0;
         return;
@@ -361,7 +374,7 @@ void wrt_series_tree_sum_start(series_state *s, uint32_t c0, uint32_t c1) {
     const bake_ctx *b = s->b;
     const wrt_csc *T = s->T;
     if (s->no_t) { /* T unformed: its columns from E1 (series_first.c) */
-        wrt_series_factored_first(s, c0, c1, &s->S, NULL);
+        wrt_series_factored_first(s, c0, c1, &s->S, NULL, NULL);
         return;
     }
     uint32_t n = T->n;
