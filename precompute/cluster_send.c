@@ -87,7 +87,11 @@ static void emit(send_ctx *x, uint32_t slot, const uint32_t *row, const double *
     x->orow[slot] = r; x->oval[slot] = v; x->on[slot] = k;
 }
 
-static double cmax(const double *v) { return fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2]))); }
+static double cmax(const double *v) { /* no NaN here: fmax's calls were 3% of the walk */
+    double a = fabs(v[0]), b = fabs(v[1]), c = fabs(v[2]);
+    double m = a > b ? a : b;
+    return m > c ? m : c;
+}
 
 /* Whether node p's halves are apart (wrt_clusters_apart): of the light of each half (the
  * columns wr phi_L and wl phi_R, each row's largest channel times its power weight), the

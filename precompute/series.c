@@ -1043,9 +1043,8 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         wrt_series_mark(&s, "right factor");
     }
     series_share_start(&s);
-    if (s.tree && !s.S.col) /* the sum's first state (unless made with the nodes apart): by shares, this rank's columns */
-        wrt_series_tree_sum_start(&s, s.share ? s.cut[b->opt.dist->rank] : 0, s.share ? s.cut[b->opt.dist->rank + 1] : res->nfuncs);
-    wrt_series_mark(&s, "sum's first state");
+    if (s.tree && s.share) /* the sum's first state, whole (wrt_series_tree_start): this rank's columns */
+        wrt_series_tree_sum_start(&s, s.cut[b->opt.dist->rank], s.cut[b->opt.dist->rank + 1]);
     if (wrt_series_cols_on(&s)) { /* one block of columns through every bounce at a time */
         st = wrt_series_cols(&s);
         wrt_series_free_right(&s);

@@ -2,16 +2,16 @@
  * formed"), the default with --clusters: the bake keeps E1 (the cluster links' receivers
  * pushed down, their senders on the nodes' columns) and T = E1 U (U the uniform pull-up of
  * the senders, cluster.h). What read T's columns reads them from E1 here:
- *  - the sum's first state and the first term, T W^T: T's column of a quad's root is made
+ *  - the sum's first state, T W^T (and with it the nodes-apart test, and from it the
+ *    first term: series_tree.c): T's column of a quad's root is made
  *    when the senders' transform (cluster_send.c) reaches the quad's leaf, from E1's column
  *    there plus sqrt(a_q / a_B) times E1's column of phi_B for every ancestor B, summed in
  *    the assembly's order and precision (cluster_ops.c's second push-down: each
  *    contribution rounded to float, then added in float, ancestors from the root down), so
- *    the column is T's to the bit and the transform's result today's; the first term's
- *    columns compressed first as T's were (series_first_terms). Only one quad's column is
- *    held at a time besides the transform's path and the results, so the pushed-down link
- *    blocks (O(N^2) root entries) are never held. Any column range [c0, c1) (wrt-bake-mpi's
- *    shares), the tree walked whole.
+ *    the column is T's to the bit and the transform's result today's. Only one quad's
+ *    column is held at a time besides the transform's path and the results, so the
+ *    pushed-down link blocks (O(N^2) root entries) are never held; but each is made, so
+ *    a walk costs T's entries (4.76G at 100,256 atrium elements).
  *  - the power iteration, T x = E1 (U x), and the power targets, v T = (v E1) U, in double
  *    (T's float entries were rounded sums: the ratios and targets agree to rounding);
  *  - the column power rule's correction, (u_q - have_q) times T's root column, made like
@@ -26,7 +26,7 @@
 #include "series_first.h"
 #include "series_internal.h"
 
-enum { TCOL_SUM, TCOL_TERM, TCOL_POWER };
+enum { TCOL_SUM, TCOL_POWER };
 /* the most threads the senders' walk takes (one column builder each) */
 #define WRT_TCOL_THREADS 64
 
@@ -42,16 +42,40 @@ void wrt_tcols_init(wrt_tcols *c, const wrt_ctree *t, const uint32_t *root, cons
     c->mark = wrt_xcalloc((size_t)nf + 1, sizeof *c->mark);
     c->rows = wrt_xmalloc(((size_t)nf + 1) * sizeof *c->rows);
     c->path = wrt_xmalloc(((size_t)t->depth + 2) * sizeof *c->path);
+    c->tmp = wrt_xmalloc(((size_t)nf + 1) * sizeof *c->tmp);
 }
 
 void wrt_tcols_free(wrt_tcols *c) {
-    free(c->leaf_of); free(c->acc); free(c->mark); free(c->rows); free(c->path);
+    free(c->leaf_of); free(c->acc); free(c->mark); free(c->rows); free(c->path); free(c->tmp);
     memset(c, 0, sizeof *c);
 }
 
-static int asc_u32(const void *a, const void *b) {
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return (x > y) - (x < y);
+/* a[0..n) (distinct, each under nf) ascending: by 11-bit digits, least first (the
+ * columns' rows, thousands a column: qsort's calls were 15% of the series' start) */
+static void sort_rows(uint32_t *a, uint32_t *tmp, uint32_t n, uint32_t nf) {
+    if (n < 48) {
+        for (uint32_t i = 1; i < n; i++) {
+            uint32_t v = a[i], j = i;
+            for (; j > 0 && a[j - 1] > v; j--) a[j] = a[j - 1];
+            a[j] = v;
+        }
+        return;
+    }
+    uint32_t *src = a, *dst = tmp;
+    for (uint32_t shift = 0; shift < 32 && (nf - 1) >> shift; shift += 11) {
+        uint32_t count[2048] = {0};
+        for (uint32_t i = 0; i < n; i++) count[(src[i] >> shift) & 2047]++;
+        for (uint32_t d = 0, at = 0; d < 2048; d++) {
+            uint32_t m = count[d];
+            count[d] = at;
+            at += m;
+        }
+        for (uint32_t i = 0; i < n; i++) dst[count[(src[i] >> shift) & 2047]++] = src[i];
+        uint32_t *x = src;
+        src = dst;
+        dst = x;
+    }
+    if (src != a) memcpy(a, src, n * sizeof *a);
 }
 
 /* E1's column e into the accumulator, each value times w rounded to float (scaled 0: as
@@ -89,7 +113,7 @@ uint64_t wrt_tcols_col(wrt_tcols *c, uint32_t f, uint32_t **row, float **val) {
             uint32_t B = c->path[i];
             if (c->nf + B < c->E1->n) tcol_add(c, c->nf + B, sqrt(t->area[L] / t->area[B]), 1, &n);
         }
-        qsort(c->rows, n, sizeof *c->rows, asc_u32);
+        sort_rows(c->rows, c->tmp, n, c->nf);
     }
     *row = wrt_xmalloc((n ? n : 1) * sizeof **row);
     *val = wrt_xmalloc((n ? n : 1) * 3 * sizeof **val);
@@ -115,9 +139,8 @@ static void tcol_init(tcol_ctx *c, const series_state *s, int mode) {
     c->mode = mode;
 }
 
-/* The column of f the builder asks for (wrt_col_fn): T's (the sum), T's compressed as the
- * first term's (series_first_terms: the products' threshold and weights), or the power
- * rule's correction (wrt_series_tree_power: a root column alone) */
+/* The column of f the builder asks for (wrt_col_fn): T's (the sum), or the power rule's
+ * correction (wrt_series_tree_power: a root column alone) */
 static uint64_t tcol_fn(void *user, uint32_t f, uint32_t **row, float **val) {
     tcol_ctx *c = user;
     const series_state *s = c->s;
@@ -129,8 +152,6 @@ static uint64_t tcol_fn(void *user, uint32_t f, uint32_t **row, float **val) {
     uint64_t n = wrt_tcols_col(&c->tc, f, row, val);
     if (c->mode == TCOL_SUM) {
         if (c->tc.leaf_of[f] >= 0) c->entries += n; /* the other columns counted whole after */
-    } else if (c->mode == TCOL_TERM) {
-        n = wrt_csc_compress_col(*row, *val, n, f, s->eps, &s->W);
     } else {
         const double *pw = s->pw;
         double tp[3] = {0, 0, 0}, scale[3];
@@ -176,37 +197,21 @@ static uint64_t tcol_set_free(tcol_set *set) {
     return e;
 }
 
-void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_csc *S, wrt_csc *P,
-                               const wrt_apart_opt *ap) {
+void wrt_series_factored_sum(series_state *s, wrt_csc *S, const wrt_apart_opt *ap) {
     const wrt_ctree *t = &s->b->cl->tree;
     uint32_t nf = s->res->nfuncs;
-    uint64_t raw;
-    tcol_set set;
-    if (S) {
-        tcol_set_init(&set, s, TCOL_SUM);
-        *S = wrt_clusters_senders_cols_apart(t, s->troot, nf, tcol_fn, set.u, set.n, s->eps, &s->TW, c0, c1,
-                                             &s->res->c.cluster_senders_raw, ap);
-        /* T's entries, as the file's statistics count them (whatever the range): its root
-         * columns, all made by the walk, and the others, E1's */
-        uint64_t entries = 0;
-        for (uint32_t f = 0; f < nf; f++)
-            if (set.c[0].tc.leaf_of[f] < 0) entries += s->E1->col[f + 1] - s->E1->col[f];
-        entries += tcol_set_free(&set);
-        s->res->c.entries_dto = entries;
-        s->res->c.entries_spatial = entries - s->res->c.entries_angular;
-    }
-    if (P) {
-        tcol_set_init(&set, s, TCOL_TERM);
-        *P = wrt_clusters_senders_cols_th(t, s->troot, nf, tcol_fn, set.u, set.n, s->eps, &s->TW, c0, c1, &raw);
-        tcol_set_free(&set);
-    }
-}
-
-void wrt_series_factored_apart(series_state *s, uint8_t *apart) {
     tcol_set set;
     tcol_set_init(&set, s, TCOL_SUM);
-    wrt_clusters_apart_th(&s->b->cl->tree, s->troot, NULL, tcol_fn, set.u, set.n, s->pw, apart);
-    tcol_set_free(&set);
+    *S = wrt_clusters_senders_cols_apart(t, s->troot, nf, tcol_fn, set.u, set.n, s->eps, &s->TW, 0, nf,
+                                         &s->res->c.cluster_senders_raw, ap);
+    /* T's entries, as the file's statistics count them: its root columns, all made by
+     * the walk, and the others, E1's */
+    uint64_t entries = 0;
+    for (uint32_t f = 0; f < nf; f++)
+        if (set.c[0].tc.leaf_of[f] < 0) entries += s->E1->col[f + 1] - s->E1->col[f];
+    entries += tcol_set_free(&set);
+    s->res->c.entries_dto = entries;
+    s->res->c.entries_spatial = entries - s->res->c.entries_angular;
 }
 
 wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d, double eps,

@@ -17,7 +17,7 @@ typedef struct wrt_tcols {
     uint32_t nf;
     int32_t *leaf_of;   /* per function: the leaf of the quad whose root it is, else -1 */
     float *acc;         /* 3 per row */
-    uint32_t *mark, epoch, *rows, *path;
+    uint32_t *mark, epoch, *rows, *path, *tmp; /* tmp: the rows' sort */
 } wrt_tcols;
 
 /* root: per quad its root slot (wrt_clusters_root_index) */

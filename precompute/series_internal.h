@@ -99,6 +99,7 @@ double wrt_series_final_weights(series_state *s, wrt_csc_weights *W, double **ow
 /* The series in the senders' tree basis (series_tree.c; docs/clusters.md) */
 int wrt_series_tree_on(const bake_ctx *b);
 void wrt_series_tree_start(series_state *s);
+/* by shares: the sum's first state cut to this rank's columns [c0, c1) */
 void wrt_series_tree_sum_start(series_state *s, uint32_t c0, uint32_t c1);
 /* Under wrt-bake-mpi by tree shares, before the product a y (y: this rank's columns of the
  * right factor): the ranges re-cut by the product's cost where it is uneven, y's and the
@@ -121,13 +122,10 @@ wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X);
  * unless `checked` (series_blocks.c); P kept */
 wrt_status wrt_series_factored_blocks(series_state *s, int bounce, int checked, wrt_csc *N);
 
-/* T never formed (series_first.c): the sum's first state and the first term, T W^T, for
- * the columns [c0, c1) (S or P may be NULL); y += T x (a power_iter's apply); the power
- * targets; the column power rule's correction in the senders' tree basis, compressed */
-void wrt_series_factored_first(series_state *s, uint32_t c0, uint32_t c1, wrt_csc *S, wrt_csc *P,
-                               const wrt_apart_opt *ap);
-/* wrt_clusters_apart on T's root columns made from E1 (series_tree.c's nodes apart) */
-void wrt_series_factored_apart(series_state *s, uint8_t *apart);
+/* T never formed (series_first.c): the sum's first state, T W^T, whole, with the nodes
+ * apart (ap; NULL: not); y += T x (a power_iter's apply); the power targets; the column
+ * power rule's correction in the senders' tree basis, compressed */
+void wrt_series_factored_sum(series_state *s, wrt_csc *S, const wrt_apart_opt *ap);
 void wrt_series_factored_apply(void *user, const double *x, double *y);
 double *wrt_series_factored_targets(series_state *s, int *bounces);
 /* Frees the products' right factor (Tr and its bands); again: nothing */

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/threads.h"
 #include "cluster.h"
 #include "dist.h"
 #include "series.h"
@@ -195,16 +196,15 @@ void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps) {
 static void series_tree_apart(series_state *s) {
     const wrt_ctree *t = &s->b->cl->tree;
     uint8_t *apart = wrt_xmalloc((size_t)t->nnodes + 1);
-    int walked = s->no_t && !wrt_dist_on(s->b->opt.dist);
+    int walked = s->no_t;
     if (walked) {
-        /* in one process the sum's first state is whole: made in the same walk as the
-         * test, each node's weight raised as the walk decides it, before its column is
-         * compressed (the same columns). T's root columns, made from E1 and each
-         * quad's ancestors, were a third of the series' start at 100,256 atrium elements */
+        /* the sum's first state (whole: by shares cut to the rank's range later) made in
+         * the same walk as the test, each node's weight raised as the walk decides it,
+         * before its column is compressed (the same columns as after a walk of its own).
+         * T's root columns, made from E1 and each quad's ancestors, cost the most of the
+         * series' start: at 100,256 atrium elements about 600 s for four walks */
         wrt_apart_opt ap = {s->pw, apart, s->tcw, WRT_SERIES_TREE_APART};
-        wrt_series_factored_first(s, 0, s->res->nfuncs, &s->S, NULL, &ap);
-    } else if (s->no_t) {
-        wrt_series_factored_apart(s, apart);
+        wrt_series_factored_sum(s, &s->S, &ap);
     } else {
         wrt_clusters_apart(t, s->troot, s->T, NULL, NULL, s->pw, apart);
     }
@@ -224,7 +224,54 @@ int wrt_series_tree_on(const bake_ctx *b) {
            !b->opt.gathered && !b->opt.report_gathered;
 }
 
-/* The first term, T W^T, from T (still in memory), or from E1 where T is unformed */
+typedef struct {
+    const series_state *s;
+    const uint8_t *tree;
+    wrt_csc *P;
+    const uint64_t *at; /* the sum's column starts: each column's place in P before packing */
+    uint64_t *len;
+} first_ctx;
+
+static void first_col(size_t c, int th, void *user) {
+    (void)th;
+    first_ctx *x = user;
+    uint64_t a = x->at[c], m = x->at[c + 1] - a;
+    if (!x->tree[c]) m = wrt_csc_compress_col(x->P->row + a, x->P->val + 3 * a, m, (uint32_t)c, x->s->eps, &x->s->W);
+    x->len[c] = m;
+}
+
+/* The first term from the sum's first state: its tree columns are the sum's (T's root
+ * columns transformed, each compressed at the products' threshold and the tree's
+ * weights), its other columns T's compressed as series_first_terms does. Until session
+ * 16 the tree columns were made from the quads' root columns compressed first, in a walk
+ * of their own: a second compression that moved the kept entries by under the threshold,
+ * for the walk's cost again (docs/clusters.md "The series' start") */
+static wrt_csc first_from_sum(const series_state *s) {
+    const wrt_csc *S = &s->S;
+    uint32_t n = S->n;
+    uint8_t *tree = wrt_xcalloc((size_t)n + 1, 1);
+    for (uint32_t q = 0; q < (uint32_t)s->b->nq; q++) tree[s->troot[q]] = 1;
+    wrt_csc P = wrt_csc_copy(S);
+    uint64_t *len = wrt_xmalloc(((size_t)n + 1) * sizeof *len);
+    first_ctx x = {s, tree, &P, S->col, len};
+    wrt_parallel_for(n, s->threads, first_col, &x);
+    uint64_t k = 0;
+    for (uint32_t c = 0; c < n; c++) {
+        uint64_t a = S->col[c];
+        memmove(P.row + k, P.row + a, len[c] * sizeof *P.row);
+        memmove(P.val + 3 * k, P.val + 3 * a, 3 * len[c] * sizeof *P.val);
+        k += len[c];
+        P.col[c + 1] = k;
+    }
+    P.nnz = k;
+    P.row = wrt_xrealloc(P.row, (k ? k : 1) * sizeof *P.row);
+    P.val = wrt_xrealloc(P.val, (k ? k : 1) * 3 * sizeof *P.val);
+    free(len); free(tree);
+    return P;
+}
+
+/* The sum's first state, T W^T (whole), from T (still in memory) or from E1 where T is
+ * unformed, and the first term from it */
 void wrt_series_tree_start(series_state *s) {
     const bake_ctx *b = s->b;
     wrt_bake_result *res = s->res;
@@ -239,22 +286,20 @@ void wrt_series_tree_start(series_state *s) {
     for (uint32_t p = 0; p < t->nnodes; p++)
         if (t->left[p] >= 0) s->tcw[s->troot[t->slot[p]]] *= tight;
     s->tcw[s->troot[t->root_slot]] *= tight;
-    series_tree_apart(s);
-    wrt_series_mark(s, "nodes apart");
-    if (s->no_t) { /* T W^T from E1 (series_first.c); the sum follows */
-        wrt_series_factored_first(s, 0, res->nfuncs, NULL, &s->P, NULL);
-        res->c.cluster_senders_basis = 1;
-        res->c.cluster_senders_quads = 0;
-        return;
-    }
-    /* the right factor is its own matrix (the first term takes the tree's columns) */
-    if (s->shared) {
-        s->Tr = wrt_csc_copy(&s->P);
+    series_tree_apart(s); /* with T unformed, the sum's first state too */
+    wrt_series_mark(s, "nodes apart, the sum");
+    if (!s->no_t) {
+        /* T formed: the sum from its copy, its other columns uncompressed, as the quads'
+         * series' sum starts; the compressed T (series_first_terms) stays the right factor
+         * where it was the first term too */
+        s->S = wrt_csc_copy(s->T);
+        wrt_clusters_senders(t, s->troot, &s->S, s->eps, &s->TW, 1, &res->c.cluster_senders_raw);
+        if (s->shared) s->Tr = s->P;
+        else wrt_csc_free(&s->P);
+        memset(&s->P, 0, sizeof s->P);
         s->shared = 0;
     }
-    /* the term from T compressed (the sum follows: wrt_series_tree_sum_start) */
-    uint64_t raw;
-    wrt_clusters_senders(&b->cl->tree, s->troot, &s->P, s->eps, &s->TW, 1, &raw);
+    s->P = first_from_sum(s);
     res->c.cluster_senders_basis = 1;
     res->c.cluster_senders_quads = 0;
 }
@@ -365,40 +410,10 @@ wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X) {
     return P;
 }
 
-/* The sum's first state, from T itself (its other columns uncompressed, as the quads'
- * series' sum starts), its columns [c0, c1) alone (by shares: this rank's), the others
- * empty. The tree's columns are made from the quads' root columns alone
- * (wrt_clusters_senders), so the copy holds the range and every root column, not the
- * whole of T, and the roots outside the range go once transformed. */
+/* By shares, the sum's first state (whole, wrt_series_tree_start) cut to this rank's
+ * columns [c0, c1), the others empty */
 void wrt_series_tree_sum_start(series_state *s, uint32_t c0, uint32_t c1) {
-    const bake_ctx *b = s->b;
-    const wrt_csc *T = s->T;
-    if (s->no_t) { /* T unformed: its columns from E1 (series_first.c) */
-        wrt_series_factored_first(s, c0, c1, &s->S, NULL, NULL);
-        return;
-    }
-    uint32_t n = T->n;
-    if (c0 == 0 && c1 == n) {
-        s->S = wrt_csc_copy(T);
-    } else {
-        uint8_t *keep = wrt_xcalloc((size_t)n + 1, 1);
-        for (uint32_t q = 0; q < (uint32_t)b->nq; q++) keep[s->troot[q]] = 1;
-        memset(keep + c0, 1, c1 - c0);
-        wrt_csc m = {.n = n};
-        m.col = wrt_xcalloc((size_t)n + 1, sizeof *m.col);
-        for (uint32_t j = 0; j < n; j++) m.col[j + 1] = m.col[j] + (keep[j] ? T->col[j + 1] - T->col[j] : 0);
-        m.nnz = m.col[n];
-        m.row = wrt_xmalloc((m.nnz ? m.nnz : 1) * sizeof *m.row);
-        m.val = wrt_xmalloc((m.nnz ? m.nnz : 1) * 3 * sizeof *m.val);
-        for (uint32_t j = 0; j < n; j++)
-            if (keep[j]) {
-                memcpy(m.row + m.col[j], T->row + T->col[j], (m.col[j + 1] - m.col[j]) * sizeof *m.row);
-                memcpy(m.val + 3 * m.col[j], T->val + 3 * T->col[j], (m.col[j + 1] - m.col[j]) * 3 * sizeof *m.val);
-            }
-        free(keep);
-        s->S = m;
-    }
-    wrt_clusters_senders(&b->cl->tree, s->troot, &s->S, s->eps, &s->TW, 1, &s->res->c.cluster_senders_raw);
+    uint32_t n = s->S.n;
     if (c0 == 0 && c1 == n) return;
     /* the range kept, in place: the columns before it dropped, its entries moved down */
     wrt_csc *m = &s->S;
