@@ -67,7 +67,9 @@ static uint64_t blocks_estimate(const series_state *s, uint32_t stride) {
  * with the pull-up's scratch, 2.6 bytes a byte of the block's P (as U P made whole was
  * counted: docs/clusters.md), and the product's need as series.c counts it (16 bytes an
  * entry, the sample's spread 1.25, the 32nd of its columns being made; sampled finer
- * where it passes a quarter of the budget) three times: the product raised the resident
+ * where twice the coarse sample's need would pass the budget: finer where it passed a
+ * quarter of the budget, every product of a large bake paid a sixteenth of its cost
+ * again, as at 100,256 atrium elements under --max-memory 20000) three times: the product raised the resident
  * memory by 1.4 to 3.2 times its entries' bytes at the atrium's large products (the
  * chunks appended by realloc, the freed column arrays), and the sum's pass after it grows
  * S by the term's entries, which P's freed arrays, fragmented in the heap, do not cover
@@ -76,12 +78,12 @@ static wrt_status blocks_check(series_state *s, int bounce, uint64_t block_max) 
     const bake_ctx *b = s->b;
     const double per = 16.0;
     uint64_t est = blocks_estimate(s, 64);
-    double need = per * 1.25 * (1 + 1.0 / 32) * (double)est;
-    if ((double)wrt_bake_rss_bytes() + need > 0.25 * b->opt.max_memory_mb * 1024.0 * 1024.0) {
+    double need = per * 1.25 * (1 + 1.0 / 32) * (double)est, up = per * 2.6 * (double)block_max;
+    if ((double)wrt_bake_rss_bytes() + 2 * (3 * need + up) > b->opt.max_memory_mb * 1024.0 * 1024.0) {
         est = blocks_estimate(s, 16);
         need = per * 1.25 * (1 + 1.0 / 32) * (double)est;
     }
-    need = 3 * need + per * 2.6 * (double)block_max;
+    need = 3 * need + up;
     char what[64];
     snprintf(what, sizeof what, "bounce %d of the series, E1 (U P) by blocks", bounce);
     return wrt_bake_memory_check(b->opt.max_memory_mb, &s->C->mem_estimate_mb, (uint64_t)need, what);

@@ -128,6 +128,18 @@ static uint32_t cols_end(const wrt_csc *P, uint32_t c0, uint64_t target) {
     return c1;
 }
 
+/* The next columns [c0, c1) of a scratch file read back as a matrix of n columns, the
+ * others empty (wrt_series_csc_range's form) */
+static int cols_read_range(wrt_spill *f, uint32_t c0, uint32_t c1, uint32_t n, wrt_csc *out) {
+    wrt_csc part;
+    if (!wrt_spill_read(f, c1 - c0, &part)) return 0;
+    *out = (wrt_csc){.n = n, .nnz = part.nnz, .row = part.row, .val = part.val};
+    out->col = wrt_xcalloc((size_t)n + 1, sizeof *out->col);
+    for (uint32_t j = c0; j < n; j++) out->col[j + 1] = part.col[(j < c1 ? j : c1 - 1) + 1 - c0];
+    free(part.col);
+    return 1;
+}
+
 wrt_status wrt_series_cols(series_state *s) {
     const bake_ctx *b = s->b;
     wrt_bake_counters *C = s->C;
@@ -154,6 +166,15 @@ wrt_status wrt_series_cols(series_state *s) {
     uint32_t n = S0.n;
     int nblocks = b->opt.series_columns;
     uint64_t target = P1.nnz / (uint64_t)nblocks;
+    /* the first term's entries are made again block by block from the sum's first state
+     * (the same columns, series_tree.c): held whole beside it, at 100,256 atrium
+     * elements they were 108M entries (1.7 GB); its column starts cut the blocks */
+    int remake = s->tree && P1.n == n;
+    if (remake) {
+        free(P1.row); free(P1.val);
+        P1.row = NULL;
+        P1.val = NULL;
+    }
     /* the stored operator's blocks go to a scratch file as they are made, and come back
      * once the series' own arrays are freed: held beside them, at 53,122 atrium elements
      * they were 3.4 GB of its 8.3 GB peak */
@@ -170,6 +191,15 @@ wrt_status wrt_series_cols(series_state *s) {
     int e1_out = s->no_t && s->res->dto_e1.col && wrt_spill_write(&E1f, &s->res->dto_e1);
     uint32_t ne = s->res->dto_e1.n;
     if (e1_out) wrt_csc_free(&s->res->dto_e1);
+    /* and the sum's first state, read back a block at a time (the blocks go in column
+     * order): held whole, it stayed beside every block */
+    wrt_spill S0f = {0};
+    int s0_out = remake && wrt_spill_write(&S0f, &S0);
+    if (s0_out) {
+        free(S0.row); free(S0.val);
+        S0.row = NULL;
+        S0.val = NULL;
+    }
     int timing = s->timing;
     s->timing = 0; /* the products' own lines: one a block below instead */
     /* each product whole on the block's columns (a block of U P is then a block's share
@@ -180,8 +210,16 @@ wrt_status wrt_series_cols(series_state *s) {
     for (uint32_t c0 = 0, c1; c0 < n && st == WRT_OK; c0 = c1) {
         c1 = P1.n == n ? cols_end(&P1, c0, target) : n;
         double w0 = wrt_now(), t0 = wrt_dist_cpu_now();
-        s->P = wrt_series_csc_range(&P1, c0, c1);
-        wrt_csc Sb = wrt_series_csc_range(&S0, c0, c1);
+        wrt_csc Sb;
+        if (s0_out) {
+            if (!cols_read_range(&S0f, c0, c1, n, &Sb)) {
+                st = wrt_fail(WRT_ERR_IO, "the series could not read back the sum's first state from its scratch file");
+                break;
+            }
+        } else {
+            Sb = wrt_series_csc_range(&S0, c0, c1);
+        }
+        s->P = remake ? wrt_series_first_range(s, &Sb, c0, c1) : wrt_series_csc_range(&P1, c0, c1);
         uint64_t first = s->P.nnz, largest = s->P.nnz, stored = 0;
         int made = 1;
         while (made < bounces && s->P.nnz) {
@@ -234,6 +272,7 @@ wrt_status wrt_series_cols(series_state *s) {
     if (st == WRT_OK && e1_out && !wrt_spill_read(&E1f, ne, &s->res->dto_e1))
         st = wrt_fail(WRT_ERR_IO, "the series could not read back E1 from its scratch file");
     wrt_spill_free(&E1f);
+    wrt_spill_free(&S0f);
     if (st == WRT_OK && !(wrt_spill_finish(&F) && wrt_spill_read(&F, n, &s->S)))
         st = wrt_fail(WRT_ERR_IO, "the series could not read back the stored operator from its scratch file");
     wrt_spill_free(&F);

@@ -115,6 +115,8 @@ void wrt_series_factored_start(series_state *s);
 void wrt_series_factored_bands(series_state *s);
 /* --clusters: the stored operator's columns in the tree's basis (series_tree.c) */
 void wrt_series_senders(series_state *s);
+/* The first term's columns [c0, c1) from the sum's first state S (series_tree.c) */
+wrt_csc wrt_series_first_range(const series_state *s, const wrt_csc *S, uint32_t c0, uint32_t c1);
 wrt_csc wrt_series_factored_right(const series_state *s, const wrt_csc *P);
 void wrt_series_factored_trim(const series_state *s, wrt_csc *N);
 wrt_csc wrt_series_factored_left(const series_state *s, const wrt_csc *X);

@@ -228,41 +228,43 @@ typedef struct {
     const series_state *s;
     const uint8_t *tree;
     wrt_csc *P;
-    const uint64_t *at; /* the sum's column starts: each column's place in P before packing */
+    uint32_t c0;
     uint64_t *len;
 } first_ctx;
 
-static void first_col(size_t c, int th, void *user) {
+static void first_col(size_t i, int th, void *user) {
     (void)th;
     first_ctx *x = user;
-    uint64_t a = x->at[c], m = x->at[c + 1] - a;
-    if (!x->tree[c]) m = wrt_csc_compress_col(x->P->row + a, x->P->val + 3 * a, m, (uint32_t)c, x->s->eps, &x->s->W);
-    x->len[c] = m;
+    uint32_t c = x->c0 + (uint32_t)i;
+    uint64_t a = x->P->col[c], m = x->P->col[c + 1] - a;
+    if (!x->tree[c]) m = wrt_csc_compress_col(x->P->row + a, x->P->val + 3 * a, m, c, x->s->eps, &x->s->W);
+    x->len[i] = m;
 }
 
-/* The first term from the sum's first state: its tree columns are the sum's (T's root
- * columns transformed, each compressed at the products' threshold and the tree's
- * weights), its other columns T's compressed as series_first_terms does. Until session
- * 16 the tree columns were made from the quads' root columns compressed first, in a walk
- * of their own: a second compression that moved the kept entries by under the threshold,
- * for the walk's cost again (docs/clusters.md "The series' start") */
-static wrt_csc first_from_sum(const series_state *s) {
-    const wrt_csc *S = &s->S;
+/* The first term's columns [c0, c1) (the others empty) from the sum's first state S: its
+ * tree columns are the sum's (T's root columns transformed, each compressed at the
+ * products' threshold and the tree's weights), its other columns T's compressed as
+ * series_first_terms does. Until session 16 the tree columns were made from the quads'
+ * root columns compressed first, in a walk of their own: a second compression that moved
+ * the kept entries by under the threshold, for the walk's cost again (docs/clusters.md
+ * "The series' start"). */
+wrt_csc wrt_series_first_range(const series_state *s, const wrt_csc *S, uint32_t c0, uint32_t c1) {
     uint32_t n = S->n;
     uint8_t *tree = wrt_xcalloc((size_t)n + 1, 1);
     for (uint32_t q = 0; q < (uint32_t)s->b->nq; q++) tree[s->troot[q]] = 1;
-    wrt_csc P = wrt_csc_copy(S);
-    uint64_t *len = wrt_xmalloc(((size_t)n + 1) * sizeof *len);
-    first_ctx x = {s, tree, &P, S->col, len};
-    wrt_parallel_for(n, s->threads, first_col, &x);
+    wrt_csc P = wrt_series_csc_range(S, c0, c1);
+    uint64_t *len = wrt_xmalloc(((size_t)(c1 - c0) + 1) * sizeof *len);
+    first_ctx x = {s, tree, &P, c0, len};
+    wrt_parallel_for(c1 - c0, s->threads, first_col, &x);
     uint64_t k = 0;
-    for (uint32_t c = 0; c < n; c++) {
-        uint64_t a = S->col[c];
-        memmove(P.row + k, P.row + a, len[c] * sizeof *P.row);
-        memmove(P.val + 3 * k, P.val + 3 * a, 3 * len[c] * sizeof *P.val);
-        k += len[c];
-        P.col[c + 1] = k;
+    for (uint32_t c = c0; c < c1; c++) {
+        uint64_t a = P.col[c], m = len[c - c0];
+        memmove(P.row + k, P.row + a, m * sizeof *P.row);
+        memmove(P.val + 3 * k, P.val + 3 * a, 3 * m * sizeof *P.val);
+        P.col[c] = k; /* a column's start is read before it is written (a <= its old start) */
+        k += m;
     }
+    for (uint32_t c = c0; c < n; c++) P.col[c + 1] = c + 1 < c1 ? P.col[c + 1] : k;
     P.nnz = k;
     P.row = wrt_xrealloc(P.row, (k ? k : 1) * sizeof *P.row);
     P.val = wrt_xrealloc(P.val, (k ? k : 1) * 3 * sizeof *P.val);
@@ -299,7 +301,7 @@ void wrt_series_tree_start(series_state *s) {
         memset(&s->P, 0, sizeof s->P);
         s->shared = 0;
     }
-    s->P = first_from_sum(s);
+    s->P = wrt_series_first_range(s, &s->S, 0, s->S.n);
     res->c.cluster_senders_basis = 1;
     res->c.cluster_senders_quads = 0;
 }
