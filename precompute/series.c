@@ -1017,10 +1017,13 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     uint64_t copies = 1 + (b->opt.series_right != 1 || b->opt.series_coarse > 0) + !series_can_consume(b) - streamed +
                       s.tree; /* the tree's first term beside the sum */
     /* T never formed: E1 held to the end, its compressed copy, and the sum's first state
-     * and the first term (T W^T: their tree columns compressed, about E1's entries each,
-     * docs/clusters.md "T never formed"), and the sum's start beside them: 4.6 and 5.4
-     * times E1's bytes above the check's on the atrium at 1,060 and 2,704 elements, so 6 */
-    uint64_t start_need = s.no_t ? 6 * 16 * res->dto_e1.nnz : copies * 16 * res->dto.nnz;
+     * (T W^T: its tree columns compressed, docs/clusters.md "T never formed"); the first
+     * term whole only under wrt-bake-mpi (one process: its column starts). Measured in
+     * session 16 (RSS every 0.1 s) above the least resident memory from the DTO phase's
+     * end to the power iteration's: 2.4, 4.3, 3.8 and 4.0 times E1's bytes on the atrium
+     * at 1,060, 2,704, 5,048 and 22,224 elements, so 5 (6 before, with the first term
+     * whole, refused the 100,256-element atrium at the default budget: 13,141 MB asked) */
+    uint64_t start_need = s.no_t ? 5 * 16 * res->dto_e1.nnz : copies * 16 * res->dto.nnz;
     wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, start_need,
                                           "the series' first term");
     if (st != WRT_OK) return st;
@@ -1041,6 +1044,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         res->c.cluster_factored_entries = s.Tr.nnz;
         wrt_series_factored_bands(&s);
         wrt_series_mark(&s, "right factor");
+        if (s.timing) fprintf(stderr, "series-times: E1 %llu entries\n", (unsigned long long)res->dto_e1.nnz);
     }
     series_share_start(&s);
     if (s.tree && s.share) /* the sum's first state, whole (wrt_series_tree_start): this rank's columns */

@@ -272,6 +272,55 @@ wrt_csc wrt_series_first_range(const series_state *s, const wrt_csc *S, uint32_t
     return P;
 }
 
+typedef struct {
+    const series_state *s;
+    const uint8_t *tree;
+    const wrt_csc *S;
+    uint64_t *len;
+    uint32_t **row; /* a column's scratch copy a thread */
+    float **val;
+} count_ctx;
+
+static void count_col(size_t c, int th, void *user) {
+    count_ctx *x = user;
+    const wrt_csc *S = x->S;
+    uint64_t a = S->col[c], m = S->col[c + 1] - a;
+    if (!x->tree[c] && m) {
+        memcpy(x->row[th], S->row + a, m * sizeof *S->row);
+        memcpy(x->val[th], S->val + 3 * a, 3 * m * sizeof *S->val);
+        m = wrt_csc_compress_col(x->row[th], x->val[th], m, (uint32_t)c, x->s->eps, &x->s->W);
+    }
+    x->len[c] = m;
+}
+
+/* The first term's column starts alone (its entries made a block at a time later,
+ * series_cols.c): held whole beside the sum's first state, E1 and its compressed copy,
+ * it was the start's largest transient */
+static wrt_csc first_counts(const series_state *s, const wrt_csc *S) {
+    uint32_t n = S->n;
+    int th = wrt_threads_resolve(s->threads);
+    if (th < 1) th = 1;
+    uint64_t longest = 1;
+    uint8_t *tree = wrt_xcalloc((size_t)n + 1, 1);
+    for (uint32_t q = 0; q < (uint32_t)s->b->nq; q++) tree[s->troot[q]] = 1;
+    for (uint32_t c = 0; c < n; c++)
+        if (!tree[c] && S->col[c + 1] - S->col[c] > longest) longest = S->col[c + 1] - S->col[c];
+    count_ctx x = {s, tree, S, wrt_xmalloc(((size_t)n + 1) * sizeof *x.len), wrt_xmalloc(th * sizeof *x.row),
+                   wrt_xmalloc(th * sizeof *x.val)};
+    for (int i = 0; i < th; i++) {
+        x.row[i] = wrt_xmalloc(longest * sizeof **x.row);
+        x.val[i] = wrt_xmalloc(3 * longest * sizeof **x.val);
+    }
+    wrt_parallel_for(n, th, count_col, &x);
+    wrt_csc P = {.n = n};
+    P.col = wrt_xcalloc((size_t)n + 1, sizeof *P.col);
+    for (uint32_t c = 0; c < n; c++) P.col[c + 1] = P.col[c] + x.len[c];
+    P.nnz = P.col[n];
+    for (int i = 0; i < th; i++) { free(x.row[i]); free(x.val[i]); }
+    free(x.row); free(x.val); free(x.len); free(tree);
+    return P;
+}
+
 /* The sum's first state, T W^T (whole), from T (still in memory) or from E1 where T is
  * unformed, and the first term from it */
 void wrt_series_tree_start(series_state *s) {
@@ -301,7 +350,10 @@ void wrt_series_tree_start(series_state *s) {
         memset(&s->P, 0, sizeof s->P);
         s->shared = 0;
     }
-    s->P = wrt_series_first_range(s, &s->S, 0, s->S.n);
+    /* by blocks in one process, the first term's column starts alone (its entries made
+     * per block); else (wrt-bake-mpi's cuts read it, or the whole-term series) whole */
+    if (wrt_series_cols_on(s) && !wrt_dist_on(b->opt.dist)) s->P = first_counts(s, &s->S);
+    else s->P = wrt_series_first_range(s, &s->S, 0, s->S.n);
     res->c.cluster_senders_basis = 1;
     res->c.cluster_senders_quads = 0;
 }

@@ -262,6 +262,12 @@ mutation curved-as-flat: a curved mesh's quads keep their facets' cells and limi
   repl int curved = 0 && rc->curved[q] && !facets;
   run test_reconstruct test_smooth_strip
 
+mutation apart-weight-lost: the sum's walk decides the nodes apart but no longer raises their columns' weights
+  file precompute/cluster_send.c
+  find if (x->apart_w && x->apart[p]) x->apart_w[x->root[t->slot[p]]] *= x->apart_f;
+  repl if (0 && x->apart_w && x->apart[p]) x->apart_w[x->root[t->slot[p]]] *= x->apart_f;
+  run test_cluster test_albedo_split
+
 mutation open-cancel-ignored: the open goes on when the progress callback returns 0
   file player/relight_base.c
   find return r->opt.progress(r->opt.progress_user, fraction) != 0;
