@@ -840,6 +840,7 @@ static int bake(bake_args *A, const wrt_load_options *lo) {
     rc = load_scene(A, lo, &s);
     T.t_load = wrt_now() - t0;
     if (rc != GO_ON) return rc;
+    if (wrt_cli_progress_enabled()) wrt_scan_print_bake_hint(&s, &A->o, stderr);
     wrt_bake_result r;
     rc = run_bake(A, &s, &r);
     if (rc != GO_ON) return rc;

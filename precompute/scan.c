@@ -124,8 +124,8 @@ double wrt_scan_exchange_fraction(const wrt_scene *s) {
  * the quality, one set of constants for the plain bake and one for --clusters (h = 0:
  * it links clusters, not every pair of elements that face each other). Fitted over the
  * measured bakes in docs/scan_fit.csv (tools/scan_fit.py: quality 3 and 5, cornell-shapes,
- * mazes, the atrium, the Blender scenes; with --clusters also quality 1, the atrium from
- * 596 to 22,224 elements) to make the band of estimate / measured narrowest, then c
+ * mazes, the atrium, the Blender scenes; with --clusters quality 1 to 5, cornell-shapes and
+ * the atrium from 240 to 100,256 elements, all baked again in session 16) to make the band of estimate / measured narrowest, then c
  * raised so that no measured bake lies above its estimate, and by a rerun's spread above
  * that (tools/scan_fit.py SPREAD): the estimate is an upper bound, and docs/triangles.md
  * ("--scan's estimate, refitted (session 8)", and session 13's refit) gives how far above
@@ -139,16 +139,16 @@ typedef struct scan_model { double c, step, a, g, h; } scan_model;
 /* [0] seconds, [1] peak MB over the base, [2] bytes: {c, step, a, g, h}; pasted from
  * tools/scan_fit.py's output */
 static const double scan_plain_range[2][2] = {{0.0168, 0.5658}, {0.0081, 0.5401}}; /* f, x */
-static const double scan_clusters_range[2][2] = {{0.3610, 0.5188}, {0, 1}};
+static const double scan_clusters_range[2][2] = {{0.3610, 0.5214}, {0, 1}};
 static const scan_model model_plain[3] = {
     {235.2, 3.0709, 1.2752, 0.5724, 0.4305}, /* cpu_s */
     {2219, 2.4417, 1.2307, 0.3148, 0.4143}, /* peak_mb */
     {1.555e+08, 2.1177, 0.9113, 0.1501, -0.0071}, /* bytes */
 };
 static const scan_model model_clusters[3] = {
-    {523.2, 2.5217, 1.3128, -1.6856, 0}, /* cpu_s */
-    {3743, 1.8202, 1.1117, -1.7240, 0}, /* peak_mb */
-    {1.012e+08, 1.9137, 1.1744, 0.3461, 0}, /* bytes */
+    {214.9, 1.6711, 1.0243, -0.6805, 0}, /* cpu_s */
+    {1986, 1.9569, 0.9588, -0.3964, 0}, /* peak_mb */
+    {7.837e+07, 1.7541, 1.1546, 0.8783, 0}, /* bytes */
 };
 
 static double clampd(double v, const double r[2]) { return v < r[0] ? r[0] : v > r[1] ? r[1] : v; }
@@ -224,4 +224,38 @@ void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad,
     if (glossy)
         fprintf(f, "estimate: %d glossy elements; the model is fitted to diffuse scenes and a glossy surface's "
                    "angular refinement can cost several times more\n", glossy);
+}
+
+void wrt_scan_print_bake_hint(const wrt_scene *s, const wrt_bake_options *o, FILE *f) {
+    if (!s || !o || !f || s->nquads == 0) return;
+    wrt_bake_options d = *o;
+    wrt_bake_defaults(&d); /* the quality and the budget the bake will use */
+    wrt_scan_estimate e = wrt_scan_estimate_cost(s, &d);
+    char tb[32];
+    fprintf(f, "wrt-bake: estimate at quality %d%s: at most about %s of CPU, %.0f MB peak, %.0f MB file "
+               "(--scan's model, an upper bound; the budget %.0f MB)\n",
+            e.quality, d.clusters ? " with --clusters" : "", human_time(e.seconds, tb, sizeof tb), e.memory_mb,
+            e.bytes / 1e6, d.max_memory_mb);
+    int glossy = 0;
+    for (int i = 0; i < s->nquads; i++) {
+        int m = s->quads[i].material;
+        glossy += m >= 0 && m < s->nmaterials && !s->materials[m].lambertian;
+    }
+    /* a large diffuse scene baked without --clusters: say what --clusters would cost */
+    if (!d.clusters && !glossy && (e.memory_mb > d.max_memory_mb || e.seconds > 3600)) {
+        wrt_bake_options c = d;
+        c.clusters = 1;
+        wrt_scan_estimate ec = wrt_scan_estimate_cost(s, &c);
+        c.quality = 1;
+        wrt_scan_estimate e1 = wrt_scan_estimate_cost(s, &c);
+        char t1[32], t2[32];
+        if (ec.seconds < e.seconds || ec.memory_mb < e.memory_mb)
+            fprintf(f, "wrt-bake: hint: %d diffuse elements bake faster with --clusters: at most about %s of CPU and "
+                       "%.0f MB at quality %d, %s and %.0f MB at -q 1 (docs/clusters.md)\n",
+                    e.elements, human_time(ec.seconds, t1, sizeof t1), ec.memory_mb, d.quality,
+                    human_time(e1.seconds, t2, sizeof t2), e1.memory_mb);
+    }
+    if (e.memory_mb > d.max_memory_mb)
+        fprintf(f, "wrt-bake: the estimate passes the budget: the bake stops, writing nothing, at the first stage "
+                   "whose measured need passes it (--max-memory MB raises it)\n");
 }

@@ -38,4 +38,10 @@ wrt_scan_estimate wrt_scan_estimate_cost(const wrt_scene *s, const wrt_bake_opti
  * (the summary's members plus "refused" and "estimate"). */
 void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad, int json, FILE *f);
 
+/* Before a bake, on a terminal: one line with the estimate at the options the bake will
+ * use and the memory budget; for a diffuse scene baked without --clusters whose
+ * estimate passes the budget or an hour of CPU, what --clusters would cost at the same
+ * quality and at quality 1; and, when the estimate passes the budget, what happens then. */
+void wrt_scan_print_bake_hint(const wrt_scene *s, const wrt_bake_options *o, FILE *f);
+
 #endif

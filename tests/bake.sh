@@ -284,6 +284,26 @@ if "$gen" atrium --detail 0.25 -o "$tmp/at.gltf" >/dev/null 2>"$tmp/err" &&
     enough=$(awk -v e="$est" 'BEGIN { printf "%d", e * 1.1 + 16 }')
     check "memory: --clusters budget $enough MB is enough" "$bake" "$tmp/at.gltf" -q 1 --clusters \
         -o "$tmp/atok.gto" --max-memory "$enough" --quiet
+    # Before a bake, on a terminal: the estimate at the bake's own options and budget; for a
+    # diffuse scene whose plain estimate passes the budget, what --clusters would cost; then
+    # the bake stops at the first stage over the budget (main.c, scan.c
+    # wrt_scan_print_bake_hint). At 1,060 elements the plain quality-5 model says 4 GB.
+    if "$gen" atrium --detail 0.5 -o "$tmp/at5.gltf" >/dev/null 2>"$tmp/err"; then
+        "$bake" "$tmp/at5.gltf" -o "$tmp/at5.gto" --progress --max-memory 100 >/dev/null 2>"$tmp/hint.err"; rc=$?
+        grep -q '^wrt-bake: estimate at quality 5: at most about .* of CPU, [0-9]* MB peak, [0-9]* MB file .*the budget 100 MB' "$tmp/hint.err" &&
+            grep -q '^wrt-bake: hint: 1060 diffuse elements bake faster with --clusters: .* at quality 5, .* at -q 1' "$tmp/hint.err" &&
+            grep -q 'the estimate passes the budget' "$tmp/hint.err" && [ "$rc" = 7 ] && [ ! -e "$tmp/at5.gto" ] &&
+            ok "a large plain bake over its budget: the estimate, the --clusters hint, exit 7, nothing written" ||
+            ko "a large plain bake over its budget: the estimate and hint (exit $rc: $(grep wrt-bake "$tmp/hint.err" | head -3))"
+        "$bake" "$tmp/at.gltf" -q 1 --clusters -o "$tmp/atq.gto" --progress >/dev/null 2>"$tmp/hint2.err"
+        "$bake" "$tmp/at.gltf" -q 1 --clusters -o "$tmp/atq.gto" --quiet >/dev/null 2>"$tmp/hint3.err"
+        grep -q '^wrt-bake: estimate at quality 1 with --clusters:' "$tmp/hint2.err" && ! grep -q 'hint:\|passes the budget' "$tmp/hint2.err" &&
+            ! grep -q 'estimate' "$tmp/hint3.err" &&
+            ok "--clusters within its budget: the estimate line alone; --quiet: none" ||
+            ko "--clusters within its budget: the estimate line alone; --quiet: none ($(cat "$tmp/hint2.err" "$tmp/hint3.err" | grep wrt-bake | head -3))"
+    else
+        ko "atrium --detail 0.5 for the estimate's hint"; show_err
+    fi
     # The series by blocks of columns (series_cols.c): a column's entries do not depend on
     # the blocks, so one block gives the default 16's bytes; with the bounces fixed and no
     # tail (what the blocks decide from the power iteration alone), the terms held whole
