@@ -119,13 +119,16 @@ double wrt_scan_exchange_fraction(const wrt_scene *s) {
 }
 
 /* The model: each figure y (CPU seconds; peak memory over SCAN_MB_BASE; bytes) is
- *   y = c * step^(q - 5) * (N / 1000)^a * (f / 0.3)^g * (x / 0.1)^h
+ *   y = c * step^(q - 5) * (N / 1000)^(a + k (min(q, 5) - 5)) * (f / 0.3)^g * (x / 0.1)^h
  * with N the elements, f the visible fraction and x the exchange fraction above and q
  * the quality, one set of constants for the plain bake and one for --clusters (h = 0:
- * it links clusters, not every pair of elements that face each other). Fitted over the
+ * it links clusters, not every pair of elements that face each other; k = 0 for the plain
+ * bake: with --clusters quality 5's CPU grows as N^0.7 where quality 1's grows as N^1.2,
+ * and the qualities over 5, none fitted, take quality 5's exponent). Fitted over the
  * measured bakes in docs/scan_fit.csv (tools/scan_fit.py: quality 3 and 5, cornell-shapes,
  * mazes, the atrium, the Blender scenes; with --clusters quality 1 to 5, cornell-shapes and
- * the atrium from 240 to 100,256 elements, all baked again in session 16) to make the band of estimate / measured narrowest, then c
+ * the atrium from 240 to 100,256 elements, all baked again in session 16) to make the
+ * band of estimate / measured narrowest, then c
  * raised so that no measured bake lies above its estimate, and by a rerun's spread above
  * that (tools/scan_fit.py SPREAD): the estimate is an upper bound, and docs/triangles.md
  * ("--scan's estimate, refitted (session 8)", and session 13's refit) gives how far above
@@ -135,26 +138,27 @@ double wrt_scan_exchange_fraction(const wrt_scene *s) {
  * cornell-shapes' 1,885 with 1.6%. Qualities other than those fitted are extrapolated by the
  * same step; f and x are taken within the fitted bakes' range (no extrapolation in them). */
 #define SCAN_MB_BASE 30.0 /* the process itself: libraries, the scene */
-typedef struct scan_model { double c, step, a, g, h; } scan_model;
-/* [0] seconds, [1] peak MB over the base, [2] bytes: {c, step, a, g, h}; pasted from
+typedef struct scan_model { double c, step, a, g, h, k; } scan_model;
+/* [0] seconds, [1] peak MB over the base, [2] bytes: {c, step, a, g, h, k}; pasted from
  * tools/scan_fit.py's output */
 static const double scan_plain_range[2][2] = {{0.0168, 0.5658}, {0.0081, 0.5401}}; /* f, x */
 static const double scan_clusters_range[2][2] = {{0.3610, 0.5214}, {0, 1}};
 static const scan_model model_plain[3] = {
-    {235.2, 3.0709, 1.2752, 0.5724, 0.4305}, /* cpu_s */
-    {2219, 2.4417, 1.2307, 0.3148, 0.4143}, /* peak_mb */
-    {1.555e+08, 2.1177, 0.9113, 0.1501, -0.0071}, /* bytes */
+    {235.2, 3.0709, 1.2752, 0.5724, 0.4305, 0}, /* cpu_s */
+    {2219, 2.4417, 1.2307, 0.3148, 0.4143, 0}, /* peak_mb */
+    {1.555e+08, 2.1177, 0.9113, 0.1501, -0.0071, 0}, /* bytes */
 };
 static const scan_model model_clusters[3] = {
-    {214.9, 1.6711, 1.0243, -0.6805, 0}, /* cpu_s */
-    {1986, 1.9569, 0.9588, -0.3964, 0}, /* peak_mb */
-    {7.837e+07, 1.7541, 1.1546, 0.8783, 0}, /* bytes */
+    {169, 2.0105, 0.7652, -0.5515, 0, -0.1199}, /* cpu_s */
+    {1603, 2.0907, 0.6502, 0.8308, 0, -0.1324}, /* peak_mb */
+    {8.312e+07, 1.8575, 0.6993, 0.7074, 0, -0.1248}, /* bytes */
 };
 
 static double clampd(double v, const double r[2]) { return v < r[0] ? r[0] : v > r[1] ? r[1] : v; }
 
 static double model_at(const scan_model *m, int q, double n, double f, double x, const double range[2][2]) {
-    return m->c * pow(m->step, q - 5) * pow(n / 1000.0, m->a) * pow(clampd(f, range[0]) / 0.3, m->g) *
+    return m->c * pow(m->step, q - 5) * pow(n / 1000.0, m->a + m->k * ((q < 5 ? q : 5) - 5)) *
+           pow(clampd(f, range[0]) / 0.3, m->g) *
            (m->h != 0 ? pow(clampd(x, range[1]) / 0.1, m->h) : 1);
 }
 

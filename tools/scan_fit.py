@@ -7,7 +7,7 @@ bake's CPU seconds, peak resident MB and .gto bytes) and fits, for the plain bak
 for --clusters separately, each figure y (CPU seconds; peak MB over the process's base;
 bytes) as
 
-    y = c * step^(q - 5) * (N / 1000)^a * (f / 0.3)^g * (x / 0.1)^h
+    y = c * step^(q - 5) * (N / 1000)^(a + k (min(q, 5) - 5)) * (f / 0.3)^g * (x / 0.1)^h
 
 (N the elements, f the visible fraction, x the exchange fraction: the share of element
 pairs that face each other, q the quality): the exponents that make the
@@ -62,7 +62,11 @@ USE_EXCHANGE = USE_VISIBLE and "--no-exchange" not in sys.argv
 def features(r):
     g = math.log(max(r["visible"], 1e-3) / 0.3) if USE_VISIBLE else 0.0
     h = math.log(max(r["exchange"], 1e-4) / 0.1) if USE_EXCHANGE and r["bake"] == "plain" else 0.0
-    return [1.0, r["quality"] - 5.0, math.log(r["elements"] / 1000.0), g, h]
+    # with --clusters the exponent of N moves with the quality (k): quality 5's CPU grows as
+    # N^0.7 over 5,048 to 22,224 atrium elements where quality 1's grows as N^1.2; the
+    # qualities over 5 take quality 5's exponent (none is fitted there)
+    qn = (min(r["quality"], 5) - 5.0) * math.log(r["elements"] / 1000.0) if r["bake"] == "clusters" else 0.0
+    return [1.0, r["quality"] - 5.0, math.log(r["elements"] / 1000.0), g, h, qn]
 
 
 def target(r, fig):
@@ -104,38 +108,51 @@ def nelder_mead(f, x0, scale, iters=4000):
 def fit(rows, fig):
     """The exponents that make the band of log(measured / model) narrowest (least squares
     on log y first, then the largest residual minimized, a minimax fit: what an upper bound
-    within a factor needs); returns (c, step, a, g) with c raised to bound every row."""
+    within a factor needs); returns (c, step, a, g, h, k) with c raised to bound every row."""
     x = [features(r) for r in rows]
+    if not any(xi[5] != 0 for xi in x):  # the plain bake: no k, the simplex as before
+        x = [xi[:5] + [0.0] for xi in x]
     y = [math.log(target(r, fig)) for r in rows]
     exch = any(xi[4] != 0 for xi in x)
     n = len(x[0])
     # a small ridge on the visible fraction's exponent keeps it defined when the rows'
     # fractions barely vary (one family of scenes)
+    qn = any(xi[5] != 0 for xi in x)
+    if not qn:
+        n = 5
     ata = [[sum(xi[i] * xi[j] for xi in x) + (1e-3 if i == j and i >= 3 else 0) for j in range(n)] for i in range(n)]
     aty = [sum(xi[i] * yi for xi, yi in zip(x, y)) for i in range(n)]
     b = solve(ata, aty)
+    if not qn:
+        b = b + [0.0]
 
     def pred(e, xi):
-        return e[0] * xi[1] + e[1] * xi[2] + e[2] * xi[3] + e[3] * xi[4]
+        return e[0] * xi[1] + e[1] * xi[2] + e[2] * xi[3] + e[3] * xi[4] + (e[4] * xi[5] if len(e) > 4 else 0.0)
 
-    def band(e):  # the spread of the residuals for exponents e = (log step, a, g, h)
+    def band(e):  # the spread of the residuals for exponents e = (log step, a, g, h, k)
         res = [yi - pred(e, xi) for xi, yi in zip(x, y)]
         return max(res) - min(res)
 
     e = b[1:]
     for _ in range(3):  # restarted: the simplex stalls on the band's corners
-        e = nelder_mead(band, e, [0.1, 0.1, 0.1 if USE_VISIBLE else 0.0, 0.1 if exch else 0.0])
+        if qn:
+            e = nelder_mead(band, e, [0.1, 0.1, 0.1 if USE_VISIBLE else 0.0, 0.1 if exch else 0.0, 0.05])
+        else:  # four exponents: the plain model's fit as before k
+            e = nelder_mead(band, e[:4], [0.1, 0.1, 0.1 if USE_VISIBLE else 0.0, 0.1 if exch else 0.0]) + [0.0]
     if not USE_VISIBLE:
         e[2] = 0.0
     if not exch:
         e[3] = 0.0
+    if not qn:
+        e[4] = 0.0
     top = max(yi - pred(e, xi) for xi, yi in zip(x, y))
-    return (math.exp(top) * SPREAD[fig], math.exp(e[0]), e[1], e[2], e[3])
+    return (math.exp(top) * SPREAD[fig], math.exp(e[0]), e[1], e[2], e[3], e[4])
 
 
 def estimate(m, r, fig):
-    c, step, a, g, h = m
-    e = c * step ** (r["quality"] - 5) * (r["elements"] / 1000.0) ** a * (max(r["visible"], 1e-3) / 0.3) ** g
+    c, step, a, g, h, k = m
+    e = c * step ** (r["quality"] - 5) * (r["elements"] / 1000.0) ** (a + k * (min(r["quality"], 5) - 5)) * \
+        (max(r["visible"], 1e-3) / 0.3) ** g
     if h:
         e *= (max(r["exchange"], 1e-4) / 0.1) ** h
     return e + MB_BASE if fig == "peak_mb" else e
@@ -167,8 +184,8 @@ def main():
             kind, len(sel), min(r["visible"] for r in sel), min(r["exchange"] for r in sel),
             max(r["exchange"] for r in sel)))
         for fig in FIGURES:
-            c, step, a, g, h = models[fig]
-            print("    {%.4g, %.4f, %.4f, %.4f, %.4f}, /* %s */" % (c, step, a, g, h, fig))
+            c, step, a, g, h, k = models[fig]
+            print("    {%.4g, %.4f, %.4f, %.4f, %.4f, %.4f}, /* %s */" % (c, step, a, g, h, k, fig))
         if md:
             print("\n| scene | elements | visible | exchange | quality | bake | CPU s | est. / CPU | peak MB | est. / peak | MB | est. / MB |")
             print("|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|")
