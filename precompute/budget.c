@@ -7,6 +7,8 @@
 #include "budget.h"
 
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 #include <sys/resource.h>
 #ifdef __GLIBC__
 #include <malloc.h>
@@ -28,10 +30,29 @@ uint64_t wrt_bake_rss_bytes(void) {
     return n == 2 && size > 0 ? (uint64_t)res * (uint64_t)size : 0;
 }
 
+/* the largest high-water mark before a reset by wrt_bake_stage_peak_bytes */
+static uint64_t peak_before_reset;
+
 uint64_t wrt_bake_peak_rss_bytes(void) {
     struct rusage ru;
     if (getrusage(RUSAGE_SELF, &ru) != 0) return 0;
-    return (uint64_t)ru.ru_maxrss * 1024u; /* kilobytes on Linux */
+    uint64_t p = (uint64_t)ru.ru_maxrss * 1024u; /* kilobytes on Linux */
+    return p > peak_before_reset ? p : peak_before_reset;
+}
+
+uint64_t wrt_bake_stage_peak_bytes(void) {
+    uint64_t kb = 0;
+    FILE *f = fopen("/proc/self/status", "r");
+    char line[256];
+    while (f && fgets(line, sizeof line, f))
+        if (!strncmp(line, "VmHWM:", 6)) kb = strtoull(line + 6, NULL, 10);
+    if (f) fclose(f);
+    if (kb * 1024u > peak_before_reset) peak_before_reset = kb * 1024u;
+    if ((f = fopen("/proc/self/clear_refs", "w"))) { /* the mark back to what is resident now */
+        fputs("5", f);
+        fclose(f);
+    }
+    return kb * 1024u;
 }
 
 void wrt_bake_memory_trim(void) {

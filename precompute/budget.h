@@ -12,6 +12,10 @@ double wrt_bake_memory_default(void);
 /* The process's resident memory now and at its peak (getrusage), in bytes (0 if unknown). */
 uint64_t wrt_bake_rss_bytes(void);
 uint64_t wrt_bake_peak_rss_bytes(void);
+/* the kernel's high-water mark of resident memory since the last call (VmHWM, reset
+ * through /proc/self/clear_refs, Linux 4.0 on), for WRT_DTO_TIMES' stages; 0 where not
+ * readable. wrt_bake_peak_rss_bytes still states the whole run's peak */
+uint64_t wrt_bake_stage_peak_bytes(void);
 /* Hands the pages of freed memory back to the system (glibc's malloc_trim; nothing
  * elsewhere), so that resident memory counts only what is in use. */
 void wrt_bake_memory_trim(void);

@@ -994,6 +994,17 @@ static void series_state_free(series_state *s) {
     s->need = NULL;
 }
 
+/* The right factor's memory (wrt_series_factored_start, _bands): Tr, E1 compressed (at
+ * most E1's entries, 16 bytes each), and its bands' index (series_tree.c: put in Tr's own
+ * arrays since session 18, not copied): a bound, not a measured factor */
+static wrt_status series_right_check(series_state *s) {
+    const wrt_csc *E1 = &s->res->dto_e1;
+    uint64_t n = (uint64_t)E1->n + 1, nb = WRT_CSC_BANDS + 1;
+    uint64_t need = 16 * E1->nnz + 8 * n + (s->b->opt.series_skip > 0 ? n * (8 * nb + 32 * nb + 8) : 0);
+    return wrt_bake_memory_check(s->b->opt.max_memory_mb, &s->res->c.mem_estimate_mb, need,
+                                 "the series' right factor");
+}
+
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     series_state s = {.b = b, .res = res, .C = &res->c, .T = &res->dto, .eps = b->opt.eps_compress,
                       .timing = getenv("WRT_DTO_TIMES") != NULL,
@@ -1016,14 +1027,15 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     int streamed = series_can_consume(b) && b->opt.series_block >= 0;
     uint64_t copies = 1 + (b->opt.series_right != 1 || b->opt.series_coarse > 0) + !series_can_consume(b) - streamed +
                       s.tree; /* the tree's first term beside the sum */
-    /* T never formed: E1 held to the end, its compressed copy, and the sum's first state
-     * (T W^T: its tree columns compressed, docs/clusters.md "T never formed"); the first
-     * term whole only under wrt-bake-mpi (one process: its column starts). Measured in
-     * session 16 (RSS every 0.1 s) above the least resident memory from the DTO phase's
-     * end to the power iteration's: 2.4, 4.3, 3.8 and 4.0 times E1's bytes on the atrium
-     * at 1,060, 2,704, 5,048 and 22,224 elements, so 5 (6 before, with the first term
-     * whole, refused the 100,256-element atrium at the default budget: 13,141 MB asked) */
-    uint64_t start_need = s.no_t ? 5 * 16 * res->dto_e1.nnz : copies * 16 * res->dto.nnz;
+    /* T never formed: E1 is held to the end of the start, and the sum's first state (T W^T:
+     * its tree columns compressed, docs/clusters.md "T never formed") is made beside it,
+     * then the right factor (series_right_check). The sum's first state with its walk's
+     * scratch measured (WRT_DTO_TIMES' stage peaks, session 18) at 3.6, 2.4 and 1.7 times
+     * E1's bytes on the atrium at 2,704 and 22,224 elements (quality 1) and 5,048 (quality
+     * 5), so 4. Until session 18 one check counted the whole start at 5 times E1 (measured
+     * 2.4 to 4.3): it refused the 53,122-element atrium at quality 5 at the default budget,
+     * 12,140 MB asked against a peak of 9,326 */
+    uint64_t start_need = s.no_t ? 4 * 16 * res->dto_e1.nnz : copies * 16 * res->dto.nnz;
     wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, start_need,
                                           "the series' first term");
     if (st != WRT_OK) return st;
@@ -1038,6 +1050,11 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     else if (!s.consumed) s.S = wrt_csc_copy(s.T);
     wrt_series_mark(&s, "first term");
     if (s.fac) {
+        st = series_right_check(&s);
+        if (st != WRT_OK) {
+            series_state_free(&s);
+            return st;
+        }
         wrt_series_factored_start(&s);
         if (b->opt.series_coarse > 0)
             series_coarse_cut(b, &s.Tr, res->fkeys, res->nfuncs, b->opt.series_coarse, 1);

@@ -8,14 +8,19 @@
 #include <string.h>
 
 #include "../common/wrt_common.h"
+#include "budget.h"
 #include "dist.h"
 #include "series_internal.h"
 
 void wrt_series_mark(series_state *s, const char *stage) {
     if (!s->timing) return;
     double w = wrt_now(), c = wrt_dist_cpu_now();
+    double peak = (double)wrt_bake_stage_peak_bytes() / 1048576.0;
     if (s->mark_w > 0)
-        fprintf(stderr, "series-times: %-26s %9.3f s wall %9.3f s cpu\n", stage, w - s->mark_w, c - s->mark_c);
+        fprintf(stderr, "series-times: %-26s %9.3f s wall %9.3f s cpu  peak %8.0f MB  now %8.0f MB\n", stage,
+                w - s->mark_w, c - s->mark_c, peak, (double)wrt_bake_rss_bytes() / 1048576.0);
+    else
+        fprintf(stderr, "series-times: %-26s now %8.0f MB\n", "(start)", (double)wrt_bake_rss_bytes() / 1048576.0);
     s->mark_w = w;
     s->mark_c = c;
 }

@@ -504,7 +504,41 @@ static double entry_size(const float *v, const double *row_w, uint32_t i) {
     return m * (row_w ? row_w[i] : 1.0);
 }
 
-void wrt_csc_bands_make(const wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out) {
+/* column k's entries (rows src_row, values src_val, m of them) written into out->a from
+ * a->col[k] on, band by band; out->start, top and rest of column k */
+static void bands_col(uint32_t k, uint64_t c0, const uint32_t *src_row, const float *src_val, uint64_t m,
+                      const double *row_w, const double *power_w, wrt_csc_bands *out) {
+    const size_t nb = WRT_CSC_BANDS + 1;
+    double top = 0;
+    for (uint64_t e = 0; e < m; e++) top = fmax(top, entry_size(&src_val[3 * e], row_w, src_row[e]));
+    out->top[k] = top;
+    uint64_t count[WRT_CSC_BANDS + 1] = {0};
+    for (uint64_t e = 0; e < m; e++) count[band_of(entry_size(&src_val[3 * e], row_w, src_row[e]), top) + 1]++;
+    uint64_t *st = &out->start[(size_t)k * nb];
+    st[0] = c0;
+    for (int b = 0; b < WRT_CSC_BANDS; b++) st[b + 1] = st[b] + count[b + 1];
+    uint64_t next[WRT_CSC_BANDS];
+    for (int b = 0; b < WRT_CSC_BANDS; b++) next[b] = st[b];
+    double *r = &out->rest[(size_t)k * nb * 4];
+    for (uint64_t e = 0; e < m; e++) { /* rows ascend within each band, as in A */
+        const float *v = &src_val[3 * e];
+        uint32_t i = src_row[e];
+        int b = band_of(entry_size(v, row_w, i), top);
+        uint64_t to = next[b]++;
+        out->a.row[to] = i;
+        memcpy(&out->a.val[3 * to], v, 3 * sizeof *v);
+        double p = power_w ? power_w[i] : 0;
+        if (p != 0) {
+            double *rb = &r[(size_t)b * 4];
+            rb[0] += p * v[0]; rb[1] += p * v[1]; rb[2] += p * v[2];
+            rb[3] += p * fmax(fabs((double)v[0]), fmax(fabs((double)v[1]), fabs((double)v[2])));
+        }
+    }
+    for (int b = WRT_CSC_BANDS - 1; b >= 0; b--) /* from band b on */
+        for (int q = 0; q < 4; q++) r[(size_t)b * 4 + q] += r[(size_t)(b + 1) * 4 + q];
+}
+
+static void bands_init(const wrt_csc *a, wrt_csc_bands *out) {
     const size_t nb = WRT_CSC_BANDS + 1;
     uint32_t n = a->n;
     memset(out, 0, sizeof *out);
@@ -512,41 +546,36 @@ void wrt_csc_bands_make(const wrt_csc *a, const double *row_w, const double *pow
     out->a.nnz = a->nnz;
     out->a.col = wrt_xmalloc(((size_t)n + 1) * sizeof *out->a.col);
     memcpy(out->a.col, a->col, ((size_t)n + 1) * sizeof *out->a.col);
-    out->a.row = wrt_xmalloc((a->nnz ? a->nnz : 1) * sizeof *out->a.row);
-    out->a.val = wrt_xmalloc((a->nnz ? a->nnz : 1) * 3 * sizeof *out->a.val);
     out->start = wrt_xmalloc(((size_t)n * nb + 1) * sizeof *out->start);
     out->top = wrt_xcalloc((size_t)n + 1, sizeof *out->top);
     out->rest = wrt_xcalloc((size_t)n * nb * 4 + 1, sizeof *out->rest);
-    for (uint32_t k = 0; k < n; k++) {
-        uint64_t c0 = a->col[k], c1 = a->col[k + 1];
-        double top = 0;
-        for (uint64_t e = c0; e < c1; e++) top = fmax(top, entry_size(&a->val[3 * e], row_w, a->row[e]));
-        out->top[k] = top;
-        uint64_t count[WRT_CSC_BANDS + 1] = {0};
-        for (uint64_t e = c0; e < c1; e++) count[band_of(entry_size(&a->val[3 * e], row_w, a->row[e]), top) + 1]++;
-        uint64_t *st = &out->start[(size_t)k * nb];
-        st[0] = c0;
-        for (int b = 0; b < WRT_CSC_BANDS; b++) st[b + 1] = st[b] + count[b + 1];
-        uint64_t next[WRT_CSC_BANDS];
-        for (int b = 0; b < WRT_CSC_BANDS; b++) next[b] = st[b];
-        double *r = &out->rest[(size_t)k * nb * 4];
-        for (uint64_t e = c0; e < c1; e++) { /* rows ascend within each band, as in A */
-            const float *v = &a->val[3 * e];
-            uint32_t i = a->row[e];
-            int b = band_of(entry_size(v, row_w, i), top);
-            uint64_t to = next[b]++;
-            out->a.row[to] = i;
-            memcpy(&out->a.val[3 * to], v, 3 * sizeof *v);
-            double p = power_w ? power_w[i] : 0;
-            if (p != 0) {
-                double *rb = &r[(size_t)b * 4];
-                rb[0] += p * v[0]; rb[1] += p * v[1]; rb[2] += p * v[2];
-                rb[3] += p * fmax(fabs((double)v[0]), fmax(fabs((double)v[1]), fabs((double)v[2])));
-            }
-        }
-        for (int b = WRT_CSC_BANDS - 1; b >= 0; b--) /* from band b on */
-            for (int q = 0; q < 4; q++) r[(size_t)b * 4 + q] += r[(size_t)(b + 1) * 4 + q];
+}
+
+void wrt_csc_bands_make(const wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out) {
+    bands_init(a, out);
+    out->a.row = wrt_xmalloc((a->nnz ? a->nnz : 1) * sizeof *out->a.row);
+    out->a.val = wrt_xmalloc((a->nnz ? a->nnz : 1) * 3 * sizeof *out->a.val);
+    for (uint32_t k = 0; k < a->n; k++)
+        bands_col(k, a->col[k], a->row + a->col[k], a->val + 3 * a->col[k], a->col[k + 1] - a->col[k], row_w,
+                  power_w, out);
+}
+
+void wrt_csc_bands_make_in_place(wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out) {
+    bands_init(a, out);
+    out->a.row = a->row;
+    out->a.val = a->val;
+    uint64_t longest = 1;
+    for (uint32_t k = 0; k < a->n; k++)
+        if (a->col[k + 1] - a->col[k] > longest) longest = a->col[k + 1] - a->col[k];
+    uint32_t *row = wrt_xmalloc(longest * sizeof *row);
+    float *val = wrt_xmalloc(3 * longest * sizeof *val);
+    for (uint32_t k = 0; k < a->n; k++) {
+        uint64_t c0 = a->col[k], m = a->col[k + 1] - c0;
+        memcpy(row, a->row + c0, m * sizeof *row);
+        memcpy(val, a->val + 3 * c0, 3 * m * sizeof *val);
+        bands_col(k, c0, row, val, m, row_w, power_w, out);
     }
+    free(row); free(val);
 }
 
 void wrt_csc_bands_free(wrt_csc_bands *b) {

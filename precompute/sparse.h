@@ -61,6 +61,10 @@ typedef struct wrt_csc_bands {
     double *rest;     /* n x (WRT_CSC_BANDS + 1) x 4 */
 } wrt_csc_bands;
 void wrt_csc_bands_make(const wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out);
+/* the same bands made in a's own arrays (a column at a time through a scratch column):
+ * out->a.row and val are a's, which keeps owning them (free them once, by a or by out,
+ * not both); a's columns are left in the bands' order */
+void wrt_csc_bands_make_in_place(wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out);
 void wrt_csc_bands_free(wrt_csc_bands *b);
 
 /* C = A B, compressed by `drop` and `w` (may be NULL). Deterministic whatever `threads`. */

@@ -268,6 +268,12 @@ mutation apart-weight-lost: the sum's walk decides the nodes apart but no longer
   repl if (0 && x->apart_w && x->apart[p]) x->apart_w[x->root[t->slot[p]]] *= x->apart_f;
   run test_cluster test_albedo_split
 
+mutation bands-in-place-unscratched: the right factor's bands are made in place reading the column being overwritten
+  file precompute/sparse.c
+  find bands_col(k, c0, row, val, m, row_w, power_w, out);
+  repl bands_col(k, c0, a->row + c0, a->val + 3 * c0, m, row_w, power_w, out);
+  run test_sparse test_product_skip
+
 mutation open-cancel-ignored: the open goes on when the progress callback returns 0
   file player/relight_base.c
   find return r->opt.progress(r->opt.progress_user, fraction) != 0;

@@ -222,6 +222,24 @@ static void test_product_skip(void) {
     wrt_csc plain = wrt_csc_mul(&a, &b, drop, &w, 2);
     wrt_csc_bands bands;
     wrt_csc_bands_make(&a, rw, pw, &bands);
+    { /* the same bands made in a copy's own arrays (the series' Tr): the same bits */
+        wrt_csc ac = wrt_csc_copy(&a);
+        wrt_csc_bands ip;
+        wrt_csc_bands_make_in_place(&ac, rw, pw, &ip);
+        const size_t nbs = (size_t)a.n * (WRT_CSC_BANDS + 1);
+        CHECK(ip.a.row == ac.row && ip.a.val == ac.val && ip.a.nnz == bands.a.nnz &&
+                  !memcmp(ip.a.col, bands.a.col, ((size_t)a.n + 1) * sizeof *ip.a.col) &&
+                  !memcmp(ip.a.row, bands.a.row, bands.a.nnz * sizeof *ip.a.row) &&
+                  !memcmp(ip.a.val, bands.a.val, 3 * bands.a.nnz * sizeof *ip.a.val) &&
+                  !memcmp(ip.start, bands.start, nbs * sizeof *ip.start) &&
+                  !memcmp(ip.top, bands.top, a.n * sizeof *ip.top) &&
+                  !memcmp(ip.rest, bands.rest, 4 * nbs * sizeof *ip.rest),
+              "bands made in place differ from the bands made in a copy");
+        ip.a.row = NULL; /* ac's */
+        ip.a.val = NULL;
+        wrt_csc_bands_free(&ip);
+        wrt_csc_free(&ac);
+    }
     wrt_csc_weights ws = w;
     ws.bands = &bands;
     ws.skip = skip;
