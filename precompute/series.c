@@ -994,17 +994,6 @@ static void series_state_free(series_state *s) {
     s->need = NULL;
 }
 
-/* The right factor's memory (wrt_series_factored_start, _bands): Tr, E1 compressed (at
- * most E1's entries, 16 bytes each), and its bands' index (series_tree.c: put in Tr's own
- * arrays since session 18, not copied): a bound, not a measured factor */
-static wrt_status series_right_check(series_state *s) {
-    const wrt_csc *E1 = &s->res->dto_e1;
-    uint64_t n = (uint64_t)E1->n + 1, nb = WRT_CSC_BANDS + 1;
-    uint64_t need = 16 * E1->nnz + 8 * n + (s->b->opt.series_skip > 0 ? n * (8 * nb + 32 * nb + 8) : 0);
-    return wrt_bake_memory_check(s->b->opt.max_memory_mb, &s->res->c.mem_estimate_mb, need,
-                                 "the series' right factor");
-}
-
 wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     series_state s = {.b = b, .res = res, .C = &res->c, .T = &res->dto, .eps = b->opt.eps_compress,
                       .timing = getenv("WRT_DTO_TIMES") != NULL,
@@ -1029,7 +1018,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
                       s.tree; /* the tree's first term beside the sum */
     /* T never formed: E1 is held to the end of the start, and the sum's first state (T W^T:
      * its tree columns compressed, docs/clusters.md "T never formed") is made beside it,
-     * then the right factor (series_right_check). The sum's first state with its walk's
+     * then the right factor (wrt_series_factored_check). The sum's first state with its walk's
      * scratch measured (WRT_DTO_TIMES' stage peaks, session 18) at 3.6, 2.4 and 1.7 times
      * E1's bytes on the atrium at 2,704 and 22,224 elements (quality 1) and 5,048 (quality
      * 5), so 4. Until session 18 one check counted the whole start at 5 times E1 (measured
@@ -1050,7 +1039,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     else if (!s.consumed) s.S = wrt_csc_copy(s.T);
     wrt_series_mark(&s, "first term");
     if (s.fac) {
-        st = series_right_check(&s);
+        st = wrt_series_factored_check(&s);
         if (st != WRT_OK) {
             series_state_free(&s);
             return st;

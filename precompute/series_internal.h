@@ -111,6 +111,8 @@ double wrt_series_final_weights_tree(series_state *s, wrt_csc_weights *W, double
 void wrt_series_tree_power(series_state *s, wrt_series_power_stats *ps);
 /* The left factor kept as T = E1 U (series_tree.c) */
 int wrt_series_factored_on(const bake_ctx *b, const wrt_bake_result *res);
+/* checked before wrt_series_factored_start: the right factor's memory against the budget */
+wrt_status wrt_series_factored_check(const series_state *s);
 void wrt_series_factored_start(series_state *s);
 void wrt_series_factored_bands(series_state *s);
 /* --clusters: the stored operator's columns in the tree's basis (series_tree.c) */

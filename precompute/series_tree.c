@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "../common/threads.h"
+#include "budget.h"
 #include "cluster.h"
 #include "dist.h"
 #include "series.h"
@@ -374,6 +375,17 @@ int wrt_series_factored_wanted(const bake_ctx *b) {
 
 int wrt_series_factored_on(const bake_ctx *b, const wrt_bake_result *res) {
     return wrt_series_factored_wanted(b) && res->dto_e1.col && res->c.nfuncs_angular == 0;
+}
+
+/* The right factor's memory (wrt_series_factored_start, _bands): Tr, E1 compressed (at
+ * most E1's entries, 16 bytes each), and its bands' index (wrt_series_factored_bands: put in
+ * Tr's own arrays since session 18, not copied): a bound, not a measured factor */
+wrt_status wrt_series_factored_check(const series_state *s) {
+    const wrt_csc *E1 = &s->res->dto_e1;
+    uint64_t n = (uint64_t)E1->n + 1, nb = WRT_CSC_BANDS + 1;
+    uint64_t need = 16 * E1->nnz + 8 * n + (s->b->opt.series_skip > 0 ? n * (8 * nb + 32 * nb + 8) : 0);
+    return wrt_bake_memory_check(s->b->opt.max_memory_mb, &s->res->c.mem_estimate_mb, need,
+                                 "the series' right factor");
 }
 
 /* Tr = E1 compressed at the products' threshold: a node column's entry weighed as a
