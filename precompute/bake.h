@@ -88,6 +88,10 @@ typedef struct wrt_bake_options {
                             * in the tree's basis (the senders' side only, where the small
                             * senders' light is held once per cluster: cluster_send.c) when
                             * it has fewer entries there; 1: always; -1: the quads' basis */
+    int cluster_receivers; /* with --clusters and the series in the senders' tree basis: 0
+                            * (the default): the stored operator's rows taken to the tree's
+                            * basis too, kept where it has fewer entries there (series_tree.c
+                            * wrt_series_receivers); 2: kept always; -1: not tried */
     int cluster_series;    /* with --clusters and the senders' tree basis: 1: the series' terms
                             * held in that basis from the first on and multiplied from the
                             * left, P_{k+1} = T P_k (series.c "The series in the senders'
@@ -201,6 +205,8 @@ typedef struct wrt_bake_counters {
     uint64_t cluster_tree_compressed; /* and after */
     int cluster_tree_basis;
     int cluster_senders_basis;      /* 1: the columns in the tree's basis (res->ctree set) */
+    uint64_t cluster_receivers_raw, cluster_receivers_entries; /* the rows in the tree's basis too:
+                                    * before and after the compression (0: not tried) */
     int t_unformed;                /* --clusters, factored: T never formed, only E1 (res->dto empty;
                                     * series_first.c); not in the JSON, which the file records */
     uint64_t cluster_factored_entries; /* the products' left factor E1's entries (T = E1 U;

@@ -78,6 +78,12 @@ uint64_t wrt_clusters_pushed_entries(const wrt_clusters *cl, int senders);
 /* A matrix of the quads' basis (nf x nf) expressed in the tree basis: rows, then columns
  * (cluster_ops.c). Replaces *M. */
 void wrt_clusters_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf, wrt_csc *M);
+/* M's rows (the receivers' side) to the tree basis, into *R, each column compressed by W
+ * (eps) as it is made; M's columns as they were. 0 (and *R empty) where the result would
+ * pass limit entries, else 1; *raw the entries before the compression. */
+int wrt_clusters_rows_to_tree(const bake_ctx *b, const wrt_clusters *cl, const uint64_t *fkeys, uint32_t nf,
+                              const wrt_csc *M, double eps, const wrt_csc_weights *W, uint64_t limit, wrt_csc *R,
+                              uint64_t *raw);
 /* The stored operator M (nf x nf, quads' basis) with the tree's basis on the senders'
  * side only, M W^T (cluster_send.c): the quads' root columns replaced by the columns of
  * phi_root and each internal node's psi_P in their slots (common/cluster_tree.h), each

@@ -130,6 +130,12 @@ static void usage(FILE *f) {
         "                         tree's basis where that has fewer entries: a small\n"
         "                         quad's far light held once per cluster; section csend;\n"
         "                         --clusters-senders-always: whatever its size)\n"
+        "  --clusters-quads-receivers  --clusters, the operator's rows in the quads'\n"
+        "                         basis (by default, after the series in the senders' tree\n"
+        "                         basis, the receivers' side is taken to the tree's basis\n"
+        "                         too where that has fewer entries: a far cluster's light\n"
+        "                         held on its node's function; section ctree without csend;\n"
+        "                         --clusters-receivers-always: whatever its size)\n"
         "  --clusters-series-quads  --clusters, the series' terms in the quads' basis (by\n"
         "                         default they are in the senders' tree basis, multiplied\n"
         "                         from the left: a small quad's far light held once per\n"
@@ -224,14 +230,16 @@ static void json_counters(FILE *f, const wrt_bake_counters *c) {
     if (c->cluster_visits || c->cluster_leaf_pairs || c->cluster_links)
         fprintf(f, ",\"clusters\":{\"links\":%llu,\"leaf_pairs\":%llu,\"visits\":%llu,\"oracle\":%llu,"
                 "\"partial\":%llu,\"refused_visibility\":%llu,\"refused_spread\":%llu,\"rays\":%llu,\"closed_entries\":%llu,\"tree_entries\":%llu,\"tree_compressed\":%llu,"
-                "\"tree_basis\":%s,\"senders_basis\":%s,\"senders_quads\":%llu,\"senders_raw\":%llu,\"depth\":%u",
+                "\"tree_basis\":%s,\"senders_basis\":%s,\"senders_quads\":%llu,\"senders_raw\":%llu,"
+                "\"receivers_raw\":%llu,\"receivers_entries\":%llu,\"depth\":%u",
                 (unsigned long long)c->cluster_links, (unsigned long long)c->cluster_leaf_pairs,
                 (unsigned long long)c->cluster_visits, (unsigned long long)c->cluster_oracle,
                 (unsigned long long)c->cluster_partial, (unsigned long long)c->cluster_refused_visibility, (unsigned long long)c->cluster_refused_spread,
                 (unsigned long long)c->cluster_rays, (unsigned long long)c->cluster_fix_entries,
                 (unsigned long long)c->cluster_tree_entries, (unsigned long long)c->cluster_tree_compressed,
                 c->cluster_tree_basis ? "true" : "false", c->cluster_senders_basis ? "true" : "false",
-                (unsigned long long)c->cluster_senders_quads, (unsigned long long)c->cluster_senders_raw, c->cluster_depth);
+                (unsigned long long)c->cluster_senders_quads, (unsigned long long)c->cluster_senders_raw,
+                (unsigned long long)c->cluster_receivers_raw, (unsigned long long)c->cluster_receivers_entries, c->cluster_depth);
     /* the series' products by T = E1 U: E1's entries (only then: the files of the
      * products by T pushed down keep their bytes) */
     if (c->cluster_factored_entries)
@@ -463,6 +471,8 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--clusters-tree-basis")) { o->clusters = 1; o->cluster_tree = 1; }
         else if (!strcmp(a, "--clusters-quads-senders")) { o->clusters = 1; o->cluster_senders = -1; }
         else if (!strcmp(a, "--clusters-senders-always")) { o->clusters = 1; o->cluster_senders = 1; }
+        else if (!strcmp(a, "--clusters-quads-receivers")) { o->clusters = 1; o->cluster_receivers = -1; }
+        else if (!strcmp(a, "--clusters-receivers-always")) { o->clusters = 1; o->cluster_receivers = 2; }
         else if (!strcmp(a, "--clusters-series-tree")) { o->clusters = 1; o->cluster_series = 1; }
         else if (!strcmp(a, "--clusters-series-quads")) { o->clusters = 1; o->cluster_series = -1; }
         else if (!strcmp(a, "--clusters-pushed")) { o->clusters = 1; o->cluster_factored = -1; }

@@ -987,7 +987,8 @@ static void series_state_free(series_state *s) {
     free(s->rw); free(s->cw); free(s->pw); free(s->u); free(s->boost);
     s->rw = s->cw = s->pw = s->u = s->boost = NULL;
     free(s->cut); free(s->need);
-    free(s->troot); free(s->tcw); free(s->tboost); free(s->fcw); free(s->fboost);
+    free(s->troot); free(s->tcw); free(s->tboost); free(s->fcw); free(s->fboost); free(s->apart);
+    s->apart = NULL;
     s->troot = NULL; s->tcw = s->tboost = s->fcw = s->fboost = NULL;
     if (s->b->opt.cluster_factored < 2) wrt_csc_free(&s->res->dto_e1);
     s->cut = NULL;
@@ -1073,6 +1074,13 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     else if (b->cl && !b->opt.cluster_tree && b->opt.cluster_senders >= 0 && !b->opt.gathered &&
              !(s.share && b->opt.dist->rank != 0))
         wrt_series_senders(&s);
+    if (s.tree && b->opt.cluster_receivers >= 0 && res->c.cluster_senders_basis && !(s.share && b->opt.dist->rank != 0)) {
+        st = wrt_series_receivers(&s);
+        if (st != WRT_OK) {
+            series_state_free(&s);
+            return st;
+        }
+    }
     if (b->cl && b->opt.cluster_tree && !(s.share && b->opt.dist->rank != 0)) {
         /* --clusters-tree-basis: the operator in the tree's basis, compressed there with
          * the tree's weights, is stored when it has fewer entries than in the quads' (else

@@ -62,6 +62,7 @@ typedef struct {
     int tree;
     uint32_t *troot;
     double *tcw, *tboost;
+    uint8_t *apart;           /* per tree node: wrt_clusters_apart's flag (series_tree_apart) */
     wrt_csc_weights TW;
     /* the products' left factor kept as T = E1 U (wrt_series_factored_on): Tr is then E1
      * compressed and cut (nf + nodes columns), each product E1 (U P_k); FW the products'
@@ -136,5 +137,11 @@ double *wrt_series_factored_targets(series_state *s, int *bounces);
 void wrt_series_free_right(series_state *s);
 wrt_csc wrt_series_factored_power_cols(const series_state *s, const double *u, const double *d, double eps,
                                        const wrt_csc_weights *W);
+
+/* The stored operator's rows in the tree's basis: the rows and columns of the nodes apart
+ * held finer (series_tree.c) */
+void wrt_series_receivers_apart(const series_state *s, double *rw, double *cw);
+/* ... and the rows to the tree's basis, kept where fewer (series_tree.c) */
+wrt_status wrt_series_receivers(series_state *s);
 
 #endif

@@ -855,7 +855,8 @@ void wrt_csc_add3_into(wrt_csc *a, const wrt_csc *b, const double s[3]) {
  * destination may be the source (in place: k <= start, each entry read before it is
  * overwritten); drow NULL only counts. Returns the new k. */
 static uint64_t compress_column(const uint32_t *srow, const float *sval, uint64_t start, uint64_t end, uint32_t *drow,
-                                float *dval, uint64_t k, double cw, double boost, double drop, const wrt_csc_weights *w) {
+                                float *dval, uint64_t k, double cw, double boost, double drop, const wrt_csc_weights *w,
+                                const uint8_t *force) {
     uint64_t first = k, best = UINT64_MAX;
     double lost[3] = {0, 0, 0};
     const double *pw = w ? w->power_w : NULL;
@@ -881,7 +882,8 @@ static uint64_t compress_column(const uint32_t *srow, const float *sval, uint64_
         const float *v = &sval[3 * i];
         double mx = fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
         double bi = bst > 1 && pw[srow[i]] != 0 ? bst : 1; /* bst > 1 only where pw is given */
-        if (i == best || (mx > 0 && mx * cw * bi * (w && w->row_w ? w->row_w[srow[i]] : 1.0) >= drop)) {
+        if (i == best || (force && force[i - start]) ||
+            (mx > 0 && mx * cw * bi * (w && w->row_w ? w->row_w[srow[i]] : 1.0) >= drop)) {
             if (drow) {
                 drow[k] = srow[i];
                 memmove(&dval[3 * k], v, 3 * sizeof *v);
@@ -921,7 +923,29 @@ static double col_boost(const wrt_csc_weights *w, uint32_t j) {
 
 uint64_t wrt_csc_compress_col(uint32_t *row, float *val, uint64_t n, uint32_t j, double drop,
                               const wrt_csc_weights *w) {
-    return compress_column(row, val, 0, n, row, val, 0, w && w->col_w ? w->col_w[j] : 1.0, col_boost(w, j), drop, w);
+    return compress_column(row, val, 0, n, row, val, 0, w && w->col_w ? w->col_w[j] : 1.0, col_boost(w, j), drop, w,
+                           NULL);
+}
+
+uint64_t wrt_csc_compress_col_kept(const uint32_t *row, const float *val, uint64_t n, uint32_t j, double drop,
+                                   const wrt_csc_weights *w, uint8_t *kept) {
+    uint32_t *r = wrt_xmalloc((n ? n : 1) * sizeof *r);
+    float *v = wrt_xmalloc(3 * (n ? n : 1) * sizeof *v);
+    memcpy(r, row, n * sizeof *r);
+    memcpy(v, val, 3 * n * sizeof *v);
+    uint64_t m = compress_column(r, v, 0, n, r, v, 0, w && w->col_w ? w->col_w[j] : 1.0, col_boost(w, j), drop, w, NULL);
+    /* the kept rows are a subsequence of the rows, in order */
+    memset(kept, 0, n);
+    for (uint64_t i = 0, a = 0; i < n && a < m; i++)
+        if (row[i] == r[a]) { kept[i] = 1; a++; }
+    free(r); free(v);
+    return m;
+}
+
+uint64_t wrt_csc_compress_col_force(uint32_t *row, float *val, uint64_t n, uint32_t j, double drop,
+                                    const wrt_csc_weights *w, const uint8_t *force) {
+    return compress_column(row, val, 0, n, row, val, 0, w && w->col_w ? w->col_w[j] : 1.0, col_boost(w, j), drop, w,
+                           force);
 }
 
 void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w) {
@@ -929,7 +953,7 @@ void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w) {
     for (uint32_t j = 0; j < m->n; j++) {
         uint64_t end = m->col[j + 1];
         double cw = w && w->col_w ? w->col_w[j] : 1.0;
-        k = compress_column(m->row, m->val, start, end, m->row, m->val, k, cw, col_boost(w, j), drop, w);
+        k = compress_column(m->row, m->val, start, end, m->row, m->val, k, cw, col_boost(w, j), drop, w, NULL);
         start = end;
         m->col[j + 1] = k;
     }
@@ -945,13 +969,13 @@ wrt_csc wrt_csc_copy_compress(const wrt_csc *m, double drop, const wrt_csc_weigh
     uint64_t k = 0;
     for (uint32_t j = 0; j < m->n; j++)
         k = compress_column(m->row, m->val, m->col[j], m->col[j + 1], NULL, NULL, k,
-                            w && w->col_w ? w->col_w[j] : 1.0, col_boost(w, j), drop, w);
+                            w && w->col_w ? w->col_w[j] : 1.0, col_boost(w, j), drop, w, NULL);
     c.row = wrt_xmalloc((k ? k : 1) * sizeof *c.row);
     c.val = wrt_xmalloc((k ? k : 1) * 3 * sizeof *c.val);
     c.col[0] = k = 0;
     for (uint32_t j = 0; j < m->n; j++) {
         k = compress_column(m->row, m->val, m->col[j], m->col[j + 1], c.row, c.val, k,
-                            w && w->col_w ? w->col_w[j] : 1.0, col_boost(w, j), drop, w);
+                            w && w->col_w ? w->col_w[j] : 1.0, col_boost(w, j), drop, w, NULL);
         c.col[j + 1] = k;
     }
     c.nnz = k;

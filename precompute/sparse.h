@@ -93,6 +93,12 @@ void wrt_csc_compress(wrt_csc *m, double drop, const wrt_csc_weights *w);
  * with the same rule as wrt_csc_compress; returns the entries kept. */
 uint64_t wrt_csc_compress_col(uint32_t *row, float *val, uint64_t n, uint32_t j, double drop,
                               const wrt_csc_weights *w);
+/* Which of column j's n entries its compression keeps (kept[i] 1), the column unchanged;
+ * and the compression with the entries where force[i] is set kept whatever their size */
+uint64_t wrt_csc_compress_col_kept(const uint32_t *row, const float *val, uint64_t n, uint32_t j, double drop,
+                                   const wrt_csc_weights *w, uint8_t *kept);
+uint64_t wrt_csc_compress_col_force(uint32_t *row, float *val, uint64_t n, uint32_t j, double drop,
+                                    const wrt_csc_weights *w, const uint8_t *force);
 /* A compressed copy of m: the same entries and values as wrt_csc_compress on a copy,
  * without the copy. */
 wrt_csc wrt_csc_copy_compress(const wrt_csc *m, double drop, const wrt_csc_weights *w);

@@ -274,6 +274,12 @@ mutation bands-in-place-unscratched: the right factor's bands are made in place 
   repl bands_col(k, c0, a->row + c0, a->val + 3 * c0, m, row_w, power_w, out);
   run test_sparse test_product_skip
 
+mutation receivers-ancestors-dropped: the receivers' tree rows keep no ancestor of a kept entry
+  file precompute/cluster_ops.c
+  find keep[i] = p == -2 || (p >= 0 && need[p] == epoch2);
+  repl keep[i] = 0;
+  run test_triangles test_icosphere_furnace_many
+
 mutation open-cancel-ignored: the open goes on when the progress callback returns 0
   file player/relight_base.c
   find return r->opt.progress(r->opt.progress_user, fraction) != 0;

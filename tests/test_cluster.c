@@ -257,6 +257,7 @@ static void test_two_rooms(void) {
     wrt_bake_result rt;
     o.cluster_senders = 1;
     o.cluster_series = 1;
+    o.cluster_receivers = -1; /* the rows in the quads' basis (--clusters-quads-receivers) */
     CHECK(wrt_bake_run(&s, &o, &rt) == WRT_OK, "%s", wrt_last_error());
     CHECK(rt.c.cluster_senders_basis == 1 && rt.ctree.nq == (uint32_t)s.nquads, "the series' tree basis asked for");
     double *et = response(&s, &rt, &rt.op, in), tdiff = 0, tdark = 0;
@@ -268,6 +269,25 @@ static void test_two_rooms(void) {
     printf("two rooms, varied light: the series in the senders' tree basis (%llu entries) against the quads' "
            "series: largest difference %.3g of the mean, dark room %.3g\n", (unsigned long long)rt.op.nnz, tdiff / mean,
            tdark / mean);
+    /* and the stored operator's rows in the tree's basis too (--clusters-receivers-tree):
+     * a receivers' function spanning the wall carries the lit side's light and its wavelet
+     * takes it back from the dark side; a wavelet dropped there is light through the wall */
+    wrt_bake_result rr;
+    o.cluster_receivers = 2;
+    CHECK(wrt_bake_run(&s, &o, &rr) == WRT_OK, "%s", wrt_last_error());
+    CHECK(rr.c.cluster_senders_basis == 0 && rr.c.cluster_tree_basis == 1 && rr.c.cluster_receivers_entries == rr.op.nnz,
+          "the receivers' tree basis asked for");
+    double *er = response(&s, &rr, &rr.op, in), rdiff = 0, rdark = 0;
+    for (int q = 0; q < s.nquads; q++) rdiff = fmax(rdiff, fabs(er[q] - et[q]));
+    for (int q = half; q < s.nquads; q++) rdark = fmax(rdark, fabs(er[q]));
+    CHECK(rdiff <= 0.01 * mean, "the receivers' tree basis against the senders': largest difference %.3g, mean %.3g",
+          rdiff, mean);
+    CHECK(rdark < 1e-4 * mean, "the receivers' tree basis: dark room %.3g, lit room's mean %.3g", rdark, mean);
+    printf("two rooms, varied light: the rows in the tree's basis too (%llu entries, %llu before the compression) "
+           "against the senders' only: largest difference %.3g of the mean, dark room %.3g\n",
+           (unsigned long long)rr.op.nnz, (unsigned long long)rr.c.cluster_receivers_raw, rdiff / mean, rdark / mean);
+    free(er);
+    wrt_bake_result_free(&rr);
     free(et);
     wrt_bake_result_free(&rt);
     free(eq);
@@ -568,8 +588,9 @@ static void test_furnace(void) {
     int n = getenv("WRT_FURNACE_N") ? atoi(getenv("WRT_FURNACE_N")) : 8;
     /* mode 0: the tree's basis on both sides; 1: on the senders' side only (cluster_send.c:
      * the light forward, the result on the quads' functions); 2: that with the series'
-     * terms in the senders' tree basis, multiplied from the left (series.c) */
-    for (int mode = 0; mode < 3; mode++)
+     * terms in the senders' tree basis, multiplied from the left (series.c); 3: that with
+     * the stored operator's rows taken to the tree's basis too (--clusters-receivers-tree) */
+    for (int mode = 0; mode < 4; mode++)
     for (int i = 0; i < 2; i++) {
         wrt_scene s;
         tsb_init(&s);
@@ -579,14 +600,18 @@ static void test_furnace(void) {
         o.clusters = 1;
         o.cluster_tree = mode == 0; /* the tree's basis when smaller (in a closed box it is) */
         o.cluster_senders = mode > 0; /* modes 1, 2: whatever its size */
-        o.cluster_series = mode == 2 ? 1 : -1;
+        o.cluster_series = mode >= 2 ? 1 : -1;
+        o.cluster_receivers = mode == 3 ? 2 : -1;
         if (n > 8) o.eps_compress = 1e-5;
         wrt_bake_result r;
         CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "%s", wrt_last_error());
-        CHECK(r.c.cluster_senders_basis == (mode > 0) && r.ctree.nq == (uint32_t)s.nquads, "mode %d: senders' basis %d",
-              mode, r.c.cluster_senders_basis);
-        /* mode 2 by the default factored products, T = E1 U (series_tree.c) */
-        CHECK((mode == 2) == (r.c.cluster_factored_entries > 0), "mode %d: factored %llu", mode,
+        CHECK(r.c.cluster_senders_basis == (mode == 1 || mode == 2) && r.ctree.nq == (uint32_t)s.nquads,
+              "mode %d: senders' basis %d", mode, r.c.cluster_senders_basis);
+        CHECK((mode == 3) == (r.c.cluster_receivers_entries > 0) && r.c.cluster_tree_basis == (mode == 3 || mode == 0),
+              "mode %d: receivers' tree %llu entries, tree basis %d", mode,
+              (unsigned long long)r.c.cluster_receivers_entries, r.c.cluster_tree_basis);
+        /* modes 2 and 3 by the default factored products, T = E1 U (series_tree.c) */
+        CHECK((mode >= 2) == (r.c.cluster_factored_entries > 0), "mode %d: factored %llu", mode,
               (unsigned long long)r.c.cluster_factored_entries);
         double *in = malloc((size_t)s.nquads * sizeof *in);
         for (int q = 0; q < s.nquads; q++) in[q] = 1;
@@ -619,7 +644,7 @@ static void test_furnace(void) {
                "G-I %llu entries (quads' basis %llu)\n",
                rhos[i], s.nquads, n, n, ratio, 100 * worst, (unsigned long long)r.c.cluster_links,
                (unsigned long long)r.c.cluster_leaf_pairs, (unsigned long long)r.c.cluster_fix_entries, r.c.closed, r.c.cluster_tree_basis,
-               r.c.cluster_senders_basis, mode == 2, (unsigned long long)r.dto.nnz, (unsigned long long)r.op.nnz,
+               r.c.cluster_senders_basis, mode >= 2, (unsigned long long)r.dto.nnz, (unsigned long long)r.op.nnz,
                (unsigned long long)r.c.cluster_senders_quads);
         free(in); free(e);
         wrt_bake_result_free(&r);

@@ -332,6 +332,7 @@ static double icosphere_furnace(int sub, int quality, double rho, double *worst_
     o.clusters = furnace_clusters != 0;
     if (furnace_clusters == 2) o.cluster_tree = 2; /* G - I in the cluster tree's basis */
     if (furnace_clusters == 3) o.cluster_series = 1; /* the series' terms in the senders' tree basis */
+    if (furnace_clusters == 4) o.cluster_receivers = 2; /* and the rows in the tree's basis too */
     if (o.clusters) o.cluster_factored = 2; /* T unformed, E1 kept: the DTO's own series read through it */
     double t0 = wrt_now();
     CHECK(wrt_bake_run(&s, &o, &r) == WRT_OK, "icosphere: %s", wrt_last_error());
@@ -494,6 +495,14 @@ static void test_icosphere_furnace_many(void) {
     furnace_clusters = 0;
     CHECK(fabs(e) <= 1e-3, "icosphere furnace, 320 triangles: indirect flux off by %.4f%%", 100 * e);
     CHECK(worst <= 0.03, "icosphere furnace, 320 triangles: the worst element %.4f%% from the mean", 100 * worst);
+    /* the stored operator's rows in the tree's basis too (--clusters-receivers-always),
+     * through the file (section ctree without csend) and the runtime's inverse transform */
+    furnace_clusters = 4;
+    e = icosphere_furnace(2, 1, 0.9, &worst);
+    furnace_clusters = 0;
+    CHECK(fabs(e) <= 1e-3, "icosphere furnace, 320 triangles, receivers' tree: indirect flux off by %.4f%%", 100 * e);
+    CHECK(worst <= 0.03, "icosphere furnace, 320 triangles, receivers' tree: the worst element %.4f%% from the mean",
+          100 * worst);
 }
 
 /* ------------------------------------------------------- vertex normals ---- */
@@ -716,6 +725,7 @@ int main(int argc, char **argv) {
                            : !strcmp(argv[4], "clusters") ? 1
                            : !strcmp(argv[4], "tree")     ? 2
                            : !strcmp(argv[4], "series")   ? 3
+                           : !strcmp(argv[4], "receivers") ? 4
                                                           : 0;
         double worst, e = icosphere_furnace(atoi(argv[2]), atoi(argv[3]), 0.9, &worst);
         printf("furnace: indirect flux %+.4f%%, worst element %.4f%% from the mean\n", 100 * e, 100 * worst);
