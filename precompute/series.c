@@ -1074,12 +1074,9 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     else if (b->cl && !b->opt.cluster_tree && b->opt.cluster_senders >= 0 && !b->opt.gathered &&
              !(s.share && b->opt.dist->rank != 0))
         wrt_series_senders(&s);
-    if (s.tree && b->opt.cluster_receivers >= 0 && res->c.cluster_senders_basis && !(s.share && b->opt.dist->rank != 0)) {
-        st = wrt_series_receivers(&s);
-        if (st != WRT_OK) {
-            series_state_free(&s);
-            return st;
-        }
+    if ((st = wrt_series_receivers(&s)) != WRT_OK) { /* where it applies (series_tree.c) */
+        series_state_free(&s);
+        return st;
     }
     if (b->cl && b->opt.cluster_tree && !(s.share && b->opt.dist->rank != 0)) {
         /* --clusters-tree-basis: the operator in the tree's basis, compressed there with

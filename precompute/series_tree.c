@@ -259,6 +259,9 @@ void wrt_series_receivers_apart(const series_state *s, double *rw, double *cw) {
 wrt_status wrt_series_receivers(series_state *s) {
     const bake_ctx *b = s->b;
     wrt_bake_result *res = s->res;
+    /* after the series in the senders' tree basis, on the rank that holds the operator */
+    if (!s->tree || b->opt.cluster_receivers < 0 || !res->c.cluster_senders_basis || (s->share && b->opt.dist->rank != 0))
+        return WRT_OK;
     int always = b->opt.cluster_receivers > 1;
     /* E1 is done with (the series is summed): its memory is the trial's */
     if (b->opt.cluster_factored < 2) wrt_csc_free(&res->dto_e1);
