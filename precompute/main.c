@@ -112,7 +112,11 @@ static void usage(FILE *f) {
         "                         power balance: loses energy conservation; for comparison)\n"
         "  --clusters             link well separated clusters of quads by one entry each\n"
         "                         instead of every quad pair (docs/clusters.md; diffuse\n"
-        "                         scenes only)\n"
+        "                         scenes only). Without --clusters or --no-clusters,\n"
+        "                         wrt-bake takes it for a diffuse scene with 1M ordered\n"
+        "                         pairs of elements in sight of each other, or 10,000\n"
+        "                         elements, and says so\n"
+        "  --no-clusters          the plain bake (every quad pair) whatever the scene's size\n"
         "  --cluster-eps E        --clusters, and the oracle's power criterion: a cluster pair\n"
         "                         whose estimated error is at most E of the scene's power is\n"
         "                         linked at cluster level (default 1e-4; 0: off)\n"
@@ -288,6 +292,8 @@ typedef struct bake_args {
     int float_k;        /* --float-k: K's entries as floats in a compact file (sections 14, 15) */
     double max_error;   /* < 0: no accuracy check */
     int check_paths;
+    int no_clusters;    /* --no-clusters: the plain bake whatever the scene's size */
+    int clusters_auto;  /* the cluster hierarchy taken by wrt-bake itself (choose_clusters) */
     wrt_bake_options o;
 } bake_args;
 
@@ -344,6 +350,10 @@ static int check_args(const bake_args *A) {
                     "(entries those dropped cannot come back)\n", o->eps_final, d.eps_compress);
             return WRT_EXIT_USAGE;
         }
+    }
+    if (A->no_clusters && o->clusters) {
+        fprintf(stderr, "wrt-bake: error: --no-clusters with --clusters or a --cluster option: choose one\n");
+        return WRT_EXIT_USAGE;
     }
     if (o->glossy_quality && o->glossy_quality > (o->quality ? o->quality : 5)) {
         fprintf(stderr, "wrt-bake: error: --glossy-quality %d must not exceed the quality (%d)\n", o->glossy_quality,
@@ -459,6 +469,7 @@ static int parse_args(int argc, char **argv, bake_args *A) {
         else if (!strcmp(a, "--no-tail")) o->no_tail = 1;
         else if (!strcmp(a, "--no-balance")) o->no_balance = 1;
         else if (!strcmp(a, "--clusters")) o->clusters = 1;
+        else if (!strcmp(a, "--no-clusters")) A->no_clusters = 1;
         else if (!strcmp(a, "--cluster-eps")) {
             double e = 0;
             ok = opt_num(a, v, 0, 1, &e);
@@ -512,7 +523,7 @@ static int print_info(void *u, FILE *f) {
 }
 static int print_summary(void *u, FILE *f) {
     const struct report_args *a = u;
-    wrt_scan_print(a->scene, &a->A->o, a->A->drop_bad, a->json, f);
+    wrt_scan_print(a->scene, &a->A->o, a->A->drop_bad, a->A->clusters_auto, a->json, f);
     return 0;
 }
 
@@ -542,8 +553,25 @@ static int is_gto_file(const char *path) {
     return got == sizeof magic && !memcmp(magic, "\x89WRT\r\n\x1a\n", sizeof magic);
 }
 
+/* Neither --clusters nor --no-clusters: the cluster hierarchy for a large diffuse scene
+ * (scan.c wrt_scan_clusters_auto: 1M ordered pairs of elements in sight, or 10,000
+ * elements), said on stderr when say is set. The file is then the one `--clusters`
+ * makes, byte for byte. */
+static void choose_clusters(bake_args *A, const wrt_scene *s, int say) {
+    double pairs = 0;
+    if (A->o.clusters || A->no_clusters || !wrt_scan_clusters_auto(s, &A->o, &pairs)) return;
+    A->o.clusters = 1;
+    A->clusters_auto = 1;
+    if (say)
+        fprintf(stderr, "wrt-bake: %d diffuse elements, %.2gM of their ordered pairs in sight: baked with --clusters, "
+                        "which wrt-bake takes from %.0fM pairs in sight or %d elements on (--no-clusters: the plain "
+                        "bake; docs/clusters.md)\n",
+                s->nquads, pairs / 1e6, WRT_CLUSTERS_AUTO_PAIRS / 1e6, WRT_CLUSTERS_AUTO_ELEMENTS);
+}
+
 /* --scan SCENE */
-static int run_scan(const bake_args *A, const wrt_load_options *lo) {
+static int run_scan(const bake_args *A_in, const wrt_load_options *lo) {
+    bake_args Ac = *A_in, *A = &Ac; /* the estimate for the bake wrt-bake would make */
     const char *scan = A->scan;
     /* a baked file given by mistake: say so rather than show the glTF parser's error */
     if (is_gto_file(scan)) {
@@ -558,6 +586,7 @@ static int run_scan(const bake_args *A, const wrt_load_options *lo) {
         fprintf(stderr, "wrt-bake: error: %s\n", wrt_last_error());
         return st == WRT_ERR_NOMEM ? WRT_EXIT_INTERNAL : WRT_EXIT_INPUT; /* the C++ reader's bad_alloc: 7 */
     }
+    if (s.nnonfinite == 0 || A->drop_bad) choose_clusters(A, &s, 0);
     struct report_args sa = {NULL, &s, A->json, A};
     wrt_cli_print_safely(stdout, print_summary, &sa); /* names' escape codes shown as \xNN */
     wrt_scene_free(&s);
@@ -778,6 +807,9 @@ static void print_json_summary(const bake_args *A, const wrt_scene *s, const wrt
                T->acc.error, T->acc.floor, A->max_error, T->acc.seconds);
     printf("\"memory_mb\":{\"peak_rss\":%.1f,\"estimated\":%.1f,\"budget\":%.0f},",
            (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), c->mem_estimate_mb, o->max_memory_mb);
+    /* the cluster hierarchy: given (--clusters or a --cluster option), auto (taken by
+     * wrt-bake for the scene's size: choose_clusters) or none */
+    printf("\"clusters_chosen\":\"%s\",", !o->clusters ? "none" : A->clusters_auto ? "auto" : "given");
     printf("\"operator\":\"%s\",\"options\":", r->op_kind == WRT_GTO_OP_GATHERED ? "gathered" : "indirect");
     json_options(stdout, o);
     printf(",");
@@ -804,6 +836,8 @@ static void print_text_summary(const bake_args *A, const wrt_scene *s, const wrt
                (unsigned long long)c->cluster_leaf_pairs, (unsigned long long)c->cluster_oracle,
                (unsigned long long)c->cluster_refused_visibility, (unsigned long long)c->cluster_refused_spread,
                c->cluster_depth);
+    if (A->clusters_auto)
+        printf("            taken by wrt-bake for the scene's size (--no-clusters: the plain bake; docs/clusters.md)\n");
     char gath[32] = "not computed";
     if (o->gathered || o->report_gathered) snprintf(gath, sizeof gath, "%llu", (unsigned long long)c->links_gathered);
     printf("  links     dto %llu, gto %llu, gathered %s (leaves %llu, invisible %llu)\n",
@@ -850,6 +884,7 @@ static int bake(bake_args *A, const wrt_load_options *lo) {
     rc = load_scene(A, lo, &s);
     T.t_load = wrt_now() - t0;
     if (rc != GO_ON) return rc;
+    choose_clusters(A, &s, wrt_cli_progress_enabled());
     if (wrt_cli_progress_enabled()) wrt_scan_print_bake_hint(&s, &A->o, stderr);
     wrt_bake_result r;
     rc = run_bake(A, &s, &r);
@@ -886,6 +921,7 @@ static int bake_rank(bake_args *A, const wrt_load_options *lo) {
     wrt_scene s;
     int rc = load_scene(A, lo, &s);
     if (rc != GO_ON) return rc;
+    choose_clusters(A, &s, 0); /* rank 0's choice: a function of the scene and options alone */
     wrt_bake_result r;
     rc = run_bake(A, &s, &r);
     if (rc != GO_ON) return rc;

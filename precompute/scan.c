@@ -17,6 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/brdf.h"
 #include "../common/rt_scene.h"
 
 /* How open the scene is: of SCAN_VIS_SAMPLES pairs of points drawn uniformly over the
@@ -180,6 +181,19 @@ wrt_scan_estimate wrt_scan_estimate_cost(const wrt_scene *s, const wrt_bake_opti
     return e;
 }
 
+int wrt_scan_clusters_auto(const wrt_scene *s, const wrt_bake_options *o, double *pairs) {
+    if (pairs) *pairs = 0;
+    /* under 1,000 elements there are under 1e6 pairs at all: no rays cast */
+    if (!s || (double)s->nquads * s->nquads < WRT_CLUSTERS_AUTO_PAIRS || (o && o->gathered)) return 0;
+    /* the bake's own test (bake.c): any material with an angular level, used or not */
+    for (int m = 0; m < s->nmaterials; m++)
+        if (wrt_brdf_angular_level(&s->materials[m]) != 0) return 0;
+    double f = wrt_scan_visible_fraction(s), n = s->nquads;
+    double p = n * n * (f >= 0 ? f : 1); /* no figure (Embree failed): the dense case */
+    if (pairs) *pairs = p;
+    return p >= WRT_CLUSTERS_AUTO_PAIRS || s->nquads >= WRT_CLUSTERS_AUTO_ELEMENTS;
+}
+
 static const char *human_time(double s, char *buf, size_t n) {
     if (s < 120) snprintf(buf, n, "%.0f s", s);
     else if (s < 7200) snprintf(buf, n, "%.0f min", s / 60);
@@ -187,7 +201,7 @@ static const char *human_time(double s, char *buf, size_t n) {
     return buf;
 }
 
-void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad, int json, FILE *f) {
+void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad, int clusters_auto, int json, FILE *f) {
     if (!s || !f) return;
     wrt_scan_estimate e = wrt_scan_estimate_cost(s, o);
     int refused = s->nnonfinite > 0 && !drop_bad, glossy = 0;
@@ -209,9 +223,11 @@ void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad,
         free(buf);
         fprintf(f, ",\"refused\":%s,\"drop_bad\":%s,\"estimate\":{\"quality\":%d,\"elements\":%d,"
                    "\"visible_fraction\":%.4f,\"exchange_fraction\":%.4f,\"glossy_elements\":%d,\"cpu_seconds\":%.3g,\"memory_mb\":%.4g,\"bytes\":%.4g,"
-                   "\"model\":\"%s: elements, visible and facing pairs, fitted to measured bakes, an upper bound\"}}\n",
+                   "\"model\":\"%s: elements, visible and facing pairs, fitted to measured bakes, an upper bound\","
+                   "\"clusters_chosen\":\"%s\"}}\n",
                 refused ? "true" : "false", drop_bad ? "true" : "false", e.quality, e.elements, e.visible, e.exchange,
-                glossy, e.seconds, e.memory_mb, e.bytes, o && o->clusters ? "clusters" : "plain");
+                glossy, e.seconds, e.memory_mb, e.bytes, o && o->clusters ? "clusters" : "plain",
+                !(o && o->clusters) ? "none" : clusters_auto ? "auto" : "given");
         return;
     }
     wrt_scene_print_summary(s, 0, f);
@@ -225,6 +241,11 @@ void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad,
                "them; docs/triangles.md)\n",
             e.quality, o && o->clusters ? " with --clusters" : "", e.elements, 100 * e.visible,
             human_time(e.seconds, tb, sizeof tb), e.memory_mb, e.bytes / 1e6);
+    if (clusters_auto)
+        fprintf(f, "clusters: %d diffuse elements, %.2gM of their ordered pairs in sight: wrt-bake takes --clusters "
+                   "by itself from %.0fM pairs in sight or %d elements on (--no-clusters: the plain bake)\n",
+                e.elements, (double)e.elements * e.elements * (e.visible >= 0 ? e.visible : 1) / 1e6,
+                WRT_CLUSTERS_AUTO_PAIRS / 1e6, WRT_CLUSTERS_AUTO_ELEMENTS);
     if (glossy)
         fprintf(f, "estimate: %d glossy elements; the model is fitted to diffuse scenes and a glossy surface's "
                    "angular refinement can cost several times more\n", glossy);

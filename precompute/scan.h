@@ -33,10 +33,24 @@ double wrt_scan_exchange_fraction(const wrt_scene *s);
 /* The estimate for scene s under options o (zero fields: defaults). Pure. */
 wrt_scan_estimate wrt_scan_estimate_cost(const wrt_scene *s, const wrt_bake_options *o);
 
+/* wrt-bake's choice when neither --clusters nor --no-clusters is given (docs/clusters.md
+ * "When wrt-bake clusters by itself"): 1 (the cluster hierarchy) for a scene whose
+ * materials are all diffuse, baked without the gathered operator (what --clusters
+ * bakes), with at least WRT_CLUSTERS_AUTO_PAIRS ordered pairs of elements in sight of
+ * each other (N^2 times wrt_scan_visible_fraction: the plain bake's links grow with them)
+ * or at least WRT_CLUSTERS_AUTO_ELEMENTS elements (its pair list grows as N^2 whatever
+ * is in sight); 0 (the plain bake) otherwise. *pairs (if not NULL) gets the pairs in
+ * sight, 0 where not sampled. A function of the scene and the options alone: the same
+ * on every machine and thread count. */
+#define WRT_CLUSTERS_AUTO_PAIRS 1e6
+#define WRT_CLUSTERS_AUTO_ELEMENTS 10000
+int wrt_scan_clusters_auto(const wrt_scene *s, const wrt_bake_options *o, double *pairs);
+
 /* Prints the scan of s (loaded with report_only) to f: the summary, then what the bake
- * would drop or refuse given drop_bad, then the estimate. With json, one JSON object
- * (the summary's members plus "refused" and "estimate"). */
-void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad, int json, FILE *f);
+ * would drop or refuse given drop_bad, then the estimate (clusters_auto: o->clusters was
+ * set by wrt-bake's own choice, wrt_scan_clusters_auto, and the text says so). With json,
+ * one JSON object (the summary's members plus "refused" and "estimate"). */
+void wrt_scan_print(const wrt_scene *s, const wrt_bake_options *o, int drop_bad, int clusters_auto, int json, FILE *f);
 
 /* Before a bake, on a terminal: one line with the estimate at the options the bake will
  * use and the memory budget; for a diffuse scene baked without --clusters whose

@@ -304,6 +304,37 @@ if "$gen" atrium --detail 0.25 -o "$tmp/at.gltf" >/dev/null 2>"$tmp/err" &&
     else
         ko "atrium --detail 0.5 for the estimate's hint"; show_err
     fi
+    # wrt-bake's own choice of the cluster hierarchy (main.c choose_clusters, scan.c
+    # wrt_scan_clusters_auto): without --clusters or --no-clusters, a diffuse scene with 1M
+    # ordered pairs of elements in sight of each other (or 10,000 elements) is baked with
+    # --clusters, byte for byte; a glossy one, a maze whose walls hide most pairs and a
+    # smaller box are not. Cornell at --res 12: 2,160 elements, 46% of pairs in sight (2.15M).
+    chosen() { "$bake" --scan "$@" --json 2>"$tmp/err" | tr -d '\n' | grep -o '"clusters_chosen":"[a-z]*"' | cut -d'"' -f4; }
+    if "$gen" cornell --res 12 -o "$tmp/c12.gltf" >/dev/null 2>"$tmp/err" &&
+       "$gen" cornell-glossy --res 12 -o "$tmp/cg12.gltf" >/dev/null 2>>"$tmp/err" &&
+       "$gen" cornell --res 8 -o "$tmp/c8.gltf" >/dev/null 2>>"$tmp/err" &&
+       "$gen" maze --cells 16 -o "$tmp/m16.gltf" >/dev/null 2>>"$tmp/err"; then
+        a=$(chosen "$tmp/c12.gltf"); b=$(chosen "$tmp/c12.gltf" --no-clusters); c=$(chosen "$tmp/c12.gltf" --clusters)
+        d=$(chosen "$tmp/cg12.gltf"); e=$(chosen "$tmp/c8.gltf"); m=$(chosen "$tmp/m16.gltf")
+        [ "$a/$b/$c/$d/$e/$m" = auto/none/given/none/none/none ] &&
+            "$bake" --scan "$tmp/c12.gltf" --json | grep -q '"model":"clusters:' &&
+            "$bake" --scan "$tmp/c12.gltf" --no-clusters --json | grep -q '"model":"plain:' &&
+            "$bake" --scan "$tmp/c12.gltf" | grep -q '^clusters: 2160 diffuse elements, 2.[0-9]M of their ordered pairs in sight' &&
+            ok "--scan: the cluster hierarchy taken by itself for 2,160 diffuse elements in sight; not glossy, 960 elements, a 2,245-element maze, --no-clusters" ||
+            ko "--scan: the cluster hierarchy by itself: c12 $a, --no-clusters $b, --clusters $c, glossy $d, res 8 $e, maze 16 $m"
+        "$bake" "$tmp/c12.gltf" -q 1 -o "$tmp/c12auto.gto" --json --progress >"$tmp/c12.json" 2>"$tmp/c12.err"; ra=$?
+        "$bake" "$tmp/c12.gltf" -q 1 --clusters -o "$tmp/c12cl.gto" --quiet >/dev/null 2>"$tmp/err"; rb=$?
+        [ "$ra/$rb" = 0/0 ] && cmp -s "$tmp/c12auto.gto" "$tmp/c12cl.gto" && grep -q '"clusters_chosen":"auto"' "$tmp/c12.json" &&
+            grep -q '"clusters":{"links":[1-9]' "$tmp/c12.json" &&
+            grep -q '^wrt-bake: 2160 diffuse elements, 2.[0-9]M of their ordered pairs in sight: baked with --clusters' "$tmp/c12.err" &&
+            ok "a bake without --clusters of 2,160 diffuse elements in sight: said, and --clusters' file byte for byte" ||
+            ko "a bake without --clusters of 2,160 diffuse elements in sight (exit $ra, $rb; $(grep wrt-bake "$tmp/c12.err" | head -2))"
+        expect_exit "--no-clusters with --clusters: usage error" 1 "--no-clusters with --clusters or a --cluster option" \
+            "$bake" "$tmp/c12.gltf" -o "$tmp/c12x.gto" --no-clusters --cluster-eps 1e-3
+        [ ! -e "$tmp/c12x.gto" ] && ok || ko "--no-clusters with --cluster-eps wrote a file"
+    else
+        ko "cornell --res 12, cornell-glossy --res 12, cornell --res 8, maze --cells 16"; show_err
+    fi
     # The series by blocks of columns (series_cols.c): a column's entries do not depend on
     # the blocks, so one block gives the default 16's bytes; with the bounces fixed and no
     # tail (what the blocks decide from the power iteration alone), the terms held whole
