@@ -123,12 +123,14 @@ double wrt_scan_exchange_fraction(const wrt_scene *s) {
  *   y = c * step^(q - 5) * (N / 1000)^(a + k (min(q, 5) - 5)) * (f / 0.3)^g * (x / 0.1)^h
  * with N the elements, f the visible fraction and x the exchange fraction above and q
  * the quality, one set of constants for the plain bake and one for --clusters (h = 0:
- * it links clusters, not every pair of elements that face each other; k = 0 for the plain
- * bake: with --clusters quality 5's CPU grows as N^0.7 where quality 1's grows as N^1.2,
- * and the qualities over 5, none fitted, take quality 5's exponent). Fitted over the
- * measured bakes in docs/scan_fit.csv (tools/scan_fit.py: quality 3 and 5, cornell-shapes,
- * mazes, the atrium, the Blender scenes; with --clusters quality 1 to 5, cornell-shapes and
- * the atrium from 240 to 100,256 elements, all baked again in session 16) to make the
+ * it links clusters, not every pair of elements that face each other; k moves N's exponent
+ * with the quality: with --clusters quality 5's CPU grows as N^0.7 where quality 1's grows
+ * as N^1.2, and the plain bake's quality-1 rows lay 5 times over a model without it; the
+ * qualities over 5, none fitted, take quality 5's exponent). Fitted over the measured
+ * bakes in docs/scan_fit.csv (tools/scan_fit.py: the plain bake at quality 1, 3 and 5,
+ * cornell-shapes, mazes, the atrium, the Blender scenes; with --clusters quality 1 to 5,
+ * cornell-shapes and the atrium from 240 to 100,256 elements, all baked again with the
+ * receivers' tree in sessions 19 and 20) to make the
  * band of estimate / measured narrowest, then c
  * raised so that no measured bake lies above its estimate, and by a rerun's spread above
  * that (tools/scan_fit.py SPREAD): the estimate is an upper bound, and docs/triangles.md
@@ -142,17 +144,17 @@ double wrt_scan_exchange_fraction(const wrt_scene *s) {
 typedef struct scan_model { double c, step, a, g, h, k; } scan_model;
 /* [0] seconds, [1] peak MB over the base, [2] bytes: {c, step, a, g, h, k}; pasted from
  * tools/scan_fit.py's output */
-static const double scan_plain_range[2][2] = {{0.0168, 0.5658}, {0.0081, 0.5401}}; /* f, x */
+static const double scan_plain_range[2][2] = {{0.0102, 0.5658}, {0.0081, 0.5401}}; /* f, x */
 static const double scan_clusters_range[2][2] = {{0.3610, 0.5214}, {0, 1}};
 static const scan_model model_plain[3] = {
-    {235.2, 3.0709, 1.2752, 0.5724, 0.4305, 0}, /* cpu_s */
-    {2219, 2.4417, 1.2307, 0.3148, 0.4143, 0}, /* peak_mb */
-    {1.555e+08, 2.1177, 0.9113, 0.1501, -0.0071, 0}, /* bytes */
+    {206, 2.2033, 0.9932, 0.3865, 0.3911, -0.2565}, /* cpu_s */
+    {1663, 2.0726, 1.1071, 0.3693, 0.6034, -0.1804}, /* peak_mb */
+    {1.306e+08, 2.0595, 0.8983, 0.2398, 0.0417, -0.1326}, /* bytes */
 };
 static const scan_model model_clusters[3] = {
-    {169, 2.0105, 0.7652, -0.5515, 0, -0.1199}, /* cpu_s */
-    {1603, 2.0907, 0.6502, 0.8308, 0, -0.1324}, /* peak_mb */
-    {8.312e+07, 1.8575, 0.6993, 0.7074, 0, -0.1248}, /* bytes */
+    {297.1, 2.1401, 0.8107, -0.5426, 0, -0.0945}, /* cpu_s */
+    {1381, 1.9482, 0.6571, 1.1015, 0, -0.0911}, /* peak_mb */
+    {1.027e+08, 1.9738, 0.6457, 0.2099, 0, -0.0364}, /* bytes */
 };
 
 static double clampd(double v, const double r[2]) { return v < r[0] ? r[0] : v > r[1] ? r[1] : v; }

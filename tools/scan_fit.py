@@ -62,10 +62,11 @@ USE_EXCHANGE = USE_VISIBLE and "--no-exchange" not in sys.argv
 def features(r):
     g = math.log(max(r["visible"], 1e-3) / 0.3) if USE_VISIBLE else 0.0
     h = math.log(max(r["exchange"], 1e-4) / 0.1) if USE_EXCHANGE and r["bake"] == "plain" else 0.0
-    # with --clusters the exponent of N moves with the quality (k): quality 5's CPU grows as
+    # the exponent of N moves with the quality (k): with --clusters quality 5's CPU grows as
     # N^0.7 over 5,048 to 22,224 atrium elements where quality 1's grows as N^1.2; the
-    # qualities over 5 take quality 5's exponent (none is fitted there)
-    qn = (min(r["quality"], 5) - 5.0) * math.log(r["elements"] / 1000.0) if r["bake"] == "clusters" else 0.0
+    # plain bake's too since its quality-1 rows (session 20: without k its band grew from
+    # 1.7x to 3.6x); the qualities over 5 take quality 5's exponent (none is fitted there)
+    qn = (min(r["quality"], 5) - 5.0) * math.log(r["elements"] / 1000.0)
     return [1.0, r["quality"] - 5.0, math.log(r["elements"] / 1000.0), g, h, qn]
 
 
@@ -110,7 +111,7 @@ def fit(rows, fig):
     on log y first, then the largest residual minimized, a minimax fit: what an upper bound
     within a factor needs); returns (c, step, a, g, h, k) with c raised to bound every row."""
     x = [features(r) for r in rows]
-    if not any(xi[5] != 0 for xi in x):  # the plain bake: no k, the simplex as before
+    if not any(xi[5] != 0 for xi in x):  # every row at quality 5 (or N = 1000): no k
         x = [xi[:5] + [0.0] for xi in x]
     y = [math.log(target(r, fig)) for r in rows]
     exch = any(xi[4] != 0 for xi in x)
