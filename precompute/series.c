@@ -1024,11 +1024,8 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
      * E1's bytes on the atrium at 2,704 and 22,224 elements (quality 1) and 5,048 (quality
      * 5), so 4. Until session 18 one check counted the whole start at 5 times E1 (measured
      * 2.4 to 4.3): it refused the 53,122-element atrium at quality 5 at the default budget,
-     * 12,140 MB asked against a peak of 9,326. With T unformed, 8 MB a thread more: the
-     * walk's threads allocate in arenas of their own, which do not reuse the main arena's
-     * freed pages (the 596-element atrium at quality 1, 2 threads, 24 runs: the bake's
-     * peak 63-66 or 75-78 MB, at the walk, against an estimate of 75 MB: the walk took 3.0
-     * or 4.1 times E1's 13.2 MB over the 25 MB before it, as its threads' arenas fell) */
+     * 12,140 MB asked against a peak of 9,326. Plus 8 MB a thread: the walk's threads' own
+     * arenas (596 atrium elements, q1: peaks 63-66 or 75-78 MB in 24 runs against 75) */
     uint64_t start_need = s.no_t ? 4 * 16 * res->dto_e1.nnz + (uint64_t)wrt_threads_resolve(s.threads) * (8u << 20)
                                  : copies * 16 * res->dto.nnz;
     wrt_status st = wrt_bake_memory_check(b->opt.max_memory_mb, &res->c.mem_estimate_mb, start_need,
