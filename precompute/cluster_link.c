@@ -223,8 +223,8 @@ static double spread_of(const double *v, const int *st, double *hi) {
  * when the error is at most c->eps of the scene's area (the power criterion: far or
  * small exchanges). A side whose points include both some that see the other and some
  * that do not (hidden, or facing away) would, pushed down uniformly, light quads that
- * get no light (the dark room behind a wall): then only an error of c->eps *
- * WRT_CLUSTER_STRICT passes. */
+ * get no light (the dark room behind a wall): then only an error of
+ * WRT_CLUSTER_EPS_HIDDEN (or c->eps, if smaller) times the scene's area passes. */
 static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
     const wrt_clusters *cl = c->cl;
     double kv[S][S], fa[S] = {0}, fb[S] = {0}, sum = 0;
@@ -276,7 +276,7 @@ static int oracle(const lctx *c, sink *k, uint32_t a, uint32_t bn) {
     int mixed = (ma & PT_HIDDEN) || (mb & PT_HIDDEN);
     double ha, hb, da = spread_of(fa, sa, &ha), db = spread_of(fb, sb, &hb);
     double err = fmax(rho * aa * da, rhob * ab * db);
-    if (mixed) bound *= WRT_CLUSTER_STRICT;
+    if (mixed) bound = fmin(c->eps, WRT_CLUSTER_EPS_HIDDEN) * cl->tree.area[0];
     int agree = !mixed && da <= c->spread * ha && db <= c->spread * hb;
     if (!agree && !(err <= bound)) {
         if (mixed || nblk) k->refused_vis++; else k->refused_spread++;

@@ -119,7 +119,7 @@ static void usage(FILE *f) {
         "  --no-clusters          the plain bake (every quad pair) whatever the scene's size\n"
         "  --cluster-eps E        --clusters, and the oracle's power criterion: a cluster pair\n"
         "                         whose estimated error is at most E of the scene's power is\n"
-        "                         linked at cluster level (default 1e-4; 0: off)\n"
+        "                         linked at cluster level (default 1e-6; 0: off)\n"
         "  --clusters-keep-away   --clusters, and a pair whose sampled facing rays are all\n"
         "                         blocked while some point faces away refined, not dropped\n"
         "                         under the kernel's bound (before session 14; docs/clusters.md)\n"
