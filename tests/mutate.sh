@@ -280,6 +280,12 @@ mutation receivers-ancestors-dropped: the receivers' tree rows keep no ancestor 
   repl keep[i] = 0;
   run test_triangles test_icosphere_furnace_many
 
+mutation cluster-eps-old: the cluster oracle's power criterion back at 1e-4 (the far wall's tiles)
+  file precompute/cluster.h
+  find #define WRT_CLUSTER_EPS_DEFAULT 1e-6
+  repl #define WRT_CLUSTER_EPS_DEFAULT 1e-4
+  run test_cluster test_far_wall
+
 mutation open-cancel-ignored: the open goes on when the progress callback returns 0
   file player/relight_base.c
   find return r->opt.progress(r->opt.progress_user, fraction) != 0;
