@@ -21,9 +21,12 @@
 #   -R: reuse the bakes (and their timings) in BUILD/study/NAME newer than wrt-bake and the
 #       scene, and the comparison if newer than wrt-compare and the bakes, with the same options
 #   default scenes: assets/cornell.gltf assets/maze.gltf assets/glossy.gltf, swept over
-#   1..7, 1..6 and 1..5 (the higher qualities take minutes to hours on 2 cores: see
-#   docs/study/README.md); any other scene over 1..6 unless -q is given.
-#   WRT_STUDY_COMPARE: wrt-compare's reference options (default below);
+#   1..7, 1..6 and 1..5, and atrium:1.5, over 1..5 (the higher qualities take minutes to
+#   hours on 2 cores: see docs/study/README.md); any other scene over 1..6 unless -q is given.
+#   A scene atrium:D is generated (wrt-scenegen atrium --detail D) into BUILD/study: the
+#   Sponza proxy of the scale benchmark (D 1.5: 5,048 elements, baked with the cluster
+#   hierarchy), compared at 2 x 2 cells a quad with 20M cell paths a light (below).
+#   WRT_STUDY_COMPARE: wrt-compare's reference options for every scene (default below);
 #   WRT_STUDY_PICTURE_SPP: the pictures' reference paths per pixel (default 1024).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -41,12 +44,15 @@ while getopts "b:o:q:d:PRh" opt; do
 done
 shift $((OPTIND - 1))
 scenes=("$@")
-[ ${#scenes[@]} -gt 0 ] || scenes=(assets/cornell.gltf assets/maze.gltf assets/glossy.gltf)
+[ ${#scenes[@]} -gt 0 ] || scenes=(assets/cornell.gltf assets/maze.gltf assets/glossy.gltf atrium:1.5)
 # --sub 16: the bake's image is sampled at 16 x 16 points a pixel, so that pixels across a
 # crease or a silhouette weigh its two sides as the path tracer's pixel integral does; at
 # the compare's default 4 x 4 that coverage error alone was most of the maze's image error
 # (6.1% -> 3.1% debiased, the same bake and reference) and 0.2 points of cornell's.
-compare_args=${WRT_STUDY_COMPARE:---lights 5 --cell-paths 10000000 --width 64 --spp 4096 --sub 16 --bench 21}
+compare_default="--lights 5 --cell-paths 10000000 --width 64 --spp 4096 --sub 16 --bench 21"
+# the atrium's elements are many and small (5,048 at detail 1.5): 2 x 2 cells each
+# (4 x 4 would leave about 125 reference paths a cell), and twice the cell paths
+compare_atrium="--lights 5 --cells 2 --cell-paths 20000000 --width 64 --spp 4096 --sub 16 --bench 21"
 for t in jq gnuplot; do command -v $t >/dev/null || { echo "study: needs $t (make deps)" >&2; exit 1; }; done
 for p in wrt-bake wrt-compare; do [ -x "$build/$p" ] || { echo "study: no $build/$p (make all)" >&2; exit 1; }; done
 mkdir -p "$out"
@@ -58,6 +64,7 @@ default_quals() {
         maze) echo "1 2 3 4 5 6" ;;
         glossy) echo "1 2 3 4 5 6 7 5k0" ;;
         cornell_glossy) echo "1 2 3 4 5 6 7 5k0" ;;
+        atrium*) echo "1 2 3 4 5" ;;
         *) echo "1 2 3 4 5 6" ;;
     esac
 }
@@ -144,9 +151,22 @@ EOF
 
 [ $redraw -eq 0 ] || { scenes=(); for j in "$out"/*.json; do plot_scene "$j" "${j%.json}.png"; done; }
 for scene in "${scenes[@]}"; do
-    name=$(basename "$scene"); name=${name%.*}
-    work=$build/study/$name
-    mkdir -p "$work"
+    compare_args=${WRT_STUDY_COMPARE:-$compare_default}
+    if [[ $scene == atrium:* ]]; then
+        detail=${scene#atrium:}
+        name=atrium; work=$build/study/$name
+        mkdir -p "$work"
+        "$build/wrt-scenegen" atrium --detail "$detail" -o "$work/atrium.gltf.new"
+        # the scene's file keeps its time unless it changed, so that -R can reuse the bakes
+        if cmp -s "$work/atrium.gltf.new" "$work/atrium.gltf"; then rm "$work/atrium.gltf.new"
+        else mv "$work/atrium.gltf.new" "$work/atrium.gltf"; fi
+        scene=$work/atrium.gltf; label="wrt-scenegen atrium --detail $detail"
+        compare_args=${WRT_STUDY_COMPARE:-$compare_atrium}
+    else
+        name=$(basename "$scene"); name=${name%.*}; label=$scene
+        work=$build/study/$name
+        mkdir -p "$work"
+    fi
     qs=${quals:-$(default_quals "$scene")}
     gtos=()
     echo "study: $name, qualities $qs" >&2
@@ -208,7 +228,7 @@ for scene in "${scenes[@]}"; do
     # One row per quality: the bake's figures and the comparison's.
     for q in $qs; do jq --arg s "$q" '. + {setting: $s}' "$work/bake_q$q.json"; done | jq -s '.' >"$work/bakes.json"
     jq --slurpfile b "$work/bakes.json" --slurpfile t "$work/bench.json" --slurpfile pt "$work/pt.json" \
-       --arg name "$name" --arg scene "$scene" --arg qd "$qd" \
+       --arg name "$name" --arg scene "$label" --arg qd "$qd" \
        --arg nproc "$(nproc)" --arg date "$(date -u +%Y-%m-%dT%H:%MZ)" --arg args "$compare_args" '
       (($pt[0].image.time_s / $pt[0].image.spp)) as $spp_s | .reference.image.spp as $spp_ref |
       {scene: $scene, name: $name, date: $date, cores: ($nproc | tonumber), compare_options: $args,
