@@ -4,7 +4,7 @@
  * coefficient sqrt(A / pi) on phi_root and none on the wavelets); with no well separated
  * pair the DTO is the plain bake's exactly, up to the transform; two rooms sharing a wall
  * of 64 quads keep the dark room dark; a closed box of 16 x 16 quads a face is a furnace
- * whose flux is rho / (1 - rho); one bounce onto a far wall matches Lambert's closed form
+ * whose flux is rho / (1 - rho); one bounce onto a far wall matches the closed-form form factors
  * quad by quad (no tiles); the .gto section is read back and its damage refused. */
 #include <malloc.h>
 #include <stdlib.h>
@@ -13,6 +13,7 @@
 #include "test.h"
 #include "scene_build.h"
 #include "bake_helpers.h"
+#include "ff_closed.h"
 #include "common/cluster_tree.h"
 #include "formats/gto.h"
 #include "precompute/cluster.h"
@@ -696,26 +697,12 @@ static void test_furnace_blocker(void) {
     tsb_free(&s);
 }
 
-/* The irradiance factor at x (normal n) of a uniformly radiant convex polygon v[0..nv)
- * wholly in front of x: Lambert's contour formula, (1 / 2 pi) times the sum over the edges
- * of the angle each subtends times the cosine between its plane and n. */
-static double polygon_factor(wrt_v3 x, wrt_v3 n, const wrt_v3 *v, int nv) {
-    double f = 0;
-    for (int i = 0; i < nv; i++) {
-        wrt_v3 a = v3_norm(v3_sub(v[i], x)), b = v3_norm(v3_sub(v[(i + 1) % nv], x));
-        wrt_v3 c = v3_cross(a, b);
-        double sn = v3_len(c);
-        if (sn > 0) f += atan2(sn, v3_dot(a, b)) * v3_dot(n, c) / sn;
-    }
-    return fabs(f) / (2 * M_PI);
-}
-
 /* A wall (z = 0, 1 x 1, 16 x 16 quads, normal +z, albedo 0.5) at the end of a floor 3 deep
  * (y = 0, 48 x 16 quads, normal +y, albedo 0.8), irradiance 1 on the floor, --clusters at
  * quality 5, power criterion eps: one bounce of the stored operator (max_bounces 1, no
- * tail) against its closed form, rho_floor times the mean over each wall quad of the
- * floor's factor (Lambert's contour formula at 6 x 6 Gauss points). Worst and rms of the
- * wall quads' relative errors in worst[0..1]. */
+ * tail) against its closed form, rho_floor times each wall quad's form factor to the
+ * floor (perpendicular rectangles sharing an edge's line: ff_closed.h). Worst and rms of
+ * the wall quads' relative errors in worst[0..1]. */
 static void far_wall(double eps, double worst[2], unsigned long long *links) {
     const int n = 16;
     double rf = 0.8, rw = 0.5, depth = 3;
@@ -735,9 +722,6 @@ static void far_wall(double eps, double worst[2], unsigned long long *links) {
     double *in = calloc((size_t)s.nquads, sizeof *in);
     for (int q = 0; q < w0; q++) in[q] = 1;
     double *e = response(&s, &r, &r.op, in);
-    wrt_v3 fl[4] = {P(0, 0, 0), P(1, 0, 0), P(1, 0, depth), P(0, 0, depth)};
-    static const double gx[6] = {-0.9324695142, -0.6612093865, -0.2386191861, 0.2386191861, 0.6612093865, 0.9324695142};
-    static const double gw[6] = {0.1713244924, 0.3607615730, 0.4679139346, 0.4679139346, 0.3607615730, 0.1713244924};
     double sum = 0;
     worst[0] = 0;
     for (int q = w0; q < s.nquads; q++) {
@@ -747,12 +731,9 @@ static void far_wall(double eps, double worst[2], unsigned long long *links) {
             lo[0] = fmin(lo[0], Q->p[k].x); hi[0] = fmax(hi[0], Q->p[k].x);
             lo[1] = fmin(lo[1], Q->p[k].y); hi[1] = fmax(hi[1], Q->p[k].y);
         }
-        double t = 0;
-        for (int i = 0; i < 6; i++)
-            for (int j = 0; j < 6; j++) {
-                wrt_v3 x = P(lo[0] + (hi[0] - lo[0]) * (gx[i] + 1) / 2, lo[1] + (hi[1] - lo[1]) * (gx[j] + 1) / 2, 0);
-                t += gw[i] * gw[j] / 4 * polygon_factor(x, P(0, 0, 1), fl, 4);
-            }
+        /* ff_closed.h's frame (x', y', z') = (y, x, z): the wall quad in z' = 0 at heights
+         * x' in [lo y, hi y], the floor in x' = 0 over z' in [0, depth], y' in [0, 1] */
+        double t = ffc_perpendicular(lo[1], hi[1], lo[0], hi[0], 0, depth, 0, 1);
         double err = fabs(e[q] / (rf * t) - 1);
         worst[0] = fmax(worst[0], err);
         sum += err * err;
@@ -764,7 +745,8 @@ static void far_wall(double eps, double worst[2], unsigned long long *links) {
     CHECK(fmaxe <= 1e-6, "the floor lit by one bounce: %.3g", fmaxe);
     *links = (unsigned long long)r.c.cluster_links;
     printf("far wall (%d wall quads, %d floor), --clusters q5, eps %g, one bounce against the closed form: "
-           "worst %.2f%%, rms %.2f%%; %llu cluster links, %llu leaf pairs\n", s.nquads - w0, w0, eps > 0 ? eps : 1e-6,
+           "worst %.2f%%, rms %.2f%%; %llu cluster links, %llu leaf pairs\n", s.nquads - w0, w0,
+           eps > 0 ? eps : WRT_CLUSTER_EPS_DEFAULT,
            100 * worst[0], 100 * worst[1], *links, (unsigned long long)r.c.cluster_leaf_pairs);
     free(in); free(e);
     wrt_bake_result_free(&r);
