@@ -476,8 +476,8 @@ int wrt_series_factored_on(const bake_ctx *b, const wrt_bake_result *res) {
  * Tr's own arrays since session 18, not copied): a bound, not a measured factor */
 wrt_status wrt_series_factored_check(const series_state *s) {
     const wrt_csc *E1 = &s->res->dto_e1;
-    uint64_t n = (uint64_t)E1->n + 1, nb = WRT_CSC_BANDS + 1;
-    uint64_t need = 16 * E1->nnz + 8 * n + (s->b->opt.series_skip > 0 ? n * (8 * nb + 32 * nb + 8) : 0);
+    uint64_t n = (uint64_t)E1->n + 1;
+    uint64_t need = 16 * E1->nnz + 8 * n + (s->b->opt.series_skip > 0 ? wrt_csc_bands_index_bytes(E1->n) : 0);
     return wrt_bake_memory_check(s->b->opt.max_memory_mb, &s->res->c.mem_estimate_mb, need,
                                  "the series' right factor");
 }
@@ -526,7 +526,7 @@ void wrt_series_factored_bands(series_state *s) {
      * (series.c series_free_right), and none made beside it (until session 18 the bands
      * were a copy, Tr's freed after: a second Tr at the series' start, the bake's peak on
      * the 53,122-element atrium at quality 5) */
-    wrt_csc_bands_make_in_place(&s->Tr, s->FW.row_w, s->FW.power_w, &s->Trb);
+    wrt_csc_bands_make_in_place(&s->Tr, s->FW.row_w, s->FW.power_w, &s->Trb, s->threads);
     s->FW.bands = &s->Trb;
     s->FW.skip = s->b->opt.series_skip;
 }

@@ -56,15 +56,18 @@ typedef struct wrt_csc_weights {
 #define WRT_CSC_BANDS 16
 typedef struct wrt_csc_bands {
     wrt_csc a;
-    uint64_t *start;  /* n x (WRT_CSC_BANDS + 1): where band b of column k starts in a */
+    uint32_t *start;  /* n x WRT_CSC_BANDS: where band b of column k starts, from the column's start in a */
     double *top;      /* n */
-    double *rest;     /* n x (WRT_CSC_BANDS + 1) x 4 */
+    float *rest;      /* n x WRT_CSC_BANDS x 4 (summed in double, stored rounded) */
 } wrt_csc_bands;
+/* The bands' index of an n-column matrix, in bytes (a's entries not counted) */
+uint64_t wrt_csc_bands_index_bytes(uint32_t n);
 void wrt_csc_bands_make(const wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out);
 /* the same bands made in a's own arrays (a column at a time through a scratch column):
  * out->a.row and val are a's, which keeps owning them (free them once, by a or by out,
  * not both); a's columns are left in the bands' order */
-void wrt_csc_bands_make_in_place(wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out);
+void wrt_csc_bands_make_in_place(wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out,
+                                 int threads);
 void wrt_csc_bands_free(wrt_csc_bands *b);
 
 /* C = A B, compressed by `drop` and `w` (may be NULL). Deterministic whatever `threads`. */

@@ -270,8 +270,8 @@ mutation apart-weight-lost: the sum's walk decides the nodes apart but no longer
 
 mutation bands-in-place-unscratched: the right factor's bands are made in place reading the column being overwritten
   file precompute/sparse.c
-  find bands_col(k, c0, row, val, m, row_w, power_w, out);
-  repl bands_col(k, c0, a->row + c0, a->val + 3 * c0, m, row_w, power_w, out);
+  find bands_col(k, c0, row, val, m, x->row_w, x->power_w, x->out);
+  repl bands_col(k, c0, a->row + c0, a->val + 3 * c0, m, x->row_w, x->power_w, x->out);
   run test_sparse test_product_skip
 
 mutation receivers-ancestors-dropped: the receivers' tree rows keep no ancestor of a kept entry
