@@ -800,6 +800,11 @@ static wrt_status series_bounces(series_state *s) {
             st = wrt_fail(WRT_ERR_CANCELLED, "bake cancelled");
             break;
         }
+        if (s->timing) {
+            char what[64];
+            snprintf(what, sizeof what, "bounce %d (%llu entries)", (int)C->bounces, (unsigned long long)s->P.nnz);
+            wrt_series_mark(s, what);
+        }
         if (C->energy_left < 1e-6) break;
         if (!b->opt.no_tail && stable >= 3 && C->bounces >= 8) break;
     }
@@ -1066,6 +1071,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
     } else {
         st = series_bounces(&s);
         if (st == WRT_OK) st = series_tail(&s);
+        if (st == WRT_OK) wrt_series_mark(&s, "tail and stored operator");
     }
     if (st == WRT_OK) st = series_gathered(&s);
     if (st != WRT_OK) {
