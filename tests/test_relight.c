@@ -12,6 +12,7 @@
 #include "common/basis.h"
 #include "common/brdf.h"
 #include "common/brdf_table.h"
+#include "ff_closed.h"
 #include "player/relight.h"
 #include "formats/gto_layout.h" /* the compact operator's encoder (test_multiply_compact) */
 
@@ -1454,18 +1455,6 @@ static void test_first_bounce_projection(void) {
     first_bounce_projection(1, 4, 4); /* 4 x 256: angular node levels 0..3, the BRDF table's all */
 }
 
-/* Lambert's closed form: form factor from a point x (unit normal n) to a convex polygon
- * wholly in front of it. */
-static double ff_point_poly(wrt_v3 x, wrt_v3 n, const wrt_v3 *p, int cnt) {
-    double sum = 0;
-    for (int i = 0; i < cnt; i++) {
-        wrt_v3 a = v3_norm(v3_sub(p[i], x)), b = v3_norm(v3_sub(p[(i + 1) % cnt], x)), c = v3_cross(a, b);
-        double sl = v3_len(c);
-        if (sl < 1e-300) continue;
-        sum += atan2(sl, v3_dot(a, b)) * v3_dot(c, n) / sl;
-    }
-    return fabs(sum) / (2 * WRT_PI);
-}
 
 /* K's rows in fours hold their values as half-precision floats, each four scaled by a
  * power of two (relight_bounce.c k_halves): Y = K c then is K's product within the halves'
@@ -1612,7 +1601,7 @@ static void test_first_bounce_brute_force(void) {
                         wrt_v3 poly[4] = {bilerp(gf, u0, v0), bilerp(gf, u0 + h, v0), bilerp(gf, u0 + h, v0 + h), bilerp(gf, u0, v0 + h)};
                         wrt_v3 y = bilerp(gf, u0 + 0.5 * h, v0 + 0.5 * h), dir = v3_norm(v3_sub(y, x)), wo = v3_scale(dir, -1);
                         if (v3_dot(dir, nR) <= 0 || v3_dot(wo, nF) <= 0) continue;
-                        double ff = ff_point_poly(x, nR, poly, 4);
+                        double ff = ffc_point_polygon(x, nR, poly, 4);
                         /* receiver's incident angular values (root, then level 0's wavelets) */
                         double lr[3] = {v3_dot(dir, tR), v3_dot(dir, bR), v3_dot(dir, nR)}, ar, br, gr[4] = {1, 0, 0, 0};
                         wrt_concentric_inv(lr, &ar, &br);

@@ -375,19 +375,6 @@ static void test_furnace_general_quads(void) {
 
 /* ------------------------------------------------ shared edges and wedges ---- */
 
-/* Independent point-to-polygon form factor (Lambert), the polygon entirely in front. */
-static double ff_point(wrt_v3 x, wrt_v3 n, const wrt_v3 *poly, int count) {
-    double sum = 0;
-    for (int i = 0; i < count; i++) {
-        wrt_v3 a = v3_sub(poly[i], x), b = v3_sub(poly[(i + 1) % count], x);
-        wrt_v3 c = v3_cross(a, b);
-        double cl = v3_len(c);
-        if (cl == 0) continue;
-        double ang = atan2(cl, v3_dot(a, b));
-        sum += ang * v3_dot(c, n) / cl;
-    }
-    return fabs(sum) / (2 * M_PI);
-}
 
 /* Gauss-Legendre nodes and weights on [0, 1], 8 points. */
 static const double gl8x[8] = {0.0198550717512319, 0.1016667612931866, 0.2372337950418355, 0.4082826787521751,
@@ -418,7 +405,7 @@ static double wedge_truth(double theta, int depth) {
             for (int j = 0; j < np; j++)
                 for (int b = 0; b < 8; b++) {
                     double yv = e[j] + (e[j + 1] - e[j]) * gl8x[b], wv = (e[j + 1] - e[j]) * gl8w[b];
-                    sum += wu * wv * ff_point(P(xu, yv, 0), P(0, 0, 1), plate, 4);
+                    sum += wu * wv * ffc_point_polygon(P(xu, yv, 0), P(0, 0, 1), plate, 4);
                 }
         }
     return sum;
@@ -603,7 +590,7 @@ static void test_tiny_quad(void) {
         wrt_csc_apply(&r.dto, x, y);
         got = y[3 * ft] * sqrt(M_PI / s.quads[tq].area);
         wrt_v3 ce[4] = {s.quads[ceiling].p[0], s.quads[ceiling].p[1], s.quads[ceiling].p[2], s.quads[ceiling].p[3]};
-        truth = 0.5 * ff_point(P(c + 0.5 * a, c + 0.5 * a, h), P(0, 0, 1), ce, 4);
+        truth = 0.5 * ffc_point_polygon(P(c + 0.5 * a, c + 0.5 * a, h), P(0, 0, 1), ce, 4);
         /* and back: the tiny quad lit with irradiance 1 sends rho A_t F(t -> c) / A_c to the ceiling */
         memset(x, 0, 3 * r.nfuncs * sizeof *x);
         memset(y, 0, 3 * r.nfuncs * sizeof *y);

@@ -69,21 +69,6 @@ static void gauss01(int n, double *x, double *w) {
     }
 }
 
-/* Lambert: the form factor from a point x with unit normal n to the polygon v[0..m-1]
- * wholly above x's tangent plane: (1 / 2 pi) sum over edges of the angle the edge
- * subtends times the cosine between n and the edge's plane normal. */
-static double lambert(wrt_v3 x, wrt_v3 n, const wrt_v3 *v, int m) {
-    double s = 0;
-    for (int k = 0; k < m; k++) {
-        wrt_v3 a = v3_sub(v[k], x), b = v3_sub(v[(k + 1) % m], x);
-        wrt_v3 c = v3_cross(a, b);
-        double lc = v3_len(c);
-        if (!(lc > 0)) continue;
-        double ang = atan2(lc, v3_dot(a, b));
-        s += ang * v3_dot(c, n) / lc;
-    }
-    return fabs(s) / (2 * M_PI);
-}
 
 /* Breakpoints on [0, 1] graded geometrically (ratio 0.15, 18 levels) towards the ends
  * where `grade` says (bit 0: towards 0, bit 1: towards 1). Returns the count. */
@@ -103,7 +88,7 @@ static int graded(int grade, double *t) {
 
 /* The form factor from the patch P(s,t) = (1-t)[(1-s) e0 + s e1] + t[(1-s) f0 + s f1]
  * (a triangle when f0 = f1, a parallelogram when f1 - f0 = e1 - e0), normal n, to the
- * polygon v[0..m-1]: the area-weighted mean of lambert() over the patch. The edge t = 0
+ * polygon v[0..m-1]: the area-weighted mean of ffc_point_polygon() over the patch. The edge t = 0
  * (e0 e1) is where a sender sharing it makes the integrand non-smooth; the rules are
  * graded towards it and towards both its ends. */
 static double ff_patch_polygon(wrt_v3 e0, wrt_v3 e1, wrt_v3 f0, wrt_v3 f1, wrt_v3 n, const wrt_v3 *v, int m) {
@@ -124,7 +109,7 @@ static double ff_patch_polygon(wrt_v3 e0, wrt_v3 e1, wrt_v3 f0, wrt_v3 f1, wrt_v
                     wrt_v3 ds = v3_add(v3_scale(v3_sub(e1, e0), 1 - t), v3_scale(v3_sub(f1, f0), t));
                     wrt_v3 dt = v3_sub(pf, pe);
                     double J = v3_len(v3_cross(ds, dt)), w = wt * ws * J;
-                    sum += w * lambert(x, n, v, m);
+                    sum += w * ffc_point_polygon(x, n, v, m);
                     area += w;
                 }
         }
