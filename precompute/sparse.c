@@ -509,7 +509,7 @@ static double entry_size(const float *v, const double *row_w, uint32_t i) {
  * band 0 to WRT_CSC_BANDS - 1 on (WRT_CSC_BANDS: nothing skipped), so those bands' starts
  * (32-bit offsets from the column's start) and rests are stored, the rests summed in
  * double and stored as floats: 336 bytes a column, not the 688 of 64-bit positions and
- * doubles (on the 12 x 12 maze's 274,910 functions 92 MB instead of 189) */
+ * doubles (session 23; 274,910 columns: 92 MB instead of 189) */
 static void bands_col(uint32_t k, uint64_t c0, const uint32_t *src_row, const float *src_val, uint64_t m,
                       const double *row_w, const double *power_w, wrt_csc_bands *out) {
     const size_t nb = WRT_CSC_BANDS;
@@ -600,8 +600,7 @@ static void bands_chunk(size_t c, int th, void *user) {
 }
 
 /* Each column on its own (its entries, its index): by chunks of columns on the threads,
- * the same bytes at any thread count (the 12 x 12 maze's first term, 16M entries, took
- * 1.4 s on one) */
+ * the same bytes at any thread count (16M entries took 1.4 s on one thread) */
 void wrt_csc_bands_make_in_place(wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out,
                                  int threads) {
     bands_init(a, out);

@@ -63,9 +63,10 @@ typedef struct wrt_csc_bands {
 /* The bands' index of an n-column matrix, in bytes (a's entries not counted) */
 uint64_t wrt_csc_bands_index_bytes(uint32_t n);
 void wrt_csc_bands_make(const wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out);
-/* the same bands made in a's own arrays (a column at a time through a scratch column):
- * out->a.row and val are a's, which keeps owning them (free them once, by a or by out,
- * not both); a's columns are left in the bands' order */
+/* the same bands made in a's own arrays (each column through a scratch column, by chunks
+ * of columns on `threads`: the same bytes at any count): out->a.row and val are a's,
+ * which keeps owning them (free them once, by a or by out, not both); a's columns are left
+ * in the bands' order */
 void wrt_csc_bands_make_in_place(wrt_csc *a, const double *row_w, const double *power_w, wrt_csc_bands *out,
                                  int threads);
 void wrt_csc_bands_free(wrt_csc_bands *b);
