@@ -86,9 +86,10 @@ static void usage(FILE *f) {
         "  --series-right F       bounces from --series-right-from B (default 2) on multiply\n"
         "                         by T compressed at F x --eps-compress (power kept) instead\n"
         "                         of the full T (default 1; 0: the full T, slower)\n"
-        "  --series-skip F        with --clusters, the series' products do not sum a single\n"
-        "                         contribution under F x --eps-compress (weighted as the\n"
-        "                         compression), its power kept (default 1/64; 0: sum all)\n"
+        "  --series-skip F        the series' products do not sum a single contribution under\n"
+        "                         F x --eps-compress (weighted as the compression); the plain\n"
+        "                         series skips only those that carry no power, --clusters'\n"
+        "                         keeps their power (default 1/64; 0: sum all)\n"
         "  --series-columns K     with --clusters, the series takes K blocks of columns one at a\n"
         "                         time through every bounce, each stored before the next\n"
         "                         starts (default 16; 0: the terms whole, held together)\n"
@@ -269,7 +270,7 @@ static void json_options(FILE *f, const wrt_bake_options *o) {
             o->series_right_from);
     /* only when on (the default bake's provenance, and so its bytes, unchanged) */
     if (o->series_coarse > 0) fprintf(f, ",\"series_coarse\":%.6g", o->series_coarse);
-    if (o->clusters) fprintf(f, ",\"series_skip\":%.6g", o->series_skip > 0 ? o->series_skip : 0);
+    fprintf(f, ",\"series_skip\":%.6g", o->series_skip > 0 ? o->series_skip : 0);
     /* only when off: the blocks' count does not change the operator */
     if (o->clusters && o->series_columns < 0) fprintf(f, ",\"series_columns\":0");
     /* only when not the default 10 (the default bake's bytes unchanged); 0: off */

@@ -96,6 +96,7 @@ static wrt_status series_memory_check_beside(const bake_ctx *b, wrt_bake_counter
         need = per * 1.25 * (1 + 1.0 / 32) * (double)est;
     }
     if (X) need = 2 * need + fmax(0, need - per * (double)X->nnz);
+    if (W && W->skip > 0 && !W->bands) need += (double)wrt_csc_mul_order_bytes(P); /* the skip's order of P */
     if (ss)
         need += (double)series_stream_need(b, wrt_sum_stream_nnz(ss) + est) +
                 (double)series_overlay_need(ss, beside ? beside->nnz : est);
@@ -331,6 +332,17 @@ wrt_csc wrt_series_csc_range(const wrt_csc *m, uint32_t c0, uint32_t c1) {
     return r;
 }
 
+/* The plain series' products' weights: the compression's, with the skip (bake.h
+ * series_skip; sparse.c mul_order): P_k's single contributions that carry no power and
+ * lie under series_skip x the threshold are not summed. From the right (P_k T), what a
+ * product leaves out reaches the light as D (I - T)^-1 x, not carried by every later
+ * bounce as from the left (docs/bench.md "The plain series' skip"). */
+static wrt_csc_weights series_plain_weights(const series_state *s) {
+    wrt_csc_weights w = s->W;
+    w.skip = s->b->opt.series_skip > 0 ? s->b->opt.series_skip : 0;
+    return w;
+}
+
 static const wrt_csc *series_right(const series_state *s, int bounce);
 
 /* The series in the senders' tree basis by shares (series_tree_on, docs/mpi.md "Session 11
@@ -407,9 +419,10 @@ static wrt_status series_share_mul(series_state *s, const wrt_csc *R, int bounce
     wrt_status st = wrt_dist_share_fetch(d, &s->P, s->cut, s->need, &in);
     if (st != WRT_OK) return st;
     wrt_csc_free(&s->P);
-    st = series_memory_check(s->b, s->C, &in, R, s->eps, &s->W, bounce, s->streamed ? &s->ss : NULL);
+    wrt_csc_weights PW = series_plain_weights(s);
+    st = series_memory_check(s->b, s->C, &in, R, s->eps, &PW, bounce, s->streamed ? &s->ss : NULL);
     if (st == WRT_OK) {
-        *out = wrt_csc_mul_cols(&in, R, s->eps, &s->W, s->threads, c0, c1);
+        *out = wrt_csc_mul_cols(&in, R, s->eps, &PW, s->threads, c0, c1);
         *nnz = out->nnz;
         st = wrt_dist_sum_u64(d, nnz, 1);
         if (st != WRT_OK) wrt_csc_free(out);
@@ -534,7 +547,8 @@ static wrt_status series_next_check(series_state *s, int bounce, const wrt_sum_s
     /* in the senders' tree basis from the left, T P_k (series_tree_on) */
     const wrt_csc *R = series_right(s, bounce);
     const wrt_csc *La = s->tree ? R : &s->P, *Rb = s->tree ? &s->P : R;
-    wrt_status mst = series_memory_check_beside(s->b, s->C, La, Rb, s->eps, s->tree ? &s->TW : &s->W, bounce,
+    wrt_csc_weights PW = series_plain_weights(s);
+    wrt_status mst = series_memory_check_beside(s->b, s->C, La, Rb, s->eps, s->tree ? &s->TW : &PW, bounce,
                                                 ss ? ss : s->streamed ? &s->ss : NULL, beside, NULL);
     if (mst != WRT_OK) {
         char msg[1024];
@@ -639,7 +653,8 @@ static wrt_status series_next_term(series_state *s, int bounce, int checked, wrt
     wrt_status mst = checked ? WRT_OK : series_next_check(s, bounce, NULL, NULL);
     if (mst != WRT_OK) return mst;
     const wrt_csc *La = s->tree ? R : &s->P, *Rb = s->tree ? &s->P : R;
-    wrt_status pst = series_mul(b, La, Rb, s->eps, s->tree ? &s->TW : &s->W, s->threads, N);
+    wrt_csc_weights PW = series_plain_weights(s);
+    wrt_status pst = series_mul(b, La, Rb, s->eps, s->tree ? &s->TW : &PW, s->threads, N);
     *nnz = N->nnz;
     return pst;
 }

@@ -38,7 +38,9 @@ wrt_csc wrt_csc_copy(const wrt_csc *m);
  * keeps the plain threshold's entries. */
 /* bands, skip (bands may be NULL; see wrt_csc_bands): a product's single contributions
  * a_ik b_kj whose weighted size is under skip x drop are not summed; their power goes to
- * the column's kept entries with what the compression drops. */
+ * the column's kept entries with what the compression drops. Without bands (skip > 0),
+ * only the contributions at rows that carry no power (power_w 0) are skipped, A's entries
+ * read in an order the product makes (sparse.c mul_order). */
 struct wrt_csc_bands;
 typedef struct wrt_csc_weights {
     const double *row_w, *col_w, *power_w, *boost_w;
@@ -80,6 +82,9 @@ wrt_csc wrt_csc_mul_cols(const wrt_csc *a, const wrt_csc *b, double drop, const 
  * others set to end at c1), grown as the product grows (series_blocks.c) */
 void wrt_csc_mul_append(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int threads,
                         uint32_t c0, uint32_t c1, wrt_csc *m);
+/* The bytes a product with w's skip and no bands adds for its left factor a (the order it
+ * reads a's columns in, made and freed by the product; sparse.c mul_order) */
+uint64_t wrt_csc_mul_order_bytes(const wrt_csc *a);
 /* Estimated entries of wrt_csc_mul(a, b, drop, w) from every stride-th column of the
  * product (computed and discarded), scaled by the share of B's entries those columns
  * hold: what the product will allocate, known before it is allocated. */

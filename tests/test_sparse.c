@@ -300,6 +300,102 @@ static void test_product_skip(void) {
 
 /* wrt_csc_apply against a plain loop over the matrix's entries, with a vector whose three channels
  * differ (a furnace's uniform light has equal channels and cannot tell them apart) */
+/* The plain series' skip (sparse.h: skip without bands, A read in the order the product
+ * makes, sparse.c mul_order): only contributions at rows that carry no power are skipped.
+ * - Column j of B reads 2 PER columns of A. Even ones hold row 100 at 1.02 x skip x drop
+ *   and odd ones row 101 at 0.45 x skip x drop (weighted: row_w 2 there), both rows
+ *   without power; every one also holds row 0 (power) at 0.45 x skip x drop and a large
+ *   entry without power 11.3 times the small one's weighted size elsewhere (rows 150 on),
+ *   so the small entries lie in a band of their column below its top.
+ * - The plain product keeps rows 0, 100 and 101 (PER contributions of each sum past the
+ *   threshold). The skip must sum every contribution at or above skip x drop (row 100
+ *   kept at its plain value) and never one under half of it (row 101 dropped), and never
+ *   skip a power row, however small (row 0 at its plain value).
+ * - The power (power_w x entry) of every column is the plain product's, channel by
+ *   channel: the skip drops no power, so nothing has to be handed over for it.
+ * - A skip under every band gives the plain product's entries (summed in another order:
+ *   to float rounding). */
+static void test_product_skip_order(void) {
+    enum { NA = 300, PER = 64 };
+    const double drop = 0.01, skip = 1.0 / 16;
+    double rw[NA], cw[NA], pw[NA];
+    for (uint32_t i = 0; i < NA; i++) { rw[i] = 1; cw[i] = 1; pw[i] = i < 100 ? 1.0 + (i % 3) : 0; }
+    rw[101] = 2;
+    wrt_triplet ta[4 * 2 * PER + 64];
+    uint32_t na = 0;
+    for (uint32_t k = 0; k < 2 * PER; k++) {
+        double v = k % 2 == 0 ? 1.02 * skip * drop : 0.45 * skip * drop / 2;
+        double top = 11.3 * 1.02 * skip * drop;
+        ta[na++] = (wrt_triplet){0, k, {(float)(0.45 * skip * drop), (float)(0.2 * skip * drop), 0}};
+        ta[na++] = (wrt_triplet){100 + k % 2, k, {(float)v, (float)(0.7 * v), (float)(0.3 * v)}};
+        ta[na++] = (wrt_triplet){150 + k % 50, k, {(float)top, (float)top, (float)top}};
+        ta[na++] = (wrt_triplet){200 + k % 50, k, {(float)(1e-4 * v), 0, (float)(1e-4 * v)}};
+    }
+    for (uint32_t m = 0; m < 64; m++) ta[na++] = (wrt_triplet){2 + m, 2 * PER + m, {0.05f, 0.04f, 0.03f}};
+    wrt_triplet tb[8 * (2 * PER + 1)];
+    uint32_t nb = 0;
+    for (uint32_t j = 0; j < 8; j++) {
+        for (uint32_t k = 0; k < 2 * PER; k++) tb[nb++] = (wrt_triplet){k, j, {1, 1, 1}};
+        tb[nb++] = (wrt_triplet){2 * PER + j * 7 % 64, j, {1, 1, 1}};
+    }
+    wrt_csc a = wrt_csc_from_triplets(NA, ta, na), b = wrt_csc_from_triplets(NA, tb, nb);
+    wrt_csc_weights w = {rw, cw, pw, NULL, 0, NULL, 0};
+    wrt_csc plain = wrt_csc_mul(&a, &b, drop, &w, 2);
+    wrt_csc_weights ws = w;
+    ws.skip = skip;
+    wrt_csc sk1 = wrt_csc_mul(&a, &b, drop, &ws, 1), sk2 = wrt_csc_mul(&a, &b, drop, &ws, 2);
+    CHECK(sk1.nnz == sk2.nnz && !memcmp(sk1.col, sk2.col, ((size_t)NA + 1) * sizeof *sk1.col) &&
+              !memcmp(sk1.row, sk2.row, sk1.nnz * 4) && !memcmp(sk1.val, sk2.val, 12 * sk1.nnz),
+          "skipping by the order: 1 and 2 threads give different products");
+    int rows_ok = 1, power_ok = 1, kept_ok = 1;
+    double worst_power = 0, worst_kept = 0;
+    const double brute100 = PER * 1.02 * skip * drop, brute0 = 2 * PER * 0.45 * skip * drop;
+    for (uint32_t j = 0; j < 8; j++) {
+        int p[3] = {0}, s[3] = {0};
+        const uint32_t want[3] = {0, 100, 101};
+        double pp[3] = {0}, sp[3] = {0}, vp[2] = {0}, vs[2] = {0};
+        for (uint64_t e = plain.col[j]; e < plain.col[j + 1]; e++) {
+            for (int q = 0; q < 3; q++) p[q] |= plain.row[e] == want[q];
+            for (int c = 0; c < 3; c++) pp[c] += pw[plain.row[e]] * plain.val[3 * e + c];
+            if (plain.row[e] == 0) vp[0] = plain.val[3 * e];
+            if (plain.row[e] == 100) vp[1] = plain.val[3 * e];
+        }
+        for (uint64_t e = sk1.col[j]; e < sk1.col[j + 1]; e++) {
+            for (int q = 0; q < 3; q++) s[q] |= sk1.row[e] == want[q];
+            for (int c = 0; c < 3; c++) sp[c] += pw[sk1.row[e]] * sk1.val[3 * e + c];
+            if (sk1.row[e] == 0) vs[0] = sk1.val[3 * e];
+            if (sk1.row[e] == 100) vs[1] = sk1.val[3 * e];
+        }
+        rows_ok &= p[0] && p[1] && p[2] && s[0] && s[1] && !s[2];
+        /* rows 0 and 100: every contribution summed, the plain product's brute-force sums */
+        double d0 = fabs(vs[0] - brute0) / brute0, d1 = fabs(vs[1] - brute100) / brute100;
+        worst_kept = fmax(worst_kept, fmax(d0, d1));
+        kept_ok &= d0 < 1e-5 && d1 < 1e-5 && fabs(vp[0] - brute0) < 1e-5 * brute0 &&
+                   fabs(vp[1] - brute100) < 1e-5 * brute100;
+        for (int c = 0; c < 3; c++) {
+            double d = fabs(sp[c] - pp[c]) / fabs(pp[c]);
+            worst_power = fmax(worst_power, d);
+            power_ok &= d < 1e-6;
+        }
+    }
+    CHECK(rows_ok, "rows kept: the plain product keeps rows 0, 100 and 101; skipping by the order keeps row 0 "
+                   "(power), row 100 (contributions at 1.02 x skip x drop) and drops row 101 (at 0.45 x)");
+    CHECK(kept_ok, "skipping by the order: rows 0 and 100 off their brute-force sums by %.3g", worst_kept);
+    CHECK(power_ok, "skipping by the order: a column's power off the plain product's by %.3g", worst_power);
+    ws.skip = 1e-12;
+    wrt_csc tiny = wrt_csc_mul(&a, &b, drop, &ws, 2);
+    double worst = 0;
+    int same_rows = tiny.nnz == plain.nnz && !memcmp(tiny.row, plain.row, tiny.nnz * 4);
+    for (uint64_t e = 0; same_rows && e < tiny.nnz * 3; e++)
+        worst = fmax(worst, fabs(tiny.val[e] - plain.val[e]) / fmax(fabs(plain.val[e]), 1e-30));
+    CHECK(same_rows && worst < 1e-6, "skipping by the order under every band: not the plain product (%.3g)", worst);
+    printf("skip by the order %g: %llu entries against %llu plain; column power within %.2e; kept rows within %.2e "
+           "of brute force\n", skip, (unsigned long long)sk1.nnz, (unsigned long long)plain.nnz, worst_power,
+           worst_kept);
+    wrt_csc_free(&a); wrt_csc_free(&b); wrt_csc_free(&plain); wrt_csc_free(&sk1); wrt_csc_free(&sk2);
+    wrt_csc_free(&tiny);
+}
+
 static void test_apply_brute_force(void) {
     enum { N = 500, PER = 5 };
     uint32_t seed = 4242;
@@ -377,5 +473,6 @@ int main(int argc, char **argv) {
     TEST_RUN(test_apply_brute_force);
     TEST_RUN(test_series_right_furnace);
     TEST_RUN(test_product_skip);
+    TEST_RUN(test_product_skip_order);
     TEST_END();
 }
