@@ -68,7 +68,7 @@
  * atan2 and a square root: the arc tangent was a sixth of a maze bake (perf). The
  * reversed edge's term is exactly the negation (a x b and its dot with n change sign,
  * the rest is unchanged), bit for bit. */
-static inline double atan_ratio(double t2) { /* atan(t) / t for t^2 = t2 <= 1/16 */
+static inline __attribute__((always_inline)) double atan_ratio(double t2) { /* atan(t) / t for t^2 = t2 <= 1/16 */
     double p = 1.0 / 17;
     p = 1.0 / 15 - t2 * p;
     p = 1.0 / 13 - t2 * p;
@@ -80,7 +80,7 @@ static inline double atan_ratio(double t2) { /* atan(t) / t for t^2 = t2 <= 1/16
     return 1.0 - t2 * p;
 }
 
-static inline double ff_edge(wrt_v3 a, wrt_v3 b, wrt_v3 n) {
+static inline __attribute__((always_inline)) double ff_edge(wrt_v3 a, wrt_v3 b, wrt_v3 n) {
     wrt_v3 c = v3_cross(a, b);
     double s2 = v3_dot(c, c), d = v3_dot(a, b);
     if (d > 0 && s2 <= 0.0625 * d * d) return v3_dot(c, n) * atan_ratio(s2 / (d * d)) / d;
