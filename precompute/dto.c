@@ -69,26 +69,31 @@
  * reversed edge's term is exactly the negation (a x b and its dot with n change sign,
  * the rest is unchanged), bit for bit. */
 static inline __attribute__((always_inline)) double atan_ratio(double t2) { /* atan(t) / t for t^2 = t2 <= 1/16 */
-    double p = 1.0 / 17;
-    p = 1.0 / 15 - t2 * p;
-    p = 1.0 / 13 - t2 * p;
-    p = 1.0 / 11 - t2 * p;
-    p = 1.0 / 9 - t2 * p;
-    p = 1.0 / 7 - t2 * p;
-    p = 1.0 / 5 - t2 * p;
-    p = 1.0 / 3 - t2 * p;
-    return 1.0 - t2 * p;
+    /* sum over k of (-t2)^k / (2k + 1), k = 0..8, by Estrin's scheme: pairs in x = -t2,
+     * then pairs of pairs in x^2 and x^4, four products deep instead of Horner's eight
+     * dependent multiply-adds (an edge's latency, not its count, is what costs) */
+    double x = -t2, x2 = x * x, x4 = x2 * x2;
+    double p01 = 1.0 + x * (1.0 / 3), p23 = 1.0 / 5 + x * (1.0 / 7), p45 = 1.0 / 9 + x * (1.0 / 11),
+           p67 = 1.0 / 13 + x * (1.0 / 15);
+    double q0 = p01 + x2 * p23, q1 = p45 + x2 * p67;
+    return (q0 + x4 * q1) + (x4 * x4) * (1.0 / 17);
 }
 
 static inline __attribute__((always_inline)) double ff_edge(wrt_v3 a, wrt_v3 b, wrt_v3 n) {
     wrt_v3 c = v3_cross(a, b);
     double s2 = v3_dot(c, c), d = v3_dot(a, b);
-    if (d > 0 && s2 <= 0.0625 * d * d) return v3_dot(c, n) * atan_ratio(s2 / (d * d)) / d;
+    if (d > 0 && s2 <= 0.0625 * d * d) {
+        double r = 1 / d; /* one division, not two */
+        return v3_dot(c, n) * atan_ratio(s2 * r * r) * r;
+    }
     /* up to twice that angle, by the half angle: tan(g / 2) = sin g / (1 + cos g) = t, so
      * g / sin g = 2 atan(t) / t / (1 + cos g), the same series at the same t (session 23:
      * the edges of 14 to 28 degrees, which went to atan2, in the balance's near cells) */
     double h = 1 + d;
-    if (h > 0 && s2 <= 0.0625 * h * h) return v3_dot(c, n) * 2 * atan_ratio(s2 / (h * h)) / h;
+    if (h > 0 && s2 <= 0.0625 * h * h) {
+        double r = 1 / h;
+        return v3_dot(c, n) * 2 * atan_ratio(s2 * r * r) * r;
+    }
     double sl = sqrt(s2);
     if (sl < 1e-300) return 0;
     return atan2(sl, d) * v3_dot(c, n) / sl;
