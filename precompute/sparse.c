@@ -370,23 +370,28 @@ static inline __attribute__((always_inline)) void scatter_ordered(const mul_orde
                                                                   const uint32_t *arow, const float *aval,
                                                                   uint64_t last, double *acc, uint64_t *bits,
                                                                   uint64_t *top) {
+    /* the order's arrays in locals (the stores through acc and the bitmaps could alias
+     * *o), and the larger of two magnitudes without fmax, a library call here */
+    const uint16_t *at16 = o->at16, *st16 = o->start16;
+    const uint32_t *at32 = o->at32, *st32 = o->start32;
     uint64_t end = ke - ka;
     size_t at = (size_t)k * WRT_CSC_BANDS;
-    if (lim > 0 && (o->start16 ? o->start16[at] : o->start32[at]) < end) { /* not all power rows */
-        double bm = fmax(fabs((*bw)[0]), fmax(fabs((*bw)[1]), fabs((*bw)[2])));
+    if (lim > 0 && (st16 ? st16[at] : st32[at]) < end) { /* not all power rows */
+        double m0 = fabs((*bw)[0]), m1 = fabs((*bw)[1]), m2 = fabs((*bw)[2]);
+        double bm = m0 > m1 ? m0 : m1;
+        bm = bm > m2 ? bm : m2;
         /* r = top bm / lim = f 2^e, f in [0.5, 1): band b's contributions are under
          * r 2^(1 - b) lim, so the bands from e + 1 on are under lim */
         int e = exponent_of((double)o->top[k] * bm / lim) + 1;
         if (e < WRT_CSC_BANDS) {
             at += (size_t)(e < 0 ? 0 : e);
-            end = o->start16 ? o->start16[at] : o->start32[at];
+            end = st16 ? st16[at] : st32[at];
         }
     }
-    if (!end) return;
-    uint32_t cw = arow[ka + (o->at16 ? o->at16[ka] : o->at32[ka])] >> 6;
-    uint64_t word = 0;
+    /* each row marked in memory at once: in the bands' order the rows are sparse, few
+     * neighbours share a bitmap word, and holding the word (scatter_entry) mispredicted */
     for (uint64_t t = 0; t < end; t++) {
-        uint64_t ea = ka + (o->at16 ? o->at16[ka + t] : o->at32[ka + t]);
+        uint64_t ea = ka + (at16 ? at16[ka + t] : at32[ka + t]);
         acc_v4f af;
         if (ea < last) {
             memcpy(&af, &aval[3 * ea], sizeof af);
@@ -394,10 +399,12 @@ static inline __attribute__((always_inline)) void scatter_ordered(const mul_orde
         } else {
             af = (acc_v4f){aval[3 * ea], aval[3 * ea + 1], aval[3 * ea + 2], 0};
         }
-        scatter_entry(arow[ea], af, bw, acc, bits, top, &cw, &word);
+        uint32_t i = arow[ea];
+        bits[i >> 6] |= (uint64_t)1 << (i & 63);
+        top[i >> 12] |= (uint64_t)1 << ((i >> 6) & 63);
+        acc_v4 *ac = (acc_v4 *)&acc[ACC_STRIDE * (size_t)i];
+        *ac += __builtin_convertvector(af, acc_v4) * *bw;
     }
-    bits[cw] |= word;
-    top[cw >> 6] |= (uint64_t)1 << (cw & 63);
 }
 
 /* Column j of the product, accumulated: acc[row] += A[row][k] B[k][j] over B's column j,
