@@ -177,6 +177,32 @@ static void test_product_brute_force(void) {
 }
 
 
+/* The largest relative difference between x's and y's values where both have the same
+ * entries in the same places; infinity where they do not */
+static double same_entries_within(const wrt_csc *x, const wrt_csc *y) {
+    if (x->nnz != y->nnz || memcmp(x->col, y->col, ((size_t)x->n + 1) * sizeof *x->col) ||
+        memcmp(x->row, y->row, x->nnz * sizeof *x->row))
+        return INFINITY;
+    double worst = 0;
+    for (uint64_t e = 0; e < 3 * x->nnz; e++)
+        worst = fmax(worst, fabs(x->val[e] - y->val[e]) / fmax(fabs(y->val[e]), 1e-30));
+    return worst;
+}
+
+/* The skip tests' B (n x n): 8 columns, each reading all 2 per small columns of A with 1
+ * and one of the 64 large columns after them */
+static wrt_csc skip_test_b(uint32_t n, uint32_t per) {
+    wrt_triplet *tb = malloc(8 * (2 * (size_t)per + 1) * sizeof *tb);
+    uint32_t nb = 0;
+    for (uint32_t j = 0; j < 8; j++) {
+        for (uint32_t k = 0; k < 2 * per; k++) tb[nb++] = (wrt_triplet){k, j, {1, 1, 1}};
+        tb[nb++] = (wrt_triplet){2 * per + j * 7 % 64, j, {1, 1, 1}};
+    }
+    wrt_csc b = wrt_csc_from_triplets(n, tb, nb);
+    free(tb);
+    return b;
+}
+
 /* The products' skipped contributions (wrt_csc_bands, series_skip): against the product that
  * sums everything, on a matrix whose column sums are known by brute force.
  * - Each of A's columns has its largest entry 11.3 times the small one, elsewhere (rows
@@ -210,14 +236,7 @@ static void test_product_skip(void) {
         ta[na++] = (wrt_triplet){150 + k % 50, k, {(float)top, (float)top, (float)top}};
     }
     for (uint32_t m = 0; m < 64; m++) ta[na++] = (wrt_triplet){2 + m, 2 * PER + m, {0.05f, 0.04f, 0.03f}};
-    /* B: 8 columns, each reading all 2 PER small columns with 1 and one large column */
-    wrt_triplet tb[8 * (2 * PER + 1)];
-    uint32_t nb = 0;
-    for (uint32_t j = 0; j < 8; j++) {
-        for (uint32_t k = 0; k < 2 * PER; k++) tb[nb++] = (wrt_triplet){k, j, {1, 1, 1}};
-        tb[nb++] = (wrt_triplet){2 * PER + j * 7 % 64, j, {1, 1, 1}};
-    }
-    wrt_csc a = wrt_csc_from_triplets(NA, ta, na), b = wrt_csc_from_triplets(NA, tb, nb);
+    wrt_csc a = wrt_csc_from_triplets(NA, ta, na), b = skip_test_b(NA, PER);
     wrt_csc_weights w = {rw, cw, pw, NULL, 0, NULL, 0};
     wrt_csc plain = wrt_csc_mul(&a, &b, drop, &w, 2);
     wrt_csc_bands bands;
@@ -286,11 +305,8 @@ static void test_product_skip(void) {
     /* a skip under every band: the plain product's entries */
     ws.skip = 1e-12;
     wrt_csc tiny = wrt_csc_mul(&bands.a, &b, drop, &ws, 2);
-    double worst = 0;
-    int same_rows = tiny.nnz == plain.nnz && !memcmp(tiny.row, plain.row, tiny.nnz * 4);
-    for (uint64_t e = 0; same_rows && e < tiny.nnz * 3; e++)
-        worst = fmax(worst, fabs(tiny.val[e] - plain.val[e]) / fmax(fabs(plain.val[e]), 1e-30));
-    CHECK(same_rows && worst < 1e-6, "a skip under every band: not the plain product (%.3g)", worst);
+    double worst = same_entries_within(&tiny, &plain);
+    CHECK(worst < 1e-6, "a skip under every band: not the plain product (%.3g)", worst);
     printf("skip %g: %llu entries against %llu plain; column power within %.2e; row 0 plain within %.2e of brute "
            "force\n", skip, (unsigned long long)sk1.nnz, (unsigned long long)plain.nnz, worst_power, worst0);
     wrt_csc_bands_free(&bands);
@@ -332,13 +348,7 @@ static void test_product_skip_order(void) {
         ta[na++] = (wrt_triplet){200 + k % 50, k, {(float)(1e-4 * v), 0, (float)(1e-4 * v)}};
     }
     for (uint32_t m = 0; m < 64; m++) ta[na++] = (wrt_triplet){2 + m, 2 * PER + m, {0.05f, 0.04f, 0.03f}};
-    wrt_triplet tb[8 * (2 * PER + 1)];
-    uint32_t nb = 0;
-    for (uint32_t j = 0; j < 8; j++) {
-        for (uint32_t k = 0; k < 2 * PER; k++) tb[nb++] = (wrt_triplet){k, j, {1, 1, 1}};
-        tb[nb++] = (wrt_triplet){2 * PER + j * 7 % 64, j, {1, 1, 1}};
-    }
-    wrt_csc a = wrt_csc_from_triplets(NA, ta, na), b = wrt_csc_from_triplets(NA, tb, nb);
+    wrt_csc a = wrt_csc_from_triplets(NA, ta, na), b = skip_test_b(NA, PER);
     wrt_csc_weights w = {rw, cw, pw, NULL, 0, NULL, 0};
     wrt_csc plain = wrt_csc_mul(&a, &b, drop, &w, 2);
     wrt_csc_weights ws = w;
@@ -384,11 +394,8 @@ static void test_product_skip_order(void) {
     CHECK(power_ok, "skipping by the order: a column's power off the plain product's by %.3g", worst_power);
     ws.skip = 1e-12;
     wrt_csc tiny = wrt_csc_mul(&a, &b, drop, &ws, 2);
-    double worst = 0;
-    int same_rows = tiny.nnz == plain.nnz && !memcmp(tiny.row, plain.row, tiny.nnz * 4);
-    for (uint64_t e = 0; same_rows && e < tiny.nnz * 3; e++)
-        worst = fmax(worst, fabs(tiny.val[e] - plain.val[e]) / fmax(fabs(plain.val[e]), 1e-30));
-    CHECK(same_rows && worst < 1e-6, "skipping by the order under every band: not the plain product (%.3g)", worst);
+    double worst = same_entries_within(&tiny, &plain);
+    CHECK(worst < 1e-6, "skipping by the order under every band: not the plain product (%.3g)", worst);
     printf("skip by the order %g: %llu entries against %llu plain; column power within %.2e; kept rows within %.2e "
            "of brute force\n", skip, (unsigned long long)sk1.nnz, (unsigned long long)plain.nnz, worst_power,
            worst_kept);
