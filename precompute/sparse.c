@@ -755,6 +755,13 @@ typedef struct order_ctx {
     uint32_t chunks;
 } order_ctx;
 
+/* Entry e of A in the order: -1 at a row that carries power (read first, always summed),
+ * else its band below the column's top tp */
+static inline int order_group(const wrt_csc *a, uint64_t e, const double *rw, const double *pw, double tp) {
+    uint32_t i = a->row[e];
+    return pw && pw[i] != 0 ? -1 : band_of(entry_size(&a->val[3 * e], rw, i), tp);
+}
+
 /* columns [n c / chunks, n (c + 1) / chunks) of A's order, each on its own */
 static void order_chunk(size_t c, int th, void *user) {
     (void)th;
@@ -780,8 +787,7 @@ static void order_chunk(size_t c, int th, void *user) {
         }
         uint64_t next[WRT_CSC_BANDS + 1] = {0};
         for (uint64_t e = 0; e < m; e++) {
-            uint32_t i = a->row[c0 + e];
-            int b = pw && pw[i] != 0 ? -1 : band_of(entry_size(&a->val[3 * (c0 + e)], rw, i), tp);
+            int b = order_group(a, c0 + e, rw, pw, tp);
             if (b + 1 < WRT_CSC_BANDS) next[b + 2]++;
         }
         /* next[b + 1]: where band b starts (b = -1 the power rows, from 0) */
@@ -792,8 +798,7 @@ static void order_chunk(size_t c, int th, void *user) {
             else o->start32[at] = (uint32_t)next[b + 1];
         }
         for (uint64_t e = 0; e < m; e++) {
-            uint32_t i = a->row[c0 + e];
-            int b = pw && pw[i] != 0 ? -1 : band_of(entry_size(&a->val[3 * (c0 + e)], rw, i), tp);
+            int b = order_group(a, c0 + e, rw, pw, tp);
             uint64_t to = c0 + next[b + 1]++;
             if (o->at16) o->at16[to] = (uint16_t)e;
             else o->at32[to] = (uint32_t)e;

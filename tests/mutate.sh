@@ -274,6 +274,18 @@ mutation bands-in-place-unscratched: the right factor's bands are made in place 
   repl bands_col(k, c0, a->row + c0, a->val + 3 * c0, m, x->row_w, x->power_w, x->out);
   run test_sparse test_product_skip
 
+mutation order-skip-power: the plain series' skip also skips rows that carry power (all banded by size)
+  file precompute/sparse.c
+  find return pw && pw[i] != 0 ? -1 : band_of(entry_size(&a->val[3 * e], rw, i), tp);
+  repl return 0 ? -1 : band_of(entry_size(&a->val[3 * e], rw, i), tp);
+  run test_sparse test_product_skip_order
+
+mutation order-skip-band: the plain series' skip leaves out one band too many (contributions up to twice its limit)
+  file precompute/sparse.c
+  find int e = exponent_of((double)o->top[k] * bm / lim) + 1;
+  repl int e = exponent_of((double)o->top[k] * bm / lim);
+  run test_sparse test_product_skip_order
+
 mutation receivers-ancestors-dropped: the receivers' tree rows keep no ancestor of a kept entry
   file precompute/cluster_ops.c
   find keep[i] = p == -2 || (p >= 0 && need[p] == epoch2);
