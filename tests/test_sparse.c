@@ -403,6 +403,60 @@ static void test_product_skip_order(void) {
     wrt_csc_free(&tiny);
 }
 
+/* The order's 32-bit places (a column of 65,536 entries or more; sparse.c mul_order):
+ * column 0 of A holds every row of 70,000, which puts the whole order in 32 bits;
+ * columns 1 to 40 hold rows 0 to 1,999 at sizes from 1 down to 1e-3, each read by B at
+ * 0.01. A row's 40 contributions sum past the threshold from size 2.5e-3 on, but at
+ * skip 1/16 those under 2^-8 lie in bands left out: the skip keeps fewer entries than the
+ * plain product, the same column power, the same entries at 1 and 2 threads, and under
+ * every band the plain product's entries. */
+static void test_product_skip_order_wide(void) {
+    enum { N = 70000, COLS = 40, ROWS = 2000 };
+    const double drop = 1e-3;
+    double *rw = malloc(N * sizeof *rw), *pw = malloc(N * sizeof *pw);
+    for (uint32_t i = 0; i < N; i++) { rw[i] = 1; pw[i] = i % 97 == 0 ? 1 : 0; }
+    wrt_triplet *ta = malloc((N + COLS * ROWS) * sizeof *ta), tb[3 * (COLS + 1)];
+    uint32_t na = 0, nb = 0;
+    for (uint32_t i = 0; i < N; i++) {
+        float v = (float)pow(10.0, -5.0 * (double)((i * 7919u) % N) / N);
+        ta[na++] = (wrt_triplet){i, 0, {v, 0.5f * v, 0.25f * v}};
+    }
+    for (uint32_t k = 1; k <= COLS; k++)
+        for (uint32_t i = 0; i < ROWS; i++) {
+            float v = (float)pow(10.0, -3.0 * (double)((i * 131u + k) % ROWS) / ROWS);
+            ta[na++] = (wrt_triplet){i, k, {v, 0.7f * v, 0.4f * v}};
+        }
+    for (uint32_t j = 0; j < 3; j++)
+        for (uint32_t k = 0; k <= COLS; k++) tb[nb++] = (wrt_triplet){k, j, {0.01f, 0.01f * (float)(j + 1), 0.01f}};
+    wrt_csc a = wrt_csc_from_triplets(N, ta, na), b = wrt_csc_from_triplets(N, tb, nb);
+    wrt_csc_weights w = {rw, NULL, pw, NULL, 0, NULL, 0};
+    wrt_csc plain = wrt_csc_mul(&a, &b, drop, &w, 2);
+    wrt_csc_weights ws = w;
+    ws.skip = 1e-12;
+    wrt_csc tiny = wrt_csc_mul(&a, &b, drop, &ws, 2);
+    double worst = same_entries_within(&tiny, &plain);
+    CHECK(worst < 1e-6, "32-bit order under every band: not the plain product (%.3g)", worst);
+    ws.skip = 1.0 / 16;
+    wrt_csc sk1 = wrt_csc_mul(&a, &b, drop, &ws, 1), sk2 = wrt_csc_mul(&a, &b, drop, &ws, 2);
+    CHECK(same_entries_within(&sk1, &sk2) == 0, "32-bit order: 1 and 2 threads give different products");
+    double worst_power = 0;
+    for (uint32_t j = 0; j < 3; j++)
+        for (int c = 0; c < 3; c++) {
+            double pp = 0, sp = 0;
+            for (uint64_t e = plain.col[j]; e < plain.col[j + 1]; e++) pp += pw[plain.row[e]] * plain.val[3 * e + c];
+            for (uint64_t e = sk1.col[j]; e < sk1.col[j + 1]; e++) sp += pw[sk1.row[e]] * sk1.val[3 * e + c];
+            worst_power = fmax(worst_power, fabs(sp - pp) / fabs(pp));
+        }
+    CHECK(worst_power < 1e-6, "32-bit order: a column's power off the plain product's by %.3g", worst_power);
+    CHECK(sk1.nnz < plain.nnz, "32-bit order at 1/16: %llu entries, the plain product %llu (nothing skipped)",
+          (unsigned long long)sk1.nnz, (unsigned long long)plain.nnz);
+    printf("skip by the 32-bit order: %llu entries against %llu plain; column power within %.2e\n",
+           (unsigned long long)sk1.nnz, (unsigned long long)plain.nnz, worst_power);
+    free(rw); free(pw); free(ta);
+    wrt_csc_free(&a); wrt_csc_free(&b); wrt_csc_free(&plain); wrt_csc_free(&tiny);
+    wrt_csc_free(&sk1); wrt_csc_free(&sk2);
+}
+
 static void test_apply_brute_force(void) {
     enum { N = 500, PER = 5 };
     uint32_t seed = 4242;
@@ -481,5 +535,6 @@ int main(int argc, char **argv) {
     TEST_RUN(test_series_right_furnace);
     TEST_RUN(test_product_skip);
     TEST_RUN(test_product_skip_order);
+    TEST_RUN(test_product_skip_order_wide);
     TEST_END();
 }
