@@ -2,6 +2,7 @@
  * dense accumulator per thread, sums and thresholding. See sparse.h. */
 #include "sparse.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -257,17 +258,6 @@ typedef struct mul_ctx {
     const struct mul_order *ord; /* with skip > 0 and no bands: A's order (mul_order) */
 } mul_ctx;
 
-/* The skip without moving A's entries (wrt_csc_weights skip without bands: the plain
- * series' products, issue 22). Each column of A is read through a list of its entries'
- * places in it: first those at rows that carry power (power_w != 0), always summed, then
- * the others by size, band b holding those whose largest channel times row_w is in
- * [top 2^-b, top 2^(1-b)) of the column's largest such entry (top; band_of, as in
- * wrt_csc_bands; the last band everything smaller), each band by row. Only contributions
- * that carry no power are skipped, so a skip loses no power and needs no rest: the flux
- * of every term is what the full product's compression gives. On the 12 x 12 maze 97.8% of the rows a product's
- * column touched were then dropped by the compression; 75% of the second product's
- * contributions lie under 1/64 of the threshold. The places are 16-bit where every
- * column has under 65,536 entries (2 bytes an entry; 32-bit otherwise). */
 /* A column of A that holds one entry, at a row that carries power (the late terms: each
  * column keeps its largest power entry and little else), as one 16-byte record: the
  * product reads it instead of the column's start, its order and its entry, four places
@@ -278,6 +268,18 @@ typedef struct mul_ctx {
 typedef struct mul_one { float v[3]; uint32_t row; } mul_one;
 _Static_assert(sizeof(mul_one) == 16, "a lone entry is read as one 16-byte load");
 
+/* The skip without moving A's entries (wrt_csc_weights skip without bands: the plain
+ * series' products, issue 22). Each column of A is read through a list of its entries'
+ * places in it: first those at rows that carry power (power_w != 0), always summed, then
+ * the others by size, band b holding those whose largest channel times row_w is in
+ * [top 2^-b, top 2^(1-b)) of the column's largest such entry (top; band_of, as in
+ * wrt_csc_bands; the last band everything smaller), each band by row. Only contributions
+ * that carry no power are skipped, so a skip loses no power and needs no rest: the flux
+ * of every term is what the full product's compression gives. On the 12 x 12 maze 97.8%
+ * of the rows a product's column touched were then dropped by the compression; 75% of
+ * the second product's contributions lie under 1/64 of the threshold. The places are
+ * 16-bit where every column has under 65,536 entries (2 bytes an entry; 32-bit
+ * otherwise). */
 typedef struct mul_order {
     uint16_t *at16, *start16; /* at: nnz, the places (from the column's start); start: */
     uint32_t *at32, *start32; /* n x WRT_CSC_BANDS, where band b's places begin */
@@ -368,6 +370,7 @@ static inline int exponent_of(double r) {
     memcpy(&u, &r, sizeof u);
     uint64_t ex = (u >> 52) & 0x7ff;
     if (!(u >> 63) && ex > 0 && ex < 0x7ff) return (int)ex - 1022;
+    if (ex == 0x7ff) return INT_MAX / 2; /* infinite or NaN: above every band, nothing skipped */
     int e = 0;
     (void)frexp(r, &e);
     return e;
