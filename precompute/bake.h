@@ -61,10 +61,12 @@ typedef struct wrt_bake_options {
                             * series_right x eps_compress (power kept) instead of the full T
                             * (series.c); 0: the default, 1; < 0: the full T */
     int series_right_from; /* the first bounce that does (2 or more; default 2) */
-    double series_skip;    /* the factored tree series' products (--clusters): a single
-                            * contribution under series_skip x eps_compress (weighted as the
-                            * compression's test) is not summed, its power kept (sparse.h
-                            * wrt_csc_bands); 0: the default, WRT_SERIES_SKIP_DEFAULT; < 0: off */
+    double series_skip;    /* the series' products: a single contribution under series_skip
+                            * x eps_compress (weighted as the compression's test) is not
+                            * summed; the factored tree series (--clusters) keeps its power
+                            * (sparse.h wrt_csc_bands), the plain series skips only those that
+                            * carry none (sparse.c mul_order); 0: the default,
+                            * WRT_SERIES_SKIP_DEFAULT; < 0: off */
     int series_columns;    /* the factored tree series in one process (--clusters): this many
                             * blocks of columns, each taken through every bounce and stored
                             * before the next starts (series_cols.c); 0: the default,
