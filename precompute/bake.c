@@ -125,7 +125,8 @@ static void bake_btilde_build(bake_ctx *b) {
 static void stage_mark(stage_clock *k, const char *what) {
     if (!k || !k->on) return;
     double w = wrt_now(), c = wrt_dist_cpu_now();
-    fprintf(stderr, "dto-times: %-22s %8.3f s wall %8.3f s cpu\n", what, w - k->w, c - k->c);
+    fprintf(stderr, "dto-times: %-22s %8.3f s wall %8.3f s cpu  peak %8.0f MB  now %8.0f MB\n", what, w - k->w,
+            c - k->c, (double)wrt_bake_stage_peak_bytes() / 1048576.0, (double)wrt_bake_rss_bytes() / 1048576.0);
     k->w = w;
     k->c = c;
 }
