@@ -235,7 +235,47 @@ typedef struct sender_data {
     uint8_t *rkeep, *has;
     size_t ncol;
     double *addv, *v, *tc, *cur, *wp, *nw;
+    /* the tree's walk, made once a sender (sender_walk): the leaves' places in the order the
+     * walk from each tree cell meets them (children 3 to 0, depth first), each tree cell's
+     * range of it, and each leaf's centre and square root of its area */
+    uint32_t *dfs, (*range)[2];
+    wrt_v3 *lcen;
+    double *larea, *lside;
 } sender_data;
+
+static wrt_v3 cell_centre(const wrt_quad *q, wrt_node n) {
+    return wrt_quad_point(q, wrt_node_x0(n) + 0.5 * wrt_node_size(n), wrt_node_y0(n) + 0.5 * wrt_node_size(n));
+}
+
+static void walk_fill(sender_data *d, wrt_node n, size_t *len) {
+    ptrdiff_t ti = find_u32(d->tree, d->nt, wrt_node_pack(n));
+    if (ti < 0) {
+        ptrdiff_t li = find_u32(d->leaves, d->nl, wrt_node_pack(n));
+        if (li >= 0) d->dfs[(*len)++] = (uint32_t)li;
+        return;
+    }
+    d->range[ti][0] = (uint32_t)*len;
+    for (int q = 3; q >= 0; q--) walk_fill(d, wrt_node_child(n, q & 1, q >> 1), len);
+    d->range[ti][1] = (uint32_t)*len;
+}
+
+/* The walk's tables (sender_data) */
+static void sender_walk(sender_data *d) {
+    const wrt_quad *Sq = d->Sq;
+    d->dfs = wrt_xmalloc((d->nl + 1) * sizeof *d->dfs);
+    d->range = wrt_xmalloc((d->nt + 1) * sizeof *d->range);
+    d->lcen = wrt_xmalloc((d->nl + 1) * sizeof *d->lcen);
+    d->larea = wrt_xmalloc((d->nl + 1) * sizeof *d->larea);
+    d->lside = wrt_xmalloc((d->nl + 1) * sizeof *d->lside);
+    size_t len = 0;
+    if (d->nt) walk_fill(d, wrt_node_root(), &len);
+    for (size_t i = 0; i < d->nl; i++) {
+        wrt_node e = wrt_node_unpack(d->leaves[i]);
+        d->lcen[i] = cell_centre(Sq, e);
+        d->larea[i] = Sq->area * wrt_pow2(-2 * (int)e.level);
+        d->lside[i] = sqrt(d->larea[i]);
+    }
+}
 
 /* Stage 1: the sender's receivers (each once; rloc maps a quad to its place) and the
  * per-receiver arrays */
@@ -262,10 +302,11 @@ static void sender_receivers(sender_data *d) {
 }
 
 /* One evaluation of an unoccluded pair's leaf link (S, R) at a cell e (a tree leaf under
- * S, or S inside a leaf): the leaf's place, R, e, the link's visible share and how it is
- * integrated (eval_far: the closed form at e's centre; eval_on_e: 2 x 2 points on e;
- * eval_on_r: 2 x 2 points on R; eval_inside: S inside the leaf, at S's centre) */
-enum { EVAL_FAR = 1, EVAL_ON_E = 2, EVAL_ON_R = 4, EVAL_INSIDE = 8 };
+ * S, or S itself inside a leaf): the leaf's place, R, e, the link's visible share and how
+ * it is integrated (EVAL_FAR: the closed form at e's centre; EVAL_ON_E: 2 x 2 points on e;
+ * EVAL_ON_R: 2 x 2 points on R). A leaf's links are also marked EVAL_ALONE, taken one by
+ * one, where one has S inside the leaf or a visible share under 1. */
+enum { EVAL_FAR = 1, EVAL_ON_E = 2, EVAL_ON_R = 4, EVAL_ALONE = 8 };
 typedef struct { uint32_t li, rn, e; float vis; uint8_t how; } leaf_eval;
 typedef struct { leaf_eval *a; size_t n, cap; double *cover; uint8_t *how; uint8_t *done; } eval_list;
 
@@ -275,11 +316,8 @@ typedef struct { leaf_eval *a; size_t n, cap; double *cover; uint8_t *how; uint8
  * so that at that point the closed forms of all links sum to the covered share. (Until
  * session 23 the centre's closed form was taken for the near cells too and then not
  * used: a seventh of the balance's closed forms on the 12 x 12 maze, 10.75M of 80.6M.) */
-static uint8_t eval_how(const wrt_quad *Sq, wrt_node e, const wrt_quad *Rq, wrt_node Rn) {
-    wrt_v3 ce = wrt_quad_point(Sq, wrt_node_x0(e) + 0.5 * wrt_node_size(e), wrt_node_y0(e) + 0.5 * wrt_node_size(e));
-    wrt_v3 cR = wrt_quad_point(Rq, wrt_node_x0(Rn) + 0.5 * wrt_node_size(Rn), wrt_node_y0(Rn) + 0.5 * wrt_node_size(Rn));
-    double ae = Sq->area * wrt_pow2(-2 * (int)e.level), aR = Rq->area * wrt_pow2(-2 * (int)Rn.level);
-    if (v3_len(v3_sub(ce, cR)) >= 3 * (sqrt(ae) + sqrt(aR))) return EVAL_FAR;
+static uint8_t eval_how(wrt_v3 ce, double ae, double se, wrt_v3 cR, double aR, double sR) {
+    if (v3_len(v3_sub(ce, cR)) >= 3 * (se + sR)) return EVAL_FAR;
     return ae > aR * (1 + 1e-9) ? EVAL_ON_R : EVAL_ON_E;
 }
 
@@ -305,54 +343,54 @@ static double eval_one(const bake_ctx *b, const wrt_quad *Sq, wrt_node e, const 
  * integrated on the receiver's side). The tiling is checked: the links' receiver cells
  * at e must cover exactly the quad's parameter area (a sum of powers of 1/4, exact). */
 static void pair_leaf_values(sender_data *d, const pair_out *po, int swap, const wrt_quad *Rq, double *vr,
-                             uint32_t *stack, eval_list *ev) {
+                             eval_list *ev) {
     const bake_ctx *b = d->b;
     const wrt_quad *Sq = d->Sq;
     size_t nt = d->nt, nl = d->nl;
-    const uint32_t *tree = d->tree, *leaves = d->leaves;
+    const uint32_t *tree = d->tree;
     ev->n = 0;
     for (size_t k = 0; k < po->nleaf; k++) {
         const leaf_rec *lr = &po->leaf[k];
-        wrt_node Sn = wrt_node_unpack(swap ? lr->rn : lr->sn), Rn = wrt_node_unpack(swap ? lr->sn : lr->rn);
         if (lr->vis <= 0) continue;
-        /* evaluation cells: the tree leaves under Sn, or Sn itself inside a leaf */
-        size_t ns = 0;
-        int inside = !in_set(tree, nt, wrt_node_pack(Sn));
-        if (!inside) stack[ns++] = wrt_node_pack(Sn);
-        for (;;) {
-            wrt_node e;
-            uint32_t leafk;
-            if (ns) {
-                wrt_node n = wrt_node_unpack(stack[--ns]);
-                if (in_set(tree, nt, wrt_node_pack(n))) {
-                    for (int q = 0; q < 4; q++) stack[ns++] = wrt_node_pack(wrt_node_child(n, q & 1, q >> 1));
-                    continue;
-                }
-                e = n;
-                leafk = wrt_node_pack(n);
-            } else if (inside == 1) {
-                /* Sn lies in a leaf: find it (the deepest ancestor whose parent is a tree cell) */
-                e = Sn;
-                wrt_node a = Sn;
-                while (a.level > 0 && !in_set(tree, nt, wrt_node_pack(wrt_node_parent(a)))) a = wrt_node_parent(a);
-                leafk = wrt_node_pack(a);
-                inside = 2; /* done after this one */
-            } else {
-                break;
+        wrt_node Sn = wrt_node_unpack(swap ? lr->rn : lr->sn), Rn = wrt_node_unpack(swap ? lr->sn : lr->rn);
+        wrt_v3 cR = cell_centre(Rq, Rn);
+        double aR = Rq->area * wrt_pow2(-2 * (int)Rn.level), sR = sqrt(aR), cover = wrt_pow2(-2 * (int)Rn.level);
+        ptrdiff_t ti = find_u32(tree, nt, wrt_node_pack(Sn));
+        /* evaluation cells: the tree leaves under Sn (the walk's range), or Sn itself
+         * inside a leaf (the deepest ancestor whose parent is a tree cell) */
+        uint32_t i0 = 0, i1 = 0, lone = 0;
+        if (ti >= 0) {
+            i0 = d->range[ti][0];
+            i1 = d->range[ti][1];
+        } else {
+            wrt_node a = Sn;
+            while (a.level > 0 && !in_set(tree, nt, wrt_node_pack(wrt_node_parent(a)))) a = wrt_node_parent(a);
+            ptrdiff_t lpos = find_u32(d->leaves, nl, wrt_node_pack(a));
+            if (lpos < 0) continue;
+            lone = (uint32_t)lpos;
+            i1 = 1;
+        }
+        for (uint32_t i = i0; i < i1; i++) {
+            uint32_t li, ek;
+            uint8_t how;
+            if (ti >= 0) {
+                li = d->dfs[i];
+                ek = d->leaves[li];
+                how = eval_how(d->lcen[li], d->larea[li], d->lside[li], cR, aR, sR);
+            } else { /* e = Sn, inside the leaf: never merged */
+                double ae = Sq->area * wrt_pow2(-2 * (int)Sn.level);
+                li = lone;
+                ek = wrt_node_pack(Sn);
+                how = eval_how(cell_centre(Sq, Sn), ae, sqrt(ae), cR, aR, sR);
             }
-            ptrdiff_t lpos = find_u32(leaves, nl, leafk);
-            if (lpos >= 0) {
-                if (ev->n == ev->cap) {
-                    ev->cap = ev->cap ? 2 * ev->cap : 256;
-                    ev->a = wrt_xrealloc(ev->a, ev->cap * sizeof *ev->a);
-                }
-                uint8_t how = inside ? EVAL_INSIDE : eval_how(Sq, e, Rq, Rn);
-                ev->a[ev->n++] = (leaf_eval){(uint32_t)lpos, wrt_node_pack(Rn), wrt_node_pack(e), lr->vis, how};
-                if (lr->vis != 1) how |= EVAL_INSIDE; /* not merged: a share under 1 */
-                ev->how[lpos] |= how;
-                ev->cover[lpos] += wrt_pow2(-2 * (int)Rn.level);
+            if (ev->n == ev->cap) {
+                ev->cap = ev->cap ? 2 * ev->cap : 256;
+                ev->a = wrt_xrealloc(ev->a, ev->cap * sizeof *ev->a);
             }
-            if (inside == 2) break;
+            ev->a[ev->n++] = (leaf_eval){li, wrt_node_pack(Rn), ek, lr->vis, how};
+            if (ti < 0 || lr->vis != 1) how |= EVAL_ALONE; /* not merged */
+            ev->how[li] |= how;
+            ev->cover[li] += cover;
         }
     }
     wrt_v3 rpoly[4];
@@ -363,7 +401,7 @@ static void pair_leaf_values(sender_data *d, const pair_out *po, int swap, const
         uint32_t li = x->li;
         uint8_t how = ev->how[li];
         wrt_node e = wrt_node_unpack(x->e);
-        if (Rq->parallelogram && !(how & (EVAL_ON_R | EVAL_INSIDE)) && ev->cover[li] == 1.0) {
+        if (Rq->parallelogram && !(how & (EVAL_ON_R | EVAL_ALONE)) && ev->cover[li] == 1.0) {
             if (!ev->done[li]) {
                 ev->done[li] = 1;
                 vr[li] += side_integral(Sq, e, Rq, rpoly, b->plane_eps, (how & EVAL_ON_E) ? 4 : 1) / jq;
@@ -392,7 +430,6 @@ static void sender_leaf_values(sender_data *d) {
     const int *rloc = d->rloc;
     uint8_t *rkeep = d->rkeep;
     double *addv = d->addv, *v = d->v;
-    uint32_t *stack = wrt_xmalloc((4 * (size_t)WRT_MAX_SLEVEL * 4 + 8) * sizeof *stack);
     eval_list evl = {.cover = wrt_xcalloc(nl + 1, sizeof(double)), .how = wrt_xcalloc(nl + 1, 1),
                      .done = wrt_xcalloc(nl + 1, 1)}, *ev = &evl;
     for (size_t i = 0; i < c->nrefs[s]; i++) {
@@ -416,9 +453,8 @@ static void sender_leaf_values(sender_data *d) {
             }
             continue;
         }
-        pair_leaf_values(d, po, rf.swap, Rq, vr, stack, ev);
+        pair_leaf_values(d, po, rf.swap, Rq, vr, ev);
     }
-    free(stack);
     free(evl.a); free(evl.cover); free(evl.how); free(evl.done);
 }
 
@@ -438,37 +474,37 @@ static void sender_analysis(sender_data *d) {
     memcpy(all + nt, leaves, nl * sizeof *all);
     qsort(all, nall, sizeof *all, cmp_u32);
     double *sum = wrt_xmalloc((nall + 1) * sizeof *sum);
+    /* the places in `all` of each leaf, of each tree cell and of its children (-1: none),
+     * found once for all receivers */
+    size_t *lpos = wrt_xmalloc((nl + 1) * sizeof *lpos);
+    ptrdiff_t (*cpos)[5] = wrt_xmalloc((nt + 1) * sizeof *cpos);
+    for (size_t i = 0; i < nl; i++) lpos[i] = (size_t)find_u32(all, nall, leaves[i]);
+    for (size_t ti = 0; ti < nt; ti++) {
+        wrt_node n = wrt_node_unpack(tree[ti]);
+        for (int q = 0; q < 4; q++) cpos[ti][q] = find_u32(all, nall, wrt_node_pack(wrt_node_child(n, q & 1, q >> 1)));
+        cpos[ti][4] = find_u32(all, nall, tree[ti]);
+    }
+    ptrdiff_t rpos = nt ? find_u32(all, nall, wrt_node_pack(wrt_node_root())) : -1;
     for (int ri = 0; ri < nrecv; ri++) {
         const double *src = &v[(size_t)ri * nl];
         double *out = &tc[(size_t)ri * ncol];
         for (size_t i = 0; i < nall; i++) sum[i] = 0;
-        for (size_t i = 0; i < nl; i++) {
-            sum[find_u32(all, nall, leaves[i])] = src[i];
-        }
+        for (size_t i = 0; i < nl; i++) sum[lpos[i]] = src[i];
         /* tree cells deepest first: packed keys sort by level (top bits) */
         for (size_t ti = nt; ti-- > 0;) {
-            wrt_node n = wrt_node_unpack(tree[ti]);
             double ch[4];
-            for (int q = 0; q < 4; q++) {
-                uint32_t ck = wrt_node_pack(wrt_node_child(n, q & 1, q >> 1));
-                ptrdiff_t p = find_u32(all, nall, ck);
-                ch[q] = p >= 0 ? sum[p] : 0;
-            }
-            sum[find_u32(all, nall, tree[ti])] = ch[0] + ch[1] + ch[2] + ch[3];
-            double scale = wrt_pow2(n.level);
+            for (int q = 0; q < 4; q++) ch[q] = cpos[ti][q] >= 0 ? sum[cpos[ti][q]] : 0;
+            sum[cpos[ti][4]] = ch[0] + ch[1] + ch[2] + ch[3];
+            double scale = wrt_pow2(wrt_node_unpack(tree[ti]).level);
             for (int t = 1; t <= 3; t++) {
                 double w = 0;
                 for (int q = 0; q < 4; q++) w += wrt_haar_sign(t, q & 1, q >> 1) * ch[q];
                 out[1 + 3 * ti + (t - 1)] = scale * w;
             }
         }
-        if (nt) {
-            uint32_t rk = wrt_node_pack(wrt_node_root());
-            out[0] = sum[find_u32(all, nall, rk)];
-        } else {
-            out[0] = src[0];
-        }
+        out[0] = nt ? sum[rpos] : src[0];
     }
+    free(lpos); free(cpos);
     free(sum); free(all);
     d->tc = tc;
 }
@@ -669,6 +705,7 @@ static void balance_sender(size_t si, int th, void *user) {
     sender_data d = {.c = c, .b = b, .s = s, .Sq = &b->quads[s], .rho = b->rho[s]};
     sender_tree(c->fkeys, c->nf, s, 1, &d.tree, &d.nt, &d.leaves, &d.nl);
     sender_receivers(&d);
+    sender_walk(&d);
     sender_leaf_values(&d);
     sender_analysis(&d);
     sender_emitted(&d);
@@ -677,6 +714,7 @@ static void balance_sender(size_t si, int th, void *user) {
     sender_deltas(&d);
     free(d.cur); free(d.wp); free(d.has); free(d.nw); free(d.rkeep); free(d.addv);
     free(d.tc); free(d.v); free(d.recv); free(d.rloc); free(d.leaves); free(d.tree);
+    free(d.dfs); free(d.range); free(d.lcen); free(d.larea); free(d.lside);
 }
 
 
