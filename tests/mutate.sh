@@ -103,6 +103,20 @@ mutation balance-channel: the balance's re-derived root entries use channel 0's 
   run test_bake test_coloured_furnace
   run test_accuracy
 
+mutation balance-merged-centre: a leaf's links merged into one closed form take it at the leaf's centre even where one was near
+  file precompute/balance.c
+  find vr[li] += side_integral(Sq, e, Rq, rpoly, b->plane_eps, (how & EVAL_ON_E) ? 4 : 1) / jq;
+  repl vr[li] += side_integral(Sq, e, Rq, rpoly, b->plane_eps, 1) / jq;
+  run test_accuracy
+  run test_bake test_power_balance test_form_factors
+
+mutation balance-merged-high: a leaf's links merged into one closed form 1% high
+  file precompute/balance.c
+  find vr[li] += side_integral(Sq, e, Rq, rpoly, b->plane_eps, (how & EVAL_ON_E) ? 4 : 1) / jq;
+  repl vr[li] += 1.01 * side_integral(Sq, e, Rq, rpoly, b->plane_eps, (how & EVAL_ON_E) ? 4 : 1) / jq;
+  run test_accuracy
+  run test_bake test_power_balance test_form_factors
+
 mutation balance-never-closed: the closed-scene test always says open
   file precompute/balance.c
   find c.closed = scene_closed(b, &open_quad);
