@@ -539,18 +539,26 @@ static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_sa
          * samples were taken on S; G2 the other channel */
         for (int k = 0; k < ns; k++) {
             int q = ls->qr[k];
+            /* the sender side's Haar sums of G (and G2), once a sample: the same sums in the
+             * same order as when they were taken for every i (16 times over), the same bits */
+            double hg[4], hg2[4];
+            for (int j = 0; j < 4; j++) {
+                double acc = 0;
+                for (int t = 0; t < 4; t++) acc += wrt_haar_sign(j, t & 1, t >> 1) * ls->G[k][t];
+                hg[j] = acc;
+                if (!pc->dual) continue;
+                acc = 0;
+                for (int t = 0; t < 4; t++) acc += wrt_haar_sign(j, t & 1, t >> 1) * ls->G2[k][t];
+                hg2[j] = acc;
+            }
             for (int i = 0; i < 4; i++) {
                 double si = wrt_haar_sign(i, q & 1, q >> 1) * ls->jr[k] * scale;
                 for (int j = 0; j < 4; j++) {
-                    double acc = 0;
-                    for (int t = 0; t < 4; t++) acc += wrt_haar_sign(j, t & 1, t >> 1) * ls->G[k][t];
-                    if (swapped) BV(pc, bl, j, i, 0, pc->dual) += si * acc;
-                    else BV(pc, bl, i, j, 0, 0) += si * acc;
+                    if (swapped) BV(pc, bl, j, i, 0, pc->dual) += si * hg[j];
+                    else BV(pc, bl, i, j, 0, 0) += si * hg[j];
                     if (!pc->dual) continue;
-                    acc = 0;
-                    for (int t = 0; t < 4; t++) acc += wrt_haar_sign(j, t & 1, t >> 1) * ls->G2[k][t];
-                    if (swapped) BV(pc, bl, j, i, 0, 0) += si * acc;
-                    else BV(pc, bl, i, j, 0, 1) += si * acc;
+                    if (swapped) BV(pc, bl, j, i, 0, 0) += si * hg2[j];
+                    else BV(pc, bl, i, j, 0, 1) += si * hg2[j];
                 }
             }
         }
