@@ -283,13 +283,13 @@ mutation apart-weight-lost: the sum's walk decides the nodes apart but no longer
   run test_cluster test_albedo_split
 
 mutation bands-in-place-unscratched: the right factor's bands are made in place reading the column being overwritten
-  file precompute/sparse.c
+  file precompute/sparse_order.c
   find bands_col(k, c0, row, val, m, x->row_w, x->power_w, x->out);
   repl bands_col(k, c0, a->row + c0, a->val + 3 * c0, m, x->row_w, x->power_w, x->out);
   run test_sparse test_product_skip
 
 mutation order-skip-power: the plain series' skip also skips rows that carry power (all banded by size)
-  file precompute/sparse.c
+  file precompute/sparse_order.c
   find return pw && pw[i] != 0 ? -1 : band_of(entry_size(&a->val[3 * e], rw, i), tp);
   repl return 0 ? -1 : band_of(entry_size(&a->val[3 * e], rw, i), tp);
   run test_sparse test_product_skip_order
