@@ -891,6 +891,10 @@ static wrt_status bake_assemble(const bake_ctx *b, wrt_bake_counters *C, const p
                 free(job->out[i].e); free(job->out[i].leaf);
                 job->out[i].e = NULL; job->out[i].leaf = NULL;
             }
+            /* their pages back to the system before T grows (glibc keeps freed blocks in
+             * the threads' arenas: on the 12 x 12 maze T's assembly peaked on top of them,
+             * at 787-792 MB; now the balance's 750 is the bake's peak) */
+            wrt_bake_memory_trim();
             stage_mark(b->clock, "balance");
             res->dto = wrt_csc_from_triplets_free(res->nfuncs, tr, t, b->opt.threads); /* tr freed as T grows */
             stage_mark(b->clock, "T");
