@@ -13,8 +13,8 @@
 #define CLAIM_FF 2e-4
 /* README: "reciprocity between unequal quads to 0.1%" */
 #define CLAIM_RECIPROCITY 1e-3
-/* README: "per-cell distributions from one lit cell to 0.1%" */
-#define CLAIM_DIST 1e-3
+/* README: "per-cell distributions from one lit cell to 0.02%" */
+#define CLAIM_DIST 2e-4
 /* README: "and to 0.25% at quality 7's own thresholds" */
 #define CLAIM_DIST_OWN 2.5e-3
 /* README: "the furnace is right to 0.05% on every quad" */
