@@ -13,6 +13,9 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#if defined(__linux__) && defined(__GLIBC__)
+#include <sys/auxv.h>
+#endif
 
 #include "../cli/cli.h"
 #include "../common/outfile.h"
@@ -790,6 +793,25 @@ static int check_accuracy(const bake_args *A, const wrt_scene *s, wrt_gto_pendin
 typedef struct bake_times { double t_load, t_write, t_total; long long bytes; accuracy acc; } bake_times;
 static double phase_dto(const wrt_bake_counters *c) { return c->t_dto - c->t_balance_phase; }
 
+/* The kernel's transparent huge pages (main's huge_pages_restart): 2 "always", 1 "madvise"
+ * (given where a program asks), 0 "never" or unknown */
+static int huge_pages_kernel(void) {
+    FILE *f = fopen("/sys/kernel/mm/transparent_hugepage/enabled", "r");
+    char mode[128] = "";
+    if (!f) return 0;
+    if (!fgets(mode, sizeof mode, f)) mode[0] = 0;
+    fclose(f);
+    return strstr(mode, "[always]") ? 2 : strstr(mode, "[madvise]") ? 1 : 0;
+}
+
+/* Whether this bake's large arrays could have huge pages: the kernel gives them to every
+ * program, or where asked and glibc's allocator asks (--json memory_mb.huge_pages) */
+static int huge_pages_on(void) {
+    int k = huge_pages_kernel();
+    const char *t = getenv("GLIBC_TUNABLES");
+    return k == 2 || (k == 1 && t && strstr(t, "glibc.malloc.hugetlb=1"));
+}
+
 static void print_json_summary(const bake_args *A, const wrt_scene *s, const wrt_bake_result *r, const bake_times *T) {
     const wrt_bake_counters *c = &r->c;
     const wrt_bake_options *o = &A->o;
@@ -806,8 +828,9 @@ static void print_json_summary(const bake_args *A, const wrt_scene *s, const wrt
     if (A->max_error >= 0)
         printf("\"check\":{\"cell_rmse\":%.6g,\"floor\":%.6g,\"max_error\":%.6g,\"seconds\":%.3f},",
                T->acc.error, T->acc.floor, A->max_error, T->acc.seconds);
-    printf("\"memory_mb\":{\"peak_rss\":%.1f,\"estimated\":%.1f,\"budget\":%.0f},",
-           (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), c->mem_estimate_mb, o->max_memory_mb);
+    printf("\"memory_mb\":{\"peak_rss\":%.1f,\"estimated\":%.1f,\"budget\":%.0f,\"huge_pages\":%s},",
+           (double)wrt_bake_peak_rss_bytes() / (1024.0 * 1024.0), c->mem_estimate_mb, o->max_memory_mb,
+           huge_pages_on() ? "true" : "false");
     /* the cluster hierarchy: given (--clusters or a --cluster option), auto (taken by
      * wrt-bake for the scene's size: choose_clusters) or none */
     printf("\"clusters_chosen\":\"%s\",", !o->clusters ? "none" : A->clusters_auto ? "auto" : "given");
@@ -960,5 +983,38 @@ int wrt_bake_cli(int argc, char **argv, struct wrt_bake_dist *dist) {
 }
 
 #ifndef WRT_BAKE_CLI_NO_MAIN /* wrt-bake-mpi has its own main (mpi/main_mpi.c) */
-int main(int argc, char **argv) { return wrt_bake_cli(argc, argv, NULL); }
+/* The bake's large arrays on the kernel's 2 MiB pages (docs/bench.md "Huge pages"). The
+ * series' products scatter into accumulators of 32 bytes a function and read the right
+ * factor's columns, its bands' index and the rows' weights in no order: on 4 KiB pages
+ * nearly every such access misses the TLB. Debian's kernel gives transparent huge pages
+ * only where a program asks ("madvise"), and glibc's allocator asks, on its fresh mappings
+ * and heaps, only with the tunable glibc.malloc.hugetlb=1, which it reads once as the
+ * process starts. So wrt-bake starts itself again with it set. Not where the kernel's
+ * setting is not "madvise" (with "always" every program has them; with "never" none
+ * can), where GLIBC_TUNABLES already names it (the user's choice, 0 included), with
+ * WRT_HUGE_PAGES=0, or in a privileged process (glibc drops tunables there). Where the
+ * exec fails the bake runs as it was started. The same bytes either way. */
+static void huge_pages_restart(char **argv) {
+#if defined(__linux__) && defined(__GLIBC__)
+    const char *off = getenv("WRT_HUGE_PAGES");
+    if ((off && strcmp(off, "0") == 0) || getauxval(AT_SECURE) || huge_pages_kernel() != 1) return;
+    const char *was = getenv("GLIBC_TUNABLES");
+    if (was && strstr(was, "glibc.malloc.hugetlb")) return;
+    char old[2048], set[2100];
+    if (was && strlen(was) >= sizeof old) return;
+    snprintf(old, sizeof old, "%s", was ? was : "");
+    snprintf(set, sizeof set, "%s%sglibc.malloc.hugetlb=1", old, old[0] ? ":" : "");
+    if (setenv("GLIBC_TUNABLES", set, 1) != 0) return;
+    execv("/proc/self/exe", argv);
+    if (was) setenv("GLIBC_TUNABLES", old, 1);
+    else unsetenv("GLIBC_TUNABLES");
+#else
+    (void)argv;
+#endif
+}
+
+int main(int argc, char **argv) {
+    huge_pages_restart(argv);
+    return wrt_bake_cli(argc, argv, NULL);
+}
 #endif

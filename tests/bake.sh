@@ -455,4 +455,25 @@ jq -e '.seconds | (keys_unsorted[0:5] == ["load", "dto", "balance", "series", "g
 grep -q 'the scene is open: light leaves it (a ray from quad [0-9]*, mesh "' "$tmp/ph.txt" &&
     ok "an open scene says where light leaves it" || ko "an open scene says where light leaves it: $(grep balance "$tmp/ph.txt")"
 
+# Huge pages (precompute/main.c huge_pages_restart): where the kernel gives them on request
+# ("madvise"), wrt-bake starts itself again with glibc's allocator asking for them, unless
+# WRT_HUGE_PAGES=0 or GLIBC_TUNABLES names the tunable; --json says which; the same bytes.
+thp=$(grep -o '\[[a-z]*\]' /sys/kernel/mm/transparent_hugepage/enabled 2>/dev/null)
+if "$bake" assets/cornell.gltf -q 2 -o "$tmp/hp1.gto" --json --quiet >"$tmp/hp1.json" 2>/dev/null &&
+   WRT_HUGE_PAGES=0 "$bake" assets/cornell.gltf -q 2 -o "$tmp/hp0.gto" --json --quiet >"$tmp/hp0.json" 2>/dev/null &&
+   GLIBC_TUNABLES=glibc.malloc.hugetlb=0 "$bake" assets/cornell.gltf -q 2 -o "$tmp/hpt.gto" --json --quiet >"$tmp/hpt.json" 2>/dev/null; then
+    h="$(jq -r .memory_mb.huge_pages "$tmp/hp1.json") $(jq -r .memory_mb.huge_pages "$tmp/hp0.json") $(jq -r .memory_mb.huge_pages "$tmp/hpt.json")"
+    case "$thp" in
+        "[madvise]") want="true false false" ;;
+        "[always]") want="true true true" ;;
+        *) want="false false false" ;;
+    esac
+    [ "$h" = "$want" ] && ok "huge pages (kernel ${thp:-none}): default, WRT_HUGE_PAGES=0, hugetlb=0: $h" ||
+        ko "huge pages (kernel ${thp:-none}): $h, wanted $want"
+    cmp -s "$tmp/hp1.gto" "$tmp/hp0.gto" && cmp -s "$tmp/hp1.gto" "$tmp/hpt.gto" &&
+        ok "the same bytes with and without huge pages" || ko "bytes differ with and without huge pages"
+else
+    ko "bakes with and without huge pages"
+fi
+
 summary
