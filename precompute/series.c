@@ -1000,6 +1000,7 @@ static wrt_status series_gathered(series_state *s) {
 
 /* Frees what the state holds (after a failure: the sum too) */
 static void series_state_free(series_state *s) {
+    wrt_csc_mul_scratch_free(); /* the products are done */
     wrt_series_free_right(s);
     wrt_power_iter_free(&s->pi);
     wrt_csc_free(&s->P); wrt_csc_free(&s->S);
@@ -1086,6 +1087,7 @@ wrt_status wrt_series_run(const bake_ctx *b, wrt_bake_result *res) {
         if (st == WRT_OK) st = series_finish(&s);
     } else {
         st = series_bounces(&s);
+        wrt_csc_mul_scratch_free();
         if (st == WRT_OK) st = series_tail(&s);
         if (st == WRT_OK) wrt_series_mark(&s, "tail and stored operator");
     }

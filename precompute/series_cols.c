@@ -268,6 +268,7 @@ wrt_status wrt_series_cols(series_state *s) {
     free(own[0]); free(own[1]); free(own[2]);
     wrt_power_iter_free(&s->pi);
     wrt_series_free_right(s);
+    wrt_csc_mul_scratch_free();
     wrt_bake_memory_trim(); /* the series' arrays, freed, back to the system before F comes back */
     if (st == WRT_OK && e1_out && !wrt_spill_read(&E1f, ne, &s->res->dto_e1))
         st = wrt_fail(WRT_ERR_IO, "the series could not read back E1 from its scratch file");

@@ -4,6 +4,7 @@
 
 #include <limits.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -492,6 +493,11 @@ __attribute__((target("avx"))) static void scatter_avx(const mul_ctx *c, size_t 
 
 static void mul_column(size_t j, int th, void *user) {
     mul_ctx *c = user;
+    /* an empty column of B gives an empty column (its record stays zero): the readout
+     * below walks n / 4,096 bitmap words whatever the column, and the series' products
+     * by blocks of columns (series_cols.c) and their estimates run over every column, all
+     * but a block's empty: at 53,122 atrium elements 5.4M columns of 1,300 words a product */
+    if (c->b->col[j] == c->b->col[j + 1]) return;
     double *acc = c->acc[th];
     uint32_t *list = c->list[th];
     uint64_t *bits = c->bits[th], *top = c->top[th];
@@ -597,8 +603,71 @@ void wrt_sort_u64(uint64_t *a, size_t n) {
     free(tmp); free(count);
 }
 
+/* The products' scratch for n rows and t threads: each thread's accumulator, touched
+ * rows' bitmaps and row list. All of it is zero again when a product ends (a column
+ * clears what it touched), so one set is kept for the next product of the same size: the
+ * series by blocks of columns makes two products a bounce (the estimate and the product),
+ * 14 bounces a block, and at 53,122 atrium elements each set is 360 MB to allocate and
+ * zero. A product that finds the kept set taken or of another size makes its own; the
+ * series gives the kept set back at its end (wrt_csc_mul_scratch_free). */
+typedef struct mul_scratch {
+    uint32_t n;
+    int t;
+    double **acc;
+    uint64_t **bits, **top;
+    uint32_t **list;
+} mul_scratch;
+
+static mul_scratch kept_scratch;
+static pthread_mutex_t kept_mu = PTHREAD_MUTEX_INITIALIZER;
+
+static void scratch_free(mul_scratch *s) {
+    for (int i = 0; i < s->t && s->acc; i++) { free(s->acc[i]); free(s->bits[i]); free(s->top[i]); free(s->list[i]); }
+    free(s->acc); free(s->bits); free(s->top); free(s->list);
+    memset(s, 0, sizeof *s);
+}
+
+static mul_scratch scratch_take(uint32_t n, int t) {
+    mul_scratch s = {0};
+    pthread_mutex_lock(&kept_mu);
+    if (kept_scratch.acc && kept_scratch.n == n && kept_scratch.t == t) {
+        s = kept_scratch;
+        memset(&kept_scratch, 0, sizeof kept_scratch);
+    }
+    pthread_mutex_unlock(&kept_mu);
+    if (s.acc) return s;
+    s = (mul_scratch){.n = n, .t = t};
+    s.acc = wrt_xcalloc((size_t)t, sizeof *s.acc);
+    s.bits = wrt_xcalloc((size_t)t, sizeof *s.bits);
+    s.top = wrt_xcalloc((size_t)t, sizeof *s.top);
+    s.list = wrt_xcalloc((size_t)t, sizeof *s.list);
+    for (int i = 0; i < t; i++) {
+        s.acc[i] = wrt_xcalloc_aligned64(((size_t)n * ACC_STRIDE + ACC_STRIDE) * sizeof(double));
+        s.bits[i] = wrt_xcalloc(((size_t)n >> 6) + 1, sizeof(uint64_t));
+        s.top[i] = wrt_xcalloc(((size_t)n >> 12) + 1, sizeof(uint64_t));
+        s.list[i] = wrt_xmalloc(((size_t)n + 1) * sizeof(uint32_t));
+    }
+    return s;
+}
+
+static void scratch_give(mul_scratch *s) {
+    pthread_mutex_lock(&kept_mu);
+    mul_scratch old = kept_scratch;
+    kept_scratch = *s;
+    pthread_mutex_unlock(&kept_mu);
+    scratch_free(&old); /* the older set: the newer is the likelier size */
+}
+
+void wrt_csc_mul_scratch_free(void) {
+    pthread_mutex_lock(&kept_mu);
+    mul_scratch s = kept_scratch;
+    memset(&kept_scratch, 0, sizeof kept_scratch);
+    pthread_mutex_unlock(&kept_mu);
+    scratch_free(&s);
+}
+
 /* The product's context: its inputs, one output record per column of the n x n result, and
- * each of the t threads' scratch (an accumulator, the touched rows' bitmaps, a row list). */
+ * each of the t threads' scratch (mul_scratch). */
 static mul_ctx mul_ctx_make(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w, int t,
                             int order) {
     uint32_t n = a->n;
@@ -621,23 +690,17 @@ static mul_ctx mul_ctx_make(const wrt_csc *a, const wrt_csc *b, double drop, con
 #if defined(__x86_64__) && defined(__GNUC__)
     c.avx = __builtin_cpu_supports("avx");
 #endif
-    c.acc = wrt_xcalloc((size_t)t, sizeof *c.acc);
-    c.bits = wrt_xcalloc((size_t)t, sizeof *c.bits);
-    c.top = wrt_xcalloc((size_t)t, sizeof *c.top);
-    c.list = wrt_xcalloc((size_t)t, sizeof *c.list);
-    for (int i = 0; i < t; i++) {
-        c.acc[i] = wrt_xcalloc_aligned64(((size_t)n * ACC_STRIDE + ACC_STRIDE) * sizeof(double)); /* kept zero between columns */
-        c.bits[i] = wrt_xcalloc(((size_t)n >> 6) + 1, sizeof(uint64_t));
-        c.top[i] = wrt_xcalloc(((size_t)n >> 12) + 1, sizeof(uint64_t));
-        c.list[i] = wrt_xmalloc(((size_t)n + 1) * sizeof(uint32_t));
-    }
+    mul_scratch s = scratch_take(n, t);
+    c.acc = s.acc; c.bits = s.bits; c.top = s.top; c.list = s.list;
     return c;
 }
 
-/* Frees what mul_ctx_make allocated (the output records' own arrays are the caller's). */
+/* Gives the scratch back (kept for the next product) and frees the rest of what
+ * mul_ctx_make allocated (the output records' own arrays are the caller's). */
 static void mul_ctx_free(mul_ctx *c, int t) {
-    for (int i = 0; i < t; i++) { free(c->acc[i]); free(c->bits[i]); free(c->top[i]); free(c->list[i]); }
-    free(c->acc); free(c->bits); free(c->top); free(c->list); free(c->out);
+    mul_scratch s = {.n = c->a->n, .t = t, .acc = c->acc, .bits = c->bits, .top = c->top, .list = c->list};
+    scratch_give(&s);
+    free(c->out);
     wrt_mul_order_free((mul_order *)c->ord);
 }
 
@@ -712,11 +775,11 @@ void wrt_csc_mul_append(const wrt_csc *a, const wrt_csc *b, double drop, const w
     *out = m;
 }
 
-typedef struct mul_sample_ctx { mul_ctx *c; uint32_t stride; } mul_sample_ctx;
+typedef struct mul_sample_ctx { mul_ctx *c; const uint32_t *cols; } mul_sample_ctx;
 
 static void mul_sample_column(size_t i, int th, void *user) {
     mul_sample_ctx *sc = user;
-    size_t j = i * sc->stride;
+    size_t j = sc->cols[i];
     mul_column(j, th, sc->c);
     col_out *o = &sc->c->out[j];
     free(o->row); free(o->val);
@@ -731,17 +794,25 @@ uint64_t wrt_csc_mul_estimate(const wrt_csc *a, const wrt_csc *b, double drop, c
     int t = wrt_threads_resolve(threads);
     mul_ctx c = mul_ctx_make(a, b, drop, w, t, 0);
     size_t m = ((size_t)n + stride - 1) / stride;
-    mul_sample_ctx sc = {&c, stride};
-    wrt_parallel_for(m, t, mul_sample_column, &sc);
+    /* only the sampled columns B has entries in are made (an empty one's count is 0):
+     * the series' estimates by blocks of columns sample a block of B, the rest empty */
+    uint32_t *cols = wrt_xmalloc((m + 1) * sizeof *cols), nc = 0;
+    for (size_t i = 0; i < m; i++) {
+        size_t j = i * stride;
+        if (b->col[j + 1] > b->col[j]) cols[nc++] = (uint32_t)j;
+    }
+    mul_sample_ctx sc = {&c, cols};
+    wrt_parallel_for(nc, t, mul_sample_column, &sc);
     /* the sampled columns' counts, scaled by the share of B's entries they hold (a
      * product column's fill follows its B column's), so a few dense columns are not
      * missed or overweighted by the stride */
     uint64_t kept = 0, bs = 0;
-    for (size_t i = 0; i < m; i++) {
-        size_t j = i * stride;
+    for (uint32_t i = 0; i < nc; i++) {
+        size_t j = cols[i];
         kept += c.out[j].count;
         bs += b->col[j + 1] - b->col[j];
     }
+    free(cols);
     mul_ctx_free(&c, t);
     double scale = bs > 0 ? (double)b->nnz / (double)bs : (double)n / (double)m;
     return (uint64_t)((double)kept * scale + 0.5);

@@ -90,6 +90,9 @@ uint64_t wrt_csc_mul_order_bytes(const wrt_csc *a);
  * hold: what the product will allocate, known before it is allocated. */
 uint64_t wrt_csc_mul_estimate(const wrt_csc *a, const wrt_csc *b, double drop, const wrt_csc_weights *w,
                               uint32_t stride, int threads);
+/* Frees the scratch the products keep for the next product of their size (sparse.c
+ * mul_scratch): the series calls it when its products are done. */
+void wrt_csc_mul_scratch_free(void);
 /* C = A + s B, and with a scale per channel. */
 wrt_csc wrt_csc_add(const wrt_csc *a, const wrt_csc *b, double s);
 wrt_csc wrt_csc_add3(const wrt_csc *a, const wrt_csc *b, const double s[3]);
