@@ -540,7 +540,7 @@ static void integrate_leaf(pair_ctx *pc, wrt_node rn, wrt_node sn, const link_sa
         for (int k = 0; k < ns; k++) {
             int q = ls->qr[k];
             /* the sender side's Haar sums of G (and G2), once a sample: the same sums in the
-             * same order as when they were taken for every i (16 times over), the same bits */
+             * same order as when they were taken for each of the 4 i (4 times over), the same bits */
             double hg[4], hg2[4];
             for (int j = 0; j < 4; j++) {
                 double acc = 0;
